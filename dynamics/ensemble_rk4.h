@@ -1,0 +1,193 @@
+// The ensemble kernel: fixed-step RK4 (the paper's method) of up to W grid points side by side in
+// SIMD lanes (structure of arrays, lane = point), with
+//  - one tangent vector per lane for the Benettin LLE, integrated by the same RK4 stages
+//    (variational equation w' = J(x) w) and renormalised every `renorm_every` steps;
+//  - the forcing phase advanced by exact rotation (cos/sin of Ωh/2 per lane), re-anchored with
+//    sin/cos of Ω·nh every kReanchor steps so the phase error stays at rounding level;
+//  - the energy quadratures ∫P, ∫max(P,0), W_m, W_r integrated as extra RK4 components over the
+//    window, which makes the balance ∫P = W_m + W_r + ΔE hold to RK4's truncation error.
+// A lane's arithmetic never depends on other lanes or on W (no reductions across lanes, no FP
+// contraction): the same point gives bit-identical results at any lane width.
+#ifndef BISTABLE_DYNAMICS_ENSEMBLE_RK4_H_
+#define BISTABLE_DYNAMICS_ENSEMBLE_RK4_H_
+
+#include <array>
+#include <cmath>
+
+#include "dynamics/lanes.h"
+#include "dynamics/nondim_models.h"
+#include "dynamics/window_recorder.h"
+
+namespace bistable {
+
+// One lane's inputs.
+struct LaneInput {
+  CellCoeffs<double> coeffs;
+  double alpha = 0, omega = 0;      // α, Ω
+  std::array<double, 4> x0 = {};    // initial (y_m, y_m', y_r, y_r')
+};
+
+struct KernelSettings {
+  double h = 0.01;          // step
+  long n_total = 50000;     // steps in [0, t_end]
+  long n_keep = 25000;      // first window step
+  int renorm_every = 50;
+  int sample_every = 5;
+  bool keep_samples = false;  // y_m samples (spectrum, Rosenstein)
+  bool keep_rows = false;     // full rows (trace)
+};
+
+template <class Model, int W>
+class EnsembleRk4 {
+ public:
+  static constexpr int D = Model::kDim;
+  static constexpr long kReanchor = 1024;
+  using V = Vec<W>;
+
+  // Integrates lanes[0..n) (1 ≤ n ≤ W) and fills out[0..n). Unused lanes repeat lane 0.
+  static void Run(const LaneInput* lanes, int n, const KernelSettings& s, RawLane* out) {
+    double alpha[W], omega[W];
+    CellCoeffs<V> c;
+    V amp, x[D], w[D], rot_c, rot_s;
+    for (int l = 0; l < W; ++l) {
+      const LaneInput& in = lanes[l < n ? l : 0];
+      alpha[l] = in.alpha;
+      omega[l] = in.omega;
+      c.k_lin[l] = in.coeffs.k_lin;
+      c.eps[l] = in.coeffs.eps;
+      c.eta[l] = in.coeffs.eta;
+      c.eta_r[l] = in.coeffs.eta_r;
+      c.phi[l] = in.coeffs.phi;
+      c.lambda2[l] = in.coeffs.lambda2;
+      amp[l] = in.alpha * in.omega * in.omega;
+      rot_c[l] = std::cos(0.5 * in.omega * s.h);
+      rot_s[l] = std::sin(0.5 * in.omega * s.h);
+      for (int d = 0; d < D; ++d) {
+        x[d][l] = in.x0[d];
+        // Fixed, generic initial tangent direction; it aligns with the leading direction in the transient.
+        w[d][l] = 1.0 / std::sqrt(static_cast<double>(D)) * (d % 2 == 0 ? 1.0 : -1.0);
+      }
+    }
+    WindowRecorder<D, W> rec(alpha, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows);
+    V sn, cs;
+    Anchor(omega, 0, s.h, &sn, &cs);
+    V k1[D];
+    Model::Rhs(c, x, amp * sn, k1);
+    V q[4] = {};  // ∫P, ∫max(P,0), W_m, W_r
+    V e_start = Broadcast<W>(0.0);
+    bool diverged[W] = {};
+
+    for (long step = 1; step <= s.n_total; ++step) {
+      if (step == s.n_keep + 1) {
+        e_start = Model::Energy(c, x);
+        rec.OnStep(s.n_keep, x, k1, x, k1, cs);
+      }
+      V xp[D], kp[D];
+      for (int d = 0; d < D; ++d) xp[d] = x[d], kp[d] = k1[d];
+      if (step > s.n_keep) {
+        Step<true>(c, amp, rot_c, rot_s, s.h, x, k1, w, q, &sn, &cs);
+      } else {
+        Step<false>(c, amp, rot_c, rot_s, s.h, x, k1, w, q, &sn, &cs);
+      }
+      if (step % kReanchor == 0) {
+        Anchor(omega, step, s.h, &sn, &cs);
+        Model::Rhs(c, x, amp * sn, k1);  // derivative consistent with the re-anchored phase
+      }
+      if (step > s.n_keep) rec.OnStep(step, xp, kp, x, k1, cs);
+      if (step % s.renorm_every == 0 || step == s.n_keep || step == s.n_total) {
+        V lg;
+        Renormalise(w, &lg, diverged, x);
+        if (step > s.n_keep) rec.AddLogGrowth(lg);
+      }
+    }
+    const V e_end = Model::Energy(c, x);
+    for (int l = 0; l < n; ++l) {
+      RawLane& r = rec.Lane(l);
+      r.q_p = q[0][l];
+      r.q_in = q[1][l];
+      r.q_m = q[2][l];
+      r.q_r = q[3][l];
+      r.e_start = e_start[l];
+      r.e_end = e_end[l];
+      r.diverged = diverged[l] || !std::isfinite(x[0][l]);
+      r.steps = s.n_total;
+      r.rhs_evals = 4 * s.n_total;
+      out[l] = std::move(r);
+    }
+  }
+
+ private:
+  static void Anchor(const double* omega, long step, double h, V* sn, V* cs) {
+    const double t = static_cast<double>(step) * h;
+    for (int l = 0; l < W; ++l) {
+      (*sn)[l] = std::sin(omega[l] * t);
+      (*cs)[l] = std::cos(omega[l] * t);
+    }
+  }
+
+  // Integrand of the window quadratures at a stage.
+  static void Quad(const CellCoeffs<V>& c, const V* x, V f, V* dq) {
+    const V p = Model::Power(c, x, f);
+    dq[0] = p;
+    dq[1] = Max<W>(p, Broadcast<W>(0.0));
+    dq[2] = Model::DissMain(c, x);
+    dq[3] = Model::DissRes(c, x);
+  }
+
+  // One RK4 step of state, tangent and (in the window) quadratures. On entry k1 = F(x, f(t));
+  // on exit x, w advanced, k1 = F(x_new, f(t + h)), (sn, cs) = (sin, cos)(Ω(t + h)).
+  template <bool kWindow>
+  static inline void Step(const CellCoeffs<V>& c, V amp, V rot_c, V rot_s, double h, V* x, V* k1, V* w,
+                          V* q, V* sn, V* cs) {
+    const V s_mid = *sn * rot_c + *cs * rot_s, c_mid = *cs * rot_c - *sn * rot_s;
+    const V s_end = s_mid * rot_c + c_mid * rot_s, c_end = c_mid * rot_c - s_mid * rot_s;
+    const V f0 = amp * *sn, fm = amp * s_mid, f1 = amp * s_end;
+    const double hh = 0.5 * h, h6 = h / 6.0;
+    V xs[D], ws[D], k2[D], k3[D], k4[D], l1[D], l2[D], l3[D], l4[D];
+    V q1[4], q2[4], q3[4], q4[4];
+    Model::Tangent(c, x, w, l1);
+    if constexpr (kWindow) Quad(c, x, f0, q1);
+    for (int d = 0; d < D; ++d) xs[d] = x[d] + hh * k1[d], ws[d] = w[d] + hh * l1[d];
+    Model::Rhs(c, xs, fm, k2);
+    Model::Tangent(c, xs, ws, l2);
+    if constexpr (kWindow) Quad(c, xs, fm, q2);
+    for (int d = 0; d < D; ++d) xs[d] = x[d] + hh * k2[d], ws[d] = w[d] + hh * l2[d];
+    Model::Rhs(c, xs, fm, k3);
+    Model::Tangent(c, xs, ws, l3);
+    if constexpr (kWindow) Quad(c, xs, fm, q3);
+    for (int d = 0; d < D; ++d) xs[d] = x[d] + h * k3[d], ws[d] = w[d] + h * l3[d];
+    Model::Rhs(c, xs, f1, k4);
+    Model::Tangent(c, xs, ws, l4);
+    if constexpr (kWindow) {
+      Quad(c, xs, f1, q4);
+      for (int i = 0; i < 4; ++i) q[i] = q[i] + h6 * (q1[i] + 2.0 * q2[i] + 2.0 * q3[i] + q4[i]);
+    }
+    for (int d = 0; d < D; ++d) {
+      x[d] = x[d] + h6 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d]);
+      w[d] = w[d] + h6 * (l1[d] + 2.0 * l2[d] + 2.0 * l3[d] + l4[d]);
+    }
+    *sn = s_end;
+    *cs = c_end;
+    Model::Rhs(c, x, f1, k1);
+  }
+
+  // w ← w/|w|, lg = log|w|. Lanes that blew up are flagged and reset so they cannot poison timing.
+  static void Renormalise(V* w, V* lg, bool* diverged, V* x) {
+    V n2 = w[0] * w[0];
+    for (int d = 1; d < D; ++d) n2 = n2 + w[d] * w[d];
+    for (int l = 0; l < W; ++l) {
+      const double nrm = std::sqrt(n2[l]);
+      (*lg)[l] = std::log(nrm);
+      const double inv = 1.0 / nrm;
+      for (int d = 0; d < D; ++d) w[d][l] *= inv;
+      if (!std::isfinite(x[0][l]) || std::fabs(x[0][l]) > 1e8 || !std::isfinite(nrm)) {
+        diverged[l] = true;
+        for (int d = 0; d < D; ++d) x[d][l] = 0.0, w[d][l] = (d == 0);
+      }
+    }
+  }
+};
+
+}  // namespace bistable
+
+#endif  // BISTABLE_DYNAMICS_ENSEMBLE_RK4_H_

@@ -1,0 +1,134 @@
+#include "dynamics/point.h"
+
+#include <cmath>
+
+#include "dynamics/dopri5.h"
+#include "dynamics/nondim_system.h"
+
+namespace bistable {
+namespace {
+
+// The adaptive path: Dormand–Prince 5(4) on (x, w, q), sampled at τ = n·dt by dense output and fed
+// to the same WindowRecorder as the kernel. The tangent is renormalised every renorm_every·dt
+// (integration restarts there), the quadratures run only inside the window.
+template <class Model>
+RawLane RunAdaptive(const PointSpec& spec) {
+  constexpr int D = Model::kDim;
+  using Aug = AugmentedNondimSystem<Model>;
+  const LaneInput lane = LaneFor(spec);
+  const KernelSettings ks = KernelSettingsFor(spec);
+  Aug sys(lane.coeffs, lane.alpha, lane.omega);
+  typename Aug::State z = Aug::State::Zero(sys.dim());
+  for (int d = 0; d < D; ++d) z[d] = lane.x0[d], z[D + d] = (d % 2 == 0 ? 1.0 : -1.0) / std::sqrt(double(D));
+
+  AdaptiveOptions opt;
+  opt.rtol = spec.integration.rtol;
+  opt.atol = spec.integration.atol;
+  opt.h_max = ks.h * ks.renorm_every;
+  Dopri5<Aug> stepper(sys, opt);
+  WindowRecorder<D, 1> rec(&lane.alpha, &lane.omega, ks.h, ks.n_keep, ks.sample_every, ks.keep_samples,
+                           ks.keep_rows);
+  const CellCoeffs<Vec<1>> c1{{lane.coeffs.k_lin}, {lane.coeffs.eps}, {lane.coeffs.eta},
+                              {lane.coeffs.eta_r}, {lane.coeffs.phi}, {lane.coeffs.lambda2}};
+  RawLane raw;
+  Vec<1> xp[D], dp[D], x1[D], d1[D];
+  long next_sample = ks.n_keep;
+  typename Aug::State zi(sys.dim());
+  auto sample = [&](long n, const typename Aug::State& zz) {
+    const double t = static_cast<double>(n) * ks.h;
+    for (int d = 0; d < D; ++d) x1[d][0] = zz[d];
+    const Vec<1> f = {lane.alpha * lane.omega * lane.omega * std::sin(lane.omega * t)};
+    Model::Rhs(c1, x1, f, d1);
+    const Vec<1> cs = {std::cos(lane.omega * t)};
+    if (n == ks.n_keep) {
+      rec.OnStep(n, x1, d1, x1, d1, cs);
+      raw.e_start = Model::Energy(c1, x1)[0];
+    } else {
+      rec.OnStep(n, xp, dp, x1, d1, cs);
+    }
+    for (int d = 0; d < D; ++d) xp[d] = x1[d], dp[d] = d1[d];
+  };
+  auto observer = [&](const Dopri5<Aug>& st) {
+    while (next_sample <= ks.n_total && static_cast<double>(next_sample) * ks.h <= st.t() + 1e-12 * st.t()) {
+      st.Interpolate(static_cast<double>(next_sample) * ks.h, zi);
+      sample(next_sample++, zi);
+    }
+  };
+  const auto ignore = [](const Dopri5<Aug>&) {};
+
+  long seg_start = 0;
+  bool diverged = false;
+  while (seg_start < ks.n_total) {
+    long seg_end = std::min(seg_start + ks.renorm_every, ks.n_total);
+    if (seg_start < ks.n_keep && seg_end > ks.n_keep) seg_end = ks.n_keep;
+    const bool in_window = seg_start >= ks.n_keep;
+    sys.set_window(in_window);
+    const double t0 = static_cast<double>(seg_start) * ks.h, t1 = static_cast<double>(seg_end) * ks.h;
+    if (seg_start == ks.n_keep) sample(ks.n_keep, z), next_sample = ks.n_keep + 1;
+    const OdeTermination term =
+        in_window ? stepper.Integrate(t0, z, t1, observer) : stepper.Integrate(t0, z, t1, ignore);
+    if (term != OdeTermination::kOk || !std::isfinite(z[0]) || std::fabs(z[0]) > 1e8) {
+      diverged = true;
+      break;
+    }
+    const double nrm = z.segment(D, D).norm();
+    z.segment(D, D) /= nrm;
+    if (in_window) rec.AddLogGrowth(Vec<1>{std::log(nrm)});
+    seg_start = seg_end;
+  }
+  const double e_start = raw.e_start;
+  raw = std::move(rec.Lane(0));
+  raw.e_start = e_start;
+  for (int d = 0; d < D; ++d) x1[d][0] = z[d];
+  raw.e_end = Model::Energy(c1, x1)[0];
+  raw.q_p = z[2 * D], raw.q_in = z[2 * D + 1], raw.q_m = z[2 * D + 2], raw.q_r = z[2 * D + 3];
+  raw.diverged = diverged;
+  raw.steps = stepper.summary().accepted;
+  raw.rhs_evals = stepper.summary().rhs_evals;
+  return raw;
+}
+
+}  // namespace
+
+LaneInput LaneFor(const PointSpec& spec) {
+  LaneInput in;
+  const bool bistable = IsBistable(spec.model), res = HasResonator(spec.model);
+  in.coeffs.k_lin = bistable ? -1.0 : 1.0;
+  in.coeffs.eps = bistable ? spec.params.eps : 0.0;
+  in.coeffs.eta = spec.params.eta;
+  in.coeffs.eta_r = res ? spec.params.eta_r : 0.0;
+  in.coeffs.phi = res ? spec.params.phi : 0.0;
+  in.coeffs.lambda2 = res ? spec.params.lambda * spec.params.lambda : 0.0;
+  in.alpha = spec.alpha;
+  in.omega = spec.omega;
+  in.x0 = InitialState(spec);
+  return in;
+}
+
+KernelSettings KernelSettingsFor(const PointSpec& spec) {
+  KernelSettings k;
+  k.h = spec.integration.dt;
+  k.n_total = StepsFor(spec.integration.t_end, spec.integration.dt);
+  k.n_keep = StepsFor(spec.integration.t_keep, spec.integration.dt);
+  k.renorm_every = spec.metrics.renorm_every;
+  k.sample_every = spec.metrics.sample_every;
+  k.keep_samples = true;
+  k.keep_rows = spec.metrics.keep_samples;
+  return k;
+}
+
+StatusOr<PointResult> EvaluatePoint(const PointSpec& spec) {
+  BISTABLE_RETURN_IF_ERROR(ValidatePointSpec(spec));
+  RawLane raw;
+  if (spec.integration.integrator == IntegratorKind::kRk4) {
+    const LaneInput lane = LaneFor(spec);
+    RunKernel<1>(spec.model, &lane, 1, KernelSettingsFor(spec), &raw);
+  } else if (HasResonator(spec.model)) {
+    raw = RunAdaptive<CoupledModel>(spec);
+  } else {
+    raw = RunAdaptive<SingleModel>(spec);
+  }
+  return ComputePointMetrics(std::move(raw), spec);
+}
+
+}  // namespace bistable

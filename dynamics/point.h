@@ -1,0 +1,36 @@
+// One (α, Ω) point of a non-dimensional model: integrate, then compute every metric of model.md §3.
+// The RK4 path runs the same ensemble kernel as sweeps (lane width 1 here; any width gives the
+// same bits); the adaptive path runs Dormand–Prince 5(4) and feeds the same window recorder.
+#ifndef BISTABLE_DYNAMICS_POINT_H_
+#define BISTABLE_DYNAMICS_POINT_H_
+
+#include "dynamics/ensemble_rk4.h"
+#include "dynamics/point_spec.h"
+#include "dynamics/window_recorder.h"
+
+namespace bistable {
+
+// Validates, integrates, measures. Errors only for invalid specs; a diverging run is a result
+// (termination != kOk, metrics NaN).
+StatusOr<PointResult> EvaluatePoint(const PointSpec& spec);
+
+// Kernel inputs/settings for a validated spec (sweeps build lanes from these too).
+LaneInput LaneFor(const PointSpec& spec);
+KernelSettings KernelSettingsFor(const PointSpec& spec);
+
+// Runs the RK4 ensemble kernel on n ≤ W lanes of the given model.
+template <int W>
+void RunKernel(ModelKind model, const LaneInput* lanes, int n, const KernelSettings& s, RawLane* out) {
+  if (HasResonator(model)) {
+    EnsembleRk4<CoupledModel, W>::Run(lanes, n, s, out);
+  } else {
+    EnsembleRk4<SingleModel, W>::Run(lanes, n, s, out);
+  }
+}
+
+// Window record → metrics (FRF, LLE, motion, period, spectrum, energy ratios, Rosenstein).
+PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_DYNAMICS_POINT_H_

@@ -1,0 +1,85 @@
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "dynamics/point.h"
+#include "dynamics/rosenstein.h"
+#include "dynamics/spectrum.h"
+
+namespace bistable {
+namespace {
+
+// Smallest n ≤ max_period such that stroboscopic samples repeat after n periods to within tol
+// (in y_m and y_m'), checked over the later half of the samples with at least 4 comparisons.
+int DetectPeriod(const std::vector<double>& y, const std::vector<double>& v, int max_period, double tol) {
+  const int m = static_cast<int>(y.size());
+  for (int n = 1; n <= max_period; ++n) {
+    const int pairs = std::max(4, (m - n) / 2);
+    if (m - n < pairs) break;
+    bool repeats = true;
+    for (int k = m - n - pairs; k < m - n && repeats; ++k)
+      repeats = std::fabs(y[k] - y[k + n]) <= tol && std::fabs(v[k] - v[k + n]) <= tol;
+    if (repeats) return n;
+  }
+  return 0;
+}
+
+}  // namespace
+
+PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec) {
+  PointResult r;
+  r.steps = raw.steps;
+  r.rhs_evals = raw.rhs_evals;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (raw.diverged) {
+    r.termination = Termination::kDiverged;
+    r.frf_db = r.lle = r.lle_rosenstein = r.hd_index = nan;
+    r.edr_b = r.edr_r = r.edr_t = r.energy_balance_residual = nan;
+    return r;
+  }
+  const IntegrationSettings& in = spec.integration;
+  const MetricSettings& ms = spec.metrics;
+  const double window = in.t_end - in.t_keep;
+
+  r.frf_db = 20.0 * std::log10(raw.vabs_max / (spec.alpha * spec.omega));
+  r.lle = raw.log_growth / window;
+  r.y_min = raw.y_min;
+  r.y_max = raw.y_max;
+  r.strobe_samples = static_cast<int>(raw.strobe_y.size());
+  r.period = DetectPeriod(raw.strobe_y, raw.strobe_v, ms.max_period, ms.period_tol);
+  if (r.lle > ms.chaos_threshold) {
+    r.motion = Motion::kChaotic;
+  } else if (!IsBistable(spec.model) || raw.y_min > 0 || raw.y_max < 0) {
+    r.motion = Motion::kIntrawell;  // a linear oscillator has a single well
+  } else {
+    r.motion = Motion::kInterwell;
+  }
+
+  // Spectrum of y_m over the window: harmonic diffusion.
+  const double dts = in.dt * ms.sample_every;
+  const Spectrum sp = AmplitudeSpectrum(raw.y_samples, dts);
+  r.hd_peaks = SpectralPeaks(sp, ms.hd_level, ms.hd_top_k);
+  r.hd_index = HarmonicDiffusionIndex(sp, spec.omega);
+
+  r.lle_rosenstein = nan;
+  if (ms.rosenstein) {
+    const RosensteinResult ro = RosensteinLle(raw.y_samples, dts);
+    if (ro.ok) r.lle_rosenstein = ro.lle;
+  }
+
+  // Energy (model.md §3): gross-input ratios and the exact balance check.
+  r.w_in = raw.q_in;
+  r.w_net = raw.q_p;
+  r.w_m = raw.q_m;
+  r.w_r = raw.q_r;
+  r.delta_e = raw.e_end - raw.e_start;
+  const double denom = std::max(raw.q_in, 1e-300);
+  r.edr_b = 100.0 * raw.q_m / denom;
+  r.edr_r = 100.0 * raw.q_r / denom;
+  r.edr_t = 100.0 * (raw.q_m + raw.q_r) / denom;
+  r.energy_balance_residual = std::fabs(raw.q_p - raw.q_m - raw.q_r - r.delta_e) / denom;
+  if (ms.keep_samples) r.samples = std::move(raw.rows);
+  return r;
+}
+
+}  // namespace bistable

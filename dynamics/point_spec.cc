@@ -1,0 +1,134 @@
+#include "dynamics/point_spec.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace bistable {
+namespace {
+
+std::string Num(double v) {
+  std::ostringstream os;
+  os.precision(10);
+  os << v;
+  return os.str();
+}
+
+// "alpha = -1 violates alpha > 0"; NaN and infinities are reported as such.
+Status Bound(const std::string& field, double v, const std::string& bound) {
+  return Status::InvalidArgument(field, field + " = " + Num(v) + " violates " + field + " " + bound);
+}
+Status Finite(const std::string& field, double v) {
+  if (std::isfinite(v)) return Status::Ok();
+  return Status::InvalidArgument(field, field + " = " + Num(v) + " violates " + field + " finite");
+}
+Status Positive(const std::string& field, double v) {
+  BISTABLE_RETURN_IF_ERROR(Finite(field, v));
+  return v > 0 ? Status::Ok() : Bound(field, v, "> 0");
+}
+Status NonNegative(const std::string& field, double v) {
+  BISTABLE_RETURN_IF_ERROR(Finite(field, v));
+  return v >= 0 ? Status::Ok() : Bound(field, v, ">= 0");
+}
+bool IsWholeSteps(double t, double dt) {
+  const double n = t / dt;
+  return std::fabs(n - std::round(n)) <= 1e-9 * std::max(1.0, n);
+}
+
+}  // namespace
+
+const char* ModelName(ModelKind m) {
+  switch (m) {
+    case ModelKind::kStandalone: return "standalone";
+    case ModelKind::kCoupled: return "coupled";
+    case ModelKind::kLinear: return "linear";
+    case ModelKind::kLinearCoupled: return "linear-coupled";
+  }
+  return "?";
+}
+
+StatusOr<ModelKind> ParseModel(const std::string& name) {
+  for (ModelKind m : {ModelKind::kStandalone, ModelKind::kCoupled, ModelKind::kLinear, ModelKind::kLinearCoupled})
+    if (name == ModelName(m)) return m;
+  return Status::InvalidArgument(
+      "model", "model = '" + name + "' violates model in {standalone, coupled, linear, linear-coupled}");
+}
+
+bool HasResonator(ModelKind m) { return m == ModelKind::kCoupled || m == ModelKind::kLinearCoupled; }
+bool IsBistable(ModelKind m) { return m == ModelKind::kStandalone || m == ModelKind::kCoupled; }
+
+const char* IntegratorName(IntegratorKind k) { return k == IntegratorKind::kRk4 ? "rk4" : "adaptive"; }
+
+StatusOr<IntegratorKind> ParseIntegrator(const std::string& name) {
+  if (name == "rk4") return IntegratorKind::kRk4;
+  if (name == "adaptive" || name == "dopri5") return IntegratorKind::kAdaptive;
+  return Status::InvalidArgument("integrator", "integrator = '" + name + "' violates integrator in {rk4, adaptive}");
+}
+
+const char* MotionName(Motion m) {
+  switch (m) {
+    case Motion::kIntrawell: return "intrawell";
+    case Motion::kInterwell: return "interwell";
+    case Motion::kChaotic: return "chaotic";
+    case Motion::kUndefined: return "undefined";
+  }
+  return "?";
+}
+
+const char* TerminationName(Termination t) {
+  switch (t) {
+    case Termination::kOk: return "ok";
+    case Termination::kDiverged: return "diverged";
+    case Termination::kStepSizeUnderflow: return "step_size_underflow";
+    case Termination::kMaxSteps: return "max_steps";
+  }
+  return "?";
+}
+
+long StepsFor(double t, double dt) { return std::lround(t / dt); }
+
+std::array<double, 4> InitialState(const PointSpec& spec) {
+  if (spec.ic_given) return spec.ic;
+  if (!IsBistable(spec.model)) return {0, 0, 0, 0};
+  const double well = 1.0 / std::sqrt(spec.params.eps);
+  return {well, 0, HasResonator(spec.model) ? well : 0.0, 0};
+}
+
+Status ValidatePointSpec(const PointSpec& s) {
+  BISTABLE_RETURN_IF_ERROR(Positive("alpha", s.alpha));
+  BISTABLE_RETURN_IF_ERROR(Positive("omega", s.omega));
+  if (IsBistable(s.model)) BISTABLE_RETURN_IF_ERROR(Positive("eps", s.params.eps));
+  BISTABLE_RETURN_IF_ERROR(NonNegative("eta", s.params.eta));
+  if (HasResonator(s.model)) {
+    BISTABLE_RETURN_IF_ERROR(NonNegative("eta_r", s.params.eta_r));
+    BISTABLE_RETURN_IF_ERROR(Positive("phi", s.params.phi));
+    BISTABLE_RETURN_IF_ERROR(Positive("lambda", s.params.lambda));
+  }
+  for (int i = 0; i < 4; ++i) BISTABLE_RETURN_IF_ERROR(Finite("ic[" + std::to_string(i) + "]", s.ic[i]));
+
+  const IntegrationSettings& in = s.integration;
+  BISTABLE_RETURN_IF_ERROR(Positive("dt", in.dt));
+  BISTABLE_RETURN_IF_ERROR(Positive("t_end", in.t_end));
+  BISTABLE_RETURN_IF_ERROR(NonNegative("t_keep", in.t_keep));
+  if (!(in.t_keep < in.t_end)) return Bound("t_keep", in.t_keep, "< t_end = " + Num(in.t_end));
+  if (in.dt > (in.t_end - in.t_keep) / 16) return Bound("dt", in.dt, "<= (t_end - t_keep)/16 = " + Num((in.t_end - in.t_keep) / 16));
+  if (!IsWholeSteps(in.t_end, in.dt)) return Bound("t_end", in.t_end, "a whole multiple of dt = " + Num(in.dt));
+  if (!IsWholeSteps(in.t_keep, in.dt)) return Bound("t_keep", in.t_keep, "a whole multiple of dt = " + Num(in.dt));
+  if (in.t_end / in.dt > 1e9) return Bound("t_end", in.t_end, "<= 1e9 dt (step count limit)");
+  if (in.integrator == IntegratorKind::kAdaptive) {
+    BISTABLE_RETURN_IF_ERROR(Positive("rtol", in.rtol));
+    BISTABLE_RETURN_IF_ERROR(Positive("atol", in.atol));
+    if (in.rtol < 1e-14) return Bound("rtol", in.rtol, ">= 1e-14");
+  }
+
+  const MetricSettings& m = s.metrics;
+  if (m.renorm_every < 1) return Bound("renorm_every", m.renorm_every, ">= 1");
+  if (m.sample_every < 1) return Bound("sample_every", m.sample_every, ">= 1");
+  BISTABLE_RETURN_IF_ERROR(Finite("chaos_threshold", m.chaos_threshold));
+  BISTABLE_RETURN_IF_ERROR(Positive("period_tol", m.period_tol));
+  if (m.max_period < 1 || m.max_period > 64) return Bound("max_period", m.max_period, "in [1, 64]");
+  if (!(m.hd_level > 0 && m.hd_level < 1)) return Bound("hd_level", m.hd_level, "in (0, 1)");
+  if (m.hd_top_k < 1 || m.hd_top_k > 100) return Bound("hd_top_k", m.hd_top_k, "in [1, 100]");
+  return Status::Ok();
+}
+
+}  // namespace bistable

@@ -1,0 +1,119 @@
+// Options in, Summary out (after ceres Solver::Options / Summary): PointSpec says what to integrate
+// and measure at one (α, Ω) point of a non-dimensional model; PointResult carries every metric of
+// model.md §3. All quantities are non-dimensional (time τ = ωn t, lengths in units of δs).
+#ifndef BISTABLE_DYNAMICS_POINT_SPEC_H_
+#define BISTABLE_DYNAMICS_POINT_SPEC_H_
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "dynamics/status.h"
+
+namespace bistable {
+
+// Bumped whenever a change can alter any stored number; part of every result's provenance and content key.
+inline constexpr const char* kNumericsVersion = "1.0.0";
+
+enum class ModelKind {
+  kStandalone,     // bistable beam alone (paper Eq. 2)
+  kCoupled,        // bistable beam + linear resonator (paper Eq. 3)
+  kLinear,         // linear oscillator alone (k_lin = +1, ε = 0)
+  kLinearCoupled,  // linear oscillator + resonator
+};
+const char* ModelName(ModelKind m);
+StatusOr<ModelKind> ParseModel(const std::string& name);
+bool HasResonator(ModelKind m);
+bool IsBistable(ModelKind m);
+
+enum class IntegratorKind { kRk4, kAdaptive };
+const char* IntegratorName(IntegratorKind k);
+StatusOr<IntegratorKind> ParseIntegrator(const std::string& name);
+
+struct NondimParams {
+  double eps = 1.0;      // ε, cubic stiffness (bistable only), > 0
+  double eta = 0.1;      // η = c/(m_m ωn), main damping, ≥ 0
+  double eta_r = 0.075;  // η_r = c_r/(m_r ωn), resonator damping, ≥ 0
+  double phi = 2.0;      // φ = m_r/m_m, mass ratio, > 0
+  double lambda = 0.8;   // λ = ω_r/ωn, resonator tuning, > 0
+};
+
+struct IntegrationSettings {
+  IntegratorKind integrator = IntegratorKind::kRk4;
+  double t_end = 500.0;   // τ at the end of the run; the run starts at τ = 0
+  double t_keep = 250.0;  // steady-state window is [t_keep, t_end]
+  double dt = 0.01;       // RK4 step; for the adaptive pair, the output sampling step
+  double rtol = 1e-9;     // adaptive pair only: relative tolerance
+  double atol = 1e-11;    // adaptive pair only: absolute tolerance
+};
+
+struct MetricSettings {
+  int renorm_every = 50;           // Benettin: renormalise the tangent every this many steps
+  double chaos_threshold = 0.01;   // LLE (per unit τ) above which motion is called chaotic
+  int sample_every = 5;            // window samples for spectrum / Rosenstein / trace: every k-th step
+  double period_tol = 1e-3;        // stroboscopic samples closer than this (in y and y') repeat
+  int max_period = 16;             // largest period n looked for
+  double hd_level = 0.01;          // spectral peaks kept if amplitude ≥ hd_level × largest peak
+  int hd_top_k = 10;               // at most this many peaks reported
+  bool rosenstein = true;          // also estimate the LLE from sampled y_m (Rosenstein 1993)
+  bool keep_samples = false;       // return the sampled window (for --trace)
+};
+
+struct PointSpec {
+  ModelKind model = ModelKind::kCoupled;
+  NondimParams params;
+  double alpha = 1.0;  // α = A0/δs, base amplitude, > 0
+  double omega = 1.0;  // Ω = ω0/ωn, base frequency, > 0
+  // Initial state (y_m, y_m', y_r, y_r') relative to the table. Unset: at rest in the positive well
+  // y_m = y_r = 1/√ε for bistable models, the origin for linear ones (model.md §1).
+  bool ic_given = false;
+  std::array<double, 4> ic = {0, 0, 0, 0};
+  IntegrationSettings integration;
+  MetricSettings metrics;
+};
+
+// Checks every field; the message names the field and the bound ("alpha = -1 violates alpha > 0").
+Status ValidatePointSpec(const PointSpec& spec);
+// The initial state actually used (default well start when !ic_given).
+std::array<double, 4> InitialState(const PointSpec& spec);
+// Number of steps of size dt in [0, t] (t is validated to be a whole number of steps).
+long StepsFor(double t, double dt);
+
+enum class Motion { kIntrawell, kInterwell, kChaotic, kUndefined };
+const char* MotionName(Motion m);
+
+// How an integration ended. Anything but kOk leaves metrics NaN; it is a result, not an error.
+enum class Termination { kOk, kDiverged, kStepSizeUnderflow, kMaxSteps };
+const char* TerminationName(Termination t);
+
+struct HdPeak {
+  double freq;  // angular frequency, rad per unit τ (comparable with Ω)
+  double amp;   // amplitude of y_m at that frequency (units of δs)
+};
+
+struct PointResult {
+  Termination termination = Termination::kOk;
+  double frf_db = 0;              // 20 log10(max|x̂_m'| / (αΩ)), absolute velocity, over the window
+  double lle = 0;                 // Benettin, per unit τ, over the window
+  double lle_rosenstein = 0;      // Rosenstein on sampled y_m; NaN when not computed
+  Motion motion = Motion::kUndefined;
+  int period = 0;                 // stroboscopic period n (1, 2, ...), 0 when none found
+  int strobe_samples = 0;         // number of stroboscopic samples in the window
+  double hd_index = 0;            // fraction of spectral power away from integer multiples of Ω
+  std::vector<HdPeak> hd_peaks;   // strongest first
+  double y_min = 0, y_max = 0;    // extremes of y_m over the window
+  double w_in = 0;                // ∫ max(P, 0) dτ over the window (gross injected energy)
+  double w_net = 0;               // ∫ P dτ over the window
+  double w_m = 0, w_r = 0;        // dissipated in main damper / resonator damper over the window
+  double delta_e = 0;             // E(t_end) − E(t_keep)
+  double edr_b = 0, edr_r = 0, edr_t = 0;  // 100 W_m/W_in, 100 W_r/W_in, 100 (W_m+W_r)/W_in  [%]
+  double energy_balance_residual = 0;      // |∫P − W_m − W_r − ΔE| / max(W_in, tiny)
+  long steps = 0;                 // integrator steps taken (accepted)
+  long rhs_evals = 0;             // right-hand-side evaluations (adaptive path)
+  // Sampled window rows (τ, y_m, y_m', y_r, y_r') every sample_every steps, when keep_samples.
+  std::vector<std::array<double, 5>> samples;
+};
+
+}  // namespace bistable
+
+#endif  // BISTABLE_DYNAMICS_POINT_SPEC_H_

@@ -1,0 +1,80 @@
+#include "dynamics/spectrum.h"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <numeric>
+
+#include <unsupported/Eigen/FFT>
+
+namespace bistable {
+
+Spectrum AmplitudeSpectrum(const std::vector<double>& x, double dt) {
+  Spectrum s;
+  const size_t n = x.size();
+  if (n < 4) return s;
+  const double mean = std::accumulate(x.begin(), x.end(), 0.0) / static_cast<double>(n);
+  std::vector<double> xw(n);
+  double wsum = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const double w = 0.5 - 0.5 * std::cos(2.0 * M_PI * static_cast<double>(i) / static_cast<double>(n));
+    xw[i] = (x[i] - mean) * w;
+    wsum += w;
+  }
+  Eigen::FFT<double> fft;
+  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
+  std::vector<std::complex<double>> X;
+  fft.fwd(X, xw);
+  s.d_omega = 2.0 * M_PI / (static_cast<double>(n) * dt);
+  s.amp.resize(X.size());
+  for (size_t k = 0; k < X.size(); ++k) s.amp[k] = 2.0 * std::abs(X[k]) / wsum;
+  return s;
+}
+
+double MeanFrequency(const std::vector<double>& x, double dt) {
+  const Spectrum s = AmplitudeSpectrum(x, dt);
+  double p = 0, fp = 0;
+  for (size_t k = 1; k < s.amp.size(); ++k) {
+    const double pk = s.amp[k] * s.amp[k];
+    p += pk;
+    fp += pk * static_cast<double>(k) * s.d_omega / (2.0 * M_PI);
+  }
+  return p > 0 ? fp / p : 0.0;
+}
+
+std::vector<HdPeak> SpectralPeaks(const Spectrum& s, double level, int top_k) {
+  std::vector<HdPeak> peaks;
+  const size_t n = s.amp.size();
+  if (n < 3) return peaks;
+  const double top = *std::max_element(s.amp.begin() + 1, s.amp.end());
+  if (!(top > 0)) return peaks;
+  for (size_t k = 1; k + 1 < n; ++k) {
+    const double a = s.amp[k];
+    if (a < level * top || a < s.amp[k - 1] || a <= s.amp[k + 1]) continue;
+    double delta = 0;
+    if (s.amp[k - 1] > 0 && s.amp[k + 1] > 0) {
+      const double l0 = std::log(s.amp[k - 1]), l1 = std::log(a), l2 = std::log(s.amp[k + 1]);
+      const double den = l0 - 2 * l1 + l2;
+      if (den < 0) delta = std::clamp(0.5 * (l0 - l2) / den, -0.5, 0.5);
+    }
+    peaks.push_back({(static_cast<double>(k) + delta) * s.d_omega, a});
+  }
+  std::sort(peaks.begin(), peaks.end(), [](const HdPeak& a, const HdPeak& b) { return a.amp > b.amp; });
+  if (static_cast<int>(peaks.size()) > top_k) peaks.resize(top_k);
+  return peaks;
+}
+
+double HarmonicDiffusionIndex(const Spectrum& s, double omega, double tol_bins) {
+  double total = 0, off = 0;
+  const double tol = tol_bins * s.d_omega;
+  for (size_t k = 1; k < s.amp.size(); ++k) {
+    const double w = static_cast<double>(k) * s.d_omega;
+    const double p = s.amp[k] * s.amp[k];
+    const double nearest = std::round(w / omega) * omega;
+    total += p;
+    if (std::fabs(w - nearest) > tol) off += p;
+  }
+  return total > 0 ? off / total : 0.0;
+}
+
+}  // namespace bistable

@@ -1,0 +1,34 @@
+// One-sided amplitude spectra of sampled signals (Hann window, mean removed) and the harmonic
+// diffusion measures of model.md §3 (paper Fig. 6). FFT by Eigen's FFT module (kissfft backend, double).
+#ifndef BISTABLE_DYNAMICS_SPECTRUM_H_
+#define BISTABLE_DYNAMICS_SPECTRUM_H_
+
+#include <vector>
+
+#include "dynamics/point_spec.h"
+
+namespace bistable {
+
+struct Spectrum {
+  double d_omega = 0;       // bin spacing, rad per unit time: 2π/(N dt)
+  std::vector<double> amp;  // amp[k] at ω_k = k·d_omega; a pure sinusoid of amplitude A peaks at ≈ A
+};
+
+// Mean removed, Hann-windowed, amplitude-normalised (2|X_k| / Σw).
+Spectrum AmplitudeSpectrum(const std::vector<double>& x, double dt);
+
+// Power-weighted mean frequency in cycles per unit time (Rosenstein's mean period is its inverse).
+double MeanFrequency(const std::vector<double>& x, double dt);
+
+// Local maxima with amplitude ≥ level × the largest, strongest first, at most top_k; peak
+// frequency refined by a parabola through the log-amplitudes of the three bins around it.
+std::vector<HdPeak> SpectralPeaks(const Spectrum& s, double level, int top_k);
+
+// Fraction of spectral power (Σ amp², bins k ≥ 1) farther than `tol_bins` bins from every integer
+// multiple nΩ (n ≥ 0). 0 for a period-1 response; grows with sub-harmonics, quasi-periodicity and chaos.
+// tol_bins = 3 covers the Hann main lobe (±2 bins) with one bin to spare.
+double HarmonicDiffusionIndex(const Spectrum& s, double omega, double tol_bins = 3.0);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_DYNAMICS_SPECTRUM_H_

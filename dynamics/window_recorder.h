@@ -1,0 +1,136 @@
+// Collects, per lane, what the metrics of model.md §3 need from the steady-state window, one
+// integration step at a time: max |absolute velocity| (FRF), extremes of y_m (motion type),
+// stroboscopic samples at τ_k = 2πk/Ω by cubic Hermite interpolation inside the step (period n),
+// decimated samples (spectrum, Rosenstein, trace) and the Benettin log-growth sum.
+// Both the SIMD RK4 kernel (W lanes) and the adaptive path (W = 1) feed it, so the metrics are
+// computed by one piece of code. Not thread-safe; one recorder per integration.
+#ifndef BISTABLE_DYNAMICS_WINDOW_RECORDER_H_
+#define BISTABLE_DYNAMICS_WINDOW_RECORDER_H_
+
+#include <array>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "dynamics/lanes.h"
+
+namespace bistable {
+
+// Raw window record of one lane; turned into metrics by ComputePointMetrics.
+struct RawLane {
+  double vabs_max = 0;                 // max |y_m' + αΩ cos Ωτ| over window steps
+  double y_min = 0, y_max = 0;
+  double log_growth = 0;               // Σ log(|w| before renormalisation) over the window
+  std::vector<double> strobe_y, strobe_v;  // y_m, y_m' at τ_k = 2πk/Ω in the window
+  std::vector<double> y_samples;       // y_m every sample_every steps
+  std::vector<std::array<double, 5>> rows;  // (τ, y_m, y_m', y_r, y_r') when keep_rows
+  double q_p = 0, q_in = 0, q_m = 0, q_r = 0;  // ∫P, ∫max(P,0), W_m, W_r over the window
+  double e_start = 0, e_end = 0;       // E at t_keep and t_end
+  bool diverged = false;
+  long steps = 0;
+  long rhs_evals = 0;
+};
+
+template <int D, int W>
+class WindowRecorder {
+ public:
+  using V = Vec<W>;
+
+  // alpha/omega: per lane. h: step. n_keep: index of the first window step. sample_every: decimation.
+  WindowRecorder(const double* alpha, const double* omega, double h, long n_keep, int sample_every,
+                 bool keep_samples, bool keep_rows)
+      : h_(h), n_keep_(n_keep), sample_every_(sample_every), keep_samples_(keep_samples), keep_rows_(keep_rows) {
+    for (int l = 0; l < W; ++l) {
+      alpha_omega_[l] = alpha[l] * omega[l];
+      strobe_period_[l] = 2.0 * M_PI / omega[l];
+      // First strobe index k with τ_k ≥ t_keep.
+      next_k_[l] = static_cast<long>(std::ceil((static_cast<double>(n_keep) * h) / strobe_period_[l]));
+      lanes_[l].y_min = std::numeric_limits<double>::infinity();
+      lanes_[l].y_max = -std::numeric_limits<double>::infinity();
+    }
+    vabs_max_ = Broadcast<W>(0.0);
+    y_min_ = Broadcast<W>(std::numeric_limits<double>::infinity());
+    y_max_ = Broadcast<W>(-std::numeric_limits<double>::infinity());
+  }
+
+  // Step n (window steps n > n_keep) goes from τ = (n−1)h to τ = nh; x/d are state and derivative
+  // at both ends; cos_end = cos(Ω nh) per lane. The first call (n == n_keep) passes the window's
+  // start point as both ends.
+  void OnStep(long n, const V* x0, const V* d0, const V* x1, const V* d1, V cos_end) {
+    const V vabs = Abs<W>(x1[1] + Load(alpha_omega_) * cos_end);
+    vabs_max_ = Max<W>(vabs_max_, vabs);
+    y_min_ = Min<W>(y_min_, x1[0]);
+    y_max_ = Max<W>(y_max_, x1[0]);
+    const double t1 = static_cast<double>(n) * h_;
+    if (n > n_keep_) {
+      const double t0 = static_cast<double>(n - 1) * h_;
+      for (int l = 0; l < W; ++l) {
+        double ts = static_cast<double>(next_k_[l]) * strobe_period_[l];
+        while (ts <= t1) {
+          if (ts >= t0) Strobe(l, (ts - t0) / h_, x0, d0, x1, d1);
+          ++next_k_[l];
+          ts = static_cast<double>(next_k_[l]) * strobe_period_[l];
+        }
+      }
+    } else {
+      for (int l = 0; l < W; ++l) {
+        if (static_cast<double>(next_k_[l]) * strobe_period_[l] == t1) {
+          Strobe(l, 0.0, x1, d1, x1, d1);
+          ++next_k_[l];
+        }
+      }
+    }
+    if ((n - n_keep_) % sample_every_ == 0 && (keep_samples_ || keep_rows_)) {
+      for (int l = 0; l < W; ++l) {
+        if (keep_samples_) lanes_[l].y_samples.push_back(x1[0][l]);
+        if (keep_rows_) {
+          double yr = 0, vr = 0;
+          if constexpr (D > 2) yr = x1[2][l], vr = x1[3][l];
+          lanes_[l].rows.push_back({t1, x1[0][l], x1[1][l], yr, vr});
+        }
+      }
+    }
+  }
+
+  void AddLogGrowth(V lg) { log_growth_ += lg; }
+
+  // Moves per-lane results out; quadratures and energies are set by the integrator.
+  RawLane& Lane(int l) {
+    lanes_[l].vabs_max = vabs_max_[l];
+    lanes_[l].y_min = y_min_[l];
+    lanes_[l].y_max = y_max_[l];
+    lanes_[l].log_growth = log_growth_[l];
+    return lanes_[l];
+  }
+
+ private:
+  static V Load(const double* a) {
+    V v;
+    for (int l = 0; l < W; ++l) v[l] = a[l];
+    return v;
+  }
+  // Cubic Hermite on [x0, x1] at θ ∈ [0, 1] for y_m (derivative y_m') and y_m' (derivative y_m'').
+  void Strobe(int l, double th, const V* x0, const V* d0, const V* x1, const V* d1) {
+    const double t2 = th * th, t3 = t2 * th;
+    const double h00 = 2 * t3 - 3 * t2 + 1, h10 = t3 - 2 * t2 + th, h01 = -2 * t3 + 3 * t2, h11 = t3 - t2;
+    const double y = h00 * x0[0][l] + h10 * h_ * d0[0][l] + h01 * x1[0][l] + h11 * h_ * d1[0][l];
+    const double v = h00 * x0[1][l] + h10 * h_ * d0[1][l] + h01 * x1[1][l] + h11 * h_ * d1[1][l];
+    lanes_[l].strobe_y.push_back(y);
+    lanes_[l].strobe_v.push_back(v);
+  }
+
+  double h_;
+  long n_keep_;
+  int sample_every_;
+  bool keep_samples_, keep_rows_;
+  double alpha_omega_[W];
+  double strobe_period_[W];
+  long next_k_[W];
+  V vabs_max_, y_min_, y_max_;
+  V log_growth_ = Broadcast<W>(0.0);
+  std::array<RawLane, W> lanes_;
+};
+
+}  // namespace bistable
+
+#endif  // BISTABLE_DYNAMICS_WINDOW_RECORDER_H_

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Installs every Debian package bistable-sweep needs. Idempotent; run as root on a fresh Debian bookworm machine.
+# Nothing is downloaded from anywhere but Debian's package registry.
+set -euo pipefail
+
+PACKAGES=(
+  # toolchain
+  build-essential cmake ninja-build ccache pkg-config git
+  # numerics and utilities (dynamics/, engine/, identify/)
+  libeigen3-dev libnanoflann-dev nlohmann-json3-dev libcli11-dev libtomlplusplus-dev libspdlog-dev
+  libceres-dev libnlopt-cxx-dev
+  # service and storage (proto/, server/, worker/, storage/)
+  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
+  libsqlite3-dev libhdf5-dev libboost-dev
+  # plots
+  gnuplot-nox
+  # tests and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev python3-h5py python3-numpy iproute2
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if [ "${#missing[@]}" -eq 0 ]; then
+  echo "setup: all ${#PACKAGES[@]} packages already installed"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "setup: installing ${#missing[@]} packages: ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -q
+$SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+echo "setup: done"
