@@ -24,14 +24,26 @@ PointSpec CoupledSpec(double t_end) {
   return s;
 }
 
+// W lanes of the coupled model at Ω = 0.5, 0.6, ... (a mix of periodic and chaotic points), kernel
+// only: no samples kept, no metric finalisation.
+struct LaneBlock {
+  PointSpec spec = CoupledSpec(100);
+  KernelSettings ks;
+  std::vector<LaneInput> lanes;
+  std::vector<RawLane> out;
+  explicit LaneBlock(int w) : ks(KernelSettingsFor(spec)), lanes(w, LaneFor(spec)), out(w) {
+    ks.keep_samples = false;
+    for (int l = 0; l < w; ++l) lanes[l].omega = 0.5 + 0.1 * l;
+  }
+};
+
 template <int W>
 double LaneStepsPerSecond(int reps) {
-  PointSpec s = CoupledSpec(100);
-  KernelSettings ks = KernelSettingsFor(s);
-  ks.keep_samples = false;
-  std::vector<LaneInput> lanes(W, LaneFor(s));
-  for (int l = 0; l < W; ++l) lanes[l].omega = 0.5 + 0.1 * l;
-  std::vector<RawLane> out(W);
+  LaneBlock b(W);
+  const PointSpec& s = b.spec;
+  const KernelSettings& ks = b.ks;
+  std::vector<LaneInput>& lanes = b.lanes;
+  std::vector<RawLane>& out = b.out;
   const auto t0 = std::chrono::steady_clock::now();
   for (int r = 0; r < reps; ++r) RunKernel<W>(s.model, lanes.data(), W, ks, out.data());
   const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -41,18 +53,13 @@ double LaneStepsPerSecond(int reps) {
 // Kernel only (no metric finalisation): lane-steps per second.
 template <int W>
 void BM_KernelCoupledTangent(benchmark::State& state) {
-  PointSpec s = CoupledSpec(100);
-  KernelSettings ks = KernelSettingsFor(s);
-  ks.keep_samples = false;
-  std::vector<LaneInput> lanes(W, LaneFor(s));
-  for (int l = 0; l < W; ++l) lanes[l].omega = 0.5 + 0.1 * l;
-  std::vector<RawLane> out(W);
+  LaneBlock b(W);
   for (auto _ : state) {
-    RunKernel<W>(s.model, lanes.data(), W, ks, out.data());
-    benchmark::DoNotOptimize(out.data());
+    RunKernel<W>(b.spec.model, b.lanes.data(), W, b.ks, b.out.data());
+    benchmark::DoNotOptimize(b.out.data());
   }
   state.counters["rk4_steps_per_s"] =
-      benchmark::Counter(static_cast<double>(state.iterations()) * W * ks.n_total, benchmark::Counter::kIsRate);
+      benchmark::Counter(static_cast<double>(state.iterations()) * W * b.ks.n_total, benchmark::Counter::kIsRate);
 }
 BENCHMARK_TEMPLATE(BM_KernelCoupledTangent, 1)->Unit(benchmark::kMillisecond);
 BENCHMARK_TEMPLATE(BM_KernelCoupledTangent, 4)->Unit(benchmark::kMillisecond);

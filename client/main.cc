@@ -12,6 +12,18 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int exit_code = 0;
   bistable::AddPointCommand(app, &exit_code);
+  const auto subs = app.get_subcommands([](CLI::App*) { return true; });
+  auto is_known = [&](const std::string& name) {
+    for (const CLI::App* sub : subs)
+      if (sub->get_name() == name) return true;
+    return false;
+  };
+  if (argc > 1 && argv[1][0] != '-' && !is_known(argv[1])) {
+    std::string known;
+    for (const CLI::App* sub : subs) known += (known.empty() ? "" : ", ") + sub->get_name();
+    std::cerr << "error: invalid argument (command: '" << argv[1] << "' is not one of {" << known << "})\n";
+    return 2;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -2,6 +2,8 @@
 
 #include <string>
 
+#include "dynamics/validate.h"
+
 namespace bistable {
 
 BaseMotion SineBase(double a0_m, double f0_hz) {
@@ -36,35 +38,29 @@ DimensionalParams DimensionalParams::LinearTable2() {
   return p;
 }
 
+namespace {
+
+// Mass, damping and friction of one body; fields are named with the body's suffix ("_m" main, "_r" resonator).
+Status CheckBody(const std::string& sfx, double mass, double c0, double c2, const Stribeck& f) {
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("m" + sfx, mass));
+  BISTABLE_RETURN_IF_ERROR(CheckNonNegative("c0" + sfx, c0));
+  BISTABLE_RETURN_IF_ERROR(CheckNonNegative("c2" + sfx, c2));
+  BISTABLE_RETURN_IF_ERROR(CheckNonNegative("fs" + sfx, f.f_s));
+  BISTABLE_RETURN_IF_ERROR(CheckNonNegative("fc" + sfx, f.f_c));
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("v_sp" + sfx, f.v_sp));
+  return CheckPositive("v_t" + sfx, f.v_t);
+}
+
+}  // namespace
+
 Status ValidateDimensionalParams(const DimensionalParams& p) {
-  auto pos = [](const char* f, double v) {
-    return std::isfinite(v) && v > 0 ? Status::Ok()
-                                     : Status::InvalidArgument(f, std::string(f) + " = " + std::to_string(v) + " violates " + f + " > 0");
-  };
-  auto nonneg = [](const char* f, double v) {
-    return std::isfinite(v) && v >= 0 ? Status::Ok()
-                                      : Status::InvalidArgument(f, std::string(f) + " = " + std::to_string(v) + " violates " + f + " >= 0");
-  };
-  BISTABLE_RETURN_IF_ERROR(pos("m_m", p.m_m));
-  if (!std::isfinite(p.k_lin)) return Status::InvalidArgument("k_lin", "k_lin violates finite");
-  BISTABLE_RETURN_IF_ERROR(nonneg("k3", p.k3));
-  BISTABLE_RETURN_IF_ERROR(nonneg("c0_m", p.c0_m));
-  BISTABLE_RETURN_IF_ERROR(nonneg("c2_m", p.c2_m));
-  BISTABLE_RETURN_IF_ERROR(nonneg("fs_m", p.fric_m.f_s));
-  BISTABLE_RETURN_IF_ERROR(nonneg("fc_m", p.fric_m.f_c));
-  BISTABLE_RETURN_IF_ERROR(pos("v_sp", p.fric_m.v_sp));
-  BISTABLE_RETURN_IF_ERROR(pos("v_t", p.fric_m.v_t));
-  if (p.k_lin < 0 && p.k3 <= 0)
-    return Status::InvalidArgument("k3", "k3 = " + std::to_string(p.k3) + " violates k3 > 0 when k_lin < 0 (bistable beam)");
+  BISTABLE_RETURN_IF_ERROR(CheckBody("_m", p.m_m, p.c0_m, p.c2_m, p.fric_m));
+  BISTABLE_RETURN_IF_ERROR(CheckFinite("k_lin", p.k_lin));
+  BISTABLE_RETURN_IF_ERROR(CheckNonNegative("k3", p.k3));
+  if (p.k_lin < 0 && p.k3 <= 0) return Violates("k3", p.k3, "> 0 when k_lin < 0 (bistable beam)");
   if (p.has_resonator) {
-    BISTABLE_RETURN_IF_ERROR(pos("m_r", p.m_r));
-    BISTABLE_RETURN_IF_ERROR(pos("k_r", p.k_r));
-    BISTABLE_RETURN_IF_ERROR(nonneg("c0_r", p.c0_r));
-    BISTABLE_RETURN_IF_ERROR(nonneg("c2_r", p.c2_r));
-    BISTABLE_RETURN_IF_ERROR(nonneg("fs_r", p.fric_r.f_s));
-    BISTABLE_RETURN_IF_ERROR(nonneg("fc_r", p.fric_r.f_c));
-    BISTABLE_RETURN_IF_ERROR(pos("v_sp_r", p.fric_r.v_sp));
-    BISTABLE_RETURN_IF_ERROR(pos("v_t_r", p.fric_r.v_t));
+    BISTABLE_RETURN_IF_ERROR(CheckBody("_r", p.m_r, p.c0_r, p.c2_r, p.fric_r));
+    BISTABLE_RETURN_IF_ERROR(CheckPositive("k_r", p.k_r));
   }
   return Status::Ok();
 }

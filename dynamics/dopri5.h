@@ -15,7 +15,7 @@ class Dopri5 {
  public:
   using State = typename System::State;
 
-  Dopri5(const System& sys, AdaptiveOptions opt) : sys_(sys), opt_(opt) {
+  Dopri5(const System& sys, AdaptiveOptions opt) : sys_(sys), ctl_(opt) {
     const int n = sys.dim();
     for (State* s : {&k1_, &k2_, &k3_, &k4_, &k5_, &k6_, &k7_, &y1_, &tmp_, &r1_, &r2_, &r3_, &r4_, &r5_})
       s->resize(n);
@@ -25,20 +25,18 @@ class Dopri5 {
   // t_old(), t() and Interpolate(t, out) for t in [t_old, t]. Returns how it ended.
   template <class Observer>
   OdeTermination Integrate(double t0, State& x, double t1, Observer&& observer) {
+    OdeSummary& sum = ctl_.summary();
     double t = t0;
     sys_(t, x, k1_);
-    ++summary_.rhs_evals;
-    double h = h_next_ > 0 ? h_next_ : (opt_.h0 > 0 ? opt_.h0 : InitialStep(t, x));
+    ++sum.rhs_evals;
+    double h = h_next_ > 0 ? h_next_ : (ctl_.options().h0 > 0 ? ctl_.options().h0 : InitialStep(t, x));
     while (t < t1) {
-      if (summary_.accepted + summary_.rejected >= opt_.max_steps) return End(OdeTermination::kMaxSteps, t);
-      if (opt_.h_max > 0) h = std::min(h, opt_.h_max);
       bool last = false;
-      if (t + h >= t1 || t + 1.01 * h >= t1) h = t1 - t, last = true;
-      if (h < opt_.h_min * (std::fabs(t) + 1.0)) return End(OdeTermination::kStepSizeUnderflow, t);
+      if (const OdeTermination term = ctl_.NextStep(t, t1, h, last); term != OdeTermination::kOk) return term;
       const double err = TrialStep(t, x, h);
       if (!std::isfinite(err)) {
         h *= 0.2;
-        ++summary_.rejected;
+        ++sum.rejected;
         continue;
       }
       if (err <= 1.0) {
@@ -48,17 +46,16 @@ class Dopri5 {
         t_ = t;
         x = y1_;
         k1_ = k7_;  // FSAL
-        ++summary_.accepted;
+        ++sum.accepted;
         observer(*this);
-        const double fac = std::min(10.0, std::max(0.2, 0.9 * std::pow(std::max(err, 1e-10), -0.2)));
-        h_next_ = h * fac;
+        h_next_ = h * AdaptiveControl::Factor(err, 5.0, 0.9, 10.0);
         if (!last) h = h_next_;
       } else {
-        ++summary_.rejected;
-        h *= std::max(0.2, 0.9 * std::pow(err, -0.2));
+        ++sum.rejected;
+        h *= AdaptiveControl::Factor(err, 5.0, 0.9, 1.0);
       }
     }
-    return End(OdeTermination::kOk, t);
+    return ctl_.End(OdeTermination::kOk, t);
   }
   OdeTermination Integrate(double t0, State& x, double t1) {
     return Integrate(t0, x, t1, [](const Dopri5&) {});
@@ -71,19 +68,13 @@ class Dopri5 {
     const double s = (t - t_old_) / h_dense_, s1 = 1.0 - s;
     out = r1_ + s * (r2_ + s1 * (r3_ + s * (r4_ + s1 * r5_)));
   }
-  const OdeSummary& summary() const { return summary_; }
+  const OdeSummary& summary() const { return ctl_.summary(); }
 
  private:
-  OdeTermination End(OdeTermination term, double t) {
-    summary_.termination = term;
-    summary_.t_reached = t;
-    return term;
-  }
-
   double Norm(const State& e, const State& a, const State& b) const {
     double sum = 0;
     for (int i = 0; i < e.size(); ++i) {
-      const double sk = opt_.atol + opt_.rtol * std::max(std::fabs(a[i]), std::fabs(b[i]));
+      const double sk = ctl_.options().atol + ctl_.options().rtol * std::max(std::fabs(a[i]), std::fabs(b[i]));
       sum += (e[i] / sk) * (e[i] / sk);
     }
     return std::sqrt(sum / static_cast<double>(e.size()));
@@ -94,7 +85,7 @@ class Dopri5 {
     double h0 = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
     tmp_ = x + h0 * k1_;
     sys_(t + h0, tmp_, k2_);
-    ++summary_.rhs_evals;
+    ++ctl_.summary().rhs_evals;
     const double d2 = Norm(State(k2_ - k1_), x, x) / h0;
     const double dm = std::max(d1, d2);
     const double h1 = dm <= 1e-15 ? std::max(1e-6, h0 * 1e-3) : std::pow(0.01 / dm, 0.2);
@@ -123,7 +114,7 @@ class Dopri5 {
     sys_(t + h, tmp_, k6_);
     y1_ = x + h * (a71 * k1_ + a73 * k3_ + a74 * k4_ + a75 * k5_ + a76 * k6_);
     sys_(t + h, y1_, k7_);
-    summary_.rhs_evals += 6;
+    ctl_.summary().rhs_evals += 6;
     tmp_ = h * (e1 * k1_ + e3 * k3_ + e4 * k4_ + e5 * k5_ + e6 * k6_ + e7 * k7_);
     return Norm(tmp_, x, y1_);
   }
@@ -141,8 +132,7 @@ class Dopri5 {
   }
 
   const System& sys_;
-  AdaptiveOptions opt_;
-  OdeSummary summary_;
+  AdaptiveControl ctl_;
   State k1_, k2_, k3_, k4_, k5_, k6_, k7_, y1_, tmp_, r1_, r2_, r3_, r4_, r5_;
   double t_old_ = 0, t_ = 0, h_dense_ = 1, h_next_ = 0;
 };

@@ -10,6 +10,9 @@
 #ifndef BISTABLE_DYNAMICS_ODE_H_
 #define BISTABLE_DYNAMICS_ODE_H_
 
+#include <algorithm>
+#include <cmath>
+
 #include <Eigen/Dense>
 
 namespace bistable {
@@ -32,6 +35,42 @@ struct OdeSummary {
   long accepted = 0, rejected = 0;
   long rhs_evals = 0, jac_evals = 0, lu_decompositions = 0;
   double t_reached = 0;
+};
+
+// Step-size bookkeeping shared by the adaptive steppers: limits, landing on the end time, the
+// controller's factor and the summary.
+class AdaptiveControl {
+ public:
+  explicit AdaptiveControl(AdaptiveOptions opt) : opt_(opt) {}
+  const AdaptiveOptions& options() const { return opt_; }
+
+  // Before a trial step from t toward t1 with proposed size h: caps h at h_max, stretches or cuts the
+  // last step to land on t1 (sets last). Returns kOk to go on, or the termination that ends the run.
+  OdeTermination NextStep(double t, double t1, double& h, bool& last) {
+    if (summary_.accepted + summary_.rejected >= opt_.max_steps) return End(OdeTermination::kMaxSteps, t);
+    if (opt_.h_max > 0 && h > opt_.h_max) h = opt_.h_max;
+    last = false;
+    if (t + 1.01 * h >= t1) h = t1 - t, last = true;
+    if (h < opt_.h_min * (std::fabs(t) + 1.0)) return End(OdeTermination::kStepSizeUnderflow, t);
+    return OdeTermination::kOk;
+  }
+  // Step-size factor for scaled error norm err (≤ 1: accepted) of a method whose error estimate is
+  // O(h^order): safety·err^(−1/order), clamped to [0.2, grow_max].
+  static double Factor(double err, double order, double safety, double grow_max) {
+    const double f = safety * std::pow(std::max(err, 1e-10), -1.0 / order);
+    return std::min(grow_max, std::max(0.2, f));
+  }
+  OdeTermination End(OdeTermination term, double t) {
+    summary_.termination = term;
+    summary_.t_reached = t;
+    return term;
+  }
+  OdeSummary& summary() { return summary_; }
+  const OdeSummary& summary() const { return summary_; }
+
+ private:
+  AdaptiveOptions opt_;
+  OdeSummary summary_;
 };
 
 }  // namespace bistable

@@ -9,9 +9,31 @@
 namespace bistable {
 namespace {
 
+// Power fraction at the sub-harmonics kΩ/n that a period-n (n > 1) claim must show.
+constexpr double kMinSubharmonicFraction = 1e-4;
+
 // Smallest n ≤ max_period such that stroboscopic samples repeat after n periods to within tol
 // (in y_m and y_m'), checked over the later half of the samples with at least 4 comparisons.
-int DetectPeriod(const std::vector<double>& y, const std::vector<double>& v, int max_period, double tol) {
+// A period n > 1 must also show sub-harmonic power kΩ/n in the spectrum, and that power must not
+// be dying out (its strongest line keeps ≥ kMinSubharmonicPersistence of its first-half amplitude in
+// the second half): a slowly decaying transient whose frequency happens to sit near kΩ/n would
+// otherwise pass as period-n motion.
+constexpr double kMinSubharmonicPersistence = 0.5;
+
+bool SubharmonicPersists(const std::vector<double>& ys, double dts, double omega, int n) {
+  double best = 0, w_best = 0;
+  for (int k = 1; k < n; ++k) {
+    const double a = ToneAmplitude(ys.data(), ys.size(), dts, k * omega / n);
+    if (a > best) best = a, w_best = k * omega / n;
+  }
+  const size_t half = ys.size() / 2;
+  const double first = ToneAmplitude(ys.data(), half, dts, w_best);
+  const double second = ToneAmplitude(ys.data() + half, ys.size() - half, dts, w_best);
+  return second >= kMinSubharmonicPersistence * first;
+}
+
+int DetectPeriod(const std::vector<double>& y, const std::vector<double>& v, int max_period, double tol,
+                 const Spectrum& sp, const std::vector<double>& ys, double dts, double omega) {
   const int m = static_cast<int>(y.size());
   for (int n = 1; n <= max_period; ++n) {
     const int pairs = std::max(4, (m - n) / 2);
@@ -19,7 +41,11 @@ int DetectPeriod(const std::vector<double>& y, const std::vector<double>& v, int
     bool repeats = true;
     for (int k = m - n - pairs; k < m - n && repeats; ++k)
       repeats = std::fabs(y[k] - y[k + n]) <= tol && std::fabs(v[k] - v[k + n]) <= tol;
-    if (repeats) return n;
+    if (!repeats) continue;
+    if (n == 1) return 1;
+    const bool genuine = SubharmonicFraction(sp, omega, n) >= kMinSubharmonicFraction &&
+                         SubharmonicPersists(ys, dts, omega, n);
+    return genuine ? n : 0;
   }
   return 0;
 }
@@ -46,7 +72,6 @@ PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec) {
   r.y_min = raw.y_min;
   r.y_max = raw.y_max;
   r.strobe_samples = static_cast<int>(raw.strobe_y.size());
-  r.period = DetectPeriod(raw.strobe_y, raw.strobe_v, ms.max_period, ms.period_tol);
   if (r.lle > ms.chaos_threshold) {
     r.motion = Motion::kChaotic;
   } else if (!IsBistable(spec.model) || raw.y_min > 0 || raw.y_max < 0) {
@@ -60,6 +85,7 @@ PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec) {
   const Spectrum sp = AmplitudeSpectrum(raw.y_samples, dts);
   r.hd_peaks = SpectralPeaks(sp, ms.hd_level, ms.hd_top_k);
   r.hd_index = HarmonicDiffusionIndex(sp, spec.omega);
+  r.period = DetectPeriod(raw.strobe_y, raw.strobe_v, ms.max_period, ms.period_tol, sp, raw.y_samples, dts, spec.omega);
 
   r.lle_rosenstein = nan;
   if (ms.rosenstein) {

@@ -1,34 +1,12 @@
 #include "dynamics/point_spec.h"
 
 #include <cmath>
-#include <sstream>
+
+#include "dynamics/validate.h"
 
 namespace bistable {
 namespace {
 
-std::string Num(double v) {
-  std::ostringstream os;
-  os.precision(10);
-  os << v;
-  return os.str();
-}
-
-// "alpha = -1 violates alpha > 0"; NaN and infinities are reported as such.
-Status Bound(const std::string& field, double v, const std::string& bound) {
-  return Status::InvalidArgument(field, field + " = " + Num(v) + " violates " + field + " " + bound);
-}
-Status Finite(const std::string& field, double v) {
-  if (std::isfinite(v)) return Status::Ok();
-  return Status::InvalidArgument(field, field + " = " + Num(v) + " violates " + field + " finite");
-}
-Status Positive(const std::string& field, double v) {
-  BISTABLE_RETURN_IF_ERROR(Finite(field, v));
-  return v > 0 ? Status::Ok() : Bound(field, v, "> 0");
-}
-Status NonNegative(const std::string& field, double v) {
-  BISTABLE_RETURN_IF_ERROR(Finite(field, v));
-  return v >= 0 ? Status::Ok() : Bound(field, v, ">= 0");
-}
 bool IsWholeSteps(double t, double dt) {
   const double n = t / dt;
   return std::fabs(n - std::round(n)) <= 1e-9 * std::max(1.0, n);
@@ -94,40 +72,40 @@ std::array<double, 4> InitialState(const PointSpec& spec) {
 }
 
 Status ValidatePointSpec(const PointSpec& s) {
-  BISTABLE_RETURN_IF_ERROR(Positive("alpha", s.alpha));
-  BISTABLE_RETURN_IF_ERROR(Positive("omega", s.omega));
-  if (IsBistable(s.model)) BISTABLE_RETURN_IF_ERROR(Positive("eps", s.params.eps));
-  BISTABLE_RETURN_IF_ERROR(NonNegative("eta", s.params.eta));
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("alpha", s.alpha));
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("omega", s.omega));
+  if (IsBistable(s.model)) BISTABLE_RETURN_IF_ERROR(CheckPositive("eps", s.params.eps));
+  BISTABLE_RETURN_IF_ERROR(CheckNonNegative("eta", s.params.eta));
   if (HasResonator(s.model)) {
-    BISTABLE_RETURN_IF_ERROR(NonNegative("eta_r", s.params.eta_r));
-    BISTABLE_RETURN_IF_ERROR(Positive("phi", s.params.phi));
-    BISTABLE_RETURN_IF_ERROR(Positive("lambda", s.params.lambda));
+    BISTABLE_RETURN_IF_ERROR(CheckNonNegative("eta_r", s.params.eta_r));
+    BISTABLE_RETURN_IF_ERROR(CheckPositive("phi", s.params.phi));
+    BISTABLE_RETURN_IF_ERROR(CheckPositive("lambda", s.params.lambda));
   }
-  for (int i = 0; i < 4; ++i) BISTABLE_RETURN_IF_ERROR(Finite("ic[" + std::to_string(i) + "]", s.ic[i]));
+  for (int i = 0; i < 4; ++i) BISTABLE_RETURN_IF_ERROR(CheckFinite("ic[" + std::to_string(i) + "]", s.ic[i]));
 
   const IntegrationSettings& in = s.integration;
-  BISTABLE_RETURN_IF_ERROR(Positive("dt", in.dt));
-  BISTABLE_RETURN_IF_ERROR(Positive("t_end", in.t_end));
-  BISTABLE_RETURN_IF_ERROR(NonNegative("t_keep", in.t_keep));
-  if (!(in.t_keep < in.t_end)) return Bound("t_keep", in.t_keep, "< t_end = " + Num(in.t_end));
-  if (in.dt > (in.t_end - in.t_keep) / 16) return Bound("dt", in.dt, "<= (t_end - t_keep)/16 = " + Num((in.t_end - in.t_keep) / 16));
-  if (!IsWholeSteps(in.t_end, in.dt)) return Bound("t_end", in.t_end, "a whole multiple of dt = " + Num(in.dt));
-  if (!IsWholeSteps(in.t_keep, in.dt)) return Bound("t_keep", in.t_keep, "a whole multiple of dt = " + Num(in.dt));
-  if (in.t_end / in.dt > 1e9) return Bound("t_end", in.t_end, "<= 1e9 dt (step count limit)");
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("dt", in.dt));
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("t_end", in.t_end));
+  BISTABLE_RETURN_IF_ERROR(CheckNonNegative("t_keep", in.t_keep));
+  if (!(in.t_keep < in.t_end)) return Violates("t_keep", in.t_keep, "< t_end = " + FormatNumber(in.t_end));
+  if (in.dt > (in.t_end - in.t_keep) / 16) return Violates("dt", in.dt, "<= (t_end - t_keep)/16 = " + FormatNumber((in.t_end - in.t_keep) / 16));
+  if (!IsWholeSteps(in.t_end, in.dt)) return Violates("t_end", in.t_end, "a whole multiple of dt = " + FormatNumber(in.dt));
+  if (!IsWholeSteps(in.t_keep, in.dt)) return Violates("t_keep", in.t_keep, "a whole multiple of dt = " + FormatNumber(in.dt));
+  if (in.t_end / in.dt > 1e9) return Violates("t_end", in.t_end, "<= 1e9 dt (step count limit)");
   if (in.integrator == IntegratorKind::kAdaptive) {
-    BISTABLE_RETURN_IF_ERROR(Positive("rtol", in.rtol));
-    BISTABLE_RETURN_IF_ERROR(Positive("atol", in.atol));
-    if (in.rtol < 1e-14) return Bound("rtol", in.rtol, ">= 1e-14");
+    BISTABLE_RETURN_IF_ERROR(CheckPositive("rtol", in.rtol));
+    BISTABLE_RETURN_IF_ERROR(CheckPositive("atol", in.atol));
+    if (in.rtol < 1e-14) return Violates("rtol", in.rtol, ">= 1e-14");
   }
 
   const MetricSettings& m = s.metrics;
-  if (m.renorm_every < 1) return Bound("renorm_every", m.renorm_every, ">= 1");
-  if (m.sample_every < 1) return Bound("sample_every", m.sample_every, ">= 1");
-  BISTABLE_RETURN_IF_ERROR(Finite("chaos_threshold", m.chaos_threshold));
-  BISTABLE_RETURN_IF_ERROR(Positive("period_tol", m.period_tol));
-  if (m.max_period < 1 || m.max_period > 64) return Bound("max_period", m.max_period, "in [1, 64]");
-  if (!(m.hd_level > 0 && m.hd_level < 1)) return Bound("hd_level", m.hd_level, "in (0, 1)");
-  if (m.hd_top_k < 1 || m.hd_top_k > 100) return Bound("hd_top_k", m.hd_top_k, "in [1, 100]");
+  if (m.renorm_every < 1) return Violates("renorm_every", m.renorm_every, ">= 1");
+  if (m.sample_every < 1) return Violates("sample_every", m.sample_every, ">= 1");
+  BISTABLE_RETURN_IF_ERROR(CheckFinite("chaos_threshold", m.chaos_threshold));
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("period_tol", m.period_tol));
+  if (m.max_period < 1 || m.max_period > 64) return Violates("max_period", m.max_period, "in [1, 64]");
+  if (!(m.hd_level > 0 && m.hd_level < 1)) return Violates("hd_level", m.hd_level, "in (0, 1)");
+  if (m.hd_top_k < 1 || m.hd_top_k > 100) return Violates("hd_top_k", m.hd_top_k, "in [1, 100]");
   return Status::Ok();
 }
 

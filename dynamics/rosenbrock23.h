@@ -21,7 +21,7 @@ class Rosenbrock23 {
   using State = typename System::State;
   using Jacobian = typename System::Jacobian;
 
-  Rosenbrock23(const System& sys, AdaptiveOptions opt) : sys_(sys), opt_(opt) {
+  Rosenbrock23(const System& sys, AdaptiveOptions opt) : sys_(sys), ctl_(opt) {
     const int n = sys.dim();
     for (State* s : {&f0_, &f1_, &f2_, &k1_, &k2_, &k3_, &dfdt_, &tmp_, &y1_, &x_old_}) s->resize(n);
     J_.resize(n, n);
@@ -31,26 +31,25 @@ class Rosenbrock23 {
   template <class Observer>
   OdeTermination Integrate(double t0, State& x, double t1, Observer&& observer) {
     static const double d = 1.0 / (2.0 + std::sqrt(2.0)), e32 = 6.0 + std::sqrt(2.0);
+    OdeSummary& sum = ctl_.summary();
+    const AdaptiveOptions& opt = ctl_.options();
     double t = t0;
     sys_(t, x, f0_);
-    ++summary_.rhs_evals;
-    double h = h_next_ > 0 ? h_next_ : (opt_.h0 > 0 ? opt_.h0 : 1e-4 * std::max(1.0, t1 - t0));
+    ++sum.rhs_evals;
+    double h = h_next_ > 0 ? h_next_ : (opt.h0 > 0 ? opt.h0 : 1e-4 * std::max(1.0, t1 - t0));
     bool need_jac = true;
     const int n = sys_.dim();
     while (t < t1) {
-      if (summary_.accepted + summary_.rejected >= opt_.max_steps) return End(OdeTermination::kMaxSteps, t);
-      if (opt_.h_max > 0) h = std::min(h, opt_.h_max);
       bool last = false;
-      if (t + 1.01 * h >= t1) h = t1 - t, last = true;
-      if (h < opt_.h_min * (std::fabs(t) + 1.0)) return End(OdeTermination::kStepSizeUnderflow, t);
+      if (const OdeTermination term = ctl_.NextStep(t, t1, h, last); term != OdeTermination::kOk) return term;
       if (need_jac) {
         sys_.Jac(t, x, J_, dfdt_);
-        ++summary_.jac_evals;
+        ++sum.jac_evals;
         need_jac = false;
       }
       W_ = Jacobian::Identity(n, n) - (h * d) * J_;
       Eigen::PartialPivLU<Jacobian> lu(W_);
-      ++summary_.lu_decompositions;
+      ++sum.lu_decompositions;
       k1_ = lu.solve(State(f0_ + (h * d) * dfdt_));
       tmp_ = x + (0.5 * h) * k1_;
       sys_(t + 0.5 * h, tmp_, f1_);
@@ -58,11 +57,11 @@ class Rosenbrock23 {
       y1_ = x + h * k2_;
       sys_(t + h, y1_, f2_);
       k3_ = lu.solve(State(f2_ - e32 * (k2_ - f1_) - 2.0 * (k1_ - f0_) + (h * d) * dfdt_));
-      summary_.rhs_evals += 2;
+      sum.rhs_evals += 2;
       tmp_ = (h / 6.0) * (k1_ - 2.0 * k2_ + k3_);
       double err = 0;
       for (int i = 0; i < n; ++i) {
-        const double sk = opt_.atol + opt_.rtol * std::max(std::fabs(x[i]), std::fabs(y1_[i]));
+        const double sk = opt.atol + opt.rtol * std::max(std::fabs(x[i]), std::fabs(y1_[i]));
         err = std::max(err, std::fabs(tmp_[i]) / sk);
       }
       if (!std::isfinite(err)) err = 1e10;
@@ -74,17 +73,17 @@ class Rosenbrock23 {
         t_ = t;
         x = y1_;
         f0_ = f2_;
-        ++summary_.accepted;
+        ++sum.accepted;
         need_jac = true;
         observer(*this);
-        h_next_ = h * std::min(5.0, std::max(0.2, 0.8 * std::pow(std::max(err, 1e-10), -1.0 / 3.0)));
+        h_next_ = h * AdaptiveControl::Factor(err, 3.0, 0.8, 5.0);
         if (!last) h = h_next_;
       } else {
-        ++summary_.rejected;
-        h *= std::max(0.2, 0.8 * std::pow(err, -1.0 / 3.0));
+        ++sum.rejected;
+        h *= AdaptiveControl::Factor(err, 3.0, 0.8, 1.0);
       }
     }
-    return End(OdeTermination::kOk, t);
+    return ctl_.End(OdeTermination::kOk, t);
   }
   OdeTermination Integrate(double t0, State& x, double t1) {
     return Integrate(t0, x, t1, [](const Rosenbrock23&) {});
@@ -98,17 +97,11 @@ class Rosenbrock23 {
     const double s = (t - t_old_) / h_dense_;
     out = x_old_ + h_dense_ * ((s * (1 - s) / (1 - 2 * d)) * k1_ + (s * (s - 2 * d) / (1 - 2 * d)) * k2_);
   }
-  const OdeSummary& summary() const { return summary_; }
+  const OdeSummary& summary() const { return ctl_.summary(); }
 
  private:
-  OdeTermination End(OdeTermination term, double t) {
-    summary_.termination = term;
-    summary_.t_reached = t;
-    return term;
-  }
   const System& sys_;
-  AdaptiveOptions opt_;
-  OdeSummary summary_;
+  AdaptiveControl ctl_;
   State f0_, f1_, f2_, k1_, k2_, k3_, dfdt_, tmp_, y1_, x_old_;
   Jacobian J_, W_;
   double t_old_ = 0, t_ = 0, h_dense_ = 1, h_next_ = 0;

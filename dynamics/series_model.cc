@@ -3,6 +3,8 @@
 #include <cmath>
 #include <string>
 
+#include "dynamics/validate.h"
+
 namespace bistable {
 
 SeriesModel::SeriesModel(std::vector<SeriesCell> cells, double alpha, double omega)
@@ -104,19 +106,16 @@ void SeriesModel::Jac(double t, const State& x, Jacobian& J, State& dfdt) const 
 
 Status ValidateSeriesCells(const std::vector<SeriesCell>& cells) {
   if (cells.empty() || cells.size() > 10000)
-    return Status::InvalidArgument("cells", "cells = " + std::to_string(cells.size()) + " violates 1 <= cells <= 10000");
+    return Violates("cells", static_cast<double>(cells.size()), "in [1, 10000]");
   for (size_t i = 0; i < cells.size(); ++i) {
     const SeriesCell& c = cells[i];
     const std::string p = "cells[" + std::to_string(i) + "].";
-    auto bad = [&](const char* f, double v, const char* bound) {
-      return Status::InvalidArgument(p + f, p + f + " = " + std::to_string(v) + " violates " + bound);
-    };
-    if (c.bistable && !(c.eps > 0)) return bad("eps", c.eps, "eps > 0");
-    if (!(c.eta >= 0)) return bad("eta", c.eta, "eta >= 0");
+    if (c.bistable) BISTABLE_RETURN_IF_ERROR(CheckPositive(p + "eps", c.eps));
+    BISTABLE_RETURN_IF_ERROR(CheckNonNegative(p + "eta", c.eta));
     if (c.has_resonator) {
-      if (!(c.eta_r >= 0)) return bad("eta_r", c.eta_r, "eta_r >= 0");
-      if (!(c.phi > 0)) return bad("phi", c.phi, "phi > 0");
-      if (!(c.lambda > 0)) return bad("lambda", c.lambda, "lambda > 0");
+      BISTABLE_RETURN_IF_ERROR(CheckNonNegative(p + "eta_r", c.eta_r));
+      BISTABLE_RETURN_IF_ERROR(CheckPositive(p + "phi", c.phi));
+      BISTABLE_RETURN_IF_ERROR(CheckPositive(p + "lambda", c.lambda));
     }
   }
   return Status::Ok();

@@ -9,11 +9,20 @@
 
 namespace bistable {
 
-Spectrum AmplitudeSpectrum(const std::vector<double>& x, double dt) {
+size_t FastFftLength(size_t n) {
+  size_t best = 1;
+  for (size_t a = 1; a <= n; a *= 2)
+    for (size_t b = a; b <= n; b *= 3)
+      for (size_t c = b; c <= n; c *= 5) best = std::max(best, c);
+  return best;
+}
+
+Spectrum AmplitudeSpectrum(const std::vector<double>& x_all, double dt) {
   Spectrum s;
-  const size_t n = x.size();
-  if (n < 4) return s;
-  const double mean = std::accumulate(x.begin(), x.end(), 0.0) / static_cast<double>(n);
+  if (x_all.size() < 4) return s;
+  const size_t n = FastFftLength(x_all.size());
+  const double* x = x_all.data() + (x_all.size() - n);
+  const double mean = std::accumulate(x, x + n, 0.0) / static_cast<double>(n);
   std::vector<double> xw(n);
   double wsum = 0;
   for (size_t i = 0; i < n; ++i) {
@@ -75,6 +84,35 @@ double HarmonicDiffusionIndex(const Spectrum& s, double omega, double tol_bins) 
     if (std::fabs(w - nearest) > tol) off += p;
   }
   return total > 0 ? off / total : 0.0;
+}
+
+double ToneAmplitude(const double* x, size_t n, double dt, double w) {
+  if (n < 4) return 0.0;
+  double mean = 0;
+  for (size_t i = 0; i < n; ++i) mean += x[i];
+  mean /= static_cast<double>(n);
+  double re = 0, im = 0, wsum = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const double win = 0.5 - 0.5 * std::cos(2.0 * M_PI * static_cast<double>(i) / static_cast<double>(n));
+    const double ph = w * dt * static_cast<double>(i);
+    re += win * (x[i] - mean) * std::cos(ph);
+    im += win * (x[i] - mean) * std::sin(ph);
+    wsum += win;
+  }
+  return 2.0 * std::hypot(re, im) / wsum;
+}
+
+double SubharmonicFraction(const Spectrum& s, double omega, int n, double tol_bins) {
+  if (n <= 1) return 0.0;
+  const double base = omega / n, tol = tol_bins * s.d_omega;
+  double total = 0, sub = 0;
+  for (size_t k = 1; k < s.amp.size(); ++k) {
+    const double w = static_cast<double>(k) * s.d_omega, p = s.amp[k] * s.amp[k];
+    total += p;
+    const long j = std::lround(w / base);
+    if (j % n != 0 && std::fabs(w - static_cast<double>(j) * base) <= tol) sub += p;
+  }
+  return total > 0 ? sub / total : 0.0;
 }
 
 }  // namespace bistable

@@ -14,8 +14,12 @@ struct Spectrum {
   std::vector<double> amp;  // amp[k] at ω_k = k·d_omega; a pure sinusoid of amplitude A peaks at ≈ A
 };
 
-// Mean removed, Hann-windowed, amplitude-normalised (2|X_k| / Σw).
+// Mean removed, Hann-windowed, amplitude-normalised (2|X_k| / Σw). Uses the last FastFftLength(N)
+// samples so the FFT never falls back to a slow prime-length transform (5001 = 3 · 1667 would).
 Spectrum AmplitudeSpectrum(const std::vector<double>& x, double dt);
+
+// Largest n' ≤ n of the form 2^a 3^b 5^c (n ≥ 1).
+size_t FastFftLength(size_t n);
 
 // Power-weighted mean frequency in cycles per unit time (Rosenstein's mean period is its inverse).
 double MeanFrequency(const std::vector<double>& x, double dt);
@@ -28,6 +32,14 @@ std::vector<HdPeak> SpectralPeaks(const Spectrum& s, double level, int top_k);
 // multiple nΩ (n ≥ 0). 0 for a period-1 response; grows with sub-harmonics, quasi-periodicity and chaos.
 // tol_bins = 3 covers the Hann main lobe (±2 bins) with one bin to spare.
 double HarmonicDiffusionIndex(const Spectrum& s, double omega, double tol_bins = 3.0);
+
+// Amplitude of the component at angular frequency w in x[0..n) sampled every dt (Hann-weighted
+// projection; a sinusoid of amplitude A at w gives ≈ A).
+double ToneAmplitude(const double* x, size_t n, double dt, double w);
+
+// Fraction of spectral power within `tol_bins` of the sub-harmonics kΩ/n with k not a multiple of n:
+// the spectral signature of period-n motion (0 for n = 1).
+double SubharmonicFraction(const Spectrum& s, double omega, int n, double tol_bins = 3.0);
 
 }  // namespace bistable
 

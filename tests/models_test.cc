@@ -144,7 +144,7 @@ TEST(DimensionalModel, JacobianMatchesFiniteDifferencesWithFriction) {
 TEST(DimensionalModel, ValidationNamesFieldAndBound) {
   DimensionalParams p = DimensionalParams::BistableTable2();
   p.fric_m.v_t = 0;
-  EXPECT_EQ(ValidateDimensionalParams(p).field(), "v_t");
+  EXPECT_EQ(ValidateDimensionalParams(p).field(), "v_t_m");
   p = DimensionalParams::BistableTable2();
   p.k3 = 0;
   const Status st = ValidateDimensionalParams(p);

@@ -1,0 +1,135 @@
+// End-to-end: the real `bistable` executable, run as a process, for the `point` contract
+// (JSON keys scripts rely on, --trace, error messages and exit codes).
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+namespace {
+
+struct ProcessResult {
+  int exit_code;
+  std::string out, err;
+};
+
+ProcessResult Bistable(const std::string& args) {
+  const std::string dir = ::testing::TempDir();
+  const std::string err_file = dir + "/cli_stderr_" + std::to_string(::getpid()) + ".txt";
+  const std::string cmd = std::string(BISTABLE_CLI) + " " + args + " 2>" + err_file;
+  ProcessResult r{-1, "", ""};
+  FILE* p = ::popen(cmd.c_str(), "r");
+  if (!p) return r;
+  char buf[4096];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int status = ::pclose(p);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream e(err_file);
+  r.err.assign(std::istreambuf_iterator<char>(e), {});
+  std::filesystem::remove(err_file);
+  return r;
+}
+
+TEST(CliPoint, JsonHasTheContractKeys) {
+  const ProcessResult r = Bistable("point --model coupled --alpha 1 --omega 1.2 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  for (const char* key : {"frf_db", "lle", "lle_rosenstein", "motion", "period", "hd_index", "hd_peaks", "edr_b",
+                          "edr_r", "edr_t", "energy_balance_residual", "settings"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["motion"], "chaotic");
+  EXPECT_TRUE(j["period"].is_number_integer());
+  ASSERT_TRUE(j["hd_peaks"].is_array());
+  ASSERT_FALSE(j["hd_peaks"].empty());
+  EXPECT_TRUE(j["hd_peaks"][0].contains("freq"));
+  EXPECT_TRUE(j["hd_peaks"][0].contains("amp"));
+  // Settings reproduce the run: paper defaults and the well start.
+  const auto& s = j["settings"];
+  EXPECT_EQ(s["model"], "coupled");
+  EXPECT_EQ(s["eta"], 0.1);
+  EXPECT_EQ(s["eta_r"], 0.075);
+  EXPECT_EQ(s["phi"], 2.0);
+  EXPECT_EQ(s["lambda"], 0.8);
+  EXPECT_EQ(s["t_end"], 500.0);
+  EXPECT_EQ(s["t_keep"], 250.0);
+  EXPECT_EQ(s["integrator"], "rk4");
+  EXPECT_EQ(s["ic"], nlohmann::json({1.0, 0.0, 1.0, 0.0}));
+  EXPECT_TRUE(s.contains("numerics_version"));
+}
+
+TEST(CliPoint, SettingsFromJsonReproduceTheResult) {
+  const ProcessResult a = Bistable("point --model standalone --alpha 0.3 --omega 2 --eta 0.12 --json");
+  ASSERT_EQ(a.exit_code, 0) << a.err;
+  const auto ja = nlohmann::json::parse(a.out);
+  const auto& s = ja["settings"];
+  const auto& ic = s["ic"];
+  const std::string again = "point --model " + s["model"].get<std::string>() + " --alpha " + std::to_string(s["alpha"].get<double>()) +
+                            " --omega " + std::to_string(s["omega"].get<double>()) + " --eta " +
+                            std::to_string(s["eta"].get<double>()) + " --ic " + std::to_string(ic[0].get<double>()) + "," +
+                            std::to_string(ic[1].get<double>()) + " --json";
+  const ProcessResult b = Bistable(again);
+  ASSERT_EQ(b.exit_code, 0) << b.err;
+  EXPECT_EQ(nlohmann::json::parse(b.out)["lle"], ja["lle"]);
+  EXPECT_EQ(nlohmann::json::parse(b.out)["frf_db"], ja["frf_db"]);
+}
+
+TEST(CliPoint, TraceWritesTheWindow) {
+  const std::string path = ::testing::TempDir() + "/trace_" + std::to_string(::getpid()) + ".csv";
+  const ProcessResult r = Bistable("point --model coupled --alpha 0.3 --omega 0.8 --trace " + path);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream in(path);
+  std::string header, first, line, last;
+  std::getline(in, header);
+  std::getline(in, first);
+  size_t rows = 1;
+  while (std::getline(in, line)) last = line, ++rows;
+  EXPECT_EQ(header, "tau,y_m,dy_m,y_r,dy_r");
+  EXPECT_EQ(first.substr(0, 4), "250,");
+  EXPECT_EQ(last.substr(0, 4), "500,");
+  EXPECT_EQ(rows, 250 / 0.05 + 1);
+  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+  std::filesystem::remove(path);
+}
+
+TEST(CliPoint, BadInputNamesFieldAndExitsNonZero) {
+  struct Case {
+    const char* args;
+    const char* expect;  // fragment of stderr
+  };
+  const Case cases[] = {
+      {"point --alpha -1 --omega 1", "alpha = -1 violates alpha > 0"},
+      {"point --alpha 0 --omega 1", "alpha"},
+      {"point --alpha nan --omega 1", "alpha"},
+      {"point --alpha 1 --omega 1 --eta -0.5", "eta = -0.5 violates eta >= 0"},
+      {"point --alpha 1 --omega 1 --t-keep 600", "t_keep = 600 violates t_keep < t_end"},
+      {"point --model duffing --alpha 1 --omega 1", "model = 'duffing' violates model in"},
+      {"point --alpha 1 --omega 1 --integrator euler", "integrator"},
+      {"point --alpha 1 --omega 1 --ic 1,2,3", "ic"},
+      {"point --alpha 1", "omega"},                      // missing required option
+      {"point --alpha abc --omega 1", "alpha"},          // not a number
+      {"frobnicate", "frobnicate"},                      // unknown subcommand
+  };
+  for (const Case& c : cases) {
+    const ProcessResult r = Bistable(c.args);
+    EXPECT_NE(r.exit_code, 0) << c.args;
+    EXPECT_NE(r.exit_code, -1) << c.args << " (crashed?)";
+    EXPECT_EQ(r.err.rfind("error: ", 0), 0u) << c.args << ": " << r.err;
+    EXPECT_NE(r.err.find(c.expect), std::string::npos) << c.args << ": " << r.err;
+    EXPECT_TRUE(r.out.empty()) << c.args;
+  }
+}
+
+TEST(CliPoint, HelpDocumentsUnits) {
+  const ProcessResult r = Bistable("point --help");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("--alpha"), std::string::npos);
+  EXPECT_NE(r.out.find("non-dimensional"), std::string::npos);
+}
+
+}  // namespace
