@@ -5,6 +5,11 @@
 #ifndef BISTABLE_DYNAMICS_LANES_H_
 #define BISTABLE_DYNAMICS_LANES_H_
 
+// Hot-path helpers of the kernel must be inlined into the step loop: with the state, tangent and
+// quadratures live at once, an out-of-line call forces every lane vector through memory (measured: the
+// window phase ran at half speed until these were forced).
+#define BISTABLE_INLINE inline __attribute__((always_inline))
+
 namespace bistable {
 
 template <int W>

@@ -7,6 +7,7 @@
 #ifndef BISTABLE_DYNAMICS_WINDOW_RECORDER_H_
 #define BISTABLE_DYNAMICS_WINDOW_RECORDER_H_
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -45,8 +46,7 @@ class WindowRecorder {
       strobe_period_[l] = 2.0 * M_PI / omega[l];
       // First strobe index k with τ_k ≥ t_keep.
       next_k_[l] = static_cast<long>(std::ceil((static_cast<double>(n_keep) * h) / strobe_period_[l]));
-      lanes_[l].y_min = std::numeric_limits<double>::infinity();
-      lanes_[l].y_max = -std::numeric_limits<double>::infinity();
+      Schedule(l);
     }
     vabs_max_ = Broadcast<W>(0.0);
     y_min_ = Broadcast<W>(std::numeric_limits<double>::infinity());
@@ -56,38 +56,38 @@ class WindowRecorder {
   // Step n (window steps n > n_keep) goes from τ = (n−1)h to τ = nh; x/d are state and derivative
   // at both ends; cos_end = cos(Ω nh) per lane. The first call (n == n_keep) passes the window's
   // start point as both ends.
-  void OnStep(long n, const V* x0, const V* d0, const V* x1, const V* d1, V cos_end) {
+  BISTABLE_INLINE void OnStep(long n, const V* x0, const V* d0, const V* x1, const V* d1, V cos_end) {
     const V vabs = Abs<W>(x1[1] + Load(alpha_omega_) * cos_end);
     vabs_max_ = Max<W>(vabs_max_, vabs);
     y_min_ = Min<W>(y_min_, x1[0]);
     y_max_ = Max<W>(y_max_, x1[0]);
-    const double t1 = static_cast<double>(n) * h_;
-    if (n > n_keep_) {
+    // Strobes: each lane's next τ_k is due in step strobe_step_[l]; one integer compare per step
+    // against the earliest of them.
+    if (n >= next_due_) {
       const double t0 = static_cast<double>(n - 1) * h_;
       for (int l = 0; l < W; ++l) {
-        double ts = static_cast<double>(next_k_[l]) * strobe_period_[l];
-        while (ts <= t1) {
-          if (ts >= t0) Strobe(l, (ts - t0) / h_, x0, d0, x1, d1);
+        while (strobe_step_[l] <= n) {
+          const double ts = static_cast<double>(next_k_[l]) * strobe_period_[l];
+          if (n == n_keep_) {
+            Strobe(l, 0.0, x1, d1, x1, d1);
+          } else {
+            Strobe(l, std::clamp((ts - t0) / h_, 0.0, 1.0), x0, d0, x1, d1);
+          }
           ++next_k_[l];
-          ts = static_cast<double>(next_k_[l]) * strobe_period_[l];
+          Schedule(l);
         }
       }
-    } else {
-      for (int l = 0; l < W; ++l) {
-        if (static_cast<double>(next_k_[l]) * strobe_period_[l] == t1) {
-          Strobe(l, 0.0, x1, d1, x1, d1);
-          ++next_k_[l];
-        }
-      }
+      next_due_ = strobe_step_[0];
+      for (int l = 1; l < W; ++l) next_due_ = std::min(next_due_, strobe_step_[l]);
     }
-    if ((n - n_keep_) % sample_every_ == 0 && (keep_samples_ || keep_rows_)) {
-      for (int l = 0; l < W; ++l) {
-        if (keep_samples_) lanes_[l].y_samples.push_back(x1[0][l]);
-        if (keep_rows_) {
-          double yr = 0, vr = 0;
-          if constexpr (D > 2) yr = x1[2][l], vr = x1[3][l];
-          lanes_[l].rows.push_back({t1, x1[0][l], x1[1][l], yr, vr});
-        }
+    if (--until_sample_ == 0) {
+      until_sample_ = sample_every_;
+      if (keep_samples_) y_samples_.push_back(x1[0]);
+      if (keep_rows_) {
+        rows_.push_back(x1[0]);
+        rows_.push_back(x1[1]);
+        if constexpr (D > 2) rows_.push_back(x1[2]), rows_.push_back(x1[3]);
+        row_times_.push_back(static_cast<double>(n) * h_);
       }
     }
   }
@@ -96,6 +96,15 @@ class WindowRecorder {
 
   // Moves per-lane results out; quadratures and energies are set by the integrator.
   RawLane& Lane(int l) {
+    RawLane& r = lanes_[l];
+    r.y_samples.resize(y_samples_.size());
+    for (size_t i = 0; i < y_samples_.size(); ++i) r.y_samples[i] = y_samples_[i][l];
+    r.rows.resize(row_times_.size());
+    for (size_t i = 0; i < row_times_.size(); ++i) {
+      const V* row = &rows_[i * D];
+      r.rows[i] = {row_times_[i], row[0][l], row[1][l], 0.0, 0.0};
+      if constexpr (D > 2) r.rows[i][3] = row[2][l], r.rows[i][4] = row[3][l];
+    }
     lanes_[l].vabs_max = vabs_max_[l];
     lanes_[l].y_min = y_min_[l];
     lanes_[l].y_max = y_max_[l];
@@ -109,6 +118,14 @@ class WindowRecorder {
     for (int l = 0; l < W; ++l) v[l] = a[l];
     return v;
   }
+  // The step in which lane l's next strobe time falls: the smallest n with n·h ≥ τ_k.
+  void Schedule(int l) {
+    const double ts = static_cast<double>(next_k_[l]) * strobe_period_[l];
+    long n = static_cast<long>(std::ceil(ts / h_));
+    if (static_cast<double>(n - 1) * h_ >= ts) --n;  // guard the division's rounding
+    strobe_step_[l] = std::max(n, n_keep_);
+  }
+
   // Cubic Hermite on [x0, x1] at θ ∈ [0, 1] for y_m (derivative y_m') and y_m' (derivative y_m'').
   void Strobe(int l, double th, const V* x0, const V* d0, const V* x1, const V* d1) {
     const double t2 = th * th, t3 = t2 * th;
@@ -126,6 +143,12 @@ class WindowRecorder {
   double alpha_omega_[W];
   double strobe_period_[W];
   long next_k_[W];
+  long strobe_step_[W];
+  long next_due_ = 0;
+  int until_sample_ = 1;  // the window's first step (n_keep) is sampled
+  std::vector<V> y_samples_;
+  std::vector<V> rows_;   // D lane vectors per row
+  std::vector<double> row_times_;
   V vabs_max_, y_min_, y_max_;
   V log_growth_ = Broadcast<W>(0.0);
   std::array<RawLane, W> lanes_;
