@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include "client/point_command.h"
+#include "client/sweep_commands.h"
 #include "dynamics/point_spec.h"
 
 int main(int argc, char** argv) {
@@ -12,6 +13,10 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int exit_code = 0;
   bistable::AddPointCommand(app, &exit_code);
+  bistable::AddRunCommand(app, &exit_code);
+  bistable::AddSweepsCommand(app, &exit_code);
+  bistable::AddMapCommand(app, &exit_code);
+  bistable::AddQueryCommand(app, &exit_code);
   const auto subs = app.get_subcommands([](CLI::App*) { return true; });
   auto is_known = [&](const std::string& name) {
     for (const CLI::App* sub : subs)

@@ -7,7 +7,7 @@ PACKAGES=(
   # toolchain
   build-essential cmake ninja-build ccache pkg-config git
   # numerics and utilities (dynamics/, engine/, identify/)
-  libeigen3-dev libnanoflann-dev nlohmann-json3-dev libcli11-dev libtomlplusplus-dev libspdlog-dev
+  libeigen3-dev libnanoflann-dev libxxhash-dev nlohmann-json3-dev libcli11-dev libtomlplusplus-dev libspdlog-dev
   libceres-dev libnlopt-cxx-dev
   # service and storage (proto/, server/, worker/, storage/)
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
@@ -15,7 +15,7 @@ PACKAGES=(
   # plots
   gnuplot-nox
   # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev python3-h5py python3-numpy iproute2
+  libgtest-dev libgmock-dev libbenchmark-dev python3-h5py python3-numpy python3-scipy iproute2
 )
 
 missing=()

@@ -1,0 +1,322 @@
+// `bistable sweeps`, `bistable map`, `bistable query`: reading what sweeps stored.
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+#include <nlohmann/json.hpp>
+
+#include "client/cli_common.h"
+#include "client/map_slice.h"
+#include "client/plot.h"
+#include "client/sweep_commands.h"
+#include "engine/query.h"
+#include "storage/map_file.h"
+
+namespace bistable {
+namespace {
+
+nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+// ---- sweeps ----
+struct SweepsArgs {
+  std::string data = kDefaultDataDir;
+  bool json = false;
+};
+
+int ListSweeps(const SweepsArgs& a) {
+  const auto index = std::filesystem::path(a.data) / "index.sqlite";
+  if (!std::filesystem::exists(index)) {
+    if (a.json) std::cout << "[]\n";
+    else std::cout << "no sweeps in " << a.data << "\n";
+    return 0;
+  }
+  auto db = IndexDb::Open(index.string());
+  if (!db.ok()) return Fail(db.status());
+  auto rows = (*db)->ListSweeps();
+  if (!rows.ok()) return Fail(rows.status());
+  if (a.json) {
+    nlohmann::json arr = nlohmann::json::array();
+    for (const SweepRow& r : *rows)
+      arr.push_back({{"id", r.id}, {"name", r.name}, {"model", r.model}, {"status", r.status},
+                     {"points_total", r.points_total}, {"points_done", r.points_done},
+                     {"file", r.file.empty() ? nlohmann::json(nullptr) : nlohmann::json((std::filesystem::path(a.data) / r.file).string())},
+                     {"created", r.created}, {"finished", r.finished}, {"seconds", r.seconds}});
+    std::cout << arr.dump(2) << "\n";
+    return 0;
+  }
+  std::printf("%-12s  %-11s  %-14s  %13s  %8s  %s\n", "id", "status", "model", "done/total", "seconds", "name");
+  for (const SweepRow& r : *rows) {
+    char prog[48];
+    std::snprintf(prog, sizeof prog, "%ld/%ld", r.points_done, r.points_total);
+    std::printf("%-12s  %-11s  %-14s  %13s  %8.1f  %s\n", r.id.c_str(), r.status.c_str(), r.model.c_str(), prog, r.seconds,
+                r.name.c_str());
+  }
+  return 0;
+}
+
+// ---- map ----
+struct MapArgs {
+  std::string id, metric, at, format = "json", out, data = kDefaultDataDir;
+};
+
+StatusOr<MapArray> LoadMetric(const std::string& data, const std::string& id, const std::string& metric, SweepRef* ref) {
+  auto r = FindSweep(data, id);
+  if (!r.ok()) return r.status();
+  *ref = *r;
+  if (r->map_path.empty())
+    return Status::FailedPrecondition("sweep " + r->row.id + " has no published map yet (status " + r->row.status +
+                                      ", " + std::to_string(r->row.points_done) + "/" + std::to_string(r->row.points_total) +
+                                      " stored); rerun it to finish");
+  return ReadMapMetric(r->map_path, metric);
+}
+
+nlohmann::json NestedValues(const Slice& s) {
+  if (s.free.size() == 1) {
+    nlohmann::json v = nlohmann::json::array();
+    for (double x : s.values) v.push_back(Num(x));
+    return v;
+  }
+  nlohmann::json rows = nlohmann::json::array();
+  const size_t nx = s.free[1].values.size();
+  for (size_t i = 0; i < s.free[0].values.size(); ++i) {
+    nlohmann::json row = nlohmann::json::array();
+    for (size_t j = 0; j < nx; ++j) row.push_back(Num(s.values[i * nx + j]));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+int HdScatter(const MapArgs& a) {
+  SweepRef ref;
+  auto f = LoadMetric(a.data, a.id, "hd_peak_freq", &ref);
+  if (!f.ok()) return Fail(f.status());
+  auto amp = ReadMapMetric(ref.map_path, "hd_peak_amp");
+  if (!amp.ok()) return Fail(amp.status());
+  auto at = ParseAt(a.at);
+  if (!at.ok()) return Fail(at.status());
+  // Fix everything but omega and the peak dimension.
+  size_t omega_dim = f->axes.size();
+  for (size_t k = 0; k < f->axes.size(); ++k)
+    if (f->axes[k].name == "omega") omega_dim = k;
+  if (omega_dim == f->axes.size()) return Fail(Status::InvalidArgument("metric", "hd_scatter needs an omega axis"));
+  ScatterData sd;
+  sd.title = ref.row.id + ": harmonic diffusion";
+  const size_t rank = f->dims.size();
+  std::vector<size_t> stride(rank, 1);
+  for (long k = static_cast<long>(rank) - 2; k >= 0; --k) stride[k] = stride[k + 1] * f->dims[k + 1];
+  size_t base = 0;
+  for (size_t k = 0; k + 1 < rank; ++k) {
+    if (k == omega_dim) continue;
+    const std::string& name = f->dim_names[k];
+    size_t idx = 0;
+    auto it = at->find(name);
+    if (k < f->axes.size()) {
+      if (it == at->end() && f->dims[k] > 1)
+        return Fail(Status::InvalidArgument("at", "hd_scatter: fix " + name + " with --at " + name + "=value"));
+      if (it != at->end()) {
+        const auto& v = f->axes[k].values;
+        idx = v.size();
+        for (size_t i = 0; i < v.size(); ++i)
+          if (std::fabs(v[i] - it->second) <= 1e-9 * std::max(1.0, std::fabs(it->second))) idx = i;
+        if (idx == v.size()) return Fail(Status::InvalidArgument("at", "--at " + name + " value is not on the axis"));
+        sd.title += ", " + name + "=" + std::to_string(it->second);
+      }
+    } else if (it != at->end()) {
+      idx = static_cast<size_t>(it->second);
+    }
+    base += idx * stride[k];
+  }
+  for (size_t i = 0; i < f->dims[omega_dim]; ++i)
+    for (size_t j = 0; j < f->dims.back(); ++j) {
+      const size_t off = base + i * stride[omega_dim] + j;
+      if (std::isfinite(f->values[off]))
+        sd.x.push_back(f->axes[omega_dim].values[i]), sd.y.push_back(f->values[off]), sd.amp.push_back(amp->values[off]);
+    }
+  const std::string out = a.out.empty() ? ref.row.id + "_hd_scatter.png" : a.out;
+  Status st = RenderHdScatter(sd, out);
+  if (!st.ok()) return Fail(st);
+  std::cout << out << "\n";
+  return 0;
+}
+
+int ShowMap(const MapArgs& a) {
+  if (a.format != "json" && a.format != "csv" && a.format != "png" && a.format != "svg")
+    return Fail(Status::InvalidArgument("format", "format = '" + a.format + "' violates format in {csv, json, png, svg}"));
+  if (a.metric == "hd_scatter") return HdScatter(a);
+  SweepRef ref;
+  auto m = LoadMetric(a.data, a.id, a.metric, &ref);
+  if (!m.ok()) return Fail(m.status());
+  auto at = ParseAt(a.at);
+  if (!at.ok()) return Fail(at.status());
+  auto s = SliceMap(*m, *at, 2);
+  if (!s.ok()) return Fail(s.status());
+  if (a.format == "json") {
+    nlohmann::json axes = nlohmann::json::object(), fixed = nlohmann::json::object();
+    for (const Axis& ax : s->free) axes[ax.name] = ax.values;
+    for (const auto& [k, v] : s->fixed) fixed[k] = v;
+    nlohmann::json j = {{"metric", s->metric}, {"unit", s->unit}, {"axes", axes}, {"axis_order", nlohmann::json::array()},
+                        {"fixed", fixed}, {"values", NestedValues(*s)}, {"sweep", ref.row.id}};
+    for (const Axis& ax : s->free) j["axis_order"].push_back(ax.name);
+    const std::string text = j.dump(1);
+    if (a.out.empty()) std::cout << text << "\n";
+    else std::ofstream(a.out) << text << "\n";
+    return 0;
+  }
+  if (a.format == "csv") {
+    std::ostringstream os;
+    os.precision(17);
+    for (const Axis& ax : s->free) os << ax.name << ",";
+    os << s->metric << "\n";
+    if (s->free.size() == 1) {
+      for (size_t i = 0; i < s->values.size(); ++i) os << s->free[0].values[i] << "," << s->values[i] << "\n";
+    } else {
+      const size_t nx = s->free[1].values.size();
+      for (size_t i = 0; i < s->free[0].values.size(); ++i)
+        for (size_t j = 0; j < nx; ++j)
+          os << s->free[0].values[i] << "," << s->free[1].values[j] << "," << s->values[i * nx + j] << "\n";
+    }
+    if (a.out.empty()) std::cout << os.str();
+    else std::ofstream(a.out) << os.str();
+    return 0;
+  }
+  PlotData d;
+  d.metric = s->metric;
+  d.unit = s->unit;
+  d.motion = s->metric == "motion";
+  for (const Axis& ax : s->free) d.axis_names.push_back(ax.name), d.axis_units.push_back(AxisUnit(ax.name)), d.axis_values.push_back(ax.values);
+  d.values = s->values;
+  d.title = (ref.row.name.empty() ? ref.row.id : ref.row.name) + ": " + s->metric;
+  for (const auto& [k, v] : s->fixed) d.title += ", " + k + "=" + std::to_string(v).substr(0, 6);
+  const std::string out = a.out.empty() ? ref.row.id + "_" + s->metric + "." + a.format : a.out;
+  Status st = RenderPlot(d, out, a.format);
+  if (!st.ok()) return Fail(st);
+  std::cout << out << "\n";
+  return 0;
+}
+
+// ---- query ----
+struct QueryArgs {
+  std::string id, expr, data = kDefaultDataDir;
+  bool json = false;
+  int limit = 20;
+};
+
+int RunQuery(const QueryArgs& a) {
+  auto ref = FindSweep(a.data, a.id);
+  if (!ref.ok()) return Fail(ref.status());
+  if (ref->map_path.empty())
+    return Fail(Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (status " + ref->row.status + ")"));
+  auto metrics = ListMapMetrics(ref->map_path);
+  if (!metrics.ok()) return Fail(metrics.status());
+  std::vector<std::string> vars;
+  for (const auto& m : *metrics)
+    if (m != "hd_peak_freq" && m != "hd_peak_amp") vars.push_back(m);
+  auto first = ReadMapMetric(ref->map_path, vars.front());
+  if (!first.ok()) return Fail(first.status());
+  const std::vector<Axis> axes = first->axes;
+  const size_t n_axes_vars = axes.size();
+  std::vector<std::string> names;
+  for (const Axis& ax : axes) names.push_back(ax.name);
+  for (const auto& m : vars) names.push_back(m);
+  auto q = Query::Parse(a.expr, names);
+  if (!q.ok()) return Fail(q.status());
+  // Load only the metrics the query uses; items = points (× ic when present).
+  std::map<int, MapArray> loaded;
+  size_t n_items = 1, n_points = 1;
+  for (const Axis& ax : axes) n_points *= ax.values.size();
+  for (int v : q->used()) {
+    if (v < static_cast<int>(n_axes_vars)) continue;
+    auto m = ReadMapMetric(ref->map_path, names[v]);
+    if (!m.ok()) return Fail(m.status());
+    n_items = std::max(n_items, m->values.size());
+    loaded.emplace(v, std::move(*m));
+  }
+  n_items = std::max(n_items, n_points);
+  const size_t per_point = n_items / n_points;
+  // Cell weights: product of each axis's cell width (midpoint rule), for the area fraction.
+  auto width = [](const std::vector<double>& v, size_t i) {
+    if (v.size() == 1) return 1.0;
+    const double lo = i == 0 ? v[0] : 0.5 * (v[i - 1] + v[i]);
+    const double hi = i + 1 == v.size() ? v.back() : 0.5 * (v[i] + v[i + 1]);
+    return hi - lo;
+  };
+  long count = 0;
+  double area = 0, area_total = 0;
+  nlohmann::json points = nlohmann::json::array();
+  std::vector<size_t> idx(axes.size());
+  for (size_t item = 0; item < n_items; ++item) {
+    size_t p = item / per_point, rest = p;
+    double w = 1;
+    for (long k = static_cast<long>(axes.size()) - 1; k >= 0; --k) {
+      idx[k] = rest % axes[k].values.size();
+      rest /= axes[k].values.size();
+      w *= width(axes[k].values, idx[k]);
+    }
+    area_total += w;
+    auto value = [&](int v) -> double {
+      if (v < static_cast<int>(n_axes_vars)) return axes[v].values[idx[v]];
+      const MapArray& m = loaded.at(v);
+      return m.values.size() == n_items ? m.values[item] : m.values[p];
+    };
+    if (!q->Eval(value)) continue;
+    ++count;
+    area += w;
+    if (static_cast<int>(points.size()) < a.limit || a.json) {
+      nlohmann::json pt = nlohmann::json::object();
+      for (size_t k = 0; k < axes.size(); ++k) pt[axes[k].name] = axes[k].values[idx[k]];
+      if (per_point > 1) pt["ic"] = item % per_point;
+      for (int v : q->used())
+        if (v >= static_cast<int>(n_axes_vars)) pt[names[v]] = Num(value(v));
+      points.push_back(pt);
+    }
+  }
+  const double fraction = n_items ? static_cast<double>(count) / static_cast<double>(n_items) : 0.0;
+  const double area_fraction = area_total > 0 ? area / area_total : 0.0;
+  if (a.json) {
+    nlohmann::json j = {{"sweep", ref->row.id}, {"query", a.expr}, {"count", count}, {"total", n_items},
+                        {"fraction", fraction}, {"area_fraction", area_fraction}, {"points", points}};
+    std::cout << j.dump(1) << "\n";
+    return 0;
+  }
+  std::printf("%ld of %zu points match (%.2f%% of points, %.2f%% of the grid's area): %s\n", count, n_items, 100 * fraction,
+              100 * area_fraction, a.expr.c_str());
+  for (const auto& pt : points) std::cout << "  " << pt.dump() << "\n";
+  if (count > static_cast<long>(points.size())) std::printf("  ... (%ld more; --json lists all)\n", count - static_cast<long>(points.size()));
+  return 0;
+}
+
+}  // namespace
+
+void AddSweepsCommand(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<SweepsArgs>();
+  CLI::App* cmd = app.add_subcommand("sweeps", "List the sweeps in a data directory");
+  cmd->add_option("--data", a->data, "data directory")->capture_default_str();
+  cmd->add_flag("--json", a->json, "print a JSON array");
+  cmd->callback([a, exit_code]() { *exit_code = ListSweeps(*a); });
+}
+
+void AddMapCommand(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<MapArgs>();
+  CLI::App* cmd = app.add_subcommand("map", "Print or plot a metric of a sweep over one or two free axes");
+  cmd->add_option("id", a->id, "sweep id (or a unique prefix)")->required();
+  cmd->add_option("--metric", a->metric, "metric (frf_db, lle, motion, edr_t, ...; hd_scatter for Fig. 6)")->required();
+  cmd->add_option("--at", a->at, "fix axes: eta=0.1,lambda=0.8 (ic=K for a multi-IC sweep; default ic=0)");
+  cmd->add_option("--format", a->format, "csv | json | png | svg")->capture_default_str();
+  cmd->add_option("--out", a->out, "output file (default: stdout for csv/json, <id>_<metric>.<fmt> for plots)");
+  cmd->add_option("--data", a->data, "data directory")->capture_default_str();
+  cmd->callback([a, exit_code]() { *exit_code = ShowMap(*a); });
+}
+
+void AddQueryCommand(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<QueryArgs>();
+  CLI::App* cmd = app.add_subcommand("query", "Find the region of a map where a condition holds");
+  cmd->add_option("id", a->id, "sweep id (or a unique prefix)")->required();
+  cmd->add_option("expr", a->expr, "e.g. \"frf_db < -3 and lle < 0.01\" or \"motion == chaotic\"")->required();
+  cmd->add_option("--data", a->data, "data directory")->capture_default_str();
+  cmd->add_option("--limit", a->limit, "points listed in the text output")->capture_default_str();
+  cmd->add_flag("--json", a->json, "print {count, total, fraction, area_fraction, points} as JSON");
+  cmd->callback([a, exit_code]() { *exit_code = RunQuery(*a); });
+}
+
+}  // namespace bistable

@@ -1,0 +1,165 @@
+#include "client/plot.h"
+
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace bistable {
+namespace {
+
+std::string Quote(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
+  }
+  return out + "\"";
+}
+
+std::string Greek(const std::string& name) {
+  if (name == "alpha") return "{/Symbol a}";
+  if (name == "omega") return "{/Symbol W}";
+  if (name == "eta") return "{/Symbol h}";
+  if (name == "eta_r") return "{/Symbol h}_r";
+  if (name == "lambda") return "{/Symbol l}";
+  if (name == "phi") return "{/Symbol f}";
+  if (name == "eps") return "{/Symbol e}";
+  return name;
+}
+
+// Runs gnuplot with the script on stdin; the file appears atomically (written beside, then renamed).
+Status RunGnuplot(const std::string& script, const std::string& out_path) {
+  const std::string tmp = out_path + ".tmp";
+  const std::string log = out_path + ".log";
+  const std::string cmd = "gnuplot > /dev/null 2> " + Quote(log);
+  FILE* p = ::popen(cmd.c_str(), "w");
+  if (!p) return Status::IoError("plot", "cannot start gnuplot (install gnuplot-nox: scripts/setup.sh)");
+  std::string full = "set output " + Quote(tmp) + "\n" + script + "\nunset output\n";
+  std::fwrite(full.data(), 1, full.size(), p);
+  const int rc = ::pclose(p);
+  std::string messages;
+  {
+    std::ifstream in(log);
+    messages.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  std::filesystem::remove(log);
+  if (rc != 0 || !std::filesystem::exists(tmp) || std::filesystem::file_size(tmp) == 0) {
+    std::filesystem::remove(tmp);
+    return Status::IoError("plot", "gnuplot failed writing '" + out_path + "' (exit " + std::to_string(WEXITSTATUS(rc)) +
+                                       "): " + messages.substr(0, 400));
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, out_path, ec);
+  if (ec) return Status::IoError("plot", "rename to '" + out_path + "': " + ec.message());
+  return Status::Ok();
+}
+
+// Viridis (perceptually uniform, colour-blind safe) as gnuplot 5.4 lacks it built in.
+constexpr const char* kViridis =
+    "set palette defined (0 '#440154', 0.125 '#46327e', 0.25 '#365c8d', 0.375 '#277f8e', 0.5 '#1fa187', "
+    "0.625 '#4ac16d', 0.75 '#a0da39', 0.875 '#d0e11c', 1 '#fde725')\n";
+
+std::string Terminal(const std::string& format) {
+  return format == "svg" ? "set terminal svg size 900,700 dynamic enhanced font 'Helvetica,14' background 'white'\n"
+                         : "set terminal pngcairo size 900,700 enhanced font 'Helvetica,12'\n";
+}
+
+std::string Num(double v) {
+  if (!std::isfinite(v)) return "NaN";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.9g", v);
+  return b;
+}
+
+}  // namespace
+
+std::string AxisLabel(const std::string& name, const std::string& unit) {
+  // Units as stored (plain text) → gnuplot enhanced text with symbols.
+  std::string u = unit;
+  const std::pair<const char*, const char*> kSubs[] = {
+      {"delta_s", "{/Symbol d}_s"}, {"omega_n", "{/Symbol w}_n"}, {"omega0", "{/Symbol w}_0"}, {"omega_r", "{/Symbol w}_r"},
+      {"A0", "A_0"},        {"m_m", "m_m"},         {"m_r", "m_r"},          {"c_r", "c_r"}};
+  for (auto [from, to] : kSubs)
+    for (size_t p = u.find(from); p != std::string::npos; p = u.find(from, p + std::strlen(to))) u.replace(p, std::strlen(from), to);
+  return Greek(name) + (u.empty() ? "" : " = " + u);
+}
+
+Status RenderPlot(const PlotData& d, const std::string& out_path, std::string format) {
+  if (format.empty()) format = std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png";
+  if (format != "png" && format != "svg")
+    return Status::InvalidArgument("format", "format = '" + format + "' violates format in {png, svg}");
+  std::ostringstream s;
+  s << Terminal(format) << "set title " << Quote(d.title) << " noenhanced\n";
+  s << "set xlabel " << Quote(AxisLabel(d.axis_names.back(), d.axis_units.back())) << "\n";
+  if (d.axis_names.size() == 2) {
+    s << "set ylabel " << Quote(AxisLabel(d.axis_names[0], d.axis_units[0])) << "\n";
+    s << "set cblabel " << Quote(d.metric + (d.unit.empty() ? "" : " [" + d.unit + "]")) << " noenhanced\n";
+    s << "set datafile missing 'NaN'\nset tics out\nset key off\n";
+    const auto& ys = d.axis_values[0];
+    const auto& xs = d.axis_values[1];
+    s << "set xrange [" << Num(xs.front()) << ":" << Num(xs.back()) << "]\n";
+    s << "set yrange [" << Num(ys.front()) << ":" << Num(ys.back()) << "]\n";
+    if (d.motion) {
+      // Discrete: each code owns one unit-wide band of the colour box.
+      s << "set palette defined (-1.5 'gray', -0.5 'gray', -0.5 '#2c7bb6', 0.5 '#2c7bb6', 0.5 '#fdae61', 1.5 '#fdae61', "
+           "1.5 '#d7191c', 2.5 '#d7191c')\nset cbrange [-1.5:2.5]\n"
+           "set cbtics ('undefined' -1, 'intrawell' 0, 'interwell' 1, 'chaotic' 2)\n";
+    } else if (d.metric == "frf_db") {
+      // Diverging palette centred on 0 dB: attenuation blue, amplification red.
+      double lo = 0, hi = 0;
+      for (double v : d.values)
+        if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+      const double m = std::max(std::fabs(lo), std::fabs(hi));
+      s << "set palette defined (-1 '#2166ac', 0 'white', 1 '#b2182b')\nset cbrange [" << Num(-m) << ":" << Num(m) << "]\n";
+    } else if (d.metric == "lle") {
+      s << "set palette defined (-1 '#2166ac', 0 'white', 1 '#b2182b')\n";
+      double m = 0;
+      for (double v : d.values)
+        if (std::isfinite(v)) m = std::max(m, std::fabs(v));
+      s << "set cbrange [" << Num(-m) << ":" << Num(m) << "]\n";
+    } else {
+      s << kViridis;
+    }
+    // Image with pixel centres at the axis values (non-uniform axes: gnuplot's image needs uniform
+    // spacing, so use pm3d map which draws quadrilaterals between the given coordinates).
+    s << "set view map\nset pm3d map corners2color c1\nset pm3d interpolate 1,1\n";
+    s << "$data << EOD\n";
+    for (size_t i = 0; i < ys.size(); ++i) {
+      for (size_t j = 0; j < xs.size(); ++j)
+        s << Num(xs[j]) << " " << Num(ys[i]) << " " << Num(d.values[i * xs.size() + j]) << "\n";
+      s << "\n";
+    }
+    s << "EOD\nsplot $data using 1:2:3 with pm3d\n";
+  } else {
+    s << "set ylabel " << Quote(d.metric + (d.unit.empty() ? "" : " [" + d.unit + "]")) << " noenhanced\nset grid\nset key off\n";
+    s << "$data << EOD\n";
+    for (size_t j = 0; j < d.axis_values[0].size(); ++j) s << Num(d.axis_values[0][j]) << " " << Num(d.values[j]) << "\n";
+    s << "EOD\nplot $data using 1:2 with linespoints pt 7 ps 0.5 lw 1.5\n";
+  }
+  return RunGnuplot(s.str(), out_path);
+}
+
+Status RenderHdScatter(const ScatterData& d, const std::string& out_path) {
+  std::ostringstream s;
+  s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");
+  s << "set title " << Quote(d.title) << " noenhanced\n";
+  s << "set xlabel " << Quote(AxisLabel("omega", "omega0/omega_n")) << "\n";
+  s << "set ylabel " << Quote("spectral peaks of y_m, {/Symbol W}_{peaks} [rad/{/Symbol t}]") << "\n";
+  s << "set cblabel 'peak amplitude [delta_s]' noenhanced\nset logscale cb\nset key off\nset grid\n" << kViridis;
+  double xmax = 0, ymax = 0;
+  for (size_t i = 0; i < d.x.size(); ++i) xmax = std::max(xmax, d.x[i]), ymax = std::max(ymax, d.y[i]);
+  s << "set xrange [0:" << Num(xmax * 1.02) << "]\nset yrange [0:" << Num(ymax * 1.05) << "]\n";
+  s << "$data << EOD\n";
+  for (size_t i = 0; i < d.x.size(); ++i) s << Num(d.x[i]) << " " << Num(d.y[i]) << " " << Num(d.amp[i]) << "\n";
+  s << "EOD\n";
+  // Integer multiples nΩ of the forcing (the paper's dashed lines).
+  s << "plot for [n=1:8] n*x with lines dt 2 lc rgb '#999999' lw 1, $data using 1:2:3 with points pt 7 ps 0.6 lc palette\n";
+  return RunGnuplot(s.str(), out_path);
+}
+
+}  // namespace bistable

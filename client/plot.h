@@ -1,0 +1,39 @@
+// Figures through gnuplot (Debian's gnuplot-nox, pngcairo/svg terminals): heatmaps of a metric over
+// two axes with axis labels, units, colorbar and title; curves over one axis; the harmonic-diffusion
+// scatter of the paper's Fig. 6 (peak frequency vs Ω, point size by amplitude). Data go to gnuplot
+// inline; nothing is rasterised here.
+#ifndef BISTABLE_CLIENT_PLOT_H_
+#define BISTABLE_CLIENT_PLOT_H_
+
+#include <string>
+#include <vector>
+
+#include "dynamics/status.h"
+
+namespace bistable {
+
+struct PlotData {
+  std::string title;
+  std::string metric, unit;
+  std::vector<std::string> axis_names, axis_units;  // 1 (curve) or 2 (heatmap: x = axis 1, y = axis 0)
+  std::vector<std::vector<double>> axis_values;
+  std::vector<double> values;                       // row-major over the axes
+  bool motion = false;                              // discrete palette with named codes
+};
+
+// format: "png" or "svg" (from the output's extension when empty).
+Status RenderPlot(const PlotData& d, const std::string& out_path, std::string format = "");
+
+// Fig. 6: for each Ω (x) the spectral peak frequencies (y) with amplitudes (point size/colour).
+struct ScatterData {
+  std::string title;
+  std::vector<double> x, y, amp;
+};
+Status RenderHdScatter(const ScatterData& d, const std::string& out_path);
+
+// A label like "alpha = A0/delta_s" for axes.
+std::string AxisLabel(const std::string& name, const std::string& unit);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_CLIENT_PLOT_H_

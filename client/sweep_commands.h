@@ -1,0 +1,16 @@
+// `bistable run | sweeps | map | query`: the sweep engine embedded in one process, and reading maps.
+#ifndef BISTABLE_CLIENT_SWEEP_COMMANDS_H_
+#define BISTABLE_CLIENT_SWEEP_COMMANDS_H_
+
+#include <CLI/CLI.hpp>
+
+namespace bistable {
+
+void AddRunCommand(CLI::App& app, int* exit_code);
+void AddSweepsCommand(CLI::App& app, int* exit_code);
+void AddMapCommand(CLI::App& app, int* exit_code);
+void AddQueryCommand(CLI::App& app, int* exit_code);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_CLIENT_SWEEP_COMMANDS_H_

@@ -1,0 +1,44 @@
+// The metrics a sweep can store: name, unit, definition (written into every map file) and how to
+// read each from a PointResult. One table, so the engine, the storage and the CLI agree.
+#ifndef BISTABLE_ENGINE_METRIC_CATALOG_H_
+#define BISTABLE_ENGINE_METRIC_CATALOG_H_
+
+#include <string>
+#include <vector>
+
+#include "dynamics/point_spec.h"
+
+namespace bistable {
+
+inline constexpr int kHdPeaksStored = 10;  // spectral peaks kept per point (freq, amp)
+
+struct MetricInfo {
+  const char* name;
+  const char* unit;
+  const char* definition;
+  bool integer;  // motion codes, period, termination: stored as integers
+};
+
+const std::vector<MetricInfo>& MetricCatalog();
+const MetricInfo* FindMetric(const std::string& name);
+std::vector<std::string> MetricNames();
+
+// Fixed-layout record of one (point, IC) result: the scalar metrics in MetricCatalog() order, then
+// kHdPeaksStored peak frequencies and amplitudes (NaN-filled). This is what the point cache stores.
+struct PointRecord {
+  std::vector<double> v;
+  static size_t Size();
+  static PointRecord From(const PointResult& r);
+  double Get(size_t metric_index) const { return v[metric_index]; }
+  double PeakFreq(int k) const;
+  double PeakAmp(int k) const;
+};
+
+// Motion codes stored in maps.
+inline constexpr int kMotionUndefined = -1;
+int MotionCode(Motion m);
+const char* MotionCodesText();  // "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"
+
+}  // namespace bistable
+
+#endif  // BISTABLE_ENGINE_METRIC_CATALOG_H_

@@ -1,0 +1,37 @@
+// Region queries over a map: `frf_db < -3 and lle < 0.01`, `motion == chaotic or (alpha > 1 and
+// not edr_t < 20)`. Grammar: expr := and ('or' and)*; and := unary ('and' unary)*;
+// unary := 'not' unary | '(' expr ')' | operand op operand; op ∈ < <= > >= == !=;
+// operand := name | number | intrawell | interwell | chaotic (the motion codes 0, 1, 2).
+// Comparisons with NaN are false.
+#ifndef BISTABLE_ENGINE_QUERY_H_
+#define BISTABLE_ENGINE_QUERY_H_
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dynamics/status.h"
+
+namespace bistable {
+
+class Query {
+ public:
+  // `names` are the variables the query may use (metrics and axes); the message of a bad query names
+  // the position and, for an unknown name, the nearest known one.
+  static StatusOr<Query> Parse(const std::string& text, const std::vector<std::string>& names);
+  // Variables the query reads, as indices into `names`.
+  const std::vector<int>& used() const { return used_; }
+  // value(i) returns variable i (index into `names`) at the point being tested.
+  bool Eval(const std::function<double(int)>& value) const;
+
+  struct Node;
+
+ private:
+  std::shared_ptr<const Node> root_;
+  std::vector<int> used_;
+};
+
+}  // namespace bistable
+
+#endif  // BISTABLE_ENGINE_QUERY_H_

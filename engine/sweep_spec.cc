@@ -1,0 +1,426 @@
+#include "engine/sweep_spec.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <toml++/toml.h>
+
+#include "dynamics/validate.h"
+#include "engine/content_hash.h"
+#include "engine/metric_catalog.h"
+
+namespace bistable {
+namespace {
+
+const std::vector<std::string> kTopKeys = {"name", "model", "params", "axes", "integration", "metrics",
+                                           "initial_conditions", "output"};
+const std::vector<std::string> kParamKeys = {"eps", "eta", "eta_r", "phi", "lambda", "alpha", "omega"};
+const std::vector<std::string> kAxisForms = {"list", "linspace", "logspace"};
+const std::vector<std::string> kIntegrationKeys = {"integrator", "dt", "t_end", "t_keep", "rtol", "atol"};
+const std::vector<std::string> kMetricKeys = {"store",     "chaos_threshold", "rosenstein", "renorm_every",
+                                              "sample_every", "period_tol",  "max_period", "hd_level"};
+const std::vector<std::string> kIcKeys = {"states"};
+const std::vector<std::string> kOutputKeys = {"plots"};
+
+std::string Where(const toml::source_region& r, const std::string& origin) {
+  if (!r.begin) return origin;
+  return origin + ":" + std::to_string(r.begin.line) + ":" + std::to_string(r.begin.column);
+}
+
+Status Unknown(const std::string& field, const std::string& key, const std::vector<std::string>& allowed) {
+  std::string msg = "unknown key '" + key + "'";
+  const std::string near = NearestName(key, allowed);
+  if (!near.empty()) msg += "; did you mean '" + near + "'?";
+  std::string list;
+  for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+  return Status::InvalidArgument(field.empty() ? key : field + "." + key, msg + " (allowed: " + list + ")");
+}
+
+Status CheckKeys(const toml::table& t, const std::string& field, const std::vector<std::string>& allowed) {
+  for (auto&& [k, v] : t) {
+    (void)v;
+    const std::string key(k.str());
+    if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) return Unknown(field, key, allowed);
+  }
+  return Status::Ok();
+}
+
+StatusOr<double> Number(const toml::node& n, const std::string& field) {
+  if (auto i = n.value<int64_t>(); i && n.is_integer()) return static_cast<double>(*i);
+  if (auto d = n.value<double>()) return *d;
+  return Status::InvalidArgument(field, field + " must be a number");
+}
+
+StatusOr<std::string> String(const toml::node& n, const std::string& field) {
+  if (auto s = n.value<std::string>()) return *s;
+  return Status::InvalidArgument(field, field + " must be a string");
+}
+
+Status ReadNumber(const toml::table& t, const std::string& key, const std::string& field, double* out) {
+  if (const toml::node* n = t.get(key)) {
+    auto v = Number(*n, field);
+    if (!v.ok()) return v.status();
+    *out = *v;
+  }
+  return Status::Ok();
+}
+
+Status ReadInt(const toml::table& t, const std::string& key, const std::string& field, int* out) {
+  if (const toml::node* n = t.get(key)) {
+    if (!n->is_integer()) return Status::InvalidArgument(field, field + " must be an integer");
+    *out = static_cast<int>(*n->value<int64_t>());
+  }
+  return Status::Ok();
+}
+
+StatusOr<std::vector<double>> NumberArray(const toml::node& n, const std::string& field) {
+  const toml::array* a = n.as_array();
+  if (!a) return Status::InvalidArgument(field, field + " must be an array of numbers");
+  std::vector<double> out;
+  for (size_t i = 0; i < a->size(); ++i) {
+    auto v = Number((*a)[i], field + "[" + std::to_string(i) + "]");
+    if (!v.ok()) return v.status();
+    out.push_back(*v);
+  }
+  return out;
+}
+
+StatusOr<std::vector<std::string>> StringArray(const toml::node& n, const std::string& field) {
+  const toml::array* a = n.as_array();
+  if (!a) return Status::InvalidArgument(field, field + " must be an array of strings");
+  std::vector<std::string> out;
+  for (size_t i = 0; i < a->size(); ++i) {
+    auto v = String((*a)[i], field + "[" + std::to_string(i) + "]");
+    if (!v.ok()) return v.status();
+    out.push_back(*v);
+  }
+  return out;
+}
+
+StatusOr<Axis> ParseAxis(const std::string& name, const toml::node& n) {
+  const std::string field = "axes." + name;
+  Axis axis{name, {}};
+  if (n.is_array()) {  // shorthand: alpha = [0.1, 0.2]
+    auto v = NumberArray(n, field);
+    if (!v.ok()) return v.status();
+    axis.values = *v;
+  } else if (const toml::table* t = n.as_table()) {
+    if (t->size() != 1)
+      return Status::InvalidArgument(field, field + " needs exactly one of list, linspace, logspace");
+    const auto it = t->begin();  // toml++ iterators own the proxy pair they hand out: keep it alive
+    const std::string form(it->first.str());
+    const toml::node& v = it->second;
+    if (std::find(kAxisForms.begin(), kAxisForms.end(), form) == kAxisForms.end()) return Unknown(field, form, kAxisForms);
+    auto nums = NumberArray(v, field + "." + form);
+    if (!nums.ok()) return nums.status();
+    if (form == "list") {
+      axis.values = *nums;
+    } else {
+      if (nums->size() != 3)
+        return Status::InvalidArgument(field + "." + form, field + "." + form + " = [start, stop, count] (3 numbers)");
+      const double a = (*nums)[0], b = (*nums)[1], cnt = (*nums)[2];
+      BISTABLE_RETURN_IF_ERROR(CheckFinite(field + "." + form + ".start", a));
+      BISTABLE_RETURN_IF_ERROR(CheckFinite(field + "." + form + ".stop", b));
+      if (!(cnt >= 1 && cnt <= 1e7 && cnt == std::floor(cnt)))
+        return Violates(field + "." + form + ".count", cnt, "a whole number in [1, 1e7]");
+      if (form == "logspace" && !(a > 0 && b > 0))
+        return Violates(field + ".logspace.start", std::min(a, b), "> 0 (logspace spans values, both ends positive)");
+      const long m = static_cast<long>(cnt);
+      for (long i = 0; i < m; ++i) {
+        const double f = m == 1 ? 0.0 : static_cast<double>(i) / static_cast<double>(m - 1);
+        axis.values.push_back(form == "linspace" ? a + f * (b - a) : a * std::pow(b / a, f));
+      }
+    }
+  } else {
+    return Status::InvalidArgument(field, field + " must be a list or {list|linspace|logspace = ...}");
+  }
+  if (axis.values.empty()) return Status::InvalidArgument(field, field + " is empty (needs at least one value)");
+  for (size_t i = 0; i < axis.values.size(); ++i) {
+    BISTABLE_RETURN_IF_ERROR(CheckFinite(field + "[" + std::to_string(i) + "]", axis.values[i]));
+    if (i > 0 && !(axis.values[i] > axis.values[i - 1]))
+      return Status::InvalidArgument(field, field + " must be strictly increasing (value " + std::to_string(i) + " = " +
+                                                FormatNumber(axis.values[i]) + " after " + FormatNumber(axis.values[i - 1]) +
+                                                "); an inverted or empty range?");
+  }
+  return axis;
+}
+
+double* ParamSlot(PointSpec& s, const std::string& name) {
+  if (name == "alpha") return &s.alpha;
+  if (name == "omega") return &s.omega;
+  if (name == "eps") return &s.params.eps;
+  if (name == "eta") return &s.params.eta;
+  if (name == "eta_r") return &s.params.eta_r;
+  if (name == "phi") return &s.params.phi;
+  if (name == "lambda") return &s.params.lambda;
+  return nullptr;
+}
+
+std::string G17(double v) {
+  char b[40];
+  std::snprintf(b, sizeof b, "%.17g", v);
+  return b;
+}
+
+}  // namespace
+
+const std::vector<std::string>& CanonicalAxisNames() {
+  static const std::vector<std::string> kNames = {"alpha", "omega", "eta", "eta_r", "lambda", "phi", "eps"};
+  return kNames;
+}
+
+std::string AxisUnit(const std::string& name) {
+  static const std::map<std::string, std::string> kUnits = {
+      {"alpha", "A0/delta_s"}, {"omega", "omega0/omega_n"}, {"eta", "c/(m_m omega_n)"}, {"eta_r", "c_r/(m_r omega_n)"},
+      {"lambda", "omega_r/omega_n"}, {"phi", "m_r/m_m"}, {"eps", "k3 delta_s^2/(m_m omega_n^2)"}};
+  auto it = kUnits.find(name);
+  return it == kUnits.end() ? "" : it->second;
+}
+
+std::string NearestName(const std::string& word, const std::vector<std::string>& candidates) {
+  std::string best;
+  size_t best_d = std::string::npos;
+  for (const std::string& c : candidates) {
+    std::vector<size_t> prev(c.size() + 1), cur(c.size() + 1);
+    for (size_t j = 0; j <= c.size(); ++j) prev[j] = j;
+    for (size_t i = 1; i <= word.size(); ++i) {
+      cur[0] = i;
+      for (size_t j = 1; j <= c.size(); ++j)
+        cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (word[i - 1] == c[j - 1] ? 0 : 1)});
+      std::swap(prev, cur);
+    }
+    if (prev[c.size()] < best_d) best_d = prev[c.size()], best = c;
+  }
+  return best_d <= word.size() / 3 + 1 ? best : "";
+}
+
+long SweepSpec::points() const {
+  long n = 1;
+  for (const Axis& a : axes) n *= static_cast<long>(a.values.size());
+  return n;
+}
+
+std::vector<int> SweepSpec::AxisIndices(long index) const {
+  std::vector<int> idx(axes.size());
+  for (int k = static_cast<int>(axes.size()) - 1; k >= 0; --k) {
+    const long n = static_cast<long>(axes[k].values.size());
+    idx[k] = static_cast<int>(index % n);
+    index /= n;
+  }
+  return idx;
+}
+
+PointSpec SweepSpec::PointAt(long index, int ic) const {
+  PointSpec p = base;
+  const std::vector<int> idx = AxisIndices(index);
+  for (size_t k = 0; k < axes.size(); ++k) *ParamSlot(p, axes[k].name) = axes[k].values[idx[k]];
+  if (!initial_states.empty()) {
+    p.ic_given = true;
+    p.ic = initial_states[ic];
+  }
+  return p;
+}
+
+std::string SweepSpec::CanonicalText() const {
+  std::ostringstream os;
+  os << "numerics=" << kNumericsVersion << "\nmodel=" << ModelName(model) << "\n";
+  for (const std::string& name : kParamKeys) os << name << "=" << G17(*ParamSlot(const_cast<PointSpec&>(base), name)) << "\n";
+  for (const Axis& a : axes) {
+    os << "axis." << a.name << "=";
+    for (double v : a.values) os << G17(v) << ",";
+    os << "\n";
+  }
+  const IntegrationSettings& in = base.integration;
+  os << "integrator=" << IntegratorName(in.integrator) << "\ndt=" << G17(in.dt) << "\nt_end=" << G17(in.t_end)
+     << "\nt_keep=" << G17(in.t_keep) << "\nrtol=" << G17(in.rtol) << "\natol=" << G17(in.atol) << "\n";
+  const MetricSettings& m = base.metrics;
+  os << "renorm_every=" << m.renorm_every << "\nchaos_threshold=" << G17(m.chaos_threshold)
+     << "\nsample_every=" << m.sample_every << "\nperiod_tol=" << G17(m.period_tol) << "\nmax_period=" << m.max_period
+     << "\nhd_level=" << G17(m.hd_level) << "\nhd_top_k=" << m.hd_top_k << "\nrosenstein=" << m.rosenstein << "\n";
+  for (const auto& ic : initial_states) os << "ic=" << G17(ic[0]) << "," << G17(ic[1]) << "," << G17(ic[2]) << "," << G17(ic[3]) << "\n";
+  os << "metrics=";
+  for (const auto& s : metrics) os << s << ",";
+  os << "\n";
+  return os.str();
+}
+
+std::string SweepSpec::Id() const { return ContentHashHex(CanonicalText()).substr(0, 12); }
+
+StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& origin) {
+  toml::table root;
+  try {
+    root = toml::parse(text, origin);
+  } catch (const toml::parse_error& e) {
+    return Status::InvalidArgument("spec", Where(e.source(), origin) + ": malformed TOML: " + std::string(e.description()));
+  }
+  BISTABLE_RETURN_IF_ERROR(CheckKeys(root, "", kTopKeys));
+  SweepSpec spec;
+  spec.source = text;
+  spec.base.metrics.rosenstein = false;  // expensive; opt in per sweep
+  if (const toml::node* n = root.get("name")) {
+    auto s = String(*n, "name");
+    if (!s.ok()) return s.status();
+    spec.name = *s;
+  }
+  const toml::node* model = root.get("model");
+  if (!model) return Status::InvalidArgument("model", "model is required (standalone, coupled, linear, linear-coupled)");
+  {
+    auto s = String(*model, "model");
+    if (!s.ok()) return s.status();
+    auto m = ParseModel(*s);
+    if (!m.ok()) return m.status();
+    spec.model = *m;
+    spec.base.model = *m;
+  }
+  if (const toml::node* n = root.get("params")) {
+    const toml::table* t = n->as_table();
+    if (!t) return Status::InvalidArgument("params", "params must be a table");
+    BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "params", kParamKeys));
+    for (const std::string& k : kParamKeys) BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, k, "params." + k, ParamSlot(spec.base, k)));
+  }
+  std::set<std::string> swept;
+  if (const toml::node* n = root.get("axes")) {
+    const toml::table* t = n->as_table();
+    if (!t) return Status::InvalidArgument("axes", "axes must be a table");
+    BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "axes", CanonicalAxisNames()));
+    for (const std::string& name : CanonicalAxisNames()) {
+      if (const toml::node* a = t->get(name)) {
+        auto axis = ParseAxis(name, *a);
+        if (!axis.ok()) return axis.status();
+        spec.axes.push_back(*axis);
+        swept.insert(name);
+      }
+    }
+  }
+  if (const toml::node* n = root.get("integration")) {
+    const toml::table* t = n->as_table();
+    if (!t) return Status::InvalidArgument("integration", "integration must be a table");
+    BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "integration", kIntegrationKeys));
+    if (const toml::node* i = t->get("integrator")) {
+      auto s = String(*i, "integration.integrator");
+      if (!s.ok()) return s.status();
+      auto k = ParseIntegrator(*s);
+      if (!k.ok()) return Status::InvalidArgument("integration.integrator", k.status().message());
+      spec.base.integration.integrator = *k;
+    }
+    IntegrationSettings& in = spec.base.integration;
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "dt", "integration.dt", &in.dt));
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "t_end", "integration.t_end", &in.t_end));
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "t_keep", "integration.t_keep", &in.t_keep));
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "rtol", "integration.rtol", &in.rtol));
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "atol", "integration.atol", &in.atol));
+  }
+  spec.metrics = {"frf_db", "lle", "motion", "period", "hd_index", "hd_peaks", "edr_b", "edr_r", "edr_t",
+                  "energy_balance_residual", "y_min", "y_max", "termination"};
+  if (const toml::node* n = root.get("metrics")) {
+    const toml::table* t = n->as_table();
+    if (!t) return Status::InvalidArgument("metrics", "metrics must be a table");
+    BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "metrics", kMetricKeys));
+    MetricSettings& m = spec.base.metrics;
+    if (const toml::node* s = t->get("store")) {
+      auto names = StringArray(*s, "metrics.store");
+      if (!names.ok()) return names.status();
+      const std::vector<std::string> known = MetricNames();
+      for (size_t i = 0; i < names->size(); ++i) {
+        const std::string& nm = (*names)[i];
+        if (std::find(known.begin(), known.end(), nm) == known.end())
+          return Unknown("metrics.store[" + std::to_string(i) + "]", nm, known);
+      }
+      spec.metrics = *names;
+      if (std::find(spec.metrics.begin(), spec.metrics.end(), "termination") == spec.metrics.end())
+        spec.metrics.push_back("termination");  // always stored: a map must say which points failed
+    }
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "chaos_threshold", "metrics.chaos_threshold", &m.chaos_threshold));
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "period_tol", "metrics.period_tol", &m.period_tol));
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "hd_level", "metrics.hd_level", &m.hd_level));
+    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "renorm_every", "metrics.renorm_every", &m.renorm_every));
+    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "sample_every", "metrics.sample_every", &m.sample_every));
+    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "max_period", "metrics.max_period", &m.max_period));
+    if (const toml::node* r = t->get("rosenstein")) {
+      if (!r->is_boolean()) return Status::InvalidArgument("metrics.rosenstein", "metrics.rosenstein must be true or false");
+      m.rosenstein = *r->value<bool>();
+    }
+  }
+  if (spec.base.metrics.rosenstein &&
+      std::find(spec.metrics.begin(), spec.metrics.end(), "lle_rosenstein") == spec.metrics.end())
+    spec.metrics.push_back("lle_rosenstein");
+  if (const toml::node* n = root.get("initial_conditions")) {
+    const toml::table* t = n->as_table();
+    if (!t) return Status::InvalidArgument("initial_conditions", "initial_conditions must be a table");
+    BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "initial_conditions", kIcKeys));
+    if (const toml::node* s = t->get("states")) {
+      const toml::array* a = s->as_array();
+      if (!a || a->empty())
+        return Status::InvalidArgument("initial_conditions.states", "initial_conditions.states must be a non-empty array of [ym, vm, yr, vr]");
+      if (a->size() > 64) return Violates("initial_conditions.states", static_cast<double>(a->size()), "count <= 64");
+      for (size_t i = 0; i < a->size(); ++i) {
+        const std::string f = "initial_conditions.states[" + std::to_string(i) + "]";
+        auto v = NumberArray((*a)[i], f);
+        if (!v.ok()) return v.status();
+        if (v->size() != 2 && v->size() != 4) return Status::InvalidArgument(f, f + " must be [ym, vm] or [ym, vm, yr, vr]");
+        std::array<double, 4> ic = {0, 0, 0, 0};
+        for (size_t j = 0; j < v->size(); ++j) {
+          BISTABLE_RETURN_IF_ERROR(CheckFinite(f + "[" + std::to_string(j) + "]", (*v)[j]));
+          ic[j] = (*v)[j];
+        }
+        spec.initial_states.push_back(ic);
+      }
+    }
+  }
+  spec.plots = {};
+  if (const toml::node* n = root.get("output")) {
+    const toml::table* t = n->as_table();
+    if (!t) return Status::InvalidArgument("output", "output must be a table");
+    BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "output", kOutputKeys));
+    if (const toml::node* p = t->get("plots")) {
+      auto names = StringArray(*p, "output.plots");
+      if (!names.ok()) return names.status();
+      for (size_t i = 0; i < names->size(); ++i)
+        if (std::find(spec.metrics.begin(), spec.metrics.end(), (*names)[i]) == spec.metrics.end())
+          return Unknown("output.plots[" + std::to_string(i) + "]", (*names)[i], spec.metrics);
+      spec.plots = *names;
+    }
+  } else {
+    for (const char* m : {"frf_db", "lle", "motion", "edr_t"})
+      if (std::find(spec.metrics.begin(), spec.metrics.end(), m) != spec.metrics.end()) spec.plots.push_back(m);
+  }
+
+  // Whole-spec checks: a representative point validates every fixed value and setting; swept values
+  // are checked one axis value at a time so the message names the axis.
+  PointSpec probe = spec.base;
+  for (const Axis& a : spec.axes) *ParamSlot(probe, a.name) = a.values.front();
+  if (!spec.initial_states.empty()) probe.ic_given = true, probe.ic = spec.initial_states.front();
+  if (Status st = ValidatePointSpec(probe); !st.ok()) {
+    const bool is_axis = swept.count(st.field()) > 0;
+    const bool is_param = std::find(kParamKeys.begin(), kParamKeys.end(), st.field()) != kParamKeys.end();
+    const std::string section = is_axis ? "axes." : is_param ? "params." : "integration.";
+    return Status::InvalidArgument(section + st.field(), st.message());
+  }
+  for (const Axis& a : spec.axes) {
+    for (size_t i = 0; i < a.values.size(); ++i) {
+      PointSpec p = probe;
+      *ParamSlot(p, a.name) = a.values[i];
+      if (Status st = ValidatePointSpec(p); !st.ok())
+        return Status::InvalidArgument("axes." + a.name + "[" + std::to_string(i) + "]", st.message());
+    }
+  }
+  const double items = static_cast<double>(spec.points()) * spec.ic_count();
+  if (items > static_cast<double>(kMaxSweepItems))
+    return Violates("axes", items, "points x initial conditions <= " + std::to_string(kMaxSweepItems) + " (split the sweep)");
+  return spec;
+}
+
+StatusOr<SweepSpec> LoadSweepSpec(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return Status::InvalidArgument("spec", "cannot read spec file '" + path + "'");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ParseSweepSpec(ss.str(), path);
+}
+
+}  // namespace bistable

@@ -1,0 +1,199 @@
+#include "storage/index_db.h"
+
+#include <sqlite3.h>
+
+#include <cstring>
+
+namespace bistable {
+namespace {
+
+// RAII prepared statement.
+class Stmt {
+ public:
+  Stmt(sqlite3* db, const char* sql) { rc_ = sqlite3_prepare_v2(db, sql, -1, &s_, nullptr); }
+  ~Stmt() { sqlite3_finalize(s_); }
+  bool ok() const { return rc_ == SQLITE_OK; }
+  sqlite3_stmt* get() { return s_; }
+  void Text(int i, const std::string& v) { sqlite3_bind_text(s_, i, v.c_str(), static_cast<int>(v.size()), SQLITE_TRANSIENT); }
+  void Int(int i, long v) { sqlite3_bind_int64(s_, i, v); }
+  void Real(int i, double v) { sqlite3_bind_double(s_, i, v); }
+  std::string ColText(int i) {
+    const unsigned char* t = sqlite3_column_text(s_, i);
+    return t ? reinterpret_cast<const char*>(t) : "";
+  }
+
+ private:
+  sqlite3_stmt* s_ = nullptr;
+  int rc_;
+};
+
+constexpr const char* kSchema = R"sql(
+CREATE TABLE IF NOT EXISTS sweeps(
+  id TEXT PRIMARY KEY, name TEXT, model TEXT, spec TEXT, status TEXT,
+  points_total INTEGER, points_done INTEGER, file TEXT, created REAL, finished REAL, seconds REAL);
+CREATE TABLE IF NOT EXISTS points(
+  key TEXT PRIMARY KEY, record BLOB NOT NULL, created REAL) WITHOUT ROWID;
+CREATE TABLE IF NOT EXISTS meta(k TEXT PRIMARY KEY, v TEXT);
+INSERT OR IGNORE INTO meta VALUES('schema', '1');
+)sql";
+
+SweepRow ReadSweep(Stmt& s) {
+  SweepRow r;
+  r.id = s.ColText(0);
+  r.name = s.ColText(1);
+  r.model = s.ColText(2);
+  r.spec = s.ColText(3);
+  r.status = s.ColText(4);
+  r.points_total = sqlite3_column_int64(s.get(), 5);
+  r.points_done = sqlite3_column_int64(s.get(), 6);
+  r.file = s.ColText(7);
+  r.created = sqlite3_column_double(s.get(), 8);
+  r.finished = sqlite3_column_double(s.get(), 9);
+  r.seconds = sqlite3_column_double(s.get(), 10);
+  return r;
+}
+
+}  // namespace
+
+IndexDb::~IndexDb() { sqlite3_close(db_); }
+
+Status IndexDb::Error(const std::string& what) {
+  const int code = sqlite3_errcode(db_);
+  std::string why = sqlite3_errmsg(db_);
+  if (code == SQLITE_FULL) why = "disk full: " + why;
+  return Status::IoError("index", what + ": " + why);
+}
+
+Status IndexDb::Exec(const std::string& sql) {
+  char* err = nullptr;
+  if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &err) != SQLITE_OK) {
+    std::string msg = err ? err : "?";
+    sqlite3_free(err);
+    return Status::IoError("index", msg);
+  }
+  return Status::Ok();
+}
+
+StatusOr<std::unique_ptr<IndexDb>> IndexDb::Open(const std::string& path) {
+  sqlite3* db = nullptr;
+  if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr) !=
+      SQLITE_OK) {
+    std::string why = db ? sqlite3_errmsg(db) : "out of memory";
+    sqlite3_close(db);
+    return Status::IoError("data", "cannot open index '" + path + "': " + why);
+  }
+  std::unique_ptr<IndexDb> idx(new IndexDb(db));
+  sqlite3_busy_timeout(db, 10000);
+  for (const char* pragma : {"PRAGMA journal_mode=WAL", "PRAGMA synchronous=NORMAL", "PRAGMA foreign_keys=ON"}) {
+    Status st = idx->Exec(pragma);
+    if (!st.ok()) return Status::IoError("data", "index '" + path + "': " + st.message());
+  }
+  Status st = idx->Exec(kSchema);
+  if (!st.ok()) return Status::IoError("data", "index '" + path + "': " + st.message());
+  return idx;
+}
+
+Status IndexDb::UpsertSweep(const SweepRow& r) {
+  Stmt s(db_,
+         "INSERT INTO sweeps(id,name,model,spec,status,points_total,points_done,file,created,finished,seconds) "
+         "VALUES(?,?,?,?,?,?,?,?,?,?,?) ON CONFLICT(id) DO UPDATE SET name=excluded.name, status=excluded.status, "
+         "points_total=excluded.points_total, points_done=excluded.points_done, file=excluded.file, "
+         "finished=excluded.finished, seconds=excluded.seconds, spec=excluded.spec");
+  if (!s.ok()) return Error("prepare sweep upsert");
+  s.Text(1, r.id);
+  s.Text(2, r.name);
+  s.Text(3, r.model);
+  s.Text(4, r.spec);
+  s.Text(5, r.status);
+  s.Int(6, r.points_total);
+  s.Int(7, r.points_done);
+  s.Text(8, r.file);
+  s.Real(9, r.created);
+  s.Real(10, r.finished);
+  s.Real(11, r.seconds);
+  if (sqlite3_step(s.get()) != SQLITE_DONE) return Error("write sweep " + r.id);
+  return Status::Ok();
+}
+
+StatusOr<std::optional<SweepRow>> IndexDb::GetSweep(const std::string& id) {
+  Stmt s(db_, "SELECT * FROM sweeps WHERE id = ? OR id LIKE ? ORDER BY id = ? DESC LIMIT 2");
+  if (!s.ok()) return Error("prepare sweep lookup");
+  s.Text(1, id);
+  s.Text(2, id + "%");
+  s.Text(3, id);
+  std::vector<SweepRow> rows;
+  while (sqlite3_step(s.get()) == SQLITE_ROW) rows.push_back(ReadSweep(s));
+  if (rows.empty()) return std::optional<SweepRow>();
+  if (rows.size() > 1 && rows[0].id != id)
+    return Status::InvalidArgument("id", "sweep id prefix '" + id + "' is ambiguous (" + rows[0].id + ", " + rows[1].id + ", ...)");
+  return std::optional<SweepRow>(rows[0]);
+}
+
+StatusOr<std::vector<SweepRow>> IndexDb::ListSweeps() {
+  Stmt s(db_, "SELECT * FROM sweeps ORDER BY created");
+  if (!s.ok()) return Error("prepare sweep list");
+  std::vector<SweepRow> rows;
+  while (sqlite3_step(s.get()) == SQLITE_ROW) rows.push_back(ReadSweep(s));
+  return rows;
+}
+
+StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(const std::vector<std::string>& keys) {
+  std::unordered_map<std::string, PointRecord> found;
+  BISTABLE_RETURN_IF_ERROR(Exec("BEGIN"));
+  {
+    Stmt s(db_, "SELECT record FROM points WHERE key = ?");
+    if (!s.ok()) {
+      Exec("ROLLBACK");
+      return Error("prepare point lookup");
+    }
+    const size_t n = PointRecord::Size();
+    for (const std::string& k : keys) {
+      sqlite3_reset(s.get());
+      s.Text(1, k);
+      if (sqlite3_step(s.get()) == SQLITE_ROW) {
+        const int bytes = sqlite3_column_bytes(s.get(), 0);
+        if (bytes != static_cast<int>(n * sizeof(double))) continue;  // a record of another layout: recompute
+        PointRecord r;
+        r.v.resize(n);
+        std::memcpy(r.v.data(), sqlite3_column_blob(s.get(), 0), bytes);
+        found.emplace(k, std::move(r));
+      }
+    }
+  }
+  BISTABLE_RETURN_IF_ERROR(Exec("COMMIT"));
+  return found;
+}
+
+Status IndexDb::PutPoints(const std::vector<std::pair<std::string, PointRecord>>& items, const std::string& sweep_id,
+                          long points_done) {
+  BISTABLE_RETURN_IF_ERROR(Exec("BEGIN IMMEDIATE"));
+  auto fail = [&](const std::string& what) {
+    Status st = Error(what);
+    Exec("ROLLBACK");
+    return st;
+  };
+  {
+    Stmt s(db_, "INSERT OR REPLACE INTO points(key, record, created) VALUES(?, ?, unixepoch())");
+    if (!s.ok()) return fail("prepare point insert");
+    for (const auto& [k, r] : items) {
+      sqlite3_reset(s.get());
+      s.Text(1, k);
+      sqlite3_bind_blob(s.get(), 2, r.v.data(), static_cast<int>(r.v.size() * sizeof(double)), SQLITE_TRANSIENT);
+      if (sqlite3_step(s.get()) != SQLITE_DONE) return fail("store point results");
+    }
+    Stmt u(db_, "UPDATE sweeps SET points_done = ? WHERE id = ?");
+    if (!u.ok()) return fail("prepare progress update");
+    u.Int(1, points_done);
+    u.Text(2, sweep_id);
+    if (sqlite3_step(u.get()) != SQLITE_DONE) return fail("update progress");
+  }
+  if (sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr) != SQLITE_OK) return fail("commit point results");
+  return Status::Ok();
+}
+
+long IndexDb::CachedPointCount() {
+  Stmt s(db_, "SELECT count(*) FROM points");
+  return s.ok() && sqlite3_step(s.get()) == SQLITE_ROW ? sqlite3_column_int64(s.get(), 0) : -1;
+}
+
+}  // namespace bistable

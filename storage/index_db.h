@@ -1,0 +1,64 @@
+// The SQLite index of a data directory (<data>/index.sqlite, WAL mode): sweeps, their published map
+// files, and the point cache (content key → PointRecord). Writes happen in transactions; a block of
+// results is durable when PutPoints returns. The index names a map file only after the file has
+// been completely written and renamed into place.
+// Not thread-safe: one IndexDb per thread (SQLite serialises writers across connections).
+#ifndef BISTABLE_STORAGE_INDEX_DB_H_
+#define BISTABLE_STORAGE_INDEX_DB_H_
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "dynamics/status.h"
+#include "engine/metric_catalog.h"
+
+struct sqlite3;
+
+namespace bistable {
+
+struct SweepRow {
+  std::string id;          // 12 hex digits (hash of the canonical spec)
+  std::string name;
+  std::string model;
+  std::string spec;        // the TOML as given
+  std::string status;      // running | done | failed | interrupted
+  long points_total = 0;   // grid points × initial conditions
+  long points_done = 0;
+  std::string file;        // map file path relative to the data dir, "" until published
+  double created = 0;      // unix seconds
+  double finished = 0;
+  double seconds = 0;      // wall time of the last run
+};
+
+class IndexDb {
+ public:
+  ~IndexDb();
+  // Opens or creates <path>; the message names the path on failure (unwritable dir, corrupt file).
+  static StatusOr<std::unique_ptr<IndexDb>> Open(const std::string& path);
+
+  Status UpsertSweep(const SweepRow& row);
+  StatusOr<std::optional<SweepRow>> GetSweep(const std::string& id_or_prefix);
+  StatusOr<std::vector<SweepRow>> ListSweeps();
+
+  // Looks up many keys in one read transaction; the result holds the ones found.
+  StatusOr<std::unordered_map<std::string, PointRecord>> LookupPoints(const std::vector<std::string>& keys);
+  // Stores records in one transaction (all or nothing) and, in the same transaction, sets the sweep's
+  // points_done counter.
+  Status PutPoints(const std::vector<std::pair<std::string, PointRecord>>& items, const std::string& sweep_id,
+                   long points_done);
+  long CachedPointCount();
+
+ private:
+  explicit IndexDb(sqlite3* db) : db_(db) {}
+  Status Exec(const std::string& sql);
+  Status Error(const std::string& what);
+  sqlite3* db_;
+};
+
+}  // namespace bistable
+
+#endif  // BISTABLE_STORAGE_INDEX_DB_H_

@@ -1,0 +1,303 @@
+#include "storage/map_file.h"
+
+#include <fcntl.h>
+#include <hdf5.h>
+#include <hdf5_hl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+
+namespace bistable {
+namespace {
+
+// RAII for hid_t handles.
+class Handle {
+ public:
+  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  ~Handle() {
+    if (id_ >= 0) close_(id_);
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  hid_t get() const { return id_; }
+  bool ok() const { return id_ >= 0; }
+
+ private:
+  hid_t id_;
+  herr_t (*close_)(hid_t);
+};
+
+Status H5Fail(const std::string& path, const std::string& what) {
+  return Status::IoError("map", "HDF5 " + what + " failed for '" + path + "'");
+}
+
+// Variable-length UTF-8 strings: h5py reads them as str.
+hid_t Utf8Type() {
+  const hid_t t = H5Tcopy(H5T_C_S1);
+  H5Tset_size(t, H5T_VARIABLE);
+  H5Tset_cset(t, H5T_CSET_UTF8);
+  return t;
+}
+
+Status WriteStringAttr(hid_t obj, const char* name, const std::string& value) {
+  Handle type(Utf8Type(), H5Tclose);
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  Handle attr(H5Acreate2(obj, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  const char* p = value.c_str();
+  if (!attr.ok() || H5Awrite(attr.get(), type.get(), &p) < 0)
+    return Status::IoError("map", std::string("attribute ") + name);
+  return Status::Ok();
+}
+
+std::string ReadStringAttr(hid_t obj, const char* name) {
+  if (H5Aexists(obj, name) <= 0) return "";
+  Handle attr(H5Aopen(obj, name, H5P_DEFAULT), H5Aclose);
+  Handle type(H5Aget_type(attr.get()), H5Tclose);
+  if (H5Tget_class(type.get()) != H5T_STRING || H5Tis_variable_str(type.get()) <= 0) return "";
+  Handle mem(Utf8Type(), H5Tclose);
+  char* p = nullptr;
+  if (H5Aread(attr.get(), mem.get(), &p) < 0 || !p) return "";
+  std::string s(p);
+  H5free_memory(p);
+  return s;
+}
+
+// Creates a chunked, shuffled, deflated dataset and writes `data` (converted to `file_type`).
+Status WriteDataset(hid_t file, const std::string& name, const std::vector<hsize_t>& dims, const std::vector<double>& data,
+                    hid_t file_type, const std::string& unit, const std::string& definition) {
+  Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose);
+  Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  std::vector<hsize_t> chunk(dims.size());
+  for (size_t k = 0; k < dims.size(); ++k) chunk[k] = std::min<hsize_t>(dims[k], k + 2 >= dims.size() ? 128 : 1);
+  // Trailing non-axis dims (ic, peak) are small: keep them whole in the chunk.
+  H5Pset_chunk(dcpl.get(), static_cast<int>(dims.size()), chunk.data());
+  H5Pset_shuffle(dcpl.get());
+  H5Pset_deflate(dcpl.get(), 4);
+  if (file_type == H5T_NATIVE_DOUBLE) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    H5Pset_fill_value(dcpl.get(), H5T_NATIVE_DOUBLE, &nan);
+  }
+  Handle ds(H5Dcreate2(file, name.c_str(), file_type, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT), H5Dclose);
+  if (!ds.ok()) return Status::IoError("map", "create dataset " + name);
+  herr_t rc;
+  if (file_type == H5T_NATIVE_DOUBLE) {
+    rc = H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data());
+  } else {
+    std::vector<int32_t> ints(data.size());
+    for (size_t i = 0; i < data.size(); ++i) ints[i] = std::isfinite(data[i]) ? static_cast<int32_t>(data[i]) : -1;
+    rc = H5Dwrite(ds.get(), H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, ints.data());
+  }
+  if (rc < 0) return Status::IoError("map", "write dataset " + name);
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(ds.get(), "units", unit));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(ds.get(), "definition", definition));
+  return Status::Ok();
+}
+
+Status AttachScales(hid_t file, const std::string& name, const std::vector<std::string>& dim_names) {
+  Handle ds(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose);
+  for (size_t k = 0; k < dim_names.size(); ++k) {
+    if (dim_names[k] == "peak") continue;
+    Handle scale(H5Dopen2(file, dim_names[k].c_str(), H5P_DEFAULT), H5Dclose);
+    if (!scale.ok() || H5DSattach_scale(ds.get(), scale.get(), static_cast<unsigned>(k)) < 0)
+      return Status::IoError("map", "attach scale " + dim_names[k] + " to " + name);
+    H5DSset_label(ds.get(), static_cast<unsigned>(k), dim_names[k].c_str());
+  }
+  return Status::Ok();
+}
+
+Status WriteScale(hid_t file, const std::string& name, const std::vector<double>& values, const std::string& unit) {
+  const std::vector<hsize_t> dims = {values.size()};
+  Handle space(H5Screate_simple(1, dims.data(), nullptr), H5Sclose);
+  Handle ds(H5Dcreate2(file, name.c_str(), H5T_NATIVE_DOUBLE, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
+  if (!ds.ok() || H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
+    return Status::IoError("map", "write axis " + name);
+  if (H5DSset_scale(ds.get(), name.c_str()) < 0) return Status::IoError("map", "set scale " + name);
+  return WriteStringAttr(ds.get(), "units", unit);
+}
+
+Status FsyncPath(const std::string& path, bool directory) {
+  const int fd = ::open(path.c_str(), directory ? O_RDONLY | O_DIRECTORY : O_RDONLY);
+  if (fd < 0) return Status::IoError("map", "open for fsync: " + path);
+  const int rc = ::fsync(fd);
+  ::close(fd);
+  return rc == 0 ? Status::Ok() : Status::IoError("map", "fsync " + path);
+}
+
+Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records) {
+  Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+  if (!file.ok()) return H5Fail(tmp, "create");
+  const long np = spec.points();
+  const int nic = spec.ic_count();
+  std::vector<hsize_t> axis_dims;
+  std::vector<std::string> axis_names;
+  std::string axes_attr;
+  for (const Axis& a : spec.axes) {
+    axis_dims.push_back(a.values.size());
+    axis_names.push_back(a.name);
+    axes_attr += (axes_attr.empty() ? "" : ",") + a.name;
+    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), a.name, a.values, AxisUnit(a.name)));
+  }
+  if (nic > 1) {
+    std::vector<double> ics(nic);
+    for (int i = 0; i < nic; ++i) ics[i] = i;
+    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), "ic", ics, "index into initial_states"));
+  }
+  std::vector<hsize_t> dims = axis_dims;
+  std::vector<std::string> names = axis_names;
+  if (nic > 1) dims.push_back(nic), names.push_back("ic");
+
+  const auto& catalog = MetricCatalog();
+  for (size_t mi = 0; mi < catalog.size(); ++mi) {
+    const MetricInfo& m = catalog[mi];
+    if (std::find(spec.metrics.begin(), spec.metrics.end(), m.name) == spec.metrics.end()) continue;
+    std::vector<double> data(records.size());
+    for (size_t i = 0; i < records.size(); ++i) data[i] = records[i].Get(mi);
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), m.name, dims, data, m.integer ? H5T_NATIVE_INT32 : H5T_NATIVE_DOUBLE,
+                                          m.unit, m.definition));
+    BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), m.name, names));
+  }
+  if (std::find(spec.metrics.begin(), spec.metrics.end(), "hd_peaks") != spec.metrics.end()) {
+    std::vector<hsize_t> pd = dims;
+    pd.push_back(kHdPeaksStored);
+    std::vector<std::string> pn = names;
+    pn.push_back("peak");
+    std::vector<double> f(records.size() * kHdPeaksStored), a(f.size());
+    for (size_t i = 0; i < records.size(); ++i)
+      for (int k = 0; k < kHdPeaksStored; ++k) f[i * kHdPeaksStored + k] = records[i].PeakFreq(k), a[i * kHdPeaksStored + k] = records[i].PeakAmp(k);
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_freq", pd, f, H5T_NATIVE_DOUBLE, "rad/tau",
+                                          "spectral peaks of y_m (strongest first), angular frequency; NaN = none"));
+    BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "hd_peak_freq", pn));
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_amp", pd, a, H5T_NATIVE_DOUBLE, "delta_s",
+                                          "amplitude of y_m at each spectral peak; NaN = none"));
+    BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "hd_peak_amp", pn));
+  }
+  if (nic > 1) {  // multistability: fraction of initial conditions ending in each motion type
+    const size_t motion_index = 3;
+    for (int code = 0; code <= 2; ++code) {
+      static const char* kNames[] = {"frac_intrawell", "frac_interwell", "frac_chaotic"};
+      std::vector<double> frac(np, 0.0);
+      for (long p = 0; p < np; ++p) {
+        int hit = 0;
+        for (int i = 0; i < nic; ++i) hit += records[p * nic + i].Get(motion_index) == code;
+        frac[p] = static_cast<double>(hit) / nic;
+      }
+      BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), kNames[code], axis_dims, frac, H5T_NATIVE_DOUBLE, "fraction",
+                                            "fraction of the initial conditions whose motion type is this one"));
+      BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), kNames[code], axis_names));
+    }
+  }
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "spec", spec.source));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "canonical_spec", spec.CanonicalText()));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "numerics_version", kNumericsVersion));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "model", ModelName(spec.model)));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "sweep_id", spec.Id()));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "name", spec.name));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "axes", axes_attr));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "motion_codes", MotionCodesText()));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(
+      file.get(), "definitions",
+      "See docs/numerics.md. Non-dimensional: tau = omega_n t, lengths in delta_s. Window tau in [t_keep, t_end]. "
+      "EDR ratios use the gross injected energy W_in = integral of max(P, 0)."));
+  if (H5Fflush(file.get(), H5F_SCOPE_GLOBAL) < 0) return H5Fail(tmp, "flush");
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::vector<PointRecord>& records) {
+  if (records.size() != static_cast<size_t>(spec.points()) * spec.ic_count())
+    return Status::Internal("map file: record count does not match the grid");
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors come back as Status, not printed
+  const std::string tmp = path + ".tmp";
+  Status st = WriteAll(tmp, spec, records);
+  if (st.ok()) st = FsyncPath(tmp, false);
+  if (st.ok()) {
+    std::error_code ec;
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) st = Status::IoError("map", "rename to '" + path + "': " + ec.message());
+  }
+  if (st.ok()) st = FsyncPath(std::filesystem::path(path).parent_path().string(), true);
+  if (!st.ok()) std::filesystem::remove(tmp);
+  return st;
+}
+
+StatusOr<std::vector<std::string>> ListMapMetrics(const std::string& path) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!file.ok()) return Status::IoError("map", "cannot open map file '" + path + "'");
+  std::vector<std::string> names;
+  H5Literate(
+      file.get(), H5_INDEX_NAME, H5_ITER_NATIVE, nullptr,
+      [](hid_t g, const char* name, const H5L_info_t*, void* out) -> herr_t {
+        Handle ds(H5Dopen2(g, name, H5P_DEFAULT), H5Dclose);
+        if (ds.ok() && H5DSis_scale(ds.get()) <= 0) static_cast<std::vector<std::string>*>(out)->push_back(name);
+        return 0;
+      },
+      &names);
+  return names;
+}
+
+StatusOr<std::string> ReadMapAttribute(const std::string& path, const std::string& name) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!file.ok()) return Status::IoError("map", "cannot open map file '" + path + "'");
+  return ReadStringAttr(file.get(), name.c_str());
+}
+
+StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& metric) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!file.ok()) return Status::IoError("map", "cannot open map file '" + path + "'");
+  MapArray out;
+  out.metric = metric;
+  if (H5Lexists(file.get(), metric.c_str(), H5P_DEFAULT) <= 0) {
+    auto names = ListMapMetrics(path);
+    std::string list;
+    if (names.ok())
+      for (const auto& n : *names) list += (list.empty() ? "" : ", ") + n;
+    const std::string near = names.ok() ? NearestName(metric, *names) : "";
+    return Status::InvalidArgument("metric", "metric '" + metric + "' is not in this map" +
+                                                 (near.empty() ? "" : "; did you mean '" + near + "'?") +
+                                                 " (stored: " + list + ")");
+  }
+  Handle ds(H5Dopen2(file.get(), metric.c_str(), H5P_DEFAULT), H5Dclose);
+  Handle space(H5Dget_space(ds.get()), H5Sclose);
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  std::vector<hsize_t> dims(rank);
+  H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
+  size_t total = 1;
+  for (hsize_t d : dims) out.dims.push_back(d), total *= d;
+  out.values.resize(total);
+  if (H5Dread(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.values.data()) < 0)
+    return Status::IoError("map", "read " + metric + " from '" + path + "'");
+  out.unit = ReadStringAttr(ds.get(), "units");
+  out.definition = ReadStringAttr(ds.get(), "definition");
+  const std::string axes = ReadStringAttr(file.get(), "axes");
+  size_t start = 0;
+  while (start < axes.size()) {
+    size_t end = axes.find(',', start);
+    if (end == std::string::npos) end = axes.size();
+    Axis a{axes.substr(start, end - start), {}};
+    Handle sd(H5Dopen2(file.get(), a.name.c_str(), H5P_DEFAULT), H5Dclose);
+    Handle ss(H5Dget_space(sd.get()), H5Sclose);
+    hsize_t n = 0;
+    H5Sget_simple_extent_dims(ss.get(), &n, nullptr);
+    a.values.resize(n);
+    H5Dread(sd.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.values.data());
+    out.axes.push_back(a);
+    out.dim_names.push_back(a.name);
+    start = end + 1;
+  }
+  for (size_t k = out.axes.size(); k < dims.size(); ++k) {
+    char label[64] = "";
+    H5DSget_label(ds.get(), static_cast<unsigned>(k), label, sizeof label);
+    out.dim_names.push_back(label[0] ? label : (k + 1 == dims.size() ? "peak" : "ic"));
+  }
+  return out;
+}
+
+}  // namespace bistable

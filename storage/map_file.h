@@ -1,0 +1,40 @@
+// One HDF5 file per sweep (<data>/sweeps/<id>.h5): a dataset per metric shaped by the sweep's axes
+// (plus a trailing "ic" dimension when several initial conditions run per point), the axes as
+// dimension scales with units, hd_peak_freq/hd_peak_amp with a trailing "peak" dimension, fractions
+// of motion types over the initial conditions, and attributes with the metric definitions, the spec
+// and the numerics version. Chunked, shuffled and deflated. Written to a temporary file, fsynced and
+// renamed into place: a reader never sees a partial file.
+#ifndef BISTABLE_STORAGE_MAP_FILE_H_
+#define BISTABLE_STORAGE_MAP_FILE_H_
+
+#include <string>
+#include <vector>
+
+#include "dynamics/status.h"
+#include "engine/metric_catalog.h"
+#include "engine/sweep_spec.h"
+
+namespace bistable {
+
+// records[point * ic_count + ic], point in the spec's row-major order.
+Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::vector<PointRecord>& records);
+
+// A metric read back: values in row-major order over dims.
+struct MapArray {
+  std::string metric;
+  std::vector<Axis> axes;            // the sweep axes (dims 0..axes-1)
+  std::vector<size_t> dims;          // full shape, including ic / peak dims
+  std::vector<std::string> dim_names;
+  std::vector<double> values;        // integers widened to double
+  std::string unit, definition;
+};
+
+StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& metric);
+// Names of the datasets holding metrics (not the axis scales).
+StatusOr<std::vector<std::string>> ListMapMetrics(const std::string& path);
+// Root attributes: "spec", "numerics_version", "model", "sweep_id", "name".
+StatusOr<std::string> ReadMapAttribute(const std::string& path, const std::string& name);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_STORAGE_MAP_FILE_H_
