@@ -41,6 +41,16 @@ Status Unknown(const std::string& field, const std::string& key, const std::vect
   return Status::InvalidArgument(field.empty() ? key : field + "." + key, msg + " (allowed: " + list + ")");
 }
 
+// A value outside its vocabulary (a metric name in a list, ...).
+Status UnknownValue(const std::string& field, const std::string& value, const std::vector<std::string>& allowed) {
+  std::string msg = "unknown name '" + value + "'";
+  const std::string near = NearestName(value, allowed);
+  if (!near.empty()) msg += "; did you mean '" + near + "'?";
+  std::string list;
+  for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+  return Status::InvalidArgument(field, msg + " (allowed: " + list + ")");
+}
+
 Status CheckKeys(const toml::table& t, const std::string& field, const std::vector<std::string>& allowed) {
   for (auto&& [k, v] : t) {
     (void)v;
@@ -183,6 +193,12 @@ std::string AxisUnit(const std::string& name) {
 }
 
 std::string NearestName(const std::string& word, const std::vector<std::string>& candidates) {
+  // A unique candidate that starts with the word ("frf" → "frf_db") wins outright.
+  std::string prefixed;
+  int prefix_hits = 0;
+  for (const std::string& c : candidates)
+    if (!word.empty() && c.rfind(word, 0) == 0) prefixed = c, ++prefix_hits;
+  if (prefix_hits == 1) return prefixed;
   std::string best;
   size_t best_d = std::string::npos;
   for (const std::string& c : candidates) {
@@ -194,9 +210,9 @@ std::string NearestName(const std::string& word, const std::vector<std::string>&
         cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (word[i - 1] == c[j - 1] ? 0 : 1)});
       std::swap(prev, cur);
     }
-    if (prev[c.size()] < best_d) best_d = prev[c.size()], best = c;
+    if (prev[c.size()] < best_d && prev[c.size()] <= std::max(word.size(), c.size()) / 3 + 1) best_d = prev[c.size()], best = c;
   }
-  return best_d <= word.size() / 3 + 1 ? best : "";
+  return best;
 }
 
 long SweepSpec::points() const {
@@ -329,7 +345,7 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
       for (size_t i = 0; i < names->size(); ++i) {
         const std::string& nm = (*names)[i];
         if (std::find(known.begin(), known.end(), nm) == known.end())
-          return Unknown("metrics.store[" + std::to_string(i) + "]", nm, known);
+          return UnknownValue("metrics.store[" + std::to_string(i) + "]", nm, known);
       }
       spec.metrics = *names;
       if (std::find(spec.metrics.begin(), spec.metrics.end(), "termination") == spec.metrics.end())
@@ -382,7 +398,7 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
       if (!names.ok()) return names.status();
       for (size_t i = 0; i < names->size(); ++i)
         if (std::find(spec.metrics.begin(), spec.metrics.end(), (*names)[i]) == spec.metrics.end())
-          return Unknown("output.plots[" + std::to_string(i) + "]", (*names)[i], spec.metrics);
+          return UnknownValue("output.plots[" + std::to_string(i) + "]", (*names)[i], spec.metrics);
       spec.plots = *names;
     }
   } else {
@@ -395,19 +411,19 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
   PointSpec probe = spec.base;
   for (const Axis& a : spec.axes) *ParamSlot(probe, a.name) = a.values.front();
   if (!spec.initial_states.empty()) probe.ic_given = true, probe.ic = spec.initial_states.front();
+  for (const Axis& a : spec.axes) {
+    for (size_t i = 0; i < a.values.size(); ++i) {
+      PointSpec p = probe;
+      *ParamSlot(p, a.name) = a.values[i];
+      if (Status st = ValidatePointSpec(p); !st.ok() && st.field() == a.name)
+        return Status::InvalidArgument("axes." + a.name + "[" + std::to_string(i) + "]", st.message());
+    }
+  }
   if (Status st = ValidatePointSpec(probe); !st.ok()) {
     const bool is_axis = swept.count(st.field()) > 0;
     const bool is_param = std::find(kParamKeys.begin(), kParamKeys.end(), st.field()) != kParamKeys.end();
     const std::string section = is_axis ? "axes." : is_param ? "params." : "integration.";
     return Status::InvalidArgument(section + st.field(), st.message());
-  }
-  for (const Axis& a : spec.axes) {
-    for (size_t i = 0; i < a.values.size(); ++i) {
-      PointSpec p = probe;
-      *ParamSlot(p, a.name) = a.values[i];
-      if (Status st = ValidatePointSpec(p); !st.ok())
-        return Status::InvalidArgument("axes." + a.name + "[" + std::to_string(i) + "]", st.message());
-    }
   }
   const double items = static_cast<double>(spec.points()) * spec.ic_count();
   if (items > static_cast<double>(kMaxSweepItems))

@@ -57,7 +57,8 @@ struct SweepSpec {
 StatusOr<SweepSpec> ParseSweepSpec(const std::string& toml_text, const std::string& origin);
 StatusOr<SweepSpec> LoadSweepSpec(const std::string& path);
 
-// The candidate closest to `word` by edit distance, or "" when none is close (≤ 1/3 of its length + 1).
+// The candidate `word` most likely meant: the only one it is a prefix of, else the closest by edit
+// distance within a third of the longer length (+1); "" when none is close.
 std::string NearestName(const std::string& word, const std::vector<std::string>& candidates);
 
 }  // namespace bistable

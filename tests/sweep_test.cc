@@ -1,0 +1,286 @@
+// The sweep engine in process: spec validation, queries, map values equal to single-point runs bit
+// for bit, and the content-keyed cache reusing points across overlapping sweeps. Real SQLite and
+// HDF5 files in a temporary directory.
+#include <unistd.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "dynamics/point.h"
+#include "engine/query.h"
+#include "engine/sweep_spec.h"
+#include "server/sweep_coordinator.h"
+#include "storage/map_file.h"
+#include "worker/block_worker.h"
+
+namespace bistable {
+namespace {
+
+std::string TempDir(const std::string& name) {
+  const auto dir = std::filesystem::path(::testing::TempDir()) / ("bistable_" + name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  return dir.string();
+}
+
+SweepSpec Parse(const std::string& toml) {
+  auto s = ParseSweepSpec(toml, "test.toml");
+  EXPECT_TRUE(s.ok()) << s.status().ToString();
+  return s.ok() ? *s : SweepSpec{};
+}
+
+// Runs a sweep like `bistable run` does, with `threads` worker threads; returns the map path.
+std::string RunSweep(SweepCoordinator& c, const SweepSpec& spec, int threads, SweepPlan* plan) {
+  auto p = c.Submit(spec, 16);
+  EXPECT_TRUE(p.ok()) << p.status().ToString();
+  *plan = *p;
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t)
+    pool.emplace_back([&] {
+      while (auto job = c.Lease()) EXPECT_TRUE(c.Report(job->id, ComputeItems(spec, job->items)).ok());
+    });
+  for (auto& th : pool) th.join();
+  auto path = c.Publish();
+  EXPECT_TRUE(path.ok()) << path.status().ToString();
+  return path.ok() ? *path : "";
+}
+
+constexpr const char* kSmall = R"(
+name = "test grid"
+model = "coupled"
+[axes]
+alpha = { linspace = [0.2, 1.4, 5] }
+omega = [0.8, 1.2, 2.0]
+)";
+
+TEST(SweepSpec, ParsesAxesDefaultsAndCanonicalOrder) {
+  const SweepSpec s = Parse(R"(
+model = "standalone"
+[axes]
+omega = { logspace = [0.1, 10, 3] }
+alpha = { list = [0.5, 1.5] }
+[params]
+eta = 0.2
+)");
+  ASSERT_EQ(s.axes.size(), 2u);
+  EXPECT_EQ(s.axes[0].name, "alpha");  // canonical order, whatever the file's order
+  EXPECT_EQ(s.axes[1].name, "omega");
+  EXPECT_NEAR(s.axes[1].values[1], 1.0, 1e-12);
+  EXPECT_EQ(s.points(), 6);
+  EXPECT_EQ(s.base.params.eta, 0.2);
+  EXPECT_EQ(s.base.integration.t_end, 500.0);
+  const PointSpec p = s.PointAt(4, 0);  // alpha index 1, omega index 1
+  EXPECT_EQ(p.alpha, 1.5);
+  EXPECT_NEAR(p.omega, 1.0, 1e-12);
+  EXPECT_EQ(s.Id().size(), 12u);
+  EXPECT_EQ(Parse(R"(
+model = "standalone"
+[params]
+eta = 0.2
+[axes]
+alpha = { list = [0.5, 1.5] }
+omega = { logspace = [0.1, 10, 3] }
+)").Id(), s.Id());  // ids depend on content, not on layout
+}
+
+TEST(SweepSpec, ShippedExamplesParse) {
+  for (const auto& entry : std::filesystem::directory_iterator(BISTABLE_EXAMPLES_DIR)) {
+    if (entry.path().extension() != ".toml") continue;
+    auto s = LoadSweepSpec(entry.path().string());
+    EXPECT_TRUE(s.ok()) << entry.path() << ": " << s.status().ToString();
+  }
+}
+
+TEST(SweepSpec, BadInputNamesTheFieldAndTheBound) {
+  struct Case {
+    const char* toml;
+    const char* field;
+    const char* fragment;
+  };
+  const Case cases[] = {
+      {"model = \"coupled\"\n[axes\nalpha = [1]", "spec", "test.toml:2"},                       // malformed, with line
+      {"model = \"coupled\"\n[params]\nlamda = 0.8", "params.lamda", "did you mean 'lambda'"},  // typo
+      {"model = \"coupled\"\n[axis]\nalpha = [1]", "axis", "did you mean 'axes'"},
+      {"model = \"duffing\"", "model", "model in {standalone, coupled"},
+      {"[axes]\nalpha = [1]", "model", "required"},
+      {"model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3.0, 0] }", "axes.alpha.linspace.count", "[1, 1e7]"},
+      {"model = \"coupled\"\n[axes]\nalpha = { linspace = [3.0, 0.1, 5] }", "axes.alpha", "strictly increasing"},
+      {"model = \"coupled\"\n[axes]\nalpha = []", "axes.alpha", "empty"},
+      {"model = \"coupled\"\n[axes]\nalpha = [0.5, nan]", "axes.alpha[1]", "finite"},
+      {"model = \"coupled\"\n[axes]\nalpha = [-1, 0.5]", "axes.alpha[0]", "alpha > 0"},
+      {"model = \"coupled\"\n[params]\neta = -0.1", "params.eta", "eta >= 0"},
+      {"model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 10000] }\nomega = { linspace = [0.1, 3, 10000] }",
+       "axes", "<= 20000000"},
+      {"model = \"coupled\"\n[metrics]\nstore = [\"frf\"]", "metrics.store[0]", "did you mean 'frf_db'"},
+      {"model = \"coupled\"\n[integration]\nt_keep = 600", "integration.t_keep", "< t_end"},
+      {"model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3] }", "axes.alpha.linspace", "3 numbers"},
+      {"model = \"coupled\"\n[initial_conditions]\nstates = [[1, 0, 1]]", "initial_conditions.states[0]", "[ym, vm"},
+  };
+  for (const Case& c : cases) {
+    auto s = ParseSweepSpec(c.toml, "test.toml");
+    ASSERT_FALSE(s.ok()) << c.toml;
+    EXPECT_EQ(s.status().field(), c.field) << c.toml << "\n" << s.status().ToString();
+    EXPECT_NE(s.status().message().find(c.fragment), std::string::npos) << c.toml << "\n" << s.status().ToString();
+  }
+}
+
+TEST(Query, EvaluatesComparisonsConnectivesAndMotionNames) {
+  const std::vector<std::string> names = {"alpha", "frf_db", "lle", "motion"};
+  auto q = Query::Parse("frf_db < -3 and (lle < 0.01 or motion == chaotic) and not alpha >= 2", names);
+  ASSERT_TRUE(q.ok()) << q.status().ToString();
+  auto at = [](double a, double f, double l, double m) { return [=](int v) { return std::vector<double>{a, f, l, m}[v]; }; };
+  EXPECT_TRUE(q->Eval(at(1, -5, 0.0, 0)));
+  EXPECT_TRUE(q->Eval(at(1, -5, 0.2, 2)));
+  EXPECT_FALSE(q->Eval(at(1, -5, 0.2, 1)));
+  EXPECT_FALSE(q->Eval(at(2, -5, 0.0, 0)));
+  EXPECT_FALSE(q->Eval(at(1, NAN, 0.0, 0)));  // NaN never matches
+  EXPECT_EQ(q->used().size(), 4u);
+}
+
+TEST(Query, BadQueriesSayWhereAndSuggest) {
+  const std::vector<std::string> names = {"frf_db", "lle"};
+  auto a = Query::Parse("frf < 0", names);
+  ASSERT_FALSE(a.ok());
+  EXPECT_NE(a.status().message().find("did you mean 'frf_db'"), std::string::npos) << a.status().message();
+  auto b = Query::Parse("frf_db < ", names);
+  ASSERT_FALSE(b.ok());
+  EXPECT_NE(b.status().message().find("expected a name or a number"), std::string::npos);
+  auto c = Query::Parse("(lle < 0", names);
+  ASSERT_FALSE(c.ok());
+  EXPECT_NE(c.status().message().find("expected ')'"), std::string::npos);
+  EXPECT_FALSE(Query::Parse("lle ! 0", names).ok());
+}
+
+// The issue's contract: a map value equals the one-point result bit for bit at the same settings,
+// chaotic points included. The sweep runs 8 lanes per kernel call on 2 threads; the point runs alone.
+TEST(SweepEngine, MapValuesEqualSinglePointRunsBitForBit) {
+  const std::string dir = TempDir("bits");
+  auto c = SweepCoordinator::Open(dir);
+  ASSERT_TRUE(c.ok());
+  const SweepSpec spec = Parse(R"(
+model = "coupled"
+[axes]
+alpha = { linspace = [0.3, 2.0, 6] }
+omega = { linspace = [0.5, 2.5, 7] }
+)");
+  SweepPlan plan;
+  const std::string path = RunSweep(**c, spec, 2, &plan);
+  auto frf = ReadMapMetric(path, "frf_db");
+  auto lle = ReadMapMetric(path, "lle");
+  auto hd = ReadMapMetric(path, "hd_index");
+  ASSERT_TRUE(frf.ok() && lle.ok() && hd.ok());
+  int chaotic = 0;
+  for (long p = 0; p < spec.points(); p += 3) {
+    auto r = EvaluatePoint(spec.PointAt(p, 0));
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ(std::memcmp(&r->frf_db, &frf->values[p], sizeof(double)), 0) << "point " << p;
+    EXPECT_EQ(std::memcmp(&r->lle, &lle->values[p], sizeof(double)), 0) << "point " << p;
+    EXPECT_EQ(std::memcmp(&r->hd_index, &hd->values[p], sizeof(double)), 0) << "point " << p;
+    chaotic += r->motion == Motion::kChaotic;
+  }
+  EXPECT_GT(chaotic, 0) << "the sample must include chaotic points, where rounding differences would show";
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SweepEngine, OverlappingSweepReusesStoredPoints) {
+  const std::string dir = TempDir("cache");
+  auto c = SweepCoordinator::Open(dir);
+  ASSERT_TRUE(c.ok());
+  SweepPlan first, second;
+  const SweepSpec a = Parse(kSmall);
+  const std::string pa = RunSweep(**c, a, 2, &first);
+  EXPECT_EQ(first.items_cached, 0);
+  EXPECT_EQ(first.items_total, 15);
+  // Same grid plus two more omega values: only the 10 new points are computed.
+  const SweepSpec b = Parse(R"(
+model = "coupled"
+[axes]
+alpha = { linspace = [0.2, 1.4, 5] }
+omega = [0.8, 1.2, 1.6, 2.0, 2.4]
+)");
+  const std::string pb = RunSweep(**c, b, 2, &second);
+  EXPECT_EQ(second.items_total, 25);
+  EXPECT_EQ(second.items_cached, 15);
+  EXPECT_EQ(second.jobs, 1);  // 10 missing items at 16 per job
+  auto fa = ReadMapMetric(pa, "lle");
+  auto fb = ReadMapMetric(pb, "lle");
+  ASSERT_TRUE(fa.ok() && fb.ok());
+  // omega 0.8 → column 0 in both; 2.0 → column 2 in a, 3 in b.
+  for (int i = 0; i < 5; ++i) {
+    EXPECT_EQ(fa->values[i * 3 + 0], fb->values[i * 5 + 0]);
+    EXPECT_EQ(fa->values[i * 3 + 2], fb->values[i * 5 + 3]);
+  }
+  // Running the first spec again publishes nothing new and computes nothing.
+  SweepPlan again;
+  auto p = (*c)->Submit(a, 16);
+  ASSERT_TRUE(p.ok());
+  EXPECT_TRUE(p->already_published);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SweepEngine, DuplicateReportIsAcknowledgedAndNotStoredTwice) {
+  const std::string dir = TempDir("dup");
+  auto c = SweepCoordinator::Open(dir);
+  ASSERT_TRUE(c.ok());
+  const SweepSpec spec = Parse(kSmall);
+  auto plan = (*c)->Submit(spec, 8);
+  ASSERT_TRUE(plan.ok());
+  auto job = (*c)->Lease();
+  ASSERT_TRUE(job.has_value());
+  const auto records = ComputeItems(spec, job->items);
+  ASSERT_TRUE((*c)->Report(job->id, records).ok());
+  const long done = (*c)->progress().items_done;
+  ASSERT_TRUE((*c)->Report(job->id, records).ok());
+  EXPECT_EQ((*c)->progress().items_done, done);
+  EXPECT_FALSE((*c)->Report(job->id + 100, records).ok());
+  auto wrong_shape = records;
+  wrong_shape.resize(3);  // jobs hold 8 and 7 items
+  auto other = (*c)->Lease();
+  ASSERT_TRUE(other.has_value());
+  EXPECT_EQ((*c)->Report(other->id, wrong_shape).field(), "records");
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SweepEngine, SeveralInitialConditionsGiveMotionFractions) {
+  const std::string dir = TempDir("ic");
+  auto c = SweepCoordinator::Open(dir);
+  ASSERT_TRUE(c.ok());
+  const SweepSpec spec = Parse(R"(
+model = "standalone"
+[axes]
+alpha = [0.1, 0.3]
+omega = [0.8, 1.2]
+[initial_conditions]
+states = [[1, 0], [-1, 0], [0.0, 1.0]]
+)");
+  SweepPlan plan;
+  const std::string path = RunSweep(**c, spec, 1, &plan);
+  EXPECT_EQ(plan.items_total, 12);
+  auto motion = ReadMapMetric(path, "motion");
+  auto fi = ReadMapMetric(path, "frac_intrawell");
+  auto fw = ReadMapMetric(path, "frac_interwell");
+  auto fc = ReadMapMetric(path, "frac_chaotic");
+  ASSERT_TRUE(motion.ok() && fi.ok() && fw.ok() && fc.ok());
+  EXPECT_EQ(motion->dims, (std::vector<size_t>{2, 2, 3}));
+  EXPECT_EQ(motion->dim_names.back(), "ic");
+  for (size_t p = 0; p < 4; ++p) {
+    EXPECT_NEAR(fi->values[p] + fw->values[p] + fc->values[p], 1.0, 1e-12);
+    int intra = 0;
+    for (int i = 0; i < 3; ++i) intra += motion->values[p * 3 + i] == 0;
+    EXPECT_DOUBLE_EQ(fi->values[p], intra / 3.0);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SweepEngine, UnwritableDataDirectoryIsAClearError) {
+  auto c = SweepCoordinator::Open("/proc/bistable-cannot-exist/data");
+  ASSERT_FALSE(c.ok());
+  EXPECT_EQ(c.status().field(), "data");
+  EXPECT_NE(c.status().message().find("/proc/bistable-cannot-exist/data"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace bistable
