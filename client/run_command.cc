@@ -119,6 +119,7 @@ int RunSweep(const RunArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   auto plan = c.Submit(*spec, a.job_items > 0 ? a.job_items : JobItems(*spec, 0.25));
   if (!plan.ok()) return Fail(plan.status());
+  const auto t_planned = std::chrono::steady_clock::now();
   const int threads = a.threads > 0 ? a.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const long to_compute = plan->items_total - plan->items_cached;
   if (!a.quiet && !a.json) {
@@ -171,9 +172,12 @@ int RunSweep(const RunArgs& a) {
               << " items stored; rerun the same command to resume\n";
     return kExitInterrupted;
   }
+  const auto t_computed = std::chrono::steady_clock::now();
   auto path = c.Publish();
   if (!path.ok()) return Fail(path.status());
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto t_published = std::chrono::steady_clock::now();
+  const double seconds = std::chrono::duration<double>(t_published - t0).count();
+  auto secs = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
   std::vector<std::string> files = {*path};
   if (!a.no_plots) {
     const auto plot_dir = std::filesystem::path(*path).replace_extension("").string();
@@ -188,7 +192,10 @@ int RunSweep(const RunArgs& a) {
                         {"cached", plan->items_cached},
                         {"computed", to_compute},
                         {"seconds", seconds},
-                        {"points_per_second", seconds > 0 ? static_cast<double>(to_compute) / seconds : 0.0}};
+                        {"points_per_second", seconds > 0 ? static_cast<double>(to_compute) / seconds : 0.0},
+                        {"threads", threads},
+                        {"timing", {{"plan", secs(t0, t_planned)}, {"compute", secs(t_planned, t_computed)},
+                                    {"publish", secs(t_computed, t_published)}}}};
     std::cout << j.dump(2) << "\n";
   } else {
     std::printf("sweep %s done: %ld points (%ld computed, %ld reused) in %.1f s, %.0f computed points/s\n",

@@ -17,23 +17,51 @@ size_t FastFftLength(size_t n) {
   return best;
 }
 
+namespace {
+
+// Per-thread caches: sweeps transform thousands of same-length series, and both the Hann window
+// (n cosines) and kissfft's twiddle tables (held by the FFT object per length) cost as much as the
+// transform itself.
+struct FftCache {
+  Eigen::FFT<double> fft;
+  size_t n = 0;
+  std::vector<double> window;
+  double window_sum = 0;
+  std::vector<double> xw;
+  std::vector<std::complex<double>> spectrum;
+  FftCache() { fft.SetFlag(Eigen::FFT<double>::HalfSpectrum); }
+  void Prepare(size_t len) {
+    if (len == n) return;
+    n = len;
+    window.resize(n);
+    window_sum = 0;
+    for (size_t i = 0; i < n; ++i) {
+      window[i] = 0.5 - 0.5 * std::cos(2.0 * M_PI * static_cast<double>(i) / static_cast<double>(n));
+      window_sum += window[i];
+    }
+    xw.resize(n);
+  }
+};
+
+FftCache& Cache() {
+  thread_local FftCache cache;
+  return cache;
+}
+
+}  // namespace
+
 Spectrum AmplitudeSpectrum(const std::vector<double>& x_all, double dt) {
   Spectrum s;
   if (x_all.size() < 4) return s;
   const size_t n = FastFftLength(x_all.size());
   const double* x = x_all.data() + (x_all.size() - n);
   const double mean = std::accumulate(x, x + n, 0.0) / static_cast<double>(n);
-  std::vector<double> xw(n);
-  double wsum = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const double w = 0.5 - 0.5 * std::cos(2.0 * M_PI * static_cast<double>(i) / static_cast<double>(n));
-    xw[i] = (x[i] - mean) * w;
-    wsum += w;
-  }
-  Eigen::FFT<double> fft;
-  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
-  std::vector<std::complex<double>> X;
-  fft.fwd(X, xw);
+  FftCache& c = Cache();
+  c.Prepare(n);
+  for (size_t i = 0; i < n; ++i) c.xw[i] = (x[i] - mean) * c.window[i];
+  const double wsum = c.window_sum;
+  std::vector<std::complex<double>>& X = c.spectrum;
+  c.fft.fwd(X, c.xw);
   s.d_omega = 2.0 * M_PI / (static_cast<double>(n) * dt);
   s.amp.resize(X.size());
   for (size_t k = 0; k < X.size(); ++k) s.amp[k] = 2.0 * std::abs(X[k]) / wsum;
