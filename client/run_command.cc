@@ -90,20 +90,46 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
       else std::cerr << "warning: " << st.ToString() << "\n";
     }
   }
+  // Fig. 6: one harmonic-diffusion scatter per combination of the axes other than omega (at most 6).
   const bool has_peaks = std::find(spec.metrics.begin(), spec.metrics.end(), "hd_peaks") != spec.metrics.end();
-  if (has_peaks && spec.axes.size() == 1 && spec.axes[0].name == "omega") {
+  size_t omega_axis = spec.axes.size();
+  for (size_t k = 0; k < spec.axes.size(); ++k)
+    if (spec.axes[k].name == "omega") omega_axis = k;
+  long scatter_combos = 1;
+  for (size_t k = 0; k < spec.axes.size(); ++k)
+    if (k != omega_axis) scatter_combos *= static_cast<long>(spec.axes[k].values.size());
+  if (has_peaks && omega_axis < spec.axes.size() && scatter_combos <= 6 && spec.ic_count() == 1) {
     auto f = ReadMapMetric(map_path, "hd_peak_freq");
     auto a = ReadMapMetric(map_path, "hd_peak_amp");
     if (f.ok() && a.ok()) {
-      ScatterData sd;
-      sd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": harmonic diffusion (Fig. 6)";
-      const size_t k = f->dims.back(), stride = f->values.size() / spec.axes[0].values.size();
-      for (size_t i = 0; i < spec.axes[0].values.size(); ++i)
-        for (size_t j = 0; j < k; ++j)
-          if (std::isfinite(f->values[i * stride + j]))
-            sd.x.push_back(spec.axes[0].values[i]), sd.y.push_back(f->values[i * stride + j]), sd.amp.push_back(a->values[i * stride + j]);
-      const std::string out = (std::filesystem::path(dir) / "hd_scatter.png").string();
-      if (RenderHdScatter(sd, out).ok()) files.push_back(out);
+      const size_t k_peaks = f->dims.back();
+      for (long c = 0; c < scatter_combos; ++c) {
+        ScatterData sd;
+        sd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": harmonic diffusion";
+        std::string suffix;
+        long rest = c;
+        std::vector<size_t> fixed(spec.axes.size(), 0);
+        for (long k = static_cast<long>(spec.axes.size()) - 1; k >= 0; --k) {
+          if (static_cast<size_t>(k) == omega_axis) continue;
+          const long n = static_cast<long>(spec.axes[k].values.size());
+          fixed[k] = static_cast<size_t>(rest % n);
+          rest /= n;
+          suffix += "_" + spec.axes[k].name + "=" + FormatNumber(spec.axes[k].values[fixed[k]]);
+          sd.title += ", " + spec.axes[k].name + " = " + FormatNumber(spec.axes[k].values[fixed[k]]);
+        }
+        for (size_t i = 0; i < spec.axes[omega_axis].values.size(); ++i) {
+          fixed[omega_axis] = i;
+          long point = 0;
+          for (size_t k = 0; k < spec.axes.size(); ++k) point = point * static_cast<long>(spec.axes[k].values.size()) + static_cast<long>(fixed[k]);
+          for (size_t j = 0; j < k_peaks; ++j) {
+            const size_t off = static_cast<size_t>(point) * k_peaks + j;
+            if (std::isfinite(f->values[off]))
+              sd.x.push_back(spec.axes[omega_axis].values[i]), sd.y.push_back(f->values[off]), sd.amp.push_back(a->values[off]);
+          }
+        }
+        const std::string out = (std::filesystem::path(dir) / ("hd_scatter" + suffix + ".png")).string();
+        if (RenderHdScatter(sd, out).ok()) files.push_back(out);
+      }
     }
   }
   return files;

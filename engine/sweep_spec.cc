@@ -396,9 +396,12 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
     if (const toml::node* p = t->get("plots")) {
       auto names = StringArray(*p, "output.plots");
       if (!names.ok()) return names.status();
+      std::vector<std::string> plottable = spec.metrics;
+      if (spec.initial_states.size() > 1)
+        for (const char* f : {"frac_intrawell", "frac_interwell", "frac_chaotic"}) plottable.push_back(f);
       for (size_t i = 0; i < names->size(); ++i)
-        if (std::find(spec.metrics.begin(), spec.metrics.end(), (*names)[i]) == spec.metrics.end())
-          return UnknownValue("output.plots[" + std::to_string(i) + "]", (*names)[i], spec.metrics);
+        if (std::find(plottable.begin(), plottable.end(), (*names)[i]) == plottable.end())
+          return UnknownValue("output.plots[" + std::to_string(i) + "]", (*names)[i], plottable);
       spec.plots = *names;
     }
   } else {
