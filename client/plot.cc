@@ -79,6 +79,8 @@ std::string Num(double v) {
 }  // namespace
 
 std::string AxisLabel(const std::string& name, const std::string& unit) {
+  if (name == "a0_mm") return "base amplitude A_0 [mm]";
+  if (name == "f0_hz") return "base frequency f_0 [Hz]";
   // Units as stored (plain text) → gnuplot enhanced text with symbols.
   std::string u = unit;
   const std::pair<const char*, const char*> kSubs[] = {

@@ -1,5 +1,7 @@
 // `bistable run SPEC.toml`: the embedded deployment — the sweep coordinator and worker threads in
 // one process over a local data directory.
+#include <algorithm>
+#include <cmath>
 #include <csignal>
 #include <atomic>
 #include <chrono>
@@ -77,6 +79,7 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
       }
       auto slice = SliceMap(*m, at, 2);
       if (!slice.ok()) continue;
+      if (std::none_of(slice->values.begin(), slice->values.end(), [](double v) { return std::isfinite(v); })) continue;
       PlotData d;
       d.metric = metric;
       d.unit = slice->unit;
@@ -90,7 +93,8 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
       else std::cerr << "warning: " << st.ToString() << "\n";
     }
   }
-  // Fig. 6: one harmonic-diffusion scatter per combination of the axes other than omega (at most 6).
+  // Fig. 6: one harmonic-diffusion scatter per combination of the axes other than omega (at most 3,
+  // like the paper's two amplitudes; `bistable map ID --metric hd_scatter --at ...` draws any other).
   const bool has_peaks = std::find(spec.metrics.begin(), spec.metrics.end(), "hd_peaks") != spec.metrics.end();
   size_t omega_axis = spec.axes.size();
   for (size_t k = 0; k < spec.axes.size(); ++k)
@@ -98,7 +102,7 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
   long scatter_combos = 1;
   for (size_t k = 0; k < spec.axes.size(); ++k)
     if (k != omega_axis) scatter_combos *= static_cast<long>(spec.axes[k].values.size());
-  if (has_peaks && omega_axis < spec.axes.size() && scatter_combos <= 6 && spec.ic_count() == 1) {
+  if (has_peaks && omega_axis < spec.axes.size() && scatter_combos <= 3 && spec.ic_count() == 1) {
     auto f = ReadMapMetric(map_path, "hd_peak_freq");
     auto a = ReadMapMetric(map_path, "hd_peak_amp");
     if (f.ok() && a.ok()) {

@@ -13,12 +13,20 @@
 #include "dynamics/validate.h"
 #include "engine/content_hash.h"
 #include "engine/metric_catalog.h"
+#include "dynamics/generic_point.h"
+#include "dynamics/point.h"
 
 namespace bistable {
 namespace {
 
 const std::vector<std::string> kTopKeys = {"name", "model", "params", "axes", "integration", "metrics",
-                                           "initial_conditions", "output"};
+                                           "initial_conditions", "output", "series", "dimensional"};
+const std::vector<std::string> kSeriesKeys = {"cells", "resonators", "bistable", "cell"};
+const std::vector<std::string> kCellOverrideKeys = {"eps", "eta", "eta_r", "phi", "lambda"};
+const std::vector<std::string> kDimensionalKeys = {"preset", "resonator", "m_m",  "k_lin", "k3",   "c0_m",
+                                                   "c2_m",   "fs_m",      "fc_m", "m_r",   "k_r",  "c0_r",
+                                                   "c2_r",   "fs_r",      "fc_r", "v_sp",  "v_t"};
+const std::vector<std::string> kDimensionalParamKeys = {"a0_mm", "f0_hz"};
 const std::vector<std::string> kParamKeys = {"eps", "eta", "eta_r", "phi", "lambda", "alpha", "omega"};
 const std::vector<std::string> kAxisForms = {"list", "linspace", "logspace"};
 const std::vector<std::string> kIntegrationKeys = {"integrator", "dt", "t_end", "t_keep", "rtol", "atol"};
@@ -160,9 +168,11 @@ StatusOr<Axis> ParseAxis(const std::string& name, const toml::node& n) {
   return axis;
 }
 
+// For dimensional sweeps the point spec's alpha and omega carry A0 [mm] and f0 [Hz]; EvaluateItem
+// converts them. Everything else about a point spec (settings, validation, keys) applies unchanged.
 double* ParamSlot(PointSpec& s, const std::string& name) {
-  if (name == "alpha") return &s.alpha;
-  if (name == "omega") return &s.omega;
+  if (name == "alpha" || name == "a0_mm") return &s.alpha;
+  if (name == "omega" || name == "f0_hz") return &s.omega;
   if (name == "eps") return &s.params.eps;
   if (name == "eta") return &s.params.eta;
   if (name == "eta_r") return &s.params.eta_r;
@@ -177,7 +187,47 @@ std::string G17(double v) {
   return b;
 }
 
+std::string ModelConfigText(const SweepSpec& spec) {
+  std::ostringstream os;
+  if (spec.kind == SweepModel::kSeries) {
+    os << "series.cells=" << spec.series.cells << "\nseries.resonators=" << spec.series.resonators
+       << "\nseries.bistable=" << spec.series.bistable << "\n";
+    for (size_t i = 0; i < spec.series.overrides.size(); ++i)
+      for (const auto& [k, v] : spec.series.overrides[i]) os << "series.cell[" << i << "]." << k << "=" << G17(v) << "\n";
+  } else if (spec.kind == SweepModel::kDimensional) {
+    const DimensionalParams& d = spec.dimensional.params;
+    os << "dim.bistable=" << spec.dimensional.bistable << "\ndim.resonator=" << d.has_resonator;
+    for (double v : {d.m_m, d.k_lin, d.k3, d.c0_m, d.c2_m, d.fric_m.f_s, d.fric_m.f_c, d.fric_m.v_sp, d.fric_m.v_t, d.m_r,
+                     d.k_r, d.c0_r, d.c2_r, d.fric_r.f_s, d.fric_r.f_c, d.fric_r.v_sp, d.fric_r.v_t})
+      os << "," << G17(v);
+    os << "\n";
+  }
+  return os.str();
+}
+
+// The cells of a series point: [params] and axis values for all, then each cell's overrides.
+std::vector<SeriesCell> SeriesCellsFor(const SweepSpec& spec, const PointSpec& p) {
+  SeriesCell base{spec.series.bistable, p.params.eps, p.params.eta, spec.series.resonators, p.params.eta_r,
+                  p.params.phi, p.params.lambda};
+  std::vector<SeriesCell> cells(spec.series.cells, base);
+  for (size_t i = 0; i < spec.series.overrides.size() && i < cells.size(); ++i) {
+    for (const auto& [k, v] : spec.series.overrides[i]) {
+      if (k == "eps") cells[i].eps = v;
+      if (k == "eta") cells[i].eta = v;
+      if (k == "eta_r") cells[i].eta_r = v;
+      if (k == "phi") cells[i].phi = v;
+      if (k == "lambda") cells[i].lambda = v;
+    }
+  }
+  return cells;
+}
+
 }  // namespace
+
+const std::vector<std::string>& DimensionalAxisNames() {
+  static const std::vector<std::string> kNames = {"a0_mm", "f0_hz"};
+  return kNames;
+}
 
 const std::vector<std::string>& CanonicalAxisNames() {
   static const std::vector<std::string> kNames = {"alpha", "omega", "eta", "eta_r", "lambda", "phi", "eps"};
@@ -187,7 +237,8 @@ const std::vector<std::string>& CanonicalAxisNames() {
 std::string AxisUnit(const std::string& name) {
   static const std::map<std::string, std::string> kUnits = {
       {"alpha", "A0/delta_s"}, {"omega", "omega0/omega_n"}, {"eta", "c/(m_m omega_n)"}, {"eta_r", "c_r/(m_r omega_n)"},
-      {"lambda", "omega_r/omega_n"}, {"phi", "m_r/m_m"}, {"eps", "k3 delta_s^2/(m_m omega_n^2)"}};
+      {"lambda", "omega_r/omega_n"}, {"phi", "m_r/m_m"}, {"eps", "k3 delta_s^2/(m_m omega_n^2)"},
+      {"a0_mm", "mm"}, {"f0_hz", "Hz"}};
   auto it = kUnits.find(name);
   return it == kUnits.end() ? "" : it->second;
 }
@@ -244,7 +295,7 @@ PointSpec SweepSpec::PointAt(long index, int ic) const {
 
 std::string SweepSpec::CanonicalText() const {
   std::ostringstream os;
-  os << "numerics=" << kNumericsVersion << "\nmodel=" << ModelName(model) << "\n";
+  os << "numerics=" << kNumericsVersion << "\nmodel=" << ModelLabel() << "\n" << ModelConfigText(*this);
   for (const std::string& name : kParamKeys) os << name << "=" << G17(*ParamSlot(const_cast<PointSpec&>(base), name)) << "\n";
   for (const Axis& a : axes) {
     os << "axis." << a.name << "=";
@@ -263,6 +314,75 @@ std::string SweepSpec::CanonicalText() const {
   for (const auto& s : metrics) os << s << ",";
   os << "\n";
   return os.str();
+}
+
+std::string SweepSpec::ModelLabel() const {
+  switch (kind) {
+    case SweepModel::kSeries: return "series";
+    case SweepModel::kDimensional: return "dimensional";
+    case SweepModel::kCell: break;
+  }
+  return ModelName(model);
+}
+
+std::string SweepSpec::ItemKey(long index, int ic) const {
+  const std::string point = PointKey(PointAt(index, ic));
+  if (kind == SweepModel::kCell) return point;
+  return ContentHashHex(ModelConfigText(*this) + "|" + point);
+}
+
+PointResult SweepSpec::EvaluateItem(long index, int ic) const {
+  const PointSpec p = PointAt(index, ic);
+  if (kind == SweepModel::kCell) {
+    auto r = EvaluatePoint(p);
+    return r.ok() ? *r : PointResult{Termination::kDiverged};
+  }
+  PointSpec proxy = p;  // carries window, metric settings and the motion classification's model kind
+  GenericWindow w;
+  w.t_end = p.integration.t_end;
+  w.t_keep = p.integration.t_keep;
+  w.dt = p.integration.dt;
+  w.adaptive = p.integration.integrator == IntegratorKind::kAdaptive;
+  w.tol.rtol = p.integration.rtol;
+  w.tol.atol = p.integration.atol;
+  w.renorm_every = p.metrics.renorm_every;
+  w.sample_every = p.metrics.sample_every;
+  RawLane raw;
+  if (kind == SweepModel::kSeries) {
+    const std::vector<SeriesCell> cells = SeriesCellsFor(*this, p);
+    SeriesModel m(cells, p.alpha, p.omega);
+    const int last = m.cells() - 1;
+    const int yl = m.MainIndex(last), yp = last > 0 ? m.MainIndex(last - 1) : -1;
+    w.position = [yl, yp](const Eigen::VectorXd& x) { return x[yl] - (yp >= 0 ? x[yp] : 0.0); };
+    w.velocity = [yl](const Eigen::VectorXd& x) { return x[yl + 1]; };
+    w.amp = p.alpha;
+    w.omega = p.omega;
+    proxy.model = series.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
+    raw = RunGenericWindow(m, m.WellState(), w);
+  } else {
+    const DimensionalParams& dp = dimensional.params;
+    const double a0 = p.alpha * 1e-3, f0 = p.omega, omega = 2.0 * M_PI * f0;
+    DimensionalModel m(dp, SineBase(a0, f0));
+    const double delta_s = dimensional.bistable ? std::sqrt(-dp.k_lin / dp.k3) : 0.0;
+    Eigen::VectorXd x0 = Eigen::VectorXd::Zero(4);
+    if (p.ic_given) {
+      for (int i = 0; i < 4; ++i) x0[i] = p.ic[i];
+    } else {
+      x0[0] = delta_s;  // at rest in the positive well (linear beam: at rest at the origin)
+    }
+    w.position = [](const Eigen::VectorXd& x) { return x[0]; };
+    w.velocity = [](const Eigen::VectorXd& x) { return x[1]; };
+    w.amp = a0;
+    w.omega = omega;
+    w.adaptive = true;
+    proxy.model = dimensional.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
+    proxy.alpha = a0;
+    proxy.omega = omega;
+    // Stroboscopic repetition tolerance in metres (and m/s): period_tol in units of δs (or of A0).
+    proxy.metrics.period_tol = p.metrics.period_tol * (delta_s > 0 ? delta_s : a0);
+    raw = RunGenericWindow(m, x0, w);
+  }
+  return ComputePointMetrics(std::move(raw), proxy);
 }
 
 std::string SweepSpec::Id() const { return ContentHashHex(CanonicalText()).substr(0, 12); }
@@ -284,27 +404,125 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
     spec.name = *s;
   }
   const toml::node* model = root.get("model");
-  if (!model) return Status::InvalidArgument("model", "model is required (standalone, coupled, linear, linear-coupled)");
+  if (!model)
+    return Status::InvalidArgument("model", "model is required (standalone, coupled, linear, linear-coupled, series, dimensional)");
   {
     auto s = String(*model, "model");
     if (!s.ok()) return s.status();
-    auto m = ParseModel(*s);
-    if (!m.ok()) return m.status();
-    spec.model = *m;
-    spec.base.model = *m;
+    if (*s == "series") {
+      spec.kind = SweepModel::kSeries;
+    } else if (*s == "dimensional") {
+      spec.kind = SweepModel::kDimensional;
+    } else {
+      auto m = ParseModel(*s);
+      if (!m.ok())
+        return Status::InvalidArgument("model", m.status().message().substr(0, m.status().message().size() - 1) +
+                                                    ", series, dimensional}");
+      spec.model = *m;
+    }
   }
+  if (root.get("series") && spec.kind != SweepModel::kSeries)
+    return Status::InvalidArgument("series", "a [series] table needs model = \"series\"");
+  if (root.get("dimensional") && spec.kind != SweepModel::kDimensional)
+    return Status::InvalidArgument("dimensional", "a [dimensional] table needs model = \"dimensional\"");
+  if (spec.kind == SweepModel::kSeries) {
+    if (const toml::node* n = root.get("series")) {
+      const toml::table* t = n->as_table();
+      if (!t) return Status::InvalidArgument("series", "series must be a table");
+      BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "series", kSeriesKeys));
+      int cells = spec.series.cells;
+      BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "cells", "series.cells", &cells));
+      if (cells < 1 || cells > 1000) return Violates("series.cells", cells, "in [1, 1000]");
+      spec.series.cells = cells;
+      for (const char* flag : {"resonators", "bistable"}) {
+        if (const toml::node* b = t->get(flag)) {
+          if (!b->is_boolean()) return Status::InvalidArgument(std::string("series.") + flag, std::string("series.") + flag + " must be true or false");
+          (std::string(flag) == "resonators" ? spec.series.resonators : spec.series.bistable) = *b->value<bool>();
+        }
+      }
+      if (const toml::node* c = t->get("cell")) {
+        const toml::array* a = c->as_array();
+        if (!a) return Status::InvalidArgument("series.cell", "series.cell must be an array of tables, one per cell");
+        if (static_cast<int>(a->size()) > spec.series.cells)
+          return Violates("series.cell", static_cast<double>(a->size()), "count <= series.cells = " + std::to_string(spec.series.cells));
+        for (size_t i = 0; i < a->size(); ++i) {
+          const std::string f = "series.cell[" + std::to_string(i) + "]";
+          const toml::table* ct = (*a)[i].as_table();
+          if (!ct) return Status::InvalidArgument(f, f + " must be a table like {eta = 0.2}");
+          BISTABLE_RETURN_IF_ERROR(CheckKeys(*ct, f, kCellOverrideKeys));
+          std::vector<std::pair<std::string, double>> ov;
+          for (const std::string& k : kCellOverrideKeys) {
+            double v = 0;
+            if (ct->get(k)) {
+              BISTABLE_RETURN_IF_ERROR(ReadNumber(*ct, k, f + "." + k, &v));
+              ov.emplace_back(k, v);
+            }
+          }
+          spec.series.overrides.push_back(ov);
+        }
+      }
+    }
+    spec.model = spec.series.bistable ? (spec.series.resonators ? ModelKind::kCoupled : ModelKind::kStandalone)
+                                      : (spec.series.resonators ? ModelKind::kLinearCoupled : ModelKind::kLinear);
+  }
+  if (spec.kind == SweepModel::kDimensional) {
+    spec.model = ModelKind::kStandalone;
+    IntegrationSettings& in = spec.base.integration;  // seconds; DP5 with tangent
+    in.integrator = IntegratorKind::kAdaptive;
+    in.t_end = 20.0;
+    in.t_keep = 10.0;
+    in.dt = 0.001;
+    in.rtol = 1e-6;
+    in.atol = 1e-9;
+    spec.base.alpha = spec.dimensional.a0_mm;
+    spec.base.omega = spec.dimensional.f0_hz;
+    if (const toml::node* n = root.get("dimensional")) {
+      const toml::table* t = n->as_table();
+      if (!t) return Status::InvalidArgument("dimensional", "dimensional must be a table");
+      BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "dimensional", kDimensionalKeys));
+      if (const toml::node* pr = t->get("preset")) {
+        auto name = String(*pr, "dimensional.preset");
+        if (!name.ok()) return name.status();
+        if (*name == "bistable") spec.dimensional.params = DimensionalParams::BistableTable2(), spec.dimensional.bistable = true;
+        else if (*name == "linear") spec.dimensional.params = DimensionalParams::LinearTable2(), spec.dimensional.bistable = false;
+        else return Status::InvalidArgument("dimensional.preset", "dimensional.preset = '" + *name + "' violates preset in {bistable, linear}");
+      }
+      DimensionalParams& d = spec.dimensional.params;
+      if (const toml::node* r = t->get("resonator")) {
+        if (!r->is_boolean()) return Status::InvalidArgument("dimensional.resonator", "dimensional.resonator must be true or false");
+        d.has_resonator = *r->value<bool>();
+      }
+      const std::pair<const char*, double*> slots[] = {
+          {"m_m", &d.m_m},   {"k_lin", &d.k_lin}, {"k3", &d.k3},          {"c0_m", &d.c0_m}, {"c2_m", &d.c2_m},
+          {"fs_m", &d.fric_m.f_s}, {"fc_m", &d.fric_m.f_c}, {"m_r", &d.m_r}, {"k_r", &d.k_r}, {"c0_r", &d.c0_r},
+          {"c2_r", &d.c2_r}, {"fs_r", &d.fric_r.f_s}, {"fc_r", &d.fric_r.f_c}};
+      for (auto [k, slot] : slots) BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, k, std::string("dimensional.") + k, slot));
+      double v_sp = d.fric_m.v_sp, v_t = d.fric_m.v_t;
+      BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "v_sp", "dimensional.v_sp", &v_sp));
+      BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "v_t", "dimensional.v_t", &v_t));
+      d.fric_m.v_sp = d.fric_r.v_sp = v_sp;
+      d.fric_m.v_t = d.fric_r.v_t = v_t;
+      spec.dimensional.bistable = d.k_lin < 0;
+      if (Status st = ValidateDimensionalParams(d); !st.ok())
+        return Status::InvalidArgument("dimensional." + st.field(), st.message());
+    }
+  }
+  spec.base.model = spec.model;
+  const bool dimensional = spec.kind == SweepModel::kDimensional;
+  const std::vector<std::string>& param_keys = dimensional ? kDimensionalParamKeys : kParamKeys;
+  const std::vector<std::string>& axis_names = dimensional ? DimensionalAxisNames() : CanonicalAxisNames();
   if (const toml::node* n = root.get("params")) {
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("params", "params must be a table");
-    BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "params", kParamKeys));
-    for (const std::string& k : kParamKeys) BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, k, "params." + k, ParamSlot(spec.base, k)));
+    BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "params", param_keys));
+    for (const std::string& k : param_keys) BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, k, "params." + k, ParamSlot(spec.base, k)));
   }
   std::set<std::string> swept;
   if (const toml::node* n = root.get("axes")) {
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("axes", "axes must be a table");
-    BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "axes", CanonicalAxisNames()));
-    for (const std::string& name : CanonicalAxisNames()) {
+    BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "axes", axis_names));
+    for (const std::string& name : axis_names) {
       if (const toml::node* a = t->get(name)) {
         auto axis = ParseAxis(name, *a);
         if (!axis.ok()) return axis.status();
@@ -369,6 +587,9 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("initial_conditions", "initial_conditions must be a table");
     BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "initial_conditions", kIcKeys));
+    if (spec.kind == SweepModel::kSeries)
+      return Status::InvalidArgument("initial_conditions", "initial_conditions are not supported for series chains yet; "
+                                                           "they start at rest in every link's positive well");
     if (const toml::node* s = t->get("states")) {
       const toml::array* a = s->as_array();
       if (!a || a->empty())
@@ -411,6 +632,10 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
 
   // Whole-spec checks: a representative point validates every fixed value and setting; swept values
   // are checked one axis value at a time so the message names the axis.
+  auto field_of = [&](const std::string& f) {
+    if (!dimensional) return f;
+    return f == "alpha" ? std::string("a0_mm") : f == "omega" ? std::string("f0_hz") : f;
+  };
   PointSpec probe = spec.base;
   for (const Axis& a : spec.axes) *ParamSlot(probe, a.name) = a.values.front();
   if (!spec.initial_states.empty()) probe.ic_given = true, probe.ic = spec.initial_states.front();
@@ -418,15 +643,27 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
     for (size_t i = 0; i < a.values.size(); ++i) {
       PointSpec p = probe;
       *ParamSlot(p, a.name) = a.values[i];
-      if (Status st = ValidatePointSpec(p); !st.ok() && st.field() == a.name)
+      if (Status st = ValidatePointSpec(p); !st.ok() && field_of(st.field()) == a.name)
         return Status::InvalidArgument("axes." + a.name + "[" + std::to_string(i) + "]", st.message());
     }
   }
   if (Status st = ValidatePointSpec(probe); !st.ok()) {
-    const bool is_axis = swept.count(st.field()) > 0;
-    const bool is_param = std::find(kParamKeys.begin(), kParamKeys.end(), st.field()) != kParamKeys.end();
+    const std::string f = field_of(st.field());
+    const bool is_axis = swept.count(f) > 0;
+    const bool is_param = std::find(param_keys.begin(), param_keys.end(), f) != param_keys.end();
     const std::string section = is_axis ? "axes." : is_param ? "params." : "integration.";
-    return Status::InvalidArgument(section + st.field(), st.message());
+    return Status::InvalidArgument(section + f, st.message());
+  }
+  if (spec.kind == SweepModel::kSeries) {
+    for (const Axis& a : spec.axes)
+      for (size_t i = 0; i < a.values.size(); ++i) {
+        PointSpec p = probe;
+        *ParamSlot(p, a.name) = a.values[i];
+        if (Status st = ValidateSeriesCells(SeriesCellsFor(spec, p)); !st.ok())
+          return Status::InvalidArgument("series." + st.field(), st.message());
+      }
+    if (Status st = ValidateSeriesCells(SeriesCellsFor(spec, probe)); !st.ok())
+      return Status::InvalidArgument("series." + st.field(), st.message());
   }
   const double items = static_cast<double>(spec.points()) * spec.ic_count();
   if (items > static_cast<double>(kMaxSweepItems))

@@ -8,7 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "dynamics/dimensional_model.h"
 #include "dynamics/point_spec.h"
+#include "dynamics/series_model.h"
 #include "dynamics/status.h"
 
 namespace bistable {
@@ -21,8 +23,31 @@ struct Axis {
   std::vector<double> values;  // strictly increasing
 };
 
+// Which family of models a sweep runs.
+enum class SweepModel {
+  kCell,         // stand-alone / coupled / linear / linear-coupled: the SIMD kernel (RK4) or DP5 per point
+  kSeries,       // N cells in series (paper §6.3): generic RK4 (or DP5) with tangent, one point at a time
+  kDimensional,  // the dimensional model with Stribeck friction (model.md §2), SI units, DP5 with tangent
+};
+
+// N cells in series: identical cells from [params] and the axes, with optional per-cell overrides.
+struct SeriesConfig {
+  int cells = 2;
+  bool resonators = true;  // every cell carries a resonator
+  bool bistable = true;    // bistable links (else linear)
+  std::vector<std::vector<std::pair<std::string, double>>> overrides;  // per cell: name → value
+};
+
+// The dimensional model: a Table 2 preset with overrides; base amplitude A0 [mm] and frequency f0 [Hz].
+struct DimensionalConfig {
+  DimensionalParams params = DimensionalParams::BistableTable2();
+  bool bistable = true;
+  double a0_mm = 10.0, f0_hz = 5.0;
+};
+
 // Axis names in the canonical order used for enumeration and for the map datasets.
 const std::vector<std::string>& CanonicalAxisNames();
+const std::vector<std::string>& DimensionalAxisNames();  // a0_mm, f0_hz
 // Unit and meaning of an axis ("alpha" → "A0/delta_s", ...).
 std::string AxisUnit(const std::string& name);
 
@@ -34,7 +59,10 @@ struct WorkItem {
 
 struct SweepSpec {
   std::string name;                 // free text, for humans
-  ModelKind model = ModelKind::kCoupled;
+  SweepModel kind = SweepModel::kCell;
+  ModelKind model = ModelKind::kCoupled;  // for kCell; the metric proxy's kind otherwise
+  SeriesConfig series;
+  DimensionalConfig dimensional;
   PointSpec base;                   // fixed parameters and settings; alpha/omega used when not swept
   std::vector<Axis> axes;           // in canonical order, only the swept ones
   std::vector<std::array<double, 4>> initial_states;  // empty: the model's default start
@@ -51,6 +79,15 @@ struct SweepSpec {
   PointSpec PointAt(long index, int ic) const;
   // Axis indices of a point.
   std::vector<int> AxisIndices(long index) const;
+
+  // True when items run through the SIMD ensemble kernel (cell models with RK4).
+  bool UsesKernel() const { return kind == SweepModel::kCell && base.integration.integrator == IntegratorKind::kRk4; }
+  // Content key of an item: model configuration, parameters, settings, initial state, numerics version.
+  std::string ItemKey(long index, int ic) const;
+  // Runs one item outside the kernel (series, dimensional, adaptive cell models).
+  PointResult EvaluateItem(long index, int ic) const;
+  // Display name of the model ("coupled", "series", "dimensional").
+  std::string ModelLabel() const;
 };
 
 // Parses and validates. `origin` names the source in messages (a file name).

@@ -5,7 +5,6 @@
 #include <chrono>
 #include <filesystem>
 
-#include "engine/content_hash.h"
 #include "storage/map_file.h"
 
 namespace bistable {
@@ -62,7 +61,7 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
   keys_.clear();
   keys_.reserve(plan.items_total);
   for (long p = 0; p < spec.points(); ++p)
-    for (int i = 0; i < nic; ++i) all.push_back({p, i}), keys_.push_back(PointKey(spec.PointAt(p, i)));
+    for (int i = 0; i < nic; ++i) all.push_back({p, i}), keys_.push_back(spec.ItemKey(p, i));
   const std::vector<std::string>& keys = keys_;
   auto cached = db_->LookupPoints(keys);
   if (!cached.ok()) return cached.status();
@@ -85,7 +84,7 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
   started_ = Now();
   row_.id = plan.id;
   row_.name = spec.name;
-  row_.model = ModelName(spec.model);
+  row_.model = spec.ModelLabel();
   row_.spec = spec.source;
   row_.status = "running";
   row_.points_total = plan.items_total;

@@ -127,6 +127,14 @@ Status FsyncPath(const std::string& path, bool directory) {
   return rc == 0 ? Status::Ok() : Status::IoError("map", "fsync " + path);
 }
 
+// Dimensional sweeps measure in SI: time in s, lengths in m, angular frequencies in rad/s.
+std::string UnitFor(const SweepSpec& spec, std::string unit) {
+  if (spec.kind != SweepModel::kDimensional) return unit;
+  for (auto [from, to] : {std::pair<std::string, std::string>{"rad/tau", "rad/s"}, {"1/tau", "1/s"}, {"delta_s", "m"}})
+    if (unit == from) return to;
+  return unit;
+}
+
 Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records) {
   Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
   if (!file.ok()) return H5Fail(tmp, "create");
@@ -157,7 +165,7 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
     std::vector<double> data(records.size());
     for (size_t i = 0; i < records.size(); ++i) data[i] = records[i].Get(mi);
     BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), m.name, dims, data, m.integer ? H5T_NATIVE_INT32 : H5T_NATIVE_DOUBLE,
-                                          m.unit, m.definition));
+                                          UnitFor(spec, m.unit), m.definition));
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), m.name, names));
   }
   if (std::find(spec.metrics.begin(), spec.metrics.end(), "hd_peaks") != spec.metrics.end()) {
@@ -168,10 +176,10 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
     std::vector<double> f(records.size() * kHdPeaksStored), a(f.size());
     for (size_t i = 0; i < records.size(); ++i)
       for (int k = 0; k < kHdPeaksStored; ++k) f[i * kHdPeaksStored + k] = records[i].PeakFreq(k), a[i * kHdPeaksStored + k] = records[i].PeakAmp(k);
-    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_freq", pd, f, H5T_NATIVE_DOUBLE, "rad/tau",
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_freq", pd, f, H5T_NATIVE_DOUBLE, UnitFor(spec, "rad/tau"),
                                           "spectral peaks of y_m (strongest first), angular frequency; NaN = none"));
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "hd_peak_freq", pn));
-    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_amp", pd, a, H5T_NATIVE_DOUBLE, "delta_s",
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_amp", pd, a, H5T_NATIVE_DOUBLE, UnitFor(spec, "delta_s"),
                                           "amplitude of y_m at each spectral peak; NaN = none"));
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "hd_peak_amp", pn));
   }
@@ -193,7 +201,8 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "spec", spec.source));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "canonical_spec", spec.CanonicalText()));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "numerics_version", kNumericsVersion));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "model", ModelName(spec.model)));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "model", spec.ModelLabel()));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "time_unit", spec.kind == SweepModel::kDimensional ? "s" : "tau = omega_n t"));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "sweep_id", spec.Id()));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "name", spec.name));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "axes", axes_attr));

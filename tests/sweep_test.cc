@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "dynamics/point.h"
+#include "engine/content_hash.h"
 #include "engine/query.h"
 #include "engine/sweep_spec.h"
 #include "server/sweep_coordinator.h"
@@ -280,6 +281,123 @@ TEST(SweepEngine, UnwritableDataDirectoryIsAClearError) {
   ASSERT_FALSE(c.ok());
   EXPECT_EQ(c.status().field(), "data");
   EXPECT_NE(c.status().message().find("/proc/bistable-cannot-exist/data"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace bistable
+
+namespace bistable {
+namespace {
+
+// A one-cell chain through the generic path reproduces the coupled model through the kernel.
+TEST(SweepModels, OneCellSeriesEqualsTheCoupledModel) {
+  const SweepSpec series = Parse(R"(
+model = "series"
+[series]
+cells = 1
+[axes]
+alpha = [0.1, 1.0]
+omega = [0.3, 1.2]
+)");
+  EXPECT_EQ(series.ModelLabel(), "series");
+  for (long p = 0; p < 3; ++p) {  // the periodic points of this grid
+    const PointResult a = series.EvaluateItem(p, 0);
+    PointSpec ps = series.PointAt(p, 0);
+    ps.model = ModelKind::kCoupled;
+    auto b = EvaluatePoint(ps);
+    ASSERT_TRUE(b.ok());
+    EXPECT_NEAR(a.frf_db, b->frf_db, 1e-6) << p;  // same RK4 steps, same samples
+    // The tangent starts along another direction; over a 250-τ window the estimates agree to a few 1e-3.
+    EXPECT_NEAR(a.lle, b->lle, 0.006) << p;
+    EXPECT_EQ(a.motion, b->motion) << p;
+    EXPECT_EQ(a.period, b->period) << p;
+  }
+  EXPECT_NE(series.ItemKey(0, 0), PointKey(series.PointAt(0, 0)));  // model configuration is part of the key
+}
+
+// Without friction and c2, the dimensional model is the non-dimensional one in SI units: a periodic
+// point at (α 0.4, Ω 0.9) has the same transmissibility at A0 = α δs, f0 = Ω ωn / 2π (model.md §5).
+TEST(SweepModels, DimensionalSweepInPhysicalUnitsMatchesTheNondimensionalModel) {
+  const DimensionalParams t2 = DimensionalParams::BistableTable2();
+  const double delta_s = std::sqrt(-t2.k_lin / t2.k3), wn = std::sqrt(-t2.k_lin / t2.m_m);
+  const double alpha = 0.4, omega = 0.9;
+  char toml[1024];
+  std::snprintf(toml, sizeof toml, R"(
+model = "dimensional"
+[dimensional]
+preset = "bistable"
+c2_m = 0
+c2_r = 0
+fs_m = 0
+fc_m = 0
+fs_r = 0
+fc_r = 0
+[params]
+a0_mm = %.17g
+f0_hz = %.17g
+[integration]
+t_end = 8.0
+t_keep = 4.0
+dt = 0.0005
+rtol = 1e-10
+atol = 1e-13
+)",
+                alpha * delta_s * 1e3, omega * wn / (2 * M_PI));
+  const SweepSpec dim = Parse(toml);
+  ASSERT_EQ(dim.axes.size(), 0u);
+  const PointResult d = dim.EvaluateItem(0, 0);
+  PointSpec nd;
+  nd.model = ModelKind::kCoupled;
+  nd.alpha = alpha;
+  nd.omega = omega;
+  nd.params = {1.0, t2.c0_m / (t2.m_m * wn), t2.c0_r / (t2.m_r * wn), t2.m_r / t2.m_m, std::sqrt(t2.k_r / t2.m_r) / wn};
+  nd.integration.integrator = IntegratorKind::kAdaptive;
+  auto n = EvaluatePoint(nd);
+  ASSERT_TRUE(n.ok());
+  ASSERT_EQ(n->period, 1);
+  EXPECT_EQ(d.period, 1);
+  EXPECT_EQ(d.motion, n->motion);
+  EXPECT_NEAR(d.frf_db, n->frf_db, 0.01);
+  EXPECT_NEAR(d.lle / wn, n->lle, 0.01);  // per second → per unit τ
+  ASSERT_FALSE(d.hd_peaks.empty());
+  EXPECT_NEAR(d.hd_peaks[0].freq, 2 * M_PI * omega * wn / (2 * M_PI), 0.5);  // rad/s
+}
+
+TEST(SweepModels, DimensionalMassSticksAtSmallAmplitude) {
+  // A0 2 mm at 2 Hz: the base's inertial force on the mass, m A0 ω² ≈ 0.09 N, is far below static
+  // friction F_s = 1.2 N, so the mass rides with the table: transmissibility 0 dB, no relative motion.
+  const SweepSpec dim = Parse(R"(
+model = "dimensional"
+[params]
+a0_mm = 2.0
+f0_hz = 2.0
+[integration]
+t_end = 6.0
+t_keep = 3.0
+)");
+  const PointResult r = dim.EvaluateItem(0, 0);
+  EXPECT_EQ(r.termination, Termination::kOk);
+  EXPECT_NEAR(r.frf_db, 0.0, 0.1);
+  EXPECT_LT(r.y_max - r.y_min, 1e-4);  // metres
+  EXPECT_EQ(r.motion, Motion::kIntrawell);
+}
+
+TEST(SweepModels, SeriesAndDimensionalSpecErrorsNameTheirFields) {
+  for (auto [toml, field] : std::vector<std::pair<std::string, std::string>>{
+           {"model = \"series\"\n[series]\ncells = 0", "series.cells"},
+           {"model = \"series\"\n[series]\ncells = 2\ncell = [{eta = -1}]", "series.cells[0].eta"},
+           {"model = \"series\"\n[series]\ncells = 2\ncell = [{etta = 1}]", "series.cell[0].etta"},
+           {"model = \"coupled\"\n[series]\ncells = 2", "series"},
+           {"model = \"dimensional\"\n[dimensional]\npreset = \"stiff\"", "dimensional.preset"},
+           {"model = \"dimensional\"\n[dimensional]\nv_t = 0", "dimensional.v_t_m"},
+           {"model = \"dimensional\"\n[axes]\nalpha = [1]", "axes.alpha"},
+           {"model = \"dimensional\"\n[axes]\na0_mm = [0, 1]", "axes.a0_mm[0]"},
+           {"model = \"series\"\n[initial_conditions]\nstates = [[1, 0]]", "initial_conditions"},
+       }) {
+    auto s = ParseSweepSpec(toml, "t.toml");
+    ASSERT_FALSE(s.ok()) << toml;
+    EXPECT_EQ(s.status().field(), field) << toml << "\n" << s.status().ToString();
+  }
 }
 
 }  // namespace

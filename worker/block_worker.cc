@@ -8,11 +8,8 @@ namespace bistable {
 
 std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<WorkItem>& items) {
   std::vector<PointRecord> out(items.size());
-  if (spec.base.integration.integrator == IntegratorKind::kAdaptive) {
-    for (size_t i = 0; i < items.size(); ++i) {
-      auto r = EvaluatePoint(spec.PointAt(items[i].point, items[i].ic));
-      out[i] = PointRecord::From(r.ok() ? *r : PointResult{Termination::kDiverged});
-    }
+  if (!spec.UsesKernel()) {  // series, dimensional, adaptive: one point at a time
+    for (size_t i = 0; i < items.size(); ++i) out[i] = PointRecord::From(spec.EvaluateItem(items[i].point, items[i].ic));
     return out;
   }
   const PointSpec first = spec.PointAt(0, 0);

@@ -1,6 +1,6 @@
 // Computes a job: a list of (grid point, initial condition) items of one sweep, returning one
 // PointRecord per item in the same order. RK4 items run through the SIMD ensemble kernel in blocks of
-// kSweepLanes lanes; adaptive items one by one. Either way each item's record equals what
+// kSweepLanes lanes; everything else (adaptive, series, dimensional) one item at a time. Either way each item's record equals what
 // `bistable point` prints for the same settings, bit for bit (see EnsembleKernel tests).
 // Thread-safe: no shared state; run one job per thread.
 #ifndef BISTABLE_WORKER_BLOCK_WORKER_H_
