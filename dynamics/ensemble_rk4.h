@@ -82,8 +82,11 @@ class EnsembleRk4 {
         e_start = Model::Energy(c, x);
         rec.OnStep(s.n_keep, x, k1, x, k1, cs);
       }
+      // The step's start state is kept only when a strobe falls inside this step (Hermite needs both ends).
       V xp[D], kp[D];
-      for (int d = 0; d < D; ++d) xp[d] = x[d], kp[d] = k1[d];
+      const bool strobe_due = step > s.n_keep && step >= rec.next_due();
+      if (strobe_due)
+        for (int d = 0; d < D; ++d) xp[d] = x[d], kp[d] = k1[d];
       if (step > s.n_keep) {
         Step<true>(c, amp, rot_c, rot_s, s.h, x, k1, w, q, &sn, &cs);
       } else {
@@ -93,7 +96,7 @@ class EnsembleRk4 {
         Anchor(omega, step, s.h, &sn, &cs);
         Model::Rhs(c, x, amp * sn, k1);  // derivative consistent with the re-anchored phase
       }
-      if (step > s.n_keep) rec.OnStep(step, xp, kp, x, k1, cs);
+      if (step > s.n_keep) rec.OnStep(step, strobe_due ? xp : x, strobe_due ? kp : k1, x, k1, cs);
       if (step % s.renorm_every == 0 || step == s.n_keep || step == s.n_total) {
         V lg;
         Renormalise(w, &lg, diverged, x);

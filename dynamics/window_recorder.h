@@ -93,6 +93,9 @@ class WindowRecorder {
   }
 
   void AddLogGrowth(V lg) { log_growth_ += lg; }
+  // The first step index in which some lane's next strobe falls (callers keep the step's start
+  // state only for such steps).
+  long next_due() const { return next_due_; }
 
   // Moves per-lane results out; quadratures and energies are set by the integrator.
   RawLane& Lane(int l) {
