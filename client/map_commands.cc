@@ -37,11 +37,15 @@ int ListSweeps(const SweepsArgs& a) {
   if (!rows.ok()) return Fail(rows.status());
   if (a.json) {
     nlohmann::json arr = nlohmann::json::array();
-    for (const SweepRow& r : *rows)
+    for (const SweepRow& r : *rows) {
+      nlohmann::json maps = nlohmann::json::array();
+      if (auto ms = (*db)->ListMaps(r.id); ms.ok())
+        for (const MapRow& m : *ms) maps.push_back({{"metric", m.metric}, {"shape", m.shape}, {"min", Num(m.min)}, {"max", Num(m.max)}});
       arr.push_back({{"id", r.id}, {"name", r.name}, {"model", r.model}, {"status", r.status},
                      {"points_total", r.points_total}, {"points_done", r.points_done},
                      {"file", r.file.empty() ? nlohmann::json(nullptr) : nlohmann::json((std::filesystem::path(a.data) / r.file).string())},
-                     {"created", r.created}, {"finished", r.finished}, {"seconds", r.seconds}});
+                     {"created", r.created}, {"finished", r.finished}, {"seconds", r.seconds}, {"maps", maps}});
+    }
     std::cout << arr.dump(2) << "\n";
     return 0;
   }

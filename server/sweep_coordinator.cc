@@ -2,7 +2,9 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 
 #include "storage/map_file.h"
@@ -138,12 +140,31 @@ StatusOr<std::string> SweepCoordinator::Publish() {
     records.push_back(it->second);
   }
   BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec_, records));
-  row_.status = "done";
-  row_.points_done = static_cast<long>(records.size());
-  row_.file = std::filesystem::relative(path, data_dir_).string();
-  row_.finished = Now();
-  row_.seconds = row_.finished - started_;
-  BISTABLE_RETURN_IF_ERROR(db_->UpsertSweep(row_));
+  SweepRow done = row_;
+  done.status = "done";
+  done.points_done = static_cast<long>(records.size());
+  done.file = std::filesystem::relative(path, data_dir_).string();
+  done.finished = Now();
+  done.seconds = done.finished - started_;
+  // Map rows: shape and range of every stored metric, for listings that need not open HDF5.
+  std::string shape;
+  for (const Axis& a : spec_.axes) shape += (shape.empty() ? "" : "x") + std::to_string(a.values.size());
+  if (spec_.ic_count() > 1) shape += "x" + std::to_string(spec_.ic_count());
+  std::vector<MapRow> maps;
+  const auto& catalog = MetricCatalog();
+  for (size_t mi = 0; mi < catalog.size(); ++mi) {
+    if (std::find(spec_.metrics.begin(), spec_.metrics.end(), catalog[mi].name) == spec_.metrics.end()) continue;
+    double lo = NAN, hi = NAN;
+    for (const PointRecord& r : records) {
+      const double v = r.Get(mi);
+      if (!std::isfinite(v)) continue;
+      lo = std::isnan(lo) ? v : std::min(lo, v);
+      hi = std::isnan(hi) ? v : std::max(hi, v);
+    }
+    maps.push_back({done.id, catalog[mi].name, done.file, shape, lo, hi});
+  }
+  BISTABLE_RETURN_IF_ERROR(db_->PublishSweep(done, maps));
+  row_ = done;
   return path;
 }
 

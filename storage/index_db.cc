@@ -33,6 +33,9 @@ CREATE TABLE IF NOT EXISTS sweeps(
   points_total INTEGER, points_done INTEGER, file TEXT, created REAL, finished REAL, seconds REAL);
 CREATE TABLE IF NOT EXISTS points(
   key TEXT PRIMARY KEY, record BLOB NOT NULL, created REAL) WITHOUT ROWID;
+CREATE TABLE IF NOT EXISTS maps(
+  sweep_id TEXT NOT NULL, metric TEXT NOT NULL, file TEXT NOT NULL, shape TEXT, min REAL, max REAL,
+  PRIMARY KEY(sweep_id, metric));
 CREATE TABLE IF NOT EXISTS meta(k TEXT PRIMARY KEY, v TEXT);
 INSERT OR IGNORE INTO meta VALUES('schema', '1');
 )sql";
@@ -113,6 +116,49 @@ Status IndexDb::UpsertSweep(const SweepRow& r) {
   s.Real(11, r.seconds);
   if (sqlite3_step(s.get()) != SQLITE_DONE) return Error("write sweep " + r.id);
   return Status::Ok();
+}
+
+Status IndexDb::PublishSweep(const SweepRow& row, const std::vector<MapRow>& maps) {
+  BISTABLE_RETURN_IF_ERROR(Exec("BEGIN IMMEDIATE"));
+  auto fail = [&](const std::string& what) {
+    Status st = Error(what);
+    Exec("ROLLBACK");
+    return st;
+  };
+  if (Status st = UpsertSweep(row); !st.ok()) {
+    Exec("ROLLBACK");
+    return st;
+  }
+  {
+    Stmt del(db_, "DELETE FROM maps WHERE sweep_id = ?");
+    del.Text(1, row.id);
+    if (sqlite3_step(del.get()) != SQLITE_DONE) return fail("clear map rows");
+    Stmt ins(db_, "INSERT INTO maps(sweep_id, metric, file, shape, min, max) VALUES(?,?,?,?,?,?)");
+    if (!ins.ok()) return fail("prepare map rows");
+    for (const MapRow& m : maps) {
+      sqlite3_reset(ins.get());
+      ins.Text(1, row.id);
+      ins.Text(2, m.metric);
+      ins.Text(3, m.file);
+      ins.Text(4, m.shape);
+      ins.Real(5, m.min);
+      ins.Real(6, m.max);
+      if (sqlite3_step(ins.get()) != SQLITE_DONE) return fail("write map row " + m.metric);
+    }
+  }
+  if (sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr) != SQLITE_OK) return fail("commit publication");
+  return Status::Ok();
+}
+
+StatusOr<std::vector<MapRow>> IndexDb::ListMaps(const std::string& sweep_id) {
+  Stmt s(db_, "SELECT sweep_id, metric, file, shape, min, max FROM maps WHERE sweep_id = ? ORDER BY metric");
+  if (!s.ok()) return Error("prepare map list");
+  s.Text(1, sweep_id);
+  std::vector<MapRow> rows;
+  while (sqlite3_step(s.get()) == SQLITE_ROW)
+    rows.push_back({s.ColText(0), s.ColText(1), s.ColText(2), s.ColText(3), sqlite3_column_double(s.get(), 4),
+                    sqlite3_column_double(s.get(), 5)});
+  return rows;
 }
 
 StatusOr<std::optional<SweepRow>> IndexDb::GetSweep(const std::string& id) {

@@ -34,6 +34,13 @@ struct SweepRow {
   double seconds = 0;      // wall time of the last run
 };
 
+// One published map dataset: what `bistable sweeps --json` and clients can list without opening HDF5.
+struct MapRow {
+  std::string sweep_id, metric, file;
+  std::string shape;      // "201x201" (axis lengths, then ic / peak dims)
+  double min = 0, max = 0;  // over finite values (NaN when none)
+};
+
 class IndexDb {
  public:
   ~IndexDb();
@@ -41,6 +48,9 @@ class IndexDb {
   static StatusOr<std::unique_ptr<IndexDb>> Open(const std::string& path);
 
   Status UpsertSweep(const SweepRow& row);
+  // Marks a sweep published: its row (status done, file) and its map rows, in one transaction.
+  Status PublishSweep(const SweepRow& row, const std::vector<MapRow>& maps);
+  StatusOr<std::vector<MapRow>> ListMaps(const std::string& sweep_id);
   StatusOr<std::optional<SweepRow>> GetSweep(const std::string& id_or_prefix);
   StatusOr<std::vector<SweepRow>> ListSweeps();
 

@@ -234,6 +234,40 @@ void InterruptThenResume(int signal_number) {
   fs::remove_all(dir);
 }
 
+// A full disk: a 1 MB tmpfs holds a small sweep; a big one then runs out of space. The big run must
+// fail with a clear message and exit 2, and the small sweep (index row, map file) must stay intact.
+TEST(CliSweep, FullDiskIsAClearErrorAndLosesNothing) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs root to mount a small tmpfs";
+  const std::string dir = Dir("full");
+  const std::string mnt = dir + "/mnt";
+  fs::create_directories(mnt);
+  if (std::system(("mount -t tmpfs -o size=1m tmpfs " + mnt + " 2>/dev/null").c_str()) != 0)
+    GTEST_SKIP() << "mounting a tmpfs is not permitted here";
+  const std::string small = WriteSpec(dir, kGrid);
+  const ProcessResult first = Bistable("run " + small + " --data " + mnt + " --json --no-plots");
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  const std::string first_map = nlohmann::json::parse(first.out)["files"][0];
+  std::ofstream(dir + "/big.toml") << "model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 150] }\n"
+                                      "omega = { linspace = [0.1, 3, 150] }\n[integration]\nt_end = 20.0\nt_keep = 10.0\n";
+  const ProcessResult big = Bistable("run " + dir + "/big.toml --data " + mnt + " --no-plots --quiet");
+  EXPECT_EQ(big.exit_code, 2) << big.err;
+  EXPECT_EQ(big.err.rfind("error: ", 0), 0u) << big.err;
+  EXPECT_TRUE(big.err.find("disk full") != std::string::npos || big.err.find("No space") != std::string::npos) << big.err;
+  // Nothing stored was lost: the first sweep is listed as done and its map reads back.
+  const ProcessResult ls = Bistable("sweeps --json --data " + mnt);
+  ASSERT_EQ(ls.exit_code, 0) << ls.err;
+  const auto rows = nlohmann::json::parse(ls.out);
+  bool found = false;
+  for (const auto& r : rows)
+    if (r["file"] == first_map) found = r["status"] == "done";
+  EXPECT_TRUE(found) << ls.out;
+  auto m = bistable::ReadMapMetric(first_map, "frf_db");
+  EXPECT_TRUE(m.ok()) << m.status().ToString();
+  for (const auto& e : fs::directory_iterator(mnt + "/sweeps")) EXPECT_NE(e.path().extension(), ".tmp") << e.path();
+  std::system(("umount " + mnt).c_str());
+  fs::remove_all(dir);
+}
+
 TEST(CliSweep, KillNineLosesNoFinishedJobAndRerunResumesToTheSameMap) { InterruptThenResume(SIGKILL); }
 TEST(CliSweep, CtrlCStopsCleanlyAndRerunResumesToTheSameMap) { InterruptThenResume(SIGINT); }
 
