@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "client/hbm_command.h"
 #include "client/point_command.h"
 #include "client/sweep_commands.h"
 #include "dynamics/point_spec.h"
@@ -14,6 +15,7 @@ int main(int argc, char** argv) {
   int exit_code = 0;
   bistable::AddPointCommand(app, &exit_code);
   bistable::AddRunCommand(app, &exit_code);
+  bistable::AddHbmCommand(app, &exit_code);
   bistable::AddSweepsCommand(app, &exit_code);
   bistable::AddMapCommand(app, &exit_code);
   bistable::AddQueryCommand(app, &exit_code);

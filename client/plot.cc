@@ -146,6 +146,48 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
   return RunGnuplot(s.str(), out_path);
 }
 
+Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
+  std::ostringstream s;
+  s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");
+  s << "set title " << Quote(d.title) << " noenhanced\n";
+  s << "set xlabel " << Quote(AxisLabel(d.x_name, d.x_unit)) << "\n";
+  s << "set ylabel " << Quote(d.y_label) << "\nset grid\nset key top left\n";
+  // One data block per branch; each stable/unstable run is its own segment (blank line between).
+  std::string plot = "plot ";
+  const char* colours[] = {"#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#666666"};
+  for (size_t b = 0; b < d.branches.size(); ++b) {
+    const auto& br = d.branches[b];
+    for (int stable = 1; stable >= 0; --stable) {
+      s << "$b" << b << "s" << stable << " << EOD\n";
+      for (size_t i = 0; i < br.x.size(); ++i) {
+        const bool in = br.stable[i] == static_cast<bool>(stable);
+        const bool next_in = i + 1 < br.x.size() && br.stable[i + 1] == static_cast<bool>(stable);
+        if (in || next_in) s << Num(br.x[i]) << " " << Num(br.y[i]) << "\n";
+        if (in && !next_in) s << "\n";
+      }
+      s << "EOD\n";
+      plot += "$b" + std::to_string(b) + "s" + std::to_string(stable) + " using 1:2 with lines lw 2 dt " +
+              (stable ? "1" : "2") + " lc rgb '" + colours[b % 8] + "' title " +
+              Quote(b == 0 ? (stable ? "stable" : "unstable") : "") + ", ";
+    }
+    if (!br.fold_x.empty()) {
+      s << "$f" << b << " << EOD\n";
+      for (size_t i = 0; i < br.fold_x.size(); ++i) s << Num(br.fold_x[i]) << " " << Num(br.fold_y[i]) << "\n";
+      s << "EOD\n";
+      plot += "$f" + std::to_string(b) + " using 1:2 with points pt 9 ps 1.2 lc rgb 'black' title " + Quote(b == 0 ? "fold" : "") + ", ";
+    }
+  }
+  if (!d.extra_x.empty()) {
+    s << "$extra << EOD\n";
+    for (size_t i = 0; i < d.extra_x.size(); ++i) s << Num(d.extra_x[i]) << " " << Num(d.extra_y[i]) << "\n";
+    s << "EOD\n";
+    plot += "$extra using 1:2 with points pt 7 ps 0.3 lc rgb '#999999' title " + Quote(d.extra_label) + ", ";
+  }
+  if (plot.size() > 5) plot.resize(plot.size() - 2);
+  s << plot << "\n";
+  return RunGnuplot(s.str(), out_path);
+}
+
 Status RenderHdScatter(const ScatterData& d, const std::string& out_path) {
   std::ostringstream s;
   s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");

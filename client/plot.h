@@ -31,6 +31,21 @@ struct ScatterData {
 };
 Status RenderHdScatter(const ScatterData& d, const std::string& out_path);
 
+// Continuation branches (amplitude vs parameter): stable segments solid, unstable dashed, folds
+// marked; optional extra points (e.g. the one-harmonic closed form) in grey.
+struct BranchPlot {
+  std::string title, x_name, x_unit, y_label;
+  struct Branch {
+    std::vector<double> x, y;
+    std::vector<bool> stable;
+    std::vector<double> fold_x, fold_y;
+  };
+  std::vector<Branch> branches;
+  std::vector<double> extra_x, extra_y;
+  std::string extra_label;
+};
+Status RenderBranches(const BranchPlot& d, const std::string& out_path);
+
 // A label like "alpha = A0/delta_s" for axes.
 std::string AxisLabel(const std::string& name, const std::string& unit);
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
@@ -430,21 +431,33 @@ StatusOr<HbmResult> ContinueBranches(const HbmOptions& o) {
   return result;
 }
 
-std::vector<double> Eq9StandaloneAmplitudes(double eps, double eta, double alpha, double omega) {
-  // B² u³ + 2AB u² + (A² + (ηΩ)²) u − (αΩ²)² = 0 with u = q², A = k_lin − Ω² (k_lin = −1), B = ¾ε.
-  const double a = -1.0 - omega * omega, b = 0.75 * eps;
-  const double c3 = b * b, c2 = 2 * a * b, c1 = a * a + eta * eta * omega * omega, c0 = -std::pow(alpha * omega * omega, 2);
+std::vector<double> Eq9Amplitudes(ModelKind model, const NondimParams& p, double alpha, double omega) {
+  using C = std::complex<double>;
+  const double k_lin = IsBistable(model) ? -1.0 : 1.0, eps = IsBistable(model) ? p.eps : 0.0;
+  const C i(0.0, 1.0), f = -i * alpha * omega * omega;
+  C b = k_lin - omega * omega + i * p.eta * omega, e = f;
+  if (HasResonator(model)) {
+    const C c = p.lambda * p.lambda + i * p.eta_r * omega, d = p.lambda * p.lambda - omega * omega + i * p.eta_r * omega;
+    b -= p.phi * c * omega * omega / d;
+    e *= 1.0 + p.phi * c / d;
+  }
+  // S² u³ + 2 Re(B) S u² + |B|² u − |E|² = 0, u = q², S = ¾ε.
+  const double sq = 0.75 * eps, br = b.real();
+  std::vector<double> q;
+  if (sq == 0.0) {  // linear: |B|² u = |E|²
+    q.push_back(std::abs(e) / std::abs(b));
+    return q;
+  }
+  const double c3 = sq * sq, c2 = 2 * br * sq, c1 = std::norm(b), c0 = -std::norm(e);
   Eigen::Matrix3d companion;
   companion << -c2 / c3, -c1 / c3, -c0 / c3, 1, 0, 0, 0, 1, 0;
   const Eigen::Vector3cd roots = Eigen::EigenSolver<Eigen::Matrix3d>(companion, false).eigenvalues();
-  std::vector<double> q;
-  for (int i = 0; i < 3; ++i) {
-    if (std::fabs(roots[i].imag()) > 1e-9 * std::max(1.0, std::abs(roots[i])) || roots[i].real() <= 0) continue;
-    // Polish the root with Newton on the cubic.
-    double u = roots[i].real();
-    for (int it = 0; it < 5; ++it) {
-      const double f = ((c3 * u + c2) * u + c1) * u + c0, df = (3 * c3 * u + 2 * c2) * u + c1;
-      if (df != 0) u -= f / df;
+  for (int k = 0; k < 3; ++k) {
+    if (std::fabs(roots[k].imag()) > 1e-9 * std::max(1.0, std::abs(roots[k])) || roots[k].real() <= 0) continue;
+    double u = roots[k].real();
+    for (int it = 0; it < 5; ++it) {  // polish on the cubic
+      const double fu = ((c3 * u + c2) * u + c1) * u + c0, dfu = (3 * c3 * u + 2 * c2) * u + c1;
+      if (dfu != 0) u -= fu / dfu;
     }
     q.push_back(std::sqrt(u));
   }

@@ -92,11 +92,13 @@ class HarmonicBalance {
   Eigen::Matrix2d c_, k_;  // damping and stiffness (top-left 1x1 for one DOF)
 };
 
-// The one-harmonic, zero-mean balance of the stand-alone oscillator in closed form (the corrected
-// counterpart of the paper's Eq. 9 for ε y³): y = q sin(Ωτ + θ) with
-//   ((k_lin − Ω² + ¾ε q²)² + (ηΩ)²) q² = (αΩ²)²,
-// a cubic in q²; returns every positive real amplitude q.
-std::vector<double> Eq9StandaloneAmplitudes(double eps, double eta, double alpha, double omega);
+// The one-harmonic, zero-mean balance in closed form: the corrected counterpart of the paper's Eq. 9
+// (which has sign and factor slips), for the stand-alone and the coupled oscillator. With complex
+// amplitudes y = Re(Y e^{iΩτ}), F = −iαΩ², the linear resonator eliminates as Y_r = (F + cY_m)/d,
+// c = λ² + iη_rΩ, d = λ² − Ω² + iη_rΩ, leaving (B + ¾ε q²) Y_m = F (1 + φc/d) with
+// B = k_lin − Ω² + iηΩ − φcΩ²/d (φ = 0 without resonator): a cubic in q² = |Y_m|². Returns every
+// positive real amplitude q, ascending.
+std::vector<double> Eq9Amplitudes(ModelKind model, const NondimParams& p, double alpha, double omega);
 
 }  // namespace bistable
 

@@ -133,3 +133,36 @@ TEST(CliPoint, HelpDocumentsUnits) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(CliHbm, JsonHasBranchesWithTheContractKeys) {
+  const ProcessResult r = Bistable("hbm --model standalone --continue omega --from 0.2 --to 2 --alpha 0.3 --harmonics 3 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(j["branches"].is_array());
+  ASSERT_FALSE(j["branches"].empty());
+  const auto& p = j["branches"][0]["points"][0];
+  for (const char* k : {"omega", "alpha", "amplitude", "mean", "stable", "harmonics"}) EXPECT_TRUE(p.contains(k)) << k;
+  EXPECT_EQ(p["harmonics"].size(), 7u);  // c0 + 3 (a, b) pairs
+  EXPECT_EQ(j["settings"]["harmonics"], 3);
+  bool intrawell = false;
+  for (const auto& b : j["branches"]) intrawell |= std::fabs(b["points"][0]["mean"].get<double>() - 1.0) < 0.05;
+  EXPECT_TRUE(intrawell) << "an intrawell branch about +1";
+}
+
+TEST(CliHbm, BadInputNamesTheField) {
+  for (auto [args, expect] : std::vector<std::pair<std::string, std::string>>{
+           {"hbm --harmonics 0", "harmonics = 0 violates harmonics in [1, 50]"},
+           {"hbm --from 1 --to 1", "to"},
+           {"hbm --continue eta", "continue = 'eta' violates continue in {omega, alpha}"},
+           {"hbm --model duffing", "model"},
+           {"hbm --alpha -2", "alpha"},
+       }) {
+    const ProcessResult r = Bistable(args);
+    EXPECT_EQ(r.exit_code, 2) << args;
+    EXPECT_NE(r.err.find(expect), std::string::npos) << args << ": " << r.err;
+  }
+}
+
+}  // namespace

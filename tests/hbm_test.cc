@@ -72,28 +72,39 @@ TEST(Hbm, LinearOscillatorMatchesExactAmplitude) {
   }
 }
 
+// The corrected counterpart of the paper's Eq. 9 in closed form against the general balance with
+// one harmonic and no constant term, stand-alone (Fig. 3a) and coupled with η_r 1.5, φ 2, λ 0.8 (Fig. 3b).
 TEST(Hbm, OneHarmonicZeroMeanBalanceMatchesItsClosedForm) {
-  // The corrected counterpart of the paper's Eq. 9 (stand-alone): ((−1 − Ω² + ¾εq²)² + (ηΩ)²) q² = (αΩ²)².
-  HbmOptions o = Options(ModelKind::kStandalone, 2.0);
-  o.harmonics = 1;
-  o.zero_mean = true;
-  HarmonicBalance hb(o);
-  int checked = 0;
-  for (double omega : {0.8, 1.5, 2.5}) {
-    const std::vector<double> q = Eq9StandaloneAmplitudes(1.0, 0.1, o.alpha, omega);
-    ASSERT_FALSE(q.empty()) << omega;
-    for (double root : q) {
-      Eigen::VectorXd z = Eigen::VectorXd::Zero(3);
-      z[2] = root;  // y = q sin Ωτ as the start; Newton finds the phase
-      ASSERT_GE(hb.Solve(&z, omega, o.alpha), 0) << omega;
-      EXPECT_NEAR(std::hypot(z[1], z[2]), root, 1e-9 * root) << omega;
-      EXPECT_EQ(z[0], 0.0);
-      ++checked;
-    }
+  for (ModelKind m : {ModelKind::kStandalone, ModelKind::kCoupled}) {
+    HbmOptions o = Options(m, 2.0);
+    o.params.eta_r = 1.5;
+    o.harmonics = 1;
+    o.zero_mean = true;
+    HarmonicBalance hb(o);
+    int checked = 0;
+    for (double alpha : {0.2, 2.0})
+      for (double omega : {0.5, 0.8, 1.5, 2.5}) {
+        for (double root : Eq9Amplitudes(m, o.params, alpha, omega)) {
+          // Start at y_m = q sin Ωτ with the resonator following; Newton finds both phases.
+          Eigen::VectorXd z = Eigen::VectorXd::Zero(hb.size());
+          z[2] = root;
+          if (hb.dofs() == 2) z[5] = root;
+          if (hb.Solve(&z, omega, alpha) < 0) continue;  // another root attracted Newton: checked below
+          const double q = std::hypot(z[1], z[2]);
+          const auto all = Eq9Amplitudes(m, o.params, alpha, omega);
+          double nearest = INFINITY;
+          for (double r : all) nearest = std::min(nearest, std::fabs(r - q));
+          EXPECT_LT(nearest, 1e-9 * q) << ModelName(m) << " alpha " << alpha << " omega " << omega;
+          EXPECT_EQ(z[0], 0.0);
+          ++checked;
+        }
+      }
+    EXPECT_GE(checked, 6) << ModelName(m);
   }
-  EXPECT_GE(checked, 3);
-  // A multi-valued case: at Ω = 1.5, α = 0.3 the cubic has three positive roots.
-  EXPECT_EQ(Eq9StandaloneAmplitudes(1.0, 0.1, 0.3, 1.5).size(), 3u);
+  // Multi-valued: at Ω = 1.5, α = 0.3 the stand-alone cubic has three positive roots.
+  EXPECT_EQ(Eq9Amplitudes(ModelKind::kStandalone, NondimParams{}, 0.3, 1.5).size(), 3u);
+  // Linear limit: the transmissibility of the relative motion.
+  EXPECT_NEAR(Eq9Amplitudes(ModelKind::kLinear, NondimParams{}, 0.5, 1.0)[0], 0.5 / 0.1, 1e-12);
 }
 
 TEST(Hbm, ContinuationPassesFoldsAndFindsIntrawellBranchesAboutPlusMinusOne) {
