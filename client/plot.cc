@@ -188,6 +188,31 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
   return RunGnuplot(s.str(), out_path);
 }
 
+Status RenderBifurcation(const BifurcationData& d, const std::string& out_path) {
+  std::ostringstream s;
+  s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");
+  s << "set title " << Quote(d.title) << " noenhanced\n";
+  s << "set xlabel " << Quote(AxisLabel(d.x_name, d.x_unit)) << "\n";
+  s << "set ylabel " << Quote("y_m at y_m' = 0 [{/Symbol d}_s]") << "\nset grid\nset key top left\n";
+  std::string plot = "plot ";
+  if (!d.x_up.empty()) {
+    s << "$up << EOD\n";
+    for (size_t i = 0; i < d.x_up.size(); ++i) s << Num(d.x_up[i]) << " " << Num(d.y_up[i]) << "\n";
+    s << "EOD\n";
+    plot += "$up using 1:2 with points pt 7 ps 0.15 lc rgb '#2166ac' title 'increasing', ";
+  }
+  if (!d.x_down.empty()) {
+    s << "$down << EOD\n";
+    for (size_t i = 0; i < d.x_down.size(); ++i) s << Num(d.x_down[i]) << " " << Num(d.y_down[i]) << "\n";
+    s << "EOD\n";
+    plot += "$down using 1:2 with points pt 7 ps 0.15 lc rgb '#b2182b' title 'decreasing', ";
+  }
+  if (plot.size() == 5) return Status::InvalidArgument("plot", "no turning points to plot");
+  plot.resize(plot.size() - 2);
+  s << plot << "\n";
+  return RunGnuplot(s.str(), out_path);
+}
+
 Status RenderHdScatter(const ScatterData& d, const std::string& out_path) {
   std::ostringstream s;
   s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");

@@ -46,6 +46,14 @@ struct BranchPlot {
 };
 Status RenderBranches(const BranchPlot& d, const std::string& out_path);
 
+// Bifurcation diagram (paper Fig. 4): turning points of y_m against the continued parameter, the
+// upward sweep and the downward sweep overlaid so hysteresis shows.
+struct BifurcationData {
+  std::string title, x_name, x_unit;
+  std::vector<double> x_up, y_up, x_down, y_down;
+};
+Status RenderBifurcation(const BifurcationData& d, const std::string& out_path);
+
 // A label like "alpha = A0/delta_s" for axes.
 std::string AxisLabel(const std::string& name, const std::string& unit);
 

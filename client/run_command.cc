@@ -136,6 +136,52 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
       }
     }
   }
+  // Fig. 4: bifurcation diagrams, one per combination of the axes other than the continued one (≤ 6).
+  if (spec.continuation.enabled() && spec.base.metrics.turning_points) {
+    auto tp = ReadMapMetric(map_path, "turning_points");
+    size_t cont = 0;
+    for (size_t k = 0; k < spec.axes.size(); ++k)
+      if (spec.axes[k].name == spec.continuation.axis) cont = k;
+    long combos = 1;
+    for (size_t k = 0; k < spec.axes.size(); ++k)
+      if (k != cont) combos *= static_cast<long>(spec.axes[k].values.size());
+    if (tp.ok() && combos <= 6) {
+      const int nic = spec.ic_count();
+      for (long c = 0; c < combos; ++c) {
+        BifurcationData bd;
+        bd.x_name = spec.continuation.axis;
+        bd.x_unit = AxisUnit(spec.continuation.axis);
+        bd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": bifurcation diagram";
+        std::string suffix;
+        std::vector<size_t> fixed(spec.axes.size(), 0);
+        long rest = c;
+        for (long k = static_cast<long>(spec.axes.size()) - 1; k >= 0; --k) {
+          if (static_cast<size_t>(k) == cont) continue;
+          const long n = static_cast<long>(spec.axes[k].values.size());
+          fixed[k] = static_cast<size_t>(rest % n);
+          rest /= n;
+          suffix += "_" + spec.axes[k].name + "=" + FormatNumber(spec.axes[k].values[fixed[k]]);
+          bd.title += ", " + spec.axes[k].name + " = " + FormatNumber(spec.axes[k].values[fixed[k]]);
+        }
+        for (size_t i = 0; i < spec.axes[cont].values.size(); ++i) {
+          fixed[cont] = i;
+          long point = 0;
+          for (size_t k = 0; k < spec.axes.size(); ++k) point = point * static_cast<long>(spec.axes[k].values.size()) + static_cast<long>(fixed[k]);
+          for (int ic = 0; ic < nic; ++ic) {
+            const bool down = spec.ChainGoesDown(ic);
+            for (int k = 0; k < kTurningPointsStored; ++k) {
+              const double y = tp->values[(static_cast<size_t>(point) * nic + ic) * kTurningPointsStored + k];
+              if (!std::isfinite(y)) continue;
+              (down ? bd.x_down : bd.x_up).push_back(spec.axes[cont].values[i]);
+              (down ? bd.y_down : bd.y_up).push_back(y);
+            }
+          }
+        }
+        const std::string out = (std::filesystem::path(dir) / ("bifurcation" + suffix + ".png")).string();
+        if (RenderBifurcation(bd, out).ok()) files.push_back(out);
+      }
+    }
+  }
   return files;
 }
 
@@ -228,9 +274,9 @@ int RunSweep(const RunArgs& a) {
                                     {"publish", secs(t_computed, t_published)}}}};
     std::cout << j.dump(2) << "\n";
   } else {
-    std::printf("sweep %s done: %ld points (%ld computed, %ld reused) in %.1f s, %.0f computed points/s\n",
-                plan->id.c_str(), spec->points(), to_compute, plan->items_cached, seconds,
-                seconds > 0 ? static_cast<double>(to_compute) / seconds : 0.0);
+    std::printf("sweep %s done: %ld points x %d = %ld items (%ld computed, %ld reused) in %.1f s, %.0f computed items/s\n",
+                plan->id.c_str(), spec->points(), spec->ic_count(), plan->items_total, to_compute, plan->items_cached,
+                seconds, seconds > 0 ? static_cast<double>(to_compute) / seconds : 0.0);
     std::printf("map: %s\n", path->c_str());
     for (size_t i = 1; i < files.size(); ++i) std::printf("plot: %s\n", files[i].c_str());
   }

@@ -115,6 +115,7 @@ class EnsembleRk4 {
       r.diverged = diverged[l] || !std::isfinite(x[0][l]);
       r.steps = s.n_total;
       r.rhs_evals = 4 * s.n_total;
+      for (int d = 0; d < D; ++d) r.final_state[d] = x[d][l];
       out[l] = std::move(r);
     }
   }

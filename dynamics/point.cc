@@ -83,6 +83,7 @@ RawLane RunAdaptive(const PointSpec& spec) {
   raw.e_end = Model::Energy(c1, x1)[0];
   raw.q_p = z[2 * D], raw.q_in = z[2 * D + 1], raw.q_m = z[2 * D + 2], raw.q_r = z[2 * D + 3];
   raw.diverged = diverged;
+  for (int d = 0; d < D; ++d) raw.final_state[d] = z[d];
   raw.steps = stepper.summary().accepted;
   raw.rhs_evals = stepper.summary().rhs_evals;
   return raw;

@@ -56,6 +56,8 @@ PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec) {
   PointResult r;
   r.steps = raw.steps;
   r.rhs_evals = raw.rhs_evals;
+  r.final_state = raw.final_state;
+  r.turning_points = std::move(raw.turning_points);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   if (raw.diverged) {
     r.termination = Termination::kDiverged;

@@ -57,6 +57,7 @@ struct MetricSettings {
   int hd_top_k = 10;               // at most this many peaks reported
   bool rosenstein = true;          // also estimate the LLE from sampled y_m (Rosenstein 1993)
   bool keep_samples = false;       // return the sampled window (for --trace)
+  bool turning_points = false;     // sweeps: store y_m at y_m' = 0 (bifurcation diagrams)
 };
 
 struct PointSpec {
@@ -108,6 +109,8 @@ struct PointResult {
   double delta_e = 0;             // E(t_end) − E(t_keep)
   double edr_b = 0, edr_r = 0, edr_t = 0;  // 100 W_m/W_in, 100 W_r/W_in, 100 (W_m+W_r)/W_in  [%]
   double energy_balance_residual = 0;      // |∫P − W_m − W_r − ΔE| / max(W_in, tiny)
+  std::vector<double> turning_points;  // y_m at y_m' = 0 in the window, in time order
+  std::array<double, 4> final_state = {0, 0, 0, 0};  // (y_m, y_m', y_r, y_r') at t_end
   long steps = 0;                 // integrator steps taken (accepted)
   long rhs_evals = 0;             // right-hand-side evaluations (adaptive path)
   // Sampled window rows (τ, y_m, y_m', y_r, y_r') every sample_every steps, when keep_samples.

@@ -25,6 +25,8 @@ struct RawLane {
   std::vector<double> strobe_y, strobe_v;  // y_m, y_m' at τ_k = 2πk/Ω in the window
   std::vector<double> y_samples;       // y_m every sample_every steps
   std::vector<std::array<double, 5>> rows;  // (τ, y_m, y_m', y_r, y_r') when keep_rows
+  std::vector<double> turning_points;  // y_m where y_m' changes sign in the window (bifurcation diagrams)
+  std::array<double, 4> final_state = {0, 0, 0, 0};  // state at t_end (continuation of the next point)
   double q_p = 0, q_in = 0, q_m = 0, q_r = 0;  // ∫P, ∫max(P,0), W_m, W_r over the window
   double e_start = 0, e_end = 0;       // E at t_keep and t_end
   bool diverged = false;
@@ -57,6 +59,26 @@ class WindowRecorder {
   // at both ends; cos_end = cos(Ω nh) per lane. The first call (n == n_keep) passes the window's
   // start point as both ends.
   BISTABLE_INLINE void OnStep(long n, const V* x0, const V* d0, const V* x1, const V* d1, V cos_end) {
+    // Turning points: y_m' changes sign between the previous step and this one. The recorder keeps
+    // the previous (y_m, y_m') itself; y_m at the crossing is the cubic Hermite through both ends,
+    // whose end slopes are exactly those velocities.
+    if (n > n_keep_) {
+      const auto crossed = (prev_v_ > 0.0) != (x1[1] > 0.0);
+      bool any = false;
+      for (int l = 0; l < W; ++l) any |= crossed[l] != 0;
+      if (any) {
+        for (int l = 0; l < W; ++l) {
+          if (!crossed[l]) continue;
+          const double v0 = prev_v_[l], v1 = x1[1][l], th = v0 / (v0 - v1);
+          const double t2 = th * th, t3 = t2 * th;
+          const double y = (2 * t3 - 3 * t2 + 1) * prev_y_[l] + (t3 - 2 * t2 + th) * h_ * v0 + (-2 * t3 + 3 * t2) * x1[0][l] +
+                           (t3 - t2) * h_ * v1;
+          lanes_[l].turning_points.push_back(y);
+        }
+      }
+    }
+    prev_y_ = x1[0];
+    prev_v_ = x1[1];
     const V vabs = Abs<W>(x1[1] + Load(alpha_omega_) * cos_end);
     vabs_max_ = Max<W>(vabs_max_, vabs);
     y_min_ = Min<W>(y_min_, x1[0]);
@@ -154,6 +176,7 @@ class WindowRecorder {
   std::vector<double> row_times_;
   V vabs_max_, y_min_, y_max_;
   V log_growth_ = Broadcast<W>(0.0);
+  V prev_y_ = Broadcast<W>(0.0), prev_v_ = Broadcast<W>(0.0);
   std::array<RawLane, W> lanes_;
 };
 

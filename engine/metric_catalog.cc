@@ -34,6 +34,7 @@ std::vector<std::string> MetricNames() {
   std::vector<std::string> names;
   for (const MetricInfo& m : MetricCatalog()) names.push_back(m.name);
   names.push_back("hd_peaks");
+  names.push_back("turning_points");
   return names;
 }
 
@@ -49,9 +50,13 @@ int MotionCode(Motion m) {
 
 const char* MotionCodesText() { return "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"; }
 
-size_t PointRecord::Size() { return MetricCatalog().size() + 2 * kHdPeaksStored; }
+size_t PointRecord::Size(bool turning_points) {
+  return MetricCatalog().size() + 2 * kHdPeaksStored + (turning_points ? kTurningPointsStored : 0);
+}
 
-PointRecord PointRecord::From(const PointResult& r) {
+double PointRecord::TurningPoint(int k) const { return v[MetricCatalog().size() + 2 * kHdPeaksStored + k]; }
+
+PointRecord PointRecord::From(const PointResult& r, bool turning_points) {
   PointRecord p;
   p.v = {r.frf_db,
          r.lle,
@@ -69,6 +74,10 @@ PointRecord PointRecord::From(const PointResult& r) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (int k = 0; k < kHdPeaksStored; ++k) p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].freq : nan);
   for (int k = 0; k < kHdPeaksStored; ++k) p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].amp : nan);
+  if (turning_points) {
+    const size_t n = r.turning_points.size(), first = n > kTurningPointsStored ? n - kTurningPointsStored : 0;
+    for (int k = 0; k < kTurningPointsStored; ++k) p.v.push_back(first + k < n ? r.turning_points[first + k] : nan);
+  }
   return p;
 }
 

@@ -10,7 +10,8 @@
 
 namespace bistable {
 
-inline constexpr int kHdPeaksStored = 10;  // spectral peaks kept per point (freq, amp)
+inline constexpr int kHdPeaksStored = 10;        // spectral peaks kept per point (freq, amp)
+inline constexpr int kTurningPointsStored = 64;  // last turning points of y_m in the window, when requested
 
 struct MetricInfo {
   const char* name;
@@ -24,11 +25,14 @@ const MetricInfo* FindMetric(const std::string& name);
 std::vector<std::string> MetricNames();
 
 // Fixed-layout record of one (point, IC) result: the scalar metrics in MetricCatalog() order, then
-// kHdPeaksStored peak frequencies and amplitudes (NaN-filled). This is what the point cache stores.
+// kHdPeaksStored peak frequencies and amplitudes (NaN-filled), then — only when the sweep stores
+// turning points — the last kTurningPointsStored of them (NaN-filled). This is what the point cache
+// stores; the two layouts never share a key (the turning-point flag is part of it).
 struct PointRecord {
   std::vector<double> v;
-  static size_t Size();
-  static PointRecord From(const PointResult& r);
+  static size_t Size(bool turning_points = false);
+  static PointRecord From(const PointResult& r, bool turning_points = false);
+  double TurningPoint(int k) const;
   double Get(size_t metric_index) const { return v[metric_index]; }
   double PeakFreq(int k) const;
   double PeakAmp(int k) const;

@@ -20,7 +20,8 @@ namespace bistable {
 namespace {
 
 const std::vector<std::string> kTopKeys = {"name", "model", "params", "axes", "integration", "metrics",
-                                           "initial_conditions", "output", "series", "dimensional"};
+                                           "initial_conditions", "output", "series", "dimensional", "continuation"};
+const std::vector<std::string> kContinuationKeys = {"axis", "direction"};
 const std::vector<std::string> kSeriesKeys = {"cells", "resonators", "bistable", "cell"};
 const std::vector<std::string> kCellOverrideKeys = {"eps", "eta", "eta_r", "phi", "lambda"};
 const std::vector<std::string> kDimensionalKeys = {"preset", "resonator", "m_m",  "k_lin", "k3",   "c0_m",
@@ -288,7 +289,7 @@ PointSpec SweepSpec::PointAt(long index, int ic) const {
   for (size_t k = 0; k < axes.size(); ++k) *ParamSlot(p, axes[k].name) = axes[k].values[idx[k]];
   if (!initial_states.empty()) {
     p.ic_given = true;
-    p.ic = initial_states[ic];
+    p.ic = initial_states[continuation.enabled() ? 0 : ic];  // continuation: the chains' start state
   }
   return p;
 }
@@ -310,6 +311,8 @@ std::string SweepSpec::CanonicalText() const {
      << "\nsample_every=" << m.sample_every << "\nperiod_tol=" << G17(m.period_tol) << "\nmax_period=" << m.max_period
      << "\nhd_level=" << G17(m.hd_level) << "\nhd_top_k=" << m.hd_top_k << "\nrosenstein=" << m.rosenstein << "\n";
   for (const auto& ic : initial_states) os << "ic=" << G17(ic[0]) << "," << G17(ic[1]) << "," << G17(ic[2]) << "," << G17(ic[3]) << "\n";
+  if (continuation.enabled())
+    os << "continuation=" << continuation.axis << "," << continuation.up << "," << continuation.down << "\n";
   os << "metrics=";
   for (const auto& s : metrics) os << s << ",";
   os << "\n";
@@ -326,6 +329,10 @@ std::string SweepSpec::ModelLabel() const {
 }
 
 std::string SweepSpec::ItemKey(long index, int ic) const {
+  // A chained point's start state is the previous point's end state: it is determined by the whole
+  // spec and the point's place in its chain, so that is what the key hashes.
+  if (continuation.enabled())
+    return ContentHashHex(CanonicalText() + "|chain|" + std::to_string(index) + "|" + std::to_string(ic));
   const std::string point = PointKey(PointAt(index, ic));
   if (kind == SweepModel::kCell) return point;
   return ContentHashHex(ModelConfigText(*this) + "|" + point);
@@ -383,6 +390,44 @@ PointResult SweepSpec::EvaluateItem(long index, int ic) const {
     raw = RunGenericWindow(m, x0, w);
   }
   return ComputePointMetrics(std::move(raw), proxy);
+}
+
+int SweepSpec::ContinuationIndex(long point) const {
+  const std::vector<int> idx = AxisIndices(point);
+  for (size_t k = 0; k < axes.size(); ++k)
+    if (axes[k].name == continuation.axis) return idx[k];
+  return 0;
+}
+
+long SweepSpec::ContinuationLine(long point) const {
+  long stride = 1;
+  for (long k = static_cast<long>(axes.size()) - 1; k >= 0; --k) {
+    if (axes[k].name == continuation.axis) return point - ContinuationIndex(point) * stride;
+    stride *= static_cast<long>(axes[k].values.size());
+  }
+  return point;
+}
+
+std::vector<std::vector<WorkItem>> SweepSpec::ContinuationChains() const {
+  std::vector<std::vector<WorkItem>> chains;
+  if (!continuation.enabled()) return chains;
+  long stride = 1, n = 1;
+  for (long k = static_cast<long>(axes.size()) - 1; k >= 0; --k) {
+    if (axes[k].name == continuation.axis) {
+      n = static_cast<long>(axes[k].values.size());
+      break;
+    }
+    stride *= static_cast<long>(axes[k].values.size());
+  }
+  for (long p = 0; p < points(); ++p) {
+    if (ContinuationIndex(p) != 0) continue;  // p is a line's first point
+    for (int ic = 0; ic < ic_count(); ++ic) {
+      std::vector<WorkItem> chain;
+      for (long i = 0; i < n; ++i) chain.push_back({p + (ChainGoesDown(ic) ? n - 1 - i : i) * stride, ic});
+      chains.push_back(std::move(chain));
+    }
+  }
+  return chains;
 }
 
 std::string SweepSpec::Id() const { return ContentHashHex(CanonicalText()).substr(0, 12); }
@@ -580,6 +625,8 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
       m.rosenstein = *r->value<bool>();
     }
   }
+  spec.base.metrics.turning_points =
+      std::find(spec.metrics.begin(), spec.metrics.end(), "turning_points") != spec.metrics.end();
   if (spec.base.metrics.rosenstein &&
       std::find(spec.metrics.begin(), spec.metrics.end(), "lle_rosenstein") == spec.metrics.end())
     spec.metrics.push_back("lle_rosenstein");
@@ -608,6 +655,30 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
         spec.initial_states.push_back(ic);
       }
     }
+  }
+  if (const toml::node* n = root.get("continuation")) {
+    const toml::table* t = n->as_table();
+    if (!t) return Status::InvalidArgument("continuation", "continuation must be a table");
+    BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "continuation", kContinuationKeys));
+    if (spec.kind != SweepModel::kCell)
+      return Status::InvalidArgument("continuation", "continuation runs for standalone, coupled and linear models only");
+    auto axis = t->get("axis") ? String(*t->get("axis"), "continuation.axis") : StatusOr<std::string>(std::string());
+    if (!axis.ok()) return axis.status();
+    std::vector<std::string> swept_names;
+    for (const Axis& a : spec.axes) swept_names.push_back(a.name);
+    if (std::find(swept_names.begin(), swept_names.end(), *axis) == swept_names.end())
+      return UnknownValue("continuation.axis", *axis, swept_names);
+    spec.continuation.axis = *axis;
+    if (const toml::node* d = t->get("direction")) {
+      auto dir = String(*d, "continuation.direction");
+      if (!dir.ok()) return dir.status();
+      if (*dir == "up") spec.continuation.down = false;
+      else if (*dir == "down") spec.continuation.up = false;
+      else if (*dir != "both")
+        return Status::InvalidArgument("continuation.direction", "continuation.direction = '" + *dir + "' violates direction in {up, down, both}");
+    }
+    if (spec.initial_states.size() > 1)
+      return Status::InvalidArgument("initial_conditions.states", "with continuation, give at most one start state (the chains' start)");
   }
   spec.plots = {};
   if (const toml::node* n = root.get("output")) {

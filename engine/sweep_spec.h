@@ -45,6 +45,15 @@ struct DimensionalConfig {
   double a0_mm = 10.0, f0_hz = 5.0;
 };
 
+// Continuation of the initial condition along one axis (bifurcation diagrams): each point starts
+// from the previous point's final state, sweeping up, down or both, so hysteresis shows.
+struct ContinuationConfig {
+  std::string axis;        // "" = off; else one of the sweep's axes
+  bool up = true, down = true;
+  bool enabled() const { return !axis.empty(); }
+  int directions() const { return (up ? 1 : 0) + (down ? 1 : 0); }
+};
+
 // Axis names in the canonical order used for enumeration and for the map datasets.
 const std::vector<std::string>& CanonicalAxisNames();
 const std::vector<std::string>& DimensionalAxisNames();  // a0_mm, f0_hz
@@ -63,6 +72,7 @@ struct SweepSpec {
   ModelKind model = ModelKind::kCoupled;  // for kCell; the metric proxy's kind otherwise
   SeriesConfig series;
   DimensionalConfig dimensional;
+  ContinuationConfig continuation;
   PointSpec base;                   // fixed parameters and settings; alpha/omega used when not swept
   std::vector<Axis> axes;           // in canonical order, only the swept ones
   std::vector<std::array<double, 4>> initial_states;  // empty: the model's default start
@@ -71,7 +81,18 @@ struct SweepSpec {
   std::string source;               // the TOML text as given (stored with the maps)
 
   long points() const;              // product of axis lengths (1 with no axes)
-  int ic_count() const { return initial_states.empty() ? 1 : static_cast<int>(initial_states.size()); }
+  // Items per point: initial conditions, or the continuation directions (up, down).
+  int ic_count() const {
+    if (continuation.enabled()) return continuation.directions();
+    return initial_states.empty() ? 1 : static_cast<int>(initial_states.size());
+  }
+  // With continuation: whether item slot ic sweeps downward, and every chain (line of the
+  // continuation axis × direction) in the order its points must run.
+  bool ChainGoesDown(int ic) const { return continuation.enabled() && (!continuation.up || ic == 1); }
+  std::vector<std::vector<WorkItem>> ContinuationChains() const;
+  // The point's index along the continuation axis and its line (the point with that index zeroed).
+  int ContinuationIndex(long point) const;
+  long ContinuationLine(long point) const;
   // Canonical text of everything that determines the numbers (not name/plots/source): its hash is the sweep id.
   std::string CanonicalText() const;
   std::string Id() const;           // 12 hex digits of the canonical text's hash

@@ -65,18 +65,41 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
   for (long p = 0; p < spec.points(); ++p)
     for (int i = 0; i < nic; ++i) all.push_back({p, i}), keys_.push_back(spec.ItemKey(p, i));
   const std::vector<std::string>& keys = keys_;
-  auto cached = db_->LookupPoints(keys);
+  auto cached = db_->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points));
   if (!cached.ok()) return cached.status();
   std::vector<WorkItem> missing;
   for (size_t i = 0; i < all.size(); ++i)
     if (!cached->count(keys[i])) missing.push_back(all[i]);
   plan.items_cached = plan.items_total - static_cast<long>(missing.size());
   queue_.clear();
-  for (size_t start = 0; start < missing.size(); start += job_items) {
+  if (spec.continuation.enabled()) {
+    // Chains run whole and in order (each point starts where the previous ended): a chain with any
+    // missing item is recomputed entirely; jobs hold whole chains.
+    std::vector<bool> is_missing(all.size(), false);
+    for (const WorkItem& w : missing) is_missing[w.point * nic + w.ic] = true;
     Job j;
-    j.id = static_cast<long>(queue_.size());
-    j.items.assign(missing.begin() + start, missing.begin() + std::min(missing.size(), start + job_items));
-    queue_.push_back(std::move(j));
+    for (const auto& chain : spec.ContinuationChains()) {
+      bool any = false;
+      for (const WorkItem& w : chain) any |= is_missing[w.point * nic + w.ic];
+      if (!any) continue;
+      j.items.insert(j.items.end(), chain.begin(), chain.end());
+      if (static_cast<long>(j.items.size()) >= job_items) {
+        j.id = static_cast<long>(queue_.size());
+        queue_.push_back(std::move(j));
+        j = Job{};
+      }
+    }
+    if (!j.items.empty()) j.id = static_cast<long>(queue_.size()), queue_.push_back(std::move(j));
+    long queued = 0;
+    for (const Job& q : queue_) queued += static_cast<long>(q.items.size());
+    plan.items_cached = plan.items_total - queued;  // items of partly stored chains are recomputed
+  } else {
+    for (size_t start = 0; start < missing.size(); start += job_items) {
+      Job j;
+      j.id = static_cast<long>(queue_.size());
+      j.items.assign(missing.begin() + start, missing.begin() + std::min(missing.size(), start + job_items));
+      queue_.push_back(std::move(j));
+    }
   }
   plan.jobs = static_cast<long>(queue_.size());
   reported_.assign(queue_.size(), false);
@@ -128,7 +151,7 @@ StatusOr<std::string> SweepCoordinator::Publish() {
   const std::string path = MapPath(row_.id);
   if (row_.status == "done" && !row_.file.empty() && std::filesystem::exists(path)) return path;
   const std::vector<std::string>& keys = keys_;
-  auto found = db_->LookupPoints(keys);
+  auto found = db_->LookupPoints(keys, PointRecord::Size(spec_.base.metrics.turning_points));
   if (!found.ok()) return found.status();
   std::vector<PointRecord> records;
   records.reserve(keys.size());

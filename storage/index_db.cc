@@ -183,7 +183,8 @@ StatusOr<std::vector<SweepRow>> IndexDb::ListSweeps() {
   return rows;
 }
 
-StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(const std::vector<std::string>& keys) {
+StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(const std::vector<std::string>& keys,
+                                                                                size_t record_size) {
   std::unordered_map<std::string, PointRecord> found;
   BISTABLE_RETURN_IF_ERROR(Exec("BEGIN"));
   {
@@ -192,7 +193,7 @@ StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(con
       Exec("ROLLBACK");
       return Error("prepare point lookup");
     }
-    const size_t n = PointRecord::Size();
+    const size_t n = record_size;
     for (const std::string& k : keys) {
       sqlite3_reset(s.get());
       s.Text(1, k);

@@ -54,8 +54,10 @@ class IndexDb {
   StatusOr<std::optional<SweepRow>> GetSweep(const std::string& id_or_prefix);
   StatusOr<std::vector<SweepRow>> ListSweeps();
 
-  // Looks up many keys in one read transaction; the result holds the ones found.
-  StatusOr<std::unordered_map<std::string, PointRecord>> LookupPoints(const std::vector<std::string>& keys);
+  // Looks up many keys in one read transaction; the result holds the ones found with `record_size`
+  // doubles (a record of another layout is treated as missing and recomputed).
+  StatusOr<std::unordered_map<std::string, PointRecord>> LookupPoints(const std::vector<std::string>& keys,
+                                                                      size_t record_size);
   // Stores records in one transaction (all or nothing) and, in the same transaction, sets the sweep's
   // points_done counter.
   Status PutPoints(const std::vector<std::pair<std::string, PointRecord>>& items, const std::string& sweep_id,

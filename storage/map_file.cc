@@ -149,14 +149,19 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
     axes_attr += (axes_attr.empty() ? "" : ",") + a.name;
     BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), a.name, a.values, AxisUnit(a.name)));
   }
+  // The trailing item dimension: initial conditions, or continuation directions.
+  const bool chained = spec.continuation.enabled();
+  const std::string item_dim = chained ? "direction" : "ic";
   if (nic > 1) {
     std::vector<double> ics(nic);
     for (int i = 0; i < nic; ++i) ics[i] = i;
-    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), "ic", ics, "index into initial_states"));
+    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), item_dim, ics,
+                                        chained ? "0 = up (increasing " + spec.continuation.axis + "), 1 = down"
+                                                : "index into initial_states"));
   }
   std::vector<hsize_t> dims = axis_dims;
   std::vector<std::string> names = axis_names;
-  if (nic > 1) dims.push_back(nic), names.push_back("ic");
+  if (nic > 1) dims.push_back(nic), names.push_back(item_dim);
 
   const auto& catalog = MetricCatalog();
   for (size_t mi = 0; mi < catalog.size(); ++mi) {
@@ -183,7 +188,19 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
                                           "amplitude of y_m at each spectral peak; NaN = none"));
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "hd_peak_amp", pn));
   }
-  if (nic > 1) {  // multistability: fraction of initial conditions ending in each motion type
+  if (spec.base.metrics.turning_points) {
+    std::vector<hsize_t> td = dims;
+    td.push_back(kTurningPointsStored);
+    std::vector<std::string> tn = names;
+    tn.push_back("peak");  // unlabelled trailing dimension, like the spectral peaks
+    std::vector<double> tp(records.size() * kTurningPointsStored);
+    for (size_t i = 0; i < records.size(); ++i)
+      for (int k = 0; k < kTurningPointsStored; ++k) tp[i * kTurningPointsStored + k] = records[i].TurningPoint(k);
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "turning_points", td, tp, H5T_NATIVE_DOUBLE, UnitFor(spec, "delta_s"),
+                                          "y_m where y_m' = 0 in the window (last 64, time order; NaN = none): bifurcation diagrams"));
+    BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "turning_points", tn));
+  }
+  if (nic > 1 && !chained) {  // multistability: fraction of initial conditions ending in each motion type
     const size_t motion_index = 3;
     for (int code = 0; code <= 2; ++code) {
       static const char* kNames[] = {"frac_intrawell", "frac_interwell", "frac_chaotic"};

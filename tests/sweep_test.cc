@@ -402,3 +402,89 @@ TEST(SweepModels, SeriesAndDimensionalSpecErrorsNameTheirFields) {
 
 }  // namespace
 }  // namespace bistable
+
+namespace bistable {
+namespace {
+
+constexpr const char* kHysteresis = R"(
+model = "standalone"
+[axes]
+alpha = [0.1]
+omega = { linspace = [0.5, 1.3, 21] }
+[continuation]
+axis = "omega"
+direction = "both"
+[metrics]
+store = ["y_max", "y_min", "motion", "turning_points", "frf_db"]
+)";
+
+// Each chained point starts from the previous point's final state: the map equals running the chain
+// by hand with `bistable point --ic`, bit for bit, upward and downward.
+TEST(Continuation, ChainedPointsStartFromThePreviousFinalState) {
+  const SweepSpec spec = Parse(kHysteresis);
+  ASSERT_TRUE(spec.continuation.enabled());
+  EXPECT_EQ(spec.ic_count(), 2);
+  const auto chains = spec.ContinuationChains();
+  ASSERT_EQ(chains.size(), 2u);
+  EXPECT_EQ(chains[0].front().point, 0);
+  EXPECT_EQ(chains[1].front().point, 20);  // the downward chain starts at the top of the axis
+  for (const auto& chain : chains) {
+    const std::vector<PointRecord> rec = ComputeItems(spec, chain);
+    std::array<double, 4> state{};
+    for (size_t i = 0; i < chain.size(); ++i) {
+      PointSpec p = spec.PointAt(chain[i].point, chain[i].ic);
+      if (i > 0) p.ic_given = true, p.ic = state;
+      auto r = EvaluatePoint(p);
+      ASSERT_TRUE(r.ok());
+      state = r->final_state;
+      EXPECT_EQ(std::memcmp(&r->frf_db, &rec[i].v[0], sizeof(double)), 0) << "chain point " << i;
+    }
+  }
+}
+
+// Sweeping Ω up keeps the oscillator in its positive well; sweeping down it crosses the softening
+// intrawell resonance from above, snaps through and settles in the other well: the two maps differ.
+TEST(Continuation, UpAndDownSweepsShowHysteresisAndTurningPoints) {
+  const std::string dir = TempDir("hyst");
+  auto c = SweepCoordinator::Open(dir);
+  ASSERT_TRUE(c.ok());
+  const SweepSpec spec = Parse(kHysteresis);
+  SweepPlan plan;
+  const std::string path = RunSweep(**c, spec, 2, &plan);
+  EXPECT_EQ(plan.items_total, 42);
+  auto ymax = ReadMapMetric(path, "y_max");
+  auto tp = ReadMapMetric(path, "turning_points");
+  ASSERT_TRUE(ymax.ok() && tp.ok());
+  EXPECT_EQ(ymax->dims, (std::vector<size_t>{1, 21, 2}));
+  EXPECT_EQ(ymax->dim_names.back(), "direction");
+  int differ = 0;
+  for (size_t i = 0; i < 21; ++i) differ += std::fabs(ymax->values[i * 2] - ymax->values[i * 2 + 1]) > 0.1;
+  EXPECT_GE(differ, 3) << "no hysteresis between the upward and downward sweeps";
+  // Turning points of a periodic intrawell orbit: alternating maxima and minima within [y_min, y_max].
+  const size_t k = 64, first = 0;  // Ω = 0.5, upward
+  int finite = 0;
+  for (size_t j = 0; j < k; ++j) {
+    const double y = tp->values[first * k + j];
+    if (!std::isfinite(y)) continue;
+    ++finite;
+    EXPECT_LE(y, ymax->values[0] + 1e-6);
+  }
+  EXPECT_GE(finite, 30);  // 250 τ at Ω = 0.5: ~20 periods, 2 turning points each, last 64 kept
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Continuation, SpecErrorsNameTheirFields) {
+  for (auto [toml, field] : std::vector<std::pair<std::string, std::string>>{
+           {"model = \"coupled\"\n[axes]\nalpha = [1, 2]\n[continuation]\naxis = \"omega\"", "continuation.axis"},
+           {"model = \"coupled\"\n[axes]\nalpha = [1, 2]\n[continuation]\naxis = \"alpha\"\ndirection = \"sideways\"",
+            "continuation.direction"},
+           {"model = \"series\"\n[axes]\nalpha = [1, 2]\n[continuation]\naxis = \"alpha\"", "continuation"},
+       }) {
+    auto s = ParseSweepSpec(toml, "t.toml");
+    ASSERT_FALSE(s.ok()) << toml;
+    EXPECT_EQ(s.status().field(), field) << s.status().ToString();
+  }
+}
+
+}  // namespace
+}  // namespace bistable

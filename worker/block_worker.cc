@@ -8,8 +8,33 @@ namespace bistable {
 
 std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<WorkItem>& items) {
   std::vector<PointRecord> out(items.size());
+  const bool turning = spec.base.metrics.turning_points;
+  if (spec.continuation.enabled()) {
+    // Chains in order: a point that continues the previous item's chain (same line and direction,
+    // next index along the axis) starts from that item's final state; a chain's first point from the
+    // spec's start state. One lane: the same kernel code as everywhere, so the bits are those of
+    // `bistable point --ic <previous final state>`.
+    std::array<double, 4> last = {0, 0, 0, 0};
+    for (size_t i = 0; i < items.size(); ++i) {
+      PointSpec p = spec.PointAt(items[i].point, items[i].ic);
+      if (i > 0) {
+        const WorkItem& prev = items[i - 1];
+        const int step = spec.ChainGoesDown(items[i].ic) ? -1 : 1;
+        if (prev.ic == items[i].ic && spec.ContinuationLine(prev.point) == spec.ContinuationLine(items[i].point) &&
+            spec.ContinuationIndex(items[i].point) == spec.ContinuationIndex(prev.point) + step) {
+          p.ic_given = true;
+          p.ic = last;
+        }
+      }
+      auto r = EvaluatePoint(p);
+      const PointResult res = r.ok() ? *r : PointResult{Termination::kDiverged};
+      last = res.final_state;
+      out[i] = PointRecord::From(res, turning);
+    }
+    return out;
+  }
   if (!spec.UsesKernel()) {  // series, dimensional, adaptive: one point at a time
-    for (size_t i = 0; i < items.size(); ++i) out[i] = PointRecord::From(spec.EvaluateItem(items[i].point, items[i].ic));
+    for (size_t i = 0; i < items.size(); ++i) out[i] = PointRecord::From(spec.EvaluateItem(items[i].point, items[i].ic), turning);
     return out;
   }
   const PointSpec first = spec.PointAt(0, 0);
@@ -24,7 +49,7 @@ std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<W
       lanes[l] = LaneFor(specs[l]);
     }
     RunKernel<kSweepLanes>(spec.model, lanes.data(), n, ks, raw.data());
-    for (int l = 0; l < n; ++l) out[start + l] = PointRecord::From(ComputePointMetrics(std::move(raw[l]), specs[l]));
+    for (int l = 0; l < n; ++l) out[start + l] = PointRecord::From(ComputePointMetrics(std::move(raw[l]), specs[l]), turning);
   }
   return out;
 }
