@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "client/chirp_command.h"
 #include "client/hbm_command.h"
 #include "client/point_command.h"
 #include "client/sweep_commands.h"
@@ -16,6 +17,7 @@ int main(int argc, char** argv) {
   bistable::AddPointCommand(app, &exit_code);
   bistable::AddRunCommand(app, &exit_code);
   bistable::AddHbmCommand(app, &exit_code);
+  bistable::AddChirpCommand(app, &exit_code);
   bistable::AddSweepsCommand(app, &exit_code);
   bistable::AddMapCommand(app, &exit_code);
   bistable::AddQueryCommand(app, &exit_code);

@@ -213,6 +213,48 @@ Status RenderBifurcation(const BifurcationData& d, const std::string& out_path) 
   return RunGnuplot(s.str(), out_path);
 }
 
+Status RenderChirpFrf(const ChirpFrfPlot& d, const std::string& out_path) {
+  std::ostringstream s;
+  s << (std::filesystem::path(out_path).extension() == ".svg"
+            ? "set terminal svg size 900,900 dynamic enhanced font 'Helvetica,14' background 'white'\n"
+            : "set terminal pngcairo size 900,900 enhanced font 'Helvetica,12'\n");
+  const char* colours[] = {"#2166ac", "#b2182b"};
+  for (size_t c = 0; c < d.curves.size(); ++c) {
+    s << "$c" << c << " << EOD\n";
+    for (size_t i = 0; i < d.curves[c].freq.size(); ++i)
+      s << Num(d.curves[c].freq[i]) << " " << Num(d.curves[c].in_mag[i]) << " " << Num(d.curves[c].out_mag[i]) << " "
+        << Num(d.curves[c].db[i]) << "\n";
+    s << "EOD\n";
+  }
+  s << "set multiplot layout 2,1 title " << Quote(d.title) << " noenhanced\nset grid\nset key top right\n";
+  s << "set ylabel 'Fourier magnitude' noenhanced\nset logscale y\nunset xlabel\nplot ";
+  for (size_t c = 0; c < d.curves.size(); ++c)
+    s << (c ? ", " : "") << "$c" << c << " using 1:2 with lines lw 1 lc rgb '#999999' title " << Quote(c ? "" : "input")
+      << ", $c" << c << " using 1:3 with lines lw 1.5 lc rgb '" << colours[c % 2] << "' title " << Quote("output " + d.curves[c].label);
+  s << "\nunset logscale y\nset xlabel " << Quote(d.freq_label) << "\nset ylabel 'FRF [dB]'\n";
+  s << "plot 0 with lines dt 2 lc rgb 'black' notitle";
+  for (size_t c = 0; c < d.curves.size(); ++c)
+    s << ", $c" << c << " using 1:4 with lines lw 1.5 lc rgb '" << colours[c % 2] << "' title " << Quote(d.curves[c].label);
+  s << "\nunset multiplot\n";
+  return RunGnuplot(s.str(), out_path);
+}
+
+Status RenderSpectrogram(const SpectrogramPlot& d, const std::string& out_path) {
+  if (d.time.empty() || d.freq.empty()) return Status::InvalidArgument("spectrogram", "the record is shorter than one window");
+  std::ostringstream s;
+  s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");
+  s << "set title " << Quote(d.title) << " noenhanced\nset xlabel " << Quote(d.time_label) << "\nset ylabel "
+    << Quote(d.freq_label) << "\nset cblabel 'magnitude [dB re max]'\nset cbrange [-80:0]\n" << kViridis;
+  s << "set view map\nset pm3d map corners2color c1\nset xrange [" << Num(d.time.front()) << ":" << Num(d.time.back())
+    << "]\nset yrange [0:" << Num(d.freq.back()) << "]\nset key off\n$data << EOD\n";
+  for (size_t i = 0; i < d.time.size(); ++i) {
+    for (size_t k = 0; k < d.freq.size(); ++k) s << Num(d.time[i]) << " " << Num(d.freq[k]) << " " << Num(std::max(-80.0, d.db[i][k])) << "\n";
+    s << "\n";
+  }
+  s << "EOD\nsplot $data using 1:2:3 with pm3d\n";
+  return RunGnuplot(s.str(), out_path);
+}
+
 Status RenderHdScatter(const ScatterData& d, const std::string& out_path) {
   std::ostringstream s;
   s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");

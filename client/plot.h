@@ -54,6 +54,26 @@ struct BifurcationData {
 };
 Status RenderBifurcation(const BifurcationData& d, const std::string& out_path);
 
+// Frequency-sweep FRF (paper Figs. 22–24): top, Fourier magnitudes of input and output; bottom,
+// the FRF in dB; one curve per sweep direction.
+struct ChirpFrfPlot {
+  std::string title, freq_label;
+  struct Curve {
+    std::string label;
+    std::vector<double> freq, in_mag, out_mag, db;
+  };
+  std::vector<Curve> curves;
+};
+Status RenderChirpFrf(const ChirpFrfPlot& d, const std::string& out_path);
+
+// Spectrogram: time × frequency, magnitude in dB (colour).
+struct SpectrogramPlot {
+  std::string title, time_label, freq_label;
+  std::vector<double> time, freq;
+  std::vector<std::vector<double>> db;  // [time][freq]
+};
+Status RenderSpectrogram(const SpectrogramPlot& d, const std::string& out_path);
+
 // A label like "alpha = A0/delta_s" for axes.
 std::string AxisLabel(const std::string& name, const std::string& unit);
 

@@ -50,6 +50,15 @@ FftCache& Cache() {
 
 }  // namespace
 
+size_t NextFastFftLength(size_t n) {
+  size_t best = SIZE_MAX;
+  for (size_t a = 1; a < 2 * n + 2; a *= 2)
+    for (size_t b = a; b < 2 * n + 2; b *= 3)
+      for (size_t c = b; c < 2 * n + 2; c *= 5)
+        if (c >= n) best = std::min(best, c);
+  return best;
+}
+
 Spectrum AmplitudeSpectrum(const std::vector<double>& x_all, double dt) {
   Spectrum s;
   if (x_all.size() < 4) return s;

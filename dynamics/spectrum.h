@@ -20,6 +20,8 @@ Spectrum AmplitudeSpectrum(const std::vector<double>& x, double dt);
 
 // Largest n' ≤ n of the form 2^a 3^b 5^c (n ≥ 1).
 size_t FastFftLength(size_t n);
+// Smallest n' ≥ n of that form (for zero padding).
+size_t NextFastFftLength(size_t n);
 
 // Power-weighted mean frequency in cycles per unit time (Rosenstein's mean period is its inverse).
 double MeanFrequency(const std::vector<double>& x, double dt);

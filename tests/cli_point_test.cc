@@ -166,3 +166,21 @@ TEST(CliHbm, BadInputNamesTheField) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(CliChirp, WritesFrfSpectrogramAndSeries) {
+  const std::string out = ::testing::TempDir() + "/chirp_" + std::to_string(::getpid());
+  const ProcessResult r = Bistable("chirp --model coupled --alpha 0.2 --from 0.3 --to 2 --duration 600 --direction both --json --out " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["sweeps"].size(), 2u);
+  for (const auto& f : j["files"]) EXPECT_GT(std::filesystem::file_size(f.get<std::string>()), 100u) << f;
+  EXPECT_EQ(j["unit"], "rad/tau");
+  const ProcessResult bad = Bistable("chirp --direction sideways --out " + out);
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("direction"), std::string::npos);
+  std::filesystem::remove_all(out);
+}
+
+}  // namespace
