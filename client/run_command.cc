@@ -17,6 +17,7 @@
 #include "dynamics/validate.h"
 #include "client/map_slice.h"
 #include "client/plot.h"
+#include "client/embedded_run.h"
 #include "client/progress.h"
 #include "client/sweep_commands.h"
 #include "server/sweep_coordinator.h"
@@ -36,154 +37,6 @@ struct RunArgs {
   bool json = false, no_plots = false, quiet = false;
   long job_items = 0;
 };
-
-// Items per job: about `seconds` of work on one core, a multiple of the lane width.
-long JobItems(const SweepSpec& spec, double seconds) {
-  const double steps = spec.base.integration.t_end / spec.base.integration.dt;
-  const double per_item = steps / 1.5e7;  // ≈ 15 M lane-steps/s/core including metrics (conservative)
-  long n = static_cast<long>(seconds / std::max(per_item, 1e-9));
-  n = std::clamp<long>(n, kSweepLanes, 4096);
-  return (n / kSweepLanes) * kSweepLanes;
-}
-
-// Default figures: each plotted metric over the two longest axes, one figure per value of the others
-// (at most 12); a single-axis sweep gives curves, and with hd_peaks over Ω the Fig. 6 scatter.
-std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir) {
-  std::vector<std::string> files;
-  std::filesystem::create_directories(dir);
-  std::vector<size_t> order(spec.axes.size());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(),
-                   [&](size_t a, size_t b) { return spec.axes[a].values.size() > spec.axes[b].values.size(); });
-  std::vector<size_t> free(order.begin(), order.begin() + std::min<size_t>(2, order.size()));
-  std::vector<size_t> others(order.begin() + free.size(), order.end());
-  long combos = 1;
-  for (size_t k : others) combos *= static_cast<long>(spec.axes[k].values.size());
-  combos = std::min<long>(combos, 12);
-  for (const std::string& metric : spec.plots) {
-    auto m = ReadMapMetric(map_path, metric);
-    if (!m.ok()) {
-      std::cerr << "warning: plot " << metric << ": " << m.status().ToString() << "\n";
-      continue;
-    }
-    for (long c = 0; c < combos; ++c) {
-      std::map<std::string, double> at;
-      std::string suffix;
-      long rest = c;
-      for (size_t k : others) {
-        const auto& vals = spec.axes[k].values;
-        const double v = vals[rest % static_cast<long>(vals.size())];
-        rest /= static_cast<long>(vals.size());
-        at[spec.axes[k].name] = v;
-        suffix += "_" + spec.axes[k].name + "=" + FormatNumber(v);
-      }
-      auto slice = SliceMap(*m, at, 2);
-      if (!slice.ok()) continue;
-      if (std::none_of(slice->values.begin(), slice->values.end(), [](double v) { return std::isfinite(v); })) continue;
-      PlotData d;
-      d.metric = metric;
-      d.unit = slice->unit;
-      d.motion = metric == "motion";
-      for (const Axis& a : slice->free) d.axis_names.push_back(a.name), d.axis_units.push_back(AxisUnit(a.name)), d.axis_values.push_back(a.values);
-      d.values = slice->values;
-      d.title = (spec.name.empty() ? spec.Id() : spec.name) + ": " + metric + suffix;
-      const std::string out = (std::filesystem::path(dir) / (metric + suffix + ".png")).string();
-      Status st = RenderPlot(d, out);
-      if (st.ok()) files.push_back(out);
-      else std::cerr << "warning: " << st.ToString() << "\n";
-    }
-  }
-  // Fig. 6: one harmonic-diffusion scatter per combination of the axes other than omega (at most 3,
-  // like the paper's two amplitudes; `bistable map ID --metric hd_scatter --at ...` draws any other).
-  const bool has_peaks = std::find(spec.metrics.begin(), spec.metrics.end(), "hd_peaks") != spec.metrics.end();
-  size_t omega_axis = spec.axes.size();
-  for (size_t k = 0; k < spec.axes.size(); ++k)
-    if (spec.axes[k].name == "omega") omega_axis = k;
-  long scatter_combos = 1;
-  for (size_t k = 0; k < spec.axes.size(); ++k)
-    if (k != omega_axis) scatter_combos *= static_cast<long>(spec.axes[k].values.size());
-  if (has_peaks && omega_axis < spec.axes.size() && scatter_combos <= 3 && spec.ic_count() == 1) {
-    auto f = ReadMapMetric(map_path, "hd_peak_freq");
-    auto a = ReadMapMetric(map_path, "hd_peak_amp");
-    if (f.ok() && a.ok()) {
-      const size_t k_peaks = f->dims.back();
-      for (long c = 0; c < scatter_combos; ++c) {
-        ScatterData sd;
-        sd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": harmonic diffusion";
-        std::string suffix;
-        long rest = c;
-        std::vector<size_t> fixed(spec.axes.size(), 0);
-        for (long k = static_cast<long>(spec.axes.size()) - 1; k >= 0; --k) {
-          if (static_cast<size_t>(k) == omega_axis) continue;
-          const long n = static_cast<long>(spec.axes[k].values.size());
-          fixed[k] = static_cast<size_t>(rest % n);
-          rest /= n;
-          suffix += "_" + spec.axes[k].name + "=" + FormatNumber(spec.axes[k].values[fixed[k]]);
-          sd.title += ", " + spec.axes[k].name + " = " + FormatNumber(spec.axes[k].values[fixed[k]]);
-        }
-        for (size_t i = 0; i < spec.axes[omega_axis].values.size(); ++i) {
-          fixed[omega_axis] = i;
-          long point = 0;
-          for (size_t k = 0; k < spec.axes.size(); ++k) point = point * static_cast<long>(spec.axes[k].values.size()) + static_cast<long>(fixed[k]);
-          for (size_t j = 0; j < k_peaks; ++j) {
-            const size_t off = static_cast<size_t>(point) * k_peaks + j;
-            if (std::isfinite(f->values[off]))
-              sd.x.push_back(spec.axes[omega_axis].values[i]), sd.y.push_back(f->values[off]), sd.amp.push_back(a->values[off]);
-          }
-        }
-        const std::string out = (std::filesystem::path(dir) / ("hd_scatter" + suffix + ".png")).string();
-        if (RenderHdScatter(sd, out).ok()) files.push_back(out);
-      }
-    }
-  }
-  // Fig. 4: bifurcation diagrams, one per combination of the axes other than the continued one (≤ 6).
-  if (spec.continuation.enabled() && spec.base.metrics.turning_points) {
-    auto tp = ReadMapMetric(map_path, "turning_points");
-    size_t cont = 0;
-    for (size_t k = 0; k < spec.axes.size(); ++k)
-      if (spec.axes[k].name == spec.continuation.axis) cont = k;
-    long combos = 1;
-    for (size_t k = 0; k < spec.axes.size(); ++k)
-      if (k != cont) combos *= static_cast<long>(spec.axes[k].values.size());
-    if (tp.ok() && combos <= 6) {
-      const int nic = spec.ic_count();
-      for (long c = 0; c < combos; ++c) {
-        BifurcationData bd;
-        bd.x_name = spec.continuation.axis;
-        bd.x_unit = AxisUnit(spec.continuation.axis);
-        bd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": bifurcation diagram";
-        std::string suffix;
-        std::vector<size_t> fixed(spec.axes.size(), 0);
-        long rest = c;
-        for (long k = static_cast<long>(spec.axes.size()) - 1; k >= 0; --k) {
-          if (static_cast<size_t>(k) == cont) continue;
-          const long n = static_cast<long>(spec.axes[k].values.size());
-          fixed[k] = static_cast<size_t>(rest % n);
-          rest /= n;
-          suffix += "_" + spec.axes[k].name + "=" + FormatNumber(spec.axes[k].values[fixed[k]]);
-          bd.title += ", " + spec.axes[k].name + " = " + FormatNumber(spec.axes[k].values[fixed[k]]);
-        }
-        for (size_t i = 0; i < spec.axes[cont].values.size(); ++i) {
-          fixed[cont] = i;
-          long point = 0;
-          for (size_t k = 0; k < spec.axes.size(); ++k) point = point * static_cast<long>(spec.axes[k].values.size()) + static_cast<long>(fixed[k]);
-          for (int ic = 0; ic < nic; ++ic) {
-            const bool down = spec.ChainGoesDown(ic);
-            for (int k = 0; k < kTurningPointsStored; ++k) {
-              const double y = tp->values[(static_cast<size_t>(point) * nic + ic) * kTurningPointsStored + k];
-              if (!std::isfinite(y)) continue;
-              (down ? bd.x_down : bd.x_up).push_back(spec.axes[cont].values[i]);
-              (down ? bd.y_down : bd.y_up).push_back(y);
-            }
-          }
-        }
-        const std::string out = (std::filesystem::path(dir) / ("bifurcation" + suffix + ".png")).string();
-        if (RenderBifurcation(bd, out).ok()) files.push_back(out);
-      }
-    }
-  }
-  return files;
-}
 
 int RunSweep(const RunArgs& a) {
   auto spec = LoadSweepSpec(a.spec_path);
@@ -206,34 +59,8 @@ int RunSweep(const RunArgs& a) {
 
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
-  std::mutex err_mu;
-  Status worker_error;
-  std::atomic<bool> failed{false};
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threads && to_compute > 0; ++t) {
-    pool.emplace_back([&] {
-      while (auto job = c.Lease()) {
-        const std::vector<PointRecord> records = ComputeItems(*spec, job->items);
-        Status st = c.Report(job->id, records);
-        if (!st.ok()) {
-          std::lock_guard<std::mutex> lock(err_mu);
-          if (worker_error.ok()) worker_error = st;
-          failed.store(true);
-          c.Stop();
-        }
-      }
-    });
-  }
   ProgressBar bar(to_compute, "sweep " + plan->id, !a.quiet && !a.json);
-  auto done = [&] { return c.progress().items_done - plan->items_cached; };
-  while (!pool.empty()) {
-    if (g_interrupted.load()) c.Stop();
-    if (c.progress().items_done >= plan->items_total || g_interrupted.load() || failed.load()) break;
-    bar.Update(done());
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  }
-  for (auto& th : pool) th.join();
-  bar.Finish(done());
+  const Status worker_error = ComputeEmbedded(c, *spec, threads, to_compute > 0, &g_interrupted, &bar);
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
   if (!worker_error.ok()) {
