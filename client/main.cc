@@ -6,6 +6,7 @@
 #include "client/chirp_command.h"
 #include "client/hbm_command.h"
 #include "client/point_command.h"
+#include "client/reproduce_command.h"
 #include "client/sweep_commands.h"
 #include "dynamics/point_spec.h"
 
@@ -18,6 +19,7 @@ int main(int argc, char** argv) {
   bistable::AddRunCommand(app, &exit_code);
   bistable::AddHbmCommand(app, &exit_code);
   bistable::AddChirpCommand(app, &exit_code);
+  bistable::AddReproduceCommand(app, &exit_code);
   bistable::AddSweepsCommand(app, &exit_code);
   bistable::AddMapCommand(app, &exit_code);
   bistable::AddQueryCommand(app, &exit_code);

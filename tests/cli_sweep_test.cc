@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -270,5 +271,31 @@ TEST(CliSweep, FullDiskIsAClearErrorAndLosesNothing) {
 
 TEST(CliSweep, KillNineLosesNoFinishedJobAndRerunResumesToTheSameMap) { InterruptThenResume(SIGKILL); }
 TEST(CliSweep, CtrlCStopsCleanlyAndRerunResumesToTheSameMap) { InterruptThenResume(SIGINT); }
+
+}  // namespace
+
+namespace {
+
+// The CI version of `bistable reproduce paper`: coarse grids, fast sweeps; every figure file exists,
+// the page lists every claim with our number and a verdict.
+TEST(CliReproduce, QuickModeRegeneratesEveryFigureAndTheClaimsPage) {
+  const std::string dir = Dir("reproduce");
+  const ProcessResult r = Bistable("reproduce paper --quick --json --out " + dir);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_GE(j["claims"].size(), 18u);
+  std::set<std::string> figures;
+  for (const auto& c : j["claims"]) {
+    figures.insert(c["figure"].get<std::string>().substr(0, 2));
+    EXPECT_FALSE(c["ours"].get<std::string>().empty());
+    for (const auto& f : c["files"]) EXPECT_GT(fs::file_size(f.get<std::string>()), 1000u) << f;
+  }
+  for (const char* fig : {"3", "4", "6", "7", "8a", "9", "10", "11", "12", "13", "22", "23", "24"})
+    EXPECT_TRUE(figures.count(std::string(fig).substr(0, 2))) << "no claim checked for Fig. " << fig;
+  std::ifstream page(j["report"].get<std::string>());
+  const std::string text((std::istreambuf_iterator<char>(page)), {});
+  EXPECT_NE(text.find("| Fig. | the paper's claim | our number | verdict |"), std::string::npos);
+  fs::remove_all(dir);
+}
 
 }  // namespace
