@@ -27,6 +27,45 @@ long JobItems(const SweepSpec& spec, double seconds) {
 
 // Default figures: each plotted metric over the two longest axes, one figure per value of the others
 // (at most 12); a single-axis sweep gives curves, and with hd_peaks over Ω the Fig. 6 scatter.
+namespace {
+
+// One combination of values of the axes not in `free`: their indices (free axes left at 0), a file
+// name suffix "_eta=0.1" and a title fragment ", eta = 0.1".
+struct AxisCombo {
+  std::vector<size_t> fixed;
+  std::string suffix, title;
+};
+
+long ComboCount(const SweepSpec& spec, const std::vector<size_t>& free) {
+  long n = 1;
+  for (size_t k = 0; k < spec.axes.size(); ++k)
+    if (std::find(free.begin(), free.end(), k) == free.end()) n *= static_cast<long>(spec.axes[k].values.size());
+  return n;
+}
+
+AxisCombo Combo(const SweepSpec& spec, const std::vector<size_t>& free, long c) {
+  AxisCombo combo;
+  combo.fixed.assign(spec.axes.size(), 0);
+  for (long k = static_cast<long>(spec.axes.size()) - 1; k >= 0; --k) {
+    if (std::find(free.begin(), free.end(), static_cast<size_t>(k)) != free.end()) continue;
+    const long n = static_cast<long>(spec.axes[k].values.size());
+    combo.fixed[k] = static_cast<size_t>(c % n);
+    c /= n;
+    const std::string v = FormatNumber(spec.axes[k].values[combo.fixed[k]]);
+    combo.suffix += "_" + spec.axes[k].name + "=" + v;
+    combo.title += ", " + spec.axes[k].name + " = " + v;
+  }
+  return combo;
+}
+
+long PointIndex(const SweepSpec& spec, const std::vector<size_t>& idx) {
+  long point = 0;
+  for (size_t k = 0; k < spec.axes.size(); ++k) point = point * static_cast<long>(spec.axes[k].values.size()) + static_cast<long>(idx[k]);
+  return point;
+}
+
+}  // namespace
+
 std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir) {
   std::vector<std::string> files;
   std::filesystem::create_directories(dir);
@@ -35,10 +74,7 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
   std::stable_sort(order.begin(), order.end(),
                    [&](size_t a, size_t b) { return spec.axes[a].values.size() > spec.axes[b].values.size(); });
   std::vector<size_t> free(order.begin(), order.begin() + std::min<size_t>(2, order.size()));
-  std::vector<size_t> others(order.begin() + free.size(), order.end());
-  long combos = 1;
-  for (size_t k : others) combos *= static_cast<long>(spec.axes[k].values.size());
-  combos = std::min<long>(combos, 12);
+  const long combos = std::min<long>(ComboCount(spec, free), 12);
   for (const std::string& metric : spec.plots) {
     auto m = ReadMapMetric(map_path, metric);
     if (!m.ok()) {
@@ -46,16 +82,11 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
       continue;
     }
     for (long c = 0; c < combos; ++c) {
+      const AxisCombo combo = Combo(spec, free, c);
       std::map<std::string, double> at;
-      std::string suffix;
-      long rest = c;
-      for (size_t k : others) {
-        const auto& vals = spec.axes[k].values;
-        const double v = vals[rest % static_cast<long>(vals.size())];
-        rest /= static_cast<long>(vals.size());
-        at[spec.axes[k].name] = v;
-        suffix += "_" + spec.axes[k].name + "=" + FormatNumber(v);
-      }
+      for (size_t k = 0; k < spec.axes.size(); ++k)
+        if (std::find(free.begin(), free.end(), k) == free.end()) at[spec.axes[k].name] = spec.axes[k].values[combo.fixed[k]];
+      const std::string& suffix = combo.suffix;
       auto slice = SliceMap(*m, at, 2);
       if (!slice.ok()) continue;
       if (std::none_of(slice->values.begin(), slice->values.end(), [](double v) { return std::isfinite(v); })) continue;
@@ -78,32 +109,20 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
   size_t omega_axis = spec.axes.size();
   for (size_t k = 0; k < spec.axes.size(); ++k)
     if (spec.axes[k].name == "omega") omega_axis = k;
-  long scatter_combos = 1;
-  for (size_t k = 0; k < spec.axes.size(); ++k)
-    if (k != omega_axis) scatter_combos *= static_cast<long>(spec.axes[k].values.size());
+  const long scatter_combos = omega_axis < spec.axes.size() ? ComboCount(spec, {omega_axis}) : 0;
   if (has_peaks && omega_axis < spec.axes.size() && scatter_combos <= 3 && spec.ic_count() == 1) {
     auto f = ReadMapMetric(map_path, "hd_peak_freq");
     auto a = ReadMapMetric(map_path, "hd_peak_amp");
     if (f.ok() && a.ok()) {
       const size_t k_peaks = f->dims.back();
       for (long c = 0; c < scatter_combos; ++c) {
+        AxisCombo combo = Combo(spec, {omega_axis}, c);
         ScatterData sd;
-        sd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": harmonic diffusion";
-        std::string suffix;
-        long rest = c;
-        std::vector<size_t> fixed(spec.axes.size(), 0);
-        for (long k = static_cast<long>(spec.axes.size()) - 1; k >= 0; --k) {
-          if (static_cast<size_t>(k) == omega_axis) continue;
-          const long n = static_cast<long>(spec.axes[k].values.size());
-          fixed[k] = static_cast<size_t>(rest % n);
-          rest /= n;
-          suffix += "_" + spec.axes[k].name + "=" + FormatNumber(spec.axes[k].values[fixed[k]]);
-          sd.title += ", " + spec.axes[k].name + " = " + FormatNumber(spec.axes[k].values[fixed[k]]);
-        }
+        sd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": harmonic diffusion" + combo.title;
+        const std::string suffix = combo.suffix;
         for (size_t i = 0; i < spec.axes[omega_axis].values.size(); ++i) {
-          fixed[omega_axis] = i;
-          long point = 0;
-          for (size_t k = 0; k < spec.axes.size(); ++k) point = point * static_cast<long>(spec.axes[k].values.size()) + static_cast<long>(fixed[k]);
+          combo.fixed[omega_axis] = i;
+          const long point = PointIndex(spec, combo.fixed);
           for (size_t j = 0; j < k_peaks; ++j) {
             const size_t off = static_cast<size_t>(point) * k_peaks + j;
             if (std::isfinite(f->values[off]))
@@ -121,31 +140,19 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
     size_t cont = 0;
     for (size_t k = 0; k < spec.axes.size(); ++k)
       if (spec.axes[k].name == spec.continuation.axis) cont = k;
-    long combos = 1;
-    for (size_t k = 0; k < spec.axes.size(); ++k)
-      if (k != cont) combos *= static_cast<long>(spec.axes[k].values.size());
+    const long combos = ComboCount(spec, {cont});
     if (tp.ok() && combos <= 6) {
       const int nic = spec.ic_count();
       for (long c = 0; c < combos; ++c) {
+        AxisCombo combo = Combo(spec, {cont}, c);
         BifurcationData bd;
         bd.x_name = spec.continuation.axis;
         bd.x_unit = AxisUnit(spec.continuation.axis);
-        bd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": bifurcation diagram";
-        std::string suffix;
-        std::vector<size_t> fixed(spec.axes.size(), 0);
-        long rest = c;
-        for (long k = static_cast<long>(spec.axes.size()) - 1; k >= 0; --k) {
-          if (static_cast<size_t>(k) == cont) continue;
-          const long n = static_cast<long>(spec.axes[k].values.size());
-          fixed[k] = static_cast<size_t>(rest % n);
-          rest /= n;
-          suffix += "_" + spec.axes[k].name + "=" + FormatNumber(spec.axes[k].values[fixed[k]]);
-          bd.title += ", " + spec.axes[k].name + " = " + FormatNumber(spec.axes[k].values[fixed[k]]);
-        }
+        bd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": bifurcation diagram" + combo.title;
+        const std::string suffix = combo.suffix;
         for (size_t i = 0; i < spec.axes[cont].values.size(); ++i) {
-          fixed[cont] = i;
-          long point = 0;
-          for (size_t k = 0; k < spec.axes.size(); ++k) point = point * static_cast<long>(spec.axes[k].values.size()) + static_cast<long>(fixed[k]);
+          combo.fixed[cont] = i;
+          const long point = PointIndex(spec, combo.fixed);
           for (int ic = 0; ic < nic; ++ic) {
             const bool down = spec.ChainGoesDown(ic);
             for (int k = 0; k < kTurningPointsStored; ++k) {

@@ -156,26 +156,22 @@ class EnsembleRk4 {
       acc[d] = k1[d], accw[d] = l[d];
       xs[d] = x[d] + hh * k1[d], ws[d] = w[d] + hh * l[d];
     }
-    Model::Rhs(c, xs, fm, k);
-    Model::Tangent(c, xs, ws, l);
-    if constexpr (kWindow) {
-      Quad(c, xs, fm, qk);
-      for (int i = 0; i < 4; ++i) qacc[i] = qacc[i] + 2.0 * qk[i];
-    }
-    for (int d = 0; d < D; ++d) {
-      acc[d] = acc[d] + 2.0 * k[d], accw[d] = accw[d] + 2.0 * l[d];
-      xs[d] = x[d] + hh * k[d], ws[d] = w[d] + hh * l[d];
-    }
-    Model::Rhs(c, xs, fm, k);
-    Model::Tangent(c, xs, ws, l);
-    if constexpr (kWindow) {
-      Quad(c, xs, fm, qk);
-      for (int i = 0; i < 4; ++i) qacc[i] = qacc[i] + 2.0 * qk[i];
-    }
-    for (int d = 0; d < D; ++d) {
-      acc[d] = acc[d] + 2.0 * k[d], accw[d] = accw[d] + 2.0 * l[d];
-      xs[d] = x[d] + h * k[d], ws[d] = w[d] + h * l[d];
-    }
+    // Stages 2 and 3: evaluate at the midpoint, add twice into the sums, step the next stage point
+    // (by h/2 after stage 2, by h after stage 3).
+    auto mid_stage = [&](double next) BISTABLE_INLINE_LAMBDA {
+      Model::Rhs(c, xs, fm, k);
+      Model::Tangent(c, xs, ws, l);
+      if constexpr (kWindow) {
+        Quad(c, xs, fm, qk);
+        for (int i = 0; i < 4; ++i) qacc[i] = qacc[i] + 2.0 * qk[i];
+      }
+      for (int d = 0; d < D; ++d) {
+        acc[d] = acc[d] + 2.0 * k[d], accw[d] = accw[d] + 2.0 * l[d];
+        xs[d] = x[d] + next * k[d], ws[d] = w[d] + next * l[d];
+      }
+    };
+    mid_stage(hh);
+    mid_stage(h);
     Model::Rhs(c, xs, f1, k);
     Model::Tangent(c, xs, ws, l);
     if constexpr (kWindow) {

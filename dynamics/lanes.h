@@ -9,6 +9,7 @@
 // quadratures live at once, an out-of-line call forces every lane vector through memory (measured: the
 // window phase ran at half speed until these were forced).
 #define BISTABLE_INLINE inline __attribute__((always_inline))
+#define BISTABLE_INLINE_LAMBDA __attribute__((always_inline))
 
 namespace bistable {
 

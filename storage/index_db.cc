@@ -27,6 +27,21 @@ class Stmt {
   int rc_;
 };
 
+// A transaction that rolls back unless committed: every multi-statement write is all or nothing.
+class Transaction {
+ public:
+  Transaction(sqlite3* db, const char* begin) : db_(db) { ok_ = sqlite3_exec(db, begin, nullptr, nullptr, nullptr) == SQLITE_OK; }
+  ~Transaction() {
+    if (ok_ && !done_) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+  }
+  bool ok() const { return ok_; }
+  bool Commit() { return done_ = sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr) == SQLITE_OK; }
+
+ private:
+  sqlite3* db_;
+  bool ok_ = false, done_ = false;
+};
+
 constexpr const char* kSchema = R"sql(
 CREATE TABLE IF NOT EXISTS sweeps(
   id TEXT PRIMARY KEY, name TEXT, model TEXT, spec TEXT, status TEXT,
@@ -119,34 +134,25 @@ Status IndexDb::UpsertSweep(const SweepRow& r) {
 }
 
 Status IndexDb::PublishSweep(const SweepRow& row, const std::vector<MapRow>& maps) {
-  BISTABLE_RETURN_IF_ERROR(Exec("BEGIN IMMEDIATE"));
-  auto fail = [&](const std::string& what) {
-    Status st = Error(what);
-    Exec("ROLLBACK");
-    return st;
-  };
-  if (Status st = UpsertSweep(row); !st.ok()) {
-    Exec("ROLLBACK");
-    return st;
+  Transaction tx(db_, "BEGIN IMMEDIATE");
+  if (!tx.ok()) return Error("begin publication");
+  BISTABLE_RETURN_IF_ERROR(UpsertSweep(row));
+  Stmt del(db_, "DELETE FROM maps WHERE sweep_id = ?");
+  del.Text(1, row.id);
+  if (sqlite3_step(del.get()) != SQLITE_DONE) return Error("clear map rows");
+  Stmt ins(db_, "INSERT INTO maps(sweep_id, metric, file, shape, min, max) VALUES(?,?,?,?,?,?)");
+  if (!ins.ok()) return Error("prepare map rows");
+  for (const MapRow& m : maps) {
+    sqlite3_reset(ins.get());
+    ins.Text(1, row.id);
+    ins.Text(2, m.metric);
+    ins.Text(3, m.file);
+    ins.Text(4, m.shape);
+    ins.Real(5, m.min);
+    ins.Real(6, m.max);
+    if (sqlite3_step(ins.get()) != SQLITE_DONE) return Error("write map row " + m.metric);
   }
-  {
-    Stmt del(db_, "DELETE FROM maps WHERE sweep_id = ?");
-    del.Text(1, row.id);
-    if (sqlite3_step(del.get()) != SQLITE_DONE) return fail("clear map rows");
-    Stmt ins(db_, "INSERT INTO maps(sweep_id, metric, file, shape, min, max) VALUES(?,?,?,?,?,?)");
-    if (!ins.ok()) return fail("prepare map rows");
-    for (const MapRow& m : maps) {
-      sqlite3_reset(ins.get());
-      ins.Text(1, row.id);
-      ins.Text(2, m.metric);
-      ins.Text(3, m.file);
-      ins.Text(4, m.shape);
-      ins.Real(5, m.min);
-      ins.Real(6, m.max);
-      if (sqlite3_step(ins.get()) != SQLITE_DONE) return fail("write map row " + m.metric);
-    }
-  }
-  if (sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr) != SQLITE_OK) return fail("commit publication");
+  if (!tx.Commit()) return Error("commit publication");
   return Status::Ok();
 }
 
@@ -186,55 +192,46 @@ StatusOr<std::vector<SweepRow>> IndexDb::ListSweeps() {
 StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(const std::vector<std::string>& keys,
                                                                                 size_t record_size) {
   std::unordered_map<std::string, PointRecord> found;
-  BISTABLE_RETURN_IF_ERROR(Exec("BEGIN"));
-  {
-    Stmt s(db_, "SELECT record FROM points WHERE key = ?");
-    if (!s.ok()) {
-      Exec("ROLLBACK");
-      return Error("prepare point lookup");
-    }
-    const size_t n = record_size;
-    for (const std::string& k : keys) {
-      sqlite3_reset(s.get());
-      s.Text(1, k);
-      if (sqlite3_step(s.get()) == SQLITE_ROW) {
-        const int bytes = sqlite3_column_bytes(s.get(), 0);
-        if (bytes != static_cast<int>(n * sizeof(double))) continue;  // a record of another layout: recompute
-        PointRecord r;
-        r.v.resize(n);
-        std::memcpy(r.v.data(), sqlite3_column_blob(s.get(), 0), bytes);
-        found.emplace(k, std::move(r));
-      }
+  Transaction tx(db_, "BEGIN");  // one read snapshot for all keys
+  if (!tx.ok()) return Error("begin point lookup");
+  Stmt s(db_, "SELECT record FROM points WHERE key = ?");
+  if (!s.ok()) return Error("prepare point lookup");
+  const size_t n = record_size;
+  for (const std::string& k : keys) {
+    sqlite3_reset(s.get());
+    s.Text(1, k);
+    if (sqlite3_step(s.get()) == SQLITE_ROW) {
+      const int bytes = sqlite3_column_bytes(s.get(), 0);
+      if (bytes != static_cast<int>(n * sizeof(double))) continue;  // a record of another layout: recompute
+      PointRecord r;
+      r.v.resize(n);
+      std::memcpy(r.v.data(), sqlite3_column_blob(s.get(), 0), bytes);
+      found.emplace(k, std::move(r));
     }
   }
-  BISTABLE_RETURN_IF_ERROR(Exec("COMMIT"));
+  sqlite3_reset(s.get());  // no statement in progress at commit
+  tx.Commit();
   return found;
 }
 
 Status IndexDb::PutPoints(const std::vector<std::pair<std::string, PointRecord>>& items, const std::string& sweep_id,
                           long points_done) {
-  BISTABLE_RETURN_IF_ERROR(Exec("BEGIN IMMEDIATE"));
-  auto fail = [&](const std::string& what) {
-    Status st = Error(what);
-    Exec("ROLLBACK");
-    return st;
-  };
-  {
-    Stmt s(db_, "INSERT OR REPLACE INTO points(key, record, created) VALUES(?, ?, unixepoch())");
-    if (!s.ok()) return fail("prepare point insert");
-    for (const auto& [k, r] : items) {
-      sqlite3_reset(s.get());
-      s.Text(1, k);
-      sqlite3_bind_blob(s.get(), 2, r.v.data(), static_cast<int>(r.v.size() * sizeof(double)), SQLITE_TRANSIENT);
-      if (sqlite3_step(s.get()) != SQLITE_DONE) return fail("store point results");
-    }
-    Stmt u(db_, "UPDATE sweeps SET points_done = ? WHERE id = ?");
-    if (!u.ok()) return fail("prepare progress update");
-    u.Int(1, points_done);
-    u.Text(2, sweep_id);
-    if (sqlite3_step(u.get()) != SQLITE_DONE) return fail("update progress");
+  Transaction tx(db_, "BEGIN IMMEDIATE");
+  if (!tx.ok()) return Error("begin point results");
+  Stmt s(db_, "INSERT OR REPLACE INTO points(key, record, created) VALUES(?, ?, unixepoch())");
+  if (!s.ok()) return Error("prepare point insert");
+  for (const auto& [k, r] : items) {
+    sqlite3_reset(s.get());
+    s.Text(1, k);
+    sqlite3_bind_blob(s.get(), 2, r.v.data(), static_cast<int>(r.v.size() * sizeof(double)), SQLITE_TRANSIENT);
+    if (sqlite3_step(s.get()) != SQLITE_DONE) return Error("store point results");
   }
-  if (sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr) != SQLITE_OK) return fail("commit point results");
+  Stmt u(db_, "UPDATE sweeps SET points_done = ? WHERE id = ?");
+  if (!u.ok()) return Error("prepare progress update");
+  u.Int(1, points_done);
+  u.Text(2, sweep_id);
+  if (sqlite3_step(u.get()) != SQLITE_DONE) return Error("update progress");
+  if (!tx.Commit()) return Error("commit point results");
   return Status::Ok();
 }
 

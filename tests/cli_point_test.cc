@@ -9,32 +9,14 @@
 #include <string>
 
 #include <gtest/gtest.h>
+
+#include "tests/process_util.h"
 #include <nlohmann/json.hpp>
 
 namespace {
 
-struct ProcessResult {
-  int exit_code;
-  std::string out, err;
-};
-
-ProcessResult Bistable(const std::string& args) {
-  const std::string dir = ::testing::TempDir();
-  const std::string err_file = dir + "/cli_stderr_" + std::to_string(::getpid()) + ".txt";
-  const std::string cmd = std::string(BISTABLE_CLI) + " " + args + " 2>" + err_file;
-  ProcessResult r{-1, "", ""};
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream e(err_file);
-  r.err.assign(std::istreambuf_iterator<char>(e), {});
-  std::filesystem::remove(err_file);
-  return r;
-}
+using bistable_test::Bistable;
+using bistable_test::ProcessResult;
 
 TEST(CliPoint, JsonHasTheContractKeys) {
   const ProcessResult r = Bistable("point --model coupled --alpha 1 --omega 1.2 --json");

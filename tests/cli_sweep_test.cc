@@ -12,6 +12,8 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+
+#include "tests/process_util.h"
 #include <nlohmann/json.hpp>
 
 #include "storage/index_db.h"
@@ -21,26 +23,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct ProcessResult {
-  int exit_code;
-  std::string out, err;
-};
-
-ProcessResult Bistable(const std::string& args) {
-  const std::string err_file = ::testing::TempDir() + "/sweep_stderr_" + std::to_string(::getpid()) + ".txt";
-  FILE* p = ::popen((std::string(BISTABLE_CLI) + " " + args + " 2>" + err_file).c_str(), "r");
-  ProcessResult r{-1, "", ""};
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int status = ::pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream e(err_file);
-  r.err.assign(std::istreambuf_iterator<char>(e), {});
-  fs::remove(err_file);
-  return r;
-}
+using bistable_test::Bistable;
+using bistable_test::ProcessResult;
 
 std::string Dir(const std::string& name) {
   const fs::path d = fs::path(::testing::TempDir()) / ("bistable_cli_" + name + "_" + std::to_string(::getpid()));
