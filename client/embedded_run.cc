@@ -178,12 +178,13 @@ Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, 
   Status worker_error;
   std::atomic<bool> failed{false};
   std::vector<std::thread> pool;
-  const SweepProgress start = c.progress();
+  const std::string id = spec.Id();
+  const SweepProgress start = c.progress(id);
   for (int t = 0; t < threads && any_work; ++t) {
     pool.emplace_back([&] {
-      while (auto job = c.Lease()) {
-        const std::vector<PointRecord> records = ComputeItems(spec, job->items);
-        Status st = c.Report(job->id, records);
+      while (auto lease = c.Lease("embedded", id)) {
+        const std::vector<PointRecord> records = ComputeItems(spec, lease->items);
+        Status st = c.Report(lease->lease_id, records);
         if (!st.ok()) {
           std::lock_guard<std::mutex> lock(err_mu);
           if (worker_error.ok()) worker_error = st;
@@ -195,25 +196,25 @@ Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, 
   }
   while (!pool.empty()) {
     if (stop && stop->load()) c.Stop();
-    const SweepProgress p = c.progress();
+    const SweepProgress p = c.progress(id);
     if (p.items_done >= p.items_total || (stop && stop->load()) || failed.load()) break;
     if (bar) bar->Update(p.items_done - start.items_done);
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
   for (auto& th : pool) th.join();
-  if (bar) bar->Finish(c.progress().items_done - start.items_done);
+  if (bar) bar->Finish(c.progress(id).items_done - start.items_done);
   return worker_error;
 }
 
 StatusOr<std::string> RunEmbeddedSweep(const SweepSpec& spec, const std::string& data_dir, int threads, bool progress) {
-  auto coord = SweepCoordinator::Open(data_dir);
+  auto coord = SweepCoordinator::Open(data_dir, {.lease_seconds = 3600, .resume = false});
   if (!coord.ok()) return coord.status();
   auto plan = (*coord)->Submit(spec, JobItems(spec, 0.25));
   if (!plan.ok()) return plan.status();
   const long to_compute = plan->items_total - plan->items_cached;
   ProgressBar bar(to_compute, "  " + (spec.name.empty() ? plan->id : spec.name), progress);
   BISTABLE_RETURN_IF_ERROR(ComputeEmbedded(**coord, spec, threads, to_compute > 0, nullptr, progress ? &bar : nullptr));
-  return (*coord)->Publish();
+  return (*coord)->Publish(plan->id);
 }
 
 }  // namespace bistable

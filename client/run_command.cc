@@ -42,7 +42,7 @@ int RunSweep(const RunArgs& a) {
   auto spec = LoadSweepSpec(a.spec_path);
   if (!spec.ok()) return Fail(spec.status());
   if (a.threads < 0 || a.threads > 1024) return Fail(Status::InvalidArgument("threads", "threads = " + std::to_string(a.threads) + " violates threads in [0, 1024]"));
-  auto coord = SweepCoordinator::Open(a.data);
+  auto coord = SweepCoordinator::Open(a.data, {.lease_seconds = 3600, .resume = false});
   if (!coord.ok()) return Fail(coord.status());
   SweepCoordinator& c = **coord;
   const auto t0 = std::chrono::steady_clock::now();
@@ -64,19 +64,19 @@ int RunSweep(const RunArgs& a) {
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
   if (!worker_error.ok()) {
-    c.MarkInterrupted();
+    c.MarkInterrupted(plan->id);
     std::cerr << "error: " << worker_error.ToString() << "\n"
               << "finished blocks are stored; rerun the same command to resume\n";
     return kExitBadInput;
   }
-  if (g_interrupted.load() || c.progress().items_done < plan->items_total) {
-    c.MarkInterrupted();
-    std::cerr << "interrupted: " << c.progress().items_done << "/" << plan->items_total
+  if (g_interrupted.load() || c.progress(plan->id).items_done < plan->items_total) {
+    c.MarkInterrupted(plan->id);
+    std::cerr << "interrupted: " << c.progress(plan->id).items_done << "/" << plan->items_total
               << " items stored; rerun the same command to resume\n";
     return kExitInterrupted;
   }
   const auto t_computed = std::chrono::steady_clock::now();
-  auto path = c.Publish();
+  auto path = c.Publish(plan->id);
   if (!path.ok()) return Fail(path.status());
   const auto t_published = std::chrono::steady_clock::now();
   const double seconds = std::chrono::duration<double>(t_published - t0).count();

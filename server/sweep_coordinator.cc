@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <random>
 
 #include "storage/map_file.h"
 
@@ -16,9 +18,19 @@ double Now() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
+// Items per job for about `seconds` of work on one core (≈ 15 M lane-steps/s with metrics),
+// a multiple of 8 lanes, in [8, 4096].
+long DefaultJobItems(const SweepSpec& spec, double seconds) {
+  const double steps = spec.base.integration.t_end / spec.base.integration.dt;
+  const double per_item = steps / 1.5e7 * (spec.UsesKernel() ? 1.0 : 8.0);
+  long n = static_cast<long>(seconds / std::max(per_item, 1e-9));
+  n = std::clamp<long>(n, 8, 4096);
+  return (n / 8) * 8;
+}
+
 }  // namespace
 
-StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::string& data_dir) {
+StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::string& data_dir, Options opt) {
   std::error_code ec;
   std::filesystem::create_directories(std::filesystem::path(data_dir) / "sweeps", ec);
   if (ec) return Status::IoError("data", "cannot create data directory '" + data_dir + "': " + ec.message());
@@ -26,52 +38,71 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
     return Status::IoError("data", "data directory '" + data_dir + "' is not writable");
   auto db = IndexDb::Open((std::filesystem::path(data_dir) / "index.sqlite").string());
   if (!db.ok()) return db.status();
-  return std::unique_ptr<SweepCoordinator>(new SweepCoordinator(data_dir, std::move(db.value())));
+  std::unique_ptr<SweepCoordinator> c(new SweepCoordinator(data_dir, std::move(db.value()), opt));
+  if (!opt.resume) return c;
+  // Resume every unfinished sweep: plan it again against the point cache.
+  auto rows = c->db_->ListSweeps();
+  if (!rows.ok()) return rows.status();
+  std::lock_guard<std::mutex> lock(c->mu_);
+  for (const SweepRow& r : *rows) {
+    if (r.status != "running" && r.status != "interrupted" && r.status != "queued") continue;
+    auto spec = ParseSweepSpec(r.spec, "sweep " + r.id);
+    if (!spec.ok() || spec->Id() != r.id) {
+      SweepRow failed = r;
+      failed.status = "failed";
+      c->db_->UpsertSweep(failed);
+      continue;
+    }
+    auto plan = c->SubmitLocked(*spec, DefaultJobItems(*spec, 2.0));
+    if (!plan.ok()) return plan.status();
+  }
+  return c;
 }
 
 std::string SweepCoordinator::MapPath(const std::string& id) const {
   return (std::filesystem::path(data_dir_) / "sweeps" / (id + ".h5")).string();
 }
 
-std::vector<std::string> SweepCoordinator::KeysFor(const std::vector<WorkItem>& items) const {
-  std::vector<std::string> keys;
-  keys.reserve(items.size());
-  const int nic = spec_.ic_count();
-  for (const WorkItem& it : items) keys.push_back(keys_[it.point * nic + it.ic]);
-  return keys;
-}
-
 StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_items) {
   std::lock_guard<std::mutex> lock(mu_);
-  spec_ = spec;
+  return SubmitLocked(spec, job_items);
+}
+
+StatusOr<SweepPlan> SweepCoordinator::SubmitLocked(const SweepSpec& spec, long job_items) {
   SweepPlan plan;
   plan.id = spec.Id();
   const int nic = spec.ic_count();
   plan.items_total = spec.points() * nic;
+  if (auto it = sweeps_.find(plan.id); it != sweeps_.end() && !it->second.cancelled) {
+    // Already active: report its current plan.
+    plan.items_cached = it->second.items_cached;
+    plan.jobs = static_cast<long>(it->second.jobs.size());
+    plan.already_published = it->second.row.status == "done";
+    return plan;
+  }
   auto existing = db_->GetSweep(plan.id);
   if (!existing.ok()) return existing.status();
-  row_ = existing.value() ? *existing.value() : SweepRow{};
-  if (row_.status == "done" && !row_.file.empty() &&
-      std::filesystem::exists(std::filesystem::path(data_dir_) / row_.file)) {
+  Sweep s;
+  s.spec = spec;
+  s.row = existing.value() ? *existing.value() : SweepRow{};
+  s.seq = next_seq_++;
+  if (s.row.status == "done" && !s.row.file.empty() && std::filesystem::exists(std::filesystem::path(data_dir_) / s.row.file)) {
     plan.already_published = true;
     plan.items_cached = plan.items_total;
-    items_done_ = items_cached_ = plan.items_total;
+    s.items_done = s.items_cached = plan.items_total;
+    sweeps_[plan.id] = std::move(s);
     return plan;
   }
   std::vector<WorkItem> all;
   all.reserve(plan.items_total);
-  keys_.clear();
-  keys_.reserve(plan.items_total);
+  s.keys.reserve(plan.items_total);
   for (long p = 0; p < spec.points(); ++p)
-    for (int i = 0; i < nic; ++i) all.push_back({p, i}), keys_.push_back(spec.ItemKey(p, i));
-  const std::vector<std::string>& keys = keys_;
-  auto cached = db_->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points));
+    for (int i = 0; i < nic; ++i) all.push_back({p, i}), s.keys.push_back(spec.ItemKey(p, i));
+  auto cached = db_->LookupPoints(s.keys, PointRecord::Size(spec.base.metrics.turning_points));
   if (!cached.ok()) return cached.status();
   std::vector<WorkItem> missing;
   for (size_t i = 0; i < all.size(); ++i)
-    if (!cached->count(keys[i])) missing.push_back(all[i]);
-  plan.items_cached = plan.items_total - static_cast<long>(missing.size());
-  queue_.clear();
+    if (!cached->count(s.keys[i])) missing.push_back(all[i]);
   if (spec.continuation.enabled()) {
     // Chains run whole and in order (each point starts where the previous ended): a chain with any
     // missing item is recomputed entirely; jobs hold whole chains.
@@ -84,99 +115,204 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
       if (!any) continue;
       j.items.insert(j.items.end(), chain.begin(), chain.end());
       if (static_cast<long>(j.items.size()) >= job_items) {
-        j.id = static_cast<long>(queue_.size());
-        queue_.push_back(std::move(j));
+        j.id = static_cast<long>(s.jobs.size());
+        s.jobs.push_back(std::move(j));
         j = Job{};
       }
     }
-    if (!j.items.empty()) j.id = static_cast<long>(queue_.size()), queue_.push_back(std::move(j));
-    long queued = 0;
-    for (const Job& q : queue_) queued += static_cast<long>(q.items.size());
-    plan.items_cached = plan.items_total - queued;  // items of partly stored chains are recomputed
+    if (!j.items.empty()) j.id = static_cast<long>(s.jobs.size()), s.jobs.push_back(std::move(j));
   } else {
     for (size_t start = 0; start < missing.size(); start += job_items) {
       Job j;
-      j.id = static_cast<long>(queue_.size());
+      j.id = static_cast<long>(s.jobs.size());
       j.items.assign(missing.begin() + start, missing.begin() + std::min(missing.size(), start + job_items));
-      queue_.push_back(std::move(j));
+      s.jobs.push_back(std::move(j));
     }
   }
-  plan.jobs = static_cast<long>(queue_.size());
-  reported_.assign(queue_.size(), false);
-  next_job_ = 0;
-  items_cached_ = items_done_ = plan.items_cached;
+  long queued = 0;
+  for (const Job& j : s.jobs) queued += static_cast<long>(j.items.size()), s.queue.push_back(j.id);
+  s.job_state.assign(s.jobs.size(), JobState::kQueued);
+  plan.items_cached = plan.items_total - queued;  // items of partly stored chains are recomputed
+  plan.jobs = static_cast<long>(s.jobs.size());
+  s.items_cached = s.items_done = plan.items_cached;
+  s.started = Now();
+  s.row.id = plan.id;
+  s.row.name = spec.name;
+  s.row.model = spec.ModelLabel();
+  s.row.spec = spec.source;
+  s.row.status = "running";
+  s.row.points_total = plan.items_total;
+  s.row.points_done = s.items_done;
+  s.row.file = "";
+  if (s.row.created == 0) s.row.created = s.started;
+  s.row.finished = 0;
+  BISTABLE_RETURN_IF_ERROR(db_->UpsertSweep(s.row));
   stopped_ = false;
-  started_ = Now();
-  row_.id = plan.id;
-  row_.name = spec.name;
-  row_.model = spec.ModelLabel();
-  row_.spec = spec.source;
-  row_.status = "running";
-  row_.points_total = plan.items_total;
-  row_.points_done = items_done_;
-  row_.file = "";
-  if (row_.created == 0) row_.created = started_;
-  row_.finished = 0;
-  BISTABLE_RETURN_IF_ERROR(db_->UpsertSweep(row_));
+  sweeps_[plan.id] = std::move(s);
   return plan;
 }
 
-std::optional<Job> SweepCoordinator::Lease() {
-  std::lock_guard<std::mutex> lock(mu_);
-  if (stopped_ || next_job_ >= queue_.size()) return std::nullopt;
-  return queue_[next_job_++];
+void SweepCoordinator::RequeueExpiredLocked(double now) {
+  for (auto it = leases_.begin(); it != leases_.end();) {
+    if (it->second.deadline >= now) {
+      ++it;
+      continue;
+    }
+    auto s = sweeps_.find(it->second.sweep_id);
+    if (s != sweeps_.end() && s->second.job_state[it->second.job_id] == JobState::kLeased) {
+      s->second.job_state[it->second.job_id] = JobState::kQueued;
+      s->second.queue.push_front(it->second.job_id);
+    }
+    if (auto w = workers_.find(it->second.worker); w != workers_.end()) --w->second.leases;
+    it = leases_.erase(it);
+  }
 }
 
-Status SweepCoordinator::Report(long job_id, const std::vector<PointRecord>& records) {
+std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep) {
   std::lock_guard<std::mutex> lock(mu_);
-  if (job_id < 0 || job_id >= static_cast<long>(queue_.size()))
-    return Status::InvalidArgument("job", "job " + std::to_string(job_id) + " is not part of this sweep");
-  if (reported_[job_id]) return Status::Ok();  // duplicate: acknowledged, not stored twice
-  const Job& job = queue_[job_id];
-  if (records.size() != job.items.size())
-    return Status::InvalidArgument("records", "job " + std::to_string(job_id) + " has " + std::to_string(job.items.size()) +
-                                                  " items, report has " + std::to_string(records.size()));
-  const std::vector<std::string> keys = KeysFor(job.items);
-  std::vector<std::pair<std::string, PointRecord>> rows;
-  rows.reserve(keys.size());
-  for (size_t i = 0; i < keys.size(); ++i) rows.emplace_back(keys[i], records[i]);
-  BISTABLE_RETURN_IF_ERROR(db_->PutPoints(rows, row_.id, items_done_ + static_cast<long>(rows.size())));
-  reported_[job_id] = true;
-  items_done_ += static_cast<long>(rows.size());
+  const double now = Now();
+  WorkerInfo& w = workers_[worker];
+  w.name = worker;
+  w.last_seen = now;
+  if (stopped_) return std::nullopt;
+  RequeueExpiredLocked(now);
+  Sweep* best = nullptr;
+  for (auto& [id, s] : sweeps_)
+    if (!s.cancelled && !s.queue.empty() && (!best || s.seq < best->seq) && (only_sweep.empty() || id == only_sweep)) best = &s;
+  if (!best) return std::nullopt;
+  const long job = best->queue.front();
+  best->queue.pop_front();
+  best->job_state[job] = JobState::kLeased;
+  best->any_leased = true;
+  char id[48];
+  std::snprintf(id, sizeof id, "%s-%llu-%08x", best->row.id.c_str(), ++lease_counter_,
+                static_cast<unsigned>(std::random_device{}()));
+  LeaseGrant g{id, best->row.id, job, best->jobs[job].items, now + opt_.lease_seconds};
+  leases_[g.lease_id] = {g.sweep_id, worker, job, g.deadline};
+  ++w.leases;
+  return g;
+}
+
+Status SweepCoordinator::Extend(const std::string& lease_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  const double now = Now();
+  auto it = leases_.find(lease_id);
+  if (it == leases_.end())
+    return finished_leases_.count(lease_id) ? Status::Ok() : Status::NotFound("lease '" + lease_id + "' is unknown");
+  if (it->second.deadline < now) return Status::FailedPrecondition("lease '" + lease_id + "' expired; its job was requeued");
+  it->second.deadline = now + opt_.lease_seconds;
+  workers_[it->second.worker].last_seen = now;
   return Status::Ok();
 }
 
-StatusOr<std::string> SweepCoordinator::Publish() {
+Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<PointRecord>& records) {
   std::lock_guard<std::mutex> lock(mu_);
-  const std::string path = MapPath(row_.id);
-  if (row_.status == "done" && !row_.file.empty() && std::filesystem::exists(path)) return path;
-  const std::vector<std::string>& keys = keys_;
-  auto found = db_->LookupPoints(keys, PointRecord::Size(spec_.base.metrics.turning_points));
+  const double now = Now();
+  auto it = leases_.find(lease_id);
+  if (it == leases_.end()) {
+    if (finished_leases_.count(lease_id)) return Status::Ok();  // a retried report: already stored
+    return Status::NotFound("lease '" + lease_id + "' is unknown (never granted, or granted before a coordinator restart)");
+  }
+  if (it->second.deadline < now) {
+    RequeueExpiredLocked(now);
+    return Status::FailedPrecondition("lease '" + lease_id + "' expired before its report; its job was requeued");
+  }
+  auto sit = sweeps_.find(it->second.sweep_id);
+  if (sit == sweeps_.end() || sit->second.cancelled) {
+    leases_.erase(it);
+    return Status::FailedPrecondition("sweep of lease '" + lease_id + "' was cancelled");
+  }
+  Sweep& s = sit->second;
+  const Job& job = s.jobs[it->second.job_id];
+  if (records.size() != job.items.size())
+    return Status::InvalidArgument("records", "job has " + std::to_string(job.items.size()) + " items, report has " +
+                                                  std::to_string(records.size()));
+  const size_t width = PointRecord::Size(s.spec.base.metrics.turning_points);
+  for (size_t i = 0; i < records.size(); ++i)
+    if (records[i].v.size() != width)
+      return Status::InvalidArgument("records", "record " + std::to_string(i) + " has " + std::to_string(records[i].v.size()) +
+                                                    " values, the sweep's layout has " + std::to_string(width));
+  if (s.job_state[it->second.job_id] != JobState::kDone) {
+    const int nic = s.spec.ic_count();
+    std::vector<std::pair<std::string, PointRecord>> rows;
+    rows.reserve(records.size());
+    for (size_t i = 0; i < records.size(); ++i)
+      rows.emplace_back(s.keys[job.items[i].point * nic + job.items[i].ic], records[i]);
+    BISTABLE_RETURN_IF_ERROR(db_->PutPoints(rows, s.row.id, s.items_done + static_cast<long>(rows.size())));
+    s.job_state[it->second.job_id] = JobState::kDone;
+    s.items_done += static_cast<long>(rows.size());
+    workers_[it->second.worker].items_done += static_cast<long>(rows.size());
+  }
+  if (auto w = workers_.find(it->second.worker); w != workers_.end()) --w->second.leases, w->second.last_seen = now;
+  finished_leases_[lease_id] = s.row.id;
+  leases_.erase(it);
+  if (s.items_done >= s.row.points_total && s.row.status != "done") {
+    auto path = PublishLocked(s);
+    if (!path.ok()) return path.status();
+  }
+  return Status::Ok();
+}
+
+Status SweepCoordinator::Release(const std::string& lease_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = leases_.find(lease_id);
+  if (it == leases_.end()) return Status::NotFound("lease '" + lease_id + "' is unknown");
+  auto s = sweeps_.find(it->second.sweep_id);
+  if (s != sweeps_.end() && s->second.job_state[it->second.job_id] == JobState::kLeased) {
+    s->second.job_state[it->second.job_id] = JobState::kQueued;
+    s->second.queue.push_front(it->second.job_id);
+  }
+  if (auto w = workers_.find(it->second.worker); w != workers_.end()) --w->second.leases;
+  leases_.erase(it);
+  return Status::Ok();
+}
+
+Status SweepCoordinator::Cancel(const std::string& sweep_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = sweeps_.find(sweep_id);
+  if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
+  if (it->second.row.status == "done") return Status::FailedPrecondition("sweep '" + sweep_id + "' is already done");
+  it->second.cancelled = true;
+  it->second.queue.clear();
+  return MarkLocked(it->second, "cancelled");
+}
+
+StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = sweeps_.find(sweep_id);
+  if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
+  return PublishLocked(it->second);
+}
+
+StatusOr<std::string> SweepCoordinator::PublishLocked(Sweep& s) {
+  const std::string path = MapPath(s.row.id);
+  if (s.row.status == "done" && !s.row.file.empty() && std::filesystem::exists(path)) return path;
+  auto found = db_->LookupPoints(s.keys, PointRecord::Size(s.spec.base.metrics.turning_points));
   if (!found.ok()) return found.status();
   std::vector<PointRecord> records;
-  records.reserve(keys.size());
-  for (const std::string& k : keys) {
+  records.reserve(s.keys.size());
+  for (const std::string& k : s.keys) {
     auto it = found->find(k);
     if (it == found->end())
-      return Status::FailedPrecondition("sweep " + row_.id + " is incomplete: " +
-                                        std::to_string(keys.size() - found->size()) + " items are not stored yet");
+      return Status::FailedPrecondition("sweep " + s.row.id + " is incomplete: " +
+                                        std::to_string(s.keys.size() - found->size()) + " items are not stored yet");
     records.push_back(it->second);
   }
-  BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec_, records));
-  SweepRow done = row_;
+  BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, s.spec, records));
+  SweepRow done = s.row;
   done.status = "done";
   done.points_done = static_cast<long>(records.size());
   done.file = std::filesystem::relative(path, data_dir_).string();
   done.finished = Now();
-  done.seconds = done.finished - started_;
+  done.seconds = done.finished - s.started;
   // Map rows: shape and range of every stored metric, for listings that need not open HDF5.
   std::string shape;
-  for (const Axis& a : spec_.axes) shape += (shape.empty() ? "" : "x") + std::to_string(a.values.size());
-  if (spec_.ic_count() > 1) shape += "x" + std::to_string(spec_.ic_count());
+  for (const Axis& a : s.spec.axes) shape += (shape.empty() ? "" : "x") + std::to_string(a.values.size());
+  if (s.spec.ic_count() > 1) shape += "x" + std::to_string(s.spec.ic_count());
   std::vector<MapRow> maps;
   const auto& catalog = MetricCatalog();
   for (size_t mi = 0; mi < catalog.size(); ++mi) {
-    if (std::find(spec_.metrics.begin(), spec_.metrics.end(), catalog[mi].name) == spec_.metrics.end()) continue;
+    if (std::find(s.spec.metrics.begin(), s.spec.metrics.end(), catalog[mi].name) == s.spec.metrics.end()) continue;
     double lo = NAN, hi = NAN;
     for (const PointRecord& r : records) {
       const double v = r.Get(mi);
@@ -187,16 +323,22 @@ StatusOr<std::string> SweepCoordinator::Publish() {
     maps.push_back({done.id, catalog[mi].name, done.file, shape, lo, hi});
   }
   BISTABLE_RETURN_IF_ERROR(db_->PublishSweep(done, maps));
-  row_ = done;
+  s.row = done;
   return path;
 }
 
-Status SweepCoordinator::MarkInterrupted() {
+Status SweepCoordinator::MarkLocked(Sweep& s, const std::string& status) {
+  s.row.status = status;
+  s.row.points_done = s.items_done;
+  s.row.seconds = Now() - s.started;
+  return db_->UpsertSweep(s.row);
+}
+
+Status SweepCoordinator::MarkInterrupted(const std::string& sweep_id) {
   std::lock_guard<std::mutex> lock(mu_);
-  row_.status = "interrupted";
-  row_.points_done = items_done_;
-  row_.seconds = Now() - started_;
-  return db_->UpsertSweep(row_);
+  auto it = sweeps_.find(sweep_id);
+  if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
+  return MarkLocked(it->second, "interrupted");
 }
 
 void SweepCoordinator::Stop() {
@@ -204,9 +346,47 @@ void SweepCoordinator::Stop() {
   stopped_ = true;
 }
 
-SweepProgress SweepCoordinator::progress() const {
+StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
   std::lock_guard<std::mutex> lock(mu_);
-  return {static_cast<long>(row_.points_total), items_done_, items_cached_};
+  auto it = sweeps_.find(sweep_id);
+  if (it == sweeps_.end()) {
+    auto row = db_->GetSweep(sweep_id);
+    if (!row.ok()) return row.status();
+    if (!row.value()) return Status::NotFound("no sweep '" + sweep_id + "'");
+    const SweepRow& r = *row.value();
+    return SweepInfo{r.id, r.name, r.model, r.status, r.points_total, r.points_done, 0, 0, r.seconds, r.file};
+  }
+  const Sweep& s = it->second;
+  SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.status, s.row.points_total, s.items_done, s.items_cached, 0,
+                 s.row.status == "done" ? s.row.seconds : Now() - s.started, s.row.file};
+  if (info.state == "running" && !s.any_leased && s.items_done == s.items_cached) info.state = "queued";
+  if (s.cancelled) info.state = "cancelled";
+  std::map<std::string, bool> holders;
+  for (const auto& [id, l] : leases_)
+    if (l.sweep_id == s.row.id) holders[l.worker] = true;
+  info.workers = static_cast<int>(holders.size());
+  return info;
+}
+
+std::vector<WorkerInfo> SweepCoordinator::Workers() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  std::vector<WorkerInfo> out;
+  for (const auto& [name, w] : workers_) out.push_back(w);
+  return out;
+}
+
+StatusOr<std::string> SweepCoordinator::SpecText(const std::string& sweep_id) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = sweeps_.find(sweep_id);
+  if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
+  return it->second.spec.source;
+}
+
+SweepProgress SweepCoordinator::progress(const std::string& sweep_id) const {
+  std::lock_guard<std::mutex> lock(mu_);
+  auto it = sweeps_.find(sweep_id);
+  if (it == sweeps_.end()) return {};
+  return {it->second.row.points_total, it->second.items_done, it->second.items_cached};
 }
 
 }  // namespace bistable

@@ -1,20 +1,27 @@
-// The coordinator of sweeps over one data directory: plans a sweep against the point cache, hands
-// out jobs (contiguous runs of missing items), persists each reported job durably in one
-// transaction, and publishes the HDF5 map once every item is stored. The embedded `bistable run`
-// drives it with in-process worker threads; the gRPC service (issue 4) will drive the same class.
+// The coordinator of sweeps over one data directory. It plans each sweep against the point cache,
+// queues the missing items as jobs, leases jobs to workers with deadlines (an expired lease returns its
+// job to the queue), stores each reported job durably in one transaction before acknowledging it,
+// and publishes a sweep's HDF5 map when its last job is stored. The embedded `bistable run` drives
+// it with in-process worker threads; `bistable-coordinator` drives the same class over gRPC.
+//
+// Durability: sweeps (spec, status) and every acknowledged result live in SQLite (WAL). Jobs and
+// leases are derived state: on Open, every unfinished sweep is planned again against the point
+// cache, so a restarted coordinator continues each sweep and recomputes only unacknowledged work.
 // Thread-safe: every public method may be called from any thread.
 #ifndef BISTABLE_SERVER_SWEEP_COORDINATOR_H_
 #define BISTABLE_SERVER_SWEEP_COORDINATOR_H_
 
+#include <deque>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "engine/metric_catalog.h"
 #include "engine/sweep_spec.h"
 #include "storage/index_db.h"
-#include "engine/metric_catalog.h"
 
 namespace bistable {
 
@@ -35,47 +42,111 @@ struct SweepProgress {
   long items_total = 0, items_done = 0, items_cached = 0;
 };
 
+// A granted lease: the job's items of one sweep, to be reported before `deadline`.
+struct LeaseGrant {
+  std::string lease_id;    // opaque, unique
+  std::string sweep_id;
+  long job_id = 0;
+  std::vector<WorkItem> items;
+  double deadline = 0;     // unix seconds
+};
+
+struct SweepInfo {
+  std::string id, name, model;
+  std::string state;       // queued | running | done | failed | cancelled
+  long items_total = 0, items_done = 0, items_cached = 0;
+  int workers = 0;         // workers holding a lease of this sweep now
+  double seconds = 0;      // since submission (or total, when done)
+  std::string file;        // published map, relative to the data dir
+};
+
+struct WorkerInfo {
+  std::string name;
+  double last_seen = 0;    // unix seconds
+  int leases = 0;          // leases held now
+  long items_done = 0;     // items reported and stored
+};
+
 class SweepCoordinator {
  public:
-  // Opens <data>/index.sqlite and <data>/sweeps/, creating them; the message names the directory
-  // when it cannot be written.
-  static StatusOr<std::unique_ptr<SweepCoordinator>> Open(const std::string& data_dir);
+  struct Options {
+    double lease_seconds = 60;  // a lease not reported or extended within this is requeued
+    bool resume = true;         // on Open, plan every unfinished sweep of the index again (the service);
+                                // the embedded `bistable run` handles only the sweep it submits
+  };
 
-  // Registers the sweep (id = hash of its canonical spec), looks every item up in the point cache and
-  // queues the missing ones as jobs of about `job_items` items.
+  // Opens <data>/index.sqlite and <data>/sweeps/ (creating them) and resumes unfinished sweeps.
+  static StatusOr<std::unique_ptr<SweepCoordinator>> Open(const std::string& data_dir, Options opt);
+  static StatusOr<std::unique_ptr<SweepCoordinator>> Open(const std::string& data_dir) { return Open(data_dir, Options{}); }
+
+  // Registers the sweep (id = hash of its canonical spec), looks its items up in the point cache and
+  // queues the missing ones as jobs of about `job_items` items. Submitting a running sweep again is
+  // harmless (its plan is returned).
   StatusOr<SweepPlan> Submit(const SweepSpec& spec, long job_items);
-  // The next queued job, or nullopt when none is left (or after Stop()).
-  std::optional<Job> Lease();
-  // Stores a job's records (one transaction). A job reported twice is acknowledged and not stored again.
-  Status Report(long job_id, const std::vector<PointRecord>& records);
-  // Gathers every record from the cache, writes the map file atomically and marks the sweep done.
-  // Returns the map file's path.
-  StatusOr<std::string> Publish();
-  // Marks the sweep interrupted (finished jobs stay stored; a rerun resumes).
-  Status MarkInterrupted();
+  // The next queued job of the oldest running sweep, after requeueing expired leases; nullopt when
+  // there is none (or after Stop()).
+  // `only_sweep` restricts the lease to one sweep (the embedded run).
+  std::optional<LeaseGrant> Lease(const std::string& worker, const std::string& only_sweep = "");
+  // Pushes a lease's deadline back by lease_seconds. NotFound for an unknown lease, FailedPrecondition
+  // for an expired one.
+  Status Extend(const std::string& lease_id);
+  // Stores a lease's records (one transaction) and acknowledges; publishes the sweep when complete.
+  // A lease reported again after success is acknowledged without storing anything twice.
+  Status Report(const std::string& lease_id, const std::vector<PointRecord>& records);
+  // Gives a lease's job back to the queue (a worker shutting down).
+  Status Release(const std::string& lease_id);
+  Status Cancel(const std::string& sweep_id);
+  // Gathers a sweep's records from the cache, writes its map atomically, marks it done (idempotent).
+  StatusOr<std::string> Publish(const std::string& sweep_id);
+  Status MarkInterrupted(const std::string& sweep_id);
   void Stop();
 
-  SweepProgress progress() const;
+  StatusOr<SweepInfo> Info(const std::string& sweep_id) const;
+  std::vector<WorkerInfo> Workers() const;
+  // The spec text (TOML) of a sweep, for workers that parse it themselves.
+  StatusOr<std::string> SpecText(const std::string& sweep_id) const;
+  SweepProgress progress(const std::string& sweep_id) const;
   const std::string& data_dir() const { return data_dir_; }
-  const SweepSpec& spec() const { return spec_; }
   std::string MapPath(const std::string& id) const;
 
  private:
-  SweepCoordinator(std::string dir, std::unique_ptr<IndexDb> db) : data_dir_(std::move(dir)), db_(std::move(db)) {}
-  std::vector<std::string> KeysFor(const std::vector<WorkItem>& items) const;
+  enum class JobState { kQueued, kLeased, kDone };
+  struct Sweep {
+    SweepSpec spec;
+    SweepRow row;
+    std::vector<std::string> keys;  // content key of item point·ic_count + ic
+    std::vector<Job> jobs;
+    std::vector<JobState> job_state;
+    std::deque<long> queue;
+    long items_done = 0, items_cached = 0;
+    long seq = 0;                   // submission order
+    bool cancelled = false, any_leased = false;
+    double started = 0;
+  };
+  struct LeaseState {
+    std::string sweep_id, worker;
+    long job_id = 0;
+    double deadline = 0;
+  };
+
+  SweepCoordinator(std::string dir, std::unique_ptr<IndexDb> db, Options opt)
+      : data_dir_(std::move(dir)), db_(std::move(db)), opt_(opt) {}
+  StatusOr<SweepPlan> SubmitLocked(const SweepSpec& spec, long job_items);
+  void RequeueExpiredLocked(double now);
+  StatusOr<std::string> PublishLocked(Sweep& s);
+  Status MarkLocked(Sweep& s, const std::string& status);
 
   mutable std::mutex mu_;
   std::string data_dir_;
   std::unique_ptr<IndexDb> db_;
-  SweepSpec spec_;
-  SweepRow row_;
-  std::vector<std::string> keys_;  // content key of item point·ic_count + ic
-  std::vector<Job> queue_;
-  size_t next_job_ = 0;
-  std::vector<bool> reported_;
-  long items_done_ = 0, items_cached_ = 0;
+  Options opt_;
+  std::map<std::string, Sweep> sweeps_;
+  std::map<std::string, LeaseState> leases_;
+  std::map<std::string, std::string> finished_leases_;  // lease id → sweep id, for duplicate reports
+  std::map<std::string, WorkerInfo> workers_;
+  long next_seq_ = 0;
+  unsigned long long lease_counter_ = 0;
   bool stopped_ = false;
-  double started_ = 0;
 };
 
 }  // namespace bistable

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <chrono>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -41,10 +42,10 @@ std::string RunSweep(SweepCoordinator& c, const SweepSpec& spec, int threads, Sw
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t)
     pool.emplace_back([&] {
-      while (auto job = c.Lease()) EXPECT_TRUE(c.Report(job->id, ComputeItems(spec, job->items)).ok());
+      while (auto lease = c.Lease("test")) EXPECT_TRUE(c.Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
     });
   for (auto& th : pool) th.join();
-  auto path = c.Publish();
+  auto path = c.Publish(p->id);
   EXPECT_TRUE(path.ok()) << path.status().ToString();
   return path.ok() ? *path : "";
 }
@@ -229,19 +230,77 @@ TEST(SweepEngine, DuplicateReportIsAcknowledgedAndNotStoredTwice) {
   const SweepSpec spec = Parse(kSmall);
   auto plan = (*c)->Submit(spec, 8);
   ASSERT_TRUE(plan.ok());
-  auto job = (*c)->Lease();
-  ASSERT_TRUE(job.has_value());
-  const auto records = ComputeItems(spec, job->items);
-  ASSERT_TRUE((*c)->Report(job->id, records).ok());
-  const long done = (*c)->progress().items_done;
-  ASSERT_TRUE((*c)->Report(job->id, records).ok());
-  EXPECT_EQ((*c)->progress().items_done, done);
-  EXPECT_FALSE((*c)->Report(job->id + 100, records).ok());
+  auto lease = (*c)->Lease("w1");
+  ASSERT_TRUE(lease.has_value());
+  const auto records = ComputeItems(spec, lease->items);
+  ASSERT_TRUE((*c)->Report(lease->lease_id, records).ok());
+  const long done = (*c)->progress(plan->id).items_done;
+  ASSERT_TRUE((*c)->Report(lease->lease_id, records).ok());  // a retried report: acknowledged
+  EXPECT_EQ((*c)->progress(plan->id).items_done, done);      // ... and not stored twice
+  EXPECT_EQ((*c)->Report("no-such-lease", records).code(), Status::Code::kNotFound);
+  auto other = (*c)->Lease("w2");
+  ASSERT_TRUE(other.has_value());
   auto wrong_shape = records;
   wrong_shape.resize(3);  // jobs hold 8 and 7 items
-  auto other = (*c)->Lease();
-  ASSERT_TRUE(other.has_value());
-  EXPECT_EQ((*c)->Report(other->id, wrong_shape).field(), "records");
+  EXPECT_EQ((*c)->Report(other->lease_id, wrong_shape).field(), "records");
+  auto nan_width = ComputeItems(spec, other->items);
+  nan_width[0].v.pop_back();
+  EXPECT_EQ((*c)->Report(other->lease_id, nan_width).field(), "records");
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SweepEngine, ExpiredLeasesAreRequeuedAndRejected) {
+  const std::string dir = TempDir("lease");
+  auto c = SweepCoordinator::Open(dir, {.lease_seconds = 0.05, .resume = true});
+  ASSERT_TRUE(c.ok());
+  const SweepSpec spec = Parse(kSmall);
+  auto plan = (*c)->Submit(spec, 16);  // one job
+  ASSERT_TRUE(plan.ok());
+  ASSERT_EQ(plan->jobs, 1);
+  auto first = (*c)->Lease("slow");
+  ASSERT_TRUE(first.has_value());
+  EXPECT_FALSE((*c)->Lease("fast").has_value());  // the only job is out
+  std::this_thread::sleep_for(std::chrono::milliseconds(120));
+  EXPECT_EQ((*c)->Extend(first->lease_id).code(), Status::Code::kFailedPrecondition);
+  auto second = (*c)->Lease("fast");  // the expired lease's job came back
+  ASSERT_TRUE(second.has_value());
+  EXPECT_EQ(second->job_id, first->job_id);
+  const auto records = ComputeItems(spec, second->items);
+  EXPECT_EQ((*c)->Report(first->lease_id, records).code(), Status::Code::kNotFound);  // requeued: gone
+  ASSERT_TRUE((*c)->Report(second->lease_id, records).ok());
+  auto info = (*c)->Info(plan->id);
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->state, "done");  // the last report published the map
+  EXPECT_TRUE(std::filesystem::exists((*c)->MapPath(plan->id)));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SweepEngine, ReopenedCoordinatorResumesUnfinishedSweeps) {
+  const std::string dir = TempDir("resume");
+  const SweepSpec spec = Parse(kSmall);
+  std::string id;
+  {
+    auto c = SweepCoordinator::Open(dir);
+    ASSERT_TRUE(c.ok());
+    auto plan = (*c)->Submit(spec, 8);
+    ASSERT_TRUE(plan.ok());
+    id = plan->id;
+    auto lease = (*c)->Lease("w");
+    ASSERT_TRUE((*c)->Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
+    (*c)->Lease("w");  // leased, never reported: lost with the "crash" below
+  }
+  auto c = SweepCoordinator::Open(dir);
+  ASSERT_TRUE(c.ok());
+  auto info = (*c)->Info(id);
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->items_done, 8);  // the acknowledged job is still there
+  int jobs = 0;
+  while (auto lease = (*c)->Lease("w")) {
+    ASSERT_TRUE((*c)->Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
+    ++jobs;
+  }
+  EXPECT_GE(jobs, 1);
+  EXPECT_EQ((*c)->Info(id)->state, "done");
   std::filesystem::remove_all(dir);
 }
 
