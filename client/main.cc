@@ -6,6 +6,7 @@
 #include "client/chirp_command.h"
 #include "client/hbm_command.h"
 #include "client/point_command.h"
+#include "client/remote_commands.h"
 #include "client/reproduce_command.h"
 #include "client/sweep_commands.h"
 #include "dynamics/point_spec.h"
@@ -20,6 +21,7 @@ int main(int argc, char** argv) {
   bistable::AddHbmCommand(app, &exit_code);
   bistable::AddChirpCommand(app, &exit_code);
   bistable::AddReproduceCommand(app, &exit_code);
+  bistable::AddRemoteCommands(app, &exit_code);
   bistable::AddSweepsCommand(app, &exit_code);
   bistable::AddMapCommand(app, &exit_code);
   bistable::AddQueryCommand(app, &exit_code);

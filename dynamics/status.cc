@@ -11,6 +11,8 @@ std::string Status::ToString() const {
     case Code::kFailedPrecondition: name = "failed precondition"; break;
     case Code::kInternal: name = "internal error"; break;
     case Code::kIoError: name = "i/o error"; break;
+    case Code::kUnauthenticated: name = "unauthenticated"; break;
+    case Code::kPermissionDenied: name = "permission denied"; break;
   }
   std::string s = name;
   if (!field_.empty()) return s + " (" + field_ + ": " + message_ + ")";

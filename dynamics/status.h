@@ -12,7 +12,16 @@ namespace bistable {
 
 class Status {
  public:
-  enum class Code { kOk = 0, kInvalidArgument, kNotFound, kFailedPrecondition, kInternal, kIoError };
+  enum class Code {
+    kOk = 0,
+    kInvalidArgument,
+    kNotFound,
+    kFailedPrecondition,
+    kInternal,
+    kIoError,
+    kUnauthenticated,   // no or unknown credentials
+    kPermissionDenied,  // valid credentials, role not allowed
+  };
 
   Status() = default;
   static Status Ok() { return Status(); }
@@ -24,6 +33,8 @@ class Status {
   static Status FailedPrecondition(std::string why) { return Status(Code::kFailedPrecondition, "", std::move(why)); }
   static Status Internal(std::string why) { return Status(Code::kInternal, "", std::move(why)); }
   static Status IoError(std::string what, std::string why) { return Status(Code::kIoError, std::move(what), std::move(why)); }
+  static Status Unauthenticated(std::string why) { return Status(Code::kUnauthenticated, "", std::move(why)); }
+  static Status PermissionDenied(std::string why) { return Status(Code::kPermissionDenied, "", std::move(why)); }
 
   bool ok() const { return code_ == Code::kOk; }
   Code code() const { return code_; }

@@ -1,0 +1,17 @@
+// The one place where Status and grpc::Status meet (after Arrow Flight's util_internal.cc): an
+// exhaustive switch each way, so handlers only decode, call, convert.
+#ifndef BISTABLE_PROTO_STATUS_CONVERT_H_
+#define BISTABLE_PROTO_STATUS_CONVERT_H_
+
+#include <grpcpp/grpcpp.h>
+
+#include "dynamics/status.h"
+
+namespace bistable {
+
+grpc::Status ToGrpcStatus(const Status& s);
+Status FromGrpcStatus(const grpc::Status& s);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_PROTO_STATUS_CONVERT_H_

@@ -1,0 +1,185 @@
+#include "server/coordinator_service.h"
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <thread>
+
+#include "proto/status_convert.h"
+#include "storage/map_file.h"
+
+namespace bistable {
+namespace {
+
+void Fill(const SweepInfo& i, v1::SweepStatus* s) {
+  s->set_id(i.id);
+  s->set_state(i.state);
+  s->set_points_done(i.items_done);
+  s->set_points_total(i.items_total);
+  s->set_points_cached(i.items_cached);
+  s->set_workers(i.workers);
+  s->set_seconds(i.seconds);
+  s->set_file(i.file);
+  s->set_name(i.name);
+  s->set_model(i.model);
+}
+
+}  // namespace
+
+StatusOr<std::string> CoordinatorService::ResolveId(const std::string& id) const {
+  if (id.empty()) return Status::InvalidArgument("id", "id is empty");
+  auto db = IndexDb::Open((std::filesystem::path(c_->data_dir()) / "index.sqlite").string());
+  if (!db.ok()) return db.status();
+  auto row = (*db)->GetSweep(id);
+  if (!row.ok()) return row.status();
+  if (!row.value()) return Status::NotFound("no sweep '" + id + "'");
+  return row.value()->id;
+}
+
+grpc::Status CoordinatorService::Submit(grpc::ServerContext*, const v1::SubmitRequest* req, v1::SubmitReply* rep) {
+  if (req->spec_toml().size() > kMaxSpecBytes)
+    return ToGrpcStatus(Status::InvalidArgument("spec", "spec is " + std::to_string(req->spec_toml().size()) +
+                                                            " bytes, over the limit of " + std::to_string(kMaxSpecBytes)));
+  auto spec = ParseSweepSpec(req->spec_toml(), req->origin().empty() ? "submitted spec" : req->origin());
+  if (!spec.ok()) return ToGrpcStatus(spec.status());
+  // Jobs of about job_seconds of work on one core.
+  const double steps = spec->base.integration.t_end / spec->base.integration.dt;
+  long items = static_cast<long>(job_seconds_ / std::max(steps / 1.5e7 * (spec->UsesKernel() ? 1.0 : 8.0), 1e-9));
+  items = std::clamp<long>(items, 8, 4096) / 8 * 8;
+  auto plan = c_->Submit(*spec, items);
+  if (!plan.ok()) return ToGrpcStatus(plan.status());
+  rep->set_id(plan->id);
+  rep->set_items_total(plan->items_total);
+  rep->set_items_cached(plan->items_cached);
+  rep->set_jobs(plan->jobs);
+  return grpc::Status::OK;
+}
+
+grpc::Status CoordinatorService::GetStatus(grpc::ServerContext*, const v1::StatusRequest* req, v1::SweepStatus* rep) {
+  auto id = ResolveId(req->id());
+  if (!id.ok()) return ToGrpcStatus(id.status());
+  auto info = c_->Info(*id);
+  if (!info.ok()) return ToGrpcStatus(info.status());
+  Fill(*info, rep);
+  return grpc::Status::OK;
+}
+
+grpc::Status CoordinatorService::WatchStatus(grpc::ServerContext* ctx, const v1::StatusRequest* req,
+                                             grpc::ServerWriter<v1::SweepStatus>* writer) {
+  auto id = ResolveId(req->id());
+  if (!id.ok()) return ToGrpcStatus(id.status());
+  while (!ctx->IsCancelled() && !shutting_down_) {
+    auto info = c_->Info(*id);
+    if (!info.ok()) return ToGrpcStatus(info.status());
+    v1::SweepStatus s;
+    Fill(*info, &s);
+    if (!writer->Write(s)) break;
+    if (info->state == "done" || info->state == "failed" || info->state == "cancelled") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status CoordinatorService::Cancel(grpc::ServerContext*, const v1::CancelRequest* req, v1::CancelReply*) {
+  auto id = ResolveId(req->id());
+  if (!id.ok()) return ToGrpcStatus(id.status());
+  return ToGrpcStatus(c_->Cancel(*id));
+}
+
+grpc::Status CoordinatorService::ListSweeps(grpc::ServerContext*, const v1::ListSweepsRequest*, v1::ListSweepsReply* rep) {
+  auto db = IndexDb::Open((std::filesystem::path(c_->data_dir()) / "index.sqlite").string());
+  if (!db.ok()) return ToGrpcStatus(db.status());
+  auto rows = (*db)->ListSweeps();
+  if (!rows.ok()) return ToGrpcStatus(rows.status());
+  for (const SweepRow& r : *rows) {
+    auto info = c_->Info(r.id);
+    if (info.ok()) Fill(*info, rep->add_sweeps());
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status CoordinatorService::GetMap(grpc::ServerContext*, const v1::MapRequest* req, v1::MapReply* rep) {
+  auto id = ResolveId(req->id());
+  if (!id.ok()) return ToGrpcStatus(id.status());
+  auto info = c_->Info(*id);
+  if (!info.ok()) return ToGrpcStatus(info.status());
+  if (info->file.empty())
+    return ToGrpcStatus(Status::FailedPrecondition("sweep " + *id + " has no published map yet (state " + info->state + ")"));
+  auto m = ReadMapMetric((std::filesystem::path(c_->data_dir()) / info->file).string(), req->metric());
+  if (!m.ok()) return ToGrpcStatus(m.status());
+  rep->set_metric(m->metric);
+  rep->set_unit(m->unit);
+  rep->set_definition(m->definition);
+  for (const Axis& a : m->axes) {
+    v1::Axis* ax = rep->add_axes();
+    ax->set_name(a.name);
+    ax->set_unit(AxisUnit(a.name));
+    for (double v : a.values) ax->add_values(v);
+  }
+  for (size_t d : m->dims) rep->add_dims(d);
+  for (const auto& n : m->dim_names) rep->add_dim_names(n);
+  rep->mutable_values()->Add(m->values.begin(), m->values.end());
+  return grpc::Status::OK;
+}
+
+grpc::Status CoordinatorService::RegisterWorker(grpc::ServerContext*, const v1::RegisterRequest* req, v1::RegisterReply* rep) {
+  if (req->name().empty()) return ToGrpcStatus(Status::InvalidArgument("name", "worker name is empty"));
+  rep->set_lease_seconds(lease_seconds_);
+  return grpc::Status::OK;
+}
+
+grpc::Status CoordinatorService::Lease(grpc::ServerContext*, const v1::LeaseRequest* req, v1::LeaseReply* rep) {
+  if (req->worker().empty()) return ToGrpcStatus(Status::InvalidArgument("worker", "worker name is empty"));
+  if (shutting_down_) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator is shutting down");
+  auto g = c_->Lease(req->worker());
+  if (!g) {
+    rep->set_has_job(false);
+    return grpc::Status::OK;
+  }
+  auto spec = c_->SpecText(g->sweep_id);
+  if (!spec.ok()) return ToGrpcStatus(spec.status());
+  rep->set_has_job(true);
+  rep->set_lease_id(g->lease_id);
+  rep->set_sweep_id(g->sweep_id);
+  rep->set_job_id(g->job_id);
+  rep->set_spec_toml(*spec);
+  for (const WorkItem& w : g->items) rep->add_points(w.point), rep->add_ics(w.ic);
+  rep->set_deadline(g->deadline);
+  return grpc::Status::OK;
+}
+
+grpc::Status CoordinatorService::Heartbeat(grpc::ServerContext*, const v1::HeartbeatRequest* req, v1::HeartbeatReply*) {
+  return ToGrpcStatus(c_->Extend(req->lease_id()));
+}
+
+grpc::Status CoordinatorService::Report(grpc::ServerContext*, const v1::ReportRequest* req, v1::ReportReply*) {
+  const size_t width = req->record_width();
+  if (width == 0 || req->values_size() % width != 0)
+    return ToGrpcStatus(Status::InvalidArgument("records", std::to_string(req->values_size()) +
+                                                               " values do not split into records of width " + std::to_string(width)));
+  std::vector<PointRecord> records(req->values_size() / width);
+  for (size_t i = 0; i < records.size(); ++i) {
+    records[i].v.assign(req->values().begin() + i * width, req->values().begin() + (i + 1) * width);
+    // Metrics may be NaN (diverged points, absent peaks); infinities never come out of the metric code.
+    for (double v : records[i].v)
+      if (std::isinf(v)) return ToGrpcStatus(Status::InvalidArgument("records", "record " + std::to_string(i) + " holds an infinity"));
+  }
+  return ToGrpcStatus(c_->Report(req->lease_id(), records));
+}
+
+grpc::Status CoordinatorService::Release(grpc::ServerContext*, const v1::ReleaseRequest* req, v1::ReleaseReply*) {
+  return ToGrpcStatus(c_->Release(req->lease_id()));
+}
+
+grpc::Status CoordinatorService::ListWorkers(grpc::ServerContext*, const v1::ListWorkersRequest*, v1::ListWorkersReply* rep) {
+  for (const WorkerInfo& w : c_->Workers()) {
+    v1::WorkerStatus* s = rep->add_workers();
+    s->set_name(w.name);
+    s->set_last_seen(w.last_seen);
+    s->set_leases(w.leases);
+    s->set_items_done(w.items_done);
+  }
+  return grpc::Status::OK;
+}
+
+}  // namespace bistable

@@ -1,0 +1,45 @@
+// The gRPC face of SweepCoordinator. Handlers decode the request, call the coordinator, convert the
+// Status (proto/status_convert.h) — nothing else. Thread-safe (the coordinator is).
+#ifndef BISTABLE_SERVER_COORDINATOR_SERVICE_H_
+#define BISTABLE_SERVER_COORDINATOR_SERVICE_H_
+
+#include <atomic>
+
+#include "bistable.grpc.pb.h"
+#include "server/sweep_coordinator.h"
+
+namespace bistable {
+
+// Largest spec accepted over the wire (bytes); larger ones are refused before parsing.
+inline constexpr size_t kMaxSpecBytes = 1 << 20;
+
+class CoordinatorService final : public v1::Coordinator::Service {
+ public:
+  // job_seconds: target work per job on one core (jobs are blocks of points sized to it).
+  CoordinatorService(SweepCoordinator* c, double lease_seconds, double job_seconds = 2.0)
+      : c_(c), lease_seconds_(lease_seconds), job_seconds_(job_seconds) {}
+  void Shutdown() { shutting_down_ = true; }
+
+  grpc::Status Submit(grpc::ServerContext*, const v1::SubmitRequest*, v1::SubmitReply*) override;
+  grpc::Status GetStatus(grpc::ServerContext*, const v1::StatusRequest*, v1::SweepStatus*) override;
+  grpc::Status WatchStatus(grpc::ServerContext*, const v1::StatusRequest*, grpc::ServerWriter<v1::SweepStatus>*) override;
+  grpc::Status Cancel(grpc::ServerContext*, const v1::CancelRequest*, v1::CancelReply*) override;
+  grpc::Status ListSweeps(grpc::ServerContext*, const v1::ListSweepsRequest*, v1::ListSweepsReply*) override;
+  grpc::Status GetMap(grpc::ServerContext*, const v1::MapRequest*, v1::MapReply*) override;
+  grpc::Status RegisterWorker(grpc::ServerContext*, const v1::RegisterRequest*, v1::RegisterReply*) override;
+  grpc::Status Lease(grpc::ServerContext*, const v1::LeaseRequest*, v1::LeaseReply*) override;
+  grpc::Status Heartbeat(grpc::ServerContext*, const v1::HeartbeatRequest*, v1::HeartbeatReply*) override;
+  grpc::Status Report(grpc::ServerContext*, const v1::ReportRequest*, v1::ReportReply*) override;
+  grpc::Status Release(grpc::ServerContext*, const v1::ReleaseRequest*, v1::ReleaseReply*) override;
+  grpc::Status ListWorkers(grpc::ServerContext*, const v1::ListWorkersRequest*, v1::ListWorkersReply*) override;
+
+ private:
+  StatusOr<std::string> ResolveId(const std::string& id_or_prefix) const;
+  SweepCoordinator* c_;
+  double lease_seconds_, job_seconds_;
+  std::atomic<bool> shutting_down_{false};
+};
+
+}  // namespace bistable
+
+#endif  // BISTABLE_SERVER_COORDINATOR_SERVICE_H_

@@ -1,0 +1,266 @@
+// End-to-end tests of the distributed service with real processes on loopback: a coordinator, worker
+// processes and the client; maps compared bit for bit with the embedded `bistable run`.
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <functional>
+#include <fstream>
+#include <thread>
+
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "bistable.grpc.pb.h"
+#include "storage/map_file.h"
+#include "tests/process_util.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using bistable_test::Bistable;
+using bistable_test::ProcessResult;
+
+std::string Dir(const std::string& name) {
+  const fs::path d = fs::path(::testing::TempDir()) / ("bistable_dist_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d.string();
+}
+
+pid_t Spawn(const std::vector<std::string>& argv, const std::string& out_file) {
+  std::fflush(nullptr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::freopen(out_file.c_str(), "w", stdout);
+    ::freopen((out_file + ".err").c_str(), "w", stderr);
+    std::vector<char*> args;
+    for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    ::execv(args[0], args.data());
+    ::_exit(127);
+  }
+  return pid;
+}
+
+void Kill(pid_t pid, int sig) {
+  ::kill(pid, sig);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+}
+
+// Starts a coordinator on a free loopback port; returns its pid and address.
+std::pair<pid_t, std::string> StartCoordinator(const std::string& data, const std::string& log, double lease = 1.0,
+                                                const std::string& listen = "127.0.0.1:0") {
+  const pid_t pid = Spawn({BISTABLE_COORDINATOR, "--listen", listen, "--data", data, "--lease-seconds",
+                           std::to_string(lease), "--job-seconds", "0.01"},
+                          log);
+  for (int i = 0; i < 200; ++i) {
+    std::ifstream in(log);
+    std::string line;
+    if (std::getline(in, line) && line.rfind("listening on ", 0) == 0) return {pid, line.substr(13)};
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  return {pid, ""};
+}
+
+pid_t StartWorker(const std::string& addr, const std::string& name, const std::string& log) {
+  return Spawn({BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--name", name}, log);
+}
+
+nlohmann::json Status(const std::string& id, const std::string& addr) {
+  const ProcessResult r = Bistable("status " + id + " --json --coordinator " + addr);
+  return r.exit_code <= 1 && !r.out.empty() ? nlohmann::json::parse(r.out) : nlohmann::json{{"state", "unreachable"}};
+}
+
+bool WaitDone(const std::string& id, const std::string& addr, double seconds) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < end) {
+    if (Status(id, addr)["state"] == "done") return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return false;
+}
+
+void ExpectSameMaps(const std::string& a, const std::string& b) {
+  for (const char* metric : {"frf_db", "lle", "motion", "period", "hd_index", "edr_t", "hd_peak_freq"}) {
+    auto x = bistable::ReadMapMetric(a, metric);
+    auto y = bistable::ReadMapMetric(b, metric);
+    ASSERT_TRUE(x.ok() && y.ok()) << metric;
+    ASSERT_EQ(x->values.size(), y->values.size());
+    EXPECT_EQ(std::memcmp(x->values.data(), y->values.data(), x->values.size() * sizeof(double)), 0) << metric;
+  }
+}
+
+constexpr const char* kSpec = R"(
+name = "distributed test"
+model = "coupled"
+[axes]
+alpha = { linspace = [0.1, 3.0, 30] }
+omega = { linspace = [0.1, 3.0, 30] }
+[integration]
+t_end = 200.0
+t_keep = 100.0
+)";
+
+// The embedded reference map of kSpec.
+std::string Embedded(const std::string& dir, const std::string& spec) {
+  const ProcessResult r = Bistable("run " + spec + " --data " + dir + "/embedded --json --no-plots --quiet");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return nlohmann::json::parse(r.out)["files"][0];
+}
+
+TEST(Distributed, ThreeWorkersGiveTheEmbeddedMapBitForBit) {
+  const std::string dir = Dir("three");
+  const std::string spec = dir + "/spec.toml";
+  std::ofstream(spec) << kSpec;
+  auto [coord, addr] = StartCoordinator(dir + "/data", dir + "/coord.log");
+  ASSERT_FALSE(addr.empty()) << "coordinator did not start";
+  std::vector<pid_t> workers;
+  for (int i = 0; i < 3; ++i) workers.push_back(StartWorker(addr, "w" + std::to_string(i), dir + "/w" + std::to_string(i) + ".log"));
+  const ProcessResult sub = Bistable("submit " + spec + " --json --coordinator " + addr);
+  ASSERT_EQ(sub.exit_code, 0) << sub.err;
+  const std::string id = nlohmann::json::parse(sub.out)["id"];
+  ASSERT_TRUE(WaitDone(id, addr, 120));
+  const auto st = Status(id, addr);
+  EXPECT_EQ(st["points_done"], 900);
+  EXPECT_EQ(st["points_total"], 900);
+  // Work was shared.
+  const auto ws = nlohmann::json::parse(Bistable("workers --json --coordinator " + addr).out);
+  int busy = 0;
+  for (const auto& w : ws) busy += w["items_done"].get<long>() > 0;
+  EXPECT_GE(busy, 2);
+  for (pid_t w : workers) Kill(w, SIGTERM);
+  Kill(coord, SIGTERM);
+  ExpectSameMaps(dir + "/data/" + st["file"].get<std::string>(), Embedded(dir, spec));
+  fs::remove_all(dir);
+}
+
+TEST(Distributed, KilledWorkerAndRestartedCoordinatorLoseNothing) {
+  const std::string dir = Dir("faults");
+  const std::string spec = dir + "/spec.toml";
+  std::ofstream(spec) << kSpec;
+  auto [coord, addr] = StartCoordinator(dir + "/data", dir + "/coord.log", 1.0);
+  ASSERT_FALSE(addr.empty());
+  std::vector<pid_t> workers;
+  for (int i = 0; i < 3; ++i) workers.push_back(StartWorker(addr, "w" + std::to_string(i), dir + "/w" + std::to_string(i) + ".log"));
+  const std::string id = nlohmann::json::parse(Bistable("submit " + spec + " --json --coordinator " + addr).out)["id"];
+  auto progress = [&] { return Status(id, addr)["points_done"].get<long>(); };
+  while (progress() < 150) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  Kill(workers[0], SIGKILL);  // mid-job: its lease expires after 1 s and the job is requeued
+  while (progress() < 400) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  const long before = progress();
+  Kill(coord, SIGKILL);  // coordinator dies; workers back off and retry
+  auto [coord2, addr2] = StartCoordinator(dir + "/data", dir + "/coord2.log", 1.0, addr);  // same port
+  ASSERT_EQ(addr2, addr);
+  EXPECT_GE(Status(id, addr)["points_done"].get<long>(), before) << "results acknowledged before the kill are kept";
+  workers[0] = StartWorker(addr, "w0b", dir + "/w0b.log");
+  ASSERT_TRUE(WaitDone(id, addr, 120));
+  const auto st = Status(id, addr);
+  EXPECT_EQ(st["points_done"], 900);  // each item stored once into the map
+  for (pid_t w : workers) Kill(w, SIGTERM);
+  Kill(coord2, SIGTERM);
+  ExpectSameMaps(dir + "/data/" + st["file"].get<std::string>(), Embedded(dir, spec));
+  fs::remove_all(dir);
+}
+
+// Bad input over the wire: each answered with its status code while the coordinator stays up.
+TEST(Distributed, BadInputOverTheWireGetsTheRightStatusCode) {
+  const std::string dir = Dir("bad");
+  auto [coord, addr] = StartCoordinator(dir + "/data", dir + "/coord.log", 0.3);
+  ASSERT_FALSE(addr.empty());
+  auto stub = bistable::v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  auto submit = [&](const std::string& toml) {
+    grpc::ClientContext ctx;
+    bistable::v1::SubmitRequest req;
+    req.set_spec_toml(toml);
+    bistable::v1::SubmitReply rep;
+    return stub->Submit(&ctx, req, &rep).error_code();
+  };
+  auto report = [&](const std::string& lease, unsigned width, std::vector<double> values) {
+    grpc::ClientContext ctx;
+    bistable::v1::ReportRequest req;
+    req.set_lease_id(lease);
+    req.set_record_width(width);
+    for (double v : values) req.add_values(v);
+    bistable::v1::ReportReply rep;
+    return stub->Report(&ctx, req, &rep).error_code();
+  };
+  // A valid sweep and two leases to misuse.
+  ASSERT_EQ(submit("model = \"coupled\"\n[axes]\nalpha = [0.5, 1.0]\nomega = [0.5, 1.0]\n[integration]\nt_end = 50.0\nt_keep = 25.0\n"),
+            grpc::StatusCode::OK);
+  auto lease = [&] {
+    grpc::ClientContext ctx;
+    bistable::v1::LeaseRequest req;
+    req.set_worker("tester");
+    bistable::v1::LeaseReply rep;
+    stub->Lease(&ctx, req, &rep);
+    return rep;
+  };
+  const auto l1 = lease();
+  ASSERT_TRUE(l1.has_job());
+  const size_t items = l1.points_size();
+  const std::vector<double> good(items * 33, 0.0);
+  std::vector<double> with_inf = good;
+  with_inf[3] = INFINITY;
+  struct Case {
+    const char* what;
+    std::function<grpc::StatusCode()> call;
+    grpc::StatusCode expect;
+  };
+  const Case cases[] = {
+      {"malformed spec", [&] { return submit("model = \"coupled\"\n[axes\n"); }, grpc::StatusCode::INVALID_ARGUMENT},
+      {"oversized spec", [&] { return submit(std::string(2 << 20, '#')); }, grpc::StatusCode::INVALID_ARGUMENT},
+      {"grid above the limit",
+       [&] { return submit("model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 10000] }\nomega = { linspace = [0.1, 3, 10000] }\n"); },
+       grpc::StatusCode::INVALID_ARGUMENT},
+      {"unknown key", [&] { return submit("model = \"coupled\"\n[axes]\nalpah = [1]\n"); }, grpc::StatusCode::INVALID_ARGUMENT},
+      {"result for an unknown lease", [&] { return report("no-such-lease", 33, good); }, grpc::StatusCode::NOT_FOUND},
+      {"result of the wrong shape", [&] { return report(l1.lease_id(), 33, std::vector<double>(33, 0.0)); },
+       grpc::StatusCode::INVALID_ARGUMENT},
+      {"values not a whole number of records", [&] { return report(l1.lease_id(), 33, std::vector<double>(40, 0.0)); },
+       grpc::StatusCode::INVALID_ARGUMENT},
+      {"infinity in a result", [&] { return report(l1.lease_id(), 33, with_inf); }, grpc::StatusCode::INVALID_ARGUMENT},
+      {"result for an expired lease",
+       [&] {
+         std::this_thread::sleep_for(std::chrono::milliseconds(400));  // lease period 0.3 s
+         return report(l1.lease_id(), 33, good);
+       },
+       grpc::StatusCode::FAILED_PRECONDITION},
+      {"status of an unknown sweep",
+       [&] {
+         grpc::ClientContext ctx;
+         bistable::v1::StatusRequest req;
+         req.set_id("ffffffffffff");
+         bistable::v1::SweepStatus rep;
+         return stub->GetStatus(&ctx, req, &rep).error_code();
+       },
+       grpc::StatusCode::NOT_FOUND},
+  };
+  for (const Case& c : cases) EXPECT_EQ(c.call(), c.expect) << c.what;
+  // Still up and answering.
+  grpc::ClientContext ctx;
+  bistable::v1::ListSweepsRequest req;
+  bistable::v1::ListSweepsReply rep;
+  EXPECT_TRUE(stub->ListSweeps(&ctx, req, &rep).ok());
+  EXPECT_EQ(rep.sweeps_size(), 1);
+  Kill(coord, SIGTERM);
+  fs::remove_all(dir);
+}
+
+TEST(Distributed, CoordinatorRefusesNonLoopbackWithoutTls) {
+  const ProcessResult r{[] {
+    const std::string out = ::testing::TempDir() + "/coord_nl.txt";
+    const int rc = std::system((std::string(BISTABLE_COORDINATOR) + " --listen 0.0.0.0:0 --data /tmp/x 2>" + out).c_str());
+    std::ifstream in(out);
+    return ProcessResult{WEXITSTATUS(rc), "", std::string(std::istreambuf_iterator<char>(in), {})};
+  }()};
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("not a loopback address"), std::string::npos) << r.err;
+}
+
+}  // namespace

@@ -1,0 +1,176 @@
+// bistable-worker: pulls jobs from a coordinator, computes them with the same code as the embedded
+// `bistable run` (ComputeItems), and reports. One pull loop per thread; while a job computes, a
+// heartbeat extends its lease; RPC failures back off exponentially (0.1 s → 5 s) and retry, so a
+// restarted coordinator is picked up again. SIGTERM/SIGINT: finish the jobs in hand, report, exit.
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <future>
+#include <iostream>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+#include <grpcpp/grpcpp.h>
+
+#include "bistable.grpc.pb.h"
+#include "proto/status_convert.h"
+#include "worker/block_worker.h"
+
+namespace {
+
+using bistable::v1::Coordinator;
+std::atomic<bool> g_stop{false};
+extern "C" void OnSignal(int) { g_stop.store(true); }
+
+class Backoff {
+ public:
+  void Wait() {
+    std::this_thread::sleep_for(std::chrono::duration<double>(delay_));
+    delay_ = std::min(5.0, delay_ * 2);
+  }
+  void Reset() { delay_ = 0.1; }
+
+ private:
+  double delay_ = 0.1;
+};
+
+bool Retryable(const grpc::Status& s) {
+  return s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
+}
+
+std::unique_ptr<grpc::ClientContext> Context(double seconds) {
+  auto ctx = std::make_unique<grpc::ClientContext>();
+  ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(static_cast<long>(seconds * 1000)));
+  return ctx;
+}
+
+struct SpecCache {
+  std::mutex mu;
+  std::map<std::string, std::shared_ptr<bistable::SweepSpec>> by_id;
+  std::shared_ptr<bistable::SweepSpec> Get(const std::string& id, const std::string& toml) {
+    std::lock_guard<std::mutex> lock(mu);
+    auto it = by_id.find(id);
+    if (it != by_id.end()) return it->second;
+    auto spec = bistable::ParseSweepSpec(toml, "sweep " + id);
+    if (!spec.ok()) return nullptr;
+    return by_id[id] = std::make_shared<bistable::SweepSpec>(std::move(*spec));
+  }
+};
+
+void PullLoop(Coordinator::Stub* stub, const std::string& name, double lease_seconds, SpecCache* cache, std::atomic<long>* done) {
+  Backoff backoff;
+  while (!g_stop.load()) {
+    bistable::v1::LeaseRequest lreq;
+    lreq.set_worker(name);
+    bistable::v1::LeaseReply lease;
+    const grpc::Status ls = stub->Lease(Context(10).get(), lreq, &lease);
+    if (!ls.ok()) {
+      if (!Retryable(ls)) std::cerr << "worker " << name << ": lease refused: " << ls.error_message() << "\n";
+      backoff.Wait();
+      continue;
+    }
+    backoff.Reset();
+    if (!lease.has_job()) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      continue;
+    }
+    auto spec = cache->Get(lease.sweep_id(), lease.spec_toml());
+    if (!spec) {
+      std::cerr << "worker " << name << ": cannot parse the spec of sweep " << lease.sweep_id() << "; releasing\n";
+      bistable::v1::ReleaseRequest rr;
+      rr.set_lease_id(lease.lease_id());
+      bistable::v1::ReleaseReply rel;
+      stub->Release(Context(10).get(), rr, &rel);
+      continue;
+    }
+    std::vector<bistable::WorkItem> items(lease.points_size());
+    for (int i = 0; i < lease.points_size(); ++i) items[i] = {lease.points(i), lease.ics(i)};
+    auto work = std::async(std::launch::async, [&] { return bistable::ComputeItems(*spec, items); });
+    // Heartbeat a third of the lease period while computing.
+    while (work.wait_for(std::chrono::duration<double>(lease_seconds / 3)) != std::future_status::ready) {
+      bistable::v1::HeartbeatRequest hb;
+      hb.set_lease_id(lease.lease_id());
+      bistable::v1::HeartbeatReply hr;
+      stub->Heartbeat(Context(5).get(), hb, &hr);
+    }
+    const std::vector<bistable::PointRecord> records = work.get();
+    bistable::v1::ReportRequest rep;
+    rep.set_lease_id(lease.lease_id());
+    rep.set_record_width(records.empty() ? 0 : static_cast<unsigned>(records[0].v.size()));
+    for (const auto& r : records) rep.mutable_values()->Add(r.v.begin(), r.v.end());
+    for (int attempt = 0;; ++attempt) {  // reports are idempotent: retry until answered
+      bistable::v1::ReportReply rr;
+      const grpc::Status s = stub->Report(Context(30).get(), rep, &rr);
+      if (s.ok()) {
+        *done += static_cast<long>(records.size());
+        break;
+      }
+      if (!Retryable(s) || attempt > 50) {
+        std::cerr << "worker " << name << ": report of " << lease.lease_id() << " refused: " << s.error_message() << "\n";
+        break;
+      }
+      backoff.Wait();
+    }
+    backoff.Reset();
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"bistable-worker: computes sweep jobs pulled from a coordinator"};
+  std::string coordinator = "127.0.0.1:50051", name;
+  int threads = 0;
+  app.add_option("--coordinator", coordinator, "coordinator address")->capture_default_str();
+  app.add_option("--threads", threads, "pull loops / cores (0 = all)")->capture_default_str();
+  app.add_option("--name", name, "worker name (default host:pid)");
+  CLI11_PARSE(app, argc, argv);
+  if (threads < 0 || threads > 1024) {
+    std::cerr << "error: invalid argument (threads: threads = " << threads << " violates threads in [0, 1024])\n";
+    return 2;
+  }
+  if (threads == 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (name.empty()) {
+    char host[256] = "host";
+    ::gethostname(host, sizeof host - 1);
+    name = std::string(host) + ":" + std::to_string(::getpid());
+  }
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(64 << 20);
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
+  auto channel = grpc::CreateCustomChannel(coordinator, grpc::InsecureChannelCredentials(), args);
+  auto stub = Coordinator::NewStub(channel);
+  std::signal(SIGINT, OnSignal);
+  std::signal(SIGTERM, OnSignal);
+  double lease_seconds = 60;
+  Backoff backoff;
+  while (!g_stop.load()) {  // register (waits for the coordinator to come up)
+    bistable::v1::RegisterRequest req;
+    req.set_name(name);
+    req.set_threads(threads);
+    bistable::v1::RegisterReply rep;
+    const grpc::Status s = stub->RegisterWorker(Context(5).get(), req, &rep);
+    if (s.ok()) {
+      lease_seconds = rep.lease_seconds();
+      break;
+    }
+    if (!Retryable(s)) {
+      std::cerr << "error: " << bistable::FromGrpcStatus(s).ToString() << "\n";
+      return 2;
+    }
+    backoff.Wait();
+  }
+  SpecCache cache;
+  std::atomic<long> done{0};
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t)
+    pool.emplace_back(PullLoop, stub.get(), name, lease_seconds, &cache, &done);
+  for (auto& th : pool) th.join();
+  std::cerr << "worker " << name << ": stopped after " << done.load() << " items\n";
+  return 0;
+}
