@@ -12,24 +12,23 @@
 #include "client/cli_common.h"
 #include "client/progress.h"
 #include "client/remote_commands.h"
+#include "proto/channel.h"
 #include "proto/status_convert.h"
+#include "server/auth.h"
 
 namespace bistable {
 namespace {
 
 using v1::Coordinator;
 
-std::unique_ptr<Coordinator::Stub> Connect(const std::string& addr) {
-  grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(256 << 20);
-  return Coordinator::NewStub(grpc::CreateCustomChannel(addr, grpc::InsecureChannelCredentials(), args));
+ConnectOptions g_conn;
+
+std::unique_ptr<Coordinator::Stub> Connect(const std::string&) {
+  auto ch = MakeChannel(g_conn);
+  return Coordinator::NewStub(ch.ok() ? *ch : grpc::CreateChannel(g_conn.address, grpc::InsecureChannelCredentials()));
 }
 
-std::unique_ptr<grpc::ClientContext> Ctx(double seconds = 30) {
-  auto c = std::make_unique<grpc::ClientContext>();
-  c->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(static_cast<long>(seconds * 1000)));
-  return c;
-}
+std::unique_ptr<grpc::ClientContext> Ctx(double seconds = 30) { return CallContext(g_conn, seconds); }
 
 int RpcFail(const grpc::Status& s, const std::string& addr) {
   Status st = FromGrpcStatus(s);
@@ -45,9 +44,21 @@ nlohmann::json StatusJson(const v1::SweepStatus& s) {
 }
 
 struct RemoteArgs {
-  std::string coordinator = "127.0.0.1:50051", target;
+  std::string coordinator = "127.0.0.1:50051", target, token_file, tls_ca;
   bool json = false, watch = false;
 };
+
+// Resolves the connection options (token, CA) once per command; errors name the flag.
+Status Prepare(const RemoteArgs& a) {
+  auto token = LoadToken(a.token_file);
+  if (!token.ok()) return token.status();
+  g_conn = {a.coordinator, a.tls_ca, *token};
+  if (!a.tls_ca.empty()) {
+    auto ch = MakeChannel(g_conn);
+    if (!ch.ok()) return ch.status();
+  }
+  return Status::Ok();
+}
 
 int Submit(const RemoteArgs& a) {
   std::ifstream in(a.target);
@@ -84,8 +95,8 @@ int StatusCmd(const RemoteArgs& a) {
                   static_cast<long>(st.points_cached()), st.workers(), st.seconds(), st.file().c_str());
     return st.state() == "failed" ? 1 : 0;
   }
-  grpc::ClientContext ctx;  // no deadline: the stream lasts as long as the sweep
-  auto reader = stub->WatchStatus(&ctx, req);
+  auto ctx = Ctx(0);  // no deadline: the stream lasts as long as the sweep
+  auto reader = stub->WatchStatus(ctx.get(), req);
   v1::SweepStatus st;
   std::unique_ptr<ProgressBar> bar;
   long base = 0;
@@ -146,14 +157,34 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
     CLI::App* cmd = app.add_subcommand(name, help);
     if (target_help) cmd->add_option(std::string(name) == "submit" ? "spec" : "id", a->target, target_help)->required();
     cmd->add_option("--coordinator", a->coordinator, "coordinator address")->capture_default_str();
+    cmd->add_option("--token-file", a->token_file, "file holding a bearer token (else $BISTABLE_TOKEN)");
+    cmd->add_option("--tls-ca", a->tls_ca, "PEM CA certificate to verify a TLS coordinator");
     cmd->add_flag("--json", a->json, "print JSON");
     if (watch) cmd->add_flag("--watch", a->watch, "stream progress until the sweep ends");
-    cmd->callback([a, exit_code, fn]() { *exit_code = fn(*a); });
+    cmd->callback([a, exit_code, fn]() {
+      Status st = Prepare(*a);
+      *exit_code = st.ok() ? fn(*a) : Fail(st);
+    });
   };
   add("submit", "Submit a sweep spec to a coordinator (prints the id)", "sweep spec (TOML)", Submit, false);
   add("status", "State and progress of a sweep on a coordinator", "sweep id (or unique prefix)", StatusCmd, true);
   add("cancel", "Cancel a sweep on a coordinator", "sweep id (or unique prefix)", CancelCmd, false);
   add("workers", "Workers seen by a coordinator", nullptr, WorkersCmd, false);
+
+  auto role = std::make_shared<std::string>("client");
+  auto name = std::make_shared<std::string>();
+  CLI::App* tok = app.add_subcommand("token", "Mint a bearer token: prints the token and its line for the coordinator's tokens file");
+  tok->add_option("--role", *role, "client | worker | admin")->capture_default_str();
+  tok->add_option("--name", *name, "a name for the token (shown as the submitter, never the token)");
+  tok->callback([role, name, exit_code]() {
+    if (*role != "client" && *role != "worker" && *role != "admin") {
+      *exit_code = Fail(Status::InvalidArgument("role", "role = '" + *role + "' violates role in {client, worker, admin}"));
+      return;
+    }
+    const std::string t = NewToken();
+    std::cout << "token: " << t << "\n" << "tokens-file line: " << *role << " " << Sha256Hex(t) << (name->empty() ? "" : " " + *name) << "\n";
+    *exit_code = 0;
+  });
 }
 
 }  // namespace bistable

@@ -11,7 +11,7 @@ PACKAGES=(
   libceres-dev libnlopt-cxx-dev
   # service and storage (proto/, server/, worker/, storage/)
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
-  libsqlite3-dev libhdf5-dev libboost-dev
+  libsqlite3-dev libhdf5-dev libboost-dev libssl-dev openssl
   # plots
   gnuplot-nox
   # tests and benchmarks

@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 #include <grpcpp/grpcpp.h>
 
+#include "proto/channel.h"
 #include "server/coordinator_service.h"
 
 namespace {
@@ -22,21 +23,43 @@ bool IsLoopback(const std::string& addr) {
 
 int main(int argc, char** argv) {
   CLI::App app{"bistable-coordinator: serves sweeps to clients and workers over gRPC"};
-  std::string listen = "127.0.0.1:50051", data = "bistable-data";
+  std::string listen = "127.0.0.1:50051", data = "bistable-data", tls_cert, tls_key, tokens_file;
   double lease_seconds = 60, job_seconds = 2.0;
   app.add_option("--listen", listen, "address to listen on (loopback unless TLS and tokens are configured); port 0 picks one")
       ->capture_default_str();
   app.add_option("--data", data, "data directory (index.sqlite, sweeps/)")->capture_default_str();
   app.add_option("--lease-seconds", lease_seconds, "lease period: jobs not reported or extended within it are requeued")
       ->capture_default_str();
+  app.add_option("--tls-cert", tls_cert, "PEM certificate (chain) of this coordinator: serve over TLS");
+  app.add_option("--tls-key", tls_key, "PEM private key of --tls-cert");
+  app.add_option("--tokens", tokens_file, "tokens file: '<role> <sha256-of-token> [name]' per line (see `bistable token`)");
   app.add_option("--job-seconds", job_seconds, "work per job on one core, seconds (jobs are blocks of points)")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
-  if (!IsLoopback(listen)) {
-    std::cerr << "error: invalid argument (listen: " << listen
-              << " is not a loopback address; serving other hosts requires TLS and tokens, which this build does not "
-                 "offer yet)\n";
+  auto fail = [](const bistable::Status& st) {
+    std::cerr << "error: " << st.ToString() << "\n";
     return 2;
+  };
+  if (tls_cert.empty() != tls_key.empty())
+    return fail(bistable::Status::InvalidArgument("tls-cert", "--tls-cert and --tls-key go together"));
+  if (!IsLoopback(listen) && (tls_cert.empty() || tokens_file.empty()))
+    return fail(bistable::Status::InvalidArgument(
+        "listen", listen + " is not a loopback address: serving other hosts requires --tls-cert/--tls-key and --tokens"));
+  bistable::TokenStore tokens;
+  if (!tokens_file.empty()) {
+    auto t = bistable::TokenStore::Load(tokens_file);
+    if (!t.ok()) return fail(t.status());
+    tokens = std::move(*t);
+  }
+  std::shared_ptr<grpc::ServerCredentials> creds = grpc::InsecureServerCredentials();
+  if (!tls_cert.empty()) {
+    auto cert = bistable::ReadFileText(tls_cert, "tls-cert");
+    auto key = bistable::ReadFileText(tls_key, "tls-key");
+    if (!cert.ok()) return fail(cert.status());
+    if (!key.ok()) return fail(key.status());
+    grpc::SslServerCredentialsOptions ssl;
+    ssl.pem_key_cert_pairs.push_back({*key, *cert});
+    creds = grpc::SslServerCredentials(ssl);
   }
   if (!(lease_seconds > 0)) {
     std::cerr << "error: invalid argument (lease-seconds: lease-seconds = " << lease_seconds << " violates lease-seconds > 0)\n";
@@ -47,10 +70,10 @@ int main(int argc, char** argv) {
     std::cerr << "error: " << coord.status().ToString() << "\n";
     return 2;
   }
-  bistable::CoordinatorService service(coord->get(), lease_seconds, job_seconds);
+  bistable::CoordinatorService service(coord->get(), lease_seconds, job_seconds, std::move(tokens));
   grpc::ServerBuilder builder;
   int port = 0;
-  builder.AddListeningPort(listen, grpc::InsecureServerCredentials(), &port);
+  builder.AddListeningPort(listen, creds, &port);
   builder.RegisterService(&service);
   builder.SetMaxReceiveMessageSize(64 << 20);
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();

@@ -36,7 +36,9 @@ StatusOr<std::string> CoordinatorService::ResolveId(const std::string& id) const
   return row.value()->id;
 }
 
-grpc::Status CoordinatorService::Submit(grpc::ServerContext*, const v1::SubmitRequest* req, v1::SubmitReply* rep) {
+grpc::Status CoordinatorService::Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitReply* rep) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kSubmit, &who); !st.ok()) return ToGrpcStatus(st);
   if (req->spec_toml().size() > kMaxSpecBytes)
     return ToGrpcStatus(Status::InvalidArgument("spec", "spec is " + std::to_string(req->spec_toml().size()) +
                                                             " bytes, over the limit of " + std::to_string(kMaxSpecBytes)));
@@ -48,6 +50,10 @@ grpc::Status CoordinatorService::Submit(grpc::ServerContext*, const v1::SubmitRe
   items = std::clamp<long>(items, 8, 4096) / 8 * 8;
   auto plan = c_->Submit(*spec, items);
   if (!plan.ok()) return ToGrpcStatus(plan.status());
+  {
+    std::lock_guard<std::mutex> lock(owners_mu_);
+    owners_.emplace(plan->id, who);
+  }
   rep->set_id(plan->id);
   rep->set_items_total(plan->items_total);
   rep->set_items_cached(plan->items_cached);
@@ -55,7 +61,9 @@ grpc::Status CoordinatorService::Submit(grpc::ServerContext*, const v1::SubmitRe
   return grpc::Status::OK;
 }
 
-grpc::Status CoordinatorService::GetStatus(grpc::ServerContext*, const v1::StatusRequest* req, v1::SweepStatus* rep) {
+grpc::Status CoordinatorService::GetStatus(grpc::ServerContext* ctx, const v1::StatusRequest* req, v1::SweepStatus* rep) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kStatus, &who); !st.ok()) return ToGrpcStatus(st);
   auto id = ResolveId(req->id());
   if (!id.ok()) return ToGrpcStatus(id.status());
   auto info = c_->Info(*id);
@@ -66,6 +74,8 @@ grpc::Status CoordinatorService::GetStatus(grpc::ServerContext*, const v1::Statu
 
 grpc::Status CoordinatorService::WatchStatus(grpc::ServerContext* ctx, const v1::StatusRequest* req,
                                              grpc::ServerWriter<v1::SweepStatus>* writer) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kStatus, &who); !st.ok()) return ToGrpcStatus(st);
   auto id = ResolveId(req->id());
   if (!id.ok()) return ToGrpcStatus(id.status());
   while (!ctx->IsCancelled() && !shutting_down_) {
@@ -80,13 +90,24 @@ grpc::Status CoordinatorService::WatchStatus(grpc::ServerContext* ctx, const v1:
   return grpc::Status::OK;
 }
 
-grpc::Status CoordinatorService::Cancel(grpc::ServerContext*, const v1::CancelRequest* req, v1::CancelReply*) {
+grpc::Status CoordinatorService::Cancel(grpc::ServerContext* ctx, const v1::CancelRequest* req, v1::CancelReply*) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kCancel, &who); !st.ok()) return ToGrpcStatus(st);
   auto id = ResolveId(req->id());
   if (!id.ok()) return ToGrpcStatus(id.status());
+  if (tokens_.enabled()) {  // clients cancel their own sweeps; admins any
+    std::lock_guard<std::mutex> lock(owners_mu_);
+    auto owner = owners_.find(*id);
+    const bool admin = tokens_.Check(ctx, Op::kRegister, nullptr).ok() && tokens_.Check(ctx, Op::kSubmit, nullptr).ok();
+    if (!admin && (owner == owners_.end() || owner->second != who))
+      return ToGrpcStatus(Status::PermissionDenied("only the token that submitted sweep " + *id + " (or an admin) may cancel it"));
+  }
   return ToGrpcStatus(c_->Cancel(*id));
 }
 
-grpc::Status CoordinatorService::ListSweeps(grpc::ServerContext*, const v1::ListSweepsRequest*, v1::ListSweepsReply* rep) {
+grpc::Status CoordinatorService::ListSweeps(grpc::ServerContext* ctx, const v1::ListSweepsRequest*, v1::ListSweepsReply* rep) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kList, &who); !st.ok()) return ToGrpcStatus(st);
   auto db = IndexDb::Open((std::filesystem::path(c_->data_dir()) / "index.sqlite").string());
   if (!db.ok()) return ToGrpcStatus(db.status());
   auto rows = (*db)->ListSweeps();
@@ -98,7 +119,9 @@ grpc::Status CoordinatorService::ListSweeps(grpc::ServerContext*, const v1::List
   return grpc::Status::OK;
 }
 
-grpc::Status CoordinatorService::GetMap(grpc::ServerContext*, const v1::MapRequest* req, v1::MapReply* rep) {
+grpc::Status CoordinatorService::GetMap(grpc::ServerContext* ctx, const v1::MapRequest* req, v1::MapReply* rep) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kMap, &who); !st.ok()) return ToGrpcStatus(st);
   auto id = ResolveId(req->id());
   if (!id.ok()) return ToGrpcStatus(id.status());
   auto info = c_->Info(*id);
@@ -122,13 +145,17 @@ grpc::Status CoordinatorService::GetMap(grpc::ServerContext*, const v1::MapReque
   return grpc::Status::OK;
 }
 
-grpc::Status CoordinatorService::RegisterWorker(grpc::ServerContext*, const v1::RegisterRequest* req, v1::RegisterReply* rep) {
+grpc::Status CoordinatorService::RegisterWorker(grpc::ServerContext* ctx, const v1::RegisterRequest* req, v1::RegisterReply* rep) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kRegister, &who); !st.ok()) return ToGrpcStatus(st);
   if (req->name().empty()) return ToGrpcStatus(Status::InvalidArgument("name", "worker name is empty"));
   rep->set_lease_seconds(lease_seconds_);
   return grpc::Status::OK;
 }
 
-grpc::Status CoordinatorService::Lease(grpc::ServerContext*, const v1::LeaseRequest* req, v1::LeaseReply* rep) {
+grpc::Status CoordinatorService::Lease(grpc::ServerContext* ctx, const v1::LeaseRequest* req, v1::LeaseReply* rep) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kLease, &who); !st.ok()) return ToGrpcStatus(st);
   if (req->worker().empty()) return ToGrpcStatus(Status::InvalidArgument("worker", "worker name is empty"));
   if (shutting_down_) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator is shutting down");
   auto g = c_->Lease(req->worker());
@@ -148,11 +175,15 @@ grpc::Status CoordinatorService::Lease(grpc::ServerContext*, const v1::LeaseRequ
   return grpc::Status::OK;
 }
 
-grpc::Status CoordinatorService::Heartbeat(grpc::ServerContext*, const v1::HeartbeatRequest* req, v1::HeartbeatReply*) {
+grpc::Status CoordinatorService::Heartbeat(grpc::ServerContext* ctx, const v1::HeartbeatRequest* req, v1::HeartbeatReply*) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kHeartbeat, &who); !st.ok()) return ToGrpcStatus(st);
   return ToGrpcStatus(c_->Extend(req->lease_id()));
 }
 
-grpc::Status CoordinatorService::Report(grpc::ServerContext*, const v1::ReportRequest* req, v1::ReportReply*) {
+grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::ReportRequest* req, v1::ReportReply*) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kReport, &who); !st.ok()) return ToGrpcStatus(st);
   const size_t width = req->record_width();
   if (width == 0 || req->values_size() % width != 0)
     return ToGrpcStatus(Status::InvalidArgument("records", std::to_string(req->values_size()) +
@@ -167,11 +198,15 @@ grpc::Status CoordinatorService::Report(grpc::ServerContext*, const v1::ReportRe
   return ToGrpcStatus(c_->Report(req->lease_id(), records));
 }
 
-grpc::Status CoordinatorService::Release(grpc::ServerContext*, const v1::ReleaseRequest* req, v1::ReleaseReply*) {
+grpc::Status CoordinatorService::Release(grpc::ServerContext* ctx, const v1::ReleaseRequest* req, v1::ReleaseReply*) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kRelease, &who); !st.ok()) return ToGrpcStatus(st);
   return ToGrpcStatus(c_->Release(req->lease_id()));
 }
 
-grpc::Status CoordinatorService::ListWorkers(grpc::ServerContext*, const v1::ListWorkersRequest*, v1::ListWorkersReply* rep) {
+grpc::Status CoordinatorService::ListWorkers(grpc::ServerContext* ctx, const v1::ListWorkersRequest*, v1::ListWorkersReply* rep) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kWorkers, &who); !st.ok()) return ToGrpcStatus(st);
   for (const WorkerInfo& w : c_->Workers()) {
     v1::WorkerStatus* s = rep->add_workers();
     s->set_name(w.name);

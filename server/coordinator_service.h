@@ -4,8 +4,11 @@
 #define BISTABLE_SERVER_COORDINATOR_SERVICE_H_
 
 #include <atomic>
+#include <map>
+#include <mutex>
 
 #include "bistable.grpc.pb.h"
+#include "server/auth.h"
 #include "server/sweep_coordinator.h"
 
 namespace bistable {
@@ -16,8 +19,8 @@ inline constexpr size_t kMaxSpecBytes = 1 << 20;
 class CoordinatorService final : public v1::Coordinator::Service {
  public:
   // job_seconds: target work per job on one core (jobs are blocks of points sized to it).
-  CoordinatorService(SweepCoordinator* c, double lease_seconds, double job_seconds = 2.0)
-      : c_(c), lease_seconds_(lease_seconds), job_seconds_(job_seconds) {}
+  CoordinatorService(SweepCoordinator* c, double lease_seconds, double job_seconds = 2.0, TokenStore tokens = {})
+      : c_(c), lease_seconds_(lease_seconds), job_seconds_(job_seconds), tokens_(std::move(tokens)) {}
   void Shutdown() { shutting_down_ = true; }
 
   grpc::Status Submit(grpc::ServerContext*, const v1::SubmitRequest*, v1::SubmitReply*) override;
@@ -37,6 +40,9 @@ class CoordinatorService final : public v1::Coordinator::Service {
   StatusOr<std::string> ResolveId(const std::string& id_or_prefix) const;
   SweepCoordinator* c_;
   double lease_seconds_, job_seconds_;
+  TokenStore tokens_;
+  mutable std::mutex owners_mu_;
+  std::map<std::string, std::string> owners_;  // sweep id → name of the token that submitted it
   std::atomic<bool> shutting_down_{false};
 };
 

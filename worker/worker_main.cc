@@ -17,6 +17,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "bistable.grpc.pb.h"
+#include "proto/channel.h"
 #include "proto/status_convert.h"
 #include "worker/block_worker.h"
 
@@ -42,11 +43,8 @@ bool Retryable(const grpc::Status& s) {
   return s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
 }
 
-std::unique_ptr<grpc::ClientContext> Context(double seconds) {
-  auto ctx = std::make_unique<grpc::ClientContext>();
-  ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(static_cast<long>(seconds * 1000)));
-  return ctx;
-}
+bistable::ConnectOptions g_conn;
+std::unique_ptr<grpc::ClientContext> Context(double seconds) { return bistable::CallContext(g_conn, seconds); }
 
 struct SpecCache {
   std::mutex mu;
@@ -123,11 +121,13 @@ void PullLoop(Coordinator::Stub* stub, const std::string& name, double lease_sec
 
 int main(int argc, char** argv) {
   CLI::App app{"bistable-worker: computes sweep jobs pulled from a coordinator"};
-  std::string coordinator = "127.0.0.1:50051", name;
+  std::string coordinator = "127.0.0.1:50051", name, token_file, tls_ca;
   int threads = 0;
   app.add_option("--coordinator", coordinator, "coordinator address")->capture_default_str();
   app.add_option("--threads", threads, "pull loops / cores (0 = all)")->capture_default_str();
   app.add_option("--name", name, "worker name (default host:pid)");
+  app.add_option("--token-file", token_file, "file holding this worker's bearer token (else $BISTABLE_TOKEN)");
+  app.add_option("--tls-ca", tls_ca, "PEM CA certificate to verify a TLS coordinator");
   CLI11_PARSE(app, argc, argv);
   if (threads < 0 || threads > 1024) {
     std::cerr << "error: invalid argument (threads: threads = " << threads << " violates threads in [0, 1024])\n";
@@ -139,12 +139,18 @@ int main(int argc, char** argv) {
     ::gethostname(host, sizeof host - 1);
     name = std::string(host) + ":" + std::to_string(::getpid());
   }
-  grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(64 << 20);
-  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
-  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
-  auto channel = grpc::CreateCustomChannel(coordinator, grpc::InsecureChannelCredentials(), args);
-  auto stub = Coordinator::NewStub(channel);
+  auto token = bistable::LoadToken(token_file);
+  if (!token.ok()) {
+    std::cerr << "error: " << token.status().ToString() << "\n";
+    return 2;
+  }
+  g_conn = {coordinator, tls_ca, *token};
+  auto channel = bistable::MakeChannel(g_conn);
+  if (!channel.ok()) {
+    std::cerr << "error: " << channel.status().ToString() << "\n";
+    return 2;
+  }
+  auto stub = Coordinator::NewStub(*channel);
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
   double lease_seconds = 60;
