@@ -148,7 +148,13 @@ StatusOr<SweepPlan> SweepCoordinator::SubmitLocked(const SweepSpec& spec, long j
   s.row.finished = 0;
   BISTABLE_RETURN_IF_ERROR(db_->UpsertSweep(s.row));
   stopped_ = false;
-  sweeps_[plan.id] = std::move(s);
+  Sweep& stored = sweeps_[plan.id] = std::move(s);
+  // Nothing left to compute (every item stored, e.g. a coordinator killed between the last report
+  // and the publication): publish now, since no report will come to trigger it.
+  if (plan.jobs == 0) {
+    auto path = PublishLocked(stored);
+    if (!path.ok()) return path.status();
+  }
   return plan;
 }
 

@@ -275,6 +275,36 @@ TEST(SweepEngine, ExpiredLeasesAreRequeuedAndRejected) {
   std::filesystem::remove_all(dir);
 }
 
+// Found by bench/fault_run.sh: a coordinator killed after storing the last report but before
+// publishing came back with nothing to compute and waited forever for a report.
+TEST(SweepEngine, ReopenedCoordinatorPublishesASweepWhoseItemsAreAllStored) {
+  const std::string dir = TempDir("allstored");
+  const SweepSpec spec = Parse(kSmall);
+  {
+    auto c = SweepCoordinator::Open(dir);
+    ASSERT_TRUE(c.ok());
+    auto plan = (*c)->Submit(spec, 64);
+    ASSERT_TRUE(plan.ok());
+  }
+  {  // Store every item directly, as if the last report landed and the process died before publishing.
+    auto db = IndexDb::Open(dir + "/index.sqlite");
+    ASSERT_TRUE(db.ok());
+    std::vector<WorkItem> all;
+    for (long p = 0; p < spec.points(); ++p) all.push_back({p, 0});
+    const auto rec = ComputeItems(spec, all);
+    std::vector<std::pair<std::string, PointRecord>> rows;
+    for (size_t i = 0; i < all.size(); ++i) rows.emplace_back(spec.ItemKey(all[i].point, 0), rec[i]);
+    ASSERT_TRUE((*db)->PutPoints(rows, spec.Id(), spec.points()).ok());
+  }
+  auto c = SweepCoordinator::Open(dir);
+  ASSERT_TRUE(c.ok());
+  auto info = (*c)->Info(spec.Id());
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->state, "done");
+  EXPECT_TRUE(std::filesystem::exists((*c)->MapPath(spec.Id())));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(SweepEngine, ReopenedCoordinatorResumesUnfinishedSweeps) {
   const std::string dir = TempDir("resume");
   const SweepSpec spec = Parse(kSmall);
