@@ -47,7 +47,9 @@ grpc::Status CoordinatorService::Submit(grpc::ServerContext* ctx, const v1::Subm
   // Jobs of about job_seconds of work on one core.
   const double steps = spec->base.integration.t_end / spec->base.integration.dt;
   long items = static_cast<long>(job_seconds_ / std::max(steps / 1.5e7 * (spec->UsesKernel() ? 1.0 : 8.0), 1e-9));
-  items = std::clamp<long>(items, 8, 4096) / 8 * 8;
+  // ... but at least 64 jobs per sweep where it has the points, so the last jobs balance across workers.
+  const long balance = (spec->points() * spec->ic_count() + 63) / 64;
+  items = std::clamp<long>(std::min(items, balance), 8, 4096) / 8 * 8;
   auto plan = c_->Submit(*spec, items);
   if (!plan.ok()) return ToGrpcStatus(plan.status());
   {

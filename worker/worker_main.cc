@@ -73,7 +73,7 @@ void PullLoop(Coordinator::Stub* stub, const std::string& name, double lease_sec
     }
     backoff.Reset();
     if (!lease.has_job()) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
       continue;
     }
     auto spec = cache->Get(lease.sweep_id(), lease.spec_toml());
