@@ -8,6 +8,7 @@
 
 #include "client/cli_common.h"
 #include "client/map_slice.h"
+#include "client/map_source.h"
 #include "client/plot.h"
 #include "client/sweep_commands.h"
 #include "engine/query.h"
@@ -62,17 +63,18 @@ int ListSweeps(const SweepsArgs& a) {
 // ---- map ----
 struct MapArgs {
   std::string id, metric, at, format = "json", out, data = kDefaultDataDir;
+  MapSource src;
 };
 
-StatusOr<MapArray> LoadMetric(const std::string& data, const std::string& id, const std::string& metric, SweepRef* ref) {
-  auto r = FindSweep(data, id);
-  if (!r.ok()) return r.status();
-  *ref = *r;
-  if (r->map_path.empty())
-    return Status::FailedPrecondition("sweep " + r->row.id + " has no published map yet (status " + r->row.status +
-                                      ", " + std::to_string(r->row.points_done) + "/" + std::to_string(r->row.points_total) +
-                                      " stored); rerun it to finish");
-  return ReadMapMetric(r->map_path, metric);
+// A published sweep as seen through a MapSource: its resolved id and name.
+struct SweepRefLite {
+  std::string id, name;
+};
+
+StatusOr<MapArray> LoadMetric(const MapSource& src, const std::string& id, const std::string& metric, SweepRefLite* ref) {
+  auto names = src.Metrics(id, &ref->id, &ref->name);
+  if (!names.ok()) return names.status();
+  return src.Metric(ref->id, metric);
 }
 
 nlohmann::json NestedValues(const Slice& s) {
@@ -92,10 +94,10 @@ nlohmann::json NestedValues(const Slice& s) {
 }
 
 int HdScatter(const MapArgs& a) {
-  SweepRef ref;
-  auto f = LoadMetric(a.data, a.id, "hd_peak_freq", &ref);
+  SweepRefLite ref;
+  auto f = LoadMetric(a.src, a.id, "hd_peak_freq", &ref);
   if (!f.ok()) return Fail(f.status());
-  auto amp = ReadMapMetric(ref.map_path, "hd_peak_amp");
+  auto amp = a.src.Metric(ref.id, "hd_peak_amp");
   if (!amp.ok()) return Fail(amp.status());
   auto at = ParseAt(a.at);
   if (!at.ok()) return Fail(at.status());
@@ -105,7 +107,7 @@ int HdScatter(const MapArgs& a) {
     if (f->axes[k].name == "omega") omega_dim = k;
   if (omega_dim == f->axes.size()) return Fail(Status::InvalidArgument("metric", "hd_scatter needs an omega axis"));
   ScatterData sd;
-  sd.title = ref.row.id + ": harmonic diffusion";
+  sd.title = ref.id + ": harmonic diffusion";
   const size_t rank = f->dims.size();
   std::vector<size_t> stride(rank, 1);
   for (long k = static_cast<long>(rank) - 2; k >= 0; --k) stride[k] = stride[k + 1] * f->dims[k + 1];
@@ -137,7 +139,7 @@ int HdScatter(const MapArgs& a) {
       if (std::isfinite(f->values[off]))
         sd.x.push_back(f->axes[omega_dim].values[i]), sd.y.push_back(f->values[off]), sd.amp.push_back(amp->values[off]);
     }
-  const std::string out = a.out.empty() ? ref.row.id + "_hd_scatter.png" : a.out;
+  const std::string out = a.out.empty() ? ref.id + "_hd_scatter.png" : a.out;
   Status st = RenderHdScatter(sd, out);
   if (!st.ok()) return Fail(st);
   std::cout << out << "\n";
@@ -148,8 +150,8 @@ int ShowMap(const MapArgs& a) {
   if (a.format != "json" && a.format != "csv" && a.format != "png" && a.format != "svg")
     return Fail(Status::InvalidArgument("format", "format = '" + a.format + "' violates format in {csv, json, png, svg}"));
   if (a.metric == "hd_scatter") return HdScatter(a);
-  SweepRef ref;
-  auto m = LoadMetric(a.data, a.id, a.metric, &ref);
+  SweepRefLite ref;
+  auto m = LoadMetric(a.src, a.id, a.metric, &ref);
   if (!m.ok()) return Fail(m.status());
   auto at = ParseAt(a.at);
   if (!at.ok()) return Fail(at.status());
@@ -160,7 +162,7 @@ int ShowMap(const MapArgs& a) {
     for (const Axis& ax : s->free) axes[ax.name] = ax.values;
     for (const auto& [k, v] : s->fixed) fixed[k] = v;
     nlohmann::json j = {{"metric", s->metric}, {"unit", s->unit}, {"axes", axes}, {"axis_order", nlohmann::json::array()},
-                        {"fixed", fixed}, {"values", NestedValues(*s)}, {"sweep", ref.row.id}};
+                        {"fixed", fixed}, {"values", NestedValues(*s)}, {"sweep", ref.id}};
     for (const Axis& ax : s->free) j["axis_order"].push_back(ax.name);
     const std::string text = j.dump(1);
     if (a.out.empty()) std::cout << text << "\n";
@@ -190,9 +192,9 @@ int ShowMap(const MapArgs& a) {
   d.motion = s->metric == "motion";
   for (const Axis& ax : s->free) d.axis_names.push_back(ax.name), d.axis_units.push_back(AxisUnit(ax.name)), d.axis_values.push_back(ax.values);
   d.values = s->values;
-  d.title = (ref.row.name.empty() ? ref.row.id : ref.row.name) + ": " + s->metric;
+  d.title = (ref.name.empty() ? ref.id : ref.name) + ": " + s->metric;
   for (const auto& [k, v] : s->fixed) d.title += ", " + k + "=" + std::to_string(v).substr(0, 6);
-  const std::string out = a.out.empty() ? ref.row.id + "_" + s->metric + "." + a.format : a.out;
+  const std::string out = a.out.empty() ? ref.id + "_" + s->metric + "." + a.format : a.out;
   Status st = RenderPlot(d, out, a.format);
   if (!st.ok()) return Fail(st);
   std::cout << out << "\n";
@@ -202,21 +204,19 @@ int ShowMap(const MapArgs& a) {
 // ---- query ----
 struct QueryArgs {
   std::string id, expr, data = kDefaultDataDir;
+  MapSource src;
   bool json = false;
   int limit = 20;
 };
 
 int RunQuery(const QueryArgs& a) {
-  auto ref = FindSweep(a.data, a.id);
-  if (!ref.ok()) return Fail(ref.status());
-  if (ref->map_path.empty())
-    return Fail(Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (status " + ref->row.status + ")"));
-  auto metrics = ListMapMetrics(ref->map_path);
+  SweepRefLite ref;
+  auto metrics = a.src.Metrics(a.id, &ref.id, &ref.name);
   if (!metrics.ok()) return Fail(metrics.status());
   std::vector<std::string> vars;
   for (const auto& m : *metrics)
     if (m != "hd_peak_freq" && m != "hd_peak_amp") vars.push_back(m);
-  auto first = ReadMapMetric(ref->map_path, vars.front());
+  auto first = a.src.Metric(ref.id, vars.front());
   if (!first.ok()) return Fail(first.status());
   const std::vector<Axis> axes = first->axes;
   const size_t n_axes_vars = axes.size();
@@ -231,7 +231,7 @@ int RunQuery(const QueryArgs& a) {
   for (const Axis& ax : axes) n_points *= ax.values.size();
   for (int v : q->used()) {
     if (v < static_cast<int>(n_axes_vars)) continue;
-    auto m = ReadMapMetric(ref->map_path, names[v]);
+    auto m = a.src.Metric(ref.id, names[v]);
     if (!m.ok()) return Fail(m.status());
     n_items = std::max(n_items, m->values.size());
     loaded.emplace(v, std::move(*m));
@@ -278,7 +278,7 @@ int RunQuery(const QueryArgs& a) {
   const double fraction = n_items ? static_cast<double>(count) / static_cast<double>(n_items) : 0.0;
   const double area_fraction = area_total > 0 ? area / area_total : 0.0;
   if (a.json) {
-    nlohmann::json j = {{"sweep", ref->row.id}, {"query", a.expr}, {"count", count}, {"total", n_items},
+    nlohmann::json j = {{"sweep", ref.id}, {"query", a.expr}, {"count", count}, {"total", n_items},
                         {"fraction", fraction}, {"area_fraction", area_fraction}, {"points", points}};
     std::cout << j.dump(1) << "\n";
     return 0;
@@ -309,7 +309,13 @@ void AddMapCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--format", a->format, "csv | json | png | svg")->capture_default_str();
   cmd->add_option("--out", a->out, "output file (default: stdout for csv/json, <id>_<metric>.<fmt> for plots)");
   cmd->add_option("--data", a->data, "data directory")->capture_default_str();
-  cmd->callback([a, exit_code]() { *exit_code = ShowMap(*a); });
+  cmd->add_option("--coordinator", a->src.coordinator, "read from a coordinator instead of --data");
+  cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");
+  cmd->add_option("--tls-ca", a->src.tls_ca, "PEM CA of a TLS coordinator");
+  cmd->callback([a, exit_code]() {
+    a->src.data_dir = a->data;
+    *exit_code = ShowMap(*a);
+  });
 }
 
 void AddQueryCommand(CLI::App& app, int* exit_code) {
@@ -320,7 +326,13 @@ void AddQueryCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--data", a->data, "data directory")->capture_default_str();
   cmd->add_option("--limit", a->limit, "points listed in the text output")->capture_default_str();
   cmd->add_flag("--json", a->json, "print {count, total, fraction, area_fraction, points} as JSON");
-  cmd->callback([a, exit_code]() { *exit_code = RunQuery(*a); });
+  cmd->add_option("--coordinator", a->src.coordinator, "read from a coordinator instead of --data");
+  cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");
+  cmd->add_option("--tls-ca", a->src.tls_ca, "PEM CA of a TLS coordinator");
+  cmd->callback([a, exit_code]() {
+    a->src.data_dir = a->data;
+    *exit_code = RunQuery(*a);
+  });
 }
 
 }  // namespace bistable

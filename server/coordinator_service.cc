@@ -147,6 +147,23 @@ grpc::Status CoordinatorService::GetMap(grpc::ServerContext* ctx, const v1::MapR
   return grpc::Status::OK;
 }
 
+grpc::Status CoordinatorService::ListMetrics(grpc::ServerContext* ctx, const v1::MapRequest* req, v1::MetricsReply* rep) {
+  std::string who;
+  if (Status st = tokens_.Check(ctx, Op::kMap, &who); !st.ok()) return ToGrpcStatus(st);
+  auto id = ResolveId(req->id());
+  if (!id.ok()) return ToGrpcStatus(id.status());
+  auto info = c_->Info(*id);
+  if (!info.ok()) return ToGrpcStatus(info.status());
+  if (info->file.empty())
+    return ToGrpcStatus(Status::FailedPrecondition("sweep " + *id + " has no published map yet (state " + info->state + ")"));
+  auto names = ListMapMetrics((std::filesystem::path(c_->data_dir()) / info->file).string());
+  if (!names.ok()) return ToGrpcStatus(names.status());
+  rep->set_id(*id);
+  rep->set_name(info->name);
+  for (const auto& n : *names) rep->add_metrics(n);
+  return grpc::Status::OK;
+}
+
 grpc::Status CoordinatorService::RegisterWorker(grpc::ServerContext* ctx, const v1::RegisterRequest* req, v1::RegisterReply* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kRegister, &who); !st.ok()) return ToGrpcStatus(st);

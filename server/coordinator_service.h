@@ -29,6 +29,7 @@ class CoordinatorService final : public v1::Coordinator::Service {
   grpc::Status Cancel(grpc::ServerContext*, const v1::CancelRequest*, v1::CancelReply*) override;
   grpc::Status ListSweeps(grpc::ServerContext*, const v1::ListSweepsRequest*, v1::ListSweepsReply*) override;
   grpc::Status GetMap(grpc::ServerContext*, const v1::MapRequest*, v1::MapReply*) override;
+  grpc::Status ListMetrics(grpc::ServerContext*, const v1::MapRequest*, v1::MetricsReply*) override;
   grpc::Status RegisterWorker(grpc::ServerContext*, const v1::RegisterRequest*, v1::RegisterReply*) override;
   grpc::Status Lease(grpc::ServerContext*, const v1::LeaseRequest*, v1::LeaseReply*) override;
   grpc::Status Heartbeat(grpc::ServerContext*, const v1::HeartbeatRequest*, v1::HeartbeatReply*) override;

@@ -134,6 +134,14 @@ TEST(Distributed, ThreeWorkersGiveTheEmbeddedMapBitForBit) {
   int busy = 0;
   for (const auto& w : ws) busy += w["items_done"].get<long>() > 0;
   EXPECT_GE(busy, 2);
+  // map and query answer the same through the coordinator as from the data directory.
+  for (const std::string& args : {"map " + id + " --metric frf_db --format json", "map " + id + " --metric lle --at alpha=3 --format csv",
+                                  "query " + id + " \"lle > 0.01 and frf_db < 5\" --json"}) {
+    const ProcessResult remote = Bistable(args + " --coordinator " + addr);
+    const ProcessResult local = Bistable(args + " --data " + dir + "/data");
+    ASSERT_EQ(remote.exit_code, 0) << args << ": " << remote.err;
+    EXPECT_EQ(remote.out, local.out) << args;
+  }
   for (pid_t w : workers) Kill(w, SIGTERM);
   Kill(coord, SIGTERM);
   ExpectSameMaps(dir + "/data/" + st["file"].get<std::string>(), Embedded(dir, spec));

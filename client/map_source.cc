@@ -1,0 +1,81 @@
+#include "client/map_source.h"
+
+#include <filesystem>
+
+#include "bistable.grpc.pb.h"
+#include "client/cli_common.h"
+#include "proto/status_convert.h"
+
+namespace bistable {
+namespace {
+
+StatusOr<ConnectOptions> Connection(const MapSource& s) {
+  auto token = LoadToken(s.token_file);
+  if (!token.ok()) return token.status();
+  return ConnectOptions{s.coordinator, s.tls_ca, *token};
+}
+
+Status Remote(const grpc::Status& st, const std::string& addr) {
+  if (st.error_code() == grpc::StatusCode::UNAVAILABLE || st.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED)
+    return Status::IoError("coordinator", "cannot reach " + addr + " (" + st.error_message() + ")");
+  return FromGrpcStatus(st);
+}
+
+}  // namespace
+
+StatusOr<std::vector<std::string>> MapSource::Metrics(const std::string& id_or_prefix, std::string* id, std::string* name) const {
+  if (coordinator.empty()) {
+    auto ref = FindSweep(data_dir, id_or_prefix);
+    if (!ref.ok()) return ref.status();
+    *id = ref->row.id;
+    *name = ref->row.name;
+    if (ref->map_path.empty())
+      return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (status " + ref->row.status + ")");
+    return ListMapMetrics(ref->map_path);
+  }
+  auto conn = Connection(*this);
+  if (!conn.ok()) return conn.status();
+  auto ch = MakeChannel(*conn);
+  if (!ch.ok()) return ch.status();
+  v1::MapRequest req;
+  req.set_id(id_or_prefix);
+  v1::MetricsReply rep;
+  const grpc::Status st = v1::Coordinator::NewStub(*ch)->ListMetrics(CallContext(*conn, 60).get(), req, &rep);
+  if (!st.ok()) return Remote(st, coordinator);
+  *id = rep.id();
+  *name = rep.name();
+  return std::vector<std::string>(rep.metrics().begin(), rep.metrics().end());
+}
+
+StatusOr<MapArray> MapSource::Metric(const std::string& id, const std::string& metric) const {
+  if (coordinator.empty()) {
+    auto ref = FindSweep(data_dir, id);
+    if (!ref.ok()) return ref.status();
+    if (ref->map_path.empty())
+      return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (status " + ref->row.status +
+                                        ", " + std::to_string(ref->row.points_done) + "/" + std::to_string(ref->row.points_total) +
+                                        " stored); rerun it to finish");
+    return ReadMapMetric(ref->map_path, metric);
+  }
+  auto conn = Connection(*this);
+  if (!conn.ok()) return conn.status();
+  auto ch = MakeChannel(*conn);
+  if (!ch.ok()) return ch.status();
+  v1::MapRequest req;
+  req.set_id(id);
+  req.set_metric(metric);
+  v1::MapReply rep;
+  const grpc::Status st = v1::Coordinator::NewStub(*ch)->GetMap(CallContext(*conn, 120).get(), req, &rep);
+  if (!st.ok()) return Remote(st, coordinator);
+  MapArray m;
+  m.metric = rep.metric();
+  m.unit = rep.unit();
+  m.definition = rep.definition();
+  for (const auto& a : rep.axes()) m.axes.push_back(Axis{a.name(), std::vector<double>(a.values().begin(), a.values().end())});
+  for (auto d : rep.dims()) m.dims.push_back(d);
+  m.dim_names.assign(rep.dim_names().begin(), rep.dim_names().end());
+  m.values.assign(rep.values().begin(), rep.values().end());
+  return m;
+}
+
+}  // namespace bistable
