@@ -102,7 +102,10 @@ StatusOr<std::unique_ptr<IndexDb>> IndexDb::Open(const std::string& path) {
   }
   std::unique_ptr<IndexDb> idx(new IndexDb(db));
   sqlite3_busy_timeout(db, 10000);
-  for (const char* pragma : {"PRAGMA journal_mode=WAL", "PRAGMA synchronous=NORMAL", "PRAGMA foreign_keys=ON"}) {
+  // WAL with synchronous=NORMAL: a committed transaction survives a crash of the process (kill -9); a
+  // checkpoint every 10,000 pages (~40 MB) instead of 1,000 keeps fsyncs off the report path.
+  for (const char* pragma : {"PRAGMA journal_mode=WAL", "PRAGMA synchronous=NORMAL", "PRAGMA foreign_keys=ON",
+                             "PRAGMA wal_autocheckpoint=10000"}) {
     Status st = idx->Exec(pragma);
     if (!st.ok()) return Status::IoError("data", "index '" + path + "': " + st.message());
   }
