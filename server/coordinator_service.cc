@@ -36,6 +36,17 @@ StatusOr<std::string> CoordinatorService::ResolveId(const std::string& id) const
   return row.value()->id;
 }
 
+// The published map of a sweep (id or prefix): its resolved id and the file's absolute path.
+StatusOr<std::pair<std::string, std::string>> CoordinatorService::PublishedMap(const std::string& id_or_prefix) const {
+  auto id = ResolveId(id_or_prefix);
+  if (!id.ok()) return id.status();
+  auto info = c_->Info(*id);
+  if (!info.ok()) return info.status();
+  if (info->file.empty())
+    return Status::FailedPrecondition("sweep " + *id + " has no published map yet (state " + info->state + ")");
+  return std::make_pair(*id, (std::filesystem::path(c_->data_dir()) / info->file).string());
+}
+
 grpc::Status CoordinatorService::Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitReply* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kSubmit, &who); !st.ok()) return ToGrpcStatus(st);
@@ -124,13 +135,9 @@ grpc::Status CoordinatorService::ListSweeps(grpc::ServerContext* ctx, const v1::
 grpc::Status CoordinatorService::GetMap(grpc::ServerContext* ctx, const v1::MapRequest* req, v1::MapReply* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kMap, &who); !st.ok()) return ToGrpcStatus(st);
-  auto id = ResolveId(req->id());
-  if (!id.ok()) return ToGrpcStatus(id.status());
-  auto info = c_->Info(*id);
-  if (!info.ok()) return ToGrpcStatus(info.status());
-  if (info->file.empty())
-    return ToGrpcStatus(Status::FailedPrecondition("sweep " + *id + " has no published map yet (state " + info->state + ")"));
-  auto m = ReadMapMetric((std::filesystem::path(c_->data_dir()) / info->file).string(), req->metric());
+  auto map = PublishedMap(req->id());
+  if (!map.ok()) return ToGrpcStatus(map.status());
+  auto m = ReadMapMetric(map->second, req->metric());
   if (!m.ok()) return ToGrpcStatus(m.status());
   rep->set_metric(m->metric);
   rep->set_unit(m->unit);
@@ -150,16 +157,13 @@ grpc::Status CoordinatorService::GetMap(grpc::ServerContext* ctx, const v1::MapR
 grpc::Status CoordinatorService::ListMetrics(grpc::ServerContext* ctx, const v1::MapRequest* req, v1::MetricsReply* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kMap, &who); !st.ok()) return ToGrpcStatus(st);
-  auto id = ResolveId(req->id());
-  if (!id.ok()) return ToGrpcStatus(id.status());
-  auto info = c_->Info(*id);
-  if (!info.ok()) return ToGrpcStatus(info.status());
-  if (info->file.empty())
-    return ToGrpcStatus(Status::FailedPrecondition("sweep " + *id + " has no published map yet (state " + info->state + ")"));
-  auto names = ListMapMetrics((std::filesystem::path(c_->data_dir()) / info->file).string());
+  auto map = PublishedMap(req->id());
+  if (!map.ok()) return ToGrpcStatus(map.status());
+  auto names = ListMapMetrics(map->second);
   if (!names.ok()) return ToGrpcStatus(names.status());
-  rep->set_id(*id);
-  rep->set_name(info->name);
+  auto info = c_->Info(map->first);
+  rep->set_id(map->first);
+  rep->set_name(info.ok() ? info->name : "");
   for (const auto& n : *names) rep->add_metrics(n);
   return grpc::Status::OK;
 }

@@ -39,6 +39,7 @@ class CoordinatorService final : public v1::Coordinator::Service {
 
  private:
   StatusOr<std::string> ResolveId(const std::string& id_or_prefix) const;
+  StatusOr<std::pair<std::string, std::string>> PublishedMap(const std::string& id_or_prefix) const;
   SweepCoordinator* c_;
   double lease_seconds_, job_seconds_;
   TokenStore tokens_;

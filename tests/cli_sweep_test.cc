@@ -13,6 +13,7 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/map_compare.h"
 #include "tests/process_util.h"
 #include <nlohmann/json.hpp>
 
@@ -26,12 +27,7 @@ namespace fs = std::filesystem;
 using bistable_test::Bistable;
 using bistable_test::ProcessResult;
 
-std::string Dir(const std::string& name) {
-  const fs::path d = fs::path(::testing::TempDir()) / ("bistable_cli_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d.string();
-}
+std::string Dir(const std::string& name) { return bistable_test::FreshDir("bistable_cli", name); }
 
 std::string WriteSpec(const std::string& dir, const std::string& text) {
   const std::string path = dir + "/spec.toml";
@@ -168,15 +164,7 @@ pid_t Spawn(const std::string& spec, const std::string& data) {
   return pid;
 }
 
-void ExpectSameMaps(const std::string& a, const std::string& b) {
-  for (const char* metric : {"frf_db", "lle", "motion", "period", "hd_index", "edr_t", "hd_peak_freq"}) {
-    auto x = bistable::ReadMapMetric(a, metric);
-    auto y = bistable::ReadMapMetric(b, metric);
-    ASSERT_TRUE(x.ok() && y.ok()) << metric;
-    ASSERT_EQ(x->values.size(), y->values.size());
-    EXPECT_EQ(std::memcmp(x->values.data(), y->values.data(), x->values.size() * sizeof(double)), 0) << metric;
-  }
-}
+using bistable_test::ExpectSameMaps;
 
 void InterruptThenResume(int signal_number) {
   const std::string dir = Dir(signal_number == SIGKILL ? "kill" : "int");

@@ -17,6 +17,7 @@
 
 #include "bistable.grpc.pb.h"
 #include "storage/map_file.h"
+#include "tests/map_compare.h"
 #include "tests/process_util.h"
 
 namespace {
@@ -25,12 +26,7 @@ namespace fs = std::filesystem;
 using bistable_test::Bistable;
 using bistable_test::ProcessResult;
 
-std::string Dir(const std::string& name) {
-  const fs::path d = fs::path(::testing::TempDir()) / ("bistable_dist_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d.string();
-}
+std::string Dir(const std::string& name) { return bistable_test::FreshDir("bistable_dist", name); }
 
 pid_t Spawn(const std::vector<std::string>& argv, const std::string& out_file) {
   std::fflush(nullptr);
@@ -86,15 +82,7 @@ bool WaitDone(const std::string& id, const std::string& addr, double seconds) {
   return false;
 }
 
-void ExpectSameMaps(const std::string& a, const std::string& b) {
-  for (const char* metric : {"frf_db", "lle", "motion", "period", "hd_index", "edr_t", "hd_peak_freq"}) {
-    auto x = bistable::ReadMapMetric(a, metric);
-    auto y = bistable::ReadMapMetric(b, metric);
-    ASSERT_TRUE(x.ok() && y.ok()) << metric;
-    ASSERT_EQ(x->values.size(), y->values.size());
-    EXPECT_EQ(std::memcmp(x->values.data(), y->values.data(), x->values.size() * sizeof(double)), 0) << metric;
-  }
-}
+using bistable_test::ExpectSameMaps;
 
 constexpr const char* kSpec = R"(
 name = "distributed test"

@@ -36,6 +36,15 @@ inline ProcessResult Bistable(const std::string& args) {
   return r;
 }
 
+// A fresh, empty directory under the test temp dir, unique to this process.
+inline std::string FreshDir(const std::string& prefix, const std::string& name) {
+  const std::filesystem::path d =
+      std::filesystem::path(::testing::TempDir()) / (prefix + "_" + name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(d);
+  std::filesystem::create_directories(d);
+  return d.string();
+}
+
 }  // namespace bistable_test
 
 #endif  // BISTABLE_TESTS_PROCESS_UTIL_H_
