@@ -10,7 +10,7 @@ ProgressBar::ProgressBar(long total, std::string label, bool enabled)
     : total_(total), label_(std::move(label)), enabled_(enabled), tty_(::isatty(STDERR_FILENO) == 1),
       start_(std::chrono::steady_clock::now()), last_(start_) {}
 
-std::string ProgressBar::Line(long done) const {
+std::string ProgressBar::Line(long done, const std::string& extra) const {
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   const double frac = total_ > 0 ? static_cast<double>(done) / static_cast<double>(total_) : 1.0;
   const double rate = secs > 0 ? static_cast<double>(done) / secs : 0.0;
@@ -26,22 +26,22 @@ std::string ProgressBar::Line(long done) const {
   std::snprintf(buf, sizeof buf, "%s [%.*s%.*s] %5.1f%%  %ld/%ld points  %.0f points/s  ETA %s", label_.c_str(), fill,
                 "##############################", width - fill, "..............................", 100.0 * frac, done,
                 total_, rate, eta);
-  return buf;
+  return extra.empty() ? std::string(buf) : std::string(buf) + "  " + extra;
 }
 
-void ProgressBar::Update(long done) {
+void ProgressBar::Update(long done, const std::string& extra) {
   if (!enabled_) return;
   const auto now = std::chrono::steady_clock::now();
   const double since = std::chrono::duration<double>(now - last_).count();
   if (since < (tty_ ? 0.1 : 5.0)) return;
   last_ = now;
-  std::fprintf(stderr, tty_ ? "\r%s\033[K" : "%s\n", Line(done).c_str());
+  std::fprintf(stderr, tty_ ? "\r%s\033[K" : "%s\n", Line(done, extra).c_str());
   std::fflush(stderr);
 }
 
-void ProgressBar::Finish(long done) {
+void ProgressBar::Finish(long done, const std::string& extra) {
   if (!enabled_) return;
-  std::fprintf(stderr, tty_ ? "\r%s\033[K\n" : "%s\n", Line(done).c_str());
+  std::fprintf(stderr, tty_ ? "\r%s\033[K\n" : "%s\n", Line(done, extra).c_str());
   std::fflush(stderr);
 }
 

@@ -12,11 +12,12 @@ class ProgressBar {
  public:
   // total: items to compute in this run (cached ones excluded); label printed in front.
   ProgressBar(long total, std::string label, bool enabled);
-  void Update(long done);
-  void Finish(long done);
+  // `extra` is appended to the line (e.g. "3 workers").
+  void Update(long done, const std::string& extra = "");
+  void Finish(long done, const std::string& extra = "");
 
  private:
-  std::string Line(long done) const;
+  std::string Line(long done, const std::string& extra) const;
   long total_;
   std::string label_;
   bool enabled_, tty_;

@@ -109,11 +109,11 @@ int StatusCmd(const RemoteArgs& a) {
       base = st.points_done();
       bar = std::make_unique<ProgressBar>(st.points_total() - base, "sweep " + st.id(), true);
     }
-    bar->Update(st.points_done() - base);
+    bar->Update(st.points_done() - base, std::to_string(st.workers()) + (st.workers() == 1 ? " worker" : " workers"));
   }
   const grpc::Status s = reader->Finish();
   if (!s.ok()) return RpcFail(s, a.coordinator);
-  if (bar) bar->Finish(st.points_done() - base);
+  if (bar) bar->Finish(st.points_done() - base, st.state());
   if (!a.json) std::printf("%s %s (%d workers at the end)%s%s\n", st.id().c_str(), st.state().c_str(), st.workers(),
                            st.file().empty() ? "" : ", map: ", st.file().c_str());
   return st.state() == "done" ? 0 : 1;
