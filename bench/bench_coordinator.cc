@@ -1,6 +1,8 @@
 // Coordinator overhead: lease + report round trips per second with no-op jobs (records of zeros of
 // the right shape, stored durably like real ones), through gRPC on loopback with 1, 2, 4, 8
 // concurrent workers, against direct in-process calls in the same run. Prints a table and ratios.
+// The rate counts until the last report is acknowledged; the sweep's publication (fold into the
+// point cache, HDF5 map, index rows: a background thread) is timed separately.
 //   build/bench/bench_coordinator [JOBS=4000]
 #include <atomic>
 #include <chrono>
@@ -26,6 +28,19 @@ SweepSpec NoOpSpec(long jobs, int salt) {
   return *ParseSweepSpec(toml, "noop");
 }
 
+// Seconds until the sweep's map is published, from now.
+double AwaitPublished(SweepCoordinator& c, const std::string& id) {
+  const auto t0 = std::chrono::steady_clock::now();
+  while (true) {
+    auto info = c.Info(id);
+    if (!info.ok() || info->state == "done" || info->state == "failed") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+double g_publish_seconds = 0;
+
 double Direct(const std::string& dir, long jobs) {
   auto c = SweepCoordinator::Open(dir + "/direct");
   const SweepSpec spec = NoOpSpec(jobs, 0);
@@ -34,19 +49,57 @@ double Direct(const std::string& dir, long jobs) {
   const auto t0 = std::chrono::steady_clock::now();
   long n = 0;
   while (auto l = (*c)->Lease("w")) (*c)->Report(l->lease_id, zeros), ++n;
-  return n / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double rate = n / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  g_publish_seconds = AwaitPublished(**c, spec.Id());
+  return rate;
 }
 
-double OverGrpc(const std::string& dir, long jobs, int clients, int salt) {
-  auto c = SweepCoordinator::Open(dir + "/grpc" + std::to_string(salt));
-  CoordinatorService service(c->get(), 60);
-  grpc::ServerBuilder b;
-  int port = 0;
-  b.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-  b.RegisterService(&service);
-  auto server = b.BuildAndStart();
-  (*c)->Submit(NoOpSpec(jobs, salt), 8);
-  const auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials());
+// A coordinator on a fresh data dir served on a loopback port, with a channel to it.
+struct LoopbackServer {
+  std::unique_ptr<SweepCoordinator> coordinator;
+  std::unique_ptr<CoordinatorService> service;
+  std::unique_ptr<grpc::Server> server;
+  std::shared_ptr<grpc::Channel> channel;
+  explicit LoopbackServer(const std::string& data) {
+    coordinator = std::move(SweepCoordinator::Open(data).value());
+    service = std::make_unique<CoordinatorService>(coordinator.get(), 60);
+    grpc::ServerBuilder b;
+    int port = 0;
+    b.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+    b.RegisterService(service.get());
+    ConfigureServerBuilder(b);
+    server = b.BuildAndStart();
+    channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials());
+  }
+  ~LoopbackServer() { server->Shutdown(); }
+};
+
+// The transport's floor: pairs of near-empty calls (ListWorkers) through the same server and channel.
+double EmptyPairs(const std::string& dir, long pairs, int clients) {
+  LoopbackServer srv(dir + "/empty");
+  const auto& channel = srv.channel;
+  std::atomic<long> n{0};
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<std::thread> pool;
+  for (int k = 0; k < clients; ++k)
+    pool.emplace_back([&] {
+      auto stub = v1::Coordinator::NewStub(channel);
+      while (n.fetch_add(1) < pairs)
+        for (int call = 0; call < 2; ++call) {
+          grpc::ClientContext ctx;
+          v1::ListWorkersReply r;
+          stub->ListWorkers(&ctx, v1::ListWorkersRequest(), &r);
+        }
+    });
+  for (auto& t : pool) t.join();
+  return pairs / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+double OverGrpc(const std::string& dir, long jobs, int clients, int salt, bool combined) {
+  LoopbackServer srv(dir + "/grpc" + std::to_string(salt));
+  const SweepSpec spec = NoOpSpec(jobs, salt);
+  srv.coordinator->Submit(spec, 8);
+  const auto& channel = srv.channel;
   std::atomic<long> n{0};
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<std::thread> pool;
@@ -56,21 +109,25 @@ double OverGrpc(const std::string& dir, long jobs, int clients, int salt) {
       v1::ReportRequest rep;
       rep.set_record_width(static_cast<unsigned>(PointRecord::Size()));
       for (size_t i = 0; i < 8 * PointRecord::Size(); ++i) rep.add_values(0.0);
+      if (combined) rep.set_lease_next_for("w" + std::to_string(k));
+      v1::LeaseReply lease;
       while (true) {
-        grpc::ClientContext lc;
-        v1::LeaseRequest lr;
-        lr.set_worker("w" + std::to_string(k));
-        v1::LeaseReply lease;
-        if (!stub->Lease(&lc, lr, &lease).ok() || !lease.has_job()) break;
+        if (!lease.has_job()) {  // the worker's loop: lease only when the last report brought nothing
+          grpc::ClientContext lc;
+          v1::LeaseRequest lr;
+          lr.set_worker("w" + std::to_string(k));
+          if (!stub->Lease(&lc, lr, &lease).ok() || !lease.has_job()) break;
+        }
         grpc::ClientContext rc;
         rep.set_lease_id(lease.lease_id());
         v1::ReportReply rr;
         if (stub->Report(&rc, rep, &rr).ok()) ++n;
+        lease = rr.next();
       }
     });
   for (auto& t : pool) t.join();
   const double rate = n / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  server->Shutdown();
+  g_publish_seconds = AwaitPublished(*srv.coordinator, spec.Id());
   return rate;
 }
 
@@ -82,12 +139,18 @@ int main(int argc, char** argv) {
   fs::remove_all(dir);
   const double direct = Direct(dir, jobs);
   std::printf("coordinator overhead, no-op jobs of 8 items (%ld jobs per run), lease + durable report round trips/s\n", jobs);
-  std::printf("  direct in-process calls           %8.0f /s\n", direct);
+  std::printf("  direct in-process calls           %8.0f /s   (then %.2f s to publish the %ld-item map)\n", direct,
+              g_publish_seconds, jobs * 8);
+  if (argc > 2 && std::string(argv[2]) == "--direct-only") return fs::remove_all(dir), 0;
+  for (int clients : {1, 8})
+    std::printf("  gRPC floor: 2 empty calls, %d in flight %8.0f /s\n", clients, EmptyPairs(dir, jobs, clients));
   int salt = 1;
-  for (int clients : {1, 2, 4, 8}) {
-    const double r = OverGrpc(dir, jobs, clients, salt++);
-    std::printf("  gRPC loopback, %d worker(s) in flight %8.0f /s   (%.2f of direct)\n", clients, r, r / direct);
-  }
+  for (bool combined : {false, true})
+    for (int clients : {1, 2, 4, 8}) {
+      const double r = OverGrpc(dir, jobs, clients, salt++, combined);
+      std::printf("  gRPC loopback, %-22s %d worker(s) in flight %8.0f /s   (%.2f of direct; publication %.2f s)\n",
+                  combined ? "report+lease in 1 call," : "lease, report: 2 calls,", clients, r, r / direct, g_publish_seconds);
+    }
   fs::remove_all(dir);
   return 0;
 }

@@ -9,6 +9,13 @@
 #include "storage/map_file.h"
 
 namespace bistable {
+
+void ConfigureServerBuilder(grpc::ServerBuilder& builder) {
+  builder.SetMaxReceiveMessageSize(64 << 20);
+  builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::NUM_CQS, 1);
+  builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MIN_POLLERS, 2);
+  builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MAX_POLLERS, 16);
+}
 namespace {
 
 void Fill(const SweepInfo& i, v1::SweepStatus* s) {
@@ -91,14 +98,13 @@ grpc::Status CoordinatorService::WatchStatus(grpc::ServerContext* ctx, const v1:
   if (Status st = tokens_.Check(ctx, Op::kStatus, &who); !st.ok()) return ToGrpcStatus(st);
   auto id = ResolveId(req->id());
   if (!id.ok()) return ToGrpcStatus(id.status());
-  while (!ctx->IsCancelled() && !shutting_down_) {
-    auto info = c_->Info(*id);
+  for (bool first = true; !ctx->IsCancelled() && !shutting_down_; first = false) {
+    auto info = first ? c_->Info(*id) : c_->AwaitFinal(*id, 0.5);  // progress every 0.5 s, the end at once
     if (!info.ok()) return ToGrpcStatus(info.status());
     v1::SweepStatus s;
     Fill(*info, &s);
     if (!writer->Write(s)) break;
     if (info->state == "done" || info->state == "failed" || info->state == "cancelled") break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
   }
   return grpc::Status::OK;
 }
@@ -179,15 +185,19 @@ grpc::Status CoordinatorService::RegisterWorker(grpc::ServerContext* ctx, const 
 grpc::Status CoordinatorService::Lease(grpc::ServerContext* ctx, const v1::LeaseRequest* req, v1::LeaseReply* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kLease, &who); !st.ok()) return ToGrpcStatus(st);
-  if (req->worker().empty()) return ToGrpcStatus(Status::InvalidArgument("worker", "worker name is empty"));
-  if (shutting_down_) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "coordinator is shutting down");
-  auto g = c_->Lease(req->worker());
+  return ToGrpcStatus(LeaseInto(req->worker(), rep));
+}
+
+Status CoordinatorService::LeaseInto(const std::string& worker, v1::LeaseReply* rep) {
+  if (worker.empty()) return Status::InvalidArgument("worker", "worker name is empty");
+  if (shutting_down_) return Status::IoError("coordinator", "shutting down");
+  auto g = c_->Lease(worker);
   if (!g) {
     rep->set_has_job(false);
-    return grpc::Status::OK;
+    return Status::Ok();
   }
   auto spec = c_->SpecText(g->sweep_id);
-  if (!spec.ok()) return ToGrpcStatus(spec.status());
+  if (!spec.ok()) return spec.status();
   rep->set_has_job(true);
   rep->set_lease_id(g->lease_id);
   rep->set_sweep_id(g->sweep_id);
@@ -195,7 +205,7 @@ grpc::Status CoordinatorService::Lease(grpc::ServerContext* ctx, const v1::Lease
   rep->set_spec_toml(*spec);
   for (const WorkItem& w : g->items) rep->add_points(w.point), rep->add_ics(w.ic);
   rep->set_deadline(g->deadline);
-  return grpc::Status::OK;
+  return Status::Ok();
 }
 
 grpc::Status CoordinatorService::Heartbeat(grpc::ServerContext* ctx, const v1::HeartbeatRequest* req, v1::HeartbeatReply*) {
@@ -204,9 +214,11 @@ grpc::Status CoordinatorService::Heartbeat(grpc::ServerContext* ctx, const v1::H
   return ToGrpcStatus(c_->Extend(req->lease_id()));
 }
 
-grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::ReportRequest* req, v1::ReportReply*) {
+grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::ReportRequest* req, v1::ReportReply* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kReport, &who); !st.ok()) return ToGrpcStatus(st);
+  if (!req->lease_next_for().empty())
+    if (Status st = tokens_.Check(ctx, Op::kLease, &who); !st.ok()) return ToGrpcStatus(st);
   const size_t width = req->record_width();
   if (width == 0 || req->values_size() % width != 0)
     return ToGrpcStatus(Status::InvalidArgument("records", std::to_string(req->values_size()) +
@@ -218,7 +230,11 @@ grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::Repo
     for (double v : records[i].v)
       if (std::isinf(v)) return ToGrpcStatus(Status::InvalidArgument("records", "record " + std::to_string(i) + " holds an infinity"));
   }
-  return ToGrpcStatus(c_->Report(req->lease_id(), records));
+  if (Status st = c_->Report(req->lease_id(), records); !st.ok()) return ToGrpcStatus(st);
+  if (req->lease_next_for().empty()) return grpc::Status::OK;
+  // The report is stored; a failure to lease now is not the report's failure (the worker polls).
+  if (Status st = LeaseInto(req->lease_next_for(), rep->mutable_next()); !st.ok()) rep->mutable_next()->set_has_job(false);
+  return grpc::Status::OK;
 }
 
 grpc::Status CoordinatorService::Release(grpc::ServerContext* ctx, const v1::ReleaseRequest* req, v1::ReleaseReply*) {

@@ -11,12 +11,15 @@
 #ifndef BISTABLE_SERVER_SWEEP_COORDINATOR_H_
 #define BISTABLE_SERVER_SWEEP_COORDINATOR_H_
 
+#include <condition_variable>
 #include <deque>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "engine/metric_catalog.h"
@@ -78,6 +81,8 @@ class SweepCoordinator {
   // Opens <data>/index.sqlite and <data>/sweeps/ (creating them) and resumes unfinished sweeps.
   static StatusOr<std::unique_ptr<SweepCoordinator>> Open(const std::string& data_dir, Options opt);
   static StatusOr<std::unique_ptr<SweepCoordinator>> Open(const std::string& data_dir) { return Open(data_dir, Options{}); }
+  // Finishes queued publications, then stops the publisher thread.
+  ~SweepCoordinator();
 
   // Registers the sweep (id = hash of its canonical spec), looks its items up in the point cache and
   // queues the missing ones as jobs of about `job_items` items. Submitting a running sweep again is
@@ -96,12 +101,17 @@ class SweepCoordinator {
   // Gives a lease's job back to the queue (a worker shutting down).
   Status Release(const std::string& lease_id);
   Status Cancel(const std::string& sweep_id);
-  // Gathers a sweep's records from the cache, writes its map atomically, marks it done (idempotent).
+  // Gathers a sweep's records from the cache, writes its map atomically, marks it done (idempotent;
+  // waits for a publication of the sweep in progress). Failure marks the sweep failed. The last
+  // report of a sweep queues this for a background thread; clients wait for state "done".
   StatusOr<std::string> Publish(const std::string& sweep_id);
   Status MarkInterrupted(const std::string& sweep_id);
   void Stop();
 
   StatusOr<SweepInfo> Info(const std::string& sweep_id) const;
+  // Waits up to `seconds` for the sweep to reach a final state (done, failed, cancelled) and returns
+  // its info then or at the timeout: watchers learn of completion at once, not at their next poll.
+  StatusOr<SweepInfo> AwaitFinal(const std::string& sweep_id, double seconds) const;
   std::vector<WorkerInfo> Workers() const;
   // The spec text (TOML) of a sweep, for workers that parse it themselves.
   StatusOr<std::string> SpecText(const std::string& sweep_id) const;
@@ -130,15 +140,39 @@ class SweepCoordinator {
   };
 
   SweepCoordinator(std::string dir, std::unique_ptr<IndexDb> db, Options opt)
-      : data_dir_(std::move(dir)), db_(std::move(db)), opt_(opt) {}
+      : data_dir_(std::move(dir)), db_(std::move(db)), opt_(opt), publisher_([this] { PublisherLoop(); }) {}
   StatusOr<SweepPlan> SubmitLocked(const SweepSpec& spec, long job_items);
   void RequeueExpiredLocked(double now);
-  StatusOr<std::string> PublishLocked(Sweep& s);
+  // Gathers the records, writes the map file, indexes it; returns the sweep's row as published.
+  // Called without mu_ (it takes db_mu_ for the index).
+  StatusOr<SweepRow> WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys, const SweepRow& row,
+                                      double started, const std::string& path);
+  void PublisherLoop();
   Status MarkLocked(Sweep& s, const std::string& status);
 
+  // The SQLite connection, used under db_mu_ (lock order: mu_ before db_mu_; batch_mu_ is a leaf).
+  struct LockedDb {
+    std::unique_lock<std::mutex> lock;
+    IndexDb* db;
+    IndexDb* operator->() const { return db; }
+  };
+  LockedDb Db() const { return {std::unique_lock<std::mutex>(db_mu_), db_.get()}; }
+  // Group commit: concurrent reports queue their rows; whichever reporter holds db_mu_ next stores
+  // every queued job in one transaction. Returns when `ticket` is durable (or failed).
+  unsigned long long EnqueueResults(IndexDb::JobResults rows);
+  Status AwaitCommit(unsigned long long ticket);
+
   mutable std::mutex mu_;
+  mutable std::condition_variable final_cv_;  // with mu_: a sweep became done, failed or cancelled
   std::string data_dir_;
   std::unique_ptr<IndexDb> db_;
+  mutable std::mutex db_mu_;
+  unsigned long long committed_through_ = 0;             // under db_mu_
+  std::map<unsigned long long, Status> commit_failures_;  // under db_mu_: ticket → why
+  std::mutex batch_mu_;
+  std::vector<IndexDb::JobResults> batch_;               // under batch_mu_
+  unsigned long long last_ticket_ = 0;                   // under batch_mu_
+  std::map<std::string, LeaseState> committing_;         // under mu_: leases whose rows are being stored
   Options opt_;
   std::map<std::string, Sweep> sweeps_;
   std::map<std::string, LeaseState> leases_;
@@ -146,7 +180,16 @@ class SweepCoordinator {
   std::map<std::string, WorkerInfo> workers_;
   long next_seq_ = 0;
   unsigned long long lease_counter_ = 0;
+  std::mt19937 lease_salt_{std::random_device{}()};  // makes lease ids unguessable across restarts
   bool stopped_ = false;
+  // Publications: one at a time (publish_mu_, taken before mu_); complete sweeps are queued for the
+  // publisher thread so that the report completing a sweep is not held up by the map writing.
+  std::mutex publish_mu_;
+  std::mutex publish_queue_mu_;
+  std::condition_variable publish_cv_;
+  std::deque<std::string> publish_queue_;
+  bool closing_ = false;
+  std::thread publisher_;  // last member: started after, and joined before, everything it uses
 };
 
 }  // namespace bistable

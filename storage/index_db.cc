@@ -2,6 +2,7 @@
 
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <cstring>
 
 namespace bistable {
@@ -52,6 +53,8 @@ CREATE TABLE IF NOT EXISTS maps(
   sweep_id TEXT NOT NULL, metric TEXT NOT NULL, file TEXT NOT NULL, shape TEXT, min REAL, max REAL,
   PRIMARY KEY(sweep_id, metric));
 CREATE TABLE IF NOT EXISTS meta(k TEXT PRIMARY KEY, v TEXT);
+CREATE TABLE IF NOT EXISTS results(
+  seq INTEGER PRIMARY KEY, sweep_id TEXT NOT NULL, width INTEGER NOT NULL, keys TEXT NOT NULL, records BLOB NOT NULL);
 INSERT OR IGNORE INTO meta VALUES('schema', '1');
 )sql";
 
@@ -73,7 +76,22 @@ SweepRow ReadSweep(Stmt& s) {
 
 }  // namespace
 
-IndexDb::~IndexDb() { sqlite3_close(db_); }
+IndexDb::~IndexDb() {
+  for (auto& [sql, st] : cached_) sqlite3_finalize(st);
+  sqlite3_close(db_);
+}
+
+sqlite3_stmt* IndexDb::Cached(const char* sql) {
+  sqlite3_stmt*& st = cached_[sql];
+  if (!st && sqlite3_prepare_v3(db_, sql, -1, SQLITE_PREPARE_PERSISTENT, &st, nullptr) != SQLITE_OK) {
+    sqlite3_finalize(st);
+    st = nullptr;
+    return nullptr;
+  }
+  sqlite3_reset(st);
+  sqlite3_clear_bindings(st);
+  return st;
+}
 
 Status IndexDb::Error(const std::string& what) {
   const int code = sqlite3_errcode(db_);
@@ -194,6 +212,7 @@ StatusOr<std::vector<SweepRow>> IndexDb::ListSweeps() {
 
 StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(const std::vector<std::string>& keys,
                                                                                 size_t record_size) {
+  BISTABLE_RETURN_IF_ERROR(FoldResults());
   std::unordered_map<std::string, PointRecord> found;
   Transaction tx(db_, "BEGIN");  // one read snapshot for all keys
   if (!tx.ok()) return Error("begin point lookup");
@@ -217,28 +236,104 @@ StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(con
   return found;
 }
 
-Status IndexDb::PutPoints(const std::vector<std::pair<std::string, PointRecord>>& items, const std::string& sweep_id,
-                          long points_done) {
+Status IndexDb::PutPoints(const std::vector<JobResults>& jobs) {
   Transaction tx(db_, "BEGIN IMMEDIATE");
   if (!tx.ok()) return Error("begin point results");
-  Stmt s(db_, "INSERT OR REPLACE INTO points(key, record, created) VALUES(?, ?, unixepoch())");
-  if (!s.ok()) return Error("prepare point insert");
-  for (const auto& [k, r] : items) {
-    sqlite3_reset(s.get());
-    s.Text(1, k);
-    sqlite3_bind_blob(s.get(), 2, r.v.data(), static_cast<int>(r.v.size() * sizeof(double)), SQLITE_TRANSIENT);
-    if (sqlite3_step(s.get()) != SQLITE_DONE) return Error("store point results");
+  // One appended row per run of equal-width records: consecutive rowids fill one B-tree leaf after
+  // another, so a job costs a few pages instead of one page per (randomly keyed) point.
+  sqlite3_stmt* ins = Cached("INSERT INTO results(sweep_id, width, keys, records) VALUES(?, ?, ?, ?)");
+  sqlite3_stmt* progress = Cached("UPDATE sweeps SET points_done = points_done + ? WHERE id = ?");
+  if (!ins || !progress) return Error("prepare point results");
+  std::string keys;
+  std::vector<double> values;
+  for (const JobResults& job : jobs) {
+    const auto& items = job.items;
+    for (size_t i = 0; i < items.size();) {
+      const size_t width = items[i].second.v.size();
+      keys.clear();
+      values.clear();
+      size_t j = i;
+      for (; j < items.size() && items[j].second.v.size() == width; ++j) {
+        if (items[j].first.find('\n') != std::string::npos) return Status::InvalidArgument("key", "point key contains a newline");
+        keys += items[j].first;
+        keys += '\n';
+        values.insert(values.end(), items[j].second.v.begin(), items[j].second.v.end());
+      }
+      sqlite3_reset(ins);
+      sqlite3_bind_text(ins, 1, job.sweep_id.c_str(), static_cast<int>(job.sweep_id.size()), SQLITE_STATIC);
+      sqlite3_bind_int64(ins, 2, static_cast<sqlite3_int64>(width));
+      sqlite3_bind_text(ins, 3, keys.c_str(), static_cast<int>(keys.size()), SQLITE_STATIC);
+      sqlite3_bind_blob(ins, 4, values.data(), static_cast<int>(values.size() * sizeof(double)), SQLITE_STATIC);
+      if (sqlite3_step(ins) != SQLITE_DONE) return Error("store point results");
+      sqlite3_reset(ins);
+      i = j;
+    }
+    sqlite3_reset(progress);
+    sqlite3_bind_int64(progress, 1, static_cast<sqlite3_int64>(items.size()));
+    sqlite3_bind_text(progress, 2, job.sweep_id.c_str(), static_cast<int>(job.sweep_id.size()), SQLITE_STATIC);
+    if (sqlite3_step(progress) != SQLITE_DONE) return Error("update progress");
+    sqlite3_reset(progress);
   }
-  Stmt u(db_, "UPDATE sweeps SET points_done = ? WHERE id = ?");
-  if (!u.ok()) return Error("prepare progress update");
-  u.Int(1, points_done);
-  u.Text(2, sweep_id);
-  if (sqlite3_step(u.get()) != SQLITE_DONE) return Error("update progress");
   if (!tx.Commit()) return Error("commit point results");
   return Status::Ok();
 }
 
+Status IndexDb::FoldResults() {
+  // Moves staged job rows into the keyed point cache, a bounded batch per transaction (each batch's
+  // insert and delete are atomic, so a crash in between loses and duplicates nothing). Keys are
+  // inserted in sorted order, which touches each B-tree leaf once per batch.
+  constexpr int kBatchRows = 512;
+  while (true) {
+    Transaction tx(db_, "BEGIN IMMEDIATE");
+    if (!tx.ok()) return Error("begin folding results");
+    sqlite3_stmt* sel = Cached("SELECT seq, width, keys, records FROM results ORDER BY seq LIMIT ?");
+    if (!sel) return Error("prepare result scan");
+    sqlite3_bind_int(sel, 1, kBatchRows);
+    struct Entry {
+      std::string key;
+      long order;
+      std::vector<double> v;
+    };
+    std::vector<Entry> entries;
+    long last_seq = -1, order = 0;
+    while (sqlite3_step(sel) == SQLITE_ROW) {
+      last_seq = sqlite3_column_int64(sel, 0);
+      const size_t width = static_cast<size_t>(sqlite3_column_int64(sel, 1));
+      const char* keys = reinterpret_cast<const char*>(sqlite3_column_text(sel, 2));
+      const auto* vals = static_cast<const double*>(sqlite3_column_blob(sel, 3));
+      const size_t nvals = static_cast<size_t>(sqlite3_column_bytes(sel, 3)) / sizeof(double);
+      size_t k = 0;
+      for (const char* p = keys; p && *p; ++k) {
+        const char* nl = std::strchr(p, '\n');
+        if (!nl || (k + 1) * width > nvals) break;  // a malformed row: stop (its points are recomputed)
+        entries.push_back({std::string(p, nl), order++, std::vector<double>(vals + k * width, vals + (k + 1) * width)});
+        p = nl + 1;
+      }
+    }
+    sqlite3_reset(sel);
+    if (last_seq < 0) return Status::Ok();  // nothing staged
+    std::sort(entries.begin(), entries.end(),
+              [](const Entry& a, const Entry& b) { return a.key != b.key ? a.key < b.key : a.order < b.order; });
+    sqlite3_stmt* ins = Cached("INSERT OR REPLACE INTO points(key, record, created) VALUES(?, ?, unixepoch())");
+    if (!ins) return Error("prepare point insert");
+    for (const Entry& e : entries) {  // equal keys: the later report wins, as it did when stored directly
+      sqlite3_reset(ins);
+      sqlite3_bind_text(ins, 1, e.key.c_str(), static_cast<int>(e.key.size()), SQLITE_STATIC);
+      sqlite3_bind_blob(ins, 2, e.v.data(), static_cast<int>(e.v.size() * sizeof(double)), SQLITE_STATIC);
+      if (sqlite3_step(ins) != SQLITE_DONE) return Error("fold point results");
+    }
+    sqlite3_reset(ins);
+    sqlite3_stmt* del = Cached("DELETE FROM results WHERE seq <= ?");
+    if (!del) return Error("prepare result cleanup");
+    sqlite3_bind_int64(del, 1, last_seq);
+    if (sqlite3_step(del) != SQLITE_DONE) return Error("clear folded results");
+    sqlite3_reset(del);
+    if (!tx.Commit()) return Error("commit folded results");
+  }
+}
+
 long IndexDb::CachedPointCount() {
+  if (!FoldResults().ok()) return -1;
   Stmt s(db_, "SELECT count(*) FROM points");
   return s.ok() && sqlite3_step(s.get()) == SQLITE_ROW ? sqlite3_column_int64(s.get(), 0) : -1;
 }

@@ -17,6 +17,7 @@
 #include "engine/metric_catalog.h"
 
 struct sqlite3;
+struct sqlite3_stmt;
 
 namespace bistable {
 
@@ -58,17 +59,27 @@ class IndexDb {
   // doubles (a record of another layout is treated as missing and recomputed).
   StatusOr<std::unordered_map<std::string, PointRecord>> LookupPoints(const std::vector<std::string>& keys,
                                                                       size_t record_size);
-  // Stores records in one transaction (all or nothing) and, in the same transaction, sets the sweep's
-  // points_done counter.
-  Status PutPoints(const std::vector<std::pair<std::string, PointRecord>>& items, const std::string& sweep_id,
-                   long points_done);
+  // Stores the records of one or more reported jobs in one transaction (all or nothing) and, in the
+  // same transaction, adds each job's item count to its sweep's points_done. The records are staged
+  // as one appended row per job (a few pages per commit, where keyed inserts cost a page per point)
+  // and folded into the keyed cache by the next LookupPoints / CachedPointCount / FoldResults.
+  struct JobResults {
+    std::string sweep_id;
+    std::vector<std::pair<std::string, PointRecord>> items;  // content key → record
+  };
+  Status PutPoints(const std::vector<JobResults>& jobs);
+  // Moves every staged job row into the keyed point cache (sorted inserts, bounded transactions).
+  Status FoldResults();
   long CachedPointCount();
 
  private:
   explicit IndexDb(sqlite3* db) : db_(db) {}
+  // A prepared statement kept for the connection's lifetime (reset, bindings cleared); nullptr on error.
+  sqlite3_stmt* Cached(const char* sql);
   Status Exec(const std::string& sql);
   Status Error(const std::string& what);
   sqlite3* db_;
+  std::unordered_map<const char*, sqlite3_stmt*> cached_;  // keyed by the literal's address
 };
 
 }  // namespace bistable

@@ -3,6 +3,7 @@
 // HDF5 files in a temporary directory.
 #include <unistd.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -18,6 +19,7 @@
 #include "server/sweep_coordinator.h"
 #include "storage/map_file.h"
 #include "worker/block_worker.h"
+#include "tests/map_compare.h"
 
 namespace bistable {
 namespace {
@@ -57,6 +59,17 @@ model = "coupled"
 alpha = { linspace = [0.2, 1.4, 5] }
 omega = [0.8, 1.2, 2.0]
 )";
+
+// The sweep's state once it is no longer running (the publisher thread writes the map after the last
+// report is acknowledged), waiting at most 10 s.
+StatusOr<SweepInfo> AwaitFinalState(SweepCoordinator& c, const std::string& id) {
+  for (int i = 0; i < 1000; ++i) {
+    auto info = c.Info(id);
+    if (!info.ok() || info->state != "running") return info;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return c.Info(id);
+}
 
 TEST(SweepSpec, ParsesAxesDefaultsAndCanonicalOrder) {
   const SweepSpec s = Parse(R"(
@@ -249,6 +262,45 @@ TEST(SweepEngine, DuplicateReportIsAcknowledgedAndNotStoredTwice) {
   std::filesystem::remove_all(dir);
 }
 
+// Group commit: concurrent reports share transactions; every job is stored and counted exactly once
+// and the published map equals the one computed by a single reporter.
+TEST(SweepEngine, ConcurrentReportsAreStoredOnceAndGiveTheSameMap) {
+  const SweepSpec spec = Parse(kSmall);
+  std::vector<std::string> files;
+  for (int threads : {1, 6}) {
+    const std::string dir = TempDir("group_commit_" + std::to_string(threads));
+    {
+      auto c = SweepCoordinator::Open(dir);
+      ASSERT_TRUE(c.ok());
+      auto plan = (*c)->Submit(spec, 1);  // 15 jobs of one item
+      ASSERT_TRUE(plan.ok());
+      ASSERT_EQ(plan->jobs, 15);
+      std::atomic<int> reports{0};
+      std::vector<std::thread> pool;
+      for (int t = 0; t < threads; ++t)
+        pool.emplace_back([&] {
+          while (auto lease = (*c)->Lease("w")) {
+            const auto records = ComputeItems(spec, lease->items);
+            EXPECT_TRUE((*c)->Report(lease->lease_id, records).ok());
+            EXPECT_TRUE((*c)->Report(lease->lease_id, records).ok());  // a retry: acknowledged, not stored again
+            ++reports;
+          }
+        });
+      for (auto& th : pool) th.join();
+      EXPECT_EQ(reports.load(), 15);
+      auto info = AwaitFinalState(**c, plan->id);
+      ASSERT_TRUE(info.ok());
+      EXPECT_EQ(info->state, "done");
+      EXPECT_EQ(info->items_done, 15);
+    }
+    auto db = IndexDb::Open(dir + "/index.sqlite");
+    ASSERT_TRUE(db.ok());
+    EXPECT_EQ((*db)->CachedPointCount(), 15);
+    files.push_back(dir + "/sweeps/" + spec.Id() + ".h5");
+  }
+  bistable_test::ExpectSameMaps(files[0], files[1]);
+}
+
 TEST(SweepEngine, ExpiredLeasesAreRequeuedAndRejected) {
   const std::string dir = TempDir("lease");
   auto c = SweepCoordinator::Open(dir, {.lease_seconds = 0.05, .resume = true});
@@ -268,9 +320,9 @@ TEST(SweepEngine, ExpiredLeasesAreRequeuedAndRejected) {
   const auto records = ComputeItems(spec, second->items);
   EXPECT_EQ((*c)->Report(first->lease_id, records).code(), Status::Code::kNotFound);  // requeued: gone
   ASSERT_TRUE((*c)->Report(second->lease_id, records).ok());
-  auto info = (*c)->Info(plan->id);
+  auto info = AwaitFinalState(**c, plan->id);
   ASSERT_TRUE(info.ok());
-  EXPECT_EQ(info->state, "done");  // the last report published the map
+  EXPECT_EQ(info->state, "done");  // the last report queued the publication
   EXPECT_TRUE(std::filesystem::exists((*c)->MapPath(plan->id)));
   std::filesystem::remove_all(dir);
 }
@@ -294,7 +346,7 @@ TEST(SweepEngine, ReopenedCoordinatorPublishesASweepWhoseItemsAreAllStored) {
     const auto rec = ComputeItems(spec, all);
     std::vector<std::pair<std::string, PointRecord>> rows;
     for (size_t i = 0; i < all.size(); ++i) rows.emplace_back(spec.ItemKey(all[i].point, 0), rec[i]);
-    ASSERT_TRUE((*db)->PutPoints(rows, spec.Id(), spec.points()).ok());
+    ASSERT_TRUE((*db)->PutPoints({{spec.Id(), rows}}).ok());
   }
   auto c = SweepCoordinator::Open(dir);
   ASSERT_TRUE(c.ok());
@@ -330,7 +382,7 @@ TEST(SweepEngine, ReopenedCoordinatorResumesUnfinishedSweeps) {
     ++jobs;
   }
   EXPECT_GE(jobs, 1);
-  EXPECT_EQ((*c)->Info(id)->state, "done");
+  EXPECT_EQ(AwaitFinalState(**c, id)->state, "done");
   std::filesystem::remove_all(dir);
 }
 

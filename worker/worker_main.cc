@@ -61,59 +61,71 @@ struct SpecCache {
 
 void PullLoop(Coordinator::Stub* stub, const std::string& name, double lease_seconds, SpecCache* cache, std::atomic<long>* done) {
   Backoff backoff;
+  bistable::v1::LeaseReply lease;  // the next job, from a Lease call or from the previous report's reply
   while (!g_stop.load()) {
-    bistable::v1::LeaseRequest lreq;
-    lreq.set_worker(name);
-    bistable::v1::LeaseReply lease;
-    const grpc::Status ls = stub->Lease(Context(10).get(), lreq, &lease);
-    if (!ls.ok()) {
-      if (!Retryable(ls)) std::cerr << "worker " << name << ": lease refused: " << ls.error_message() << "\n";
-      backoff.Wait();
-      continue;
+    if (!lease.has_job()) {
+      bistable::v1::LeaseRequest lreq;
+      lreq.set_worker(name);
+      const grpc::Status ls = stub->Lease(Context(10).get(), lreq, &lease);
+      if (!ls.ok()) {
+        if (!Retryable(ls)) std::cerr << "worker " << name << ": lease refused: " << ls.error_message() << "\n";
+        lease.Clear();
+        backoff.Wait();
+        continue;
+      }
     }
     backoff.Reset();
     if (!lease.has_job()) {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
       continue;
     }
-    auto spec = cache->Get(lease.sweep_id(), lease.spec_toml());
+    const bistable::v1::LeaseReply job = std::exchange(lease, {});
+    auto spec = cache->Get(job.sweep_id(), job.spec_toml());
     if (!spec) {
-      std::cerr << "worker " << name << ": cannot parse the spec of sweep " << lease.sweep_id() << "; releasing\n";
+      std::cerr << "worker " << name << ": cannot parse the spec of sweep " << job.sweep_id() << "; releasing\n";
       bistable::v1::ReleaseRequest rr;
-      rr.set_lease_id(lease.lease_id());
+      rr.set_lease_id(job.lease_id());
       bistable::v1::ReleaseReply rel;
       stub->Release(Context(10).get(), rr, &rel);
       continue;
     }
-    std::vector<bistable::WorkItem> items(lease.points_size());
-    for (int i = 0; i < lease.points_size(); ++i) items[i] = {lease.points(i), lease.ics(i)};
+    std::vector<bistable::WorkItem> items(job.points_size());
+    for (int i = 0; i < job.points_size(); ++i) items[i] = {job.points(i), job.ics(i)};
     auto work = std::async(std::launch::async, [&] { return bistable::ComputeItems(*spec, items); });
     // Heartbeat a third of the lease period while computing.
     while (work.wait_for(std::chrono::duration<double>(lease_seconds / 3)) != std::future_status::ready) {
       bistable::v1::HeartbeatRequest hb;
-      hb.set_lease_id(lease.lease_id());
+      hb.set_lease_id(job.lease_id());
       bistable::v1::HeartbeatReply hr;
       stub->Heartbeat(Context(5).get(), hb, &hr);
     }
     const std::vector<bistable::PointRecord> records = work.get();
     bistable::v1::ReportRequest rep;
-    rep.set_lease_id(lease.lease_id());
+    rep.set_lease_id(job.lease_id());
     rep.set_record_width(records.empty() ? 0 : static_cast<unsigned>(records[0].v.size()));
+    if (!g_stop.load()) rep.set_lease_next_for(name);  // on SIGTERM, take nothing new
     for (const auto& r : records) rep.mutable_values()->Add(r.v.begin(), r.v.end());
     for (int attempt = 0;; ++attempt) {  // reports are idempotent: retry until answered
       bistable::v1::ReportReply rr;
       const grpc::Status s = stub->Report(Context(30).get(), rep, &rr);
       if (s.ok()) {
         *done += static_cast<long>(records.size());
+        if (rr.has_next()) lease = rr.next();
         break;
       }
       if (!Retryable(s) || attempt > 50) {
-        std::cerr << "worker " << name << ": report of " << lease.lease_id() << " refused: " << s.error_message() << "\n";
+        std::cerr << "worker " << name << ": report of " << job.lease_id() << " refused: " << s.error_message() << "\n";
         break;
       }
       backoff.Wait();
     }
     backoff.Reset();
+  }
+  if (lease.has_job()) {  // stopping with a job leased by the last report: give it back now
+    bistable::v1::ReleaseRequest rr;
+    rr.set_lease_id(lease.lease_id());
+    bistable::v1::ReleaseReply rel;
+    stub->Release(Context(5).get(), rr, &rel);
   }
 }
 
