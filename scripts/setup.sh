@@ -8,7 +8,7 @@ PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config git
   # numerics and utilities (dynamics/, engine/, identify/)
   libeigen3-dev libnanoflann-dev libxxhash-dev nlohmann-json3-dev libcli11-dev libtomlplusplus-dev libspdlog-dev
-  libceres-dev libnlopt-cxx-dev
+  libceres-dev libnlopt-dev libnlopt-cxx-dev
   # service and storage (proto/, server/, worker/, storage/)
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   libsqlite3-dev libhdf5-dev libboost-dev libssl-dev openssl

@@ -1,0 +1,138 @@
+#include "identify/effects.h"
+
+#include <cmath>
+#include <set>
+
+#include "engine/sweep_spec.h"
+
+namespace bistable {
+namespace {
+
+double StribeckG(double v, const FrictionConstants& fc) {
+  const double u = v / fc.v_sp;
+  return u * std::exp(0.5 - 0.5 * u * u);
+}
+
+double StribeckGSlope(double v, const FrictionConstants& fc) {
+  const double u = v / fc.v_sp;
+  return std::exp(0.5 - 0.5 * u * u) * (1.0 - u * u) / fc.v_sp;
+}
+
+std::vector<TermDef> BuildLibrary() {
+  std::vector<TermDef> lib;
+  for (Body body : {Body::kMain, Body::kResonator}) {
+    const bool main = body == Body::kMain;
+    const std::string p = main ? "main." : "res.";
+    const std::string q = main ? "y" : "z";
+    const std::string v = q + "'";
+    const std::string where = main ? "main body (y = x - x0)" : "resonator (z = xr - x)";
+    lib.push_back({p + "linear", body, TermKind::kLinear, "k_lin " + q, "linear stiffness of the " + where,
+                   {{"k_lin", "N/m", Sign::kEither}}});
+    lib.push_back({p + "stiffness_" + q + "2", body, TermKind::kStiffness2, "k2 " + q + "^2",
+                   "quadratic (asymmetric) stiffness of the " + where, {{"k2", "N/m^2", Sign::kEither}}});
+    lib.push_back({p + "stiffness_" + q + "3", body, TermKind::kStiffness3, "k3 " + q + "^3", "cubic stiffness of the " + where,
+                   {{"k3", "N/m^3", Sign::kEither}}});
+    lib.push_back({p + "stiffness_" + q + "5", body, TermKind::kStiffness5, "k5 " + q + "^5", "quintic stiffness of the " + where,
+                   {{"k5", "N/m^5", Sign::kEither}}});
+    lib.push_back({p + "viscous", body, TermKind::kViscous, "c0 " + v, "viscous damping of the " + where,
+                   {{"c0", "N s/m", Sign::kNonNegative}}});
+    lib.push_back({p + "damping_" + q + "2", body, TermKind::kDamping2, "c2 " + q + "^2 " + v,
+                   "displacement-dependent damping (c2 " + q + "^2) of the " + where,
+                   {{"c2", "N s/m^3", Sign::kNonNegative}}});
+    lib.push_back({p + "damping_v3", body, TermKind::kDampingV3, "c3 " + v + "^3", "cubic velocity damping of the " + where,
+                   {{"c3", "N s^3/m^3", Sign::kNonNegative}}});
+    lib.push_back({p + "drag", body, TermKind::kDrag, "cq " + v + " |" + v + "|", "quadratic (air) drag of the " + where,
+                   {{"cq", "N s^2/m^2", Sign::kNonNegative}}});
+    lib.push_back({p + "friction", body, TermKind::kFriction,
+                   "(F_s - F_c tanh(v_sp/v_t)) g(" + v + ") + F_c tanh(" + v + "/v_t), g(v) = (v/v_sp) exp(1/2 - v^2/(2 v_sp^2))",
+                   "Stribeck friction of the " + where + " (F_s static peak at v_sp, F_c Coulomb level)",
+                   {{"F_s", "N", Sign::kNonNegative}, {"F_c", "N", Sign::kNonNegative}}});
+    lib.push_back({p + "bias", body, TermKind::kBias, "f_b", "constant force on the " + where, {{"f_b", "N", Sign::kEither}}});
+  }
+  return lib;
+}
+
+}  // namespace
+
+const std::vector<TermDef>& EffectLibrary() {
+  static const std::vector<TermDef> lib = BuildLibrary();
+  return lib;
+}
+
+StatusOr<const TermDef*> FindTerm(const std::string& id) {
+  std::vector<std::string> ids;
+  for (const TermDef& t : EffectLibrary()) {
+    if (t.id == id) return &t;
+    ids.push_back(t.id);
+  }
+  const std::string near = NearestName(id, ids);
+  return Status::InvalidArgument("terms", "unknown term '" + id + "'" + (near.empty() ? "" : " (did you mean '" + near + "'?)") +
+                                              "; `bistable identify --list-terms` lists the library");
+}
+
+StatusOr<std::vector<const TermDef*>> ParseTerms(const std::string& list) {
+  std::vector<const TermDef*> out;
+  std::set<std::string> seen;
+  size_t start = 0;
+  while (start <= list.size()) {
+    size_t end = list.find(',', start);
+    if (end == std::string::npos) end = list.size();
+    std::string id = list.substr(start, end - start);
+    while (!id.empty() && std::isspace(static_cast<unsigned char>(id.front()))) id.erase(id.begin());
+    while (!id.empty() && std::isspace(static_cast<unsigned char>(id.back()))) id.pop_back();
+    if (!id.empty()) {
+      auto t = FindTerm(id);
+      if (!t.ok()) return t.status();
+      if (!seen.insert(id).second) return Status::InvalidArgument("terms", "term '" + id + "' is listed twice");
+      out.push_back(*t);
+    }
+    start = end + 1;
+  }
+  if (out.empty()) return Status::InvalidArgument("terms", "no terms declared (give at least one, e.g. main.linear)");
+  return out;
+}
+
+void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc, double* out) {
+  switch (t.kind) {
+    case TermKind::kLinear: out[0] = q; break;
+    case TermKind::kStiffness2: out[0] = q * q; break;
+    case TermKind::kStiffness3: out[0] = q * q * q; break;
+    case TermKind::kStiffness5: out[0] = q * q * q * q * q; break;
+    case TermKind::kViscous: out[0] = v; break;
+    case TermKind::kDamping2: out[0] = q * q * v; break;
+    case TermKind::kDampingV3: out[0] = v * v * v; break;
+    case TermKind::kDrag: out[0] = v * std::abs(v); break;
+    case TermKind::kFriction: {
+      const double g = StribeckG(v, fc);
+      out[0] = g;
+      out[1] = std::tanh(v / fc.v_t) - std::tanh(fc.v_sp / fc.v_t) * g;
+      break;
+    }
+    case TermKind::kBias: out[0] = 1.0; break;
+  }
+}
+
+void TermSlopes(const TermDef& t, const double* th, double q, double v, const FrictionConstants& fc, double* dfdq,
+                double* dfdv) {
+  *dfdq = 0;
+  *dfdv = 0;
+  switch (t.kind) {
+    case TermKind::kLinear: *dfdq = th[0]; break;
+    case TermKind::kStiffness2: *dfdq = 2 * th[0] * q; break;
+    case TermKind::kStiffness3: *dfdq = 3 * th[0] * q * q; break;
+    case TermKind::kStiffness5: *dfdq = 5 * th[0] * q * q * q * q; break;
+    case TermKind::kViscous: *dfdv = th[0]; break;
+    case TermKind::kDamping2: *dfdq = 2 * th[0] * q * v, *dfdv = th[0] * q * q; break;
+    case TermKind::kDampingV3: *dfdv = 3 * th[0] * v * v; break;
+    case TermKind::kDrag: *dfdv = 2 * th[0] * std::abs(v); break;
+    case TermKind::kFriction: {
+      const double gs = StribeckGSlope(v, fc);
+      const double th2 = std::tanh(v / fc.v_t);
+      *dfdv = th[0] * gs + th[1] * ((1 - th2 * th2) / fc.v_t - std::tanh(fc.v_sp / fc.v_t) * gs);
+      break;
+    }
+    case TermKind::kBias: break;
+  }
+}
+
+}  // namespace bistable

@@ -1,0 +1,74 @@
+// The effect library for identification: terms with stable ids, each a force on one body that is
+// linear in its parameters, F = Σ θ_k φ_k(q, v), so that a model is a parameter vector over basis
+// functions (fits by simulation, residual regressions and uncertainties all use the same φ).
+//
+// Bodies and coordinates (model.md §2): on the main body q = y = x − x0 (relative to the base, or the
+// displacement itself under a force input), v = y'; on the resonator q = z = x_r − x, v = z'.
+// Sign: the force is a restoring / dissipative force, subtracted in the equation of motion:
+//   m_m x'' = −F_main(y, y') + G_res(z, z') [+ u],   m_r x_r'' = −G_res(z, z').
+// So a positive stiffness or damping parameter opposes motion; `bias` is a constant force F = f_b
+// (the body settles where the other forces balance −f_b).
+//
+//  id suffix      basis φ(q, v)                         parameter  unit      sign
+//  linear         q                                      k_lin      N/m       either (bistable: < 0)
+//  stiffness_y2   q²   (resonator: stiffness_z2)         k2         N/m²      either (asymmetric wells)
+//  stiffness_y3   q³   (stiffness_z3)                    k3         N/m³      either
+//  stiffness_y5   q⁵   (stiffness_z5)                    k5         N/m⁵      either
+//  viscous        v                                      c0         N s/m     ≥ 0
+//  damping_y2     q² v (damping_z2)                      c2         N s/m³    ≥ 0
+//  damping_v3     v³                                     c3         N s³/m³   ≥ 0
+//  drag           v |v|                                  cq         N s²/m²   ≥ 0
+//  friction       g(v), tanh(v/v_t) − tanh(v_sp/v_t) g(v)  F_s, F_c  N        ≥ 0 (Stribeck, friction.h;
+//                 g(v) = (v/v_sp) exp(1/2 − v²/2v_sp²); v_sp, v_t are known constants)
+//  bias           1                                      f_b        N         either
+#ifndef BISTABLE_IDENTIFY_EFFECTS_H_
+#define BISTABLE_IDENTIFY_EFFECTS_H_
+
+#include <string>
+#include <vector>
+
+#include "dynamics/status.h"
+
+namespace bistable {
+
+enum class Body { kMain, kResonator };
+enum class TermKind { kLinear, kStiffness2, kStiffness3, kStiffness5, kViscous, kDamping2, kDampingV3, kDrag, kFriction, kBias };
+enum class Sign { kEither, kNonNegative };
+
+struct TermParam {
+  std::string name;  // "k3", "F_s"
+  std::string unit;  // "N/m^3"
+  Sign sign = Sign::kEither;
+};
+
+struct TermDef {
+  std::string id;           // "main.stiffness_y3"
+  Body body = Body::kMain;
+  TermKind kind = TermKind::kLinear;
+  std::string formula;      // "k3 y^3"
+  std::string meaning;      // one line for reports
+  std::vector<TermParam> params;
+};
+
+// Every term of the library, main body first; ids are stable (used in specs, JSON and reports).
+const std::vector<TermDef>& EffectLibrary();
+// The term of an id; InvalidArgument naming the id and the nearest known one.
+StatusOr<const TermDef*> FindTerm(const std::string& id);
+// Parses "main.linear,main.stiffness_y3"; rejects unknown and repeated ids.
+StatusOr<std::vector<const TermDef*>> ParseTerms(const std::string& list);
+
+// Constants the basis functions need.
+struct FrictionConstants {
+  double v_sp = 0.002;  // m/s
+  double v_t = 0.001;   // m/s
+};
+
+// Appends the term's basis values φ_k(q, v) (one per parameter) to `out`.
+void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc, double* out);
+// dF/dv and dF/dq of the term at (q, v) for parameters `theta` (its own slice), for step-size bounds.
+void TermSlopes(const TermDef& t, const double* theta, double q, double v, const FrictionConstants& fc, double* dfdq,
+                double* dfdv);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_IDENTIFY_EFFECTS_H_

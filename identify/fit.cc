@@ -1,0 +1,496 @@
+#include "identify/fit.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <complex>
+#include <functional>
+#include <future>
+#include <thread>
+
+#include <ceres/ceres.h>
+#include <nlopt.hpp>
+#include <unsupported/Eigen/FFT>
+
+#include "dynamics/spectrum.h"
+
+namespace bistable {
+namespace {
+
+struct Sims {
+  std::vector<std::vector<double>> out, res;
+  bool ok = true;
+};
+
+Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                 const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0) {
+  Sims s;
+  s.out.resize(recs.size());
+  s.res.resize(recs.size());
+  std::vector<char> ok(recs.size(), 1);
+  auto one = [&](size_t i) {
+    ok[i] = Simulate(m, th, recs[i], setup, &s.out[i], recs[i].meas_res.empty() ? nullptr : &s.res[i],
+                     substeps.empty() ? 0 : substeps[i],
+                     horizon_s > 0 ? std::max(2, static_cast<int>(std::lround(horizon_s / recs[i].dt))) : 0);
+  };
+  const size_t nt = std::min<size_t>(recs.size(), threads > 0 ? threads : std::max(1u, std::thread::hardware_concurrency()));
+  if (nt <= 1) {
+    for (size_t i = 0; i < recs.size(); ++i) one(i);
+  } else {
+    std::vector<std::future<void>> fs;
+    for (size_t w = 0; w < nt; ++w)
+      fs.push_back(std::async(std::launch::async, [&, w] {
+        for (size_t i = w; i < recs.size(); i += nt) one(i);
+      }));
+    for (auto& f : fs) f.get();
+  }
+  for (char c : ok) s.ok = s.ok && c;
+  return s;
+}
+
+// |FFT| / n of the velocity form of a compared output (derivative of displacement outputs).
+std::vector<double> VelocityMagnitudes(const std::vector<double>& series, double dt, bool displacement) {
+  std::vector<double> v = displacement ? SavitzkyGolay(series, dt, 3, 1) : series;
+  double mean = 0;
+  for (double x : v) mean += x;
+  mean /= static_cast<double>(v.size());
+  const size_t len = NextFastFftLength(v.size());
+  std::vector<double> x(len, 0.0);
+  for (size_t i = 0; i < v.size(); ++i) x[i] = v[i] - mean;
+  Eigen::FFT<double> fft;
+  std::vector<std::complex<double>> X;
+  fft.fwd(X, x);
+  std::vector<double> mag(len / 2 + 1);
+  for (size_t k = 0; k < mag.size(); ++k) mag[k] = std::abs(X[k]) / static_cast<double>(v.size());
+  return mag;
+}
+
+size_t NumResiduals(const std::vector<PreparedRecord>& recs, Objective obj) {
+  size_t n = 0;
+  for (const PreparedRecord& r : recs) {
+    if (obj == Objective::kTime) n += r.n() + (r.meas_res.empty() ? 0 : r.n());
+    else n += NextFastFftLength(r.n()) / 2 + 1;
+  }
+  return n;
+}
+
+// Residuals of the objective; false when a simulation diverged.
+bool Residuals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+               const Setup& setup, Objective obj, const std::vector<int>& substeps, int threads,
+               const std::vector<std::vector<double>>& meas_mag, double* res, double horizon_s = 0) {
+  const Sims s = SimulateAll(m, th, recs, setup, substeps, threads, horizon_s);
+  if (!s.ok) return false;
+  size_t k = 0;
+  const bool disp = setup.output != OutputKind::kVelocity;
+  for (size_t i = 0; i < recs.size(); ++i) {
+    const PreparedRecord& r = recs[i];
+    if (obj == Objective::kTime) {
+      const double w = 1.0 / (r.meas_scale * std::sqrt(static_cast<double>(r.n())));
+      for (size_t j = 0; j < r.n(); ++j) res[k++] = (s.out[i][j] - r.meas[j]) * w;
+      if (!r.meas_res.empty()) {
+        double mean = 0, ss = 0;
+        for (double v : r.meas_res) mean += v;
+        mean /= static_cast<double>(r.n());
+        for (double v : r.meas_res) ss += (v - mean) * (v - mean);
+        const double wr = 1.0 / std::sqrt(std::max(ss, 1e-300));
+        for (size_t j = 0; j < r.n(); ++j) res[k++] = (s.res[i][j] - r.meas_res[j]) * wr;
+      }
+    } else {
+      const std::vector<double> mag = VelocityMagnitudes(s.out[i], r.dt, disp);
+      double norm = 0;
+      for (double v : meas_mag[i]) norm += v * v;
+      norm = std::sqrt(std::max(norm, 1e-300));
+      for (size_t j = 0; j < mag.size(); ++j) res[k++] = (mag[j] - meas_mag[i][j]) / norm;
+    }
+  }
+  for (size_t j = 0; j < k; ++j)
+    if (!std::isfinite(res[j])) return false;
+  return true;
+}
+
+std::vector<std::vector<double>> MeasuredMagnitudes(const std::vector<PreparedRecord>& recs, const Setup& setup) {
+  std::vector<std::vector<double>> out;
+  for (const PreparedRecord& r : recs) out.push_back(VelocityMagnitudes(r.meas, r.dt, setup.output != OutputKind::kVelocity));
+  return out;
+}
+
+// Correlation time of a residual series (1 + 2 Σ ρ_k up to the first ρ_k < 0.05), ≥ 1.
+double CorrelationTime(const std::vector<double>& e) {
+  const size_t n = e.size();
+  if (n < 8) return 1.0;
+  double mean = 0;
+  for (double v : e) mean += v;
+  mean /= static_cast<double>(n);
+  double c0 = 0;
+  for (double v : e) c0 += (v - mean) * (v - mean);
+  if (!(c0 > 0)) return 1.0;
+  double tau = 1.0;
+  for (size_t lag = 1; lag < std::min<size_t>(n / 4, 2000); ++lag) {
+    double c = 0;
+    for (size_t i = lag; i < n; ++i) c += (e[i] - mean) * (e[i - lag] - mean);
+    const double rho = c / c0;
+    if (rho < 0.05) break;
+    tau += 2.0 * rho;
+  }
+  return tau;
+}
+
+}  // namespace
+
+bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                        const Setup& setup, Objective obj, const std::vector<int>& substeps, std::vector<double>* out) {
+  out->assign(NumResiduals(recs, obj), 0.0);
+  const auto mags = obj == Objective::kFft ? MeasuredMagnitudes(recs, setup) : std::vector<std::vector<double>>{};
+  return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data());
+}
+
+std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                               double safety) {
+  std::vector<int> sub;
+  for (const PreparedRecord& r : recs) sub.push_back(static_cast<int>(std::ceil(safety * SubstepsFor(m, th, r))));
+  return sub;
+}
+
+Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                const Setup& setup) {
+  Errors e;
+  const Sims s = SimulateAll(m, th, recs, setup, {}, 0);
+  const bool disp = setup.output != OutputKind::kVelocity;
+  double se = 0, sm = 0, fft_sum = 0, eq20 = 0;
+  for (size_t i = 0; i < recs.size(); ++i) {
+    const PreparedRecord& r = recs[i];
+    double mean = 0;
+    for (double v : r.meas) mean += v;
+    mean /= static_cast<double>(r.n());
+    double ei = 0, mi = 0;
+    for (size_t j = 0; j < r.n(); ++j) {
+      const double d = s.out[i][j] - r.meas[j];
+      ei += std::isfinite(d) ? d * d : INFINITY;
+      mi += (r.meas[j] - mean) * (r.meas[j] - mean);
+    }
+    se += ei, sm += mi;
+    e.record_nrmse.push_back(100.0 * std::sqrt(ei / mi));
+    e.record_rms.push_back(std::sqrt(ei / static_cast<double>(r.n())));
+    double fi = NAN;
+    if (std::isfinite(ei)) {
+      const std::vector<double> a = VelocityMagnitudes(s.out[i], r.dt, disp), b = VelocityMagnitudes(r.meas, r.dt, disp);
+      double d2 = 0, b2 = 0;
+      for (size_t k = 0; k < a.size(); ++k) d2 += (a[k] - b[k]) * (a[k] - b[k]), b2 += b[k] * b[k];
+      fi = 100.0 * std::sqrt(d2 / b2);
+      eq20 += std::sqrt(d2) / static_cast<double>(a.size());
+    }
+    e.record_fft.push_back(fi);
+    fft_sum += fi;
+  }
+  e.diverged = !s.ok;
+  e.nrmse = 100.0 * std::sqrt(se / sm);
+  e.fft = fft_sum / static_cast<double>(recs.size());
+  e.eq20 = eq20 / static_cast<double>(recs.size());
+  return e;
+}
+
+Regression BuildRegression(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                           const std::vector<const TermDef*>& extra, size_t max_rows) {
+  const int p_model = m.NumParams();
+  int p_extra = 0;
+  for (const TermDef* t : extra) p_extra += static_cast<int>(t->params.size());
+  size_t total = 0;
+  for (const PreparedRecord& r : recs) total += r.n() * (r.z.empty() ? 1 : 2);
+  const size_t stride = std::max<size_t>(1, (total + max_rows - 1) / max_rows);
+  std::vector<std::vector<double>> rows;
+  std::vector<double> rhs;
+  Regression reg;
+  const int mass_col = m.FitsMass() ? p_model - 1 : -1;
+  auto add_body_columns = [&](std::vector<double>& row, Body body, double sign, double q, double v) {
+    int k = 0;
+    double phi[2];
+    for (const TermDef* t : m.terms) {
+      if (t->body == body) {
+        TermBasis(*t, q, v, m.fc, phi);
+        for (size_t j = 0; j < t->params.size(); ++j) row[k + j] += sign * phi[j];
+      }
+      k += static_cast<int>(t->params.size());
+    }
+    k = p_model;
+    for (const TermDef* t : extra) {
+      if (t->body == body) {
+        TermBasis(*t, q, v, m.fc, phi);
+        for (size_t j = 0; j < t->params.size(); ++j) row[k + j] += sign * phi[j];
+      }
+      k += static_cast<int>(t->params.size());
+    }
+  };
+  for (size_t ri = 0; ri < recs.size(); ++ri) {
+    const PreparedRecord& r = recs[ri];
+    const bool res = !r.z.empty();
+    const size_t edge = std::min<size_t>(12, r.n() / 4);
+    for (size_t i = edge; i + edge < r.n(); i += stride) {
+      // Main body: F(y, y') − G(z, z') [+ m p''] = target.
+      std::vector<double> row(p_model + p_extra, 0.0);
+      add_body_columns(row, Body::kMain, 1.0, r.y[i], r.yd[i]);
+      if (res) add_body_columns(row, Body::kResonator, -1.0, r.z[i], r.zd[i]);
+      double target = 0;
+      const double mm = m.FitsMass() ? 0.0 : m.m_main;
+      switch (setup.input) {
+        case InputKind::kBaseDisplacement: target = -mm * r.pdd[i]; break;
+        case InputKind::kBaseAcceleration: target = -mm * (r.pdd[i] + r.input[i]); break;
+        case InputKind::kForce: target = r.input[i] - mm * r.pdd[i]; break;
+      }
+      if (mass_col >= 0) row[mass_col] = setup.input == InputKind::kBaseAcceleration ? r.pdd[i] + r.input[i] : r.pdd[i];
+      rows.push_back(std::move(row));
+      rhs.push_back(target);
+      reg.record_of_row.push_back(static_cast<int>(ri));
+      reg.q.push_back(r.y[i]);
+      reg.v.push_back(r.yd[i]);
+      if (res && m.m_res > 0) {  // resonator: G(z, z') = −m_r x_r''
+        std::vector<double> rrow(p_model + p_extra, 0.0);
+        add_body_columns(rrow, Body::kResonator, 1.0, r.z[i], r.zd[i]);
+        const double xr_dd = setup.input == InputKind::kBaseDisplacement ? r.rdd[i] : r.pdd[i] + r.rdd[i];
+        rows.push_back(std::move(rrow));
+        rhs.push_back(-m.m_res * xr_dd);
+        reg.record_of_row.push_back(static_cast<int>(ri));
+        reg.q.push_back(NAN);
+        reg.v.push_back(NAN);
+      }
+    }
+  }
+  reg.X.resize(static_cast<long>(rows.size()), p_model + p_extra);
+  reg.b.resize(static_cast<long>(rows.size()));
+  for (size_t i = 0; i < rows.size(); ++i) {
+    for (int j = 0; j < p_model + p_extra; ++j) reg.X(static_cast<long>(i), j) = rows[i][j];
+    reg.b[static_cast<long>(i)] = rhs[i];
+  }
+  return reg;
+}
+
+LinearFit SolveRegression(const Eigen::MatrixXd& X, const Eigen::VectorXd& b, const std::vector<Sign>& signs) {
+  const long p = X.cols(), n = X.rows();
+  std::vector<bool> free(p, true);
+  LinearFit out;
+  out.theta.assign(p, 0.0);
+  out.sigma.assign(p, NAN);
+  for (int pass = 0; pass <= p; ++pass) {
+    std::vector<long> cols;
+    for (long j = 0; j < p; ++j)
+      if (free[j]) cols.push_back(j);
+    Eigen::MatrixXd A(n, static_cast<long>(cols.size()));
+    Eigen::VectorXd scale(static_cast<long>(cols.size()));
+    for (size_t c = 0; c < cols.size(); ++c) {
+      const double s = X.col(cols[c]).norm();
+      scale[static_cast<long>(c)] = s > 0 ? s : 1.0;
+      A.col(static_cast<long>(c)) = X.col(cols[c]) / scale[static_cast<long>(c)];
+    }
+    const Eigen::VectorXd x = cols.empty() ? Eigen::VectorXd() : Eigen::VectorXd(A.colPivHouseholderQr().solve(b));
+    bool clipped = false;
+    std::fill(out.theta.begin(), out.theta.end(), 0.0);
+    for (size_t c = 0; c < cols.size(); ++c) {
+      const double v = x[static_cast<long>(c)] / scale[static_cast<long>(c)];
+      if (signs.size() == static_cast<size_t>(p) && signs[cols[c]] == Sign::kNonNegative && v < 0) {
+        free[cols[c]] = false;
+        clipped = true;
+      }
+      out.theta[cols[c]] = v;
+    }
+    if (clipped) continue;
+    const Eigen::VectorXd r = cols.empty() ? b : Eigen::VectorXd(b - A * x);
+    out.rss = r.squaredNorm();
+    if (!cols.empty() && n > static_cast<long>(cols.size())) {
+      const double s2 = out.rss / static_cast<double>(n - static_cast<long>(cols.size()));
+      const Eigen::MatrixXd cov = (A.transpose() * A).ldlt().solve(Eigen::MatrixXd::Identity(A.cols(), A.cols())) * s2;
+      for (size_t c = 0; c < cols.size(); ++c)
+        out.sigma[cols[c]] = std::sqrt(std::max(cov(static_cast<long>(c), static_cast<long>(c)), 0.0)) / scale[static_cast<long>(c)];
+    }
+    for (long j = 0; j < p; ++j)
+      if (!free[j]) out.theta[j] = 0.0, out.sigma[j] = 0.0;
+    break;
+  }
+  return out;
+}
+
+namespace {
+
+struct SimCost {
+  const IdentModel* m;
+  const std::vector<PreparedRecord>* recs;
+  const Setup* setup;
+  Objective obj;
+  std::vector<int> substeps;
+  std::vector<double> scale;
+  std::vector<std::vector<double>> meas_mag;
+  int threads;
+  double horizon_s = 0;  // > 0: short-horizon (multiple shooting) simulation error
+  mutable int calls = 0;
+  std::vector<double> Theta(const double* u) const {
+    std::vector<double> th(scale.size());
+    for (size_t i = 0; i < th.size(); ++i) th[i] = u[i] * scale[i];
+    return th;
+  }
+  bool operator()(double const* const* params, double* residuals) const {
+    ++calls;
+    return Residuals(*m, Theta(params[0]), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s);
+  }
+};
+
+}  // namespace
+
+FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const std::vector<PreparedRecord>& recs,
+              const Setup& setup, const FitOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const int p = m.NumParams();
+  const std::vector<Sign> signs = m.ParamSigns();
+  std::vector<double> scale(p);
+  for (int i = 0; i < p; ++i) {
+    scale[i] = std::max({std::abs(scale_in[i]), std::abs(m.theta[i]), 1e-12});
+  }
+  SimCost cost{&m, &recs, &setup, opt.objective, {}, scale, {}, opt.threads, 0.0};
+  if (opt.objective == Objective::kFft) cost.meas_mag = MeasuredMagnitudes(recs, setup);
+  const size_t nres = NumResiduals(recs, opt.objective);
+  std::vector<double> u(p);
+  for (int i = 0; i < p; ++i) u[i] = m.theta[i] / scale[i];
+  for (int i = 0; i < p; ++i)
+    if (signs[i] == Sign::kNonNegative && u[i] < 0) u[i] = 0;
+  FitResult result;
+  std::vector<double> buf(nres);
+  auto sumsq = [&](const std::vector<double>& uu, const std::vector<int>& sub) {
+    SimCost c = cost;
+    c.substeps = sub;
+    const double* pp = uu.data();
+    if (!c(&pp, buf.data())) return 1e30;
+    ++result.simulations;
+    double s = 0;
+    for (double v : buf) s += v * v;
+    return s;
+  };
+  // Global stage (automatic substeps: the box may reach much stiffer parameters than the start):
+  // CRS2 in a box around `centre`; returns its best point when better than the centre, else {}.
+  auto GlobalStage = [&](const std::vector<double>& centre) -> std::vector<double> {
+    std::vector<double> lo(p), hi(p);
+    for (int i = 0; i < p; ++i) {
+      const double half = opt.global_box * std::max(std::abs(centre[i]), 1.0);
+      lo[i] = centre[i] - half, hi[i] = centre[i] + half;
+      if (signs[i] == Sign::kNonNegative) lo[i] = std::max(lo[i], 0.0);
+      if (!(hi[i] > lo[i])) hi[i] = lo[i] + 1.0;
+    }
+    nlopt::srand(20261122);
+    nlopt::opt g(nlopt::GN_CRS2_LM, static_cast<unsigned>(p));
+    g.set_lower_bounds(lo);
+    g.set_upper_bounds(hi);
+    g.set_maxeval(opt.global_evals);
+    std::function<double(const std::vector<double>&)> f = [&](const std::vector<double>& x) { return sumsq(x, {}); };
+    g.set_min_objective(
+        [](const std::vector<double>& x, std::vector<double>&, void* data) {
+          return (*static_cast<std::function<double(const std::vector<double>&)>*>(data))(x);
+        },
+        &f);
+    const double start = sumsq(centre, {});
+    std::vector<double> x = centre;
+    for (int i = 0; i < p; ++i) x[i] = std::clamp(x[i], lo[i], hi[i]);
+    double best = 0;
+    try {
+      g.optimize(x, best);
+    } catch (const std::exception&) {
+      return {};  // NLopt gave up (roundoff, forced stop)
+    }
+    if (!(best < start)) return {};
+    return x;
+  };
+  // Local stage: Levenberg–Marquardt with substeps fixed at 1.25× what the start needs (re-run with
+  // more when the solution turns out stiffer).
+  auto local = [&](std::vector<double>& uu, Objective obj, double horizon_s = 0) {
+    SimCost lc = cost;
+    lc.obj = obj;
+    lc.horizon_s = horizon_s;
+    if (obj == Objective::kFft && lc.meas_mag.empty()) lc.meas_mag = MeasuredMagnitudes(recs, setup);
+    const size_t lres = NumResiduals(recs, obj);
+    double final_cost = 1e300;
+    for (int round = 0; round < 3; ++round) {
+      std::vector<double> th(p);
+      for (int i = 0; i < p; ++i) th[i] = uu[i] * scale[i];
+      const std::vector<int> sub = FixedSubsteps(m, th, recs);
+      lc.substeps = sub;
+      auto* fn = new ceres::DynamicNumericDiffCostFunction<SimCost, ceres::FORWARD>(new SimCost(lc), ceres::TAKE_OWNERSHIP);
+      fn->AddParameterBlock(p);
+      fn->SetNumResiduals(static_cast<int>(lres));
+      ceres::Problem problem;
+      problem.AddResidualBlock(fn, nullptr, uu.data());
+      for (int i = 0; i < p; ++i)
+        if (signs[i] == Sign::kNonNegative) problem.SetParameterLowerBound(uu.data(), i, 0.0);
+      ceres::Solver::Options so;
+      so.linear_solver_type = ceres::DENSE_QR;
+      so.max_num_iterations = opt.lm_iterations;
+      so.function_tolerance = 1e-10;
+      so.parameter_tolerance = 1e-10;
+      so.logging_type = ceres::SILENT;
+      ceres::Solver::Summary summary;
+      ceres::Solve(so, &problem, &summary);
+      result.simulations += summary.num_residual_evaluations + summary.num_jacobian_evaluations * p;
+      result.message = summary.BriefReport();
+      final_cost = summary.final_cost;
+      for (int i = 0; i < p; ++i) th[i] = uu[i] * scale[i];
+      bool enough = true;
+      for (size_t k = 0; k < recs.size(); ++k) enough = enough && SubstepsFor(m, th, recs[k]) <= sub[k];
+      if (enough) break;
+    }
+    return final_cost;
+  };
+  // LM from the start; then the global stage around that result, and LM again from the global
+  // stage's best when it found a lower cost; the better of the two wins.
+  std::vector<double> start_u = u;
+  double best_cost = local(u, opt.objective);
+  if (opt.objective == Objective::kTime && opt.shooting_horizon_s > 0) {
+    // Short-horizon simulation error first (its basin is wide; stick-slip friction makes the long
+    // simulation error a narrow valley in a plateau), then the full simulation error from there.
+    std::vector<double> f = start_u;
+    local(f, Objective::kTime, opt.shooting_horizon_s);
+    const double fc = local(f, Objective::kTime);
+    if (fc < best_cost) u = f, best_cost = fc;
+  }
+  if (opt.global_evals > 0) {
+    std::vector<double> g = GlobalStage(u);
+    if (!g.empty()) {
+      const double gc = local(g, opt.objective);
+      if (gc < best_cost) u = g, best_cost = gc;
+    }
+  }
+  // Uncertainty: Gauss–Newton covariance at the solution, central differences.
+  std::vector<double> th(p);
+  for (int i = 0; i < p; ++i) th[i] = u[i] * scale[i];
+  result.theta = th;
+  result.sigma.assign(p, NAN);
+  {
+    std::vector<int> sub;
+    for (const PreparedRecord& r : recs) sub.push_back(static_cast<int>(std::ceil(1.5 * SubstepsFor(m, th, r))));
+    SimCost c = cost;
+    c.substeps = sub;
+    std::vector<double> r0(nres), rp(nres), rm(nres);
+    const double* pp = u.data();
+    if (c(&pp, r0.data())) {
+      Eigen::MatrixXd J(static_cast<long>(nres), p);
+      bool ok = true;
+      for (int i = 0; i < p && ok; ++i) {
+        std::vector<double> up = u, um = u;
+        const double h = 1e-5 * std::max(std::abs(u[i]), 1e-3);
+        up[i] += h, um[i] -= h;
+        const double* a = up.data();
+        const double* b = um.data();
+        ok = c(&a, rp.data()) && c(&b, rm.data());
+        for (size_t k = 0; k < nres && ok; ++k) J(static_cast<long>(k), i) = (rp[k] - rm[k]) / (2 * h);
+      }
+      result.simulations += 2 * p + 1;
+      if (ok) {
+        double rss = 0;
+        for (double v : r0) rss += v * v;
+        const double dof = std::max(1.0, static_cast<double>(nres) - p);
+        const double tau = opt.objective == Objective::kTime ? CorrelationTime(r0) : 1.0;
+        const Eigen::MatrixXd JtJ = J.transpose() * J;
+        const Eigen::MatrixXd cov = JtJ.completeOrthogonalDecomposition().pseudoInverse() * (rss / dof * tau);
+        for (int i = 0; i < p; ++i) result.sigma[i] = std::sqrt(std::max(cov(i, i), 0.0)) * scale[i];
+      }
+    }
+  }
+  result.errors = Evaluate(m, result.theta, recs, setup);
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return result;
+}
+
+}  // namespace bistable

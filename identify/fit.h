@@ -1,0 +1,91 @@
+// Fitting an IdentModel to prepared records.
+//   1. Equation error (restoring-force regression): along the measured, smoothed trajectory the
+//      equations of motion are linear in the parameters; least squares gives a start and the
+//      residual force used to trace missing effects (loop.h).
+//   2. Global stage: NLopt CRS2 (controlled random search with local mutation) in a box around the
+//      start, on the simulation error; sign constraints are bounds.
+//   3. Local stage: Ceres Levenberg–Marquardt on the simulation error (scaled parameters, central
+//      differences, RK4 substeps held fixed so the objective is smooth).
+//   Uncertainty: σ_θ from the Gauss–Newton covariance s²(JᵀJ)⁻¹ at the solution, inflated by the
+//   residuals' correlation time (samples of a simulation error are far from independent).
+// Objectives: "time" — Σ_records NRMSE² of the output (each record weighs the same); "fft" — the
+// paper's Eq. 20 on velocity spectra magnitudes (for chaotic records, where a time-domain match is
+// not expected), normalised per record by the measured spectrum's norm.
+#ifndef BISTABLE_IDENTIFY_FIT_H_
+#define BISTABLE_IDENTIFY_FIT_H_
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "identify/model.h"
+
+namespace bistable {
+
+enum class Objective { kTime, kFft };
+
+struct Errors {
+  double nrmse = NAN;                 // % over all records: 100 sqrt(Σ e² / Σ (meas − mean)²)
+  double fft = NAN;                   // % mean over records of 100 ‖|V_sim| − |V_meas|‖ / ‖V_meas‖
+  double eq20 = NAN;                  // the paper's Eq. 20 value, in the output's velocity unit (m/s)
+  std::vector<double> record_nrmse;   // % per record
+  std::vector<double> record_fft;     // % per record
+  std::vector<double> record_rms;     // RMS of sim − meas per record, output unit
+  bool diverged = false;
+};
+
+Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                const Setup& setup);
+
+// Rows of the equation-error regression X θ = b over a subsample of every record (edges dropped).
+struct Regression {
+  Eigen::MatrixXd X;   // one column per parameter of the model it was built for
+  Eigen::VectorXd b;
+  std::vector<int> record_of_row;
+  std::vector<double> q, v;  // main-body y, y' of each row (for residual plots)
+};
+// `extra` terms get columns after the model's own parameters (in the order given).
+Regression BuildRegression(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                           const std::vector<const TermDef*>& extra = {}, size_t max_rows = 40000);
+
+struct LinearFit {
+  std::vector<double> theta, sigma;
+  double rss = 0;
+};
+// Least squares on a regression's columns; sign constraints by clipping to 0 and refitting the rest.
+LinearFit SolveRegression(const Eigen::MatrixXd& X, const Eigen::VectorXd& b, const std::vector<Sign>& signs);
+
+// The objective's residual vector (weighted: Σ squares = Σ_records NRMSE², or the normalised Eq. 20
+// differences); substeps per record as Simulate (empty: automatic). False on divergence.
+bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                        const Setup& setup, Objective obj, const std::vector<int>& substeps, std::vector<double>* out);
+// Substeps per record for parameters th, times a safety factor.
+std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                               double safety = 1.5);
+
+struct FitOptions {
+  Objective objective = Objective::kTime;
+  int global_evals = 150;     // CRS2 evaluations (0: local stage only)
+  double global_box = 1.0;    // the box: θ0 ± global_box · max(|θ0|, σ0)
+  int lm_iterations = 60;
+  double shooting_horizon_s = 0.5;  // time objective: also start from a short-horizon fit (0: off)
+  int threads = 0;            // records simulated in parallel (0: all cores)
+};
+
+struct FitResult {
+  std::vector<double> theta, sigma;
+  Errors errors;
+  int simulations = 0;
+  double seconds = 0;
+  std::string message;        // Ceres' summary line
+};
+
+// Fits m.theta (the start) and returns the fitted parameters. `scale`: typical magnitude of each
+// parameter (for scaling and the global box).
+FitResult Fit(const IdentModel& m, const std::vector<double>& scale, const std::vector<PreparedRecord>& recs,
+              const Setup& setup, const FitOptions& opt);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_IDENTIFY_FIT_H_

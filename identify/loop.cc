@@ -1,0 +1,303 @@
+#include "identify/loop.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+namespace bistable {
+namespace {
+
+double CorrTime(const Eigen::VectorXd& e, const std::vector<int>& record_of_row) {
+  // Mean over records of 1 + 2 Σ ρ_k (up to the first ρ_k < 0.05).
+  double total = 0;
+  int count = 0;
+  size_t i = 0;
+  const size_t n = static_cast<size_t>(e.size());
+  while (i < n) {
+    size_t j = i;
+    while (j < n && record_of_row[j] == record_of_row[i]) ++j;
+    const size_t len = j - i;
+    if (len >= 16) {
+      double mean = 0;
+      for (size_t k = i; k < j; ++k) mean += e[static_cast<long>(k)];
+      mean /= static_cast<double>(len);
+      double c0 = 0;
+      for (size_t k = i; k < j; ++k) c0 += (e[static_cast<long>(k)] - mean) * (e[static_cast<long>(k)] - mean);
+      double tau = 1;
+      for (size_t lag = 1; lag < std::min<size_t>(len / 4, 500) && c0 > 0; ++lag) {
+        double c = 0;
+        for (size_t k = i + lag; k < j; ++k) c += (e[static_cast<long>(k)] - mean) * (e[static_cast<long>(k - lag)] - mean);
+        if (c / c0 < 0.05) break;
+        tau += 2 * c / c0;
+      }
+      total += tau;
+      ++count;
+    }
+    i = j;
+  }
+  return count ? std::max(1.0, total / count) : 1.0;
+}
+
+std::vector<double> StartFromRegression(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                                        std::vector<double>* sigma) {
+  const Regression reg = BuildRegression(m, recs, setup);
+  const LinearFit lf = SolveRegression(reg.X, reg.b, m.ParamSigns());
+  *sigma = lf.sigma;
+  return lf.theta;
+}
+
+std::vector<double> ScaleOf(const std::vector<double>& th, const std::vector<double>& sigma) {
+  std::vector<double> s(th.size());
+  for (size_t i = 0; i < th.size(); ++i) s[i] = std::max(std::abs(th[i]), std::isfinite(sigma[i]) ? 3.0 * sigma[i] : 0.0);
+  return s;
+}
+
+double CorrelationTimeOf(const std::vector<double>& e) { return CorrTime(Eigen::Map<const Eigen::VectorXd>(e.data(), static_cast<long>(e.size())), std::vector<int>(e.size(), 0)); }
+
+double ErrorOf(const FitResult& f, Objective obj) { return obj == Objective::kFft ? f.errors.fft : f.errors.nrmse; }
+
+}  // namespace
+
+ResidualCloud ResidualForce(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                            const Setup& setup) {
+  const Regression reg = BuildRegression(m, recs, setup, {}, 20000);
+  ResidualCloud c;
+  Eigen::VectorXd t(static_cast<long>(th.size()));
+  for (size_t i = 0; i < th.size(); ++i) t[static_cast<long>(i)] = th[i];
+  const Eigen::VectorXd r = reg.b - reg.X * t;
+  for (long i = 0; i < r.size(); ++i) {
+    if (!std::isfinite(reg.q[static_cast<size_t>(i)])) continue;  // resonator rows
+    c.q.push_back(reg.q[static_cast<size_t>(i)]);
+    c.v.push_back(reg.v[static_cast<size_t>(i)]);
+    c.r.push_back(-r[i]);  // force the model lacks, in the sense of F (opposing motion when positive)
+  }
+  return c;
+}
+
+namespace {
+
+// ΔBIC, explained fraction and the candidate's coefficients for target ≈ [A, C] x against target ≈ A x.
+CandidateScore ScoreColumns(const Eigen::MatrixXd& A, const Eigen::MatrixXd& C, const Eigen::VectorXd& target,
+                            double rss0, double n_eff) {
+  const long p = A.cols(), k = C.cols();
+  Eigen::MatrixXd X(A.rows(), p + k);
+  X << A, C;
+  const LinearFit f = SolveRegression(X, target, std::vector<Sign>(p + k, Sign::kEither));
+  CandidateScore s;
+  s.explained = rss0 > 0 ? (rss0 - f.rss) / rss0 : 0.0;
+  s.delta_bic = n_eff * std::log(std::max(f.rss, 1e-300) / std::max(rss0, 1e-300)) + static_cast<double>(k) * std::log(n_eff);
+  for (long j = 0; j < k; ++j) s.estimate.push_back(f.theta[p + j]), s.sigma.push_back(f.sigma[p + j]);
+  return s;
+}
+
+}  // namespace
+
+LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                       const Setup& setup, const IdentifyOptions& opt) {
+  LoopStep step;
+  std::vector<const TermDef*> cands = opt.candidates;
+  bool res_data = true;
+  for (const PreparedRecord& r : recs) res_data = res_data && !r.z.empty();
+  if (cands.empty())
+    for (const TermDef& t : EffectLibrary())
+      if (t.body == Body::kMain || (res_data && m.HasResonator())) cands.push_back(&t);
+  std::vector<const TermDef*> fresh;
+  for (const TermDef* c : cands)
+    if (std::find(m.terms.begin(), m.terms.end(), c) == m.terms.end()) fresh.push_back(c);
+  const int p = m.NumParams();
+
+  // Supporting evidence: the restoring-force residual regressed on declared + candidate columns.
+  const Regression reg = BuildRegression(m, recs, setup, fresh, 30000);
+  Eigen::VectorXd t(p);
+  for (int i = 0; i < p; ++i) t[i] = th[i];
+  const Eigen::VectorXd r0 = reg.b - reg.X.leftCols(p) * t;
+  const LinearFit fbase = SolveRegression(reg.X.leftCols(p), r0, std::vector<Sign>(p, Sign::kEither));
+  Eigen::VectorXd d(p);
+  for (int i = 0; i < p; ++i) d[i] = fbase.theta[i];
+  const double n_force = static_cast<double>(reg.X.rows()) / CorrTime(r0 - reg.X.leftCols(p) * d, reg.record_of_row);
+  step.residual_rms = std::sqrt(r0.squaredNorm() / static_cast<double>(reg.X.rows()));
+  // Typical parameter steps: a change worth 2 % of the RMS inertial force along the trajectory.
+  const double f_typ = std::sqrt(reg.b.squaredNorm() / std::max<double>(1.0, static_cast<double>(reg.b.size()))) + 1e-300;
+  std::vector<double> step_of_col(reg.X.cols());
+  for (long j = 0; j < reg.X.cols(); ++j) {
+    const double rms = reg.X.col(j).norm() / std::sqrt(static_cast<double>(std::max<long>(1, reg.X.rows())));
+    step_of_col[j] = rms > 0 ? 0.02 * f_typ / rms : 1e-6;
+  }
+
+  // Deciding evidence: the simulation residual and the output sensitivities.
+  const std::vector<int> sub = FixedSubsteps(m, th, recs);
+  std::vector<double> e0v;
+  if (!ObjectiveResiduals(m, th, recs, setup, opt.fit.objective, sub, &e0v)) {
+    step.verdict = "the fitted model diverges on a record; nothing traced";
+    return step;
+  }
+  const long N = static_cast<long>(e0v.size());
+  const Eigen::VectorXd target = -Eigen::Map<const Eigen::VectorXd>(e0v.data(), N);
+  Eigen::MatrixXd J(N, p);
+  std::vector<double> ep, em;
+  for (int i = 0; i < p; ++i) {
+    const double h = 1e-4 * (std::abs(th[i]) > 0 ? std::abs(th[i]) : step_of_col[i]);
+    std::vector<double> a = th, b = th;
+    a[i] += h, b[i] -= h;
+    if (!ObjectiveResiduals(m, a, recs, setup, opt.fit.objective, sub, &ep) ||
+        !ObjectiveResiduals(m, b, recs, setup, opt.fit.objective, sub, &em)) {
+      J.col(i).setZero();
+      continue;
+    }
+    for (long k = 0; k < N; ++k) J(k, i) = (ep[k] - em[k]) / (2 * h);
+  }
+  const LinearFit base = SolveRegression(J, target, std::vector<Sign>(p, Sign::kEither));
+  Eigen::VectorXd db(p);
+  for (int i = 0; i < p; ++i) db[i] = std::isfinite(base.theta[i]) ? base.theta[i] : 0.0;
+  const Eigen::VectorXd e_base = target - J * db;
+  step.n_eff = static_cast<double>(N) / CorrelationTimeOf(std::vector<double>(e_base.data(), e_base.data() + N));
+
+  int col = p;
+  for (const TermDef* c : fresh) {
+    const int k = static_cast<int>(c->params.size());
+    Eigen::MatrixXd Jc(N, k);
+    bool ok = true;
+    for (int j = 0; j < k && ok; ++j) {
+      std::vector<double> init(k, 0.0);
+      init[j] = step_of_col[col + j];
+      const IdentModel mc = m.With(c, init);
+      std::vector<int> subc = FixedSubsteps(mc, mc.theta, recs);
+      for (size_t r = 0; r < subc.size(); ++r) subc[r] = std::max(subc[r], sub[r]);
+      std::vector<double> ec, e0c = e0v;
+      ok = ObjectiveResiduals(mc, mc.theta, recs, setup, opt.fit.objective, subc, &ec) &&
+           (subc == sub || ObjectiveResiduals(m, th, recs, setup, opt.fit.objective, subc, &e0c));
+      for (long i = 0; ok && i < N; ++i) Jc(i, j) = (ec[i] - e0c[i]) / init[j];
+    }
+    CandidateScore s;
+    if (ok) {
+      s = ScoreColumns(J, Jc, target, base.rss, step.n_eff);
+    } else {
+      s.explained = 0;
+      s.delta_bic = INFINITY;
+      s.estimate.assign(k, 0.0);
+      s.sigma.assign(k, NAN);
+    }
+    s.term = c->id;
+    // Physically signed: a dissipative term (damping, drag, friction) must take energy out at every
+    // velocity of the records, F(q, v)·v ≥ 0 — for one-coefficient terms, the coefficient ≥ 0; for
+    // friction, the Coulomb level and the Stribeck peak together.
+    if (c->params[0].sign == Sign::kNonNegative) {
+      double vmax = 0, qmax = 0;
+      for (const PreparedRecord& r : recs) vmax = std::max(vmax, r.v_range), qmax = std::max(qmax, r.p_range);
+      double phi[2];
+      bool any = false;
+      for (int iv = 1; iv <= 200 && s.sign_ok; ++iv) {
+        const double v = vmax * 1.5 * iv / 200.0;
+        for (double q : {0.0, 0.5 * qmax, qmax}) {
+          TermBasis(*c, q, v, m.fc, phi);
+          double f = 0;
+          for (int j = 0; j < k; ++j) f += s.estimate[j] * phi[j];
+          if (f * v < -1e-12 * std::max(1.0, std::abs(f))) s.sign_ok = false;
+          any = any || f * v > 0;
+        }
+      }
+      s.sign_ok = s.sign_ok && any;
+    }
+    const CandidateScore fs = ScoreColumns(reg.X.leftCols(p), reg.X.middleCols(col, k), r0, fbase.rss, n_force);
+    s.force_delta_bic = fs.delta_bic;
+    s.force_explained = fs.explained;
+    step.scores.push_back(s);
+    col += k;
+  }
+  std::sort(step.scores.begin(), step.scores.end(),
+            [](const CandidateScore& a, const CandidateScore& b) { return a.delta_bic < b.delta_bic; });
+  for (const CandidateScore& s : step.scores) {
+    if (!s.sign_ok || !(s.delta_bic < -opt.bic_threshold) || !(s.explained >= opt.min_explained)) continue;
+    step.chosen = s.term;
+    break;
+  }
+  return step;
+}
+
+IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                        const IdentifyOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  IdentifyResult out;
+  IdentModel m = declared;
+  m.fc = setup.fc;
+  std::vector<double> sigma0;
+  const std::vector<double> start = StartFromRegression(m, recs, setup, &sigma0);
+  if (static_cast<int>(m.theta.size()) != m.NumParams()) m.theta = start;
+  else  // given guesses win; missing ones (NaN) come from the regression
+    for (int i = 0; i < m.NumParams(); ++i)
+      if (!std::isfinite(m.theta[i])) m.theta[i] = start[i];
+  out.declared = m;
+  FitResult fit = Fit(m, ScaleOf(m.theta, sigma0), recs, setup, opt.fit);
+  m.theta = fit.theta;
+  out.before = fit;
+  out.residual_before = ResidualForce(m, m.theta, recs, setup);
+  for (int round = 0; round < opt.max_added; ++round) {
+    LoopStep step = TraceResidual(m, m.theta, recs, setup, opt);
+    if (step.chosen.empty()) {
+      step.verdict = "no candidate beats the noise (ΔBIC < −" + std::to_string(static_cast<int>(opt.bic_threshold)) +
+                     ", ≥ " + std::to_string(static_cast<int>(100 * opt.min_explained)) + " % of the residual, signed)";
+      out.steps.push_back(step);
+      break;
+    }
+    const TermDef* t = *FindTerm(step.chosen);
+    const CandidateScore& s = *std::find_if(step.scores.begin(), step.scores.end(),
+                                             [&](const CandidateScore& c) { return c.term == step.chosen; });
+    std::vector<double> init = s.estimate;
+    for (size_t j = 0; j < init.size(); ++j)
+      if (t->params[j].sign == Sign::kNonNegative) init[j] = std::max(init[j], 0.0);
+    IdentModel next = m.With(t, init);
+    std::vector<double> sig = fit.sigma;
+    sig.insert(sig.end() - (m.FitsMass() ? 1 : 0), s.sigma.begin(), s.sigma.end());
+    FitResult refit = Fit(next, ScaleOf(next.theta, sig), recs, setup, opt.fit);
+    {  // a second start: the equation-error regression of the extended model (another basin)
+      IdentModel alt = next;
+      std::vector<double> sig_alt;
+      alt.theta = StartFromRegression(alt, recs, setup, &sig_alt);
+      FitResult refit2 = Fit(alt, ScaleOf(alt.theta, sig_alt), recs, setup, opt.fit);
+      if (ErrorOf(refit2, opt.fit.objective) < ErrorOf(refit, opt.fit.objective)) refit = refit2;
+    }
+    const double before = ErrorOf(fit, opt.fit.objective), after = ErrorOf(refit, opt.fit.objective);
+    char buf[256];
+    if (!(after < before * (1.0 - opt.min_improvement))) {
+      std::snprintf(buf, sizeof buf, "%s scored best but the refit by simulation did not confirm it (error %.3g %% -> %.3g %%); not added",
+                    t->id.c_str(), before, after);
+      step.verdict = buf;
+      step.chosen.clear();
+      out.steps.push_back(step);
+      break;
+    }
+    std::snprintf(buf, sizeof buf, "added %s: error %.3g %% -> %.3g %%", t->id.c_str(), before, after);
+    if (std::getenv("BISTABLE_IDENTIFY_DEBUG")) std::fprintf(stderr, "refit: %s (%d simulations, %.1f s)\n", refit.message.c_str(), refit.simulations, refit.seconds);
+    step.verdict = buf;
+    out.steps.push_back(step);
+    AddedEffect a;
+    a.term = t->id;
+    const int off = next.Offset(t);
+    for (size_t j = 0; j < t->params.size(); ++j) {
+      a.names.push_back(t->params[j].name);
+      a.units.push_back(t->params[j].unit);
+      a.params.push_back(refit.theta[off + j]);
+      a.sigma.push_back(refit.sigma[off + j]);
+    }
+    a.error_before = before;
+    a.error_after = after;
+    out.added.push_back(a);
+    m = next;
+    m.theta = refit.theta;
+    fit = refit;
+  }
+  out.final_model = m;
+  out.after = fit;
+  for (AddedEffect& a : out.added) {  // report the final values (later additions refit everything)
+    const TermDef* t = *FindTerm(a.term);
+    const int off = m.Offset(t);
+    for (size_t j = 0; j < a.params.size(); ++j) a.params[j] = fit.theta[off + j], a.sigma[j] = fit.sigma[off + j];
+  }
+  out.residual_after = ResidualForce(m, m.theta, recs, setup);
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+}  // namespace bistable

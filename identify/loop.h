@@ -1,0 +1,89 @@
+// The measured-data loop (issue 5): fit the declared model, compute the force it fails to explain
+// along the measured trajectory, score every library term not yet in the model against that
+// residual, add the one the evidence supports (or none), refit by simulation, repeat (bounded).
+//
+// Tracing. Two residuals are scored against every candidate term c (k_c parameters β):
+//  * the simulation-error residual e (the objective's residual vector, fit.h) — the deciding one, a
+//    score test: −e ≈ J_θ δ + J_c β by least squares, with J the output sensitivities (finite
+//    differences of simulations; J_c at β = 0), so the declared values may shift while c enters;
+//  * the restoring force the model lacks along the measured trajectory, r = b − X θ of the
+//    equation-error rows (smoothed second derivatives: noisy, reported as supporting evidence and
+//    drawn against displacement and velocity).
+// A candidate is taken when, on the simulation residual,
+//   ΔBIC = n_eff ln(RSS_c / RSS_0) + k_c ln(n_eff) < −bic_threshold   (n_eff: samples / correlation time)
+//   it explains at least `min_explained` of the residual's sum of squares,
+//   its physically signed parameters come out with their sign (damping, drag, friction ≥ 0),
+// and the best such candidate is kept only if the refit by simulation lowers the error by at least
+// `min_improvement` (relative): evidence in the residual that the simulation does not confirm is
+// reported and not added.
+#ifndef BISTABLE_IDENTIFY_LOOP_H_
+#define BISTABLE_IDENTIFY_LOOP_H_
+
+#include <string>
+#include <vector>
+
+#include "identify/fit.h"
+
+namespace bistable {
+
+struct CandidateScore {
+  std::string term;
+  double delta_bic = NAN;            // simulation residual (deciding)
+  double explained = NAN;            // fraction of its sum of squares
+  bool sign_ok = true;
+  std::vector<double> estimate, sigma;  // the candidate's parameters from the linearised fit
+  double force_delta_bic = NAN;      // restoring-force residual (supporting)
+  double force_explained = NAN;
+};
+
+struct LoopStep {
+  std::vector<CandidateScore> scores;  // sorted, best first
+  std::string chosen;                  // "" when nothing qualified
+  std::string verdict;                 // why it stopped or what was added
+  double n_eff = 0, residual_rms = 0;  // rows / correlation time; RMS residual force [N]
+};
+
+struct AddedEffect {
+  std::string term;
+  std::vector<std::string> names, units;
+  std::vector<double> params, sigma;
+  double error_before = NAN, error_after = NAN;  // NRMSE % (or FFT %) around this addition
+};
+
+// Residual force along the trajectory (main body rows), for the restoring-force plots.
+struct ResidualCloud {
+  std::vector<double> q, v, r;
+};
+
+struct IdentifyOptions {
+  FitOptions fit;
+  int max_added = 3;
+  double bic_threshold = 10;
+  double min_explained = 0.05;
+  double min_improvement = 0.02;
+  std::vector<const TermDef*> candidates;  // empty: every library term of a body the data constrain
+};
+
+struct IdentifyResult {
+  IdentModel declared, final_model;
+  FitResult before, after;
+  std::vector<LoopStep> steps;
+  std::vector<AddedEffect> added;
+  ResidualCloud residual_before, residual_after;
+  double seconds = 0;
+};
+
+IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                        const IdentifyOptions& opt);
+
+// The residual force of a model with parameters `th` along the records (main-body rows).
+ResidualCloud ResidualForce(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                            const Setup& setup);
+
+// Scores every candidate against the residual of `m` (fitted `th`); exposed for tests and reports.
+LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                       const Setup& setup, const IdentifyOptions& opt);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_IDENTIFY_LOOP_H_

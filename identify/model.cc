@@ -1,0 +1,423 @@
+#include "identify/model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+
+#include <Eigen/Dense>
+#include <unsupported/Eigen/FFT>
+
+#include "dynamics/spectrum.h"
+
+namespace bistable {
+
+UniformSpline::UniformSpline(double t0, double dt, std::vector<double> y) : t0_(t0), dt_(dt), y_(std::move(y)) {
+  const size_t n = y_.size();
+  m_.assign(n, 0.0);
+  if (n < 3) return;
+  // Natural spline: M_0 = M_{n-1} = 0; M_{i-1} + 4 M_i + M_{i+1} = 6 (y_{i+1} − 2 y_i + y_{i-1}) / dt².
+  std::vector<double> c(n, 0.0), d(n, 0.0);
+  for (size_t i = 1; i + 1 < n; ++i) {
+    const double rhs = 6.0 * (y_[i + 1] - 2.0 * y_[i] + y_[i - 1]) / (dt * dt);
+    const double denom = 4.0 - (i > 1 ? c[i - 1] : 0.0);
+    c[i] = 1.0 / denom;
+    d[i] = (rhs - (i > 1 ? d[i - 1] : 0.0)) / denom;
+  }
+  for (size_t i = n - 2; i >= 1; --i) {
+    m_[i] = d[i] - c[i] * m_[i + 1];
+    if (i == 1) break;
+  }
+}
+
+void UniformSpline::Eval(double t, double* value, double* slope) const {
+  const size_t n = y_.size();
+  if (n == 0) {
+    *value = *slope = 0;
+    return;
+  }
+  if (n == 1) {
+    *value = y_[0], *slope = 0;
+    return;
+  }
+  double s = (t - t0_) / dt_;
+  long i = static_cast<long>(std::floor(s));
+  i = std::clamp<long>(i, 0, static_cast<long>(n) - 2);
+  const double a = s - static_cast<double>(i);  // in [0, 1] inside the range
+  const double b = 1.0 - a;
+  const double h = dt_;
+  const double y0 = y_[i], y1 = y_[i + 1], m0 = m_[i], m1 = m_[i + 1];
+  *value = b * y0 + a * y1 + ((b * b * b - b) * m0 + (a * a * a - a) * m1) * h * h / 6.0;
+  *slope = (y1 - y0) / h + ((-3.0 * b * b + 1.0) * m0 + (3.0 * a * a - 1.0) * m1) * h / 6.0;
+}
+
+std::vector<double> SavitzkyGolay(const std::vector<double>& y, double dt, int half, int deriv) {
+  const long n = static_cast<long>(y.size());
+  std::vector<double> out(n, 0.0);
+  if (n == 0) return out;
+  const int order = 3;
+  half = std::max(half, 2);
+  const long w = std::min<long>(2 * half + 1, n);
+  // For each window position (offset of the evaluation point within the window), the row of
+  // (AᵀA)⁻¹Aᵀ giving the derivative of the local polynomial at that point.
+  auto weights = [&](long offset) {
+    const int p = static_cast<int>(std::min<long>(order, w - 1));
+    Eigen::MatrixXd A(w, p + 1);
+    for (long i = 0; i < w; ++i)
+      for (int k = 0; k <= p; ++k) A(i, k) = std::pow(static_cast<double>(i - offset), k);
+    const Eigen::MatrixXd pinv = (A.transpose() * A).ldlt().solve(A.transpose());
+    Eigen::VectorXd row = Eigen::VectorXd::Zero(w);
+    if (deriv <= p) row = pinv.row(deriv).transpose() * (deriv == 2 ? 2.0 : 1.0);
+    return row;
+  };
+  const long hw = w / 2;
+  const Eigen::VectorXd centre = weights(hw);
+  const double scale = std::pow(dt, -deriv);
+  for (long i = 0; i < n; ++i) {
+    long start = i - hw;
+    Eigen::VectorXd wts;
+    if (start < 0) start = 0, wts = weights(i);
+    else if (start + w > n) start = n - w, wts = weights(i - start);
+    else wts = centre;
+    double acc = 0;
+    for (long k = 0; k < w; ++k) acc += wts[k] * y[start + k];
+    out[i] = acc * scale;
+  }
+  return out;
+}
+
+std::vector<double> IntegrateFft(const std::vector<double>& y, double dt, double f_min_hz) {
+  const size_t n = y.size();
+  if (n < 4) return std::vector<double>(n, 0.0);
+  const size_t len = NextFastFftLength(n);
+  double mean = 0;
+  for (double v : y) mean += v;
+  mean /= static_cast<double>(n);
+  std::vector<double> x(len, 0.0);
+  for (size_t i = 0; i < n; ++i) x[i] = y[i] - mean;
+  // Pad with a mirrored tail tapering to zero so the periodic extension has no jump.
+  for (size_t i = n; i < len; ++i) {
+    const double frac = static_cast<double>(i - n + 1) / static_cast<double>(len - n + 1);
+    x[i] = (1.0 - frac) * x[n - 1] + frac * x[0];
+  }
+  Eigen::FFT<double> fft;
+  std::vector<std::complex<double>> X;
+  fft.fwd(X, x);
+  const double df = 1.0 / (static_cast<double>(len) * dt);
+  for (size_t k = 0; k < X.size(); ++k) {
+    const size_t kk = k <= len / 2 ? k : len - k;
+    const double f = static_cast<double>(kk) * df;
+    if (kk == 0 || f < f_min_hz) {
+      X[k] = 0;
+      continue;
+    }
+    const double w = 2.0 * M_PI * f * (k <= len / 2 ? 1.0 : -1.0);
+    X[k] /= std::complex<double>(0.0, w);
+  }
+  std::vector<double> out;
+  fft.inv(out, X);
+  out.resize(n);
+  double m2 = 0;
+  for (double v : out) m2 += v;
+  m2 /= static_cast<double>(n);
+  for (double& v : out) v -= m2;
+  return out;
+}
+
+Status ValidateSetup(const Setup& s) {
+  if (!(s.fc.v_sp > 0) || !std::isfinite(s.fc.v_sp)) return Status::InvalidArgument("v_sp", "v_sp must be > 0 m/s");
+  if (!(s.fc.v_t > 0) || !std::isfinite(s.fc.v_t)) return Status::InvalidArgument("v_t", "v_t must be > 0 m/s");
+  const bool disp = s.output != OutputKind::kVelocity;
+  if (s.input == InputKind::kBaseAcceleration && disp && s.frame == OutputFrame::kAbsolute)
+    return Status::InvalidArgument("output", "an absolute displacement output needs the base displacement as input; with a "
+                                             "base acceleration input use a velocity output or --output-frame relative");
+  if (s.input == InputKind::kBaseDisplacement && !disp)
+    return Status::InvalidArgument("output", "with a base displacement input the output must be a displacement "
+                                             "(camera/laser position); velocity outputs go with a base acceleration input");
+  return Status::Ok();
+}
+
+bool IdentModel::HasResonator() const {
+  for (const TermDef* t : terms)
+    if (t->body == Body::kResonator) return true;
+  return false;
+}
+
+int IdentModel::NumParams() const {
+  int n = 0;
+  for (const TermDef* t : terms) n += static_cast<int>(t->params.size());
+  return n + (FitsMass() ? 1 : 0);
+}
+
+std::vector<std::string> IdentModel::ParamNames() const {
+  std::vector<std::string> out;
+  for (const TermDef* t : terms)
+    for (const TermParam& p : t->params) out.push_back(t->id + "." + p.name);
+  if (FitsMass()) out.push_back("m_main");
+  return out;
+}
+
+std::vector<std::string> IdentModel::ParamUnits() const {
+  std::vector<std::string> out;
+  for (const TermDef* t : terms)
+    for (const TermParam& p : t->params) out.push_back(p.unit);
+  if (FitsMass()) out.push_back("kg");
+  return out;
+}
+
+std::vector<Sign> IdentModel::ParamSigns() const {
+  std::vector<Sign> out;
+  for (const TermDef* t : terms)
+    for (const TermParam& p : t->params) out.push_back(p.sign);
+  if (FitsMass()) out.push_back(Sign::kNonNegative);
+  return out;
+}
+
+int IdentModel::Offset(const TermDef* t) const {
+  int k = 0;
+  for (const TermDef* u : terms) {
+    if (u == t) return k;
+    k += static_cast<int>(u->params.size());
+  }
+  return -1;
+}
+
+double IdentModel::Force(Body body, const std::vector<double>& th, double q, double v) const {
+  double f = 0, phi[2];
+  int k = 0;
+  for (const TermDef* t : terms) {
+    const int np = static_cast<int>(t->params.size());
+    if (t->body == body) {
+      TermBasis(*t, q, v, fc, phi);
+      for (int j = 0; j < np; ++j) f += th[k + j] * phi[j];
+    }
+    k += np;
+  }
+  return f;
+}
+
+IdentModel IdentModel::With(const TermDef* t, const std::vector<double>& initial) const {
+  IdentModel m = *this;
+  std::vector<double> th(theta.begin(), theta.begin() + (NumParams() - (FitsMass() ? 1 : 0)));
+  th.insert(th.end(), initial.begin(), initial.end());
+  if (FitsMass()) th.push_back(theta.back());
+  m.terms.push_back(t);
+  m.theta = th;
+  return m;
+}
+
+StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, size_t begin, size_t end, int smooth_half,
+                                       const std::string& name) {
+  BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));
+  end = std::min(end, rec.t.size());
+  constexpr size_t kMinSamples = 64;
+  if (end <= begin || end - begin < kMinSamples)
+    return Status::InvalidArgument("data", "record '" + name + "' has " + std::to_string(end > begin ? end - begin : 0) +
+                                               " samples in the range used; at least " + std::to_string(kMinSamples) + " are needed");
+  PreparedRecord r;
+  r.name = name;
+  r.dt = rec.dt;
+  r.t0 = rec.t[begin];
+  auto slice = [&](const std::vector<double>& v) { return std::vector<double>(v.begin() + begin, v.begin() + end); };
+  r.input = slice(rec.input);
+  const std::vector<double> out = slice(rec.output);
+  const size_t n = out.size();
+  const double dt = rec.dt;
+  const bool disp_out = setup.output != OutputKind::kVelocity;
+  r.in_spline = UniformSpline(r.t0, dt, r.input);
+  // Coordinate p of the integrated state, measured: its derivatives by Savitzky–Golay.
+  switch (setup.input) {
+    case InputKind::kBaseDisplacement: {
+      r.base_x = r.input;
+      const std::vector<double> x0d = SavitzkyGolay(r.input, dt, smooth_half, 1);
+      std::vector<double> x = out;
+      if (setup.frame == OutputFrame::kRelative)
+        for (size_t i = 0; i < n; ++i) x[i] += r.input[i];
+      r.p = SavitzkyGolay(x, dt, smooth_half, 0);
+      r.pd = SavitzkyGolay(x, dt, smooth_half, 1);
+      r.pdd = SavitzkyGolay(x, dt, smooth_half, 2);
+      r.y.resize(n), r.yd.resize(n);
+      for (size_t i = 0; i < n; ++i) r.y[i] = r.p[i] - r.input[i], r.yd[i] = r.pd[i] - x0d[i];
+      r.meas = out;
+      break;
+    }
+    case InputKind::kBaseAcceleration:
+    case InputKind::kForce: {
+      if (setup.input == InputKind::kBaseAcceleration) r.base_v = IntegrateFft(r.input, dt, 0.0);
+      std::vector<double> v_rel;
+      if (disp_out) {
+        r.p = SavitzkyGolay(out, dt, smooth_half, 0);
+        r.pd = SavitzkyGolay(out, dt, smooth_half, 1);
+        r.pdd = SavitzkyGolay(out, dt, smooth_half, 2);
+      } else {
+        v_rel = out;
+        if (setup.input == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute)
+          for (size_t i = 0; i < n; ++i) v_rel[i] -= r.base_v[i];
+        r.pd = SavitzkyGolay(v_rel, dt, smooth_half, 0);
+        r.pdd = SavitzkyGolay(v_rel, dt, smooth_half, 1);
+        r.p = IntegrateFft(v_rel, dt, 0.0);  // zero-mean: an offset (the well) is not observable from velocity
+      }
+      r.y = r.p;
+      r.yd = r.pd;
+      r.meas = out;
+      break;
+    }
+  }
+  if (!rec.resonator.empty()) {
+    if (setup.input == InputKind::kBaseAcceleration)
+      return Status::InvalidArgument("resonator", "a measured resonator needs a base displacement or force input (its "
+                                                  "absolute position cannot be related to an acceleration-driven base)");
+    const std::vector<double> xr = slice(rec.resonator);
+    r.meas_res = xr;
+    // r = x_r (displacement input: absolute) or z = x_r − x otherwise.
+    std::vector<double> q = xr;
+    if (setup.input != InputKind::kBaseDisplacement)
+      for (size_t i = 0; i < n; ++i) q[i] -= out[i];  // z = x_r − y (force input: no base)
+    r.r = SavitzkyGolay(q, dt, smooth_half, 0);
+    r.rd = SavitzkyGolay(q, dt, smooth_half, 1);
+    r.rdd = SavitzkyGolay(q, dt, smooth_half, 2);
+    r.z.resize(n), r.zd.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      r.z[i] = setup.input == InputKind::kBaseDisplacement ? r.r[i] - r.p[i] : r.r[i];
+      r.zd[i] = setup.input == InputKind::kBaseDisplacement ? r.rd[i] - r.pd[i] : r.rd[i];
+    }
+  }
+  double mean = 0;
+  for (double v : r.meas) mean += v;
+  mean /= static_cast<double>(n);
+  double ss = 0;
+  for (double v : r.meas) ss += (v - mean) * (v - mean);
+  r.meas_scale = std::sqrt(ss / static_cast<double>(n));
+  if (!(r.meas_scale > 0))
+    return Status::InvalidArgument("data", "record '" + name + "': the output is constant over the range used");
+  r.p_range = 0;
+  r.v_range = 0;
+  for (size_t i = 0; i < n; ++i) r.p_range = std::max(r.p_range, std::abs(r.y[i]));
+  for (size_t i = 0; i < n; ++i) r.v_range = std::max(r.v_range, std::abs(r.yd[i]));
+  if (!(r.p_range > 0)) r.p_range = r.meas_scale;
+  if (!(r.v_range > 0)) r.v_range = r.meas_scale / dt;
+  return r;
+}
+
+int SubstepsFor(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r) {
+  // Bound the largest rates along the measured range: damping-like |∂a/∂v| (RK4 is stable for
+  // h λ < 2.78; we keep h λ ≤ 2) and stiffness-like sqrt(|∂a/∂q|) (h ω ≤ 0.5 for accuracy).
+  const double mm = std::max(std::abs(m.Mass(th)), 1e-300);
+  double dv_main = 0, dq_main = 0, dv_res = 0, dq_res = 0;
+  const double qs[] = {0.0, 0.5 * r.p_range, r.p_range, 1.5 * r.p_range};
+  const double vs[] = {0.0, 0.5 * r.v_range, r.v_range, 1.5 * r.v_range};
+  int k = 0;
+  for (const TermDef* t : m.terms) {
+    double tq = 0, tv = 0;
+    for (double q : qs)
+      for (double v : vs) {
+        double a, b;
+        TermSlopes(*t, &th[k], q, v, m.fc, &a, &b);
+        tq = std::max(tq, std::abs(a));
+        tv = std::max(tv, std::abs(b));
+      }
+    if (t->body == Body::kMain) dq_main += tq, dv_main += tv;
+    else dq_res += tq, dv_res += tv;
+    k += static_cast<int>(t->params.size());
+  }
+  double lam = dv_main / mm, om2 = dq_main / mm;
+  if (m.HasResonator() && m.m_res > 0) {
+    lam += dv_res * (1.0 / m.m_res + 1.0 / mm);
+    om2 += dq_res * (1.0 / m.m_res + 1.0 / mm);
+  }
+  const double h_max = std::min(2.0 / std::max(lam, 1e-300), 0.5 / std::sqrt(std::max(om2, 1e-300)));
+  const double steps = std::ceil(r.dt / h_max);
+  return static_cast<int>(std::clamp(steps, 1.0, 2000.0));
+}
+
+bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
+              std::vector<double>* out, std::vector<double>* out_res, int substeps, int restart_every) {
+  const size_t n = r.n();
+  out->assign(n, NAN);
+  if (out_res) out_res->assign(n, NAN);
+  const double mm = m.Mass(th);
+  if (!(mm > 0) || !std::isfinite(mm)) return false;
+  for (double v : th)
+    if (!std::isfinite(v)) return false;
+  const bool res = m.HasResonator();
+  if (res && !(m.m_res > 0)) return false;
+  const int ns = substeps > 0 ? substeps : SubstepsFor(m, th, r);
+  const double h = r.dt / ns;
+  const InputKind in = setup.input;
+  // State (p, p', r, r'); initial values from the smoothed measurement.
+  double s[4] = {r.p[0], r.pd[0], res && !r.r.empty() ? r.r[0] : (in == InputKind::kBaseDisplacement ? r.p[0] : 0.0),
+                 res && !r.rd.empty() ? r.rd[0] : (in == InputKind::kBaseDisplacement ? r.pd[0] : 0.0)};
+  const double limit_p = 100.0 * (r.p_range + std::abs(r.p[0])) + 1e-12;
+  auto rhs = [&](double t, const double* x, double* dx) {
+    double u, ud;
+    r.in_spline.Eval(t, &u, &ud);
+    double y, yd, z = 0, zd = 0;
+    if (in == InputKind::kBaseDisplacement) {
+      y = x[0] - u, yd = x[1] - ud;
+      if (res) z = x[2] - x[0], zd = x[3] - x[1];
+    } else {
+      y = x[0], yd = x[1];
+      if (res) z = x[2], zd = x[3];
+    }
+    const double F = m.Force(Body::kMain, th, y, yd);
+    const double G = res ? m.Force(Body::kResonator, th, z, zd) : 0.0;
+    dx[0] = x[1];
+    dx[2] = x[3];
+    switch (in) {
+      case InputKind::kBaseDisplacement:
+        dx[1] = (-F + G) / mm;
+        dx[3] = res ? -G / m.m_res : dx[1];
+        break;
+      case InputKind::kBaseAcceleration: {
+        const double am = (-F + G) / mm;
+        dx[1] = am - u;
+        dx[3] = res ? -G / m.m_res - am : 0.0;
+        break;
+      }
+      case InputKind::kForce: {
+        const double ydd = (u - F + G) / mm;
+        dx[1] = ydd;
+        dx[3] = res ? -G / m.m_res - ydd : 0.0;
+        break;
+      }
+    }
+  };
+  auto emit = [&](size_t i) {
+    double value;
+    const bool vel = setup.output == OutputKind::kVelocity;
+    if (in == InputKind::kBaseDisplacement) {
+      value = s[0];
+      if (setup.frame == OutputFrame::kRelative) value -= r.base_x[i];
+    } else if (vel) {
+      value = s[1];
+      if (in == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute) value += r.base_v[i];
+    } else {
+      value = s[0];
+    }
+    (*out)[i] = value;
+    if (out_res && res) (*out_res)[i] = in == InputKind::kBaseDisplacement ? s[2] : s[2] + s[0];
+  };
+  emit(0);
+  double k1[4], k2[4], k3[4], k4[4], tmp[4];
+  for (size_t i = 1; i < n; ++i) {
+    if (restart_every > 0 && (i - 1) % static_cast<size_t>(restart_every) == 0 && i > 1) {
+      s[0] = r.p[i - 1], s[1] = r.pd[i - 1];
+      if (res && !r.r.empty()) s[2] = r.r[i - 1], s[3] = r.rd[i - 1];
+    }
+    for (int sub = 0; sub < ns; ++sub) {
+      const double t = r.t0 + static_cast<double>(i - 1) * r.dt + sub * h;
+      rhs(t, s, k1);
+      for (int j = 0; j < 4; ++j) tmp[j] = s[j] + 0.5 * h * k1[j];
+      rhs(t + 0.5 * h, tmp, k2);
+      for (int j = 0; j < 4; ++j) tmp[j] = s[j] + 0.5 * h * k2[j];
+      rhs(t + 0.5 * h, tmp, k3);
+      for (int j = 0; j < 4; ++j) tmp[j] = s[j] + h * k3[j];
+      rhs(t + h, tmp, k4);
+      for (int j = 0; j < 4; ++j) s[j] += h / 6.0 * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j]);
+    }
+    if (!std::isfinite(s[0]) || !std::isfinite(s[1]) || std::abs(s[0]) > limit_p) return false;
+    emit(i);
+  }
+  return true;
+}
+
+}  // namespace bistable

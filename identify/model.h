@@ -1,0 +1,119 @@
+// A model to identify (declared terms over the effect library, known constants, a parameter vector)
+// and its simulation driven by a measured record's input.
+//
+// Three input forms (record.h), one state (p, p', r, r'):
+//   base displacement x0 [m]   p = x (absolute main mass), r = x_r: needs x0 and x0' (cubic spline of the samples)
+//       m_m x'' = −F(y, y') + G(z, z'),  y = x − x0,  m_r x_r'' = −G(z, z'),  z = x_r − x
+//   base acceleration a0 [m/s²] p = y (relative), r = z:  y'' = (−F + G)/m_m − a0,  z'' = −G/m_r − (−F + G)/m_m
+//   force u [N]                 p = y, r = z:              y'' = (u − F + G)/m_m,   z'' = −G/m_r − y''
+// Integration: classical RK4 with the input interpolated by a natural cubic spline, substeps per
+// sample chosen from the model's stiffness along the measured range (friction makes it stiff: the
+// substep count grows as F_c / (m v_t)); a run that leaves 100× the measured range is reported as
+// diverged.
+#ifndef BISTABLE_IDENTIFY_MODEL_H_
+#define BISTABLE_IDENTIFY_MODEL_H_
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dynamics/status.h"
+#include "identify/effects.h"
+#include "identify/record.h"
+
+namespace bistable {
+
+// Natural cubic spline through uniform samples; value and first derivative anywhere in range.
+class UniformSpline {
+ public:
+  UniformSpline() = default;
+  UniformSpline(double t0, double dt, std::vector<double> y);
+  void Eval(double t, double* value, double* slope) const;
+
+ private:
+  double t0_ = 0, dt_ = 1;
+  std::vector<double> y_, m_;  // samples and second derivatives
+};
+
+// Savitzky–Golay smoothed derivative (order `deriv` 0, 1 or 2) of uniform samples: local cubic fits
+// over 2·half+1 samples (one-sided fits at the ends).
+std::vector<double> SavitzkyGolay(const std::vector<double>& y, double dt, int half, int deriv);
+// Zero-mean integral of a sampled signal by FFT (1/(iω) per bin, DC and bins below f_min dropped):
+// base velocity from base acceleration, displacement from velocity.
+std::vector<double> IntegrateFft(const std::vector<double>& y, double dt, double f_min_hz);
+
+enum class OutputFrame { kAbsolute, kRelative };
+
+// How records relate to the model.
+struct Setup {
+  InputKind input = InputKind::kBaseDisplacement;
+  OutputKind output = OutputKind::kDisplacement;
+  OutputFrame frame = OutputFrame::kAbsolute;  // velocity or displacement measured absolute or relative to the base
+  FrictionConstants fc;
+};
+
+Status ValidateSetup(const Setup& s);
+
+struct IdentModel {
+  std::vector<const TermDef*> terms;  // main body and resonator terms, in declaration order
+  double m_main = 0;                  // kg; 0 = fitted (force input only), parameter "m_main"
+  double m_res = 0;                   // kg; needed when any res.* term is declared
+  FrictionConstants fc;
+  std::vector<double> theta;          // parameters, ParamNames() order
+
+  bool FitsMass() const { return m_main <= 0; }
+  bool HasResonator() const;
+  int NumParams() const;
+  std::vector<std::string> ParamNames() const;   // "main.stiffness_y3.k3", ..., "m_main"
+  std::vector<std::string> ParamUnits() const;
+  std::vector<Sign> ParamSigns() const;
+  int Offset(const TermDef* t) const;            // index of the term's first parameter, −1 if absent
+  double Mass(const std::vector<double>& th) const { return FitsMass() ? th.back() : m_main; }
+  // F_main or G_res at (q, v) for parameters th.
+  double Force(Body body, const std::vector<double>& th, double q, double v) const;
+  // The model with one more term, its parameters appended before m_main (initial values given).
+  IdentModel With(const TermDef* t, const std::vector<double>& initial) const;
+};
+
+// A record prepared for one setup: slices, derived signals and the spline of its input.
+struct PreparedRecord {
+  std::string name;
+  double t0 = 0, dt = 0;
+  std::vector<double> input;       // SI
+  std::vector<double> meas;        // the measured output in the compared form (see Setup)
+  std::vector<double> meas_res;    // measured resonator absolute displacement, or empty
+  std::vector<double> base_v;      // base velocity at samples (acceleration input, absolute velocity output)
+  std::vector<double> base_x;      // base displacement at samples (displacement input)
+  // The body's coordinate p and its derivatives from the measurement (smoothed), for initial states
+  // and restoring-force residuals: p = x (displacement input) or y.
+  std::vector<double> p, pd, pdd, r, rd, rdd;
+  // Relative coordinates along the measured trajectory: y, y', z, z' (z empty without resonator data).
+  std::vector<double> y, yd, z, zd;
+  UniformSpline in_spline;
+  double meas_scale = 1;           // RMS of meas about its mean (NRMSE denominator)
+  double p_range = 1, v_range = 1; // max |y|, max |y'| along the record
+  size_t n() const { return meas.size(); }
+};
+
+// Prepares a record (or its sample range [begin, end)) for a setup. `smooth_half`: Savitzky–Golay
+// half-width for derivatives. Errors: unsupported input/output combinations, too-short records.
+StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, size_t begin, size_t end, int smooth_half,
+                                       const std::string& name);
+
+// Simulates one record from its measured initial state; `out` receives the output in the compared
+// form at every sample, `out_res` the resonator displacement when measured. False on divergence.
+// `substeps` > 0 fixes the RK4 substeps per sample (fits hold it fixed so that the objective is a
+// smooth function of the parameters); 0 chooses them from the parameters (SubstepsFor).
+bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
+              std::vector<double>* out, std::vector<double>* out_res = nullptr, int substeps = 0, int restart_every = 0);
+// restart_every > 0: the state is reset to the measured (smoothed) one every so many samples —
+// short-horizon simulation error (multiple shooting), whose minimum lies where the long-horizon one
+// does but whose basin is far wider (no accumulated phase drift); fits use it as a first stage.
+
+// RK4 substeps per sample for these parameters along this record.
+int SubstepsFor(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_IDENTIFY_MODEL_H_
