@@ -5,6 +5,7 @@
 
 #include "client/chirp_command.h"
 #include "client/hbm_command.h"
+#include "client/identify_command.h"
 #include "client/point_command.h"
 #include "client/remote_commands.h"
 #include "client/reproduce_command.h"
@@ -21,6 +22,7 @@ int main(int argc, char** argv) {
   bistable::AddHbmCommand(app, &exit_code);
   bistable::AddChirpCommand(app, &exit_code);
   bistable::AddReproduceCommand(app, &exit_code);
+  bistable::AddIdentifyCommand(app, &exit_code);
   bistable::AddRemoteCommands(app, &exit_code);
   bistable::AddSweepsCommand(app, &exit_code);
   bistable::AddMapCommand(app, &exit_code);

@@ -188,6 +188,35 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
   return RunGnuplot(s.str(), out_path);
 }
 
+Status RenderPanels(const PanelPlot& d, const std::string& out_path) {
+  if (d.panels.empty()) return Status::InvalidArgument("plot", "no panels to plot");
+  std::ostringstream s;
+  const int w = 520 * d.cols, h = 400 * d.rows + 40;
+  s << (std::filesystem::path(out_path).extension() == ".svg"
+            ? "set terminal svg size " + std::to_string(w) + "," + std::to_string(h) + " dynamic noenhanced font 'Helvetica,13' background 'white'\n"
+            : "set terminal pngcairo size " + std::to_string(w) + "," + std::to_string(h) + " noenhanced font 'Helvetica,11'\n");
+  s << "set multiplot layout " << d.rows << "," << d.cols << " title " << Quote(d.title) << "\n";
+  s << "set grid\nset key top left\nset datafile missing 'NaN'\n";
+  int block = 0;
+  for (const PanelPlot::Panel& p : d.panels) {
+    s << "set title " << Quote(p.title) << "\nset xlabel " << Quote(p.x_label) << "\nset ylabel " << Quote(p.y_label) << "\n";
+    std::string plot = "plot ";
+    for (const PanelPlot::Series& se : p.series) {
+      const std::string name = "$b" + std::to_string(block++);
+      s << name << " << EOD\n";
+      for (size_t i = 0; i < se.x.size() && i < se.y.size(); ++i) s << Num(se.x[i]) << " " << Num(se.y[i]) << "\n";
+      s << "EOD\n";
+      plot += name + " using 1:2 with " + (se.points ? "points pt 7 ps 0.25" : "lines lw 1.2") +
+              (se.colour.empty() ? "" : " lc rgb " + Quote(se.colour)) + " title " + Quote(se.label) + ", ";
+    }
+    if (p.series.empty()) plot += "NaN notitle, ";
+    plot.resize(plot.size() - 2);
+    s << plot << "\n";
+  }
+  s << "unset multiplot\n";
+  return RunGnuplot(s.str(), out_path);
+}
+
 Status RenderBifurcation(const BifurcationData& d, const std::string& out_path) {
   std::ostringstream s;
   s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");

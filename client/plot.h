@@ -74,6 +74,25 @@ struct SpectrogramPlot {
 };
 Status RenderSpectrogram(const SpectrogramPlot& d, const std::string& out_path);
 
+// Panels of curves or point clouds in a grid (multiplot): residual-force surfaces, measured vs
+// simulated time histories. Series labels and titles are plain text.
+struct PanelPlot {
+  std::string title;
+  int rows = 1, cols = 1;
+  struct Series {
+    std::string label;
+    std::vector<double> x, y;
+    bool points = false;   // point cloud (else a line)
+    std::string colour;    // "#rrggbb"; empty: automatic
+  };
+  struct Panel {
+    std::string title, x_label, y_label;
+    std::vector<Series> series;
+  };
+  std::vector<Panel> panels;  // row-major
+};
+Status RenderPanels(const PanelPlot& d, const std::string& out_path);
+
 // A label like "alpha = A0/delta_s" for axes.
 std::string AxisLabel(const std::string& name, const std::string& unit);
 

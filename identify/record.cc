@@ -87,7 +87,19 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     std::vector<double> gv;
     for (int g : cg) gv.push_back(row[g]);
     const double t = row[*ct];
-    const bool restart = records.empty() || t <= records.back().t.back() || gv != records.back().group_values;
+    const bool back = !records.empty() && t <= records.back().t.back();
+    // Time may go back only to restart a record at the first record's start time (concatenated
+    // records, e.g. the harvester's steady-sine file); anything else is a broken time column.
+    if (back && gv == records.back().group_values) {
+      const double start = records.front().t.front();
+      const double dt = records.back().t.size() >= 2 ? records.back().t[1] - records.back().t[0] : 0.0;
+      if (!(std::abs(t - start) <= 0.5 * std::abs(dt)) || records.back().t.size() < 2)
+        return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + ": time " + FormatNumber(t) +
+                                                   (t == records.back().t.back() ? " repeats" : " is before") +
+                                                   " the previous row's " + FormatNumber(records.back().t.back()) +
+                                                   " (time must increase; a restart must return to " + FormatNumber(start) + ")");
+    }
+    const bool restart = records.empty() || back || gv != records.back().group_values;
     if (restart) {
       if (!records.empty() && records.back().t.size() < 2)
         return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + ": a record of a single row");

@@ -1,0 +1,510 @@
+// `bistable identify`: the measured-data loop (identify/loop.h) — fit the declared model to measured
+// records, trace the residual to the effect the model lacks, add it, refit, report before/after.
+#include "client/identify_command.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "client/cli_common.h"
+#include "client/plot.h"
+#include "engine/sweep_spec.h"
+#include "identify/loop.h"
+#include "identify/synthetic.h"
+
+namespace bistable {
+namespace {
+
+struct IdentifyArgs {
+  std::vector<std::string> data;
+  std::string terms, known, columns, candidates, guesses;
+  std::string input_kind = "base_displacement", output_kind = "displacement", frame = "absolute";
+  double input_scale = 1, output_scale = 1;
+  std::string range, objective = "time", report, synth;
+  std::vector<std::string> test_ranges;
+  double max_seconds = 0;
+  int decimate = 1, smooth = 4, global_evals = 150, max_added = 3, threads = 0;
+  double horizon = 0.5;
+  bool json = false, list_terms = false;
+};
+
+// "a=1,b=2" → map; errors name the flag and the item.
+StatusOr<std::map<std::string, std::string>> ParsePairs(const std::string& s, const std::string& flag) {
+  std::map<std::string, std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (item.empty()) continue;
+    const size_t eq = item.find('=');
+    if (eq == std::string::npos || eq == 0)
+      return Status::InvalidArgument(flag, "'" + item + "' is not name=value");
+    out[item.substr(0, eq)] = item.substr(eq + 1);
+  }
+  return out;
+}
+
+StatusOr<double> ParseNumber(const std::string& v, const std::string& field) {
+  char* end = nullptr;
+  const double x = std::strtod(v.c_str(), &end);
+  if (v.empty() || *end != '\0' || !std::isfinite(x)) return Status::InvalidArgument(field, "'" + v + "' is not a finite number");
+  return x;
+}
+
+// "A:B" sample range (0-based, end exclusive; either side may be empty).
+StatusOr<std::pair<size_t, size_t>> ParseRange(const std::string& s, const std::string& flag) {
+  const size_t c = s.find(':');
+  if (c == std::string::npos) return Status::InvalidArgument(flag, "'" + s + "' is not a sample range A:B");
+  size_t a = 0, b = SIZE_MAX;
+  try {
+    if (c > 0) a = std::stoul(s.substr(0, c));
+    if (c + 1 < s.size()) b = std::stoul(s.substr(c + 1));
+  } catch (...) {
+    return Status::InvalidArgument(flag, "'" + s + "' is not a sample range A:B of non-negative integers");
+  }
+  if (b <= a) return Status::InvalidArgument(flag, "range " + s + " is empty (end must exceed start)");
+  return std::make_pair(a, b);
+}
+
+StatusOr<ColumnMap> BuildColumns(const IdentifyArgs& a) {
+  ColumnMap c;
+  if (a.input_kind == "base_displacement") c.input_kind = InputKind::kBaseDisplacement, c.input = "x0";
+  else if (a.input_kind == "base_acceleration") c.input_kind = InputKind::kBaseAcceleration, c.input = "a0";
+  else if (a.input_kind == "force") c.input_kind = InputKind::kForce, c.input = "u";
+  else return Status::InvalidArgument("input-kind", "'" + a.input_kind + "' violates input-kind in {base_displacement, base_acceleration, force}");
+  if (a.output_kind == "displacement") c.output_kind = OutputKind::kDisplacement, c.output = "x";
+  else if (a.output_kind == "velocity") c.output_kind = OutputKind::kVelocity, c.output = "v";
+  else if (a.output_kind == "analogue") c.output_kind = OutputKind::kAnalogue, c.output = "y";
+  else return Status::InvalidArgument("output-kind", "'" + a.output_kind + "' violates output-kind in {displacement, velocity, analogue}");
+  if (!(a.input_scale != 0) || !std::isfinite(a.input_scale)) return Status::InvalidArgument("input-scale", "must be a finite non-zero factor");
+  if (!(a.output_scale != 0) || !std::isfinite(a.output_scale)) return Status::InvalidArgument("output-scale", "must be a finite non-zero factor");
+  c.input_scale = a.input_scale;
+  c.output_scale = a.output_scale;
+  auto pairs = ParsePairs(a.columns, "columns");
+  if (!pairs.ok()) return pairs.status();
+  for (const auto& [k, v] : *pairs) {
+    if (k == "t") c.time = v;
+    else if (k == "input") c.input = v;
+    else if (k == "output") c.output = v;
+    else if (k == "resonator") c.resonator = v;
+    else if (k == "group") {
+      std::stringstream ss(v);
+      std::string g;
+      while (std::getline(ss, g, ';')) c.group.push_back(g);
+    } else {
+      const std::string near = NearestName(k, {"t", "input", "output", "resonator", "group"});
+      return Status::InvalidArgument("columns", "unknown role '" + k + "'" + (near.empty() ? "" : " (did you mean '" + near + "'?)") +
+                                                    "; roles: t, input, output, resonator, group");
+    }
+  }
+  return c;
+}
+
+nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+std::string Fmt(double v, int digits = 4) {
+  char b[48];
+  std::snprintf(b, sizeof b, "%.*g", digits, v);
+  return b;
+}
+
+// Plots: residual force against y and y' before/after; measured vs simulated for each record.
+Status WritePlots(const IdentifyResult& r, const std::vector<PreparedRecord>& recs, const Setup& setup, const std::string& dir,
+                  std::vector<std::string>* files) {
+  PanelPlot res;
+  res.title = "restoring-force residual of the main body (force the model lacks), before and after";
+  res.rows = 2, res.cols = 2;
+  auto cloud = [](const ResidualCloud& c, bool vel, const std::string& colour) {
+    PanelPlot::Series s;
+    s.points = true, s.colour = colour;
+    for (size_t i = 0; i < c.r.size(); ++i) s.x.push_back(vel ? c.v[i] : c.q[i] * 1e3), s.y.push_back(c.r[i]);
+    return s;
+  };
+  const std::string yl = setup.input == InputKind::kBaseDisplacement ? "y = x - x0 [mm]" : "y [mm]";
+  for (int row = 0; row < 2; ++row) {
+    const ResidualCloud& c = row == 0 ? r.residual_before : r.residual_after;
+    const std::string when = row == 0 ? "declared model" : "final model";
+    for (int col = 0; col < 2; ++col) {
+      PanelPlot::Panel p;
+      p.title = when + (col == 0 ? ": against displacement" : ": against velocity");
+      p.x_label = col == 0 ? yl : "y' [m/s]";
+      p.y_label = "residual force [N]";
+      p.series.push_back(cloud(c, col == 1, row == 0 ? "#b2182b" : "#2166ac"));
+      p.series.back().label = when;
+      res.panels.push_back(p);
+    }
+  }
+  const std::string f1 = (std::filesystem::path(dir) / "residual_force.png").string();
+  BISTABLE_RETURN_IF_ERROR(RenderPanels(res, f1));
+  files->push_back("residual_force.png");
+  for (size_t i = 0; i < recs.size(); ++i) {
+    std::vector<double> before, after;
+    Simulate(r.declared, r.before.theta, recs[i], setup, &before);
+    Simulate(r.final_model, r.after.theta, recs[i], setup, &after);
+    PanelPlot tp;
+    tp.title = "record " + recs[i].name + ": measured and simulated output";
+    tp.rows = 2, tp.cols = 1;
+    for (int row = 0; row < 2; ++row) {
+      PanelPlot::Panel p;
+      p.title = row == 0 ? "declared model" : "final model";
+      p.x_label = "t [s]";
+      p.y_label = "output (SI)";
+      PanelPlot::Series m, s, e;
+      m.label = "measured", m.colour = "#444444";
+      s.label = "simulated", s.colour = row == 0 ? "#b2182b" : "#2166ac";
+      e.label = "error", e.colour = "#1a9850";
+      const std::vector<double>& sim = row == 0 ? before : after;
+      const size_t stride = std::max<size_t>(1, recs[i].n() / 6000);
+      for (size_t k = 0; k < recs[i].n(); k += stride) {
+        const double t = recs[i].t0 + k * recs[i].dt;
+        m.x.push_back(t), m.y.push_back(recs[i].meas[k]);
+        s.x.push_back(t), s.y.push_back(sim[k]);
+        e.x.push_back(t), e.y.push_back(sim[k] - recs[i].meas[k]);
+      }
+      p.series = {m, s, e};
+      tp.panels.push_back(p);
+    }
+    const std::string name = "record_" + std::to_string(i + 1) + ".png";
+    BISTABLE_RETURN_IF_ERROR(RenderPanels(tp, (std::filesystem::path(dir) / name).string()));
+    files->push_back(name);
+  }
+  return Status::Ok();
+}
+
+nlohmann::json ParamsJson(const IdentModel& m, const FitResult& f) {
+  nlohmann::json j = nlohmann::json::object();
+  const auto names = m.ParamNames();
+  for (size_t i = 0; i < names.size(); ++i) j[names[i]] = Num(f.theta[i]);
+  return j;
+}
+
+int RunIdentify(IdentifyArgs& a) {
+  if (a.list_terms) {
+    nlohmann::json lib = nlohmann::json::array();
+    for (const TermDef& t : EffectLibrary()) {
+      nlohmann::json ps = nlohmann::json::array();
+      for (const TermParam& p : t.params)
+        ps.push_back({{"name", p.name}, {"unit", p.unit}, {"sign", p.sign == Sign::kNonNegative ? ">= 0" : "either"}});
+      lib.push_back({{"term", t.id}, {"formula", t.formula}, {"meaning", t.meaning}, {"params", ps}});
+      if (!a.json) {
+        std::string pn;
+        for (const TermParam& p : t.params) pn += (pn.empty() ? "" : ", ") + p.name + " [" + p.unit + "]" + (p.sign == Sign::kNonNegative ? " >= 0" : "");
+        std::printf("%-20s %-44s %s\n", t.id.c_str(), t.formula.size() > 44 ? (t.formula.substr(0, 41) + "...").c_str() : t.formula.c_str(), pn.c_str());
+      }
+    }
+    if (a.json) std::cout << lib.dump(2) << "\n";
+    return 0;
+  }
+  if (!a.synth.empty()) {
+    // Synthetic records for trying the loop: the paper's Table 2 linear rig (no resonator) under
+    // 1 → 8 Hz chirps of 6, 10, 14 mm, sampled at 120 Hz with 0.05 mm noise.
+    std::error_code ec;
+    std::filesystem::create_directories(a.synth, ec);
+    if (ec) return Fail(Status::IoError("make-synthetic", "cannot create '" + a.synth + "': " + ec.message()));
+    DimensionalParams p = DimensionalParams::LinearTable2();
+    p.has_resonator = false;
+    unsigned seed = 1;
+    for (double mm : {6.0, 10.0, 14.0}) {
+      SyntheticOptions o;
+      o.a0_m = mm * 1e-3;
+      o.seed = seed++;
+      auto r = MakeSyntheticRecord(p, o, "chirp");
+      if (!r.ok()) return Fail(r.status());
+      const std::string path = (std::filesystem::path(a.synth) / ("chirp_" + Fmt(mm, 3) + "mm.csv")).string();
+      if (Status st = WriteRecordCsv(*r, path); !st.ok()) return Fail(st);
+      if (!a.json) std::printf("wrote %s\n", path.c_str());
+    }
+    return 0;
+  }
+  if (a.data.empty()) return Fail(Status::InvalidArgument("data", "give at least one --data FILE.csv"));
+  if (a.terms.empty()) return Fail(Status::InvalidArgument("terms", "declare the model: --terms main.linear,main.viscous,... (--list-terms)"));
+  auto terms = ParseTerms(a.terms);
+  if (!terms.ok()) return Fail(terms.status());
+  auto columns = BuildColumns(a);
+  if (!columns.ok()) return Fail(columns.status());
+  Setup setup;
+  setup.input = columns->input_kind;
+  setup.output = columns->output_kind;
+  if (a.frame == "absolute") setup.frame = OutputFrame::kAbsolute;
+  else if (a.frame == "relative") setup.frame = OutputFrame::kRelative;
+  else return Fail(Status::InvalidArgument("output-frame", "'" + a.frame + "' violates output-frame in {absolute, relative}"));
+  IdentModel model;
+  model.terms = *terms;
+  auto known = ParsePairs(a.known, "known");
+  if (!known.ok()) return Fail(known.status());
+  for (const auto& [k, v] : *known) {
+    auto x = ParseNumber(v, "known." + k);
+    if (!x.ok()) return Fail(x.status());
+    if (k == "m_main") model.m_main = *x;
+    else if (k == "m_res") model.m_res = *x;
+    else if (k == "v_sp") setup.fc.v_sp = *x;
+    else if (k == "v_t") setup.fc.v_t = *x;
+    else {
+      const std::string near = NearestName(k, {"m_main", "m_res", "v_sp", "v_t"});
+      return Fail(Status::InvalidArgument("known", "unknown constant '" + k + "'" + (near.empty() ? "" : " (did you mean '" + near + "'?)") +
+                                                       "; known constants: m_main [kg], m_res [kg], v_sp [m/s], v_t [m/s]"));
+    }
+    if (!(*x > 0)) return Fail(Status::InvalidArgument("known." + k, k + " = " + v + " violates " + k + " > 0"));
+  }
+  model.fc = setup.fc;
+  if (model.m_main <= 0 && setup.input != InputKind::kForce)
+    return Fail(Status::InvalidArgument("known.m_main", "the main mass is needed with a base input (--known m_main=0.282; "
+                                                        "m_main=1 gives parameters per unit mass); only a force input can identify it"));
+  if (model.HasResonator() && !(model.m_res > 0))
+    return Fail(Status::InvalidArgument("known.m_res", "resonator terms are declared: give its mass (--known m_res=0.62)"));
+  if (Status st = ValidateSetup(setup); !st.ok()) return Fail(st);
+  // Guesses: term.param=value (others from the regression).
+  if (!a.guesses.empty()) {
+    auto g = ParsePairs(a.guesses, "guess");
+    if (!g.ok()) return Fail(g.status());
+    const auto names = model.ParamNames();
+    model.theta.assign(names.size(), NAN);
+    for (const auto& [k, v] : *g) {
+      auto it = std::find(names.begin(), names.end(), k);
+      if (it == names.end()) {
+        const std::string near = NearestName(k, names);
+        return Fail(Status::InvalidArgument("guess", "'" + k + "' is not a parameter of the declared model" +
+                                                         (near.empty() ? "" : " (did you mean '" + near + "'?)")));
+      }
+      auto x = ParseNumber(v, "guess." + k);
+      if (!x.ok()) return Fail(x.status());
+      model.theta[it - names.begin()] = *x;
+    }
+  }
+  IdentifyOptions opt;
+  if (a.objective == "time") opt.fit.objective = Objective::kTime;
+  else if (a.objective == "fft") opt.fit.objective = Objective::kFft;
+  else return Fail(Status::InvalidArgument("objective", "'" + a.objective + "' violates objective in {time, fft}"));
+  if (a.global_evals < 0 || a.global_evals > 100000) return Fail(Status::InvalidArgument("global-evals", "must be in [0, 100000]"));
+  if (a.max_added < 0 || a.max_added > 10) return Fail(Status::InvalidArgument("max-added", "must be in [0, 10]"));
+  if (a.smooth < 2 || a.smooth > 200) return Fail(Status::InvalidArgument("smooth", "smooth = " + std::to_string(a.smooth) + " violates smooth in [2, 200]"));
+  if (a.decimate < 1 || a.decimate > 1000) return Fail(Status::InvalidArgument("decimate", "must be in [1, 1000]"));
+  if (!(a.horizon >= 0)) return Fail(Status::InvalidArgument("horizon", "must be >= 0 s"));
+  opt.fit.global_evals = a.global_evals;
+  opt.fit.threads = a.threads;
+  opt.fit.shooting_horizon_s = a.horizon;
+  opt.max_added = a.max_added;
+  if (!a.candidates.empty()) {
+    auto c = ParseTerms(a.candidates);
+    if (!c.ok()) return Fail(Status::InvalidArgument("candidates", c.status().message()));
+    opt.candidates = *c;
+  }
+  std::pair<size_t, size_t> fit_range{0, SIZE_MAX};
+  if (!a.range.empty()) {
+    auto r = ParseRange(a.range, "range");
+    if (!r.ok()) return Fail(r.status());
+    fit_range = *r;
+  }
+  std::vector<std::pair<size_t, size_t>> tests;
+  for (const std::string& t : a.test_ranges) {
+    auto r = ParseRange(t, "test-range");
+    if (!r.ok()) return Fail(r.status());
+    tests.push_back(*r);
+  }
+  // Load, decimate, crop, prepare.
+  std::vector<Record> loaded;
+  for (const std::string& path : a.data) {
+    auto recs = LoadRecords(path, *columns);
+    if (!recs.ok()) return Fail(recs.status());
+    for (Record r : recs.value()) {
+      if (a.decimate > 1) {
+        Record d = r;
+        d.t.clear(), d.input.clear(), d.output.clear(), d.resonator.clear();
+        for (size_t i = 0; i < r.t.size(); i += a.decimate) {
+          d.t.push_back(r.t[i]), d.input.push_back(r.input[i]), d.output.push_back(r.output[i]);
+          if (!r.resonator.empty()) d.resonator.push_back(r.resonator[i]);
+        }
+        d.dt = r.dt * a.decimate;
+        r = d;
+      }
+      loaded.push_back(std::move(r));
+    }
+  }
+  std::vector<PreparedRecord> recs;
+  for (const Record& r : loaded) {
+    const size_t n = r.t.size();
+    size_t b = std::min(fit_range.first, n), e = std::min(fit_range.second, n);
+    if (a.max_seconds > 0) e = std::min(e, b + static_cast<size_t>(a.max_seconds / r.dt));
+    auto p = PrepareRecord(r, setup, b, e, a.smooth, r.name);
+    if (!p.ok()) return Fail(p.status());
+    recs.push_back(std::move(*p));
+  }
+  if (!a.json) std::fprintf(stderr, "identify: %zu record(s), %zu parameters declared; fitting...\n", recs.size(), static_cast<size_t>(model.NumParams()));
+  const IdentifyResult r = Identify(model, recs, setup, opt);
+  // Test splits: simulated with the declared and the final model.
+  nlohmann::json test_json = nlohmann::json::array();
+  for (const auto& [tb, te] : tests)
+    for (const Record& rec : loaded) {
+      auto p = PrepareRecord(rec, setup, tb, te, a.smooth, rec.name);
+      if (!p.ok()) return Fail(Status::InvalidArgument("test-range", p.status().message()));
+      const Errors eb = Evaluate(r.declared, r.before.theta, {*p}, setup);
+      const Errors ea = Evaluate(r.final_model, r.after.theta, {*p}, setup);
+      test_json.push_back({{"record", rec.name},
+                           {"range", std::to_string(tb) + ":" + std::to_string(std::min(te, rec.t.size()))},
+                           {"rms_before", Num(eb.record_rms[0])},
+                           {"rms_after", Num(ea.record_rms[0])},
+                           {"nrmse_before", Num(eb.nrmse)},
+                           {"nrmse_after", Num(ea.nrmse)}});
+    }
+  nlohmann::json j;
+  j["error_before"] = Num(r.before.errors.nrmse);
+  j["error_after"] = Num(r.after.errors.nrmse);
+  j["fft_error_before"] = Num(r.before.errors.fft);
+  j["fft_error_after"] = Num(r.after.errors.fft);
+  j["eq20_before"] = Num(r.before.errors.eq20);
+  j["eq20_after"] = Num(r.after.errors.eq20);
+  j["objective"] = a.objective;
+  j["declared"] = a.terms;
+  j["effects_added"] = nlohmann::json::array();
+  for (const AddedEffect& e : r.added) {
+    nlohmann::json p = nlohmann::json::object(), u = nlohmann::json::object();
+    for (size_t i = 0; i < e.names.size(); ++i) p[e.names[i]] = Num(e.params[i]), u[e.names[i]] = Num(e.sigma[i]);
+    j["effects_added"].push_back({{"term", e.term}, {"params", p}, {"uncertainty", u},
+                                  {"error_before", Num(e.error_before)}, {"error_after", Num(e.error_after)}});
+  }
+  j["params"] = ParamsJson(r.final_model, r.after);
+  j["uncertainty"] = nlohmann::json::object();
+  {
+    const auto names = r.final_model.ParamNames();
+    for (size_t i = 0; i < names.size(); ++i) j["uncertainty"][names[i]] = Num(r.after.sigma[i]);
+  }
+  j["params_declared_fit"] = ParamsJson(r.declared, r.before);
+  j["records"] = nlohmann::json::array();
+  for (size_t i = 0; i < recs.size(); ++i)
+    j["records"].push_back({{"name", recs[i].name},
+                            {"samples", recs[i].n()},
+                            {"nrmse_before", Num(r.before.errors.record_nrmse[i])},
+                            {"nrmse_after", Num(r.after.errors.record_nrmse[i])},
+                            {"fft_before", Num(r.before.errors.record_fft[i])},
+                            {"fft_after", Num(r.after.errors.record_fft[i])},
+                            {"rms_before", Num(r.before.errors.record_rms[i])},
+                            {"rms_after", Num(r.after.errors.record_rms[i])}});
+  j["tests"] = test_json;
+  j["steps"] = nlohmann::json::array();
+  for (const LoopStep& s : r.steps) {
+    nlohmann::json sc = nlohmann::json::array();
+    for (const CandidateScore& c : s.scores)
+      sc.push_back({{"term", c.term}, {"delta_bic", Num(c.delta_bic)}, {"explained", Num(c.explained)}, {"sign_ok", c.sign_ok},
+                    {"force_delta_bic", Num(c.force_delta_bic)}, {"force_explained", Num(c.force_explained)}});
+    j["steps"].push_back({{"verdict", s.verdict}, {"chosen", s.chosen}, {"n_eff", Num(s.n_eff)},
+                          {"residual_force_rms", Num(s.residual_rms)}, {"scores", sc}});
+  }
+  j["seconds"] = r.seconds;
+  j["simulations"] = r.before.simulations + r.after.simulations;
+  j["settings"] = {{"v_sp", setup.fc.v_sp}, {"v_t", setup.fc.v_t}, {"m_main", model.m_main}, {"m_res", model.m_res},
+                   {"smooth_half_width", a.smooth}, {"global_evals", a.global_evals}, {"shooting_horizon_s", a.horizon},
+                   {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"input_kind", a.input_kind},
+                   {"output_kind", a.output_kind}, {"output_frame", a.frame}};
+  if (!a.report.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(a.report, ec);
+    if (ec) return Fail(Status::IoError("report", "cannot create '" + a.report + "': " + ec.message()));
+    std::vector<std::string> figs;
+    if (Status st = WritePlots(r, recs, setup, a.report, &figs); !st.ok()) return Fail(st);
+    std::ofstream md((std::filesystem::path(a.report) / "report.md").string());
+    md << "# Identification report\n\n";
+    md << "Declared terms: `" << a.terms << "`; records: ";
+    for (size_t i = 0; i < recs.size(); ++i) md << (i ? ", " : "") << "`" << recs[i].name << "` (" << recs[i].n() << " samples)";
+    md << ".\n\n## Error before and after\n\n| | declared model | final model |\n|---|---|---|\n";
+    md << "| NRMSE of the output, all records | " << Fmt(r.before.errors.nrmse) << " % | " << Fmt(r.after.errors.nrmse) << " % |\n";
+    md << "| spectral error (Eq. 20, normalised) | " << Fmt(r.before.errors.fft) << " % | " << Fmt(r.after.errors.fft) << " % |\n";
+    for (size_t i = 0; i < recs.size(); ++i)
+      md << "| `" << recs[i].name << "` NRMSE / RMS | " << Fmt(r.before.errors.record_nrmse[i]) << " % / " << Fmt(r.before.errors.record_rms[i])
+         << " | " << Fmt(r.after.errors.record_nrmse[i]) << " % / " << Fmt(r.after.errors.record_rms[i]) << " |\n";
+    for (const auto& t : test_json)
+      md << "| test `" << t["record"].get<std::string>() << "` [" << t["range"].get<std::string>() << ") RMS | "
+         << Fmt(t["rms_before"].is_null() ? NAN : t["rms_before"].get<double>()) << " | "
+         << Fmt(t["rms_after"].is_null() ? NAN : t["rms_after"].get<double>()) << " |\n";
+    md << "\n## Effects added\n\n";
+    if (r.added.empty()) md << "None: nothing in the residual beat the noise.\n";
+    for (const AddedEffect& e : r.added) {
+      const TermDef* t = *FindTerm(e.term);
+      md << "- **" << e.term << "** (" << t->meaning << "; `" << t->formula << "`): ";
+      for (size_t i = 0; i < e.names.size(); ++i) md << (i ? ", " : "") << e.names[i] << " = " << Fmt(e.params[i]) << " ± " << Fmt(e.sigma[i], 2) << " " << e.units[i];
+      md << "; error " << Fmt(e.error_before) << " % → " << Fmt(e.error_after) << " % when added.\n";
+    }
+    md << "\n## Evidence\n\n";
+    for (size_t k = 0; k < r.steps.size(); ++k) {
+      const LoopStep& s = r.steps[k];
+      md << "Step " << k + 1 << ": " << s.verdict << " (n_eff " << Fmt(s.n_eff, 4) << ", residual force RMS " << Fmt(s.residual_rms, 3) << " N).\n\n";
+      md << "| candidate | ΔBIC (simulation residual) | explained | signed | ΔBIC (force residual) | explained |\n|---|---|---|---|---|---|\n";
+      for (size_t i = 0; i < std::min<size_t>(s.scores.size(), 8); ++i) {
+        const CandidateScore& c = s.scores[i];
+        md << "| " << c.term << " | " << Fmt(c.delta_bic) << " | " << Fmt(100 * c.explained, 3) << " % | " << (c.sign_ok ? "yes" : "no") << " | "
+           << Fmt(c.force_delta_bic) << " | " << Fmt(100 * c.force_explained, 3) << " % |\n";
+      }
+      md << "\n";
+    }
+    md << "## Final model\n\n| parameter | value | ± σ | unit |\n|---|---|---|---|\n";
+    const auto names = r.final_model.ParamNames();
+    const auto units = r.final_model.ParamUnits();
+    for (size_t i = 0; i < names.size(); ++i)
+      md << "| " << names[i] << " | " << Fmt(r.after.theta[i], 6) << " | " << Fmt(r.after.sigma[i], 2) << " | " << units[i] << " |\n";
+    md << "\nσ: Gauss–Newton covariance scaled by the residual's correlation time. Friction constants v_sp = " << setup.fc.v_sp
+       << " m/s, v_t = " << setup.fc.v_t << " m/s. Wall time " << Fmt(r.seconds, 3) << " s, " << j["simulations"].get<int>()
+       << " simulations.\n\n## Figures\n\n";
+    for (const std::string& f : figs) md << "![" << f << "](" << f << ")\n\n";
+    std::ofstream js((std::filesystem::path(a.report) / "report.json").string());
+    js << j.dump(2) << "\n";
+    if (!md || !js) return Fail(Status::IoError("report", "writing the report in '" + a.report + "' failed"));
+  }
+  if (a.json) {
+    std::cout << j.dump(2) << "\n";
+    return 0;
+  }
+  std::printf("error (NRMSE of the output): %s %% before, %s %% after   (spectral: %s %% -> %s %%)\n", Fmt(r.before.errors.nrmse).c_str(),
+              Fmt(r.after.errors.nrmse).c_str(), Fmt(r.before.errors.fft).c_str(), Fmt(r.after.errors.fft).c_str());
+  for (const LoopStep& s : r.steps) std::printf("  %s\n", s.verdict.c_str());
+  const auto names = r.final_model.ParamNames();
+  const auto units = r.final_model.ParamUnits();
+  std::printf("final model:\n");
+  for (size_t i = 0; i < names.size(); ++i)
+    std::printf("  %-28s %12s ± %-9s %s\n", names[i].c_str(), Fmt(r.after.theta[i], 6).c_str(), Fmt(r.after.sigma[i], 2).c_str(), units[i].c_str());
+  for (const auto& t : test_json)
+    std::printf("test %s [%s): RMS %s before, %s after\n", t["record"].get<std::string>().c_str(), t["range"].get<std::string>().c_str(),
+                Fmt(t["rms_before"].is_null() ? NAN : t["rms_before"].get<double>()).c_str(),
+                Fmt(t["rms_after"].is_null() ? NAN : t["rms_after"].get<double>()).c_str());
+  std::printf("%.1f s, %d simulations%s\n", r.seconds, j["simulations"].get<int>(), a.report.empty() ? "" : ("; report in " + a.report).c_str());
+  return 0;
+}
+
+}  // namespace
+
+void AddIdentifyCommand(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<IdentifyArgs>();
+  CLI::App* c = app.add_subcommand("identify", "Fit the model to measured records, trace the residual to missing effects, add them, report before/after");
+  c->add_option("--data", a->data, "CSV record(s) with a header (repeat for several; fitted jointly)");
+  c->add_option("--terms", a->terms, "declared terms, comma-separated (see --list-terms), e.g. main.linear,main.stiffness_y3,main.viscous");
+  c->add_option("--known", a->known, "known constants: m_main, m_res [kg], v_sp, v_t [m/s] (defaults 0.002, 0.001), e.g. m_main=0.282");
+  c->add_option("--columns", a->columns, "column roles: t=..,input=..,output=..,resonator=..,group=a;b (defaults t, x0|a0|u, x|v|y)");
+  c->add_option("--input-kind", a->input_kind, "base_displacement [m] | base_acceleration [m/s^2] | force [N]")->capture_default_str();
+  c->add_option("--input-scale", a->input_scale, "factor to SI for the input column (9.81 for g)")->capture_default_str();
+  c->add_option("--output-kind", a->output_kind, "displacement [m] | velocity [m/s] | analogue (a displacement-like signal)")->capture_default_str();
+  c->add_option("--output-scale", a->output_scale, "factor to SI for the output column")->capture_default_str();
+  c->add_option("--output-frame", a->frame, "absolute | relative (to the base)")->capture_default_str();
+  c->add_option("--range", a->range, "sample range A:B used for fitting (0-based, end exclusive)");
+  c->add_option("--test-range", a->test_ranges, "sample range A:B simulated for a test error (repeatable)");
+  c->add_option("--max-seconds", a->max_seconds, "use at most this many seconds of each record (0: all)");
+  c->add_option("--decimate", a->decimate, "keep every k-th sample")->capture_default_str();
+  c->add_option("--smooth", a->smooth, "Savitzky-Golay half-width for measured derivatives [samples]")->capture_default_str();
+  c->add_option("--objective", a->objective, "time (simulation NRMSE) | fft (the paper's Eq. 20, for chaotic records)")->capture_default_str();
+  c->add_option("--global-evals", a->global_evals, "evaluations of the global stage (NLopt CRS2; 0: none)")->capture_default_str();
+  c->add_option("--horizon", a->horizon, "short-horizon (multiple shooting) first stage [s] (0: none)")->capture_default_str();
+  c->add_option("--max-added", a->max_added, "at most this many effects added")->capture_default_str();
+  c->add_option("--candidates", a->candidates, "terms the trace may add (default: the whole library of the bodies measured)");
+  c->add_option("--guess", a->guesses, "initial values, e.g. main.linear.k_lin=480 (others from the regression)");
+  c->add_option("--threads", a->threads, "records simulated in parallel (0: all cores)")->capture_default_str();
+  c->add_option("--report", a->report, "directory for report.md, report.json and PNG figures");
+  c->add_option("--make-synthetic", a->synth, "write synthetic chirp records (Table 2 linear rig) into DIR and exit");
+  c->add_flag("--list-terms", a->list_terms, "list the effect library (ids, formulas, units) and exit");
+  c->add_flag("--json", a->json, "print the result as JSON");
+  c->callback([a, exit_code] { *exit_code = RunIdentify(*a); });
+}
+
+}  // namespace bistable
