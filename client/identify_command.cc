@@ -30,9 +30,9 @@ struct IdentifyArgs {
   std::string range, objective = "time", report, synth;
   std::vector<std::string> test_ranges;
   double max_seconds = 0;
-  int decimate = 1, smooth = 4, global_evals = 150, max_added = 3, threads = 0;
-  double horizon = 0.5;
-  bool json = false, list_terms = false;
+  int decimate = 1, global_evals = 150, max_added = 3, threads = 0;
+  double horizon = 0.5, deriv_cutoff = 0;
+  bool json = false, list_terms = false, fit_offsets = false;
 };
 
 // "a=1,b=2" → map; errors name the flag and the item.
@@ -283,13 +283,14 @@ int RunIdentify(IdentifyArgs& a) {
   else return Fail(Status::InvalidArgument("objective", "'" + a.objective + "' violates objective in {time, fft}"));
   if (a.global_evals < 0 || a.global_evals > 100000) return Fail(Status::InvalidArgument("global-evals", "must be in [0, 100000]"));
   if (a.max_added < 0 || a.max_added > 10) return Fail(Status::InvalidArgument("max-added", "must be in [0, 10]"));
-  if (a.smooth < 2 || a.smooth > 200) return Fail(Status::InvalidArgument("smooth", "smooth = " + std::to_string(a.smooth) + " violates smooth in [2, 200]"));
+  if (!(a.deriv_cutoff >= 0)) return Fail(Status::InvalidArgument("deriv-cutoff", "deriv-cutoff = " + Fmt(a.deriv_cutoff) + " violates deriv-cutoff >= 0 Hz"));
   if (a.decimate < 1 || a.decimate > 1000) return Fail(Status::InvalidArgument("decimate", "must be in [1, 1000]"));
   if (!(a.horizon >= 0)) return Fail(Status::InvalidArgument("horizon", "must be >= 0 s"));
   opt.fit.global_evals = a.global_evals;
   opt.fit.threads = a.threads;
   opt.fit.shooting_horizon_s = a.horizon;
   opt.max_added = a.max_added;
+  opt.fit_offsets = a.fit_offsets;
   if (!a.candidates.empty()) {
     auto c = ParseTerms(a.candidates);
     if (!c.ok()) return Fail(Status::InvalidArgument("candidates", c.status().message()));
@@ -331,7 +332,7 @@ int RunIdentify(IdentifyArgs& a) {
     const size_t n = r.t.size();
     size_t b = std::min(fit_range.first, n), e = std::min(fit_range.second, n);
     if (a.max_seconds > 0) e = std::min(e, b + static_cast<size_t>(a.max_seconds / r.dt));
-    auto p = PrepareRecord(r, setup, b, e, a.smooth, r.name);
+    auto p = PrepareRecord(r, setup, b, e, a.deriv_cutoff, r.name);
     if (!p.ok()) return Fail(p.status());
     recs.push_back(std::move(*p));
   }
@@ -341,7 +342,7 @@ int RunIdentify(IdentifyArgs& a) {
   nlohmann::json test_json = nlohmann::json::array();
   for (const auto& [tb, te] : tests)
     for (const Record& rec : loaded) {
-      auto p = PrepareRecord(rec, setup, tb, te, a.smooth, rec.name);
+      auto p = PrepareRecord(rec, setup, tb, te, a.deriv_cutoff, rec.name);
       if (!p.ok()) return Fail(Status::InvalidArgument("test-range", p.status().message()));
       const Errors eb = Evaluate(r.declared, r.before.theta, {*p}, setup);
       const Errors ea = Evaluate(r.final_model, r.after.theta, {*p}, setup);
@@ -398,9 +399,10 @@ int RunIdentify(IdentifyArgs& a) {
   j["seconds"] = r.seconds;
   j["simulations"] = r.before.simulations + r.after.simulations;
   j["settings"] = {{"v_sp", setup.fc.v_sp}, {"v_t", setup.fc.v_t}, {"m_main", model.m_main}, {"m_res", model.m_res},
-                   {"smooth_half_width", a.smooth}, {"global_evals", a.global_evals}, {"shooting_horizon_s", a.horizon},
+                   {"deriv_cutoff_hz", recs.empty() ? 0.0 : recs[0].f_cut}, {"global_evals", a.global_evals}, {"shooting_horizon_s", a.horizon},
                    {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"input_kind", a.input_kind},
-                   {"output_kind", a.output_kind}, {"output_frame", a.frame}};
+                   {"output_kind", a.output_kind}, {"output_frame", a.frame},
+                   {"fit_offsets", a.fit_offsets}};
   if (!a.report.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(a.report, ec);
@@ -492,7 +494,7 @@ void AddIdentifyCommand(CLI::App& app, int* exit_code) {
   c->add_option("--test-range", a->test_ranges, "sample range A:B simulated for a test error (repeatable)");
   c->add_option("--max-seconds", a->max_seconds, "use at most this many seconds of each record (0: all)");
   c->add_option("--decimate", a->decimate, "keep every k-th sample")->capture_default_str();
-  c->add_option("--smooth", a->smooth, "Savitzky-Golay half-width for measured derivatives [samples]")->capture_default_str();
+  c->add_option("--deriv-cutoff", a->deriv_cutoff, "low-pass cutoff of measured derivatives [Hz] (0: four times the 99.9 % power bandwidth)")->capture_default_str();
   c->add_option("--objective", a->objective, "time (simulation NRMSE) | fft (the paper's Eq. 20, for chaotic records)")->capture_default_str();
   c->add_option("--global-evals", a->global_evals, "evaluations of the global stage (NLopt CRS2; 0: none)")->capture_default_str();
   c->add_option("--horizon", a->horizon, "short-horizon (multiple shooting) first stage [s] (0: none)")->capture_default_str();
@@ -502,6 +504,7 @@ void AddIdentifyCommand(CLI::App& app, int* exit_code) {
   c->add_option("--threads", a->threads, "records simulated in parallel (0: all cores)")->capture_default_str();
   c->add_option("--report", a->report, "directory for report.md, report.json and PNG figures");
   c->add_option("--make-synthetic", a->synth, "write synthetic chirp records (Table 2 linear rig) into DIR and exit");
+  c->add_flag("--fit-offsets", a->fit_offsets, "velocity outputs: fit each record's displacement offset (which well)");
   c->add_flag("--list-terms", a->list_terms, "list the effect library (ids, formulas, units) and exit");
   c->add_flag("--json", a->json, "print the result as JSON");
   c->callback([a, exit_code] { *exit_code = RunIdentify(*a); });

@@ -4,7 +4,6 @@
 #include <cmath>
 #include <complex>
 
-#include <unsupported/Eigen/FFT>
 
 #include "dynamics/dopri5.h"
 #include "dynamics/nondim_models.h"
@@ -135,8 +134,6 @@ FrfEstimate FftFrf(const std::vector<double>& in, const std::vector<double>& out
   FrfEstimate e;
   const size_t n = std::min(in.size(), out.size());
   if (n < 8) return e;
-  Eigen::FFT<double> fft;
-  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
   std::vector<std::complex<double>> a, b;
   // Both records zero-padded to a 2^a3^b5^c length: the ratio is unchanged in expectation and the
   // transform never takes kissfft's slow path for large prime factors.
@@ -144,8 +141,8 @@ FrfEstimate FftFrf(const std::vector<double>& in, const std::vector<double>& out
   std::vector<double> xi(m, 0.0), xo(m, 0.0);
   std::copy(in.begin(), in.begin() + n, xi.begin());
   std::copy(out.begin(), out.begin() + n, xo.begin());
-  fft.fwd(a, xi);
-  fft.fwd(b, xo);
+  RealFftHalf(xi, &a);
+  RealFftHalf(xo, &b);
   const double df = (hz ? 1.0 : 2.0 * M_PI) / (m * dt);
   for (size_t k = 1; k < a.size(); ++k) {
     const double f = k * df;
@@ -160,8 +157,6 @@ FrfEstimate FftFrf(const std::vector<double>& in, const std::vector<double>& out
 Spectrogram ComputeSpectrogram(const std::vector<double>& x, double dt, int window, double f_max, bool hz) {
   Spectrogram s;
   if (window < 16 || static_cast<int>(x.size()) < window) return s;
-  Eigen::FFT<double> fft;
-  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
   std::vector<double> w(window), seg(window);
   for (int i = 0; i < window; ++i) w[i] = 0.5 - 0.5 * std::cos(2.0 * M_PI * i / window);
   const double df = (hz ? 1.0 : 2.0 * M_PI) / (window * dt);
@@ -174,7 +169,7 @@ Spectrogram ComputeSpectrogram(const std::vector<double>& x, double dt, int wind
     for (int i = 0; i < window; ++i) mean += x[start + i];
     mean /= window;
     for (int i = 0; i < window; ++i) seg[i] = (x[start + i] - mean) * w[i];
-    fft.fwd(spec, seg);
+    RealFftHalf(seg, &spec);
     std::vector<double> row(kmax + 1);
     for (int k = 0; k <= kmax; ++k) row[k] = std::abs(spec[k]), top = std::max(top, row[k]);
     s.time.push_back((start + window / 2.0) * dt);

@@ -50,6 +50,25 @@ FftCache& Cache() {
 
 }  // namespace
 
+namespace {
+Eigen::FFT<double>& HalfFft() {
+  thread_local Eigen::FFT<double> fft = [] {
+    Eigen::FFT<double> f;
+    f.SetFlag(Eigen::FFT<double>::HalfSpectrum);
+    return f;
+  }();
+  return fft;
+}
+Eigen::FFT<double>& FullFft() {
+  thread_local Eigen::FFT<double> fft;
+  return fft;
+}
+}  // namespace
+
+void RealFftHalf(const std::vector<double>& x, std::vector<std::complex<double>>* X) { HalfFft().fwd(*X, x); }
+void RealFftFull(const std::vector<double>& x, std::vector<std::complex<double>>* X) { FullFft().fwd(*X, x); }
+void InverseFftReal(const std::vector<std::complex<double>>& X, std::vector<double>* x) { FullFft().inv(*x, X); }
+
 size_t NextFastFftLength(size_t n) {
   size_t best = SIZE_MAX;
   for (size_t a = 1; a < 2 * n + 2; a *= 2)

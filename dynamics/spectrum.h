@@ -3,6 +3,7 @@
 #ifndef BISTABLE_DYNAMICS_SPECTRUM_H_
 #define BISTABLE_DYNAMICS_SPECTRUM_H_
 
+#include <complex>
 #include <vector>
 
 #include "dynamics/point_spec.h"
@@ -17,6 +18,17 @@ struct Spectrum {
 // Mean removed, Hann-windowed, amplitude-normalised (2|X_k| / Σw). Uses the last FastFftLength(N)
 // samples so the FFT never falls back to a slow prime-length transform (5001 = 3 · 1667 would).
 Spectrum AmplitudeSpectrum(const std::vector<double>& x, double dt);
+
+// Every FFT of the project goes through these three (one translation unit instantiates kissfft).
+// Two differently compiled copies of its inline code in one binary — a sweep's and an identification
+// module's — made the embedded map differ from the workers' in the last bit of hd_index (found by the
+// distributed bit-for-bit test); keep all transforms here.
+// Half spectrum (n/2 + 1 bins) of a real series; fast for n = 2^a 3^b 5^c.
+void RealFftHalf(const std::vector<double>& x, std::vector<std::complex<double>>* X);
+// Full spectrum (n bins) of a real series.
+void RealFftFull(const std::vector<double>& x, std::vector<std::complex<double>>* X);
+// Real series from a full (Hermitian) spectrum of n bins.
+void InverseFftReal(const std::vector<std::complex<double>>& X, std::vector<double>* x);
 
 // Largest n' ≤ n of the form 2^a 3^b 5^c (n ≥ 1).
 size_t FastFftLength(size_t n);

@@ -9,8 +9,8 @@
 #include <thread>
 
 #include <ceres/ceres.h>
+#include <glog/logging.h>
 #include <nlopt.hpp>
-#include <unsupported/Eigen/FFT>
 
 #include "dynamics/spectrum.h"
 
@@ -57,9 +57,8 @@ std::vector<double> VelocityMagnitudes(const std::vector<double>& series, double
   const size_t len = NextFastFftLength(v.size());
   std::vector<double> x(len, 0.0);
   for (size_t i = 0; i < v.size(); ++i) x[i] = v[i] - mean;
-  Eigen::FFT<double> fft;
   std::vector<std::complex<double>> X;
-  fft.fwd(X, x);
+  RealFftFull(x, &X);
   std::vector<double> mag(len / 2 + 1);
   for (size_t k = 0; k < mag.size(); ++k) mag[k] = std::abs(X[k]) / static_cast<double>(v.size());
   return mag;
@@ -200,7 +199,7 @@ Regression BuildRegression(const IdentModel& m, const std::vector<PreparedRecord
   std::vector<std::vector<double>> rows;
   std::vector<double> rhs;
   Regression reg;
-  const int mass_col = m.FitsMass() ? p_model - 1 : -1;
+  const int mass_col = m.FitsMass() ? m.NumTermParams() : -1;
   auto add_body_columns = [&](std::vector<double>& row, Body body, double sign, double q, double v) {
     int k = 0;
     double phi[2];
@@ -223,11 +222,12 @@ Regression BuildRegression(const IdentModel& m, const std::vector<PreparedRecord
   for (size_t ri = 0; ri < recs.size(); ++ri) {
     const PreparedRecord& r = recs[ri];
     const bool res = !r.z.empty();
-    const size_t edge = std::min<size_t>(12, r.n() / 4);
+    const size_t edge = std::min<size_t>(std::max<size_t>(12, r.n() / 50), r.n() / 4);  // derivative end effects
     for (size_t i = edge; i + edge < r.n(); i += stride) {
       // Main body: F(y, y') − G(z, z') [+ m p''] = target.
       std::vector<double> row(p_model + p_extra, 0.0);
-      add_body_columns(row, Body::kMain, 1.0, r.y[i], r.yd[i]);
+      const double yi = r.y[i] + m.Offset(m.theta, r.index);  // offsets enter as fixed values here
+      add_body_columns(row, Body::kMain, 1.0, yi, r.yd[i]);
       if (res) add_body_columns(row, Body::kResonator, -1.0, r.z[i], r.zd[i]);
       double target = 0;
       const double mm = m.FitsMass() ? 0.0 : m.m_main;
@@ -240,7 +240,7 @@ Regression BuildRegression(const IdentModel& m, const std::vector<PreparedRecord
       rows.push_back(std::move(row));
       rhs.push_back(target);
       reg.record_of_row.push_back(static_cast<int>(ri));
-      reg.q.push_back(r.y[i]);
+      reg.q.push_back(yi);
       reg.v.push_back(r.yd[i]);
       if (res && m.m_res > 0) {  // resonator: G(z, z') = −m_r x_r''
         std::vector<double> rrow(p_model + p_extra, 0.0);
@@ -335,6 +335,12 @@ struct SimCost {
 
 FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const std::vector<PreparedRecord>& recs,
               const Setup& setup, const FitOptions& opt) {
+  // A diverging trial step is an expected event of the fit (the step is refused), not an error to log.
+  static const bool quiet = [] {
+    FLAGS_minloglevel = google::GLOG_FATAL;
+    return true;
+  }();
+  (void)quiet;
   const auto t0 = std::chrono::steady_clock::now();
   const int p = m.NumParams();
   const std::vector<Sign> signs = m.ParamSigns();
@@ -452,12 +458,13 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
       if (gc < best_cost) u = g, best_cost = gc;
     }
   }
-  // Uncertainty: Gauss–Newton covariance at the solution, central differences.
+  // Uncertainty: Gauss–Newton covariance at the solution, central differences (time objective only:
+  // the spectral residual's bins are neither independent nor of known correlation, so no σ is given).
   std::vector<double> th(p);
   for (int i = 0; i < p; ++i) th[i] = u[i] * scale[i];
   result.theta = th;
   result.sigma.assign(p, NAN);
-  {
+  if (opt.objective == Objective::kTime) {
     std::vector<int> sub;
     for (const PreparedRecord& r : recs) sub.push_back(static_cast<int>(std::ceil(1.5 * SubstepsFor(m, th, r))));
     SimCost c = cost;

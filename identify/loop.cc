@@ -40,17 +40,65 @@ double CorrTime(const Eigen::VectorXd& e, const std::vector<int>& record_of_row)
   return count ? std::max(1.0, total / count) : 1.0;
 }
 
+// Least squares for the term parameters (and the mass) with the offsets held at m.theta's values.
 std::vector<double> StartFromRegression(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup,
                                         std::vector<double>* sigma) {
   const Regression reg = BuildRegression(m, recs, setup);
-  const LinearFit lf = SolveRegression(reg.X, reg.b, m.ParamSigns());
+  const int q = m.NumParams() - m.offsets;
+  std::vector<Sign> signs = m.ParamSigns();
+  signs.resize(q);
+  const LinearFit lf = SolveRegression(reg.X.leftCols(q), reg.b, signs);
+  std::vector<double> th = lf.theta;
   *sigma = lf.sigma;
-  return lf.theta;
+  for (int k = 0; k < m.offsets; ++k) th.push_back(m.Offset(m.theta, k)), sigma->push_back(NAN);
+  return th;
 }
 
-std::vector<double> ScaleOf(const std::vector<double>& th, const std::vector<double>& sigma) {
+// Offsets of velocity-output records: per record, the displacement shift whose equation-error
+// regression leaves the least residual (a scan over ±3 displacement ranges), so that a record in
+// one well starts the fit in that well.
+void EstimateOffsets(IdentModel* m, const std::vector<PreparedRecord>& recs, const Setup& setup) {
+  if (m->offsets == 0) return;
+  m->theta.assign(m->NumParams(), NAN);  // term values from the regression that follows
+  for (int k = 0; k < m->offsets && k < static_cast<int>(recs.size()); ++k) {
+    std::vector<PreparedRecord> one = {recs[k]};
+    one[0].index = 0;
+    IdentModel single = *m;
+    single.offsets = 1;
+    single.theta.assign(single.NumParams(), 0.0);
+    const double range = std::max(recs[k].p_range, 1e-9);
+    double best = INFINITY, best_d = 0;
+    for (int j = -60; j <= 60; ++j) {
+      const double d = 3.0 * range * j / 60.0;
+      single.theta[single.OffsetIndex(0)] = d;
+      const Regression reg = BuildRegression(single, one, setup, {}, 4000);
+      const int q = single.NumParams() - 1;
+      std::vector<Sign> signs = single.ParamSigns();
+      signs.resize(q);
+      const LinearFit lf = SolveRegression(reg.X.leftCols(q), reg.b, signs);
+      if (lf.rss < best) best = lf.rss, best_d = d;
+    }
+    m->theta[m->OffsetIndex(k)] = best_d;
+  }
+}
+
+// Parameter scales for the fits: the value, 3σ, or — for a parameter at zero (clipped to its bound,
+// or not yet estimated) — 5 % of the value whose force equals the RMS inertial force along the
+// records; without that floor a parameter starting at 0 could never move in scaled coordinates.
+std::vector<double> ScaleOf(const IdentModel& m, const std::vector<double>& th, const std::vector<double>& sigma,
+                            const std::vector<PreparedRecord>& recs, const Setup& setup) {
+  const Regression reg = BuildRegression(m, recs, setup, {}, 5000);
+  const double f_typ = std::sqrt(reg.b.squaredNorm() / std::max<double>(1.0, static_cast<double>(reg.b.size())));
   std::vector<double> s(th.size());
-  for (size_t i = 0; i < th.size(); ++i) s[i] = std::max(std::abs(th[i]), std::isfinite(sigma[i]) ? 3.0 * sigma[i] : 0.0);
+  for (size_t i = 0; i < th.size(); ++i) {
+    const double rms = reg.X.col(static_cast<long>(i)).norm() / std::sqrt(std::max<double>(1.0, static_cast<double>(reg.X.rows())));
+    const double typ = rms > 0 && f_typ > 0 ? 0.05 * f_typ / rms : 0.0;
+    s[i] = std::max({std::abs(th[i]), std::isfinite(sigma[i]) ? 3.0 * sigma[i] : 0.0, typ});
+  }
+  for (int k = 0; k < m.offsets; ++k) {  // offsets: the record's displacement range
+    const int i = m.OffsetIndex(k);
+    s[i] = std::max(std::abs(th[i]), k < static_cast<int>(recs.size()) ? recs[k].p_range : 1e-3);
+  }
   return s;
 }
 
@@ -216,12 +264,33 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
   return step;
 }
 
+IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                               const IdentifyOptions& opt);
+
 IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRecord>& recs, const Setup& setup,
                         const IdentifyOptions& opt) {
-  const auto t0 = std::chrono::steady_clock::now();
-  IdentifyResult out;
   IdentModel m = declared;
   m.fc = setup.fc;
+  if (opt.fit_offsets && setup.output == OutputKind::kVelocity && m.offsets == 0) {
+    m.offsets = static_cast<int>(recs.size());
+    if (!m.theta.empty()) m.theta.resize(m.NumParams(), NAN);
+  }
+  std::vector<PreparedRecord> indexed = recs;  // each record knows its offset parameter
+  for (size_t i = 0; i < indexed.size(); ++i) indexed[i].index = static_cast<int>(i);
+  return IdentifyIndexed(m, indexed, setup, opt);
+}
+
+IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                               const IdentifyOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  IdentifyResult out;
+  {
+    const std::vector<double> given = m.theta;
+    EstimateOffsets(&m, recs, setup);
+    if (given.size() == m.theta.size())  // given guesses (non-NaN) win, offsets included
+      for (size_t i = 0; i < given.size(); ++i)
+        if (std::isfinite(given[i])) m.theta[i] = given[i];
+  }
   std::vector<double> sigma0;
   const std::vector<double> start = StartFromRegression(m, recs, setup, &sigma0);
   if (static_cast<int>(m.theta.size()) != m.NumParams()) m.theta = start;
@@ -229,7 +298,7 @@ IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRe
     for (int i = 0; i < m.NumParams(); ++i)
       if (!std::isfinite(m.theta[i])) m.theta[i] = start[i];
   out.declared = m;
-  FitResult fit = Fit(m, ScaleOf(m.theta, sigma0), recs, setup, opt.fit);
+  FitResult fit = Fit(m, ScaleOf(m, m.theta, sigma0, recs, setup), recs, setup, opt.fit);
   m.theta = fit.theta;
   out.before = fit;
   out.residual_before = ResidualForce(m, m.theta, recs, setup);
@@ -249,13 +318,13 @@ IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRe
       if (t->params[j].sign == Sign::kNonNegative) init[j] = std::max(init[j], 0.0);
     IdentModel next = m.With(t, init);
     std::vector<double> sig = fit.sigma;
-    sig.insert(sig.end() - (m.FitsMass() ? 1 : 0), s.sigma.begin(), s.sigma.end());
-    FitResult refit = Fit(next, ScaleOf(next.theta, sig), recs, setup, opt.fit);
+    sig.insert(sig.begin() + m.NumTermParams(), s.sigma.begin(), s.sigma.end());
+    FitResult refit = Fit(next, ScaleOf(next, next.theta, sig, recs, setup), recs, setup, opt.fit);
     {  // a second start: the equation-error regression of the extended model (another basin)
       IdentModel alt = next;
       std::vector<double> sig_alt;
       alt.theta = StartFromRegression(alt, recs, setup, &sig_alt);
-      FitResult refit2 = Fit(alt, ScaleOf(alt.theta, sig_alt), recs, setup, opt.fit);
+      FitResult refit2 = Fit(alt, ScaleOf(alt, alt.theta, sig_alt, recs, setup), recs, setup, opt.fit);
       if (ErrorOf(refit2, opt.fit.objective) < ErrorOf(refit, opt.fit.objective)) refit = refit2;
     }
     const double before = ErrorOf(fit, opt.fit.objective), after = ErrorOf(refit, opt.fit.objective);

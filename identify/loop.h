@@ -62,6 +62,10 @@ struct IdentifyOptions {
   double min_explained = 0.05;
   double min_improvement = 0.02;
   std::vector<const TermDef*> candidates;  // empty: every library term of a body the data constrain
+  // Velocity outputs: fit a displacement offset per record (IdentModel::offsets), started from an
+  // equation-error scan. Off by default: on the harvester's chaotic record it traded off against a
+  // bias term (docs/identification.md).
+  bool fit_offsets = false;
 };
 
 struct IdentifyResult {

@@ -5,7 +5,6 @@
 #include <complex>
 
 #include <Eigen/Dense>
-#include <unsupported/Eigen/FFT>
 
 #include "dynamics/spectrum.h"
 
@@ -85,6 +84,60 @@ std::vector<double> SavitzkyGolay(const std::vector<double>& y, double dt, int h
   return out;
 }
 
+std::vector<double> SpectralDerivative(const std::vector<double>& y, double dt, int order, double f_cut_hz) {
+  const size_t n = y.size();
+  if (n < 4) return std::vector<double>(n, 0.0);
+  const size_t len = NextFastFftLength(2 * n);
+  std::vector<double> x(len, y[0]);
+  for (size_t i = 0; i < n; ++i) x[i] = y[i], x[2 * n - 1 - i] = y[i];  // mirror; the pad continues at y[0]
+  std::vector<std::complex<double>> X;
+  RealFftFull(x, &X);
+  const double df = 1.0 / (static_cast<double>(len) * dt);
+  for (size_t k = 0; k < X.size(); ++k) {
+    const double f = (k <= len / 2 ? static_cast<double>(k) : -static_cast<double>(len - k)) * df;
+    const double af = std::abs(f);
+    double h = 1.0;
+    if (af >= f_cut_hz) h = 0.0;
+    else if (af > 0.8 * f_cut_hz) h = 0.5 * (1.0 + std::cos(M_PI * (af - 0.8 * f_cut_hz) / (0.2 * f_cut_hz)));
+    std::complex<double> w(1.0, 0.0);
+    for (int d = 0; d < order; ++d) w *= std::complex<double>(0.0, 2.0 * M_PI * f);
+    if (order > 0 && k == len / 2 && len % 2 == 0) w = 0;  // Nyquist bin of an odd derivative: no sign
+    X[k] *= h * w;
+  }
+  std::vector<double> out;
+  InverseFftReal(X, &out);
+  out.resize(n);
+  return out;
+}
+
+double AutoCutoff(const std::vector<double>& y, double dt) {
+  const size_t n = y.size();
+  const double nyq = 0.5 / dt;
+  if (n < 8) return 0.9 * nyq;
+  double mean = 0;
+  for (double v : y) mean += v;
+  mean /= static_cast<double>(n);
+  const size_t len = NextFastFftLength(2 * n);
+  std::vector<double> x(len, y[0] - mean);
+  for (size_t i = 0; i < n; ++i) x[i] = x[2 * n - 1 - i] = y[i] - mean;
+  std::vector<std::complex<double>> X;
+  RealFftFull(x, &X);
+  std::vector<double> pw(len / 2 + 1);
+  double total = 0;
+  for (size_t k = 1; k < pw.size(); ++k) total += pw[k] = std::norm(X[k]);
+  double acc = 0;
+  const double df = 1.0 / (static_cast<double>(len) * dt);
+  double f999 = nyq;
+  for (size_t k = 1; k < pw.size(); ++k) {
+    acc += pw[k];
+    if (acc >= 0.999 * total) {
+      f999 = static_cast<double>(k) * df;
+      break;
+    }
+  }
+  return std::clamp(4.0 * f999, 10.0 * df, 0.9 * nyq);
+}
+
 std::vector<double> IntegrateFft(const std::vector<double>& y, double dt, double f_min_hz) {
   const size_t n = y.size();
   if (n < 4) return std::vector<double>(n, 0.0);
@@ -99,9 +152,8 @@ std::vector<double> IntegrateFft(const std::vector<double>& y, double dt, double
     const double frac = static_cast<double>(i - n + 1) / static_cast<double>(len - n + 1);
     x[i] = (1.0 - frac) * x[n - 1] + frac * x[0];
   }
-  Eigen::FFT<double> fft;
   std::vector<std::complex<double>> X;
-  fft.fwd(X, x);
+  RealFftFull(x, &X);
   const double df = 1.0 / (static_cast<double>(len) * dt);
   for (size_t k = 0; k < X.size(); ++k) {
     const size_t kk = k <= len / 2 ? k : len - k;
@@ -114,7 +166,7 @@ std::vector<double> IntegrateFft(const std::vector<double>& y, double dt, double
     X[k] /= std::complex<double>(0.0, w);
   }
   std::vector<double> out;
-  fft.inv(out, X);
+  InverseFftReal(X, &out);
   out.resize(n);
   double m2 = 0;
   for (double v : out) m2 += v;
@@ -142,17 +194,20 @@ bool IdentModel::HasResonator() const {
   return false;
 }
 
-int IdentModel::NumParams() const {
+int IdentModel::NumTermParams() const {
   int n = 0;
   for (const TermDef* t : terms) n += static_cast<int>(t->params.size());
-  return n + (FitsMass() ? 1 : 0);
+  return n;
 }
+
+int IdentModel::NumParams() const { return NumTermParams() + (FitsMass() ? 1 : 0) + offsets; }
 
 std::vector<std::string> IdentModel::ParamNames() const {
   std::vector<std::string> out;
   for (const TermDef* t : terms)
     for (const TermParam& p : t->params) out.push_back(t->id + "." + p.name);
   if (FitsMass()) out.push_back("m_main");
+  for (int k = 0; k < offsets; ++k) out.push_back("offset." + std::to_string(k));
   return out;
 }
 
@@ -161,6 +216,7 @@ std::vector<std::string> IdentModel::ParamUnits() const {
   for (const TermDef* t : terms)
     for (const TermParam& p : t->params) out.push_back(p.unit);
   if (FitsMass()) out.push_back("kg");
+  for (int k = 0; k < offsets; ++k) out.push_back("m");
   return out;
 }
 
@@ -169,6 +225,7 @@ std::vector<Sign> IdentModel::ParamSigns() const {
   for (const TermDef* t : terms)
     for (const TermParam& p : t->params) out.push_back(p.sign);
   if (FitsMass()) out.push_back(Sign::kNonNegative);
+  for (int k = 0; k < offsets; ++k) out.push_back(Sign::kEither);
   return out;
 }
 
@@ -197,15 +254,16 @@ double IdentModel::Force(Body body, const std::vector<double>& th, double q, dou
 
 IdentModel IdentModel::With(const TermDef* t, const std::vector<double>& initial) const {
   IdentModel m = *this;
-  std::vector<double> th(theta.begin(), theta.begin() + (NumParams() - (FitsMass() ? 1 : 0)));
+  const int nt = NumTermParams();
+  std::vector<double> th(theta.begin(), theta.begin() + nt);
   th.insert(th.end(), initial.begin(), initial.end());
-  if (FitsMass()) th.push_back(theta.back());
+  th.insert(th.end(), theta.begin() + nt, theta.end());  // m_main, offsets
   m.terms.push_back(t);
   m.theta = th;
   return m;
 }
 
-StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, size_t begin, size_t end, int smooth_half,
+StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, size_t begin, size_t end, double f_cut_hz,
                                        const std::string& name) {
   BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));
   end = std::min(end, rec.t.size());
@@ -224,17 +282,20 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
   const double dt = rec.dt;
   const bool disp_out = setup.output != OutputKind::kVelocity;
   r.in_spline = UniformSpline(r.t0, dt, r.input);
+  if (!(f_cut_hz >= 0)) return Status::InvalidArgument("deriv-cutoff", "the derivative cutoff must be >= 0 Hz");
+  r.f_cut = f_cut_hz > 0 ? std::min(f_cut_hz, 0.5 / dt) : AutoCutoff(out, dt);
+  auto D = [&](const std::vector<double>& v, int order) { return SpectralDerivative(v, dt, order, r.f_cut); };
   // Coordinate p of the integrated state, measured: its derivatives by Savitzky–Golay.
   switch (setup.input) {
     case InputKind::kBaseDisplacement: {
       r.base_x = r.input;
-      const std::vector<double> x0d = SavitzkyGolay(r.input, dt, smooth_half, 1);
+      const std::vector<double> x0d = D(r.input, 1);
       std::vector<double> x = out;
       if (setup.frame == OutputFrame::kRelative)
         for (size_t i = 0; i < n; ++i) x[i] += r.input[i];
-      r.p = SavitzkyGolay(x, dt, smooth_half, 0);
-      r.pd = SavitzkyGolay(x, dt, smooth_half, 1);
-      r.pdd = SavitzkyGolay(x, dt, smooth_half, 2);
+      r.p = D(x, 0);
+      r.pd = D(x, 1);
+      r.pdd = D(x, 2);
       r.y.resize(n), r.yd.resize(n);
       for (size_t i = 0; i < n; ++i) r.y[i] = r.p[i] - r.input[i], r.yd[i] = r.pd[i] - x0d[i];
       r.meas = out;
@@ -245,15 +306,15 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
       if (setup.input == InputKind::kBaseAcceleration) r.base_v = IntegrateFft(r.input, dt, 0.0);
       std::vector<double> v_rel;
       if (disp_out) {
-        r.p = SavitzkyGolay(out, dt, smooth_half, 0);
-        r.pd = SavitzkyGolay(out, dt, smooth_half, 1);
-        r.pdd = SavitzkyGolay(out, dt, smooth_half, 2);
+        r.p = D(out, 0);
+        r.pd = D(out, 1);
+        r.pdd = D(out, 2);
       } else {
         v_rel = out;
         if (setup.input == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute)
           for (size_t i = 0; i < n; ++i) v_rel[i] -= r.base_v[i];
-        r.pd = SavitzkyGolay(v_rel, dt, smooth_half, 0);
-        r.pdd = SavitzkyGolay(v_rel, dt, smooth_half, 1);
+        r.pd = D(v_rel, 0);
+        r.pdd = D(v_rel, 1);
         r.p = IntegrateFft(v_rel, dt, 0.0);  // zero-mean: an offset (the well) is not observable from velocity
       }
       r.y = r.p;
@@ -272,14 +333,39 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
     std::vector<double> q = xr;
     if (setup.input != InputKind::kBaseDisplacement)
       for (size_t i = 0; i < n; ++i) q[i] -= out[i];  // z = x_r − y (force input: no base)
-    r.r = SavitzkyGolay(q, dt, smooth_half, 0);
-    r.rd = SavitzkyGolay(q, dt, smooth_half, 1);
-    r.rdd = SavitzkyGolay(q, dt, smooth_half, 2);
+    r.r = D(q, 0);
+    r.rd = D(q, 1);
+    r.rdd = D(q, 2);
     r.z.resize(n), r.zd.resize(n);
     for (size_t i = 0; i < n; ++i) {
       r.z[i] = setup.input == InputKind::kBaseDisplacement ? r.r[i] - r.p[i] : r.r[i];
       r.zd[i] = setup.input == InputKind::kBaseDisplacement ? r.rd[i] - r.pd[i] : r.rd[i];
     }
+  }
+  // Initial and restart states: local cubic fits (the band-limited derivative of a mirrored record is
+  // distorted at its ends, and its wider band lets more noise into single-sample states).
+  if (setup.input == InputKind::kBaseDisplacement) {
+    std::vector<double> x = out;
+    if (setup.frame == OutputFrame::kRelative)
+      for (size_t i = 0; i < n; ++i) x[i] += r.input[i];
+    r.ic_p = SavitzkyGolay(x, dt, 4, 0);
+    r.ic_pd = SavitzkyGolay(x, dt, 4, 1);
+  } else if (disp_out) {
+    r.ic_p = SavitzkyGolay(out, dt, 4, 0);
+    r.ic_pd = SavitzkyGolay(out, dt, 4, 1);
+  } else {
+    std::vector<double> v_rel = out;
+    if (setup.input == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute)
+      for (size_t i = 0; i < n; ++i) v_rel[i] -= r.base_v[i];
+    r.ic_p = r.p;
+    r.ic_pd = SavitzkyGolay(v_rel, dt, 4, 0);
+  }
+  if (!r.r.empty()) {
+    std::vector<double> q(r.meas_res);
+    if (setup.input != InputKind::kBaseDisplacement)
+      for (size_t i = 0; i < n; ++i) q[i] -= out[i];
+    r.ic_r = SavitzkyGolay(q, dt, 4, 0);
+    r.ic_rd = SavitzkyGolay(q, dt, 4, 1);
   }
   double mean = 0;
   for (double v : r.meas) mean += v;
@@ -344,9 +430,11 @@ bool Simulate(const IdentModel& m, const std::vector<double>& th, const Prepared
   const double h = r.dt / ns;
   const InputKind in = setup.input;
   // State (p, p', r, r'); initial values from the smoothed measurement.
-  double s[4] = {r.p[0], r.pd[0], res && !r.r.empty() ? r.r[0] : (in == InputKind::kBaseDisplacement ? r.p[0] : 0.0),
-                 res && !r.rd.empty() ? r.rd[0] : (in == InputKind::kBaseDisplacement ? r.pd[0] : 0.0)};
-  const double limit_p = 100.0 * (r.p_range + std::abs(r.p[0])) + 1e-12;
+  const double offset = m.Offset(th, r.index);
+  double s[4] = {r.ic_p[0] + offset, r.ic_pd[0],
+                 res && !r.ic_r.empty() ? r.ic_r[0] : (in == InputKind::kBaseDisplacement ? r.ic_p[0] : 0.0),
+                 res && !r.ic_rd.empty() ? r.ic_rd[0] : (in == InputKind::kBaseDisplacement ? r.ic_pd[0] : 0.0)};
+  const double limit_p = 100.0 * (r.p_range + std::abs(r.ic_p[0]) + std::abs(offset)) + 1e-12;
   auto rhs = [&](double t, const double* x, double* dx) {
     double u, ud;
     r.in_spline.Eval(t, &u, &ud);
@@ -400,8 +488,8 @@ bool Simulate(const IdentModel& m, const std::vector<double>& th, const Prepared
   double k1[4], k2[4], k3[4], k4[4], tmp[4];
   for (size_t i = 1; i < n; ++i) {
     if (restart_every > 0 && (i - 1) % static_cast<size_t>(restart_every) == 0 && i > 1) {
-      s[0] = r.p[i - 1], s[1] = r.pd[i - 1];
-      if (res && !r.r.empty()) s[2] = r.r[i - 1], s[3] = r.rd[i - 1];
+      s[0] = r.ic_p[i - 1] + offset, s[1] = r.ic_pd[i - 1];
+      if (res && !r.ic_r.empty()) s[2] = r.ic_r[i - 1], s[3] = r.ic_rd[i - 1];
     }
     for (int sub = 0; sub < ns; ++sub) {
       const double t = r.t0 + static_cast<double>(i - 1) * r.dt + sub * h;

@@ -39,6 +39,13 @@ class UniformSpline {
 // Savitzky–Golay smoothed derivative (order `deriv` 0, 1 or 2) of uniform samples: local cubic fits
 // over 2·half+1 samples (one-sided fits at the ends).
 std::vector<double> SavitzkyGolay(const std::vector<double>& y, double dt, int half, int deriv);
+// Band-limited derivative (order 0, 1, 2) by FFT: mirror-extended (no jump at the ends), multiplied by
+// (i2πf)^order and a raised-cosine low-pass that falls from 1 at 0.8 f_cut to 0 at f_cut. Unbiased
+// inside the band, unlike local polynomial smoothing at a few samples per period.
+std::vector<double> SpectralDerivative(const std::vector<double>& y, double dt, int order, double f_cut_hz);
+// A cutoff for SpectralDerivative: four times the frequency below which 99.9 % of the signal's power lies
+// (harmonics of the response carry the nonlinear terms), at most 0.45 of the sampling rate.
+double AutoCutoff(const std::vector<double>& y, double dt);
 // Zero-mean integral of a sampled signal by FFT (1/(iω) per bin, DC and bins below f_min dropped):
 // base velocity from base acceleration, displacement from velocity.
 std::vector<double> IntegrateFft(const std::vector<double>& y, double dt, double f_min_hz);
@@ -60,25 +67,36 @@ struct IdentModel {
   double m_main = 0;                  // kg; 0 = fitted (force input only), parameter "m_main"
   double m_res = 0;                   // kg; needed when any res.* term is declared
   FrictionConstants fc;
-  std::vector<double> theta;          // parameters, ParamNames() order
+  std::vector<double> theta;          // parameters, ParamNames() order: terms, [m_main], [offsets]
+  // Velocity outputs: the static displacement (which well, where) is not observable from the
+  // velocity, so each record's displacement offset [m] is a parameter ("offset.k", one per record,
+  // added after the terms and the mass). PreparedRecord::index picks a record's offset.
+  int offsets = 0;
 
   bool FitsMass() const { return m_main <= 0; }
+  int NumTermParams() const;
+  int OffsetIndex(int record) const { return NumTermParams() + (FitsMass() ? 1 : 0) + record; }
+  double Offset(const std::vector<double>& th, int record) const {
+    return offsets > 0 && record >= 0 && record < offsets && static_cast<int>(th.size()) > OffsetIndex(record) ? th[OffsetIndex(record)] : 0.0;
+  }
   bool HasResonator() const;
   int NumParams() const;
   std::vector<std::string> ParamNames() const;   // "main.stiffness_y3.k3", ..., "m_main"
   std::vector<std::string> ParamUnits() const;
   std::vector<Sign> ParamSigns() const;
   int Offset(const TermDef* t) const;            // index of the term's first parameter, −1 if absent
-  double Mass(const std::vector<double>& th) const { return FitsMass() ? th.back() : m_main; }
+  double Mass(const std::vector<double>& th) const { return FitsMass() ? th[NumTermParams()] : m_main; }
   // F_main or G_res at (q, v) for parameters th.
   double Force(Body body, const std::vector<double>& th, double q, double v) const;
-  // The model with one more term, its parameters appended before m_main (initial values given).
+  // The model with one more term, its parameters appended after the other terms' (before m_main and
+  // the offsets; initial values given).
   IdentModel With(const TermDef* t, const std::vector<double>& initial) const;
 };
 
 // A record prepared for one setup: slices, derived signals and the spline of its input.
 struct PreparedRecord {
   std::string name;
+  int index = 0;                   // position among the records fitted together (offset parameter)
   double t0 = 0, dt = 0;
   std::vector<double> input;       // SI
   std::vector<double> meas;        // the measured output in the compared form (see Setup)
@@ -88,17 +106,22 @@ struct PreparedRecord {
   // The body's coordinate p and its derivatives from the measurement (smoothed), for initial states
   // and restoring-force residuals: p = x (displacement input) or y.
   std::vector<double> p, pd, pdd, r, rd, rdd;
+  // States to start (and restart, for multiple shooting) simulations from: local cubic fits (Savitzky–
+  // Golay, 9 samples), which are accurate at every sample including the ends.
+  std::vector<double> ic_p, ic_pd, ic_r, ic_rd;
   // Relative coordinates along the measured trajectory: y, y', z, z' (z empty without resonator data).
   std::vector<double> y, yd, z, zd;
   UniformSpline in_spline;
   double meas_scale = 1;           // RMS of meas about its mean (NRMSE denominator)
   double p_range = 1, v_range = 1; // max |y|, max |y'| along the record
+  double f_cut = 0;                // derivative cutoff used [Hz]
   size_t n() const { return meas.size(); }
 };
 
-// Prepares a record (or its sample range [begin, end)) for a setup. `smooth_half`: Savitzky–Golay
-// half-width for derivatives. Errors: unsupported input/output combinations, too-short records.
-StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, size_t begin, size_t end, int smooth_half,
+// Prepares a record (or its sample range [begin, end)) for a setup. `f_cut_hz`: low-pass cutoff of
+// the measured derivatives (0: AutoCutoff of the output). Errors: unsupported input/output
+// combinations, too-short records.
+StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, size_t begin, size_t end, double f_cut_hz,
                                        const std::string& name);
 
 // Simulates one record from its measured initial state; `out` receives the output in the compared
