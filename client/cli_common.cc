@@ -1,9 +1,34 @@
 #include "client/cli_common.h"
 
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
+#include <sstream>
 #include <iostream>
 
 namespace bistable {
+
+StatusOr<std::map<std::string, std::string>> ParseNameValues(const std::string& text, const std::string& field) {
+  std::map<std::string, std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (item.empty()) continue;
+    const size_t eq = item.find('=');
+    if (eq == std::string::npos || eq == 0)
+      return Status::InvalidArgument(field, "--" + field + " item '" + item + "' violates name=value");
+    out[item.substr(0, eq)] = item.substr(eq + 1);
+  }
+  return out;
+}
+
+StatusOr<double> ParseFiniteNumber(const std::string& text, const std::string& field) {
+  char* end = nullptr;
+  const double x = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0' || !std::isfinite(x))
+    return Status::InvalidArgument(field, field + " = '" + text + "' violates a finite number");
+  return x;
+}
 
 int Fail(const Status& st) {
   std::cerr << "error: " << st.ToString() << "\n";

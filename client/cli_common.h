@@ -2,6 +2,7 @@
 #ifndef BISTABLE_CLIENT_CLI_COMMON_H_
 #define BISTABLE_CLIENT_CLI_COMMON_H_
 
+#include <map>
 #include <string>
 
 #include "dynamics/status.h"
@@ -12,6 +13,12 @@ namespace bistable {
 inline constexpr const char* kDefaultDataDir = "bistable-data";
 inline constexpr int kExitBadInput = 2;
 inline constexpr int kExitInterrupted = 130;
+
+// "a=1,b=2" → {a: "1", b: "2"} (empty items skipped); an item without a name or '=' is an error
+// naming `field` and the item.
+StatusOr<std::map<std::string, std::string>> ParseNameValues(const std::string& text, const std::string& field);
+// A finite number, or an error naming `field` and the text.
+StatusOr<double> ParseFiniteNumber(const std::string& text, const std::string& field);
 
 // Prints "error: <status>" to stderr and returns kExitBadInput.
 int Fail(const Status& st);

@@ -35,28 +35,6 @@ struct IdentifyArgs {
   bool json = false, list_terms = false, fit_offsets = false;
 };
 
-// "a=1,b=2" → map; errors name the flag and the item.
-StatusOr<std::map<std::string, std::string>> ParsePairs(const std::string& s, const std::string& flag) {
-  std::map<std::string, std::string> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    if (item.empty()) continue;
-    const size_t eq = item.find('=');
-    if (eq == std::string::npos || eq == 0)
-      return Status::InvalidArgument(flag, "'" + item + "' is not name=value");
-    out[item.substr(0, eq)] = item.substr(eq + 1);
-  }
-  return out;
-}
-
-StatusOr<double> ParseNumber(const std::string& v, const std::string& field) {
-  char* end = nullptr;
-  const double x = std::strtod(v.c_str(), &end);
-  if (v.empty() || *end != '\0' || !std::isfinite(x)) return Status::InvalidArgument(field, "'" + v + "' is not a finite number");
-  return x;
-}
-
 // "A:B" sample range (0-based, end exclusive; either side may be empty).
 StatusOr<std::pair<size_t, size_t>> ParseRange(const std::string& s, const std::string& flag) {
   const size_t c = s.find(':');
@@ -86,7 +64,7 @@ StatusOr<ColumnMap> BuildColumns(const IdentifyArgs& a) {
   if (!(a.output_scale != 0) || !std::isfinite(a.output_scale)) return Status::InvalidArgument("output-scale", "must be a finite non-zero factor");
   c.input_scale = a.input_scale;
   c.output_scale = a.output_scale;
-  auto pairs = ParsePairs(a.columns, "columns");
+  auto pairs = ParseNameValues(a.columns, "columns");
   if (!pairs.ok()) return pairs.status();
   for (const auto& [k, v] : *pairs) {
     if (k == "t") c.time = v;
@@ -236,10 +214,10 @@ int RunIdentify(IdentifyArgs& a) {
   else return Fail(Status::InvalidArgument("output-frame", "'" + a.frame + "' violates output-frame in {absolute, relative}"));
   IdentModel model;
   model.terms = *terms;
-  auto known = ParsePairs(a.known, "known");
+  auto known = ParseNameValues(a.known, "known");
   if (!known.ok()) return Fail(known.status());
   for (const auto& [k, v] : *known) {
-    auto x = ParseNumber(v, "known." + k);
+    auto x = ParseFiniteNumber(v, "known." + k);
     if (!x.ok()) return Fail(x.status());
     if (k == "m_main") model.m_main = *x;
     else if (k == "m_res") model.m_res = *x;
@@ -261,7 +239,7 @@ int RunIdentify(IdentifyArgs& a) {
   if (Status st = ValidateSetup(setup); !st.ok()) return Fail(st);
   // Guesses: term.param=value (others from the regression).
   if (!a.guesses.empty()) {
-    auto g = ParsePairs(a.guesses, "guess");
+    auto g = ParseNameValues(a.guesses, "guess");
     if (!g.ok()) return Fail(g.status());
     const auto names = model.ParamNames();
     model.theta.assign(names.size(), NAN);
@@ -272,7 +250,7 @@ int RunIdentify(IdentifyArgs& a) {
         return Fail(Status::InvalidArgument("guess", "'" + k + "' is not a parameter of the declared model" +
                                                          (near.empty() ? "" : " (did you mean '" + near + "'?)")));
       }
-      auto x = ParseNumber(v, "guess." + k);
+      auto x = ParseFiniteNumber(v, "guess." + k);
       if (!x.ok()) return Fail(x.status());
       model.theta[it - names.begin()] = *x;
     }

@@ -1,5 +1,7 @@
 #include "client/map_slice.h"
 
+#include "client/cli_common.h"
+
 #include <cmath>
 #include <sstream>
 
@@ -8,20 +10,13 @@
 namespace bistable {
 
 StatusOr<std::map<std::string, double>> ParseAt(const std::string& text) {
+  auto pairs = ParseNameValues(text, "at");
+  if (!pairs.ok()) return pairs.status();
   std::map<std::string, double> at;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    if (item.empty()) continue;
-    const size_t eq = item.find('=');
-    if (eq == std::string::npos || eq == 0)
-      return Status::InvalidArgument("at", "--at item '" + item + "' violates name=value");
-    char* end = nullptr;
-    const std::string v = item.substr(eq + 1);
-    const double x = std::strtod(v.c_str(), &end);
-    if (v.empty() || *end != '\0' || !std::isfinite(x))
-      return Status::InvalidArgument("at", "--at " + item.substr(0, eq) + " = '" + v + "' violates a finite number");
-    at[item.substr(0, eq)] = x;
+  for (const auto& [name, value] : *pairs) {
+    auto x = ParseFiniteNumber(value, "at." + name);
+    if (!x.ok()) return x.status();
+    at[name] = *x;
   }
   return at;
 }
