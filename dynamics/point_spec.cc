@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "base/limits.h"
 #include "dynamics/validate.h"
 
 namespace bistable {
@@ -91,7 +92,9 @@ Status ValidatePointSpec(const PointSpec& s) {
   if (in.dt > (in.t_end - in.t_keep) / 16) return Violates("dt", in.dt, "<= (t_end - t_keep)/16 = " + FormatNumber((in.t_end - in.t_keep) / 16));
   if (!IsWholeSteps(in.t_end, in.dt)) return Violates("t_end", in.t_end, "a whole multiple of dt = " + FormatNumber(in.dt));
   if (!IsWholeSteps(in.t_keep, in.dt)) return Violates("t_keep", in.t_keep, "a whole multiple of dt = " + FormatNumber(in.dt));
-  if (in.t_end / in.dt > 1e9) return Violates("t_end", in.t_end, "<= 1e9 dt (step count limit)");
+  if (in.t_end / in.dt > limits::kMaxStepsPerPoint)
+    return Violates("t_end", in.t_end, "<= " + FormatNumber(limits::kMaxStepsPerPoint) + " dt = " +
+                                           FormatNumber(limits::kMaxStepsPerPoint * in.dt) + " (steps per point limit)");
   if (in.integrator == IntegratorKind::kAdaptive) {
     BISTABLE_RETURN_IF_ERROR(CheckPositive("rtol", in.rtol));
     BISTABLE_RETURN_IF_ERROR(CheckPositive("atol", in.atol));
@@ -101,6 +104,18 @@ Status ValidatePointSpec(const PointSpec& s) {
   const MetricSettings& m = s.metrics;
   if (m.renorm_every < 1) return Violates("renorm_every", m.renorm_every, ">= 1");
   if (m.sample_every < 1) return Violates("sample_every", m.sample_every, ">= 1");
+  // Stroboscopic samples: one per forcing period in the window.
+  if ((in.t_end - in.t_keep) * s.omega / (2 * M_PI) > limits::kMaxWindowSamples)
+    return Violates("omega", s.omega, "<= 2 pi " + FormatNumber(limits::kMaxWindowSamples) + " / (t_end - t_keep) = " +
+                                           FormatNumber(2 * M_PI * limits::kMaxWindowSamples / (in.t_end - in.t_keep)) +
+                                           " (forcing periods per window limit)");
+  // Window buffers (spectrum samples, trace rows) grow with the window's samples: bound them.
+  const double samples = (in.t_end - in.t_keep) / in.dt / m.sample_every;
+  if (samples > limits::kMaxWindowSamples)
+    return Violates("sample_every", m.sample_every,
+                    ">= (t_end - t_keep)/dt / " + FormatNumber(limits::kMaxWindowSamples) + " = " +
+                        FormatNumber(std::ceil((in.t_end - in.t_keep) / in.dt / limits::kMaxWindowSamples)) +
+                        " (window samples per point limit)");
   BISTABLE_RETURN_IF_ERROR(CheckFinite("chaos_threshold", m.chaos_threshold));
   BISTABLE_RETURN_IF_ERROR(CheckPositive("period_tol", m.period_tol));
   if (m.max_period < 1 || m.max_period > 64) return Violates("max_period", m.max_period, "in [1, 64]");

@@ -13,6 +13,7 @@
 #include <limits>
 #include <vector>
 
+#include "base/limits.h"
 #include "dynamics/lanes.h"
 
 namespace bistable {
@@ -73,7 +74,10 @@ class WindowRecorder {
           const double t2 = th * th, t3 = t2 * th;
           const double y = (2 * t3 - 3 * t2 + 1) * prev_y_[l] + (t3 - 2 * t2 + th) * h_ * v0 + (-2 * t3 + 3 * t2) * x1[0][l] +
                            (t3 - t2) * h_ * v1;
-          lanes_[l].turning_points.push_back(y);
+          std::vector<double>& tp = lanes_[l].turning_points;
+          // Keep the last ones only (bounded memory on long windows; sweeps store the last 64).
+          if (tp.size() >= 2 * limits::kMaxTurningPointsKept) tp.erase(tp.begin(), tp.end() - limits::kMaxTurningPointsKept);
+          tp.push_back(y);
         }
       }
     }

@@ -1,25 +1,34 @@
 #include "engine/metric_catalog.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace bistable {
+namespace {
+constexpr double kMaxPeakOrTurningValue = 1e150;  // |peak frequency|, |amplitude|, |turning point|
+}  // namespace
 
 const std::vector<MetricInfo>& MetricCatalog() {
   static const std::vector<MetricInfo> kCatalog = {
-      {"frf_db", "dB", "20 log10(max|x_m'| / (alpha Omega)) over the window, absolute velocity of the main mass", false},
-      {"lle", "1/tau", "largest Lyapunov exponent, Benettin tangent-linear method over the window", false},
-      {"lle_rosenstein", "1/tau", "largest Lyapunov exponent, Rosenstein (1993) on sampled y_m; NaN unless requested", false},
-      {"motion", "code", "0 intrawell, 1 interwell, 2 chaotic (lle > chaos_threshold), -1 undefined (diverged)", true},
-      {"period", "forcing periods", "stroboscopic period n of (y_m, y_m'); 0 when none in the window", true},
-      {"hd_index", "fraction", "fraction of y_m spectral power farther than 3 bins from every multiple of Omega", false},
-      {"edr_b", "%", "100 W_m / W_in, W_in = integral of max(P, 0) over the window (gross injected energy)", false},
-      {"edr_r", "%", "100 W_r / W_in", false},
-      {"edr_t", "%", "100 (W_m + W_r) / W_in", false},
-      {"energy_balance_residual", "fraction", "|integral P - W_m - W_r - Delta E| / W_in", false},
-      {"y_min", "delta_s", "minimum of y_m over the window", false},
-      {"y_max", "delta_s", "maximum of y_m over the window", false},
-      {"termination", "code", "0 ok, 1 diverged, 2 step size underflow, 3 max steps", true},
+      {"frf_db", "dB", "20 log10(max|x_m'| / (alpha Omega)) over the window, absolute velocity of the main mass", false,
+       -1000, 1000, true},
+      {"lle", "1/tau", "largest Lyapunov exponent, Benettin tangent-linear method over the window", false, -1e6, 1e6, true},
+      {"lle_rosenstein", "1/tau", "largest Lyapunov exponent, Rosenstein (1993) on sampled y_m; NaN unless requested", false,
+       -1e6, 1e6, true},
+      {"motion", "code", "0 intrawell, 1 interwell, 2 chaotic (lle > chaos_threshold), -1 undefined (diverged)", true, -1, 2,
+       false},
+      {"period", "forcing periods", "stroboscopic period n of (y_m, y_m'); 0 when none in the window", true, 0, 64, false},
+      {"hd_index", "fraction", "fraction of y_m spectral power farther than 3 bins from every multiple of Omega", false, 0, 1,
+       true},
+      {"edr_b", "%", "100 W_m / W_in, W_in = integral of max(P, 0) over the window (gross injected energy)", false, 0, 1e12,
+       true},
+      {"edr_r", "%", "100 W_r / W_in", false, 0, 1e12, true},
+      {"edr_t", "%", "100 (W_m + W_r) / W_in", false, 0, 1e12, true},
+      {"energy_balance_residual", "fraction", "|integral P - W_m - W_r - Delta E| / W_in", false, 0, 1e12, true},
+      {"y_min", "delta_s", "minimum of y_m over the window", false, -1e150, 1e150, true},
+      {"y_max", "delta_s", "maximum of y_m over the window", false, -1e150, 1e150, true},
+      {"termination", "code", "0 ok, 1 diverged, 2 step size underflow, 3 max steps", true, 0, 3, false},
   };
   return kCatalog;
 }
@@ -72,13 +81,55 @@ PointRecord PointRecord::From(const PointResult& r, bool turning_points) {
          r.y_max,
          static_cast<double>(static_cast<int>(r.termination))};
   const double nan = std::numeric_limits<double>::quiet_NaN();
+  // A float outside its metric's domain is not a measurement (an overflow in a degenerate run): NaN.
+  const auto& catalog = MetricCatalog();
+  for (size_t i = 0; i < catalog.size(); ++i)
+    if (!catalog[i].integer && !(p.v[i] >= catalog[i].lo && p.v[i] <= catalog[i].hi)) p.v[i] = nan;
   for (int k = 0; k < kHdPeaksStored; ++k) p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].freq : nan);
   for (int k = 0; k < kHdPeaksStored; ++k) p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].amp : nan);
   if (turning_points) {
     const size_t n = r.turning_points.size(), first = n > kTurningPointsStored ? n - kTurningPointsStored : 0;
     for (int k = 0; k < kTurningPointsStored; ++k) p.v.push_back(first + k < n ? r.turning_points[first + k] : nan);
   }
+  for (size_t i = catalog.size(); i < p.v.size(); ++i)
+    if (!(std::fabs(p.v[i]) <= kMaxPeakOrTurningValue)) p.v[i] = nan;
   return p;
+}
+
+Status CheckRecord(const double* v, size_t width, bool turning_points) {
+  const size_t expected = PointRecord::Size(turning_points);
+  if (width != expected)
+    return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) +
+                                                       " violates record_width = " + std::to_string(expected) +
+                                                       " (the sweep's layout)");
+  const auto& catalog = MetricCatalog();
+  auto bad = [&](size_t i, const std::string& what, const std::string& bound) {
+    char b[40];
+    std::snprintf(b, sizeof b, "%.17g", v[i]);
+    return Status::InvalidArgument("records", what + " = " + b + " violates " + bound);
+  };
+  for (size_t i = 0; i < catalog.size(); ++i) {
+    const MetricInfo& m = catalog[i];
+    const double x = v[i];
+    if (std::isnan(x)) {
+      if (!m.nan_ok) return bad(i, m.name, std::string(m.name) + " is a number (codes are never NaN)");
+      continue;
+    }
+    if (!(x >= m.lo && x <= m.hi) || (m.integer && x != std::floor(x))) {
+      char b[80];
+      std::snprintf(b, sizeof b, "%s in [%.6g, %.6g]", m.integer ? "a whole number" : "a value", m.lo, m.hi);
+      return bad(i, m.name, b);
+    }
+  }
+  for (int k = 0; k < kHdPeaksStored; ++k) {
+    const double f = v[catalog.size() + k], a = v[catalog.size() + kHdPeaksStored + k];
+    if (!std::isnan(f) && !(f >= 0 && f <= kMaxPeakOrTurningValue)) return bad(catalog.size() + k, "hd_peak_freq", "NaN or in [0, 1e150]");
+    if (!std::isnan(a) && !(a >= 0 && a <= kMaxPeakOrTurningValue))
+      return bad(catalog.size() + kHdPeaksStored + k, "hd_peak_amp", "NaN or in [0, 1e150]");
+  }
+  for (size_t i = catalog.size() + 2 * kHdPeaksStored; i < width; ++i)
+    if (!std::isnan(v[i]) && !(std::fabs(v[i]) <= kMaxPeakOrTurningValue)) return bad(i, "turning_points", "NaN or |y| <= 1e150");
+  return Status::Ok();
 }
 
 double PointRecord::PeakFreq(int k) const { return v[MetricCatalog().size() + k]; }

@@ -18,6 +18,11 @@ struct MetricInfo {
   const char* unit;
   const char* definition;
   bool integer;  // motion codes, period, termination: stored as integers
+  // Domain: every stored value lies in [lo, hi] (integers: whole numbers), or is NaN where nan_ok
+  // (diverged points, absent peaks). The metric code never produces anything else (PointRecord::From
+  // maps an out-of-domain float to NaN), so a value outside is a corrupt or forged result.
+  double lo, hi;
+  bool nan_ok;
 };
 
 const std::vector<MetricInfo>& MetricCatalog();
@@ -37,6 +42,11 @@ struct PointRecord {
   double PeakFreq(int k) const;
   double PeakAmp(int k) const;
 };
+
+// Checks a record of `width` values (the sweep's layout: PointRecord::Size(turning_points)) against
+// every metric's domain; the message names the metric, the value and the bound. The coordinator runs
+// this on every reported record before storing it.
+Status CheckRecord(const double* v, size_t width, bool turning_points);
 
 // Motion codes stored in maps.
 inline constexpr int kMotionUndefined = -1;

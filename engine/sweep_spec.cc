@@ -4,12 +4,14 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <set>
 #include <sstream>
 
 #include <toml++/toml.h>
 
+#include "base/limits.h"
 #include "dynamics/validate.h"
 #include "engine/content_hash.h"
 #include "engine/metric_catalog.h"
@@ -89,10 +91,30 @@ Status ReadNumber(const toml::table& t, const std::string& key, const std::strin
   return Status::Ok();
 }
 
-Status ReadInt(const toml::table& t, const std::string& key, const std::string& field, int* out) {
+// An integer setting in [lo, hi]: TOML integers are 64-bit; nothing is narrowed silently.
+Status ReadInt(const toml::table& t, const std::string& key, const std::string& field, int* out, long lo, long hi) {
   if (const toml::node* n = t.get(key)) {
     if (!n->is_integer()) return Status::InvalidArgument(field, field + " must be an integer");
-    *out = static_cast<int>(*n->value<int64_t>());
+    const int64_t v = *n->value<int64_t>();
+    if (v < lo || v > hi)
+      return Status::InvalidArgument(field, field + " = " + std::to_string(v) + " violates " + field + " in [" +
+                                                std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    *out = static_cast<int>(v);
+  }
+  return Status::Ok();
+}
+
+// Text for humans (names, origins): bounded, and no control characters (they would rewrite a
+// terminal or a log line when printed).
+Status CheckPlainText(const std::string& field, const std::string& s, size_t max_bytes) {
+  if (s.size() > max_bytes)
+    return Status::InvalidArgument(field, field + " is " + std::to_string(s.size()) + " bytes, over the limit of " +
+                                              std::to_string(max_bytes));
+  for (size_t i = 0; i < s.size(); ++i) {
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    if (c < 0x20 || c == 0x7f)
+      return Status::InvalidArgument(field, field + " holds a control character (byte " + std::to_string(c) + " at " +
+                                                std::to_string(i) + "); names are plain text");
   }
   return Status::Ok();
 }
@@ -122,6 +144,7 @@ StatusOr<std::vector<std::string>> StringArray(const toml::node& n, const std::s
 }
 
 StatusOr<Axis> ParseAxis(const std::string& name, const toml::node& n) {
+  constexpr long kMaxValues = limits::kMaxAxisValues;
   const std::string field = "axes." + name;
   Axis axis{name, {}};
   if (n.is_array()) {  // shorthand: alpha = [0.1, 0.2]
@@ -145,8 +168,8 @@ StatusOr<Axis> ParseAxis(const std::string& name, const toml::node& n) {
       const double a = (*nums)[0], b = (*nums)[1], cnt = (*nums)[2];
       BISTABLE_RETURN_IF_ERROR(CheckFinite(field + "." + form + ".start", a));
       BISTABLE_RETURN_IF_ERROR(CheckFinite(field + "." + form + ".stop", b));
-      if (!(cnt >= 1 && cnt <= 1e7 && cnt == std::floor(cnt)))
-        return Violates(field + "." + form + ".count", cnt, "a whole number in [1, 1e7]");
+      if (!(cnt >= 1 && cnt <= static_cast<double>(kMaxValues) && cnt == std::floor(cnt)))
+        return Violates(field + "." + form + ".count", cnt, "a whole number in [1, " + std::to_string(kMaxValues) + "]");
       if (form == "logspace" && !(a > 0 && b > 0))
         return Violates(field + ".logspace.start", std::min(a, b), "> 0 (logspace spans values, both ends positive)");
       const long m = static_cast<long>(cnt);
@@ -159,6 +182,8 @@ StatusOr<Axis> ParseAxis(const std::string& name, const toml::node& n) {
     return Status::InvalidArgument(field, field + " must be a list or {list|linspace|logspace = ...}");
   }
   if (axis.values.empty()) return Status::InvalidArgument(field, field + " is empty (needs at least one value)");
+  if (static_cast<long>(axis.values.size()) > kMaxValues)
+    return Violates(field, static_cast<double>(axis.values.size()), "count <= " + std::to_string(kMaxValues));
   for (size_t i = 0; i < axis.values.size(); ++i) {
     BISTABLE_RETURN_IF_ERROR(CheckFinite(field + "[" + std::to_string(i) + "]", axis.values[i]));
     if (i > 0 && !(axis.values[i] > axis.values[i - 1]))
@@ -268,8 +293,10 @@ std::string NearestName(const std::string& word, const std::vector<std::string>&
 }
 
 long SweepSpec::points() const {
+  // Saturates instead of wrapping (parsing bounds the product far below; this guards hand-built specs).
   long n = 1;
-  for (const Axis& a : axes) n *= static_cast<long>(a.values.size());
+  for (const Axis& a : axes)
+    if (__builtin_mul_overflow(n, static_cast<long>(a.values.size()), &n)) return std::numeric_limits<long>::max();
   return n;
 }
 
@@ -331,8 +358,10 @@ std::string SweepSpec::ModelLabel() const {
 std::string SweepSpec::ItemKey(long index, int ic) const {
   // A chained point's start state is the previous point's end state: it is determined by the whole
   // spec and the point's place in its chain, so that is what the key hashes.
+  // (The canonical text is hashed once per spec, not once per item: it holds every axis value.)
   if (continuation.enabled())
-    return ContentHashHex(CanonicalText() + "|chain|" + std::to_string(index) + "|" + std::to_string(ic));
+    return ContentHashHex((canonical_hash.empty() ? ContentHashHex(CanonicalText()) : canonical_hash) + "|chain|" +
+                          std::to_string(index) + "|" + std::to_string(ic));
   const std::string point = PointKey(PointAt(index, ic));
   if (kind == SweepModel::kCell) return point;
   return ContentHashHex(ModelConfigText(*this) + "|" + point);
@@ -430,9 +459,14 @@ std::vector<std::vector<WorkItem>> SweepSpec::ContinuationChains() const {
   return chains;
 }
 
-std::string SweepSpec::Id() const { return ContentHashHex(CanonicalText()).substr(0, 12); }
+std::string SweepSpec::Id() const {
+  return (canonical_hash.empty() ? ContentHashHex(CanonicalText()) : canonical_hash).substr(0, 12);
+}
 
 StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& origin) {
+  if (text.size() > limits::kMaxSpecBytes)
+    return Status::InvalidArgument("spec", "spec is " + std::to_string(text.size()) + " bytes, over the limit of " +
+                                               std::to_string(limits::kMaxSpecBytes));
   toml::table root;
   try {
     root = toml::parse(text, origin);
@@ -446,6 +480,7 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
   if (const toml::node* n = root.get("name")) {
     auto s = String(*n, "name");
     if (!s.ok()) return s.status();
+    BISTABLE_RETURN_IF_ERROR(CheckPlainText("name", *s, limits::kMaxNameBytes));
     spec.name = *s;
   }
   const toml::node* model = root.get("model");
@@ -476,8 +511,7 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
       if (!t) return Status::InvalidArgument("series", "series must be a table");
       BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "series", kSeriesKeys));
       int cells = spec.series.cells;
-      BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "cells", "series.cells", &cells));
-      if (cells < 1 || cells > 1000) return Violates("series.cells", cells, "in [1, 1000]");
+      BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "cells", "series.cells", &cells, 1, limits::kMaxSeriesCells));
       spec.series.cells = cells;
       for (const char* flag : {"resonators", "bistable"}) {
         if (const toml::node* b = t->get(flag)) {
@@ -567,10 +601,16 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("axes", "axes must be a table");
     BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "axes", axis_names));
+    long product = 1;  // grid points so far: checked as each axis is read, before the next is generated
     for (const std::string& name : axis_names) {
       if (const toml::node* a = t->get(name)) {
         auto axis = ParseAxis(name, *a);
         if (!axis.ok()) return axis.status();
+        if (__builtin_mul_overflow(product, static_cast<long>(axis->values.size()), &product) ||
+            product > limits::kMaxSweepItems)
+          return Status::InvalidArgument(
+              "axes." + name, "the grid up to axes." + name + " has more than " + std::to_string(limits::kMaxSweepItems) +
+                                  " points (the limit of points x initial conditions per sweep; split the sweep)");
         spec.axes.push_back(*axis);
         swept.insert(name);
       }
@@ -617,9 +657,9 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "chaos_threshold", "metrics.chaos_threshold", &m.chaos_threshold));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "period_tol", "metrics.period_tol", &m.period_tol));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "hd_level", "metrics.hd_level", &m.hd_level));
-    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "renorm_every", "metrics.renorm_every", &m.renorm_every));
-    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "sample_every", "metrics.sample_every", &m.sample_every));
-    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "max_period", "metrics.max_period", &m.max_period));
+    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "renorm_every", "metrics.renorm_every", &m.renorm_every, 1, 1'000'000'000));
+    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "sample_every", "metrics.sample_every", &m.sample_every, 1, 1'000'000'000));
+    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "max_period", "metrics.max_period", &m.max_period, 1, 64));
     if (const toml::node* r = t->get("rosenstein")) {
       if (!r->is_boolean()) return Status::InvalidArgument("metrics.rosenstein", "metrics.rosenstein must be true or false");
       m.rosenstein = *r->value<bool>();
@@ -641,7 +681,9 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
       const toml::array* a = s->as_array();
       if (!a || a->empty())
         return Status::InvalidArgument("initial_conditions.states", "initial_conditions.states must be a non-empty array of [ym, vm, yr, vr]");
-      if (a->size() > 64) return Violates("initial_conditions.states", static_cast<double>(a->size()), "count <= 64");
+      if (a->size() > static_cast<size_t>(limits::kMaxInitialStates))
+        return Violates("initial_conditions.states", static_cast<double>(a->size()),
+                        "count <= " + std::to_string(limits::kMaxInitialStates));
       for (size_t i = 0; i < a->size(); ++i) {
         const std::string f = "initial_conditions.states[" + std::to_string(i) + "]";
         auto v = NumberArray((*a)[i], f);
@@ -737,8 +779,16 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
       return Status::InvalidArgument("series." + st.field(), st.message());
   }
   const double items = static_cast<double>(spec.points()) * spec.ic_count();
-  if (items > static_cast<double>(kMaxSweepItems))
-    return Violates("axes", items, "points x initial conditions <= " + std::to_string(kMaxSweepItems) + " (split the sweep)");
+  if (items > static_cast<double>(limits::kMaxSweepItems))
+    return Violates("axes", items, "points x initial conditions <= " + std::to_string(limits::kMaxSweepItems) + " (split the sweep)");
+  if (spec.continuation.enabled()) {
+    // A chain runs whole inside one job, and a job's report must fit one message.
+    for (const Axis& a : spec.axes)
+      if (a.name == spec.continuation.axis && static_cast<long>(a.values.size()) > limits::kMaxJobItems)
+        return Violates("axes." + a.name, static_cast<double>(a.values.size()),
+                        "count <= " + std::to_string(limits::kMaxJobItems) + " along the continuation axis");
+  }
+  spec.canonical_hash = ContentHashHex(spec.CanonicalText());
   return spec;
 }
 

@@ -15,9 +15,6 @@
 
 namespace bistable {
 
-// Most grid points × initial conditions one sweep may hold (documented in docs/sweep-spec.md).
-inline constexpr long kMaxSweepItems = 20'000'000;
-
 struct Axis {
   std::string name;            // alpha | omega | eta | eta_r | lambda | phi | eps
   std::vector<double> values;  // strictly increasing
@@ -79,6 +76,7 @@ struct SweepSpec {
   std::vector<std::string> metrics; // stored metrics (names from MetricCatalog)
   std::vector<std::string> plots;   // metrics rendered after `bistable run`
   std::string source;               // the TOML text as given (stored with the maps)
+  std::string canonical_hash;       // ContentHashHex(CanonicalText()), set by ParseSweepSpec ("" = compute)
 
   long points() const;              // product of axis lengths (1 with no axes)
   // Items per point: initial conditions, or the continuation directions (up, down).

@@ -1,7 +1,9 @@
 #include "server/auth.h"
 
+#include <arpa/inet.h>
 #include <openssl/evp.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <random>
@@ -58,15 +60,18 @@ StatusOr<TokenStore> TokenStore::Load(const std::string& path) {
     if (digest.size() != 64 || digest.find_first_not_of("0123456789abcdef") != std::string::npos)
       return Status::InvalidArgument("tokens", where + ": expected the token's SHA-256 as 64 lowercase hex digits "
                                                "(`bistable token --role " + role + "` prints such a line)");
-    store.by_hash_[digest] = {r, name.empty() ? role : name};
+    if (name.size() > 64 || name.find_first_of(":") != std::string::npos)
+      return Status::InvalidArgument("tokens", where + ": name '" + name.substr(0, 64) + "' must be at most 64 characters without ':'");
+    store.by_hash_[digest] = {r, name.empty() ? "token:" + digest.substr(0, 12) : name};
   }
   if (store.by_hash_.empty()) return Status::InvalidArgument("tokens", "tokens file '" + path + "' holds no tokens");
   return store;
 }
 
-Status TokenStore::Check(const grpc::ServerContext* ctx, Op op, std::string* who) const {
+Status TokenStore::Check(const grpc::ServerContext* ctx, Op op, std::string* who, Role* role) const {
   if (!enabled()) {
     if (who) *who = "local";
+    if (role) *role = Role::kAdmin;
     return Status::Ok();
   }
   const auto& md = ctx->client_metadata();
@@ -78,11 +83,39 @@ Status TokenStore::Check(const grpc::ServerContext* ctx, Op op, std::string* who
   if (e == by_hash_.end()) return Status::Unauthenticated("unknown token");
   if (who) *who = e->second.name;
   const Role r = e->second.role;
+  if (role) *role = r;
   if (r == Role::kAdmin) return Status::Ok();
   const bool worker_op = op == Op::kRegister || op == Op::kLease || op == Op::kHeartbeat || op == Op::kReport || op == Op::kRelease;
   if (worker_op != (r == Role::kWorker))
     return Status::PermissionDenied(std::string("a ") + RoleName(r) + " token may not make this call");
   return Status::Ok();
+}
+
+bool IsLoopbackAddress(const std::string& listen) {
+  if (listen.rfind("unix:", 0) == 0) return true;
+  std::string host;
+  if (!listen.empty() && listen[0] == '[') {
+    const size_t close = listen.find(']');
+    if (close == std::string::npos || close + 1 >= listen.size() || listen[close + 1] != ':') return false;
+    host = listen.substr(1, close - 1);
+  } else {
+    const size_t colon = listen.rfind(':');
+    if (colon == std::string::npos) return false;
+    host = listen.substr(0, colon);
+    if (host.find(':') != std::string::npos) return false;  // an unbracketed v6 literal: refuse to guess
+  }
+  if (host == "localhost") return true;
+  in_addr v4{};
+  if (::inet_pton(AF_INET, host.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  in6_addr v6{};
+  if (::inet_pton(AF_INET6, host.c_str(), &v6) == 1) {
+    static const unsigned char kLoop[16] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1};
+    if (std::equal(v6.s6_addr, v6.s6_addr + 16, kLoop)) return true;
+    const bool mapped = std::all_of(v6.s6_addr, v6.s6_addr + 10, [](unsigned char b) { return b == 0; }) &&
+                        v6.s6_addr[10] == 0xff && v6.s6_addr[11] == 0xff;
+    return mapped && v6.s6_addr[12] == 127;
+  }
+  return false;
 }
 
 }  // namespace bistable

@@ -31,8 +31,10 @@ class TokenStore {
   static StatusOr<TokenStore> Load(const std::string& path);
   bool enabled() const { return !by_hash_.empty(); }
   // Checks the call's "authorization: Bearer <token>" metadata for `op`; on success *who is the
-  // token's name (or its role when unnamed). Unauthenticated vs PermissionDenied, with the reason.
-  Status Check(const grpc::ServerContext* ctx, Op op, std::string* who) const;
+  // token's identity — its name, or "token:<first 12 hex digits of its hash>" when unnamed, so two
+  // unnamed tokens are two owners — and *role its role (admin when auth is off, identity "local").
+  // Unauthenticated vs PermissionDenied, with the reason.
+  Status Check(const grpc::ServerContext* ctx, Op op, std::string* who, Role* role = nullptr) const;
 
  private:
   struct Entry {
@@ -43,6 +45,11 @@ class TokenStore {
 };
 
 const char* RoleName(Role r);
+
+// Whether a listen address ("host:port", "[v6]:port", "unix:path") serves this machine only. Decided
+// on the address, not the text: the host must be an IP literal in 127.0.0.0/8 or ::1 (v4-mapped
+// included), the name "localhost", or a unix socket; any other name counts as not loopback.
+bool IsLoopbackAddress(const std::string& listen);
 
 }  // namespace bistable
 

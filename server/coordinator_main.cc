@@ -14,11 +14,6 @@ namespace {
 std::atomic<bool> g_stop{false};
 extern "C" void OnSignal(int) { g_stop.store(true); }
 
-bool IsLoopback(const std::string& addr) {
-  return addr.rfind("127.", 0) == 0 || addr.rfind("localhost:", 0) == 0 || addr.rfind("[::1]:", 0) == 0 ||
-         addr.rfind("unix:", 0) == 0;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -42,7 +37,7 @@ int main(int argc, char** argv) {
   };
   if (tls_cert.empty() != tls_key.empty())
     return fail(bistable::Status::InvalidArgument("tls-cert", "--tls-cert and --tls-key go together"));
-  if (!IsLoopback(listen) && (tls_cert.empty() || tokens_file.empty()))
+  if (!bistable::IsLoopbackAddress(listen) && (tls_cert.empty() || tokens_file.empty()))
     return fail(bistable::Status::InvalidArgument(
         "listen", listen + " is not a loopback address: serving other hosts requires --tls-cert/--tls-key and --tokens"));
   bistable::TokenStore tokens;

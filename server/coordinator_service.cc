@@ -1,22 +1,44 @@
 #include "server/coordinator_service.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <thread>
 
+#include "base/limits.h"
 #include "proto/status_convert.h"
 #include "storage/map_file.h"
 
 namespace bistable {
 
 void ConfigureServerBuilder(grpc::ServerBuilder& builder) {
-  builder.SetMaxReceiveMessageSize(64 << 20);
+  // Every request is bounded before it is decoded: the largest legitimate one is a report of a job of
+  // limits::kMaxJobItems records (about 3 MB) or a spec (1 MB).
+  builder.SetMaxReceiveMessageSize(static_cast<int>(limits::kMaxMessageBytes));
   builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::NUM_CQS, 1);
   builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MIN_POLLERS, 2);
   builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MAX_POLLERS, 16);
 }
 namespace {
+
+// A worker's name: printable ASCII, bounded (it is shown to every client by `bistable workers`).
+Status CheckWorkerName(const std::string& name) {
+  if (name.empty()) return Status::InvalidArgument("worker", "worker name is empty");
+  if (name.size() > limits::kMaxWorkerNameBytes)
+    return Status::InvalidArgument("worker", "worker name is " + std::to_string(name.size()) + " bytes, over the limit of " +
+                                                 std::to_string(limits::kMaxWorkerNameBytes));
+  for (char c : name)
+    if (c < 0x21 || c > 0x7e)
+      return Status::InvalidArgument("worker", "worker name must be printable ASCII without spaces (host:pid)");
+  return Status::Ok();
+}
+
+Status CheckLeaseId(const std::string& id) {
+  if (id.empty() || id.size() > limits::kMaxIdBytes)
+    return Status::InvalidArgument("lease_id", "lease_id must be 1 to " + std::to_string(limits::kMaxIdBytes) + " bytes");
+  return Status::Ok();
+}
 
 void Fill(const SweepInfo& i, v1::SweepStatus* s) {
   s->set_id(i.id);
@@ -33,19 +55,9 @@ void Fill(const SweepInfo& i, v1::SweepStatus* s) {
 
 }  // namespace
 
-StatusOr<std::string> CoordinatorService::ResolveId(const std::string& id) const {
-  if (id.empty()) return Status::InvalidArgument("id", "id is empty");
-  auto db = IndexDb::Open((std::filesystem::path(c_->data_dir()) / "index.sqlite").string());
-  if (!db.ok()) return db.status();
-  auto row = (*db)->GetSweep(id);
-  if (!row.ok()) return row.status();
-  if (!row.value()) return Status::NotFound("no sweep '" + id + "'");
-  return row.value()->id;
-}
-
 // The published map of a sweep (id or prefix): its resolved id and the file's absolute path.
 StatusOr<std::pair<std::string, std::string>> CoordinatorService::PublishedMap(const std::string& id_or_prefix) const {
-  auto id = ResolveId(id_or_prefix);
+  auto id = c_->ResolveId(id_or_prefix);
   if (!id.ok()) return id.status();
   auto info = c_->Info(*id);
   if (!info.ok()) return info.status();
@@ -57,23 +69,23 @@ StatusOr<std::pair<std::string, std::string>> CoordinatorService::PublishedMap(c
 grpc::Status CoordinatorService::Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitReply* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kSubmit, &who); !st.ok()) return ToGrpcStatus(st);
-  if (req->spec_toml().size() > kMaxSpecBytes)
+  if (req->spec_toml().size() > limits::kMaxSpecBytes)
     return ToGrpcStatus(Status::InvalidArgument("spec", "spec is " + std::to_string(req->spec_toml().size()) +
-                                                            " bytes, over the limit of " + std::to_string(kMaxSpecBytes)));
-  auto spec = ParseSweepSpec(req->spec_toml(), req->origin().empty() ? "submitted spec" : req->origin());
+                                                            " bytes, over the limit of " + std::to_string(limits::kMaxSpecBytes)));
+  // The origin only names the spec in messages: bounded, printable, never a path that is opened.
+  std::string origin = req->origin().empty() ? "submitted spec" : req->origin().substr(0, limits::kMaxNameBytes);
+  for (char& ch : origin)
+    if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) ch = '?';
+  auto spec = ParseSweepSpec(req->spec_toml(), origin);
   if (!spec.ok()) return ToGrpcStatus(spec.status());
   // Jobs of about job_seconds of work on one core.
   const double steps = spec->base.integration.t_end / spec->base.integration.dt;
   long items = static_cast<long>(job_seconds_ / std::max(steps / 1.5e7 * (spec->UsesKernel() ? 1.0 : 8.0), 1e-9));
   // ... but at least 64 jobs per sweep where it has the points, so the last jobs balance across workers.
   const long balance = (spec->points() * spec->ic_count() + 63) / 64;
-  items = std::clamp<long>(std::min(items, balance), 8, 4096) / 8 * 8;
-  auto plan = c_->Submit(*spec, items);
+  items = std::clamp<long>(std::min(items, balance), 8, limits::kMaxJobItems) / 8 * 8;
+  auto plan = c_->Submit(*spec, items, who);
   if (!plan.ok()) return ToGrpcStatus(plan.status());
-  {
-    std::lock_guard<std::mutex> lock(owners_mu_);
-    owners_.emplace(plan->id, who);
-  }
   rep->set_id(plan->id);
   rep->set_items_total(plan->items_total);
   rep->set_items_cached(plan->items_cached);
@@ -84,7 +96,7 @@ grpc::Status CoordinatorService::Submit(grpc::ServerContext* ctx, const v1::Subm
 grpc::Status CoordinatorService::GetStatus(grpc::ServerContext* ctx, const v1::StatusRequest* req, v1::SweepStatus* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kStatus, &who); !st.ok()) return ToGrpcStatus(st);
-  auto id = ResolveId(req->id());
+  auto id = c_->ResolveId(req->id());
   if (!id.ok()) return ToGrpcStatus(id.status());
   auto info = c_->Info(*id);
   if (!info.ok()) return ToGrpcStatus(info.status());
@@ -96,11 +108,18 @@ grpc::Status CoordinatorService::WatchStatus(grpc::ServerContext* ctx, const v1:
                                              grpc::ServerWriter<v1::SweepStatus>* writer) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kStatus, &who); !st.ok()) return ToGrpcStatus(st);
-  auto id = ResolveId(req->id());
+  auto id = c_->ResolveId(req->id());
   if (!id.ok()) return ToGrpcStatus(id.status());
+  auto last = std::chrono::steady_clock::now() - std::chrono::seconds(1);
   for (bool first = true; !ctx->IsCancelled() && !shutting_down_; first = false) {
     auto info = first ? c_->Info(*id) : c_->AwaitFinal(*id, 0.5);  // progress every 0.5 s, the end at once
     if (!info.ok()) return ToGrpcStatus(info.status());
+    // Never faster than limits::kMinWatchInterval, whatever the sweep's state.
+    const auto due = last + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                std::chrono::duration<double>(limits::kMinWatchInterval));
+    const bool final_state = info->state == "done" || info->state == "failed" || info->state == "cancelled";
+    if (!final_state && std::chrono::steady_clock::now() < due) std::this_thread::sleep_until(due);
+    last = std::chrono::steady_clock::now();
     v1::SweepStatus s;
     Fill(*info, &s);
     if (!writer->Write(s)) break;
@@ -111,30 +130,25 @@ grpc::Status CoordinatorService::WatchStatus(grpc::ServerContext* ctx, const v1:
 
 grpc::Status CoordinatorService::Cancel(grpc::ServerContext* ctx, const v1::CancelRequest* req, v1::CancelReply*) {
   std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kCancel, &who); !st.ok()) return ToGrpcStatus(st);
-  auto id = ResolveId(req->id());
+  Role role = Role::kClient;
+  if (Status st = tokens_.Check(ctx, Op::kCancel, &who, &role); !st.ok()) return ToGrpcStatus(st);
+  auto id = c_->ResolveId(req->id());
   if (!id.ok()) return ToGrpcStatus(id.status());
-  if (tokens_.enabled()) {  // clients cancel their own sweeps; admins any
-    std::lock_guard<std::mutex> lock(owners_mu_);
-    auto owner = owners_.find(*id);
-    const bool admin = tokens_.Check(ctx, Op::kRegister, nullptr).ok() && tokens_.Check(ctx, Op::kSubmit, nullptr).ok();
-    if (!admin && (owner == owners_.end() || owner->second != who))
-      return ToGrpcStatus(Status::PermissionDenied("only the token that submitted sweep " + *id + " (or an admin) may cancel it"));
-  }
+  // Clients cancel their own sweeps (the owner is stored with the sweep and survives restarts);
+  // admins any.
+  auto info = c_->Info(*id);
+  if (!info.ok()) return ToGrpcStatus(info.status());
+  if (role != Role::kAdmin && info->owner != who)
+    return ToGrpcStatus(Status::PermissionDenied("only the token that submitted sweep " + *id + " (or an admin) may cancel it"));
   return ToGrpcStatus(c_->Cancel(*id));
 }
 
 grpc::Status CoordinatorService::ListSweeps(grpc::ServerContext* ctx, const v1::ListSweepsRequest*, v1::ListSweepsReply* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kList, &who); !st.ok()) return ToGrpcStatus(st);
-  auto db = IndexDb::Open((std::filesystem::path(c_->data_dir()) / "index.sqlite").string());
-  if (!db.ok()) return ToGrpcStatus(db.status());
-  auto rows = (*db)->ListSweeps();
-  if (!rows.ok()) return ToGrpcStatus(rows.status());
-  for (const SweepRow& r : *rows) {
-    auto info = c_->Info(r.id);
-    if (info.ok()) Fill(*info, rep->add_sweeps());
-  }
+  auto infos = c_->ListSweeps();
+  if (!infos.ok()) return ToGrpcStatus(infos.status());
+  for (const SweepInfo& info : *infos) Fill(info, rep->add_sweeps());
   return grpc::Status::OK;
 }
 
@@ -143,6 +157,15 @@ grpc::Status CoordinatorService::GetMap(grpc::ServerContext* ctx, const v1::MapR
   if (Status st = tokens_.Check(ctx, Op::kMap, &who); !st.ok()) return ToGrpcStatus(st);
   auto map = PublishedMap(req->id());
   if (!map.ok()) return ToGrpcStatus(map.status());
+  // Only a metric the map lists is opened (never an arbitrary HDF5 path from the request).
+  auto names = ListMapMetrics(map->second);
+  if (!names.ok()) return ToGrpcStatus(names.status());
+  if (std::find(names->begin(), names->end(), req->metric()) == names->end()) {
+    std::string list;
+    for (const auto& n : *names) list += (list.empty() ? "" : ", ") + n;
+    return ToGrpcStatus(Status::InvalidArgument(
+        "metric", "metric '" + req->metric().substr(0, limits::kMaxMetricNameBytes) + "' is not in the map (allowed: " + list + ")"));
+  }
   auto m = ReadMapMetric(map->second, req->metric());
   if (!m.ok()) return ToGrpcStatus(m.status());
   rep->set_metric(m->metric);
@@ -177,7 +200,7 @@ grpc::Status CoordinatorService::ListMetrics(grpc::ServerContext* ctx, const v1:
 grpc::Status CoordinatorService::RegisterWorker(grpc::ServerContext* ctx, const v1::RegisterRequest* req, v1::RegisterReply* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kRegister, &who); !st.ok()) return ToGrpcStatus(st);
-  if (req->name().empty()) return ToGrpcStatus(Status::InvalidArgument("name", "worker name is empty"));
+  if (Status st = CheckWorkerName(req->name()); !st.ok()) return ToGrpcStatus(st);
   rep->set_lease_seconds(lease_seconds_);
   return grpc::Status::OK;
 }
@@ -189,7 +212,7 @@ grpc::Status CoordinatorService::Lease(grpc::ServerContext* ctx, const v1::Lease
 }
 
 Status CoordinatorService::LeaseInto(const std::string& worker, v1::LeaseReply* rep) {
-  if (worker.empty()) return Status::InvalidArgument("worker", "worker name is empty");
+  BISTABLE_RETURN_IF_ERROR(CheckWorkerName(worker));
   if (shutting_down_) return Status::IoError("coordinator", "shutting down");
   auto g = c_->Lease(worker);
   if (!g) {
@@ -211,6 +234,7 @@ Status CoordinatorService::LeaseInto(const std::string& worker, v1::LeaseReply* 
 grpc::Status CoordinatorService::Heartbeat(grpc::ServerContext* ctx, const v1::HeartbeatRequest* req, v1::HeartbeatReply*) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kHeartbeat, &who); !st.ok()) return ToGrpcStatus(st);
+  if (Status st = CheckLeaseId(req->lease_id()); !st.ok()) return ToGrpcStatus(st);
   return ToGrpcStatus(c_->Extend(req->lease_id()));
 }
 
@@ -219,18 +243,12 @@ grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::Repo
   if (Status st = tokens_.Check(ctx, Op::kReport, &who); !st.ok()) return ToGrpcStatus(st);
   if (!req->lease_next_for().empty())
     if (Status st = tokens_.Check(ctx, Op::kLease, &who); !st.ok()) return ToGrpcStatus(st);
-  const size_t width = req->record_width();
-  if (width == 0 || req->values_size() % width != 0)
-    return ToGrpcStatus(Status::InvalidArgument("records", std::to_string(req->values_size()) +
-                                                               " values do not split into records of width " + std::to_string(width)));
-  std::vector<PointRecord> records(req->values_size() / width);
-  for (size_t i = 0; i < records.size(); ++i) {
-    records[i].v.assign(req->values().begin() + i * width, req->values().begin() + (i + 1) * width);
-    // Metrics may be NaN (diverged points, absent peaks); infinities never come out of the metric code.
-    for (double v : records[i].v)
-      if (std::isinf(v)) return ToGrpcStatus(Status::InvalidArgument("records", "record " + std::to_string(i) + " holds an infinity"));
-  }
-  if (Status st = c_->Report(req->lease_id(), records); !st.ok()) return ToGrpcStatus(st);
+  if (Status st = CheckLeaseId(req->lease_id()); !st.ok()) return ToGrpcStatus(st);
+  // The coordinator checks the lease, its job's size and layout and every value's domain before it
+  // copies anything out of the request.
+  if (Status st = c_->Report(req->lease_id(), req->record_width(), req->values().data(), static_cast<size_t>(req->values_size()));
+      !st.ok())
+    return ToGrpcStatus(st);
   if (req->lease_next_for().empty()) return grpc::Status::OK;
   // The report is stored; a failure to lease now is not the report's failure (the worker polls).
   if (Status st = LeaseInto(req->lease_next_for(), rep->mutable_next()); !st.ok()) rep->mutable_next()->set_has_job(false);
@@ -240,6 +258,7 @@ grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::Repo
 grpc::Status CoordinatorService::Release(grpc::ServerContext* ctx, const v1::ReleaseRequest* req, v1::ReleaseReply*) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kRelease, &who); !st.ok()) return ToGrpcStatus(st);
+  if (Status st = CheckLeaseId(req->lease_id()); !st.ok()) return ToGrpcStatus(st);
   return ToGrpcStatus(c_->Release(req->lease_id()));
 }
 

@@ -4,17 +4,12 @@
 #define BISTABLE_SERVER_COORDINATOR_SERVICE_H_
 
 #include <atomic>
-#include <map>
-#include <mutex>
 
 #include "bistable.grpc.pb.h"
 #include "server/auth.h"
 #include "server/sweep_coordinator.h"
 
 namespace bistable {
-
-// Largest spec accepted over the wire (bytes); larger ones are refused before parsing.
-inline constexpr size_t kMaxSpecBytes = 1 << 20;
 
 // Server settings shared by bistable-coordinator and the benchmarks: message limits and a steady pool
 // of polling threads (gRPC's default of at most 2 pollers makes the sync server create and destroy a
@@ -45,13 +40,10 @@ class CoordinatorService final : public v1::Coordinator::Service {
  private:
   // Leases the next job for `worker` into `rep` (has_job false when there is none).
   Status LeaseInto(const std::string& worker, v1::LeaseReply* rep);
-  StatusOr<std::string> ResolveId(const std::string& id_or_prefix) const;
   StatusOr<std::pair<std::string, std::string>> PublishedMap(const std::string& id_or_prefix) const;
   SweepCoordinator* c_;
   double lease_seconds_, job_seconds_;
   TokenStore tokens_;
-  mutable std::mutex owners_mu_;
-  std::map<std::string, std::string> owners_;  // sweep id → name of the token that submitted it
   std::atomic<bool> shutting_down_{false};
 };
 

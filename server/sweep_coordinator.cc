@@ -1,5 +1,6 @@
 #include "server/sweep_coordinator.h"
 
+#include <malloc.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include <filesystem>
 #include <random>
 
+#include "base/limits.h"
 #include "storage/map_file.h"
 
 namespace bistable {
@@ -43,8 +45,8 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
   // Resume every unfinished sweep: plan it again against the point cache.
   auto rows = c->Db()->ListSweeps();
   if (!rows.ok()) return rows.status();
-  std::vector<std::string> complete;
-  std::unique_lock<std::mutex> lock(c->mu_);
+  // A sweep stored everything but has no map (killed between the last report and the publication)
+  // is published by Submit, since no report will come to trigger it.
   for (const SweepRow& r : *rows) {
     if (r.status != "running" && r.status != "interrupted" && r.status != "queued") continue;
     auto spec = ParseSweepSpec(r.spec, "sweep " + r.id);
@@ -54,15 +56,14 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
       c->Db()->UpsertSweep(failed);
       continue;
     }
-    auto plan = c->SubmitLocked(*spec, DefaultJobItems(*spec, 2.0));
-    if (!plan.ok()) return plan.status();
-    if (plan->jobs == 0 && !plan->already_published) complete.push_back(plan->id);
+    auto plan = c->Submit(*spec, DefaultJobItems(*spec, 2.0), r.owner.empty() ? "local" : r.owner);
+    if (!plan.ok()) {
+      std::fprintf(stderr, "coordinator: cannot resume sweep %s: %s\n", r.id.c_str(), plan.status().ToString().c_str());
+      SweepRow failed = r;
+      failed.status = "failed";
+      c->Db()->UpsertSweep(failed);
+    }
   }
-  lock.unlock();
-  // Every item stored but no map (killed between the last report and the publication): publish now,
-  // since no report will come to trigger it.
-  for (const std::string& id : complete)
-    if (auto path = c->Publish(id); !path.ok()) return path.status();
   return c;
 }
 
@@ -70,59 +71,103 @@ std::string SweepCoordinator::MapPath(const std::string& id) const {
   return (std::filesystem::path(data_dir_) / "sweeps" / (id + ".h5")).string();
 }
 
-StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_items) {
+std::optional<SweepPlan> SweepCoordinator::ActivePlanLocked(const std::string& id) const {
+  auto it = sweeps_.find(id);
+  if (it == sweeps_.end() || it->second.cancelled || it->second.row.status == "failed") return std::nullopt;
+  SweepPlan plan;
+  plan.id = id;
+  plan.items_total = it->second.row.points_total;
+  plan.items_cached = it->second.items_cached;
+  plan.jobs = static_cast<long>(it->second.jobs.size());
+  plan.already_published = it->second.row.status == "done";
+  return plan;
+}
+
+StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_items, const std::string& owner) {
+  const std::string id = spec.Id();
+  const long items = std::clamp<long>(job_items, 1, limits::kMaxJobItems);
+  {
+    std::unique_lock<std::mutex> lock(mu_);
+    // One planning per sweep at a time: a concurrent submit of the same spec waits for it.
+    plan_cv_.wait(lock, [&] { return !planning_.count(id); });
+    if (auto active = ActivePlanLocked(id)) return *active;
+    int mine = 0, all = 0;
+    for (const auto& [sid, s] : sweeps_) {
+      if (s.cancelled || s.row.status == "done" || s.row.status == "failed") continue;
+      ++all;
+      if (s.row.owner == owner) ++mine;
+    }
+    for (const auto& [sid, n] : planning_) ++all;
+    if (mine >= limits::kMaxActiveSweepsPerOwner)
+      return Status::FailedPrecondition("'" + owner + "' has " + std::to_string(mine) +
+                                        " sweeps queued or running, the limit per owner is " +
+                                        std::to_string(limits::kMaxActiveSweepsPerOwner) + "; wait for one or cancel one");
+    if (all >= limits::kMaxActiveSweeps)
+      return Status::FailedPrecondition("the coordinator holds " + std::to_string(all) +
+                                        " sweeps queued or running, its limit is " + std::to_string(limits::kMaxActiveSweeps));
+    planning_[id] = 1;
+  }
+  auto built = BuildPlan(spec, items);  // outside mu_: leases, reports and status calls go on
   std::unique_lock<std::mutex> lock(mu_);
-  auto plan = SubmitLocked(spec, job_items);
+  planning_.erase(id);
+  plan_cv_.notify_all();
+  if (!built.ok()) return built.status();
+  auto plan = InstallLocked(std::move(*built), owner);
   lock.unlock();
   if (plan.ok() && plan->jobs == 0 && !plan->already_published)  // everything cached: publish now
     if (auto path = Publish(plan->id); !path.ok()) return path.status();
   return plan;
 }
 
-StatusOr<SweepPlan> SweepCoordinator::SubmitLocked(const SweepSpec& spec, long job_items) {
-  SweepPlan plan;
+StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec& spec, long job_items) {
+  Planned out;
+  SweepPlan& plan = out.plan;
+  Sweep& s = out.sweep;
   plan.id = spec.Id();
   const int nic = spec.ic_count();
-  plan.items_total = spec.points() * nic;
-  if (auto it = sweeps_.find(plan.id); it != sweeps_.end() && !it->second.cancelled) {
-    // Already active: report its current plan.
-    plan.items_cached = it->second.items_cached;
-    plan.jobs = static_cast<long>(it->second.jobs.size());
-    plan.already_published = it->second.row.status == "done";
-    return plan;
-  }
+  const long points = spec.points();
+  long total = 0;
+  if (__builtin_mul_overflow(points, static_cast<long>(nic), &total) || total > limits::kMaxSweepItems)
+    return Status::InvalidArgument("axes", "points x initial conditions violates <= " + std::to_string(limits::kMaxSweepItems));
+  plan.items_total = total;
   auto existing = Db()->GetSweep(plan.id);
   if (!existing.ok()) return existing.status();
-  Sweep s;
   s.spec = spec;
-  s.row = existing.value() ? *existing.value() : SweepRow{};
-  s.seq = next_seq_++;
+  s.row = existing.value() && existing.value()->id == plan.id ? *existing.value() : SweepRow{};
   if (s.row.status == "done" && !s.row.file.empty() && std::filesystem::exists(std::filesystem::path(data_dir_) / s.row.file)) {
     plan.already_published = true;
     plan.items_cached = plan.items_total;
     s.items_done = s.items_cached = plan.items_total;
-    sweeps_[plan.id] = std::move(s);
-    return plan;
+    return out;
   }
-  std::vector<WorkItem> all;
-  all.reserve(plan.items_total);
   s.keys.reserve(plan.items_total);
-  for (long p = 0; p < spec.points(); ++p)
-    for (int i = 0; i < nic; ++i) all.push_back({p, i}), s.keys.push_back(spec.ItemKey(p, i));
-  auto cached = Db()->LookupPoints(s.keys, PointRecord::Size(spec.base.metrics.turning_points));
-  if (!cached.ok()) return cached.status();
-  std::vector<WorkItem> missing;
-  for (size_t i = 0; i < all.size(); ++i)
-    if (!cached->count(s.keys[i])) missing.push_back(all[i]);
+  for (long p = 0; p < points; ++p)
+    for (int i = 0; i < nic; ++i) s.keys.push_back(spec.ItemKey(p, i));
+  // Look the keys up in batches, each under the index lock on its own, so reports of other sweeps
+  // commit in between.
+  constexpr size_t kBatch = 65536;
+  std::vector<bool> is_missing(s.keys.size(), true);
+  const size_t width = PointRecord::Size(spec.base.metrics.turning_points);
+  long corrupt_total = 0;
+  for (size_t b = 0; b < s.keys.size(); b += kBatch) {
+    const std::vector<std::string> batch(s.keys.begin() + b, s.keys.begin() + std::min(s.keys.size(), b + kBatch));
+    long corrupt = 0;
+    auto cached = Db()->LookupPoints(batch, width, &corrupt);
+    if (!cached.ok()) return cached.status();
+    corrupt_total += corrupt;
+    for (size_t i = 0; i < batch.size(); ++i)
+      if (cached->count(batch[i])) is_missing[b + i] = false;
+  }
+  if (corrupt_total > 0)
+    std::fprintf(stderr, "coordinator: sweep %s: %ld stored results failed their checksum; they are recomputed\n",
+                 plan.id.c_str(), corrupt_total);
   if (spec.continuation.enabled()) {
     // Chains run whole and in order (each point starts where the previous ended): a chain with any
     // missing item is recomputed entirely; jobs hold whole chains.
-    std::vector<bool> is_missing(all.size(), false);
-    for (const WorkItem& w : missing) is_missing[w.point * nic + w.ic] = true;
     Job j;
     for (const auto& chain : spec.ContinuationChains()) {
       bool any = false;
-      for (const WorkItem& w : chain) any |= is_missing[w.point * nic + w.ic];
+      for (const WorkItem& w : chain) any = any || is_missing[w.point * nic + w.ic];
       if (!any) continue;
       j.items.insert(j.items.end(), chain.begin(), chain.end());
       if (static_cast<long>(j.items.size()) >= job_items) {
@@ -133,12 +178,18 @@ StatusOr<SweepPlan> SweepCoordinator::SubmitLocked(const SweepSpec& spec, long j
     }
     if (!j.items.empty()) j.id = static_cast<long>(s.jobs.size()), s.jobs.push_back(std::move(j));
   } else {
-    for (size_t start = 0; start < missing.size(); start += job_items) {
-      Job j;
-      j.id = static_cast<long>(s.jobs.size());
-      j.items.assign(missing.begin() + start, missing.begin() + std::min(missing.size(), start + job_items));
-      s.jobs.push_back(std::move(j));
-    }
+    Job j;
+    for (long p = 0; p < points; ++p)
+      for (int i = 0; i < nic; ++i) {
+        if (!is_missing[p * nic + i]) continue;
+        j.items.push_back({p, i});
+        if (static_cast<long>(j.items.size()) == job_items) {
+          j.id = static_cast<long>(s.jobs.size());
+          s.jobs.push_back(std::move(j));
+          j = Job{};
+        }
+      }
+    if (!j.items.empty()) j.id = static_cast<long>(s.jobs.size()), s.jobs.push_back(std::move(j));
   }
   long queued = 0;
   for (const Job& j : s.jobs) queued += static_cast<long>(j.items.size()), s.queue.push_back(j.id);
@@ -146,15 +197,29 @@ StatusOr<SweepPlan> SweepCoordinator::SubmitLocked(const SweepSpec& spec, long j
   plan.items_cached = plan.items_total - queued;  // items of partly stored chains are recomputed
   plan.jobs = static_cast<long>(s.jobs.size());
   s.items_cached = s.items_done = plan.items_cached;
+  return out;
+}
+
+StatusOr<SweepPlan> SweepCoordinator::InstallLocked(Planned p, const std::string& owner) {
+  Sweep& s = p.sweep;
+  const SweepPlan& plan = p.plan;
+  s.seq = next_seq_++;
+  s.generation = ++generation_counter_;
+  RevokeLeasesLocked(plan.id);  // leases of an earlier plan of this sweep are void
+  if (plan.already_published) {
+    sweeps_[plan.id] = std::move(s);
+    return plan;
+  }
   s.started = Now();
   s.row.id = plan.id;
-  s.row.name = spec.name;
-  s.row.model = spec.ModelLabel();
-  s.row.spec = spec.source;
+  s.row.name = s.spec.name;
+  s.row.model = s.spec.ModelLabel();
+  s.row.spec = s.spec.source;
   s.row.status = "running";
   s.row.points_total = plan.items_total;
   s.row.points_done = s.items_done;
   s.row.file = "";
+  s.row.owner = owner;
   if (s.row.created == 0) s.row.created = s.started;
   s.row.finished = 0;
   BISTABLE_RETURN_IF_ERROR(Db()->UpsertSweep(s.row));
@@ -163,28 +228,107 @@ StatusOr<SweepPlan> SweepCoordinator::SubmitLocked(const SweepSpec& spec, long j
   return plan;
 }
 
+Status SweepCoordinator::Replan(const std::string& id) {
+  SweepSpec spec;
+  std::string owner;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = sweeps_.find(id);
+    if (it == sweeps_.end() || it->second.cancelled) return Status::Ok();
+    spec = it->second.spec;
+    owner = it->second.row.owner;
+    it->second.generation = ++generation_counter_;  // reports of the old plan store, but count nowhere
+    it->second.queue.clear();                       // and nothing is leased while the new one is built
+    RevokeLeasesLocked(id);
+    planning_[id] = 1;
+  }
+  auto built = BuildPlan(spec, limits::kMaxJobItems / 8);
+  std::unique_lock<std::mutex> lock(mu_);
+  planning_.erase(id);
+  plan_cv_.notify_all();
+  if (!built.ok()) return built.status();
+  auto plan = InstallLocked(std::move(*built), owner);
+  if (!plan.ok()) return plan.status();
+  std::fprintf(stderr, "coordinator: sweep %s planned again: %ld items to recompute\n", id.c_str(),
+               plan->items_total - plan->items_cached);
+  if (plan->jobs == 0) {
+    std::lock_guard<std::mutex> p(publish_queue_mu_);
+    publish_queue_.push_back(id);
+    publish_cv_.notify_one();
+  }
+  return Status::Ok();
+}
+
+void SweepCoordinator::RevokeLeasesLocked(const std::string& sweep_id) {
+  for (auto it = leases_.begin(); it != leases_.end();) {
+    if (it->second.sweep_id != sweep_id) {
+      ++it;
+      continue;
+    }
+    if (auto w = workers_.find(it->second.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
+    it = leases_.erase(it);
+  }
+}
+
+void SweepCoordinator::FreePlan(Sweep& s) {
+  std::vector<std::string>().swap(s.keys);
+  std::vector<Job>().swap(s.jobs);
+  std::vector<JobState>().swap(s.job_state);
+  std::deque<long>().swap(s.queue);
+  ::malloc_trim(0);  // a cancelled 4 M-item plan is hundreds of MB: give them back
+}
+
+void SweepCoordinator::RememberFinishedLocked(const std::string& lease_id, const std::string& sweep_id) {
+  constexpr size_t kRemembered = 1 << 16;  // retried reports arrive within seconds; this is hours of them
+  if (finished_leases_.emplace(lease_id, sweep_id).second) finished_order_.push_back(lease_id);
+  while (finished_order_.size() > kRemembered) {
+    finished_leases_.erase(finished_order_.front());
+    finished_order_.pop_front();
+  }
+}
+
+void SweepCoordinator::TouchWorkerLocked(const std::string& worker, double now) {
+  auto it = workers_.find(worker);
+  if (it == workers_.end()) {
+    if (workers_.size() >= limits::kMaxWorkers) {
+      // Forget the longest-idle worker without leases; if every one holds a lease, do not record this one.
+      auto oldest = workers_.end();
+      for (auto w = workers_.begin(); w != workers_.end(); ++w)
+        if (w->second.leases == 0 && (oldest == workers_.end() || w->second.last_seen < oldest->second.last_seen)) oldest = w;
+      if (oldest == workers_.end()) return;
+      workers_.erase(oldest);
+    }
+    it = workers_.emplace(worker, WorkerInfo{}).first;
+    it->second.name = worker;
+  }
+  it->second.last_seen = now;
+}
+
 void SweepCoordinator::RequeueExpiredLocked(double now) {
   for (auto it = leases_.begin(); it != leases_.end();) {
     if (it->second.deadline >= now) {
       ++it;
       continue;
     }
-    auto s = sweeps_.find(it->second.sweep_id);
-    if (s != sweeps_.end() && s->second.job_state[it->second.job_id] == JobState::kLeased) {
-      s->second.job_state[it->second.job_id] = JobState::kQueued;
-      s->second.queue.push_front(it->second.job_id);
-    }
-    if (auto w = workers_.find(it->second.worker); w != workers_.end()) --w->second.leases;
+    RequeueLocked(it->second);
     it = leases_.erase(it);
   }
+}
+
+void SweepCoordinator::RequeueLocked(const LeaseState& l) {
+  auto s = sweeps_.find(l.sweep_id);
+  if (s != sweeps_.end() && !s->second.cancelled && s->second.generation == l.generation &&
+      l.job_id < static_cast<long>(s->second.job_state.size()) && s->second.job_state[l.job_id] == JobState::kLeased) {
+    s->second.job_state[l.job_id] = JobState::kQueued;
+    s->second.queue.push_front(l.job_id);
+  }
+  if (auto w = workers_.find(l.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
 }
 
 std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep) {
   std::lock_guard<std::mutex> lock(mu_);
   const double now = Now();
-  WorkerInfo& w = workers_[worker];
-  w.name = worker;
-  w.last_seen = now;
+  TouchWorkerLocked(worker, now);
   if (stopped_) return std::nullopt;
   RequeueExpiredLocked(now);
   Sweep* best = nullptr;
@@ -199,8 +343,8 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
   std::snprintf(id, sizeof id, "%s-%llu-%08x", best->row.id.c_str(), ++lease_counter_,
                 static_cast<unsigned>(lease_salt_()));
   LeaseGrant g{id, best->row.id, job, best->jobs[job].items, now + opt_.lease_seconds};
-  leases_[g.lease_id] = {g.sweep_id, worker, job, g.deadline};
-  ++w.leases;
+  leases_[g.lease_id] = {g.sweep_id, worker, job, best->generation, g.deadline};
+  if (auto w = workers_.find(worker); w != workers_.end()) ++w->second.leases;
   return g;
 }
 
@@ -212,7 +356,7 @@ Status SweepCoordinator::Extend(const std::string& lease_id) {
     return finished_leases_.count(lease_id) ? Status::Ok() : Status::NotFound("lease '" + lease_id + "' is unknown");
   if (it->second.deadline < now) return Status::FailedPrecondition("lease '" + lease_id + "' expired; its job was requeued");
   it->second.deadline = now + opt_.lease_seconds;
-  workers_[it->second.worker].last_seen = now;
+  TouchWorkerLocked(it->second.worker, now);
   return Status::Ok();
 }
 
@@ -247,6 +391,30 @@ Status SweepCoordinator::AwaitCommit(unsigned long long ticket) {
 }
 
 Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<PointRecord>& records) {
+  const size_t width = records.empty() ? 0 : records[0].v.size();
+  std::vector<double> flat;
+  flat.reserve(records.size() * width);
+  for (const PointRecord& r : records) {
+    if (r.v.size() != width)
+      return Status::InvalidArgument("records", "records of different widths (" + std::to_string(r.v.size()) + " and " +
+                                                    std::to_string(width) + ")");
+    flat.insert(flat.end(), r.v.begin(), r.v.end());
+  }
+  return Report(lease_id, width, flat.data(), flat.size());
+}
+
+Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const double* values, size_t n_values) {
+  // The record layout is checked first, without the lock: the width must be one of the two layouts
+  // and every value in its metric's domain (forged or corrupt numbers never reach the cache).
+  const bool tp = width == PointRecord::Size(true);
+  if (width != PointRecord::Size(false) && !tp)
+    return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) + " violates record_width in {" +
+                                                       std::to_string(PointRecord::Size(false)) + ", " +
+                                                       std::to_string(PointRecord::Size(true)) + "}");
+  if (n_values % width != 0)
+    return Status::InvalidArgument("values", std::to_string(n_values) + " values do not split into records of width " +
+                                                 std::to_string(width));
+  const size_t n_records = n_values / width;
   IndexDb::JobResults rows;
   LeaseState lease;
   {
@@ -257,39 +425,49 @@ Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<P
     auto it = leases_.find(lease_id);
     if (it == leases_.end()) {
       if (finished_leases_.count(lease_id)) return Status::Ok();  // a retried report: already stored
-      return Status::NotFound("lease '" + lease_id + "' is unknown (never granted, or granted before a coordinator restart)");
+      return Status::NotFound("lease is unknown (never granted, revoked by a cancel or a new plan, or granted before a "
+                              "coordinator restart)");
     }
     if (it->second.deadline < now) {
       RequeueExpiredLocked(now);
       return Status::FailedPrecondition("lease '" + lease_id + "' expired before its report; its job was requeued");
     }
     auto sit = sweeps_.find(it->second.sweep_id);
-    if (sit == sweeps_.end() || sit->second.cancelled) {
+    if (sit == sweeps_.end() || sit->second.cancelled || sit->second.generation != it->second.generation ||
+        it->second.job_id >= static_cast<long>(sit->second.jobs.size())) {
+      if (auto w = workers_.find(it->second.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
       leases_.erase(it);
-      return Status::FailedPrecondition("sweep of lease '" + lease_id + "' was cancelled");
+      return Status::FailedPrecondition("lease '" + lease_id + "' belongs to a cancelled or replaced plan of its sweep");
     }
     Sweep& s = sit->second;
     const Job& job = s.jobs[it->second.job_id];
-    if (records.size() != job.items.size())
-      return Status::InvalidArgument("records", "job has " + std::to_string(job.items.size()) + " items, report has " +
-                                                    std::to_string(records.size()));
-    const size_t width = PointRecord::Size(s.spec.base.metrics.turning_points);
-    for (size_t i = 0; i < records.size(); ++i)
-      if (records[i].v.size() != width)
-        return Status::InvalidArgument("records", "record " + std::to_string(i) + " has " + std::to_string(records[i].v.size()) +
-                                                      " values, the sweep's layout has " + std::to_string(width));
+    if (n_records != job.items.size())
+      return Status::InvalidArgument("values", "the lease's job has " + std::to_string(job.items.size()) +
+                                                   " items, the report has " + std::to_string(n_records) + " records");
+    const size_t expected = PointRecord::Size(s.spec.base.metrics.turning_points);
+    if (width != expected)
+      return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) +
+                                                         " violates record_width = " + std::to_string(expected) +
+                                                         " (this sweep's layout)");
+    for (size_t i = 0; i < n_records; ++i)
+      if (Status st = CheckRecord(values + i * width, width, tp); !st.ok())
+        return Status::InvalidArgument("values", "record " + std::to_string(i) + ": " + st.message());
     lease = it->second;
     leases_.erase(it);
     if (s.job_state[lease.job_id] == JobState::kDone) {  // another lease of this job was stored first
-      if (auto w = workers_.find(lease.worker); w != workers_.end()) --w->second.leases, w->second.last_seen = now;
-      finished_leases_[lease_id] = s.row.id;
+      if (auto w = workers_.find(lease.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
+      TouchWorkerLocked(lease.worker, now);
+      RememberFinishedLocked(lease_id, s.row.id);
       return Status::Ok();
     }
     const int nic = s.spec.ic_count();
     rows.sweep_id = s.row.id;
-    rows.items.reserve(records.size());
-    for (size_t i = 0; i < records.size(); ++i)
-      rows.items.emplace_back(s.keys[job.items[i].point * nic + job.items[i].ic], records[i]);
+    rows.items.reserve(n_records);
+    for (size_t i = 0; i < n_records; ++i) {
+      PointRecord r;
+      r.v.assign(values + i * width, values + (i + 1) * width);
+      rows.items.emplace_back(s.keys[job.items[i].point * nic + job.items[i].ic], std::move(r));
+    }
     committing_[lease_id] = lease;  // not in leases_ while stored: it cannot expire or be requeued meanwhile
   }
   const long n = static_cast<long>(rows.items.size());
@@ -297,21 +475,29 @@ Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<P
   std::lock_guard<std::mutex> lock(mu_);
   committing_.erase(lease_id);
   if (!stored.ok()) {
-    leases_[lease_id] = lease;  // nothing stored: the worker may retry while the lease lasts
+    std::fprintf(stderr, "coordinator: storing a report of sweep %s failed: %s\n", lease.sweep_id.c_str(),
+                 stored.ToString().c_str());
+    auto sit = sweeps_.find(lease.sweep_id);
+    if (sit != sweeps_.end() && !sit->second.cancelled && sit->second.generation == lease.generation)
+      leases_[lease_id] = lease;  // nothing stored: the worker may retry while the lease lasts
     return stored;
   }
   const double now = Now();
-  if (auto w = workers_.find(lease.worker); w != workers_.end()) --w->second.leases, w->second.last_seen = now;
+  if (auto w = workers_.find(lease.worker); w != workers_.end()) {
+    if (w->second.leases > 0) --w->second.leases;
+    w->second.last_seen = now;
+  }
   auto sit = sweeps_.find(lease.sweep_id);
-  if (sit == sweeps_.end()) return Status::Ok();
+  RememberFinishedLocked(lease_id, lease.sweep_id);
+  // Stored under the right content keys either way; counted only in the plan it was leased from.
+  if (sit == sweeps_.end() || sit->second.cancelled || sit->second.generation != lease.generation) return Status::Ok();
   Sweep& s = sit->second;
-  finished_leases_[lease_id] = s.row.id;
   if (s.job_state[lease.job_id] != JobState::kDone) {  // two leases of one job stored at once count once
     s.job_state[lease.job_id] = JobState::kDone;
     s.items_done += n;
-    workers_[lease.worker].items_done += n;
+    if (auto w = workers_.find(lease.worker); w != workers_.end()) w->second.items_done += n;
   }
-  if (s.items_done >= s.row.points_total && s.row.status != "done" && !s.cancelled) {
+  if (s.items_done >= s.row.points_total && s.row.status != "done") {
     // Publish off the report path: the report is acknowledged once its rows are durable, and the
     // map (seconds of HDF5 writing for a large grid) is written by the publisher thread.
     std::lock_guard<std::mutex> p(publish_queue_mu_);
@@ -348,13 +534,8 @@ SweepCoordinator::~SweepCoordinator() {
 Status SweepCoordinator::Release(const std::string& lease_id) {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = leases_.find(lease_id);
-  if (it == leases_.end()) return Status::NotFound("lease '" + lease_id + "' is unknown");
-  auto s = sweeps_.find(it->second.sweep_id);
-  if (s != sweeps_.end() && s->second.job_state[it->second.job_id] == JobState::kLeased) {
-    s->second.job_state[it->second.job_id] = JobState::kQueued;
-    s->second.queue.push_front(it->second.job_id);
-  }
-  if (auto w = workers_.find(it->second.worker); w != workers_.end()) --w->second.leases;
+  if (it == leases_.end()) return Status::NotFound("lease is unknown");
+  RequeueLocked(it->second);
   leases_.erase(it);
   return Status::Ok();
 }
@@ -365,8 +546,10 @@ Status SweepCoordinator::Cancel(const std::string& sweep_id) {
   if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
   if (it->second.row.status == "done") return Status::FailedPrecondition("sweep '" + sweep_id + "' is already done");
   it->second.cancelled = true;
-  it->second.queue.clear();
-  return MarkLocked(it->second, "cancelled");
+  RevokeLeasesLocked(sweep_id);  // a report of this plan is refused from now on
+  const Status st = MarkLocked(it->second, "cancelled");
+  FreePlan(it->second);
+  return st;
 }
 
 StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
@@ -377,6 +560,7 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
   std::vector<std::string> keys;
   SweepRow row;
   double started = 0;
+  bool needs_plan = false;
   const std::string path = MapPath(sweep_id);
   {
     std::lock_guard<std::mutex> lock(mu_);
@@ -384,35 +568,57 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
     if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
     const Sweep& s = it->second;
     if (s.row.status == "done" && !s.row.file.empty() && std::filesystem::exists(path)) return path;
+    if (s.cancelled) return Status::FailedPrecondition("sweep " + sweep_id + " was cancelled");
+    needs_plan = static_cast<long>(s.keys.size()) != s.row.points_total;  // plan freed after an earlier publication
     spec = s.spec;
     keys = s.keys;
     row = s.row;
     started = s.started;
   }
-  auto published = WriteAndIndexMap(spec, keys, row, started, path);
-  std::lock_guard<std::mutex> lock(mu_);
+  if (needs_plan) {
+    BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));
+    return Status::FailedPrecondition("sweep " + sweep_id + " lost its map file; it is being planned and published again");
+  }
+  bool incomplete = false;
+  auto published = WriteAndIndexMap(spec, keys, row, started, path, &incomplete);
+  std::unique_lock<std::mutex> lock(mu_);
   Sweep& s = sweeps_.at(sweep_id);
   if (!published.ok()) {
-    // A write failure (disk full, unwritable dir) fails the sweep; an incomplete one stays as it is.
-    if (published.status().code() == Status::Code::kIoError && s.row.status != "cancelled") MarkLocked(s, "failed");
+    std::fprintf(stderr, "coordinator: publishing sweep %s: %s\n", sweep_id.c_str(), published.status().ToString().c_str());
+    // A write failure (disk full, unwritable dir) fails the sweep. Results missing at publication
+    // (a stored result failed its checksum) are computed again: the sweep is planned anew.
+    if (published.status().code() == Status::Code::kIoError && !s.cancelled) MarkLocked(s, "failed");
+    if (incomplete && !s.cancelled) {
+      lock.unlock();
+      if (Status st = Replan(sweep_id); !st.ok()) return st;
+    }
     return published.status();
   }
   s.row = *published;
+  FreePlan(s);  // published: keys and jobs are no longer needed
   final_cv_.notify_all();
   return path;
 }
 
 StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys,
-                                                      const SweepRow& row, double started, const std::string& path) {
-  auto found = Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points));
+                                                      const SweepRow& row, double started, const std::string& path,
+                                                      bool* incomplete) {
+  // Every record is read back through its checksum: a corrupt one counts as missing.
+  long corrupt = 0;
+  auto found = Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points), &corrupt);
   if (!found.ok()) return found.status();
+  if (corrupt > 0)
+    std::fprintf(stderr, "coordinator: sweep %s: %ld stored results failed their checksum at publication\n", row.id.c_str(),
+                 corrupt);
   std::vector<PointRecord> records;
   records.reserve(keys.size());
   for (const std::string& k : keys) {
     auto it = found->find(k);
-    if (it == found->end())
+    if (it == found->end()) {
+      *incomplete = true;
       return Status::FailedPrecondition("sweep " + row.id + " is incomplete: " +
-                                        std::to_string(keys.size() - found->size()) + " items are not stored yet");
+                                        std::to_string(keys.size() - found->size()) + " items are not stored (or failed their checksum)");
+    }
     records.push_back(it->second);
   }
   BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, records));
@@ -471,10 +677,10 @@ StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
     if (!row.ok()) return row.status();
     if (!row.value()) return Status::NotFound("no sweep '" + sweep_id + "'");
     const SweepRow& r = *row.value();
-    return SweepInfo{r.id, r.name, r.model, r.status, r.points_total, r.points_done, 0, 0, r.seconds, r.file};
+    return SweepInfo{r.id, r.name, r.model, r.owner, r.status, r.points_total, r.points_done, 0, 0, r.seconds, r.file};
   }
   const Sweep& s = it->second;
-  SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.status, s.row.points_total, s.items_done, s.items_cached, 0,
+  SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.owner, s.row.status, s.row.points_total, s.items_done, s.items_cached, 0,
                  s.row.status == "done" ? s.row.seconds : Now() - s.started, s.row.file};
   if (info.state == "running" && !s.any_leased && s.items_done == s.items_cached) info.state = "queued";
   if (s.cancelled) info.state = "cancelled";
@@ -489,11 +695,33 @@ StatusOr<SweepInfo> SweepCoordinator::AwaitFinal(const std::string& sweep_id, do
   {
     std::unique_lock<std::mutex> lock(mu_);
     final_cv_.wait_for(lock, std::chrono::duration<double>(seconds), [&] {
-      auto it = sweeps_.find(sweep_id);
-      return it == sweeps_.end() || it->second.cancelled || it->second.row.status == "done" || it->second.row.status == "failed";
+      auto it = sweeps_.find(sweep_id);  // a sweep this coordinator does not hold: wait the whole time
+      return it != sweeps_.end() && (it->second.cancelled || it->second.row.status == "done" || it->second.row.status == "failed");
     });
   }
   return Info(sweep_id);
+}
+
+StatusOr<std::string> SweepCoordinator::ResolveId(const std::string& id) const {
+  if (id.empty()) return Status::InvalidArgument("id", "id is empty");
+  if (id.size() > limits::kMaxIdBytes)
+    return Status::InvalidArgument("id", "id is " + std::to_string(id.size()) + " bytes, over the limit of " +
+                                             std::to_string(limits::kMaxIdBytes));
+  if (id.find_first_not_of("0123456789abcdef") != std::string::npos)
+    return Status::InvalidArgument("id", "id must be lowercase hex digits (a sweep id or its prefix)");
+  auto row = Db()->GetSweep(id);
+  if (!row.ok()) return row.status();
+  if (!row.value()) return Status::NotFound("no sweep '" + id + "'");
+  return row.value()->id;
+}
+
+StatusOr<std::vector<SweepInfo>> SweepCoordinator::ListSweeps() const {
+  auto rows = Db()->ListSweeps();
+  if (!rows.ok()) return rows.status();
+  std::vector<SweepInfo> out;
+  for (const SweepRow& r : *rows)
+    if (auto info = Info(r.id); info.ok()) out.push_back(*info);
+  return out;
 }
 
 std::vector<WorkerInfo> SweepCoordinator::Workers() const {

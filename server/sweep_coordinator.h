@@ -7,7 +7,11 @@
 // Durability: sweeps (spec, status) and every acknowledged result live in SQLite (WAL). Jobs and
 // leases are derived state: on Open, every unfinished sweep is planned again against the point
 // cache, so a restarted coordinator continues each sweep and recomputes only unacknowledged work.
-// Thread-safe: every public method may be called from any thread.
+// Every lease belongs to one plan of its sweep (a generation): cancelling or replanning a sweep revokes
+// its leases, and a report is checked against its lease's own job (item count, record layout, every
+// value in its metric's domain) before anything is stored. Limits: base/limits.h.
+// Thread-safe: every public method may be called from any thread; planning runs outside the main
+// lock, so a big submit does not hold up leases, reports or status calls.
 #ifndef BISTABLE_SERVER_SWEEP_COORDINATOR_H_
 #define BISTABLE_SERVER_SWEEP_COORDINATOR_H_
 
@@ -55,7 +59,7 @@ struct LeaseGrant {
 };
 
 struct SweepInfo {
-  std::string id, name, model;
+  std::string id, name, model, owner;
   std::string state;       // queued | running | done | failed | cancelled
   long items_total = 0, items_done = 0, items_cached = 0;
   int workers = 0;         // workers holding a lease of this sweep now
@@ -86,8 +90,9 @@ class SweepCoordinator {
 
   // Registers the sweep (id = hash of its canonical spec), looks its items up in the point cache and
   // queues the missing ones as jobs of about `job_items` items. Submitting a running sweep again is
-  // harmless (its plan is returned).
-  StatusOr<SweepPlan> Submit(const SweepSpec& spec, long job_items);
+  // harmless (its plan is returned). `owner` is the submitter's identity; each owner may have
+  // limits::kMaxActiveSweepsPerOwner sweeps queued or running (limits::kMaxActiveSweeps in all).
+  StatusOr<SweepPlan> Submit(const SweepSpec& spec, long job_items, const std::string& owner = "local");
   // The next queued job of the oldest running sweep, after requeueing expired leases; nullopt when
   // there is none (or after Stop()).
   // `only_sweep` restricts the lease to one sweep (the embedded run).
@@ -96,7 +101,10 @@ class SweepCoordinator {
   // for an expired one.
   Status Extend(const std::string& lease_id);
   // Stores a lease's records (one transaction) and acknowledges; publishes the sweep when complete.
-  // A lease reported again after success is acknowledged without storing anything twice.
+  // A lease reported again after success is acknowledged without storing anything twice. `values`
+  // holds the job's items × `width` doubles in the lease's item order; the lease, its plan, the
+  // count, the width and every value's domain are checked before anything is stored.
+  Status Report(const std::string& lease_id, size_t width, const double* values, size_t n_values);
   Status Report(const std::string& lease_id, const std::vector<PointRecord>& records);
   // Gives a lease's job back to the queue (a worker shutting down).
   Status Release(const std::string& lease_id);
@@ -113,6 +121,10 @@ class SweepCoordinator {
   // its info then or at the timeout: watchers learn of completion at once, not at their next poll.
   StatusOr<SweepInfo> AwaitFinal(const std::string& sweep_id, double seconds) const;
   std::vector<WorkerInfo> Workers() const;
+  // A sweep id from an id or a unique prefix (hex digits only, at most limits::kMaxIdBytes).
+  StatusOr<std::string> ResolveId(const std::string& id_or_prefix) const;
+  // Every sweep of the index, oldest first, as Info reports it.
+  StatusOr<std::vector<SweepInfo>> ListSweeps() const;
   // The spec text (TOML) of a sweep, for workers that parse it themselves.
   StatusOr<std::string> SpecText(const std::string& sweep_id) const;
   SweepProgress progress(const std::string& sweep_id) const;
@@ -124,6 +136,7 @@ class SweepCoordinator {
   struct Sweep {
     SweepSpec spec;
     SweepRow row;
+    unsigned long long generation = 0;  // this plan's number: leases of other plans are void
     std::vector<std::string> keys;  // content key of item point·ic_count + ic
     std::vector<Job> jobs;
     std::vector<JobState> job_state;
@@ -136,17 +149,39 @@ class SweepCoordinator {
   struct LeaseState {
     std::string sweep_id, worker;
     long job_id = 0;
+    unsigned long long generation = 0;  // the plan the job belongs to
     double deadline = 0;
+  };
+  // A plan built outside mu_: the sweep's keys, its jobs against the point cache.
+  struct Planned {
+    Sweep sweep;
+    SweepPlan plan;
   };
 
   SweepCoordinator(std::string dir, std::unique_ptr<IndexDb> db, Options opt)
       : data_dir_(std::move(dir)), db_(std::move(db)), opt_(opt), publisher_([this] { PublisherLoop(); }) {}
-  StatusOr<SweepPlan> SubmitLocked(const SweepSpec& spec, long job_items);
+  // Plans a sweep against the point cache (keys, lookups in bounded batches, jobs). Without mu_.
+  StatusOr<Planned> BuildPlan(const SweepSpec& spec, long job_items);
+  // Makes a built plan the sweep's current one (a new generation) and persists its row. Under mu_.
+  StatusOr<SweepPlan> InstallLocked(Planned p, const std::string& owner);
+  // The plan of an active (not cancelled) sweep, if any. Under mu_.
+  std::optional<SweepPlan> ActivePlanLocked(const std::string& id) const;
+  // Plans the sweep again (stored items that went missing or failed their checksum are recomputed).
+  Status Replan(const std::string& id);
+  // Drops every lease of a sweep (cancel, replan). Under mu_.
+  void RevokeLeasesLocked(const std::string& sweep_id);
+  // Frees a finished or cancelled sweep's plan (keys, jobs) and returns the memory to the system.
+  static void FreePlan(Sweep& s);
+  void RememberFinishedLocked(const std::string& lease_id, const std::string& sweep_id);
+  void TouchWorkerLocked(const std::string& worker, double now);
   void RequeueExpiredLocked(double now);
+  // Gives a lease's job back to its queue (if the lease's plan is still current). Under mu_.
+  void RequeueLocked(const LeaseState& l);
   // Gathers the records, writes the map file, indexes it; returns the sweep's row as published.
   // Called without mu_ (it takes db_mu_ for the index).
+  // *incomplete: some item is missing or failed its checksum (the sweep must be planned again).
   StatusOr<SweepRow> WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys, const SweepRow& row,
-                                      double started, const std::string& path);
+                                      double started, const std::string& path, bool* incomplete);
   void PublisherLoop();
   Status MarkLocked(Sweep& s, const std::string& status);
 
@@ -177,6 +212,10 @@ class SweepCoordinator {
   std::map<std::string, Sweep> sweeps_;
   std::map<std::string, LeaseState> leases_;
   std::map<std::string, std::string> finished_leases_;  // lease id → sweep id, for duplicate reports
+  std::deque<std::string> finished_order_;               // oldest first: bounded memory
+  std::map<std::string, int> planning_;                  // sweep ids being planned (outside mu_)
+  std::condition_variable plan_cv_;                      // with mu_: a planning finished
+  unsigned long long generation_counter_ = 0;
   std::map<std::string, WorkerInfo> workers_;
   long next_seq_ = 0;
   unsigned long long lease_counter_ = 0;

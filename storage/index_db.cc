@@ -2,11 +2,26 @@
 
 #include <sqlite3.h>
 
+#define XXH_INLINE_ALL
+#include <xxhash.h>
+
 #include <algorithm>
 #include <cstring>
 
 namespace bistable {
 namespace {
+
+#define SWEEP_COLUMNS "id,name,model,spec,status,points_total,points_done,file,created,finished,seconds,owner"
+
+// Checksum of a stored result: XXH3-64 over its key and its values' bytes, so a flipped byte in
+// either (or a record moved to another key) is caught when read back.
+uint64_t RecordSum(const char* key, size_t key_len, const double* v, size_t n) {
+  XXH3_state_t st;
+  XXH3_64bits_reset(&st);
+  XXH3_64bits_update(&st, key, key_len);
+  XXH3_64bits_update(&st, v, n * sizeof(double));
+  return XXH3_64bits_digest(&st);
+}
 
 // RAII prepared statement.
 class Stmt {
@@ -58,6 +73,14 @@ CREATE TABLE IF NOT EXISTS results(
 INSERT OR IGNORE INTO meta VALUES('schema', '1');
 )sql";
 
+// Schema 2: sweeps.owner (who submitted), results.sum (checksum of the staged row), and point records
+// followed by an 8-byte checksum (records of schema 1, without one, read as missing and are recomputed).
+constexpr const char* kMigrate2 = R"sql(
+ALTER TABLE sweeps ADD COLUMN owner TEXT NOT NULL DEFAULT '';
+ALTER TABLE results ADD COLUMN sum INTEGER;
+UPDATE meta SET v = '2' WHERE k = 'schema';
+)sql";
+
 SweepRow ReadSweep(Stmt& s) {
   SweepRow r;
   r.id = s.ColText(0);
@@ -71,6 +94,7 @@ SweepRow ReadSweep(Stmt& s) {
   r.created = sqlite3_column_double(s.get(), 8);
   r.finished = sqlite3_column_double(s.get(), 9);
   r.seconds = sqlite3_column_double(s.get(), 10);
+  r.owner = s.ColText(11);
   return r;
 }
 
@@ -129,15 +153,27 @@ StatusOr<std::unique_ptr<IndexDb>> IndexDb::Open(const std::string& path) {
   }
   Status st = idx->Exec(kSchema);
   if (!st.ok()) return Status::IoError("data", "index '" + path + "': " + st.message());
+  std::string schema;
+  {
+    Stmt v(db, "SELECT v FROM meta WHERE k = 'schema'");
+    if (v.ok() && sqlite3_step(v.get()) == SQLITE_ROW) schema = v.ColText(0);
+  }
+  if (schema == "1") {
+    Transaction tx(db, "BEGIN IMMEDIATE");
+    st = tx.ok() ? idx->Exec(kMigrate2) : Status::IoError("index", "cannot begin the schema migration");
+    if (!st.ok() || !tx.Commit()) return Status::IoError("data", "index '" + path + "': migrating to schema 2: " + st.message());
+  } else if (schema != "2") {
+    return Status::IoError("data", "index '" + path + "' has schema '" + schema + "', this program reads schema 2 (newer program?)");
+  }
   return idx;
 }
 
 Status IndexDb::UpsertSweep(const SweepRow& r) {
   Stmt s(db_,
-         "INSERT INTO sweeps(id,name,model,spec,status,points_total,points_done,file,created,finished,seconds) "
-         "VALUES(?,?,?,?,?,?,?,?,?,?,?) ON CONFLICT(id) DO UPDATE SET name=excluded.name, status=excluded.status, "
+         "INSERT INTO sweeps(id,name,model,spec,status,points_total,points_done,file,created,finished,seconds,owner) "
+         "VALUES(?,?,?,?,?,?,?,?,?,?,?,?) ON CONFLICT(id) DO UPDATE SET name=excluded.name, status=excluded.status, "
          "points_total=excluded.points_total, points_done=excluded.points_done, file=excluded.file, "
-         "finished=excluded.finished, seconds=excluded.seconds, spec=excluded.spec");
+         "finished=excluded.finished, seconds=excluded.seconds, spec=excluded.spec, owner=excluded.owner");
   if (!s.ok()) return Error("prepare sweep upsert");
   s.Text(1, r.id);
   s.Text(2, r.name);
@@ -150,6 +186,7 @@ Status IndexDb::UpsertSweep(const SweepRow& r) {
   s.Real(9, r.created);
   s.Real(10, r.finished);
   s.Real(11, r.seconds);
+  s.Text(12, r.owner);
   if (sqlite3_step(s.get()) != SQLITE_DONE) return Error("write sweep " + r.id);
   return Status::Ok();
 }
@@ -189,11 +226,12 @@ StatusOr<std::vector<MapRow>> IndexDb::ListMaps(const std::string& sweep_id) {
 }
 
 StatusOr<std::optional<SweepRow>> IndexDb::GetSweep(const std::string& id) {
-  Stmt s(db_, "SELECT * FROM sweeps WHERE id = ? OR id LIKE ? ORDER BY id = ? DESC LIMIT 2");
+  Stmt s(db_, "SELECT " SWEEP_COLUMNS " FROM sweeps WHERE id = ? OR substr(id, 1, length(?)) = ? ORDER BY id = ? DESC LIMIT 2");
   if (!s.ok()) return Error("prepare sweep lookup");
   s.Text(1, id);
-  s.Text(2, id + "%");
+  s.Text(2, id);
   s.Text(3, id);
+  s.Text(4, id);
   std::vector<SweepRow> rows;
   while (sqlite3_step(s.get()) == SQLITE_ROW) rows.push_back(ReadSweep(s));
   if (rows.empty()) return std::optional<SweepRow>();
@@ -203,7 +241,7 @@ StatusOr<std::optional<SweepRow>> IndexDb::GetSweep(const std::string& id) {
 }
 
 StatusOr<std::vector<SweepRow>> IndexDb::ListSweeps() {
-  Stmt s(db_, "SELECT * FROM sweeps ORDER BY created");
+  Stmt s(db_, "SELECT " SWEEP_COLUMNS " FROM sweeps ORDER BY created");
   if (!s.ok()) return Error("prepare sweep list");
   std::vector<SweepRow> rows;
   while (sqlite3_step(s.get()) == SQLITE_ROW) rows.push_back(ReadSweep(s));
@@ -211,8 +249,9 @@ StatusOr<std::vector<SweepRow>> IndexDb::ListSweeps() {
 }
 
 StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(const std::vector<std::string>& keys,
-                                                                                size_t record_size) {
+                                                                                size_t record_size, long* corrupt) {
   BISTABLE_RETURN_IF_ERROR(FoldResults());
+  if (corrupt) *corrupt = 0;
   std::unordered_map<std::string, PointRecord> found;
   Transaction tx(db_, "BEGIN");  // one read snapshot for all keys
   if (!tx.ok()) return Error("begin point lookup");
@@ -224,10 +263,17 @@ StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(con
     s.Text(1, k);
     if (sqlite3_step(s.get()) == SQLITE_ROW) {
       const int bytes = sqlite3_column_bytes(s.get(), 0);
-      if (bytes != static_cast<int>(n * sizeof(double))) continue;  // a record of another layout: recompute
+      if (bytes != static_cast<int>(n * sizeof(double) + sizeof(uint64_t))) continue;  // another layout: recompute
       PointRecord r;
       r.v.resize(n);
-      std::memcpy(r.v.data(), sqlite3_column_blob(s.get(), 0), bytes);
+      const auto* blob = static_cast<const unsigned char*>(sqlite3_column_blob(s.get(), 0));
+      std::memcpy(r.v.data(), blob, n * sizeof(double));
+      uint64_t sum = 0;
+      std::memcpy(&sum, blob + n * sizeof(double), sizeof sum);
+      if (sum != RecordSum(k.data(), k.size(), r.v.data(), n)) {  // corrupt: treated as missing, recomputed
+        if (corrupt) ++*corrupt;
+        continue;
+      }
       found.emplace(k, std::move(r));
     }
   }
@@ -241,7 +287,7 @@ Status IndexDb::PutPoints(const std::vector<JobResults>& jobs) {
   if (!tx.ok()) return Error("begin point results");
   // One appended row per run of equal-width records: consecutive rowids fill one B-tree leaf after
   // another, so a job costs a few pages instead of one page per (randomly keyed) point.
-  sqlite3_stmt* ins = Cached("INSERT INTO results(sweep_id, width, keys, records) VALUES(?, ?, ?, ?)");
+  sqlite3_stmt* ins = Cached("INSERT INTO results(sweep_id, width, keys, records, sum) VALUES(?, ?, ?, ?, ?)");
   sqlite3_stmt* progress = Cached("UPDATE sweeps SET points_done = points_done + ? WHERE id = ?");
   if (!ins || !progress) return Error("prepare point results");
   std::string keys;
@@ -264,6 +310,7 @@ Status IndexDb::PutPoints(const std::vector<JobResults>& jobs) {
       sqlite3_bind_int64(ins, 2, static_cast<sqlite3_int64>(width));
       sqlite3_bind_text(ins, 3, keys.c_str(), static_cast<int>(keys.size()), SQLITE_STATIC);
       sqlite3_bind_blob(ins, 4, values.data(), static_cast<int>(values.size() * sizeof(double)), SQLITE_STATIC);
+      sqlite3_bind_int64(ins, 5, static_cast<sqlite3_int64>(RecordSum(keys.data(), keys.size(), values.data(), values.size())));
       if (sqlite3_step(ins) != SQLITE_DONE) return Error("store point results");
       sqlite3_reset(ins);
       i = j;
@@ -286,7 +333,7 @@ Status IndexDb::FoldResults() {
   while (true) {
     Transaction tx(db_, "BEGIN IMMEDIATE");
     if (!tx.ok()) return Error("begin folding results");
-    sqlite3_stmt* sel = Cached("SELECT seq, width, keys, records FROM results ORDER BY seq LIMIT ?");
+    sqlite3_stmt* sel = Cached("SELECT seq, width, keys, records, sum FROM results ORDER BY seq LIMIT ?");
     if (!sel) return Error("prepare result scan");
     sqlite3_bind_int(sel, 1, kBatchRows);
     struct Entry {
@@ -302,6 +349,14 @@ Status IndexDb::FoldResults() {
       const char* keys = reinterpret_cast<const char*>(sqlite3_column_text(sel, 2));
       const auto* vals = static_cast<const double*>(sqlite3_column_blob(sel, 3));
       const size_t nvals = static_cast<size_t>(sqlite3_column_bytes(sel, 3)) / sizeof(double);
+      const size_t key_bytes = static_cast<size_t>(sqlite3_column_bytes(sel, 2));
+      // A staged row whose checksum fails is dropped whole: its points are missing and recomputed.
+      if (sqlite3_column_type(sel, 4) != SQLITE_NULL &&
+          static_cast<uint64_t>(sqlite3_column_int64(sel, 4)) != RecordSum(keys ? keys : "", keys ? key_bytes : 0, vals, nvals)) {
+        ++corrupt_rows_;
+        continue;
+      }
+      if (width == 0) continue;
       size_t k = 0;
       for (const char* p = keys; p && *p; ++k) {
         const char* nl = std::strchr(p, '\n');
@@ -316,10 +371,15 @@ Status IndexDb::FoldResults() {
               [](const Entry& a, const Entry& b) { return a.key != b.key ? a.key < b.key : a.order < b.order; });
     sqlite3_stmt* ins = Cached("INSERT OR REPLACE INTO points(key, record, created) VALUES(?, ?, unixepoch())");
     if (!ins) return Error("prepare point insert");
+    std::vector<unsigned char> blob;
     for (const Entry& e : entries) {  // equal keys: the later report wins, as it did when stored directly
+      const uint64_t sum = RecordSum(e.key.data(), e.key.size(), e.v.data(), e.v.size());
+      blob.resize(e.v.size() * sizeof(double) + sizeof sum);
+      std::memcpy(blob.data(), e.v.data(), e.v.size() * sizeof(double));
+      std::memcpy(blob.data() + e.v.size() * sizeof(double), &sum, sizeof sum);
       sqlite3_reset(ins);
       sqlite3_bind_text(ins, 1, e.key.c_str(), static_cast<int>(e.key.size()), SQLITE_STATIC);
-      sqlite3_bind_blob(ins, 2, e.v.data(), static_cast<int>(e.v.size() * sizeof(double)), SQLITE_STATIC);
+      sqlite3_bind_blob(ins, 2, blob.data(), static_cast<int>(blob.size()), SQLITE_STATIC);
       if (sqlite3_step(ins) != SQLITE_DONE) return Error("fold point results");
     }
     sqlite3_reset(ins);

@@ -33,6 +33,7 @@ struct SweepRow {
   double created = 0;      // unix seconds
   double finished = 0;
   double seconds = 0;      // wall time of the last run
+  std::string owner;       // identity of the token that submitted it ("local" without tokens)
 };
 
 // One published map dataset: what `bistable sweeps --json` and clients can list without opening HDF5.
@@ -56,9 +57,10 @@ class IndexDb {
   StatusOr<std::vector<SweepRow>> ListSweeps();
 
   // Looks up many keys in one read transaction; the result holds the ones found with `record_size`
-  // doubles (a record of another layout is treated as missing and recomputed).
+  // doubles whose checksum holds (a record of another layout is treated as missing and recomputed;
+  // so is a corrupt one, counted in *corrupt).
   StatusOr<std::unordered_map<std::string, PointRecord>> LookupPoints(const std::vector<std::string>& keys,
-                                                                      size_t record_size);
+                                                                      size_t record_size, long* corrupt = nullptr);
   // Stores the records of one or more reported jobs in one transaction (all or nothing) and, in the
   // same transaction, adds each job's item count to its sweep's points_done. The records are staged
   // as one appended row per job (a few pages per commit, where keyed inserts cost a page per point)
@@ -71,6 +73,8 @@ class IndexDb {
   // Moves every staged job row into the keyed point cache (sorted inserts, bounded transactions).
   Status FoldResults();
   long CachedPointCount();
+  // Staged rows dropped by FoldResults because their checksum failed, since Open.
+  long corrupt_rows() const { return corrupt_rows_; }
 
  private:
   explicit IndexDb(sqlite3* db) : db_(db) {}
@@ -79,6 +83,7 @@ class IndexDb {
   Status Exec(const std::string& sql);
   Status Error(const std::string& what);
   sqlite3* db_;
+  long corrupt_rows_ = 0;
   std::unordered_map<const char*, sqlite3_stmt*> cached_;  // keyed by the literal's address
 };
 

@@ -1,0 +1,46 @@
+// Every bound that input from a spec, a client, a worker or a data file can run into, in one place.
+// Each limit is enforced where the input enters (spec parsing, the gRPC service, the coordinator) and
+// its error names the field and this bound. docs/limits.md lists them for users; change both together.
+//
+// The values are generous for the science (the paper's settings use 5e4 steps per point, 201 x 201
+// grids, 10 peaks) and small enough that no single request can take the machine: a sweep's plan is
+// at most a few hundred MB, a report a few MB, a point's window buffers tens of MB.
+#ifndef BISTABLE_BASE_LIMITS_H_
+#define BISTABLE_BASE_LIMITS_H_
+
+#include <cstddef>
+#include <cstdint>
+
+namespace bistable::limits {
+
+// --- Specs -----------------------------------------------------------------------------------------
+inline constexpr std::size_t kMaxSpecBytes = 1 << 20;        // TOML text of one spec
+inline constexpr std::size_t kMaxNameBytes = 200;            // spec `name`, a submit's `origin`
+inline constexpr long kMaxSweepItems = 4'194'304;            // grid points x initial conditions (2^22)
+inline constexpr long kMaxAxisValues = 1'048'576;            // values of one axis (2^20)
+inline constexpr int kMaxInitialStates = 64;                 // initial_conditions.states
+inline constexpr int kMaxSeriesCells = 1000;                 // series.cells
+
+// --- One point -------------------------------------------------------------------------------------
+inline constexpr double kMaxStepsPerPoint = 1e8;             // t_end / dt
+inline constexpr double kMaxWindowSamples = 4'194'304;       // (t_end - t_keep) / dt / sample_every
+inline constexpr std::size_t kMaxTurningPointsKept = 65'536; // turning points held per point (the last ones)
+
+// --- The service -----------------------------------------------------------------------------------
+inline constexpr std::size_t kMaxMessageBytes = 8 << 20;     // any request to the coordinator
+inline constexpr std::size_t kMaxIdBytes = 64;               // sweep ids / prefixes, lease ids in requests
+inline constexpr std::size_t kMaxWorkerNameBytes = 128;      // a worker's registered name
+inline constexpr std::size_t kMaxWorkers = 4096;             // workers remembered (oldest idle forgotten)
+inline constexpr std::size_t kMaxMetricNameBytes = 64;       // metric names in map requests
+inline constexpr int kMaxActiveSweepsPerOwner = 8;           // queued or running sweeps of one token
+inline constexpr int kMaxActiveSweeps = 64;                  // queued or running sweeps in all
+inline constexpr long kMaxJobItems = 4096;                   // items in one job (and so in one report)
+inline constexpr double kMinWatchInterval = 0.25;            // seconds between two status messages
+
+// --- Queries and measured data --------------------------------------------------------------------
+inline constexpr std::size_t kMaxQueryBytes = 4096;          // a query expression
+inline constexpr int kMaxQueryDepth = 64;                    // nesting of parentheses / not
+
+}  // namespace bistable::limits
+
+#endif  // BISTABLE_BASE_LIMITS_H_
