@@ -16,6 +16,10 @@ void ConfigureServerBuilder(grpc::ServerBuilder& builder) {
   // Every request is bounded before it is decoded: the largest legitimate one is a report of a job of
   // limits::kMaxJobItems records (about 3 MB) or a spec (1 MB).
   builder.SetMaxReceiveMessageSize(static_cast<int>(limits::kMaxMessageBytes));
+  // Transport memory per connection stays bounded: no bandwidth-delay probing that grows the receive
+  // window without limit (an oversized message is then refused before megabytes of it are buffered).
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_BDP_PROBE, 0);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_STREAM_LOOKAHEAD_BYTES, 1 << 20);
   builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::NUM_CQS, 1);
   builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MIN_POLLERS, 2);
   builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MAX_POLLERS, 16);

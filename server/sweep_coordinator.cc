@@ -32,6 +32,8 @@ long DefaultJobItems(const SweepSpec& spec, double seconds) {
 
 }  // namespace
 
+double SweepCoordinator::Clock() const { return opt_.clock ? opt_.clock() : Now(); }
+
 StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::string& data_dir, Options opt) {
   std::error_code ec;
   std::filesystem::create_directories(std::filesystem::path(data_dir) / "sweeps", ec);
@@ -210,7 +212,7 @@ StatusOr<SweepPlan> SweepCoordinator::InstallLocked(Planned p, const std::string
     sweeps_[plan.id] = std::move(s);
     return plan;
   }
-  s.started = Now();
+  s.started = Clock();
   s.row.id = plan.id;
   s.row.name = s.spec.name;
   s.row.model = s.spec.ModelLabel();
@@ -327,7 +329,7 @@ void SweepCoordinator::RequeueLocked(const LeaseState& l) {
 
 std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep) {
   std::lock_guard<std::mutex> lock(mu_);
-  const double now = Now();
+  const double now = Clock();
   TouchWorkerLocked(worker, now);
   if (stopped_) return std::nullopt;
   RequeueExpiredLocked(now);
@@ -350,7 +352,7 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
 
 Status SweepCoordinator::Extend(const std::string& lease_id) {
   std::lock_guard<std::mutex> lock(mu_);
-  const double now = Now();
+  const double now = Clock();
   auto it = leases_.find(lease_id);
   if (it == leases_.end())
     return finished_leases_.count(lease_id) ? Status::Ok() : Status::NotFound("lease '" + lease_id + "' is unknown");
@@ -419,7 +421,7 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
   LeaseState lease;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    const double now = Now();
+    const double now = Clock();
     if (committing_.count(lease_id))  // a retry racing its own first attempt: answer once it is stored
       return Status::IoError("coordinator", "the report of lease '" + lease_id + "' is being stored; retry");
     auto it = leases_.find(lease_id);
@@ -482,7 +484,7 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
       leases_[lease_id] = lease;  // nothing stored: the worker may retry while the lease lasts
     return stored;
   }
-  const double now = Now();
+  const double now = Clock();
   if (auto w = workers_.find(lease.worker); w != workers_.end()) {
     if (w->second.leases > 0) --w->second.leases;
     w->second.last_seen = now;
@@ -518,7 +520,8 @@ void SweepCoordinator::PublisherLoop() {
       publish_queue_.pop_front();
     }
     auto path = Publish(id);
-    if (!path.ok()) std::fprintf(stderr, "coordinator: publishing sweep %s failed: %s\n", id.c_str(), path.status().ToString().c_str());
+    if (!path.ok() && path.status().code() != Status::Code::kFailedPrecondition)  // cancelled meanwhile: nothing to say
+      std::fprintf(stderr, "coordinator: publishing sweep %s failed: %s\n", id.c_str(), path.status().ToString().c_str());
   }
 }
 
@@ -626,7 +629,7 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
   done.status = "done";
   done.points_done = static_cast<long>(records.size());
   done.file = std::filesystem::relative(path, data_dir_).string();
-  done.finished = Now();
+  done.finished = Clock();
   done.seconds = done.finished - started;
   // Map rows: shape and range of every stored metric, for listings that need not open HDF5.
   std::string shape;
@@ -653,7 +656,7 @@ Status SweepCoordinator::MarkLocked(Sweep& s, const std::string& status) {
   s.row.status = status;
   final_cv_.notify_all();
   s.row.points_done = s.items_done;
-  s.row.seconds = Now() - s.started;
+  s.row.seconds = Clock() - s.started;
   return Db()->UpsertSweep(s.row);
 }
 
@@ -681,7 +684,7 @@ StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
   }
   const Sweep& s = it->second;
   SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.owner, s.row.status, s.row.points_total, s.items_done, s.items_cached, 0,
-                 s.row.status == "done" ? s.row.seconds : Now() - s.started, s.row.file};
+                 s.row.status == "done" ? s.row.seconds : Clock() - s.started, s.row.file};
   if (info.state == "running" && !s.any_leased && s.items_done == s.items_cached) info.state = "queued";
   if (s.cancelled) info.state = "cancelled";
   std::map<std::string, bool> holders;

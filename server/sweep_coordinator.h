@@ -17,6 +17,7 @@
 
 #include <condition_variable>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -80,6 +81,7 @@ class SweepCoordinator {
     double lease_seconds = 60;  // a lease not reported or extended within this is requeued
     bool resume = true;         // on Open, plan every unfinished sweep of the index again (the service);
                                 // the embedded `bistable run` handles only the sweep it submits
+    std::function<double()> clock = nullptr;  // unix seconds for deadlines; empty: the system clock (tests step it)
   };
 
   // Opens <data>/index.sqlite and <data>/sweeps/ (creating them) and resumes unfinished sweeps.
@@ -175,6 +177,7 @@ class SweepCoordinator {
   void RememberFinishedLocked(const std::string& lease_id, const std::string& sweep_id);
   void TouchWorkerLocked(const std::string& worker, double now);
   void RequeueExpiredLocked(double now);
+  double Clock() const;
   // Gives a lease's job back to its queue (if the lease's plan is still current). Under mu_.
   void RequeueLocked(const LeaseState& l);
   // Gathers the records, writes the map file, indexes it; returns the sweep's row as published.
