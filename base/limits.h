@@ -36,6 +36,8 @@ inline constexpr int kMaxActiveSweepsPerOwner = 8;           // queued or runnin
 inline constexpr int kMaxActiveSweeps = 64;                  // queued or running sweeps in all
 inline constexpr long kMaxJobItems = 4096;                   // items in one job (and so in one report)
 inline constexpr double kMinWatchInterval = 0.25;            // seconds between two status messages
+inline constexpr int kMaxServerThreads = 128;                // gRPC threads (each open watch holds one)
+inline constexpr std::size_t kMaxServerMemoryBytes = 512u << 20;  // gRPC transport buffers in all
 
 // --- Queries and measured data --------------------------------------------------------------------
 inline constexpr std::size_t kMaxQueryBytes = 4096;          // a query expression

@@ -40,7 +40,7 @@ int RpcFail(const grpc::Status& s, const std::string& addr) {
 nlohmann::json StatusJson(const v1::SweepStatus& s) {
   return {{"id", s.id()}, {"state", s.state()}, {"points_done", s.points_done()}, {"points_total", s.points_total()},
           {"points_cached", s.points_cached()}, {"workers", s.workers()}, {"seconds", s.seconds()}, {"file", s.file()},
-          {"name", s.name()}, {"model", s.model()}};
+          {"name", s.name()}, {"model", s.model()}, {"error", s.error()}};
 }
 
 struct RemoteArgs {
@@ -93,6 +93,7 @@ int StatusCmd(const RemoteArgs& a) {
       std::printf("%s  %s  %ld/%ld points (%ld reused)  %d workers  %.1f s  %s\n", st.id().c_str(), st.state().c_str(),
                   static_cast<long>(st.points_done()), static_cast<long>(st.points_total()),
                   static_cast<long>(st.points_cached()), st.workers(), st.seconds(), st.file().c_str());
+    if (!a.json && !st.error().empty()) std::printf("  error: %s\n", st.error().c_str());
     return st.state() == "failed" ? 1 : 0;
   }
   auto ctx = Ctx(0);  // no deadline: the stream lasts as long as the sweep

@@ -20,6 +20,12 @@ void ConfigureServerBuilder(grpc::ServerBuilder& builder) {
   // window without limit (an oversized message is then refused before megabytes of it are buffered).
   builder.AddChannelArgument(GRPC_ARG_HTTP2_BDP_PROBE, 0);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_STREAM_LOOKAHEAD_BYTES, 1 << 20);
+  // Threads and transport memory of the whole server are bounded: calls beyond them are answered
+  // RESOURCE_EXHAUSTED instead of growing the process (one thread per open watch, for instance).
+  grpc::ResourceQuota quota("bistable-coordinator");
+  quota.SetMaxThreads(limits::kMaxServerThreads);
+  quota.Resize(limits::kMaxServerMemoryBytes);
+  builder.SetResourceQuota(quota);
   builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::NUM_CQS, 1);
   builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MIN_POLLERS, 2);
   builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MAX_POLLERS, 16);
@@ -55,6 +61,7 @@ void Fill(const SweepInfo& i, v1::SweepStatus* s) {
   s->set_file(i.file);
   s->set_name(i.name);
   s->set_model(i.model);
+  s->set_error(i.error);
 }
 
 }  // namespace

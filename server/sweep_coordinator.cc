@@ -480,6 +480,7 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
     std::fprintf(stderr, "coordinator: storing a report of sweep %s failed: %s\n", lease.sweep_id.c_str(),
                  stored.ToString().c_str());
     auto sit = sweeps_.find(lease.sweep_id);
+    if (sit != sweeps_.end()) sit->second.error = "storing results failed: " + stored.ToString();
     if (sit != sweeps_.end() && !sit->second.cancelled && sit->second.generation == lease.generation)
       leases_[lease_id] = lease;  // nothing stored: the worker may retry while the lease lasts
     return stored;
@@ -494,6 +495,7 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
   // Stored under the right content keys either way; counted only in the plan it was leased from.
   if (sit == sweeps_.end() || sit->second.cancelled || sit->second.generation != lease.generation) return Status::Ok();
   Sweep& s = sit->second;
+  s.error.clear();
   if (s.job_state[lease.job_id] != JobState::kDone) {  // two leases of one job stored at once count once
     s.job_state[lease.job_id] = JobState::kDone;
     s.items_done += n;
@@ -588,6 +590,7 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
   Sweep& s = sweeps_.at(sweep_id);
   if (!published.ok()) {
     std::fprintf(stderr, "coordinator: publishing sweep %s: %s\n", sweep_id.c_str(), published.status().ToString().c_str());
+    s.error = "publication failed: " + published.status().ToString();
     // A write failure (disk full, unwritable dir) fails the sweep. Results missing at publication
     // (a stored result failed its checksum) are computed again: the sweep is planned anew.
     if (published.status().code() == Status::Code::kIoError && !s.cancelled) MarkLocked(s, "failed");
@@ -680,13 +683,14 @@ StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
     if (!row.ok()) return row.status();
     if (!row.value()) return Status::NotFound("no sweep '" + sweep_id + "'");
     const SweepRow& r = *row.value();
-    return SweepInfo{r.id, r.name, r.model, r.owner, r.status, r.points_total, r.points_done, 0, 0, r.seconds, r.file};
+    return SweepInfo{r.id, r.name, r.model, r.owner, r.status, r.points_total, r.points_done, 0, 0, r.seconds, r.file, ""};
   }
   const Sweep& s = it->second;
   SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.owner, s.row.status, s.row.points_total, s.items_done, s.items_cached, 0,
-                 s.row.status == "done" ? s.row.seconds : Clock() - s.started, s.row.file};
+                 s.row.status == "done" ? s.row.seconds : Clock() - s.started, s.row.file, ""};
   if (info.state == "running" && !s.any_leased && s.items_done == s.items_cached) info.state = "queued";
   if (s.cancelled) info.state = "cancelled";
+  info.error = s.error;
   std::map<std::string, bool> holders;
   for (const auto& [id, l] : leases_)
     if (l.sweep_id == s.row.id) holders[l.worker] = true;

@@ -66,6 +66,7 @@ struct SweepInfo {
   int workers = 0;         // workers holding a lease of this sweep now
   double seconds = 0;      // since submission (or total, when done)
   std::string file;        // published map, relative to the data dir
+  std::string error;       // last storage / publication failure ("" once a report is stored again)
 };
 
 struct WorkerInfo {
@@ -146,6 +147,7 @@ class SweepCoordinator {
     long items_done = 0, items_cached = 0;
     long seq = 0;                   // submission order
     bool cancelled = false, any_leased = false;
+    std::string error;              // last storage / publication failure, for status
     double started = 0;
   };
   struct LeaseState {

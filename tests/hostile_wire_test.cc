@@ -533,6 +533,52 @@ TEST(HostileStartup, ListenOnANameThatStartsWith127IsNotLoopback) {
   fs::remove_all(dir);
 }
 
+// A full disk in the service: the report is refused (not acknowledged), the sweep's status says why,
+// the coordinator logs it, and once space is back the same report is stored.
+TEST(HostileStartup, FullDiskIsReportedInStatusAndLoggedAndLosesNothing) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs root to mount a small tmpfs";
+  const std::string dir = (fs::path(::testing::TempDir()) / ("hostile_disk_" + std::to_string(::getpid()))).string();
+  fs::remove_all(dir);
+  fs::create_directories(dir + "/mnt");
+  const pid_t m = Spawn({"/bin/mount", "-t", "tmpfs", "-o", "size=3m", "tmpfs", dir + "/mnt"}, dir + "/mount.log");
+  if (Wait(m, 10) != 0) GTEST_SKIP() << "cannot mount tmpfs here: " << ReadFile(dir + "/mount.log.err");
+  World w;
+  World* saved = g;
+  g = &w;
+  auto [pid, addr] = StartCoordinator(dir + "/mnt/data", dir + "/coord.log");
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  w.coord = pid;
+  w.stub = v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  v1::SubmitReply sub;
+  ASSERT_TRUE(Submit(Spec("alpha = [0.5, 1.0]\nomega = [0.5, 1.0]\n"), &sub).ok());
+  const v1::LeaseReply l = Lease();
+  ASSERT_TRUE(l.has_job());
+  const std::vector<double> honest = Honest(l);
+  {  // fill the disk
+    std::ofstream fill(dir + "/mnt/filler", std::ios::binary);
+    const std::string block(1 << 16, 'x');
+    for (int i = 0; i < 64 && fill.write(block.data(), block.size()); ++i) {
+    }
+  }
+  const grpc::Status full = Report(l.lease_id(), kWidth, honest);
+  EXPECT_FALSE(full.ok()) << "a report was acknowledged on a full disk";
+  v1::SweepStatus st;
+  ASSERT_TRUE(GetStatus(sub.id(), &st).ok());
+  EXPECT_NE(st.error().find("full"), std::string::npos) << "status error: '" << st.error() << "'";
+  EXPECT_NE(ReadFile(dir + "/coord.log.err").find("storing a report"), std::string::npos);
+  fs::remove(dir + "/mnt/filler");
+  EXPECT_TRUE(Report(l.lease_id(), kWidth, honest).ok()) << "the same report once space is back";
+  ASSERT_TRUE(GetStatus(sub.id(), &st).ok());
+  EXPECT_EQ(st.error(), "");
+  EXPECT_TRUE(Alive(pid));
+  ::kill(pid, SIGTERM);
+  Wait(pid, 10);
+  g = saved;
+  const pid_t u = Spawn({"/bin/umount", dir + "/mnt"}, dir + "/umount.log");
+  Wait(u, 10);
+  fs::remove_all(dir);
+}
+
 TEST(HostileStartup, UnnamedTokensAreDistinctOwnersAcrossRestarts) {
   const std::string dir = (fs::path(::testing::TempDir()) / ("hostile_owner_" + std::to_string(::getpid()))).string();
   fs::remove_all(dir);
