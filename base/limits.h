@@ -39,9 +39,11 @@ inline constexpr double kMinWatchInterval = 0.25;            // seconds between 
 inline constexpr int kMaxServerThreads = 128;                // gRPC threads (each open watch holds one)
 inline constexpr std::size_t kMaxServerMemoryBytes = 512u << 20;  // gRPC transport buffers in all
 
-// --- Queries and measured data --------------------------------------------------------------------
+// --- Queries, map files and measured data ---------------------------------------------------------
 inline constexpr std::size_t kMaxQueryBytes = 4096;          // a query expression
 inline constexpr int kMaxQueryDepth = 64;                    // nesting of parentheses / not
+inline constexpr std::size_t kMaxMapValuesRead = std::size_t{1} << 31;  // values of one dataset read from a map file
+inline constexpr double kMaxDataMagnitude = 1e12;            // |value| of a measured record, raw and in SI units
 
 }  // namespace bistable::limits
 

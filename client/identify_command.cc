@@ -8,8 +8,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <sstream>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -316,6 +318,20 @@ int RunIdentify(IdentifyArgs& a) {
   }
   if (!a.json) std::fprintf(stderr, "identify: %zu record(s), %zu parameters declared; fitting...\n", recs.size(), static_cast<size_t>(model.NumParams()));
   const IdentifyResult r = Identify(model, recs, setup, opt);
+  // A fit that returns no numbers is a failure, not a result: report which parameters and stop.
+  for (const auto& [fm, fr, what] : {std::tuple{&r.declared, &r.before, "declared model"}, std::tuple{&r.final_model, &r.after, "final model"}}) {
+    const auto names = fm->ParamNames();
+    std::string bad;
+    for (size_t i = 0; i < fr->theta.size(); ++i)
+      if (!std::isfinite(fr->theta[i])) bad += (bad.empty() ? "" : ", ") + (i < names.size() ? names[i] : std::to_string(i));
+    if (!bad.empty() || fr->theta.size() != names.size())
+      return Fail(Status::FailedPrecondition(std::string("identify: the fit of the ") + what + " gave non-finite parameters (" + bad +
+                                             "); check the data's units and the scales (--input-scale, --output-scale)"));
+    const double err = a.objective == "fft" ? fr->errors.fft : fr->errors.nrmse;
+    if (!std::isfinite(err))
+      return Fail(Status::FailedPrecondition(std::string("identify: the ") + what + " as fitted cannot be simulated on the records (" +
+                                             a.objective + " error " + Fmt(err) + "); check the data's units, the scales and --guess"));
+  }
   // Test splits: simulated with the declared and the final model.
   nlohmann::json test_json = nlohmann::json::array();
   for (const auto& [tb, te] : tests)
@@ -375,7 +391,11 @@ int RunIdentify(IdentifyArgs& a) {
                           {"residual_force_rms", Num(s.residual_rms)}, {"scores", sc}});
   }
   j["seconds"] = r.seconds;
-  j["simulations"] = r.before.simulations + r.after.simulations;
+  long long simulations = 0;  // checked: a saturated count stays a count
+  if (__builtin_add_overflow(static_cast<long long>(std::max(r.before.simulations, 0)),
+                             static_cast<long long>(std::max(r.after.simulations, 0)), &simulations))
+    simulations = std::numeric_limits<long long>::max();
+  j["simulations"] = simulations;
   j["settings"] = {{"v_sp", setup.fc.v_sp}, {"v_t", setup.fc.v_t}, {"m_main", model.m_main}, {"m_res", model.m_res},
                    {"deriv_cutoff_hz", recs.empty() ? 0.0 : recs[0].f_cut}, {"global_evals", a.global_evals}, {"shooting_horizon_s", a.horizon},
                    {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"input_kind", a.input_kind},
@@ -427,7 +447,7 @@ int RunIdentify(IdentifyArgs& a) {
     for (size_t i = 0; i < names.size(); ++i)
       md << "| " << names[i] << " | " << Fmt(r.after.theta[i], 6) << " | " << Fmt(r.after.sigma[i], 2) << " | " << units[i] << " |\n";
     md << "\nσ: Gauss–Newton covariance scaled by the residual's correlation time. Friction constants v_sp = " << setup.fc.v_sp
-       << " m/s, v_t = " << setup.fc.v_t << " m/s. Wall time " << Fmt(r.seconds, 3) << " s, " << j["simulations"].get<int>()
+       << " m/s, v_t = " << setup.fc.v_t << " m/s. Wall time " << Fmt(r.seconds, 3) << " s, " << simulations
        << " simulations.\n\n## Figures\n\n";
     for (const std::string& f : figs) md << "![" << f << "](" << f << ")\n\n";
     std::ofstream js((std::filesystem::path(a.report) / "report.json").string());
@@ -450,7 +470,7 @@ int RunIdentify(IdentifyArgs& a) {
     std::printf("test %s [%s): RMS %s before, %s after\n", t["record"].get<std::string>().c_str(), t["range"].get<std::string>().c_str(),
                 Fmt(t["rms_before"].is_null() ? NAN : t["rms_before"].get<double>()).c_str(),
                 Fmt(t["rms_after"].is_null() ? NAN : t["rms_after"].get<double>()).c_str());
-  std::printf("%.1f s, %d simulations%s\n", r.seconds, j["simulations"].get<int>(), a.report.empty() ? "" : ("; report in " + a.report).c_str());
+  std::printf("%.1f s, %lld simulations%s\n", r.seconds, simulations, a.report.empty() ? "" : ("; report in " + a.report).c_str());
   return 0;
 }
 

@@ -1,4 +1,6 @@
 // bistable: the command-line client (composition root).
+#include <signal.h>
+
 #include <iostream>
 
 #include <CLI/CLI.hpp>
@@ -13,6 +15,12 @@
 #include "dynamics/point_spec.h"
 
 int main(int argc, char** argv) {
+  // A reader that goes away (gnuplot exiting early, `| head`) makes the write fail with EPIPE, to be
+  // reported as an error, instead of killing the client.
+  struct sigaction ignore_pipe {};
+  ignore_pipe.sa_handler = SIG_IGN;
+  sigemptyset(&ignore_pipe.sa_mask);
+  sigaction(SIGPIPE, &ignore_pipe, nullptr);
   CLI::App app{"bistable-sweep: maps of bistable (snap-through) oscillators, alone or with a tuned resonator"};
   app.set_version_flag("--version", std::string("bistable ") + bistable::kNumericsVersion);
   app.require_subcommand(1);

@@ -1,8 +1,15 @@
 // `bistable sweeps`, `bistable map`, `bistable query`: reading what sweeps stored.
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <random>
 
 #include <nlohmann/json.hpp>
 
@@ -13,6 +20,7 @@
 #include "client/sweep_commands.h"
 #include "engine/query.h"
 #include "storage/map_file.h"
+#include "storage/metric_name.h"
 
 namespace bistable {
 namespace {
@@ -71,10 +79,49 @@ struct SweepRefLite {
   std::string id, name;
 };
 
-StatusOr<MapArray> LoadMetric(const MapSource& src, const std::string& id, const std::string& metric, SweepRefLite* ref) {
+// The metric is checked against the map's own list before any dataset is opened (or asked for).
+StatusOr<MapArray> LoadMetric(const MapSource& src, const std::string& id, const std::string& metric, SweepRefLite* ref,
+                              const std::vector<std::string>& extra = {}) {
   auto names = src.Metrics(id, &ref->id, &ref->name);
   if (!names.ok()) return names.status();
+  BISTABLE_RETURN_IF_ERROR(CheckMetricName(metric, *names, extra));
   return src.Metric(ref->id, metric);
+}
+
+// --out for text formats: the directory must exist; the file is written beside and renamed.
+Status WriteOutFile(const std::string& path, const std::string& text) {
+  namespace fs = std::filesystem;
+  const fs::path p(path);
+  if (path.empty() || !p.has_filename()) return Status::InvalidArgument("out", "output '" + path + "' does not name a file");
+  const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec))
+    return Status::InvalidArgument("out", "cannot write '" + path + "': directory '" + dir.string() +
+                                              (fs::exists(dir, ec) ? "' is not a directory" : "' does not exist"));
+  // A new file beside the destination (O_EXCL: never someone else's; mode 0666 less the umask).
+  std::string tmp;
+  int fd = -1;
+  std::random_device rd;
+  for (int attempt = 0; attempt < 64 && fd < 0; ++attempt) {
+    tmp = (dir / (".bistable-out-" + std::to_string(::getpid()) + "-" + std::to_string(rd()))).string();
+    fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd < 0 && errno != EEXIST) break;
+  }
+  if (fd < 0) return Status::IoError("out", "cannot create a file in '" + dir.string() + "': " + std::strerror(errno));
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    done += static_cast<size_t>(n);
+  }
+  const int write_errno = done == text.size() ? 0 : (errno ? errno : EIO);
+  if (::close(fd) != 0 || write_errno != 0 || ::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(write_errno ? write_errno : errno);
+    ::unlink(tmp.c_str());
+    return Status::IoError("out", "writing '" + path + "' failed: " + why);
+  }
+  return Status::Ok();
 }
 
 nlohmann::json NestedValues(const Slice& s) {
@@ -151,7 +198,7 @@ int ShowMap(const MapArgs& a) {
     return Fail(Status::InvalidArgument("format", "format = '" + a.format + "' violates format in {csv, json, png, svg}"));
   if (a.metric == "hd_scatter") return HdScatter(a);
   SweepRefLite ref;
-  auto m = LoadMetric(a.src, a.id, a.metric, &ref);
+  auto m = LoadMetric(a.src, a.id, a.metric, &ref, {"hd_scatter"});
   if (!m.ok()) return Fail(m.status());
   auto at = ParseAt(a.at);
   if (!at.ok()) return Fail(at.status());
@@ -166,7 +213,7 @@ int ShowMap(const MapArgs& a) {
     for (const Axis& ax : s->free) j["axis_order"].push_back(ax.name);
     const std::string text = j.dump(1);
     if (a.out.empty()) std::cout << text << "\n";
-    else std::ofstream(a.out) << text << "\n";
+    else if (Status st = WriteOutFile(a.out, text + "\n"); !st.ok()) return Fail(st);
     return 0;
   }
   if (a.format == "csv") {
@@ -183,7 +230,7 @@ int ShowMap(const MapArgs& a) {
           os << s->free[0].values[i] << "," << s->free[1].values[j] << "," << s->values[i * nx + j] << "\n";
     }
     if (a.out.empty()) std::cout << os.str();
-    else std::ofstream(a.out) << os.str();
+    else if (Status st = WriteOutFile(a.out, os.str()); !st.ok()) return Fail(st);
     return 0;
   }
   PlotData d;
@@ -216,6 +263,7 @@ int RunQuery(const QueryArgs& a) {
   std::vector<std::string> vars;
   for (const auto& m : *metrics)
     if (m != "hd_peak_freq" && m != "hd_peak_amp") vars.push_back(m);
+  if (vars.empty()) return Fail(Status::FailedPrecondition("sweep " + ref.id + " stores no metric a query can use"));
   auto first = a.src.Metric(ref.id, vars.front());
   if (!first.ok()) return Fail(first.status());
   const std::vector<Axis> axes = first->axes;

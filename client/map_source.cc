@@ -2,9 +2,11 @@
 
 #include <filesystem>
 
+#include "base/limits.h"
 #include "bistable.grpc.pb.h"
 #include "client/cli_common.h"
 #include "proto/status_convert.h"
+#include "storage/metric_name.h"
 
 namespace bistable {
 namespace {
@@ -13,6 +15,17 @@ StatusOr<ConnectOptions> Connection(const MapSource& s) {
   auto token = LoadToken(s.token_file);
   if (!token.ok()) return token.status();
   return ConnectOptions{s.coordinator, s.tls_ca, *token};
+}
+
+// A metric name is a plain dataset name: never sent or opened when it could be an HDF5 path. (Which
+// names a map holds is checked against its list: LoadMetric in map_commands.cc, ReadMapMetric.)
+Status CheckPlainMetricName(const std::string& metric) {
+  const bool plain = !metric.empty() && metric.size() <= limits::kMaxMetricNameBytes && metric != "." && metric != ".." &&
+                     metric.find_first_of(std::string("/\0\n\r", 4)) == std::string::npos;
+  if (plain) return Status::Ok();
+  return Status::InvalidArgument("metric", "metric '" + PrintableName(metric) +
+                                               "' is not a metric name (a metric is a dataset name of the map: no '/', "
+                                               "'.', '..', NUL or newline, at most 64 bytes)");
 }
 
 Status Remote(const grpc::Status& st, const std::string& addr) {
@@ -48,6 +61,7 @@ StatusOr<std::vector<std::string>> MapSource::Metrics(const std::string& id_or_p
 }
 
 StatusOr<MapArray> MapSource::Metric(const std::string& id, const std::string& metric) const {
+  BISTABLE_RETURN_IF_ERROR(CheckPlainMetricName(metric));
   if (coordinator.empty()) {
     auto ref = FindSweep(data_dir, id);
     if (!ref.ok()) return ref.status();

@@ -2,10 +2,19 @@
 // two axes with axis labels, units, colorbar and title; curves over one axis; the harmonic-diffusion
 // scatter of the paper's Fig. 6 (peak frequency vs Ω, point size by amplitude). Data go to gnuplot
 // inline; nothing is rasterised here.
+//
+// Titles, labels and units may come from other users (a sweep's name, an HDF5 file received over the
+// network), so no text is ever code: gnuplot runs from an argument vector (posix_spawnp, no shell),
+// every string enters the script through GnuplotString, and the output path never enters the script
+// (gnuplot writes a file created here in the destination directory, renamed onto the path). A
+// destination directory that does not exist is InvalidArgument naming "out"; a missing or failing
+// gnuplot is an IoError with gnuplot's message. Callers should ignore SIGPIPE (client/main.cc does);
+// the write to gnuplot blocks it in the calling thread regardless.
 #ifndef BISTABLE_CLIENT_PLOT_H_
 #define BISTABLE_CLIENT_PLOT_H_
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "dynamics/status.h"
@@ -93,8 +102,16 @@ struct PanelPlot {
 };
 Status RenderPanels(const PanelPlot& d, const std::string& out_path);
 
-// A label like "alpha = A0/delta_s" for axes.
+// A label like "alpha = A0/delta_s" for axes, as gnuplot enhanced text: known axis names become
+// symbols ({/Symbol a}); any other name is shown literally (its markup characters escaped). `unit` is
+// markup from AxisUnit (engine/sweep_spec.h), not text from a file.
 std::string AxisLabel(const std::string& name, const std::string& unit);
+
+// `text` as a gnuplot double-quoted string literal (quotes included) that gnuplot reads back as
+// exactly these bytes and never as code: bytes other than [A-Za-z0-9], space and . , _ - + = : / ( ) [ ] { }
+// are written as 4-digit octal escapes "\0ooo" (gnuplot decodes escapes after backquote and macro
+// substitution, so an escaped ` @ " \ or newline stays text). NUL bytes are dropped.
+std::string GnuplotString(std::string_view text);
 
 }  // namespace bistable
 

@@ -32,6 +32,9 @@ class Parser {
   Parser(const std::string& text, const std::vector<std::string>& names) : text_(text), names_(names) {}
 
   StatusOr<std::shared_ptr<const Query::Node>> Run(std::vector<int>* used) {
+    if (text_.size() > kMaxQueryBytes)
+      return Status::InvalidArgument("query", "query of " + std::to_string(text_.size()) + " bytes violates length <= " +
+                                                  std::to_string(kMaxQueryBytes) + " bytes");
     Status st = Tokenize();
     if (!st.ok()) return st;
     auto e = Or();
@@ -43,8 +46,10 @@ class Parser {
 
  private:
   Status Error(const std::string& what) {
-    return Status::InvalidArgument("query", "query '" + text_ + "' at " + std::to_string(Peek().pos + 1) + ": " + what);
+    return Status::InvalidArgument("query", "query '" + Shown() + "' at " + std::to_string(Peek().pos + 1) + ": " + what);
   }
+  // The query as quoted in messages: long ones cut to their start.
+  std::string Shown() const { return text_.size() <= 200 ? text_ : text_.substr(0, 200) + "..."; }
   const Token& Peek() const { return toks_[i_]; }
   Token Next() { return toks_[i_ < toks_.size() - 1 ? i_++ : i_]; }
   bool IsWord(const char* w) const { return Peek().kind == Token::kName && Peek().text == w; }
@@ -63,7 +68,7 @@ class Parser {
       } else if (std::isdigit(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == '+') {
         char* end = nullptr;
         const double v = std::strtod(text_.c_str() + p, &end);
-        if (end == text_.c_str() + p) return Status::InvalidArgument("query", "query '" + text_ + "' at " + std::to_string(p + 1) + ": bad number");
+        if (end == text_.c_str() + p) return Status::InvalidArgument("query", "query '" + Shown() + "' at " + std::to_string(p + 1) + ": bad number");
         toks_.push_back({Token::kNumber, text_.substr(p, end - (text_.c_str() + p)), v, p});
         p = end - text_.c_str();
       } else if (c == '(' || c == ')') {
@@ -72,12 +77,12 @@ class Parser {
       } else if (c == '<' || c == '>' || c == '=' || c == '!') {
         std::string op(1, c);
         if (p + 1 < text_.size() && text_[p + 1] == '=') op += '=';
-        if (op == "!" ) return Status::InvalidArgument("query", "query '" + text_ + "' at " + std::to_string(p + 1) + ": '!' must be '!='");
+        if (op == "!" ) return Status::InvalidArgument("query", "query '" + Shown() + "' at " + std::to_string(p + 1) + ": '!' must be '!='");
         if (op == "=") op = "==";
         toks_.push_back({Token::kOp, op, 0, p});
         p += (p + 1 < text_.size() && text_[p + 1] == '=') ? 2 : 1;
       } else {
-        return Status::InvalidArgument("query", "query '" + text_ + "' at " + std::to_string(p + 1) + ": unexpected '" + std::string(1, c) + "'");
+        return Status::InvalidArgument("query", "query '" + Shown() + "' at " + std::to_string(p + 1) + ": unexpected '" + std::string(1, c) + "'");
       }
     }
     toks_.push_back({Token::kEnd, "end of query", 0, text_.size()});
@@ -108,7 +113,18 @@ class Parser {
     }
     return node;
   }
+  // Nesting of '(' and 'not' (the recursion of Unary/Or and of the evaluation), bounded.
+  struct DepthGuard {
+    int* d;
+    explicit DepthGuard(int* depth) : d(depth) { ++*d; }
+    ~DepthGuard() { --*d; }
+  };
   StatusOr<std::shared_ptr<const Query::Node>> Unary() {
+    if (IsWord("not") || Peek().kind == Token::kLParen) {
+      if (depth_ >= kMaxQueryDepth)
+        return Error("nesting of '(' and 'not' violates depth <= " + std::to_string(kMaxQueryDepth));
+    }
+    DepthGuard guard(&depth_);
     if (IsWord("not")) {
       Next();
       auto e = Unary();
@@ -161,6 +177,7 @@ class Parser {
   const std::vector<std::string>& names_;
   std::vector<Token> toks_;
   size_t i_ = 0;
+  int depth_ = 0;
   std::set<int> used_;
 };
 

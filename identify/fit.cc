@@ -6,6 +6,7 @@
 #include <complex>
 #include <functional>
 #include <future>
+#include <limits>
 #include <thread>
 
 #include <ceres/ceres.h>
@@ -309,6 +310,20 @@ LinearFit SolveRegression(const Eigen::MatrixXd& X, const Eigen::VectorXd& b, co
 
 namespace {
 
+// Adds n simulations to a counter without overflowing it (saturates at INT_MAX). Negative n (Ceres'
+// Summary counts are -1 when the solve stopped before evaluating anything) adds nothing.
+void AddSimulations(int* counter, long long n) {
+  if (n <= 0) return;
+  long long sum = 0;
+  if (__builtin_add_overflow(static_cast<long long>(*counter), n, &sum) || sum > std::numeric_limits<int>::max())
+    sum = std::numeric_limits<int>::max();
+  *counter = static_cast<int>(sum);
+}
+
+bool AllFinite(const std::vector<double>& v) {
+  return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+}
+
 struct SimCost {
   const IdentModel* m;
   const std::vector<PreparedRecord>* recs;
@@ -362,7 +377,7 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
     c.substeps = sub;
     const double* pp = uu.data();
     if (!c(&pp, buf.data())) return 1e30;
-    ++result.simulations;
+    AddSimulations(&result.simulations, 1);
     double s = 0;
     for (double v : buf) s += v * v;
     return s;
@@ -409,6 +424,9 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
     if (obj == Objective::kFft && lc.meas_mag.empty()) lc.meas_mag = MeasuredMagnitudes(recs, setup);
     const size_t lres = NumResiduals(recs, obj);
     double final_cost = 1e300;
+    // A start that is not finite (e.g. the regression of absurd data) cannot be solved: Ceres would
+    // refuse it before evaluating anything.
+    if (!AllFinite(uu)) return final_cost;
     for (int round = 0; round < 3; ++round) {
       std::vector<double> th(p);
       for (int i = 0; i < p; ++i) th[i] = uu[i] * scale[i];
@@ -429,7 +447,10 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
       so.logging_type = ceres::SILENT;
       ceres::Solver::Summary summary;
       ceres::Solve(so, &problem, &summary);
-      result.simulations += summary.num_residual_evaluations + summary.num_jacobian_evaluations * p;
+      // Ceres leaves both counts at -1 when it stops before evaluating (invalid start or problem):
+      // summing them as they are gave a negative count of simulations.
+      AddSimulations(&result.simulations, std::max(summary.num_residual_evaluations, 0) +
+                                              static_cast<long long>(std::max(summary.num_jacobian_evaluations, 0)) * p);
       result.message = summary.BriefReport();
       final_cost = summary.final_cost;
       for (int i = 0; i < p; ++i) th[i] = uu[i] * scale[i];
@@ -483,7 +504,7 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
         ok = c(&a, rp.data()) && c(&b, rm.data());
         for (size_t k = 0; k < nres && ok; ++k) J(static_cast<long>(k), i) = (rp[k] - rm[k]) / (2 * h);
       }
-      result.simulations += 2 * p + 1;
+      AddSimulations(&result.simulations, 2LL * p + 1);
       if (ok) {
         double rss = 0;
         for (double v : r0) rss += v * v;

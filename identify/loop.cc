@@ -302,7 +302,13 @@ IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& 
   m.theta = fit.theta;
   out.before = fit;
   out.residual_before = ResidualForce(m, m.theta, recs, setup);
-  for (int round = 0; round < opt.max_added; ++round) {
+  const bool finite_fit = std::all_of(fit.theta.begin(), fit.theta.end(), [](double v) { return std::isfinite(v); });
+  if (!finite_fit) {  // nothing to trace from (the caller reports the non-finite parameters as an error)
+    LoopStep step;
+    step.verdict = "the fit of the declared model gave non-finite parameters; nothing traced";
+    out.steps.push_back(step);
+  }
+  for (int round = 0; round < (finite_fit ? opt.max_added : 0); ++round) {
     LoopStep step = TraceResidual(m, m.theta, recs, setup, opt);
     if (step.chosen.empty()) {
       step.verdict = "no candidate beats the noise (ΔBIC < −" + std::to_string(static_cast<int>(opt.bic_threshold)) +

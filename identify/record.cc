@@ -5,12 +5,19 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <tuple>
 
+#include "base/limits.h"
 #include "dynamics/validate.h"
 #include "engine/sweep_spec.h"
 
 namespace bistable {
 namespace {
+
+// Largest magnitude accepted in a data cell, raw or scaled to SI. Measured records are far below it
+// (metres, volts, seconds; ADC counts ~1e7; Unix times ~2e9); beyond it squares and fifth powers of
+// the regression and the simulation lose every digit or overflow, and the fit returns no numbers.
+constexpr double kMaxDataMagnitude = limits::kMaxDataMagnitude;
 
 std::vector<std::string> SplitCsv(const std::string& line) {
   std::vector<std::string> out;
@@ -82,6 +89,9 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
       if (ec != std::errc() || p != cells[k].data() + cells[k].size() || !std::isfinite(v))
         return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + " column '" + header[k] +
                                                    "': '" + cells[k] + "' is not a finite number");
+      if (!(std::fabs(v) <= kMaxDataMagnitude))
+        return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + " column '" + header[k] + "': " +
+                                                   cells[k] + " violates |value| <= " + FormatNumber(kMaxDataMagnitude));
       row[k] = v;
     }
     std::vector<double> gv;
@@ -108,6 +118,12 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
       r.group_values = gv;
       records.push_back(std::move(r));
     }
+    const double scaled_in = row[*ci] * c.input_scale, scaled_out = row[*co] * c.output_scale;
+    for (auto [v, k, scale] : {std::tuple{scaled_in, *ci, c.input_scale}, std::tuple{scaled_out, *co, c.output_scale}})
+      if (!(std::fabs(v) <= kMaxDataMagnitude))
+        return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + " column '" + header[k] + "': " +
+                                                   cells[k] + " x scale " + FormatNumber(scale) + " violates |value| <= " +
+                                                   FormatNumber(kMaxDataMagnitude));
     Record& r = records.back();
     r.t.push_back(t);
     r.input.push_back(row[*ci] * c.input_scale);

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <filesystem>
 #include <random>
@@ -31,6 +32,16 @@ long DefaultJobItems(const SweepSpec& spec, double seconds) {
 }
 
 }  // namespace
+
+void SweepCoordinator::Log(const char* fmt, ...) const {
+  if (!opt_.log) return;
+  char line[1024];
+  va_list ap;
+  va_start(ap, fmt);
+  std::vsnprintf(line, sizeof line, fmt, ap);
+  va_end(ap);
+  std::fprintf(stderr, "coordinator: %s", line);
+}
 
 double SweepCoordinator::Clock() const { return opt_.clock ? opt_.clock() : Now(); }
 
@@ -60,7 +71,7 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
     }
     auto plan = c->Submit(*spec, DefaultJobItems(*spec, 2.0), r.owner.empty() ? "local" : r.owner);
     if (!plan.ok()) {
-      std::fprintf(stderr, "coordinator: cannot resume sweep %s: %s\n", r.id.c_str(), plan.status().ToString().c_str());
+      c->Log("cannot resume sweep %s: %s\n", r.id.c_str(), plan.status().ToString().c_str());
       SweepRow failed = r;
       failed.status = "failed";
       c->Db()->UpsertSweep(failed);
@@ -99,7 +110,7 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
       ++all;
       if (s.row.owner == owner) ++mine;
     }
-    for (const auto& [sid, n] : planning_) ++all;
+    all += static_cast<int>(planning_.size());
     if (mine >= limits::kMaxActiveSweepsPerOwner)
       return Status::FailedPrecondition("'" + owner + "' has " + std::to_string(mine) +
                                         " sweeps queued or running, the limit per owner is " +
@@ -161,7 +172,7 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
       if (cached->count(batch[i])) is_missing[b + i] = false;
   }
   if (corrupt_total > 0)
-    std::fprintf(stderr, "coordinator: sweep %s: %ld stored results failed their checksum; they are recomputed\n",
+    Log("sweep %s: %ld stored results failed their checksum; they are recomputed\n",
                  plan.id.c_str(), corrupt_total);
   if (spec.continuation.enabled()) {
     // Chains run whole and in order (each point starts where the previous ended): a chain with any
@@ -251,7 +262,7 @@ Status SweepCoordinator::Replan(const std::string& id) {
   if (!built.ok()) return built.status();
   auto plan = InstallLocked(std::move(*built), owner);
   if (!plan.ok()) return plan.status();
-  std::fprintf(stderr, "coordinator: sweep %s planned again: %ld items to recompute\n", id.c_str(),
+  Log("sweep %s planned again: %ld items to recompute\n", id.c_str(),
                plan->items_total - plan->items_cached);
   if (plan->jobs == 0) {
     std::lock_guard<std::mutex> p(publish_queue_mu_);
@@ -477,7 +488,7 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
   std::lock_guard<std::mutex> lock(mu_);
   committing_.erase(lease_id);
   if (!stored.ok()) {
-    std::fprintf(stderr, "coordinator: storing a report of sweep %s failed: %s\n", lease.sweep_id.c_str(),
+    Log("storing a report of sweep %s failed: %s\n", lease.sweep_id.c_str(),
                  stored.ToString().c_str());
     auto sit = sweeps_.find(lease.sweep_id);
     if (sit != sweeps_.end()) sit->second.error = "storing results failed: " + stored.ToString();
@@ -523,7 +534,7 @@ void SweepCoordinator::PublisherLoop() {
     }
     auto path = Publish(id);
     if (!path.ok() && path.status().code() != Status::Code::kFailedPrecondition)  // cancelled meanwhile: nothing to say
-      std::fprintf(stderr, "coordinator: publishing sweep %s failed: %s\n", id.c_str(), path.status().ToString().c_str());
+      Log("publishing sweep %s failed: %s\n", id.c_str(), path.status().ToString().c_str());
   }
 }
 
@@ -589,7 +600,7 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
   std::unique_lock<std::mutex> lock(mu_);
   Sweep& s = sweeps_.at(sweep_id);
   if (!published.ok()) {
-    std::fprintf(stderr, "coordinator: publishing sweep %s: %s\n", sweep_id.c_str(), published.status().ToString().c_str());
+    Log("publishing sweep %s: %s\n", sweep_id.c_str(), published.status().ToString().c_str());
     s.error = "publication failed: " + published.status().ToString();
     // A write failure (disk full, unwritable dir) fails the sweep. Results missing at publication
     // (a stored result failed its checksum) are computed again: the sweep is planned anew.
@@ -614,7 +625,7 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
   auto found = Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points), &corrupt);
   if (!found.ok()) return found.status();
   if (corrupt > 0)
-    std::fprintf(stderr, "coordinator: sweep %s: %ld stored results failed their checksum at publication\n", row.id.c_str(),
+    Log("sweep %s: %ld stored results failed their checksum at publication\n", row.id.c_str(),
                  corrupt);
   std::vector<PointRecord> records;
   records.reserve(keys.size());

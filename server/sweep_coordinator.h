@@ -82,6 +82,8 @@ class SweepCoordinator {
     double lease_seconds = 60;  // a lease not reported or extended within this is requeued
     bool resume = true;         // on Open, plan every unfinished sweep of the index again (the service);
                                 // the embedded `bistable run` handles only the sweep it submits
+    bool log = true;            // events (storage failures, corrupt results, replans) to stderr; the
+                                // embedded run turns it off and reports through its Status instead
     std::function<double()> clock = nullptr;  // unix seconds for deadlines; empty: the system clock (tests step it)
   };
 
@@ -180,6 +182,7 @@ class SweepCoordinator {
   void TouchWorkerLocked(const std::string& worker, double now);
   void RequeueExpiredLocked(double now);
   double Clock() const;
+  void Log(const char* fmt, ...) const __attribute__((format(printf, 2, 3)));
   // Gives a lease's job back to its queue (if the lease's plan is still current). Under mu_.
   void RequeueLocked(const LeaseState& l);
   // Gathers the records, writes the map file, indexes it; returns the sweep's row as published.

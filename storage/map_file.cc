@@ -11,8 +11,16 @@
 #include <filesystem>
 #include <limits>
 
+#include "base/limits.h"
+#include "storage/metric_name.h"
+
 namespace bistable {
 namespace {
+
+// Most values one metric dataset may hold when read back (a file's own dims are not trusted: a
+// chunked dataset can declare far more than it stores). 2^31 doubles = 16 GB, above any map a
+// sweep may write (items x kTurningPointsStored).
+constexpr size_t kMaxMapValuesRead = limits::kMaxMapValuesRead;
 
 // RAII for hid_t handles.
 class Handle {
@@ -278,25 +286,26 @@ StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& met
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!file.ok()) return Status::IoError("map", "cannot open map file '" + path + "'");
+  // The name may come from a remote client: only one of the map's own metric datasets is opened,
+  // never an HDF5 path ("/", "..", "/axes/alpha"), an axis scale or a name with NUL or newline.
+  auto names = ListMapMetrics(path);
+  if (!names.ok()) return names.status();
+  BISTABLE_RETURN_IF_ERROR(CheckMetricName(metric, *names));
   MapArray out;
   out.metric = metric;
-  if (H5Lexists(file.get(), metric.c_str(), H5P_DEFAULT) <= 0) {
-    auto names = ListMapMetrics(path);
-    std::string list;
-    if (names.ok())
-      for (const auto& n : *names) list += (list.empty() ? "" : ", ") + n;
-    const std::string near = names.ok() ? NearestName(metric, *names) : "";
-    return Status::InvalidArgument("metric", "metric '" + metric + "' is not in this map" +
-                                                 (near.empty() ? "" : "; did you mean '" + near + "'?") +
-                                                 " (stored: " + list + ")");
-  }
   Handle ds(H5Dopen2(file.get(), metric.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!ds.ok()) return Status::IoError("map", "cannot open dataset " + metric + " in '" + path + "'");
   Handle space(H5Dget_space(ds.get()), H5Sclose);
-  const int rank = H5Sget_simple_extent_ndims(space.get());
+  const int rank = space.ok() ? H5Sget_simple_extent_ndims(space.get()) : -1;
+  if (rank < 1 || rank > 32) return Status::IoError("map", "dataset " + metric + " in '" + path + "' has a bad shape");
   std::vector<hsize_t> dims(rank);
   H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
   size_t total = 1;
-  for (hsize_t d : dims) out.dims.push_back(d), total *= d;
+  for (hsize_t d : dims) {
+    if (__builtin_mul_overflow(total, static_cast<size_t>(d), &total) || total > kMaxMapValuesRead)
+      return Status::IoError("map", "dataset " + metric + " in '" + path + "' is too large");
+    out.dims.push_back(d);
+  }
   out.values.resize(total);
   if (H5Dread(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.values.data()) < 0)
     return Status::IoError("map", "read " + metric + " from '" + path + "'");
@@ -311,9 +320,14 @@ StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& met
     Handle sd(H5Dopen2(file.get(), a.name.c_str(), H5P_DEFAULT), H5Dclose);
     Handle ss(H5Dget_space(sd.get()), H5Sclose);
     hsize_t n = 0;
-    H5Sget_simple_extent_dims(ss.get(), &n, nullptr);
+    if (!sd.ok() || !ss.ok() || H5Sget_simple_extent_ndims(ss.get()) != 1 || H5Sget_simple_extent_dims(ss.get(), &n, nullptr) < 0 ||
+        n > kMaxMapValuesRead)
+      return Status::IoError("map", "axis '" + PrintableName(a.name) + "' of '" + path + "' is missing or malformed");
     a.values.resize(n);
     H5Dread(sd.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.values.data());
+    const size_t k = out.axes.size();
+    if (k >= dims.size() || dims[k] != n)
+      return Status::IoError("map", "dataset " + metric + " in '" + path + "' does not match its axis '" + PrintableName(a.name) + "'");
     out.axes.push_back(a);
     out.dim_names.push_back(a.name);
     start = end + 1;

@@ -2,13 +2,22 @@
 #ifndef BISTABLE_TESTS_PROCESS_UTIL_H_
 #define BISTABLE_TESTS_PROCESS_UTIL_H_
 
+#include <fcntl.h>
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -43,6 +52,79 @@ inline std::string FreshDir(const std::string& prefix, const std::string& name) 
   std::filesystem::remove_all(d);
   std::filesystem::create_directories(d);
   return d.string();
+}
+
+// Result of RunArgv: how the process ended and what it wrote.
+struct ExecResult {
+  int exit_code = -1;  // -1 when it did not exit normally
+  int signal = 0;      // the signal that ended it (0: it exited; SIGKILL also when it timed out)
+  bool timed_out = false;
+  std::string out, err;
+};
+
+// Runs argv[0] with arguments argv[1..] by fork + execve: no shell ever sees the arguments. `cwd`:
+// working directory of the child ("" = ours); `env`: variables set (or replaced) in the child's
+// environment; stdout and stderr are captured through temporary files; killed after timeout_s.
+inline ExecResult RunArgv(const std::vector<std::string>& argv, const std::string& cwd = "",
+                          const std::map<std::string, std::string>& env = {}, double timeout_s = 300) {
+  ExecResult r;
+  if (argv.empty()) return r;
+  // Everything the child needs is built before fork (no allocation after it).
+  std::vector<std::string> env_strings;
+  for (char** e = environ; *e != nullptr; ++e) {
+    const std::string kv = *e;
+    const std::string key = kv.substr(0, kv.find('='));
+    if (env.find(key) == env.end()) env_strings.push_back(kv);
+  }
+  for (const auto& [k, v] : env) env_strings.push_back(k + "=" + v);
+  std::vector<char*> envp, args;
+  for (auto& kv : env_strings) envp.push_back(kv.data());
+  envp.push_back(nullptr);
+  std::vector<std::string> argv_copy = argv;
+  for (auto& a : argv_copy) args.push_back(a.data());
+  args.push_back(nullptr);
+  const std::string tmp = ::testing::TempDir();
+  std::string out_path = tmp + "/bistable_out_XXXXXX", err_path = tmp + "/bistable_err_XXXXXX";
+  const int out_fd = ::mkstemp(out_path.data());
+  const int err_fd = ::mkstemp(err_path.data());
+  if (out_fd < 0 || err_fd < 0) return r;
+  std::fflush(nullptr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const int in_fd = ::open("/dev/null", O_RDONLY);
+    if (in_fd >= 0) ::dup2(in_fd, 0);
+    ::dup2(out_fd, 1);
+    ::dup2(err_fd, 2);
+    if (!cwd.empty() && ::chdir(cwd.c_str()) != 0) ::_exit(126);
+    ::execve(args[0], args.data(), envp.data());
+    ::_exit(127);
+  }
+  ::close(out_fd);
+  ::close(err_fd);
+  int status = 0;
+  if (pid > 0) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (true) {
+      const pid_t w = ::waitpid(pid, &status, WNOHANG);
+      if (w == pid) break;
+      if (w < 0 && errno != EINTR) break;
+      if (std::chrono::steady_clock::now() > deadline) {
+        r.timed_out = true;
+        ::kill(pid, SIGKILL);
+        ::waitpid(pid, &status, 0);
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    if (WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
+    if (WIFSIGNALED(status)) r.signal = WTERMSIG(status);
+  }
+  std::ifstream o(out_path), e(err_path);
+  r.out.assign(std::istreambuf_iterator<char>(o), {});
+  r.err.assign(std::istreambuf_iterator<char>(e), {});
+  std::filesystem::remove(out_path);
+  std::filesystem::remove(err_path);
+  return r;
 }
 
 }  // namespace bistable_test

@@ -1,0 +1,643 @@
+// Hostile input against the client (issue 10, client side): every place user text or a path reaches
+// gnuplot, the file system or a parser, tried with strings an attacker would send. Each row of the
+// table is its own test case: the `bistable` CLI runs as a real process (fork + execve, an argument
+// vector: no shell between the test and the CLI), in a fresh directory that is also its working
+// directory. Every row checks that no command ran (no file named "pwned" appears), that no process
+// died of a signal, that no temporary plot file is left behind, and then its own outcome: a clear
+// error (exit 2, the field named in stderr) or success with the files written (and, for SVG plots,
+// the title shown as the literal text).
+//
+// Plain unit tests of GnuplotString (client/plot.h) follow the table, including a round trip of every
+// byte through the installed gnuplot.
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "client/plot.h"
+#include "storage/map_file.h"
+#include "tests/process_util.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using bistable_test::ExecResult;
+using bistable_test::RunArgv;
+
+// ---- helpers ----------------------------------------------------------------------------------
+
+std::string ReplaceAll(std::string s, const std::string& from, const std::string& to) {
+  for (size_t p = s.find(from); p != std::string::npos; p = s.find(from, p + to.size())) s.replace(p, from.size(), to);
+  return s;
+}
+
+// A TOML basic string holding `s` exactly.
+std::string TomlString(const std::string& s) {
+  std::string out = "\"";
+  for (unsigned char c : s) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += static_cast<char>(c);
+    } else if (c < 0x20 || c == 0x7f) {
+      char b[8];
+      std::snprintf(b, sizeof b, "\\u%04x", c);
+      out += b;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  return out + "\"";
+}
+
+// Text as gnuplot's SVG terminal writes it (it escapes & and <, not >).
+std::string XmlEscape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    if (c == '&') out += "&amp;";
+    else if (c == '<') out += "&lt;";
+    else out += c;
+  }
+  return out;
+}
+
+// A 2 x 2 standalone sweep with a short run (well under a second, plots included).
+std::string TinySpec(const std::string& name) {
+  return "name = " + TomlString(name) +
+         "\nmodel = \"standalone\"\n[axes]\nalpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n"
+         "[integration]\nt_end = 20.0\nt_keep = 10.0\n";
+}
+
+// A measured-record CSV (t, x0, x) of n samples at 100 Hz; `cell(i, col)` may override a cell.
+std::string RecordCsv(int n, const std::map<std::pair<int, int>, std::string>& cells = {}, double scale = 1.0) {
+  std::ostringstream os;
+  os.precision(9);
+  os << "t,x0,x\n";
+  for (int i = 0; i < n; ++i) {
+    std::string c[3];
+    std::ostringstream a, b, t;
+    a.precision(9), b.precision(9), t.precision(9);
+    t << i * 0.01;
+    a << scale * 0.001 * std::sin(i * 0.3);
+    b << scale * 0.0012 * std::sin(i * 0.3 - 0.2);
+    c[0] = t.str(), c[1] = a.str(), c[2] = b.str();
+    for (int k = 0; k < 3; ++k)
+      if (auto it = cells.find({i, k}); it != cells.end()) c[k] = it->second;
+    os << c[0] << "," << c[1] << "," << c[2] << "\n";
+  }
+  return os.str();
+}
+
+// ---- the table ----------------------------------------------------------------------------------
+
+enum class Outcome {
+  kOk,         // every step exits 0
+  kError,      // a step exits 2 with err_has in its stderr (later steps are not run)
+  kErrorOrOk,  // either (the input may be refused by validation or shown literally)
+};
+
+enum class JsonCheck {
+  kNone,
+  kRunFiles,        // step 0 is `run --json`: every file it lists exists and is not empty
+  kIdentifyFinite,  // the last step is `identify --json`: parameters are numbers, simulations >= 0
+};
+
+// Placeholders in arguments, paths and environment values: {dir} the row's directory (also the
+// working directory), {canary} = {dir}/pwned, {spec} = {dir}/spec.toml, {data} = {dir}/data,
+// {id} = the sweep id printed by step 0 (`run --json`), {name} = the spec name (in svg_has).
+struct Row {
+  std::string name;
+  std::string spec_name;                                   // non-empty: {spec} is TinySpec(this)
+  std::vector<std::vector<std::string>> steps;             // bistable arguments, one process each
+  Outcome outcome = Outcome::kOk;
+  std::string err_has;                                     // error outcomes: in the failing step's stderr
+  std::vector<std::string> ok_files;                       // outcome ok: exist, not empty
+  std::vector<std::string> absent;                         // never exist afterwards
+  std::string svg;                                         // outcome ok: an SVG whose text is checked
+  std::vector<std::string> svg_has;                        // literal (XML-escaped) substrings of it
+  std::map<std::string, std::string> env;                  // environment of every step
+  std::string fake_gnuplot;                                // non-empty: {dir}/fakebin/gnuplot with this body
+  std::vector<std::pair<std::string, std::string>> files;  // written before the steps
+  JsonCheck json = JsonCheck::kNone;
+
+  // Builders for the table below.
+  Row& Error(const std::string& has) { return outcome = Outcome::kError, err_has = has, *this; }
+  Row& OkFiles(std::vector<std::string> f) { return ok_files = std::move(f), *this; }
+  Row& Absent(std::vector<std::string> f) { return absent = std::move(f), *this; }
+  Row& Files(std::vector<std::pair<std::string, std::string>> f) { return files = std::move(f), *this; }
+  Row& Json(JsonCheck j) { return json = j, *this; }
+};
+
+Row Case(const std::string& name, std::vector<std::vector<std::string>> steps) {
+  Row r;
+  r.name = name;
+  r.steps = std::move(steps);
+  return r;
+}
+
+std::ostream& operator<<(std::ostream& os, const Row& r) { return os << r.name; }
+
+std::vector<std::string> Run(bool plots) {
+  std::vector<std::string> v = {"run", "{spec}", "--data", "{data}", "--json", "--quiet"};
+  if (!plots) v.push_back("--no-plots");
+  return v;
+}
+std::vector<std::string> Map(std::vector<std::string> extra) {
+  std::vector<std::string> v = {"map", "{id}", "--data", "{data}"};
+  v.insert(v.end(), extra.begin(), extra.end());
+  return v;
+}
+std::vector<std::string> Query(const std::string& expr) { return {"query", "{id}", expr, "--data", "{data}"}; }
+std::vector<std::string> Identify(const std::string& data, std::vector<std::string> extra = {}) {
+  std::vector<std::string> v = {"identify", "--data", data, "--terms", "main.linear,main.viscous", "--known", "m_main=1",
+                                "--max-added", "0", "--global-evals", "0", "--horizon", "0"};
+  v.insert(v.end(), extra.begin(), extra.end());
+  return v;
+}
+
+// A sweep whose name is hostile: run with its default plots, then the map of lle as SVG, whose
+// title must be the literal name; the axis labels keep their enhanced-text symbols.
+Row NameRow(const std::string& row_name, const std::string& spec_name, Outcome outcome = Outcome::kOk,
+            const std::string& err_has = "") {
+  Row r;
+  r.name = row_name;
+  r.spec_name = spec_name;
+  r.steps = {Run(true), Map({"--metric", "lle", "--format", "svg", "--out", "{dir}/title.svg"})};
+  r.outcome = outcome;
+  r.err_has = err_has;
+  r.json = JsonCheck::kRunFiles;
+  r.ok_files = {"{dir}/title.svg"};
+  if (outcome == Outcome::kOk) {
+    r.svg = "{dir}/title.svg";
+    r.svg_has = {"{name}: lle", "font-family=\"Symbol\""};
+  }
+  return r;
+}
+
+// A plain sweep, then one command against it.
+Row OnSweep(const std::string& row_name, std::vector<std::string> step, Outcome outcome, const std::string& err_has = "",
+            std::vector<std::string> ok_files = {}, std::vector<std::string> absent = {}) {
+  Row r;
+  r.name = row_name;
+  r.spec_name = "plain";
+  r.steps = {Run(false), std::move(step)};
+  r.outcome = outcome;
+  r.err_has = err_has;
+  r.ok_files = std::move(ok_files);
+  r.absent = std::move(absent);
+  return r;
+}
+
+std::string Repeat(const std::string& s, int n) {
+  std::string out;
+  for (int i = 0; i < n; ++i) out += s;
+  return out;
+}
+
+std::vector<Row> Rows() {
+  std::vector<Row> rows;
+  // -- 1. The sweep's name in plot titles (gnuplot double-quoted strings), run plots and map plots.
+  rows.push_back(NameRow("name_backquote", "bq `touch {canary}` end"));
+  rows.push_back(NameRow("name_dollar_paren", "dp $(touch {canary}) end"));
+  rows.push_back(NameRow("name_newline_system", "nl\nsystem(\"touch {canary}\")\nset output '|touch {canary}'",
+                         Outcome::kErrorOrOk, "name"));
+  rows.push_back(NameRow("name_macro", "mac @GPVAL_TERM @m end"));
+  rows.push_back(NameRow("name_quote_breakout", "q\"; system(\"touch {canary}\"); print \""));
+  rows.push_back(NameRow("name_single_quote_backslash", "sq ' \\ \\\" \\\\ end \\"));
+  rows.push_back(NameRow("name_semicolon_hash", "a; system('touch {canary}') # b"));
+  rows.push_back(NameRow("name_pipe", "|touch {canary}"));
+  rows.push_back(NameRow("name_unicode", "\xce\xb1\xce\xb2\xce\xb3 \xe6\x97\xa5\xe6\x9c\xac \xe2\x9c\x93 caf\xc3\xa9"));
+  rows.push_back(NameRow("name_enhanced_markup", "{/Symbol a} x^2 y_1 @z &{w} ~a"));
+  rows.push_back(NameRow("name_xml_and_octal", "<b>&amp;</b> \\0601 \\140touch {canary}\\140"));
+
+  // -- 2. Output paths: never in the script, never through a shell; a missing directory is an error.
+  const auto png = [](const std::string& out) { return Map({"--metric", "frf_db", "--format", "png", "--out", out}); };
+  rows.push_back(OnSweep("out_dollar_paren_relative", png("$(touch pwned).png"), Outcome::kOk, "", {"{dir}/$(touch pwned).png"}));
+  rows.push_back(OnSweep("out_backquote_relative", png("`touch pwned`.png"), Outcome::kOk, "", {"{dir}/`touch pwned`.png"}));
+  rows.push_back(OnSweep("out_pipe_relative", png("|touch pwned"), Outcome::kOk, "", {"{dir}/|touch pwned"}));
+  rows.push_back(OnSweep("out_pipe_absolute", png("|touch {canary}"), Outcome::kError, "invalid argument (out: ", {}, {"{dir}/|touch "}));
+  rows.push_back(OnSweep("out_newline_relative", png("n\nset output '|touch pwned'\n.png"), Outcome::kOk, "",
+                         {"{dir}/n\nset output '|touch pwned'\n.png"}));
+  rows.push_back(OnSweep("out_quote_relative", png("q\"; system(\"touch pwned\") #.png"), Outcome::kOk, "",
+                         {"{dir}/q\"; system(\"touch pwned\") #.png"}));
+  rows.push_back(OnSweep("out_dollar_absolute", png("{dir}/$(touch {canary}).png"), Outcome::kError, "invalid argument (out: "));
+  rows.push_back(OnSweep("out_svg_hostile", Map({"--metric", "motion", "--format", "svg", "--out", "s`touch pwned`.svg"}),
+                         Outcome::kOk, "", {"{dir}/s`touch pwned`.svg"}));
+  rows.push_back(OnSweep("out_missing_dir_png", png("{dir}/nodir/x.png"), Outcome::kError, "does not exist", {}, {"{dir}/nodir"}));
+  rows.push_back(OnSweep("out_missing_dir_svg", Map({"--metric", "lle", "--format", "svg", "--out", "{dir}/nodir/x.svg"}),
+                         Outcome::kError, "invalid argument (out: ", {}, {"{dir}/nodir"}));
+  rows.push_back(OnSweep("out_missing_dir_json", Map({"--metric", "lle", "--format", "json", "--out", "{dir}/nodir/x.json"}),
+                         Outcome::kError, "invalid argument (out: ", {}, {"{dir}/nodir"}));
+  rows.push_back(OnSweep("out_missing_dir_csv", Map({"--metric", "lle", "--format", "csv", "--out", "{dir}/nodir/x.csv"}),
+                         Outcome::kError, "invalid argument (out: ", {}, {"{dir}/nodir"}));
+  rows.push_back(OnSweep("out_json_hostile", Map({"--metric", "lle", "--format", "json", "--out", "j`touch pwned`$(touch pwned).json"}),
+                         Outcome::kOk, "", {"{dir}/j`touch pwned`$(touch pwned).json"}));
+  rows.push_back(OnSweep("out_is_a_directory", png("{dir}/data"), Outcome::kError, "(out: "));
+  rows.push_back(OnSweep("out_trailing_slash", png("{dir}/sub/"), Outcome::kError, "invalid argument (out: "));
+  {
+    Row r = OnSweep("out_parent_is_a_file", png("{dir}/file.txt/x.png"), Outcome::kError, "is not a directory");
+    r.files = {{"{dir}/file.txt", "not a directory\n"}};
+    rows.push_back(r);
+  }
+  rows.push_back(OnSweep("hd_scatter_missing_dir",
+                         Map({"--metric", "hd_scatter", "--at", "alpha=0.5", "--out", "{dir}/nodir/h.png"}), Outcome::kError,
+                         "invalid argument (out: ", {}, {"{dir}/nodir"}));
+  rows.push_back(OnSweep("hd_scatter_hostile_out",
+                         Map({"--metric", "hd_scatter", "--at", "alpha=0.5", "--out", "h`touch pwned`$(touch pwned).png"}),
+                         Outcome::kOk, "", {"{dir}/h`touch pwned`$(touch pwned).png"}));
+  {
+    Row r;
+    r.name = "run_data_dir_hostile";
+    r.spec_name = "plain";
+    r.steps = {{"run", "{spec}", "--data", "d`touch pwned`$(touch pwned)\"' |x", "--json", "--quiet"}};
+    r.json = JsonCheck::kRunFiles;
+    rows.push_back(r);
+  }
+  rows.push_back(Case("hbm_missing_dir", {{"hbm", "--out", "{dir}/nodir/b.png"}}).Error("invalid argument (out: ").Absent({"{dir}/nodir"}));
+  rows.push_back(Case("hbm_hostile_out", {{"hbm", "--out", "b`touch pwned`$(touch pwned).png"}})
+                     .OkFiles({"{dir}/b`touch pwned`$(touch pwned).png"}));
+  rows.push_back(Case("chirp_hostile_out", {{"chirp", "--duration", "200", "--out", "c`touch pwned`$(touch pwned)"}})
+                     .OkFiles({"{dir}/c`touch pwned`$(touch pwned)/frf.png", "{dir}/c`touch pwned`$(touch pwned)/sweep_up_spectrogram.png"}));
+  rows.push_back(Case("point_trace_missing_dir",
+                      {{"point", "--alpha", "1", "--omega", "1", "--t-end", "20", "--t-keep", "10", "--trace", "{dir}/nodir/t.csv"}})
+                     .Error("trace")
+                     .Absent({"{dir}/nodir"}));
+  rows.push_back(Case("point_trace_hostile", {{"point", "--alpha", "1", "--omega", "1", "--t-end", "20", "--t-keep", "10", "--trace",
+                                               "t`touch pwned`$(touch pwned).csv"}})
+                     .OkFiles({"{dir}/t`touch pwned`$(touch pwned).csv"}));
+  rows.push_back(Case("identify_report_dir_hostile", {Identify("{dir}/ok.csv", {"--report", "r`touch pwned`$(touch pwned)"})})
+                     .OkFiles({"{dir}/r`touch pwned`$(touch pwned)/residual_force.png", "{dir}/r`touch pwned`$(touch pwned)/record_1.png"})
+                     .Files({{"{dir}/ok.csv", RecordCsv(200)}}));
+  // The record's file name reaches multiplot titles (RenderPanels): newline, backquote, quotes.
+  rows.push_back(Case("identify_record_name_hostile", {Identify("{dir}/n\n`touch pwned`$(touch pwned)\"'.csv", {"--report", "{dir}/rep"})})
+                     .OkFiles({"{dir}/rep/residual_force.png", "{dir}/rep/record_1.png"})
+                     .Files({{"{dir}/n\n`touch pwned`$(touch pwned)\"'.csv", RecordCsv(200)}}));
+
+  // -- 3. gnuplot missing or failing: a clear error, no signal, no file, no temporary left behind.
+  {
+    Row r = OnSweep("gnuplot_missing", png("{dir}/x.png"), Outcome::kError, "cannot start gnuplot", {}, {"{dir}/x.png"});
+    r.env = {{"PATH", "{dir}/empty-path"}};
+    rows.push_back(r);
+  }
+  {
+    Row r = OnSweep("gnuplot_fails", png("{dir}/x.png"), Outcome::kError, "gnuplot failed", {}, {"{dir}/x.png"});
+    r.fake_gnuplot = "cat > /dev/null\necho 'fake gnuplot: no terminal' >&2\nexit 1\n";
+    r.env = {{"PATH", "{dir}/fakebin:/usr/bin:/bin"}};
+    rows.push_back(r);
+  }
+  {  // gnuplot closes its stdin at once: the client's write gets EPIPE (SIGPIPE would kill it).
+    Row r;
+    r.name = "gnuplot_closes_stdin_epipe";
+    r.steps = {Identify("{dir}/long.csv", {"--report", "{dir}/rep"})};
+    r.outcome = Outcome::kError;
+    r.err_has = "gnuplot failed";
+    r.absent = {"{dir}/rep/residual_force.png"};
+    r.files = {{"{dir}/long.csv", RecordCsv(4000)}};
+    r.fake_gnuplot = "exec 0<&-\nsleep 0.2\nexit 0\n";
+    r.env = {{"PATH", "{dir}/fakebin:/usr/bin:/bin"}};
+    rows.push_back(r);
+  }
+
+  // -- 4. Metric names that are not metrics: refused before any HDF5 object is opened.
+  const auto metric = [](const std::string& m, const std::string& format = "json") {
+    return Map({"--metric", m, "--format", format, "--out", "{dir}/m." + format});
+  };
+  rows.push_back(OnSweep("metric_slash", metric("/"), Outcome::kError, "invalid argument (metric: ", {}, {"{dir}/m.json"}));
+  rows.push_back(OnSweep("metric_empty", metric(""), Outcome::kError, "invalid argument (metric: "));
+  rows.push_back(OnSweep("metric_dot", metric("."), Outcome::kError, "invalid argument (metric: "));
+  rows.push_back(OnSweep("metric_dotdot", metric(".."), Outcome::kError, "invalid argument (metric: "));
+  rows.push_back(OnSweep("metric_hdf5_path", metric("/axes/alpha"), Outcome::kError, "allowed: "));
+  rows.push_back(OnSweep("metric_axis_scale", metric("alpha"), Outcome::kError, "is not in this map"));
+  rows.push_back(OnSweep("metric_newline", metric("frf_db\nlle"), Outcome::kError, "invalid argument (metric: "));
+  rows.push_back(OnSweep("metric_traversal", metric("frf_db/../lle"), Outcome::kError, "invalid argument (metric: "));
+  rows.push_back(OnSweep("metric_slash_csv", metric("/", "csv"), Outcome::kError, "invalid argument (metric: ", {}, {"{dir}/m.csv"}));
+  rows.push_back(OnSweep("metric_slash_png", metric("/", "png"), Outcome::kError, "invalid argument (metric: ", {}, {"{dir}/m.png"}));
+  rows.push_back(OnSweep("metric_typo_suggests", metric("frf"), Outcome::kError, "did you mean 'frf_db'"));
+
+  // -- 5. Queries: bounded length and nesting (the parser recursed into a segfault).
+  rows.push_back(OnSweep("query_10k_nested_parens", Query(Repeat("(", 10000) + "lle < 0" + Repeat(")", 10000)), Outcome::kError,
+                         "violates length <= 4096"));
+  rows.push_back(OnSweep("query_10k_open_parens", Query(Repeat("(", 10000)), Outcome::kError, "violates length <= 4096"));
+  rows.push_back(OnSweep("query_65_nested_parens", Query(Repeat("(", 65) + "lle < 0" + Repeat(")", 65)), Outcome::kError,
+                         "violates depth <= 64"));
+  rows.push_back(OnSweep("query_64_nested_parens_ok", Query(Repeat("(", 64) + "lle < 0" + Repeat(")", 64)), Outcome::kOk));
+  rows.push_back(OnSweep("query_4000_open_parens", Query(Repeat("(", 4000)), Outcome::kError, "violates depth <= 64"));
+  rows.push_back(OnSweep("query_70_nots", Query(Repeat("not ", 70) + "lle < 0"), Outcome::kError, "violates depth <= 64"));
+  rows.push_back(OnSweep("query_too_long", Query(Repeat("lle < 0 or ", 400) + "lle < 0"), Outcome::kError, "violates length <= 4096"));
+  rows.push_back(OnSweep("query_long_chain_ok", Query(Repeat("lle < 0 or ", 360) + "lle < 0"), Outcome::kOk));
+
+  // -- 6. Measured data with absurd values; a fit that gives no numbers is an error.
+  const auto data_row = [](const std::string& name, const std::string& csv, const std::string& err, std::vector<std::string> extra = {}) {
+    return Case(name, {Identify("{dir}/d.csv", std::move(extra))}).Error(err).Files({{"{dir}/d.csv", csv}});
+  };
+  rows.push_back(data_row("identify_1e300_cell", RecordCsv(200, {{{49, 1}, "1e300"}}), "row 51 column 'x0': 1e300 violates |value| <= 1e+12"));
+  rows.push_back(data_row("identify_1e300_everywhere", RecordCsv(200, {}, 1e303), "violates |value| <= 1e+12"));
+  rows.push_back(data_row("identify_1e300_time", RecordCsv(200, {{{10, 0}, "1e300"}}), "row 12 column 't'"));
+  rows.push_back(data_row("identify_inf_cell", RecordCsv(200, {{{5, 2}, "inf"}}), "row 7 column 'x': 'inf' is not a finite number"));
+  rows.push_back(data_row("identify_1e400_cell", RecordCsv(200, {{{5, 2}, "1e400"}}), "row 7 column 'x': '1e400' is not a finite number"));
+  rows.push_back(data_row("identify_scaled_beyond_bound", RecordCsv(200, {}, 1e9), "x scale", {"--input-scale", "1e7"}));
+  rows.push_back(data_row("identify_absurd_guess", RecordCsv(200), "identify: the", {"--guess", "main.linear.k_lin=1e308"}));
+  rows.push_back(Case("identify_counts_and_params_finite", {Identify("{dir}/d.csv", {"--json"})})
+                     .Files({{"{dir}/d.csv", RecordCsv(200)}})
+                     .Json(JsonCheck::kIdentifyFinite));
+  return rows;
+}
+
+// ---- running a row --------------------------------------------------------------------------------
+
+class HostileCli : public ::testing::TestWithParam<Row> {};
+
+// Files named exactly "pwned" (what every hostile command would create), and leftover temporaries.
+void ExpectNothingRanAndNothingLeft(const fs::path& dir) {
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    const std::string base = it->path().filename().string();
+    EXPECT_NE(base, "pwned") << "a command ran: " << it->path();
+    EXPECT_NE(base.rfind(".bistable-plot-", 0), 0u) << "temporary plot file left: " << it->path();
+    EXPECT_NE(base.rfind(".bistable-out-", 0), 0u) << "temporary output file left: " << it->path();
+  }
+  EXPECT_FALSE(fs::exists("pwned")) << "a command ran in the test's working directory";
+  EXPECT_FALSE(fs::exists("/tmp/pwned")) << "a command ran in /tmp";
+}
+
+TEST_P(HostileCli, Row) {
+  const Row& row = GetParam();
+  const fs::path dir = fs::path(bistable_test::FreshDir("hostile", row.name));
+  const std::string canary = (dir / "pwned").string();
+  const std::string spec_name = ReplaceAll(row.spec_name, "{canary}", canary);
+  std::map<std::string, std::string> vars = {{"{dir}", dir.string()},          {"{canary}", canary},
+                                             {"{spec}", (dir / "spec.toml").string()}, {"{data}", (dir / "data").string()},
+                                             {"{name}", spec_name}};
+  auto expand = [&](std::string s) {
+    for (const auto& [k, v] : vars) s = ReplaceAll(s, k, v);
+    return s;
+  };
+  if (!row.spec_name.empty()) std::ofstream(dir / "spec.toml") << TinySpec(spec_name);
+  for (const auto& [path, content] : row.files) std::ofstream(expand(path), std::ios::binary) << content;
+  if (!row.fake_gnuplot.empty()) {
+    fs::create_directories(dir / "fakebin");
+    const fs::path fake = dir / "fakebin" / "gnuplot";
+    std::ofstream(fake) << "#!/bin/sh\n" << row.fake_gnuplot;
+    fs::permissions(fake, fs::perms::owner_all | fs::perms::group_read | fs::perms::group_exec);
+  }
+  std::map<std::string, std::string> env;
+  for (const auto& [k, v] : row.env) env[k] = expand(v);
+
+  bool failed_step = false;
+  std::string first_out;
+  for (size_t i = 0; i < row.steps.size(); ++i) {
+    std::vector<std::string> argv = {BISTABLE_CLI};
+    for (const std::string& a : row.steps[i]) argv.push_back(expand(a));
+    const ExecResult r = RunArgv(argv, dir.string(), env, 120);
+    SCOPED_TRACE("step " + std::to_string(i) + ": " + row.steps[i][0] + "\nstderr: " + r.err);
+    ASSERT_FALSE(r.timed_out) << "timed out";
+    ASSERT_EQ(r.signal, 0) << "died of signal " << r.signal << " (" << strsignal(r.signal) << ")";
+    if (i == 0) {
+      first_out = r.out;
+      if (row.steps[0][0] == "run" && r.exit_code == 0) {
+        const auto j = nlohmann::json::parse(r.out, nullptr, false);
+        ASSERT_TRUE(j.is_object() && j.contains("id")) << r.out;
+        vars["{id}"] = j["id"].get<std::string>();
+      }
+    }
+    if (r.exit_code != 0) {
+      ASSERT_NE(row.outcome, Outcome::kOk) << "exit " << r.exit_code;
+      EXPECT_EQ(r.exit_code, 2) << "an error must be exit 2 (bad input)";
+      EXPECT_NE(r.err.find("error: "), std::string::npos) << "no 'error: ' line";
+      EXPECT_NE(r.err.find(row.err_has), std::string::npos) << "stderr lacks '" << row.err_has << "'";
+      failed_step = true;
+      break;
+    }
+    if (i + 1 == row.steps.size()) {
+      ASSERT_NE(row.outcome, Outcome::kError) << "succeeded; expected an error with '" << row.err_has << "'\nstdout: " << r.out.substr(0, 400);
+      if (row.json == JsonCheck::kIdentifyFinite) {
+        const auto j = nlohmann::json::parse(r.out, nullptr, false);
+        ASSERT_TRUE(j.is_object()) << r.out;
+        EXPECT_GE(j["simulations"].get<long long>(), 0);
+        for (const auto& [k, v] : j["params"].items()) EXPECT_TRUE(v.is_number()) << k << " = " << v;
+        for (const auto& [k, v] : j["params_declared_fit"].items()) EXPECT_TRUE(v.is_number()) << k << " = " << v;
+      }
+    }
+  }
+  if (!failed_step) {
+    for (const std::string& f : row.ok_files) {
+      const std::string p = expand(f);
+      EXPECT_TRUE(fs::exists(p)) << "missing: " << p;
+      if (fs::exists(p)) {
+        EXPECT_GT(fs::file_size(p), 0u) << "empty: " << p;
+      }
+    }
+    if (row.json == JsonCheck::kRunFiles) {
+      const auto j = nlohmann::json::parse(first_out, nullptr, false);
+      ASSERT_TRUE(j.is_object() && j.contains("files")) << first_out;
+      EXPECT_GE(j["files"].size(), 2u) << "the run wrote no plots";
+      for (const auto& f : j["files"]) {
+        fs::path p = f.get<std::string>();
+        if (p.is_relative()) p = dir / p;
+        EXPECT_TRUE(fs::exists(p) && fs::file_size(p) > 0) << "missing or empty: " << p;
+      }
+    }
+    if (!row.svg.empty()) {
+      std::ifstream in(expand(row.svg));
+      const std::string svg((std::istreambuf_iterator<char>(in)), {});
+      for (const std::string& s : row.svg_has) {
+        const std::string want = XmlEscape(expand(s));
+        EXPECT_NE(svg.find(want), std::string::npos) << "the SVG does not show '" << want << "' literally";
+      }
+    }
+  }
+  for (const std::string& f : row.absent) EXPECT_FALSE(fs::exists(expand(f))) << "exists: " << expand(f);
+  ExpectNothingRanAndNothingLeft(dir);
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+INSTANTIATE_TEST_SUITE_P(Table, HostileCli, ::testing::ValuesIn(Rows()),
+                         [](const ::testing::TestParamInfo<Row>& info) { return info.param.name; });
+
+// ---- GnuplotString --------------------------------------------------------------------------------
+
+TEST(GnuplotString, SafeTextIsKeptAndEverythingElseIsAFourDigitOctalEscape) {
+  EXPECT_EQ(bistable::GnuplotString("alpha = A0/delta_s (x) [1,2] {/Symbol a} -+._:"),
+            "\"alpha = A0/delta_s (x) [1,2] {/Symbol a} -+._:\"");
+  EXPECT_EQ(bistable::GnuplotString("`id`"), "\"\\0140id\\0140\"");
+  EXPECT_EQ(bistable::GnuplotString("a\"b\\c\nd"), "\"a\\0042b\\0134c\\0012d\"");
+  EXPECT_EQ(bistable::GnuplotString("@m $x #c ;!'|%&~^"),
+            "\"\\0100m \\0044x \\0043c \\0073\\0041\\0047\\0174\\0045\\0046\\0176\\0136\"");
+  EXPECT_EQ(bistable::GnuplotString("\xce\xb1"), "\"\\0316\\0261\"");
+  EXPECT_EQ(bistable::GnuplotString(std::string("a\0b", 3)), "\"ab\"");  // NUL dropped
+  EXPECT_EQ(bistable::GnuplotString(""), "\"\"");
+}
+
+TEST(GnuplotString, NoCharacterGnuplotActsOnSurvivesUnescaped) {
+  std::string all;
+  for (int c = 1; c < 256; ++c) all += static_cast<char>(c);
+  const std::string q = bistable::GnuplotString(all);
+  ASSERT_GE(q.size(), 2u);
+  const std::string body = q.substr(1, q.size() - 2);
+  for (char c : std::string("`@$\"'#;!|\n\r%&~^<>?*")) EXPECT_EQ(body.find(c), std::string::npos) << "raw '" << c << "'";
+  // Every backslash starts a 4-digit octal escape "\0ooo".
+  for (size_t p = body.find('\\'); p != std::string::npos; p = body.find('\\', p + 1)) {
+    ASSERT_LE(p + 5, body.size());
+    EXPECT_EQ(body[p + 1], '0');
+    for (int k = 2; k <= 4; ++k) EXPECT_TRUE(body[p + k] >= '0' && body[p + k] <= '7') << body.substr(p, 5);
+  }
+}
+
+// Axis labels are enhanced text on purpose (symbols); a name that is not a known axis (a file's) is
+// shown literally, its markup characters escaped.
+TEST(AxisLabel, KnownAxesBecomeSymbolsOtherNamesStayLiteral) {
+  EXPECT_EQ(bistable::AxisLabel("alpha", "A0/delta_s"), "{/Symbol a} = A_0/{/Symbol d}_s");
+  EXPECT_EQ(bistable::AxisLabel("omega", "omega0/omega_n"), "{/Symbol W} = {/Symbol w}_0/{/Symbol w}_n");
+  EXPECT_EQ(bistable::AxisLabel("a_b^c{/Symbol x}@&~\\", ""), "a\\_b\\^c\\{/Symbol x\\}\\@\\&\\~\\\\");
+}
+
+std::string FindGnuplot() {
+  const char* path = std::getenv("PATH");
+  std::stringstream ss(path ? path : "/usr/bin:/bin");
+  std::string d;
+  while (std::getline(ss, d, ':'))
+    if (!d.empty() && ::access((d + "/gnuplot").c_str(), X_OK) == 0) return d + "/gnuplot";
+  return "";
+}
+
+// The claim the escaping rests on, checked against the installed gnuplot (not assumed): what gnuplot
+// reads from GnuplotString(s) is s, byte for byte, and nothing in it runs.
+TEST(GnuplotString, RoundTripsEveryByteThroughTheInstalledGnuplot) {
+  const std::string gnuplot = FindGnuplot();
+  ASSERT_FALSE(gnuplot.empty()) << "gnuplot is not installed (scripts/setup.sh)";
+  const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "roundtrip"));
+  const std::string canary = (dir / "pwned").string();
+  std::vector<std::string> cases;
+  std::string every;
+  for (int c = 1; c < 256; ++c) every += static_cast<char>(c), every += '7';  // an octal digit after each escape
+  cases.push_back(every);
+  cases.push_back("`touch " + canary + "`");
+  cases.push_back("$(touch " + canary + ")");
+  cases.push_back("x\nsystem(\"touch " + canary + "\")\n!touch " + canary);
+  cases.push_back("@GPVAL_TERM @x");
+  cases.push_back("\"; system(\"touch " + canary + "\"); print \"");
+  cases.push_back("\\0601 \\140 \\\\ \\");
+  cases.push_back("\xce\xb1\xce\xb2 \xe2\x9c\x93");
+  std::string script = "set terminal dumb\nset output '/dev/null'\n";
+  for (size_t i = 0; i < cases.size(); ++i)
+    script += "set print " + bistable::GnuplotString((dir / ("out" + std::to_string(i))).string()) + "\nprint " +
+              bistable::GnuplotString(cases[i]) + "\nunset print\n";
+  std::ofstream(dir / "script.gp") << script;
+  const ExecResult r = RunArgv({gnuplot, (dir / "script.gp").string()}, dir.string());
+  ASSERT_EQ(r.signal, 0);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (size_t i = 0; i < cases.size(); ++i) {
+    std::ifstream in(dir / ("out" + std::to_string(i)), std::ios::binary);
+    const std::string got((std::istreambuf_iterator<char>(in)), {});
+    EXPECT_EQ(got, cases[i] + "\n") << "case " << i;
+  }
+  EXPECT_FALSE(fs::exists(canary)) << "a command ran";
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+// ---- the library entry points, in this process (SIGPIPE is not ignored here) ---------------------
+
+bistable::PlotData Heatmap(const std::string& title, int n) {
+  bistable::PlotData d;
+  d.title = title;
+  d.metric = "lle";
+  d.axis_names = {"alpha", "omega"};
+  d.axis_units = {"A0/delta_s", "omega0/omega_n"};
+  std::vector<double> v;
+  for (int i = 0; i < n; ++i) v.push_back(0.1 + i);
+  d.axis_values = {v, v};
+  for (int i = 0; i < n * n; ++i) d.values.push_back(std::sin(i * 0.1));
+  return d;
+}
+
+TEST(RenderPlot, MissingDirectoryIsInvalidArgumentNamingOut) {
+  const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "render_missing"));
+  const bistable::Status st = bistable::RenderPlot(Heatmap("t", 3), (dir / "no" / "x.png").string());
+  ASSERT_FALSE(st.ok());
+  EXPECT_EQ(st.code(), bistable::Status::Code::kInvalidArgument);
+  EXPECT_EQ(st.field(), "out");
+  EXPECT_FALSE(fs::exists(dir / "no"));
+  fs::remove_all(dir);
+}
+
+TEST(RenderPlot, HostileTitleIsShownLiterally) {
+  const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "render_title"));
+  const std::string canary = (dir / "pwned").string();
+  const std::string title = "t `touch " + canary + "` $(touch " + canary + ") @m \"q' \\ \xce\xb1";
+  const bistable::Status st = bistable::RenderPlot(Heatmap(title, 3), (dir / "x.svg").string());
+  ASSERT_TRUE(st.ok()) << st.ToString();
+  std::ifstream in(dir / "x.svg");
+  const std::string svg((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_NE(svg.find(XmlEscape(title)), std::string::npos);
+  EXPECT_FALSE(fs::exists(canary));
+  ExpectNothingRanAndNothingLeft(dir);
+  fs::remove_all(dir);
+}
+
+// A gnuplot that stops reading at once while a large script is written: without SIGPIPE blocked
+// around the write this test process would die (it does not ignore SIGPIPE).
+TEST(RenderPlot, GnuplotThatStopsReadingIsAnErrorNotSigpipe) {
+  const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "render_epipe"));
+  fs::create_directories(dir / "bin");
+  std::ofstream(dir / "bin" / "gnuplot") << "#!/bin/sh\nexec 0<&-\nsleep 0.2\nexit 0\n";
+  fs::permissions(dir / "bin" / "gnuplot", fs::perms::owner_all);
+  const char* old = std::getenv("PATH");
+  const std::string saved = old ? old : "";
+  ::setenv("PATH", ((dir / "bin").string() + ":/usr/bin:/bin").c_str(), 1);
+  const bistable::Status st = bistable::RenderPlot(Heatmap("big", 150), (dir / "x.png").string());  // ~0.6 MB of script
+  ::setenv("PATH", saved.c_str(), 1);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("gnuplot failed"), std::string::npos) << st.ToString();
+  EXPECT_FALSE(fs::exists(dir / "x.png"));
+  ExpectNothingRanAndNothingLeft(dir);
+  fs::remove_all(dir);
+}
+
+TEST(RenderPlot, MissingGnuplotIsAClearError) {
+  const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "render_nognuplot"));
+  const char* old = std::getenv("PATH");
+  const std::string saved = old ? old : "";
+  ::setenv("PATH", (dir / "nothing-here").c_str(), 1);
+  const bistable::Status st = bistable::RenderPlot(Heatmap("t", 3), (dir / "x.png").string());
+  ::setenv("PATH", saved.c_str(), 1);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("cannot start gnuplot"), std::string::npos) << st.ToString();
+  ExpectNothingRanAndNothingLeft(dir);
+  fs::remove_all(dir);
+}
+
+// ReadMapMetric is what the coordinator calls with a remote client's metric string (NUL included,
+// which no command line can carry).
+TEST(ReadMapMetric, RefusesNamesThatAreNotMetricsOfTheMap) {
+  const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "readmetric"));
+  std::ofstream(dir / "spec.toml") << TinySpec("plain");
+  const ExecResult r = RunArgv({BISTABLE_CLI, "run", (dir / "spec.toml").string(), "--data", (dir / "data").string(), "--json",
+                                "--quiet", "--no-plots"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  fs::path h5 = nlohmann::json::parse(r.out)["files"][0].get<std::string>();
+  if (h5.is_relative()) h5 = fs::current_path() / h5;
+  for (const std::string& bad : {std::string("/"), std::string(""), std::string("."), std::string(".."), std::string("/axes/alpha"),
+                                 std::string("alpha"), std::string("omega"), std::string("frf_db\0lle", 10), std::string("frf_db\n"),
+                                 std::string("frf_db/."), std::string("../frf_db"), std::string(100000, 'a')}) {
+    auto m = bistable::ReadMapMetric(h5.string(), bad);
+    ASSERT_FALSE(m.ok()) << "'" << bad << "' was read";
+    EXPECT_EQ(m.status().code(), bistable::Status::Code::kInvalidArgument) << m.status().ToString();
+    EXPECT_EQ(m.status().field(), "metric");
+    EXPECT_LT(m.status().message().size(), 2000u) << "the message echoes the whole name";
+  }
+  auto good = bistable::ReadMapMetric(h5.string(), "frf_db");
+  ASSERT_TRUE(good.ok()) << good.status().ToString();
+  EXPECT_EQ(good->values.size(), 4u);
+  fs::remove_all(dir);
+}
+
+}  // namespace
