@@ -33,7 +33,7 @@ double AwaitPublished(SweepCoordinator& c, const std::string& id) {
   const auto t0 = std::chrono::steady_clock::now();
   while (true) {
     auto info = c.Info(id);
-    if (!info.ok() || info->state == "done" || info->state == "failed") break;
+    if (!info.ok() || IsFinal(info->state)) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -43,7 +43,7 @@ StatusOr<std::vector<std::string>> MapSource::Metrics(const std::string& id_or_p
     *id = ref->row.id;
     *name = ref->row.name;
     if (ref->map_path.empty())
-      return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (status " + ref->row.status + ")");
+      return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (state " + SweepStateName(ref->row.state) + ")");
     return ListMapMetrics(ref->map_path);
   }
   auto conn = Connection(*this);
@@ -66,7 +66,7 @@ StatusOr<MapArray> MapSource::Metric(const std::string& id, const std::string& m
     auto ref = FindSweep(data_dir, id);
     if (!ref.ok()) return ref.status();
     if (ref->map_path.empty())
-      return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (status " + ref->row.status +
+      return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (state " + SweepStateName(ref->row.state) +
                                         ", " + std::to_string(ref->row.points_done) + "/" + std::to_string(ref->row.points_total) +
                                         " stored); rerun it to finish");
     return ReadMapMetric(ref->map_path, metric);

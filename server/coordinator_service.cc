@@ -52,7 +52,7 @@ Status CheckLeaseId(const std::string& id) {
 
 void Fill(const SweepInfo& i, v1::SweepStatus* s) {
   s->set_id(i.id);
-  s->set_state(i.state);
+  s->set_state(SweepStateName(i.state));
   s->set_points_done(i.items_done);
   s->set_points_total(i.items_total);
   s->set_points_cached(i.items_cached);
@@ -73,7 +73,7 @@ StatusOr<std::pair<std::string, std::string>> CoordinatorService::PublishedMap(c
   auto info = c_->Info(*id);
   if (!info.ok()) return info.status();
   if (info->file.empty())
-    return Status::FailedPrecondition("sweep " + *id + " has no published map yet (state " + info->state + ")");
+    return Status::FailedPrecondition("sweep " + *id + " has no published map yet (state " + SweepStateName(info->state) + ")");
   return std::make_pair(*id, (std::filesystem::path(c_->data_dir()) / info->file).string());
 }
 
@@ -128,13 +128,13 @@ grpc::Status CoordinatorService::WatchStatus(grpc::ServerContext* ctx, const v1:
     // Never faster than limits::kMinWatchInterval, whatever the sweep's state.
     const auto due = last + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                 std::chrono::duration<double>(limits::kMinWatchInterval));
-    const bool final_state = info->state == "done" || info->state == "failed" || info->state == "cancelled";
+    const bool final_state = IsFinal(info->state);
     if (!final_state && std::chrono::steady_clock::now() < due) std::this_thread::sleep_until(due);
     last = std::chrono::steady_clock::now();
     v1::SweepStatus s;
     Fill(*info, &s);
     if (!writer->Write(s)) break;
-    if (info->state == "done" || info->state == "failed" || info->state == "cancelled") break;
+    if (final_state) break;
   }
   return grpc::Status::OK;
 }

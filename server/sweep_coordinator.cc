@@ -61,11 +61,11 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
   // A sweep stored everything but has no map (killed between the last report and the publication)
   // is published by Submit, since no report will come to trigger it.
   for (const SweepRow& r : *rows) {
-    if (r.status != "running" && r.status != "interrupted" && r.status != "queued") continue;
+    if (r.state != SweepState::kRunning && r.state != SweepState::kInterrupted && r.state != SweepState::kQueued) continue;
     auto spec = ParseSweepSpec(r.spec, "sweep " + r.id);
     if (!spec.ok() || spec->Id() != r.id) {
       SweepRow failed = r;
-      failed.status = "failed";
+      failed.state = SweepState::kFailed;
       c->Db()->UpsertSweep(failed);
       continue;
     }
@@ -73,7 +73,7 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
     if (!plan.ok()) {
       c->Log("cannot resume sweep %s: %s\n", r.id.c_str(), plan.status().ToString().c_str());
       SweepRow failed = r;
-      failed.status = "failed";
+      failed.state = SweepState::kFailed;
       c->Db()->UpsertSweep(failed);
     }
   }
@@ -86,13 +86,13 @@ std::string SweepCoordinator::MapPath(const std::string& id) const {
 
 std::optional<SweepPlan> SweepCoordinator::ActivePlanLocked(const std::string& id) const {
   auto it = sweeps_.find(id);
-  if (it == sweeps_.end() || it->second.cancelled || it->second.row.status == "failed") return std::nullopt;
+  if (it == sweeps_.end() || it->second.cancelled || it->second.row.state == SweepState::kFailed) return std::nullopt;
   SweepPlan plan;
   plan.id = id;
   plan.items_total = it->second.row.points_total;
   plan.items_cached = it->second.items_cached;
   plan.jobs = static_cast<long>(it->second.jobs.size());
-  plan.already_published = it->second.row.status == "done";
+  plan.already_published = it->second.row.state == SweepState::kDone;
   return plan;
 }
 
@@ -106,7 +106,7 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
     if (auto active = ActivePlanLocked(id)) return *active;
     int mine = 0, all = 0;
     for (const auto& [sid, s] : sweeps_) {
-      if (s.cancelled || s.row.status == "done" || s.row.status == "failed") continue;
+      if (s.cancelled || s.row.state == SweepState::kDone || s.row.state == SweepState::kFailed) continue;
       ++all;
       if (s.row.owner == owner) ++mine;
     }
@@ -147,7 +147,7 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
   if (!existing.ok()) return existing.status();
   s.spec = spec;
   s.row = existing.value() && existing.value()->id == plan.id ? *existing.value() : SweepRow{};
-  if (s.row.status == "done" && !s.row.file.empty() && std::filesystem::exists(std::filesystem::path(data_dir_) / s.row.file)) {
+  if (s.row.state == SweepState::kDone && !s.row.file.empty() && std::filesystem::exists(std::filesystem::path(data_dir_) / s.row.file)) {
     plan.already_published = true;
     plan.items_cached = plan.items_total;
     s.items_done = s.items_cached = plan.items_total;
@@ -228,7 +228,7 @@ StatusOr<SweepPlan> SweepCoordinator::InstallLocked(Planned p, const std::string
   s.row.name = s.spec.name;
   s.row.model = s.spec.ModelLabel();
   s.row.spec = s.spec.source;
-  s.row.status = "running";
+  s.row.state = SweepState::kRunning;
   s.row.points_total = plan.items_total;
   s.row.points_done = s.items_done;
   s.row.file = "";
@@ -512,7 +512,7 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
     s.items_done += n;
     if (auto w = workers_.find(lease.worker); w != workers_.end()) w->second.items_done += n;
   }
-  if (s.items_done >= s.row.points_total && s.row.status != "done") {
+  if (s.items_done >= s.row.points_total && s.row.state != SweepState::kDone) {
     // Publish off the report path: the report is acknowledged once its rows are durable, and the
     // map (seconds of HDF5 writing for a large grid) is written by the publisher thread.
     std::lock_guard<std::mutex> p(publish_queue_mu_);
@@ -560,10 +560,10 @@ Status SweepCoordinator::Cancel(const std::string& sweep_id) {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = sweeps_.find(sweep_id);
   if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
-  if (it->second.row.status == "done") return Status::FailedPrecondition("sweep '" + sweep_id + "' is already done");
+  if (it->second.row.state == SweepState::kDone) return Status::FailedPrecondition("sweep '" + sweep_id + "' is already done");
   it->second.cancelled = true;
   RevokeLeasesLocked(sweep_id);  // a report of this plan is refused from now on
-  const Status st = MarkLocked(it->second, "cancelled");
+  const Status st = MarkLocked(it->second, SweepState::kCancelled);
   FreePlan(it->second);
   return st;
 }
@@ -583,7 +583,7 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
     auto it = sweeps_.find(sweep_id);
     if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
     const Sweep& s = it->second;
-    if (s.row.status == "done" && !s.row.file.empty() && std::filesystem::exists(path)) return path;
+    if (s.row.state == SweepState::kDone && !s.row.file.empty() && std::filesystem::exists(path)) return path;
     if (s.cancelled) return Status::FailedPrecondition("sweep " + sweep_id + " was cancelled");
     needs_plan = static_cast<long>(s.keys.size()) != s.row.points_total;  // plan freed after an earlier publication
     spec = s.spec;
@@ -604,7 +604,7 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
     s.error = "publication failed: " + published.status().ToString();
     // A write failure (disk full, unwritable dir) fails the sweep. Results missing at publication
     // (a stored result failed its checksum) are computed again: the sweep is planned anew.
-    if (published.status().code() == Status::Code::kIoError && !s.cancelled) MarkLocked(s, "failed");
+    if (published.status().code() == Status::Code::kIoError && !s.cancelled) MarkLocked(s, SweepState::kFailed);
     if (incomplete && !s.cancelled) {
       lock.unlock();
       if (Status st = Replan(sweep_id); !st.ok()) return st;
@@ -640,7 +640,7 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
   }
   BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, records));
   SweepRow done = row;
-  done.status = "done";
+  done.state = SweepState::kDone;
   done.points_done = static_cast<long>(records.size());
   done.file = std::filesystem::relative(path, data_dir_).string();
   done.finished = Clock();
@@ -666,8 +666,8 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
   return done;
 }
 
-Status SweepCoordinator::MarkLocked(Sweep& s, const std::string& status) {
-  s.row.status = status;
+Status SweepCoordinator::MarkLocked(Sweep& s, SweepState state) {
+  s.row.state = state;
   final_cv_.notify_all();
   s.row.points_done = s.items_done;
   s.row.seconds = Clock() - s.started;
@@ -678,7 +678,7 @@ Status SweepCoordinator::MarkInterrupted(const std::string& sweep_id) {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = sweeps_.find(sweep_id);
   if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
-  return MarkLocked(it->second, "interrupted");
+  return MarkLocked(it->second, SweepState::kInterrupted);
 }
 
 void SweepCoordinator::Stop() {
@@ -694,13 +694,13 @@ StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
     if (!row.ok()) return row.status();
     if (!row.value()) return Status::NotFound("no sweep '" + sweep_id + "'");
     const SweepRow& r = *row.value();
-    return SweepInfo{r.id, r.name, r.model, r.owner, r.status, r.points_total, r.points_done, 0, 0, r.seconds, r.file, ""};
+    return SweepInfo{r.id, r.name, r.model, r.owner, r.state, r.points_total, r.points_done, 0, 0, r.seconds, r.file, ""};
   }
   const Sweep& s = it->second;
-  SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.owner, s.row.status, s.row.points_total, s.items_done, s.items_cached, 0,
-                 s.row.status == "done" ? s.row.seconds : Clock() - s.started, s.row.file, ""};
-  if (info.state == "running" && !s.any_leased && s.items_done == s.items_cached) info.state = "queued";
-  if (s.cancelled) info.state = "cancelled";
+  SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.owner, s.row.state, s.row.points_total, s.items_done, s.items_cached, 0,
+                 s.row.state == SweepState::kDone ? s.row.seconds : Clock() - s.started, s.row.file, ""};
+  if (info.state == SweepState::kRunning && !s.any_leased && s.items_done == s.items_cached) info.state = SweepState::kQueued;
+  if (s.cancelled) info.state = SweepState::kCancelled;
   info.error = s.error;
   std::map<std::string, bool> holders;
   for (const auto& [id, l] : leases_)
@@ -714,7 +714,7 @@ StatusOr<SweepInfo> SweepCoordinator::AwaitFinal(const std::string& sweep_id, do
     std::unique_lock<std::mutex> lock(mu_);
     final_cv_.wait_for(lock, std::chrono::duration<double>(seconds), [&] {
       auto it = sweeps_.find(sweep_id);  // a sweep this coordinator does not hold: wait the whole time
-      return it != sweeps_.end() && (it->second.cancelled || it->second.row.status == "done" || it->second.row.status == "failed");
+      return it != sweeps_.end() && (it->second.cancelled || IsFinal(it->second.row.state));
     });
   }
   return Info(sweep_id);

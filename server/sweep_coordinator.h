@@ -61,7 +61,7 @@ struct LeaseGrant {
 
 struct SweepInfo {
   std::string id, name, model, owner;
-  std::string state;       // queued | running | done | failed | cancelled
+  SweepState state = SweepState::kQueued;
   long items_total = 0, items_done = 0, items_cached = 0;
   int workers = 0;         // workers holding a lease of this sweep now
   double seconds = 0;      // since submission (or total, when done)
@@ -191,7 +191,7 @@ class SweepCoordinator {
   StatusOr<SweepRow> WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys, const SweepRow& row,
                                       double started, const std::string& path, bool* incomplete);
   void PublisherLoop();
-  Status MarkLocked(Sweep& s, const std::string& status);
+  Status MarkLocked(Sweep& s, SweepState state);
 
   // The SQLite connection, used under db_mu_ (lock order: mu_ before db_mu_; batch_mu_ is a leaf).
   struct LockedDb {

@@ -87,7 +87,7 @@ SweepRow ReadSweep(Stmt& s) {
   r.name = s.ColText(1);
   r.model = s.ColText(2);
   r.spec = s.ColText(3);
-  r.status = s.ColText(4);
+  r.state = ParseSweepState(s.ColText(4)).value_or(SweepState::kFailed);  // an unknown name: not resumed
   r.points_total = sqlite3_column_int64(s.get(), 5);
   r.points_done = sqlite3_column_int64(s.get(), 6);
   r.file = s.ColText(7);
@@ -179,7 +179,7 @@ Status IndexDb::UpsertSweep(const SweepRow& r) {
   s.Text(2, r.name);
   s.Text(3, r.model);
   s.Text(4, r.spec);
-  s.Text(5, r.status);
+  s.Text(5, SweepStateName(r.state));
   s.Int(6, r.points_total);
   s.Int(7, r.points_done);
   s.Text(8, r.file);

@@ -15,6 +15,7 @@
 
 #include "dynamics/status.h"
 #include "engine/metric_catalog.h"
+#include "engine/sweep_state.h"
 
 struct sqlite3;
 struct sqlite3_stmt;
@@ -26,7 +27,7 @@ struct SweepRow {
   std::string name;
   std::string model;
   std::string spec;        // the TOML as given
-  std::string status;      // running | done | failed | interrupted
+  SweepState state = SweepState::kQueued;  // stored as its name
   long points_total = 0;   // grid points × initial conditions
   long points_done = 0;
   std::string file;        // map file path relative to the data dir, "" until published

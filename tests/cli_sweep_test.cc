@@ -192,7 +192,7 @@ void InterruptThenResume(int signal_number) {
   auto rows = (*db)->ListSweeps();
   ASSERT_TRUE(rows.ok());
   EXPECT_EQ((*rows)[0].file, "");
-  EXPECT_EQ((*rows)[0].status, signal_number == SIGKILL ? "running" : "interrupted");
+  EXPECT_EQ((*rows)[0].state, signal_number == SIGKILL ? bistable::SweepState::kRunning : bistable::SweepState::kInterrupted);
   for (const auto& e : fs::directory_iterator(data + "/sweeps")) EXPECT_NE(e.path().extension(), ".h5") << e.path();
 
   const ProcessResult resume = Bistable("run " + spec + " --data " + data + " --json --no-plots");

@@ -193,7 +193,7 @@ TEST(CoordinatorProperty, RandomInterleavingsEndInTheSequentialMap) {
     }
     auto fin = c->AwaitFinal(id, 30);
     ASSERT_TRUE(fin.ok());
-    ASSERT_EQ(fin->state, "done") << "items " << fin->items_done << "/" << fin->items_total;
+    ASSERT_EQ(fin->state, SweepState::kDone) << "items " << fin->items_done << "/" << fin->items_total;
     bistable_test::ExpectSameMaps(dir + "/" + fin->file, reference);
     c.reset();
     std::filesystem::remove_all(dir);
@@ -268,7 +268,7 @@ TEST(CoordinatorProperty, FlippedByteInTheCacheIsRecomputedNotPublished) {
     while (auto l = (*c)->Lease("w")) ASSERT_TRUE((*c)->Report(l->lease_id, Honest(*l)).ok());
     auto fin = (*c)->AwaitFinal(spec.Id(), 30);
     ASSERT_TRUE(fin.ok());
-    ASSERT_EQ(fin->state, "done");
+    ASSERT_EQ(fin->state, SweepState::kDone);
     bistable_test::ExpectSameMaps(dir + "/" + fin->file, reference);
   }
   std::filesystem::remove_all(dir);

@@ -65,7 +65,7 @@ omega = [0.8, 1.2, 2.0]
 StatusOr<SweepInfo> AwaitFinalState(SweepCoordinator& c, const std::string& id) {
   for (int i = 0; i < 1000; ++i) {
     auto info = c.Info(id);
-    if (!info.ok() || info->state != "running") return info;
+    if (!info.ok() || info->state != SweepState::kRunning) return info;
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   return c.Info(id);
@@ -290,7 +290,7 @@ TEST(SweepEngine, ConcurrentReportsAreStoredOnceAndGiveTheSameMap) {
       EXPECT_EQ(reports.load(), 15);
       auto info = AwaitFinalState(**c, plan->id);
       ASSERT_TRUE(info.ok());
-      EXPECT_EQ(info->state, "done");
+      EXPECT_EQ(info->state, SweepState::kDone);
       EXPECT_EQ(info->items_done, 15);
     }
     auto db = IndexDb::Open(dir + "/index.sqlite");
@@ -322,7 +322,7 @@ TEST(SweepEngine, ExpiredLeasesAreRequeuedAndRejected) {
   ASSERT_TRUE((*c)->Report(second->lease_id, records).ok());
   auto info = AwaitFinalState(**c, plan->id);
   ASSERT_TRUE(info.ok());
-  EXPECT_EQ(info->state, "done");  // the last report queued the publication
+  EXPECT_EQ(info->state, SweepState::kDone);  // the last report queued the publication
   EXPECT_TRUE(std::filesystem::exists((*c)->MapPath(plan->id)));
   std::filesystem::remove_all(dir);
 }
@@ -352,7 +352,7 @@ TEST(SweepEngine, ReopenedCoordinatorPublishesASweepWhoseItemsAreAllStored) {
   ASSERT_TRUE(c.ok());
   auto info = (*c)->Info(spec.Id());
   ASSERT_TRUE(info.ok());
-  EXPECT_EQ(info->state, "done");
+  EXPECT_EQ(info->state, SweepState::kDone);
   EXPECT_TRUE(std::filesystem::exists((*c)->MapPath(spec.Id())));
   std::filesystem::remove_all(dir);
 }
@@ -382,7 +382,7 @@ TEST(SweepEngine, ReopenedCoordinatorResumesUnfinishedSweeps) {
     ++jobs;
   }
   EXPECT_GE(jobs, 1);
-  EXPECT_EQ(AwaitFinalState(**c, id)->state, "done");
+  EXPECT_EQ(AwaitFinalState(**c, id)->state, SweepState::kDone);
   std::filesystem::remove_all(dir);
 }
 

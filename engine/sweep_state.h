@@ -1,0 +1,41 @@
+// The life of a sweep, in one vocabulary for the index, the coordinator, the wire and the CLI.
+//   queued → running → done | failed;  any active state → cancelled (by a client) or interrupted
+//   (an embedded run stopped by Ctrl-C); a restarted coordinator resumes queued, running and
+//   interrupted sweeps. The index stores the names below; the wire carries them as strings.
+#ifndef BISTABLE_ENGINE_SWEEP_STATE_H_
+#define BISTABLE_ENGINE_SWEEP_STATE_H_
+
+#include <optional>
+#include <string_view>
+
+namespace bistable {
+
+enum class SweepState { kQueued, kRunning, kDone, kFailed, kCancelled, kInterrupted };
+
+constexpr const char* SweepStateName(SweepState s) {
+  switch (s) {
+    case SweepState::kQueued: return "queued";
+    case SweepState::kRunning: return "running";
+    case SweepState::kDone: return "done";
+    case SweepState::kFailed: return "failed";
+    case SweepState::kCancelled: return "cancelled";
+    case SweepState::kInterrupted: return "interrupted";
+  }
+  return "failed";
+}
+
+constexpr std::optional<SweepState> ParseSweepState(std::string_view name) {
+  for (SweepState s : {SweepState::kQueued, SweepState::kRunning, SweepState::kDone, SweepState::kFailed,
+                       SweepState::kCancelled, SweepState::kInterrupted})
+    if (name == SweepStateName(s)) return s;
+  return std::nullopt;
+}
+
+// Done, failed or cancelled: nothing will change without a new submit.
+constexpr bool IsFinal(SweepState s) {
+  return s == SweepState::kDone || s == SweepState::kFailed || s == SweepState::kCancelled;
+}
+
+}  // namespace bistable
+
+#endif  // BISTABLE_ENGINE_SWEEP_STATE_H_
