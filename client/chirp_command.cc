@@ -9,6 +9,7 @@
 #include "client/chirp_command.h"
 #include "client/cli_common.h"
 #include "client/plot.h"
+#include "dynamics/cancel.h"
 #include "dynamics/chirp.h"
 
 namespace bistable {
@@ -62,12 +63,21 @@ int RunChirpCommand(ChirpArgs& a) {
   frf_plot.title = "frequency sweep, " + a.model + (dim ? ", A0 = " + std::to_string(a.a0_mm).substr(0, 5) + " mm" : ", alpha = " + std::to_string(a.o.alpha).substr(0, 5));
   frf_plot.freq_label = dim ? "f [Hz]" : "{/Symbol W} [rad/{/Symbol t}]";
   nlohmann::json summary = {{"files", nlohmann::json::array()}, {"sweeps", nlohmann::json::array()}};
+  // Ctrl-C / SIGTERM stop a sweep within ~1024 steps; files of a finished sweep stay (each is written
+  // whole, by rename), nothing of an unfinished one is written.
+  InstallCancelSignalHandlers();
+  auto interrupted = [&] {
+    RestoreDefaultSignalHandlers();
+    std::cerr << "interrupted: the frequency sweep was not finished; files of finished sweeps are complete\n";
+    return CancelExitStatus();
+  };
   for (const std::string dir : {"up", "down"}) {
     if (a.direction != "both" && a.direction != dir) continue;
     ChirpOptions o = a.o;
     o.from = dir == "up" ? lo : hi;
     o.to = dir == "up" ? hi : lo;
     auto rec = RunChirp(o);
+    if (CancelRequested()) return interrupted();
     if (!rec.ok()) return Fail(rec.status());
     if (rec->diverged) std::cerr << "warning: the " << dir << " sweep diverged; the record is cut short\n";
     const std::string base = (std::filesystem::path(a.out) / ("sweep_" + dir)).string();
@@ -84,6 +94,7 @@ int RunChirpCommand(ChirpArgs& a) {
     SpectrogramPlot sp{frf_plot.title + ", " + dir + ": spectrogram of y_m", dim ? "t [s]" : "{/Symbol t}", frf_plot.freq_label,
                        sg.time, sg.freq, sg.db};
     st = RenderSpectrogram(sp, base + "_spectrogram.png");
+    if (CancelRequested()) return interrupted();  // gnuplot got the terminal's SIGINT too
     if (!st.ok()) return Fail(st);
     double peak = -INFINITY, low = INFINITY;
     for (double v : e.db)
@@ -92,6 +103,7 @@ int RunChirpCommand(ChirpArgs& a) {
                                  {"dt", rec->dt}, {"diverged", rec->diverged}});
     for (const char* f : {".csv", "_frf.csv", "_spectrogram.png"}) summary["files"].push_back(base + f);
   }
+  RestoreDefaultSignalHandlers();
   const std::string frf_png = (std::filesystem::path(a.out) / "frf.png").string();
   Status st = RenderChirpFrf(frf_plot, frf_png);
   if (!st.ok()) return Fail(st);

@@ -10,6 +10,7 @@
 
 #include "client/map_slice.h"
 #include "client/plot.h"
+#include "dynamics/cancel.h"
 #include "dynamics/validate.h"
 #include "storage/map_file.h"
 #include "worker/block_worker.h"
@@ -68,7 +69,12 @@ long PointIndex(const SweepSpec& spec, const std::vector<size_t>& idx) {
 
 std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir) {
   std::vector<std::string> files;
-  std::filesystem::create_directories(dir);
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    std::cerr << "warning: no plots: cannot create '" << dir << "': " << ec.message() << "\n";
+    return files;
+  }
   std::vector<size_t> order(spec.axes.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = i;
   std::stable_sort(order.begin(), order.end(),
@@ -81,7 +87,7 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
       std::cerr << "warning: plot " << metric << ": " << m.status().ToString() << "\n";
       continue;
     }
-    for (long c = 0; c < combos; ++c) {
+    for (long c = 0; c < combos && !CancelRequested(); ++c) {  // asked to stop: no more gnuplot runs
       const AxisCombo combo = Combo(spec, free, c);
       std::map<std::string, double> at;
       for (size_t k = 0; k < spec.axes.size(); ++k)
@@ -115,7 +121,7 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
     auto a = ReadMapMetric(map_path, "hd_peak_amp");
     if (f.ok() && a.ok()) {
       const size_t k_peaks = f->dims.back();
-      for (long c = 0; c < scatter_combos; ++c) {
+      for (long c = 0; c < scatter_combos && !CancelRequested(); ++c) {
         AxisCombo combo = Combo(spec, {omega_axis}, c);
         ScatterData sd;
         sd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": harmonic diffusion" + combo.title;
@@ -143,7 +149,7 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
     const long combos = ComboCount(spec, {cont});
     if (tp.ok() && combos <= 6) {
       const int nic = spec.ic_count();
-      for (long c = 0; c < combos; ++c) {
+      for (long c = 0; c < combos && !CancelRequested(); ++c) {
         AxisCombo combo = Combo(spec, {cont}, c);
         BifurcationData bd;
         bd.x_name = spec.continuation.axis;
@@ -180,11 +186,18 @@ Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, 
   std::vector<std::thread> pool;
   const std::string id = spec.Id();
   const SweepProgress start = c.progress(id);
+  auto stopping = [&] { return CancelRequested() || (stop && stop->load()); };
   for (int t = 0; t < threads && any_work; ++t) {
     pool.emplace_back([&] {
-      while (auto lease = c.Lease("embedded", id)) {
-        const std::vector<PointRecord> records = ComputeItems(spec, lease->items);
-        Status st = c.Report(lease->lease_id, records);
+      while (!stopping()) {
+        auto lease = c.Lease("embedded", id);
+        if (!lease) break;
+        const auto records = ComputeItemsUnlessCancelled(spec, lease->items);
+        if (!records) {  // cancelled mid-job: nothing of it is stored; the job goes back to the queue
+          c.Release(lease->lease_id);
+          break;
+        }
+        Status st = c.Report(lease->lease_id, *records);
         if (!st.ok()) {
           std::lock_guard<std::mutex> lock(err_mu);
           if (worker_error.ok()) worker_error = st;
@@ -195,11 +208,11 @@ Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, 
     });
   }
   while (!pool.empty()) {
-    if (stop && stop->load()) c.Stop();
+    if (stopping()) c.Stop();
     const SweepProgress p = c.progress(id);
-    if (p.items_done >= p.items_total || (stop && stop->load()) || failed.load()) break;
+    if (p.items_done >= p.items_total || stopping() || failed.load()) break;
     if (bar) bar->Update(p.items_done - start.items_done);
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   for (auto& th : pool) th.join();
   if (bar) bar->Finish(c.progress(id).items_done - start.items_done);
@@ -207,13 +220,18 @@ Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, 
 }
 
 StatusOr<std::string> RunEmbeddedSweep(const SweepSpec& spec, const std::string& data_dir, int threads, bool progress) {
-  auto coord = SweepCoordinator::Open(data_dir, {.lease_seconds = 3600, .resume = false});
+  if (CancelRequested()) return CancelledStatus();  // not even the planning of a new sweep
+  auto coord = SweepCoordinator::Open(data_dir, {.lease_seconds = 3600, .resume = false, .log = false});
   if (!coord.ok()) return coord.status();
   auto plan = (*coord)->Submit(spec, JobItems(spec, 0.25));
   if (!plan.ok()) return plan.status();
   const long to_compute = plan->items_total - plan->items_cached;
   ProgressBar bar(to_compute, "  " + (spec.name.empty() ? plan->id : spec.name), progress);
   BISTABLE_RETURN_IF_ERROR(ComputeEmbedded(**coord, spec, threads, to_compute > 0, nullptr, progress ? &bar : nullptr));
+  if (CancelRequested()) {  // stored jobs stay stored; a later run resumes from them
+    (*coord)->MarkInterrupted(plan->id);
+    return CancelledStatus();
+  }
   return (*coord)->Publish(plan->id);
 }
 

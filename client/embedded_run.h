@@ -15,15 +15,20 @@ namespace bistable {
 // Items per job: about `seconds` of work on one core, a multiple of the lane width.
 long JobItems(const SweepSpec& spec, double seconds);
 
-// Runs `threads` worker threads until the coordinator's queue is empty, *stop is set, or a report
-// fails (that status is returned). Updates `bar` (may be null) about ten times a second.
+// Runs `threads` worker threads until the coordinator's queue is empty, *stop is set, cancellation is
+// requested (dynamics/cancel.h), or a report fails (that status is returned). A job cut short by
+// cancellation is released, never reported: every stored job is whole. Returns within about the
+// kernel's polling interval after cancellation. Updates `bar` (may be null) several times a second.
 Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, bool any_work, std::atomic<bool>* stop,
                        ProgressBar* bar);
 
-// Submit + compute + publish in one call (no signal handling): the map file's path.
+// Submit + compute + publish in one call (no signal handling; callers install it): the map file's
+// path, or CancelledStatus() when cancellation stopped it (the sweep is marked interrupted; what was
+// stored stays in the cache).
 StatusOr<std::string> RunEmbeddedSweep(const SweepSpec& spec, const std::string& data_dir, int threads, bool progress);
 
 // The default figures of a published sweep (heatmaps, Fig. 6 scatter, bifurcation diagrams) into dir.
+// Stops starting new figures once cancellation is requested.
 std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir);
 
 }  // namespace bistable

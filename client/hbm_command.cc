@@ -7,6 +7,7 @@
 #include "client/cli_common.h"
 #include "client/hbm_command.h"
 #include "client/plot.h"
+#include "dynamics/cancel.h"
 #include "dynamics/hbm.h"
 
 namespace bistable {
@@ -34,7 +35,13 @@ int RunHbm(HbmArgs& a) {
   else return Fail(Status::InvalidArgument("continue", "continue = '" + a.param + "' violates continue in {omega, alpha}"));
   if (!a.format.empty() && a.format != "png" && a.format != "svg")
     return Fail(Status::InvalidArgument("format", "format = '" + a.format + "' violates format in {png, svg}"));
+  InstallCancelSignalHandlers();  // Ctrl-C / SIGTERM: the continuation stops at its next point
   auto r = ContinueBranches(a.o);
+  RestoreDefaultSignalHandlers();
+  if (CancelRequested()) {
+    std::cerr << "interrupted: the continuation was not finished; nothing was printed or written\n";
+    return CancelExitStatus();
+  }
   if (!r.ok()) return Fail(r.status());
   const bool omega = a.o.param == ContinuationParam::kOmega;
   if (a.json) {

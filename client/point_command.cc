@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "client/json_out.h"
+#include "dynamics/cancel.h"
 #include "dynamics/point.h"
 
 namespace bistable {
@@ -108,7 +109,14 @@ int RunPoint(PointArgs& a) {
   }
   spec.metrics.rosenstein = !a.no_rosenstein;
   spec.metrics.keep_samples = !a.trace.empty();
+  // Ctrl-C / SIGTERM stop the integration within ~1024 steps; nothing is printed or written then.
+  InstallCancelSignalHandlers();
   auto result = EvaluatePoint(spec);
+  RestoreDefaultSignalHandlers();
+  if (CancelRequested()) {
+    std::cerr << "interrupted: the point was not finished; nothing was printed or written\n";
+    return CancelExitStatus();
+  }
   if (!result.ok()) return Fail(result.status());
   if (!a.trace.empty()) {
     Status st = WriteTrace(a.trace, *result);

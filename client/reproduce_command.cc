@@ -18,6 +18,7 @@
 #include "client/embedded_run.h"
 #include "client/plot.h"
 #include "client/reproduce_command.h"
+#include "dynamics/cancel.h"
 #include "dynamics/chirp.h"
 #include "dynamics/hbm.h"
 #include "dynamics/validate.h"
@@ -55,6 +56,7 @@ StatusOr<std::pair<SweepSpec, std::string>> Sweep(Ctx& c, const std::string& tag
   std::cerr << "  sweep " << tag << ": " << spec->points() * spec->ic_count() << " items\n";
   auto path = RunEmbeddedSweep(*spec, c.data, c.threads, false);
   if (!path.ok()) return path.status();
+  if (CancelRequested()) return CancelledStatus();  // no plots (gnuplot runs) once asked to stop
   for (auto& f : RenderDefaultPlots(*spec, *path, (fs::path(c.out) / tag).string())) files->push_back(f);
   return std::make_pair(*spec, *path);
 }
@@ -479,11 +481,20 @@ int Reproduce(const std::string& what, const std::string& out, bool quick, int t
       {"Fig. 3 (harmonic balance)", Fig3},       {"Fig. 4 (bifurcation diagrams)", Fig4},
       {"Fig. 6 (harmonic diffusion)", Fig6},     {"Figs. 7, 8, 13 (maps)", Figs7to13},
       {"Figs. 9-12 (parameters)", Figs9to12},   {"Figs. 22-24 (frequency sweeps)", Figs22to24}};
+  // Ctrl-C / SIGTERM: every computation polls the cancel flag; the sweeps keep their finished jobs
+  // (a rerun resumes them from the data directory); no README is written for a partial run.
+  InstallCancelSignalHandlers("\nstopping: finished sweep jobs are kept (press Ctrl-C again to quit at once)\n");
   for (const auto& [name, fn] : steps) {
     std::cerr << name << "\n";
     Status st = fn(c);
+    if (CancelRequested()) {
+      RestoreDefaultSignalHandlers();
+      std::cerr << "interrupted during " << name << ": no report written; rerun the same command to resume the sweeps\n";
+      return CancelExitStatus();
+    }
     if (!st.ok()) return Fail(st);
   }
+  RestoreDefaultSignalHandlers();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::ostringstream md;
   int agree = 0;

@@ -2,7 +2,6 @@
 // one process over a local data directory.
 #include <algorithm>
 #include <cmath>
-#include <csignal>
 #include <atomic>
 #include <chrono>
 #include <filesystem>
@@ -20,15 +19,13 @@
 #include "client/embedded_run.h"
 #include "client/progress.h"
 #include "client/sweep_commands.h"
+#include "dynamics/cancel.h"
 #include "server/sweep_coordinator.h"
 #include "storage/map_file.h"
 #include "worker/block_worker.h"
 
 namespace bistable {
 namespace {
-
-std::atomic<bool> g_interrupted{false};
-extern "C" void OnSignal(int) { g_interrupted.store(true); }
 
 struct RunArgs {
   std::string spec_path;
@@ -42,7 +39,7 @@ int RunSweep(const RunArgs& a) {
   auto spec = LoadSweepSpec(a.spec_path);
   if (!spec.ok()) return Fail(spec.status());
   if (a.threads < 0 || a.threads > 1024) return Fail(Status::InvalidArgument("threads", "threads = " + std::to_string(a.threads) + " violates threads in [0, 1024]"));
-  auto coord = SweepCoordinator::Open(a.data, {.lease_seconds = 3600, .resume = false});
+  auto coord = SweepCoordinator::Open(a.data, {.lease_seconds = 3600, .resume = false, .log = false});
   if (!coord.ok()) return Fail(coord.status());
   SweepCoordinator& c = **coord;
   const auto t0 = std::chrono::steady_clock::now();
@@ -57,23 +54,23 @@ int RunSweep(const RunArgs& a) {
               << " reused from the cache, " << to_compute << " to compute on " << threads << " thread(s)\n";
   }
 
-  std::signal(SIGINT, OnSignal);
-  std::signal(SIGTERM, OnSignal);
+  // Ctrl-C / SIGTERM: the computing jobs stop within about a millisecond of kernel work
+  // (dynamics/cancel.h), are released unreported, and every job already stored stays stored.
+  InstallCancelSignalHandlers("\nstopping: finished jobs are kept (press Ctrl-C again to quit at once)\n");
   ProgressBar bar(to_compute, "sweep " + plan->id, !a.quiet && !a.json);
-  const Status worker_error = ComputeEmbedded(c, *spec, threads, to_compute > 0, &g_interrupted, &bar);
-  std::signal(SIGINT, SIG_DFL);
-  std::signal(SIGTERM, SIG_DFL);
+  const Status worker_error = ComputeEmbedded(c, *spec, threads, to_compute > 0, nullptr, &bar);
+  RestoreDefaultSignalHandlers();
   if (!worker_error.ok()) {
     c.MarkInterrupted(plan->id);
     std::cerr << "error: " << worker_error.ToString() << "\n"
               << "finished blocks are stored; rerun the same command to resume\n";
     return kExitBadInput;
   }
-  if (g_interrupted.load() || c.progress(plan->id).items_done < plan->items_total) {
+  if (CancelRequested() || c.progress(plan->id).items_done < plan->items_total) {
     c.MarkInterrupted(plan->id);
     std::cerr << "interrupted: " << c.progress(plan->id).items_done << "/" << plan->items_total
               << " items stored; rerun the same command to resume\n";
-    return kExitInterrupted;
+    return CancelRequested() ? CancelExitStatus() : kExitInterrupted;
   }
   const auto t_computed = std::chrono::steady_clock::now();
   auto path = c.Publish(plan->id);
@@ -124,7 +121,8 @@ void AddRunCommand(CLI::App& app, int* exit_code) {
   cmd->add_flag("--quiet", a->quiet, "no progress output");
   cmd->footer(
       "Re-running a spec reuses every stored point (content-keyed), so an interrupted sweep resumes\n"
-      "where it stopped and overlapping sweeps only compute what is new. Ctrl-C keeps finished jobs.");
+      "where it stopped and overlapping sweeps only compute what is new. Ctrl-C (or SIGTERM) stops within\n"
+      "a second and keeps every finished job (exit status 130, 143 for SIGTERM); a second Ctrl-C quits at once.");
   cmd->callback([a, exit_code]() { *exit_code = RunSweep(*a); });
 }
 

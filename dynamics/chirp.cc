@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <optional>
 
 
+#include "dynamics/cancel.h"
 #include "dynamics/dopri5.h"
 #include "dynamics/nondim_models.h"
 #include "dynamics/point.h"
@@ -31,8 +33,10 @@ struct ForcedSystem {
   }
 };
 
+// Both runs poll cancellation (every kCancelCheckSteps RK4 steps, every accepted adaptive step) and
+// then return nullopt: a cut-short record is no result.
 template <class Model>
-ChirpRecord RunNondim(const ChirpOptions& o) {
+std::optional<ChirpRecord> RunNondim(const ChirpOptions& o) {
   PointSpec s;
   s.model = o.model;
   s.params = o.params;
@@ -53,6 +57,7 @@ ChirpRecord RunNondim(const ChirpOptions& o) {
   };
   record(0.0);
   for (long k = 1; k <= n; ++k) {
+    if (k % kCancelCheckSteps == 0 && CancelRequested()) return std::nullopt;
     rk.Step((k - 1) * o.dt, x, o.dt);
     if (!x.allFinite()) {
       r.diverged = true;
@@ -63,7 +68,7 @@ ChirpRecord RunNondim(const ChirpOptions& o) {
   return r;
 }
 
-ChirpRecord RunDimensional(const ChirpOptions& o) {
+std::optional<ChirpRecord> RunDimensional(const ChirpOptions& o) {
   DimensionalModel m(o.dim, ChirpBase(o.a0_m, o.from, o.to, o.duration));
   AdaptiveOptions ao;
   ao.rtol = o.rtol;
@@ -83,13 +88,19 @@ ChirpRecord RunDimensional(const ChirpOptions& o) {
   };
   record(0.0, x);
   next = 1;
-  const OdeTermination term = dp.Integrate(0.0, x, o.duration, [&](const Dopri5<DimensionalModel>& st) {
-    while (next <= n && next * o.dt <= st.t() * (1 + 1e-12)) {
-      st.Interpolate(next * o.dt, xi);
-      record(next * o.dt, xi);
-      ++next;
-    }
-  });
+  OdeTermination term;
+  try {
+    term = dp.Integrate(0.0, x, o.duration, [&](const Dopri5<DimensionalModel>& st) {
+      ThrowIfCancelled();
+      while (next <= n && next * o.dt <= st.t() * (1 + 1e-12)) {
+        st.Interpolate(next * o.dt, xi);
+        record(next * o.dt, xi);
+        ++next;
+      }
+    });
+  } catch (const CancelUnwind&) {
+    return std::nullopt;
+  }
   r.diverged = term != OdeTermination::kOk;
   return r;
 }
@@ -125,8 +136,11 @@ Status ValidateChirpOptions(const ChirpOptions& o) {
 
 StatusOr<ChirpRecord> RunChirp(const ChirpOptions& o) {
   BISTABLE_RETURN_IF_ERROR(ValidateChirpOptions(o));
-  if (o.dimensional) return RunDimensional(o);
-  return HasResonator(o.model) ? RunNondim<CoupledModel>(o) : RunNondim<SingleModel>(o);
+  std::optional<ChirpRecord> r = o.dimensional              ? RunDimensional(o)
+                                 : HasResonator(o.model) ? RunNondim<CoupledModel>(o)
+                                                         : RunNondim<SingleModel>(o);
+  if (!r) return CancelledStatus();
+  return std::move(*r);
 }
 
 FrfEstimate FftFrf(const std::vector<double>& in, const std::vector<double>& out, double dt, double f_lo, double f_hi,

@@ -8,12 +8,14 @@
 //    window, which makes the balance ∫P = W_m + W_r + ΔE hold to RK4's truncation error.
 // A lane's arithmetic never depends on other lanes or on W (no reductions across lanes, no FP
 // contraction): the same point gives bit-identical results at any lane width.
+// Cancellation (dynamics/cancel.h) is polled at the re-anchoring steps, every kReanchor steps.
 #ifndef BISTABLE_DYNAMICS_ENSEMBLE_RK4_H_
 #define BISTABLE_DYNAMICS_ENSEMBLE_RK4_H_
 
 #include <array>
 #include <cmath>
 
+#include "dynamics/cancel.h"
 #include "dynamics/lanes.h"
 #include "dynamics/nondim_models.h"
 #include "dynamics/window_recorder.h"
@@ -42,10 +44,13 @@ class EnsembleRk4 {
  public:
   static constexpr int D = Model::kDim;
   static constexpr long kReanchor = 1024;
+  static_assert(kReanchor == kCancelCheckSteps, "cancellation is polled where the phase is re-anchored");
   using V = Vec<W>;
 
-  // Integrates lanes[0..n) (1 ≤ n ≤ W) and fills out[0..n). Unused lanes repeat lane 0.
-  static void Run(const LaneInput* lanes, int n, const KernelSettings& s, RawLane* out) {
+  // Integrates lanes[0..n) (1 ≤ n ≤ W) and fills out[0..n). Unused lanes repeat lane 0. Returns
+  // false when cancellation was requested before the end: the run stopped early and out[0..n) hold
+  // no result (marked diverged, steps short of n_total) — callers must discard them.
+  static bool Run(const LaneInput* lanes, int n, const KernelSettings& s, RawLane* out) {
     double alpha[W], omega[W];
     CellCoeffs<V> c;
     V amp, x[D], w[D], rot_c, rot_s;
@@ -93,6 +98,7 @@ class EnsembleRk4 {
         Step<false>(c, amp, rot_c, rot_s, s.h, x, k1, w, q, &sn, &cs);
       }
       if (step % kReanchor == 0) {
+        if (CancelRequested()) [[unlikely]] return Cancelled(n, step, out);
         Anchor(omega, step, s.h, &sn, &cs);
         Model::Rhs(c, x, amp * sn, k1);  // derivative consistent with the re-anchored phase
       }
@@ -118,9 +124,20 @@ class EnsembleRk4 {
       for (int d = 0; d < D; ++d) r.final_state[d] = x[d][l];
       out[l] = std::move(r);
     }
+    return true;
   }
 
  private:
+  // Out of the hot loop: lanes of a cancelled run carry no result.
+  [[gnu::cold, gnu::noinline]] static bool Cancelled(int n, long step, RawLane* out) {
+    for (int l = 0; l < n; ++l) {
+      out[l] = RawLane{};
+      out[l].diverged = true;
+      out[l].steps = step;
+    }
+    return false;
+  }
+
   static void Anchor(const double* omega, long step, double h, V* sn, V* cs) {
     const double t = static_cast<double>(step) * h;
     for (int l = 0; l < W; ++l) {

@@ -3,6 +3,8 @@
 // cell" — a position, its velocity and the base motion — to the same WindowRecorder and metric code
 // as the SIMD kernel. Metrics then come out in the system's own units (per time unit, rad per time
 // unit, lengths of the state); energy ratios are not defined here and stay NaN.
+// Cancellation (dynamics/cancel.h) is polled every kCancelCheckSteps RK4 steps, or after every
+// accepted adaptive step; a cancelled run is no result (see RunGenericWindow).
 #ifndef BISTABLE_DYNAMICS_GENERIC_POINT_H_
 #define BISTABLE_DYNAMICS_GENERIC_POINT_H_
 
@@ -11,6 +13,7 @@
 #include <limits>
 
 #include "dynamics/benettin.h"
+#include "dynamics/cancel.h"
 #include "dynamics/dopri5.h"
 #include "dynamics/rk4.h"
 #include "dynamics/window_recorder.h"
@@ -28,8 +31,11 @@ struct GenericWindow {
   std::function<double(const Eigen::VectorXd&)> position, velocity;
 };
 
+// When cancellation stops the run early, *cancelled (if given) is set and the record returned is
+// marked diverged with steps short of the run: it must be discarded, never stored (callers that pass
+// no flag rely on CancelRequested() staying set, see cancel.h).
 template <class System>
-RawLane RunGenericWindow(const System& sys, const Eigen::VectorXd& x0, const GenericWindow& w) {
+RawLane RunGenericWindow(const System& sys, const Eigen::VectorXd& x0, const GenericWindow& w, bool* cancelled = nullptr) {
   const int n = sys.dim();
   const long n_total = std::lround(w.t_end / w.dt), n_keep = std::lround(w.t_keep / w.dt);
   TangentSystem<System> tan(sys);
@@ -59,10 +65,18 @@ RawLane RunGenericWindow(const System& sys, const Eigen::VectorXd& x0, const Gen
   };
   bool diverged = false;
   long steps = 0, rhs = 0;
+  auto stopped = [&](long at) {
+    if (cancelled) *cancelled = true;
+    RawLane none;
+    none.diverged = true;
+    none.steps = at;
+    return none;
+  };
   if (!w.adaptive) {
     Rk4<TangentSystem<System>> rk(tan);
     if (n_keep == 0) sample(0, z);
     for (long k = 1; k <= n_total && !diverged; ++k) {
+      if (k % kCancelCheckSteps == 0 && CancelRequested()) [[unlikely]] return stopped(k);
       rk.Step(static_cast<double>(k - 1) * w.dt, z, w.dt);
       if (k >= n_keep) sample(k, z);
       if (k % w.renorm_every == 0 || k == n_keep || k == n_total) {
@@ -78,23 +92,30 @@ RawLane RunGenericWindow(const System& sys, const Eigen::VectorXd& x0, const Gen
     Dopri5<TangentSystem<System>> dp5(tan, w.tol);
     long next = n_keep, seg = 0;
     auto observer = [&](const Dopri5<TangentSystem<System>>& st) {
+      ThrowIfCancelled();
       while (next <= n_total && static_cast<double>(next) * w.dt <= st.t() * (1 + 1e-12)) {
         st.Interpolate(static_cast<double>(next) * w.dt, zi);
         sample(next++, zi);
       }
     };
-    while (seg < n_total && !diverged) {
-      long end = std::min(seg + w.renorm_every, n_total);
-      if (seg < n_keep && end > n_keep) end = n_keep;
-      if (seg == n_keep) sample(n_keep, z), next = n_keep + 1;
-      const OdeTermination term = seg >= n_keep
-                                      ? dp5.Integrate(static_cast<double>(seg) * w.dt, z, static_cast<double>(end) * w.dt, observer)
-                                      : dp5.Integrate(static_cast<double>(seg) * w.dt, z, static_cast<double>(end) * w.dt);
-      const double nrm = z.tail(n).norm();
-      if (term != OdeTermination::kOk || !std::isfinite(nrm) || !z.head(n).allFinite()) diverged = true;
-      z.tail(n) /= nrm;
-      if (seg >= n_keep) rec.AddLogGrowth(Vec<1>{std::log(nrm)});
-      seg = end;
+    const auto transient = [](const Dopri5<TangentSystem<System>>&) { ThrowIfCancelled(); };
+    try {
+      while (seg < n_total && !diverged) {
+        ThrowIfCancelled();
+        long end = std::min(seg + w.renorm_every, n_total);
+        if (seg < n_keep && end > n_keep) end = n_keep;
+        if (seg == n_keep) sample(n_keep, z), next = n_keep + 1;
+        const OdeTermination term =
+            seg >= n_keep ? dp5.Integrate(static_cast<double>(seg) * w.dt, z, static_cast<double>(end) * w.dt, observer)
+                          : dp5.Integrate(static_cast<double>(seg) * w.dt, z, static_cast<double>(end) * w.dt, transient);
+        const double nrm = z.tail(n).norm();
+        if (term != OdeTermination::kOk || !std::isfinite(nrm) || !z.head(n).allFinite()) diverged = true;
+        z.tail(n) /= nrm;
+        if (seg >= n_keep) rec.AddLogGrowth(Vec<1>{std::log(nrm)});
+        seg = end;
+      }
+    } catch (const CancelUnwind&) {
+      return stopped(dp5.summary().accepted);
     }
     steps = dp5.summary().accepted;
     rhs = dp5.summary().rhs_evals;

@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
+#include "dynamics/cancel.h"
 #include "dynamics/dopri5.h"
 #include "dynamics/nondim_system.h"
 #include "dynamics/point.h"
@@ -219,6 +220,7 @@ namespace {
 
 // Pseudo-arclength continuation of one branch from a converged z at parameter p0, setting out
 // toward increasing (direction +1) or decreasing (−1) parameter, until it leaves [from, to].
+// Cancellation unwinds (CancelUnwind) at every point and corrector attempt.
 HbmBranch Continue(const HarmonicBalance& hb, const HbmOptions& o, Eigen::VectorXd z, double p0, double direction) {
   HbmBranch branch;
   const int n = hb.size();
@@ -250,6 +252,7 @@ HbmBranch Continue(const HarmonicBalance& hb, const HbmOptions& o, Eigen::Vector
   double ds = o.ds;
   double prev_tp = 0, prev_det_sign = 0;
   for (int count = 0; count < o.max_points; ++count) {
+    ThrowIfCancelled();
     Eigen::VectorXd g;
     Eigen::MatrixXd a;
     full(u.head(n), u[n], &g, &a);
@@ -276,6 +279,7 @@ HbmBranch Continue(const HarmonicBalance& hb, const HbmOptions& o, Eigen::Vector
     // Predictor–corrector with step control.
     bool accepted = false;
     while (!accepted) {
+      ThrowIfCancelled();
       const Eigen::VectorXd pred = u + ds * t;
       Eigen::VectorXd v = pred;
       int it = 0;
@@ -345,8 +349,10 @@ bool SeedFromTime(const HarmonicBalance& hb, const HbmOptions& o, double omega, 
     typename NondimSystem<Model>::State x;
     for (int d = 0; d < Model::kDim; ++d) x[d] = x0[d];
     Dopri5<NondimSystem<Model>> dp(sys, ao);
-    if (dp.Integrate(0.0, x, t_settle) != OdeTermination::kOk) return false;
+    if (dp.Integrate(0.0, x, t_settle, [](const Dopri5<NondimSystem<Model>>&) { ThrowIfCancelled(); }) != OdeTermination::kOk)
+      return false;
     for (int k = 0; k < m; ++k) {
+      ThrowIfCancelled();
       Dopri5<NondimSystem<Model>> step(sys, ao);
       if (k > 0 && step.Integrate(t_settle + (k - 1) * period / m, x, t_settle + k * period / m) != OdeTermination::kOk) return false;
       for (int i = 0; i < hb.dofs(); ++i) samples[i][k] = x[2 * i];
@@ -359,10 +365,7 @@ bool SeedFromTime(const HarmonicBalance& hb, const HbmOptions& o, double omega, 
   return hb.Solve(z, omega, alpha) >= 0;
 }
 
-}  // namespace
-
-StatusOr<HbmResult> ContinueBranches(const HbmOptions& o) {
-  BISTABLE_RETURN_IF_ERROR(ValidateHbmOptions(o));
+StatusOr<HbmResult> ContinueBranchesOrUnwind(const HbmOptions& o) {
   HarmonicBalance hb(o);
   HbmResult result;
   const double p0 = o.from;
@@ -394,6 +397,7 @@ StatusOr<HbmResult> ContinueBranches(const HbmOptions& o) {
     const double om = o.param == ContinuationParam::kOmega ? p : o.omega;
     const double al = o.param == ContinuationParam::kAlpha ? p : o.alpha;
     for (const Start& st : starts) {
+      ThrowIfCancelled();
       Eigen::VectorXd z;
       if (!SeedFromTime(hb, o, om, al, st.x0, &z)) continue;
       if (o.zero_mean) {
@@ -418,6 +422,7 @@ StatusOr<HbmResult> ContinueBranches(const HbmOptions& o) {
   HarmonicBalance hb2(more);
   for (const HbmBranch& b : result.branches) {
     for (size_t i = 0; i < b.points.size(); i += std::max<size_t>(1, b.points.size() / 8)) {
+      ThrowIfCancelled();
       const HbmPoint& p = b.points[i];
       if (!p.converged) continue;
       Eigen::VectorXd z2 = hb.Resize(p.z, more.harmonics);
@@ -429,6 +434,20 @@ StatusOr<HbmResult> ContinueBranches(const HbmOptions& o) {
   }
   (void)ParamOf;
   return result;
+}
+
+}  // namespace
+
+// Cancellation (dynamics/cancel.h) is polled at every seed, continuation point and corrector
+// attempt, and after every accepted step of the seeding integrations: a cancelled run returns
+// CancelledStatus() and no branches.
+StatusOr<HbmResult> ContinueBranches(const HbmOptions& o) {
+  BISTABLE_RETURN_IF_ERROR(ValidateHbmOptions(o));
+  try {
+    return ContinueBranchesOrUnwind(o);
+  } catch (const CancelUnwind&) {
+    return CancelledStatus();
+  }
 }
 
 std::vector<double> Eq9Amplitudes(ModelKind model, const NondimParams& p, double alpha, double omega) {

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "dynamics/cancel.h"
 #include "dynamics/dopri5.h"
 #include "dynamics/nondim_system.h"
 
@@ -10,9 +11,10 @@ namespace {
 
 // The adaptive path: Dormand–Prince 5(4) on (x, w, q), sampled at τ = n·dt by dense output and fed
 // to the same WindowRecorder as the kernel. The tangent is renormalised every renorm_every·dt
-// (integration restarts there), the quadratures run only inside the window.
+// (integration restarts there), the quadratures run only inside the window. Cancellation is polled
+// after every accepted step; a cancelled run sets *cancelled and returns no record.
 template <class Model>
-RawLane RunAdaptive(const PointSpec& spec) {
+RawLane RunAdaptive(const PointSpec& spec, bool* cancelled) {
   constexpr int D = Model::kDim;
   using Aug = AugmentedNondimSystem<Model>;
   const LaneInput lane = LaneFor(spec);
@@ -49,32 +51,39 @@ RawLane RunAdaptive(const PointSpec& spec) {
     for (int d = 0; d < D; ++d) xp[d] = x1[d], dp[d] = d1[d];
   };
   auto observer = [&](const Dopri5<Aug>& st) {
+    ThrowIfCancelled();
     while (next_sample <= ks.n_total && static_cast<double>(next_sample) * ks.h <= st.t() + 1e-12 * st.t()) {
       st.Interpolate(static_cast<double>(next_sample) * ks.h, zi);
       sample(next_sample++, zi);
     }
   };
-  const auto ignore = [](const Dopri5<Aug>&) {};
+  const auto ignore = [](const Dopri5<Aug>&) { ThrowIfCancelled(); };
 
   long seg_start = 0;
   bool diverged = false;
-  while (seg_start < ks.n_total) {
-    long seg_end = std::min(seg_start + ks.renorm_every, ks.n_total);
-    if (seg_start < ks.n_keep && seg_end > ks.n_keep) seg_end = ks.n_keep;
-    const bool in_window = seg_start >= ks.n_keep;
-    sys.set_window(in_window);
-    const double t0 = static_cast<double>(seg_start) * ks.h, t1 = static_cast<double>(seg_end) * ks.h;
-    if (seg_start == ks.n_keep) sample(ks.n_keep, z), next_sample = ks.n_keep + 1;
-    const OdeTermination term =
-        in_window ? stepper.Integrate(t0, z, t1, observer) : stepper.Integrate(t0, z, t1, ignore);
-    if (term != OdeTermination::kOk || !std::isfinite(z[0]) || std::fabs(z[0]) > 1e8) {
-      diverged = true;
-      break;
+  try {
+    while (seg_start < ks.n_total) {
+      ThrowIfCancelled();
+      long seg_end = std::min(seg_start + ks.renorm_every, ks.n_total);
+      if (seg_start < ks.n_keep && seg_end > ks.n_keep) seg_end = ks.n_keep;
+      const bool in_window = seg_start >= ks.n_keep;
+      sys.set_window(in_window);
+      const double t0 = static_cast<double>(seg_start) * ks.h, t1 = static_cast<double>(seg_end) * ks.h;
+      if (seg_start == ks.n_keep) sample(ks.n_keep, z), next_sample = ks.n_keep + 1;
+      const OdeTermination term =
+          in_window ? stepper.Integrate(t0, z, t1, observer) : stepper.Integrate(t0, z, t1, ignore);
+      if (term != OdeTermination::kOk || !std::isfinite(z[0]) || std::fabs(z[0]) > 1e8) {
+        diverged = true;
+        break;
+      }
+      const double nrm = z.segment(D, D).norm();
+      z.segment(D, D) /= nrm;
+      if (in_window) rec.AddLogGrowth(Vec<1>{std::log(nrm)});
+      seg_start = seg_end;
     }
-    const double nrm = z.segment(D, D).norm();
-    z.segment(D, D) /= nrm;
-    if (in_window) rec.AddLogGrowth(Vec<1>{std::log(nrm)});
-    seg_start = seg_end;
+  } catch (const CancelUnwind&) {
+    *cancelled = true;
+    return RawLane{};
   }
   const double e_start = raw.e_start;
   raw = std::move(rec.Lane(0));
@@ -121,14 +130,16 @@ KernelSettings KernelSettingsFor(const PointSpec& spec) {
 StatusOr<PointResult> EvaluatePoint(const PointSpec& spec) {
   BISTABLE_RETURN_IF_ERROR(ValidatePointSpec(spec));
   RawLane raw;
+  bool cancelled = false;
   if (spec.integration.integrator == IntegratorKind::kRk4) {
     const LaneInput lane = LaneFor(spec);
-    RunKernel<1>(spec.model, &lane, 1, KernelSettingsFor(spec), &raw);
+    cancelled = !RunKernel<1>(spec.model, &lane, 1, KernelSettingsFor(spec), &raw);
   } else if (HasResonator(spec.model)) {
-    raw = RunAdaptive<CoupledModel>(spec);
+    raw = RunAdaptive<CoupledModel>(spec, &cancelled);
   } else {
-    raw = RunAdaptive<SingleModel>(spec);
+    raw = RunAdaptive<SingleModel>(spec, &cancelled);
   }
+  if (cancelled) return CancelledStatus();
   return ComputePointMetrics(std::move(raw), spec);
 }
 

@@ -10,22 +10,21 @@
 
 namespace bistable {
 
-// Validates, integrates, measures. Errors only for invalid specs; a diverging run is a result
-// (termination != kOk, metrics NaN).
+// Validates, integrates, measures. Errors for invalid specs, and CancelledStatus() when cancellation
+// (dynamics/cancel.h) stopped the integration: a cancelled point has no result at all. A diverging
+// run is a result (termination != kOk, metrics NaN).
 StatusOr<PointResult> EvaluatePoint(const PointSpec& spec);
 
 // Kernel inputs/settings for a validated spec (sweeps build lanes from these too).
 LaneInput LaneFor(const PointSpec& spec);
 KernelSettings KernelSettingsFor(const PointSpec& spec);
 
-// Runs the RK4 ensemble kernel on n ≤ W lanes of the given model.
+// Runs the RK4 ensemble kernel on n ≤ W lanes of the given model. False when cancelled: out[0..n)
+// then hold no result and must be discarded.
 template <int W>
-void RunKernel(ModelKind model, const LaneInput* lanes, int n, const KernelSettings& s, RawLane* out) {
-  if (HasResonator(model)) {
-    EnsembleRk4<CoupledModel, W>::Run(lanes, n, s, out);
-  } else {
-    EnsembleRk4<SingleModel, W>::Run(lanes, n, s, out);
-  }
+bool RunKernel(ModelKind model, const LaneInput* lanes, int n, const KernelSettings& s, RawLane* out) {
+  if (HasResonator(model)) return EnsembleRk4<CoupledModel, W>::Run(lanes, n, s, out);
+  return EnsembleRk4<SingleModel, W>::Run(lanes, n, s, out);
 }
 
 // Window record → metrics (FRF, LLE, motion, period, spectrum, energy ratios, Rosenstein).

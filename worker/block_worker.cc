@@ -2,11 +2,13 @@
 
 #include <array>
 
+#include "dynamics/cancel.h"
 #include "dynamics/point.h"
 
 namespace bistable {
 
-std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<WorkItem>& items) {
+std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepSpec& spec,
+                                                                    const std::vector<WorkItem>& items) {
   std::vector<PointRecord> out(items.size());
   const bool turning = spec.base.metrics.turning_points;
   if (spec.continuation.enabled()) {
@@ -16,6 +18,7 @@ std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<W
     // `bistable point --ic <previous final state>`.
     std::array<double, 4> last = {0, 0, 0, 0};
     for (size_t i = 0; i < items.size(); ++i) {
+      if (CancelRequested()) return std::nullopt;
       PointSpec p = spec.PointAt(items[i].point, items[i].ic);
       if (i > 0) {
         const WorkItem& prev = items[i - 1];
@@ -27,31 +30,41 @@ std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<W
         }
       }
       auto r = EvaluatePoint(p);
+      if (!r.ok() && CancelRequested()) return std::nullopt;  // cancelled: no result, not "diverged"
       const PointResult res = r.ok() ? *r : PointResult{Termination::kDiverged};
       last = res.final_state;
       out[i] = PointRecord::From(res, turning);
     }
-    return out;
-  }
-  if (!spec.UsesKernel()) {  // series, dimensional, adaptive: one point at a time
-    for (size_t i = 0; i < items.size(); ++i) out[i] = PointRecord::From(spec.EvaluateItem(items[i].point, items[i].ic), turning);
-    return out;
-  }
-  const PointSpec first = spec.PointAt(0, 0);
-  const KernelSettings ks = KernelSettingsFor(first);
-  std::array<PointSpec, kSweepLanes> specs;
-  std::array<LaneInput, kSweepLanes> lanes;
-  std::array<RawLane, kSweepLanes> raw;
-  for (size_t start = 0; start < items.size(); start += kSweepLanes) {
-    const int n = static_cast<int>(std::min<size_t>(kSweepLanes, items.size() - start));
-    for (int l = 0; l < n; ++l) {
-      specs[l] = spec.PointAt(items[start + l].point, items[start + l].ic);
-      lanes[l] = LaneFor(specs[l]);
+  } else if (!spec.UsesKernel()) {  // series, dimensional, adaptive: one point at a time
+    for (size_t i = 0; i < items.size(); ++i) {
+      if (CancelRequested()) return std::nullopt;
+      // A cancelled evaluation comes back as a diverged record; the check below discards the job.
+      out[i] = PointRecord::From(spec.EvaluateItem(items[i].point, items[i].ic), turning);
     }
-    RunKernel<kSweepLanes>(spec.model, lanes.data(), n, ks, raw.data());
-    for (int l = 0; l < n; ++l) out[start + l] = PointRecord::From(ComputePointMetrics(std::move(raw[l]), specs[l]), turning);
+  } else {
+    const PointSpec first = spec.PointAt(0, 0);
+    const KernelSettings ks = KernelSettingsFor(first);
+    std::array<PointSpec, kSweepLanes> specs;
+    std::array<LaneInput, kSweepLanes> lanes;
+    std::array<RawLane, kSweepLanes> raw;
+    for (size_t start = 0; start < items.size(); start += kSweepLanes) {
+      const int n = static_cast<int>(std::min<size_t>(kSweepLanes, items.size() - start));
+      for (int l = 0; l < n; ++l) {
+        specs[l] = spec.PointAt(items[start + l].point, items[start + l].ic);
+        lanes[l] = LaneFor(specs[l]);
+      }
+      if (!RunKernel<kSweepLanes>(spec.model, lanes.data(), n, ks, raw.data())) return std::nullopt;
+      for (int l = 0; l < n; ++l) out[start + l] = PointRecord::From(ComputePointMetrics(std::move(raw[l]), specs[l]), turning);
+    }
   }
+  // The flag is sticky: clear now means no integration of this job saw it, so every record is whole.
+  if (CancelRequested()) return std::nullopt;
   return out;
+}
+
+std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<WorkItem>& items) {
+  auto records = ComputeItemsUnlessCancelled(spec, items);
+  return records ? std::move(*records) : std::vector<PointRecord>{};
 }
 
 }  // namespace bistable

@@ -1,12 +1,13 @@
 // bistable-worker: pulls jobs from a coordinator, computes them with the same code as the embedded
 // `bistable run` (ComputeItems), and reports. One pull loop per thread; while a job computes, a
 // heartbeat extends its lease; RPC failures back off exponentially (0.1 s → 5 s) and retry, so a
-// restarted coordinator is picked up again. SIGTERM/SIGINT: finish the jobs in hand, report, exit.
+// restarted coordinator is picked up again. SIGTERM/SIGINT (dynamics/cancel.h): the jobs in hand stop
+// computing within a few milliseconds, their leases are released unreported (the coordinator requeues
+// them), and the worker exits; a second signal ends it at once.
 #include <unistd.h>
 
 #include <atomic>
 #include <chrono>
-#include <csignal>
 #include <future>
 #include <iostream>
 #include <map>
@@ -17,6 +18,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "bistable.grpc.pb.h"
+#include "dynamics/cancel.h"
 #include "proto/channel.h"
 #include "proto/status_convert.h"
 #include "worker/block_worker.h"
@@ -24,13 +26,24 @@
 namespace {
 
 using bistable::v1::Coordinator;
-std::atomic<bool> g_stop{false};
-extern "C" void OnSignal(int) { g_stop.store(true); }
+using bistable::CancelRequested;
+
+// Sleeps up to `seconds`, waking early when cancellation is requested.
+void SleepUnlessCancelled(double seconds) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                         std::chrono::duration<double>(seconds));
+  const std::chrono::steady_clock::duration slice = std::chrono::milliseconds(20);
+  while (!CancelRequested()) {
+    const auto left = end - std::chrono::steady_clock::now();
+    if (left <= std::chrono::steady_clock::duration::zero()) break;
+    std::this_thread::sleep_for(left < slice ? left : slice);
+  }
+}
 
 class Backoff {
  public:
   void Wait() {
-    std::this_thread::sleep_for(std::chrono::duration<double>(delay_));
+    SleepUnlessCancelled(delay_);
     delay_ = std::min(5.0, delay_ * 2);
   }
   void Reset() { delay_ = 0.1; }
@@ -62,7 +75,13 @@ struct SpecCache {
 void PullLoop(Coordinator::Stub* stub, const std::string& name, double lease_seconds, SpecCache* cache, std::atomic<long>* done) {
   Backoff backoff;
   bistable::v1::LeaseReply lease;  // the next job, from a Lease call or from the previous report's reply
-  while (!g_stop.load()) {
+  auto release = [&](const std::string& lease_id) {
+    bistable::v1::ReleaseRequest rr;
+    rr.set_lease_id(lease_id);
+    bistable::v1::ReleaseReply rel;
+    return stub->Release(Context(5).get(), rr, &rel);
+  };
+  while (!CancelRequested()) {
     if (!lease.has_job()) {
       bistable::v1::LeaseRequest lreq;
       lreq.set_worker(name);
@@ -76,34 +95,40 @@ void PullLoop(Coordinator::Stub* stub, const std::string& name, double lease_sec
     }
     backoff.Reset();
     if (!lease.has_job()) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      SleepUnlessCancelled(0.05);
       continue;
     }
     const bistable::v1::LeaseReply job = std::exchange(lease, {});
     auto spec = cache->Get(job.sweep_id(), job.spec_toml());
     if (!spec) {
       std::cerr << "worker " << name << ": cannot parse the spec of sweep " << job.sweep_id() << "; releasing\n";
-      bistable::v1::ReleaseRequest rr;
-      rr.set_lease_id(job.lease_id());
-      bistable::v1::ReleaseReply rel;
-      stub->Release(Context(10).get(), rr, &rel);
+      release(job.lease_id());
       continue;
     }
     std::vector<bistable::WorkItem> items(job.points_size());
     for (int i = 0; i < job.points_size(); ++i) items[i] = {job.points(i), job.ics(i)};
-    auto work = std::async(std::launch::async, [&] { return bistable::ComputeItems(*spec, items); });
-    // Heartbeat a third of the lease period while computing.
+    auto work = std::async(std::launch::async, [&] { return bistable::ComputeItemsUnlessCancelled(*spec, items); });
+    // Heartbeat a third of the lease period while computing (the computation itself stops within a
+    // few milliseconds of a cancellation, so waiting for it is short then).
     while (work.wait_for(std::chrono::duration<double>(lease_seconds / 3)) != std::future_status::ready) {
       bistable::v1::HeartbeatRequest hb;
       hb.set_lease_id(job.lease_id());
       bistable::v1::HeartbeatReply hr;
       stub->Heartbeat(Context(5).get(), hb, &hr);
     }
-    const std::vector<bistable::PointRecord> records = work.get();
+    const std::optional<std::vector<bistable::PointRecord>> computed = work.get();
+    if (!computed) {  // cancelled mid-job: report nothing of it, give the job back now
+      const grpc::Status rs = release(job.lease_id());
+      std::cerr << "worker " << name << ": stopped computing " << job.lease_id() << " ("
+                << (rs.ok() ? "released" : "release failed: " + rs.error_message() + "; it requeues when the lease expires")
+                << ")\n";
+      break;
+    }
+    const std::vector<bistable::PointRecord>& records = *computed;
     bistable::v1::ReportRequest rep;
     rep.set_lease_id(job.lease_id());
     rep.set_record_width(records.empty() ? 0 : static_cast<unsigned>(records[0].v.size()));
-    if (!g_stop.load()) rep.set_lease_next_for(name);  // on SIGTERM, take nothing new
+    if (!CancelRequested()) rep.set_lease_next_for(name);  // on SIGTERM, take nothing new
     for (const auto& r : records) rep.mutable_values()->Add(r.v.begin(), r.v.end());
     for (int attempt = 0;; ++attempt) {  // reports are idempotent: retry until answered
       bistable::v1::ReportReply rr;
@@ -113,20 +138,16 @@ void PullLoop(Coordinator::Stub* stub, const std::string& name, double lease_sec
         if (rr.has_next()) lease = rr.next();
         break;
       }
-      if (!Retryable(s) || attempt > 50) {
-        std::cerr << "worker " << name << ": report of " << job.lease_id() << " refused: " << s.error_message() << "\n";
+      if (!Retryable(s) || attempt > 50 || CancelRequested()) {
+        std::cerr << "worker " << name << ": report of " << job.lease_id() << (Retryable(s) ? " not answered: " : " refused: ")
+                  << s.error_message() << (Retryable(s) ? " (its job requeues when the lease expires)" : "") << "\n";
         break;
       }
       backoff.Wait();
     }
     backoff.Reset();
   }
-  if (lease.has_job()) {  // stopping with a job leased by the last report: give it back now
-    bistable::v1::ReleaseRequest rr;
-    rr.set_lease_id(lease.lease_id());
-    bistable::v1::ReleaseReply rel;
-    stub->Release(Context(5).get(), rr, &rel);
-  }
+  if (lease.has_job()) release(lease.lease_id());  // stopping with a job leased by the last report: give it back
 }
 
 }  // namespace
@@ -163,11 +184,10 @@ int main(int argc, char** argv) {
     return 2;
   }
   auto stub = Coordinator::NewStub(*channel);
-  std::signal(SIGINT, OnSignal);
-  std::signal(SIGTERM, OnSignal);
+  bistable::InstallCancelSignalHandlers();
   double lease_seconds = 60;
   Backoff backoff;
-  while (!g_stop.load()) {  // register (waits for the coordinator to come up)
+  while (!CancelRequested()) {  // register (waits for the coordinator to come up)
     bistable::v1::RegisterRequest req;
     req.set_name(name);
     req.set_threads(threads);
