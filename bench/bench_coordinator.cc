@@ -108,6 +108,7 @@ double OverGrpc(const std::string& dir, long jobs, int clients, int salt, bool c
       auto stub = v1::Coordinator::NewStub(channel);
       v1::ReportRequest rep;
       rep.set_record_width(static_cast<unsigned>(PointRecord::Size()));
+      rep.set_catalog_hash(CatalogHash());
       for (size_t i = 0; i < 8 * PointRecord::Size(); ++i) rep.add_values(0.0);
       if (combined) rep.set_lease_next_for("w" + std::to_string(k));
       v1::LeaseReply lease;

@@ -32,7 +32,7 @@ StatusOr<double> ParseFiniteNumber(const std::string& text, const std::string& f
 
 int Fail(const Status& st) {
   std::cerr << "error: " << st.ToString() << "\n";
-  return kExitBadInput;
+  return kExitError;
 }
 
 StatusOr<SweepRef> FindSweep(const std::string& data_dir, const std::string& id) {

@@ -5,14 +5,13 @@
 #include <map>
 #include <string>
 
-#include "dynamics/status.h"
+#include "base/exit_codes.h"
+#include "base/status.h"
 #include "storage/index_db.h"
 
 namespace bistable {
 
 inline constexpr const char* kDefaultDataDir = "bistable-data";
-inline constexpr int kExitBadInput = 2;
-inline constexpr int kExitInterrupted = 130;
 
 // "a=1,b=2" → {a: "1", b: "2"} (empty items skipped); an item without a name or '=' is an error
 // naming `field` and the item.
@@ -20,7 +19,7 @@ StatusOr<std::map<std::string, std::string>> ParseNameValues(const std::string& 
 // A finite number, or an error naming `field` and the text.
 StatusOr<double> ParseFiniteNumber(const std::string& text, const std::string& field);
 
-// Prints "error: <status>" to stderr and returns kExitBadInput.
+// Prints "error: <status>" to stderr and returns kExitError (2).
 int Fail(const Status& st);
 
 // Opens <data>/index.sqlite (which must exist) and finds the sweep by id or unique prefix.

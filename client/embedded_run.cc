@@ -11,20 +11,13 @@
 #include "client/map_slice.h"
 #include "client/plot.h"
 #include "dynamics/cancel.h"
-#include "dynamics/validate.h"
+#include "base/validate.h"
 #include "storage/map_file.h"
-#include "worker/block_worker.h"
+#include "engine/evaluate.h"
+#include "worker/pull_loop.h"
 
 namespace bistable {
 
-// Items per job: about `seconds` of work on one core, a multiple of the lane width.
-long JobItems(const SweepSpec& spec, double seconds) {
-  const double steps = spec.base.integration.t_end / spec.base.integration.dt;
-  const double per_item = steps / 1.5e7;  // ≈ 15 M lane-steps/s/core including metrics (conservative)
-  long n = static_cast<long>(seconds / std::max(per_item, 1e-9));
-  n = std::clamp<long>(n, kSweepLanes, 4096);
-  return (n / kSweepLanes) * kSweepLanes;
-}
 
 // Default figures: each plotted metric over the two longest axes, one figure per value of the others
 // (at most 12); a single-axis sweep gives curves, and with hd_peaks over Ω the Fig. 6 scatter.
@@ -178,6 +171,31 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
 }
 
 
+namespace {
+
+// Jobs of one sweep from the coordinator in this process (the embedded side of worker/pull_loop.h).
+class EmbeddedJobSource : public JobSource {
+ public:
+  EmbeddedJobSource(SweepCoordinator& c, std::shared_ptr<const SweepSpec> spec) : c_(c), spec_(std::move(spec)), id_(spec_->Id()) {}
+  StatusOr<std::optional<LeasedJob>> Lease() override {
+    auto g = c_.Lease("embedded", id_);
+    if (!g) return std::optional<LeasedJob>();
+    return std::optional<LeasedJob>(LeasedJob{g->lease_id, spec_, std::move(g->items)});
+  }
+  void Heartbeat(const LeasedJob&) override {}  // embedded leases last an hour
+  Status Report(const LeasedJob& job, const std::vector<PointRecord>& records, std::optional<LeasedJob>*) override {
+    return c_.Report(job.lease_id, records);
+  }
+  Status Release(const LeasedJob& job) override { return c_.Release(job.lease_id); }
+
+ private:
+  SweepCoordinator& c_;
+  std::shared_ptr<const SweepSpec> spec_;
+  std::string id_;
+};
+
+}  // namespace
+
 Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, bool any_work, std::atomic<bool>* stop,
                        ProgressBar* bar) {
   std::mutex err_mu;
@@ -186,31 +204,31 @@ Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, 
   std::vector<std::thread> pool;
   const std::string id = spec.Id();
   const SweepProgress start = c.progress(id);
-  auto stopping = [&] { return CancelRequested() || (stop && stop->load()); };
+  auto stopping = [&] { return CancelRequested() || (stop && stop->load()) || failed.load(); };
+  const auto shared = std::make_shared<const SweepSpec>(spec);
   for (int t = 0; t < threads && any_work; ++t) {
     pool.emplace_back([&] {
-      while (!stopping()) {
-        auto lease = c.Lease("embedded", id);
-        if (!lease) break;
-        const auto records = ComputeItemsUnlessCancelled(spec, lease->items);
-        if (!records) {  // cancelled mid-job: nothing of it is stored; the job goes back to the queue
-          c.Release(lease->lease_id);
-          break;
-        }
-        Status st = c.Report(lease->lease_id, *records);
-        if (!st.ok()) {
-          std::lock_guard<std::mutex> lock(err_mu);
-          if (worker_error.ok()) worker_error = st;
-          failed.store(true);
-          c.Stop();
-        }
+      EmbeddedJobSource source(c, shared);
+      PullLoopOptions opt;
+      opt.name = "embedded";
+      opt.until_idle = true;
+      opt.report_retries = 0;
+      opt.stop_on_error = true;
+      opt.log = false;
+      opt.stop = stopping;
+      const PullLoopResult r = RunPullLoop(source, opt);
+      if (!r.error.ok()) {
+        std::lock_guard<std::mutex> lock(err_mu);
+        if (worker_error.ok()) worker_error = r.error;
+        failed.store(true);
+        c.Stop();
       }
     });
   }
   while (!pool.empty()) {
     if (stopping()) c.Stop();
     const SweepProgress p = c.progress(id);
-    if (p.items_done >= p.items_total || stopping() || failed.load()) break;
+    if (p.items_done >= p.items_total || stopping()) break;
     if (bar) bar->Update(p.items_done - start.items_done);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }

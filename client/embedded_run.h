@@ -12,9 +12,6 @@
 
 namespace bistable {
 
-// Items per job: about `seconds` of work on one core, a multiple of the lane width.
-long JobItems(const SweepSpec& spec, double seconds);
-
 // Runs `threads` worker threads until the coordinator's queue is empty, *stop is set, cancellation is
 // requested (dynamics/cancel.h), or a report fails (that status is returned). A job cut short by
 // cancellation is released, never reported: every stored job is whole. Returns within about the

@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/names.h"
 #include "client/cli_common.h"
 #include "client/plot.h"
 #include "engine/sweep_spec.h"
@@ -78,9 +79,7 @@ StatusOr<ColumnMap> BuildColumns(const IdentifyArgs& a) {
       std::string g;
       while (std::getline(ss, g, ';')) c.group.push_back(g);
     } else {
-      const std::string near = NearestName(k, {"t", "input", "output", "resonator", "group"});
-      return Status::InvalidArgument("columns", "unknown role '" + k + "'" + (near.empty() ? "" : " (did you mean '" + near + "'?)") +
-                                                    "; roles: t, input, output, resonator, group");
+      return Status::InvalidArgument("columns", UnknownNameMessage("role", k, {"t", "input", "output", "resonator", "group"}));
     }
   }
   return c;
@@ -226,9 +225,8 @@ int RunIdentify(IdentifyArgs& a) {
     else if (k == "v_sp") setup.fc.v_sp = *x;
     else if (k == "v_t") setup.fc.v_t = *x;
     else {
-      const std::string near = NearestName(k, {"m_main", "m_res", "v_sp", "v_t"});
-      return Fail(Status::InvalidArgument("known", "unknown constant '" + k + "'" + (near.empty() ? "" : " (did you mean '" + near + "'?)") +
-                                                       "; known constants: m_main [kg], m_res [kg], v_sp [m/s], v_t [m/s]"));
+      return Fail(Status::InvalidArgument("known", UnknownNameMessage("constant", k, {"m_main", "m_res", "v_sp", "v_t"}) +
+                                                       "; units: m_main, m_res [kg], v_sp, v_t [m/s]"));
     }
     if (!(*x > 0)) return Fail(Status::InvalidArgument("known." + k, k + " = " + v + " violates " + k + " > 0"));
   }
@@ -248,9 +246,7 @@ int RunIdentify(IdentifyArgs& a) {
     for (const auto& [k, v] : *g) {
       auto it = std::find(names.begin(), names.end(), k);
       if (it == names.end()) {
-        const std::string near = NearestName(k, names);
-        return Fail(Status::InvalidArgument("guess", "'" + k + "' is not a parameter of the declared model" +
-                                                         (near.empty() ? "" : " (did you mean '" + near + "'?)")));
+        return Fail(Status::InvalidArgument("guess", UnknownNameMessage("parameter of the declared model", k, names)));
       }
       auto x = ParseFiniteNumber(v, "guess." + k);
       if (!x.ok()) return Fail(x.status());

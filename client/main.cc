@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "base/exit_codes.h"
 #include "client/chirp_command.h"
 #include "client/hbm_command.h"
 #include "client/identify_command.h"
@@ -45,7 +46,7 @@ int main(int argc, char** argv) {
     std::string known;
     for (const CLI::App* sub : subs) known += (known.empty() ? "" : ", ") + sub->get_name();
     std::cerr << "error: invalid argument (command: '" << argv[1] << "' is not one of {" << known << "})\n";
-    return 2;
+    return bistable::kExitError;
   }
   try {
     app.parse(argc, argv);
@@ -58,7 +59,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     std::cerr << "error: " << e.what() << "\n";
     std::cerr << "run with --help for usage\n";
-    return 2;
+    return bistable::kExitError;
   }
   return exit_code;
 }

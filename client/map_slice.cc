@@ -5,7 +5,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "dynamics/validate.h"
+#include "base/validate.h"
 
 namespace bistable {
 

@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include "base/limits.h"
+#include "base/names.h"
 #include "bistable.grpc.pb.h"
 #include "client/cli_common.h"
 #include "proto/status_convert.h"
@@ -23,7 +24,7 @@ Status CheckPlainMetricName(const std::string& metric) {
   const bool plain = !metric.empty() && metric.size() <= limits::kMaxMetricNameBytes && metric != "." && metric != ".." &&
                      metric.find_first_of(std::string("/\0\n\r", 4)) == std::string::npos;
   if (plain) return Status::Ok();
-  return Status::InvalidArgument("metric", "metric '" + PrintableName(metric) +
+  return Status::InvalidArgument("metric", "metric '" + Printable(metric) +
                                                "' is not a metric name (a metric is a dataset name of the map: no '/', "
                                                "'.', '..', NUL or newline, at most 64 bytes)");
 }

@@ -17,7 +17,7 @@
 #include <string_view>
 #include <vector>
 
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 

@@ -8,6 +8,7 @@
 #include <memory>
 #include <sstream>
 
+#include "base/exit_codes.h"
 #include "client/json_out.h"
 #include "dynamics/cancel.h"
 #include "dynamics/point.h"
@@ -27,7 +28,7 @@ struct PointArgs {
 
 int Fail(const Status& st) {
   std::cerr << "error: " << st.ToString() << "\n";
-  return 2;
+  return bistable::kExitError;
 }
 
 Status ParseIc(const std::string& text, std::array<double, 4>* ic) {

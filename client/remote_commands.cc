@@ -9,6 +9,8 @@
 #include <nlohmann/json.hpp>
 
 #include "bistable.grpc.pb.h"
+#include "base/file.h"
+#include "base/limits.h"
 #include "client/cli_common.h"
 #include "client/progress.h"
 #include "client/remote_commands.h"
@@ -61,12 +63,10 @@ Status Prepare(const RemoteArgs& a) {
 }
 
 int Submit(const RemoteArgs& a) {
-  std::ifstream in(a.target);
-  if (!in) return Fail(Status::InvalidArgument("spec", "cannot read spec file '" + a.target + "'"));
-  std::stringstream ss;
-  ss << in.rdbuf();
+  auto text = ReadTextFile(a.target, "spec", limits::kMaxSpecBytes);
+  if (!text.ok()) return Fail(text.status());
   v1::SubmitRequest req;
-  req.set_spec_toml(ss.str());
+  req.set_spec_toml(*text);
   req.set_origin(a.target);
   v1::SubmitReply rep;
   const grpc::Status s = Connect(a.coordinator)->Submit(Ctx().get(), req, &rep);

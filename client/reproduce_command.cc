@@ -21,7 +21,7 @@
 #include "dynamics/cancel.h"
 #include "dynamics/chirp.h"
 #include "dynamics/hbm.h"
-#include "dynamics/validate.h"
+#include "base/validate.h"
 #include "storage/map_file.h"
 
 namespace bistable {

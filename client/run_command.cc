@@ -1,9 +1,10 @@
 // `bistable run SPEC.toml`: the embedded deployment — the sweep coordinator and worker threads in
 // one process over a local data directory.
 #include <algorithm>
-#include <cmath>
 #include <atomic>
 #include <chrono>
+#include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -13,7 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/cli_common.h"
-#include "dynamics/validate.h"
+#include "base/validate.h"
 #include "client/map_slice.h"
 #include "client/plot.h"
 #include "client/embedded_run.h"
@@ -22,7 +23,7 @@
 #include "dynamics/cancel.h"
 #include "server/sweep_coordinator.h"
 #include "storage/map_file.h"
-#include "worker/block_worker.h"
+#include "engine/evaluate.h"
 
 namespace bistable {
 namespace {
@@ -64,13 +65,13 @@ int RunSweep(const RunArgs& a) {
     c.MarkInterrupted(plan->id);
     std::cerr << "error: " << worker_error.ToString() << "\n"
               << "finished blocks are stored; rerun the same command to resume\n";
-    return kExitBadInput;
+    return kExitError;
   }
   if (CancelRequested() || c.progress(plan->id).items_done < plan->items_total) {
     c.MarkInterrupted(plan->id);
     std::cerr << "interrupted: " << c.progress(plan->id).items_done << "/" << plan->items_total
               << " items stored; rerun the same command to resume\n";
-    return CancelRequested() ? CancelExitStatus() : kExitInterrupted;
+    return CancelRequested() ? CancelExitStatus() : ExitForSignal(SIGINT);
   }
   const auto t_computed = std::chrono::steady_clock::now();
   auto path = c.Publish(plan->id);

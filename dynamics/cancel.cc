@@ -6,6 +6,8 @@
 #include <cerrno>
 #include <cstring>
 
+#include "base/exit_codes.h"
+
 namespace bistable {
 
 namespace cancel_internal {
@@ -74,7 +76,7 @@ int CancelSignal() { return g_signal.load(); }
 
 int CancelExitStatus() {
   const int sig = CancelSignal();
-  return 128 + (sig > 0 ? sig : SIGINT);
+  return ExitForSignal(sig > 0 ? sig : SIGINT);
 }
 
 ScopedCancelReset::ScopedCancelReset() {

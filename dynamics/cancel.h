@@ -11,7 +11,7 @@
 
 #include <atomic>
 
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 

@@ -12,7 +12,7 @@
 #include "dynamics/point.h"
 #include "dynamics/rk4.h"
 #include "dynamics/spectrum.h"
-#include "dynamics/validate.h"
+#include "base/validate.h"
 
 namespace bistable {
 namespace {

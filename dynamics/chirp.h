@@ -10,7 +10,7 @@
 
 #include "dynamics/dimensional_model.h"
 #include "dynamics/point_spec.h"
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 

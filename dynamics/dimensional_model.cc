@@ -2,7 +2,7 @@
 
 #include <string>
 
-#include "dynamics/validate.h"
+#include "base/validate.h"
 
 namespace bistable {
 

@@ -15,7 +15,7 @@
 #include <Eigen/Dense>
 
 #include "dynamics/friction.h"
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 

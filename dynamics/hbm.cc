@@ -11,7 +11,7 @@
 #include "dynamics/dopri5.h"
 #include "dynamics/nondim_system.h"
 #include "dynamics/point.h"
-#include "dynamics/validate.h"
+#include "base/validate.h"
 
 namespace bistable {
 namespace {

@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "base/limits.h"
-#include "dynamics/validate.h"
+#include "base/validate.h"
 
 namespace bistable {
 namespace {

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <string>
 
-#include "dynamics/validate.h"
+#include "base/validate.h"
 
 namespace bistable {
 

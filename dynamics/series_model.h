@@ -13,7 +13,7 @@
 
 #include <Eigen/Dense>
 
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 

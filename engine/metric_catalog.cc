@@ -1,7 +1,12 @@
 #include "engine/metric_catalog.h"
 
+#define XXH_INLINE_ALL
+#include <xxhash.h>
+
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <string_view>
 #include <limits>
 
 namespace bistable {
@@ -31,6 +36,24 @@ const std::vector<MetricInfo>& MetricCatalog() {
       {"termination", "code", "0 ok, 1 diverged, 2 step size underflow, 3 max steps", true, 0, 3, false},
   };
   return kCatalog;
+}
+
+uint64_t CatalogHash() {
+  static const uint64_t kHash = [] {
+    std::string text = std::string("numerics=") + kNumericsVersion + ";peaks=" + std::to_string(kHdPeaksStored) +
+                       ";turning=" + std::to_string(kTurningPointsStored) + ";metrics=";
+    for (const MetricInfo& m : MetricCatalog()) text += std::string(m.name) + (m.integer ? ":i," : ":f,");
+    return XXH3_64bits(text.data(), text.size());
+  }();
+  return kHash;
+}
+
+size_t MetricIndex(const char* name) {
+  const auto& catalog = MetricCatalog();
+  for (size_t i = 0; i < catalog.size(); ++i)
+    if (std::string_view(catalog[i].name) == name) return i;
+  std::fprintf(stderr, "MetricIndex: '%s' is not a metric of the catalog\n", name);
+  std::abort();
 }
 
 const MetricInfo* FindMetric(const std::string& name) {

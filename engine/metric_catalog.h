@@ -3,6 +3,7 @@
 #ifndef BISTABLE_ENGINE_METRIC_CATALOG_H_
 #define BISTABLE_ENGINE_METRIC_CATALOG_H_
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,9 @@ struct MetricInfo {
 };
 
 const std::vector<MetricInfo>& MetricCatalog();
+// The position of a scalar metric in MetricCatalog() (and so in a PointRecord); aborts on a name that
+// is not in the catalog (a programming error: names come from this file).
+size_t MetricIndex(const char* name);
 const MetricInfo* FindMetric(const std::string& name);
 std::vector<std::string> MetricNames();
 
@@ -39,9 +43,14 @@ struct PointRecord {
   static PointRecord From(const PointResult& r, bool turning_points = false);
   double TurningPoint(int k) const;
   double Get(size_t metric_index) const { return v[metric_index]; }
+  double Get(const char* metric) const { return v[MetricIndex(metric)]; }
   double PeakFreq(int k) const;
   double PeakAmp(int k) const;
 };
+
+// Hash of the record layout: metric names in order, stored peaks and turning points, numerics version.
+// Workers send it with every report; the coordinator refuses records of another layout.
+uint64_t CatalogHash();
 
 // Checks a record of `width` values (the sweep's layout: PointRecord::Size(turning_points)) against
 // every metric's domain; the message names the metric, the value and the bound. The coordinator runs

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <set>
 
+#include "base/names.h"
 #include "engine/sweep_spec.h"
 
 namespace bistable {
@@ -167,10 +168,7 @@ class Parser {
         return Status::Ok();
       }
     --i_;
-    const std::string near = NearestName(t.text, names_);
-    std::string list;
-    for (const auto& n : names_) list += (list.empty() ? "" : ", ") + n;
-    return Error("unknown name '" + t.text + "'" + (near.empty() ? "" : "; did you mean '" + near + "'?") + " (known: " + list + ")");
+    return Error(UnknownNameMessage("name", t.text, names_));
   }
 
   std::string text_;

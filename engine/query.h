@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "base/limits.h"
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 

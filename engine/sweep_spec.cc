@@ -11,12 +11,12 @@
 
 #include <toml++/toml.h>
 
+#include "base/file.h"
 #include "base/limits.h"
-#include "dynamics/validate.h"
+#include "base/names.h"
+#include "base/validate.h"
 #include "engine/content_hash.h"
 #include "engine/metric_catalog.h"
-#include "dynamics/generic_point.h"
-#include "dynamics/point.h"
 
 namespace bistable {
 namespace {
@@ -44,22 +44,12 @@ std::string Where(const toml::source_region& r, const std::string& origin) {
 }
 
 Status Unknown(const std::string& field, const std::string& key, const std::vector<std::string>& allowed) {
-  std::string msg = "unknown key '" + key + "'";
-  const std::string near = NearestName(key, allowed);
-  if (!near.empty()) msg += "; did you mean '" + near + "'?";
-  std::string list;
-  for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-  return Status::InvalidArgument(field.empty() ? key : field + "." + key, msg + " (allowed: " + list + ")");
+  return Status::InvalidArgument(field.empty() ? key : field + "." + key, UnknownNameMessage("key", key, allowed));
 }
 
 // A value outside its vocabulary (a metric name in a list, ...).
 Status UnknownValue(const std::string& field, const std::string& value, const std::vector<std::string>& allowed) {
-  std::string msg = "unknown name '" + value + "'";
-  const std::string near = NearestName(value, allowed);
-  if (!near.empty()) msg += "; did you mean '" + near + "'?";
-  std::string list;
-  for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-  return Status::InvalidArgument(field, msg + " (allowed: " + list + ")");
+  return Status::InvalidArgument(field, UnknownNameMessage("name", value, allowed));
 }
 
 Status CheckKeys(const toml::table& t, const std::string& field, const std::vector<std::string>& allowed) {
@@ -194,7 +184,7 @@ StatusOr<Axis> ParseAxis(const std::string& name, const toml::node& n) {
   return axis;
 }
 
-// For dimensional sweeps the point spec's alpha and omega carry A0 [mm] and f0 [Hz]; EvaluateItem
+// For dimensional sweeps the point spec's alpha and omega carry A0 [mm] and f0 [Hz]; EvaluateItem (engine/evaluate.cc)
 // converts them. Everything else about a point spec (settings, validation, keys) applies unchanged.
 double* ParamSlot(PointSpec& s, const std::string& name) {
   if (name == "alpha" || name == "a0_mm") return &s.alpha;
@@ -231,23 +221,6 @@ std::string ModelConfigText(const SweepSpec& spec) {
   return os.str();
 }
 
-// The cells of a series point: [params] and axis values for all, then each cell's overrides.
-std::vector<SeriesCell> SeriesCellsFor(const SweepSpec& spec, const PointSpec& p) {
-  SeriesCell base{spec.series.bistable, p.params.eps, p.params.eta, spec.series.resonators, p.params.eta_r,
-                  p.params.phi, p.params.lambda};
-  std::vector<SeriesCell> cells(spec.series.cells, base);
-  for (size_t i = 0; i < spec.series.overrides.size() && i < cells.size(); ++i) {
-    for (const auto& [k, v] : spec.series.overrides[i]) {
-      if (k == "eps") cells[i].eps = v;
-      if (k == "eta") cells[i].eta = v;
-      if (k == "eta_r") cells[i].eta_r = v;
-      if (k == "phi") cells[i].phi = v;
-      if (k == "lambda") cells[i].lambda = v;
-    }
-  }
-  return cells;
-}
-
 }  // namespace
 
 const std::vector<std::string>& DimensionalAxisNames() {
@@ -267,29 +240,6 @@ std::string AxisUnit(const std::string& name) {
       {"a0_mm", "mm"}, {"f0_hz", "Hz"}};
   auto it = kUnits.find(name);
   return it == kUnits.end() ? "" : it->second;
-}
-
-std::string NearestName(const std::string& word, const std::vector<std::string>& candidates) {
-  // A unique candidate that starts with the word ("frf" → "frf_db") wins outright.
-  std::string prefixed;
-  int prefix_hits = 0;
-  for (const std::string& c : candidates)
-    if (!word.empty() && c.rfind(word, 0) == 0) prefixed = c, ++prefix_hits;
-  if (prefix_hits == 1) return prefixed;
-  std::string best;
-  size_t best_d = std::string::npos;
-  for (const std::string& c : candidates) {
-    std::vector<size_t> prev(c.size() + 1), cur(c.size() + 1);
-    for (size_t j = 0; j <= c.size(); ++j) prev[j] = j;
-    for (size_t i = 1; i <= word.size(); ++i) {
-      cur[0] = i;
-      for (size_t j = 1; j <= c.size(); ++j)
-        cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (word[i - 1] == c[j - 1] ? 0 : 1)});
-      std::swap(prev, cur);
-    }
-    if (prev[c.size()] < best_d && prev[c.size()] <= std::max(word.size(), c.size()) / 3 + 1) best_d = prev[c.size()], best = c;
-  }
-  return best;
 }
 
 long SweepSpec::points() const {
@@ -367,59 +317,23 @@ std::string SweepSpec::ItemKey(long index, int ic) const {
   return ContentHashHex(ModelConfigText(*this) + "|" + point);
 }
 
-PointResult SweepSpec::EvaluateItem(long index, int ic) const {
-  const PointSpec p = PointAt(index, ic);
-  if (kind == SweepModel::kCell) {
-    auto r = EvaluatePoint(p);
-    return r.ok() ? *r : PointResult{Termination::kDiverged};
-  }
-  PointSpec proxy = p;  // carries window, metric settings and the motion classification's model kind
-  GenericWindow w;
-  w.t_end = p.integration.t_end;
-  w.t_keep = p.integration.t_keep;
-  w.dt = p.integration.dt;
-  w.adaptive = p.integration.integrator == IntegratorKind::kAdaptive;
-  w.tol.rtol = p.integration.rtol;
-  w.tol.atol = p.integration.atol;
-  w.renorm_every = p.metrics.renorm_every;
-  w.sample_every = p.metrics.sample_every;
-  RawLane raw;
-  if (kind == SweepModel::kSeries) {
-    const std::vector<SeriesCell> cells = SeriesCellsFor(*this, p);
-    SeriesModel m(cells, p.alpha, p.omega);
-    const int last = m.cells() - 1;
-    const int yl = m.MainIndex(last), yp = last > 0 ? m.MainIndex(last - 1) : -1;
-    w.position = [yl, yp](const Eigen::VectorXd& x) { return x[yl] - (yp >= 0 ? x[yp] : 0.0); };
-    w.velocity = [yl](const Eigen::VectorXd& x) { return x[yl + 1]; };
-    w.amp = p.alpha;
-    w.omega = p.omega;
-    proxy.model = series.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
-    raw = RunGenericWindow(m, m.WellState(), w);
-  } else {
-    const DimensionalParams& dp = dimensional.params;
-    const double a0 = p.alpha * 1e-3, f0 = p.omega, omega = 2.0 * M_PI * f0;
-    DimensionalModel m(dp, SineBase(a0, f0));
-    const double delta_s = dimensional.bistable ? std::sqrt(-dp.k_lin / dp.k3) : 0.0;
-    Eigen::VectorXd x0 = Eigen::VectorXd::Zero(4);
-    if (p.ic_given) {
-      for (int i = 0; i < 4; ++i) x0[i] = p.ic[i];
-    } else {
-      x0[0] = delta_s;  // at rest in the positive well (linear beam: at rest at the origin)
+// The cells of a series point: [params] and axis values for all, then each cell's overrides.
+std::vector<SeriesCell> SweepSpec::SeriesCells(const PointSpec& p) const {
+  SeriesCell base{series.bistable, p.params.eps, p.params.eta, series.resonators, p.params.eta_r,
+                  p.params.phi, p.params.lambda};
+  std::vector<SeriesCell> cells(series.cells, base);
+  for (size_t i = 0; i < series.overrides.size() && i < cells.size(); ++i) {
+    for (const auto& [k, v] : series.overrides[i]) {
+      if (k == "eps") cells[i].eps = v;
+      if (k == "eta") cells[i].eta = v;
+      if (k == "eta_r") cells[i].eta_r = v;
+      if (k == "phi") cells[i].phi = v;
+      if (k == "lambda") cells[i].lambda = v;
     }
-    w.position = [](const Eigen::VectorXd& x) { return x[0]; };
-    w.velocity = [](const Eigen::VectorXd& x) { return x[1]; };
-    w.amp = a0;
-    w.omega = omega;
-    w.adaptive = true;
-    proxy.model = dimensional.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
-    proxy.alpha = a0;
-    proxy.omega = omega;
-    // Stroboscopic repetition tolerance in metres (and m/s): period_tol in units of δs (or of A0).
-    proxy.metrics.period_tol = p.metrics.period_tol * (delta_s > 0 ? delta_s : a0);
-    raw = RunGenericWindow(m, x0, w);
   }
-  return ComputePointMetrics(std::move(raw), proxy);
+  return cells;
 }
+
 
 int SweepSpec::ContinuationIndex(long point) const {
   const std::vector<int> idx = AxisIndices(point);
@@ -772,10 +686,10 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
       for (size_t i = 0; i < a.values.size(); ++i) {
         PointSpec p = probe;
         *ParamSlot(p, a.name) = a.values[i];
-        if (Status st = ValidateSeriesCells(SeriesCellsFor(spec, p)); !st.ok())
+        if (Status st = ValidateSeriesCells(spec.SeriesCells(p)); !st.ok())
           return Status::InvalidArgument("series." + st.field(), st.message());
       }
-    if (Status st = ValidateSeriesCells(SeriesCellsFor(spec, probe)); !st.ok())
+    if (Status st = ValidateSeriesCells(spec.SeriesCells(probe)); !st.ok())
       return Status::InvalidArgument("series." + st.field(), st.message());
   }
   const double items = static_cast<double>(spec.points()) * spec.ic_count();
@@ -793,11 +707,9 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
 }
 
 StatusOr<SweepSpec> LoadSweepSpec(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return Status::InvalidArgument("spec", "cannot read spec file '" + path + "'");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ParseSweepSpec(ss.str(), path);
+  auto text = ReadTextFile(path, "spec", limits::kMaxSpecBytes);
+  if (!text.ok()) return text.status();
+  return ParseSweepSpec(*text, path);
 }
 
 }  // namespace bistable

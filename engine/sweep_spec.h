@@ -11,7 +11,7 @@
 #include "dynamics/dimensional_model.h"
 #include "dynamics/point_spec.h"
 #include "dynamics/series_model.h"
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 
@@ -103,8 +103,8 @@ struct SweepSpec {
   bool UsesKernel() const { return kind == SweepModel::kCell && base.integration.integrator == IntegratorKind::kRk4; }
   // Content key of an item: model configuration, parameters, settings, initial state, numerics version.
   std::string ItemKey(long index, int ic) const;
-  // Runs one item outside the kernel (series, dimensional, adaptive cell models).
-  PointResult EvaluateItem(long index, int ic) const;
+  // The cells of a series chain at a point: [params] and the axis values for all, then each cell's overrides.
+  std::vector<SeriesCell> SeriesCells(const PointSpec& p) const;
   // Display name of the model ("coupled", "series", "dimensional").
   std::string ModelLabel() const;
 };
@@ -113,9 +113,6 @@ struct SweepSpec {
 StatusOr<SweepSpec> ParseSweepSpec(const std::string& toml_text, const std::string& origin);
 StatusOr<SweepSpec> LoadSweepSpec(const std::string& path);
 
-// The candidate `word` most likely meant: the only one it is a prefix of, else the closest by edit
-// distance within a third of the longer length (+1); "" when none is close.
-std::string NearestName(const std::string& word, const std::vector<std::string>& candidates);
 
 }  // namespace bistable
 

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <set>
 
-#include "engine/sweep_spec.h"
+#include "base/names.h"
 
 namespace bistable {
 namespace {
@@ -65,9 +65,7 @@ StatusOr<const TermDef*> FindTerm(const std::string& id) {
     if (t.id == id) return &t;
     ids.push_back(t.id);
   }
-  const std::string near = NearestName(id, ids);
-  return Status::InvalidArgument("terms", "unknown term '" + id + "'" + (near.empty() ? "" : " (did you mean '" + near + "'?)") +
-                                              "; `bistable identify --list-terms` lists the library");
+  return Status::InvalidArgument("terms", UnknownNameMessage("term", id, ids) + "; `bistable identify --list-terms` explains them");
 }
 
 StatusOr<std::vector<const TermDef*>> ParseTerms(const std::string& list) {

@@ -27,7 +27,7 @@
 #include <string>
 #include <vector>
 
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 

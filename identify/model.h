@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "dynamics/status.h"
+#include "base/status.h"
 #include "identify/effects.h"
 #include "identify/record.h"
 

@@ -7,9 +7,9 @@
 #include <sstream>
 #include <tuple>
 
+#include "base/names.h"
 #include "base/limits.h"
-#include "dynamics/validate.h"
-#include "engine/sweep_spec.h"
+#include "base/validate.h"
 
 namespace bistable {
 namespace {
@@ -36,11 +36,7 @@ StatusOr<int> Column(const std::vector<std::string>& header, const std::string& 
                      const std::string& file) {
   for (size_t i = 0; i < header.size(); ++i)
     if (header[i] == name) return static_cast<int>(i);
-  std::string list;
-  for (const auto& h : header) list += (list.empty() ? "" : ", ") + h;
-  const std::string near = NearestName(name, header);
-  return Status::InvalidArgument(role, file + ": no column '" + name + "' for the " + role +
-                                           (near.empty() ? "" : "; did you mean '" + near + "'?") + " (columns: " + list + ")");
+  return Status::InvalidArgument(role, file + " (" + role + "): " + UnknownNameMessage("column", name, header));
 }
 
 }  // namespace

@@ -5,20 +5,14 @@
 #include <fstream>
 #include <sstream>
 
-namespace bistable {
+#include "base/file.h"
 
-StatusOr<std::string> ReadFileText(const std::string& path, const std::string& field) {
-  std::ifstream in(path);
-  if (!in) return Status::InvalidArgument(field, "cannot read " + field + " file '" + path + "'");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+namespace bistable {
 
 StatusOr<std::string> LoadToken(const std::string& token_file) {
   std::string t;
   if (!token_file.empty()) {
-    auto text = ReadFileText(token_file, "token-file");
+    auto text = ReadTextFile(token_file, "token-file", 1 << 16);
     if (!text.ok()) return text.status();
     t = *text;
   } else if (const char* env = std::getenv("BISTABLE_TOKEN")) {
@@ -34,7 +28,7 @@ StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ConnectOptions& o) {
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
   if (o.tls_ca.empty()) return grpc::CreateCustomChannel(o.address, grpc::InsecureChannelCredentials(), args);
-  auto ca = ReadFileText(o.tls_ca, "tls-ca");
+  auto ca = ReadTextFile(o.tls_ca, "tls-ca", 1 << 20);
   if (!ca.ok()) return ca.status();
   grpc::SslCredentialsOptions ssl;
   ssl.pem_root_certs = *ca;

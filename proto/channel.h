@@ -8,7 +8,7 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 
@@ -23,7 +23,6 @@ StatusOr<std::string> LoadToken(const std::string& token_file);
 StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ConnectOptions& o);
 // A context with a deadline (seconds ≤ 0: none) and the bearer token.
 std::unique_ptr<grpc::ClientContext> CallContext(const ConnectOptions& o, double seconds);
-StatusOr<std::string> ReadFileText(const std::string& path, const std::string& field);
 
 }  // namespace bistable
 

@@ -5,7 +5,7 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 

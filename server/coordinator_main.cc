@@ -8,6 +8,8 @@
 #include <CLI/CLI.hpp>
 #include <grpcpp/grpcpp.h>
 
+#include "base/exit_codes.h"
+#include "base/file.h"
 #include "proto/channel.h"
 #include "server/coordinator_service.h"
 
@@ -38,7 +40,7 @@ int main(int argc, char** argv) {
   ::mallopt(M_ARENA_MAX, 2);
   auto fail = [](const bistable::Status& st) {
     std::cerr << "error: " << st.ToString() << "\n";
-    return 2;
+    return bistable::kExitError;
   };
   if (tls_cert.empty() != tls_key.empty())
     return fail(bistable::Status::InvalidArgument("tls-cert", "--tls-cert and --tls-key go together"));
@@ -53,8 +55,8 @@ int main(int argc, char** argv) {
   }
   std::shared_ptr<grpc::ServerCredentials> creds = grpc::InsecureServerCredentials();
   if (!tls_cert.empty()) {
-    auto cert = bistable::ReadFileText(tls_cert, "tls-cert");
-    auto key = bistable::ReadFileText(tls_key, "tls-key");
+    auto cert = bistable::ReadTextFile(tls_cert, "tls-cert", 1 << 20);
+    auto key = bistable::ReadTextFile(tls_key, "tls-key", 1 << 20);
     if (!cert.ok()) return fail(cert.status());
     if (!key.ok()) return fail(key.status());
     grpc::SslServerCredentialsOptions ssl;
@@ -63,12 +65,12 @@ int main(int argc, char** argv) {
   }
   if (!(lease_seconds > 0)) {
     std::cerr << "error: invalid argument (lease-seconds: lease-seconds = " << lease_seconds << " violates lease-seconds > 0)\n";
-    return 2;
+    return bistable::kExitError;
   }
   auto coord = bistable::SweepCoordinator::Open(data, {.lease_seconds = lease_seconds, .resume = true});
   if (!coord.ok()) {
     std::cerr << "error: " << coord.status().ToString() << "\n";
-    return 2;
+    return bistable::kExitError;
   }
   bistable::CoordinatorService service(coord->get(), lease_seconds, job_seconds, std::move(tokens));
   grpc::ServerBuilder builder;
@@ -79,7 +81,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || port == 0) {
     std::cerr << "error: i/o error (listen: cannot listen on " << listen << ")\n";
-    return 2;
+    return bistable::kExitError;
   }
   const std::string host = listen.substr(0, listen.rfind(':'));
   std::cout << "listening on " << host << ":" << port << std::endl;

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "base/limits.h"
+#include "engine/evaluate.h"
 #include "proto/status_convert.h"
 #include "storage/map_file.h"
 
@@ -89,12 +90,8 @@ grpc::Status CoordinatorService::Submit(grpc::ServerContext* ctx, const v1::Subm
     if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) ch = '?';
   auto spec = ParseSweepSpec(req->spec_toml(), origin);
   if (!spec.ok()) return ToGrpcStatus(spec.status());
-  // Jobs of about job_seconds of work on one core.
-  const double steps = spec->base.integration.t_end / spec->base.integration.dt;
-  long items = static_cast<long>(job_seconds_ / std::max(steps / 1.5e7 * (spec->UsesKernel() ? 1.0 : 8.0), 1e-9));
-  // ... but at least 64 jobs per sweep where it has the points, so the last jobs balance across workers.
-  const long balance = (spec->points() * spec->ic_count() + 63) / 64;
-  items = std::clamp<long>(std::min(items, balance), 8, limits::kMaxJobItems) / 8 * 8;
+  // Jobs of about job_seconds of work on one core, at least 64 per sweep (the last jobs balance).
+  const long items = JobItems(*spec, job_seconds_, 64);
   auto plan = c_->Submit(*spec, items, who);
   if (!plan.ok()) return ToGrpcStatus(plan.status());
   rep->set_id(plan->id);
@@ -255,6 +252,10 @@ grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::Repo
   if (!req->lease_next_for().empty())
     if (Status st = tokens_.Check(ctx, Op::kLease, &who); !st.ok()) return ToGrpcStatus(st);
   if (Status st = CheckLeaseId(req->lease_id()); !st.ok()) return ToGrpcStatus(st);
+  if (req->catalog_hash() != CatalogHash())
+    return ToGrpcStatus(Status::FailedPrecondition(
+        "the report's metric catalog differs from this coordinator's (a worker of another build?): its records would "
+        "be stored under the wrong names; run workers of the coordinator's version"));
   // The coordinator checks the lease, its job's size and layout and every value's domain before it
   // copies anything out of the request.
   if (Status st = c_->Report(req->lease_id(), req->record_width(), req->values().data(), static_cast<size_t>(req->values_size()));

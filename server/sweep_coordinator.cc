@@ -12,6 +12,7 @@
 #include <random>
 
 #include "base/limits.h"
+#include "engine/evaluate.h"
 #include "storage/map_file.h"
 
 namespace bistable {
@@ -21,15 +22,6 @@ double Now() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-// Items per job for about `seconds` of work on one core (≈ 15 M lane-steps/s with metrics),
-// a multiple of 8 lanes, in [8, 4096].
-long DefaultJobItems(const SweepSpec& spec, double seconds) {
-  const double steps = spec.base.integration.t_end / spec.base.integration.dt;
-  const double per_item = steps / 1.5e7 * (spec.UsesKernel() ? 1.0 : 8.0);
-  long n = static_cast<long>(seconds / std::max(per_item, 1e-9));
-  n = std::clamp<long>(n, 8, 4096);
-  return (n / 8) * 8;
-}
 
 }  // namespace
 
@@ -69,7 +61,7 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
       c->Db()->UpsertSweep(failed);
       continue;
     }
-    auto plan = c->Submit(*spec, DefaultJobItems(*spec, 2.0), r.owner.empty() ? "local" : r.owner);
+    auto plan = c->Submit(*spec, JobItems(*spec, 2.0, 64), r.owner.empty() ? "local" : r.owner);
     if (!plan.ok()) {
       c->Log("cannot resume sweep %s: %s\n", r.id.c_str(), plan.status().ToString().c_str());
       SweepRow failed = r;
@@ -255,7 +247,7 @@ Status SweepCoordinator::Replan(const std::string& id) {
     RevokeLeasesLocked(id);
     planning_[id] = 1;
   }
-  auto built = BuildPlan(spec, limits::kMaxJobItems / 8);
+  auto built = BuildPlan(spec, JobItems(spec, 2.0, 64));
   std::unique_lock<std::mutex> lock(mu_);
   planning_.erase(id);
   plan_cv_.notify_all();

@@ -13,7 +13,7 @@
 #include <utility>
 #include <vector>
 
-#include "dynamics/status.h"
+#include "base/status.h"
 #include "engine/metric_catalog.h"
 #include "engine/sweep_state.h"
 

@@ -12,6 +12,7 @@
 #include <limits>
 
 #include "base/limits.h"
+#include "base/names.h"
 #include "storage/metric_name.h"
 
 namespace bistable {
@@ -209,7 +210,7 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "turning_points", tn));
   }
   if (nic > 1 && !chained) {  // multistability: fraction of initial conditions ending in each motion type
-    const size_t motion_index = 3;
+    const size_t motion_index = MetricIndex("motion");
     for (int code = 0; code <= 2; ++code) {
       static const char* kNames[] = {"frac_intrawell", "frac_interwell", "frac_chaotic"};
       std::vector<double> frac(np, 0.0);
@@ -322,12 +323,12 @@ StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& met
     hsize_t n = 0;
     if (!sd.ok() || !ss.ok() || H5Sget_simple_extent_ndims(ss.get()) != 1 || H5Sget_simple_extent_dims(ss.get(), &n, nullptr) < 0 ||
         n > kMaxMapValuesRead)
-      return Status::IoError("map", "axis '" + PrintableName(a.name) + "' of '" + path + "' is missing or malformed");
+      return Status::IoError("map", "axis '" + Printable(a.name) + "' of '" + path + "' is missing or malformed");
     a.values.resize(n);
     H5Dread(sd.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.values.data());
     const size_t k = out.axes.size();
     if (k >= dims.size() || dims[k] != n)
-      return Status::IoError("map", "dataset " + metric + " in '" + path + "' does not match its axis '" + PrintableName(a.name) + "'");
+      return Status::IoError("map", "dataset " + metric + " in '" + path + "' does not match its axis '" + Printable(a.name) + "'");
     out.axes.push_back(a);
     out.dim_names.push_back(a.name);
     start = end + 1;

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "dynamics/status.h"
+#include "base/status.h"
 #include "engine/metric_catalog.h"
 #include "engine/sweep_spec.h"
 

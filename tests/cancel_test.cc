@@ -28,7 +28,7 @@
 #include "storage/index_db.h"
 #include "tests/map_compare.h"
 #include "tests/process_util.h"
-#include "worker/block_worker.h"
+#include "engine/evaluate.h"
 
 namespace bistable {
 namespace {
@@ -258,39 +258,12 @@ struct Child {
 };
 
 Child Spawn(const std::vector<std::string>& argv, const std::string& log) {
-  std::fflush(nullptr);  // the child must not re-emit our buffered output
-  Child c{-1, log + ".err"};
-  c.pid = ::fork();
-  if (c.pid == 0) {
-    ::signal(SIGINT, SIG_DFL);  // as from an interactive shell, whatever the test runner ignores
-    ::freopen(log.c_str(), "w", stdout);
-    ::freopen(c.err_file.c_str(), "w", stderr);
-    std::vector<char*> args;
-    for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    ::execv(args[0], args.data());
-    ::_exit(127);
-  }
-  return c;
+  return {bistable_test::SpawnLogged(argv, log), log + ".err"};
 }
 
-// Waits up to `seconds` for the child; the wait status, or -1 on timeout (the child is then killed).
-int WaitFor(pid_t pid, double seconds) {
-  const auto end = Clock::now() + std::chrono::duration<double>(seconds);
-  int status = 0;
-  while (Clock::now() < end) {
-    if (::waitpid(pid, &status, WNOHANG) == pid) return status;
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  ::kill(pid, SIGKILL);
-  ::waitpid(pid, &status, 0);
-  return -1;
-}
+int WaitFor(pid_t pid, double seconds) { return bistable_test::WaitStatusFor(pid, seconds); }
 
-std::string Slurp(const std::string& path) {
-  std::ifstream in(path);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
+std::string Slurp(const std::string& path) { return bistable_test::ReadText(path); }
 
 std::string Dir(const std::string& name) { return bistable_test::FreshDir("bistable_cancel", name); }
 

@@ -17,7 +17,8 @@
 #include "server/sweep_coordinator.h"
 #include "storage/map_file.h"
 #include "tests/map_compare.h"
-#include "worker/block_worker.h"
+#include "tests/process_util.h"
+#include "engine/evaluate.h"
 
 namespace bistable {
 namespace {
@@ -33,12 +34,7 @@ t_end = 60.0
 t_keep = 30.0
 )";
 
-std::string FreshDir(const std::string& name) {
-  const auto d = std::filesystem::path(::testing::TempDir()) / ("prop_" + name + "_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(d);
-  std::filesystem::create_directories(d);
-  return d.string();
-}
+std::string FreshDir(const std::string& name) { return bistable_test::FreshDir("prop", name); }
 
 SweepSpec Spec() {
   auto s = ParseSweepSpec(kSpec, "property.toml");

@@ -29,18 +29,7 @@ using bistable_test::ProcessResult;
 std::string Dir(const std::string& name) { return bistable_test::FreshDir("bistable_dist", name); }
 
 pid_t Spawn(const std::vector<std::string>& argv, const std::string& out_file) {
-  std::fflush(nullptr);
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    ::freopen(out_file.c_str(), "w", stdout);
-    ::freopen((out_file + ".err").c_str(), "w", stderr);
-    std::vector<char*> args;
-    for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    ::execv(args[0], args.data());
-    ::_exit(127);
-  }
-  return pid;
+  return bistable_test::SpawnLogged(argv, out_file);
 }
 
 void Kill(pid_t pid, int sig) {
@@ -182,6 +171,7 @@ TEST(Distributed, BadInputOverTheWireGetsTheRightStatusCode) {
     bistable::v1::ReportRequest req;
     req.set_lease_id(lease);
     req.set_record_width(width);
+    req.set_catalog_hash(bistable::CatalogHash());
     for (double v : values) req.add_values(v);
     bistable::v1::ReportReply rep;
     return stub->Report(&ctx, req, &rep).error_code();

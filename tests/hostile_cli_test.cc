@@ -316,7 +316,7 @@ std::vector<Row> Rows() {
   rows.push_back(OnSweep("metric_dot", metric("."), Outcome::kError, "invalid argument (metric: "));
   rows.push_back(OnSweep("metric_dotdot", metric(".."), Outcome::kError, "invalid argument (metric: "));
   rows.push_back(OnSweep("metric_hdf5_path", metric("/axes/alpha"), Outcome::kError, "allowed: "));
-  rows.push_back(OnSweep("metric_axis_scale", metric("alpha"), Outcome::kError, "is not in this map"));
+  rows.push_back(OnSweep("metric_axis_scale", metric("alpha"), Outcome::kError, "unknown metric 'alpha'"));
   rows.push_back(OnSweep("metric_newline", metric("frf_db\nlle"), Outcome::kError, "invalid argument (metric: "));
   rows.push_back(OnSweep("metric_traversal", metric("frf_db/../lle"), Outcome::kError, "invalid argument (metric: "));
   rows.push_back(OnSweep("metric_slash_csv", metric("/", "csv"), Outcome::kError, "invalid argument (metric: ", {}, {"{dir}/m.csv"}));

@@ -23,7 +23,8 @@
 #include "engine/sweep_spec.h"
 #include "storage/map_file.h"
 #include "tests/map_compare.h"
-#include "worker/block_worker.h"
+#include "tests/process_util.h"
+#include "engine/evaluate.h"
 
 namespace {
 
@@ -31,37 +32,12 @@ namespace fs = std::filesystem;
 namespace v1 = bistable::v1;
 using Clock = std::chrono::steady_clock;
 
+using bistable_test::ReadText;
 pid_t Spawn(const std::vector<std::string>& argv, const std::string& out_file) {
-  std::fflush(nullptr);
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    (void)::freopen(out_file.c_str(), "w", stdout);
-    (void)::freopen((out_file + ".err").c_str(), "w", stderr);
-    std::vector<char*> args;
-    for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    ::execv(args[0], args.data());
-    ::_exit(127);
-  }
-  return pid;
+  return bistable_test::SpawnLogged(argv, out_file);
 }
-
-int Wait(pid_t pid, double seconds) {
-  const auto end = Clock::now() + std::chrono::duration<double>(seconds);
-  int status = 0;
-  while (Clock::now() < end) {
-    if (::waitpid(pid, &status, WNOHANG) == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  ::kill(pid, SIGKILL);
-  ::waitpid(pid, &status, 0);
-  return -2;
-}
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
+int Wait(pid_t pid, double seconds) { return bistable_test::WaitExitFor(pid, seconds); }
+std::string ReadFile(const std::string& path) { return ReadText(path); }
 
 std::pair<pid_t, std::string> StartCoordinator(const std::string& data, const std::string& log,
                                                 const std::vector<std::string>& extra = {}) {
@@ -139,10 +115,12 @@ v1::LeaseReply Lease(const std::string& worker = "hostile-test") {
   return rep;
 }
 
-grpc::Status Report(const std::string& lease, uint32_t width, const std::vector<double>& values) {
+grpc::Status Report(const std::string& lease, uint32_t width, const std::vector<double>& values,
+                    uint64_t catalog_hash = bistable::CatalogHash()) {
   v1::ReportRequest req;
   req.set_lease_id(lease);
   req.set_record_width(width);
+  req.set_catalog_hash(catalog_hash);
   req.mutable_values()->Add(values.begin(), values.end());
   v1::ReportReply rep;
   return g->stub->Report(Ctx().get(), req, &rep);
@@ -388,6 +366,9 @@ const std::vector<Row>& Rows() {
            const grpc::Status st = Report(l.lease_id(), kWidth, bad);
            if (st.error_code() != grpc::StatusCode::INVALID_ARGUMENT) return std::string(f.what) + " was not refused";
          }
+         r = Expect(Report(l.lease_id(), kWidth, honest, bistable::CatalogHash() ^ 1), grpc::StatusCode::FAILED_PRECONDITION,
+                    "metric catalog");
+         if (!r.empty()) return r;
          std::vector<double> extra = honest;
          extra.insert(extra.end(), honest.begin(), honest.begin() + kWidth);
          r = Expect(Report(l.lease_id(), kWidth, extra), grpc::StatusCode::INVALID_ARGUMENT, "items");

@@ -192,15 +192,15 @@ TEST(Identify, BadInputNamesTheFileRowOrTerm) {
     std::string args, expect;
   };
   const Case cases[] = {
-      {"--data " + write("nocol.csv", "t,x0,pos\n0,0,0\n0.01,0,0\n") + " --terms main.linear --known m_main=1", "no column 'x' for the output"},
+      {"--data " + write("nocol.csv", "t,x0,pos\n0,0,0\n0.01,0,0\n") + " --terms main.linear --known m_main=1", "(output): unknown column 'x'"},
       {"--data " + write("back.csv", "t,x0,x\n0,0,0\n0.01,0,0\n0.02,0,0\n0.015,0,0\n") + " --terms main.linear --known m_main=1",
        "row 5: time 0.015 is before the previous row's 0.02"},
       {"--data " + write("dup.csv", "t,x0,x\n0,0,0\n0.01,0,0\n0.01,0,0\n") + " --terms main.linear --known m_main=1", "row 4: time 0.01 repeats"},
       {"--data " + write("gap.csv", "t,x0,x\n0,0,0\n0.01,nan,0\n") + " --terms main.linear --known m_main=1", "row 3 column 'x0': 'nan'"},
-      {"--data " + ok + " --terms main.linear,main.stifness_y3 --known m_main=1", "unknown term 'main.stifness_y3' (did you mean 'main.stiffness_y3'?)"},
+      {"--data " + ok + " --terms main.linear,main.stifness_y3 --known m_main=1", "unknown term 'main.stifness_y3'; did you mean 'main.stiffness_y3'?"},
       {"--data " + write("short.csv", "t,x0,x\n0,0,0\n0.01,0,0.001\n0.02,0,0.002\n") + " --terms main.linear --known m_main=1",
        "has 3 samples in the range used; at least 64"},
-      {"--data " + ok + " --terms main.linear --known m_mian=1", "unknown constant 'm_mian' (did you mean 'm_main'?)"},
+      {"--data " + ok + " --terms main.linear --known m_mian=1", "unknown constant 'm_mian'; did you mean 'm_main'?"},
       {"--data " + ok + " --terms main.linear", "known.m_main"},
       {"--data " + ok + " --terms main.linear --known m_main=-1", "m_main = -1 violates m_main > 0"},
       {"--data " + ok + " --terms main.linear,res.linear --known m_main=1", "give its mass"},

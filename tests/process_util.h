@@ -9,6 +9,7 @@
 
 #include <cerrno>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -28,7 +29,51 @@ struct ProcessResult {
   std::string out, err;
 };
 
-// `args` is appended to the binary path and run through the shell.
+// Starts argv (argv[0] a path; no shell) with stdout to `out_file` and stderr to `out_file`.err, SIGINT
+// at its default action (as from an interactive shell, whatever the test runner ignores).
+inline pid_t SpawnLogged(const std::vector<std::string>& argv, const std::string& out_file) {
+  std::fflush(nullptr);  // the child must not re-emit our buffered output
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::signal(SIGINT, SIG_DFL);
+    if (!::freopen(out_file.c_str(), "w", stdout) || !::freopen((out_file + ".err").c_str(), "w", stderr)) ::_exit(126);
+    std::vector<char*> args;
+    for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    ::execv(args[0], args.data());
+    ::_exit(127);
+  }
+  return pid;
+}
+
+// Waits up to `seconds` for a child: its wait status, or -1 on timeout (the child is then killed).
+inline int WaitStatusFor(pid_t pid, double seconds) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  int status = 0;
+  while (std::chrono::steady_clock::now() < end) {
+    if (::waitpid(pid, &status, WNOHANG) == pid) return status;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ::kill(pid, SIGKILL);
+  ::waitpid(pid, &status, 0);
+  return -1;
+}
+
+// Its exit code, -1 when a signal ended it, -2 on timeout.
+inline int WaitExitFor(pid_t pid, double seconds) {
+  const int st = WaitStatusFor(pid, seconds);
+  if (st == -1) return -2;
+  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+inline std::string ReadText(const std::string& path) {
+  std::ifstream in(path);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+#ifdef BISTABLE_CLI
+// `args` is appended to the binary path and run through the shell (trusted arguments only; hostile
+// ones go through RunArgv).
 inline ProcessResult Bistable(const std::string& args) {
   const std::string err_file = ::testing::TempDir() + "/bistable_stderr_" + std::to_string(::getpid()) + ".txt";
   ProcessResult r{-1, "", ""};
@@ -44,6 +89,8 @@ inline ProcessResult Bistable(const std::string& args) {
   std::filesystem::remove(err_file);
   return r;
 }
+
+#endif  // BISTABLE_CLI
 
 // A fresh, empty directory under the test temp dir, unique to this process.
 inline std::string FreshDir(const std::string& prefix, const std::string& name) {

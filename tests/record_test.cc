@@ -71,8 +71,8 @@ TEST(Records, BadFilesNameTheRowColumnAndBound) {
     std::string file, expect;
   };
   const Case cases[] = {
-      {write("typo.csv", "t,x0,disp\n0,0,0\n0.1,0,0\n"), "no column 'x' for the output"},
-      {write("typo2.csv", "t,base_disp,x\n0,0,0\n0.1,0,0\n"), "no column 'x0' for the input; did you mean 'x'?"},
+      {write("typo.csv", "t,x0,disp\n0,0,0\n0.1,0,0\n"), "(output): unknown column 'x'"},
+      {write("typo2.csv", "t,base_disp,x\n0,0,0\n0.1,0,0\n"), "unknown column 'x0'; did you mean 'x'?"},
       {write("cell.csv", "t,x0,x\n0,0,0\n0.1,abc,0\n"), "row 3 column 'x0': 'abc' is not a finite number"},
       {write("nan.csv", "t,x0,x\n0,0,0\n0.1,0,nan\n"), "row 3 column 'x': 'nan' is not a finite number"},
       {write("short.csv", "t,x0,x\n0,0,0\n0.1,0\n"), "row 3: 2 cells, the header has 3"},

@@ -18,7 +18,7 @@
 #include "engine/sweep_spec.h"
 #include "server/sweep_coordinator.h"
 #include "storage/map_file.h"
-#include "worker/block_worker.h"
+#include "engine/evaluate.h"
 #include "tests/map_compare.h"
 
 namespace bistable {
@@ -442,7 +442,7 @@ omega = [0.3, 1.2]
 )");
   EXPECT_EQ(series.ModelLabel(), "series");
   for (long p = 0; p < 3; ++p) {  // the periodic points of this grid
-    const PointResult a = series.EvaluateItem(p, 0);
+    const PointResult a = EvaluateItem(series, p, 0);
     PointSpec ps = series.PointAt(p, 0);
     ps.model = ModelKind::kCoupled;
     auto b = EvaluatePoint(ps);
@@ -486,7 +486,7 @@ atol = 1e-13
                 alpha * delta_s * 1e3, omega * wn / (2 * M_PI));
   const SweepSpec dim = Parse(toml);
   ASSERT_EQ(dim.axes.size(), 0u);
-  const PointResult d = dim.EvaluateItem(0, 0);
+  const PointResult d = EvaluateItem(dim, 0, 0);
   PointSpec nd;
   nd.model = ModelKind::kCoupled;
   nd.alpha = alpha;
@@ -516,7 +516,7 @@ f0_hz = 2.0
 t_end = 6.0
 t_keep = 3.0
 )");
-  const PointResult r = dim.EvaluateItem(0, 0);
+  const PointResult r = EvaluateItem(dim, 0, 0);
   EXPECT_EQ(r.termination, Termination::kOk);
   EXPECT_NEAR(r.frf_db, 0.0, 0.1);
   EXPECT_LT(r.y_max - r.y_min, 1e-4);  // metres

@@ -1,14 +1,13 @@
-// bistable-worker: pulls jobs from a coordinator, computes them with the same code as the embedded
-// `bistable run` (ComputeItems), and reports. One pull loop per thread; while a job computes, a
-// heartbeat extends its lease; RPC failures back off exponentially (0.1 s → 5 s) and retry, so a
-// restarted coordinator is picked up again. SIGTERM/SIGINT (dynamics/cancel.h): the jobs in hand stop
+// bistable-worker: pulls jobs from a coordinator and computes them with the same pull loop and the
+// same evaluation as the embedded `bistable run` (worker/pull_loop.h, engine/evaluate.h), one loop per
+// thread; while a job computes, a heartbeat extends its lease; RPC failures back off exponentially
+// (0.1 s → 5 s) and retry, so a restarted coordinator is picked up again. SIGTERM/SIGINT (dynamics/cancel.h): the jobs in hand stop
 // computing within a few milliseconds, their leases are released unreported (the coordinator requeues
 // them), and the worker exits; a second signal ends it at once.
 #include <unistd.h>
 
 #include <atomic>
 #include <chrono>
-#include <future>
 #include <iostream>
 #include <map>
 #include <mutex>
@@ -17,137 +16,108 @@
 #include <CLI/CLI.hpp>
 #include <grpcpp/grpcpp.h>
 
+#include "base/exit_codes.h"
 #include "bistable.grpc.pb.h"
 #include "dynamics/cancel.h"
 #include "proto/channel.h"
 #include "proto/status_convert.h"
-#include "worker/block_worker.h"
+#include "worker/pull_loop.h"
 
 namespace {
 
 using bistable::v1::Coordinator;
 using bistable::CancelRequested;
 
-// Sleeps up to `seconds`, waking early when cancellation is requested.
-void SleepUnlessCancelled(double seconds) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                         std::chrono::duration<double>(seconds));
-  const std::chrono::steady_clock::duration slice = std::chrono::milliseconds(20);
-  while (!CancelRequested()) {
-    const auto left = end - std::chrono::steady_clock::now();
-    if (left <= std::chrono::steady_clock::duration::zero()) break;
-    std::this_thread::sleep_for(left < slice ? left : slice);
-  }
-}
-
-class Backoff {
- public:
-  void Wait() {
-    SleepUnlessCancelled(delay_);
-    delay_ = std::min(5.0, delay_ * 2);
-  }
-  void Reset() { delay_ = 0.1; }
-
- private:
-  double delay_ = 0.1;
-};
-
-bool Retryable(const grpc::Status& s) {
-  return s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
-}
-
 bistable::ConnectOptions g_conn;
 std::unique_ptr<grpc::ClientContext> Context(double seconds) { return bistable::CallContext(g_conn, seconds); }
 
+// Parsed specs by sweep id, shared by the pull loops of this process.
 struct SpecCache {
   std::mutex mu;
-  std::map<std::string, std::shared_ptr<bistable::SweepSpec>> by_id;
-  std::shared_ptr<bistable::SweepSpec> Get(const std::string& id, const std::string& toml) {
+  std::map<std::string, std::shared_ptr<const bistable::SweepSpec>> by_id;
+  bistable::StatusOr<std::shared_ptr<const bistable::SweepSpec>> Get(const std::string& id, const std::string& toml) {
     std::lock_guard<std::mutex> lock(mu);
     auto it = by_id.find(id);
     if (it != by_id.end()) return it->second;
     auto spec = bistable::ParseSweepSpec(toml, "sweep " + id);
-    if (!spec.ok()) return nullptr;
-    return by_id[id] = std::make_shared<bistable::SweepSpec>(std::move(*spec));
+    if (!spec.ok()) return spec.status();
+    auto p = std::make_shared<const bistable::SweepSpec>(std::move(spec).value());
+    by_id[id] = p;
+    return p;
   }
 };
 
-void PullLoop(Coordinator::Stub* stub, const std::string& name, double lease_seconds, SpecCache* cache, std::atomic<long>* done) {
-  Backoff backoff;
-  bistable::v1::LeaseReply lease;  // the next job, from a Lease call or from the previous report's reply
-  auto release = [&](const std::string& lease_id) {
-    bistable::v1::ReleaseRequest rr;
-    rr.set_lease_id(lease_id);
-    bistable::v1::ReleaseReply rel;
-    return stub->Release(Context(5).get(), rr, &rel);
-  };
-  while (!CancelRequested()) {
-    if (!lease.has_job()) {
-      bistable::v1::LeaseRequest lreq;
-      lreq.set_worker(name);
-      const grpc::Status ls = stub->Lease(Context(10).get(), lreq, &lease);
-      if (!ls.ok()) {
-        if (!Retryable(ls)) std::cerr << "worker " << name << ": lease refused: " << ls.error_message() << "\n";
-        lease.Clear();
-        backoff.Wait();
-        continue;
-      }
-    }
-    backoff.Reset();
-    if (!lease.has_job()) {
-      SleepUnlessCancelled(0.05);
-      continue;
-    }
-    const bistable::v1::LeaseReply job = std::exchange(lease, {});
-    auto spec = cache->Get(job.sweep_id(), job.spec_toml());
-    if (!spec) {
-      std::cerr << "worker " << name << ": cannot parse the spec of sweep " << job.sweep_id() << "; releasing\n";
-      release(job.lease_id());
-      continue;
-    }
-    std::vector<bistable::WorkItem> items(job.points_size());
-    for (int i = 0; i < job.points_size(); ++i) items[i] = {job.points(i), job.ics(i)};
-    auto work = std::async(std::launch::async, [&] { return bistable::ComputeItemsUnlessCancelled(*spec, items); });
-    // Heartbeat a third of the lease period while computing (the computation itself stops within a
-    // few milliseconds of a cancellation, so waiting for it is short then).
-    while (work.wait_for(std::chrono::duration<double>(lease_seconds / 3)) != std::future_status::ready) {
-      bistable::v1::HeartbeatRequest hb;
-      hb.set_lease_id(job.lease_id());
-      bistable::v1::HeartbeatReply hr;
-      stub->Heartbeat(Context(5).get(), hb, &hr);
-    }
-    const std::optional<std::vector<bistable::PointRecord>> computed = work.get();
-    if (!computed) {  // cancelled mid-job: report nothing of it, give the job back now
-      const grpc::Status rs = release(job.lease_id());
-      std::cerr << "worker " << name << ": stopped computing " << job.lease_id() << " ("
-                << (rs.ok() ? "released" : "release failed: " + rs.error_message() + "; it requeues when the lease expires")
-                << ")\n";
-      break;
-    }
-    const std::vector<bistable::PointRecord>& records = *computed;
-    bistable::v1::ReportRequest rep;
-    rep.set_lease_id(job.lease_id());
-    rep.set_record_width(records.empty() ? 0 : static_cast<unsigned>(records[0].v.size()));
-    if (!CancelRequested()) rep.set_lease_next_for(name);  // on SIGTERM, take nothing new
-    for (const auto& r : records) rep.mutable_values()->Add(r.v.begin(), r.v.end());
-    for (int attempt = 0;; ++attempt) {  // reports are idempotent: retry until answered
-      bistable::v1::ReportReply rr;
-      const grpc::Status s = stub->Report(Context(30).get(), rep, &rr);
-      if (s.ok()) {
-        *done += static_cast<long>(records.size());
-        if (rr.has_next()) lease = rr.next();
-        break;
-      }
-      if (!Retryable(s) || attempt > 50 || CancelRequested()) {
-        std::cerr << "worker " << name << ": report of " << job.lease_id() << (Retryable(s) ? " not answered: " : " refused: ")
-                  << s.error_message() << (Retryable(s) ? " (its job requeues when the lease expires)" : "") << "\n";
-        break;
-      }
-      backoff.Wait();
-    }
-    backoff.Reset();
+// Jobs from a coordinator over gRPC (the wire side of worker/pull_loop.h).
+class GrpcJobSource : public bistable::JobSource {
+ public:
+  GrpcJobSource(Coordinator::Stub* stub, std::string name, SpecCache* cache) : stub_(stub), name_(std::move(name)), cache_(cache) {}
+
+  bistable::StatusOr<std::optional<bistable::LeasedJob>> Lease() override {
+    bistable::v1::LeaseRequest req;
+    req.set_worker(name_);
+    bistable::v1::LeaseReply rep;
+    const grpc::Status s = stub_->Lease(Context(10).get(), req, &rep);
+    if (!s.ok()) return bistable::FromGrpcStatus(s);
+    return FromReply(rep);
   }
-  if (lease.has_job()) release(lease.lease_id());  // stopping with a job leased by the last report: give it back
+  void Heartbeat(const bistable::LeasedJob& job) override {
+    bistable::v1::HeartbeatRequest hb;
+    hb.set_lease_id(job.lease_id);
+    bistable::v1::HeartbeatReply hr;
+    stub_->Heartbeat(Context(5).get(), hb, &hr);
+  }
+  bistable::Status Report(const bistable::LeasedJob& job, const std::vector<bistable::PointRecord>& records,
+                          std::optional<bistable::LeasedJob>* next) override {
+    bistable::v1::ReportRequest req;
+    req.set_lease_id(job.lease_id);
+    req.set_record_width(records.empty() ? 0 : static_cast<unsigned>(records[0].v.size()));
+    req.set_catalog_hash(bistable::CatalogHash());
+    if (next) req.set_lease_next_for(name_);
+    for (const auto& r : records) req.mutable_values()->Add(r.v.begin(), r.v.end());
+    bistable::v1::ReportReply rep;
+    const grpc::Status s = stub_->Report(Context(30).get(), req, &rep);
+    if (!s.ok()) return bistable::FromGrpcStatus(s);
+    if (next && rep.has_next()) {
+      auto job_next = FromReply(rep.next());
+      if (job_next.ok()) *next = std::move(*job_next);
+    }
+    return bistable::Status::Ok();
+  }
+  bistable::Status Release(const bistable::LeasedJob& job) override { return ReleaseId(job.lease_id); }
+
+ private:
+  bistable::Status ReleaseId(const std::string& lease_id) {
+    bistable::v1::ReleaseRequest req;
+    req.set_lease_id(lease_id);
+    bistable::v1::ReleaseReply rep;
+    return bistable::FromGrpcStatus(stub_->Release(Context(5).get(), req, &rep));
+  }
+  // A lease reply as a job; a spec this build cannot parse is released and refused.
+  bistable::StatusOr<std::optional<bistable::LeasedJob>> FromReply(const bistable::v1::LeaseReply& rep) {
+    if (!rep.has_job()) return std::optional<bistable::LeasedJob>();
+    auto spec = cache_->Get(rep.sweep_id(), rep.spec_toml());
+    if (!spec.ok()) {
+      ReleaseId(rep.lease_id());
+      return bistable::Status::FailedPrecondition("cannot parse the spec of sweep " + rep.sweep_id() + " (released): " +
+                                                  spec.status().ToString());
+    }
+    if (rep.points_size() != rep.ics_size()) {
+      ReleaseId(rep.lease_id());
+      return bistable::Status::FailedPrecondition("malformed lease of sweep " + rep.sweep_id() + " (released)");
+    }
+    bistable::LeasedJob job{rep.lease_id(), *spec, {}};
+    job.items.resize(rep.points_size());
+    for (int i = 0; i < rep.points_size(); ++i) job.items[i] = {rep.points(i), rep.ics(i)};
+    return std::optional<bistable::LeasedJob>(std::move(job));
+  }
+
+  Coordinator::Stub* stub_;
+  std::string name_;
+  SpecCache* cache_;
+};
+
+bool Retryable(const grpc::Status& s) {
+  return s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
 }
 
 }  // namespace
@@ -164,7 +134,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   if (threads < 0 || threads > 1024) {
     std::cerr << "error: invalid argument (threads: threads = " << threads << " violates threads in [0, 1024])\n";
-    return 2;
+    return bistable::kExitError;
   }
   if (threads == 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   if (name.empty()) {
@@ -175,18 +145,18 @@ int main(int argc, char** argv) {
   auto token = bistable::LoadToken(token_file);
   if (!token.ok()) {
     std::cerr << "error: " << token.status().ToString() << "\n";
-    return 2;
+    return bistable::kExitError;
   }
   g_conn = {coordinator, tls_ca, *token};
   auto channel = bistable::MakeChannel(g_conn);
   if (!channel.ok()) {
     std::cerr << "error: " << channel.status().ToString() << "\n";
-    return 2;
+    return bistable::kExitError;
   }
   auto stub = Coordinator::NewStub(*channel);
   bistable::InstallCancelSignalHandlers();
   double lease_seconds = 60;
-  Backoff backoff;
+  bistable::Backoff backoff;
   while (!CancelRequested()) {  // register (waits for the coordinator to come up)
     bistable::v1::RegisterRequest req;
     req.set_name(name);
@@ -199,7 +169,7 @@ int main(int argc, char** argv) {
     }
     if (!Retryable(s)) {
       std::cerr << "error: " << bistable::FromGrpcStatus(s).ToString() << "\n";
-      return 2;
+      return bistable::kExitError;
     }
     backoff.Wait();
   }
@@ -207,7 +177,13 @@ int main(int argc, char** argv) {
   std::atomic<long> done{0};
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t)
-    pool.emplace_back(PullLoop, stub.get(), name, lease_seconds, &cache, &done);
+    pool.emplace_back([&] {
+      GrpcJobSource source(stub.get(), name, &cache);
+      bistable::PullLoopOptions opt;
+      opt.name = "worker " + name;
+      opt.heartbeat_seconds = lease_seconds / 3;
+      done += bistable::RunPullLoop(source, opt).items;
+    });
   for (auto& th : pool) th.join();
   std::cerr << "worker " << name << ": stopped after " << done.load() << " items\n";
   return 0;

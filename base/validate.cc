@@ -1,4 +1,4 @@
-#include "dynamics/validate.h"
+#include "base/validate.h"
 
 #include <cmath>
 #include <sstream>

@@ -1,8 +1,8 @@
 // Status values at module boundaries (after leveldb's include/leveldb/status.h).
 // A Status is either OK or carries a code, the field it concerns and a human message.
 // Non-convergence of a numerical method is NOT a Status error: it is a result with a termination code.
-#ifndef BISTABLE_DYNAMICS_STATUS_H_
-#define BISTABLE_DYNAMICS_STATUS_H_
+#ifndef BISTABLE_BASE_STATUS_H_
+#define BISTABLE_BASE_STATUS_H_
 
 #include <optional>
 #include <string>
@@ -78,4 +78,4 @@ class StatusOr {
 
 }  // namespace bistable
 
-#endif  // BISTABLE_DYNAMICS_STATUS_H_
+#endif  // BISTABLE_BASE_STATUS_H_

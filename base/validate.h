@@ -1,11 +1,11 @@
 // Field checks shared by every options struct: each returns InvalidArgument naming the field and the
 // bound it violates, in one format: "alpha = -1 violates alpha > 0".
-#ifndef BISTABLE_DYNAMICS_VALIDATE_H_
-#define BISTABLE_DYNAMICS_VALIDATE_H_
+#ifndef BISTABLE_BASE_VALIDATE_H_
+#define BISTABLE_BASE_VALIDATE_H_
 
 #include <string>
 
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 
@@ -18,4 +18,4 @@ Status CheckNonNegative(const std::string& field, double v);  // finite and >= 0
 
 }  // namespace bistable
 
-#endif  // BISTABLE_DYNAMICS_VALIDATE_H_
+#endif  // BISTABLE_BASE_VALIDATE_H_

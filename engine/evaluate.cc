@@ -1,11 +1,16 @@
-#include "worker/block_worker.h"
+#include "engine/evaluate.h"
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 
+#include "base/limits.h"
 #include "dynamics/cancel.h"
+#include "dynamics/generic_point.h"
 #include "dynamics/point.h"
 
 namespace bistable {
+
 
 std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepSpec& spec,
                                                                     const std::vector<WorkItem>& items) {
@@ -39,7 +44,7 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
     for (size_t i = 0; i < items.size(); ++i) {
       if (CancelRequested()) return std::nullopt;
       // A cancelled evaluation comes back as a diverged record; the check below discards the job.
-      out[i] = PointRecord::From(spec.EvaluateItem(items[i].point, items[i].ic), turning);
+      out[i] = PointRecord::From(EvaluateItem(spec, items[i].point, items[i].ic), turning);
     }
   } else {
     const PointSpec first = spec.PointAt(0, 0);
@@ -65,6 +70,70 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
 std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<WorkItem>& items) {
   auto records = ComputeItemsUnlessCancelled(spec, items);
   return records ? std::move(*records) : std::vector<PointRecord>{};
+}
+
+
+PointResult EvaluateItem(const SweepSpec& spec, long index, int ic) {
+  const PointSpec p = spec.PointAt(index, ic);
+  if (spec.kind == SweepModel::kCell) {
+    auto r = EvaluatePoint(p);
+    return r.ok() ? *r : PointResult{Termination::kDiverged};
+  }
+  PointSpec proxy = p;  // carries window, metric settings and the motion classification's model kind
+  GenericWindow w;
+  w.t_end = p.integration.t_end;
+  w.t_keep = p.integration.t_keep;
+  w.dt = p.integration.dt;
+  w.adaptive = p.integration.integrator == IntegratorKind::kAdaptive;
+  w.tol.rtol = p.integration.rtol;
+  w.tol.atol = p.integration.atol;
+  w.renorm_every = p.metrics.renorm_every;
+  w.sample_every = p.metrics.sample_every;
+  RawLane raw;
+  if (spec.kind == SweepModel::kSeries) {
+    const std::vector<SeriesCell> cells = spec.SeriesCells(p);
+    SeriesModel m(cells, p.alpha, p.omega);
+    const int last = m.cells() - 1;
+    const int yl = m.MainIndex(last), yp = last > 0 ? m.MainIndex(last - 1) : -1;
+    w.position = [yl, yp](const Eigen::VectorXd& x) { return x[yl] - (yp >= 0 ? x[yp] : 0.0); };
+    w.velocity = [yl](const Eigen::VectorXd& x) { return x[yl + 1]; };
+    w.amp = p.alpha;
+    w.omega = p.omega;
+    proxy.model = spec.series.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
+    raw = RunGenericWindow(m, m.WellState(), w);
+  } else {
+    const DimensionalParams& dp = spec.dimensional.params;
+    const double a0 = p.alpha * 1e-3, f0 = p.omega, omega = 2.0 * M_PI * f0;
+    DimensionalModel m(dp, SineBase(a0, f0));
+    const double delta_s = spec.dimensional.bistable ? std::sqrt(-dp.k_lin / dp.k3) : 0.0;
+    Eigen::VectorXd x0 = Eigen::VectorXd::Zero(4);
+    if (p.ic_given) {
+      for (int i = 0; i < 4; ++i) x0[i] = p.ic[i];
+    } else {
+      x0[0] = delta_s;  // at rest in the positive well (linear beam: at rest at the origin)
+    }
+    w.position = [](const Eigen::VectorXd& x) { return x[0]; };
+    w.velocity = [](const Eigen::VectorXd& x) { return x[1]; };
+    w.amp = a0;
+    w.omega = omega;
+    w.adaptive = true;
+    proxy.model = spec.dimensional.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
+    proxy.alpha = a0;
+    proxy.omega = omega;
+    // Stroboscopic repetition tolerance in metres (and m/s): period_tol in units of δs (or of A0).
+    proxy.metrics.period_tol = p.metrics.period_tol * (delta_s > 0 ? delta_s : a0);
+    raw = RunGenericWindow(m, x0, w);
+  }
+  return ComputePointMetrics(std::move(raw), proxy);
+}
+
+long JobItems(const SweepSpec& spec, double seconds, long min_jobs) {
+  const double steps = spec.base.integration.t_end / spec.base.integration.dt;
+  const double per_item = steps / 1.5e7 * (spec.UsesKernel() ? 1.0 : 8.0);
+  long n = static_cast<long>(std::min(seconds / std::max(per_item, 1e-9), 1e9));
+  if (min_jobs > 0) n = std::min(n, (spec.points() * spec.ic_count() + min_jobs - 1) / min_jobs);
+  n = std::clamp<long>(n, kSweepLanes, limits::kMaxJobItems);
+  return n / kSweepLanes * kSweepLanes;
 }
 
 }  // namespace bistable

@@ -1,4 +1,4 @@
-#include "dynamics/status.h"
+#include "base/status.h"
 
 namespace bistable {
 

@@ -1,0 +1,43 @@
+// How a sweep's items become records — the one place: the SIMD ensemble kernel for RK4 cell models
+// (kSweepLanes lanes per call), the generic per-point path for series chains, the dimensional model and
+// adaptive integration, continuation chains in order, and the size of the jobs they are cut into.
+// Each item's record equals what `bistable point` prints for the same settings, bit for bit.
+// Used by the worker process and the embedded `bistable run` (through worker/pull_loop.h) alike.
+// Thread-safe: no shared state; run one job per thread.
+#ifndef BISTABLE_ENGINE_EVALUATE_H_
+#define BISTABLE_ENGINE_EVALUATE_H_
+
+#include <optional>
+#include <vector>
+
+#include "engine/metric_catalog.h"
+#include "engine/sweep_spec.h"
+
+namespace bistable {
+
+// Lanes per kernel call in sweeps: 8 measured fastest on AVX-512 (docs/numerics.md).
+inline constexpr int kSweepLanes = 8;
+
+// The job's records, or nullopt when cancellation (dynamics/cancel.h) was requested before the job
+// finished: an integration may have stopped early, so no record of the job may be reported or stored
+// — give the lease back instead. Records returned are complete (the flag was still clear at the end).
+std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepSpec& spec,
+                                                                    const std::vector<WorkItem>& items);
+
+// ComputeItemsUnlessCancelled for callers that never cancel (tests, benches): an empty vector when
+// cancelled, which no coordinator accepts as a job's report.
+std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<WorkItem>& items);
+
+// One item outside the kernel (series, dimensional, adaptive cell models). An evaluation error is
+// returned as a diverged result (termination 1) — the spec was validated, so only a degenerate run
+// gets there.
+PointResult EvaluateItem(const SweepSpec& spec, long index, int ic);
+
+// Items per job: about `seconds` of work on one core (≈ 1.5e7 lane-steps/s with metrics; points off
+// the kernel count 8 times as much), but at least `min_jobs` jobs where the sweep has the items (so
+// the last jobs balance across workers); a multiple of kSweepLanes in [kSweepLanes, limits::kMaxJobItems].
+long JobItems(const SweepSpec& spec, double seconds, long min_jobs = 0);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_ENGINE_EVALUATE_H_

@@ -1,0 +1,106 @@
+#include "worker/pull_loop.h"
+
+#include <chrono>
+#include <cstdio>
+#include <future>
+#include <thread>
+
+#include "dynamics/cancel.h"
+
+namespace bistable {
+
+void SleepUnlessCancelled(double seconds) {
+  const auto end = std::chrono::steady_clock::now() +
+                   std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(seconds));
+  const std::chrono::steady_clock::duration slice = std::chrono::milliseconds(20);
+  while (!CancelRequested()) {
+    const auto left = end - std::chrono::steady_clock::now();
+    if (left <= std::chrono::steady_clock::duration::zero()) break;
+    std::this_thread::sleep_for(left < slice ? left : slice);
+  }
+}
+
+void Backoff::Wait() {
+  SleepUnlessCancelled(delay_);
+  delay_ = std::min(5.0, delay_ * 2);
+}
+
+namespace {
+
+bool Transient(const Status& st) { return st.code() == Status::Code::kIoError; }
+
+// Computes the job, heartbeating its lease meanwhile when asked to.
+std::optional<std::vector<PointRecord>> Compute(JobSource& source, const LeasedJob& job, double heartbeat_seconds) {
+  if (heartbeat_seconds <= 0) return ComputeItemsUnlessCancelled(*job.spec, job.items);
+  auto work = std::async(std::launch::async, [&] { return ComputeItemsUnlessCancelled(*job.spec, job.items); });
+  // The computation stops within milliseconds of a cancellation, so waiting for it is short then.
+  while (work.wait_for(std::chrono::duration<double>(heartbeat_seconds)) != std::future_status::ready) source.Heartbeat(job);
+  return work.get();
+}
+
+}  // namespace
+
+PullLoopResult RunPullLoop(JobSource& source, const PullLoopOptions& opt) {
+  PullLoopResult result;
+  Backoff backoff;
+  std::optional<LeasedJob> next;  // leased by the previous report
+  auto stopping = [&] { return CancelRequested() || (opt.stop && opt.stop()); };
+  auto fail = [&](const Status& st) {
+    if (result.error.ok()) result.error = st;
+  };
+  while (!stopping()) {
+    if (!next) {
+      auto leased = source.Lease();
+      if (!leased.ok()) {
+        if (!Transient(leased.status()) && opt.log)
+          std::fprintf(stderr, "%s: lease refused: %s\n", opt.name.c_str(), leased.status().ToString().c_str());
+        if (opt.stop_on_error && !Transient(leased.status())) {
+          fail(leased.status());
+          break;
+        }
+        backoff.Wait();
+        continue;
+      }
+      next = std::move(*leased);
+    }
+    backoff.Reset();
+    if (!next) {
+      if (opt.until_idle) break;
+      SleepUnlessCancelled(opt.idle_poll_seconds);
+      continue;
+    }
+    const LeasedJob job = std::move(*next);
+    next.reset();
+    const std::optional<std::vector<PointRecord>> records = Compute(source, job, opt.heartbeat_seconds);
+    if (!records) {  // cancelled mid-job: report nothing of it, give the job back now
+      const Status rs = source.Release(job);
+      if (opt.log)
+        std::fprintf(stderr, "%s: stopped computing %s (%s)\n", opt.name.c_str(), job.lease_id.c_str(),
+                     rs.ok() ? "released" : ("release failed: " + rs.ToString() + "; it requeues when the lease expires").c_str());
+      break;
+    }
+    for (int attempt = 0;; ++attempt) {  // reports are idempotent: retry transient failures
+      const Status st = source.Report(job, *records, stopping() ? nullptr : &next);
+      if (st.ok()) {
+        result.items += static_cast<long>(records->size());
+        if (opt.on_items) opt.on_items(static_cast<long>(records->size()));
+        break;
+      }
+      if (!Transient(st) || attempt >= opt.report_retries || CancelRequested()) {
+        if (opt.log)
+          std::fprintf(stderr, "%s: report of %s %s: %s%s\n", opt.name.c_str(), job.lease_id.c_str(),
+                       Transient(st) ? "not answered" : "refused", st.ToString().c_str(),
+                       opt.stop_on_error ? "" : " (its job requeues when the lease expires)");
+        fail(st);
+        break;
+      }
+      backoff.Wait();
+    }
+    backoff.Reset();
+    if (opt.stop_on_error && !result.error.ok()) break;
+  }
+  if (next) source.Release(*next);  // stopping with a job leased by the last report: give it back
+  return result;
+}
+
+}  // namespace bistable
