@@ -377,20 +377,10 @@ std::string SweepSpec::Id() const {
   return (canonical_hash.empty() ? ContentHashHex(CanonicalText()) : canonical_hash).substr(0, 12);
 }
 
-StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& origin) {
-  if (text.size() > limits::kMaxSpecBytes)
-    return Status::InvalidArgument("spec", "spec is " + std::to_string(text.size()) + " bytes, over the limit of " +
-                                               std::to_string(limits::kMaxSpecBytes));
-  toml::table root;
-  try {
-    root = toml::parse(text, origin);
-  } catch (const toml::parse_error& e) {
-    return Status::InvalidArgument("spec", Where(e.source(), origin) + ": malformed TOML: " + std::string(e.description()));
-  }
-  BISTABLE_RETURN_IF_ERROR(CheckKeys(root, "", kTopKeys));
-  SweepSpec spec;
-  spec.source = text;
-  spec.base.metrics.rosenstein = false;  // expensive; opt in per sweep
+namespace {
+
+// name, model.
+Status ReadNameAndModel(const toml::table& root, SweepSpec& spec) {
   if (const toml::node* n = root.get("name")) {
     auto s = String(*n, "name");
     if (!s.ok()) return s.status();
@@ -415,6 +405,11 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
       spec.model = *m;
     }
   }
+  return Status::Ok();
+}
+
+// [series] (model = "series" only).
+Status ReadSeries(const toml::table& root, SweepSpec& spec) {
   if (root.get("series") && spec.kind != SweepModel::kSeries)
     return Status::InvalidArgument("series", "a [series] table needs model = \"series\"");
   if (root.get("dimensional") && spec.kind != SweepModel::kDimensional)
@@ -458,6 +453,11 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
     spec.model = spec.series.bistable ? (spec.series.resonators ? ModelKind::kCoupled : ModelKind::kStandalone)
                                       : (spec.series.resonators ? ModelKind::kLinearCoupled : ModelKind::kLinear);
   }
+  return Status::Ok();
+}
+
+// [dimensional] (model = "dimensional" only): its preset, parameters and SI defaults.
+Status ReadDimensional(const toml::table& root, SweepSpec& spec) {
   if (spec.kind == SweepModel::kDimensional) {
     spec.model = ModelKind::kStandalone;
     IntegrationSettings& in = spec.base.integration;  // seconds; DP5 with tangent
@@ -500,6 +500,11 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
         return Status::InvalidArgument("dimensional." + st.field(), st.message());
     }
   }
+  return Status::Ok();
+}
+
+// [params] and [axes]: fixed values and the grid (its size checked while it is read).
+Status ReadParamsAndAxes(const toml::table& root, SweepSpec& spec, std::set<std::string>& swept) {
   spec.base.model = spec.model;
   const bool dimensional = spec.kind == SweepModel::kDimensional;
   const std::vector<std::string>& param_keys = dimensional ? kDimensionalParamKeys : kParamKeys;
@@ -510,7 +515,6 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
     BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "params", param_keys));
     for (const std::string& k : param_keys) BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, k, "params." + k, ParamSlot(spec.base, k)));
   }
-  std::set<std::string> swept;
   if (const toml::node* n = root.get("axes")) {
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("axes", "axes must be a table");
@@ -530,6 +534,11 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
       }
     }
   }
+  return Status::Ok();
+}
+
+// [integration].
+Status ReadIntegration(const toml::table& root, SweepSpec& spec) {
   if (const toml::node* n = root.get("integration")) {
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("integration", "integration must be a table");
@@ -548,6 +557,11 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "rtol", "integration.rtol", &in.rtol));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "atol", "integration.atol", &in.atol));
   }
+  return Status::Ok();
+}
+
+// [metrics]: what is stored and the metric settings.
+Status ReadMetrics(const toml::table& root, SweepSpec& spec) {
   spec.metrics = {"frf_db", "lle", "motion", "period", "hd_index", "hd_peaks", "edr_b", "edr_r", "edr_t",
                   "energy_balance_residual", "y_min", "y_max", "termination"};
   if (const toml::node* n = root.get("metrics")) {
@@ -584,6 +598,11 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
   if (spec.base.metrics.rosenstein &&
       std::find(spec.metrics.begin(), spec.metrics.end(), "lle_rosenstein") == spec.metrics.end())
     spec.metrics.push_back("lle_rosenstein");
+  return Status::Ok();
+}
+
+// [initial_conditions].
+Status ReadInitialConditions(const toml::table& root, SweepSpec& spec) {
   if (const toml::node* n = root.get("initial_conditions")) {
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("initial_conditions", "initial_conditions must be a table");
@@ -612,6 +631,11 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
       }
     }
   }
+  return Status::Ok();
+}
+
+// [continuation].
+Status ReadContinuation(const toml::table& root, SweepSpec& spec) {
   if (const toml::node* n = root.get("continuation")) {
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("continuation", "continuation must be a table");
@@ -636,6 +660,11 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
     if (spec.initial_states.size() > 1)
       return Status::InvalidArgument("initial_conditions.states", "with continuation, give at most one start state (the chains' start)");
   }
+  return Status::Ok();
+}
+
+// [output].
+Status ReadOutput(const toml::table& root, SweepSpec& spec) {
   spec.plots = {};
   if (const toml::node* n = root.get("output")) {
     const toml::table* t = n->as_table();
@@ -657,6 +686,13 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
       if (std::find(spec.metrics.begin(), spec.metrics.end(), m) != spec.metrics.end()) spec.plots.push_back(m);
   }
 
+  return Status::Ok();
+}
+
+// Whole-spec checks after every section is read.
+Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
+  const bool dimensional = spec.kind == SweepModel::kDimensional;
+  const std::vector<std::string>& param_keys = dimensional ? kDimensionalParamKeys : kParamKeys;
   // Whole-spec checks: a representative point validates every fixed value and setting; swept values
   // are checked one axis value at a time so the message names the axis.
   auto field_of = [&](const std::string& f) {
@@ -702,6 +738,36 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
         return Violates("axes." + a.name, static_cast<double>(a.values.size()),
                         "count <= " + std::to_string(limits::kMaxJobItems) + " along the continuation axis");
   }
+  return Status::Ok();
+}
+
+}  // namespace
+
+StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& origin) {
+  if (text.size() > limits::kMaxSpecBytes)
+    return Status::InvalidArgument("spec", "spec is " + std::to_string(text.size()) + " bytes, over the limit of " +
+                                               std::to_string(limits::kMaxSpecBytes));
+  toml::table root;
+  try {
+    root = toml::parse(text, origin);
+  } catch (const toml::parse_error& e) {
+    return Status::InvalidArgument("spec", Where(e.source(), origin) + ": malformed TOML: " + std::string(e.description()));
+  }
+  BISTABLE_RETURN_IF_ERROR(CheckKeys(root, "", kTopKeys));
+  SweepSpec spec;
+  spec.source = text;
+  spec.base.metrics.rosenstein = false;  // expensive; opt in per sweep
+  BISTABLE_RETURN_IF_ERROR(ReadNameAndModel(root, spec));
+  BISTABLE_RETURN_IF_ERROR(ReadSeries(root, spec));
+  BISTABLE_RETURN_IF_ERROR(ReadDimensional(root, spec));
+  std::set<std::string> swept;
+  BISTABLE_RETURN_IF_ERROR(ReadParamsAndAxes(root, spec, swept));
+  BISTABLE_RETURN_IF_ERROR(ReadIntegration(root, spec));
+  BISTABLE_RETURN_IF_ERROR(ReadMetrics(root, spec));
+  BISTABLE_RETURN_IF_ERROR(ReadInitialConditions(root, spec));
+  BISTABLE_RETURN_IF_ERROR(ReadContinuation(root, spec));
+  BISTABLE_RETURN_IF_ERROR(ReadOutput(root, spec));
+  BISTABLE_RETURN_IF_ERROR(CheckWholeSpec(spec, swept));
   spec.canonical_hash = ContentHashHex(spec.CanonicalText());
   return spec;
 }
