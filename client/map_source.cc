@@ -4,18 +4,17 @@
 
 #include "base/limits.h"
 #include "base/names.h"
-#include "bistable.grpc.pb.h"
 #include "client/cli_common.h"
-#include "proto/status_convert.h"
+#include "proto/coordinator_client.h"
 #include "storage/metric_name.h"
 
 namespace bistable {
 namespace {
 
-StatusOr<ConnectOptions> Connection(const MapSource& s) {
+StatusOr<std::unique_ptr<CoordinatorClient>> Client(const MapSource& s) {
   auto token = LoadToken(s.token_file);
   if (!token.ok()) return token.status();
-  return ConnectOptions{s.coordinator, s.tls_ca, *token};
+  return CoordinatorClient::Connect({s.coordinator, s.tls_ca, *token});
 }
 
 // A metric name is a plain dataset name: never sent or opened when it could be an HDF5 path. (Which
@@ -29,11 +28,6 @@ Status CheckPlainMetricName(const std::string& metric) {
                                                "'.', '..', NUL or newline, at most 64 bytes)");
 }
 
-Status Remote(const grpc::Status& st, const std::string& addr) {
-  if (st.error_code() == grpc::StatusCode::UNAVAILABLE || st.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED)
-    return Status::IoError("coordinator", "cannot reach " + addr + " (" + st.error_message() + ")");
-  return FromGrpcStatus(st);
-}
 
 }  // namespace
 
@@ -47,18 +41,13 @@ StatusOr<std::vector<std::string>> MapSource::Metrics(const std::string& id_or_p
       return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (state " + SweepStateName(ref->row.state) + ")");
     return ListMapMetrics(ref->map_path);
   }
-  auto conn = Connection(*this);
-  if (!conn.ok()) return conn.status();
-  auto ch = MakeChannel(*conn);
-  if (!ch.ok()) return ch.status();
-  v1::MapRequest req;
-  req.set_id(id_or_prefix);
-  v1::MetricsReply rep;
-  const grpc::Status st = v1::Coordinator::NewStub(*ch)->ListMetrics(CallContext(*conn, 60).get(), req, &rep);
-  if (!st.ok()) return Remote(st, coordinator);
-  *id = rep.id();
-  *name = rep.name();
-  return std::vector<std::string>(rep.metrics().begin(), rep.metrics().end());
+  auto client = Client(*this);
+  if (!client.ok()) return client.status();
+  auto list = (*client)->ListMetrics(id_or_prefix);
+  if (!list.ok()) return list.status();
+  *id = list->id;
+  *name = list->name;
+  return list->metrics;
 }
 
 StatusOr<MapArray> MapSource::Metric(const std::string& id, const std::string& metric) const {
@@ -72,25 +61,9 @@ StatusOr<MapArray> MapSource::Metric(const std::string& id, const std::string& m
                                         " stored); rerun it to finish");
     return ReadMapMetric(ref->map_path, metric);
   }
-  auto conn = Connection(*this);
-  if (!conn.ok()) return conn.status();
-  auto ch = MakeChannel(*conn);
-  if (!ch.ok()) return ch.status();
-  v1::MapRequest req;
-  req.set_id(id);
-  req.set_metric(metric);
-  v1::MapReply rep;
-  const grpc::Status st = v1::Coordinator::NewStub(*ch)->GetMap(CallContext(*conn, 120).get(), req, &rep);
-  if (!st.ok()) return Remote(st, coordinator);
-  MapArray m;
-  m.metric = rep.metric();
-  m.unit = rep.unit();
-  m.definition = rep.definition();
-  for (const auto& a : rep.axes()) m.axes.push_back(Axis{a.name(), std::vector<double>(a.values().begin(), a.values().end())});
-  for (auto d : rep.dims()) m.dims.push_back(d);
-  m.dim_names.assign(rep.dim_names().begin(), rep.dim_names().end());
-  m.values.assign(rep.values().begin(), rep.values().end());
-  return m;
+  auto client = Client(*this);
+  if (!client.ok()) return client.status();
+  return (*client)->GetMap(id, metric);
 }
 
 }  // namespace bistable

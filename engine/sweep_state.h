@@ -6,6 +6,7 @@
 #define BISTABLE_ENGINE_SWEEP_STATE_H_
 
 #include <optional>
+#include <string>
 #include <string_view>
 
 namespace bistable {
@@ -35,6 +36,25 @@ constexpr std::optional<SweepState> ParseSweepState(std::string_view name) {
 constexpr bool IsFinal(SweepState s) {
   return s == SweepState::kDone || s == SweepState::kFailed || s == SweepState::kCancelled;
 }
+
+// What a coordinator tells about a sweep (status, listings; the wire's SweepStatus).
+struct SweepInfo {
+  std::string id, name, model, owner;
+  SweepState state = SweepState::kQueued;
+  long items_total = 0, items_done = 0, items_cached = 0;
+  int workers = 0;         // workers holding a lease of this sweep now
+  double seconds = 0;      // since submission (or total, when done)
+  std::string file;        // published map, relative to the data dir
+  std::string error;       // last storage / publication failure ("" once a report is stored again)
+};
+
+// What a coordinator tells about a worker (`bistable workers`; the wire's WorkerStatus).
+struct WorkerInfo {
+  std::string name;
+  double last_seen = 0;    // unix seconds
+  int leases = 0;          // leases held now
+  long items_done = 0;     // items reported and stored
+};
 
 }  // namespace bistable
 

@@ -8,6 +8,7 @@
 
 #include "base/limits.h"
 #include "engine/evaluate.h"
+#include "proto/convert.h"
 #include "proto/status_convert.h"
 #include "storage/map_file.h"
 
@@ -51,19 +52,6 @@ Status CheckLeaseId(const std::string& id) {
   return Status::Ok();
 }
 
-void Fill(const SweepInfo& i, v1::SweepStatus* s) {
-  s->set_id(i.id);
-  s->set_state(SweepStateName(i.state));
-  s->set_points_done(i.items_done);
-  s->set_points_total(i.items_total);
-  s->set_points_cached(i.items_cached);
-  s->set_workers(i.workers);
-  s->set_seconds(i.seconds);
-  s->set_file(i.file);
-  s->set_name(i.name);
-  s->set_model(i.model);
-  s->set_error(i.error);
-}
 
 }  // namespace
 
@@ -108,7 +96,7 @@ grpc::Status CoordinatorService::GetStatus(grpc::ServerContext* ctx, const v1::S
   if (!id.ok()) return ToGrpcStatus(id.status());
   auto info = c_->Info(*id);
   if (!info.ok()) return ToGrpcStatus(info.status());
-  Fill(*info, rep);
+  ToProto(*info, rep);
   return grpc::Status::OK;
 }
 
@@ -129,7 +117,7 @@ grpc::Status CoordinatorService::WatchStatus(grpc::ServerContext* ctx, const v1:
     if (!final_state && std::chrono::steady_clock::now() < due) std::this_thread::sleep_until(due);
     last = std::chrono::steady_clock::now();
     v1::SweepStatus s;
-    Fill(*info, &s);
+    ToProto(*info, &s);
     if (!writer->Write(s)) break;
     if (final_state) break;
   }
@@ -156,7 +144,7 @@ grpc::Status CoordinatorService::ListSweeps(grpc::ServerContext* ctx, const v1::
   if (Status st = tokens_.Check(ctx, Op::kList, &who); !st.ok()) return ToGrpcStatus(st);
   auto infos = c_->ListSweeps();
   if (!infos.ok()) return ToGrpcStatus(infos.status());
-  for (const SweepInfo& info : *infos) Fill(info, rep->add_sweeps());
+  for (const SweepInfo& info : *infos) ToProto(info, rep->add_sweeps());
   return grpc::Status::OK;
 }
 
@@ -176,18 +164,7 @@ grpc::Status CoordinatorService::GetMap(grpc::ServerContext* ctx, const v1::MapR
   }
   auto m = ReadMapMetric(map->second, req->metric());
   if (!m.ok()) return ToGrpcStatus(m.status());
-  rep->set_metric(m->metric);
-  rep->set_unit(m->unit);
-  rep->set_definition(m->definition);
-  for (const Axis& a : m->axes) {
-    v1::Axis* ax = rep->add_axes();
-    ax->set_name(a.name);
-    ax->set_unit(AxisUnit(a.name));
-    for (double v : a.values) ax->add_values(v);
-  }
-  for (size_t d : m->dims) rep->add_dims(d);
-  for (const auto& n : m->dim_names) rep->add_dim_names(n);
-  rep->mutable_values()->Add(m->values.begin(), m->values.end());
+  ToProto(*m, rep);
   return grpc::Status::OK;
 }
 
@@ -234,7 +211,7 @@ Status CoordinatorService::LeaseInto(const std::string& worker, v1::LeaseReply* 
   rep->set_sweep_id(g->sweep_id);
   rep->set_job_id(g->job_id);
   rep->set_spec_toml(*spec);
-  for (const WorkItem& w : g->items) rep->add_points(w.point), rep->add_ics(w.ic);
+  ToProto(g->items, rep);
   rep->set_deadline(g->deadline);
   return Status::Ok();
 }
@@ -277,13 +254,7 @@ grpc::Status CoordinatorService::Release(grpc::ServerContext* ctx, const v1::Rel
 grpc::Status CoordinatorService::ListWorkers(grpc::ServerContext* ctx, const v1::ListWorkersRequest*, v1::ListWorkersReply* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kWorkers, &who); !st.ok()) return ToGrpcStatus(st);
-  for (const WorkerInfo& w : c_->Workers()) {
-    v1::WorkerStatus* s = rep->add_workers();
-    s->set_name(w.name);
-    s->set_last_seen(w.last_seen);
-    s->set_leases(w.leases);
-    s->set_items_done(w.items_done);
-  }
+  for (const WorkerInfo& w : c_->Workers()) ToProto(w, rep->add_workers());
   return grpc::Status::OK;
 }
 

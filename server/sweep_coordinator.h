@@ -59,23 +59,6 @@ struct LeaseGrant {
   double deadline = 0;     // unix seconds
 };
 
-struct SweepInfo {
-  std::string id, name, model, owner;
-  SweepState state = SweepState::kQueued;
-  long items_total = 0, items_done = 0, items_cached = 0;
-  int workers = 0;         // workers holding a lease of this sweep now
-  double seconds = 0;      // since submission (or total, when done)
-  std::string file;        // published map, relative to the data dir
-  std::string error;       // last storage / publication failure ("" once a report is stored again)
-};
-
-struct WorkerInfo {
-  std::string name;
-  double last_seen = 0;    // unix seconds
-  int leases = 0;          // leases held now
-  long items_done = 0;     // items reported and stored
-};
-
 class SweepCoordinator {
  public:
   struct Options {

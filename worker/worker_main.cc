@@ -14,22 +14,16 @@
 #include <thread>
 
 #include <CLI/CLI.hpp>
-#include <grpcpp/grpcpp.h>
 
 #include "base/exit_codes.h"
-#include "bistable.grpc.pb.h"
 #include "dynamics/cancel.h"
-#include "proto/channel.h"
-#include "proto/status_convert.h"
+#include "proto/coordinator_client.h"
 #include "worker/pull_loop.h"
 
 namespace {
 
-using bistable::v1::Coordinator;
 using bistable::CancelRequested;
-
-bistable::ConnectOptions g_conn;
-std::unique_ptr<grpc::ClientContext> Context(double seconds) { return bistable::CallContext(g_conn, seconds); }
+using bistable::CoordinatorClient;
 
 // Parsed specs by sweep id, shared by the pull loops of this process.
 struct SpecCache {
@@ -47,78 +41,46 @@ struct SpecCache {
   }
 };
 
-// Jobs from a coordinator over gRPC (the wire side of worker/pull_loop.h).
+// Jobs from a coordinator over gRPC: the worker's side of worker/pull_loop.h.
 class GrpcJobSource : public bistable::JobSource {
  public:
-  GrpcJobSource(Coordinator::Stub* stub, std::string name, SpecCache* cache) : stub_(stub), name_(std::move(name)), cache_(cache) {}
+  GrpcJobSource(CoordinatorClient* c, std::string name, SpecCache* cache) : c_(c), name_(std::move(name)), cache_(cache) {}
 
   bistable::StatusOr<std::optional<bistable::LeasedJob>> Lease() override {
-    bistable::v1::LeaseRequest req;
-    req.set_worker(name_);
-    bistable::v1::LeaseReply rep;
-    const grpc::Status s = stub_->Lease(Context(10).get(), req, &rep);
-    if (!s.ok()) return bistable::FromGrpcStatus(s);
-    return FromReply(rep);
+    auto lease = c_->LeaseJob(name_);
+    if (!lease.ok()) return lease.status();
+    return ToJob(std::move(*lease));
   }
-  void Heartbeat(const bistable::LeasedJob& job) override {
-    bistable::v1::HeartbeatRequest hb;
-    hb.set_lease_id(job.lease_id);
-    bistable::v1::HeartbeatReply hr;
-    stub_->Heartbeat(Context(5).get(), hb, &hr);
-  }
+  void Heartbeat(const bistable::LeasedJob& job) override { (void)c_->Heartbeat(job.lease_id); }
   bistable::Status Report(const bistable::LeasedJob& job, const std::vector<bistable::PointRecord>& records,
                           std::optional<bistable::LeasedJob>* next) override {
-    bistable::v1::ReportRequest req;
-    req.set_lease_id(job.lease_id);
-    req.set_record_width(records.empty() ? 0 : static_cast<unsigned>(records[0].v.size()));
-    req.set_catalog_hash(bistable::CatalogHash());
-    if (next) req.set_lease_next_for(name_);
-    for (const auto& r : records) req.mutable_values()->Add(r.v.begin(), r.v.end());
-    bistable::v1::ReportReply rep;
-    const grpc::Status s = stub_->Report(Context(30).get(), req, &rep);
-    if (!s.ok()) return bistable::FromGrpcStatus(s);
-    if (next && rep.has_next()) {
-      auto job_next = FromReply(rep.next());
-      if (job_next.ok()) *next = std::move(*job_next);
+    std::optional<CoordinatorClient::Lease> following;
+    BISTABLE_RETURN_IF_ERROR(c_->Report(job.lease_id, records, next ? name_ : "", next ? &following : nullptr));
+    if (next && following) {
+      auto j = ToJob(std::move(following));
+      if (j.ok()) *next = std::move(*j);
     }
     return bistable::Status::Ok();
   }
-  bistable::Status Release(const bistable::LeasedJob& job) override { return ReleaseId(job.lease_id); }
+  bistable::Status Release(const bistable::LeasedJob& job) override { return c_->Release(job.lease_id); }
 
  private:
-  bistable::Status ReleaseId(const std::string& lease_id) {
-    bistable::v1::ReleaseRequest req;
-    req.set_lease_id(lease_id);
-    bistable::v1::ReleaseReply rep;
-    return bistable::FromGrpcStatus(stub_->Release(Context(5).get(), req, &rep));
-  }
-  // A lease reply as a job; a spec this build cannot parse is released and refused.
-  bistable::StatusOr<std::optional<bistable::LeasedJob>> FromReply(const bistable::v1::LeaseReply& rep) {
-    if (!rep.has_job()) return std::optional<bistable::LeasedJob>();
-    auto spec = cache_->Get(rep.sweep_id(), rep.spec_toml());
+  // A lease as a job; a spec this build cannot parse is released and refused.
+  bistable::StatusOr<std::optional<bistable::LeasedJob>> ToJob(std::optional<CoordinatorClient::Lease> lease) {
+    if (!lease) return std::optional<bistable::LeasedJob>();
+    auto spec = cache_->Get(lease->sweep_id, lease->spec_toml);
     if (!spec.ok()) {
-      ReleaseId(rep.lease_id());
-      return bistable::Status::FailedPrecondition("cannot parse the spec of sweep " + rep.sweep_id() + " (released): " +
+      (void)c_->Release(lease->lease_id);
+      return bistable::Status::FailedPrecondition("cannot parse the spec of sweep " + lease->sweep_id + " (released): " +
                                                   spec.status().ToString());
     }
-    if (rep.points_size() != rep.ics_size()) {
-      ReleaseId(rep.lease_id());
-      return bistable::Status::FailedPrecondition("malformed lease of sweep " + rep.sweep_id() + " (released)");
-    }
-    bistable::LeasedJob job{rep.lease_id(), *spec, {}};
-    job.items.resize(rep.points_size());
-    for (int i = 0; i < rep.points_size(); ++i) job.items[i] = {rep.points(i), rep.ics(i)};
-    return std::optional<bistable::LeasedJob>(std::move(job));
+    return std::optional<bistable::LeasedJob>(bistable::LeasedJob{lease->lease_id, *spec, std::move(lease->items)});
   }
 
-  Coordinator::Stub* stub_;
+  CoordinatorClient* c_;
   std::string name_;
   SpecCache* cache_;
 };
-
-bool Retryable(const grpc::Status& s) {
-  return s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED;
-}
 
 }  // namespace
 
@@ -147,28 +109,23 @@ int main(int argc, char** argv) {
     std::cerr << "error: " << token.status().ToString() << "\n";
     return bistable::kExitError;
   }
-  g_conn = {coordinator, tls_ca, *token};
-  auto channel = bistable::MakeChannel(g_conn);
-  if (!channel.ok()) {
-    std::cerr << "error: " << channel.status().ToString() << "\n";
+  auto client = CoordinatorClient::Connect({coordinator, tls_ca, *token});
+  if (!client.ok()) {
+    std::cerr << "error: " << client.status().ToString() << "\n";
     return bistable::kExitError;
   }
-  auto stub = Coordinator::NewStub(*channel);
+  CoordinatorClient& c = **client;
   bistable::InstallCancelSignalHandlers();
   double lease_seconds = 60;
   bistable::Backoff backoff;
   while (!CancelRequested()) {  // register (waits for the coordinator to come up)
-    bistable::v1::RegisterRequest req;
-    req.set_name(name);
-    req.set_threads(threads);
-    bistable::v1::RegisterReply rep;
-    const grpc::Status s = stub->RegisterWorker(Context(5).get(), req, &rep);
-    if (s.ok()) {
-      lease_seconds = rep.lease_seconds();
+    auto reg = c.Register(name, threads);
+    if (reg.ok()) {
+      lease_seconds = *reg;
       break;
     }
-    if (!Retryable(s)) {
-      std::cerr << "error: " << bistable::FromGrpcStatus(s).ToString() << "\n";
+    if (reg.status().code() != bistable::Status::Code::kIoError) {
+      std::cerr << "error: " << reg.status().ToString() << "\n";
       return bistable::kExitError;
     }
     backoff.Wait();
@@ -178,7 +135,7 @@ int main(int argc, char** argv) {
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t)
     pool.emplace_back([&] {
-      GrpcJobSource source(stub.get(), name, &cache);
+      GrpcJobSource source(&c, name, &cache);
       bistable::PullLoopOptions opt;
       opt.name = "worker " + name;
       opt.heartbeat_seconds = lease_seconds / 3;

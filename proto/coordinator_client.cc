@@ -1,0 +1,168 @@
+#include "proto/coordinator_client.h"
+
+#include "bistable.grpc.pb.h"
+#include "proto/convert.h"
+#include "proto/status_convert.h"
+
+namespace bistable {
+
+struct CoordinatorClient::Impl {
+  std::unique_ptr<v1::Coordinator::Stub> stub;
+};
+
+CoordinatorClient::CoordinatorClient(ConnectOptions o, std::unique_ptr<Impl> impl) : o_(std::move(o)), impl_(std::move(impl)) {}
+CoordinatorClient::~CoordinatorClient() = default;
+
+StatusOr<std::unique_ptr<CoordinatorClient>> CoordinatorClient::Connect(const ConnectOptions& o) {
+  auto ch = MakeChannel(o);
+  if (!ch.ok()) return ch.status();
+  auto impl = std::make_unique<Impl>();
+  impl->stub = v1::Coordinator::NewStub(*ch);
+  return std::unique_ptr<CoordinatorClient>(new CoordinatorClient(o, std::move(impl)));
+}
+
+namespace {
+
+// A failed call as a Status; an unreachable coordinator is an IoError naming its address.
+Status FromCall(const grpc::Status& s, const std::string& address) {
+  if (s.error_code() == grpc::StatusCode::UNAVAILABLE || s.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED)
+    return Status::IoError("coordinator", "cannot reach " + address + " (" + s.error_message() + ")");
+  return FromGrpcStatus(s);
+}
+
+}  // namespace
+
+#define BISTABLE_RPC(call, seconds, req, rep)                                  \
+  do {                                                                         \
+    const grpc::Status _s = impl_->stub->call(CallContext(o_, seconds).get(), req, rep); \
+    if (!_s.ok()) return FromCall(_s, o_.address);                                            \
+  } while (0)
+
+StatusOr<CoordinatorClient::Submitted> CoordinatorClient::Submit(const std::string& spec_toml, const std::string& origin) {
+  v1::SubmitRequest req;
+  req.set_spec_toml(spec_toml);
+  req.set_origin(origin);
+  v1::SubmitReply rep;
+  BISTABLE_RPC(Submit, 30, req, &rep);
+  return Submitted{rep.id(), rep.items_total(), rep.items_cached(), rep.jobs()};
+}
+
+StatusOr<SweepInfo> CoordinatorClient::GetStatus(const std::string& id) {
+  v1::StatusRequest req;
+  req.set_id(id);
+  v1::SweepStatus rep;
+  BISTABLE_RPC(GetStatus, 30, req, &rep);
+  return FromProto(rep);
+}
+
+StatusOr<SweepInfo> CoordinatorClient::Watch(const std::string& id, const std::function<bool(const SweepInfo&)>& on_status) {
+  v1::StatusRequest req;
+  req.set_id(id);
+  auto ctx = CallContext(o_, 0);  // no deadline: the stream lasts as long as the sweep
+  auto reader = impl_->stub->WatchStatus(ctx.get(), req);
+  v1::SweepStatus st;
+  SweepInfo last;
+  while (reader->Read(&st)) {
+    last = FromProto(st);
+    if (!on_status(last)) {
+      ctx->TryCancel();
+      break;
+    }
+  }
+  const grpc::Status s = reader->Finish();
+  if (!s.ok() && s.error_code() != grpc::StatusCode::CANCELLED) return FromCall(s, o_.address);
+  return last;
+}
+
+Status CoordinatorClient::Cancel(const std::string& id) {
+  v1::CancelRequest req;
+  req.set_id(id);
+  v1::CancelReply rep;
+  BISTABLE_RPC(Cancel, 30, req, &rep);
+  return Status::Ok();
+}
+
+StatusOr<std::vector<WorkerInfo>> CoordinatorClient::Workers() {
+  v1::ListWorkersRequest req;
+  v1::ListWorkersReply rep;
+  BISTABLE_RPC(ListWorkers, 30, req, &rep);
+  std::vector<WorkerInfo> out;
+  for (const auto& w : rep.workers()) out.push_back(FromProto(w));
+  return out;
+}
+
+StatusOr<CoordinatorClient::MetricList> CoordinatorClient::ListMetrics(const std::string& id) {
+  v1::MapRequest req;
+  req.set_id(id);
+  v1::MetricsReply rep;
+  BISTABLE_RPC(ListMetrics, 60, req, &rep);
+  return MetricList{rep.id(), rep.name(), std::vector<std::string>(rep.metrics().begin(), rep.metrics().end())};
+}
+
+StatusOr<MapArray> CoordinatorClient::GetMap(const std::string& id, const std::string& metric) {
+  v1::MapRequest req;
+  req.set_id(id);
+  req.set_metric(metric);
+  v1::MapReply rep;
+  BISTABLE_RPC(GetMap, 120, req, &rep);
+  return FromProto(rep);
+}
+
+StatusOr<double> CoordinatorClient::Register(const std::string& name, int threads) {
+  v1::RegisterRequest req;
+  req.set_name(name);
+  req.set_threads(threads);
+  v1::RegisterReply rep;
+  BISTABLE_RPC(RegisterWorker, 5, req, &rep);
+  return rep.lease_seconds();
+}
+
+StatusOr<std::optional<CoordinatorClient::Lease>> CoordinatorClient::FromReply(const v1::LeaseReply& rep) const {
+  if (!rep.has_job()) return std::optional<Lease>();
+  auto items = ItemsFromProto(rep);
+  if (!items.ok()) return items.status();
+  return std::optional<Lease>(Lease{rep.lease_id(), rep.sweep_id(), rep.spec_toml(), std::move(*items)});
+}
+
+StatusOr<std::optional<CoordinatorClient::Lease>> CoordinatorClient::LeaseJob(const std::string& worker) {
+  v1::LeaseRequest req;
+  req.set_worker(worker);
+  v1::LeaseReply rep;
+  BISTABLE_RPC(Lease, 10, req, &rep);
+  return FromReply(rep);
+}
+
+Status CoordinatorClient::Heartbeat(const std::string& lease_id) {
+  v1::HeartbeatRequest req;
+  req.set_lease_id(lease_id);
+  v1::HeartbeatReply rep;
+  BISTABLE_RPC(Heartbeat, 5, req, &rep);
+  return Status::Ok();
+}
+
+Status CoordinatorClient::Report(const std::string& lease_id, const std::vector<PointRecord>& records,
+                                 const std::string& lease_next_for, std::optional<Lease>* next) {
+  v1::ReportRequest req;
+  req.set_lease_id(lease_id);
+  ToProto(records, &req);
+  req.set_lease_next_for(lease_next_for);
+  v1::ReportReply rep;
+  BISTABLE_RPC(Report, 30, req, &rep);
+  if (next && rep.has_next()) {
+    auto n = FromReply(rep.next());
+    if (n.ok()) *next = std::move(*n);
+  }
+  return Status::Ok();
+}
+
+Status CoordinatorClient::Release(const std::string& lease_id) {
+  v1::ReleaseRequest req;
+  req.set_lease_id(lease_id);
+  v1::ReleaseReply rep;
+  BISTABLE_RPC(Release, 5, req, &rep);
+  return Status::Ok();
+}
+
+#undef BISTABLE_RPC
+
+}  // namespace bistable

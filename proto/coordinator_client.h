@@ -1,0 +1,76 @@
+// The client side of the wire in one class: every call the CLI and the worker make to a coordinator,
+// with the project's types in and out (conversions in proto/convert.h) and errors as Status — a
+// coordinator that cannot be reached is an IoError naming its address (callers retry those).
+#ifndef BISTABLE_PROTO_COORDINATOR_CLIENT_H_
+#define BISTABLE_PROTO_COORDINATOR_CLIENT_H_
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "base/status.h"
+#include "engine/metric_catalog.h"
+#include "engine/sweep_spec.h"
+#include "engine/sweep_state.h"
+#include "proto/channel.h"
+#include "storage/map_file.h"
+
+namespace bistable {
+
+namespace v1 {
+class LeaseReply;
+}
+
+class CoordinatorClient {
+ public:
+  // A client over one channel (plaintext on loopback, TLS with o.tls_ca); the token rides on every call.
+  static StatusOr<std::unique_ptr<CoordinatorClient>> Connect(const ConnectOptions& o);
+  ~CoordinatorClient();
+
+  // --- clients ---
+  struct Submitted {
+    std::string id;
+    long items_total = 0, items_cached = 0, jobs = 0;
+  };
+  StatusOr<Submitted> Submit(const std::string& spec_toml, const std::string& origin);
+  StatusOr<SweepInfo> GetStatus(const std::string& id);
+  // Streams the sweep's status until it is final (or `on_status` returns false); the last one seen.
+  StatusOr<SweepInfo> Watch(const std::string& id, const std::function<bool(const SweepInfo&)>& on_status);
+  Status Cancel(const std::string& id);
+  StatusOr<std::vector<WorkerInfo>> Workers();
+  struct MetricList {
+    std::string id, name;
+    std::vector<std::string> metrics;
+  };
+  StatusOr<MetricList> ListMetrics(const std::string& id);
+  StatusOr<MapArray> GetMap(const std::string& id, const std::string& metric);
+
+  // --- workers ---
+  // Registers; the lease period in seconds.
+  StatusOr<double> Register(const std::string& name, int threads);
+  struct Lease {
+    std::string lease_id, sweep_id, spec_toml;
+    std::vector<WorkItem> items;
+  };
+  StatusOr<std::optional<Lease>> LeaseJob(const std::string& worker);
+  Status Heartbeat(const std::string& lease_id);
+  // Reports; with `lease_next_for` non-empty the reply may carry the worker's next job (into *next).
+  Status Report(const std::string& lease_id, const std::vector<PointRecord>& records, const std::string& lease_next_for,
+                std::optional<Lease>* next);
+  Status Release(const std::string& lease_id);
+
+  const std::string& address() const { return o_.address; }
+
+ private:
+  struct Impl;
+  CoordinatorClient(ConnectOptions o, std::unique_ptr<Impl> impl);
+  StatusOr<std::optional<Lease>> FromReply(const v1::LeaseReply& rep) const;
+  ConnectOptions o_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace bistable
+
+#endif  // BISTABLE_PROTO_COORDINATOR_CLIENT_H_
