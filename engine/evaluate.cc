@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 
 #include "base/limits.h"
 #include "dynamics/cancel.h"
@@ -10,6 +11,18 @@
 #include "dynamics/point.h"
 
 namespace bistable {
+namespace {
+
+// An item the numerics refused (the spec was validated, so this is a degenerate point, not bad input):
+// stored as diverged (termination 1, metrics NaN) — and said so on stderr, with the reason.
+PointResult Unevaluated(const SweepSpec& spec, long index, int ic, const Status& why) {
+  if (!CancelRequested())
+    std::fprintf(stderr, "evaluate: sweep %s point %ld ic %d could not be evaluated (%s); stored as diverged\n",
+                 spec.Id().c_str(), index, ic, why.ToString().c_str());
+  return PointResult{Termination::kDiverged};
+}
+
+}  // namespace
 
 
 std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepSpec& spec,
@@ -36,7 +49,7 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
       }
       auto r = EvaluatePoint(p);
       if (!r.ok() && CancelRequested()) return std::nullopt;  // cancelled: no result, not "diverged"
-      const PointResult res = r.ok() ? *r : PointResult{Termination::kDiverged};
+      const PointResult res = r.ok() ? *r : Unevaluated(spec, items[i].point, items[i].ic, r.status());
       last = res.final_state;
       out[i] = PointRecord::From(res, turning);
     }
@@ -77,7 +90,7 @@ PointResult EvaluateItem(const SweepSpec& spec, long index, int ic) {
   const PointSpec p = spec.PointAt(index, ic);
   if (spec.kind == SweepModel::kCell) {
     auto r = EvaluatePoint(p);
-    return r.ok() ? *r : PointResult{Termination::kDiverged};
+    return r.ok() ? *r : Unevaluated(spec, index, ic, r.status());
   }
   PointSpec proxy = p;  // carries window, metric settings and the motion classification's model kind
   GenericWindow w;

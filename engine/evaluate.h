@@ -29,8 +29,8 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
 std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<WorkItem>& items);
 
 // One item outside the kernel (series, dimensional, adaptive cell models). An evaluation error is
-// returned as a diverged result (termination 1) — the spec was validated, so only a degenerate run
-// gets there.
+// returned as a diverged result (termination 1) and reported on stderr with its reason — the spec was
+// validated, so only a degenerate run gets there.
 PointResult EvaluateItem(const SweepSpec& spec, long index, int ic);
 
 // Items per job: about `seconds` of work on one core (≈ 1.5e7 lane-steps/s with metrics; points off
