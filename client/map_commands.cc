@@ -51,7 +51,7 @@ int ListSweeps(const SweepsArgs& a) {
       if (auto ms = (*db)->ListMaps(r.id); ms.ok())
         for (const MapRow& m : *ms) maps.push_back({{"metric", m.metric}, {"shape", m.shape}, {"min", Num(m.min)}, {"max", Num(m.max)}});
       arr.push_back({{"id", r.id}, {"name", r.name}, {"model", r.model}, {"status", SweepStateName(r.state)},
-                     {"points_total", r.points_total}, {"points_done", r.points_done},
+                     {"items_total", r.items_total}, {"items_done", r.items_done},
                      {"file", r.file.empty() ? nlohmann::json(nullptr) : nlohmann::json((std::filesystem::path(a.data) / r.file).string())},
                      {"created", r.created}, {"finished", r.finished}, {"seconds", r.seconds}, {"maps", maps}});
     }
@@ -61,7 +61,7 @@ int ListSweeps(const SweepsArgs& a) {
   std::printf("%-12s  %-11s  %-14s  %13s  %8s  %s\n", "id", "status", "model", "done/total", "seconds", "name");
   for (const SweepRow& r : *rows) {
     char prog[48];
-    std::snprintf(prog, sizeof prog, "%ld/%ld", r.points_done, r.points_total);
+    std::snprintf(prog, sizeof prog, "%ld/%ld", r.items_done, r.items_total);
     std::printf("%-12s  %-11s  %-14s  %13s  %8.1f  %s\n", r.id.c_str(), SweepStateName(r.state), r.model.c_str(), prog, r.seconds,
                 r.name.c_str());
   }

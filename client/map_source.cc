@@ -57,7 +57,7 @@ StatusOr<MapArray> MapSource::Metric(const std::string& id, const std::string& m
     if (!ref.ok()) return ref.status();
     if (ref->map_path.empty())
       return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (state " + SweepStateName(ref->row.state) +
-                                        ", " + std::to_string(ref->row.points_done) + "/" + std::to_string(ref->row.points_total) +
+                                        ", " + std::to_string(ref->row.items_done) + "/" + std::to_string(ref->row.items_total) +
                                         " stored); rerun it to finish");
     return ReadMapMetric(ref->map_path, metric);
   }

@@ -24,8 +24,8 @@ struct RemoteArgs {
 };
 
 nlohmann::json StatusJson(const SweepInfo& s) {
-  return {{"id", s.id},         {"state", SweepStateName(s.state)}, {"points_done", s.items_done},
-          {"points_total", s.items_total}, {"points_cached", s.items_cached}, {"workers", s.workers},
+  return {{"id", s.id},         {"state", SweepStateName(s.state)}, {"items_done", s.items_done},
+          {"items_total", s.items_total}, {"items_cached", s.items_cached}, {"workers", s.workers},
           {"seconds", s.seconds}, {"file", s.file}, {"name", s.name}, {"model", s.model}, {"error", s.error}};
 }
 

@@ -5,9 +5,9 @@ namespace bistable {
 void ToProto(const SweepInfo& i, v1::SweepStatus* s) {
   s->set_id(i.id);
   s->set_state(SweepStateName(i.state));
-  s->set_points_done(i.items_done);
-  s->set_points_total(i.items_total);
-  s->set_points_cached(i.items_cached);
+  s->set_items_done(i.items_done);
+  s->set_items_total(i.items_total);
+  s->set_items_cached(i.items_cached);
   s->set_workers(i.workers);
   s->set_seconds(i.seconds);
   s->set_file(i.file);
@@ -20,9 +20,9 @@ SweepInfo FromProto(const v1::SweepStatus& s) {
   SweepInfo i;
   i.id = s.id();
   i.state = ParseSweepState(s.state()).value_or(SweepState::kFailed);
-  i.items_done = s.points_done();
-  i.items_total = s.points_total();
-  i.items_cached = s.points_cached();
+  i.items_done = s.items_done();
+  i.items_total = s.items_total();
+  i.items_cached = s.items_cached();
   i.workers = s.workers();
   i.seconds = s.seconds();
   i.file = s.file();

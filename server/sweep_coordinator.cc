@@ -81,7 +81,7 @@ std::optional<SweepPlan> SweepCoordinator::ActivePlanLocked(const std::string& i
   if (it == sweeps_.end() || it->second.cancelled || it->second.row.state == SweepState::kFailed) return std::nullopt;
   SweepPlan plan;
   plan.id = id;
-  plan.items_total = it->second.row.points_total;
+  plan.items_total = it->second.row.items_total;
   plan.items_cached = it->second.items_cached;
   plan.jobs = static_cast<long>(it->second.jobs.size());
   plan.already_published = it->second.row.state == SweepState::kDone;
@@ -221,8 +221,8 @@ StatusOr<SweepPlan> SweepCoordinator::InstallLocked(Planned p, const std::string
   s.row.model = s.spec.ModelLabel();
   s.row.spec = s.spec.source;
   s.row.state = SweepState::kRunning;
-  s.row.points_total = plan.items_total;
-  s.row.points_done = s.items_done;
+  s.row.items_total = plan.items_total;
+  s.row.items_done = s.items_done;
   s.row.file = "";
   s.row.owner = owner;
   if (s.row.created == 0) s.row.created = s.started;
@@ -504,7 +504,7 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
     s.items_done += n;
     if (auto w = workers_.find(lease.worker); w != workers_.end()) w->second.items_done += n;
   }
-  if (s.items_done >= s.row.points_total && s.row.state != SweepState::kDone) {
+  if (s.items_done >= s.row.items_total && s.row.state != SweepState::kDone) {
     // Publish off the report path: the report is acknowledged once its rows are durable, and the
     // map (seconds of HDF5 writing for a large grid) is written by the publisher thread.
     std::lock_guard<std::mutex> p(publish_queue_mu_);
@@ -577,7 +577,7 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
     const Sweep& s = it->second;
     if (s.row.state == SweepState::kDone && !s.row.file.empty() && std::filesystem::exists(path)) return path;
     if (s.cancelled) return Status::FailedPrecondition("sweep " + sweep_id + " was cancelled");
-    needs_plan = static_cast<long>(s.keys.size()) != s.row.points_total;  // plan freed after an earlier publication
+    needs_plan = static_cast<long>(s.keys.size()) != s.row.items_total;  // plan freed after an earlier publication
     spec = s.spec;
     keys = s.keys;
     row = s.row;
@@ -633,7 +633,7 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
   BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, records));
   SweepRow done = row;
   done.state = SweepState::kDone;
-  done.points_done = static_cast<long>(records.size());
+  done.items_done = static_cast<long>(records.size());
   done.file = std::filesystem::relative(path, data_dir_).string();
   done.finished = Clock();
   done.seconds = done.finished - started;
@@ -661,7 +661,7 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
 Status SweepCoordinator::MarkLocked(Sweep& s, SweepState state) {
   s.row.state = state;
   final_cv_.notify_all();
-  s.row.points_done = s.items_done;
+  s.row.items_done = s.items_done;
   s.row.seconds = Clock() - s.started;
   return Db()->UpsertSweep(s.row);
 }
@@ -686,10 +686,10 @@ StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
     if (!row.ok()) return row.status();
     if (!row.value()) return Status::NotFound("no sweep '" + sweep_id + "'");
     const SweepRow& r = *row.value();
-    return SweepInfo{r.id, r.name, r.model, r.owner, r.state, r.points_total, r.points_done, 0, 0, r.seconds, r.file, ""};
+    return SweepInfo{r.id, r.name, r.model, r.owner, r.state, r.items_total, r.items_done, 0, 0, r.seconds, r.file, ""};
   }
   const Sweep& s = it->second;
-  SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.owner, s.row.state, s.row.points_total, s.items_done, s.items_cached, 0,
+  SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.owner, s.row.state, s.row.items_total, s.items_done, s.items_cached, 0,
                  s.row.state == SweepState::kDone ? s.row.seconds : Clock() - s.started, s.row.file, ""};
   if (info.state == SweepState::kRunning && !s.any_leased && s.items_done == s.items_cached) info.state = SweepState::kQueued;
   if (s.cancelled) info.state = SweepState::kCancelled;
@@ -752,7 +752,7 @@ SweepProgress SweepCoordinator::progress(const std::string& sweep_id) const {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = sweeps_.find(sweep_id);
   if (it == sweeps_.end()) return {};
-  return {it->second.row.points_total, it->second.items_done, it->second.items_cached};
+  return {it->second.row.items_total, it->second.items_done, it->second.items_cached};
 }
 
 }  // namespace bistable

@@ -88,8 +88,8 @@ SweepRow ReadSweep(Stmt& s) {
   r.model = s.ColText(2);
   r.spec = s.ColText(3);
   r.state = ParseSweepState(s.ColText(4)).value_or(SweepState::kFailed);  // an unknown name: not resumed
-  r.points_total = sqlite3_column_int64(s.get(), 5);
-  r.points_done = sqlite3_column_int64(s.get(), 6);
+  r.items_total = sqlite3_column_int64(s.get(), 5);
+  r.items_done = sqlite3_column_int64(s.get(), 6);
   r.file = s.ColText(7);
   r.created = sqlite3_column_double(s.get(), 8);
   r.finished = sqlite3_column_double(s.get(), 9);
@@ -180,8 +180,8 @@ Status IndexDb::UpsertSweep(const SweepRow& r) {
   s.Text(3, r.model);
   s.Text(4, r.spec);
   s.Text(5, SweepStateName(r.state));
-  s.Int(6, r.points_total);
-  s.Int(7, r.points_done);
+  s.Int(6, r.items_total);
+  s.Int(7, r.items_done);
   s.Text(8, r.file);
   s.Real(9, r.created);
   s.Real(10, r.finished);

@@ -28,8 +28,8 @@ struct SweepRow {
   std::string model;
   std::string spec;        // the TOML as given
   SweepState state = SweepState::kQueued;  // stored as its name
-  long points_total = 0;   // grid points × initial conditions
-  long points_done = 0;
+  long items_total = 0;   // grid points × initial conditions (SQL columns points_total / points_done)
+  long items_done = 0;
   std::string file;        // map file path relative to the data dir, "" until published
   double created = 0;      // unix seconds
   double finished = 0;
@@ -63,7 +63,7 @@ class IndexDb {
   StatusOr<std::unordered_map<std::string, PointRecord>> LookupPoints(const std::vector<std::string>& keys,
                                                                       size_t record_size, long* corrupt = nullptr);
   // Stores the records of one or more reported jobs in one transaction (all or nothing) and, in the
-  // same transaction, adds each job's item count to its sweep's points_done. The records are staged
+  // same transaction, adds each job's item count to its sweep's items_done. The records are staged
   // as one appended row per job (a few pages per commit, where keyed inserts cost a page per point)
   // and folded into the keyed cache by the next LookupPoints / CachedPointCount / FoldResults.
   struct JobResults {

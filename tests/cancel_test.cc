@@ -309,7 +309,7 @@ long PointsDone(const std::string& data) {
   auto db = IndexDb::Open(data + "/index.sqlite");
   if (!db.ok()) return 0;
   auto rows = (*db)->ListSweeps();
-  return rows.ok() && !rows->empty() ? (*rows)[0].points_done : 0;
+  return rows.ok() && !rows->empty() ? (*rows)[0].items_done : 0;
 }
 
 // (2) `bistable run` of long points, Ctrl-C once the first job is stored: it stops within 1.5 s with

@@ -148,7 +148,7 @@ long PointsDone(const std::string& data) {
   auto db = bistable::IndexDb::Open(data + "/index.sqlite");
   if (!db.ok()) return 0;
   auto rows = (*db)->ListSweeps();
-  return rows.ok() && !rows->empty() ? (*rows)[0].points_done : 0;
+  return rows.ok() && !rows->empty() ? (*rows)[0].items_done : 0;
 }
 
 pid_t Spawn(const std::string& spec, const std::string& data) {

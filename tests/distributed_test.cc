@@ -104,8 +104,8 @@ TEST(Distributed, ThreeWorkersGiveTheEmbeddedMapBitForBit) {
   const std::string id = nlohmann::json::parse(sub.out)["id"];
   ASSERT_TRUE(WaitDone(id, addr, 120));
   const auto st = Status(id, addr);
-  EXPECT_EQ(st["points_done"], 900);
-  EXPECT_EQ(st["points_total"], 900);
+  EXPECT_EQ(st["items_done"], 900);
+  EXPECT_EQ(st["items_total"], 900);
   // Work was shared.
   const auto ws = nlohmann::json::parse(Bistable("workers --json --coordinator " + addr).out);
   int busy = 0;
@@ -134,7 +134,7 @@ TEST(Distributed, KilledWorkerAndRestartedCoordinatorLoseNothing) {
   std::vector<pid_t> workers;
   for (int i = 0; i < 3; ++i) workers.push_back(StartWorker(addr, "w" + std::to_string(i), dir + "/w" + std::to_string(i) + ".log"));
   const std::string id = nlohmann::json::parse(Bistable("submit " + spec + " --json --coordinator " + addr).out)["id"];
-  auto progress = [&] { return Status(id, addr)["points_done"].get<long>(); };
+  auto progress = [&] { return Status(id, addr)["items_done"].get<long>(); };
   while (progress() < 150) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   Kill(workers[0], SIGKILL);  // mid-job: its lease expires after 1 s and the job is requeued
   while (progress() < 400) std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -142,11 +142,11 @@ TEST(Distributed, KilledWorkerAndRestartedCoordinatorLoseNothing) {
   Kill(coord, SIGKILL);  // coordinator dies; workers back off and retry
   auto [coord2, addr2] = StartCoordinator(dir + "/data", dir + "/coord2.log", 1.0, addr);  // same port
   ASSERT_EQ(addr2, addr);
-  EXPECT_GE(Status(id, addr)["points_done"].get<long>(), before) << "results acknowledged before the kill are kept";
+  EXPECT_GE(Status(id, addr)["items_done"].get<long>(), before) << "results acknowledged before the kill are kept";
   workers[0] = StartWorker(addr, "w0b", dir + "/w0b.log");
   ASSERT_TRUE(WaitDone(id, addr, 120));
   const auto st = Status(id, addr);
-  EXPECT_EQ(st["points_done"], 900);  // each item stored once into the map
+  EXPECT_EQ(st["items_done"], 900);  // each item stored once into the map
   for (pid_t w : workers) Kill(w, SIGTERM);
   Kill(coord2, SIGTERM);
   ExpectSameMaps(dir + "/data/" + st["file"].get<std::string>(), Embedded(dir, spec));
