@@ -163,105 +163,135 @@ nlohmann::json ParamsJson(const IdentModel& m, const FitResult& f) {
   return j;
 }
 
-int RunIdentify(IdentifyArgs& a) {
-  if (a.list_terms) {
-    nlohmann::json lib = nlohmann::json::array();
-    for (const TermDef& t : EffectLibrary()) {
-      nlohmann::json ps = nlohmann::json::array();
-      for (const TermParam& p : t.params)
-        ps.push_back({{"name", p.name}, {"unit", p.unit}, {"sign", p.sign == Sign::kNonNegative ? ">= 0" : "either"}});
-      lib.push_back({{"term", t.id}, {"formula", t.formula}, {"meaning", t.meaning}, {"params", ps}});
-      if (!a.json) {
-        std::string pn;
-        for (const TermParam& p : t.params) pn += (pn.empty() ? "" : ", ") + p.name + " [" + p.unit + "]" + (p.sign == Sign::kNonNegative ? " >= 0" : "");
-        std::printf("%-20s %-44s %s\n", t.id.c_str(), t.formula.size() > 44 ? (t.formula.substr(0, 41) + "...").c_str() : t.formula.c_str(), pn.c_str());
-      }
+// --list-terms: the effect library, as a table or (--json) an array.
+int ListTerms(bool json) {
+  nlohmann::json lib = nlohmann::json::array();
+  for (const TermDef& t : EffectLibrary()) {
+    nlohmann::json ps = nlohmann::json::array();
+    for (const TermParam& p : t.params)
+      ps.push_back({{"name", p.name}, {"unit", p.unit}, {"sign", p.sign == Sign::kNonNegative ? ">= 0" : "either"}});
+    lib.push_back({{"term", t.id}, {"formula", t.formula}, {"meaning", t.meaning}, {"params", ps}});
+    if (!json) {
+      std::string pn;
+      for (const TermParam& p : t.params) pn += (pn.empty() ? "" : ", ") + p.name + " [" + p.unit + "]" + (p.sign == Sign::kNonNegative ? " >= 0" : "");
+      std::printf("%-20s %-44s %s\n", t.id.c_str(), t.formula.size() > 44 ? (t.formula.substr(0, 41) + "...").c_str() : t.formula.c_str(), pn.c_str());
     }
-    if (a.json) std::cout << lib.dump(2) << "\n";
-    return 0;
   }
-  if (!a.synth.empty()) {
-    // Synthetic records for trying the loop: the paper's Table 2 linear rig (no resonator) under
-    // 1 → 8 Hz chirps of 6, 10, 14 mm, sampled at 120 Hz with 0.05 mm noise.
-    std::error_code ec;
-    std::filesystem::create_directories(a.synth, ec);
-    if (ec) return Fail(Status::IoError("make-synthetic", "cannot create '" + a.synth + "': " + ec.message()));
-    DimensionalParams p = DimensionalParams::LinearTable2();
-    p.has_resonator = false;
-    unsigned seed = 1;
-    for (double mm : {6.0, 10.0, 14.0}) {
-      SyntheticOptions o;
-      o.a0_m = mm * 1e-3;
-      o.seed = seed++;
-      auto r = MakeSyntheticRecord(p, o, "chirp");
-      if (!r.ok()) return Fail(r.status());
-      const std::string path = (std::filesystem::path(a.synth) / ("chirp_" + Fmt(mm, 3) + "mm.csv")).string();
-      if (Status st = WriteRecordCsv(*r, path); !st.ok()) return Fail(st);
-      if (!a.json) std::printf("wrote %s\n", path.c_str());
-    }
-    return 0;
+  if (json) std::cout << lib.dump(2) << "\n";
+  return 0;
+}
+
+// --make-synthetic DIR: synthetic records for trying the loop: the paper's Table 2 linear rig (no
+// resonator) under 1 → 8 Hz chirps of 6, 10, 14 mm, sampled at 120 Hz with 0.05 mm noise.
+int MakeSynthetic(const std::string& dir, bool json) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return Fail(Status::IoError("make-synthetic", "cannot create '" + dir + "': " + ec.message()));
+  DimensionalParams p = DimensionalParams::LinearTable2();
+  p.has_resonator = false;
+  unsigned seed = 1;
+  for (double mm : {6.0, 10.0, 14.0}) {
+    SyntheticOptions o;
+    o.a0_m = mm * 1e-3;
+    o.seed = seed++;
+    auto r = MakeSyntheticRecord(p, o, "chirp");
+    if (!r.ok()) return Fail(r.status());
+    const std::string path = (std::filesystem::path(dir) / ("chirp_" + Fmt(mm, 3) + "mm.csv")).string();
+    if (Status st = WriteRecordCsv(*r, path); !st.ok()) return Fail(st);
+    if (!json) std::printf("wrote %s\n", path.c_str());
   }
-  if (a.data.empty()) return Fail(Status::InvalidArgument("data", "give at least one --data FILE.csv"));
-  if (a.terms.empty()) return Fail(Status::InvalidArgument("terms", "declare the model: --terms main.linear,main.viscous,... (--list-terms)"));
-  auto terms = ParseTerms(a.terms);
-  if (!terms.ok()) return Fail(terms.status());
-  auto columns = BuildColumns(a);
-  if (!columns.ok()) return Fail(columns.status());
+  return 0;
+}
+
+// What the flags ask for, checked: columns, setup, the declared model (with its constants and
+// guesses), the loop's options and the sample ranges.
+struct IdentifyPlan {
+  ColumnMap columns;
   Setup setup;
+  IdentModel model;
+  IdentifyOptions opt;
+  std::pair<size_t, size_t> fit_range{0, SIZE_MAX};
+  std::vector<std::pair<size_t, size_t>> tests;
+};
+
+// --known: the masses and friction constants, each > 0.
+Status ApplyKnown(const std::string& known, IdentModel* model, Setup* setup) {
+  auto kv = ParseNameValues(known, "known");
+  if (!kv.ok()) return kv.status();
+  for (const auto& [k, v] : *kv) {
+    auto x = ParseFiniteNumber(v, "known." + k);
+    if (!x.ok()) return x.status();
+    if (k == "m_main") model->m_main = *x;
+    else if (k == "m_res") model->m_res = *x;
+    else if (k == "v_sp") setup->fc.v_sp = *x;
+    else if (k == "v_t") setup->fc.v_t = *x;
+    else {
+      return Status::InvalidArgument("known", UnknownNameMessage("constant", k, {"m_main", "m_res", "v_sp", "v_t"}) +
+                                                  "; units: m_main, m_res [kg], v_sp, v_t [m/s]");
+    }
+    if (!(*x > 0)) return Status::InvalidArgument("known." + k, k + " = " + v + " violates " + k + " > 0");
+  }
+  return Status::Ok();
+}
+
+// --guess term.param=value: initial values of the declared model's parameters (the others NaN: from
+// the regression).
+Status ApplyGuesses(const std::string& guesses, IdentModel* model) {
+  if (guesses.empty()) return Status::Ok();
+  auto g = ParseNameValues(guesses, "guess");
+  if (!g.ok()) return g.status();
+  const auto names = model->ParamNames();
+  model->theta.assign(names.size(), NAN);
+  for (const auto& [k, v] : *g) {
+    auto it = std::find(names.begin(), names.end(), k);
+    if (it == names.end()) return Status::InvalidArgument("guess", UnknownNameMessage("parameter of the declared model", k, names));
+    auto x = ParseFiniteNumber(v, "guess." + k);
+    if (!x.ok()) return x.status();
+    model->theta[it - names.begin()] = *x;
+  }
+  return Status::Ok();
+}
+
+// Columns, setup and the declared model: --terms, --input-kind/--output-kind/--output-frame, the
+// scales, --columns, --known, --guess.
+Status PlanModel(const IdentifyArgs& a, IdentifyPlan* plan) {
+  if (a.terms.empty()) return Status::InvalidArgument("terms", "declare the model: --terms main.linear,main.viscous,... (--list-terms)");
+  auto terms = ParseTerms(a.terms);
+  if (!terms.ok()) return terms.status();
+  auto columns = BuildColumns(a);
+  if (!columns.ok()) return columns.status();
+  plan->columns = *columns;
+  Setup& setup = plan->setup;
   setup.input = columns->input_kind;
   setup.output = columns->output_kind;
   if (a.frame == "absolute") setup.frame = OutputFrame::kAbsolute;
   else if (a.frame == "relative") setup.frame = OutputFrame::kRelative;
-  else return Fail(Status::InvalidArgument("output-frame", "'" + a.frame + "' violates output-frame in {absolute, relative}"));
-  IdentModel model;
+  else return Status::InvalidArgument("output-frame", "'" + a.frame + "' violates output-frame in {absolute, relative}");
+  IdentModel& model = plan->model;
   model.terms = *terms;
-  auto known = ParseNameValues(a.known, "known");
-  if (!known.ok()) return Fail(known.status());
-  for (const auto& [k, v] : *known) {
-    auto x = ParseFiniteNumber(v, "known." + k);
-    if (!x.ok()) return Fail(x.status());
-    if (k == "m_main") model.m_main = *x;
-    else if (k == "m_res") model.m_res = *x;
-    else if (k == "v_sp") setup.fc.v_sp = *x;
-    else if (k == "v_t") setup.fc.v_t = *x;
-    else {
-      return Fail(Status::InvalidArgument("known", UnknownNameMessage("constant", k, {"m_main", "m_res", "v_sp", "v_t"}) +
-                                                       "; units: m_main, m_res [kg], v_sp, v_t [m/s]"));
-    }
-    if (!(*x > 0)) return Fail(Status::InvalidArgument("known." + k, k + " = " + v + " violates " + k + " > 0"));
-  }
+  BISTABLE_RETURN_IF_ERROR(ApplyKnown(a.known, &model, &setup));
   model.fc = setup.fc;
   if (model.m_main <= 0 && setup.input != InputKind::kForce)
-    return Fail(Status::InvalidArgument("known.m_main", "the main mass is needed with a base input (--known m_main=0.282; "
-                                                        "m_main=1 gives parameters per unit mass); only a force input can identify it"));
+    return Status::InvalidArgument("known.m_main", "the main mass is needed with a base input (--known m_main=0.282; "
+                                                   "m_main=1 gives parameters per unit mass); only a force input can identify it");
   if (model.HasResonator() && !(model.m_res > 0))
-    return Fail(Status::InvalidArgument("known.m_res", "resonator terms are declared: give its mass (--known m_res=0.62)"));
-  if (Status st = ValidateSetup(setup); !st.ok()) return Fail(st);
-  // Guesses: term.param=value (others from the regression).
-  if (!a.guesses.empty()) {
-    auto g = ParseNameValues(a.guesses, "guess");
-    if (!g.ok()) return Fail(g.status());
-    const auto names = model.ParamNames();
-    model.theta.assign(names.size(), NAN);
-    for (const auto& [k, v] : *g) {
-      auto it = std::find(names.begin(), names.end(), k);
-      if (it == names.end()) {
-        return Fail(Status::InvalidArgument("guess", UnknownNameMessage("parameter of the declared model", k, names)));
-      }
-      auto x = ParseFiniteNumber(v, "guess." + k);
-      if (!x.ok()) return Fail(x.status());
-      model.theta[it - names.begin()] = *x;
-    }
-  }
-  IdentifyOptions opt;
+    return Status::InvalidArgument("known.m_res", "resonator terms are declared: give its mass (--known m_res=0.62)");
+  BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));
+  return ApplyGuesses(a.guesses, &model);
+}
+
+// The loop's options and the sample ranges: --objective, the budgets, --deriv-cutoff, --decimate,
+// --horizon, --fit-offsets, --candidates, --range, --test-range.
+Status PlanLoop(const IdentifyArgs& a, IdentifyPlan* plan) {
+  IdentifyOptions& opt = plan->opt;
   if (a.objective == "time") opt.fit.objective = Objective::kTime;
   else if (a.objective == "fft") opt.fit.objective = Objective::kFft;
-  else return Fail(Status::InvalidArgument("objective", "'" + a.objective + "' violates objective in {time, fft}"));
-  if (a.global_evals < 0 || a.global_evals > 100000) return Fail(Status::InvalidArgument("global-evals", "must be in [0, 100000]"));
-  if (a.max_added < 0 || a.max_added > 10) return Fail(Status::InvalidArgument("max-added", "must be in [0, 10]"));
-  if (!(a.deriv_cutoff >= 0)) return Fail(Status::InvalidArgument("deriv-cutoff", "deriv-cutoff = " + Fmt(a.deriv_cutoff) + " violates deriv-cutoff >= 0 Hz"));
-  if (a.decimate < 1 || a.decimate > 1000) return Fail(Status::InvalidArgument("decimate", "must be in [1, 1000]"));
-  if (!(a.horizon >= 0)) return Fail(Status::InvalidArgument("horizon", "must be >= 0 s"));
+  else return Status::InvalidArgument("objective", "'" + a.objective + "' violates objective in {time, fft}");
+  if (a.global_evals < 0 || a.global_evals > 100000) return Status::InvalidArgument("global-evals", "must be in [0, 100000]");
+  if (a.max_added < 0 || a.max_added > 10) return Status::InvalidArgument("max-added", "must be in [0, 10]");
+  if (!(a.deriv_cutoff >= 0)) return Status::InvalidArgument("deriv-cutoff", "deriv-cutoff = " + Fmt(a.deriv_cutoff) + " violates deriv-cutoff >= 0 Hz");
+  if (a.decimate < 1 || a.decimate > 1000) return Status::InvalidArgument("decimate", "must be in [1, 1000]");
+  if (!(a.horizon >= 0)) return Status::InvalidArgument("horizon", "must be >= 0 s");
   opt.fit.global_evals = a.global_evals;
   opt.fit.threads = a.threads;
   opt.fit.shooting_horizon_s = a.horizon;
@@ -269,80 +299,133 @@ int RunIdentify(IdentifyArgs& a) {
   opt.fit_offsets = a.fit_offsets;
   if (!a.candidates.empty()) {
     auto c = ParseTerms(a.candidates);
-    if (!c.ok()) return Fail(Status::InvalidArgument("candidates", c.status().message()));
+    if (!c.ok()) return Status::InvalidArgument("candidates", c.status().message());
     opt.candidates = *c;
   }
-  std::pair<size_t, size_t> fit_range{0, SIZE_MAX};
   if (!a.range.empty()) {
     auto r = ParseRange(a.range, "range");
-    if (!r.ok()) return Fail(r.status());
-    fit_range = *r;
+    if (!r.ok()) return r.status();
+    plan->fit_range = *r;
   }
-  std::vector<std::pair<size_t, size_t>> tests;
   for (const std::string& t : a.test_ranges) {
     auto r = ParseRange(t, "test-range");
-    if (!r.ok()) return Fail(r.status());
-    tests.push_back(*r);
+    if (!r.ok()) return r.status();
+    plan->tests.push_back(*r);
   }
-  // Load, decimate, crop, prepare.
+  return Status::Ok();
+}
+
+StatusOr<IdentifyPlan> PlanFromFlags(const IdentifyArgs& a) {
+  if (a.data.empty()) return Status::InvalidArgument("data", "give at least one --data FILE.csv");
+  IdentifyPlan plan;
+  BISTABLE_RETURN_IF_ERROR(PlanModel(a, &plan));
+  BISTABLE_RETURN_IF_ERROR(PlanLoop(a, &plan));
+  return plan;
+}
+
+// Every k-th sample of a record.
+Record Decimated(const Record& r, int k) {
+  Record d = r;
+  d.t.clear(), d.input.clear(), d.output.clear(), d.resonator.clear();
+  for (size_t i = 0; i < r.t.size(); i += k) {
+    d.t.push_back(r.t[i]), d.input.push_back(r.input[i]), d.output.push_back(r.output[i]);
+    if (!r.resonator.empty()) d.resonator.push_back(r.resonator[i]);
+  }
+  d.dt = r.dt * k;
+  return d;
+}
+
+// Every record of every --data file, decimated.
+StatusOr<std::vector<Record>> LoadAll(const IdentifyArgs& a, const ColumnMap& columns) {
   std::vector<Record> loaded;
   for (const std::string& path : a.data) {
-    auto recs = LoadRecords(path, *columns);
-    if (!recs.ok()) return Fail(recs.status());
-    for (Record r : recs.value()) {
-      if (a.decimate > 1) {
-        Record d = r;
-        d.t.clear(), d.input.clear(), d.output.clear(), d.resonator.clear();
-        for (size_t i = 0; i < r.t.size(); i += a.decimate) {
-          d.t.push_back(r.t[i]), d.input.push_back(r.input[i]), d.output.push_back(r.output[i]);
-          if (!r.resonator.empty()) d.resonator.push_back(r.resonator[i]);
-        }
-        d.dt = r.dt * a.decimate;
-        r = d;
-      }
-      loaded.push_back(std::move(r));
-    }
+    auto recs = LoadRecords(path, columns);
+    if (!recs.ok()) return recs.status();
+    for (const Record& r : recs.value()) loaded.push_back(a.decimate > 1 ? Decimated(r, a.decimate) : r);
   }
+  return loaded;
+}
+
+// The fitted part of each record (--range, --max-seconds), prepared for the setup.
+StatusOr<std::vector<PreparedRecord>> PrepareFitted(const std::vector<Record>& loaded, const IdentifyArgs& a, const IdentifyPlan& plan) {
   std::vector<PreparedRecord> recs;
   for (const Record& r : loaded) {
     const size_t n = r.t.size();
-    size_t b = std::min(fit_range.first, n), e = std::min(fit_range.second, n);
+    size_t b = std::min(plan.fit_range.first, n), e = std::min(plan.fit_range.second, n);
     if (a.max_seconds > 0) e = std::min(e, b + static_cast<size_t>(a.max_seconds / r.dt));
-    auto p = PrepareRecord(r, setup, b, e, a.deriv_cutoff, r.name);
-    if (!p.ok()) return Fail(p.status());
-    recs.push_back(std::move(*p));
+    auto p = PrepareRecord(r, plan.setup, b, e, a.deriv_cutoff, r.name);
+    if (!p.ok()) return p.status();
+    recs.push_back(std::move(p).value());
   }
-  if (!a.json) std::fprintf(stderr, "identify: %zu record(s), %zu parameters declared; fitting...\n", recs.size(), static_cast<size_t>(model.NumParams()));
-  const IdentifyResult r = Identify(model, recs, setup, opt);
-  // A fit that returns no numbers is a failure, not a result: report which parameters and stop.
+  return recs;
+}
+
+// A fit that returns no numbers is a failure, not a result: report which parameters and stop.
+Status CheckFitted(const IdentifyResult& r, const std::string& objective) {
   for (const auto& [fm, fr, what] : {std::tuple{&r.declared, &r.before, "declared model"}, std::tuple{&r.final_model, &r.after, "final model"}}) {
     const auto names = fm->ParamNames();
     std::string bad;
     for (size_t i = 0; i < fr->theta.size(); ++i)
       if (!std::isfinite(fr->theta[i])) bad += (bad.empty() ? "" : ", ") + (i < names.size() ? names[i] : std::to_string(i));
     if (!bad.empty() || fr->theta.size() != names.size())
-      return Fail(Status::FailedPrecondition(std::string("identify: the fit of the ") + what + " gave non-finite parameters (" + bad +
-                                             "); check the data's units and the scales (--input-scale, --output-scale)"));
-    const double err = a.objective == "fft" ? fr->errors.fft : fr->errors.nrmse;
+      return Status::FailedPrecondition(std::string("identify: the fit of the ") + what + " gave non-finite parameters (" + bad +
+                                        "); check the data's units and the scales (--input-scale, --output-scale)");
+    const double err = objective == "fft" ? fr->errors.fft : fr->errors.nrmse;
     if (!std::isfinite(err))
-      return Fail(Status::FailedPrecondition(std::string("identify: the ") + what + " as fitted cannot be simulated on the records (" +
-                                             a.objective + " error " + Fmt(err) + "); check the data's units, the scales and --guess"));
+      return Status::FailedPrecondition(std::string("identify: the ") + what + " as fitted cannot be simulated on the records (" +
+                                        objective + " error " + Fmt(err) + "); check the data's units, the scales and --guess");
   }
-  // Test splits: simulated with the declared and the final model.
-  nlohmann::json test_json = nlohmann::json::array();
-  for (const auto& [tb, te] : tests)
+  return Status::Ok();
+}
+
+// --test-range splits of every record, simulated with the declared and the final model.
+StatusOr<nlohmann::json> TestSplits(const IdentifyResult& r, const std::vector<Record>& loaded, const IdentifyPlan& plan, double deriv_cutoff) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& [tb, te] : plan.tests)
     for (const Record& rec : loaded) {
-      auto p = PrepareRecord(rec, setup, tb, te, a.deriv_cutoff, rec.name);
-      if (!p.ok()) return Fail(Status::InvalidArgument("test-range", p.status().message()));
-      const Errors eb = Evaluate(r.declared, r.before.theta, {*p}, setup);
-      const Errors ea = Evaluate(r.final_model, r.after.theta, {*p}, setup);
-      test_json.push_back({{"record", rec.name},
-                           {"range", std::to_string(tb) + ":" + std::to_string(std::min(te, rec.t.size()))},
-                           {"rms_before", Num(eb.record_rms[0])},
-                           {"rms_after", Num(ea.record_rms[0])},
-                           {"nrmse_before", Num(eb.nrmse)},
-                           {"nrmse_after", Num(ea.nrmse)}});
+      auto p = PrepareRecord(rec, plan.setup, tb, te, deriv_cutoff, rec.name);
+      if (!p.ok()) return Status::InvalidArgument("test-range", p.status().message());
+      const Errors eb = Evaluate(r.declared, r.before.theta, {*p}, plan.setup);
+      const Errors ea = Evaluate(r.final_model, r.after.theta, {*p}, plan.setup);
+      out.push_back({{"record", rec.name},
+                     {"range", std::to_string(tb) + ":" + std::to_string(std::min(te, rec.t.size()))},
+                     {"rms_before", Num(eb.record_rms[0])},
+                     {"rms_after", Num(ea.record_rms[0])},
+                     {"nrmse_before", Num(eb.nrmse)},
+                     {"nrmse_after", Num(ea.nrmse)}});
     }
+  return out;
+}
+
+// A test split's RMS as formatted in the report and the summary (NaN when it diverged: null in JSON).
+std::string TestRms(const nlohmann::json& t, const char* key) { return Fmt(t[key].is_null() ? NAN : t[key].get<double>()); }
+
+// Simulations of both fits; checked: a saturated count stays a count.
+long long TotalSimulations(const IdentifyResult& r) {
+  long long simulations = 0;
+  if (__builtin_add_overflow(static_cast<long long>(std::max(r.before.simulations, 0)),
+                             static_cast<long long>(std::max(r.after.simulations, 0)), &simulations))
+    simulations = std::numeric_limits<long long>::max();
+  return simulations;
+}
+
+// The loop's evidence: per step the verdict and every candidate's scores.
+nlohmann::json StepsJson(const IdentifyResult& r) {
+  nlohmann::json steps = nlohmann::json::array();
+  for (const LoopStep& s : r.steps) {
+    nlohmann::json sc = nlohmann::json::array();
+    for (const CandidateScore& c : s.scores)
+      sc.push_back({{"term", c.term}, {"delta_bic", Num(c.delta_bic)}, {"explained", Num(c.explained)}, {"sign_ok", c.sign_ok},
+                    {"force_delta_bic", Num(c.force_delta_bic)}, {"force_explained", Num(c.force_explained)}});
+    steps.push_back({{"verdict", s.verdict}, {"chosen", s.chosen}, {"n_eff", Num(s.n_eff)},
+                     {"residual_force_rms", Num(s.residual_rms)}, {"scores", sc}});
+  }
+  return steps;
+}
+
+// The result as printed by --json and written to report.json.
+nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const IdentifyResult& r, const std::vector<PreparedRecord>& recs,
+                          const nlohmann::json& tests, long long simulations) {
   nlohmann::json j;
   j["error_before"] = Num(r.before.errors.nrmse);
   j["error_after"] = Num(r.after.errors.nrmse);
@@ -361,10 +444,8 @@ int RunIdentify(IdentifyArgs& a) {
   }
   j["params"] = ParamsJson(r.final_model, r.after);
   j["uncertainty"] = nlohmann::json::object();
-  {
-    const auto names = r.final_model.ParamNames();
-    for (size_t i = 0; i < names.size(); ++i) j["uncertainty"][names[i]] = Num(r.after.sigma[i]);
-  }
+  const auto names = r.final_model.ParamNames();
+  for (size_t i = 0; i < names.size(); ++i) j["uncertainty"][names[i]] = Num(r.after.sigma[i]);
   j["params_declared_fit"] = ParamsJson(r.declared, r.before);
   j["records"] = nlohmann::json::array();
   for (size_t i = 0; i < recs.size(); ++i)
@@ -376,84 +457,83 @@ int RunIdentify(IdentifyArgs& a) {
                             {"fft_after", Num(r.after.errors.record_fft[i])},
                             {"rms_before", Num(r.before.errors.record_rms[i])},
                             {"rms_after", Num(r.after.errors.record_rms[i])}});
-  j["tests"] = test_json;
-  j["steps"] = nlohmann::json::array();
-  for (const LoopStep& s : r.steps) {
-    nlohmann::json sc = nlohmann::json::array();
-    for (const CandidateScore& c : s.scores)
-      sc.push_back({{"term", c.term}, {"delta_bic", Num(c.delta_bic)}, {"explained", Num(c.explained)}, {"sign_ok", c.sign_ok},
-                    {"force_delta_bic", Num(c.force_delta_bic)}, {"force_explained", Num(c.force_explained)}});
-    j["steps"].push_back({{"verdict", s.verdict}, {"chosen", s.chosen}, {"n_eff", Num(s.n_eff)},
-                          {"residual_force_rms", Num(s.residual_rms)}, {"scores", sc}});
-  }
+  j["tests"] = tests;
+  j["steps"] = StepsJson(r);
   j["seconds"] = r.seconds;
-  long long simulations = 0;  // checked: a saturated count stays a count
-  if (__builtin_add_overflow(static_cast<long long>(std::max(r.before.simulations, 0)),
-                             static_cast<long long>(std::max(r.after.simulations, 0)), &simulations))
-    simulations = std::numeric_limits<long long>::max();
   j["simulations"] = simulations;
-  j["settings"] = {{"v_sp", setup.fc.v_sp}, {"v_t", setup.fc.v_t}, {"m_main", model.m_main}, {"m_res", model.m_res},
+  j["settings"] = {{"v_sp", plan.setup.fc.v_sp}, {"v_t", plan.setup.fc.v_t}, {"m_main", plan.model.m_main}, {"m_res", plan.model.m_res},
                    {"deriv_cutoff_hz", recs.empty() ? 0.0 : recs[0].f_cut}, {"global_evals", a.global_evals}, {"shooting_horizon_s", a.horizon},
                    {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"input_kind", a.input_kind},
                    {"output_kind", a.output_kind}, {"output_frame", a.frame},
                    {"fit_offsets", a.fit_offsets}};
-  if (!a.report.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(a.report, ec);
-    if (ec) return Fail(Status::IoError("report", "cannot create '" + a.report + "': " + ec.message()));
-    std::vector<std::string> figs;
-    if (Status st = WritePlots(r, recs, setup, a.report, &figs); !st.ok()) return Fail(st);
-    std::ofstream md((std::filesystem::path(a.report) / "report.md").string());
-    md << "# Identification report\n\n";
-    md << "Declared terms: `" << a.terms << "`; records: ";
-    for (size_t i = 0; i < recs.size(); ++i) md << (i ? ", " : "") << "`" << recs[i].name << "` (" << recs[i].n() << " samples)";
-    md << ".\n\n## Error before and after\n\n| | declared model | final model |\n|---|---|---|\n";
-    md << "| NRMSE of the output, all records | " << Fmt(r.before.errors.nrmse) << " % | " << Fmt(r.after.errors.nrmse) << " % |\n";
-    md << "| spectral error (Eq. 20, normalised) | " << Fmt(r.before.errors.fft) << " % | " << Fmt(r.after.errors.fft) << " % |\n";
-    for (size_t i = 0; i < recs.size(); ++i)
-      md << "| `" << recs[i].name << "` NRMSE / RMS | " << Fmt(r.before.errors.record_nrmse[i]) << " % / " << Fmt(r.before.errors.record_rms[i])
-         << " | " << Fmt(r.after.errors.record_nrmse[i]) << " % / " << Fmt(r.after.errors.record_rms[i]) << " |\n";
-    for (const auto& t : test_json)
-      md << "| test `" << t["record"].get<std::string>() << "` [" << t["range"].get<std::string>() << ") RMS | "
-         << Fmt(t["rms_before"].is_null() ? NAN : t["rms_before"].get<double>()) << " | "
-         << Fmt(t["rms_after"].is_null() ? NAN : t["rms_after"].get<double>()) << " |\n";
-    md << "\n## Effects added\n\n";
-    if (r.added.empty()) md << "None: nothing in the residual beat the noise.\n";
-    for (const AddedEffect& e : r.added) {
-      const TermDef* t = *FindTerm(e.term);
-      md << "- **" << e.term << "** (" << t->meaning << "; `" << t->formula << "`): ";
-      for (size_t i = 0; i < e.names.size(); ++i) md << (i ? ", " : "") << e.names[i] << " = " << Fmt(e.params[i]) << " ± " << Fmt(e.sigma[i], 2) << " " << e.units[i];
-      md << "; error " << Fmt(e.error_before) << " % → " << Fmt(e.error_after) << " % when added.\n";
-    }
-    md << "\n## Evidence\n\n";
-    for (size_t k = 0; k < r.steps.size(); ++k) {
-      const LoopStep& s = r.steps[k];
-      md << "Step " << k + 1 << ": " << s.verdict << " (n_eff " << Fmt(s.n_eff, 4) << ", residual force RMS " << Fmt(s.residual_rms, 3) << " N).\n\n";
-      md << "| candidate | ΔBIC (simulation residual) | explained | signed | ΔBIC (force residual) | explained |\n|---|---|---|---|---|---|\n";
-      for (size_t i = 0; i < std::min<size_t>(s.scores.size(), 8); ++i) {
-        const CandidateScore& c = s.scores[i];
-        md << "| " << c.term << " | " << Fmt(c.delta_bic) << " | " << Fmt(100 * c.explained, 3) << " % | " << (c.sign_ok ? "yes" : "no") << " | "
-           << Fmt(c.force_delta_bic) << " | " << Fmt(100 * c.force_explained, 3) << " % |\n";
-      }
-      md << "\n";
-    }
-    md << "## Final model\n\n| parameter | value | ± σ | unit |\n|---|---|---|---|\n";
-    const auto names = r.final_model.ParamNames();
-    const auto units = r.final_model.ParamUnits();
-    for (size_t i = 0; i < names.size(); ++i)
-      md << "| " << names[i] << " | " << Fmt(r.after.theta[i], 6) << " | " << Fmt(r.after.sigma[i], 2) << " | " << units[i] << " |\n";
-    md << "\nσ: Gauss–Newton covariance scaled by the residual's correlation time. Friction constants v_sp = " << setup.fc.v_sp
-       << " m/s, v_t = " << setup.fc.v_t << " m/s. Wall time " << Fmt(r.seconds, 3) << " s, " << simulations
-       << " simulations.\n\n## Figures\n\n";
-    for (const std::string& f : figs) md << "![" << f << "](" << f << ")\n\n";
-    std::ofstream js((std::filesystem::path(a.report) / "report.json").string());
-    js << j.dump(2) << "\n";
-    if (!md || !js) return Fail(Status::IoError("report", "writing the report in '" + a.report + "' failed"));
+  return j;
+}
+
+// report.md's sections from the errors to the evidence: error before/after (records, tests), the
+// effects added, and every step's candidate table.
+void WriteReportEvidence(std::ostream& md, const IdentifyResult& r, const std::vector<PreparedRecord>& recs, const nlohmann::json& tests) {
+  md << "## Error before and after\n\n| | declared model | final model |\n|---|---|---|\n";
+  md << "| NRMSE of the output, all records | " << Fmt(r.before.errors.nrmse) << " % | " << Fmt(r.after.errors.nrmse) << " % |\n";
+  md << "| spectral error (Eq. 20, normalised) | " << Fmt(r.before.errors.fft) << " % | " << Fmt(r.after.errors.fft) << " % |\n";
+  for (size_t i = 0; i < recs.size(); ++i)
+    md << "| `" << recs[i].name << "` NRMSE / RMS | " << Fmt(r.before.errors.record_nrmse[i]) << " % / " << Fmt(r.before.errors.record_rms[i])
+       << " | " << Fmt(r.after.errors.record_nrmse[i]) << " % / " << Fmt(r.after.errors.record_rms[i]) << " |\n";
+  for (const auto& t : tests)
+    md << "| test `" << t["record"].get<std::string>() << "` [" << t["range"].get<std::string>() << ") RMS | " << TestRms(t, "rms_before")
+       << " | " << TestRms(t, "rms_after") << " |\n";
+  md << "\n## Effects added\n\n";
+  if (r.added.empty()) md << "None: nothing in the residual beat the noise.\n";
+  for (const AddedEffect& e : r.added) {
+    const TermDef* t = *FindTerm(e.term);
+    md << "- **" << e.term << "** (" << t->meaning << "; `" << t->formula << "`): ";
+    for (size_t i = 0; i < e.names.size(); ++i) md << (i ? ", " : "") << e.names[i] << " = " << Fmt(e.params[i]) << " ± " << Fmt(e.sigma[i], 2) << " " << e.units[i];
+    md << "; error " << Fmt(e.error_before) << " % → " << Fmt(e.error_after) << " % when added.\n";
   }
-  if (a.json) {
-    std::cout << j.dump(2) << "\n";
-    return 0;
+  md << "\n## Evidence\n\n";
+  for (size_t k = 0; k < r.steps.size(); ++k) {
+    const LoopStep& s = r.steps[k];
+    md << "Step " << k + 1 << ": " << s.verdict << " (n_eff " << Fmt(s.n_eff, 4) << ", residual force RMS " << Fmt(s.residual_rms, 3) << " N).\n\n";
+    md << "| candidate | ΔBIC (simulation residual) | explained | signed | ΔBIC (force residual) | explained |\n|---|---|---|---|---|---|\n";
+    for (size_t i = 0; i < std::min<size_t>(s.scores.size(), 8); ++i) {
+      const CandidateScore& c = s.scores[i];
+      md << "| " << c.term << " | " << Fmt(c.delta_bic) << " | " << Fmt(100 * c.explained, 3) << " % | " << (c.sign_ok ? "yes" : "no") << " | "
+         << Fmt(c.force_delta_bic) << " | " << Fmt(100 * c.force_explained, 3) << " % |\n";
+    }
+    md << "\n";
   }
+}
+
+// --report DIR: the figures, report.md and report.json (the result `j`).
+Status WriteReport(const IdentifyArgs& a, const Setup& setup, const IdentifyResult& r, const std::vector<PreparedRecord>& recs,
+                   const nlohmann::json& j, long long simulations) {
+  std::error_code ec;
+  std::filesystem::create_directories(a.report, ec);
+  if (ec) return Status::IoError("report", "cannot create '" + a.report + "': " + ec.message());
+  std::vector<std::string> figs;
+  BISTABLE_RETURN_IF_ERROR(WritePlots(r, recs, setup, a.report, &figs));
+  std::ofstream md((std::filesystem::path(a.report) / "report.md").string());
+  md << "# Identification report\n\n";
+  md << "Declared terms: `" << a.terms << "`; records: ";
+  for (size_t i = 0; i < recs.size(); ++i) md << (i ? ", " : "") << "`" << recs[i].name << "` (" << recs[i].n() << " samples)";
+  md << ".\n\n";
+  WriteReportEvidence(md, r, recs, j["tests"]);
+  md << "## Final model\n\n| parameter | value | ± σ | unit |\n|---|---|---|---|\n";
+  const auto names = r.final_model.ParamNames();
+  const auto units = r.final_model.ParamUnits();
+  for (size_t i = 0; i < names.size(); ++i)
+    md << "| " << names[i] << " | " << Fmt(r.after.theta[i], 6) << " | " << Fmt(r.after.sigma[i], 2) << " | " << units[i] << " |\n";
+  md << "\nσ: Gauss–Newton covariance scaled by the residual's correlation time. Friction constants v_sp = " << setup.fc.v_sp
+     << " m/s, v_t = " << setup.fc.v_t << " m/s. Wall time " << Fmt(r.seconds, 3) << " s, " << simulations
+     << " simulations.\n\n## Figures\n\n";
+  for (const std::string& f : figs) md << "![" << f << "](" << f << ")\n\n";
+  std::ofstream js((std::filesystem::path(a.report) / "report.json").string());
+  js << j.dump(2) << "\n";
+  if (!md || !js) return Status::IoError("report", "writing the report in '" + a.report + "' failed");
+  return Status::Ok();
+}
+
+// The human-readable result on stdout.
+void PrintSummary(const IdentifyArgs& a, const IdentifyResult& r, const nlohmann::json& tests, long long simulations) {
   std::printf("error (NRMSE of the output): %s %% before, %s %% after   (spectral: %s %% -> %s %%)\n", Fmt(r.before.errors.nrmse).c_str(),
               Fmt(r.after.errors.nrmse).c_str(), Fmt(r.before.errors.fft).c_str(), Fmt(r.after.errors.fft).c_str());
   for (const LoopStep& s : r.steps) std::printf("  %s\n", s.verdict.c_str());
@@ -462,11 +542,36 @@ int RunIdentify(IdentifyArgs& a) {
   std::printf("final model:\n");
   for (size_t i = 0; i < names.size(); ++i)
     std::printf("  %-28s %12s ± %-9s %s\n", names[i].c_str(), Fmt(r.after.theta[i], 6).c_str(), Fmt(r.after.sigma[i], 2).c_str(), units[i].c_str());
-  for (const auto& t : test_json)
+  for (const auto& t : tests)
     std::printf("test %s [%s): RMS %s before, %s after\n", t["record"].get<std::string>().c_str(), t["range"].get<std::string>().c_str(),
-                Fmt(t["rms_before"].is_null() ? NAN : t["rms_before"].get<double>()).c_str(),
-                Fmt(t["rms_after"].is_null() ? NAN : t["rms_after"].get<double>()).c_str());
+                TestRms(t, "rms_before").c_str(), TestRms(t, "rms_after").c_str());
   std::printf("%.1f s, %lld simulations%s\n", r.seconds, simulations, a.report.empty() ? "" : ("; report in " + a.report).c_str());
+}
+
+int RunIdentify(const IdentifyArgs& a) {
+  if (a.list_terms) return ListTerms(a.json);
+  if (!a.synth.empty()) return MakeSynthetic(a.synth, a.json);
+  const auto plan = PlanFromFlags(a);
+  if (!plan.ok()) return Fail(plan.status());
+  const auto loaded = LoadAll(a, plan->columns);
+  if (!loaded.ok()) return Fail(loaded.status());
+  const auto recs = PrepareFitted(*loaded, a, *plan);
+  if (!recs.ok()) return Fail(recs.status());
+  if (!a.json) std::fprintf(stderr, "identify: %zu record(s), %zu parameters declared; fitting...\n", recs->size(), static_cast<size_t>(plan->model.NumParams()));
+  const IdentifyResult r = Identify(plan->model, *recs, plan->setup, plan->opt);
+  if (Status st = CheckFitted(r, a.objective); !st.ok()) return Fail(st);
+  const auto tests = TestSplits(r, *loaded, *plan, a.deriv_cutoff);
+  if (!tests.ok()) return Fail(tests.status());
+  const long long simulations = TotalSimulations(r);
+  const nlohmann::json j = ResultJson(a, *plan, r, *recs, *tests, simulations);
+  if (!a.report.empty()) {
+    if (Status st = WriteReport(a, plan->setup, r, *recs, j, simulations); !st.ok()) return Fail(st);
+  }
+  if (a.json) {
+    std::cout << j.dump(2) << "\n";
+    return 0;
+  }
+  PrintSummary(a, r, *tests, simulations);
   return 0;
 }
 

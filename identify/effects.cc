@@ -4,19 +4,13 @@
 #include <set>
 
 #include "base/names.h"
+#include "dynamics/friction.h"
 
 namespace bistable {
 namespace {
 
-double StribeckG(double v, const FrictionConstants& fc) {
-  const double u = v / fc.v_sp;
-  return u * std::exp(0.5 - 0.5 * u * u);
-}
-
-double StribeckGSlope(double v, const FrictionConstants& fc) {
-  const double u = v / fc.v_sp;
-  return std::exp(0.5 - 0.5 * u * u) * (1.0 - u * u) / fc.v_sp;
-}
+// The friction term is dynamics/friction.h's law with the known v_sp, v_t and the fitted forces.
+Stribeck FrictionLaw(const FrictionConstants& fc, double f_s = 0, double f_c = 0) { return Stribeck{f_s, f_c, fc.v_sp, fc.v_t}; }
 
 std::vector<TermDef> BuildLibrary() {
   std::vector<TermDef> lib;
@@ -100,12 +94,7 @@ void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc
     case TermKind::kDamping2: out[0] = q * q * v; break;
     case TermKind::kDampingV3: out[0] = v * v * v; break;
     case TermKind::kDrag: out[0] = v * std::abs(v); break;
-    case TermKind::kFriction: {
-      const double g = StribeckG(v, fc);
-      out[0] = g;
-      out[1] = std::tanh(v / fc.v_t) - std::tanh(fc.v_sp / fc.v_t) * g;
-      break;
-    }
+    case TermKind::kFriction: FrictionLaw(fc).Basis(v, out); break;
     case TermKind::kBias: out[0] = 1.0; break;
   }
 }
@@ -123,12 +112,7 @@ void TermSlopes(const TermDef& t, const double* th, double q, double v, const Fr
     case TermKind::kDamping2: *dfdq = 2 * th[0] * q * v, *dfdv = th[0] * q * q; break;
     case TermKind::kDampingV3: *dfdv = 3 * th[0] * v * v; break;
     case TermKind::kDrag: *dfdv = 2 * th[0] * std::abs(v); break;
-    case TermKind::kFriction: {
-      const double gs = StribeckGSlope(v, fc);
-      const double th2 = std::tanh(v / fc.v_t);
-      *dfdv = th[0] * gs + th[1] * ((1 - th2 * th2) / fc.v_t - std::tanh(fc.v_sp / fc.v_t) * gs);
-      break;
-    }
+    case TermKind::kFriction: *dfdv = FrictionLaw(fc, th[0], th[1]).Slope(v); break;
     case TermKind::kBias: break;
   }
 }

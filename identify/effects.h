@@ -18,8 +18,8 @@
 //  damping_y2     q² v (damping_z2)                      c2         N s/m³    ≥ 0
 //  damping_v3     v³                                     c3         N s³/m³   ≥ 0
 //  drag           v |v|                                  cq         N s²/m²   ≥ 0
-//  friction       g(v), tanh(v/v_t) − tanh(v_sp/v_t) g(v)  F_s, F_c  N        ≥ 0 (Stribeck, friction.h;
-//                 g(v) = (v/v_sp) exp(1/2 − v²/2v_sp²); v_sp, v_t are known constants)
+//  friction       g(v), tanh(v/v_t) − tanh(v_sp/v_t) g(v)  F_s, F_c  N        ≥ 0 (Stribeck: dynamics/friction.h's
+//                 law and basis; g(v) = (v/v_sp) exp(1/2 − v²/2v_sp²); v_sp, v_t are known constants)
 //  bias           1                                      f_b        N         either
 #ifndef BISTABLE_IDENTIFY_EFFECTS_H_
 #define BISTABLE_IDENTIFY_EFFECTS_H_

@@ -346,6 +346,165 @@ struct SimCost {
   }
 };
 
+// What the stages of one fit share: the problem in scaled parameters u = θ / scale (the cost functor
+// `cost` holds the scales), the sign bounds, and the result they fill in (simulation count, Ceres'
+// message).
+struct FitStages {
+  const IdentModel& m;
+  const std::vector<PreparedRecord>& recs;
+  const Setup& setup;
+  const FitOptions& opt;
+  int p;
+  std::vector<Sign> signs;
+  SimCost cost;
+  size_t nres;
+  std::vector<double> buf;  // residuals of SumOfSquares
+  FitResult result;
+
+  FitStages(const IdentModel& m_in, const std::vector<double>& scale_in, const std::vector<PreparedRecord>& recs_in,
+            const Setup& setup_in, const FitOptions& opt_in)
+      : m(m_in), recs(recs_in), setup(setup_in), opt(opt_in), p(m_in.NumParams()), signs(m_in.ParamSigns()),
+        cost{&m_in, &recs_in, &setup_in, opt_in.objective, {}, {}, {}, opt_in.threads, 0.0},
+        nres(NumResiduals(recs_in, opt_in.objective)), buf(nres) {
+    cost.scale.resize(p);
+    for (int i = 0; i < p; ++i) cost.scale[i] = std::max({std::abs(scale_in[i]), std::abs(m.theta[i]), 1e-12});
+    if (opt.objective == Objective::kFft) cost.meas_mag = MeasuredMagnitudes(recs, setup);
+  }
+  std::vector<double> Theta(const std::vector<double>& u) const { return cost.Theta(u.data()); }
+  // The start m.theta in scaled parameters, signed parameters clipped to their bound.
+  std::vector<double> ScaledStart() const {
+    std::vector<double> u(p);
+    for (int i = 0; i < p; ++i) u[i] = m.theta[i] / cost.scale[i];
+    for (int i = 0; i < p; ++i)
+      if (signs[i] == Sign::kNonNegative && u[i] < 0) u[i] = 0;
+    return u;
+  }
+  // The objective's sum of squares at u (1e30 when a simulation diverges).
+  double SumOfSquares(const std::vector<double>& u, const std::vector<int>& sub) {
+    SimCost c = cost;
+    c.substeps = sub;
+    const double* pp = u.data();
+    if (!c(&pp, buf.data())) return 1e30;
+    AddSimulations(&result.simulations, 1);
+    double s = 0;
+    for (double v : buf) s += v * v;
+    return s;
+  }
+  std::vector<double> GlobalStage(const std::vector<double>& centre);
+  double LocalStage(std::vector<double>& u, Objective obj, double horizon_s = 0);
+  void Uncertainties(const std::vector<double>& u);
+};
+
+// Global stage (automatic substeps: the box may reach much stiffer parameters than the start): CRS2
+// in a box around `centre`; returns its best point when better than the centre, else {}.
+std::vector<double> FitStages::GlobalStage(const std::vector<double>& centre) {
+  std::vector<double> lo(p), hi(p);
+  for (int i = 0; i < p; ++i) {
+    const double half = opt.global_box * std::max(std::abs(centre[i]), 1.0);
+    lo[i] = centre[i] - half, hi[i] = centre[i] + half;
+    if (signs[i] == Sign::kNonNegative) lo[i] = std::max(lo[i], 0.0);
+    if (!(hi[i] > lo[i])) hi[i] = lo[i] + 1.0;
+  }
+  nlopt::srand(20261122);
+  nlopt::opt g(nlopt::GN_CRS2_LM, static_cast<unsigned>(p));
+  g.set_lower_bounds(lo);
+  g.set_upper_bounds(hi);
+  g.set_maxeval(opt.global_evals);
+  std::function<double(const std::vector<double>&)> f = [&](const std::vector<double>& x) { return SumOfSquares(x, {}); };
+  g.set_min_objective(
+      [](const std::vector<double>& x, std::vector<double>&, void* data) {
+        return (*static_cast<std::function<double(const std::vector<double>&)>*>(data))(x);
+      },
+      &f);
+  const double start = SumOfSquares(centre, {});
+  std::vector<double> x = centre;
+  for (int i = 0; i < p; ++i) x[i] = std::clamp(x[i], lo[i], hi[i]);
+  double best = 0;
+  try {
+    g.optimize(x, best);
+  } catch (const std::exception&) {
+    return {};  // NLopt gave up (roundoff, forced stop)
+  }
+  if (!(best < start)) return {};
+  return x;
+}
+
+// Local stage: Levenberg–Marquardt from u (updated in place) with substeps fixed at what the start
+// needs (re-run with more when the solution turns out stiffer); returns Ceres' final cost.
+double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horizon_s) {
+  SimCost lc = cost;
+  lc.obj = obj;
+  lc.horizon_s = horizon_s;
+  if (obj == Objective::kFft && lc.meas_mag.empty()) lc.meas_mag = MeasuredMagnitudes(recs, setup);
+  const size_t lres = NumResiduals(recs, obj);
+  double final_cost = 1e300;
+  // A start that is not finite (e.g. the regression of absurd data) cannot be solved: Ceres would
+  // refuse it before evaluating anything.
+  if (!AllFinite(u)) return final_cost;
+  for (int round = 0; round < 3; ++round) {
+    const std::vector<int> sub = FixedSubsteps(m, Theta(u), recs);
+    lc.substeps = sub;
+    auto* fn = new ceres::DynamicNumericDiffCostFunction<SimCost, ceres::FORWARD>(new SimCost(lc), ceres::TAKE_OWNERSHIP);
+    fn->AddParameterBlock(p);
+    fn->SetNumResiduals(static_cast<int>(lres));
+    ceres::Problem problem;
+    problem.AddResidualBlock(fn, nullptr, u.data());
+    for (int i = 0; i < p; ++i)
+      if (signs[i] == Sign::kNonNegative) problem.SetParameterLowerBound(u.data(), i, 0.0);
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_QR;
+    so.max_num_iterations = opt.lm_iterations;
+    so.function_tolerance = 1e-10;
+    so.parameter_tolerance = 1e-10;
+    so.logging_type = ceres::SILENT;
+    ceres::Solver::Summary summary;
+    ceres::Solve(so, &problem, &summary);
+    // Ceres leaves both counts at -1 when it stops before evaluating (invalid start or problem):
+    // summing them as they are gave a negative count of simulations.
+    AddSimulations(&result.simulations, std::max(summary.num_residual_evaluations, 0) +
+                                            static_cast<long long>(std::max(summary.num_jacobian_evaluations, 0)) * p);
+    result.message = summary.BriefReport();
+    final_cost = summary.final_cost;
+    const std::vector<double> th = Theta(u);
+    bool enough = true;
+    for (size_t k = 0; k < recs.size(); ++k) enough = enough && SubstepsFor(m, th, recs[k]) <= sub[k];
+    if (enough) break;
+  }
+  return final_cost;
+}
+
+// Uncertainty: Gauss–Newton covariance at the solution u, central differences (time objective only:
+// the spectral residual's bins are neither independent nor of known correlation, so no σ is given).
+void FitStages::Uncertainties(const std::vector<double>& u) {
+  result.sigma.assign(p, NAN);
+  if (opt.objective != Objective::kTime) return;
+  SimCost c = cost;
+  c.substeps = FixedSubsteps(m, result.theta, recs, 1.5);
+  std::vector<double> r0(nres), rp(nres), rm(nres);
+  const double* pp = u.data();
+  if (!c(&pp, r0.data())) return;
+  Eigen::MatrixXd J(static_cast<long>(nres), p);
+  bool ok = true;
+  for (int i = 0; i < p && ok; ++i) {
+    std::vector<double> up = u, um = u;
+    const double h = 1e-5 * std::max(std::abs(u[i]), 1e-3);
+    up[i] += h, um[i] -= h;
+    const double* a = up.data();
+    const double* b = um.data();
+    ok = c(&a, rp.data()) && c(&b, rm.data());
+    for (size_t k = 0; k < nres && ok; ++k) J(static_cast<long>(k), i) = (rp[k] - rm[k]) / (2 * h);
+  }
+  AddSimulations(&result.simulations, 2LL * p + 1);
+  if (!ok) return;
+  double rss = 0;
+  for (double v : r0) rss += v * v;
+  const double dof = std::max(1.0, static_cast<double>(nres) - p);
+  const double tau = CorrelationTime(r0);
+  const Eigen::MatrixXd JtJ = J.transpose() * J;
+  const Eigen::MatrixXd cov = JtJ.completeOrthogonalDecomposition().pseudoInverse() * (rss / dof * tau);
+  for (int i = 0; i < p; ++i) result.sigma[i] = std::sqrt(std::max(cov(i, i), 0.0)) * cost.scale[i];
+}
+
 }  // namespace
 
 FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const std::vector<PreparedRecord>& recs,
@@ -357,168 +516,32 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
   }();
   (void)quiet;
   const auto t0 = std::chrono::steady_clock::now();
-  const int p = m.NumParams();
-  const std::vector<Sign> signs = m.ParamSigns();
-  std::vector<double> scale(p);
-  for (int i = 0; i < p; ++i) {
-    scale[i] = std::max({std::abs(scale_in[i]), std::abs(m.theta[i]), 1e-12});
-  }
-  SimCost cost{&m, &recs, &setup, opt.objective, {}, scale, {}, opt.threads, 0.0};
-  if (opt.objective == Objective::kFft) cost.meas_mag = MeasuredMagnitudes(recs, setup);
-  const size_t nres = NumResiduals(recs, opt.objective);
-  std::vector<double> u(p);
-  for (int i = 0; i < p; ++i) u[i] = m.theta[i] / scale[i];
-  for (int i = 0; i < p; ++i)
-    if (signs[i] == Sign::kNonNegative && u[i] < 0) u[i] = 0;
-  FitResult result;
-  std::vector<double> buf(nres);
-  auto sumsq = [&](const std::vector<double>& uu, const std::vector<int>& sub) {
-    SimCost c = cost;
-    c.substeps = sub;
-    const double* pp = uu.data();
-    if (!c(&pp, buf.data())) return 1e30;
-    AddSimulations(&result.simulations, 1);
-    double s = 0;
-    for (double v : buf) s += v * v;
-    return s;
-  };
-  // Global stage (automatic substeps: the box may reach much stiffer parameters than the start):
-  // CRS2 in a box around `centre`; returns its best point when better than the centre, else {}.
-  auto GlobalStage = [&](const std::vector<double>& centre) -> std::vector<double> {
-    std::vector<double> lo(p), hi(p);
-    for (int i = 0; i < p; ++i) {
-      const double half = opt.global_box * std::max(std::abs(centre[i]), 1.0);
-      lo[i] = centre[i] - half, hi[i] = centre[i] + half;
-      if (signs[i] == Sign::kNonNegative) lo[i] = std::max(lo[i], 0.0);
-      if (!(hi[i] > lo[i])) hi[i] = lo[i] + 1.0;
-    }
-    nlopt::srand(20261122);
-    nlopt::opt g(nlopt::GN_CRS2_LM, static_cast<unsigned>(p));
-    g.set_lower_bounds(lo);
-    g.set_upper_bounds(hi);
-    g.set_maxeval(opt.global_evals);
-    std::function<double(const std::vector<double>&)> f = [&](const std::vector<double>& x) { return sumsq(x, {}); };
-    g.set_min_objective(
-        [](const std::vector<double>& x, std::vector<double>&, void* data) {
-          return (*static_cast<std::function<double(const std::vector<double>&)>*>(data))(x);
-        },
-        &f);
-    const double start = sumsq(centre, {});
-    std::vector<double> x = centre;
-    for (int i = 0; i < p; ++i) x[i] = std::clamp(x[i], lo[i], hi[i]);
-    double best = 0;
-    try {
-      g.optimize(x, best);
-    } catch (const std::exception&) {
-      return {};  // NLopt gave up (roundoff, forced stop)
-    }
-    if (!(best < start)) return {};
-    return x;
-  };
-  // Local stage: Levenberg–Marquardt with substeps fixed at 1.25× what the start needs (re-run with
-  // more when the solution turns out stiffer).
-  auto local = [&](std::vector<double>& uu, Objective obj, double horizon_s = 0) {
-    SimCost lc = cost;
-    lc.obj = obj;
-    lc.horizon_s = horizon_s;
-    if (obj == Objective::kFft && lc.meas_mag.empty()) lc.meas_mag = MeasuredMagnitudes(recs, setup);
-    const size_t lres = NumResiduals(recs, obj);
-    double final_cost = 1e300;
-    // A start that is not finite (e.g. the regression of absurd data) cannot be solved: Ceres would
-    // refuse it before evaluating anything.
-    if (!AllFinite(uu)) return final_cost;
-    for (int round = 0; round < 3; ++round) {
-      std::vector<double> th(p);
-      for (int i = 0; i < p; ++i) th[i] = uu[i] * scale[i];
-      const std::vector<int> sub = FixedSubsteps(m, th, recs);
-      lc.substeps = sub;
-      auto* fn = new ceres::DynamicNumericDiffCostFunction<SimCost, ceres::FORWARD>(new SimCost(lc), ceres::TAKE_OWNERSHIP);
-      fn->AddParameterBlock(p);
-      fn->SetNumResiduals(static_cast<int>(lres));
-      ceres::Problem problem;
-      problem.AddResidualBlock(fn, nullptr, uu.data());
-      for (int i = 0; i < p; ++i)
-        if (signs[i] == Sign::kNonNegative) problem.SetParameterLowerBound(uu.data(), i, 0.0);
-      ceres::Solver::Options so;
-      so.linear_solver_type = ceres::DENSE_QR;
-      so.max_num_iterations = opt.lm_iterations;
-      so.function_tolerance = 1e-10;
-      so.parameter_tolerance = 1e-10;
-      so.logging_type = ceres::SILENT;
-      ceres::Solver::Summary summary;
-      ceres::Solve(so, &problem, &summary);
-      // Ceres leaves both counts at -1 when it stops before evaluating (invalid start or problem):
-      // summing them as they are gave a negative count of simulations.
-      AddSimulations(&result.simulations, std::max(summary.num_residual_evaluations, 0) +
-                                              static_cast<long long>(std::max(summary.num_jacobian_evaluations, 0)) * p);
-      result.message = summary.BriefReport();
-      final_cost = summary.final_cost;
-      for (int i = 0; i < p; ++i) th[i] = uu[i] * scale[i];
-      bool enough = true;
-      for (size_t k = 0; k < recs.size(); ++k) enough = enough && SubstepsFor(m, th, recs[k]) <= sub[k];
-      if (enough) break;
-    }
-    return final_cost;
-  };
+  FitStages fs(m, scale_in, recs, setup, opt);
   // LM from the start; then the global stage around that result, and LM again from the global
   // stage's best when it found a lower cost; the better of the two wins.
-  std::vector<double> start_u = u;
-  double best_cost = local(u, opt.objective);
+  const std::vector<double> start_u = fs.ScaledStart();
+  std::vector<double> u = start_u;
+  double best_cost = fs.LocalStage(u, opt.objective);
   if (opt.objective == Objective::kTime && opt.shooting_horizon_s > 0) {
     // Short-horizon simulation error first (its basin is wide; stick-slip friction makes the long
     // simulation error a narrow valley in a plateau), then the full simulation error from there.
     std::vector<double> f = start_u;
-    local(f, Objective::kTime, opt.shooting_horizon_s);
-    const double fc = local(f, Objective::kTime);
+    fs.LocalStage(f, Objective::kTime, opt.shooting_horizon_s);
+    const double fc = fs.LocalStage(f, Objective::kTime);
     if (fc < best_cost) u = f, best_cost = fc;
   }
   if (opt.global_evals > 0) {
-    std::vector<double> g = GlobalStage(u);
+    std::vector<double> g = fs.GlobalStage(u);
     if (!g.empty()) {
-      const double gc = local(g, opt.objective);
+      const double gc = fs.LocalStage(g, opt.objective);
       if (gc < best_cost) u = g, best_cost = gc;
     }
   }
-  // Uncertainty: Gauss–Newton covariance at the solution, central differences (time objective only:
-  // the spectral residual's bins are neither independent nor of known correlation, so no σ is given).
-  std::vector<double> th(p);
-  for (int i = 0; i < p; ++i) th[i] = u[i] * scale[i];
-  result.theta = th;
-  result.sigma.assign(p, NAN);
-  if (opt.objective == Objective::kTime) {
-    std::vector<int> sub;
-    for (const PreparedRecord& r : recs) sub.push_back(static_cast<int>(std::ceil(1.5 * SubstepsFor(m, th, r))));
-    SimCost c = cost;
-    c.substeps = sub;
-    std::vector<double> r0(nres), rp(nres), rm(nres);
-    const double* pp = u.data();
-    if (c(&pp, r0.data())) {
-      Eigen::MatrixXd J(static_cast<long>(nres), p);
-      bool ok = true;
-      for (int i = 0; i < p && ok; ++i) {
-        std::vector<double> up = u, um = u;
-        const double h = 1e-5 * std::max(std::abs(u[i]), 1e-3);
-        up[i] += h, um[i] -= h;
-        const double* a = up.data();
-        const double* b = um.data();
-        ok = c(&a, rp.data()) && c(&b, rm.data());
-        for (size_t k = 0; k < nres && ok; ++k) J(static_cast<long>(k), i) = (rp[k] - rm[k]) / (2 * h);
-      }
-      AddSimulations(&result.simulations, 2LL * p + 1);
-      if (ok) {
-        double rss = 0;
-        for (double v : r0) rss += v * v;
-        const double dof = std::max(1.0, static_cast<double>(nres) - p);
-        const double tau = opt.objective == Objective::kTime ? CorrelationTime(r0) : 1.0;
-        const Eigen::MatrixXd JtJ = J.transpose() * J;
-        const Eigen::MatrixXd cov = JtJ.completeOrthogonalDecomposition().pseudoInverse() * (rss / dof * tau);
-        for (int i = 0; i < p; ++i) result.sigma[i] = std::sqrt(std::max(cov(i, i), 0.0)) * scale[i];
-      }
-    }
-  }
-  result.errors = Evaluate(m, result.theta, recs, setup);
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return result;
+  fs.result.theta = fs.Theta(u);
+  fs.Uncertainties(u);
+  fs.result.errors = Evaluate(m, fs.result.theta, recs, setup);
+  fs.result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return fs.result;
 }
 
 }  // namespace bistable

@@ -140,11 +140,9 @@ CandidateScore ScoreColumns(const Eigen::MatrixXd& A, const Eigen::MatrixXd& C, 
   return s;
 }
 
-}  // namespace
-
-LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                       const Setup& setup, const IdentifyOptions& opt) {
-  LoopStep step;
+// The library terms not yet in m that the trace may add (opt.candidates, or every term of a body
+// the data constrain).
+std::vector<const TermDef*> FreshCandidates(const IdentModel& m, const std::vector<PreparedRecord>& recs, const IdentifyOptions& opt) {
   std::vector<const TermDef*> cands = opt.candidates;
   bool res_data = true;
   for (const PreparedRecord& r : recs) res_data = res_data && !r.z.empty();
@@ -154,73 +152,147 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
   std::vector<const TermDef*> fresh;
   for (const TermDef* c : cands)
     if (std::find(m.terms.begin(), m.terms.end(), c) == m.terms.end()) fresh.push_back(c);
-  const int p = m.NumParams();
+  return fresh;
+}
 
-  // Supporting evidence: the restoring-force residual regressed on declared + candidate columns.
-  const Regression reg = BuildRegression(m, recs, setup, fresh, 30000);
+// Supporting evidence: the restoring-force residual of the equation-error rows, regressed on the
+// declared columns (base) and scored against each candidate's columns (after them in `reg`).
+struct ForceEvidence {
+  Regression reg;
+  Eigen::VectorXd r0;             // residual force of the fitted model
+  LinearFit base;                 // r0 on the declared columns
+  double n_eff = 0;               // rows / correlation time
+  std::vector<double> step_of_col;  // typical parameter step of every column
+};
+
+ForceEvidence ForceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                            const Setup& setup, const std::vector<const TermDef*>& fresh) {
+  const int p = m.NumParams();
+  ForceEvidence f{BuildRegression(m, recs, setup, fresh, 30000), {}, {}, 0, {}};
+  const Regression& reg = f.reg;
   Eigen::VectorXd t(p);
   for (int i = 0; i < p; ++i) t[i] = th[i];
-  const Eigen::VectorXd r0 = reg.b - reg.X.leftCols(p) * t;
-  const LinearFit fbase = SolveRegression(reg.X.leftCols(p), r0, std::vector<Sign>(p, Sign::kEither));
+  f.r0 = reg.b - reg.X.leftCols(p) * t;
+  f.base = SolveRegression(reg.X.leftCols(p), f.r0, std::vector<Sign>(p, Sign::kEither));
   Eigen::VectorXd d(p);
-  for (int i = 0; i < p; ++i) d[i] = fbase.theta[i];
-  const double n_force = static_cast<double>(reg.X.rows()) / CorrTime(r0 - reg.X.leftCols(p) * d, reg.record_of_row);
-  step.residual_rms = std::sqrt(r0.squaredNorm() / static_cast<double>(reg.X.rows()));
+  for (int i = 0; i < p; ++i) d[i] = f.base.theta[i];
+  f.n_eff = static_cast<double>(reg.X.rows()) / CorrTime(f.r0 - reg.X.leftCols(p) * d, reg.record_of_row);
   // Typical parameter steps: a change worth 2 % of the RMS inertial force along the trajectory.
   const double f_typ = std::sqrt(reg.b.squaredNorm() / std::max<double>(1.0, static_cast<double>(reg.b.size()))) + 1e-300;
-  std::vector<double> step_of_col(reg.X.cols());
+  f.step_of_col.resize(reg.X.cols());
   for (long j = 0; j < reg.X.cols(); ++j) {
     const double rms = reg.X.col(j).norm() / std::sqrt(static_cast<double>(std::max<long>(1, reg.X.rows())));
-    step_of_col[j] = rms > 0 ? 0.02 * f_typ / rms : 1e-6;
+    f.step_of_col[j] = rms > 0 ? 0.02 * f_typ / rms : 1e-6;
   }
+  return f;
+}
 
-  // Deciding evidence: the simulation residual and the output sensitivities.
-  const std::vector<int> sub = FixedSubsteps(m, th, recs);
-  std::vector<double> e0v;
-  if (!ObjectiveResiduals(m, th, recs, setup, opt.fit.objective, sub, &e0v)) {
-    step.verdict = "the fitted model diverges on a record; nothing traced";
-    return step;
-  }
-  const long N = static_cast<long>(e0v.size());
-  const Eigen::VectorXd target = -Eigen::Map<const Eigen::VectorXd>(e0v.data(), N);
-  Eigen::MatrixXd J(N, p);
+// Deciding evidence: the simulation residual e of the fitted model, the output sensitivities J to its
+// parameters (central differences), and the part of −e they cannot explain (base).
+struct SimulationEvidence {
+  std::vector<int> sub;     // substeps held fixed for every simulation of the trace
+  std::vector<double> e0;   // residual vector
+  Eigen::VectorXd target;   // −e
+  Eigen::MatrixXd J;
+  LinearFit base;           // target on J
+  double n_eff = 0;         // samples / correlation time of what J leaves
+};
+
+// False when the fitted model diverges on a record.
+bool SimulationResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                        const Setup& setup, Objective obj, const std::vector<double>& step_of_col, SimulationEvidence* s) {
+  const int p = m.NumParams();
+  s->sub = FixedSubsteps(m, th, recs);
+  if (!ObjectiveResiduals(m, th, recs, setup, obj, s->sub, &s->e0)) return false;
+  const long N = static_cast<long>(s->e0.size());
+  s->target = -Eigen::Map<const Eigen::VectorXd>(s->e0.data(), N);
+  s->J.resize(N, p);
   std::vector<double> ep, em;
   for (int i = 0; i < p; ++i) {
     const double h = 1e-4 * (std::abs(th[i]) > 0 ? std::abs(th[i]) : step_of_col[i]);
     std::vector<double> a = th, b = th;
     a[i] += h, b[i] -= h;
-    if (!ObjectiveResiduals(m, a, recs, setup, opt.fit.objective, sub, &ep) ||
-        !ObjectiveResiduals(m, b, recs, setup, opt.fit.objective, sub, &em)) {
-      J.col(i).setZero();
+    if (!ObjectiveResiduals(m, a, recs, setup, obj, s->sub, &ep) || !ObjectiveResiduals(m, b, recs, setup, obj, s->sub, &em)) {
+      s->J.col(i).setZero();
       continue;
     }
-    for (long k = 0; k < N; ++k) J(k, i) = (ep[k] - em[k]) / (2 * h);
+    for (long k = 0; k < N; ++k) s->J(k, i) = (ep[k] - em[k]) / (2 * h);
   }
-  const LinearFit base = SolveRegression(J, target, std::vector<Sign>(p, Sign::kEither));
+  s->base = SolveRegression(s->J, s->target, std::vector<Sign>(p, Sign::kEither));
   Eigen::VectorXd db(p);
-  for (int i = 0; i < p; ++i) db[i] = std::isfinite(base.theta[i]) ? base.theta[i] : 0.0;
-  const Eigen::VectorXd e_base = target - J * db;
-  step.n_eff = static_cast<double>(N) / CorrelationTimeOf(std::vector<double>(e_base.data(), e_base.data() + N));
+  for (int i = 0; i < p; ++i) db[i] = std::isfinite(s->base.theta[i]) ? s->base.theta[i] : 0.0;
+  const Eigen::VectorXd e_base = s->target - s->J * db;
+  s->n_eff = static_cast<double>(N) / CorrelationTimeOf(std::vector<double>(e_base.data(), e_base.data() + N));
+  return true;
+}
 
+// The output's sensitivity to candidate c's parameters at β = 0 (forward differences of the model
+// with c at steps `init_steps`, substeps no fewer than the trace's); false on divergence.
+bool CandidateSensitivity(const IdentModel& m, const std::vector<double>& th, const TermDef* c, const double* init_steps,
+                          const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj, const SimulationEvidence& sim,
+                          Eigen::MatrixXd* Jc) {
+  const int k = static_cast<int>(c->params.size());
+  const long N = static_cast<long>(sim.e0.size());
+  Jc->resize(N, k);
+  for (int j = 0; j < k; ++j) {
+    std::vector<double> init(k, 0.0);
+    init[j] = init_steps[j];
+    const IdentModel mc = m.With(c, init);
+    std::vector<int> subc = FixedSubsteps(mc, mc.theta, recs);
+    for (size_t r = 0; r < subc.size(); ++r) subc[r] = std::max(subc[r], sim.sub[r]);
+    std::vector<double> ec, e0c = sim.e0;
+    if (!ObjectiveResiduals(mc, mc.theta, recs, setup, obj, subc, &ec) ||
+        !(subc == sim.sub || ObjectiveResiduals(m, th, recs, setup, obj, subc, &e0c)))
+      return false;
+    for (long i = 0; i < N; ++i) (*Jc)(i, j) = (ec[i] - e0c[i]) / init[j];
+  }
+  return true;
+}
+
+// Physically signed: a dissipative term (damping, drag, friction) must take energy out at every
+// velocity of the records, F(q, v)·v ≥ 0 — for one-coefficient terms, the coefficient ≥ 0; for
+// friction, the Coulomb level and the Stribeck peak together.
+bool DissipatesEnergy(const TermDef& c, const std::vector<double>& estimate, const std::vector<PreparedRecord>& recs,
+                      const FrictionConstants& fc) {
+  double vmax = 0, qmax = 0;
+  for (const PreparedRecord& r : recs) vmax = std::max(vmax, r.v_range), qmax = std::max(qmax, r.p_range);
+  double phi[2];
+  bool any = false;
+  for (int iv = 1; iv <= 200; ++iv) {
+    const double v = vmax * 1.5 * iv / 200.0;
+    for (double q : {0.0, 0.5 * qmax, qmax}) {
+      TermBasis(c, q, v, fc, phi);
+      double f = 0;
+      for (size_t j = 0; j < c.params.size(); ++j) f += estimate[j] * phi[j];
+      if (f * v < -1e-12 * std::max(1.0, std::abs(f))) return false;
+      any = any || f * v > 0;
+    }
+  }
+  return any;
+}
+
+}  // namespace
+
+LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                       const Setup& setup, const IdentifyOptions& opt) {
+  LoopStep step;
+  const std::vector<const TermDef*> fresh = FreshCandidates(m, recs, opt);
+  const int p = m.NumParams();
+  const ForceEvidence force = ForceResidual(m, th, recs, setup, fresh);
+  step.residual_rms = std::sqrt(force.r0.squaredNorm() / static_cast<double>(force.reg.X.rows()));
+  SimulationEvidence sim;
+  if (!SimulationResidual(m, th, recs, setup, opt.fit.objective, force.step_of_col, &sim)) {
+    step.verdict = "the fitted model diverges on a record; nothing traced";
+    return step;
+  }
+  step.n_eff = sim.n_eff;
   int col = p;
   for (const TermDef* c : fresh) {
     const int k = static_cast<int>(c->params.size());
-    Eigen::MatrixXd Jc(N, k);
-    bool ok = true;
-    for (int j = 0; j < k && ok; ++j) {
-      std::vector<double> init(k, 0.0);
-      init[j] = step_of_col[col + j];
-      const IdentModel mc = m.With(c, init);
-      std::vector<int> subc = FixedSubsteps(mc, mc.theta, recs);
-      for (size_t r = 0; r < subc.size(); ++r) subc[r] = std::max(subc[r], sub[r]);
-      std::vector<double> ec, e0c = e0v;
-      ok = ObjectiveResiduals(mc, mc.theta, recs, setup, opt.fit.objective, subc, &ec) &&
-           (subc == sub || ObjectiveResiduals(m, th, recs, setup, opt.fit.objective, subc, &e0c));
-      for (long i = 0; ok && i < N; ++i) Jc(i, j) = (ec[i] - e0c[i]) / init[j];
-    }
+    Eigen::MatrixXd Jc;
     CandidateScore s;
-    if (ok) {
-      s = ScoreColumns(J, Jc, target, base.rss, step.n_eff);
+    if (CandidateSensitivity(m, th, c, &force.step_of_col[col], recs, setup, opt.fit.objective, sim, &Jc)) {
+      s = ScoreColumns(sim.J, Jc, sim.target, sim.base.rss, sim.n_eff);
     } else {
       s.explained = 0;
       s.delta_bic = INFINITY;
@@ -228,27 +300,8 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
       s.sigma.assign(k, NAN);
     }
     s.term = c->id;
-    // Physically signed: a dissipative term (damping, drag, friction) must take energy out at every
-    // velocity of the records, F(q, v)·v ≥ 0 — for one-coefficient terms, the coefficient ≥ 0; for
-    // friction, the Coulomb level and the Stribeck peak together.
-    if (c->params[0].sign == Sign::kNonNegative) {
-      double vmax = 0, qmax = 0;
-      for (const PreparedRecord& r : recs) vmax = std::max(vmax, r.v_range), qmax = std::max(qmax, r.p_range);
-      double phi[2];
-      bool any = false;
-      for (int iv = 1; iv <= 200 && s.sign_ok; ++iv) {
-        const double v = vmax * 1.5 * iv / 200.0;
-        for (double q : {0.0, 0.5 * qmax, qmax}) {
-          TermBasis(*c, q, v, m.fc, phi);
-          double f = 0;
-          for (int j = 0; j < k; ++j) f += s.estimate[j] * phi[j];
-          if (f * v < -1e-12 * std::max(1.0, std::abs(f))) s.sign_ok = false;
-          any = any || f * v > 0;
-        }
-      }
-      s.sign_ok = s.sign_ok && any;
-    }
-    const CandidateScore fs = ScoreColumns(reg.X.leftCols(p), reg.X.middleCols(col, k), r0, fbase.rss, n_force);
+    if (c->params[0].sign == Sign::kNonNegative) s.sign_ok = DissipatesEnergy(*c, s.estimate, recs, m.fc);
+    const CandidateScore fs = ScoreColumns(force.reg.X.leftCols(p), force.reg.X.middleCols(col, k), force.r0, force.base.rss, force.n_eff);
     s.force_delta_bic = fs.delta_bic;
     s.force_explained = fs.explained;
     step.scores.push_back(s);
@@ -280,23 +333,71 @@ IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRe
   return IdentifyIndexed(m, indexed, setup, opt);
 }
 
+namespace {
+
+// The declared model's start (m->theta): offsets from the equation-error scan, then the given
+// guesses (non-NaN, offsets included) win, and the regression fills in the rest; `sigma0` its σ.
+void StartDeclared(IdentModel* m, const std::vector<PreparedRecord>& recs, const Setup& setup, std::vector<double>* sigma0) {
+  const std::vector<double> given = m->theta;
+  EstimateOffsets(m, recs, setup);
+  if (given.size() == m->theta.size())
+    for (size_t i = 0; i < given.size(); ++i)
+      if (std::isfinite(given[i])) m->theta[i] = given[i];
+  const std::vector<double> start = StartFromRegression(*m, recs, setup, sigma0);
+  if (static_cast<int>(m->theta.size()) != m->NumParams()) m->theta = start;
+  else  // given guesses win; missing ones (NaN) come from the regression
+    for (int i = 0; i < m->NumParams(); ++i)
+      if (!std::isfinite(m->theta[i])) m->theta[i] = start[i];
+}
+
+// The model `m` (fitted: `fit`) with the step's chosen term added (`*next`), refitted by simulation
+// from two starts — the trace's estimate, and the extended model's equation-error regression
+// (another basin) — the better kept.
+FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t, const LoopStep& step,
+                    const std::vector<PreparedRecord>& recs, const Setup& setup, const IdentifyOptions& opt, IdentModel* next) {
+  const CandidateScore& s = *std::find_if(step.scores.begin(), step.scores.end(),
+                                           [&](const CandidateScore& c) { return c.term == step.chosen; });
+  std::vector<double> init = s.estimate;
+  for (size_t j = 0; j < init.size(); ++j)
+    if (t->params[j].sign == Sign::kNonNegative) init[j] = std::max(init[j], 0.0);
+  *next = m.With(t, init);
+  std::vector<double> sig = fit.sigma;
+  sig.insert(sig.begin() + m.NumTermParams(), s.sigma.begin(), s.sigma.end());
+  FitResult refit = Fit(*next, ScaleOf(*next, next->theta, sig, recs, setup), recs, setup, opt.fit);
+  IdentModel alt = *next;
+  std::vector<double> sig_alt;
+  alt.theta = StartFromRegression(alt, recs, setup, &sig_alt);
+  FitResult refit2 = Fit(alt, ScaleOf(alt, alt.theta, sig_alt, recs, setup), recs, setup, opt.fit);
+  if (ErrorOf(refit2, opt.fit.objective) < ErrorOf(refit, opt.fit.objective)) refit = refit2;
+  return refit;
+}
+
+// An added effect's values and σ as fitted in `fit` of model `m`.
+void TakeValues(AddedEffect* a, const IdentModel& m, const FitResult& fit) {
+  const int off = m.Offset(*FindTerm(a->term));
+  for (size_t j = 0; j < a->names.size(); ++j) a->params[j] = fit.theta[off + j], a->sigma[j] = fit.sigma[off + j];
+}
+
+AddedEffect Added(const TermDef* t, const IdentModel& m, const FitResult& fit, double before, double after) {
+  AddedEffect a;
+  a.term = t->id;
+  for (const TermParam& p : t->params) a.names.push_back(p.name), a.units.push_back(p.unit);
+  a.params.resize(t->params.size());
+  a.sigma.resize(t->params.size());
+  TakeValues(&a, m, fit);
+  a.error_before = before;
+  a.error_after = after;
+  return a;
+}
+
+}  // namespace
+
 IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& recs, const Setup& setup,
                                const IdentifyOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
   IdentifyResult out;
-  {
-    const std::vector<double> given = m.theta;
-    EstimateOffsets(&m, recs, setup);
-    if (given.size() == m.theta.size())  // given guesses (non-NaN) win, offsets included
-      for (size_t i = 0; i < given.size(); ++i)
-        if (std::isfinite(given[i])) m.theta[i] = given[i];
-  }
   std::vector<double> sigma0;
-  const std::vector<double> start = StartFromRegression(m, recs, setup, &sigma0);
-  if (static_cast<int>(m.theta.size()) != m.NumParams()) m.theta = start;
-  else  // given guesses win; missing ones (NaN) come from the regression
-    for (int i = 0; i < m.NumParams(); ++i)
-      if (!std::isfinite(m.theta[i])) m.theta[i] = start[i];
+  StartDeclared(&m, recs, setup, &sigma0);
   out.declared = m;
   FitResult fit = Fit(m, ScaleOf(m, m.theta, sigma0, recs, setup), recs, setup, opt.fit);
   m.theta = fit.theta;
@@ -317,22 +418,8 @@ IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& 
       break;
     }
     const TermDef* t = *FindTerm(step.chosen);
-    const CandidateScore& s = *std::find_if(step.scores.begin(), step.scores.end(),
-                                             [&](const CandidateScore& c) { return c.term == step.chosen; });
-    std::vector<double> init = s.estimate;
-    for (size_t j = 0; j < init.size(); ++j)
-      if (t->params[j].sign == Sign::kNonNegative) init[j] = std::max(init[j], 0.0);
-    IdentModel next = m.With(t, init);
-    std::vector<double> sig = fit.sigma;
-    sig.insert(sig.begin() + m.NumTermParams(), s.sigma.begin(), s.sigma.end());
-    FitResult refit = Fit(next, ScaleOf(next, next.theta, sig, recs, setup), recs, setup, opt.fit);
-    {  // a second start: the equation-error regression of the extended model (another basin)
-      IdentModel alt = next;
-      std::vector<double> sig_alt;
-      alt.theta = StartFromRegression(alt, recs, setup, &sig_alt);
-      FitResult refit2 = Fit(alt, ScaleOf(alt, alt.theta, sig_alt, recs, setup), recs, setup, opt.fit);
-      if (ErrorOf(refit2, opt.fit.objective) < ErrorOf(refit, opt.fit.objective)) refit = refit2;
-    }
+    IdentModel next;
+    const FitResult refit = RefitWith(m, fit, t, step, recs, setup, opt, &next);
     const double before = ErrorOf(fit, opt.fit.objective), after = ErrorOf(refit, opt.fit.objective);
     char buf[256];
     if (!(after < before * (1.0 - opt.min_improvement))) {
@@ -347,29 +434,14 @@ IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& 
     if (std::getenv("BISTABLE_IDENTIFY_DEBUG")) std::fprintf(stderr, "refit: %s (%d simulations, %.1f s)\n", refit.message.c_str(), refit.simulations, refit.seconds);
     step.verdict = buf;
     out.steps.push_back(step);
-    AddedEffect a;
-    a.term = t->id;
-    const int off = next.Offset(t);
-    for (size_t j = 0; j < t->params.size(); ++j) {
-      a.names.push_back(t->params[j].name);
-      a.units.push_back(t->params[j].unit);
-      a.params.push_back(refit.theta[off + j]);
-      a.sigma.push_back(refit.sigma[off + j]);
-    }
-    a.error_before = before;
-    a.error_after = after;
-    out.added.push_back(a);
+    out.added.push_back(Added(t, next, refit, before, after));
     m = next;
     m.theta = refit.theta;
     fit = refit;
   }
   out.final_model = m;
   out.after = fit;
-  for (AddedEffect& a : out.added) {  // report the final values (later additions refit everything)
-    const TermDef* t = *FindTerm(a.term);
-    const int off = m.Offset(t);
-    for (size_t j = 0; j < a.params.size(); ++j) a.params[j] = fit.theta[off + j], a.sigma[j] = fit.sigma[off + j];
-  }
+  for (AddedEffect& a : out.added) TakeValues(&a, m, fit);  // the final values (later additions refit everything)
   out.residual_after = ResidualForce(m, m.theta, recs, setup);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;

@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 
+#include "dynamics/rk4.h"
 #include "dynamics/spectrum.h"
 
 namespace bistable {
@@ -263,6 +264,132 @@ IdentModel IdentModel::With(const TermDef* t, const std::vector<double>& initial
   return m;
 }
 
+namespace {
+
+// The main body's absolute position x from the output (base displacement input; a relative output
+// plus the base).
+std::vector<double> AbsolutePosition(const std::vector<double>& out, const PreparedRecord& r, const Setup& setup) {
+  std::vector<double> x = out;
+  if (setup.frame == OutputFrame::kRelative)
+    for (size_t i = 0; i < x.size(); ++i) x[i] += r.input[i];
+  return x;
+}
+
+// The velocity relative to the base from a velocity output (an absolute one minus the base velocity).
+std::vector<double> RelativeVelocity(const std::vector<double>& out, const PreparedRecord& r, const Setup& setup) {
+  std::vector<double> v_rel = out;
+  if (setup.input == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute)
+    for (size_t i = 0; i < v_rel.size(); ++i) v_rel[i] -= r.base_v[i];
+  return v_rel;
+}
+
+// The resonator's coordinate r of the integrated state: x_r (displacement input: absolute) or
+// z = x_r − y otherwise (force input: no base).
+std::vector<double> ResonatorCoordinate(const std::vector<double>& xr, const std::vector<double>& out, const Setup& setup) {
+  std::vector<double> q = xr;
+  if (setup.input != InputKind::kBaseDisplacement)
+    for (size_t i = 0; i < q.size(); ++i) q[i] -= out[i];
+  return q;
+}
+
+// Band-limited derivative of one of the record's signals at its cutoff.
+std::vector<double> Derivative(const PreparedRecord& r, const std::vector<double>& v, int order) {
+  return SpectralDerivative(v, r.dt, order, r.f_cut);
+}
+
+// A coordinate's band-limited value, first and second derivative.
+void CoordinateAndDerivatives(const PreparedRecord& r, const std::vector<double>& q, std::vector<double>* value,
+                              std::vector<double>* first, std::vector<double>* second) {
+  *value = Derivative(r, q, 0);
+  *first = Derivative(r, q, 1);
+  *second = Derivative(r, q, 2);
+}
+
+// The measured coordinate p of the integrated state and its derivatives, the relative y, y' and the
+// compared output (and the base's displacement or velocity where the output needs it).
+void MainBodySignals(PreparedRecord* r, const std::vector<double>& out, const Setup& setup) {
+  const size_t n = out.size();
+  r->meas = out;
+  if (setup.input == InputKind::kBaseDisplacement) {
+    r->base_x = r->input;
+    const std::vector<double> x0d = Derivative(*r, r->input, 1);
+    const std::vector<double> x = AbsolutePosition(out, *r, setup);
+    CoordinateAndDerivatives(*r, x, &r->p, &r->pd, &r->pdd);
+    r->y.resize(n), r->yd.resize(n);
+    for (size_t i = 0; i < n; ++i) r->y[i] = r->p[i] - r->input[i], r->yd[i] = r->pd[i] - x0d[i];
+    return;
+  }
+  if (setup.input == InputKind::kBaseAcceleration) r->base_v = IntegrateFft(r->input, r->dt, 0.0);
+  if (setup.output != OutputKind::kVelocity) {
+    CoordinateAndDerivatives(*r, out, &r->p, &r->pd, &r->pdd);
+  } else {
+    const std::vector<double> v_rel = RelativeVelocity(out, *r, setup);
+    r->pd = Derivative(*r, v_rel, 0);
+    r->pdd = Derivative(*r, v_rel, 1);
+    r->p = IntegrateFft(v_rel, r->dt, 0.0);  // zero-mean: an offset (the well) is not observable from velocity
+  }
+  r->y = r->p;
+  r->yd = r->pd;
+}
+
+// The resonator's measured coordinate and its derivatives, and z, z'.
+void ResonatorSignals(PreparedRecord* r, const std::vector<double>& xr, const std::vector<double>& out, const Setup& setup) {
+  const size_t n = out.size();
+  r->meas_res = xr;
+  const std::vector<double> q = ResonatorCoordinate(xr, out, setup);
+  CoordinateAndDerivatives(*r, q, &r->r, &r->rd, &r->rdd);
+  r->z.resize(n), r->zd.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    r->z[i] = setup.input == InputKind::kBaseDisplacement ? r->r[i] - r->p[i] : r->r[i];
+    r->zd[i] = setup.input == InputKind::kBaseDisplacement ? r->rd[i] - r->pd[i] : r->rd[i];
+  }
+}
+
+// Initial and restart states: local cubic fits (the band-limited derivative of a mirrored record is
+// distorted at its ends, and its wider band lets more noise into single-sample states).
+void RestartStates(PreparedRecord* r, const std::vector<double>& out, const Setup& setup) {
+  const double dt = r->dt;
+  if (setup.input == InputKind::kBaseDisplacement) {
+    const std::vector<double> x = AbsolutePosition(out, *r, setup);
+    r->ic_p = SavitzkyGolay(x, dt, 4, 0);
+    r->ic_pd = SavitzkyGolay(x, dt, 4, 1);
+  } else if (setup.output != OutputKind::kVelocity) {
+    r->ic_p = SavitzkyGolay(out, dt, 4, 0);
+    r->ic_pd = SavitzkyGolay(out, dt, 4, 1);
+  } else {
+    r->ic_p = r->p;
+    r->ic_pd = SavitzkyGolay(RelativeVelocity(out, *r, setup), dt, 4, 0);
+  }
+  if (!r->r.empty()) {
+    const std::vector<double> q = ResonatorCoordinate(r->meas_res, out, setup);
+    r->ic_r = SavitzkyGolay(q, dt, 4, 0);
+    r->ic_rd = SavitzkyGolay(q, dt, 4, 1);
+  }
+}
+
+// The NRMSE denominator and the ranges of y, y' (for substep bounds and divergence); an error when
+// the output is constant.
+Status SetScales(PreparedRecord* r) {
+  const size_t n = r->n();
+  double mean = 0;
+  for (double v : r->meas) mean += v;
+  mean /= static_cast<double>(n);
+  double ss = 0;
+  for (double v : r->meas) ss += (v - mean) * (v - mean);
+  r->meas_scale = std::sqrt(ss / static_cast<double>(n));
+  if (!(r->meas_scale > 0))
+    return Status::InvalidArgument("data", "record '" + r->name + "': the output is constant over the range used");
+  r->p_range = 0;
+  r->v_range = 0;
+  for (size_t i = 0; i < n; ++i) r->p_range = std::max(r->p_range, std::abs(r->y[i]));
+  for (size_t i = 0; i < n; ++i) r->v_range = std::max(r->v_range, std::abs(r->yd[i]));
+  if (!(r->p_range > 0)) r->p_range = r->meas_scale;
+  if (!(r->v_range > 0)) r->v_range = r->meas_scale / r->dt;
+  return Status::Ok();
+}
+
+}  // namespace
+
 StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, size_t begin, size_t end, double f_cut_hz,
                                        const std::string& name) {
   BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));
@@ -278,109 +405,18 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
   auto slice = [&](const std::vector<double>& v) { return std::vector<double>(v.begin() + begin, v.begin() + end); };
   r.input = slice(rec.input);
   const std::vector<double> out = slice(rec.output);
-  const size_t n = out.size();
-  const double dt = rec.dt;
-  const bool disp_out = setup.output != OutputKind::kVelocity;
-  r.in_spline = UniformSpline(r.t0, dt, r.input);
+  r.in_spline = UniformSpline(r.t0, r.dt, r.input);
   if (!(f_cut_hz >= 0)) return Status::InvalidArgument("deriv-cutoff", "the derivative cutoff must be >= 0 Hz");
-  r.f_cut = f_cut_hz > 0 ? std::min(f_cut_hz, 0.5 / dt) : AutoCutoff(out, dt);
-  auto D = [&](const std::vector<double>& v, int order) { return SpectralDerivative(v, dt, order, r.f_cut); };
-  // Coordinate p of the integrated state, measured: its derivatives by Savitzky–Golay.
-  switch (setup.input) {
-    case InputKind::kBaseDisplacement: {
-      r.base_x = r.input;
-      const std::vector<double> x0d = D(r.input, 1);
-      std::vector<double> x = out;
-      if (setup.frame == OutputFrame::kRelative)
-        for (size_t i = 0; i < n; ++i) x[i] += r.input[i];
-      r.p = D(x, 0);
-      r.pd = D(x, 1);
-      r.pdd = D(x, 2);
-      r.y.resize(n), r.yd.resize(n);
-      for (size_t i = 0; i < n; ++i) r.y[i] = r.p[i] - r.input[i], r.yd[i] = r.pd[i] - x0d[i];
-      r.meas = out;
-      break;
-    }
-    case InputKind::kBaseAcceleration:
-    case InputKind::kForce: {
-      if (setup.input == InputKind::kBaseAcceleration) r.base_v = IntegrateFft(r.input, dt, 0.0);
-      std::vector<double> v_rel;
-      if (disp_out) {
-        r.p = D(out, 0);
-        r.pd = D(out, 1);
-        r.pdd = D(out, 2);
-      } else {
-        v_rel = out;
-        if (setup.input == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute)
-          for (size_t i = 0; i < n; ++i) v_rel[i] -= r.base_v[i];
-        r.pd = D(v_rel, 0);
-        r.pdd = D(v_rel, 1);
-        r.p = IntegrateFft(v_rel, dt, 0.0);  // zero-mean: an offset (the well) is not observable from velocity
-      }
-      r.y = r.p;
-      r.yd = r.pd;
-      r.meas = out;
-      break;
-    }
-  }
+  r.f_cut = f_cut_hz > 0 ? std::min(f_cut_hz, 0.5 / r.dt) : AutoCutoff(out, r.dt);
+  MainBodySignals(&r, out, setup);
   if (!rec.resonator.empty()) {
     if (setup.input == InputKind::kBaseAcceleration)
       return Status::InvalidArgument("resonator", "a measured resonator needs a base displacement or force input (its "
                                                   "absolute position cannot be related to an acceleration-driven base)");
-    const std::vector<double> xr = slice(rec.resonator);
-    r.meas_res = xr;
-    // r = x_r (displacement input: absolute) or z = x_r − x otherwise.
-    std::vector<double> q = xr;
-    if (setup.input != InputKind::kBaseDisplacement)
-      for (size_t i = 0; i < n; ++i) q[i] -= out[i];  // z = x_r − y (force input: no base)
-    r.r = D(q, 0);
-    r.rd = D(q, 1);
-    r.rdd = D(q, 2);
-    r.z.resize(n), r.zd.resize(n);
-    for (size_t i = 0; i < n; ++i) {
-      r.z[i] = setup.input == InputKind::kBaseDisplacement ? r.r[i] - r.p[i] : r.r[i];
-      r.zd[i] = setup.input == InputKind::kBaseDisplacement ? r.rd[i] - r.pd[i] : r.rd[i];
-    }
+    ResonatorSignals(&r, slice(rec.resonator), out, setup);
   }
-  // Initial and restart states: local cubic fits (the band-limited derivative of a mirrored record is
-  // distorted at its ends, and its wider band lets more noise into single-sample states).
-  if (setup.input == InputKind::kBaseDisplacement) {
-    std::vector<double> x = out;
-    if (setup.frame == OutputFrame::kRelative)
-      for (size_t i = 0; i < n; ++i) x[i] += r.input[i];
-    r.ic_p = SavitzkyGolay(x, dt, 4, 0);
-    r.ic_pd = SavitzkyGolay(x, dt, 4, 1);
-  } else if (disp_out) {
-    r.ic_p = SavitzkyGolay(out, dt, 4, 0);
-    r.ic_pd = SavitzkyGolay(out, dt, 4, 1);
-  } else {
-    std::vector<double> v_rel = out;
-    if (setup.input == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute)
-      for (size_t i = 0; i < n; ++i) v_rel[i] -= r.base_v[i];
-    r.ic_p = r.p;
-    r.ic_pd = SavitzkyGolay(v_rel, dt, 4, 0);
-  }
-  if (!r.r.empty()) {
-    std::vector<double> q(r.meas_res);
-    if (setup.input != InputKind::kBaseDisplacement)
-      for (size_t i = 0; i < n; ++i) q[i] -= out[i];
-    r.ic_r = SavitzkyGolay(q, dt, 4, 0);
-    r.ic_rd = SavitzkyGolay(q, dt, 4, 1);
-  }
-  double mean = 0;
-  for (double v : r.meas) mean += v;
-  mean /= static_cast<double>(n);
-  double ss = 0;
-  for (double v : r.meas) ss += (v - mean) * (v - mean);
-  r.meas_scale = std::sqrt(ss / static_cast<double>(n));
-  if (!(r.meas_scale > 0))
-    return Status::InvalidArgument("data", "record '" + name + "': the output is constant over the range used");
-  r.p_range = 0;
-  r.v_range = 0;
-  for (size_t i = 0; i < n; ++i) r.p_range = std::max(r.p_range, std::abs(r.y[i]));
-  for (size_t i = 0; i < n; ++i) r.v_range = std::max(r.v_range, std::abs(r.yd[i]));
-  if (!(r.p_range > 0)) r.p_range = r.meas_scale;
-  if (!(r.v_range > 0)) r.v_range = r.meas_scale / dt;
+  RestartStates(&r, out, setup);
+  BISTABLE_RETURN_IF_ERROR(SetScales(&r));
   return r;
 }
 
@@ -415,6 +451,64 @@ int SubstepsFor(const IdentModel& m, const std::vector<double>& th, const Prepar
   return static_cast<int>(std::clamp(steps, 1.0, 2000.0));
 }
 
+namespace {
+
+// A record's equations of motion (model.h) as a System for dynamics/rk4.h: state (p, p', r, r'), fixed
+// size, so that stepping allocates nothing (Simulate is the hot loop of identification).
+class RecordSystem {
+ public:
+  using State = Eigen::Matrix<double, 4, 1>;
+  RecordSystem(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, InputKind in)
+      : m_(m), th_(th), r_(r), in_(in), res_(m.HasResonator()), mm_(m.Mass(th)) {}
+  int dim() const { return 4; }
+  void operator()(double t, const State& x, State& dx) const {
+    double u, ud;
+    r_.in_spline.Eval(t, &u, &ud);
+    double y, yd, z = 0, zd = 0;
+    if (in_ == InputKind::kBaseDisplacement) {
+      y = x[0] - u, yd = x[1] - ud;
+      if (res_) z = x[2] - x[0], zd = x[3] - x[1];
+    } else {
+      y = x[0], yd = x[1];
+      if (res_) z = x[2], zd = x[3];
+    }
+    const double F = m_.Force(Body::kMain, th_, y, yd);
+    const double G = res_ ? m_.Force(Body::kResonator, th_, z, zd) : 0.0;
+    // p'' and r'' (a₁, a₃), then dx written whole: one vector store, which the integrator's next
+    // vector load of dx can forward (four scalar stores cannot be, and cost ~4 % of the simulation).
+    double a1 = 0, a3 = 0;
+    switch (in_) {
+      case InputKind::kBaseDisplacement:
+        a1 = (-F + G) / mm_;
+        a3 = res_ ? -G / m_.m_res : a1;
+        break;
+      case InputKind::kBaseAcceleration: {
+        const double am = (-F + G) / mm_;
+        a1 = am - u;
+        a3 = res_ ? -G / m_.m_res - am : 0.0;
+        break;
+      }
+      case InputKind::kForce: {
+        const double ydd = (u - F + G) / mm_;
+        a1 = ydd;
+        a3 = res_ ? -G / m_.m_res - ydd : 0.0;
+        break;
+      }
+    }
+    dx = State(x[1], a1, x[3], a3);
+  }
+
+ private:
+  const IdentModel& m_;
+  const std::vector<double>& th_;
+  const PreparedRecord& r_;
+  const InputKind in_;
+  const bool res_;
+  const double mm_;
+};
+
+}  // namespace
+
 bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
               std::vector<double>* out, std::vector<double>* out_res, int substeps, int restart_every) {
   const size_t n = r.n();
@@ -431,44 +525,10 @@ bool Simulate(const IdentModel& m, const std::vector<double>& th, const Prepared
   const InputKind in = setup.input;
   // State (p, p', r, r'); initial values from the smoothed measurement.
   const double offset = m.Offset(th, r.index);
-  double s[4] = {r.ic_p[0] + offset, r.ic_pd[0],
-                 res && !r.ic_r.empty() ? r.ic_r[0] : (in == InputKind::kBaseDisplacement ? r.ic_p[0] : 0.0),
-                 res && !r.ic_rd.empty() ? r.ic_rd[0] : (in == InputKind::kBaseDisplacement ? r.ic_pd[0] : 0.0)};
+  RecordSystem::State s;
+  s << r.ic_p[0] + offset, r.ic_pd[0], res && !r.ic_r.empty() ? r.ic_r[0] : (in == InputKind::kBaseDisplacement ? r.ic_p[0] : 0.0),
+      res && !r.ic_rd.empty() ? r.ic_rd[0] : (in == InputKind::kBaseDisplacement ? r.ic_pd[0] : 0.0);
   const double limit_p = 100.0 * (r.p_range + std::abs(r.ic_p[0]) + std::abs(offset)) + 1e-12;
-  auto rhs = [&](double t, const double* x, double* dx) {
-    double u, ud;
-    r.in_spline.Eval(t, &u, &ud);
-    double y, yd, z = 0, zd = 0;
-    if (in == InputKind::kBaseDisplacement) {
-      y = x[0] - u, yd = x[1] - ud;
-      if (res) z = x[2] - x[0], zd = x[3] - x[1];
-    } else {
-      y = x[0], yd = x[1];
-      if (res) z = x[2], zd = x[3];
-    }
-    const double F = m.Force(Body::kMain, th, y, yd);
-    const double G = res ? m.Force(Body::kResonator, th, z, zd) : 0.0;
-    dx[0] = x[1];
-    dx[2] = x[3];
-    switch (in) {
-      case InputKind::kBaseDisplacement:
-        dx[1] = (-F + G) / mm;
-        dx[3] = res ? -G / m.m_res : dx[1];
-        break;
-      case InputKind::kBaseAcceleration: {
-        const double am = (-F + G) / mm;
-        dx[1] = am - u;
-        dx[3] = res ? -G / m.m_res - am : 0.0;
-        break;
-      }
-      case InputKind::kForce: {
-        const double ydd = (u - F + G) / mm;
-        dx[1] = ydd;
-        dx[3] = res ? -G / m.m_res - ydd : 0.0;
-        break;
-      }
-    }
-  };
   auto emit = [&](size_t i) {
     double value;
     const bool vel = setup.output == OutputKind::kVelocity;
@@ -485,23 +545,14 @@ bool Simulate(const IdentModel& m, const std::vector<double>& th, const Prepared
     if (out_res && res) (*out_res)[i] = in == InputKind::kBaseDisplacement ? s[2] : s[2] + s[0];
   };
   emit(0);
-  double k1[4], k2[4], k3[4], k4[4], tmp[4];
+  const RecordSystem sys(m, th, r, in);
+  Rk4<RecordSystem> rk4(sys);
   for (size_t i = 1; i < n; ++i) {
     if (restart_every > 0 && (i - 1) % static_cast<size_t>(restart_every) == 0 && i > 1) {
       s[0] = r.ic_p[i - 1] + offset, s[1] = r.ic_pd[i - 1];
       if (res && !r.ic_r.empty()) s[2] = r.ic_r[i - 1], s[3] = r.ic_rd[i - 1];
     }
-    for (int sub = 0; sub < ns; ++sub) {
-      const double t = r.t0 + static_cast<double>(i - 1) * r.dt + sub * h;
-      rhs(t, s, k1);
-      for (int j = 0; j < 4; ++j) tmp[j] = s[j] + 0.5 * h * k1[j];
-      rhs(t + 0.5 * h, tmp, k2);
-      for (int j = 0; j < 4; ++j) tmp[j] = s[j] + 0.5 * h * k2[j];
-      rhs(t + 0.5 * h, tmp, k3);
-      for (int j = 0; j < 4; ++j) tmp[j] = s[j] + h * k3[j];
-      rhs(t + h, tmp, k4);
-      for (int j = 0; j < 4; ++j) s[j] += h / 6.0 * (k1[j] + 2 * k2[j] + 2 * k3[j] + k4[j]);
-    }
+    for (int sub = 0; sub < ns; ++sub) rk4.Step(r.t0 + static_cast<double>(i - 1) * r.dt + sub * h, s, h);
     if (!std::isfinite(s[0]) || !std::isfinite(s[1]) || std::abs(s[0]) > limit_p) return false;
     emit(i);
   }

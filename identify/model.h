@@ -6,7 +6,7 @@
 //       m_m x'' = −F(y, y') + G(z, z'),  y = x − x0,  m_r x_r'' = −G(z, z'),  z = x_r − x
 //   base acceleration a0 [m/s²] p = y (relative), r = z:  y'' = (−F + G)/m_m − a0,  z'' = −G/m_r − (−F + G)/m_m
 //   force u [N]                 p = y, r = z:              y'' = (u − F + G)/m_m,   z'' = −G/m_r − y''
-// Integration: classical RK4 with the input interpolated by a natural cubic spline, substeps per
+// Integration: classical RK4 (dynamics/rk4.h) with the input interpolated by a natural cubic spline, substeps per
 // sample chosen from the model's stiffness along the measured range (friction makes it stiff: the
 // substep count grows as F_c / (m v_t)); a run that leaves 100× the measured range is reported as
 // diverged.
