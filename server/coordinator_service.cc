@@ -153,15 +153,7 @@ grpc::Status CoordinatorService::GetMap(grpc::ServerContext* ctx, const v1::MapR
   if (Status st = tokens_.Check(ctx, Op::kMap, &who); !st.ok()) return ToGrpcStatus(st);
   auto map = PublishedMap(req->id());
   if (!map.ok()) return ToGrpcStatus(map.status());
-  // Only a metric the map lists is opened (never an arbitrary HDF5 path from the request).
-  auto names = ListMapMetrics(map->second);
-  if (!names.ok()) return ToGrpcStatus(names.status());
-  if (std::find(names->begin(), names->end(), req->metric()) == names->end()) {
-    std::string list;
-    for (const auto& n : *names) list += (list.empty() ? "" : ", ") + n;
-    return ToGrpcStatus(Status::InvalidArgument(
-        "metric", "metric '" + req->metric().substr(0, limits::kMaxMetricNameBytes) + "' is not in the map (allowed: " + list + ")"));
-  }
+  // ReadMapMetric opens only a metric the map lists (never an arbitrary HDF5 path from the request).
   auto m = ReadMapMetric(map->second, req->metric());
   if (!m.ok()) return ToGrpcStatus(m.status());
   ToProto(*m, rep);
