@@ -44,7 +44,7 @@ Status WriteCsv(const std::string& path, const std::string& header, const std::v
 int RunChirpCommand(ChirpArgs& a) {
   const bool dim = a.model == "dimensional" || a.model == "dimensional-linear";
   if (dim) {
-    a.o.dimensional = true;
+    a.o.model = ModelKind::kDimensional;
     a.o.dim = a.model == "dimensional" ? DimensionalParams::BistableTable2() : DimensionalParams::LinearTable2();
     a.o.a0_m = a.a0_mm * 1e-3;
   } else {

@@ -375,7 +375,7 @@ struct SweepFrf {
 SweepFrf DimChirp(Ctx& c, const std::string& tag, DimensionalParams p, double a0_mm, double f0, double f1, ChirpFrfPlot* plot,
                   ChirpRecord* keep) {
   ChirpOptions o;
-  o.dimensional = true;
+  o.model = ModelKind::kDimensional;
   o.dim = p;
   o.a0_m = a0_mm * 1e-3;
   o.from = f0;

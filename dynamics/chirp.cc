@@ -115,7 +115,10 @@ Status ValidateChirpOptions(const ChirpOptions& o) {
   BISTABLE_RETURN_IF_ERROR(CheckPositive("dt", o.dt));
   if (o.duration / o.dt > 5e7) return Violates("duration", o.duration, "<= 5e7 dt");
   if (o.sample_every < 1) return Violates("sample_every", o.sample_every, ">= 1");
-  if (o.dimensional) {
+  if (o.model == ModelKind::kSeries)
+    return Status::InvalidArgument("model", "model = 'series' violates model in {standalone, coupled, linear, linear-coupled, "
+                                            "dimensional} (chirp)");
+  if (o.model == ModelKind::kDimensional) {
     BISTABLE_RETURN_IF_ERROR(CheckPositive("a0", o.a0_m));
     BISTABLE_RETURN_IF_ERROR(ValidateDimensionalParams(o.dim));
     // Nyquist of the output grid must clear the sweep's top frequency by a factor 5.
@@ -136,7 +139,7 @@ Status ValidateChirpOptions(const ChirpOptions& o) {
 
 StatusOr<ChirpRecord> RunChirp(const ChirpOptions& o) {
   BISTABLE_RETURN_IF_ERROR(ValidateChirpOptions(o));
-  std::optional<ChirpRecord> r = o.dimensional              ? RunDimensional(o)
+  std::optional<ChirpRecord> r = o.model == ModelKind::kDimensional ? RunDimensional(o)
                                  : HasResonator(o.model) ? RunNondim<CoupledModel>(o)
                                                          : RunNondim<SingleModel>(o);
   if (!r) return CancelledStatus();

@@ -15,15 +15,14 @@
 namespace bistable {
 
 struct ChirpOptions {
-  // Non-dimensional run (model standalone/coupled/linear/linear-coupled) ...
+  // A non-dimensional cell (standalone/coupled/linear/linear-coupled) ...
   ModelKind model = ModelKind::kCoupled;
   NondimParams params;
   double alpha = 0.5;            // base amplitude α
   double from = 0.2, to = 3.0;   // angular frequency range Ω (rad/τ), swept linearly in time
   double duration = 2000;        // τ
   double dt = 0.01;              // RK4 step
-  // ... or the dimensional model (when dimensional = true): A0 [m], frequencies in Hz, time in s.
-  bool dimensional = false;
+  // ... or model = kDimensional: A0 [m], frequencies in Hz, time in s, parameters in `dim`.
   DimensionalParams dim = DimensionalParams::BistableTable2();
   double a0_m = 0.01;
   double rtol = 1e-6, atol = 1e-9;

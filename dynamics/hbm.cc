@@ -21,6 +21,9 @@ double ParamOf(const HbmOptions& o, double omega, double alpha) { return o.param
 }  // namespace
 
 Status ValidateHbmOptions(const HbmOptions& o) {
+  if (!IsCellModel(o.model))
+    return Status::InvalidArgument("model", std::string("model = '") + ModelName(o.model) +
+                                                "' violates model in {standalone, coupled, linear, linear-coupled} (harmonic balance)");
   if (o.harmonics < 1 || o.harmonics > 50) return Violates("harmonics", o.harmonics, "in [1, 50]");
   BISTABLE_RETURN_IF_ERROR(CheckPositive("alpha", o.alpha));
   BISTABLE_RETURN_IF_ERROR(CheckPositive("omega", o.omega));

@@ -21,6 +21,8 @@ const char* ModelName(ModelKind m) {
     case ModelKind::kCoupled: return "coupled";
     case ModelKind::kLinear: return "linear";
     case ModelKind::kLinearCoupled: return "linear-coupled";
+    case ModelKind::kSeries: return "series";
+    case ModelKind::kDimensional: return "dimensional";
   }
   return "?";
 }
@@ -31,6 +33,17 @@ StatusOr<ModelKind> ParseModel(const std::string& name) {
   return Status::InvalidArgument(
       "model", "model = '" + name + "' violates model in {standalone, coupled, linear, linear-coupled}");
 }
+
+StatusOr<ModelKind> ParseAnyModel(const std::string& name) {
+  if (name == "series") return ModelKind::kSeries;
+  if (name == "dimensional") return ModelKind::kDimensional;
+  auto m = ParseModel(name);
+  if (m.ok()) return m;
+  return Status::InvalidArgument(
+      "model", "model = '" + name + "' violates model in {standalone, coupled, linear, linear-coupled, series, dimensional}");
+}
+
+bool IsCellModel(ModelKind m) { return m != ModelKind::kSeries && m != ModelKind::kDimensional; }
 
 bool HasResonator(ModelKind m) { return m == ModelKind::kCoupled || m == ModelKind::kLinearCoupled; }
 bool IsBistable(ModelKind m) { return m == ModelKind::kStandalone || m == ModelKind::kCoupled; }
@@ -73,6 +86,9 @@ std::array<double, 4> InitialState(const PointSpec& spec) {
 }
 
 Status ValidatePointSpec(const PointSpec& s) {
+  if (!IsCellModel(s.model))
+    return Status::InvalidArgument("model", std::string("model = '") + ModelName(s.model) +
+                                                "' violates model in {standalone, coupled, linear, linear-coupled} (a point)");
   BISTABLE_RETURN_IF_ERROR(CheckPositive("alpha", s.alpha));
   BISTABLE_RETURN_IF_ERROR(CheckPositive("omega", s.omega));
   if (IsBistable(s.model)) BISTABLE_RETURN_IF_ERROR(CheckPositive("eps", s.params.eps));

@@ -15,14 +15,23 @@ namespace bistable {
 // Bumped whenever a change can alter any stored number; part of every result's provenance and content key.
 inline constexpr const char* kNumericsVersion = "1.0.0";
 
+// The models of the project (docs/model.md). The first four are the non-dimensional cells that a point,
+// HBM, a chirp and the SIMD kernel run; series chains and the dimensional rig run through the generic
+// per-point path of sweeps (engine/evaluate.cc).
 enum class ModelKind {
   kStandalone,     // bistable beam alone (paper Eq. 2)
   kCoupled,        // bistable beam + linear resonator (paper Eq. 3)
   kLinear,         // linear oscillator alone (k_lin = +1, ε = 0)
   kLinearCoupled,  // linear oscillator + resonator
+  kSeries,         // N cells in series (paper §6.3)
+  kDimensional,    // the dimensional rig with c0 + c2 y² damping and Stribeck friction, SI units
 };
 const char* ModelName(ModelKind m);
+// One of the four cell models (points, HBM, chirps); the message lists those four.
 StatusOr<ModelKind> ParseModel(const std::string& name);
+// Any of the six (sweep specs).
+StatusOr<ModelKind> ParseAnyModel(const std::string& name);
+bool IsCellModel(ModelKind m);
 bool HasResonator(ModelKind m);
 bool IsBistable(ModelKind m);
 

@@ -71,7 +71,7 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
         specs[l] = spec.PointAt(items[start + l].point, items[start + l].ic);
         lanes[l] = LaneFor(specs[l]);
       }
-      if (!RunKernel<kSweepLanes>(spec.model, lanes.data(), n, ks, raw.data())) return std::nullopt;
+      if (!RunKernel<kSweepLanes>(spec.base.model, lanes.data(), n, ks, raw.data())) return std::nullopt;
       for (int l = 0; l < n; ++l) out[start + l] = PointRecord::From(ComputePointMetrics(std::move(raw[l]), specs[l]), turning);
     }
   }
@@ -88,7 +88,7 @@ std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<W
 
 PointResult EvaluateItem(const SweepSpec& spec, long index, int ic) {
   const PointSpec p = spec.PointAt(index, ic);
-  if (spec.kind == SweepModel::kCell) {
+  if (IsCellModel(spec.model)) {
     auto r = EvaluatePoint(p);
     return r.ok() ? *r : Unevaluated(spec, index, ic, r.status());
   }
@@ -103,7 +103,7 @@ PointResult EvaluateItem(const SweepSpec& spec, long index, int ic) {
   w.renorm_every = p.metrics.renorm_every;
   w.sample_every = p.metrics.sample_every;
   RawLane raw;
-  if (spec.kind == SweepModel::kSeries) {
+  if (spec.model == ModelKind::kSeries) {
     const std::vector<SeriesCell> cells = spec.SeriesCells(p);
     SeriesModel m(cells, p.alpha, p.omega);
     const int last = m.cells() - 1;

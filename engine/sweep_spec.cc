@@ -205,12 +205,12 @@ std::string G17(double v) {
 
 std::string ModelConfigText(const SweepSpec& spec) {
   std::ostringstream os;
-  if (spec.kind == SweepModel::kSeries) {
+  if (spec.model == ModelKind::kSeries) {
     os << "series.cells=" << spec.series.cells << "\nseries.resonators=" << spec.series.resonators
        << "\nseries.bistable=" << spec.series.bistable << "\n";
     for (size_t i = 0; i < spec.series.overrides.size(); ++i)
       for (const auto& [k, v] : spec.series.overrides[i]) os << "series.cell[" << i << "]." << k << "=" << G17(v) << "\n";
-  } else if (spec.kind == SweepModel::kDimensional) {
+  } else if (spec.model == ModelKind::kDimensional) {
     const DimensionalParams& d = spec.dimensional.params;
     os << "dim.bistable=" << spec.dimensional.bistable << "\ndim.resonator=" << d.has_resonator;
     for (double v : {d.m_m, d.k_lin, d.k3, d.c0_m, d.c2_m, d.fric_m.f_s, d.fric_m.f_c, d.fric_m.v_sp, d.fric_m.v_t, d.m_r,
@@ -296,14 +296,7 @@ std::string SweepSpec::CanonicalText() const {
   return os.str();
 }
 
-std::string SweepSpec::ModelLabel() const {
-  switch (kind) {
-    case SweepModel::kSeries: return "series";
-    case SweepModel::kDimensional: return "dimensional";
-    case SweepModel::kCell: break;
-  }
-  return ModelName(model);
-}
+std::string SweepSpec::ModelLabel() const { return ModelName(model); }
 
 std::string SweepSpec::ItemKey(long index, int ic) const {
   // A chained point's start state is the previous point's end state: it is determined by the whole
@@ -313,7 +306,7 @@ std::string SweepSpec::ItemKey(long index, int ic) const {
     return ContentHashHex((canonical_hash.empty() ? ContentHashHex(CanonicalText()) : canonical_hash) + "|chain|" +
                           std::to_string(index) + "|" + std::to_string(ic));
   const std::string point = PointKey(PointAt(index, ic));
-  if (kind == SweepModel::kCell) return point;
+  if (IsCellModel(model)) return point;
   return ContentHashHex(ModelConfigText(*this) + "|" + point);
 }
 
@@ -393,28 +386,21 @@ Status ReadNameAndModel(const toml::table& root, SweepSpec& spec) {
   {
     auto s = String(*model, "model");
     if (!s.ok()) return s.status();
-    if (*s == "series") {
-      spec.kind = SweepModel::kSeries;
-    } else if (*s == "dimensional") {
-      spec.kind = SweepModel::kDimensional;
-    } else {
-      auto m = ParseModel(*s);
-      if (!m.ok())
-        return Status::InvalidArgument("model", m.status().message().substr(0, m.status().message().size() - 1) +
-                                                    ", series, dimensional}");
-      spec.model = *m;
-    }
+    auto m = ParseAnyModel(*s);
+    if (!m.ok()) return m.status();
+    spec.model = *m;
+    spec.base.model = *m;  // a cell; series and dimensional set their proxy below
   }
   return Status::Ok();
 }
 
 // [series] (model = "series" only).
 Status ReadSeries(const toml::table& root, SweepSpec& spec) {
-  if (root.get("series") && spec.kind != SweepModel::kSeries)
+  if (root.get("series") && spec.model != ModelKind::kSeries)
     return Status::InvalidArgument("series", "a [series] table needs model = \"series\"");
-  if (root.get("dimensional") && spec.kind != SweepModel::kDimensional)
+  if (root.get("dimensional") && spec.model != ModelKind::kDimensional)
     return Status::InvalidArgument("dimensional", "a [dimensional] table needs model = \"dimensional\"");
-  if (spec.kind == SweepModel::kSeries) {
+  if (spec.model == ModelKind::kSeries) {
     if (const toml::node* n = root.get("series")) {
       const toml::table* t = n->as_table();
       if (!t) return Status::InvalidArgument("series", "series must be a table");
@@ -450,16 +436,16 @@ Status ReadSeries(const toml::table& root, SweepSpec& spec) {
         }
       }
     }
-    spec.model = spec.series.bistable ? (spec.series.resonators ? ModelKind::kCoupled : ModelKind::kStandalone)
-                                      : (spec.series.resonators ? ModelKind::kLinearCoupled : ModelKind::kLinear);
+    spec.base.model = spec.series.bistable ? (spec.series.resonators ? ModelKind::kCoupled : ModelKind::kStandalone)
+                                           : (spec.series.resonators ? ModelKind::kLinearCoupled : ModelKind::kLinear);
   }
   return Status::Ok();
 }
 
 // [dimensional] (model = "dimensional" only): its preset, parameters and SI defaults.
 Status ReadDimensional(const toml::table& root, SweepSpec& spec) {
-  if (spec.kind == SweepModel::kDimensional) {
-    spec.model = ModelKind::kStandalone;
+  if (spec.model == ModelKind::kDimensional) {
+    spec.base.model = ModelKind::kStandalone;
     IntegrationSettings& in = spec.base.integration;  // seconds; DP5 with tangent
     in.integrator = IntegratorKind::kAdaptive;
     in.t_end = 20.0;
@@ -505,8 +491,7 @@ Status ReadDimensional(const toml::table& root, SweepSpec& spec) {
 
 // [params] and [axes]: fixed values and the grid (its size checked while it is read).
 Status ReadParamsAndAxes(const toml::table& root, SweepSpec& spec, std::set<std::string>& swept) {
-  spec.base.model = spec.model;
-  const bool dimensional = spec.kind == SweepModel::kDimensional;
+  const bool dimensional = spec.model == ModelKind::kDimensional;
   const std::vector<std::string>& param_keys = dimensional ? kDimensionalParamKeys : kParamKeys;
   const std::vector<std::string>& axis_names = dimensional ? DimensionalAxisNames() : CanonicalAxisNames();
   if (const toml::node* n = root.get("params")) {
@@ -607,7 +592,7 @@ Status ReadInitialConditions(const toml::table& root, SweepSpec& spec) {
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("initial_conditions", "initial_conditions must be a table");
     BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "initial_conditions", kIcKeys));
-    if (spec.kind == SweepModel::kSeries)
+    if (spec.model == ModelKind::kSeries)
       return Status::InvalidArgument("initial_conditions", "initial_conditions are not supported for series chains yet; "
                                                            "they start at rest in every link's positive well");
     if (const toml::node* s = t->get("states")) {
@@ -640,7 +625,7 @@ Status ReadContinuation(const toml::table& root, SweepSpec& spec) {
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("continuation", "continuation must be a table");
     BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "continuation", kContinuationKeys));
-    if (spec.kind != SweepModel::kCell)
+    if (!IsCellModel(spec.model))
       return Status::InvalidArgument("continuation", "continuation runs for standalone, coupled and linear models only");
     auto axis = t->get("axis") ? String(*t->get("axis"), "continuation.axis") : StatusOr<std::string>(std::string());
     if (!axis.ok()) return axis.status();
@@ -691,7 +676,7 @@ Status ReadOutput(const toml::table& root, SweepSpec& spec) {
 
 // Whole-spec checks after every section is read.
 Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
-  const bool dimensional = spec.kind == SweepModel::kDimensional;
+  const bool dimensional = spec.model == ModelKind::kDimensional;
   const std::vector<std::string>& param_keys = dimensional ? kDimensionalParamKeys : kParamKeys;
   // Whole-spec checks: a representative point validates every fixed value and setting; swept values
   // are checked one axis value at a time so the message names the axis.
@@ -717,7 +702,7 @@ Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
     const std::string section = is_axis ? "axes." : is_param ? "params." : "integration.";
     return Status::InvalidArgument(section + f, st.message());
   }
-  if (spec.kind == SweepModel::kSeries) {
+  if (spec.model == ModelKind::kSeries) {
     for (const Axis& a : spec.axes)
       for (size_t i = 0; i < a.values.size(); ++i) {
         PointSpec p = probe;

@@ -20,13 +20,6 @@ struct Axis {
   std::vector<double> values;  // strictly increasing
 };
 
-// Which family of models a sweep runs.
-enum class SweepModel {
-  kCell,         // stand-alone / coupled / linear / linear-coupled: the SIMD kernel (RK4) or DP5 per point
-  kSeries,       // N cells in series (paper §6.3): generic RK4 (or DP5) with tangent, one point at a time
-  kDimensional,  // the dimensional model with Stribeck friction (model.md §2), SI units, DP5 with tangent
-};
-
 // N cells in series: identical cells from [params] and the axes, with optional per-cell overrides.
 struct SeriesConfig {
   int cells = 2;
@@ -65,8 +58,8 @@ struct WorkItem {
 
 struct SweepSpec {
   std::string name;                 // free text, for humans
-  SweepModel kind = SweepModel::kCell;
-  ModelKind model = ModelKind::kCoupled;  // for kCell; the metric proxy's kind otherwise
+  ModelKind model = ModelKind::kCoupled;  // any of the six; base.model is the cell a point runs (for
+                                          // series and dimensional sweeps the cell proxy that classifies motion)
   SeriesConfig series;
   DimensionalConfig dimensional;
   ContinuationConfig continuation;
@@ -100,7 +93,7 @@ struct SweepSpec {
   std::vector<int> AxisIndices(long index) const;
 
   // True when items run through the SIMD ensemble kernel (cell models with RK4).
-  bool UsesKernel() const { return kind == SweepModel::kCell && base.integration.integrator == IntegratorKind::kRk4; }
+  bool UsesKernel() const { return IsCellModel(model) && base.integration.integrator == IntegratorKind::kRk4; }
   // Content key of an item: model configuration, parameters, settings, initial state, numerics version.
   std::string ItemKey(long index, int ic) const;
   // The cells of a series chain at a point: [params] and the axis values for all, then each cell's overrides.

@@ -138,7 +138,7 @@ Status FsyncPath(const std::string& path, bool directory) {
 
 // Dimensional sweeps measure in SI: time in s, lengths in m, angular frequencies in rad/s.
 std::string UnitFor(const SweepSpec& spec, std::string unit) {
-  if (spec.kind != SweepModel::kDimensional) return unit;
+  if (spec.model != ModelKind::kDimensional) return unit;
   for (auto [from, to] : {std::pair<std::string, std::string>{"rad/tau", "rad/s"}, {"1/tau", "1/s"}, {"delta_s", "m"}})
     if (unit == from) return to;
   return unit;
@@ -228,7 +228,7 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "canonical_spec", spec.CanonicalText()));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "numerics_version", kNumericsVersion));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "model", spec.ModelLabel()));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "time_unit", spec.kind == SweepModel::kDimensional ? "s" : "tau = omega_n t"));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "time_unit", spec.model == ModelKind::kDimensional ? "s" : "tau = omega_n t"));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "sweep_id", spec.Id()));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "name", spec.name));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "axes", axes_attr));

@@ -64,7 +64,7 @@ TEST(Chirp, SpectrogramRidgeFollowsTheInstantaneousFrequency) {
 
 TEST(Chirp, DimensionalSweepRunsInSecondsAndHertz) {
   ChirpOptions o;
-  o.dimensional = true;
+  o.model = ModelKind::kDimensional;
   o.a0_m = 0.005;
   o.from = 1.0;
   o.to = 8.0;
@@ -88,7 +88,7 @@ TEST(Chirp, BadOptionsNameTheField) {
   o.sample_every = 100;  // Nyquist π/(0.01·100) = 3.1 rad/τ < 5 · 3
   EXPECT_EQ(RunChirp(o).status().field(), "sample_every");
   o = ChirpOptions{};
-  o.dimensional = true;
+  o.model = ModelKind::kDimensional;
   o.dt = 0.05;  // 20 samples/s for an 8 Hz top frequency... from 0.2 to 3 Hz: 1/dt = 20 < 30
   EXPECT_EQ(RunChirp(o).status().field(), "dt");
 }
