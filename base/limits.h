@@ -42,8 +42,12 @@ inline constexpr std::size_t kMaxServerMemoryBytes = 512u << 20;  // gRPC transp
 // --- Queries, map files and measured data ---------------------------------------------------------
 inline constexpr std::size_t kMaxQueryBytes = 4096;          // a query expression
 inline constexpr int kMaxQueryDepth = 64;                    // nesting of parentheses / not
-inline constexpr std::size_t kMaxMapValuesRead = std::size_t{1} << 31;  // values of one dataset read from a map file
-inline constexpr double kMaxDataMagnitude = 1e12;            // |value| of a measured record, raw and in SI units
+// Values of one dataset read back from a map file: its declared dims are not trusted (a chunked
+// dataset can declare far more than it stores); 2^31 doubles is above any map a sweep may write.
+inline constexpr std::size_t kMaxMapValuesRead = std::size_t{1} << 31;
+// |value| of a measured record, raw and in SI units. Records are far below it (metres, volts, ADC
+// counts ~1e7, Unix times ~2e9); beyond it the regression's fifth powers lose every digit or overflow.
+inline constexpr double kMaxDataMagnitude = 1e12;
 
 }  // namespace bistable::limits
 

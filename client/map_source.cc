@@ -20,9 +20,7 @@ StatusOr<std::unique_ptr<CoordinatorClient>> Client(const MapSource& s) {
 // A metric name is a plain dataset name: never sent or opened when it could be an HDF5 path. (Which
 // names a map holds is checked against its list: LoadMetric in map_commands.cc, ReadMapMetric.)
 Status CheckPlainMetricName(const std::string& metric) {
-  const bool plain = !metric.empty() && metric.size() <= limits::kMaxMetricNameBytes && metric != "." && metric != ".." &&
-                     metric.find_first_of(std::string("/\0\n\r", 4)) == std::string::npos;
-  if (plain) return Status::Ok();
+  if (IsPlainMetricName(metric)) return Status::Ok();
   return Status::InvalidArgument("metric", "metric '" + Printable(metric) +
                                                "' is not a metric name (a metric is a dataset name of the map: no '/', "
                                                "'.', '..', NUL or newline, at most 64 bytes)");

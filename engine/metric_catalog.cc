@@ -12,6 +12,9 @@
 namespace bistable {
 namespace {
 constexpr double kMaxPeakOrTurningValue = 1e150;  // |peak frequency|, |amplitude|, |turning point|
+
+// A (non-NaN) value within its metric's domain: in [lo, hi] and, for codes and counts, whole.
+bool InDomain(const MetricInfo& m, double x) { return x >= m.lo && x <= m.hi && (!m.integer || x == std::floor(x)); }
 }  // namespace
 
 const std::vector<MetricInfo>& MetricCatalog() {
@@ -107,7 +110,7 @@ PointRecord PointRecord::From(const PointResult& r, bool turning_points) {
   // A float outside its metric's domain is not a measurement (an overflow in a degenerate run): NaN.
   const auto& catalog = MetricCatalog();
   for (size_t i = 0; i < catalog.size(); ++i)
-    if (!catalog[i].integer && !(p.v[i] >= catalog[i].lo && p.v[i] <= catalog[i].hi)) p.v[i] = nan;
+    if (!catalog[i].integer && !InDomain(catalog[i], p.v[i])) p.v[i] = nan;
   for (int k = 0; k < kHdPeaksStored; ++k) p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].freq : nan);
   for (int k = 0; k < kHdPeaksStored; ++k) p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].amp : nan);
   if (turning_points) {
@@ -138,7 +141,7 @@ Status CheckRecord(const double* v, size_t width, bool turning_points) {
       if (!m.nan_ok) return bad(i, m.name, std::string(m.name) + " is a number (codes are never NaN)");
       continue;
     }
-    if (!(x >= m.lo && x <= m.hi) || (m.integer && x != std::floor(x))) {
+    if (!InDomain(m, x)) {
       char b[80];
       std::snprintf(b, sizeof b, "%s in [%.6g, %.6g]", m.integer ? "a whole number" : "a value", m.lo, m.hi);
       return bad(i, m.name, b);

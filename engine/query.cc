@@ -33,9 +33,9 @@ class Parser {
   Parser(const std::string& text, const std::vector<std::string>& names) : text_(text), names_(names) {}
 
   StatusOr<std::shared_ptr<const Query::Node>> Run(std::vector<int>* used) {
-    if (text_.size() > kMaxQueryBytes)
+    if (text_.size() > limits::kMaxQueryBytes)
       return Status::InvalidArgument("query", "query of " + std::to_string(text_.size()) + " bytes violates length <= " +
-                                                  std::to_string(kMaxQueryBytes) + " bytes");
+                                                  std::to_string(limits::kMaxQueryBytes) + " bytes");
     Status st = Tokenize();
     if (!st.ok()) return st;
     auto e = Or();
@@ -122,8 +122,8 @@ class Parser {
   };
   StatusOr<std::shared_ptr<const Query::Node>> Unary() {
     if (IsWord("not") || Peek().kind == Token::kLParen) {
-      if (depth_ >= kMaxQueryDepth)
-        return Error("nesting of '(' and 'not' violates depth <= " + std::to_string(kMaxQueryDepth));
+      if (depth_ >= limits::kMaxQueryDepth)
+        return Error("nesting of '(' and 'not' violates depth <= " + std::to_string(limits::kMaxQueryDepth));
     }
     DepthGuard guard(&depth_);
     if (IsWord("not")) {

@@ -2,8 +2,8 @@
 // not edr_t < 20)`. Grammar: expr := and ('or' and)*; and := unary ('and' unary)*;
 // unary := 'not' unary | '(' expr ')' | operand op operand; op ∈ < <= > >= == !=;
 // operand := name | number | intrawell | interwell | chaotic (the motion codes 0, 1, 2).
-// Comparisons with NaN are false. A query is at most kMaxQueryBytes long and nests parentheses and
-// `not` at most kMaxQueryDepth deep (the parser and the evaluation recurse).
+// Comparisons with NaN are false. A query is at most limits::kMaxQueryBytes long and nests parentheses
+// and `not` at most limits::kMaxQueryDepth deep (the parser and the evaluation recurse).
 #ifndef BISTABLE_ENGINE_QUERY_H_
 #define BISTABLE_ENGINE_QUERY_H_
 
@@ -19,8 +19,6 @@
 namespace bistable {
 
 // Bounds on a query expression (a client's text; errors name field "query" and the bound).
-inline constexpr size_t kMaxQueryBytes = limits::kMaxQueryBytes;  // length of the expression
-inline constexpr int kMaxQueryDepth = limits::kMaxQueryDepth;       // nesting of '(' and 'not'
 
 class Query {
  public:

@@ -14,11 +14,6 @@
 namespace bistable {
 namespace {
 
-// Largest magnitude accepted in a data cell, raw or scaled to SI. Measured records are far below it
-// (metres, volts, seconds; ADC counts ~1e7; Unix times ~2e9); beyond it squares and fifth powers of
-// the regression and the simulation lose every digit or overflow, and the fit returns no numbers.
-constexpr double kMaxDataMagnitude = limits::kMaxDataMagnitude;
-
 std::vector<std::string> SplitCsv(const std::string& line) {
   std::vector<std::string> out;
   std::string cell;
@@ -85,9 +80,9 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
       if (ec != std::errc() || p != cells[k].data() + cells[k].size() || !std::isfinite(v))
         return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + " column '" + header[k] +
                                                    "': '" + cells[k] + "' is not a finite number");
-      if (!(std::fabs(v) <= kMaxDataMagnitude))
+      if (!(std::fabs(v) <= limits::kMaxDataMagnitude))
         return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + " column '" + header[k] + "': " +
-                                                   cells[k] + " violates |value| <= " + FormatNumber(kMaxDataMagnitude));
+                                                   cells[k] + " violates |value| <= " + FormatNumber(limits::kMaxDataMagnitude));
       row[k] = v;
     }
     std::vector<double> gv;
@@ -116,10 +111,10 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     }
     const double scaled_in = row[*ci] * c.input_scale, scaled_out = row[*co] * c.output_scale;
     for (auto [v, k, scale] : {std::tuple{scaled_in, *ci, c.input_scale}, std::tuple{scaled_out, *co, c.output_scale}})
-      if (!(std::fabs(v) <= kMaxDataMagnitude))
+      if (!(std::fabs(v) <= limits::kMaxDataMagnitude))
         return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + " column '" + header[k] + "': " +
                                                    cells[k] + " x scale " + FormatNumber(scale) + " violates |value| <= " +
-                                                   FormatNumber(kMaxDataMagnitude));
+                                                   FormatNumber(limits::kMaxDataMagnitude));
     Record& r = records.back();
     r.t.push_back(t);
     r.input.push_back(row[*ci] * c.input_scale);

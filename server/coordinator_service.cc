@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "base/limits.h"
+#include "base/names.h"
 #include "engine/evaluate.h"
 #include "proto/convert.h"
 #include "proto/status_convert.h"
@@ -73,9 +74,7 @@ grpc::Status CoordinatorService::Submit(grpc::ServerContext* ctx, const v1::Subm
     return ToGrpcStatus(Status::InvalidArgument("spec", "spec is " + std::to_string(req->spec_toml().size()) +
                                                             " bytes, over the limit of " + std::to_string(limits::kMaxSpecBytes)));
   // The origin only names the spec in messages: bounded, printable, never a path that is opened.
-  std::string origin = req->origin().empty() ? "submitted spec" : req->origin().substr(0, limits::kMaxNameBytes);
-  for (char& ch : origin)
-    if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) ch = '?';
+  const std::string origin = req->origin().empty() ? "submitted spec" : Printable(req->origin(), limits::kMaxNameBytes);
   auto spec = ParseSweepSpec(req->spec_toml(), origin);
   if (!spec.ok()) return ToGrpcStatus(spec.status());
   // Jobs of about job_seconds of work on one core, at least 64 per sweep (the last jobs balance).

@@ -18,11 +18,6 @@
 namespace bistable {
 namespace {
 
-// Most values one metric dataset may hold when read back (a file's own dims are not trusted: a
-// chunked dataset can declare far more than it stores). 2^31 doubles = 16 GB, above any map a
-// sweep may write (items x kTurningPointsStored).
-constexpr size_t kMaxMapValuesRead = limits::kMaxMapValuesRead;
-
 // RAII for hid_t handles.
 class Handle {
  public:
@@ -303,7 +298,7 @@ StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& met
   H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
   size_t total = 1;
   for (hsize_t d : dims) {
-    if (__builtin_mul_overflow(total, static_cast<size_t>(d), &total) || total > kMaxMapValuesRead)
+    if (__builtin_mul_overflow(total, static_cast<size_t>(d), &total) || total > limits::kMaxMapValuesRead)
       return Status::IoError("map", "dataset " + metric + " in '" + path + "' is too large");
     out.dims.push_back(d);
   }
@@ -322,7 +317,7 @@ StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& met
     Handle ss(H5Dget_space(sd.get()), H5Sclose);
     hsize_t n = 0;
     if (!sd.ok() || !ss.ok() || H5Sget_simple_extent_ndims(ss.get()) != 1 || H5Sget_simple_extent_dims(ss.get(), &n, nullptr) < 0 ||
-        n > kMaxMapValuesRead)
+        n > limits::kMaxMapValuesRead)
       return Status::IoError("map", "axis '" + Printable(a.name) + "' of '" + path + "' is missing or malformed");
     a.values.resize(n);
     H5Dread(sd.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.values.data());

@@ -10,10 +10,18 @@
 #include <string>
 #include <vector>
 
+#include "base/limits.h"
 #include "base/names.h"
 #include "base/status.h"
 
 namespace bistable {
+
+// A plain dataset name: not empty, at most limits::kMaxMetricNameBytes, not "." or "..", no '/', NUL,
+// CR or LF — never something HDF5 could read as a path.
+inline bool IsPlainMetricName(const std::string& metric) {
+  return !metric.empty() && metric.size() <= limits::kMaxMetricNameBytes && metric != "." && metric != ".." &&
+         metric.find_first_of(std::string("/\0\n\r", 4)) == std::string::npos;
+}
 
 // OK when `metric` is one of `stored`; else InvalidArgument naming field "metric", the nearest stored
 // name and the allowed ones (`extra` lists pseudo-metrics the caller also accepts, e.g. hd_scatter).
@@ -22,9 +30,7 @@ inline Status CheckMetricName(const std::string& metric, const std::vector<std::
   if (std::find(stored.begin(), stored.end(), metric) != stored.end()) return Status::Ok();
   std::vector<std::string> allowed = stored;
   allowed.insert(allowed.end(), extra.begin(), extra.end());
-  const bool plain = !metric.empty() && metric != "." && metric != ".." &&
-                     metric.find_first_of(std::string("/\0\n\r", 4)) == std::string::npos;
-  if (plain) return Status::InvalidArgument("metric", UnknownNameMessage("metric", metric, allowed));
+  if (IsPlainMetricName(metric)) return Status::InvalidArgument("metric", UnknownNameMessage("metric", metric, allowed));
   std::string list;
   for (const auto& n : allowed) list += (list.empty() ? "" : ", ") + n;
   return Status::InvalidArgument("metric", "metric '" + Printable(metric) + "' is not a metric name (allowed: " + list + ")");

@@ -102,7 +102,6 @@ std::string RecordCsv(int n, const std::map<std::pair<int, int>, std::string>& c
 enum class Outcome {
   kOk,         // every step exits 0
   kError,      // a step exits 2 with err_has in its stderr (later steps are not run)
-  kErrorOrOk,  // either (the input may be refused by validation or shown literally)
 };
 
 enum class JsonCheck {
@@ -209,7 +208,7 @@ std::vector<Row> Rows() {
   rows.push_back(NameRow("name_backquote", "bq `touch {canary}` end"));
   rows.push_back(NameRow("name_dollar_paren", "dp $(touch {canary}) end"));
   rows.push_back(NameRow("name_newline_system", "nl\nsystem(\"touch {canary}\")\nset output '|touch {canary}'",
-                         Outcome::kErrorOrOk, "name"));
+                         Outcome::kError, "name"));
   rows.push_back(NameRow("name_macro", "mac @GPVAL_TERM @m end"));
   rows.push_back(NameRow("name_quote_breakout", "q\"; system(\"touch {canary}\"); print \""));
   rows.push_back(NameRow("name_single_quote_backslash", "sq ' \\ \\\" \\\\ end \\"));
