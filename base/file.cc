@@ -1,8 +1,14 @@
 #include "base/file.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <random>
 
 namespace bistable {
 
@@ -23,6 +29,56 @@ StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& f
   if (text.size() > max_bytes)
     return Status::InvalidArgument(field, field + " file '" + path + "' is over the limit of " + std::to_string(max_bytes) + " bytes");
   return text;
+}
+
+StatusOr<std::unique_ptr<AtomicFile>> AtomicFile::Create(const std::string& path, const std::string& field) {
+  namespace fs = std::filesystem;
+  const fs::path p(path);
+  if (path.empty() || !p.has_filename()) return Status::InvalidArgument(field, "output '" + path + "' does not name a file");
+  const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec))
+    return Status::InvalidArgument(field, "cannot write '" + path + "': directory '" + dir.string() +
+                                              (fs::exists(dir, ec) ? "' is not a directory" : "' does not exist"));
+  std::string tmp;
+  int fd = -1;
+  std::random_device rd;
+  for (int attempt = 0; attempt < 64 && fd < 0; ++attempt) {
+    tmp = (dir / (".bistable-out-" + std::to_string(::getpid()) + "-" + std::to_string(rd()))).string();
+    fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd < 0 && errno != EEXIST) break;
+  }
+  if (fd < 0) return Status::IoError(field, "cannot create a file in '" + dir.string() + "': " + std::strerror(errno));
+  return std::unique_ptr<AtomicFile>(new AtomicFile(path, tmp, field, fd));
+}
+
+AtomicFile::~AtomicFile() {
+  if (fd_ >= 0) ::close(fd_);
+  if (!committed_) ::unlink(tmp_.c_str());
+}
+
+Status AtomicFile::Write(std::string_view data) {
+  if (fd_ < 0) return Status::IoError(field_, "writing '" + path_ + "' after it was closed");
+  size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t n = ::write(fd_, data.data() + done, data.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return Status::IoError(field_, "writing '" + path_ + "' failed: " + std::strerror(n < 0 ? errno : EIO));
+    done += static_cast<size_t>(n);
+  }
+  return Status::Ok();
+}
+
+Status AtomicFile::Commit() {
+  if (fd_ < 0) return Status::IoError(field_, "'" + path_ + "' was already closed");
+  const int synced = ::fsync(fd_) == 0 ? 0 : errno;
+  const int closed = ::close(fd_) == 0 ? 0 : errno;
+  fd_ = -1;
+  if (synced || closed) return Status::IoError(field_, "writing '" + path_ + "' failed: " + std::strerror(synced ? synced : closed));
+  if (::rename(tmp_.c_str(), path_.c_str()) != 0)
+    return Status::IoError(field_, "renaming onto '" + path_ + "' failed: " + std::strerror(errno));
+  committed_ = true;
+  return Status::Ok();
 }
 
 }  // namespace bistable

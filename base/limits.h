@@ -28,6 +28,9 @@ inline constexpr std::size_t kMaxTurningPointsKept = 65'536; // turning points h
 
 // --- The service -----------------------------------------------------------------------------------
 inline constexpr std::size_t kMaxMessageBytes = 8 << 20;     // any request to the coordinator
+inline constexpr std::size_t kMaxJobsPerLease = 16;          // jobs one Lease call may ask for
+inline constexpr std::size_t kFetchChunkBytes = 1 << 20;     // map files are streamed in chunks of this
+inline constexpr std::uint64_t kMaxFetchBytes = std::uint64_t{1} << 36;  // a fetched map file (64 GiB)
 inline constexpr std::size_t kMaxIdBytes = 64;               // sweep ids / prefixes, lease ids in requests
 inline constexpr std::size_t kMaxWorkerNameBytes = 128;      // a worker's registered name
 inline constexpr std::size_t kMaxWorkers = 4096;             // workers remembered (oldest idle forgotten)

@@ -600,7 +600,7 @@ void AddIdentifyCommand(CLI::App& app, int* exit_code) {
   c->add_option("--max-added", a->max_added, "at most this many effects added")->capture_default_str();
   c->add_option("--candidates", a->candidates, "terms the trace may add (default: the whole library of the bodies measured)");
   c->add_option("--guess", a->guesses, "initial values, e.g. main.linear.k_lin=480 (others from the regression)");
-  c->add_option("--threads", a->threads, "records simulated in parallel (0: all cores)")->capture_default_str();
+  c->add_option("--threads", a->threads, "records simulated in parallel (0: the CPUs this process may use: affinity and cgroup quota)")->capture_default_str();
   c->add_option("--report", a->report, "directory for report.md, report.json and PNG figures");
   c->add_option("--make-synthetic", a->synth, "write synthetic chirp records (Table 2 linear rig) into DIR and exit");
   c->add_flag("--fit-offsets", a->fit_offsets, "velocity outputs: fit each record's displacement offset (which well)");

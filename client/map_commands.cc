@@ -18,7 +18,10 @@
 #include "client/map_source.h"
 #include "client/plot.h"
 #include "client/sweep_commands.h"
+#include "base/file.h"
+#include "base/names.h"
 #include "engine/query.h"
+#include "proto/coordinator_client.h"
 #include "storage/map_file.h"
 #include "storage/metric_name.h"
 
@@ -30,10 +33,41 @@ nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlo
 // ---- sweeps ----
 struct SweepsArgs {
   std::string data = kDefaultDataDir;
+  MapSource src;  // src.coordinator non-empty: list a coordinator's sweeps
   bool json = false;
 };
 
+// The sweeps a coordinator holds (ListSweeps over gRPC), in the same table and JSON as a data dir's.
+int ListRemoteSweeps(const SweepsArgs& a) {
+  auto token = LoadToken(a.src.token_file);
+  if (!token.ok()) return Fail(token.status());
+  auto client = CoordinatorClient::Connect({a.src.coordinator, a.src.tls_ca, *token});
+  if (!client.ok()) return Fail(client.status());
+  auto sweeps = (*client)->ListSweeps();
+  if (!sweeps.ok()) return Fail(sweeps.status());
+  if (a.json) {
+    nlohmann::json arr = nlohmann::json::array();
+    for (const SweepInfo& s : *sweeps)
+      arr.push_back({{"id", s.id}, {"name", s.name}, {"model", s.model}, {"status", SweepStateName(s.state)},
+                     {"owner", s.owner}, {"items_total", s.items_total}, {"items_done", s.items_done},
+                     {"items_cached", s.items_cached}, {"workers", s.workers}, {"seconds", s.seconds},
+                     {"file", s.file.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.file)},
+                     {"error", s.error.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.error)}});
+    std::cout << arr.dump(2) << "\n";
+    return 0;
+  }
+  std::printf("%-12s  %-11s  %-14s  %13s  %8s  %-12s  %s\n", "id", "status", "model", "done/total", "seconds", "owner", "name");
+  for (const SweepInfo& s : *sweeps) {
+    char prog[48];
+    std::snprintf(prog, sizeof prog, "%ld/%ld", s.items_done, s.items_total);
+    std::printf("%-12.12s  %-11s  %-14s  %13s  %8.1f  %-12s  %s\n", s.id.c_str(), SweepStateName(s.state),
+                Printable(s.model, 14).c_str(), prog, s.seconds, Printable(s.owner, 12).c_str(), Printable(s.name, 80).c_str());
+  }
+  return 0;
+}
+
 int ListSweeps(const SweepsArgs& a) {
+  if (!a.src.coordinator.empty()) return ListRemoteSweeps(a);
   const auto index = std::filesystem::path(a.data) / "index.sqlite";
   if (!std::filesystem::exists(index)) {
     if (a.json) std::cout << "[]\n";
@@ -90,38 +124,10 @@ StatusOr<MapArray> LoadMetric(const MapSource& src, const std::string& id, const
 
 // --out for text formats: the directory must exist; the file is written beside and renamed.
 Status WriteOutFile(const std::string& path, const std::string& text) {
-  namespace fs = std::filesystem;
-  const fs::path p(path);
-  if (path.empty() || !p.has_filename()) return Status::InvalidArgument("out", "output '" + path + "' does not name a file");
-  const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec))
-    return Status::InvalidArgument("out", "cannot write '" + path + "': directory '" + dir.string() +
-                                              (fs::exists(dir, ec) ? "' is not a directory" : "' does not exist"));
-  // A new file beside the destination (O_EXCL: never someone else's; mode 0666 less the umask).
-  std::string tmp;
-  int fd = -1;
-  std::random_device rd;
-  for (int attempt = 0; attempt < 64 && fd < 0; ++attempt) {
-    tmp = (dir / (".bistable-out-" + std::to_string(::getpid()) + "-" + std::to_string(rd()))).string();
-    fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-    if (fd < 0 && errno != EEXIST) break;
-  }
-  if (fd < 0) return Status::IoError("out", "cannot create a file in '" + dir.string() + "': " + std::strerror(errno));
-  size_t done = 0;
-  while (done < text.size()) {
-    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) break;
-    done += static_cast<size_t>(n);
-  }
-  const int write_errno = done == text.size() ? 0 : (errno ? errno : EIO);
-  if (::close(fd) != 0 || write_errno != 0 || ::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string why = std::strerror(write_errno ? write_errno : errno);
-    ::unlink(tmp.c_str());
-    return Status::IoError("out", "writing '" + path + "' failed: " + why);
-  }
-  return Status::Ok();
+  auto f = AtomicFile::Create(path, "out");
+  if (!f.ok()) return f.status();
+  BISTABLE_RETURN_IF_ERROR((*f)->Write(text));
+  return (*f)->Commit();
 }
 
 nlohmann::json NestedValues(const Slice& s) {
@@ -342,8 +348,11 @@ int RunQuery(const QueryArgs& a) {
 
 void AddSweepsCommand(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<SweepsArgs>();
-  CLI::App* cmd = app.add_subcommand("sweeps", "List the sweeps in a data directory");
+  CLI::App* cmd = app.add_subcommand("sweeps", "List the sweeps in a data directory, or on a coordinator");
   cmd->add_option("--data", a->data, "data directory")->capture_default_str();
+  cmd->add_option("--coordinator", a->src.coordinator, "list a coordinator's sweeps instead of --data");
+  cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");
+  cmd->add_option("--tls-ca", a->src.tls_ca, "PEM CA of a TLS coordinator");
   cmd->add_flag("--json", a->json, "print a JSON array");
   cmd->callback([a, exit_code]() { *exit_code = ListSweeps(*a); });
 }

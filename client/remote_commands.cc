@@ -1,4 +1,4 @@
-// `bistable submit | status | cancel | workers`: the client side of the distributed service.
+// `bistable submit | status | cancel | workers | fetch | health | token`: the client side of the distributed service.
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -12,7 +12,9 @@
 #include "client/cli_common.h"
 #include "client/progress.h"
 #include "client/remote_commands.h"
+#include "dynamics/cancel.h"
 #include "proto/coordinator_client.h"
+#include "proto/health.h"
 #include "server/auth.h"
 
 namespace bistable {
@@ -26,7 +28,8 @@ struct RemoteArgs {
 nlohmann::json StatusJson(const SweepInfo& s) {
   return {{"id", s.id},         {"state", SweepStateName(s.state)}, {"items_done", s.items_done},
           {"items_total", s.items_total}, {"items_cached", s.items_cached}, {"workers", s.workers},
-          {"seconds", s.seconds}, {"file", s.file}, {"name", s.name}, {"model", s.model}, {"error", s.error}};
+          {"seconds", s.seconds}, {"file", s.file}, {"name", s.name}, {"model", s.model}, {"error", s.error},
+          {"owner", s.owner}};
 }
 
 // The client for one command: the token and CA resolved once; errors name the flag.
@@ -107,6 +110,59 @@ int WorkersCmd(CoordinatorClient& c, const RemoteArgs& a) {
   return kExitOk;
 }
 
+// `bistable fetch ID --out F.h5`: the map file streamed, checksummed, written by temp file + rename.
+struct FetchArgs {
+  RemoteArgs r;
+  std::string out;
+};
+
+int FetchCmd(CoordinatorClient& c, const FetchArgs& a) {
+  std::unique_ptr<AtomicFile> file;
+  std::string out = a.out;
+  InstallCancelSignalHandlers();  // Ctrl-C: the transfer stops, the temp file is removed
+  auto fetched = c.FetchMap(a.r.target, [&](std::string_view data) -> Status {
+    if (CancelRequested()) return Status::IoError("fetch", "interrupted");
+    if (!file) {
+      auto f = AtomicFile::Create(out, "out");
+      if (!f.ok()) return f.status();
+      file = std::move(f).value();
+    }
+    return file->Write(data);
+  });
+  RestoreDefaultSignalHandlers();
+  if (!fetched.ok()) return Fail(fetched.status());
+  if (!file) {  // an empty file: nothing was written yet
+    auto f = AtomicFile::Create(out, "out");
+    if (!f.ok()) return Fail(f.status());
+    file = std::move(f).value();
+  }
+  if (Status st = file->Commit(); !st.ok()) return Fail(st);
+  if (a.r.json)
+    std::cout << nlohmann::json({{"id", fetched->id}, {"file", out}, {"bytes", fetched->bytes}, {"sha256", fetched->sha256}}).dump()
+              << "\n";
+  else
+    std::printf("fetched sweep %s: %s (%llu bytes, sha256 %s)\n", fetched->id.c_str(), out.c_str(),
+                static_cast<unsigned long long>(fetched->bytes), fetched->sha256.c_str());
+  return kExitOk;
+}
+
+// `bistable health`: the grpc.health.v1 answer of a coordinator (or worker --health port).
+struct HealthArgs {
+  RemoteArgs r;
+  std::string service;
+  double timeout = 5;
+};
+
+int HealthCmd(const HealthArgs& a) {
+  auto token = LoadToken(a.r.token_file);
+  if (!token.ok()) return Fail(token.status());
+  auto st = CheckHealth({a.r.coordinator, a.r.tls_ca, *token}, a.service, a.timeout);
+  if (!st.ok()) return Fail(st.status());
+  if (a.r.json) std::cout << nlohmann::json({{"address", a.r.coordinator}, {"service", a.service}, {"status", *st}}).dump() << "\n";
+  else std::cout << *st << "\n";
+  return *st == "SERVING" ? kExitOk : kExitNotDone;
+}
+
 }  // namespace
 
 void AddRemoteCommands(CLI::App& app, int* exit_code) {
@@ -129,6 +185,49 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
   add("status", "State and progress of a sweep on a coordinator", "sweep id (or unique prefix)", StatusCmd, true);
   add("cancel", "Cancel a sweep on a coordinator", "sweep id (or unique prefix)", CancelCmd, false);
   add("workers", "Workers seen by a coordinator", nullptr, WorkersCmd, false);
+
+  {
+    auto a = std::make_shared<FetchArgs>();
+    CLI::App* cmd = app.add_subcommand("fetch", "Download a published map file from a coordinator (streamed, SHA-256 checked, written atomically)");
+    cmd->add_option("id", a->r.target, "sweep id (or unique prefix)")->required();
+    cmd->add_option("--out", a->out, "output file (default: <id>.h5 in the current directory)");
+    cmd->add_option("--coordinator", a->r.coordinator, "coordinator address")->capture_default_str();
+    cmd->add_option("--token-file", a->r.token_file, "file holding a bearer token (else $BISTABLE_TOKEN)");
+    cmd->add_option("--tls-ca", a->r.tls_ca, "PEM CA certificate to verify a TLS coordinator");
+    cmd->add_flag("--json", a->r.json, "print JSON");
+    cmd->callback([a, exit_code]() {
+      auto client = Connect(a->r);
+      if (!client.ok()) {
+        *exit_code = Fail(client.status());
+        return;
+      }
+      FetchArgs args = *a;
+      if (args.out.empty()) {  // the sweep's full id names the file: resolve the prefix first
+        auto st = (*client)->GetStatus(a->r.target);
+        if (!st.ok()) {
+          *exit_code = Fail(st.status());
+          return;
+        }
+        if (st->id.empty() || st->id.find_first_not_of("0123456789abcdef") != std::string::npos) {
+          *exit_code = Fail(Status::Internal("the coordinator answered a sweep id that is not hex"));
+          return;
+        }
+        args.out = st->id + ".h5";
+      }
+      *exit_code = FetchCmd(**client, args);
+    });
+  }
+  {
+    auto a = std::make_shared<HealthArgs>();
+    CLI::App* cmd = app.add_subcommand("health", "grpc.health.v1 check of a coordinator or a worker's --health port (exit 0 when SERVING)");
+    cmd->add_option("--coordinator", a->r.coordinator, "address to check")->capture_default_str();
+    cmd->add_option("--service", a->service, "service name ('' = the server; bistable.v1.Coordinator, bistable.v1.Worker)");
+    cmd->add_option("--timeout", a->timeout, "seconds")->capture_default_str();
+    cmd->add_option("--token-file", a->r.token_file, "file holding a bearer token (else $BISTABLE_TOKEN)");
+    cmd->add_option("--tls-ca", a->r.tls_ca, "PEM CA certificate to verify a TLS coordinator");
+    cmd->add_flag("--json", a->r.json, "print JSON");
+    cmd->callback([a, exit_code]() { *exit_code = HealthCmd(*a); });
+  }
 
   auto role = std::make_shared<std::string>("client");
   auto name = std::make_shared<std::string>();

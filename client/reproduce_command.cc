@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/cli_common.h"
+#include "base/cpus.h"
 #include "client/embedded_run.h"
 #include "client/plot.h"
 #include "client/reproduce_command.h"
@@ -472,7 +473,7 @@ Status Figs22to24(Ctx& c) {
 int Reproduce(const std::string& what, const std::string& out, bool quick, int threads, bool json) {
   if (what != "paper") return Fail(Status::InvalidArgument("what", "what = '" + what + "' violates what in {paper}"));
   Ctx c{out, (fs::path(out) / "data").string(), quick,
-        threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), {}};
+        threads > 0 ? threads : UsableCpus(), {}};
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) return Fail(Status::IoError("out", "cannot create '" + out + "': " + ec.message()));
@@ -535,7 +536,7 @@ void AddReproduceCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("what", a->what, "paper")->required();
   cmd->add_option("--out", a->out, "output directory (figures, data, README.md)")->capture_default_str();
   cmd->add_flag("--quick", a->quick, "coarse grids and fast sweeps (about a minute; the CI mode)");
-  cmd->add_option("--threads", a->threads, "worker threads (0 = all cores)");
+  cmd->add_option("--threads", a->threads, "worker threads (0 = the CPUs this process may use: affinity and cgroup quota)");
   cmd->add_flag("--json", a->json, "print {report, seconds, agree, claims: [...]}");
   cmd->callback([a, exit_code]() { *exit_code = Reproduce(a->what, a->out, a->quick, a->threads, a->json); });
 }

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/cli_common.h"
+#include "base/cpus.h"
 #include "base/validate.h"
 #include "client/map_slice.h"
 #include "client/plot.h"
@@ -47,7 +48,7 @@ int RunSweep(const RunArgs& a) {
   auto plan = c.Submit(*spec, a.job_items > 0 ? a.job_items : JobItems(*spec, 0.25));
   if (!plan.ok()) return Fail(plan.status());
   const auto t_planned = std::chrono::steady_clock::now();
-  const int threads = a.threads > 0 ? a.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int threads = a.threads > 0 ? a.threads : UsableCpus();
   const long to_compute = plan->items_total - plan->items_cached;
   if (!a.quiet && !a.json) {
     std::cerr << "sweep " << plan->id << (spec->name.empty() ? "" : " (" + spec->name + ")") << ": "
@@ -115,7 +116,7 @@ void AddRunCommand(CLI::App& app, int* exit_code) {
   CLI::App* cmd = app.add_subcommand("run", "Run a sweep embedded in this process (all cores) and write its maps");
   cmd->add_option("spec", a->spec_path, "sweep spec (TOML), e.g. examples/paper_fig8_frf.toml")->required();
   cmd->add_option("--data", a->data, "data directory (index.sqlite, sweeps/*.h5, plots)")->capture_default_str();
-  cmd->add_option("--threads", a->threads, "worker threads (0 = all cores)")->capture_default_str();
+  cmd->add_option("--threads", a->threads, "worker threads (0 = the CPUs this process may use: affinity and cgroup quota)")->capture_default_str();
   cmd->add_option("--job-items", a->job_items, "items per job (0 = about 0.25 s of work)");
   cmd->add_flag("--json", a->json, "print {id, data, files, points, seconds, ...} as JSON");
   cmd->add_flag("--no-plots", a->no_plots, "do not render the default plots");

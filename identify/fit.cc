@@ -13,6 +13,7 @@
 #include <glog/logging.h>
 #include <nlopt.hpp>
 
+#include "base/cpus.h"
 #include "dynamics/spectrum.h"
 
 namespace bistable {
@@ -34,7 +35,7 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
                      substeps.empty() ? 0 : substeps[i],
                      horizon_s > 0 ? std::max(2, static_cast<int>(std::lround(horizon_s / recs[i].dt))) : 0);
   };
-  const size_t nt = std::min<size_t>(recs.size(), threads > 0 ? threads : std::max(1u, std::thread::hardware_concurrency()));
+  const size_t nt = std::min<size_t>(recs.size(), threads > 0 ? static_cast<size_t>(threads) : static_cast<size_t>(UsableCpus()));
   if (nt <= 1) {
     for (size_t i = 0; i < recs.size(); ++i) one(i);
   } else {

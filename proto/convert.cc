@@ -14,6 +14,7 @@ void ToProto(const SweepInfo& i, v1::SweepStatus* s) {
   s->set_name(i.name);
   s->set_model(i.model);
   s->set_error(i.error);
+  s->set_owner(i.owner);
 }
 
 SweepInfo FromProto(const v1::SweepStatus& s) {
@@ -29,6 +30,7 @@ SweepInfo FromProto(const v1::SweepStatus& s) {
   i.name = s.name();
   i.model = s.model();
   i.error = s.error();
+  i.owner = s.owner();
   return i;
 }
 

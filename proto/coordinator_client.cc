@@ -1,6 +1,9 @@
 #include "proto/coordinator_client.h"
 
 #include "bistable.grpc.pb.h"
+#include "base/limits.h"
+#include "base/names.h"
+#include "base/sha256.h"
 #include "proto/convert.h"
 #include "proto/status_convert.h"
 
@@ -108,6 +111,64 @@ StatusOr<MapArray> CoordinatorClient::GetMap(const std::string& id, const std::s
   return FromProto(rep);
 }
 
+StatusOr<std::vector<SweepInfo>> CoordinatorClient::ListSweeps() {
+  v1::ListSweepsRequest req;
+  v1::ListSweepsReply rep;
+  BISTABLE_RPC(ListSweeps, 30, req, &rep);
+  std::vector<SweepInfo> out;
+  for (const auto& s : rep.sweeps()) out.push_back(FromProto(s));
+  return out;
+}
+
+StatusOr<CoordinatorClient::Fetched> CoordinatorClient::FetchMap(const std::string& id,
+                                                                 const std::function<Status(std::string_view)>& sink) {
+  v1::FetchMapRequest req;
+  req.set_id(id);
+  auto ctx = CallContext(o_, 0);  // no deadline: a large map over a slow link takes what it takes
+  auto reader = impl_->stub->FetchMap(ctx.get(), req);
+  Fetched out;
+  Sha256 sha;
+  v1::FileChunk chunk;
+  uint64_t total = 0;
+  bool first = true, finished = false;
+  auto refuse = [&](const std::string& why) {
+    ctx->TryCancel();
+    return Status::Internal("the coordinator's map stream is invalid: " + why);
+  };
+  while (reader->Read(&chunk)) {
+    if (finished) return refuse("data after the checksum");
+    if (first) {
+      out.id = chunk.id();
+      total = chunk.total_bytes();
+      if (out.id.empty() || out.id.size() > limits::kMaxIdBytes || out.id.find_first_not_of("0123456789abcdef") != std::string::npos)
+        return refuse("the sweep id is not lowercase hex of at most " + std::to_string(limits::kMaxIdBytes) + " digits");
+      if (total > limits::kMaxFetchBytes)
+        return refuse("the file is announced as " + std::to_string(total) + " bytes, over the limit of " +
+                      std::to_string(limits::kMaxFetchBytes));
+      first = false;
+    }
+    if (chunk.id() != out.id || chunk.total_bytes() != total) return refuse("the id or size changed mid-stream");
+    if (chunk.offset() != out.bytes) return refuse("chunk at offset " + std::to_string(chunk.offset()) + ", expected " + std::to_string(out.bytes));
+    if (chunk.data().size() > total - out.bytes) return refuse("more data than the announced size");
+    sha.Update(chunk.data());
+    out.bytes += chunk.data().size();
+    if (Status st = sink(chunk.data()); !st.ok()) {
+      ctx->TryCancel();
+      return st;
+    }
+    if (!chunk.sha256().empty()) {
+      finished = true;
+      out.sha256 = sha.HexDigest();
+      if (out.bytes != total) return refuse("the checksum came at " + std::to_string(out.bytes) + " of " + std::to_string(total) + " bytes");
+      if (chunk.sha256() != out.sha256) return refuse("SHA-256 mismatch: received " + out.sha256 + ", the coordinator sent " + Printable(chunk.sha256(), 80));
+    }
+  }
+  const grpc::Status st = reader->Finish();
+  if (!st.ok()) return FromCall(st, o_.address);
+  if (!finished) return refuse("the stream ended without a checksum after " + std::to_string(out.bytes) + " bytes");
+  return out;
+}
+
 StatusOr<double> CoordinatorClient::Register(const std::string& name, int threads) {
   v1::RegisterRequest req;
   req.set_name(name);
@@ -124,9 +185,10 @@ StatusOr<std::optional<CoordinatorClient::Lease>> CoordinatorClient::FromReply(c
   return std::optional<Lease>(Lease{rep.lease_id(), rep.sweep_id(), rep.spec_toml(), std::move(*items)});
 }
 
-StatusOr<std::optional<CoordinatorClient::Lease>> CoordinatorClient::LeaseJob(const std::string& worker) {
+StatusOr<std::optional<CoordinatorClient::Lease>> CoordinatorClient::LeaseJob(const std::string& worker, int max_jobs) {
   v1::LeaseRequest req;
   req.set_worker(worker);
+  req.set_max_jobs(max_jobs);
   v1::LeaseReply rep;
   BISTABLE_RPC(Lease, 10, req, &rep);
   return FromReply(rep);
@@ -141,11 +203,12 @@ Status CoordinatorClient::Heartbeat(const std::string& lease_id) {
 }
 
 Status CoordinatorClient::Report(const std::string& lease_id, const std::vector<PointRecord>& records,
-                                 const std::string& lease_next_for, std::optional<Lease>* next) {
+                                 const std::string& lease_next_for, std::optional<Lease>* next, int next_max_jobs) {
   v1::ReportRequest req;
   req.set_lease_id(lease_id);
   ToProto(records, &req);
   req.set_lease_next_for(lease_next_for);
+  req.set_next_max_jobs(next_max_jobs);
   v1::ReportReply rep;
   BISTABLE_RPC(Report, 30, req, &rep);
   if (next && rep.has_next()) {

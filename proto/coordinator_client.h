@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "base/status.h"
@@ -46,6 +47,16 @@ class CoordinatorClient {
   };
   StatusOr<MetricList> ListMetrics(const std::string& id);
   StatusOr<MapArray> GetMap(const std::string& id, const std::string& metric);
+  StatusOr<std::vector<SweepInfo>> ListSweeps();
+  // Streams a published map file into `sink` (chunks in order). Checked as it arrives: the id is a
+  // sweep id, offsets follow each other, the size is the one announced and at most
+  // limits::kMaxFetchBytes, and the SHA-256 of what was received equals the coordinator's. The sink's
+  // error stops the transfer.
+  struct Fetched {
+    std::string id, sha256;
+    uint64_t bytes = 0;
+  };
+  StatusOr<Fetched> FetchMap(const std::string& id, const std::function<Status(std::string_view data)>& sink);
 
   // --- workers ---
   // Registers; the lease period in seconds.
@@ -54,11 +65,12 @@ class CoordinatorClient {
     std::string lease_id, sweep_id, spec_toml;
     std::vector<WorkItem> items;
   };
-  StatusOr<std::optional<Lease>> LeaseJob(const std::string& worker);
+  // max_jobs > 1: up to that many queued jobs merged into one lease (SweepCoordinator::Lease).
+  StatusOr<std::optional<Lease>> LeaseJob(const std::string& worker, int max_jobs = 1);
   Status Heartbeat(const std::string& lease_id);
   // Reports; with `lease_next_for` non-empty the reply may carry the worker's next job (into *next).
   Status Report(const std::string& lease_id, const std::vector<PointRecord>& records, const std::string& lease_next_for,
-                std::optional<Lease>* next);
+                std::optional<Lease>* next, int next_max_jobs = 1);
   Status Release(const std::string& lease_id);
 
   const std::string& address() const { return o_.address; }

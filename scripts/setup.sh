@@ -11,11 +11,15 @@ PACKAGES=(
   libceres-dev libnlopt-dev libnlopt-cxx-dev
   # service and storage (proto/, server/, worker/, storage/)
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
-  libsqlite3-dev libhdf5-dev libboost-dev libssl-dev openssl
+  libsqlite3-dev libhdf5-dev libboost-dev libssl-dev openssl prometheus-cpp-dev
   # plots
   gnuplot-nox
   # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev python3-h5py python3-numpy python3-scipy iproute2
+  libgtest-dev libgmock-dev libbenchmark-dev python3-h5py python3-numpy python3-scipy python3-yaml iproute2
+  # deployment tests (deploy/container: base image, image build and run; runc where crun cannot run)
+  podman debootstrap runc uidmap fuse-overlayfs slirp4netns
+  # deployment tests (deploy/slurm/test-cluster.sh: a Slurm cluster in network namespaces)
+  slurmctld slurmd slurm-client munge procps util-linux
 )
 
 missing=()

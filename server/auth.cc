@@ -1,7 +1,6 @@
 #include "server/auth.h"
 
 #include <arpa/inet.h>
-#include <openssl/evp.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -11,15 +10,6 @@
 
 namespace bistable {
 
-std::string Sha256Hex(const std::string& data) {
-  unsigned char md[EVP_MAX_MD_SIZE];
-  unsigned int len = 0;
-  EVP_Digest(data.data(), data.size(), md, &len, EVP_sha256(), nullptr);
-  std::string hex;
-  char b[3];
-  for (unsigned i = 0; i < len; ++i) std::snprintf(b, sizeof b, "%02x", md[i]), hex += b;
-  return hex;
-}
 
 std::string NewToken() {
   std::random_device rd;  // /dev/urandom

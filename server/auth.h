@@ -13,6 +13,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "base/sha256.h"
 #include "base/status.h"
 
 namespace bistable {
@@ -20,7 +21,6 @@ namespace bistable {
 enum class Role { kClient, kWorker, kAdmin };
 enum class Op { kSubmit, kStatus, kCancel, kList, kMap, kWorkers, kRegister, kLease, kHeartbeat, kReport, kRelease };
 
-std::string Sha256Hex(const std::string& data);
 // A fresh random token (64 hex digits).
 std::string NewToken();
 

@@ -10,8 +10,13 @@
 
 #include "base/exit_codes.h"
 #include "base/file.h"
+#include "base/log.h"
+#include "net/http_server.h"
+#include "net/prometheus_text.h"
 #include "proto/channel.h"
+#include "proto/health.h"
 #include "server/coordinator_service.h"
+#include "server/metrics.h"
 
 namespace {
 
@@ -24,6 +29,7 @@ int main(int argc, char** argv) {
   CLI::App app{"bistable-coordinator: serves sweeps to clients and workers over gRPC"};
   std::string listen = "127.0.0.1:50051", data = "bistable-data", tls_cert, tls_key, tokens_file;
   double lease_seconds = 60, job_seconds = 2.0;
+  std::string log_level = "info", log_format = "text", metrics_addr, health_addr;
   app.add_option("--listen", listen, "address to listen on (loopback unless TLS and tokens are configured); port 0 picks one")
       ->capture_default_str();
   app.add_option("--data", data, "data directory (index.sqlite, sweeps/)")->capture_default_str();
@@ -34,6 +40,12 @@ int main(int argc, char** argv) {
   app.add_option("--tokens", tokens_file, "tokens file: '<role> <sha256-of-token> [name]' per line (see `bistable token`)");
   app.add_option("--job-seconds", job_seconds, "work per job on one core, seconds (jobs are blocks of points)")
       ->capture_default_str();
+  app.add_option("--log-level", log_level, "debug (every lease and report), info, warn, error, off")->capture_default_str();
+  app.add_option("--log-format", log_format, "text or json (one object per line), on stderr")->capture_default_str();
+  app.add_option("--metrics", metrics_addr,
+                 "serve Prometheus metrics (/metrics) and /healthz over HTTP on HOST:PORT (e.g. 0.0.0.0:9090)");
+  app.add_option("--health", health_addr,
+                 "also serve grpc.health.v1 alone, plaintext, on HOST:PORT (Kubernetes gRPC probes); the main port serves it too");
   CLI11_PARSE(app, argc, argv);
   // Two malloc arenas: gRPC serves calls on a pool of threads, and one arena per thread would keep
   // each thread's high-water mark of (possibly hostile, oversized) requests resident for good.
@@ -42,6 +54,13 @@ int main(int argc, char** argv) {
     std::cerr << "error: " << st.ToString() << "\n";
     return bistable::kExitError;
   };
+  {
+    auto level = bistable::log::ParseLevel(log_level);
+    if (!level.ok()) return fail(level.status());
+    auto format = bistable::log::ParseFormat(log_format);
+    if (!format.ok()) return fail(format.status());
+    bistable::log::Configure(*level, *format);
+  }
   if (tls_cert.empty() != tls_key.empty())
     return fail(bistable::Status::InvalidArgument("tls-cert", "--tls-cert and --tls-key go together"));
   if (!bistable::IsLoopbackAddress(listen) && (tls_cert.empty() || tokens_file.empty()))
@@ -73,10 +92,22 @@ int main(int argc, char** argv) {
     return bistable::kExitError;
   }
   bistable::CoordinatorService service(coord->get(), lease_seconds, job_seconds, std::move(tokens));
+  bistable::CoordinatorMetrics metrics(coord->get());
+  service.SetMetrics(&metrics);
+  std::unique_ptr<bistable::HttpServer> http;
+  if (!metrics_addr.empty()) {
+    auto h = bistable::HttpServer::Start(
+        metrics_addr, {{"/metrics", [&metrics] { return bistable::PrometheusText(metrics.Sources()); }},
+                       {"/healthz", [] { return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n"}; }}});
+    if (!h.ok()) return fail(h.status());
+    http = std::move(h).value();
+  }
+  bistable::HealthService health_service;
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort(listen, creds, &port);
   builder.RegisterService(&service);
+  builder.RegisterService(&health_service);
   bistable::ConfigureServerBuilder(builder);
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || port == 0) {
@@ -84,7 +115,23 @@ int main(int argc, char** argv) {
     return bistable::kExitError;
   }
   const std::string host = listen.substr(0, listen.rfind(':'));
+  health_service.Set("", true);
+  health_service.Set("bistable.v1.Coordinator", true);
+  std::unique_ptr<grpc::Server> health;
+  int health_port = 0;
+  if (!health_addr.empty()) {
+    auto h = bistable::StartHealthServer(health_addr, &health_service, &health_port);
+    if (!h.ok()) return fail(h.status());
+    health = std::move(h).value();
+  }
+  bistable::log::Event(bistable::log::Level::kInfo, "coordinator.started",
+                       {{"listen", host + ":" + std::to_string(port)}, {"data", data}, {"tls", !tls_cert.empty()},
+                        {"tokens", !tokens_file.empty()}, {"lease_seconds", lease_seconds},
+                        {"metrics", http ? metrics_addr.substr(0, metrics_addr.rfind(':')) + ":" + std::to_string(http->port()) : ""},
+                        {"health", health ? health_addr.substr(0, health_addr.rfind(':')) + ":" + std::to_string(health_port) : ""}});
   std::cout << "listening on " << host << ":" << port << std::endl;
+  if (http) std::cout << "metrics on " << metrics_addr.substr(0, metrics_addr.rfind(':')) << ":" << http->port() << std::endl;
+  if (health) std::cout << "health on " << health_addr.substr(0, health_addr.rfind(':')) << ":" << health_port << std::endl;
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
   // Housekeeping: every 5 s give freed heap back to the system (rejected oversized messages and
@@ -95,7 +142,10 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     if (tick % 50 == 0) ::malloc_trim(0);
   }
+  bistable::log::Event(bistable::log::Level::kInfo, "coordinator.stopping", {});
+  health_service.Shutdown();
   service.Shutdown();
+  if (health) health->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
   server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
   return 0;
 }

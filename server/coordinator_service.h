@@ -4,9 +4,11 @@
 #define BISTABLE_SERVER_COORDINATOR_SERVICE_H_
 
 #include <atomic>
+#include <mutex>
 
 #include "bistable.grpc.pb.h"
 #include "server/auth.h"
+#include "server/metrics.h"
 #include "server/sweep_coordinator.h"
 
 namespace bistable {
@@ -22,6 +24,8 @@ class CoordinatorService final : public v1::Coordinator::Service {
   CoordinatorService(SweepCoordinator* c, double lease_seconds, double job_seconds = 2.0, TokenStore tokens = {})
       : c_(c), lease_seconds_(lease_seconds), job_seconds_(job_seconds), tokens_(std::move(tokens)) {}
   void Shutdown() { shutting_down_ = true; }
+  // Metrics to feed (report latency, refusals); optional, not owned.
+  void SetMetrics(CoordinatorMetrics* m) { metrics_ = m; }
 
   grpc::Status Submit(grpc::ServerContext*, const v1::SubmitRequest*, v1::SubmitReply*) override;
   grpc::Status GetStatus(grpc::ServerContext*, const v1::StatusRequest*, v1::SweepStatus*) override;
@@ -36,15 +40,23 @@ class CoordinatorService final : public v1::Coordinator::Service {
   grpc::Status Report(grpc::ServerContext*, const v1::ReportRequest*, v1::ReportReply*) override;
   grpc::Status Release(grpc::ServerContext*, const v1::ReleaseRequest*, v1::ReleaseReply*) override;
   grpc::Status ListWorkers(grpc::ServerContext*, const v1::ListWorkersRequest*, v1::ListWorkersReply*) override;
+  grpc::Status FetchMap(grpc::ServerContext*, const v1::FetchMapRequest*, grpc::ServerWriter<v1::FileChunk>*) override;
 
  private:
-  // Leases the next job for `worker` into `rep` (has_job false when there is none).
-  Status LeaseInto(const std::string& worker, v1::LeaseReply* rep);
+  // The answer for a handler's Status: refusals are counted and logged (rate-limited) with the method,
+  // code, peer and reason.
+  grpc::Status Answer(const grpc::ServerContext* ctx, const char* method, const Status& st);
+  // Leases the next job for `worker` into `rep` (has_job false when there is none), up to max_jobs
+  // (0: 1) queued jobs merged into it.
+  Status LeaseInto(const std::string& worker, v1::LeaseReply* rep, int max_jobs);
   StatusOr<std::pair<std::string, std::string>> PublishedMap(const std::string& id_or_prefix) const;
   SweepCoordinator* c_;
   double lease_seconds_, job_seconds_;
   TokenStore tokens_;
   std::atomic<bool> shutting_down_{false};
+  CoordinatorMetrics* metrics_ = nullptr;
+  std::mutex refusal_log_mu_;
+  long long refusal_log_second_ = 0, refusal_logs_this_second_ = 0, refusals_suppressed_ = 0;
 };
 
 }  // namespace bistable

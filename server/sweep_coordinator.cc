@@ -6,12 +6,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdarg>
 #include <cstdio>
 #include <filesystem>
 #include <random>
 
 #include "base/limits.h"
+#include "base/log.h"
 #include "engine/evaluate.h"
 #include "storage/map_file.h"
 
@@ -25,14 +25,8 @@ double Now() {
 
 }  // namespace
 
-void SweepCoordinator::Log(const char* fmt, ...) const {
-  if (!opt_.log) return;
-  char line[1024];
-  va_list ap;
-  va_start(ap, fmt);
-  std::vsnprintf(line, sizeof line, fmt, ap);
-  va_end(ap);
-  std::fprintf(stderr, "coordinator: %s", line);
+void SweepCoordinator::Log(log::Level level, std::string_view event, std::initializer_list<log::Field> fields) const {
+  if (opt_.log) log::Event(level, event, fields);
 }
 
 double SweepCoordinator::Clock() const { return opt_.clock ? opt_.clock() : Now(); }
@@ -63,7 +57,7 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
     }
     auto plan = c->Submit(*spec, JobItems(*spec, 2.0, 64), r.owner.empty() ? "local" : r.owner);
     if (!plan.ok()) {
-      c->Log("cannot resume sweep %s: %s\n", r.id.c_str(), plan.status().ToString().c_str());
+      c->Log(log::Level::kError, "sweep.resume_failed", {{"sweep", r.id}, {"reason", plan.status().ToString()}});
       SweepRow failed = r;
       failed.state = SweepState::kFailed;
       c->Db()->UpsertSweep(failed);
@@ -112,6 +106,7 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
                                         " sweeps queued or running, its limit is " + std::to_string(limits::kMaxActiveSweeps));
     planning_[id] = 1;
   }
+  const auto plan_start = std::chrono::steady_clock::now();
   auto built = BuildPlan(spec, items);  // outside mu_: leases, reports and status calls go on
   std::unique_lock<std::mutex> lock(mu_);
   planning_.erase(id);
@@ -119,6 +114,11 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
   if (!built.ok()) return built.status();
   auto plan = InstallLocked(std::move(*built), owner);
   lock.unlock();
+  if (plan.ok())
+    Log(log::Level::kInfo, "sweep.planned",
+        {{"sweep", plan->id}, {"name", spec.name}, {"owner", owner}, {"items", plan->items_total},
+         {"cached", plan->items_cached}, {"jobs", plan->jobs}, {"published", plan->already_published},
+         {"plan_ms", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - plan_start).count()}});
   if (plan.ok() && plan->jobs == 0 && !plan->already_published)  // everything cached: publish now
     if (auto path = Publish(plan->id); !path.ok()) return path.status();
   return plan;
@@ -164,8 +164,7 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
       if (cached->count(batch[i])) is_missing[b + i] = false;
   }
   if (corrupt_total > 0)
-    Log("sweep %s: %ld stored results failed their checksum; they are recomputed\n",
-                 plan.id.c_str(), corrupt_total);
+    Log(log::Level::kWarn, "sweep.checksum_failed", {{"sweep", plan.id}, {"items", corrupt_total}, {"action", "recompute"}});
   if (spec.continuation.enabled()) {
     // Chains run whole and in order (each point starts where the previous ended): a chain with any
     // missing item is recomputed entirely; jobs hold whole chains.
@@ -254,8 +253,7 @@ Status SweepCoordinator::Replan(const std::string& id) {
   if (!built.ok()) return built.status();
   auto plan = InstallLocked(std::move(*built), owner);
   if (!plan.ok()) return plan.status();
-  Log("sweep %s planned again: %ld items to recompute\n", id.c_str(),
-               plan->items_total - plan->items_cached);
+  Log(log::Level::kInfo, "sweep.replanned", {{"sweep", id}, {"items", plan->items_total - plan->items_cached}});
   if (plan->jobs == 0) {
     std::lock_guard<std::mutex> p(publish_queue_mu_);
     publish_queue_.push_back(id);
@@ -305,6 +303,7 @@ void SweepCoordinator::TouchWorkerLocked(const std::string& worker, double now) 
     }
     it = workers_.emplace(worker, WorkerInfo{}).first;
     it->second.name = worker;
+    Log(log::Level::kInfo, "worker.joined", {{"worker", worker}, {"workers", workers_.size()}});
   }
   it->second.last_seen = now;
 }
@@ -315,22 +314,30 @@ void SweepCoordinator::RequeueExpiredLocked(double now) {
       ++it;
       continue;
     }
-    RequeueLocked(it->second);
+    ++stats_.leases_expired;
+    const LeaseState& l = it->second;
+    Log(log::Level::kWarn, "lease.expired",
+        {{"sweep", l.sweep_id}, {"job", l.job_ids.front()}, {"jobs", l.job_ids.size()}, {"worker", l.worker},
+         {"overdue_s", now - l.deadline}, {"action", "requeue"}});
+    RequeueLocked(l);
+    if (auto w = workers_.find(l.worker); w != workers_.end() && w->second.leases == 0)
+      Log(log::Level::kWarn, "worker.lost", {{"worker", l.worker}, {"last_seen_s", now - w->second.last_seen}});
     it = leases_.erase(it);
   }
 }
 
 void SweepCoordinator::RequeueLocked(const LeaseState& l) {
   auto s = sweeps_.find(l.sweep_id);
-  if (s != sweeps_.end() && !s->second.cancelled && s->second.generation == l.generation &&
-      l.job_id < static_cast<long>(s->second.job_state.size()) && s->second.job_state[l.job_id] == JobState::kLeased) {
-    s->second.job_state[l.job_id] = JobState::kQueued;
-    s->second.queue.push_front(l.job_id);
-  }
+  if (s != sweeps_.end() && !s->second.cancelled && s->second.generation == l.generation)
+    for (auto j = l.job_ids.rbegin(); j != l.job_ids.rend(); ++j)  // back at the front, in their order
+      if (*j < static_cast<long>(s->second.job_state.size()) && s->second.job_state[*j] == JobState::kLeased) {
+        s->second.job_state[*j] = JobState::kQueued;
+        s->second.queue.push_front(*j);
+      }
   if (auto w = workers_.find(l.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
 }
 
-std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep) {
+std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep, int max_jobs) {
   std::lock_guard<std::mutex> lock(mu_);
   const double now = Clock();
   TouchWorkerLocked(worker, now);
@@ -340,16 +347,28 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
   for (auto& [id, s] : sweeps_)
     if (!s.cancelled && !s.queue.empty() && (!best || s.seq < best->seq) && (only_sweep.empty() || id == only_sweep)) best = &s;
   if (!best) return std::nullopt;
-  const long job = best->queue.front();
+  std::vector<long> jobs{best->queue.front()};
   best->queue.pop_front();
-  best->job_state[job] = JobState::kLeased;
+  size_t items = best->jobs[jobs[0]].items.size();
+  while (static_cast<int>(jobs.size()) < max_jobs && !best->queue.empty() &&
+         items + best->jobs[best->queue.front()].items.size() <= static_cast<size_t>(limits::kMaxJobItems)) {
+    jobs.push_back(best->queue.front());
+    items += best->jobs[jobs.back()].items.size();
+    best->queue.pop_front();
+  }
+  for (long j : jobs) best->job_state[j] = JobState::kLeased;
   best->any_leased = true;
   char id[48];
   std::snprintf(id, sizeof id, "%s-%llu-%08x", best->row.id.c_str(), ++lease_counter_,
                 static_cast<unsigned>(lease_salt_()));
-  LeaseGrant g{id, best->row.id, job, best->jobs[job].items, now + opt_.lease_seconds};
-  leases_[g.lease_id] = {g.sweep_id, worker, job, best->generation, g.deadline};
+  LeaseGrant g{id, best->row.id, jobs[0], static_cast<int>(jobs.size()), {}, now + opt_.lease_seconds};
+  g.items.reserve(items);
+  for (long j : jobs) g.items.insert(g.items.end(), best->jobs[j].items.begin(), best->jobs[j].items.end());
+  leases_[g.lease_id] = {g.sweep_id, worker, jobs, best->generation, g.deadline};
   if (auto w = workers_.find(worker); w != workers_.end()) ++w->second.leases;
+  ++stats_.leases_granted;
+  Log(log::Level::kDebug, "lease.granted",
+      {{"sweep", g.sweep_id}, {"job", g.job_id}, {"jobs", g.jobs}, {"worker", worker}, {"items", g.items.size()}});
   return g;
 }
 
@@ -420,7 +439,14 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
     return Status::InvalidArgument("values", std::to_string(n_values) + " values do not split into records of width " +
                                                  std::to_string(width));
   const size_t n_records = n_values / width;
+  // Every value's domain, and the one copy of the values, outside the coordinator's lock: concurrent
+  // reports check and copy in parallel; under the lock only the lease and the keys are looked at.
+  for (size_t i = 0; i < n_records; ++i)
+    if (Status st = CheckRecord(values + i * width, width, tp); !st.ok())
+      return Status::InvalidArgument("values", "record " + std::to_string(i) + ": " + st.message());
   IndexDb::JobResults rows;
+  rows.width = width;
+  rows.values.assign(values, values + n_values);
   LeaseState lease;
   {
     std::lock_guard<std::mutex> lock(mu_);
@@ -429,7 +455,10 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
       return Status::IoError("coordinator", "the report of lease '" + lease_id + "' is being stored; retry");
     auto it = leases_.find(lease_id);
     if (it == leases_.end()) {
-      if (finished_leases_.count(lease_id)) return Status::Ok();  // a retried report: already stored
+      if (finished_leases_.count(lease_id)) {  // a retried report: already stored
+        ++stats_.reports_duplicate;
+        return Status::Ok();
+      }
       return Status::NotFound("lease is unknown (never granted, revoked by a cancel or a new plan, or granted before a "
                               "coordinator restart)");
     }
@@ -438,28 +467,33 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
       return Status::FailedPrecondition("lease '" + lease_id + "' expired before its report; its job was requeued");
     }
     auto sit = sweeps_.find(it->second.sweep_id);
-    if (sit == sweeps_.end() || sit->second.cancelled || sit->second.generation != it->second.generation ||
-        it->second.job_id >= static_cast<long>(sit->second.jobs.size())) {
+    auto out_of_plan = [&] {
+      for (long j : it->second.job_ids)
+        if (j < 0 || j >= static_cast<long>(sit->second.jobs.size())) return true;
+      return false;
+    };
+    if (sit == sweeps_.end() || sit->second.cancelled || sit->second.generation != it->second.generation || out_of_plan()) {
       if (auto w = workers_.find(it->second.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
       leases_.erase(it);
       return Status::FailedPrecondition("lease '" + lease_id + "' belongs to a cancelled or replaced plan of its sweep");
     }
     Sweep& s = sit->second;
-    const Job& job = s.jobs[it->second.job_id];
-    if (n_records != job.items.size())
-      return Status::InvalidArgument("values", "the lease's job has " + std::to_string(job.items.size()) +
+    size_t lease_items = 0;
+    for (long j : it->second.job_ids) lease_items += s.jobs[j].items.size();
+    if (n_records != lease_items)
+      return Status::InvalidArgument("values", "the lease's job has " + std::to_string(lease_items) +
                                                    " items, the report has " + std::to_string(n_records) + " records");
     const size_t expected = PointRecord::Size(s.spec.base.metrics.turning_points);
     if (width != expected)
       return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) +
                                                          " violates record_width = " + std::to_string(expected) +
                                                          " (this sweep's layout)");
-    for (size_t i = 0; i < n_records; ++i)
-      if (Status st = CheckRecord(values + i * width, width, tp); !st.ok())
-        return Status::InvalidArgument("values", "record " + std::to_string(i) + ": " + st.message());
     lease = it->second;
     leases_.erase(it);
-    if (s.job_state[lease.job_id] == JobState::kDone) {  // another lease of this job was stored first
+    bool all_done = true;
+    for (long j : lease.job_ids) all_done = all_done && s.job_state[j] == JobState::kDone;
+    if (all_done) {  // other leases of these jobs were stored first
+      ++stats_.reports_duplicate;
       if (auto w = workers_.find(lease.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
       TouchWorkerLocked(lease.worker, now);
       RememberFinishedLocked(lease_id, s.row.id);
@@ -467,21 +501,24 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
     }
     const int nic = s.spec.ic_count();
     rows.sweep_id = s.row.id;
-    rows.items.reserve(n_records);
-    for (size_t i = 0; i < n_records; ++i) {
-      PointRecord r;
-      r.v.assign(values + i * width, values + (i + 1) * width);
-      rows.items.emplace_back(s.keys[job.items[i].point * nic + job.items[i].ic], std::move(r));
-    }
+    rows.keys.reserve(n_records * (s.keys.empty() ? 0 : s.keys[0].size() + 1));
+    for (long j : lease.job_ids)
+      for (const WorkItem& w : s.jobs[j].items) {
+        rows.keys += s.keys[w.point * nic + w.ic];
+        rows.keys += '\n';
+      }
     committing_[lease_id] = lease;  // not in leases_ while stored: it cannot expire or be requeued meanwhile
   }
-  const long n = static_cast<long>(rows.items.size());
+  const long n = static_cast<long>(n_records);
+  const auto store_start = std::chrono::steady_clock::now();
   const Status stored = AwaitCommit(EnqueueResults(std::move(rows)));  // without mu_: reports batch up here
+  const double store_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - store_start).count();
   std::lock_guard<std::mutex> lock(mu_);
   committing_.erase(lease_id);
   if (!stored.ok()) {
-    Log("storing a report of sweep %s failed: %s\n", lease.sweep_id.c_str(),
-                 stored.ToString().c_str());
+    ++stats_.reports_failed;
+    Log(log::Level::kError, "report.store_failed",
+        {{"sweep", lease.sweep_id}, {"job", lease.job_ids.front()}, {"worker", lease.worker}, {"reason", stored.ToString()}});
     auto sit = sweeps_.find(lease.sweep_id);
     if (sit != sweeps_.end()) sit->second.error = "storing results failed: " + stored.ToString();
     if (sit != sweeps_.end() && !sit->second.cancelled && sit->second.generation == lease.generation)
@@ -499,10 +536,20 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
   if (sit == sweeps_.end() || sit->second.cancelled || sit->second.generation != lease.generation) return Status::Ok();
   Sweep& s = sit->second;
   s.error.clear();
-  if (s.job_state[lease.job_id] != JobState::kDone) {  // two leases of one job stored at once count once
-    s.job_state[lease.job_id] = JobState::kDone;
-    s.items_done += n;
-    if (auto w = workers_.find(lease.worker); w != workers_.end()) w->second.items_done += n;
+  long counted = 0;  // two leases of one job stored at once count once
+  for (long j : lease.job_ids) {
+    if (s.job_state[j] == JobState::kDone) continue;
+    s.job_state[j] = JobState::kDone;
+    counted += static_cast<long>(s.jobs[j].items.size());
+  }
+  if (counted > 0) {
+    s.items_done += counted;
+    stats_.items_stored += counted;
+    ++stats_.reports_stored;
+    if (auto w = workers_.find(lease.worker); w != workers_.end()) w->second.items_done += counted;
+    Log(log::Level::kDebug, "report.stored",
+        {{"sweep", lease.sweep_id}, {"job", lease.job_ids.front()}, {"jobs", lease.job_ids.size()}, {"worker", lease.worker},
+         {"items", n}, {"store_ms", store_ms}});
   }
   if (s.items_done >= s.row.items_total && s.row.state != SweepState::kDone) {
     // Publish off the report path: the report is acknowledged once its rows are durable, and the
@@ -526,7 +573,7 @@ void SweepCoordinator::PublisherLoop() {
     }
     auto path = Publish(id);
     if (!path.ok() && path.status().code() != Status::Code::kFailedPrecondition)  // cancelled meanwhile: nothing to say
-      Log("publishing sweep %s failed: %s\n", id.c_str(), path.status().ToString().c_str());
+      Log(log::Level::kError, "sweep.publish_failed", {{"sweep", id}, {"reason", path.status().ToString()}});
   }
 }
 
@@ -543,6 +590,10 @@ Status SweepCoordinator::Release(const std::string& lease_id) {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = leases_.find(lease_id);
   if (it == leases_.end()) return Status::NotFound("lease is unknown");
+  ++stats_.leases_released;
+  Log(log::Level::kInfo, "lease.released",
+      {{"sweep", it->second.sweep_id}, {"job", it->second.job_ids.front()}, {"jobs", it->second.job_ids.size()},
+       {"worker", it->second.worker}, {"action", "requeue"}});
   RequeueLocked(it->second);
   leases_.erase(it);
   return Status::Ok();
@@ -554,6 +605,7 @@ Status SweepCoordinator::Cancel(const std::string& sweep_id) {
   if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
   if (it->second.row.state == SweepState::kDone) return Status::FailedPrecondition("sweep '" + sweep_id + "' is already done");
   it->second.cancelled = true;
+  Log(log::Level::kInfo, "sweep.cancelled", {{"sweep", sweep_id}, {"items_done", it->second.items_done}});
   RevokeLeasesLocked(sweep_id);  // a report of this plan is refused from now on
   const Status st = MarkLocked(it->second, SweepState::kCancelled);
   FreePlan(it->second);
@@ -588,11 +640,12 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
     return Status::FailedPrecondition("sweep " + sweep_id + " lost its map file; it is being planned and published again");
   }
   bool incomplete = false;
+  const auto publish_start = std::chrono::steady_clock::now();
   auto published = WriteAndIndexMap(spec, keys, row, started, path, &incomplete);
   std::unique_lock<std::mutex> lock(mu_);
   Sweep& s = sweeps_.at(sweep_id);
   if (!published.ok()) {
-    Log("publishing sweep %s: %s\n", sweep_id.c_str(), published.status().ToString().c_str());
+    Log(log::Level::kError, "sweep.publish_failed", {{"sweep", sweep_id}, {"reason", published.status().ToString()}});
     s.error = "publication failed: " + published.status().ToString();
     // A write failure (disk full, unwritable dir) fails the sweep. Results missing at publication
     // (a stored result failed its checksum) are computed again: the sweep is planned anew.
@@ -604,6 +657,9 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
     return published.status();
   }
   s.row = *published;
+  Log(log::Level::kInfo, "sweep.published",
+      {{"sweep", sweep_id}, {"items", s.row.items_done}, {"file", s.row.file}, {"seconds", s.row.seconds},
+       {"publish_ms", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - publish_start).count()}});
   FreePlan(s);  // published: keys and jobs are no longer needed
   final_cv_.notify_all();
   return path;
@@ -617,8 +673,7 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
   auto found = Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points), &corrupt);
   if (!found.ok()) return found.status();
   if (corrupt > 0)
-    Log("sweep %s: %ld stored results failed their checksum at publication\n", row.id.c_str(),
-                 corrupt);
+    Log(log::Level::kWarn, "sweep.checksum_failed", {{"sweep", row.id}, {"items", corrupt}, {"action", "replan"}});
   std::vector<PointRecord> records;
   records.reserve(keys.size());
   for (const std::string& k : keys) {
@@ -731,6 +786,25 @@ StatusOr<std::vector<SweepInfo>> SweepCoordinator::ListSweeps() const {
   std::vector<SweepInfo> out;
   for (const SweepRow& r : *rows)
     if (auto info = Info(r.id); info.ok()) out.push_back(*info);
+  return out;
+}
+
+CoordinatorStats SweepCoordinator::Stats() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  CoordinatorStats out = stats_;
+  out.leases_outstanding = static_cast<long>(leases_.size() + committing_.size());
+  for (const auto& [id, s] : sweeps_) {
+    const SweepState st = s.cancelled ? SweepState::kCancelled : s.row.state;
+    ++out.sweeps_by_state[static_cast<int>(st)];
+    if (s.cancelled) continue;
+    out.jobs_queued += static_cast<long>(s.queue.size());
+    if (st == SweepState::kRunning || st == SweepState::kQueued) out.items_pending += s.row.items_total - s.items_done;
+  }
+  const double now = Clock();
+  for (const auto& [name, w] : workers_) {
+    out.workers.push_back(w);
+    if (w.leases > 0 || now - w.last_seen < 3 * opt_.lease_seconds) ++out.workers_active;
+  }
   return out;
 }
 

@@ -15,6 +15,7 @@
 #ifndef BISTABLE_SERVER_SWEEP_COORDINATOR_H_
 #define BISTABLE_SERVER_SWEEP_COORDINATOR_H_
 
+#include <array>
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -27,6 +28,7 @@
 #include <thread>
 #include <vector>
 
+#include "base/log.h"
 #include "engine/metric_catalog.h"
 #include "engine/sweep_spec.h"
 #include "storage/index_db.h"
@@ -54,9 +56,20 @@ struct SweepProgress {
 struct LeaseGrant {
   std::string lease_id;    // opaque, unique
   std::string sweep_id;
-  long job_id = 0;
+  long job_id = 0;          // the first job of the lease
+  int jobs = 1;             // jobs merged into this lease
   std::vector<WorkItem> items;
   double deadline = 0;     // unix seconds
+};
+
+// Counters since this process started and gauges now, for metrics (server/metrics.h).
+struct CoordinatorStats {
+  long leases_granted = 0, leases_expired = 0, leases_released = 0;
+  long reports_stored = 0, reports_duplicate = 0, reports_failed = 0;
+  long items_stored = 0;       // items of stored reports (counted once per job)
+  long leases_outstanding = 0, jobs_queued = 0, items_pending = 0, workers_active = 0;
+  std::array<long, 6> sweeps_by_state{};  // indexed by SweepState
+  std::vector<WorkerInfo> workers;
 };
 
 class SweepCoordinator {
@@ -84,7 +97,10 @@ class SweepCoordinator {
   // The next queued job of the oldest running sweep, after requeueing expired leases; nullopt when
   // there is none (or after Stop()).
   // `only_sweep` restricts the lease to one sweep (the embedded run).
-  std::optional<LeaseGrant> Lease(const std::string& worker, const std::string& only_sweep = "");
+  // `max_jobs` > 1 merges up to that many queued jobs of the sweep into one lease (a larger job for a
+  // worker far away or with many cores: one round trip and one stored report for all of them) while
+  // their items total at most limits::kMaxJobItems; the lease stands or falls as a whole.
+  std::optional<LeaseGrant> Lease(const std::string& worker, const std::string& only_sweep = "", int max_jobs = 1);
   // Pushes a lease's deadline back by lease_seconds. NotFound for an unknown lease, FailedPrecondition
   // for an expired one.
   Status Extend(const std::string& lease_id);
@@ -109,6 +125,7 @@ class SweepCoordinator {
   // its info then or at the timeout: watchers learn of completion at once, not at their next poll.
   StatusOr<SweepInfo> AwaitFinal(const std::string& sweep_id, double seconds) const;
   std::vector<WorkerInfo> Workers() const;
+  CoordinatorStats Stats() const;
   // A sweep id from an id or a unique prefix (hex digits only, at most limits::kMaxIdBytes).
   StatusOr<std::string> ResolveId(const std::string& id_or_prefix) const;
   // Every sweep of the index, oldest first, as Info reports it.
@@ -137,7 +154,7 @@ class SweepCoordinator {
   };
   struct LeaseState {
     std::string sweep_id, worker;
-    long job_id = 0;
+    std::vector<long> job_ids;        // one job, or several merged (Lease's max_jobs)
     unsigned long long generation = 0;  // the plan the job belongs to
     double deadline = 0;
   };
@@ -165,7 +182,8 @@ class SweepCoordinator {
   void TouchWorkerLocked(const std::string& worker, double now);
   void RequeueExpiredLocked(double now);
   double Clock() const;
-  void Log(const char* fmt, ...) const __attribute__((format(printf, 2, 3)));
+  // A structured event (base/log.h), unless Options::log is off.
+  void Log(log::Level level, std::string_view event, std::initializer_list<log::Field> fields) const;
   // Gives a lease's job back to its queue (if the lease's plan is still current). Under mu_.
   void RequeueLocked(const LeaseState& l);
   // Gathers the records, writes the map file, indexes it; returns the sweep's row as published.
@@ -208,6 +226,7 @@ class SweepCoordinator {
   std::condition_variable plan_cv_;                      // with mu_: a planning finished
   unsigned long long generation_counter_ = 0;
   std::map<std::string, WorkerInfo> workers_;
+  CoordinatorStats stats_;                                // counters, under mu_
   long next_seq_ = 0;
   unsigned long long lease_counter_ = 0;
   std::mt19937 lease_salt_{std::random_device{}()};  // makes lease ids unguessable across restarts

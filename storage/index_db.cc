@@ -285,38 +285,28 @@ StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(con
 Status IndexDb::PutPoints(const std::vector<JobResults>& jobs) {
   Transaction tx(db_, "BEGIN IMMEDIATE");
   if (!tx.ok()) return Error("begin point results");
-  // One appended row per run of equal-width records: consecutive rowids fill one B-tree leaf after
-  // another, so a job costs a few pages instead of one page per (randomly keyed) point.
+  // One appended row per job (its keys and its records as one blob): consecutive rowids fill one B-tree
+  // leaf after another, so a job costs a few pages instead of one page per (randomly keyed) point.
   sqlite3_stmt* ins = Cached("INSERT INTO results(sweep_id, width, keys, records, sum) VALUES(?, ?, ?, ?, ?)");
   sqlite3_stmt* progress = Cached("UPDATE sweeps SET points_done = points_done + ? WHERE id = ?");
   if (!ins || !progress) return Error("prepare point results");
-  std::string keys;
-  std::vector<double> values;
   for (const JobResults& job : jobs) {
-    const auto& items = job.items;
-    for (size_t i = 0; i < items.size();) {
-      const size_t width = items[i].second.v.size();
-      keys.clear();
-      values.clear();
-      size_t j = i;
-      for (; j < items.size() && items[j].second.v.size() == width; ++j) {
-        if (items[j].first.find('\n') != std::string::npos) return Status::InvalidArgument("key", "point key contains a newline");
-        keys += items[j].first;
-        keys += '\n';
-        values.insert(values.end(), items[j].second.v.begin(), items[j].second.v.end());
-      }
+    const size_t n = static_cast<size_t>(std::count(job.keys.begin(), job.keys.end(), '\n'));
+    if (job.width == 0 || job.values.size() != n * job.width || (!job.keys.empty() && job.keys.back() != '\n'))
+      return Status::InvalidArgument("records", std::to_string(n) + " keys do not match " + std::to_string(job.values.size()) +
+                                                    " values of width " + std::to_string(job.width));
+    if (n > 0) {
       sqlite3_reset(ins);
       sqlite3_bind_text(ins, 1, job.sweep_id.c_str(), static_cast<int>(job.sweep_id.size()), SQLITE_STATIC);
-      sqlite3_bind_int64(ins, 2, static_cast<sqlite3_int64>(width));
-      sqlite3_bind_text(ins, 3, keys.c_str(), static_cast<int>(keys.size()), SQLITE_STATIC);
-      sqlite3_bind_blob(ins, 4, values.data(), static_cast<int>(values.size() * sizeof(double)), SQLITE_STATIC);
-      sqlite3_bind_int64(ins, 5, static_cast<sqlite3_int64>(RecordSum(keys.data(), keys.size(), values.data(), values.size())));
+      sqlite3_bind_int64(ins, 2, static_cast<sqlite3_int64>(job.width));
+      sqlite3_bind_text(ins, 3, job.keys.c_str(), static_cast<int>(job.keys.size()), SQLITE_STATIC);
+      sqlite3_bind_blob(ins, 4, job.values.data(), static_cast<int>(job.values.size() * sizeof(double)), SQLITE_STATIC);
+      sqlite3_bind_int64(ins, 5, static_cast<sqlite3_int64>(RecordSum(job.keys.data(), job.keys.size(), job.values.data(), job.values.size())));
       if (sqlite3_step(ins) != SQLITE_DONE) return Error("store point results");
       sqlite3_reset(ins);
-      i = j;
     }
     sqlite3_reset(progress);
-    sqlite3_bind_int64(progress, 1, static_cast<sqlite3_int64>(items.size()));
+    sqlite3_bind_int64(progress, 1, static_cast<sqlite3_int64>(n));
     sqlite3_bind_text(progress, 2, job.sweep_id.c_str(), static_cast<int>(job.sweep_id.size()), SQLITE_STATIC);
     if (sqlite3_step(progress) != SQLITE_DONE) return Error("update progress");
     sqlite3_reset(progress);

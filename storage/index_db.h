@@ -66,9 +66,12 @@ class IndexDb {
   // same transaction, adds each job's item count to its sweep's items_done. The records are staged
   // as one appended row per job (a few pages per commit, where keyed inserts cost a page per point)
   // and folded into the keyed cache by the next LookupPoints / CachedPointCount / FoldResults.
+  // A report's records as the coordinator received them: no per-item copies.
   struct JobResults {
     std::string sweep_id;
-    std::vector<std::pair<std::string, PointRecord>> items;  // content key → record
+    size_t width = 0;            // doubles per record
+    std::string keys;            // content keys, each ended by '\n', in record order
+    std::vector<double> values;  // records × width, in the same order
   };
   Status PutPoints(const std::vector<JobResults>& jobs);
   // Moves every staged job row into the keyed point cache (sorted inserts, bounded transactions).

@@ -122,7 +122,8 @@ TEST(CoordinatorProperty, RandomInterleavingsEndInTheSequentialMap) {
       const std::string name = "w" + std::to_string(w);
       switch (rng() % 12) {
         case 0: case 1: case 2:
-          if (auto g = c->Lease(name)) held[w].push_back(*g);
+          // One job, or up to three merged into one lease (a worker's --jobs-per-lease).
+          if (auto g = c->Lease(name, "", 1 + static_cast<int>(rng() % 3))) held[w].push_back(*g);
           break;
         case 3: case 4: case 5:
           if (auto g = pick(w)) {
@@ -183,7 +184,7 @@ TEST(CoordinatorProperty, RandomInterleavingsEndInTheSequentialMap) {
     // Drain: resubmit (if cancelled), one honest worker to the end, wait for the publication.
     ASSERT_TRUE(c->Submit(spec, 8).ok());
     for (int guard = 0; guard < 1000; ++guard) {
-      auto g = c->Lease("drain");
+      auto g = c->Lease("drain", "", 2);
       if (!g) break;
       ASSERT_TRUE(c->Report(g->lease_id, Honest(*g)).ok());
     }

@@ -549,7 +549,7 @@ TEST(HostileStartup, FullDiskIsReportedInStatusAndLoggedAndLosesNothing) {
   v1::SweepStatus st;
   ASSERT_TRUE(GetStatus(sub.id(), &st).ok());
   EXPECT_NE(st.error().find("full"), std::string::npos) << "status error: '" << st.error() << "'";
-  EXPECT_NE(ReadFile(dir + "/coord.log.err").find("storing a report"), std::string::npos);
+  EXPECT_NE(ReadFile(dir + "/coord.log.err").find("report.store_failed"), std::string::npos);
   fs::remove(dir + "/mnt/filler");
   EXPECT_TRUE(Report(l.lease_id(), kWidth, honest).ok()) << "the same report once space is back";
   ASSERT_TRUE(GetStatus(sub.id(), &st).ok());

@@ -327,6 +327,56 @@ TEST(SweepEngine, ExpiredLeasesAreRequeuedAndRejected) {
   std::filesystem::remove_all(dir);
 }
 
+// --jobs-per-lease: queued jobs of one sweep merged into one lease (at most 4096 items), reported
+// as one, requeued together in their order when the lease expires, and the map is the same.
+TEST(SweepEngine, MergedLeasesCoverSeveralJobsAndRequeueTogether) {
+  const std::string dir = TempDir("merged");
+  double now = 1e9;
+  auto c = SweepCoordinator::Open(dir, {.lease_seconds = 10, .resume = true, .clock = [&now] { return now; }});
+  ASSERT_TRUE(c.ok());
+  const SweepSpec spec = Parse(kSmall);  // 15 items
+  auto plan = (*c)->Submit(spec, 4);     // jobs of 4, 4, 4, 3
+  ASSERT_TRUE(plan.ok());
+  ASSERT_EQ(plan->jobs, 4);
+  auto merged = (*c)->Lease("far", "", 3);
+  ASSERT_TRUE(merged.has_value());
+  EXPECT_EQ(merged->jobs, 3);
+  EXPECT_EQ(merged->items.size(), 12u);
+  // A report must cover every merged item: one job's worth is refused, nothing stored.
+  const auto part = ComputeItems(spec, std::vector<WorkItem>(merged->items.begin(), merged->items.begin() + 4));
+  EXPECT_EQ((*c)->Report(merged->lease_id, part).code(), Status::Code::kInvalidArgument);
+  // Expiry gives all three jobs back, first in line and in order: a single lease now gets the first.
+  now += 11;
+  auto again = (*c)->Lease("near", "", 1);
+  ASSERT_TRUE(again.has_value());
+  EXPECT_EQ(again->job_id, merged->job_id);
+  ASSERT_EQ(again->items.size(), 4u);
+  for (size_t i = 0; i < 4; ++i)
+    EXPECT_TRUE(again->items[i].point == merged->items[i].point && again->items[i].ic == merged->items[i].ic) << i;
+  EXPECT_EQ((*c)->Report(merged->lease_id, ComputeItems(spec, merged->items)).code(), Status::Code::kNotFound);
+  ASSERT_TRUE((*c)->Report(again->lease_id, ComputeItems(spec, again->items)).ok());
+  // The rest in one lease of up to 16 jobs: three jobs, 11 items.
+  auto rest = (*c)->Lease("far", "", 16);
+  ASSERT_TRUE(rest.has_value());
+  EXPECT_EQ(rest->jobs, 3);
+  EXPECT_EQ(rest->items.size(), 11u);
+  EXPECT_FALSE((*c)->Lease("near").has_value());
+  ASSERT_TRUE((*c)->Report(rest->lease_id, ComputeItems(spec, rest->items)).ok());
+  auto info = AwaitFinalState(**c, plan->id);
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->state, SweepState::kDone);
+  EXPECT_EQ(info->items_done, 15);
+  // The same map as single-job leases give.
+  const std::string ref_dir = TempDir("merged_ref");
+  auto r = SweepCoordinator::Open(ref_dir);
+  ASSERT_TRUE(r.ok());
+  SweepPlan ref_plan;
+  const std::string ref = RunSweep(**r, spec, 1, &ref_plan);
+  bistable_test::ExpectSameMaps((*c)->MapPath(plan->id), ref);
+  std::filesystem::remove_all(dir);
+  std::filesystem::remove_all(ref_dir);
+}
+
 // Found by bench/fault_run.sh: a coordinator killed after storing the last report but before
 // publishing came back with nothing to compute and waited forever for a report.
 TEST(SweepEngine, ReopenedCoordinatorPublishesASweepWhoseItemsAreAllStored) {
@@ -344,9 +394,12 @@ TEST(SweepEngine, ReopenedCoordinatorPublishesASweepWhoseItemsAreAllStored) {
     std::vector<WorkItem> all;
     for (long p = 0; p < spec.points(); ++p) all.push_back({p, 0});
     const auto rec = ComputeItems(spec, all);
-    std::vector<std::pair<std::string, PointRecord>> rows;
-    for (size_t i = 0; i < all.size(); ++i) rows.emplace_back(spec.ItemKey(all[i].point, 0), rec[i]);
-    ASSERT_TRUE((*db)->PutPoints({{spec.Id(), rows}}).ok());
+    IndexDb::JobResults rows{spec.Id(), rec[0].v.size(), "", {}};
+    for (size_t i = 0; i < all.size(); ++i) {
+      rows.keys += spec.ItemKey(all[i].point, 0) + "\n";
+      rows.values.insert(rows.values.end(), rec[i].v.begin(), rec[i].v.end());
+    }
+    ASSERT_TRUE((*db)->PutPoints({rows}).ok());
   }
   auto c = SweepCoordinator::Open(dir);
   ASSERT_TRUE(c.ok());

@@ -1,10 +1,10 @@
 #include "worker/pull_loop.h"
 
 #include <chrono>
-#include <cstdio>
 #include <future>
 #include <thread>
 
+#include "base/log.h"
 #include "dynamics/cancel.h"
 
 namespace bistable {
@@ -53,7 +53,7 @@ PullLoopResult RunPullLoop(JobSource& source, const PullLoopOptions& opt) {
       auto leased = source.Lease();
       if (!leased.ok()) {
         if (!Transient(leased.status()) && opt.log)
-          std::fprintf(stderr, "%s: lease refused: %s\n", opt.name.c_str(), leased.status().ToString().c_str());
+          log::Event(log::Level::kWarn, "lease.refused", {{"worker", opt.name}, {"reason", leased.status().ToString()}});
         if (opt.stop_on_error && !Transient(leased.status())) {
           fail(leased.status());
           break;
@@ -71,14 +71,20 @@ PullLoopResult RunPullLoop(JobSource& source, const PullLoopOptions& opt) {
     }
     const LeasedJob job = std::move(*next);
     next.reset();
+    const auto t0 = std::chrono::steady_clock::now();
     const std::optional<std::vector<PointRecord>> records = Compute(source, job, opt.heartbeat_seconds);
     if (!records) {  // cancelled mid-job: report nothing of it, give the job back now
       const Status rs = source.Release(job);
       if (opt.log)
-        std::fprintf(stderr, "%s: stopped computing %s (%s)\n", opt.name.c_str(), job.lease_id.c_str(),
-                     rs.ok() ? "released" : ("release failed: " + rs.ToString() + "; it requeues when the lease expires").c_str());
+        log::Event(log::Level::kInfo, "job.stopped",
+                   {{"worker", opt.name}, {"lease", job.lease_id},
+                    {"outcome", rs.ok() ? "released" : "release failed; it requeues when the lease expires"},
+                    {"reason", rs.ok() ? "" : rs.ToString()}});
       break;
     }
+    if (opt.on_computed)
+      opt.on_computed(static_cast<long>(records->size()),
+                      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     for (int attempt = 0;; ++attempt) {  // reports are idempotent: retry transient failures
       const Status st = source.Report(job, *records, stopping() ? nullptr : &next);
       if (st.ok()) {
@@ -88,9 +94,10 @@ PullLoopResult RunPullLoop(JobSource& source, const PullLoopOptions& opt) {
       }
       if (!Transient(st) || attempt >= opt.report_retries || CancelRequested()) {
         if (opt.log)
-          std::fprintf(stderr, "%s: report of %s %s: %s%s\n", opt.name.c_str(), job.lease_id.c_str(),
-                       Transient(st) ? "not answered" : "refused", st.ToString().c_str(),
-                       opt.stop_on_error ? "" : " (its job requeues when the lease expires)");
+          log::Event(log::Level::kWarn, "report.failed",
+                     {{"worker", opt.name}, {"lease", job.lease_id}, {"outcome", Transient(st) ? "not answered" : "refused"},
+                      {"reason", st.ToString()},
+                      {"action", opt.stop_on_error ? "stop" : "its job requeues when the lease expires"}});
         fail(st);
         break;
       }

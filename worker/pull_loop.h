@@ -43,16 +43,17 @@ class JobSource {
 };
 
 struct PullLoopOptions {
-  std::string name = "worker";       // in messages
+  std::string name = "worker";       // the worker's name in log events
   double heartbeat_seconds = 0;      // while computing; 0 = never
   bool until_idle = false;           // end when the source has no job (the embedded run); else poll
   double idle_poll_seconds = 0.05;
   int report_retries = 50;           // transient report failures retried with backoff (0: fail at once)
   bool stop_on_error = false;        // end at the first report failure (the embedded run) instead of
                                      // logging it and going on (the job requeues when its lease expires)
-  bool log = true;                   // refusals and stops to stderr
+  bool log = true;                   // refusals and stops as log events (base/log.h)
   std::function<bool()> stop;        // checked between jobs, besides cancellation
   std::function<void(long)> on_items;  // items reported (progress)
+  std::function<void(long items, double seconds)> on_computed;  // a job computed (metrics)
 };
 
 struct PullLoopResult {

@@ -14,10 +14,20 @@
 #include <thread>
 
 #include <CLI/CLI.hpp>
+#include <prometheus/counter.h>
+#include <prometheus/gauge.h>
+#include <prometheus/histogram.h>
+#include <prometheus/registry.h>
 
+#include "base/cpus.h"
 #include "base/exit_codes.h"
+#include "base/limits.h"
+#include "base/log.h"
 #include "dynamics/cancel.h"
+#include "net/http_server.h"
+#include "net/prometheus_text.h"
 #include "proto/coordinator_client.h"
+#include "proto/health.h"
 #include "worker/pull_loop.h"
 
 namespace {
@@ -41,28 +51,70 @@ struct SpecCache {
   }
 };
 
+// The worker's Prometheus metrics (--metrics ADDR).
+struct WorkerMetrics {
+  std::shared_ptr<prometheus::Registry> registry = std::make_shared<prometheus::Registry>();
+  prometheus::Counter& items = prometheus::BuildCounter()
+                                   .Name("bistable_worker_items_computed_total")
+                                   .Help("Items computed and acknowledged by the coordinator")
+                                   .Register(*registry)
+                                   .Add({});
+  prometheus::Family<prometheus::Counter>& rpcs = prometheus::BuildCounter()
+                                                      .Name("bistable_worker_rpcs_total")
+                                                      .Help("Calls to the coordinator by method and outcome")
+                                                      .Register(*registry);
+  prometheus::Histogram& job_seconds = prometheus::BuildHistogram()
+                                           .Name("bistable_worker_job_seconds")
+                                           .Help("Compute time of one job on one thread")
+                                           .Register(*registry)
+                                           .Add({}, prometheus::Histogram::BucketBoundaries{0.1, 0.25, 0.5, 1, 2, 4, 8, 16, 32, 64});
+  prometheus::Counter& busy_seconds = prometheus::BuildCounter()
+                                          .Name("bistable_worker_compute_seconds_total")
+                                          .Help("Thread-seconds spent computing jobs")
+                                          .Register(*registry)
+                                          .Add({});
+  prometheus::Gauge& threads = prometheus::BuildGauge()
+                                   .Name("bistable_worker_threads")
+                                   .Help("Pull loops (one per usable CPU unless --threads)")
+                                   .Register(*registry)
+                                   .Add({});
+  void Rpc(const char* method, const bistable::Status& st) {
+    rpcs.Add({{"method", method}, {"outcome", st.ok() ? "ok" : st.code() == bistable::Status::Code::kIoError ? "unavailable" : "refused"}})
+        .Increment();
+  }
+};
+
 // Jobs from a coordinator over gRPC: the worker's side of worker/pull_loop.h.
 class GrpcJobSource : public bistable::JobSource {
  public:
-  GrpcJobSource(CoordinatorClient* c, std::string name, SpecCache* cache) : c_(c), name_(std::move(name)), cache_(cache) {}
+  GrpcJobSource(CoordinatorClient* c, std::string name, SpecCache* cache, WorkerMetrics* m, int jobs_per_lease)
+      : c_(c), name_(std::move(name)), cache_(cache), m_(m), jobs_per_lease_(jobs_per_lease) {}
 
   bistable::StatusOr<std::optional<bistable::LeasedJob>> Lease() override {
-    auto lease = c_->LeaseJob(name_);
+    auto lease = c_->LeaseJob(name_, jobs_per_lease_);
+    m_->Rpc("Lease", lease.status());
     if (!lease.ok()) return lease.status();
     return ToJob(std::move(*lease));
   }
-  void Heartbeat(const bistable::LeasedJob& job) override { (void)c_->Heartbeat(job.lease_id); }
+  void Heartbeat(const bistable::LeasedJob& job) override { m_->Rpc("Heartbeat", c_->Heartbeat(job.lease_id)); }
   bistable::Status Report(const bistable::LeasedJob& job, const std::vector<bistable::PointRecord>& records,
                           std::optional<bistable::LeasedJob>* next) override {
     std::optional<CoordinatorClient::Lease> following;
-    BISTABLE_RETURN_IF_ERROR(c_->Report(job.lease_id, records, next ? name_ : "", next ? &following : nullptr));
+    const bistable::Status st =
+        c_->Report(job.lease_id, records, next ? name_ : "", next ? &following : nullptr, jobs_per_lease_);
+    m_->Rpc("Report", st);
+    BISTABLE_RETURN_IF_ERROR(st);
     if (next && following) {
       auto j = ToJob(std::move(following));
       if (j.ok()) *next = std::move(*j);
     }
     return bistable::Status::Ok();
   }
-  bistable::Status Release(const bistable::LeasedJob& job) override { return c_->Release(job.lease_id); }
+  bistable::Status Release(const bistable::LeasedJob& job) override {
+    const bistable::Status st = c_->Release(job.lease_id);
+    m_->Rpc("Release", st);
+    return st;
+  }
 
  private:
   // A lease as a job; a spec this build cannot parse is released and refused.
@@ -80,40 +132,84 @@ class GrpcJobSource : public bistable::JobSource {
   CoordinatorClient* c_;
   std::string name_;
   SpecCache* cache_;
+  WorkerMetrics* m_;
+  int jobs_per_lease_;
 };
+
+int Fail(const bistable::Status& st) {
+  std::cerr << "error: " << st.ToString() << "\n";
+  return bistable::kExitError;
+}
 
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"bistable-worker: computes sweep jobs pulled from a coordinator"};
   std::string coordinator = "127.0.0.1:50051", name, token_file, tls_ca;
-  int threads = 0;
+  int threads = 0, jobs_per_lease = 1;
+  std::string log_level = "info", log_format = "text", metrics_addr, health_addr;
   app.add_option("--coordinator", coordinator, "coordinator address")->capture_default_str();
-  app.add_option("--threads", threads, "pull loops / cores (0 = all)")->capture_default_str();
+  app.add_option("--threads", threads, "pull loops, one per core (0 = the CPUs this process may use: affinity and cgroup CPU quota)")->capture_default_str();
   app.add_option("--name", name, "worker name (default host:pid)");
   app.add_option("--token-file", token_file, "file holding this worker's bearer token (else $BISTABLE_TOKEN)");
   app.add_option("--tls-ca", tls_ca, "PEM CA certificate to verify a TLS coordinator");
+  app.add_option("--jobs-per-lease", jobs_per_lease,
+                 "merge up to this many queued jobs into one lease (at most 4096 items): fewer, larger round trips "
+                 "for a worker far from the coordinator, or to lift a busy coordinator's ceiling (docs/scaling.md)")
+      ->capture_default_str();
+  app.add_option("--log-level", log_level, "debug, info, warn, error, off")->capture_default_str();
+  app.add_option("--log-format", log_format, "text or json (one object per line), on stderr")->capture_default_str();
+  app.add_option("--metrics", metrics_addr, "serve Prometheus metrics (/metrics) and /healthz over HTTP on HOST:PORT");
+  app.add_option("--health", health_addr, "serve grpc.health.v1 (plaintext) on HOST:PORT, for liveness probes");
   CLI11_PARSE(app, argc, argv);
+  {
+    auto level = bistable::log::ParseLevel(log_level);
+    if (!level.ok()) return Fail(level.status());
+    auto format = bistable::log::ParseFormat(log_format);
+    if (!format.ok()) return Fail(format.status());
+    bistable::log::Configure(*level, *format);
+  }
   if (threads < 0 || threads > 1024) {
     std::cerr << "error: invalid argument (threads: threads = " << threads << " violates threads in [0, 1024])\n";
     return bistable::kExitError;
   }
-  if (threads == 0) threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (threads == 0) threads = bistable::UsableCpus();
+  if (jobs_per_lease < 1 || jobs_per_lease > static_cast<int>(bistable::limits::kMaxJobsPerLease))
+    return Fail(bistable::Status::InvalidArgument(
+        "jobs-per-lease", "jobs-per-lease = " + std::to_string(jobs_per_lease) + " violates jobs-per-lease in [1, " +
+                              std::to_string(bistable::limits::kMaxJobsPerLease) + "]"));
   if (name.empty()) {
     char host[256] = "host";
     ::gethostname(host, sizeof host - 1);
     name = std::string(host) + ":" + std::to_string(::getpid());
   }
   auto token = bistable::LoadToken(token_file);
-  if (!token.ok()) {
-    std::cerr << "error: " << token.status().ToString() << "\n";
-    return bistable::kExitError;
-  }
+  if (!token.ok()) return Fail(token.status());
   auto client = CoordinatorClient::Connect({coordinator, tls_ca, *token});
-  if (!client.ok()) {
-    std::cerr << "error: " << client.status().ToString() << "\n";
-    return bistable::kExitError;
+  if (!client.ok()) return Fail(client.status());
+  WorkerMetrics metrics;
+  metrics.threads.Set(threads);
+  std::unique_ptr<bistable::HttpServer> http;
+  if (!metrics_addr.empty()) {
+    auto h = bistable::HttpServer::Start(
+        metrics_addr, {{"/metrics", [&metrics] { return bistable::PrometheusText({metrics.registry}); }},
+                       {"/healthz", [] { return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n"}; }}});
+    if (!h.ok()) return Fail(h.status());
+    http = std::move(h).value();
   }
+  bistable::HealthService health_service;
+  std::unique_ptr<grpc::Server> health;
+  int health_port = 0;
+  if (!health_addr.empty()) {
+    auto h = bistable::StartHealthServer(health_addr, &health_service, &health_port);
+    if (!h.ok()) return Fail(h.status());
+    health = std::move(h).value();
+    health_service.Set("", true);
+    health_service.Set("bistable.v1.Worker", true);
+  }
+  bistable::log::Event(bistable::log::Level::kInfo, "worker.started",
+                       {{"worker", name}, {"coordinator", coordinator}, {"threads", threads}, {"tls", !tls_ca.empty()},
+                        {"metrics", http ? std::to_string(http->port()) : ""}, {"health", health ? std::to_string(health_port) : ""}});
   CoordinatorClient& c = **client;
   bistable::InstallCancelSignalHandlers();
   double lease_seconds = 60;
@@ -122,12 +218,15 @@ int main(int argc, char** argv) {
     auto reg = c.Register(name, threads);
     if (reg.ok()) {
       lease_seconds = *reg;
+      metrics.Rpc("RegisterWorker", reg.status());
+      bistable::log::Event(bistable::log::Level::kInfo, "worker.registered",
+                           {{"worker", name}, {"coordinator", coordinator}, {"lease_seconds", lease_seconds}});
       break;
     }
-    if (reg.status().code() != bistable::Status::Code::kIoError) {
-      std::cerr << "error: " << reg.status().ToString() << "\n";
-      return bistable::kExitError;
-    }
+    metrics.Rpc("RegisterWorker", reg.status());
+    if (reg.status().code() != bistable::Status::Code::kIoError) return Fail(reg.status());
+    bistable::log::Event(bistable::log::Level::kWarn, "coordinator.unavailable",
+                         {{"worker", name}, {"coordinator", coordinator}, {"reason", reg.status().ToString()}});
     backoff.Wait();
   }
   SpecCache cache;
@@ -135,13 +234,22 @@ int main(int argc, char** argv) {
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t)
     pool.emplace_back([&] {
-      GrpcJobSource source(&c, name, &cache);
+      GrpcJobSource source(&c, name, &cache, &metrics, jobs_per_lease);
       bistable::PullLoopOptions opt;
-      opt.name = "worker " + name;
+      opt.name = name;
       opt.heartbeat_seconds = lease_seconds / 3;
+      opt.on_items = [&metrics](long n) { metrics.items.Increment(static_cast<double>(n)); };
+      opt.on_computed = [&metrics](long, double seconds) {
+        metrics.job_seconds.Observe(seconds);
+        metrics.busy_seconds.Increment(seconds);
+      };
       done += bistable::RunPullLoop(source, opt).items;
     });
   for (auto& th : pool) th.join();
-  std::cerr << "worker " << name << ": stopped after " << done.load() << " items\n";
+  if (health) {
+    health_service.Shutdown();
+    health->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
+  }
+  bistable::log::Event(bistable::log::Level::kInfo, "worker.stopped", {{"worker", name}, {"items", done.load()}});
   return 0;
 }
