@@ -4,16 +4,23 @@
 // durably like real ones), leasing its next job in the same call. The demand is N x job items / compute
 // time items per second; the table shows what the coordinator delivers as N grows, and where it saturates.
 //   build/bench/bench_scaling [SPEC=examples/paper_fig8_frf.toml] [--compute-ms 50] [--seconds 3]
-//                             [--max-workers 256] [--lease-batch K]
+//                             [--max-workers 256] [--lease-batch K] [--external build/server/bistable-coordinator]
+// --external BIN: the real coordinator process, pinned to one CPU, the fake workers to the others.
 // --lease-batch K: leases merge up to K queued jobs (one round trip and one stored report for all: the
 // first step that lifts the ceiling, docs/scaling.md) and the same ladder runs again, so both ceilings
 // come from one run. Ratios are within the run.
+#include <sched.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
@@ -27,22 +34,55 @@
 namespace {
 
 using namespace bistable;
+std::string g_spec_text;
 namespace fs = std::filesystem;
+
+// --external BIN: the coordinator is the real bistable-coordinator process, pinned to the first CPU of
+// this process's mask, and the fake workers (this process) to the others: the ceiling is then the
+// coordinator's own, not shared with the fake workers' encoding.
+std::string g_external;
+cpu_set_t g_coordinator_cpus, g_worker_cpus;
 
 struct Loopback {
   std::unique_ptr<SweepCoordinator> coordinator;
   std::unique_ptr<CoordinatorService> service;
   std::unique_ptr<grpc::Server> server;
+  pid_t child = -1;
   std::vector<std::shared_ptr<grpc::Channel>> channels;
   Loopback(const std::string& data, int n_channels) {
-    coordinator = std::move(SweepCoordinator::Open(data, {.lease_seconds = 600, .resume = false, .log = false}).value());
-    service = std::make_unique<CoordinatorService>(coordinator.get(), 600);
-    grpc::ServerBuilder b;
     int port = 0;
-    b.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
-    b.RegisterService(service.get());
-    ConfigureServerBuilder(b);
-    server = b.BuildAndStart();
+    if (!g_external.empty()) {
+      fs::create_directories(data);
+      const std::string log = data + "/coordinator.out";
+      std::fflush(nullptr);
+      child = ::fork();
+      if (child == 0) {
+        sched_setaffinity(0, sizeof g_coordinator_cpus, &g_coordinator_cpus);
+        if (!std::freopen(log.c_str(), "w", stdout) || !std::freopen((log + ".err").c_str(), "w", stderr)) ::_exit(126);
+        const std::string d = data + "/data";
+        ::execl(g_external.c_str(), g_external.c_str(), "--listen", "127.0.0.1:0", "--data", d.c_str(), "--lease-seconds", "600",
+                "--log-level", "warn", static_cast<char*>(nullptr));
+        ::_exit(127);
+      }
+      for (int i = 0; i < 400 && port == 0; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(25));
+        std::ifstream in(log);
+        std::string line;
+        if (std::getline(in, line) && line.rfind("listening on ", 0) == 0) port = std::atoi(line.substr(line.rfind(':') + 1).c_str());
+      }
+      if (port == 0) {
+        std::fprintf(stderr, "error: %s did not start\n", g_external.c_str());
+        std::exit(3);
+      }
+    } else {
+      coordinator = std::move(SweepCoordinator::Open(data, {.lease_seconds = 600, .resume = false, .log = false}).value());
+      service = std::make_unique<CoordinatorService>(coordinator.get(), 600);
+      grpc::ServerBuilder b;
+      b.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+      b.RegisterService(service.get());
+      ConfigureServerBuilder(b);
+      server = b.BuildAndStart();
+    }
     for (int i = 0; i < n_channels; ++i) {  // several connections, as separate worker hosts would have
       grpc::ChannelArguments args;
       args.SetInt("bistable.channel", i);  // distinct args: distinct subchannels
@@ -50,7 +90,34 @@ struct Loopback {
       channels.push_back(grpc::CreateCustomChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials(), args));
     }
   }
-  ~Loopback() { server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1)); }
+  // Submits the sweep: in-process with `job_items` per job; external with the coordinator's own sizing.
+  void Submit(const SweepSpec& spec, long job_items) {
+    if (coordinator) {
+      if (auto p = coordinator->Submit(spec, job_items); !p.ok()) std::exit(2);
+      return;
+    }
+    auto stub = v1::Coordinator::NewStub(channels[0]);
+    grpc::ClientContext ctx;
+    ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(600));
+    v1::SubmitRequest req;
+    req.set_spec_toml(spec.source);
+    v1::SubmitReply rep;
+    if (const grpc::Status st = stub->Submit(&ctx, req, &rep); !st.ok()) {
+      std::fprintf(stderr, "error: submit: %s\n", st.error_message().c_str());
+      std::exit(2);
+    }
+  }
+  void Stop() {
+    if (coordinator) coordinator->Stop();
+  }
+  ~Loopback() {
+    if (server) server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
+    if (child > 0) {
+      ::kill(child, SIGTERM);
+      int st = 0;
+      ::waitpid(child, &st, 0);
+    }
+  }
 };
 
 struct Result {
@@ -67,17 +134,32 @@ Result Run(const std::string& dir, const std::string& tag, long job_items, bool 
   // the sweep limit; a run that drains it says so.
   const double demand_items = workers * job_items / compute_s * seconds * 1.2;
   const long jobs = std::clamp<long>(static_cast<long>(demand_items / job_items) + 1, 64, limits::kMaxSweepItems / job_items);
-  const std::string toml = "name = \"scaling " + tag + "\"\nmodel = \"coupled\"\n[axes]\nalpha = { linspace = [0.01, 2.0, " +
+  // External: the paper spec's own settings (the coordinator sizes its jobs from them) on a grid of
+  // job_items x `jobs` points; in-process: a cheap spec with `job_items` given.
+  std::string toml = "name = \"scaling " + tag + "\"\nmodel = \"coupled\"\n[axes]\nalpha = { linspace = [0.01, 2.0, " +
                            std::to_string(job_items) + "] }\nomega = { linspace = [0.1, 3.0, " + std::to_string(jobs) +
                            "] }\n[integration]\nt_end = 20.0\nt_keep = 10.0\n" +
                            (turning_points ? "[metrics]\nturning_points = true\n" : "");
+  if (!g_external.empty()) {
+    toml = g_spec_text;
+    const size_t a = toml.find("\nalpha"), o = toml.find("\nomega");
+    if (a == std::string::npos || o == std::string::npos) {
+      std::fprintf(stderr, "error: --external needs a spec with alpha and omega axes\n");
+      std::exit(1);
+    }
+    auto line_end = [&](size_t at) { return toml.find('\n', at + 1); };
+    toml.replace(o, line_end(o) - o, "\nomega = { linspace = [0.015, 3.0, " + std::to_string(jobs) + "] }");
+    toml.replace(a, line_end(a) - a, "\nalpha = { linspace = [0.015, 3.0, " + std::to_string(job_items) + "] }");
+    if (const size_t nm = toml.find("\nname = "); nm != std::string::npos)  // a new sweep id per rung
+      toml.replace(nm, line_end(nm) - nm, "\nname = \"scaling " + tag + "\"");
+  }
   auto spec = ParseSweepSpec(toml, "scaling");
   if (!spec.ok()) {
     std::fprintf(stderr, "%s\n", spec.status().ToString().c_str());
     std::exit(1);
   }
   const auto plan0 = std::chrono::steady_clock::now();
-  if (auto p = lb.coordinator->Submit(*spec, job_items); !p.ok()) std::exit(2);
+  lb.Submit(*spec, job_items);
   std::fprintf(stderr, "planned %ld items in %.1f s; measuring\n", jobs * job_items,
                std::chrono::duration<double>(std::chrono::steady_clock::now() - plan0).count());
   const size_t width = PointRecord::Size(turning_points);
@@ -135,7 +217,7 @@ Result Run(const std::string& dir, const std::string& tag, long job_items, bool 
     });
   std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
   stop = true;
-  lb.coordinator->Stop();
+  lb.Stop();
   for (auto& t : pool) t.join();
   Result r;
   r.reports = reports;
@@ -161,10 +243,30 @@ int main(int argc, char** argv) {
     else if (a == "--lease-batch" && i + 1 < argc) lease_batch = std::atoi(argv[++i]);
     else if (a == "--min-workers" && i + 1 < argc) min_workers = std::atoi(argv[++i]);
     else if (a == "--job-items" && i + 1 < argc) job_items_override = std::atol(argv[++i]);
+    else if (a == "--external" && i + 1 < argc) g_external = argv[++i];
     else spec_path = a;
   }
   auto text = ReadTextFile(spec_path, "spec");
   auto spec = text.ok() ? ParseSweepSpec(*text, spec_path) : StatusOr<SweepSpec>(text.status());
+  if (text.ok()) g_spec_text = *text;
+  if (!g_external.empty()) {  // the first CPU of our mask for the coordinator, the rest for the fake workers
+    cpu_set_t mine;
+    sched_getaffinity(0, sizeof mine, &mine);
+    CPU_ZERO(&g_coordinator_cpus);
+    g_worker_cpus = mine;
+    for (int c = 0; c < CPU_SETSIZE; ++c)
+      if (CPU_ISSET(c, &mine)) {
+        CPU_SET(c, &g_coordinator_cpus);
+        CPU_CLR(c, &g_worker_cpus);
+        break;
+      }
+    if (CPU_COUNT(&g_worker_cpus) == 0) {
+      std::fprintf(stderr, "error: --external needs at least 2 CPUs\n");
+      return 1;
+    }
+    sched_setaffinity(0, sizeof g_worker_cpus, &g_worker_cpus);
+    std::printf("coordinator process (%s) on 1 CPU, fake workers on %d\n", g_external.c_str(), CPU_COUNT(&g_worker_cpus));
+  }
   if (!spec.ok()) {
     std::fprintf(stderr, "error: %s\n", spec.status().ToString().c_str());
     return 1;
