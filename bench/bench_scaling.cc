@@ -1,7 +1,7 @@
 // How far one coordinator goes (issue 12): many fake workers on loopback against one coordinator
 // served over gRPC, each a pull loop that leases a job of the paper map's size, "computes" it by
-// sleeping (no CPU), and reports records of that job's real size (zeros of the right layout, stored
-// durably like real ones), leasing its next job in the same call. The demand is N x job items / compute
+// sleeping (no CPU), and reports records of that job's real size (one real job's records of the spec,
+// computed once, stored durably like real ones), leasing its next job in the same call. The demand is N x job items / compute
 // time items per second; the table shows what the coordinator delivers as N grows, and where it saturates.
 //   build/bench/bench_scaling [SPEC=examples/paper_fig8_frf.toml] [--compute-ms 50] [--seconds 3]
 //                             [--max-workers 256] [--lease-batch K] [--external build/server/bistable-coordinator]
@@ -35,6 +35,9 @@ namespace {
 
 using namespace bistable;
 std::string g_spec_text;
+// One real job's records of the spec (computed once): what every fake report carries, so the bytes
+// stored (and how well they compress) are those of real results, not zeros.
+std::vector<double> g_payload;
 namespace fs = std::filesystem;
 
 // --external BIN: the coordinator is the real bistable-coordinator process, pinned to the first CPU of
@@ -196,7 +199,11 @@ Result Run(const std::string& dir, const std::string& tag, long job_items, bool 
         // The computation: compute_s per job's worth of items (a merged lease takes as long as its jobs).
         std::this_thread::sleep_for(std::chrono::duration<double>(compute_s * n / job_items));
         rep.set_lease_id(job.lease_id());
-        rep.mutable_values()->Resize(static_cast<int>(n * width), 0.0);
+        rep.mutable_values()->Clear();
+        for (long k = 0; k < n; ++k) {
+          const double* rec = g_payload.data() + (k % (g_payload.size() / width)) * width;
+          rep.mutable_values()->Add(rec, rec + width);
+        }
         rep.set_lease_next_for(held.empty() ? name : "");  // ask for the next job only when out of work
         rep.set_next_max_jobs(lease_batch);
         grpc::ClientContext rc;
@@ -275,6 +282,14 @@ int main(int argc, char** argv) {
   const long job_items = job_items_override > 0 ? job_items_override : JobItems(*spec, kJobSeconds, 64);
   const bool tp = spec->base.metrics.turning_points;
   const size_t width = PointRecord::Size(tp);
+  {
+    std::vector<WorkItem> items;
+    for (long k = 0; k < std::min(job_items, spec->points()); ++k) items.push_back({(k * 7919) % spec->points(), 0});
+    const auto t0 = std::chrono::steady_clock::now();
+    for (const PointRecord& r : ComputeItems(*spec, items)) g_payload.insert(g_payload.end(), r.v.begin(), r.v.end());
+    std::fprintf(stderr, "computed the payload (%zu real records) in %.1f s\n", items.size(),
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
   std::printf("one coordinator, fake workers on loopback: jobs of %s (%ld items, reports of %.0f kB), compute %.0f ms per job\n",
               spec_path.c_str(), job_items, job_items * width * 8 / 1024.0, compute_ms);
   const std::string dir = (fs::temp_directory_path() / ("bench_scaling_" + std::to_string(::getpid()))).string();
