@@ -238,6 +238,12 @@ class SweepCoordinator {
   std::condition_variable publish_cv_;
   std::deque<std::string> publish_queue_;
   bool closing_ = false;
+  // WAL checkpoints on a connection of their own, every kCheckpointSeconds, so no report waits for one.
+  std::unique_ptr<IndexDb> checkpoint_db_;
+  std::mutex checkpoint_mu_;
+  std::condition_variable checkpoint_cv_;
+  bool checkpoint_stop_ = false;
+  std::thread checkpointer_;  // started by Open, joined first by the destructor
   std::thread publisher_;  // last member: started after, and joined before, everything it uses
 };
 

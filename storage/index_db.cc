@@ -168,6 +168,13 @@ StatusOr<std::unique_ptr<IndexDb>> IndexDb::Open(const std::string& path) {
   return idx;
 }
 
+Status IndexDb::SetAutoCheckpoint(int pages) { return Exec("PRAGMA wal_autocheckpoint=" + std::to_string(pages)); }
+
+Status IndexDb::CheckpointPassive() {
+  const int rc = sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_PASSIVE, nullptr, nullptr);
+  return rc == SQLITE_OK || rc == SQLITE_BUSY ? Status::Ok() : Error("checkpoint");
+}
+
 Status IndexDb::UpsertSweep(const SweepRow& r) {
   Stmt s(db_,
          "INSERT INTO sweeps(id,name,model,spec,status,points_total,points_done,file,created,finished,seconds,owner) "

@@ -79,6 +79,12 @@ class IndexDb {
   long CachedPointCount();
   // Staged rows dropped by FoldResults because their checksum failed, since Open.
   long corrupt_rows() const { return corrupt_rows_; }
+  // WAL checkpoints off the writers' path: a second connection runs PASSIVE checkpoints (they copy
+  // committed frames into the database while writers go on appending); the writer's own automatic
+  // checkpoint is then only a safety net at `pages`.
+  Status SetAutoCheckpoint(int pages);
+  Status CheckpointPassive();
+
 
  private:
   explicit IndexDb(sqlite3* db) : db_(db) {}
