@@ -44,6 +44,7 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
   // background; the writer's own automatic checkpoint stays as a safety net at ~400 MB of WAL.
   if (auto ck = IndexDb::Open((std::filesystem::path(data_dir) / "index.sqlite").string()); ck.ok()) {
     c->checkpoint_db_ = std::move(ck).value();
+    (void)c->checkpoint_db_->SetCacheKib(64);  // it copies WAL frames; it caches nothing worth memory
     if (c->Db()->SetAutoCheckpoint(100000).ok()) {
       SweepCoordinator* self = c.get();
       c->checkpointer_ = std::thread([self] {

@@ -170,6 +170,8 @@ StatusOr<std::unique_ptr<IndexDb>> IndexDb::Open(const std::string& path) {
 
 Status IndexDb::SetAutoCheckpoint(int pages) { return Exec("PRAGMA wal_autocheckpoint=" + std::to_string(pages)); }
 
+Status IndexDb::SetCacheKib(int kib) { return Exec("PRAGMA cache_size=-" + std::to_string(kib)); }
+
 Status IndexDb::CheckpointPassive() {
   const int rc = sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_PASSIVE, nullptr, nullptr);
   return rc == SQLITE_OK || rc == SQLITE_BUSY ? Status::Ok() : Error("checkpoint");

@@ -84,6 +84,8 @@ class IndexDb {
   // checkpoint is then only a safety net at `pages`.
   Status SetAutoCheckpoint(int pages);
   Status CheckpointPassive();
+  // The connection's page cache in KiB (a checkpoint-only connection needs next to none).
+  Status SetCacheKib(int kib);
 
 
  private:
