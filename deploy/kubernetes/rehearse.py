@@ -104,18 +104,15 @@ def run(repo, build, tmp, pods, secrets):
         last = json.loads(st.stdout.strip().splitlines()[-1]) if st.returncode == 0 and st.stdout.strip() else {}
         rows.append(("rehearsal: sweep over TLS to the Service name completes", last.get("state") == "done" and last.get("items_done") == 144,
                      f"{last.get('state')} {last.get('items_done')}/144 {(sub.stderr + st.stderr).strip()[:160]}"))
-        r = sh("ip", "netns", "exec", COORD_NS, "/usr/bin/python3", "-c",
-               f"import urllib.request;print(urllib.request.urlopen('http://{WORKER_IP}:9090/metrics',timeout=5).read().decode())",
-               check=False)
-        items = [l for l in r.stdout.splitlines() if l.startswith("bistable_worker_items_computed_total")]
-        rows.append(("rehearsal: worker metrics scraped from the pod IP", items and float(items[0].split()[-1]) == 144,
-                     items[0] if items else r.stderr.strip()[:160]))
-        r = sh("ip", "netns", "exec", WORKER_NS, "/usr/bin/python3", "-c",
-               f"import urllib.request;print(urllib.request.urlopen('http://{COORD_IP}:9090/metrics',timeout=5).read().decode())",
-               check=False)
-        done = [l for l in r.stdout.splitlines() if l.startswith("bistable_items_done_total")]
-        rows.append(("rehearsal: coordinator metrics scraped from the pod IP", done and float(done[0].split()[-1]) == 144,
-                     done[0] if done else r.stderr.strip()[:160]))
+        # Prometheus scrapes the pod IP's metrics port from elsewhere in the cluster.
+        def scrape(from_ns, ip, metric, label):
+            r = sh("ip", "netns", "exec", from_ns, "/usr/bin/python3", "-c",
+                   f"import urllib.request;print(urllib.request.urlopen('http://{ip}:9090/metrics',timeout=5).read().decode())",
+                   check=False)
+            lines = [l for l in r.stdout.splitlines() if l.startswith(metric)]
+            rows.append((label, bool(lines) and float(lines[0].split()[-1]) == 144, lines[0] if lines else r.stderr.strip()[:160]))
+        scrape(COORD_NS, WORKER_IP, "bistable_worker_items_computed_total", "rehearsal: worker metrics scraped from the pod IP")
+        scrape(WORKER_NS, COORD_IP, "bistable_items_done_total", "rehearsal: coordinator metrics scraped from the pod IP")
     finally:
         for p in procs:
             p.send_signal(signal.SIGTERM)
