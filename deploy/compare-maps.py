@@ -12,9 +12,9 @@ import sys
 import h5py
 import numpy as np
 
-# Names of when/where-made attributes ("created_at", "creation_time", "hostname", "wall_seconds", ...);
-# "time_unit" and the like are compared.
-SKIP = re.compile(r"(^|_)(created|creation|timestamp|date|datetime|host|hostname|pid|elapsed|wall)(_|$)|(^|_)(time|seconds)$",
+# Names of when/where-made attributes ("created_at", "creation_time", "hostname", "wall_seconds", CF's
+# "history", ...); "time_unit" and the like are compared.
+SKIP = re.compile(r"(^|_)(created|creation|timestamp|date|datetime|host|hostname|pid|elapsed|wall|history)(_|$)|(^|_)(time|seconds)$",
                   re.IGNORECASE)
 
 

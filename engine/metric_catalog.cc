@@ -20,23 +20,23 @@ bool InDomain(const MetricInfo& m, double x) { return x >= m.lo && x <= m.hi && 
 const std::vector<MetricInfo>& MetricCatalog() {
   static const std::vector<MetricInfo> kCatalog = {
       {"frf_db", "dB", "20 log10(max|x_m'| / (alpha Omega)) over the window, absolute velocity of the main mass", false,
-       -1000, 1000, true},
-      {"lle", "1/tau", "largest Lyapunov exponent, Benettin tangent-linear method over the window", false, -1e6, 1e6, true},
+       -1000, 1000, true, "frequency response of the main mass (peak absolute velocity over alpha Omega), in decibels"},
+      {"lle", "1/tau", "largest Lyapunov exponent, Benettin tangent-linear method over the window", false, -1e6, 1e6, true, "largest Lyapunov exponent (Benettin)"},
       {"lle_rosenstein", "1/tau", "largest Lyapunov exponent, Rosenstein (1993) on sampled y_m; NaN unless requested", false,
-       -1e6, 1e6, true},
+       -1e6, 1e6, true, "largest Lyapunov exponent (Rosenstein, from sampled y_m)"},
       {"motion", "code", "0 intrawell, 1 interwell, 2 chaotic (lle > chaos_threshold), -1 undefined (diverged)", true, -1, 2,
-       false},
-      {"period", "forcing periods", "stroboscopic period n of (y_m, y_m'); 0 when none in the window", true, 0, 64, false},
+       false, "type of steady-state motion"},
+      {"period", "forcing periods", "stroboscopic period n of (y_m, y_m'); 0 when none in the window", true, 0, 64, false, "stroboscopic period in forcing periods (0: none found)"},
       {"hd_index", "fraction", "fraction of y_m spectral power farther than 3 bins from every multiple of Omega", false, 0, 1,
-       true},
+       true, "harmonic diffusion index (fraction of spectral power off the forcing harmonics)"},
       {"edr_b", "%", "100 W_m / W_in, W_in = integral of max(P, 0) over the window (gross injected energy)", false, 0, 1e12,
-       true},
-      {"edr_r", "%", "100 W_r / W_in", false, 0, 1e12, true},
-      {"edr_t", "%", "100 (W_m + W_r) / W_in", false, 0, 1e12, true},
-      {"energy_balance_residual", "fraction", "|integral P - W_m - W_r - Delta E| / W_in", false, 0, 1e12, true},
-      {"y_min", "delta_s", "minimum of y_m over the window", false, -1e150, 1e150, true},
-      {"y_max", "delta_s", "maximum of y_m over the window", false, -1e150, 1e150, true},
-      {"termination", "code", "0 ok, 1 diverged, 2 step size underflow, 3 max steps", true, 0, 3, false},
+       true, "energy dissipation ratio of the main damper"},
+      {"edr_r", "%", "100 W_r / W_in", false, 0, 1e12, true, "energy dissipation ratio of the resonator damper"},
+      {"edr_t", "%", "100 (W_m + W_r) / W_in", false, 0, 1e12, true, "total energy dissipation ratio"},
+      {"energy_balance_residual", "fraction", "|integral P - W_m - W_r - Delta E| / W_in", false, 0, 1e12, true, "relative residual of the energy balance over the window"},
+      {"y_min", "delta_s", "minimum of y_m over the window", false, -1e150, 1e150, true, "minimum displacement of the main mass relative to the base"},
+      {"y_max", "delta_s", "maximum of y_m over the window", false, -1e150, 1e150, true, "maximum displacement of the main mass relative to the base"},
+      {"termination", "code", "0 ok, 1 diverged, 2 step size underflow, 3 max steps", true, 0, 3, false, "how the integration ended"},
   };
   return kCatalog;
 }
@@ -81,6 +81,23 @@ int MotionCode(Motion m) {
     case Motion::kUndefined: return kMotionUndefined;
   }
   return kMotionUndefined;
+}
+
+const std::vector<Category>& MetricCategories(const std::string& metric) {
+  static const std::vector<Category> kMotion = [] {
+    std::vector<Category> c;
+    for (Motion m : {Motion::kUndefined, Motion::kIntrawell, Motion::kInterwell, Motion::kChaotic})
+      c.push_back({MotionCode(m), MotionName(m)});
+    return c;
+  }();
+  static const std::vector<Category> kTermination = [] {
+    std::vector<Category> c;
+    for (Termination t : {Termination::kOk, Termination::kDiverged, Termination::kStepSizeUnderflow, Termination::kMaxSteps})
+      c.push_back({static_cast<int>(t), TerminationName(t)});
+    return c;
+  }();
+  static const std::vector<Category> kNone;
+  return metric == "motion" ? kMotion : metric == "termination" ? kTermination : kNone;
 }
 
 const char* MotionCodesText() { return "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"; }

@@ -24,6 +24,7 @@ struct MetricInfo {
   // maps an out-of-domain float to NaN), so a value outside is a corrupt or forged result.
   double lo, hi;
   bool nan_ok;
+  const char* long_name;  // the quantity in words, without units (map files' CF long_name)
 };
 
 const std::vector<MetricInfo>& MetricCatalog();
@@ -60,7 +61,15 @@ Status CheckRecord(const double* v, size_t width, bool turning_points);
 // Motion codes stored in maps.
 inline constexpr int kMotionUndefined = -1;
 int MotionCode(Motion m);
-const char* MotionCodesText();  // "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"
+const char* MotionCodesText();
+
+// The named categories of a code metric ("motion", "termination"): code and a one-word name, as JSON
+// output and the map files' CF flag_values/flag_meanings give them. Empty for any other metric.
+struct Category {
+  int code;
+  const char* name;
+};
+const std::vector<Category>& MetricCategories(const std::string& metric);  // "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"
 
 }  // namespace bistable
 

@@ -242,6 +242,66 @@ std::string AxisUnit(const std::string& name) {
   return it == kUnits.end() ? "" : it->second;
 }
 
+std::string AxisLongName(const std::string& name) {
+  static const std::map<std::string, std::string> kNames = {
+      {"alpha", "base excitation amplitude alpha = A0/delta_s"},
+      {"omega", "excitation frequency Omega = omega0/omega_n"},
+      {"eta", "main damping ratio eta = c/(m_m omega_n)"},
+      {"eta_r", "resonator damping eta_r = c_r/(m_r omega_n)"},
+      {"lambda", "resonator tuning lambda = omega_r/omega_n"},
+      {"phi", "mass ratio phi = m_r/m_m"},
+      {"eps", "cubic stiffness epsilon = k3 delta_s^2/(m_m omega_n^2)"},
+      {"a0_mm", "base displacement amplitude A0"},
+      {"f0_hz", "excitation frequency f0"},
+      {"m_m", "main mass"},
+      {"k_lin", "linear stiffness of the main spring (negative: pre-buckled)"},
+      {"k3", "cubic stiffness of the main spring"},
+      {"c0_m", "linear damping of the main mass"},
+      {"c2_m", "quadratic-in-displacement damping of the main mass (c2 y^2 y')"},
+      {"fric_m_fs", "static (peak) Stribeck friction force on the main mass"},
+      {"fric_m_fc", "kinetic (Coulomb) friction force on the main mass"},
+      {"m_r", "resonator mass"},
+      {"k_r", "resonator stiffness"},
+      {"c0_r", "linear damping of the resonator"},
+      {"c2_r", "quadratic-in-displacement damping of the resonator"},
+      {"fric_r_fs", "static (peak) Stribeck friction force on the resonator"},
+      {"fric_r_fc", "kinetic (Coulomb) friction force on the resonator"}};
+  auto it = kNames.find(name);
+  return it == kNames.end() ? name : it->second;
+}
+
+std::vector<FixedParameter> SweepSpec::FixedParameters() const {
+  std::vector<FixedParameter> out;
+  auto swept = [&](const std::string& n) {
+    for (const Axis& a : axes)
+      if (a.name == n) return true;
+    return false;
+  };
+  auto add = [&](const std::string& n, double v, std::string unit) {
+    if (!swept(n)) out.push_back({n, v, unit.empty() ? AxisUnit(n) : unit, AxisLongName(n)});
+  };
+  if (model == ModelKind::kDimensional) {
+    add("a0_mm", base.alpha, "");
+    add("f0_hz", base.omega, "");
+    const DimensionalParams& d = dimensional.params;
+    add("m_m", d.m_m, "kg"), add("k_lin", d.k_lin, "N/m"), add("k3", d.k3, "N/m^3"), add("c0_m", d.c0_m, "N s/m");
+    add("c2_m", d.c2_m, "N s/m^3"), add("fric_m_fs", d.fric_m.f_s, "N"), add("fric_m_fc", d.fric_m.f_c, "N");
+    if (d.has_resonator) {
+      add("m_r", d.m_r, "kg"), add("k_r", d.k_r, "N/m"), add("c0_r", d.c0_r, "N s/m"), add("c2_r", d.c2_r, "N s/m^3");
+      add("fric_r_fs", d.fric_r.f_s, "N"), add("fric_r_fc", d.fric_r.f_c, "N");
+    }
+    return out;
+  }
+  const bool resonator = model == ModelKind::kSeries ? series.resonators : HasResonator(model);
+  const bool bistable = model == ModelKind::kSeries ? series.bistable : IsBistable(model);
+  for (const std::string& n : {"alpha", "omega", "eta", "eta_r", "lambda", "phi", "eps"}) {
+    if ((n == "eta_r" || n == "lambda" || n == "phi") && !resonator) continue;
+    if (n == "eps" && !bistable) continue;
+    add(n, *ParamSlot(const_cast<PointSpec&>(base), n), "");
+  }
+  return out;
+}
+
 long SweepSpec::points() const {
   // Saturates instead of wrapping (parsing bounds the product far below; this guards hand-built specs).
   long n = 1;

@@ -49,6 +49,16 @@ const std::vector<std::string>& CanonicalAxisNames();
 const std::vector<std::string>& DimensionalAxisNames();  // a0_mm, f0_hz
 // Unit and meaning of an axis ("alpha" → "A0/delta_s", ...).
 std::string AxisUnit(const std::string& name);
+// What the quantity behind an axis or parameter name is, in words, for map metadata (CF long_name).
+std::string AxisLongName(const std::string& name);
+
+// A model parameter held fixed in a sweep (not one of its axes): what a map file records as a scalar
+// coordinate. unit is AxisUnit's form ("A0/delta_s", "kg", "N/m").
+struct FixedParameter {
+  std::string name;
+  double value;
+  std::string unit, long_name;
+};
 
 // One unit of work in a sweep: a grid point with one of its initial conditions.
 struct WorkItem {
@@ -100,6 +110,9 @@ struct SweepSpec {
   std::vector<SeriesCell> SeriesCells(const PointSpec& p) const;
   // Display name of the model ("coupled", "series", "dimensional").
   std::string ModelLabel() const;
+  // The model's scalar parameters that no axis sweeps, in canonical order: the non-dimensional ones
+  // of cell and series models (eps only for bistable cells), the rig's table for the dimensional model.
+  std::vector<FixedParameter> FixedParameters() const;
 };
 
 // Parses and validates. `origin` names the source in messages (a file name).

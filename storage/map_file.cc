@@ -9,9 +9,12 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <ctime>
 #include <limits>
+#include <map>
 
 #include "base/limits.h"
+#include "base/version.h"
 #include "base/names.h"
 #include "storage/metric_name.h"
 
@@ -70,9 +73,78 @@ std::string ReadStringAttr(hid_t obj, const char* name) {
   return s;
 }
 
+Status WriteNumberAttr(hid_t obj, const char* name, hid_t type, const void* values, size_t n) {
+  const hsize_t dims = n;
+  Handle space(n == 1 ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &dims, nullptr), H5Sclose);
+  Handle attr(H5Acreate2(obj, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (!attr.ok() || H5Awrite(attr.get(), type, values) < 0) return Status::IoError("map", std::string("attribute ") + name);
+  return Status::Ok();
+}
+
+// How a quantity is described in the file (CF-1.10): UDUNITS-parsable units ("1" for a
+// non-dimensional quantity, its scale in the comment), a long name, and the label the plots use
+// (unit_label, e.g. "1/tau", "A0/delta_s"). Code metrics carry flag_values/flag_meanings instead of
+// units. No CF standard name describes these quantities, so none is written.
+struct CfQuantity {
+  std::string long_name, label, definition;
+  const std::vector<Category>* categories = nullptr;
+};
+
+struct CfUnits {
+  std::string units, comment;
+};
+
+CfUnits CfUnitsFor(const std::string& label) {
+  static const std::map<std::string, CfUnits> kUnits = {
+      {"dB", {"1", "decibels: 20 log10 of an amplitude ratio (dB is not a UDUNITS unit)"}},
+      {"%", {"percent", ""}},
+      {"fraction", {"1", ""}},
+      {"", {"1", ""}},
+      {"forcing periods", {"1", "counted in forcing periods 2 pi/Omega"}},
+      {"1/tau", {"1", "per unit of non-dimensional time tau = omega_n t"}},
+      {"rad/tau", {"1", "angular frequency in units of omega_n (rad per unit of tau)"}},
+      {"delta_s", {"1", "in units of delta_s, the static position of a well"}},
+      {"1/s", {"s-1", ""}},
+      {"rad/s", {"rad/s", ""}},
+      {"m", {"m", ""}},
+      {"mm", {"mm", ""}},
+      {"Hz", {"Hz", ""}},
+      {"kg", {"kg", ""}},
+      {"N", {"N", ""}},
+      {"N/m", {"N/m", ""}},
+      {"N/m^3", {"N/m3", ""}},
+      {"N s/m", {"N s/m", ""}},
+      {"N s/m^3", {"N s/m3", ""}}};
+  auto it = kUnits.find(label);
+  if (it != kUnits.end()) return it->second;
+  return {"1", "non-dimensional: " + label};  // the paper's ratios (A0/delta_s, omega_r/omega_n, ...)
+}
+
+Status WriteCfAttrs(hid_t obj, const CfQuantity& q, const std::string& coordinates) {
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "long_name", q.long_name));
+  if (q.categories) {
+    std::vector<int32_t> values;
+    std::string meanings;
+    for (const Category& c : *q.categories) {
+      values.push_back(c.code);
+      meanings += (meanings.empty() ? "" : " ") + std::string(c.name);
+    }
+    BISTABLE_RETURN_IF_ERROR(WriteNumberAttr(obj, "flag_values", H5T_NATIVE_INT32, values.data(), values.size()));
+    BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "flag_meanings", meanings));
+  } else {
+    const CfUnits u = CfUnitsFor(q.label);
+    BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "units", u.units));
+    if (!u.comment.empty()) BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "comment", u.comment));
+  }
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "unit_label", q.label));
+  if (!q.definition.empty()) BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "definition", q.definition));
+  if (!coordinates.empty()) BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "coordinates", coordinates));
+  return Status::Ok();
+}
+
 // Creates a chunked, shuffled, deflated dataset and writes `data` (converted to `file_type`).
 Status WriteDataset(hid_t file, const std::string& name, const std::vector<hsize_t>& dims, const std::vector<double>& data,
-                    hid_t file_type, const std::string& unit, const std::string& definition) {
+                    hid_t file_type, const CfQuantity& q, const std::string& coordinates) {
   Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose);
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   std::vector<hsize_t> chunk(dims.size());
@@ -96,15 +168,12 @@ Status WriteDataset(hid_t file, const std::string& name, const std::vector<hsize
     rc = H5Dwrite(ds.get(), H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, ints.data());
   }
   if (rc < 0) return Status::IoError("map", "write dataset " + name);
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(ds.get(), "units", unit));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(ds.get(), "definition", definition));
-  return Status::Ok();
+  return WriteCfAttrs(ds.get(), q, coordinates);
 }
 
 Status AttachScales(hid_t file, const std::string& name, const std::vector<std::string>& dim_names) {
   Handle ds(H5Dopen2(file, name.c_str(), H5P_DEFAULT), H5Dclose);
   for (size_t k = 0; k < dim_names.size(); ++k) {
-    if (dim_names[k] == "peak") continue;
     Handle scale(H5Dopen2(file, dim_names[k].c_str(), H5P_DEFAULT), H5Dclose);
     if (!scale.ok() || H5DSattach_scale(ds.get(), scale.get(), static_cast<unsigned>(k)) < 0)
       return Status::IoError("map", "attach scale " + dim_names[k] + " to " + name);
@@ -113,14 +182,24 @@ Status AttachScales(hid_t file, const std::string& name, const std::vector<std::
   return Status::Ok();
 }
 
-Status WriteScale(hid_t file, const std::string& name, const std::vector<double>& values, const std::string& unit) {
+// A coordinate variable: a 1-D dimension scale named like its dimension.
+Status WriteScale(hid_t file, const std::string& name, const std::vector<double>& values, const CfQuantity& q) {
   const std::vector<hsize_t> dims = {values.size()};
   Handle space(H5Screate_simple(1, dims.data(), nullptr), H5Sclose);
   Handle ds(H5Dcreate2(file, name.c_str(), H5T_NATIVE_DOUBLE, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
   if (!ds.ok() || H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
     return Status::IoError("map", "write axis " + name);
   if (H5DSset_scale(ds.get(), name.c_str()) < 0) return Status::IoError("map", "set scale " + name);
-  return WriteStringAttr(ds.get(), "units", unit);
+  return WriteCfAttrs(ds.get(), q, "");
+}
+
+// A fixed parameter: a scalar variable that the data variables name in their "coordinates".
+Status WriteScalar(hid_t file, const std::string& name, double value, const CfQuantity& q) {
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  Handle ds(H5Dcreate2(file, name.c_str(), H5T_NATIVE_DOUBLE, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
+  if (!ds.ok() || H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0)
+    return Status::IoError("map", "write parameter " + name);
+  return WriteCfAttrs(ds.get(), q, "");
 }
 
 Status FsyncPath(const std::string& path, bool directory) {
@@ -139,6 +218,21 @@ std::string UnitFor(const SweepSpec& spec, std::string unit) {
   return unit;
 }
 
+std::string IsoTimeNow() {
+  char buf[32];
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+std::vector<double> Iota(size_t n) {
+  std::vector<double> v(n);
+  for (size_t i = 0; i < n; ++i) v[i] = static_cast<double>(i);
+  return v;
+}
+
 Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records) {
   Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
   if (!file.ok()) return H5Fail(tmp, "create");
@@ -151,17 +245,22 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
     axis_dims.push_back(a.values.size());
     axis_names.push_back(a.name);
     axes_attr += (axes_attr.empty() ? "" : ",") + a.name;
-    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), a.name, a.values, AxisUnit(a.name)));
+    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), a.name, a.values, {AxisLongName(a.name), AxisUnit(a.name), ""}));
+  }
+  // Fixed parameters: scalar coordinates of every data variable.
+  std::string coordinates;
+  for (const FixedParameter& p : spec.FixedParameters()) {
+    BISTABLE_RETURN_IF_ERROR(WriteScalar(file.get(), p.name, p.value, {p.long_name, p.unit, ""}));
+    coordinates += (coordinates.empty() ? "" : " ") + p.name;
   }
   // The trailing item dimension: initial conditions, or continuation directions.
   const bool chained = spec.continuation.enabled();
   const std::string item_dim = chained ? "direction" : "ic";
+  static const std::vector<Category> kDirections = {{0, "up"}, {1, "down"}};
   if (nic > 1) {
-    std::vector<double> ics(nic);
-    for (int i = 0; i < nic; ++i) ics[i] = i;
-    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), item_dim, ics,
-                                        chained ? "0 = up (increasing " + spec.continuation.axis + "), 1 = down"
-                                                : "index into initial_states"));
+    CfQuantity q{"index into the sweep's initial states ([initial_conditions] states)", "", ""};
+    if (chained) q = {"direction of the continuation sweep along " + spec.continuation.axis, "", "", &kDirections};
+    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), item_dim, Iota(nic), q));
   }
   std::vector<hsize_t> dims = axis_dims;
   std::vector<std::string> names = axis_names;
@@ -173,11 +272,15 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
     if (std::find(spec.metrics.begin(), spec.metrics.end(), m.name) == spec.metrics.end()) continue;
     std::vector<double> data(records.size());
     for (size_t i = 0; i < records.size(); ++i) data[i] = records[i].Get(mi);
-    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), m.name, dims, data, m.integer ? H5T_NATIVE_INT32 : H5T_NATIVE_DOUBLE,
-                                          UnitFor(spec, m.unit), m.definition));
+    const std::vector<Category>& cats = MetricCategories(m.name);
+    const CfQuantity q{m.long_name, UnitFor(spec, m.unit), m.definition, cats.empty() ? nullptr : &cats};
+    BISTABLE_RETURN_IF_ERROR(
+        WriteDataset(file.get(), m.name, dims, data, m.integer ? H5T_NATIVE_INT32 : H5T_NATIVE_DOUBLE, q, coordinates));
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), m.name, names));
   }
   if (std::find(spec.metrics.begin(), spec.metrics.end(), "hd_peaks") != spec.metrics.end()) {
+    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), "peak", Iota(kHdPeaksStored),
+                                        {"rank of the spectral peak (0 = strongest)", "", ""}));
     std::vector<hsize_t> pd = dims;
     pd.push_back(kHdPeaksStored);
     std::vector<std::string> pn = names;
@@ -185,23 +288,31 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
     std::vector<double> f(records.size() * kHdPeaksStored), a(f.size());
     for (size_t i = 0; i < records.size(); ++i)
       for (int k = 0; k < kHdPeaksStored; ++k) f[i * kHdPeaksStored + k] = records[i].PeakFreq(k), a[i * kHdPeaksStored + k] = records[i].PeakAmp(k);
-    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_freq", pd, f, H5T_NATIVE_DOUBLE, UnitFor(spec, "rad/tau"),
-                                          "spectral peaks of y_m (strongest first), angular frequency; NaN = none"));
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_freq", pd, f, H5T_NATIVE_DOUBLE,
+                                          {"angular frequency of a spectral peak of y_m", UnitFor(spec, "rad/tau"),
+                                           "spectral peaks of y_m (strongest first), angular frequency; NaN = none"},
+                                          coordinates));
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "hd_peak_freq", pn));
-    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_amp", pd, a, H5T_NATIVE_DOUBLE, UnitFor(spec, "delta_s"),
-                                          "amplitude of y_m at each spectral peak; NaN = none"));
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_amp", pd, a, H5T_NATIVE_DOUBLE,
+                                          {"amplitude of y_m at a spectral peak", UnitFor(spec, "delta_s"),
+                                           "amplitude of y_m at each spectral peak; NaN = none"},
+                                          coordinates));
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "hd_peak_amp", pn));
   }
   if (spec.base.metrics.turning_points) {
+    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), "turning_point", Iota(kTurningPointsStored),
+                                        {"index of the turning point (time order within the last 64 of the window)", "", ""}));
     std::vector<hsize_t> td = dims;
     td.push_back(kTurningPointsStored);
     std::vector<std::string> tn = names;
-    tn.push_back("peak");  // unlabelled trailing dimension, like the spectral peaks
+    tn.push_back("turning_point");
     std::vector<double> tp(records.size() * kTurningPointsStored);
     for (size_t i = 0; i < records.size(); ++i)
       for (int k = 0; k < kTurningPointsStored; ++k) tp[i * kTurningPointsStored + k] = records[i].TurningPoint(k);
-    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "turning_points", td, tp, H5T_NATIVE_DOUBLE, UnitFor(spec, "delta_s"),
-                                          "y_m where y_m' = 0 in the window (last 64, time order; NaN = none): bifurcation diagrams"));
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "turning_points", td, tp, H5T_NATIVE_DOUBLE,
+                                          {"displacement y_m at a turning point (y_m' = 0)", UnitFor(spec, "delta_s"),
+                                           "y_m where y_m' = 0 in the window (last 64, time order; NaN = none): bifurcation diagrams"},
+                                          coordinates));
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "turning_points", tn));
   }
   if (nic > 1 && !chained) {  // multistability: fraction of initial conditions ending in each motion type
@@ -214,25 +325,50 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
         for (int i = 0; i < nic; ++i) hit += records[p * nic + i].Get(motion_index) == code;
         frac[p] = static_cast<double>(hit) / nic;
       }
-      BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), kNames[code], axis_dims, frac, H5T_NATIVE_DOUBLE, "fraction",
-                                            "fraction of the initial conditions whose motion type is this one"));
+      const std::string motion = MotionName(code == 0 ? Motion::kIntrawell : code == 1 ? Motion::kInterwell : Motion::kChaotic);
+      BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), kNames[code], axis_dims, frac, H5T_NATIVE_DOUBLE,
+                                            {"fraction of the initial conditions ending in " + motion + " motion", "fraction",
+                                             "fraction of the initial conditions whose motion type is this one"},
+                                            coordinates));
       BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), kNames[code], axis_names));
     }
   }
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "spec", spec.source));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "canonical_spec", spec.CanonicalText()));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "numerics_version", kNumericsVersion));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "model", spec.ModelLabel()));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "time_unit", spec.model == ModelKind::kDimensional ? "s" : "tau = omega_n t"));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "sweep_id", spec.Id()));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "name", spec.name));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "axes", axes_attr));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file.get(), "motion_codes", MotionCodesText()));
+  const IntegrationSettings& in = spec.base.integration;
+  const bool dimensional = spec.model == ModelKind::kDimensional;
+  char settings[256];
+  std::snprintf(settings, sizeof settings, "%s, dt = %.6g, window %.6g to %.6g %s", IntegratorName(in.integrator), in.dt,
+                in.t_keep, in.t_end, dimensional ? "s" : "(tau = omega_n t)");
+  const hid_t f = file.get();
+  // CF-1.10 global attributes (provenance), then the project's own.
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "Conventions", "CF-1.10"));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "title", spec.name.empty() ? "bistable-sweep map " + spec.Id() : spec.name));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(
-      file.get(), "definitions",
+      f, "source",
+      std::string("bistable-sweep ") + kSoftwareVersion + " (numerics " + kNumericsVersion + "): " + spec.ModelLabel() +
+          " model, " + settings));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "history", IsoTimeNow() + " bistable-sweep " + kSoftwareVersion +
+                                                             ": map of sweep " + spec.Id() + " written"));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(
+      f, "references",
+      "Models and metrics: docs/model.md and docs/numerics.md of bistable-sweep. Paper: Numerical and experimental "
+      "studies on a bistable oscillator coupled with a resonator for vibration attenuation and chaos prediction."));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "comment", "The sweep's spec (TOML) is in the attribute 'spec'; its canonical "
+                                                         "form, which the sweep id hashes, in 'canonical_spec'."));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "spec", spec.source));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "canonical_spec", spec.CanonicalText()));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "numerics_version", kNumericsVersion));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "software_version", kSoftwareVersion));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "model", spec.ModelLabel()));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "time_unit", dimensional ? "s" : "tau = omega_n t"));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "sweep_id", spec.Id()));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "name", spec.name));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "axes", axes_attr));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "motion_codes", MotionCodesText()));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(
+      f, "definitions",
       "See docs/numerics.md. Non-dimensional: tau = omega_n t, lengths in delta_s. Window tau in [t_keep, t_end]. "
       "EDR ratios use the gross injected energy W_in = integral of max(P, 0)."));
-  if (H5Fflush(file.get(), H5F_SCOPE_GLOBAL) < 0) return H5Fail(tmp, "flush");
+  if (H5Fflush(f, H5F_SCOPE_GLOBAL) < 0) return H5Fail(tmp, "flush");
   return Status::Ok();
 }
 
@@ -264,7 +400,9 @@ StatusOr<std::vector<std::string>> ListMapMetrics(const std::string& path) {
       file.get(), H5_INDEX_NAME, H5_ITER_NATIVE, nullptr,
       [](hid_t g, const char* name, const H5L_info_t*, void* out) -> herr_t {
         Handle ds(H5Dopen2(g, name, H5P_DEFAULT), H5Dclose);
-        if (ds.ok() && H5DSis_scale(ds.get()) <= 0) static_cast<std::vector<std::string>*>(out)->push_back(name);
+        if (!ds.ok() || H5DSis_scale(ds.get()) > 0) return 0;
+        Handle space(H5Dget_space(ds.get()), H5Sclose);  // fixed parameters are scalars, not metrics
+        if (space.ok() && H5Sget_simple_extent_ndims(space.get()) > 0) static_cast<std::vector<std::string>*>(out)->push_back(name);
         return 0;
       },
       &names);
@@ -305,7 +443,8 @@ StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& met
   out.values.resize(total);
   if (H5Dread(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.values.data()) < 0)
     return Status::IoError("map", "read " + metric + " from '" + path + "'");
-  out.unit = ReadStringAttr(ds.get(), "units");
+  out.unit = ReadStringAttr(ds.get(), "unit_label");  // the plots' label; "units" is CF's
+  if (out.unit.empty()) out.unit = ReadStringAttr(ds.get(), "units");  // maps written before CF metadata
   out.definition = ReadStringAttr(ds.get(), "definition");
   const std::string axes = ReadStringAttr(file.get(), "axes");
   size_t start = 0;

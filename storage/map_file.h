@@ -1,9 +1,12 @@
-// One HDF5 file per sweep (<data>/sweeps/<id>.h5): a dataset per metric shaped by the sweep's axes
-// (plus a trailing "ic" dimension when several initial conditions run per point), the axes as
-// dimension scales with units, hd_peak_freq/hd_peak_amp with a trailing "peak" dimension, fractions
-// of motion types over the initial conditions, and attributes with the metric definitions, the spec
-// and the numerics version. Chunked, shuffled and deflated. Written to a temporary file, fsynced and
-// renamed into place: a reader never sees a partial file.
+// One HDF5 file per sweep (<data>/sweeps/<id>.h5), netCDF-4 compatible and CF-1.10 (docs/map-files.md):
+// a dataset per metric shaped by the sweep's axes (plus a trailing "ic" or "direction" dimension),
+// hd_peak_freq/hd_peak_amp with a trailing "peak" dimension, turning_points with "turning_point",
+// fractions of motion types over the initial conditions. Every dimension has a coordinate variable
+// (dimension scale); fixed parameters are scalar coordinates; variables carry long_name, UDUNITS units
+// (or flag_values/flag_meanings for codes), unit_label (the plots' label) and definition; global
+// attributes carry provenance (Conventions, source, history, spec, versions). Chunked, shuffled and
+// deflated. Written to a temporary file, fsynced and renamed into place: a reader never sees a
+// partial file.
 #ifndef BISTABLE_STORAGE_MAP_FILE_H_
 #define BISTABLE_STORAGE_MAP_FILE_H_
 
