@@ -93,7 +93,7 @@ def check(path, spec):
     for name in data_vars:
         assert list(ds[name].dims[: len(axes)]) == axes, (name, ds[name].dims)
     # Fixed parameters are scalar coordinates holding the spec's values.
-    params = spec.get("parameters", {})
+    params = spec.get("params", {})
     for key, value in params.items():
         if isinstance(value, (int, float)) and key in ds.coords:
             assert ds.coords[key].ndim == 0 and float(ds.coords[key]) == float(value), (key, float(ds.coords[key]), value)

@@ -1,0 +1,219 @@
+"""bistable-sweep from Python: the same C++ core as the `bistable` CLI (docs/python.md).
+
+    import bistable
+    r = bistable.point(model="coupled", alpha=1.0, omega=1.2)     # dict, as `bistable point --json`
+    ds = bistable.run("examples/paper_fig8_frf.toml")              # xarray.Dataset of the map
+    ds.frf_db.plot()
+
+Units are the model's (docs/model.md): non-dimensional time tau = omega_n t, lengths in delta_s, unless
+the model is "dimensional". Every function releases the GIL while it computes; Ctrl-C stops it
+(KeyboardInterrupt; nothing partial is returned). Bad arguments raise ValueError naming the argument and
+the bound it violates, as the CLI's error lines do.
+"""
+import builtins as _builtins
+import os as _os
+
+from . import _core
+
+__version__ = _core.__version__
+numerics_version = _core.numerics_version
+DEFAULT_DATA = "bistable-data"
+
+__all__ = ["point", "trajectory", "run", "open", "open_file", "find", "sweeps", "query", "hbm", "identify", "Client"]
+
+
+def point(**kw):
+    """Integrates one point and returns every metric: the object `bistable point --json` prints.
+
+    Keywords are the CLI's flags with '_' for '-': model ("coupled", "standalone", "linear",
+    "linear-coupled"), alpha and omega (required), eps, eta, eta_r, phi, lambda, t_end, t_keep,
+    integrator ("rk4" or "adaptive"), dt, rtol, atol, ic=(ym, vm[, yr, vr]), chaos_threshold,
+    renorm_every, sample_every, rosenstein (bool). Results are bit-identical to the CLI's.
+    """
+    return _core.point(**kw)
+
+
+def trajectory(**kw):
+    """Integrates one point and returns the sampled steady-state window as numpy arrays.
+
+    Same keywords as point(). Returns {"tau", "y_m", "dy_m", "y_r", "dy_r": arrays over the window
+    tau in [t_keep, t_end], every sample_every steps; "metrics": point()'s dict}.
+    """
+    return _core.trajectory(**kw)
+
+
+def _spec_text(spec):
+    """(TOML text, origin) of a spec given as a path, TOML text or a dict (the TOML's tables)."""
+    if isinstance(spec, dict):
+        return _toml_dump(spec), "<dict>"
+    if isinstance(spec, (str, _os.PathLike)):
+        text = _os.fspath(spec)
+        if "\n" not in text and (text.endswith(".toml") or _os.path.exists(text)):
+            with _builtins.open(text, "rb") as f:
+                return f.read().decode("utf-8"), text
+        return text, "<string>"
+    raise ValueError("spec = %r violates spec a path, TOML text or a dict" % (type(spec).__name__,))
+
+
+def _toml_value(v, where):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if v != v or v in (float("inf"), float("-inf")):
+            raise ValueError("%s = %r violates %s finite" % (where, v, where))
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x, where) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join("%s = %s" % (_toml_key(k), _toml_value(x, where + "." + str(k))) for k, x in v.items()) + " }"
+    if hasattr(v, "tolist"):  # numpy arrays and scalars
+        return _toml_value(v.tolist(), where)
+    raise ValueError("%s = %r violates %s a number, string, bool, list or table" % (where, v, where))
+
+
+def _toml_key(k):
+    k = str(k)
+    return k if k.replace("_", "a").replace("-", "a").isalnum() else _toml_value(k, "key")
+
+
+def _toml_dump(spec):
+    """A spec dict as TOML: top-level scalars first, then one [table] per dict value."""
+    lines, tables = [], []
+    for k, v in spec.items():
+        (tables if isinstance(v, dict) else lines).append((k, v))
+    out = ["%s = %s" % (_toml_key(k), _toml_value(v, str(k))) for k, v in lines]
+    for name, table in tables:
+        out.append("\n[%s]" % _toml_key(name))
+        out += ["%s = %s" % (_toml_key(k), _toml_value(v, "%s.%s" % (name, k))) for k, v in table.items()]
+    return "\n".join(out) + "\n"
+
+
+def open_file(path):
+    """The map file at `path` as an xarray.Dataset (CF-1.10; docs/map-files.md), loaded into memory."""
+    import xarray
+
+    with xarray.open_dataset(path, engine="h5netcdf") as ds:
+        return ds.load()
+
+
+def run(spec, data=DEFAULT_DATA, threads=0, progress=False, path_only=False):
+    """Runs a sweep in this process (the embedded default of `bistable run`) and returns its map.
+
+    spec: a path to a TOML spec, TOML text, or a dict of its tables (docs/sweep-spec.md), e.g.
+    {"name": "x", "model": "coupled", "axes": {"alpha": {"linspace": [0.1, 3, 50]}, ...}}.
+    data: the data directory (cache, index, maps); threads: 0 = every usable CPU; progress: the CLI's
+    progress bar on stderr. Points already in the data directory's cache are not recomputed.
+    Returns an xarray.Dataset (path_only=True: the map file's path).
+    """
+    text, origin = _spec_text(spec)
+    r = _core.run(text, origin, _os.fspath(data), int(threads), bool(progress))
+    return r["file"] if path_only else open_file(r["file"])
+
+
+def find(id, data=DEFAULT_DATA):
+    """{"id", "name", "state", "file"} of a sweep in `data`, by id or unique prefix (ValueError naming "id" if none)."""
+    return _core.find(str(id), _os.fspath(data))
+
+
+def open(id, data=DEFAULT_DATA):  # noqa: A001 (the module's verb, like xarray.open_dataset)
+    """The published map of sweep `id` (or a unique prefix) in `data` as an xarray.Dataset."""
+    ref = find(id, data)
+    if not ref["file"]:
+        raise ValueError("sweep %s has no published map yet (state %s); run it to finish" % (ref["id"], ref["state"]))
+    return open_file(ref["file"])
+
+
+def sweeps(data=DEFAULT_DATA):
+    """The sweeps of a data directory: the list `bistable sweeps --json` prints."""
+    return _core.sweeps(_os.fspath(data))
+
+
+def query(id, expr, data=DEFAULT_DATA, limit=None):
+    """Points of a map where `expr` holds ("frf_db < -3 and lle < 0.01", "motion == chaotic"): the object
+    `bistable query --json` prints ({"sweep", "query", "count", "total", "points": [...]})."""
+    return _core.query(str(id), str(expr), _os.fspath(data), -1 if limit is None else int(limit))
+
+
+def hbm(**kw):
+    """Harmonic balance with continuation and Floquet stability (`bistable hbm`).
+
+    Keywords: model ("standalone", "coupled", "linear", "linear-coupled"), param ("omega" or "alpha",
+    the continued parameter), start, stop (its range), alpha / omega (the fixed one), harmonics,
+    zero_mean, eps, eta, eta_r, phi, lambda, ds. Returns {"branches": [{"start", "omega", "alpha",
+    "amplitude", "mean", "max_multiplier", "stable", "fold", "branch_point", "converged": arrays,
+    "harmonics": array [points, 2H+1]}], "settings", "truncation_change"}.
+    """
+    return _core.hbm(**kw)
+
+
+def identify(data, **kw):
+    """Fits the model to measured records (`bistable identify`); the dict `--json` prints.
+
+    data: a CSV path or a list of them. Keywords are the CLI's flags with '_' for '-' (terms, known,
+    columns, input_kind, ...): identify(["a.csv"], terms="main.linear,main.viscous", known={"m_main":
+    0.282}). Dict values become "name=value,..." lists, lists become comma lists, True adds the flag.
+    """
+    args = []
+    for path in [data] if isinstance(data, (str, _os.PathLike)) else list(data):
+        args += ["--data", _os.fspath(path)]
+    for k, v in kw.items():
+        flag = "--" + k.replace("_", "-")
+        if isinstance(v, bool):
+            if v:
+                args.append(flag)
+            continue
+        if isinstance(v, dict):
+            v = ",".join("%s=%r" % (a, b) for a, b in v.items())
+        elif isinstance(v, (list, tuple)):
+            v = ",".join(str(x) for x in v)
+        args += [flag, str(v)]
+    return _core.identify(args)
+
+
+class Client:
+    """A coordinator over gRPC, through the CLI's own client (TLS with tls_ca, bearer token).
+
+        c = bistable.Client("coordinator:50051", token=open("token").read().strip())
+        id = c.submit("spec.toml")
+        c.wait(id); ds = c.map(id)
+    """
+
+    def __init__(self, address, token=None, tls_ca=None):
+        self._c = _core.Client(str(address), "" if token is None else str(token), "" if tls_ca is None else _os.fspath(tls_ca))
+
+    def submit(self, spec):
+        """Submits a spec (path, TOML text or dict); {"id", "items_total", "items_cached", "jobs"}."""
+        text, origin = _spec_text(spec)
+        return self._c.submit(text, origin)
+
+    def status(self, id):
+        """The object `bistable status --json` prints."""
+        return self._c.status(str(id))
+
+    def wait(self, id, timeout=None):
+        """Blocks until the sweep is final (done, failed, cancelled); its last status."""
+        return self._c.wait(str(id), -1.0 if timeout is None else float(timeout))
+
+    def cancel(self, id):
+        self._c.cancel(str(id))
+
+    def sweeps(self):
+        """The list `bistable sweeps --coordinator ADDR --json` prints."""
+        return self._c.sweeps()
+
+    def workers(self):
+        """The list `bistable workers --json` prints."""
+        return self._c.workers()
+
+    def fetch(self, id, path):
+        """Downloads the published map file (SHA-256 checked) to `path`; {"id", "file", "bytes", "sha256"}."""
+        return self._c.fetch(str(id), _os.fspath(path))
+
+    def map(self, id, path=None):
+        """The published map as an xarray.Dataset (fetched to `path`, default <id>.h5 in the cwd)."""
+        r = self.fetch(id, path or (str(id) + ".h5"))
+        return open_file(r["file"])

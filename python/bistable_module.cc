@@ -1,0 +1,311 @@
+// The C++ half of the Python module `bistable` (pybind11): thin bindings over the same functions the
+// CLI calls, so a point, a map or a branch computed from Python is the CLI's, bit for bit. Python-side
+// conveniences (xarray datasets, numpy arrays, keyword defaults) live in bistable/__init__.py.
+//
+// Rules every binding follows:
+//  * arguments arrive as Python objects and are checked here (names against a table, numbers finite
+//    where the CLI requires it); a bad one raises ValueError with the library's field-naming message;
+//  * the GIL is released while computing (gil_scoped_release), so other Python threads run;
+//  * Ctrl-C while a computation runs from the main thread requests cooperative cancellation
+//    (dynamics/cancel.h); the call then raises KeyboardInterrupt, nothing partial is returned, and the
+//    process-wide flag is cleared again so the next call runs (a Python session outlives one Ctrl-C);
+//  * results come back as Python dicts/lists built from the CLI's JSON objects (nlohmann::json → Python
+//    with doubles as they are, NaN as None exactly as --json prints), or numpy arrays.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <signal.h>
+
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "base/cpus.h"
+#include "base/names.h"
+#include "base/status.h"
+#include "base/version.h"
+#include "client/cli_common.h"
+#include "client/embedded_run.h"
+#include "client/json_out.h"
+#include "dynamics/cancel.h"
+#include "dynamics/hbm.h"
+#include "dynamics/point.h"
+#include "engine/sweep_spec.h"
+#include "engine/sweep_state.h"
+
+namespace py = pybind11;
+
+namespace bistable {
+namespace {
+
+std::thread::id g_main_thread;  // the thread that imported the module (Python's main thread)
+
+// Status → the Python exception a user expects: bad input is ValueError, a missing sweep LookupError
+// (KeyError would quote the message), files and connections OSError, credentials PermissionError.
+[[noreturn]] void Raise(const Status& st) {
+  const std::string msg = st.ToString();
+  switch (st.code()) {
+    case Status::Code::kInvalidArgument:
+    case Status::Code::kFailedPrecondition: throw py::value_error(msg);
+    case Status::Code::kNotFound: PyErr_SetString(PyExc_LookupError, msg.c_str()); break;
+    case Status::Code::kIoError: PyErr_SetString(PyExc_OSError, msg.c_str()); break;
+    case Status::Code::kUnauthenticated:
+    case Status::Code::kPermissionDenied: PyErr_SetString(PyExc_PermissionError, msg.c_str()); break;
+    default: PyErr_SetString(PyExc_RuntimeError, msg.c_str()); break;
+  }
+  throw py::error_already_set();
+}
+
+template <typename T>
+T Unwrap(StatusOr<T> v) {
+  if (!v.ok()) Raise(v.status());
+  return std::move(*v);
+}
+
+// Runs `work` without the GIL. From the main thread, SIGINT requests cancellation for the duration
+// (Python's own handler is put back afterwards); a cancelled call raises KeyboardInterrupt and clears
+// the flag. One cancellable call at a time owns the handler.
+template <typename F>
+auto Compute(F&& work) -> decltype(work()) {
+  static std::mutex handler_mutex;
+  const bool main_thread = std::this_thread::get_id() == g_main_thread;
+  std::unique_lock<std::mutex> lock(handler_mutex, std::defer_lock);
+  struct sigaction old {};
+  bool installed = false;
+  if (main_thread && lock.try_lock()) {
+    struct sigaction sa {};
+    sa.sa_handler = [](int) { RequestCancel(); };
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESTART;
+    installed = ::sigaction(SIGINT, &sa, &old) == 0;
+  }
+  decltype(work()) result = [&] {
+    py::gil_scoped_release release;
+    return work();
+  }();
+  if (installed) ::sigaction(SIGINT, &old, nullptr);
+  if (installed && CancelRequested()) {
+    ScopedCancelReset reset;  // clears the flag now (and again at scope end)
+    PyErr_SetNone(PyExc_KeyboardInterrupt);
+    throw py::error_already_set();
+  }
+  return result;
+}
+
+py::object ToPython(const nlohmann::json& j) {
+  switch (j.type()) {
+    case nlohmann::json::value_t::null: return py::none();
+    case nlohmann::json::value_t::boolean: return py::bool_(j.get<bool>());
+    case nlohmann::json::value_t::number_integer: return py::int_(j.get<long long>());
+    case nlohmann::json::value_t::number_unsigned: return py::int_(j.get<unsigned long long>());
+    case nlohmann::json::value_t::number_float: return py::float_(j.get<double>());
+    case nlohmann::json::value_t::string: return py::str(j.get<std::string>());
+    case nlohmann::json::value_t::array: {
+      py::list l;
+      for (const auto& v : j) l.append(ToPython(v));
+      return l;
+    }
+    case nlohmann::json::value_t::object: {
+      py::dict d;
+      for (const auto& [k, v] : j.items()) d[py::str(k)] = ToPython(v);
+      return d;
+    }
+    default: return py::none();
+  }
+}
+
+// A finite number from a Python object; ValueError naming the keyword otherwise.
+double Number(const py::handle& v, const std::string& name) {
+  if (py::isinstance<py::bool_>(v) || !(py::isinstance<py::float_>(v) || py::isinstance<py::int_>(v)))
+    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " a number");
+  const double x = v.cast<double>();
+  if (!std::isfinite(x)) throw py::value_error(name + " = " + std::to_string(x) + " violates " + name + " finite");
+  return x;
+}
+
+int Integer(const py::handle& v, const std::string& name) {
+  if (py::isinstance<py::bool_>(v) || !py::isinstance<py::int_>(v))
+    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " an integer");
+  const long long x = v.cast<long long>();
+  if (x < -(1LL << 30) || x > (1LL << 30)) throw py::value_error(name + " = " + std::to_string(x) + " violates |" + name + "| <= 2^30");
+  return static_cast<int>(x);
+}
+
+bool Flag(const py::handle& v, const std::string& name) {
+  if (!py::isinstance<py::bool_>(v)) throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " True or False");
+  return v.cast<bool>();
+}
+
+std::string Text(const py::handle& v, const std::string& name) {
+  if (!py::isinstance<py::str>(v)) throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " a string");
+  return v.cast<std::string>();
+}
+
+[[noreturn]] void UnknownKeyword(const std::string& key, const std::vector<std::string>& known) {
+  throw py::value_error(UnknownNameMessage("keyword", key, known));
+}
+
+// The point options by keyword — the flags of `bistable point` with '-' as '_'.
+PointSpec PointFromKeywords(const py::dict& kw) {
+  PointSpec s;
+  std::string model = "coupled", integrator = "rk4";
+  bool alpha = false, omega = false;
+  std::map<std::string, double*> numbers = {
+      {"alpha", &s.alpha}, {"omega", &s.omega}, {"eps", &s.params.eps}, {"eta", &s.params.eta},
+      {"eta_r", &s.params.eta_r}, {"phi", &s.params.phi}, {"lambda", &s.params.lambda},
+      {"t_end", &s.integration.t_end}, {"t_keep", &s.integration.t_keep}, {"dt", &s.integration.dt},
+      {"rtol", &s.integration.rtol}, {"atol", &s.integration.atol}, {"chaos_threshold", &s.metrics.chaos_threshold}};
+  std::map<std::string, int*> integers = {{"renorm_every", &s.metrics.renorm_every}, {"sample_every", &s.metrics.sample_every}};
+  std::vector<std::string> known = {"model", "integrator", "ic", "rosenstein"};
+  for (const auto& [k, _] : numbers) known.push_back(k);
+  for (const auto& [k, _] : integers) known.push_back(k);
+  for (const auto& [key, value] : kw) {
+    const std::string k = py::str(key);
+    if (auto it = numbers.find(k); it != numbers.end()) {
+      *it->second = Number(value, k);
+      alpha |= k == "alpha", omega |= k == "omega";
+    } else if (auto jt = integers.find(k); jt != integers.end()) {
+      *jt->second = Integer(value, k);
+    } else if (k == "model") {
+      model = Text(value, k);
+    } else if (k == "integrator") {
+      integrator = Text(value, k);
+    } else if (k == "rosenstein") {
+      s.metrics.rosenstein = Flag(value, k);
+    } else if (k == "ic") {
+      const auto seq = py::cast<py::sequence>(value);
+      if (seq.size() != 2 && seq.size() != 4) throw py::value_error("ic has " + std::to_string(seq.size()) + " numbers; violates ic = (ym, vm) or (ym, vm, yr, vr)");
+      for (size_t i = 0; i < seq.size(); ++i) s.ic[i] = Number(seq[i], "ic[" + std::to_string(i) + "]");
+      s.ic_given = true;
+    } else {
+      UnknownKeyword(k, known);
+    }
+  }
+  if (!alpha) throw py::value_error("alpha is required (base amplitude A0/delta_s, > 0)");
+  if (!omega) throw py::value_error("omega is required (base frequency omega0/omega_n, > 0)");
+  s.model = Unwrap(ParseModel(model));
+  s.integration.integrator = Unwrap(ParseIntegrator(integrator));
+  return s;
+}
+
+py::dict Point(const py::kwargs& kw) {
+  const PointSpec spec = PointFromKeywords(kw);
+  auto r = Compute([&] { return EvaluatePoint(spec); });
+  return ToPython(PointJson(spec, Unwrap(std::move(r))));
+}
+
+// The sampled window: tau, y_m, dy_m, y_r, dy_r as numpy arrays, plus the metrics.
+py::dict Trajectory(const py::kwargs& kw) {
+  PointSpec spec = PointFromKeywords(kw);
+  spec.metrics.keep_samples = true;
+  PointResult r = Unwrap(Compute([&] { return EvaluatePoint(spec); }));
+  const size_t n = r.samples.size();
+  static const char* kNames[] = {"tau", "y_m", "dy_m", "y_r", "dy_r"};
+  py::dict out;
+  for (int c = 0; c < 5; ++c) {
+    py::array_t<double> a(n);
+    auto m = a.mutable_unchecked<1>();
+    for (size_t i = 0; i < n; ++i) m(i) = r.samples[i][c];
+    out[kNames[c]] = a;
+  }
+  r.samples.clear();
+  out["metrics"] = ToPython(PointJson(spec, r));
+  return out;
+}
+
+// spec: TOML text; origin names it in error messages. Returns {"id", "file"}.
+py::dict Run(const std::string& toml, const std::string& origin, const std::string& data, int threads, bool progress) {
+  SweepSpec spec = Unwrap(ParseSweepSpec(toml, origin));
+  if (threads < 0 || threads > 1024) throw py::value_error("threads = " + std::to_string(threads) + " violates threads in [0, 1024]");
+  const int n = threads > 0 ? threads : UsableCpus();  // as `bistable run`
+  const std::string path = Unwrap(Compute([&] { return RunEmbeddedSweep(spec, data, n, progress); }));
+  py::dict out;
+  out["id"] = spec.Id();
+  out["file"] = path;
+  return out;
+}
+
+// {"id", "name", "state", "file"} of a sweep in a local data directory, by id or unique prefix.
+py::dict Find(const std::string& id, const std::string& data) {
+  SweepRef ref = Unwrap(FindSweep(data, id));
+  py::dict out;
+  out["id"] = ref.row.id;
+  out["name"] = ref.row.name;
+  out["state"] = SweepStateName(ref.row.state);
+  out["file"] = ref.map_path.empty() ? py::object(py::none()) : py::object(py::str(ref.map_path));
+  return out;
+}
+
+py::dict Hbm(const py::kwargs& kw) {
+  HbmOptions o;
+  std::string model = "standalone", param = "omega";
+  std::map<std::string, double*> numbers = {{"start", &o.from}, {"stop", &o.to}, {"alpha", &o.alpha}, {"omega", &o.omega},
+                                           {"eps", &o.params.eps}, {"eta", &o.params.eta}, {"eta_r", &o.params.eta_r},
+                                           {"phi", &o.params.phi}, {"lambda", &o.params.lambda}, {"ds", &o.ds}};
+  std::vector<std::string> known = {"model", "param", "harmonics", "zero_mean"};
+  for (const auto& [k, _] : numbers) known.push_back(k);
+  for (const auto& [key, value] : kw) {
+    const std::string k = py::str(key);
+    if (auto it = numbers.find(k); it != numbers.end()) *it->second = Number(value, k);
+    else if (k == "model") model = Text(value, k);
+    else if (k == "param") param = Text(value, k);
+    else if (k == "harmonics") o.harmonics = Integer(value, k);
+    else if (k == "zero_mean") o.zero_mean = Flag(value, k);
+    else UnknownKeyword(k, known);
+  }
+  o.model = Unwrap(ParseModel(model));
+  if (param == "omega") o.param = ContinuationParam::kOmega;
+  else if (param == "alpha") o.param = ContinuationParam::kAlpha;
+  else throw py::value_error("param = '" + param + "' violates param in {omega, alpha}");
+  HbmResult r = Unwrap(Compute([&] { return ContinueBranches(o); }));
+  py::list branches;
+  for (const HbmBranch& b : r.branches) {
+    const size_t n = b.points.size();
+    py::array_t<double> om(n), al(n), amp(n), mean(n), mu(n);
+    py::array_t<bool> stable(n), fold(n), bp(n), conv(n);
+    size_t h = n ? b.points[0].harmonics.size() : 0;
+    py::array_t<double> harm({n, h});
+    auto H = harm.mutable_unchecked<2>();
+    for (size_t i = 0; i < n; ++i) {
+      const HbmPoint& p = b.points[i];
+      om.mutable_at(i) = p.omega, al.mutable_at(i) = p.alpha, amp.mutable_at(i) = p.amplitude, mean.mutable_at(i) = p.mean;
+      mu.mutable_at(i) = p.max_multiplier, stable.mutable_at(i) = p.stable, fold.mutable_at(i) = p.fold;
+      bp.mutable_at(i) = p.branch_point, conv.mutable_at(i) = p.converged;
+      for (size_t k = 0; k < h && k < p.harmonics.size(); ++k) H(i, k) = p.harmonics[k];
+    }
+    py::dict d;
+    d["start"] = b.start;
+    d["omega"] = om, d["alpha"] = al, d["amplitude"] = amp, d["mean"] = mean, d["max_multiplier"] = mu;
+    d["stable"] = stable, d["fold"] = fold, d["branch_point"] = bp, d["converged"] = conv, d["harmonics"] = harm;
+    branches.append(d);
+  }
+  py::dict settings;
+  settings["model"] = ModelName(o.model), settings["param"] = param, settings["start"] = o.from, settings["stop"] = o.to;
+  settings["alpha"] = o.alpha, settings["omega"] = o.omega, settings["harmonics"] = o.harmonics, settings["zero_mean"] = o.zero_mean;
+  settings["eps"] = o.params.eps, settings["eta"] = o.params.eta;
+  if (HasResonator(o.model)) settings["eta_r"] = o.params.eta_r, settings["phi"] = o.params.phi, settings["lambda"] = o.params.lambda;
+  settings["numerics_version"] = kNumericsVersion;
+  py::dict out;
+  out["branches"] = branches;
+  out["settings"] = settings;
+  out["truncation_change"] = r.truncation_change;
+  return out;
+}
+
+}  // namespace
+}  // namespace bistable
+
+PYBIND11_MODULE(_core, m) {
+  using namespace bistable;
+  g_main_thread = std::this_thread::get_id();
+  m.doc() = "bistable-sweep's C++ core (see the package bistable for the documented API)";
+  m.attr("__version__") = kSoftwareVersion;
+  m.attr("numerics_version") = kNumericsVersion;
+  m.def("point", &Point, "Integrate one point; the dict `bistable point --json` prints");
+  m.def("trajectory", &Trajectory, "Integrate one point; the sampled window as numpy arrays");
+  m.def("run", &Run, py::arg("toml"), py::arg("origin"), py::arg("data"), py::arg("threads"), py::arg("progress"));
+  m.def("find", &Find, py::arg("id"), py::arg("data"));
+  m.def("hbm", &Hbm, "Harmonic balance with continuation and stability");
+}

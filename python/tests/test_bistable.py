@@ -1,0 +1,179 @@
+"""The Python module against the CLI: same numbers bit for bit, same errors, real files and processes.
+
+Run by ctest (Python.Module) with PYTHONPATH at the build tree's python/ and BISTABLE_CLI, BISTABLE_COORDINATOR,
+BISTABLE_WORKER, BISTABLE_SOURCE pointing at the built programs and the source tree.
+"""
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+import bistable
+
+CLI = os.environ["BISTABLE_CLI"]
+SOURCE = os.environ["BISTABLE_SOURCE"]
+
+
+def cli_json(*args):
+    r = subprocess.run([CLI, *args, "--json"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout)
+
+
+SMALL = {
+    "name": "python module test",
+    "model": "coupled",
+    "params": {"eta": 0.1},
+    "axes": {"alpha": {"linspace": [0.2, 2.0, 5]}, "omega": {"linspace": [0.5, 1.5, 4]}},
+    "integration": {"t_end": 200.0, "t_keep": 100.0},
+}
+
+
+@pytest.mark.parametrize(
+    "kw,flags",
+    [
+        (dict(model="coupled", alpha=1.0, omega=1.2), ["--model", "coupled", "--alpha", "1", "--omega", "1.2"]),
+        (dict(model="standalone", alpha=0.3, omega=0.9, eta=0.05), ["--model", "standalone", "--alpha", "0.3", "--omega", "0.9", "--eta", "0.05"]),
+        (dict(model="linear-coupled", alpha=0.5, omega=1.0), None),
+        (dict(model="coupled", alpha=2.0, omega=0.7, integrator="adaptive", t_end=120.0, t_keep=60.0, ic=(0.5, 0.0, 0.5, 0.0)),
+         ["--model", "coupled", "--alpha", "2", "--omega", "0.7", "--integrator", "adaptive", "--t-end", "120", "--t-keep", "60", "--ic", "0.5,0,0.5,0"]),
+    ],
+)
+def test_point_is_the_cli_point_bit_for_bit(kw, flags):
+    kw = {k: v for k, v in kw.items() if v is not None}
+    if flags is None:
+        flags = ["--model", kw["model"], "--alpha", repr(kw["alpha"]), "--omega", repr(kw["omega"])]
+    assert bistable.point(**kw) == cli_json("point", *flags)
+
+
+def test_trajectory_gives_the_window_and_the_same_metrics():
+    t = bistable.trajectory(model="coupled", alpha=1.0, omega=1.2, t_end=300.0, t_keep=200.0, sample_every=10)
+    tau = t["tau"]
+    assert tau.ndim == 1 and len(tau) > 900
+    assert tau[0] >= 200.0 - 1e-9 and tau[-1] <= 300.0 + 1e-9 and np.all(np.diff(tau) > 0)
+    for k in ("y_m", "dy_m", "y_r", "dy_r"):
+        assert t[k].shape == tau.shape and np.isfinite(t[k]).all()
+    same = bistable.point(model="coupled", alpha=1.0, omega=1.2, t_end=300.0, t_keep=200.0, sample_every=10)
+    assert t["metrics"] == same
+    assert abs(t["y_m"].max() - same["y_max"]) < 0.05 * (same["y_max"] - same["y_min"])
+
+
+@pytest.mark.parametrize(
+    "kw,expect",
+    [
+        (dict(alpha=-1.0, omega=1.0), "alpha = -1 violates alpha > 0"),
+        (dict(alpha=1.0, omega=1.0, etta=0.1), "did you mean 'eta'"),
+        (dict(alpha=1.0, omega=1.0, model="bistable"), "model"),
+        (dict(alpha="1", omega=1.0), "alpha"),
+        (dict(alpha=1.0, omega=float("nan")), "omega"),
+        (dict(alpha=1.0), "omega is required"),
+        (dict(alpha=1.0, omega=1.0, t_keep=600.0), "t_keep"),
+        (dict(alpha=1.0, omega=1.0, ic=(1, 2, 3)), "ic"),
+    ],
+)
+def test_bad_point_arguments_raise_value_error_naming_the_field(kw, expect):
+    with pytest.raises(ValueError, match=expect.replace("(", r"\(")):
+        bistable.point(**kw)
+
+
+def test_run_gives_the_cli_map_and_open_finds_it(tmp_path):
+    ds = bistable.run(SMALL, data=tmp_path / "py")
+    assert ds.frf_db.dims == ("alpha", "omega") and ds.frf_db.shape == (5, 4)
+    assert float(ds.eta) == 0.1 and ds.attrs["Conventions"] == "CF-1.10"
+    # The same spec through the CLI, in another data directory: the same numbers, bit for bit.
+    spec = tmp_path / "small.toml"
+    spec.write_text(bistable._toml_dump(SMALL))
+    out = cli_json("run", str(spec), "--data", str(tmp_path / "cli"), "--no-plots", "--quiet")
+    assert out["id"] == ds.attrs["sweep_id"]
+    with h5py.File(tmp_path / "cli" / "sweeps" / (out["id"] + ".h5")) as f:
+        for name in ("frf_db", "lle", "motion", "edr_t", "hd_index"):
+            assert np.array_equal(f[name][()], ds[name].values, equal_nan=True), name
+    again = bistable.open(out["id"][:5], data=tmp_path / "py")
+    assert again.frf_db.equals(ds.frf_db)
+    assert bistable.run(SMALL, data=tmp_path / "py", path_only=True).endswith(out["id"] + ".h5")
+    with pytest.raises(ValueError, match="no sweep 'ffffffffffff'"):
+        bistable.open("ffffffffffff", data=tmp_path / "py")
+
+
+def test_run_takes_paths_and_toml_text_and_refuses_bad_specs(tmp_path):
+    spec = tmp_path / "s.toml"
+    spec.write_text(bistable._toml_dump(SMALL))
+    a = bistable.run(spec, data=tmp_path / "d", path_only=True)
+    b = bistable.run(spec.read_text(), data=tmp_path / "d", path_only=True)
+    assert a == b
+    bad = dict(SMALL, axes={"alpha": {"linspace": [0.2, 2.0, -5]}})
+    with pytest.raises(ValueError, match=r"axes\.alpha\.linspace\.count"):
+        bistable.run(bad, data=tmp_path / "d")
+    with pytest.raises(ValueError, match="threads"):
+        bistable.run(SMALL, data=tmp_path / "d", threads=-2)
+
+
+def test_hbm_branches_are_the_cli_branches():
+    h = bistable.hbm(model="standalone", param="omega", start=0.4, stop=1.6, alpha=0.3, harmonics=5)
+    c = cli_json("hbm", "--model", "standalone", "--continue", "omega", "--from", "0.4", "--to", "1.6", "--alpha", "0.3",
+                 "--harmonics", "5")
+    assert len(h["branches"]) == len(c["branches"]) >= 2
+    for mine, theirs in zip(h["branches"], c["branches"]):
+        assert mine["start"] == theirs["start"]
+        assert np.array_equal(mine["amplitude"], [p["amplitude"] for p in theirs["points"]])
+        assert np.array_equal(mine["stable"], [p["stable"] for p in theirs["points"]])
+    with pytest.raises(ValueError, match="param"):
+        bistable.hbm(param="beta")
+
+
+def test_the_gil_is_released_while_computing():
+    ticks = []
+    done = threading.Event()
+
+    def tick():
+        while not done.is_set():
+            ticks.append(time.monotonic())
+            time.sleep(0.005)
+
+    t = threading.Thread(target=tick)
+    t.start()
+    start = time.monotonic()
+    bistable.point(model="coupled", alpha=1.0, omega=1.2, t_end=3000.0, t_keep=100.0)
+    elapsed = time.monotonic() - start
+    done.set()
+    t.join()
+    during = [x for x in ticks if start < x < start + elapsed]
+    assert elapsed > 0.1, elapsed
+    # A held GIL would allow ~1 tick per switch interval at most; released, the thread ticks freely.
+    assert len(during) > 0.3 * elapsed / 0.005, (len(during), elapsed)
+
+
+def test_ctrl_c_stops_a_computation_and_the_next_call_runs(tmp_path):
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        bistable.point(model="coupled", alpha=1.0, omega=1.2, t_end=9e5, t_keep=100.0, sample_every=50, rosenstein=False)
+    assert time.monotonic() - start < 5
+    timer.join()
+    assert bistable.point(model="coupled", alpha=1.0, omega=1.2)["motion"] == "chaotic"
+    # Python's own SIGINT handler is back: a second Ctrl-C outside a computation is KeyboardInterrupt.
+    with pytest.raises(KeyboardInterrupt):
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(1)
+
+
+def test_the_fig8b_example_runs_as_a_script(tmp_path):
+    example = os.path.join(SOURCE, "examples", "fig8b.py")
+    code = [line for line in open(example) if line.strip() and not line.lstrip().startswith("#")]
+    assert len(code) < 20, len(code)
+    env = dict(os.environ, MPLBACKEND="Agg")
+    r = subprocess.run([sys.executable, example], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stderr
+    png = tmp_path / "fig8b.png"
+    import matplotlib.pyplot as plt
+
+    img = plt.imread(png)
+    assert len(np.unique(img.reshape(-1, img.shape[-1]), axis=0)) > 50
