@@ -580,7 +580,7 @@ int RunIdentify(const IdentifyArgs& a) {
 void AddIdentifyCommand(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<IdentifyArgs>();
   CLI::App* c = app.add_subcommand("identify", "Fit the model to measured records, trace the residual to missing effects, add them, report before/after");
-  c->add_option("--data", a->data, "CSV record(s) with a header (repeat for several; fitted jointly)");
+  c->add_option("--data", a->data, "CSV record(s) with a header: , tab or ; separated, # comments, units in names (docs/identification.md); repeat for several, fitted jointly");
   c->add_option("--terms", a->terms, "declared terms, comma-separated (see --list-terms), e.g. main.linear,main.stiffness_y3,main.viscous");
   c->add_option("--known", a->known, "known constants: m_main, m_res [kg], v_sp, v_t [m/s] (defaults 0.002, 0.001), e.g. m_main=0.282");
   c->add_option("--columns", a->columns, "column roles: t=..,input=..,output=..,resonator=..,group=a;b (defaults t, x0|a0|u, x|v|y)");
