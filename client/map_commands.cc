@@ -14,12 +14,14 @@
 #include <nlohmann/json.hpp>
 
 #include "client/cli_common.h"
+#include "client/json_out.h"
 #include "client/map_slice.h"
 #include "client/map_source.h"
 #include "client/plot.h"
 #include "client/sweep_commands.h"
 #include "base/file.h"
 #include "base/names.h"
+#include "engine/metric_catalog.h"
 #include "engine/query.h"
 #include "proto/coordinator_client.h"
 #include "storage/map_file.h"
@@ -27,8 +29,6 @@
 
 namespace bistable {
 namespace {
-
-nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 // ---- sweeps ----
 struct SweepsArgs {
@@ -83,11 +83,13 @@ int ListSweeps(const SweepsArgs& a) {
     for (const SweepRow& r : *rows) {
       nlohmann::json maps = nlohmann::json::array();
       if (auto ms = (*db)->ListMaps(r.id); ms.ok())
-        for (const MapRow& m : *ms) maps.push_back({{"metric", m.metric}, {"shape", m.shape}, {"min", Num(m.min)}, {"max", Num(m.max)}});
+        for (const MapRow& m : *ms)
+          maps.push_back({{"metric", m.metric}, {"shape", m.shape}, {"min", MetricNumberJson(m.metric, m.min)},
+                          {"max", MetricNumberJson(m.metric, m.max)}});
       arr.push_back({{"id", r.id}, {"name", r.name}, {"model", r.model}, {"status", SweepStateName(r.state)},
                      {"items_total", r.items_total}, {"items_done", r.items_done},
                      {"file", r.file.empty() ? nlohmann::json(nullptr) : nlohmann::json((std::filesystem::path(a.data) / r.file).string())},
-                     {"created", r.created}, {"finished", r.finished}, {"seconds", r.seconds}, {"maps", maps}});
+                     {"created", JsonTime(r.created)}, {"finished", JsonTime(r.finished)}, {"seconds", r.seconds}, {"maps", maps}});
     }
     std::cout << arr.dump(2) << "\n";
     return 0;
@@ -133,14 +135,14 @@ Status WriteOutFile(const std::string& path, const std::string& text) {
 nlohmann::json NestedValues(const Slice& s) {
   if (s.free.size() == 1) {
     nlohmann::json v = nlohmann::json::array();
-    for (double x : s.values) v.push_back(Num(x));
+    for (double x : s.values) v.push_back(MetricValueJson(s.metric, x));
     return v;
   }
   nlohmann::json rows = nlohmann::json::array();
   const size_t nx = s.free[1].values.size();
   for (size_t i = 0; i < s.free[0].values.size(); ++i) {
     nlohmann::json row = nlohmann::json::array();
-    for (size_t j = 0; j < nx; ++j) row.push_back(Num(s.values[i * nx + j]));
+    for (size_t j = 0; j < nx; ++j) row.push_back(MetricValueJson(s.metric, s.values[i * nx + j]));
     rows.push_back(row);
   }
   return rows;
@@ -214,8 +216,12 @@ int ShowMap(const MapArgs& a) {
     nlohmann::json axes = nlohmann::json::object(), fixed = nlohmann::json::object();
     for (const Axis& ax : s->free) axes[ax.name] = ax.values;
     for (const auto& [k, v] : s->fixed) fixed[k] = v;
-    nlohmann::json j = {{"metric", s->metric}, {"unit", s->unit}, {"axes", axes}, {"axis_order", nlohmann::json::array()},
-                        {"fixed", fixed}, {"values", NestedValues(*s)}, {"sweep", ref.id}};
+    // A category's values print as names (MetricValueJson), which have no unit.
+    const bool named = IsCategoryMetric(s->metric);
+    nlohmann::json j = {{"metric", s->metric},   {"unit", named ? nlohmann::json(nullptr) : nlohmann::json(s->unit)},
+                        {"axes", axes},          {"axis_order", nlohmann::json::array()},
+                        {"fixed", fixed},        {"values", NestedValues(*s)},
+                        {"sweep", ref.id}};
     for (const Axis& ax : s->free) j["axis_order"].push_back(ax.name);
     const std::string text = j.dump(1);
     if (a.out.empty()) std::cout << text << "\n";
@@ -325,7 +331,7 @@ int RunQuery(const QueryArgs& a) {
       for (size_t k = 0; k < axes.size(); ++k) pt[axes[k].name] = axes[k].values[idx[k]];
       if (per_point > 1) pt["ic"] = item % per_point;
       for (int v : q->used())
-        if (v >= static_cast<int>(n_axes_vars)) pt[names[v]] = Num(value(v));
+        if (v >= static_cast<int>(n_axes_vars)) pt[names[v]] = MetricValueJson(names[v], value(v));
       points.push_back(pt);
     }
   }

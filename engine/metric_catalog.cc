@@ -85,6 +85,31 @@ int MotionCode(Motion m) {
 
 const char* MotionCodesText() { return "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"; }
 
+namespace {
+constexpr Motion kMotions[] = {Motion::kIntrawell, Motion::kInterwell, Motion::kChaotic, Motion::kUndefined};
+constexpr Termination kTerminations[] = {Termination::kOk, Termination::kDiverged, Termination::kStepSizeUnderflow,
+                                         Termination::kMaxSteps};
+}  // namespace
+
+bool MotionCodeOfName(const std::string& name, int* code) {
+  for (Motion m : kMotions)
+    if (name == MotionName(m)) return *code = MotionCode(m), true;
+  return false;
+}
+
+bool IsCategoryMetric(const std::string& metric) { return metric == "motion" || metric == "termination"; }
+
+const char* CategoryName(const std::string& metric, double code) {
+  if (metric == "motion") {
+    for (Motion m : kMotions)
+      if (code == MotionCode(m)) return MotionName(m);
+  } else if (metric == "termination") {
+    for (Termination t : kTerminations)  // stored as the enum's value (PointRecord::From)
+      if (code == static_cast<int>(t)) return TerminationName(t);
+  }
+  return nullptr;
+}
+
 size_t PointRecord::Size(bool turning_points) {
   return MetricCatalog().size() + 2 * kHdPeaksStored + (turning_points ? kTurningPointsStored : 0);
 }

@@ -61,6 +61,15 @@ Status CheckRecord(const double* v, size_t width, bool turning_points);
 inline constexpr int kMotionUndefined = -1;
 int MotionCode(Motion m);
 const char* MotionCodesText();  // "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"
+// The code of a motion name (MotionName: intrawell, interwell, chaotic, undefined); false when `name`
+// is none of them.
+bool MotionCodeOfName(const std::string& name, int* code);
+// Whether the metric's values are category codes (motion, termination), which JSON prints by name.
+bool IsCategoryMetric(const std::string& metric);
+// The name of a stored category code: `motion` codes name their Motion (MotionName), `termination`
+// codes their Termination (TerminationName). nullptr for any other metric, NaN, or a value that is
+// not one of the metric's codes. JSON prints categories by these names.
+const char* CategoryName(const std::string& metric, double code);
 
 }  // namespace bistable
 
