@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -21,6 +22,18 @@ Status CheckRegularFile(const std::string& path, const std::string& field) {
     return Status::InvalidArgument(field, "cannot read " + field + " file '" + path + "': no such file");
   if (!std::filesystem::is_regular_file(st))
     return Status::InvalidArgument(field, field + " file '" + path + "' is not a regular file");
+  return Status::Ok();
+}
+
+// All of `data` to `fd` (short writes and EINTR retried); errors say "writing <what> failed".
+Status WriteAll(int fd, std::string_view data, const std::string& field, const std::string& what) {
+  size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t n = ::write(fd, data.data() + done, data.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return Status::IoError(field, "writing " + what + " failed: " + std::strerror(n < 0 ? errno : EIO));
+    done += static_cast<size_t>(n);
+  }
   return Status::Ok();
 }
 
@@ -69,14 +82,12 @@ AtomicFile::~AtomicFile() {
 
 Status AtomicFile::Write(std::string_view data) {
   if (fd_ < 0) return Status::IoError(field_, "writing '" + path_ + "' after it was closed");
-  size_t done = 0;
-  while (done < data.size()) {
-    const ssize_t n = ::write(fd_, data.data() + done, data.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return Status::IoError(field_, "writing '" + path_ + "' failed: " + std::strerror(n < 0 ? errno : EIO));
-    done += static_cast<size_t>(n);
-  }
-  return Status::Ok();
+  return WriteAll(fd_, data, field_, "'" + path_ + "'");
+}
+
+Status WriteStdout(std::string_view data, const std::string& field) {
+  std::fflush(stdout);
+  return WriteAll(STDOUT_FILENO, data, field, "to standard output");
 }
 
 StatusOr<std::unique_ptr<LineReader>> LineReader::Open(const std::string& path, const std::string& field, size_t max_line_bytes) {

@@ -1,6 +1,6 @@
 // Reading a whole text file (specs, certificates, tokens), bounded, or one line at a time (measured
 // records), each line bounded, with the field that named the path in the error; writing a file
-// atomically (temp beside it + rename).
+// atomically (temp beside it + rename), or to standard output.
 #ifndef BISTABLE_BASE_FILE_H_
 #define BISTABLE_BASE_FILE_H_
 
@@ -43,6 +43,10 @@ class LineReader {
   bool eof_ = false;
   long line_no_ = 0;
 };
+
+// All of `data` on standard output (stdio's buffer flushed first, so it follows what was printed);
+// IoError naming `field` when the write fails (e.g. EPIPE: the reader went away).
+Status WriteStdout(std::string_view data, const std::string& field);
 
 // A file written whole or not at all: a new temporary beside `path` (O_EXCL, never someone else's;
 // mode 0666 less the umask) that Commit() syncs and renames over `path`. Destroyed uncommitted, the

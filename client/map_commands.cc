@@ -5,8 +5,10 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <random>
@@ -124,12 +126,49 @@ StatusOr<MapArray> LoadMetric(const MapSource& src, const std::string& id, const
   return src.Metric(ref->id, metric);
 }
 
-// --out for text formats: the directory must exist; the file is written beside and renamed.
-Status WriteOutFile(const std::string& path, const std::string& text) {
+// --out - is standard output (for every format); a file literally named "-" is ./-.
+bool IsStdout(const std::string& out) { return out == "-"; }
+
+// Text formats: to standard output, or into the file (its directory must exist; the file is written
+// beside and renamed).
+Status WriteOut(const std::string& path, const std::string& text) {
+  if (path.empty() || IsStdout(path)) return WriteStdout(text, "out");
   auto f = AtomicFile::Create(path, "out");
   if (!f.ok()) return f.status();
   BISTABLE_RETURN_IF_ERROR((*f)->Write(text));
   return (*f)->Commit();
+}
+
+// A plot for --out -: `render` draws it into a private temporary directory, whose file's bytes then go
+// to standard output (never PNG bytes onto a terminal). Otherwise `render` writes `out` and its path
+// is printed.
+Status PlotOut(const std::string& out, const std::string& format, const std::function<Status(const std::string&)>& render) {
+  if (!IsStdout(out)) {
+    BISTABLE_RETURN_IF_ERROR(render(out));
+    std::cout << out << "\n";
+    return Status::Ok();
+  }
+  if (format == "png" && ::isatty(STDOUT_FILENO))
+    return Status::InvalidArgument("out", "--out - would write PNG bytes to a terminal; redirect standard output (> map.png) "
+                                          "or give a file name");
+  const char* tmpdir = std::getenv("TMPDIR");
+  const std::string parent = tmpdir && *tmpdir ? tmpdir : "/tmp";
+  std::string dir = parent + "/bistable-plot-XXXXXX";
+  if (!::mkdtemp(dir.data()))
+    return Status::IoError("out", "cannot create a temporary directory for the plot in '" + Printable(parent) + "': " +
+                                      std::strerror(errno));
+  struct RemoveDir {
+    std::string dir;
+    ~RemoveDir() {
+      std::error_code ec;
+      std::filesystem::remove_all(dir, ec);
+    }
+  } remove{dir};
+  const std::string file = dir + "/plot." + format;
+  BISTABLE_RETURN_IF_ERROR(render(file));
+  auto bytes = ReadTextFile(file, "out");
+  if (!bytes.ok()) return bytes.status();
+  return WriteStdout(*bytes, "out");
 }
 
 nlohmann::json NestedValues(const Slice& s) {
@@ -195,10 +234,8 @@ int HdScatter(const MapArgs& a) {
         sd.x.push_back(f->axes[omega_dim].values[i]), sd.y.push_back(f->values[off]), sd.amp.push_back(amp->values[off]);
     }
   const std::string out = a.out.empty() ? ref.id + "_hd_scatter.png" : a.out;
-  Status st = RenderHdScatter(sd, out);
-  if (!st.ok()) return Fail(st);
-  std::cout << out << "\n";
-  return 0;
+  Status st = PlotOut(out, "png", [&](const std::string& path) { return RenderHdScatter(sd, path); });
+  return st.ok() ? 0 : Fail(st);
 }
 
 int ShowMap(const MapArgs& a) {
@@ -223,10 +260,8 @@ int ShowMap(const MapArgs& a) {
                         {"fixed", fixed},        {"values", NestedValues(*s)},
                         {"sweep", ref.id}};
     for (const Axis& ax : s->free) j["axis_order"].push_back(ax.name);
-    const std::string text = j.dump(1);
-    if (a.out.empty()) std::cout << text << "\n";
-    else if (Status st = WriteOutFile(a.out, text + "\n"); !st.ok()) return Fail(st);
-    return 0;
+    const Status st = WriteOut(a.out, j.dump(1) + "\n");
+    return st.ok() ? 0 : Fail(st);
   }
   if (a.format == "csv") {
     std::ostringstream os;
@@ -241,9 +276,8 @@ int ShowMap(const MapArgs& a) {
         for (size_t j = 0; j < nx; ++j)
           os << s->free[0].values[i] << "," << s->free[1].values[j] << "," << s->values[i * nx + j] << "\n";
     }
-    if (a.out.empty()) std::cout << os.str();
-    else if (Status st = WriteOutFile(a.out, os.str()); !st.ok()) return Fail(st);
-    return 0;
+    const Status st = WriteOut(a.out, os.str());
+    return st.ok() ? 0 : Fail(st);
   }
   PlotData d;
   d.metric = s->metric;
@@ -254,10 +288,8 @@ int ShowMap(const MapArgs& a) {
   d.title = (ref.name.empty() ? ref.id : ref.name) + ": " + s->metric;
   for (const auto& [k, v] : s->fixed) d.title += ", " + k + "=" + std::to_string(v).substr(0, 6);
   const std::string out = a.out.empty() ? ref.id + "_" + s->metric + "." + a.format : a.out;
-  Status st = RenderPlot(d, out, a.format);
-  if (!st.ok()) return Fail(st);
-  std::cout << out << "\n";
-  return 0;
+  Status st = PlotOut(out, a.format, [&](const std::string& path) { return RenderPlot(d, path, a.format); });
+  return st.ok() ? 0 : Fail(st);
 }
 
 // ---- query ----
@@ -370,7 +402,7 @@ void AddMapCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--metric", a->metric, "metric (frf_db, lle, motion, edr_t, ...; hd_scatter for Fig. 6)")->required();
   cmd->add_option("--at", a->at, "fix axes: eta=0.1,lambda=0.8 (ic=K for a multi-IC sweep; default ic=0)");
   cmd->add_option("--format", a->format, "csv | json | png | svg")->capture_default_str();
-  cmd->add_option("--out", a->out, "output file (default: stdout for csv/json, <id>_<metric>.<fmt> for plots)");
+  cmd->add_option("--out", a->out, "output file; - is stdout, for plots too (default: stdout for csv/json, <id>_<metric>.<fmt> for plots)");
   cmd->add_option("--data", a->data, "data directory")->capture_default_str();
   cmd->add_option("--coordinator", a->src.coordinator, "read from a coordinator instead of --data");
   cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");

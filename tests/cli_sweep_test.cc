@@ -1,5 +1,5 @@
 // End-to-end: `bistable run | sweeps | map | query` as real processes on real files — JSON shapes
-// (categories by name, integers, ISO times),
+// (categories by name, integers, ISO times), `map --out -`,
 // h5py reading the map, Ctrl-C and kill -9 followed by a resume that gives a bit-identical map.
 #include <signal.h>
 #include <sys/wait.h>
@@ -171,6 +171,54 @@ TEST(CliSweep, JsonPrintsMotionByNameAndIntegersAsIntegers) {
   const ProcessResult qc = Bistable("query " + id + " \"motion == chaotic\" --json" + data);
   ASSERT_EQ(qc.exit_code, 0) << qc.err;
   EXPECT_EQ(nlohmann::json::parse(qc.out)["count"].get<long>(), chaotic);
+  fs::remove_all(dir);
+}
+
+// `map --out -` is standard output, for every format: the bytes equal the file --out FILE writes.
+TEST(CliSweep, OutDashWritesTheFileBytesToStdout) {
+  const std::string dir = Dir("dash");
+  const std::string spec = WriteSpec(dir, "name = \"dash\"\nmodel = \"standalone\"\n[axes]\nalpha = [0.5, 1.0]\n"
+                                          "omega = [0.8, 1.2]\n[integration]\nt_end = 20.0\nt_keep = 10.0\n");
+  const ProcessResult run = Bistable("run " + spec + " --data " + dir + "/data --json --no-plots");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const std::string id = nlohmann::json::parse(run.out)["id"];
+  // Plots for stdout are drawn in a private directory under $TMPDIR, removed afterwards.
+  fs::create_directories(dir + "/tmp");
+  const auto map = [&](std::vector<std::string> args, const std::string& tmpdir) {
+    std::vector<std::string> argv = {BISTABLE_CLI, "map", id, "--data", dir + "/data"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    return bistable_test::RunArgv(argv, dir, {{"TMPDIR", tmpdir}}, 120);
+  };
+  for (const std::string format : {"csv", "json", "svg", "png"}) {
+    SCOPED_TRACE(format);
+    const std::string file = dir + "/lle." + format;
+    const auto to_file = map({"--metric", "lle", "--format", format, "--out", file}, dir + "/tmp");
+    ASSERT_EQ(to_file.exit_code, 0) << to_file.err;
+    const auto to_stdout = map({"--metric", "lle", "--format", format, "--out", "-"}, dir + "/tmp");
+    ASSERT_EQ(to_stdout.exit_code, 0) << to_stdout.err;
+    std::ifstream in(file, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+    ASSERT_GT(bytes.size(), 10u);
+    EXPECT_EQ(to_stdout.out.size(), bytes.size());
+    EXPECT_TRUE(to_stdout.out == bytes) << "stdout differs from the file";
+    if (format == "png") EXPECT_EQ(to_stdout.out.substr(1, 3), "PNG");
+    EXPECT_FALSE(fs::exists(dir + "/-")) << "a file named '-' was written";
+    if (format == "csv" || format == "json")
+      EXPECT_EQ(map({"--metric", "lle", "--format", format}, dir + "/tmp").out, bytes) << "no --out prints the same";
+  }
+  // The Fig. 6 scatter too.
+  const auto hd = map({"--metric", "hd_scatter", "--at", "alpha=0.5", "--out", "-"}, dir + "/tmp");
+  ASSERT_EQ(hd.exit_code, 0) << hd.err;
+  EXPECT_EQ(hd.out.substr(1, 3), "PNG");
+  EXPECT_FALSE(fs::exists(dir + "/-"));
+  EXPECT_TRUE(fs::is_empty(dir + "/tmp")) << "a temporary plot directory was left behind";
+  for (const auto& e : fs::directory_iterator(dir)) EXPECT_NE(e.path().filename().string().rfind(".bistable-", 0), 0u) << e.path();
+  // A temporary directory that cannot be made is a clear error naming out.
+  const auto notmp = map({"--metric", "lle", "--format", "svg", "--out", "-"}, dir + "/no/such/dir");
+  EXPECT_EQ(notmp.exit_code, 2);
+  EXPECT_TRUE(notmp.out.empty());
+  EXPECT_NE(notmp.err.find("(out: cannot create a temporary directory for the plot in '" + dir + "/no/such/dir'"), std::string::npos)
+      << notmp.err;
   fs::remove_all(dir);
 }
 

@@ -121,7 +121,7 @@ TEST(Distributed, ThreeWorkersGiveTheEmbeddedMapBitForBit) {
   EXPECT_GE(busy, 2);
   // map and query answer the same through the coordinator as from the data directory.
   for (const std::string& args : {"map " + id + " --metric frf_db --format json", "map " + id + " --metric lle --at alpha=3 --format csv",
-                                  "map " + id + " --metric motion --format json",
+                                  "map " + id + " --metric motion --format json --out -",
                                   "query " + id + " \"lle > 0.01 and frf_db < 5\" --json"}) {
     const ProcessResult remote = Bistable(args + " --coordinator " + addr);
     const ProcessResult local = Bistable(args + " --data " + dir + "/data");
