@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -11,14 +12,36 @@
 #include <random>
 
 namespace bistable {
+namespace {
 
-StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& field, size_t max_bytes) {
+// The file exists and is a regular file (not a directory, a FIFO that would block, a device).
+Status CheckRegularFile(const std::string& path, const std::string& field) {
   std::error_code ec;
   const auto st = std::filesystem::status(path, ec);
   if (ec || !std::filesystem::exists(st))
     return Status::InvalidArgument(field, "cannot read " + field + " file '" + path + "': no such file");
   if (!std::filesystem::is_regular_file(st))
     return Status::InvalidArgument(field, field + " file '" + path + "' is not a regular file");
+  return Status::Ok();
+}
+
+// All of `data` to `fd` (short writes and EINTR retried); errors say "writing <what> failed".
+Status WriteAll(int fd, std::string_view data, const std::string& field, const std::string& what) {
+  size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t n = ::write(fd, data.data() + done, data.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return Status::IoError(field, "writing " + what + " failed: " + std::strerror(n < 0 ? errno : EIO));
+    done += static_cast<size_t>(n);
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& field, size_t max_bytes) {
+  BISTABLE_RETURN_IF_ERROR(CheckRegularFile(path, field));
+  std::error_code ec;
   const auto size = std::filesystem::file_size(path, ec);
   if (!ec && size > max_bytes)
     return Status::InvalidArgument(field, field + " file '" + path + "' is " + std::to_string(size) +
@@ -59,14 +82,48 @@ AtomicFile::~AtomicFile() {
 
 Status AtomicFile::Write(std::string_view data) {
   if (fd_ < 0) return Status::IoError(field_, "writing '" + path_ + "' after it was closed");
-  size_t done = 0;
-  while (done < data.size()) {
-    const ssize_t n = ::write(fd_, data.data() + done, data.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return Status::IoError(field_, "writing '" + path_ + "' failed: " + std::strerror(n < 0 ? errno : EIO));
-    done += static_cast<size_t>(n);
+  return WriteAll(fd_, data, field_, "'" + path_ + "'");
+}
+
+Status WriteStdout(std::string_view data, const std::string& field) {
+  std::fflush(stdout);
+  return WriteAll(STDOUT_FILENO, data, field, "to standard output");
+}
+
+StatusOr<std::unique_ptr<LineReader>> LineReader::Open(const std::string& path, const std::string& field, size_t max_line_bytes) {
+  BISTABLE_RETURN_IF_ERROR(CheckRegularFile(path, field));
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Status::InvalidArgument(field, "cannot read " + field + " file '" + path + "': " + std::strerror(errno));
+  return std::unique_ptr<LineReader>(new LineReader(path, field, fd, max_line_bytes));
+}
+
+LineReader::~LineReader() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+StatusOr<LineReader::Result> LineReader::Next(std::string* line) {
+  line->clear();
+  bool any = false;  // bytes of this line seen (an empty last segment after a final "\n" is no line)
+  for (;;) {
+    if (pos_ < buf_.size()) {
+      const size_t nl = buf_.find('\n', pos_);
+      const size_t end = nl == std::string::npos ? buf_.size() : nl;
+      line->append(buf_, pos_, end - pos_);
+      any = true;
+      pos_ = nl == std::string::npos ? buf_.size() : nl + 1;
+      if (line->size() > max_) return ++line_no_, Result::kTooLong;
+      if (nl != std::string::npos) return ++line_no_, Result::kLine;
+    }
+    if (eof_) return any ? (++line_no_, Result::kLine) : Result::kEnd;
+    buf_.resize(size_t{1} << 16);
+    pos_ = 0;
+    ssize_t n;
+    do n = ::read(fd_, buf_.data(), buf_.size());
+    while (n < 0 && errno == EINTR);
+    if (n < 0) return Status::IoError(field_, "reading " + field_ + " file '" + path_ + "' failed: " + std::strerror(errno));
+    buf_.resize(static_cast<size_t>(n));
+    eof_ = n == 0;
   }
-  return Status::Ok();
 }
 
 Status AtomicFile::Commit() {

@@ -51,6 +51,11 @@ inline constexpr std::size_t kMaxMapValuesRead = std::size_t{1} << 31;
 // |value| of a measured record, raw and in SI units. Records are far below it (metres, volts, ADC
 // counts ~1e7, Unix times ~2e9); beyond it the regression's fifth powers lose every digit or overflow.
 inline constexpr double kMaxDataMagnitude = 1e12;
+// A line of a measured-record CSV (the header and comments included; a DAQ export with 100 channels
+// of 20 digits is 2 KB) and the data rows of one file (2^22: 70 min at 1 kHz; t, input, output and
+// resonator then hold 128 MB; the Silverbox file has 131,072 rows).
+inline constexpr std::size_t kMaxDataLineBytes = 65'536;
+inline constexpr long kMaxDataRows = 4'194'304;
 
 }  // namespace bistable::limits
 

@@ -48,9 +48,10 @@ std::string Printable(const std::string& s, size_t max_bytes) {
 std::string UnknownNameMessage(const std::string& what, const std::string& word, const std::vector<std::string>& allowed) {
   std::string msg = "unknown " + what + " '" + Printable(word) + "'";
   const std::string near = NearestName(word, allowed);
-  if (!near.empty()) msg += "; did you mean '" + near + "'?";
+  if (!near.empty()) msg += "; did you mean '" + Printable(near) + "'?";
   std::string list;
-  for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+  for (size_t i = 0; i < allowed.size() && i < kMaxNamesListed; ++i) list += (list.empty() ? "" : ", ") + Printable(allowed[i]);
+  if (allowed.size() > kMaxNamesListed) list += ", ... (" + std::to_string(allowed.size() - kMaxNamesListed) + " more)";
   return msg + " (allowed: " + list + ")";
 }
 

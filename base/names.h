@@ -3,6 +3,7 @@
 #ifndef BISTABLE_BASE_NAMES_H_
 #define BISTABLE_BASE_NAMES_H_
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -12,8 +13,10 @@ namespace bistable {
 // distance within a third of the longer length (+1); "" when none is close.
 std::string NearestName(const std::string& word, const std::vector<std::string>& candidates);
 
-// "unknown <what> '<word>'; did you mean '<nearest>'? (allowed: a, b, c)". `word` is shown with control
-// bytes as \xNN and cut at 80 bytes (it may come from anyone).
+// "unknown <what> '<word>'; did you mean '<nearest>'? (allowed: a, b, c)". Every name is shown with
+// control bytes as \xNN and cut at 80 bytes (the word, and a vocabulary read from a file, may come from
+// anyone); at most kMaxNamesListed names are listed ("..., ... (N more)").
+inline constexpr size_t kMaxNamesListed = 64;
 std::string UnknownNameMessage(const std::string& what, const std::string& word, const std::vector<std::string>& allowed);
 
 // `s` for a message: control bytes, DEL and backslash as \xNN, at most `max_bytes` (then "...").

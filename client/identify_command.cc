@@ -17,6 +17,7 @@
 
 #include "base/names.h"
 #include "client/cli_common.h"
+#include "client/json_out.h"
 #include "client/plot.h"
 #include "engine/sweep_spec.h"
 #include "identify/loop.h"
@@ -84,8 +85,6 @@ StatusOr<ColumnMap> BuildColumns(const IdentifyArgs& a) {
   }
   return c;
 }
-
-nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 std::string Fmt(double v, int digits = 4) {
   char b[48];
@@ -159,7 +158,7 @@ Status WritePlots(const IdentifyResult& r, const std::vector<PreparedRecord>& re
 nlohmann::json ParamsJson(const IdentModel& m, const FitResult& f) {
   nlohmann::json j = nlohmann::json::object();
   const auto names = m.ParamNames();
-  for (size_t i = 0; i < names.size(); ++i) j[names[i]] = Num(f.theta[i]);
+  for (size_t i = 0; i < names.size(); ++i) j[names[i]] = JsonNumber(f.theta[i]);
   return j;
 }
 
@@ -389,10 +388,10 @@ StatusOr<nlohmann::json> TestSplits(const IdentifyResult& r, const std::vector<R
       const Errors ea = Evaluate(r.final_model, r.after.theta, {*p}, plan.setup);
       out.push_back({{"record", rec.name},
                      {"range", std::to_string(tb) + ":" + std::to_string(std::min(te, rec.t.size()))},
-                     {"rms_before", Num(eb.record_rms[0])},
-                     {"rms_after", Num(ea.record_rms[0])},
-                     {"nrmse_before", Num(eb.nrmse)},
-                     {"nrmse_after", Num(ea.nrmse)}});
+                     {"rms_before", JsonNumber(eb.record_rms[0])},
+                     {"rms_after", JsonNumber(ea.record_rms[0])},
+                     {"nrmse_before", JsonNumber(eb.nrmse)},
+                     {"nrmse_after", JsonNumber(ea.nrmse)}});
     }
   return out;
 }
@@ -415,10 +414,10 @@ nlohmann::json StepsJson(const IdentifyResult& r) {
   for (const LoopStep& s : r.steps) {
     nlohmann::json sc = nlohmann::json::array();
     for (const CandidateScore& c : s.scores)
-      sc.push_back({{"term", c.term}, {"delta_bic", Num(c.delta_bic)}, {"explained", Num(c.explained)}, {"sign_ok", c.sign_ok},
-                    {"force_delta_bic", Num(c.force_delta_bic)}, {"force_explained", Num(c.force_explained)}});
-    steps.push_back({{"verdict", s.verdict}, {"chosen", s.chosen}, {"n_eff", Num(s.n_eff)},
-                     {"residual_force_rms", Num(s.residual_rms)}, {"scores", sc}});
+      sc.push_back({{"term", c.term}, {"delta_bic", JsonNumber(c.delta_bic)}, {"explained", JsonNumber(c.explained)}, {"sign_ok", c.sign_ok},
+                    {"force_delta_bic", JsonNumber(c.force_delta_bic)}, {"force_explained", JsonNumber(c.force_explained)}});
+    steps.push_back({{"verdict", s.verdict}, {"chosen", s.chosen}, {"n_eff", JsonNumber(s.n_eff)},
+                     {"residual_force_rms", JsonNumber(s.residual_rms)}, {"scores", sc}});
   }
   return steps;
 }
@@ -427,36 +426,36 @@ nlohmann::json StepsJson(const IdentifyResult& r) {
 nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const IdentifyResult& r, const std::vector<PreparedRecord>& recs,
                           const nlohmann::json& tests, long long simulations) {
   nlohmann::json j;
-  j["error_before"] = Num(r.before.errors.nrmse);
-  j["error_after"] = Num(r.after.errors.nrmse);
-  j["fft_error_before"] = Num(r.before.errors.fft);
-  j["fft_error_after"] = Num(r.after.errors.fft);
-  j["eq20_before"] = Num(r.before.errors.eq20);
-  j["eq20_after"] = Num(r.after.errors.eq20);
+  j["error_before"] = JsonNumber(r.before.errors.nrmse);
+  j["error_after"] = JsonNumber(r.after.errors.nrmse);
+  j["fft_error_before"] = JsonNumber(r.before.errors.fft);
+  j["fft_error_after"] = JsonNumber(r.after.errors.fft);
+  j["eq20_before"] = JsonNumber(r.before.errors.eq20);
+  j["eq20_after"] = JsonNumber(r.after.errors.eq20);
   j["objective"] = a.objective;
   j["declared"] = a.terms;
   j["effects_added"] = nlohmann::json::array();
   for (const AddedEffect& e : r.added) {
     nlohmann::json p = nlohmann::json::object(), u = nlohmann::json::object();
-    for (size_t i = 0; i < e.names.size(); ++i) p[e.names[i]] = Num(e.params[i]), u[e.names[i]] = Num(e.sigma[i]);
+    for (size_t i = 0; i < e.names.size(); ++i) p[e.names[i]] = JsonNumber(e.params[i]), u[e.names[i]] = JsonNumber(e.sigma[i]);
     j["effects_added"].push_back({{"term", e.term}, {"params", p}, {"uncertainty", u},
-                                  {"error_before", Num(e.error_before)}, {"error_after", Num(e.error_after)}});
+                                  {"error_before", JsonNumber(e.error_before)}, {"error_after", JsonNumber(e.error_after)}});
   }
   j["params"] = ParamsJson(r.final_model, r.after);
   j["uncertainty"] = nlohmann::json::object();
   const auto names = r.final_model.ParamNames();
-  for (size_t i = 0; i < names.size(); ++i) j["uncertainty"][names[i]] = Num(r.after.sigma[i]);
+  for (size_t i = 0; i < names.size(); ++i) j["uncertainty"][names[i]] = JsonNumber(r.after.sigma[i]);
   j["params_declared_fit"] = ParamsJson(r.declared, r.before);
   j["records"] = nlohmann::json::array();
   for (size_t i = 0; i < recs.size(); ++i)
     j["records"].push_back({{"name", recs[i].name},
                             {"samples", recs[i].n()},
-                            {"nrmse_before", Num(r.before.errors.record_nrmse[i])},
-                            {"nrmse_after", Num(r.after.errors.record_nrmse[i])},
-                            {"fft_before", Num(r.before.errors.record_fft[i])},
-                            {"fft_after", Num(r.after.errors.record_fft[i])},
-                            {"rms_before", Num(r.before.errors.record_rms[i])},
-                            {"rms_after", Num(r.after.errors.record_rms[i])}});
+                            {"nrmse_before", JsonNumber(r.before.errors.record_nrmse[i])},
+                            {"nrmse_after", JsonNumber(r.after.errors.record_nrmse[i])},
+                            {"fft_before", JsonNumber(r.before.errors.record_fft[i])},
+                            {"fft_after", JsonNumber(r.after.errors.record_fft[i])},
+                            {"rms_before", JsonNumber(r.before.errors.record_rms[i])},
+                            {"rms_after", JsonNumber(r.after.errors.record_rms[i])}});
   j["tests"] = tests;
   j["steps"] = StepsJson(r);
   j["seconds"] = r.seconds;
@@ -580,7 +579,7 @@ int RunIdentify(const IdentifyArgs& a) {
 void AddIdentifyCommand(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<IdentifyArgs>();
   CLI::App* c = app.add_subcommand("identify", "Fit the model to measured records, trace the residual to missing effects, add them, report before/after");
-  c->add_option("--data", a->data, "CSV record(s) with a header (repeat for several; fitted jointly)");
+  c->add_option("--data", a->data, "CSV record(s) with a header: , tab or ; separated, # comments, units in names (docs/identification.md); repeat for several, fitted jointly");
   c->add_option("--terms", a->terms, "declared terms, comma-separated (see --list-terms), e.g. main.linear,main.stiffness_y3,main.viscous");
   c->add_option("--known", a->known, "known constants: m_main, m_res [kg], v_sp, v_t [m/s] (defaults 0.002, 0.001), e.g. m_main=0.282");
   c->add_option("--columns", a->columns, "column roles: t=..,input=..,output=..,resonator=..,group=a;b (defaults t, x0|a0|u, x|v|y)");

@@ -1,6 +1,32 @@
 #include "client/json_out.h"
 
+#include <cmath>
+
+#include "base/iso_time.h"
+#include "engine/metric_catalog.h"
+
 namespace bistable {
+
+nlohmann::json JsonNumber(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+nlohmann::json JsonTime(double unix_seconds) {
+  if (unix_seconds == 0) return nullptr;
+  const std::string t = IsoTimeUtc(unix_seconds);
+  return t.empty() ? nlohmann::json(nullptr) : nlohmann::json(t);
+}
+
+nlohmann::json MetricNumberJson(const std::string& metric, double v) {
+  const MetricInfo* m = FindMetric(metric);
+  // Integer metrics hold whole numbers in a small range (CheckRecord); anything else prints as it is.
+  if (m && m->integer && std::isfinite(v) && v == std::floor(v) && std::fabs(v) < 9e15)
+    return nlohmann::json(static_cast<long long>(v));
+  return JsonNumber(v);
+}
+
+nlohmann::json MetricValueJson(const std::string& metric, double v) {
+  if (const char* name = CategoryName(metric, v)) return name;
+  return MetricNumberJson(metric, v);
+}
 
 nlohmann::json SettingsJson(const PointSpec& s) {
   const auto ic = InitialState(s);

@@ -2,11 +2,27 @@
 #ifndef BISTABLE_CLIENT_JSON_OUT_H_
 #define BISTABLE_CLIENT_JSON_OUT_H_
 
+#include <string>
+
 #include <nlohmann/json.hpp>
 
 #include "dynamics/point_spec.h"
 
 namespace bistable {
+
+// Conventions of every JSON output: a non-finite number prints as null; a metric's category code
+// (motion, termination) as its name; an integer metric (period, the codes) as an integer; a time as
+// ISO 8601 UTC ("2026-11-22T21:04:05.123Z").
+
+// `v`, or null when it is not finite.
+nlohmann::json JsonNumber(double v);
+// A Unix time as ISO 8601 UTC (IsoTimeUtc); null for 0 (not set, e.g. an unfinished sweep's end) or a
+// time that cannot be printed.
+nlohmann::json JsonTime(double unix_seconds);
+// A stored value of `metric` as a number: an integer for the catalog's integer metrics, else JsonNumber.
+nlohmann::json MetricNumberJson(const std::string& metric, double v);
+// A stored value of `metric` as JSON prints it: a category's name (CategoryName), else MetricNumberJson.
+nlohmann::json MetricValueJson(const std::string& metric, double v);
 
 // Everything needed to reproduce a point run.
 nlohmann::json SettingsJson(const PointSpec& spec);

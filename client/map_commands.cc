@@ -5,8 +5,10 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <random>
@@ -14,12 +16,14 @@
 #include <nlohmann/json.hpp>
 
 #include "client/cli_common.h"
+#include "client/json_out.h"
 #include "client/map_slice.h"
 #include "client/map_source.h"
 #include "client/plot.h"
 #include "client/sweep_commands.h"
 #include "base/file.h"
 #include "base/names.h"
+#include "engine/metric_catalog.h"
 #include "engine/query.h"
 #include "proto/coordinator_client.h"
 #include "storage/map_file.h"
@@ -27,8 +31,6 @@
 
 namespace bistable {
 namespace {
-
-nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 // ---- sweeps ----
 struct SweepsArgs {
@@ -83,11 +85,13 @@ int ListSweeps(const SweepsArgs& a) {
     for (const SweepRow& r : *rows) {
       nlohmann::json maps = nlohmann::json::array();
       if (auto ms = (*db)->ListMaps(r.id); ms.ok())
-        for (const MapRow& m : *ms) maps.push_back({{"metric", m.metric}, {"shape", m.shape}, {"min", Num(m.min)}, {"max", Num(m.max)}});
+        for (const MapRow& m : *ms)
+          maps.push_back({{"metric", m.metric}, {"shape", m.shape}, {"min", MetricNumberJson(m.metric, m.min)},
+                          {"max", MetricNumberJson(m.metric, m.max)}});
       arr.push_back({{"id", r.id}, {"name", r.name}, {"model", r.model}, {"status", SweepStateName(r.state)},
                      {"items_total", r.items_total}, {"items_done", r.items_done},
                      {"file", r.file.empty() ? nlohmann::json(nullptr) : nlohmann::json((std::filesystem::path(a.data) / r.file).string())},
-                     {"created", r.created}, {"finished", r.finished}, {"seconds", r.seconds}, {"maps", maps}});
+                     {"created", JsonTime(r.created)}, {"finished", JsonTime(r.finished)}, {"seconds", r.seconds}, {"maps", maps}});
     }
     std::cout << arr.dump(2) << "\n";
     return 0;
@@ -122,25 +126,62 @@ StatusOr<MapArray> LoadMetric(const MapSource& src, const std::string& id, const
   return src.Metric(ref->id, metric);
 }
 
-// --out for text formats: the directory must exist; the file is written beside and renamed.
-Status WriteOutFile(const std::string& path, const std::string& text) {
+// --out - is standard output (for every format); a file literally named "-" is ./-.
+bool IsStdout(const std::string& out) { return out == "-"; }
+
+// Text formats: to standard output, or into the file (its directory must exist; the file is written
+// beside and renamed).
+Status WriteOut(const std::string& path, const std::string& text) {
+  if (path.empty() || IsStdout(path)) return WriteStdout(text, "out");
   auto f = AtomicFile::Create(path, "out");
   if (!f.ok()) return f.status();
   BISTABLE_RETURN_IF_ERROR((*f)->Write(text));
   return (*f)->Commit();
 }
 
+// A plot for --out -: `render` draws it into a private temporary directory, whose file's bytes then go
+// to standard output (never PNG bytes onto a terminal). Otherwise `render` writes `out` and its path
+// is printed.
+Status PlotOut(const std::string& out, const std::string& format, const std::function<Status(const std::string&)>& render) {
+  if (!IsStdout(out)) {
+    BISTABLE_RETURN_IF_ERROR(render(out));
+    std::cout << out << "\n";
+    return Status::Ok();
+  }
+  if (format == "png" && ::isatty(STDOUT_FILENO))
+    return Status::InvalidArgument("out", "--out - would write PNG bytes to a terminal; redirect standard output (> map.png) "
+                                          "or give a file name");
+  const char* tmpdir = std::getenv("TMPDIR");
+  const std::string parent = tmpdir && *tmpdir ? tmpdir : "/tmp";
+  std::string dir = parent + "/bistable-plot-XXXXXX";
+  if (!::mkdtemp(dir.data()))
+    return Status::IoError("out", "cannot create a temporary directory for the plot in '" + Printable(parent) + "': " +
+                                      std::strerror(errno));
+  struct RemoveDir {
+    std::string dir;
+    ~RemoveDir() {
+      std::error_code ec;
+      std::filesystem::remove_all(dir, ec);
+    }
+  } remove{dir};
+  const std::string file = dir + "/plot." + format;
+  BISTABLE_RETURN_IF_ERROR(render(file));
+  auto bytes = ReadTextFile(file, "out");
+  if (!bytes.ok()) return bytes.status();
+  return WriteStdout(*bytes, "out");
+}
+
 nlohmann::json NestedValues(const Slice& s) {
   if (s.free.size() == 1) {
     nlohmann::json v = nlohmann::json::array();
-    for (double x : s.values) v.push_back(Num(x));
+    for (double x : s.values) v.push_back(MetricValueJson(s.metric, x));
     return v;
   }
   nlohmann::json rows = nlohmann::json::array();
   const size_t nx = s.free[1].values.size();
   for (size_t i = 0; i < s.free[0].values.size(); ++i) {
     nlohmann::json row = nlohmann::json::array();
-    for (size_t j = 0; j < nx; ++j) row.push_back(Num(s.values[i * nx + j]));
+    for (size_t j = 0; j < nx; ++j) row.push_back(MetricValueJson(s.metric, s.values[i * nx + j]));
     rows.push_back(row);
   }
   return rows;
@@ -193,10 +234,8 @@ int HdScatter(const MapArgs& a) {
         sd.x.push_back(f->axes[omega_dim].values[i]), sd.y.push_back(f->values[off]), sd.amp.push_back(amp->values[off]);
     }
   const std::string out = a.out.empty() ? ref.id + "_hd_scatter.png" : a.out;
-  Status st = RenderHdScatter(sd, out);
-  if (!st.ok()) return Fail(st);
-  std::cout << out << "\n";
-  return 0;
+  Status st = PlotOut(out, "png", [&](const std::string& path) { return RenderHdScatter(sd, path); });
+  return st.ok() ? 0 : Fail(st);
 }
 
 int ShowMap(const MapArgs& a) {
@@ -214,13 +253,15 @@ int ShowMap(const MapArgs& a) {
     nlohmann::json axes = nlohmann::json::object(), fixed = nlohmann::json::object();
     for (const Axis& ax : s->free) axes[ax.name] = ax.values;
     for (const auto& [k, v] : s->fixed) fixed[k] = v;
-    nlohmann::json j = {{"metric", s->metric}, {"unit", s->unit}, {"axes", axes}, {"axis_order", nlohmann::json::array()},
-                        {"fixed", fixed}, {"values", NestedValues(*s)}, {"sweep", ref.id}};
+    // A category's values print as names (MetricValueJson), which have no unit.
+    const bool named = IsCategoryMetric(s->metric);
+    nlohmann::json j = {{"metric", s->metric},   {"unit", named ? nlohmann::json(nullptr) : nlohmann::json(s->unit)},
+                        {"axes", axes},          {"axis_order", nlohmann::json::array()},
+                        {"fixed", fixed},        {"values", NestedValues(*s)},
+                        {"sweep", ref.id}};
     for (const Axis& ax : s->free) j["axis_order"].push_back(ax.name);
-    const std::string text = j.dump(1);
-    if (a.out.empty()) std::cout << text << "\n";
-    else if (Status st = WriteOutFile(a.out, text + "\n"); !st.ok()) return Fail(st);
-    return 0;
+    const Status st = WriteOut(a.out, j.dump(1) + "\n");
+    return st.ok() ? 0 : Fail(st);
   }
   if (a.format == "csv") {
     std::ostringstream os;
@@ -235,9 +276,8 @@ int ShowMap(const MapArgs& a) {
         for (size_t j = 0; j < nx; ++j)
           os << s->free[0].values[i] << "," << s->free[1].values[j] << "," << s->values[i * nx + j] << "\n";
     }
-    if (a.out.empty()) std::cout << os.str();
-    else if (Status st = WriteOutFile(a.out, os.str()); !st.ok()) return Fail(st);
-    return 0;
+    const Status st = WriteOut(a.out, os.str());
+    return st.ok() ? 0 : Fail(st);
   }
   PlotData d;
   d.metric = s->metric;
@@ -248,10 +288,8 @@ int ShowMap(const MapArgs& a) {
   d.title = (ref.name.empty() ? ref.id : ref.name) + ": " + s->metric;
   for (const auto& [k, v] : s->fixed) d.title += ", " + k + "=" + std::to_string(v).substr(0, 6);
   const std::string out = a.out.empty() ? ref.id + "_" + s->metric + "." + a.format : a.out;
-  Status st = RenderPlot(d, out, a.format);
-  if (!st.ok()) return Fail(st);
-  std::cout << out << "\n";
-  return 0;
+  Status st = PlotOut(out, a.format, [&](const std::string& path) { return RenderPlot(d, path, a.format); });
+  return st.ok() ? 0 : Fail(st);
 }
 
 // ---- query ----
@@ -325,7 +363,7 @@ int RunQuery(const QueryArgs& a) {
       for (size_t k = 0; k < axes.size(); ++k) pt[axes[k].name] = axes[k].values[idx[k]];
       if (per_point > 1) pt["ic"] = item % per_point;
       for (int v : q->used())
-        if (v >= static_cast<int>(n_axes_vars)) pt[names[v]] = Num(value(v));
+        if (v >= static_cast<int>(n_axes_vars)) pt[names[v]] = MetricValueJson(names[v], value(v));
       points.push_back(pt);
     }
   }
@@ -364,7 +402,7 @@ void AddMapCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--metric", a->metric, "metric (frf_db, lle, motion, edr_t, ...; hd_scatter for Fig. 6)")->required();
   cmd->add_option("--at", a->at, "fix axes: eta=0.1,lambda=0.8 (ic=K for a multi-IC sweep; default ic=0)");
   cmd->add_option("--format", a->format, "csv | json | png | svg")->capture_default_str();
-  cmd->add_option("--out", a->out, "output file (default: stdout for csv/json, <id>_<metric>.<fmt> for plots)");
+  cmd->add_option("--out", a->out, "output file; - is stdout, for plots too (default: stdout for csv/json, <id>_<metric>.<fmt> for plots)");
   cmd->add_option("--data", a->data, "data directory")->capture_default_str();
   cmd->add_option("--coordinator", a->src.coordinator, "read from a coordinator instead of --data");
   cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");

@@ -10,6 +10,7 @@
 #include "base/limits.h"
 #include "base/names.h"
 #include "client/cli_common.h"
+#include "client/json_out.h"
 #include "client/progress.h"
 #include "client/remote_commands.h"
 #include "dynamics/cancel.h"
@@ -100,7 +101,7 @@ int WorkersCmd(CoordinatorClient& c, const RemoteArgs& a) {
   if (a.json) {
     nlohmann::json arr = nlohmann::json::array();
     for (const WorkerInfo& w : *ws)
-      arr.push_back({{"name", w.name}, {"last_seen", w.last_seen}, {"leases", w.leases}, {"items_done", w.items_done}});
+      arr.push_back({{"name", w.name}, {"last_seen", JsonTime(w.last_seen)}, {"leases", w.leases}, {"items_done", w.items_done}});
     std::cout << arr.dump(1) << "\n";
     return kExitOk;
   }

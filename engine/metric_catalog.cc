@@ -102,6 +102,20 @@ const std::vector<Category>& MetricCategories(const std::string& metric) {
 
 const char* MotionCodesText() { return "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"; }
 
+bool MotionCodeOfName(const std::string& name, int* code) {
+  for (const Category& c : MetricCategories("motion"))
+    if (name == c.name) return *code = c.code, true;
+  return false;
+}
+
+bool IsCategoryMetric(const std::string& metric) { return !MetricCategories(metric).empty(); }
+
+const char* CategoryName(const std::string& metric, double code) {
+  for (const Category& c : MetricCategories(metric))
+    if (code == c.code) return c.name;
+  return nullptr;
+}
+
 size_t PointRecord::Size(bool turning_points) {
   return MetricCatalog().size() + 2 * kHdPeaksStored + (turning_points ? kTurningPointsStored : 0);
 }

@@ -61,15 +61,24 @@ Status CheckRecord(const double* v, size_t width, bool turning_points);
 // Motion codes stored in maps.
 inline constexpr int kMotionUndefined = -1;
 int MotionCode(Motion m);
-const char* MotionCodesText();
+const char* MotionCodesText();  // "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"
 
-// The named categories of a code metric ("motion", "termination"): code and a one-word name, as JSON
-// output and the map files' CF flag_values/flag_meanings give them. Empty for any other metric.
+// The named categories of a code metric ("motion": MotionName of each Motion, "termination":
+// TerminationName of each Termination, as stored by PointRecord::From): code and one-word name. The
+// one table behind JSON names, the query language's names, plot labels and the map files' CF
+// flag_values/flag_meanings. Empty for any other metric.
 struct Category {
   int code;
   const char* name;
 };
-const std::vector<Category>& MetricCategories(const std::string& metric);  // "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"
+const std::vector<Category>& MetricCategories(const std::string& metric);
+// The code of a motion name (intrawell, interwell, chaotic, undefined); false when `name` is none.
+bool MotionCodeOfName(const std::string& name, int* code);
+// Whether the metric's values are category codes (motion, termination), which JSON prints by name.
+bool IsCategoryMetric(const std::string& metric);
+// The name of a stored category code; nullptr for any other metric, NaN, or a value that is not one
+// of the metric's codes.
+const char* CategoryName(const std::string& metric, double code);
 
 }  // namespace bistable
 

@@ -6,6 +6,7 @@
 #include <set>
 
 #include "base/names.h"
+#include "engine/metric_catalog.h"
 #include "engine/sweep_spec.h"
 
 namespace bistable {
@@ -158,9 +159,7 @@ class Parser {
     }
     if (t.kind != Token::kName) return Error("expected a name or a number, got '" + t.text + "'");
     Next();
-    static const std::pair<const char*, double> kMotion[] = {{"intrawell", 0}, {"interwell", 1}, {"chaotic", 2}};
-    for (auto [w, code] : kMotion)
-      if (t.text == w) return *constant = code, Status::Ok();
+    if (int code = 0; MotionCodeOfName(t.text, &code)) return *constant = code, Status::Ok();
     for (size_t k = 0; k < names_.size(); ++k)
       if (names_[k] == t.text) {
         *var = static_cast<int>(k);

@@ -1,7 +1,8 @@
 // Region queries over a map: `frf_db < -3 and lle < 0.01`, `motion == chaotic or (alpha > 1 and
 // not edr_t < 20)`. Grammar: expr := and ('or' and)*; and := unary ('and' unary)*;
 // unary := 'not' unary | '(' expr ')' | operand op operand; op ∈ < <= > >= == !=;
-// operand := name | number | intrawell | interwell | chaotic (the motion codes 0, 1, 2).
+// operand := name | number | a motion name: intrawell | interwell | chaotic | undefined (the motion
+// codes 0, 1, 2, -1; MotionCodeOfName).
 // Comparisons with NaN are false. A query is at most limits::kMaxQueryBytes long and nests parentheses
 // and `not` at most limits::kMaxQueryDepth deep (the parser and the evaluation recurse).
 #ifndef BISTABLE_ENGINE_QUERY_H_

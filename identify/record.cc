@@ -3,91 +3,364 @@
 #include <charconv>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
+#include <string_view>
 #include <tuple>
 
-#include "base/names.h"
+#include "base/file.h"
 #include "base/limits.h"
+#include "base/names.h"
 #include "base/validate.h"
 
 namespace bistable {
 namespace {
 
-std::vector<std::string> SplitCsv(const std::string& line) {
-  std::vector<std::string> out;
-  std::string cell;
-  std::stringstream ss(line);
-  while (std::getline(ss, cell, ',')) {
-    while (!cell.empty() && (cell.back() == '\r' || cell.back() == ' ')) cell.pop_back();
-    size_t a = 0;
-    while (a < cell.size() && cell[a] == ' ') ++a;
-    out.push_back(cell.substr(a));
+// ---- lines and cells ------------------------------------------------------------------------------
+
+bool Blank(char ch, char sep) { return ch == ' ' || (ch == '\t' && sep != '\t'); }
+
+// `line` split at `sep` outside double quotes, each cell trimmed of blanks; a quoted cell loses its
+// quotes ("" inside is one "). false with *error (naming the 1-based column) when a quote is not
+// closed on the line or text follows a closing quote.
+bool SplitLine(std::string_view line, char sep, std::vector<std::string>* cells, std::string* error) {
+  cells->clear();
+  size_t i = 0;
+  const size_t n = line.size();
+  for (;;) {
+    while (i < n && Blank(line[i], sep)) ++i;
+    std::string cell;
+    if (i < n && line[i] == '"') {
+      for (++i;; ++i) {
+        if (i >= n) return *error = "column " + std::to_string(cells->size() + 1) + ": a quote is not closed on its line", false;
+        if (line[i] != '"') {
+          cell += line[i];
+        } else if (i + 1 < n && line[i + 1] == '"') {
+          cell += '"', ++i;
+        } else {
+          ++i;
+          break;
+        }
+      }
+      while (i < n && Blank(line[i], sep)) ++i;
+      if (i < n && line[i] != sep)
+        return *error = "column " + std::to_string(cells->size() + 1) + ": text after the closing quote", false;
+    } else {
+      const size_t end = std::min(line.find(sep, i), n);
+      size_t e = end;
+      while (e > i && Blank(line[e - 1], sep)) --e;
+      cell.assign(line.substr(i, e - i));
+      i = end;
+    }
+    cells->push_back(std::move(cell));
+    if (i >= n) return true;
+    ++i;  // past the separator
   }
+}
+
+// How often `sep` occurs in `line` outside double quotes.
+int CountOutsideQuotes(std::string_view line, char sep) {
+  int count = 0;
+  bool quoted = false;
+  for (char ch : line) {
+    if (ch == '"') quoted = !quoted;
+    else if (ch == sep && !quoted) ++count;
+  }
+  return count;
+}
+
+std::string SeparatorName(char sep) { return sep == '\t' ? "tab" : std::string("'") + sep + "'"; }
+
+// A cell as a number: what std::from_chars reads (no inf, nan or hex), with an optional leading '+',
+// and with a decimal comma ("0,25": one comma, no point) where the separator is not a comma.
+bool ParseNumber(const std::string& cell, bool decimal_comma, double* v) {
+  std::string_view s = cell;
+  if (s.size() > 1 && s[0] == '+' && s[1] != '-' && s[1] != '+') s.remove_prefix(1);
+  std::string copy;
+  if (decimal_comma && s.find(',') != std::string_view::npos) {
+    if (s.find(',') != s.rfind(',') || s.find('.') != std::string_view::npos) return false;
+    copy.assign(s);
+    copy[copy.find(',')] = '.';
+    s = copy;
+  }
+  const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *v);
+  return ec == std::errc() && p == s.data() + s.size() && !s.empty() && std::isfinite(*v);
+}
+
+// ---- header names and units -----------------------------------------------------------------------
+
+struct HeaderCell {
+  std::string text;  // as in the file (unquoted)
+  std::string name;  // without a unit suffix: "t [s]" → "t", "x0 (mm)" → "x0"
+  std::string unit;  // "s", "mm"; "" without a suffix
+};
+
+HeaderCell ParseHeaderCell(const std::string& text) {
+  HeaderCell h{text, text, ""};
+  if (text.size() < 3) return h;
+  const char close = text.back();
+  if (close != ']' && close != ')') return h;
+  const size_t open = text.rfind(close == ']' ? '[' : '(');
+  if (open == std::string::npos || open == 0) return h;
+  std::string name = text.substr(0, open), unit = text.substr(open + 1, text.size() - open - 2);
+  while (!name.empty() && (name.back() == ' ' || name.back() == '\t')) name.pop_back();
+  while (!unit.empty() && unit.back() == ' ') unit.pop_back();
+  while (!unit.empty() && unit.front() == ' ') unit.erase(0, 1);
+  if (name.empty() || unit.empty()) return h;
+  h.name = name;
+  h.unit = unit;
+  return h;
+}
+
+enum class Quantity { kNone, kTime, kLength, kVelocity, kAcceleration, kForce };
+
+const char* QuantityName(Quantity q) {
+  switch (q) {
+    case Quantity::kTime: return "time";
+    case Quantity::kLength: return "length";
+    case Quantity::kVelocity: return "velocity";
+    case Quantity::kAcceleration: return "acceleration";
+    case Quantity::kForce: return "force";
+    case Quantity::kNone: break;
+  }
+  return "other";
+}
+
+struct UnitInfo {
+  const char* name;
+  Quantity quantity;
+  double to_si;
+};
+
+// The units a header may give, with their factor to SI. "µ" is accepted as MICRO SIGN (U+00B5) and
+// GREEK SMALL LETTER MU (U+03BC); g is standard gravity.
+constexpr UnitInfo kUnits[] = {
+    {"s", Quantity::kTime, 1},           {"ms", Quantity::kTime, 1e-3},          {"us", Quantity::kTime, 1e-6},
+    {"\xc2\xb5s", Quantity::kTime, 1e-6}, {"\xce\xbcs", Quantity::kTime, 1e-6},   {"ns", Quantity::kTime, 1e-9},
+    {"m", Quantity::kLength, 1},         {"cm", Quantity::kLength, 1e-2},        {"mm", Quantity::kLength, 1e-3},
+    {"um", Quantity::kLength, 1e-6},     {"\xc2\xb5m", Quantity::kLength, 1e-6}, {"\xce\xbcm", Quantity::kLength, 1e-6},
+    {"nm", Quantity::kLength, 1e-9},     {"m/s", Quantity::kVelocity, 1},        {"cm/s", Quantity::kVelocity, 1e-2},
+    {"mm/s", Quantity::kVelocity, 1e-3}, {"um/s", Quantity::kVelocity, 1e-6},    {"\xc2\xb5m/s", Quantity::kVelocity, 1e-6},
+    {"m/s^2", Quantity::kAcceleration, 1}, {"m/s\xc2\xb2", Quantity::kAcceleration, 1}, {"m/s2", Quantity::kAcceleration, 1},
+    {"mm/s^2", Quantity::kAcceleration, 1e-3}, {"mm/s\xc2\xb2", Quantity::kAcceleration, 1e-3},
+    {"g", Quantity::kAcceleration, 9.80665}, {"N", Quantity::kForce, 1},      {"mN", Quantity::kForce, 1e-3},
+    {"kN", Quantity::kForce, 1e3},
+};
+
+const UnitInfo* FindUnit(const std::string& unit) {
+  for (const UnitInfo& u : kUnits)
+    if (unit == u.name) return &u;
+  return nullptr;
+}
+
+std::vector<std::string> UnitNames(Quantity q) {
+  std::vector<std::string> out;
+  for (const UnitInfo& u : kUnits)
+    if (u.quantity == q) out.push_back(u.name);
   return out;
 }
 
-StatusOr<int> Column(const std::vector<std::string>& header, const std::string& name, const std::string& role,
-                     const std::string& file) {
+std::string Join(const std::vector<std::string>& v) {
+  std::string out;
+  for (const auto& s : v) out += (out.empty() ? "" : ", ") + s;
+  return out;
+}
+
+const char* SiName(Quantity q) {
+  switch (q) {
+    case Quantity::kTime: return "s";
+    case Quantity::kLength: return "m";
+    case Quantity::kVelocity: return "m/s";
+    case Quantity::kAcceleration: return "m/s^2";
+    case Quantity::kForce: return "N";
+    case Quantity::kNone: break;
+  }
+  return "";
+}
+
+struct ColumnRef {
+  int index = -1;
+  double factor = 1;  // unit to SI
+};
+
+// The column `role` reads: the header cell whose text is `wanted`, else the one whose name (unit
+// suffix stripped) is; the nearest name suggested when none is, an error when two are. Its unit,
+// for a column of quantity `q`: a unit of q converts to SI (and then `scale` must be 1: one
+// conversion only); a unit of another quantity is an error; any other unit is read as is (the scale
+// applies), except on the time column, which must be in a time unit.
+StatusOr<ColumnRef> FindColumn(const std::vector<HeaderCell>& header, const std::string& wanted, const std::string& role,
+                               Quantity q, double scale, const char* scale_field, const std::string& file) {
+  std::vector<int> hits;
   for (size_t i = 0; i < header.size(); ++i)
-    if (header[i] == name) return static_cast<int>(i);
-  return Status::InvalidArgument(role, file + " (" + role + "): " + UnknownNameMessage("column", name, header));
+    if (header[i].text == wanted) hits.push_back(static_cast<int>(i));
+  if (hits.empty())
+    for (size_t i = 0; i < header.size(); ++i)
+      if (header[i].name == wanted) hits.push_back(static_cast<int>(i));
+  if (hits.empty()) {
+    std::vector<std::string> names;
+    for (const HeaderCell& h : header) names.push_back(h.name);
+    return Status::InvalidArgument(role, file + " (" + role + "): " + UnknownNameMessage("column", wanted, names));
+  }
+  if (hits.size() > 1)
+    return Status::InvalidArgument(role, file + " (" + role + "): columns '" + Printable(header[hits[0]].text) + "' and '" +
+                                             Printable(header[hits[1]].text) + "' both match '" + Printable(wanted) +
+                                             "'; name one as the header spells it");
+  const HeaderCell& h = header[hits[0]];
+  ColumnRef ref{hits[0], 1.0};
+  if (h.unit.empty() || q == Quantity::kNone) return ref;
+  const std::string where = file + " column '" + Printable(h.text) + "' (" + role +
+                            (role == QuantityName(q) ? std::string() : std::string(", ") + QuantityName(q)) + ")";
+  const UnitInfo* u = FindUnit(h.unit);
+  if (u && u->quantity == q) {
+    if (scale != 1.0)
+      return Status::InvalidArgument(scale_field, where + ": the header gives the unit " + Printable(h.unit) + ", converted to " +
+                                                      SiName(q) + "; " + scale_field + " = " + FormatNumber(scale) +
+                                                      " would convert it again (use one or the other)");
+    ref.factor = u->to_si;
+    return ref;
+  }
+  if (u)
+    return Status::InvalidArgument(role, where + ": '" + Printable(h.unit) + "' is a unit of " + QuantityName(u->quantity) +
+                                             "; a " + QuantityName(q) + " column takes " + Join(UnitNames(q)));
+  if (q == Quantity::kTime)
+    return Status::InvalidArgument(role, where + ": " + UnknownNameMessage("time unit", h.unit, UnitNames(q)));
+  return ref;
+}
+
+Quantity InputQuantity(InputKind k) {
+  switch (k) {
+    case InputKind::kBaseDisplacement: return Quantity::kLength;
+    case InputKind::kBaseAcceleration: return Quantity::kAcceleration;
+    case InputKind::kForce: return Quantity::kForce;
+  }
+  return Quantity::kNone;
+}
+
+Quantity OutputQuantity(OutputKind k) {
+  switch (k) {
+    case OutputKind::kDisplacement: return Quantity::kLength;
+    case OutputKind::kVelocity: return Quantity::kVelocity;
+    case OutputKind::kAnalogue: return Quantity::kNone;
+  }
+  return Quantity::kNone;
 }
 
 }  // namespace
 
 StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnMap& c) {
-  std::ifstream in(path);
-  if (!in) return Status::InvalidArgument("data", "cannot read data file '" + path + "'");
-  const std::string file = std::filesystem::path(path).filename().string();
   if (!(std::isfinite(c.input_scale) && c.input_scale != 0)) return Violates("input_scale", c.input_scale, "finite and != 0");
   if (!(std::isfinite(c.output_scale) && c.output_scale != 0)) return Violates("output_scale", c.output_scale, "finite and != 0");
+  auto reader = LineReader::Open(path, "data", limits::kMaxDataLineBytes);
+  if (!reader.ok()) return reader.status();
+  const std::string name = std::filesystem::path(path).filename().string();  // records' names
+  const std::string file = Printable(name, 200);                             // in messages
+  const auto at = [&]() { return file + " row " + std::to_string((*reader)->line_number()); };
+
+  // The next line that is neither blank nor a comment ('#' first), without a UTF-8 BOM or a CR.
   std::string line;
-  if (!std::getline(in, line)) return Status::InvalidArgument("data", file + " is empty (a header line is required)");
-  const std::vector<std::string> header = SplitCsv(line);
-  auto ct = Column(header, c.time, "time", file);
-  auto ci = Column(header, c.input, "input", file);
-  auto co = Column(header, c.output, "output", file);
+  const auto next = [&]() -> StatusOr<bool> {
+    for (;;) {
+      auto r = (*reader)->Next(&line);
+      if (!r.ok()) return r.status();
+      if (*r == LineReader::Result::kEnd) return false;
+      if (*r == LineReader::Result::kTooLong)
+        return Status::InvalidArgument("data", at() + ": the line is longer than " + std::to_string(limits::kMaxDataLineBytes) +
+                                                   " bytes (violates line length <= " +
+                                                   std::to_string(limits::kMaxDataLineBytes) + ")");
+      if ((*reader)->line_number() == 1) {
+        if (line.rfind("\xef\xbb\xbf", 0) == 0) line.erase(0, 3);
+        if (line.rfind("\xff\xfe", 0) == 0 || line.rfind("\xfe\xff", 0) == 0)
+          return Status::InvalidArgument("data", file + " is UTF-16 text; save it as UTF-8 (or ASCII)");
+      }
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      const size_t first = line.find_first_not_of(" \t");
+      if (first == std::string::npos || line[first] == '#') continue;
+      return true;
+    }
+  };
+
+  auto has = next();
+  if (!has.ok()) return has.status();
+  if (!*has) return Status::InvalidArgument("data", file + " is empty (a header line is required)");
+  // The separator is the one of , tab ; that splits the header most often.
+  char sep = 0;
+  int best = 0;
+  bool tie = false;
+  for (char s : {',', '\t', ';'}) {
+    const int n = CountOutsideQuotes(line, s);
+    if (n > best) best = n, sep = s, tie = false;
+    else if (n == best && n > 0) tie = true;
+  }
+  if (sep == 0)
+    return Status::InvalidArgument("data", at() + " (header): no separator splits it (',' tab ';' were tried; the header names the columns, e.g. t,x0,x)");
+  if (tie)
+    return Status::InvalidArgument("data", at() + " (header): it splits as often at " + SeparatorName(sep) +
+                                               " as at another of ',' tab ';'; quote the names that hold a separator");
+  const bool decimal_comma = sep != ',';
+  std::vector<std::string> cells;
+  std::string split_error;
+  if (!SplitLine(line, sep, &cells, &split_error)) return Status::InvalidArgument("data", at() + " (header) " + split_error);
+  // A trailing separator (some exports end every line with one) makes no column.
+  const bool trailing_sep = cells.size() > 1 && cells.back().empty();
+  if (trailing_sep) cells.pop_back();
+  std::vector<HeaderCell> header;
+  bool all_numbers = true;
+  for (const std::string& cell : cells) {
+    header.push_back(ParseHeaderCell(cell));
+    double v;
+    all_numbers = all_numbers && ParseNumber(cell, decimal_comma, &v);
+  }
+  if (all_numbers)
+    return Status::InvalidArgument("data", at() + ": the first line that is not a comment holds numbers, not column names "
+                                               "(a header line is required; comment lines start with #)");
+
+  auto ct = FindColumn(header, c.time, "time", Quantity::kTime, 1.0, "", file);
   if (!ct.ok()) return ct.status();
+  auto ci = FindColumn(header, c.input, "input", InputQuantity(c.input_kind), c.input_scale, "input_scale", file);
   if (!ci.ok()) return ci.status();
+  auto co = FindColumn(header, c.output, "output", OutputQuantity(c.output_kind), c.output_scale, "output_scale", file);
   if (!co.ok()) return co.status();
-  int cr = -1;
+  ColumnRef cr;
   if (!c.resonator.empty()) {
-    auto r = Column(header, c.resonator, "resonator", file);
+    auto r = FindColumn(header, c.resonator, "resonator", Quantity::kLength, 1.0, "", file);
     if (!r.ok()) return r.status();
     cr = *r;
   }
   std::vector<int> cg;
   for (const auto& g : c.group) {
-    auto r = Column(header, g, "group", file);
+    auto r = FindColumn(header, g, "group", Quantity::kNone, 1.0, "", file);
     if (!r.ok()) return r.status();
-    cg.push_back(*r);
+    cg.push_back(r->index);
   }
+  const double time_factor = ct->factor, in_factor = ci->factor * c.input_scale, out_factor = co->factor * c.output_scale;
 
   std::vector<Record> records;
   std::vector<double> row(header.size());
-  long row_no = 1;
-  while (std::getline(in, line)) {
-    ++row_no;
-    if (line.empty() || line == "\r") continue;
-    const std::vector<std::string> cells = SplitCsv(line);
+  long rows = 0;
+  for (;;) {
+    has = next();
+    if (!has.ok()) return has.status();
+    if (!*has) break;
+    if (++rows > limits::kMaxDataRows)
+      return Status::InvalidArgument("data", at() + ": more than " + std::to_string(limits::kMaxDataRows) +
+                                                 " data rows (violates rows <= " + std::to_string(limits::kMaxDataRows) +
+                                                 "; split the file)");
+    if (!SplitLine(line, sep, &cells, &split_error)) return Status::InvalidArgument("data", at() + " " + split_error);
+    if (trailing_sep && cells.size() == header.size() + 1 && cells.back().empty()) cells.pop_back();
     if (cells.size() != header.size())
-      return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + ": " + std::to_string(cells.size()) +
-                                                 " cells, the header has " + std::to_string(header.size()));
+      return Status::InvalidArgument("data", at() + ": " + std::to_string(cells.size()) + " cells, the header has " +
+                                                 std::to_string(header.size()));
     for (size_t k = 0; k < cells.size(); ++k) {
       double v = 0;
-      const auto [p, ec] = std::from_chars(cells[k].data(), cells[k].data() + cells[k].size(), v);
-      if (ec != std::errc() || p != cells[k].data() + cells[k].size() || !std::isfinite(v))
-        return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + " column '" + header[k] +
-                                                   "': '" + cells[k] + "' is not a finite number");
+      if (!ParseNumber(cells[k], decimal_comma, &v))
+        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) + "': '" + Printable(cells[k]) +
+                                                   "' is not a finite number");
       if (!(std::fabs(v) <= limits::kMaxDataMagnitude))
-        return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + " column '" + header[k] + "': " +
-                                                   cells[k] + " violates |value| <= " + FormatNumber(limits::kMaxDataMagnitude));
+        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) + "': " + Printable(cells[k]) +
+                                                   " violates |value| <= " + FormatNumber(limits::kMaxDataMagnitude));
       row[k] = v;
     }
     std::vector<double> gv;
     for (int g : cg) gv.push_back(row[g]);
-    const double t = row[*ct];
+    const double t = row[ct->index] * time_factor;
     const bool back = !records.empty() && t <= records.back().t.back();
     // Time may go back only to restart a record at the first record's start time (concatenated
     // records, e.g. the harvester's steady-sine file); anything else is a broken time column.
@@ -95,46 +368,47 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
       const double start = records.front().t.front();
       const double dt = records.back().t.size() >= 2 ? records.back().t[1] - records.back().t[0] : 0.0;
       if (!(std::abs(t - start) <= 0.5 * std::abs(dt)) || records.back().t.size() < 2)
-        return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + ": time " + FormatNumber(t) +
+        return Status::InvalidArgument("data", at() + ": time " + FormatNumber(t) +
                                                    (t == records.back().t.back() ? " repeats" : " is before") +
                                                    " the previous row's " + FormatNumber(records.back().t.back()) +
                                                    " (time must increase; a restart must return to " + FormatNumber(start) + ")");
     }
     const bool restart = records.empty() || back || gv != records.back().group_values;
     if (restart) {
-      if (!records.empty() && records.back().t.size() < 2)
-        return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + ": a record of a single row");
+      if (!records.empty() && records.back().t.size() < 2) return Status::InvalidArgument("data", at() + ": a record of a single row");
       Record r;
-      r.name = file + "#" + std::to_string(records.size());
+      r.name = name + "#" + std::to_string(records.size());
       r.group_values = gv;
       records.push_back(std::move(r));
     }
-    const double scaled_in = row[*ci] * c.input_scale, scaled_out = row[*co] * c.output_scale;
-    for (auto [v, k, scale] : {std::tuple{scaled_in, *ci, c.input_scale}, std::tuple{scaled_out, *co, c.output_scale}})
-      if (!(std::fabs(v) <= limits::kMaxDataMagnitude))
-        return Status::InvalidArgument("data", file + " row " + std::to_string(row_no) + " column '" + header[k] + "': " +
-                                                   cells[k] + " x scale " + FormatNumber(scale) + " violates |value| <= " +
+    const double scaled_in = row[ci->index] * in_factor, scaled_out = row[co->index] * out_factor;
+    const double scaled_res = cr.index >= 0 ? row[cr.index] * cr.factor : 0.0;
+    for (auto [v, k, factor] : {std::tuple{scaled_in, ci->index, in_factor}, std::tuple{scaled_out, co->index, out_factor},
+                                std::tuple{scaled_res, cr.index, cr.factor}})
+      if (k >= 0 && !(std::fabs(v) <= limits::kMaxDataMagnitude))
+        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) + "': " + Printable(cells[k]) +
+                                                   " x scale " + FormatNumber(factor) + " violates |value| <= " +
                                                    FormatNumber(limits::kMaxDataMagnitude));
     Record& r = records.back();
     r.t.push_back(t);
-    r.input.push_back(row[*ci] * c.input_scale);
-    r.output.push_back(row[*co] * c.output_scale);
-    if (cr >= 0) r.resonator.push_back(row[cr]);
+    r.input.push_back(scaled_in);
+    r.output.push_back(scaled_out);
+    if (cr.index >= 0) r.resonator.push_back(scaled_res);
   }
   if (records.empty()) return Status::InvalidArgument("data", file + " has a header but no rows");
   for (Record& r : records) {
-    if (r.t.size() < 2) return Status::InvalidArgument("data", r.name + ": fewer than two samples");
+    if (r.t.size() < 2) return Status::InvalidArgument("data", Printable(r.name, 200) + ": fewer than two samples");
     r.dt = (r.t.back() - r.t.front()) / static_cast<double>(r.t.size() - 1);
     // 25 % of a step: printed time columns are quantised (the harvester's 64 Hz file prints 10.016 for
     // 10.015625, a 6 % step error), while a dropped or duplicated sample moves a step by 100 %. The
     // mean step is used from here on.
     for (size_t i = 1; i < r.t.size(); ++i)
       if (std::fabs(r.t[i] - r.t[i - 1] - r.dt) > 0.25 * r.dt)
-        return Status::InvalidArgument("data", r.name + ": sampling is not uniform near t = " + FormatNumber(r.t[i]) +
+        return Status::InvalidArgument("data", Printable(r.name, 200) + ": sampling is not uniform near t = " + FormatNumber(r.t[i]) +
                                                    " s (step " + FormatNumber(r.t[i] - r.t[i - 1]) + " s, mean " +
                                                    FormatNumber(r.dt) + " s)");
   }
-  if (records.size() == 1) records[0].name = file;
+  if (records.size() == 1) records[0].name = name;
   return records;
 }
 

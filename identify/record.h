@@ -1,7 +1,14 @@
-// Measured time histories for identification (issue 5): CSV with a header, a time column [s], one
-// input and one or two outputs, mapped to SI by kind and scale. Several records in one file are
+// Measured time histories for identification (issue 5): CSV with a header, a time column, one input
+// and one or two outputs, mapped to SI by kind, header unit and scale. Several records in one file are
 // split where the time restarts (e.g. the harvester's steady-sine file) or where group columns change.
 // Every value is checked: a bad cell names its row and column; a missing column suggests the nearest.
+//
+// What DAQ exports write is read (docs/identification.md, "Data files"): a UTF-8 BOM, CRLF line ends,
+// blank lines and '#' comment lines anywhere; the separator , tab or ; (the one that splits the header
+// most often); double-quoted cells ("" is a quote); in tab and ; files a decimal comma (0,25); a
+// leading '+'; a unit suffix on header names ("t [ms]", "x0 (mm)"), converted to SI for the time,
+// input, output and resonator columns when it is a unit of their quantity. A line is at most
+// limits::kMaxDataLineBytes, a file at most limits::kMaxDataRows data rows.
 #ifndef BISTABLE_IDENTIFY_RECORD_H_
 #define BISTABLE_IDENTIFY_RECORD_H_
 
@@ -27,7 +34,7 @@ struct ColumnMap {
   std::string time = "t";
   std::string input = "x0";
   InputKind input_kind = InputKind::kBaseDisplacement;
-  double input_scale = 1.0;     // multiply to get SI (e.g. 9.81 for acceleration in g)
+  double input_scale = 1.0;     // multiply to get SI (e.g. 9.81 for acceleration in g); not with a header unit
   std::string output = "x";
   OutputKind output_kind = OutputKind::kDisplacement;
   double output_scale = 1.0;    // e.g. 0.1 for the harvester's laser volts → m/s
@@ -42,8 +49,10 @@ struct Record {
   std::vector<double> group_values;                 // values of the group columns for this record
 };
 
-// Loads every record of a CSV file. Errors: unreadable file, missing columns (nearest suggested),
-// non-numeric or non-finite cells (row and column), time not increasing, non-uniform sampling.
+// Loads every record of a CSV file. Errors ("row N" is the file's line N): unreadable file, missing
+// or ambiguous columns (nearest suggested), a unit of the wrong quantity (or a known unit and a scale:
+// two conversions), non-numeric or non-finite cells (row and column), an unclosed quote, a line or
+// row count over its bound, time not increasing, non-uniform sampling.
 StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnMap& columns);
 
 }  // namespace bistable

@@ -13,6 +13,7 @@
 #include <limits>
 #include <map>
 
+#include "base/iso_time.h"
 #include "base/limits.h"
 #include "base/version.h"
 #include "base/names.h"
@@ -218,15 +219,6 @@ std::string UnitFor(const SweepSpec& spec, std::string unit) {
   return unit;
 }
 
-std::string IsoTimeNow() {
-  char buf[32];
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
-
 std::vector<double> Iota(size_t n) {
   std::vector<double> v(n);
   for (size_t i = 0; i < n; ++i) v[i] = static_cast<double>(i);
@@ -346,7 +338,7 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
       f, "source",
       std::string("bistable-sweep ") + kSoftwareVersion + " (numerics " + kNumericsVersion + "): " + spec.ModelLabel() +
           " model, " + settings));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "history", IsoTimeNow() + " bistable-sweep " + kSoftwareVersion +
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "history", IsoTimeUtc(static_cast<double>(std::time(nullptr))) + " bistable-sweep " + kSoftwareVersion +
                                                              ": map of sweep " + spec.Id() + " written"));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(
       f, "references",

@@ -1,14 +1,17 @@
-// End-to-end: `bistable run | sweeps | map | query` as real processes on real files — JSON shapes,
+// End-to-end: `bistable run | sweeps | map | query` as real processes on real files — JSON shapes
+// (categories by name, integers, ISO times), `map --out -`,
 // h5py reading the map, Ctrl-C and kill -9 followed by a resume that gives a bit-identical map.
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <sstream>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -17,8 +20,11 @@
 #include "tests/process_util.h"
 #include <nlohmann/json.hpp>
 
+#include "base/iso_time.h"
+#include "engine/metric_catalog.h"
 #include "storage/index_db.h"
 #include "storage/map_file.h"
+#include "tests/iso_time_parse.h"
 
 namespace {
 
@@ -92,7 +98,162 @@ TEST(CliSweep, RunMapQueryAndSweepsHaveTheirJsonShapes) {
   ASSERT_EQ(lj.size(), 1u);
   EXPECT_EQ(lj[0]["id"], id);
   EXPECT_EQ(lj[0]["status"], "done");
+  // Times are ISO 8601 UTC, read back strictly: created before finished, both within this test's run.
+  const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  const double created = bistable_test::ParseIsoTimeUtc(lj[0]["created"].get<std::string>());
+  const double finished = bistable_test::ParseIsoTimeUtc(lj[0]["finished"].get<std::string>());
+  EXPECT_LE(created, finished) << lj[0].dump();
+  EXPECT_GT(created, now - 600) << lj[0].dump();
+  EXPECT_LE(finished, now + 1) << lj[0].dump();
+  // Map ranges of integer metrics are integers.
+  for (const auto& mm : lj[0]["maps"])
+    if (mm["metric"] == "motion" || mm["metric"] == "period" || mm["metric"] == "termination")
+      EXPECT_TRUE(mm["min"].is_number_integer() && mm["max"].is_number_integer()) << mm.dump();
   fs::remove_all(dir);
+}
+
+// JSON prints a category by its name (the map files' motion_codes) and an integer metric as an
+// integer, in `map --format json` and `query --json`; CSV keeps the codes.
+TEST(CliSweep, JsonPrintsMotionByNameAndIntegersAsIntegers) {
+  const std::string dir = Dir("names");
+  const std::string spec = WriteSpec(dir, kGrid);
+  const ProcessResult run = Bistable("run " + spec + " --data " + dir + "/data --json --no-plots");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const std::string id = nlohmann::json::parse(run.out)["id"];
+  const std::string data = " --data " + dir + "/data";
+  const std::set<std::string> names = {"intrawell", "interwell", "chaotic", "undefined"};
+
+  const ProcessResult mj = Bistable("map " + id + " --metric motion --format json" + data);
+  ASSERT_EQ(mj.exit_code, 0) << mj.err;
+  const ProcessResult mc = Bistable("map " + id + " --metric motion --format csv" + data);
+  ASSERT_EQ(mc.exit_code, 0) << mc.err;
+  const auto m = nlohmann::json::parse(mj.out);
+  EXPECT_TRUE(m["unit"].is_null()) << "names have no unit";
+  // The CSV rows (alpha, omega, code) in the JSON's order: each code is the name's code.
+  std::istringstream csv(mc.out);
+  std::string line;
+  std::getline(csv, line);
+  EXPECT_EQ(line, "alpha,omega,motion");
+  std::set<std::string> seen;
+  for (const auto& row : m["values"])
+    for (const auto& v : row) {
+      ASSERT_TRUE(v.is_string()) << v;
+      ASSERT_TRUE(names.count(v.get<std::string>())) << v;
+      seen.insert(v.get<std::string>());
+      ASSERT_TRUE(std::getline(csv, line));
+      const double code = std::stod(line.substr(line.rfind(',') + 1));
+      int want = 0;
+      ASSERT_TRUE(bistable::MotionCodeOfName(v.get<std::string>(), &want));
+      EXPECT_EQ(code, want) << line << " vs " << v;
+    }
+  EXPECT_GE(seen.size(), 2u) << "the grid shows more than one kind of motion";
+
+  const ProcessResult pj = Bistable("map " + id + " --metric period --format json" + data);
+  ASSERT_EQ(pj.exit_code, 0) << pj.err;
+  for (const auto& row : nlohmann::json::parse(pj.out)["values"])
+    for (const auto& v : row) EXPECT_TRUE(v.is_number_integer()) << v;
+
+  const ProcessResult q = Bistable("query " + id + " \"period >= 0 and motion != undefined\" --json" + data);
+  ASSERT_EQ(q.exit_code, 0) << q.err;
+  const auto qj = nlohmann::json::parse(q.out);
+  ASSERT_GT(qj["count"].get<long>(), 0);
+  for (const auto& pt : qj["points"]) {
+    EXPECT_TRUE(pt["period"].is_number_integer()) << pt;
+    ASSERT_TRUE(pt["motion"].is_string()) << pt;
+    EXPECT_TRUE(names.count(pt["motion"].get<std::string>())) << pt;
+    EXPECT_NE(pt["motion"], "undefined");
+    EXPECT_TRUE(pt["alpha"].is_number_float()) << pt;
+  }
+  // The query language reads the names JSON prints: as many chaotic points as the map shows.
+  long chaotic = 0;
+  for (const auto& row : m["values"])
+    for (const auto& v : row) chaotic += v == "chaotic";
+  const ProcessResult qc = Bistable("query " + id + " \"motion == chaotic\" --json" + data);
+  ASSERT_EQ(qc.exit_code, 0) << qc.err;
+  EXPECT_EQ(nlohmann::json::parse(qc.out)["count"].get<long>(), chaotic);
+  fs::remove_all(dir);
+}
+
+// `map --out -` is standard output, for every format: the bytes equal the file --out FILE writes.
+TEST(CliSweep, OutDashWritesTheFileBytesToStdout) {
+  const std::string dir = Dir("dash");
+  const std::string spec = WriteSpec(dir, "name = \"dash\"\nmodel = \"standalone\"\n[axes]\nalpha = [0.5, 1.0]\n"
+                                          "omega = [0.8, 1.2]\n[integration]\nt_end = 20.0\nt_keep = 10.0\n");
+  const ProcessResult run = Bistable("run " + spec + " --data " + dir + "/data --json --no-plots");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const std::string id = nlohmann::json::parse(run.out)["id"];
+  // Plots for stdout are drawn in a private directory under $TMPDIR, removed afterwards.
+  fs::create_directories(dir + "/tmp");
+  const auto map = [&](std::vector<std::string> args, const std::string& tmpdir) {
+    std::vector<std::string> argv = {BISTABLE_CLI, "map", id, "--data", dir + "/data"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    return bistable_test::RunArgv(argv, dir, {{"TMPDIR", tmpdir}}, 120);
+  };
+  for (const std::string format : {"csv", "json", "svg", "png"}) {
+    SCOPED_TRACE(format);
+    const std::string file = dir + "/lle." + format;
+    const auto to_file = map({"--metric", "lle", "--format", format, "--out", file}, dir + "/tmp");
+    ASSERT_EQ(to_file.exit_code, 0) << to_file.err;
+    const auto to_stdout = map({"--metric", "lle", "--format", format, "--out", "-"}, dir + "/tmp");
+    ASSERT_EQ(to_stdout.exit_code, 0) << to_stdout.err;
+    std::ifstream in(file, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+    ASSERT_GT(bytes.size(), 10u);
+    EXPECT_EQ(to_stdout.out.size(), bytes.size());
+    EXPECT_TRUE(to_stdout.out == bytes) << "stdout differs from the file";
+    if (format == "png") EXPECT_EQ(to_stdout.out.substr(1, 3), "PNG");
+    EXPECT_FALSE(fs::exists(dir + "/-")) << "a file named '-' was written";
+    if (format == "csv" || format == "json")
+      EXPECT_EQ(map({"--metric", "lle", "--format", format}, dir + "/tmp").out, bytes) << "no --out prints the same";
+  }
+  // The Fig. 6 scatter too.
+  const auto hd = map({"--metric", "hd_scatter", "--at", "alpha=0.5", "--out", "-"}, dir + "/tmp");
+  ASSERT_EQ(hd.exit_code, 0) << hd.err;
+  EXPECT_EQ(hd.out.substr(1, 3), "PNG");
+  EXPECT_FALSE(fs::exists(dir + "/-"));
+  EXPECT_TRUE(fs::is_empty(dir + "/tmp")) << "a temporary plot directory was left behind";
+  for (const auto& e : fs::directory_iterator(dir)) EXPECT_NE(e.path().filename().string().rfind(".bistable-", 0), 0u) << e.path();
+  // A temporary directory that cannot be made is a clear error naming out.
+  const auto notmp = map({"--metric", "lle", "--format", "svg", "--out", "-"}, dir + "/no/such/dir");
+  EXPECT_EQ(notmp.exit_code, 2);
+  EXPECT_TRUE(notmp.out.empty());
+  EXPECT_NE(notmp.err.find("(out: cannot create a temporary directory for the plot in '" + dir + "/no/such/dir'"), std::string::npos)
+      << notmp.err;
+  fs::remove_all(dir);
+}
+
+// The one time format and the category names, in process.
+TEST(JsonOut, TimesAreIso8601UtcToTheMillisecond) {
+  EXPECT_EQ(bistable::IsoTimeUtc(0), "1970-01-01T00:00:00.000Z");
+  EXPECT_EQ(bistable::IsoTimeUtc(1795381445.123), "2026-11-22T21:04:05.123Z");
+  EXPECT_EQ(bistable::IsoTimeUtc(1795381445.9996), "2026-11-22T21:04:06.000Z");  // the carry reaches the second
+  EXPECT_EQ(bistable::IsoTimeUtc(951782400.5), "2000-02-29T00:00:00.500Z");
+  EXPECT_EQ(bistable::IsoTimeUtc(253402300799.0), "9999-12-31T23:59:59.000Z");
+  for (double bad : {-1.0, 253402300800.0, double(NAN), double(INFINITY)}) EXPECT_EQ(bistable::IsoTimeUtc(bad), "") << bad;
+  for (double t : {0.0, 1.5, 1795381445.123, 1e9 + 0.999})
+    EXPECT_NEAR(bistable_test::ParseIsoTimeUtc(bistable::IsoTimeUtc(t)), t, 5e-4) << t;
+  EXPECT_TRUE(std::isnan(bistable_test::ParseIsoTimeUtc("2026-11-22 21:04:05.123Z")));
+  EXPECT_TRUE(std::isnan(bistable_test::ParseIsoTimeUtc("1795381445.123")));
+}
+
+TEST(JsonOut, CategoryCodesNameTheirMotionAndTermination) {
+  using bistable::CategoryName;
+  EXPECT_STREQ(CategoryName("motion", 0), "intrawell");
+  EXPECT_STREQ(CategoryName("motion", 1), "interwell");
+  EXPECT_STREQ(CategoryName("motion", 2), "chaotic");
+  EXPECT_STREQ(CategoryName("motion", -1), "undefined");
+  EXPECT_EQ(CategoryName("motion", 3), nullptr);
+  EXPECT_EQ(CategoryName("motion", 0.5), nullptr);
+  EXPECT_EQ(CategoryName("motion", NAN), nullptr);
+  EXPECT_STREQ(CategoryName("termination", 0), "ok");
+  EXPECT_STREQ(CategoryName("termination", 1), "diverged");
+  EXPECT_EQ(CategoryName("period", 1), nullptr);
+  EXPECT_TRUE(bistable::IsCategoryMetric("motion") && bistable::IsCategoryMetric("termination"));
+  EXPECT_FALSE(bistable::IsCategoryMetric("period"));
+  // Every name the map files' motion_codes attribute lists is a name JSON prints, with its code.
+  const std::string text = bistable::MotionCodesText();
+  for (int code : {0, 1, 2, -1})
+    EXPECT_NE(text.find(std::to_string(code) + " " + CategoryName("motion", code)), std::string::npos) << code;
 }
 
 TEST(CliSweep, BadInputIsAClearErrorAndLosesNothing) {

@@ -17,6 +17,7 @@
 
 #include "bistable.grpc.pb.h"
 #include "storage/map_file.h"
+#include "tests/iso_time_parse.h"
 #include "tests/map_compare.h"
 #include "tests/process_util.h"
 
@@ -109,10 +110,18 @@ TEST(Distributed, ThreeWorkersGiveTheEmbeddedMapBitForBit) {
   // Work was shared.
   const auto ws = nlohmann::json::parse(Bistable("workers --json --coordinator " + addr).out);
   int busy = 0;
-  for (const auto& w : ws) busy += w["items_done"].get<long>() > 0;
+  const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  for (const auto& w : ws) {
+    busy += w["items_done"].get<long>() > 0;
+    // last_seen is ISO 8601 UTC, within this test's run.
+    const double seen = bistable_test::ParseIsoTimeUtc(w["last_seen"].get<std::string>());
+    EXPECT_GT(seen, now - 300) << w.dump();
+    EXPECT_LE(seen, now + 1) << w.dump();
+  }
   EXPECT_GE(busy, 2);
   // map and query answer the same through the coordinator as from the data directory.
   for (const std::string& args : {"map " + id + " --metric frf_db --format json", "map " + id + " --metric lle --at alpha=3 --format csv",
+                                  "map " + id + " --metric motion --format json --out -",
                                   "query " + id + " \"lle > 0.01 and frf_db < 5\" --json"}) {
     const ProcessResult remote = Bistable(args + " --coordinator " + addr);
     const ProcessResult local = Bistable(args + " --data " + dir + "/data");

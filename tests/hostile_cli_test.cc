@@ -348,6 +348,42 @@ std::vector<Row> Rows() {
   rows.push_back(Case("identify_counts_and_params_finite", {Identify("{dir}/d.csv", {"--json"})})
                      .Files({{"{dir}/d.csv", RecordCsv(200)}})
                      .Json(JsonCheck::kIdentifyFinite));
+
+  // -- 7. Measured data as DAQ exports write it, broken: every refusal names the file, row (line),
+  //       column or unit and the bound; nothing of the file reaches the terminal raw.
+  const std::string plain = RecordCsv(200), body = plain.substr(plain.find('\n') + 1);
+  rows.push_back(data_row("identify_line_over_bound", plain + std::string(70000, '7') + "\n",
+                          "d.csv row 202: the line is longer than 65536 bytes (violates line length <= 65536)"));
+  rows.push_back(data_row("identify_4mb_without_newline", std::string(4 << 20, ','), "d.csv row 1: the line is longer than 65536 bytes"));
+  rows.push_back(data_row("identify_unclosed_quote", "t,x0,x\n0,\"0,0\n" + body, "d.csv row 2 column 2: a quote is not closed on its line"));
+  rows.push_back(data_row("identify_no_separator", "t x0 x\n" + body, "d.csv row 1 (header): no separator splits it"));
+  rows.push_back(data_row("identify_utf16", std::string("\xff\xfet\0,\0x\0\0\n\0", 10), "d.csv is UTF-16 text"));
+  rows.push_back(data_row("identify_time_in_mm", "t [mm],x0,x\n" + body, "column 't [mm]' (time): 'mm' is a unit of length"));
+  rows.push_back(data_row("identify_unknown_time_unit", "t [samples],x0,x\n" + body, "unknown time unit 'samples'"));
+  rows.push_back(data_row("identify_unit_and_scale", "t,x0 [mm],x\n" + body,
+                          "input_scale = 0.001 would convert it again", {"--input-scale", "0.001"}));
+  rows.push_back(data_row("identify_decimal_comma_in_comma_file", "t,x0,x\n0,\"0,5\",0\n" + body,
+                          "d.csv row 2 column 'x0': '0,5' is not a finite number"));
+  rows.push_back(data_row("identify_escape_in_header", "t,x0,\x1b]0;owned\x07\n" + body,
+                          "(allowed: t, x0, \\x1b]0;owned\\x07)"));
+  {
+    std::string wide = "t,x0";
+    for (int i = 0; i < 5000; ++i) wide += ",c" + std::to_string(i);
+    rows.push_back(data_row("identify_5000_columns_listed_briefly", wide + "\n0,0\n", "... (4938 more)"));
+  }
+  // Accepted: a DAQ export of the same rows (BOM, CRLF, comments, quoted names with units, ';', decimal comma).
+  {
+    std::string daq = "\xef\xbb\xbf# export\r\n\"t [s]\";\"x0 (m)\";\"x [m]\"\r\n";
+    for (char ch : body) {
+      if (ch == ',') daq += ';';
+      else if (ch == '.') daq += ',';
+      else if (ch == '\n') daq += "\r\n";
+      else daq += ch;
+    }
+    rows.push_back(Case("identify_daq_export_ok", {Identify("{dir}/d.csv", {"--json"})})
+                       .Files({{"{dir}/d.csv", daq}})
+                       .Json(JsonCheck::kIdentifyFinite));
+  }
   return rows;
 }
 
