@@ -85,6 +85,20 @@ int MotionCode(Motion m) {
 
 const char* MotionCodesText() { return "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"; }
 
+std::vector<std::pair<int, std::string>> MetricCodeNames(const std::string& metric) {
+  std::vector<std::pair<int, std::string>> names;
+  if (metric == "motion") {
+    for (Motion m : {Motion::kUndefined, Motion::kIntrawell, Motion::kInterwell, Motion::kChaotic})
+      names.emplace_back(MotionCode(m), MotionName(m));
+  } else if (metric == "termination") {
+    for (Termination t : {Termination::kOk, Termination::kDiverged, Termination::kStepSizeUnderflow, Termination::kMaxSteps})
+      names.emplace_back(static_cast<int>(t), TerminationName(t));
+  } else if (metric == "period") {
+    names.emplace_back(0, "none found");
+  }
+  return names;
+}
+
 size_t PointRecord::Size(bool turning_points) {
   return MetricCatalog().size() + 2 * kHdPeaksStored + (turning_points ? kTurningPointsStored : 0);
 }

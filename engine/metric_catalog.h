@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dynamics/point_spec.h"
@@ -61,6 +62,11 @@ Status CheckRecord(const double* v, size_t width, bool turning_points);
 inline constexpr int kMotionUndefined = -1;
 int MotionCode(Motion m);
 const char* MotionCodesText();  // "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"
+
+// The named values of a code metric, ascending: motion (-1 undefined, 0 intrawell, 1 interwell,
+// 2 chaotic), termination (0 ok, 1 diverged, ...), period (0 none found; other values are the period
+// itself). Empty for a metric without named codes. Figures use these for their discrete legends.
+std::vector<std::pair<int, std::string>> MetricCodeNames(const std::string& metric);
 
 }  // namespace bistable
 

@@ -15,7 +15,7 @@ PACKAGES=(
   # plots
   gnuplot-nox
   # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev python3-h5py python3-numpy python3-scipy python3-yaml iproute2
+  libgtest-dev libgmock-dev libbenchmark-dev python3-h5py python3-pil python3-numpy python3-scipy python3-yaml iproute2
   # deployment tests (deploy/container: base image, image build and run; runc where crun cannot run)
   podman debootstrap runc uidmap fuse-overlayfs slirp4netns
   # deployment tests (deploy/slurm/test-cluster.sh: a Slurm cluster in network namespaces)
