@@ -59,9 +59,10 @@ int RunChirpCommand(ChirpArgs& a) {
   if (ec) return Fail(Status::IoError("out", "cannot create '" + a.out + "': " + ec.message()));
   const double lo = std::min(a.o.from, a.o.to), hi = std::max(a.o.from, a.o.to);
   const std::string unit = dim ? "Hz" : "rad/tau";
-  ChirpFrfPlot frf_plot;
-  frf_plot.title = "frequency sweep, " + a.model + (dim ? ", A0 = " + std::to_string(a.a0_mm).substr(0, 5) + " mm" : ", alpha = " + std::to_string(a.o.alpha).substr(0, 5));
-  frf_plot.freq_label = dim ? "f [Hz]" : "{/Symbol W} [rad/{/Symbol t}]";
+  ChirpFrfPlot frf_plot = ChirpFigure("frequency sweep, " + a.model + (dim ? ", A0 = " + PlotNumber(a.a0_mm) + " mm" : ", alpha = " + PlotNumber(a.o.alpha)), dim);
+  // The CSV files are the product; without gnuplot the figures are skipped with one warning.
+  const Status gnuplot = CheckGnuplot();
+  if (!gnuplot.ok()) std::cerr << "warning: no plots: " << gnuplot.message() << "; the CSV files are written\n";
   nlohmann::json summary = {{"files", nlohmann::json::array()}, {"sweeps", nlohmann::json::array()}};
   // Ctrl-C / SIGTERM stop a sweep within ~1024 steps; files of a finished sweep stay (each is written
   // whole, by rename), nothing of an unfinished one is written.
@@ -88,39 +89,71 @@ int RunChirpCommand(ChirpArgs& a) {
     st = WriteCsv(base + "_frf.csv", std::string("freq_") + (dim ? "hz" : "rad_per_tau") + ",in_mag,out_mag,frf_db",
                   {e.freq, e.in_mag, e.out_mag, e.db});
     if (!st.ok()) return Fail(st);
-    frf_plot.curves.push_back({dir, e.freq, e.in_mag, e.out_mag, e.db});
+    frf_plot.curves.push_back(ChirpCurve("sweep " + dir, *rec, lo, hi, dim));
+    const ChirpFrfPlot::Curve& h1 = frf_plot.curves.back();
+    st = WriteCsv(base + "_h1.csv", std::string("freq_") + (dim ? "hz" : "rad_per_tau") + ",in_mag,out_mag,h1_db,coherence",
+                  {h1.freq, h1.in_mag, h1.out_mag, h1.db, h1.coherence});
+    if (!st.ok()) return Fail(st);
     const int window = a.window > 0 ? a.window : std::max(64, static_cast<int>(std::pow(2, std::round(std::log2(rec->t.size() / 60.0)))));
     const Spectrogram sg = ComputeSpectrogram(rec->y, rec->dt, window, 4 * hi, dim);
-    SpectrogramPlot sp{frf_plot.title + ", " + dir + ": spectrogram of y_m", dim ? "t [s]" : "{/Symbol t}", frf_plot.freq_label,
-                       sg.time, sg.freq, sg.db};
-    st = RenderSpectrogram(sp, base + "_spectrogram.png");
-    if (CancelRequested()) return interrupted();  // gnuplot got the terminal's SIGINT too
-    if (!st.ok()) return Fail(st);
+    // y: the frequency content of the response y_m (harmonics of the forcing show as multiples of
+    // the forcing ridge), not the forcing frequency itself.
+    SpectrogramPlot sp{frf_plot.title + ", sweep " + dir + ": spectrogram of y_m", dim ? "time t [s]" : "time {/Symbol t}",
+                       dim ? "frequency of y_m [Hz]" : "frequency of y_m, {/Symbol w} [rad/{/Symbol t}]", sg.time, sg.freq, sg.db};
+    if (gnuplot.ok()) {
+      st = RenderSpectrogram(sp, base + "_spectrogram.png");
+      if (CancelRequested()) return interrupted();  // gnuplot got the terminal's SIGINT too
+      if (!st.ok()) return Fail(st);
+    }
     double peak = -INFINITY, low = INFINITY;
     for (double v : e.db)
       if (std::isfinite(v)) peak = std::max(peak, v), low = std::min(low, v);
-    summary["sweeps"].push_back({{"direction", dir}, {"frf_max_db", peak}, {"frf_min_db", low}, {"samples", rec->t.size()},
+    double h1_peak = -INFINITY, h1_low = INFINITY, coherence = 0;
+    for (size_t i = 0; i < h1.db.size(); ++i) {
+      if (std::isfinite(h1.db[i])) h1_peak = std::max(h1_peak, h1.db[i]), h1_low = std::min(h1_low, h1.db[i]);
+      if (std::isfinite(h1.coherence[i])) coherence += h1.coherence[i] / static_cast<double>(h1.db.size());
+    }
+    summary["sweeps"].push_back({{"direction", dir}, {"frf_max_db", peak}, {"frf_min_db", low}, {"h1_max_db", h1_peak},
+                                 {"h1_min_db", h1_low}, {"coherence_mean", coherence}, {"samples", rec->t.size()},
                                  {"dt", rec->dt}, {"diverged", rec->diverged}});
-    for (const char* f : {".csv", "_frf.csv", "_spectrogram.png"}) summary["files"].push_back(base + f);
+    for (const char* f : {".csv", "_frf.csv", "_h1.csv"}) summary["files"].push_back(base + f);
+    if (gnuplot.ok()) summary["files"].push_back(base + "_spectrogram.png");
   }
   RestoreDefaultSignalHandlers();
   const std::string frf_png = (std::filesystem::path(a.out) / "frf.png").string();
-  Status st = RenderChirpFrf(frf_plot, frf_png);
-  if (!st.ok()) return Fail(st);
-  summary["files"].push_back(frf_png);
+  if (gnuplot.ok()) {
+    Status st = RenderChirpFrf(frf_plot, frf_png);
+    if (!st.ok()) return Fail(st);
+    summary["files"].push_back(frf_png);
+  }
   summary["unit"] = unit;
   if (a.json) {
     std::cout << summary.dump(1) << "\n";
   } else {
     for (const auto& sw : summary["sweeps"])
-      std::printf("%-4s sweep: FRF from %.1f to %.1f dB over [%g, %g] %s\n", sw["direction"].get<std::string>().c_str(),
-                  sw["frf_min_db"].get<double>(), sw["frf_max_db"].get<double>(), lo, hi, unit.c_str());
+      std::printf("%-4s sweep: H1 FRF from %.1f to %.1f dB over [%g, %g] %s (mean coherence %.2f; raw FFT ratio %.1f to %.1f dB)\n",
+                  sw["direction"].get<std::string>().c_str(), sw["h1_min_db"].get<double>(), sw["h1_max_db"].get<double>(), lo, hi,
+                  unit.c_str(), sw["coherence_mean"].get<double>(), sw["frf_min_db"].get<double>(), sw["frf_max_db"].get<double>());
     for (const auto& f : summary["files"]) std::printf("wrote %s\n", f.get<std::string>().c_str());
   }
   return 0;
 }
 
 }  // namespace
+
+ChirpFrfPlot::Curve ChirpCurve(const std::string& label, const ChirpRecord& rec, double lo, double hi, bool hz) {
+  const H1Estimate h = WelchH1(rec.v0, rec.v_abs, rec.dt, lo, hi, hz);
+  const FrfEstimate raw = FftFrf(rec.v0, rec.v_abs, rec.dt, lo, hi, hz);
+  return {label, h.freq, h.in_mag, h.out_mag, h.db, h.coherence, raw.freq, raw.db};
+}
+
+ChirpFrfPlot ChirpFigure(const std::string& title, bool hz) {
+  ChirpFrfPlot p;
+  p.title = title;
+  p.freq_label = hz ? "frequency f [Hz]" : "frequency {/Symbol w} [rad/{/Symbol t}]";
+  p.mag_label = hz ? "velocity amplitude [m/s]" : "velocity amplitude [{/Symbol d}_s {/Symbol w}_n]";
+  return p;
+}
 
 void AddChirpCommand(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<ChirpArgs>();
@@ -138,8 +171,9 @@ void AddChirpCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--out", a->out, "output directory")->capture_default_str();
   cmd->add_flag("--json", a->json, "print {files, sweeps: [{direction, frf_max_db, frf_min_db, ...}], unit}");
   cmd->footer(
-      "The base follows a linear chirp; the FRF is |FFT(output abs. velocity)| / |FFT(input velocity)| in dB over\n"
-      "the swept band (paper Eq. 10 in the frequency domain). Stepped-sine sweeps: a sweep spec with\n"
+      "The base follows a linear chirp; the FRF is the Welch-averaged H1 = Sxy/Sxx of output abs. velocity over\n"
+      "input velocity in dB with its coherence (sweep_*_h1.csv), and the raw |FFT(out)| / |FFT(in)| (sweep_*_frf.csv;\n"
+      "paper Eq. 10 in the frequency domain). Stepped-sine sweeps: a sweep spec with\n"
       "[continuation] axis = \"omega\" (examples/stepped_sine.toml).");
   cmd->callback([a, exit_code]() { *exit_code = RunChirpCommand(*a); });
 }

@@ -45,9 +45,9 @@ AxisCombo Combo(const SweepSpec& spec, const std::vector<size_t>& free, long c) 
     const long n = static_cast<long>(spec.axes[k].values.size());
     combo.fixed[k] = static_cast<size_t>(c % n);
     c /= n;
-    const std::string v = FormatNumber(spec.axes[k].values[combo.fixed[k]]);
-    combo.suffix += "_" + spec.axes[k].name + "=" + v;
-    combo.title += ", " + spec.axes[k].name + " = " + v;
+    const double v = spec.axes[k].values[combo.fixed[k]];
+    combo.suffix += "_" + spec.axes[k].name + "=" + FormatNumber(v);  // file names: every digit that tells values apart
+    combo.title += ", " + spec.axes[k].name + " = " + PlotNumber(v);
   }
   return combo;
 }
@@ -74,32 +74,58 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
                    [&](size_t a, size_t b) { return spec.axes[a].values.size() > spec.axes[b].values.size(); });
   std::vector<size_t> free(order.begin(), order.begin() + std::min<size_t>(2, order.size()));
   const long combos = std::min<long>(ComboCount(spec, free), 12);
+  // Each failed figure is a warning; a gnuplot that cannot start stops the rest (one warning, not one per figure).
+  bool gnuplot_gone = false;
+  auto render = [&](const Status& st, const std::string& out) {
+    if (st.ok()) {
+      files.push_back(out);
+      return;
+    }
+    gnuplot_gone = st.message().find("cannot start gnuplot") != std::string::npos;
+    std::cerr << "warning: " << st.ToString() << "\n";
+  };
+  const std::string prefix = spec.name.empty() ? spec.Id() : spec.name;
+  // With continuation in both directions, a heatmap per direction; curves show both (MapFigure).
+  const int directions = spec.continuation.enabled() ? spec.continuation.directions() : 1;
   for (const std::string& metric : spec.plots) {
     auto m = ReadMapMetric(map_path, metric);
     if (!m.ok()) {
       std::cerr << "warning: plot " << metric << ": " << m.status().ToString() << "\n";
       continue;
     }
-    for (long c = 0; c < combos && !CancelRequested(); ++c) {  // asked to stop: no more gnuplot runs
+    const bool has_direction_dim = std::find(m->dim_names.begin(), m->dim_names.end(), "direction") != m->dim_names.end();
+    const int per_combo = free.size() == 2 && has_direction_dim ? directions : 1;
+    std::vector<std::pair<PlotData, std::string>> figures;  // the figures of this metric and their files
+    for (long c = 0; c < combos; ++c) {
       const AxisCombo combo = Combo(spec, free, c);
-      std::map<std::string, double> at;
-      for (size_t k = 0; k < spec.axes.size(); ++k)
-        if (std::find(free.begin(), free.end(), k) == free.end()) at[spec.axes[k].name] = spec.axes[k].values[combo.fixed[k]];
-      const std::string& suffix = combo.suffix;
-      auto slice = SliceMap(*m, at, 2);
-      if (!slice.ok()) continue;
-      if (std::none_of(slice->values.begin(), slice->values.end(), [](double v) { return std::isfinite(v); })) continue;
-      PlotData d;
-      d.metric = metric;
-      d.unit = slice->unit;
-      d.motion = metric == "motion";
-      for (const Axis& a : slice->free) d.axis_names.push_back(a.name), d.axis_units.push_back(AxisUnit(a.name)), d.axis_values.push_back(a.values);
-      d.values = slice->values;
-      d.title = (spec.name.empty() ? spec.Id() : spec.name) + ": " + metric + suffix;
-      const std::string out = (std::filesystem::path(dir) / (metric + suffix + ".png")).string();
-      Status st = RenderPlot(d, out);
-      if (st.ok()) files.push_back(out);
-      else std::cerr << "warning: " << st.ToString() << "\n";
+      for (int item = 0; item < per_combo; ++item) {
+        std::map<std::string, double> at;
+        for (size_t k = 0; k < spec.axes.size(); ++k)
+          if (std::find(free.begin(), free.end(), k) == free.end()) at[spec.axes[k].name] = spec.axes[k].values[combo.fixed[k]];
+        std::string suffix = combo.suffix;
+        if (per_combo == 2) at["direction"] = item, suffix += spec.ChainGoesDown(item) ? "_down" : "_up";
+        auto d = MapFigure(*m, at, prefix);
+        if (!d.ok()) continue;
+        if (std::none_of(d->values.begin(), d->values.end(), [](double v) { return std::isfinite(v); })) continue;
+        figures.emplace_back(std::move(*d), (std::filesystem::path(dir) / (metric + suffix + ".png")).string());
+      }
+    }
+    // Maps of one metric from one sweep are compared with each other: one colour range for all.
+    size_t heatmaps = 0;
+    std::vector<double> all;
+    for (const auto& [d, out] : figures)
+      if (d.axis_names.size() == 2 && d.codes.empty()) ++heatmaps, all.insert(all.end(), d.values.begin(), d.values.end());
+    if (heatmaps > 1) {
+      const auto [lo, hi] = ColourRange(metric, all);
+      for (auto& [d, out] : figures) {
+        if (d.axis_names.size() != 2 || !d.codes.empty()) continue;
+        d.cb_lo = lo, d.cb_hi = hi;
+        d.title += "\n(colour scale shared by the " + std::to_string(heatmaps) + " " + metric + " maps of this sweep)";
+      }
+    }
+    for (const auto& [d, out] : figures) {
+      if (CancelRequested() || gnuplot_gone) break;  // asked to stop: no more gnuplot runs
+      render(RenderPlot(d, out), out);
     }
   }
   // Fig. 6: one harmonic-diffusion scatter per combination of the axes other than omega (at most 3,
@@ -129,7 +155,7 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
           }
         }
         const std::string out = (std::filesystem::path(dir) / ("hd_scatter" + suffix + ".png")).string();
-        if (RenderHdScatter(sd, out).ok()) files.push_back(out);
+        if (!gnuplot_gone) render(RenderHdScatter(sd, out), out);
       }
     }
   }
@@ -163,7 +189,7 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
           }
         }
         const std::string out = (std::filesystem::path(dir) / ("bifurcation" + suffix + ".png")).string();
-        if (RenderBifurcation(bd, out).ok()) files.push_back(out);
+        if (!gnuplot_gone) render(RenderBifurcation(bd, out), out);
       }
     }
   }

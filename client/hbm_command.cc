@@ -1,4 +1,5 @@
 // `bistable hbm`: harmonic balance with continuation and stability (model.md §4).
+#include <algorithm>
 #include <iostream>
 #include <memory>
 
@@ -23,7 +24,8 @@ nlohmann::json PointJson(const HbmPoint& p) {
   auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
   return {{"omega", p.omega},       {"alpha", p.alpha},   {"amplitude", num(p.amplitude)}, {"mean", num(p.mean)},
           {"stable", p.stable},     {"max_multiplier", num(p.max_multiplier)},  {"converged", p.converged},
-          {"fold", p.fold},         {"branch_point", p.branch_point},           {"harmonics", p.harmonics}};
+          {"fold", p.fold},         {"branch_point", p.branch_point},           {"harmonics", p.harmonics},
+          {"y_min", num(p.y_min)},  {"y_max", num(p.y_max)}};
 }
 
 int RunHbm(HbmArgs& a) {
@@ -48,7 +50,10 @@ int RunHbm(HbmArgs& a) {
     nlohmann::json branches = nlohmann::json::array();
     for (const HbmBranch& b : r->branches) {
       nlohmann::json pts = nlohmann::json::array();
-      for (const HbmPoint& p : b.points) pts.push_back(PointJson(p));
+      for (const HbmPoint& p : b.points) {
+        pts.push_back(PointJson(p));
+        if (IsBistable(a.o.model)) pts.back()["well"] = OrbitWellName(WellOf(p));
+      }
       branches.push_back({{"start", b.start}, {"points", pts}});
     }
     nlohmann::json settings = {{"model", ModelName(a.o.model)}, {"continue", a.param}, {"from", a.o.from}, {"to", a.o.to},
@@ -60,23 +65,9 @@ int RunHbm(HbmArgs& a) {
                                  {"truncation_change", r->truncation_change}}).dump(1) << "\n";
   }
   if (!a.format.empty() || !a.out.empty()) {
-    BranchPlot d;
-    d.title = std::string("harmonic balance, ") + ModelName(a.o.model) + " (H = " + std::to_string(a.o.harmonics) + "), " +
-              (omega ? "alpha = " + std::to_string(a.o.alpha).substr(0, 5) : "Omega = " + std::to_string(a.o.omega).substr(0, 5));
-    d.x_name = omega ? "omega" : "alpha";
-    d.x_unit = omega ? "omega0/omega_n" : "A0/delta_s";
-    d.y_label = "max |y_m| over a period [{/Symbol d}_s]";
-    for (const HbmBranch& b : r->branches) {
-      BranchPlot::Branch br;
-      for (const HbmPoint& p : b.points) {
-        if (!p.converged) continue;
-        br.x.push_back(omega ? p.omega : p.alpha);
-        br.y.push_back(p.amplitude);
-        br.stable.push_back(p.stable);
-        if (p.fold) br.fold_x.push_back(br.x.back()), br.fold_y.push_back(p.amplitude);
-      }
-      d.branches.push_back(br);
-    }
+    BranchPlot d = HbmBranchPlot(*r, a.o.model, a.o.param,
+                                 std::string("harmonic balance, ") + ModelName(a.o.model) + " (H = " + std::to_string(a.o.harmonics) +
+                                     "), " + (omega ? "alpha = " + PlotNumber(a.o.alpha) : "Omega = " + PlotNumber(a.o.omega)));
     if (a.eq9) {
       d.extra_label = "one harmonic, zero mean (corrected Eq. 9)";
       for (int k = 0; k <= 600; ++k) {
@@ -105,6 +96,48 @@ int RunHbm(HbmArgs& a) {
 }
 
 }  // namespace
+
+BranchPlot HbmBranchPlot(const HbmResult& r, ModelKind model, ContinuationParam param, const std::string& title) {
+  const bool omega = param == ContinuationParam::kOmega;
+  BranchPlot d;
+  d.title = title;
+  d.x_name = omega ? "omega" : "alpha";
+  d.x_unit = omega ? "omega0/omega_n" : "A0/delta_s";
+  d.y_label = "max |y_m| over a period [{/Symbol d}_s]";
+  auto name_of = [&](const HbmPoint& p) { return IsBistable(model) ? std::string(OrbitWellName(WellOf(p))) : std::string("periodic orbit"); };
+  for (const HbmBranch& b : r.branches) {
+    BranchPlot::Branch br;
+    auto add = [&](const HbmPoint& p) {
+      br.x.push_back(omega ? p.omega : p.alpha);
+      br.y.push_back(p.amplitude);
+      br.stable.push_back(p.stable);
+    };
+    for (const HbmPoint& p : b.points) {
+      if (!p.converged) continue;
+      const std::string name = name_of(p);
+      if (!br.x.empty() && name != br.name) {  // the orbit changes well: the run ends at this point
+        add(p);
+        d.branches.push_back(std::move(br));
+        br = BranchPlot::Branch{};
+      }
+      br.name = name;
+      add(p);
+      if (p.fold) br.fold_x.push_back(br.x.back()), br.fold_y.push_back(p.amplitude);
+    }
+    if (!br.x.empty()) d.branches.push_back(std::move(br));
+  }
+  // +well and -well orbits are mirror images (y -> -y) with the same max |y_m|: their curves coincide.
+  // The +well ones are drawn first and wider, so both stay visible.
+  auto rank = [](const BranchPlot::Branch& b) { return b.name == "+well" ? 0 : b.name == "-well" ? 2 : 1; };
+  std::stable_sort(d.branches.begin(), d.branches.end(), [&](const auto& x, const auto& y) { return rank(x) < rank(y); });
+  bool plus = false, minus = false;
+  for (auto& b : d.branches) {
+    if (b.name == "+well") b.width = 5, plus = true;
+    minus |= b.name == "-well";
+  }
+  if (plus && minus) d.title += "\n(+well, -well: mirror images with equal max |y_m|; the wider +well curves lie beneath)";
+  return d;
+}
 
 void AddHbmCommand(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<HbmArgs>();

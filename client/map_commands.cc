@@ -220,7 +220,7 @@ int HdScatter(const MapArgs& a) {
         for (size_t i = 0; i < v.size(); ++i)
           if (std::fabs(v[i] - it->second) <= 1e-9 * std::max(1.0, std::fabs(it->second))) idx = i;
         if (idx == v.size()) return Fail(Status::InvalidArgument("at", "--at " + name + " value is not on the axis"));
-        sd.title += ", " + name + "=" + std::to_string(it->second);
+        sd.title += ", " + name + " = " + PlotNumber(it->second);
       }
     } else if (it != at->end()) {
       idx = static_cast<size_t>(it->second);
@@ -279,16 +279,10 @@ int ShowMap(const MapArgs& a) {
     const Status st = WriteOut(a.out, os.str());
     return st.ok() ? 0 : Fail(st);
   }
-  PlotData d;
-  d.metric = s->metric;
-  d.unit = s->unit;
-  d.motion = s->metric == "motion";
-  for (const Axis& ax : s->free) d.axis_names.push_back(ax.name), d.axis_units.push_back(AxisUnit(ax.name)), d.axis_values.push_back(ax.values);
-  d.values = s->values;
-  d.title = (ref.name.empty() ? ref.id : ref.name) + ": " + s->metric;
-  for (const auto& [k, v] : s->fixed) d.title += ", " + k + "=" + std::to_string(v).substr(0, 6);
+  auto d = MapFigure(*m, *at, ref.name.empty() ? ref.id : ref.name);
+  if (!d.ok()) return Fail(d.status());
   const std::string out = a.out.empty() ? ref.id + "_" + s->metric + "." + a.format : a.out;
-  Status st = PlotOut(out, a.format, [&](const std::string& path) { return RenderPlot(d, path, a.format); });
+  Status st = PlotOut(out, a.format, [&](const std::string& path) { return RenderPlot(*d, path, a.format); });
   return st.ok() ? 0 : Fail(st);
 }
 

@@ -2,10 +2,14 @@
 
 #include "client/cli_common.h"
 
+#include <algorithm>
 #include <cmath>
+#include <set>
 #include <sstream>
 
 #include "base/validate.h"
+#include "engine/metric_catalog.h"
+#include "engine/sweep_spec.h"
 
 namespace bistable {
 
@@ -94,6 +98,68 @@ StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>&
         s.values.push_back(m.values[base + i * stride[free_dims[0]] + j * stride[free_dims[1]]]);
   }
   return s;
+}
+
+std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::vector<double>& values) {
+  const MetricInfo* info = FindMetric(metric);
+  if (!info || !info->integer) return {};
+  std::set<double> present;
+  for (double v : values)
+    if (std::isfinite(v)) present.insert(v);
+  std::vector<PlotData::Code> codes;
+  std::vector<std::pair<int, std::string>> named;
+  for (const Category& c : MetricCategories(metric)) named.emplace_back(c.code, c.name);
+  if (metric == "period") named.emplace_back(0, "none found");  // a count whose 0 means "no period"
+  for (const auto& [value, name] : named) {
+    const bool shown = metric == "period" || (metric == "motion" && value != kMotionUndefined) || present.count(value);
+    if (!shown) continue;
+    // Fixed colours for the named codes: grey for "nothing" (undefined, none found), the motion
+    // kinds as in the paper's maps (blue intrawell, orange interwell, red chaotic), green for ok.
+    std::string colour;
+    if (name == "undefined" || name == "none found") colour = "#bdbdbd";
+    else if (name == "intrawell") colour = "#2c7bb6";
+    else if (name == "interwell") colour = "#fdae61";
+    else if (name == "chaotic") colour = "#d7191c";
+    else if (name == "ok") colour = "#1a9850";
+    codes.push_back({static_cast<double>(value), name, colour});
+  }
+  for (double v : present)
+    if (std::none_of(codes.begin(), codes.end(), [&](const PlotData::Code& c) { return c.value == v; }))
+      codes.push_back({v, FormatNumber(v), ""});
+  if (codes.size() > 16) return {};
+  std::sort(codes.begin(), codes.end(), [](const PlotData::Code& a, const PlotData::Code& b) { return a.value < b.value; });
+  return codes;
+}
+
+StatusOr<PlotData> MapFigure(const MapArray& m, std::map<std::string, double> at, const std::string& title_prefix) {
+  const auto dir_dim = std::find(m.dim_names.begin(), m.dim_names.end(), "direction");
+  const bool both_directions = dir_dim != m.dim_names.end() && m.dims[dir_dim - m.dim_names.begin()] == 2 && !at.count("direction");
+  if (both_directions) at["direction"] = 0;
+  auto s = SliceMap(m, at, 2);
+  if (!s.ok()) return s.status();
+  PlotData d;
+  d.metric = s->metric;
+  d.unit = s->unit;
+  for (const Axis& a : s->free) d.axis_names.push_back(a.name), d.axis_units.push_back(AxisUnit(a.name)), d.axis_values.push_back(a.values);
+  d.values = s->values;
+  std::map<std::string, double> fixed = s->fixed;
+  if (both_directions && s->free.size() == 1) {
+    at["direction"] = 1;
+    auto down = SliceMap(m, at, 2);
+    if (!down.ok()) return down.status();
+    d.values.insert(d.values.end(), down->values.begin(), down->values.end());
+    d.series = {"sweep up", "sweep down"};
+    fixed.erase("direction");
+  }
+  d.codes = MetricCodes(d.metric, d.values);
+  d.title = title_prefix + ": " + s->metric;
+  for (const auto& [name, value] : fixed) {
+    const size_t k = std::find(m.dim_names.begin(), m.dim_names.end(), name) - m.dim_names.begin();
+    if (k >= m.dims.size() || m.dims[k] < 2) continue;  // no choice: nothing to say
+    if (name == "direction") d.title += value == 0 ? ", sweep up" : ", sweep down";
+    else d.title += ", " + name + " = " + PlotNumber(value);
+  }
+  return d;
 }
 
 }  // namespace bistable

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "client/plot.h"
 #include "storage/map_file.h"
 
 namespace bistable {
@@ -23,6 +24,18 @@ StatusOr<std::map<std::string, double>> ParseAt(const std::string& text);
 // Fixes the named dimensions (values must be on the axis, to 1e-9 relative), dimensions of length 1
 // and the ic dimension (default ic = 0); what is left are the free axes (at most max_free).
 StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>& at, int max_free);
+
+// The discrete legend of an integer metric (engine/metric_catalog.h's FindMetric(metric)->integer):
+// its named codes (MetricCategories, and period's 0 "none found"; motion's three kinds always, so colours mean the same in every
+// figure) and every other whole value present, by number. Empty (a continuous scale) for other
+// metrics, or when more than 16 distinct values are present.
+std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::vector<double>& values);
+
+// A figure of a slice of `m` (SliceMap with `at`): axes with units, codes for integer metrics, and,
+// for a curve of a continuation map whose `direction` dimension `at` leaves free, the up and down
+// sweeps as two series. Title: "<prefix>: <metric>" and the fixed dimensions that have a choice
+// (numbers to 4 significant digits, directions by name).
+StatusOr<PlotData> MapFigure(const MapArray& m, std::map<std::string, double> at, const std::string& title_prefix);
 
 }  // namespace bistable
 

@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -191,7 +192,9 @@ Status RunGnuplot(const std::string& script, const std::string& out_path) {
   posix_spawn_file_actions_destroy(&fa);
   posix_spawnattr_destroy(&attr);
   if (spawn_rc != 0)
-    return Status::IoError("plot", "cannot start gnuplot: " + Errno(spawn_rc) + " (install gnuplot-nox: scripts/setup.sh)");
+    return Status::IoError("plot", "cannot start gnuplot: " + Errno(spawn_rc) +
+                                       (spawn_rc == ENOENT ? " (not on PATH; install gnuplot-nox: scripts/setup.sh)"
+                                                           : " (install gnuplot-nox: scripts/setup.sh)"));
   pipe_r.reset();
 
   const std::string full = "set output " + GnuplotString(tmp) + "\n" + script + "\nunset output\n";
@@ -259,7 +262,75 @@ std::string Num(double v) {
   return b;
 }
 
+// A qualitative palette (ColorBrewer Dark2 and Set1, colour-blind aware in the first few) for codes
+// and named branches.
+constexpr const char* kQualitative[] = {"#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02",
+                                        "#a6761d", "#377eb8", "#e41a1c", "#984ea3", "#ff7f00", "#666666"};
+
+// Room on the right for the colour box, its tick labels and its label (pngcairo 900 px wide).
+constexpr const char* kColourBoxMargins = "set lmargin 12\nset rmargin 18\n";
+
+// Index of the code whose value is v, or -1.
+int CodeIndex(const std::vector<PlotData::Code>& codes, double v) {
+  for (size_t i = 0; i < codes.size(); ++i)
+    if (codes[i].value == v) return static_cast<int>(i);
+  return -1;
+}
+
+std::string CodeColour(const std::vector<PlotData::Code>& codes, size_t i) {
+  size_t automatic = 0;
+  for (size_t k = 0; k < i; ++k) automatic += codes[k].colour.empty();
+  return codes[i].colour.empty() ? kQualitative[automatic % 12] : codes[i].colour;
+}
+
+// Code i owns the colour band [i, i+1] of a palette over [0, K] (drawn at i + 0.5).
+std::string CodePalette(const std::vector<PlotData::Code>& codes) {
+  std::ostringstream s;
+  s << "set palette defined (";
+  for (size_t i = 0; i < codes.size(); ++i) {
+    const std::string c = CodeColour(codes, i);
+    s << (i ? ", " : "") << i << " " << GnuplotString(c) << ", " << i + 1 << " " << GnuplotString(c);
+  }
+  s << ")\nset palette maxcolors " << codes.size() << "\nset cbrange [0:" << codes.size() << "]\n";
+  return s.str();
+}
+
 }  // namespace
+
+std::pair<double, double> ColourRange(const std::string& metric, const std::vector<double>& values) {
+  double lo = INFINITY, hi = -INFINITY;
+  for (double v : values)
+    if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+  if (lo > hi) return {0.0, 1.0};  // nothing finite
+  if (metric == "frf_db" || metric == "lle") {
+    const double m = std::max({std::fabs(lo), std::fabs(hi), 1e-12});
+    return {-m, m};
+  }
+  if (lo == hi) return {lo - 0.5, hi + 0.5};
+  return {lo, hi};
+}
+
+std::string PlotNumber(double v) {
+  if (!std::isfinite(v)) return std::isnan(v) ? "NaN" : (v > 0 ? "inf" : "-inf");
+  char b[32];
+  std::snprintf(b, sizeof b, "%.4g", v);
+  return b;
+}
+
+Status CheckGnuplot() {
+  const char* path = std::getenv("PATH");
+  std::string dirs = path ? path : "/bin:/usr/bin";
+  size_t start = 0;
+  while (start <= dirs.size()) {
+    const size_t end = std::min(dirs.find(':', start), dirs.size());
+    const std::string dir = end > start ? dirs.substr(start, end - start) : ".";
+    const std::string file = dir + "/gnuplot";
+    struct stat st{};
+    if (::stat(file.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::access(file.c_str(), X_OK) == 0) return Status::Ok();
+    start = end + 1;
+  }
+  return Status::FailedPrecondition("gnuplot not found on PATH: install gnuplot-nox (scripts/setup.sh)");
+}
 
 std::string AxisLabel(const std::string& name, const std::string& unit) {
   if (name == "a0_mm") return "base amplitude A_0 [mm]";
@@ -278,53 +349,93 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
   if (format.empty()) format = std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png";
   if (format != "png" && format != "svg")
     return Status::InvalidArgument("format", "format = '" + format + "' violates format in {png, svg}");
+  if (d.axis_names.empty() || d.axis_names.size() > 2 || d.axis_values.size() != d.axis_names.size() ||
+      d.axis_units.size() != d.axis_names.size())
+    return Status::InvalidArgument("plot", "a plot needs 1 or 2 axes with names, units and values");
+  const std::string label = d.metric + (d.unit.empty() || d.unit == "code" ? "" : " [" + d.unit + "]");
+  const auto& codes = d.codes;
+  // Codes are drawn by their index (0..K-1): one unit-wide colour band / y row each.
+  auto coded = [&](double v) {
+    const int i = std::isfinite(v) ? CodeIndex(codes, v) : -1;
+    return i < 0 ? std::nan("") : static_cast<double>(i);
+  };
   std::ostringstream s;
   s << Terminal(format) << "set title " << GnuplotString(d.title) << " noenhanced\n";
   s << "set xlabel " << GnuplotString(AxisLabel(d.axis_names.back(), d.axis_units.back())) << "\n";
+  s << "set datafile missing 'NaN'\n";
   if (d.axis_names.size() == 2) {
-    s << "set ylabel " << GnuplotString(AxisLabel(d.axis_names[0], d.axis_units[0])) << "\n";
-    s << "set cblabel " << GnuplotString(d.metric + (d.unit.empty() ? "" : " [" + d.unit + "]")) << " noenhanced\n";
-    s << "set datafile missing 'NaN'\nset tics out\nset key off\n";
     const auto& ys = d.axis_values[0];
     const auto& xs = d.axis_values[1];
+    if (ys.empty() || xs.empty() || d.values.size() != xs.size() * ys.size())
+      return Status::InvalidArgument("plot", "a heatmap needs one value per pair of axis values");
+    s << "set ylabel " << GnuplotString(AxisLabel(d.axis_names[0], d.axis_units[0])) << "\n";
+    s << "set cblabel " << GnuplotString(label) << " noenhanced\n" << kColourBoxMargins;
+    s << "set tics out\nset key off\n";
     s << "set xrange [" << Num(xs.front()) << ":" << Num(xs.back()) << "]\n";
     s << "set yrange [" << Num(ys.front()) << ":" << Num(ys.back()) << "]\n";
-    if (d.motion) {
-      // Discrete: each code owns one unit-wide band of the colour box.
-      s << "set palette defined (-1.5 'gray', -0.5 'gray', -0.5 '#2c7bb6', 0.5 '#2c7bb6', 0.5 '#fdae61', 1.5 '#fdae61', "
-           "1.5 '#d7191c', 2.5 '#d7191c')\nset cbrange [-1.5:2.5]\n"
-           "set cbtics ('undefined' -1, 'intrawell' 0, 'interwell' 1, 'chaotic' 2)\n";
-    } else if (d.metric == "frf_db") {
-      // Diverging palette centred on 0 dB: attenuation blue, amplification red.
-      double lo = 0, hi = 0;
-      for (double v : d.values)
-        if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
-      const double m = std::max(std::fabs(lo), std::fabs(hi));
-      s << "set palette defined (-1 '#2166ac', 0 'white', 1 '#b2182b')\nset cbrange [" << Num(-m) << ":" << Num(m) << "]\n";
-    } else if (d.metric == "lle") {
-      s << "set palette defined (-1 '#2166ac', 0 'white', 1 '#b2182b')\n";
-      double m = 0;
-      for (double v : d.values)
-        if (std::isfinite(v)) m = std::max(m, std::fabs(v));
-      s << "set cbrange [" << Num(-m) << ":" << Num(m) << "]\n";
+    if (!codes.empty()) {
+      // Discrete: code i owns the colour band [i, i+1] and is drawn at i + 0.5; ticks name it.
+      s << CodePalette(codes) << "set cbtics (";
+      for (size_t i = 0; i < codes.size(); ++i) s << (i ? ", " : "") << GnuplotString(codes[i].name) << " " << i + 0.5;
+      s << ") scale 0\n";
     } else {
-      s << kViridis;
+      std::pair<double, double> range = ColourRange(d.metric, d.values);
+      if (std::isfinite(d.cb_lo) && std::isfinite(d.cb_hi) && d.cb_lo < d.cb_hi) range = {d.cb_lo, d.cb_hi};
+      if (d.metric == "frf_db" || d.metric == "lle")  // diverging about 0: blue below, red above
+        s << "set palette defined (-1 '#2166ac', 0 'white', 1 '#b2182b')\n";
+      else
+        s << kViridis;
+      s << "set cbrange [" << Num(range.first) << ":" << Num(range.second) << "]\n";
     }
-    // Image with pixel centres at the axis values (non-uniform axes: gnuplot's image needs uniform
-    // spacing, so use pm3d map which draws quadrilaterals between the given coordinates).
+    // Quadrilaterals between the given coordinates (pm3d map: gnuplot's image needs uniform spacing).
     s << "set view map\nset pm3d map corners2color c1\nset pm3d interpolate 1,1\n";
     s << "$data << EOD\n";
     for (size_t i = 0; i < ys.size(); ++i) {
-      for (size_t j = 0; j < xs.size(); ++j)
-        s << Num(xs[j]) << " " << Num(ys[i]) << " " << Num(d.values[i * xs.size() + j]) << "\n";
+      for (size_t j = 0; j < xs.size(); ++j) {
+        const double v = d.values[i * xs.size() + j];
+        s << Num(xs[j]) << " " << Num(ys[i]) << " " << Num(codes.empty() ? v : coded(v) + 0.5) << "\n";
+      }
       s << "\n";
     }
     s << "EOD\nsplot $data using 1:2:3 with pm3d\n";
   } else {
-    s << "set ylabel " << GnuplotString(d.metric + (d.unit.empty() ? "" : " [" + d.unit + "]")) << " noenhanced\nset grid\nset key off\n";
-    s << "$data << EOD\n";
-    for (size_t j = 0; j < d.axis_values[0].size(); ++j) s << Num(d.axis_values[0][j]) << " " << Num(d.values[j]) << "\n";
-    s << "EOD\nplot $data using 1:2 with linespoints pt 7 ps 0.5 lw 1.5\n";
+    const auto& xs = d.axis_values[0];
+    const size_t n_series = std::max<size_t>(1, d.series.size());
+    if (xs.empty() || d.values.size() != xs.size() * n_series)
+      return Status::InvalidArgument("plot", "a curve needs one value per axis value and series");
+    s << "set grid\n" << (d.series.empty() ? "set key off\n" : "set key outside right top\n");
+    for (size_t k = 0; k < n_series; ++k) {
+      // Codes: series side by side within the code's row, so up and down stay visible where they agree.
+      const double offset = codes.empty() || n_series == 1 ? 0.0 : 0.24 * (static_cast<double>(k) - 0.5 * (n_series - 1));
+      s << "$s" << k << " << EOD\n";
+      for (size_t j = 0; j < xs.size(); ++j) {
+        const double v = d.values[k * xs.size() + j];
+        s << Num(xs[j]) << " " << Num(codes.empty() ? v : coded(v) + offset) << " " << Num(codes.empty() ? 0.0 : coded(v) + 0.5) << "\n";
+      }
+      s << "EOD\n";
+    }
+    const char* series_colours[] = {"#2166ac", "#b2182b", "#1b9e77", "#7570b3"};
+    std::string plot = "plot ";
+    if (!codes.empty()) {
+      s << "set ylabel " << GnuplotString(label) << " noenhanced\nset yrange [-0.6:" << codes.size() - 0.4 << "]\nset ytics (";
+      for (size_t i = 0; i < codes.size(); ++i) s << (i ? ", " : "") << GnuplotString(codes[i].name) << " " << i;
+      s << ")\nset grid noytics\nset lmargin 16\n";
+      // Each point coloured by its code; a series' marker tells the sweep direction.
+      s << CodePalette(codes) << "unset colorbox\n";
+      const char* markers[] = {"7", "5", "9", "13"};
+      for (size_t k = 0; k < n_series; ++k)
+        plot += "$s" + std::to_string(k) + " using 1:2:3 with points pt " + markers[k % 4] + " ps 0.8 lc palette notitle, ";
+      // The legend tells series apart by marker (the colour is the code's): black samples.
+      for (size_t k = 0; k < d.series.size(); ++k)
+        plot += "NaN with points pt " + std::string(markers[k % 4]) + " ps 0.8 lc rgb 'black' title " + GnuplotString(d.series[k]) + ", ";
+    } else {
+      s << "set ylabel " << GnuplotString(label) << " noenhanced\n";
+      for (size_t k = 0; k < n_series; ++k)
+        plot += "$s" + std::to_string(k) + " using 1:2 with linespoints pt 7 ps 0.5 lw 1.5 lc rgb '" + series_colours[k % 4] +
+                "' title " + GnuplotString(d.series.empty() ? "" : d.series[k]) + ", ";
+    }
+    plot.resize(plot.size() - 2);
+    s << plot << "\n";
   }
   return RunGnuplot(s.str(), out_path);
 }
@@ -334,39 +445,54 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
   s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");
   s << "set title " << GnuplotString(d.title) << " noenhanced\n";
   s << "set xlabel " << GnuplotString(AxisLabel(d.x_name, d.x_unit)) << "\n";
-  s << "set ylabel " << GnuplotString(d.y_label) << "\nset grid\nset key top left\n";
-  // One data block per branch; each stable/unstable run is its own segment (blank line between).
+  s << "set ylabel " << GnuplotString(d.y_label) << "\nset grid\nset key below left maxrows 4 noenhanced\n";
+  // One colour per branch name (in order of first appearance); each stable/unstable run of a branch
+  // is its own segment (blank line between). A legend entry goes with the first block of each
+  // (name, stability) that has a segment, so every entry names something drawn.
+  std::vector<std::string> names;
+  for (const auto& br : d.branches)
+    if (std::find(names.begin(), names.end(), br.name) == names.end()) names.push_back(br.name);
+  std::vector<std::pair<std::string, int>> titled;
   std::string plot = "plot ";
-  const char* colours[] = {"#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#666666"};
   for (size_t b = 0; b < d.branches.size(); ++b) {
     const auto& br = d.branches[b];
+    const size_t colour = std::find(names.begin(), names.end(), br.name) - names.begin();
     for (int stable = 1; stable >= 0; --stable) {
-      s << "$b" << b << "s" << stable << " << EOD\n";
-      for (size_t i = 0; i < br.x.size(); ++i) {
+      std::ostringstream block;
+      bool any = false;
+      for (size_t i = 0; i < br.x.size() && i < br.y.size() && i < br.stable.size(); ++i) {
         const bool in = br.stable[i] == static_cast<bool>(stable);
-        const bool next_in = i + 1 < br.x.size() && br.stable[i + 1] == static_cast<bool>(stable);
-        if (in || next_in) s << Num(br.x[i]) << " " << Num(br.y[i]) << "\n";
-        if (in && !next_in) s << "\n";
+        const bool next_in = i + 1 < br.x.size() && i + 1 < br.stable.size() && br.stable[i + 1] == static_cast<bool>(stable);
+        if (in && next_in) any = true;  // a segment, not a lone point
+        if (in || next_in) block << Num(br.x[i]) << " " << Num(br.y[i]) << "\n";
+        if (in && !next_in) block << "\n";
       }
-      s << "EOD\n";
-      plot += "$b" + std::to_string(b) + "s" + std::to_string(stable) + " using 1:2 with lines lw 2 dt " +
-              (stable ? "1" : "2") + " lc rgb '" + colours[b % 8] + "' title " +
-              GnuplotString(b == 0 ? (stable ? "stable" : "unstable") : "") + ", ";
+      if (!any) continue;
+      const std::string name = "$b" + std::to_string(b) + "s" + std::to_string(stable);
+      s << name << " << EOD\n" << block.str() << "EOD\n";
+      const bool first = std::find(titled.begin(), titled.end(), std::make_pair(br.name, stable)) == titled.end();
+      if (first) titled.emplace_back(br.name, stable);
+      const std::string title = br.name.empty() ? (stable ? "stable" : "unstable") : br.name + (stable ? ", stable" : ", unstable");
+      plot += name + " using 1:2 with lines lw " + Num(br.width) + " dt " + (stable ? "1" : "2") + " lc rgb " +
+              GnuplotString(kQualitative[colour % 12]) + " title " + GnuplotString(first ? title : "") + ", ";
     }
-    if (!br.fold_x.empty()) {
-      s << "$f" << b << " << EOD\n";
-      for (size_t i = 0; i < br.fold_x.size(); ++i) s << Num(br.fold_x[i]) << " " << Num(br.fold_y[i]) << "\n";
-      s << "EOD\n";
-      plot += "$f" + std::to_string(b) + " using 1:2 with points pt 9 ps 1.2 lc rgb 'black' title " + GnuplotString(b == 0 ? "fold" : "") + ", ";
-    }
+  }
+  // Folds of every branch: one block, one legend entry.
+  std::ostringstream folds;
+  for (const auto& br : d.branches)
+    for (size_t i = 0; i < br.fold_x.size() && i < br.fold_y.size(); ++i) folds << Num(br.fold_x[i]) << " " << Num(br.fold_y[i]) << "\n";
+  if (!folds.str().empty()) {
+    s << "$folds << EOD\n" << folds.str() << "EOD\n";
+    plot += "$folds using 1:2 with points pt 9 ps 1.4 lc rgb 'black' title 'fold', ";
   }
   if (!d.extra_x.empty()) {
     s << "$extra << EOD\n";
-    for (size_t i = 0; i < d.extra_x.size(); ++i) s << Num(d.extra_x[i]) << " " << Num(d.extra_y[i]) << "\n";
+    for (size_t i = 0; i < d.extra_x.size() && i < d.extra_y.size(); ++i) s << Num(d.extra_x[i]) << " " << Num(d.extra_y[i]) << "\n";
     s << "EOD\n";
     plot += "$extra using 1:2 with points pt 7 ps 0.3 lc rgb '#999999' title " + GnuplotString(d.extra_label) + ", ";
   }
-  if (plot.size() > 5) plot.resize(plot.size() - 2);
+  if (plot.size() == 5) return Status::InvalidArgument("plot", "no branch segment to plot");
+  plot.resize(plot.size() - 2);
   s << plot << "\n";
   return RunGnuplot(s.str(), out_path);
 }
@@ -383,6 +509,10 @@ Status RenderPanels(const PanelPlot& d, const std::string& out_path) {
   int block = 0;
   for (const PanelPlot::Panel& p : d.panels) {
     s << "set title " << GnuplotString(p.title) << "\nset xlabel " << GnuplotString(p.x_label) << "\nset ylabel " << GnuplotString(p.y_label) << "\n";
+    if (std::isfinite(p.y_lo) && std::isfinite(p.y_hi) && p.y_lo < p.y_hi)
+      s << "set yrange [" << Num(p.y_lo) << ":" << Num(p.y_hi) << "]\n";
+    else
+      s << "set autoscale y\n";
     std::string plot = "plot ";
     for (const PanelPlot::Series& se : p.series) {
       const std::string name = "$b" + std::to_string(block++);
@@ -426,27 +556,48 @@ Status RenderBifurcation(const BifurcationData& d, const std::string& out_path) 
 }
 
 Status RenderChirpFrf(const ChirpFrfPlot& d, const std::string& out_path) {
+  if (d.curves.empty()) return Status::InvalidArgument("plot", "no frequency sweep to plot");
   std::ostringstream s;
   s << (std::filesystem::path(out_path).extension() == ".svg"
-            ? "set terminal svg size 900,900 dynamic enhanced font 'Helvetica,14' background 'white'\n"
-            : "set terminal pngcairo size 900,900 enhanced font 'Helvetica,12'\n");
-  const char* colours[] = {"#2166ac", "#b2182b"};
+            ? "set terminal svg size 1100,1100 dynamic enhanced font 'Helvetica,14' background 'white'\n"
+            : "set terminal pngcairo size 1100,1100 enhanced font 'Helvetica,12'\n");
+  const char* colours[] = {"#2166ac", "#b2182b", "#1b9e77", "#7570b3"};
+  const char* tints[] = {"#c6dbef", "#fcbba1", "#c7e9c0", "#dadaeb"};
+  s << "set datafile missing 'NaN'\n";
   for (size_t c = 0; c < d.curves.size(); ++c) {
+    const auto& cu = d.curves[c];
     s << "$c" << c << " << EOD\n";
-    for (size_t i = 0; i < d.curves[c].freq.size(); ++i)
-      s << Num(d.curves[c].freq[i]) << " " << Num(d.curves[c].in_mag[i]) << " " << Num(d.curves[c].out_mag[i]) << " "
-        << Num(d.curves[c].db[i]) << "\n";
+    for (size_t i = 0; i < cu.freq.size(); ++i)
+      s << Num(cu.freq[i]) << " " << Num(i < cu.in_mag.size() ? cu.in_mag[i] : NAN) << " "
+        << Num(i < cu.out_mag.size() ? cu.out_mag[i] : NAN) << " " << Num(i < cu.db.size() ? cu.db[i] : NAN) << " "
+        << Num(i < cu.coherence.size() ? cu.coherence[i] : NAN) << "\n";
+    s << "EOD\n$r" << c << " << EOD\n";
+    for (size_t i = 0; i < cu.raw_freq.size() && i < cu.raw_db.size(); ++i) s << Num(cu.raw_freq[i]) << " " << Num(cu.raw_db[i]) << "\n";
     s << "EOD\n";
   }
-  s << "set multiplot layout 2,1 title " << GnuplotString(d.title) << " noenhanced\nset grid\nset key top right\n";
-  s << "set ylabel 'Fourier magnitude' noenhanced\nset logscale y\nunset xlabel\nplot ";
+  s << "set multiplot layout 3,1 title " << GnuplotString(d.title) << " noenhanced\nset grid\nset key outside right top noenhanced\n";
+  s << "set lmargin 12\nset rmargin 40\n";  // the same plot width in every row, the legends beside
+  // 1. Averaged Fourier amplitudes of input and output.
+  s << "set ylabel " << GnuplotString(d.mag_label) << "\nset logscale y\nset format y '10^{%L}'\nunset xlabel\nplot ";
   for (size_t c = 0; c < d.curves.size(); ++c)
-    s << (c ? ", " : "") << "$c" << c << " using 1:2 with lines lw 1 lc rgb '#999999' title " << GnuplotString(c ? "" : "input")
-      << ", $c" << c << " using 1:3 with lines lw 1.5 lc rgb '" << colours[c % 2] << "' title " << GnuplotString("output " + d.curves[c].label);
-  s << "\nunset logscale y\nset xlabel " << GnuplotString(d.freq_label) << "\nset ylabel 'FRF [dB]'\n";
-  s << "plot 0 with lines dt 2 lc rgb 'black' notitle";
+    s << (c ? ", " : "") << "$c" << c << " using 1:2 with lines lw 1 dt 2 lc rgb " << GnuplotString(colours[c % 4])
+      << " title " << GnuplotString("input, " + d.curves[c].label) << ", $c" << c << " using 1:3 with lines lw 1.5 lc rgb "
+      << GnuplotString(colours[c % 4]) << " title " << GnuplotString("output, " + d.curves[c].label);
+  // 2. FRF: H1 (Welch) over the raw ratio.
+  s << "\nunset logscale y\nset format y '% g'\nset ylabel 'FRF |H_1| [dB re 1]'\n";
+  s << "plot 0 with lines dt 3 lc rgb 'black' notitle";
   for (size_t c = 0; c < d.curves.size(); ++c)
-    s << ", $c" << c << " using 1:4 with lines lw 1.5 lc rgb '" << colours[c % 2] << "' title " << GnuplotString(d.curves[c].label);
+    if (!d.curves[c].raw_freq.empty())
+      s << ", $r" << c << " using 1:2 with lines lw 0.6 lc rgb " << GnuplotString(tints[c % 4]) << " title "
+        << GnuplotString("raw FFT ratio, " + d.curves[c].label);
+  for (size_t c = 0; c < d.curves.size(); ++c)
+    s << ", $c" << c << " using 1:4 with lines lw 2 lc rgb " << GnuplotString(colours[c % 4]) << " title "
+      << GnuplotString("Welch H1, " + d.curves[c].label);
+  // 3. Coherence.
+  s << "\nset xlabel " << GnuplotString(d.freq_label) << "\nset ylabel 'coherence {/Symbol g}^2'\nset yrange [0:1.05]\nplot ";
+  for (size_t c = 0; c < d.curves.size(); ++c)
+    s << (c ? ", " : "") << "$c" << c << " using 1:5 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4]) << " title "
+      << GnuplotString(d.curves[c].label);
   s << "\nunset multiplot\n";
   return RunGnuplot(s.str(), out_path);
 }
@@ -456,7 +607,8 @@ Status RenderSpectrogram(const SpectrogramPlot& d, const std::string& out_path) 
   std::ostringstream s;
   s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");
   s << "set title " << GnuplotString(d.title) << " noenhanced\nset xlabel " << GnuplotString(d.time_label) << "\nset ylabel "
-    << GnuplotString(d.freq_label) << "\nset cblabel 'magnitude [dB re max]'\nset cbrange [-80:0]\n" << kViridis;
+    << GnuplotString(d.freq_label) << "\nset cblabel 'magnitude [dB re max]'\nset cbrange [-80:0]\n" << kViridis
+    << kColourBoxMargins;
   s << "set view map\nset pm3d map corners2color c1\nset xrange [" << Num(d.time.front()) << ":" << Num(d.time.back())
     << "]\nset yrange [0:" << Num(d.freq.back()) << "]\nset key off\n$data << EOD\n";
   for (size_t i = 0; i < d.time.size(); ++i) {
@@ -473,7 +625,8 @@ Status RenderHdScatter(const ScatterData& d, const std::string& out_path) {
   s << "set title " << GnuplotString(d.title) << " noenhanced\n";
   s << "set xlabel " << GnuplotString(AxisLabel("omega", "omega0/omega_n")) << "\n";
   s << "set ylabel " << GnuplotString("spectral peaks of y_m, {/Symbol W}_{peaks} [rad/{/Symbol t}]") << "\n";
-  s << "set cblabel 'peak amplitude [delta_s]' noenhanced\nset logscale cb\nset key off\nset grid\n" << kViridis;
+  s << "set cblabel 'peak amplitude [{/Symbol d}_s]'\nset logscale cb\nset format cb '10^{%L}'\nset key off\nset grid\n"
+    << kViridis << kColourBoxMargins;
   double xmax = 0, ymax = 0;
   for (size_t i = 0; i < d.x.size(); ++i) xmax = std::max(xmax, d.x[i]), ymax = std::max(ymax, d.y[i]);
   s << "set xrange [0:" << Num(xmax * 1.02) << "]\nset yrange [0:" << Num(ymax * 1.05) << "]\n";

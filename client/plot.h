@@ -8,13 +8,17 @@
 // every string enters the script through GnuplotString, and the output path never enters the script
 // (gnuplot writes a file created here in the destination directory, renamed onto the path). A
 // destination directory that does not exist is InvalidArgument naming "out"; a missing or failing
-// gnuplot is an IoError with gnuplot's message. Callers should ignore SIGPIPE (client/main.cc does);
+// gnuplot is an IoError with gnuplot's message (CheckGnuplot tells beforehand whether there is one).
+// Figure conventions (units on every axis, discrete codes, shared ranges, number formats): the
+// "Figures" section of docs/numerics.md. Callers should ignore SIGPIPE (client/main.cc does);
 // the write to gnuplot blocks it in the calling thread regardless.
 #ifndef BISTABLE_CLIENT_PLOT_H_
 #define BISTABLE_CLIENT_PLOT_H_
 
+#include <cmath>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "base/status.h"
@@ -26,12 +30,33 @@ struct PlotData {
   std::string metric, unit;
   std::vector<std::string> axis_names, axis_units;  // 1 (curve) or 2 (heatmap: x = axis 1, y = axis 0)
   std::vector<std::vector<double>> axis_values;
-  std::vector<double> values;                       // row-major over the axes
-  bool motion = false;                              // discrete palette with named codes
+  std::vector<double> values;                       // row-major over the axes; curves: one block per series
+  std::vector<std::string> series;                  // curves: a legend label per block (e.g. "up", "down")
+  // Integer codes (motion, period, termination): one colour and one labelled colour-bar tick per
+  // code (heatmaps), points on the code's row with the names on the y axis (curves). Values not
+  // among the codes are drawn as missing. Empty: a continuous metric.
+  struct Code {
+    double value;
+    std::string name, colour;  // colour "#rrggbb"; empty: the next of a qualitative palette
+  };
+  std::vector<Code> codes;
+  // Colour range (heatmaps of continuous metrics) shared with other maps; NaN: ColourRange of values.
+  double cb_lo = NAN, cb_hi = NAN;
 };
 
 // format: "png" or "svg" (from the output's extension when empty).
 Status RenderPlot(const PlotData& d, const std::string& out_path, std::string format = "");
+
+// The colour range of a continuous metric's heatmap: symmetric about 0 for the diverging metrics
+// (frf_db: attenuation blue, amplification red; lle: stable blue, chaotic red), [min, max] otherwise.
+// Give it the values of every map meant to be compared to share one range.
+std::pair<double, double> ColourRange(const std::string& metric, const std::vector<double>& values);
+
+// A number for titles and legends: 4 significant digits (1/3 → "0.3333", 3 → "3").
+std::string PlotNumber(double v);
+
+// Ok when an executable gnuplot is on PATH; otherwise FailedPrecondition saying so and how to get it.
+Status CheckGnuplot();
 
 // Fig. 6: for each Ω (x) the spectral peak frequencies (y) with amplitudes (point size/colour).
 struct ScatterData {
@@ -40,11 +65,15 @@ struct ScatterData {
 };
 Status RenderHdScatter(const ScatterData& d, const std::string& out_path);
 
-// Continuation branches (amplitude vs parameter): stable segments solid, unstable dashed, folds
-// marked; optional extra points (e.g. the one-harmonic closed form) in grey.
+// Continuation branches (amplitude vs parameter): each branch piece named (e.g. "+well", "-well",
+// "interwell"; one colour per name), stable runs solid, unstable dashed, folds marked; the legend has
+// one entry per (name, stability) actually drawn, plus "fold" when a fold is, below the plot.
+// Optional extra points (e.g. the one-harmonic closed form) in grey.
 struct BranchPlot {
   std::string title, x_name, x_unit, y_label;
   struct Branch {
+    std::string name;
+    double width = 2;  // line width (a wider curve drawn first stays visible under one it coincides with)
     std::vector<double> x, y;
     std::vector<bool> stable;
     std::vector<double> fold_x, fold_y;
@@ -63,19 +92,22 @@ struct BifurcationData {
 };
 Status RenderBifurcation(const BifurcationData& d, const std::string& out_path);
 
-// Frequency-sweep FRF (paper Figs. 22–24): top, Fourier magnitudes of input and output; bottom,
-// the FRF in dB; one curve per sweep direction.
+// Frequency-sweep FRF (paper Figs. 23–24), three rows over frequency: the averaged Fourier amplitudes
+// of input and output (mag_label names the quantity and its unit), the FRF in dB (Welch H1 in colour
+// over the raw single-FFT ratio in a light tint), and the coherence γ² in [0, 1]; one colour per curve.
 struct ChirpFrfPlot {
-  std::string title, freq_label;
+  std::string title, freq_label, mag_label;
   struct Curve {
     std::string label;
-    std::vector<double> freq, in_mag, out_mag, db;
+    std::vector<double> freq, in_mag, out_mag, db, coherence;  // Welch bins
+    std::vector<double> raw_freq, raw_db;                      // the raw ratio (optional)
   };
   std::vector<Curve> curves;
 };
 Status RenderChirpFrf(const ChirpFrfPlot& d, const std::string& out_path);
 
-// Spectrogram: time × frequency, magnitude in dB (colour).
+// Spectrogram: time × frequency of the response (freq_label names it: the output's frequency, not
+// the forcing's), magnitude in dB re the largest (colour).
 struct SpectrogramPlot {
   std::string title, time_label, freq_label;
   std::vector<double> time, freq;
@@ -97,6 +129,7 @@ struct PanelPlot {
   struct Panel {
     std::string title, x_label, y_label;
     std::vector<Series> series;
+    double y_lo = NAN, y_hi = NAN;  // y range (e.g. shared by panels to compare); NaN: automatic
   };
   std::vector<Panel> panels;  // row-major
 };

@@ -16,7 +16,9 @@
 
 #include "client/cli_common.h"
 #include "base/cpus.h"
+#include "client/chirp_command.h"
 #include "client/embedded_run.h"
+#include "client/hbm_command.h"
 #include "client/plot.h"
 #include "client/reproduce_command.h"
 #include "dynamics/cancel.h"
@@ -96,11 +98,9 @@ Status Fig3(Ctx& c) {
       o.harmonics = c.quick ? 3 : 7;
       auto r = ContinueBranches(o);
       if (!r.ok()) return r.status();
-      BranchPlot d;
-      d.title = std::string("Fig. 3") + (m == ModelKind::kStandalone ? "a" : "b") + ": harmonic balance, alpha = " + c.Fmt(a);
-      d.x_name = "omega";
-      d.x_unit = "omega0/omega_n";
-      d.y_label = "max |y_m| over a period [{/Symbol d}_s]";
+      BranchPlot d = HbmBranchPlot(*r, m, ContinuationParam::kOmega,
+                                   std::string("Fig. 3") + (m == ModelKind::kStandalone ? "a" : "b") + ": harmonic balance, alpha = " +
+                                       PlotNumber(a) + (m == ModelKind::kStandalone ? ", no resonator" : ", with resonator (eta_r = 1.5)"));
       d.extra_label = "one harmonic, zero mean (corrected Eq. 9)";
       for (int k = 0; k <= 300; ++k) {
         const double w = 0.05 + 2.95 * k / 300.0;
@@ -109,14 +109,11 @@ Status Fig3(Ctx& c) {
       // Stable Ω coverage per kind (intrawell: |mean| > 0.5; interwell: |mean| < 0.5 and amplitude > 1).
       std::vector<std::pair<double, double>> intra, inter;
       for (const HbmBranch& b : r->branches) {
-        BranchPlot::Branch br;
         const bool is_intra = std::fabs(b.points.front().mean) > 0.5;
         if (m == ModelKind::kStandalone && a == 0.2 && is_intra) ++intrawell_branches;
         for (size_t i = 0; i < b.points.size(); ++i) {
           const HbmPoint& p = b.points[i];
           if (!p.converged) continue;
-          br.x.push_back(p.omega), br.y.push_back(p.amplitude), br.stable.push_back(p.stable);
-          if (p.fold) br.fold_x.push_back(p.omega), br.fold_y.push_back(p.amplitude);
           if (i > 0 && p.stable && b.points[i - 1].stable) {
             auto seg = std::make_pair(std::min(p.omega, b.points[i - 1].omega), std::max(p.omega, b.points[i - 1].omega));
             const bool interwell = std::fabs(p.mean) < 0.5 && p.amplitude > 1.0;
@@ -125,7 +122,6 @@ Status Fig3(Ctx& c) {
             if (interwell && m == ModelKind::kCoupled && a == 0.2) coupled_interwell_max = std::max(coupled_interwell_max, p.omega);
           }
         }
-        d.branches.push_back(br);
       }
       if (m == ModelKind::kStandalone && a == 0.2) {  // coexistence above Ω = 0.5 (overlap of stable coverage)
         for (double w = 0.5; w <= 3.0; w += 0.01) {
@@ -381,7 +377,7 @@ SweepFrf DimChirp(Ctx& c, const std::string& tag, DimensionalParams p, double a0
   o.a0_m = a0_mm * 1e-3;
   o.from = f0;
   o.to = f1;
-  o.duration = (f1 - f0) / (c.quick ? 0.3 : 0.06);  // the paper's 0.06 Hz/s
+  o.duration = (f1 - f0) / (c.quick ? 0.3 : 0.06);  // the paper's 0.06 Hz/s (Fig. 22's title says the rate)
   o.dt = 0.002;
   auto r = RunChirp(o);
   SweepFrf out;
@@ -394,7 +390,7 @@ SweepFrf DimChirp(Ctx& c, const std::string& tag, DimensionalParams p, double a0
       if (e.freq[i] >= band && e.freq[i] < band + 0.25 && std::isfinite(e.db[i])) s += e.db[i], ++k;
     if (k) out.f.push_back(band + 0.125), out.db.push_back(s / k);
   }
-  if (plot) plot->curves.push_back({tag, e.freq, e.in_mag, e.out_mag, e.db});
+  if (plot) plot->curves.push_back(ChirpCurve(tag, *r, f0, f1, true));
   if (keep) *keep = std::move(*r);
   return out;
 }
@@ -416,24 +412,36 @@ Status Figs22to24(Ctx& c) {
     return std::sqrt(s / std::max(1, k));
   };
   const double ratio = rms_near(b) / rms_near(a);
-  BranchPlot th;  // reuse the line plot: displacement histories
-  th.title = "Fig. 22: response to a 1-8 Hz sweep, A0 = 10 mm (main mass relative displacement)";
-  th.x_name = "t";
-  th.x_unit = "s";
-  th.y_label = "y = x_m - x_0 [m]";
+  // Two panels side by side on one y range (headroom for the legend), against time; the moment the
+  // input passes f_res marked.
+  PanelPlot th;
+  th.title = "Fig. 22: response to a 1-8 Hz sweep at " + PlotNumber(c.quick ? 0.3 : 0.06) + " Hz/s, A0 = 10 mm (bistable, Table 2)";
+  th.cols = 2;
+  double y_abs = 0;
+  for (const ChirpRecord* r : {&a, &b})
+    for (double y : r->y) y_abs = std::max(y_abs, std::fabs(y) * 1e3);
+  double t_res = NAN;
+  for (size_t i = 0; i < a.t.size(); ++i)
+    if (std::isnan(t_res) && a.inst_freq[i] >= f_res) t_res = a.t[i];
   for (const ChirpRecord* r : {&a, &b}) {
-    BranchPlot::Branch br;
-    for (size_t i = 0; i < r->t.size(); i += 5) br.x.push_back(r->t[i]), br.y.push_back(r->y[i]), br.stable.push_back(true);
-    th.branches.push_back(br);
+    PanelPlot::Panel p;
+    p.title = r == &a ? "without resonator" : "with resonator (tuned to f_res = " + PlotNumber(f_res) + " Hz)";
+    p.x_label = "time t [s] (input frequency rising linearly, 1 Hz to 8 Hz)";
+    p.y_label = "relative displacement y = x_m - x_0 [mm]";
+    p.y_lo = -1.1 * y_abs, p.y_hi = 1.6 * y_abs;
+    PanelPlot::Series y{r == &a ? "no resonator" : "with resonator", {}, {}, false, r == &a ? "#555555" : "#2166ac"};
+    for (size_t i = 0; i < r->t.size(); i += 2) y.x.push_back(r->t[i]), y.y.push_back(r->y[i] * 1e3);
+    p.series.push_back(std::move(y));
+    if (std::isfinite(t_res))
+      p.series.push_back({"input at f_res", {t_res, t_res}, {p.y_lo, p.y_hi}, false, "#b2182b"});
+    th.panels.push_back(std::move(p));
   }
   const std::string f22 = (fs::path(c.out) / "fig22_24" / "fig22_time_histories.png").string();
-  BISTABLE_RETURN_IF_ERROR(RenderBranches(th, f22));
+  BISTABLE_RETURN_IF_ERROR(RenderPanels(th, f22));
   c.rows.push_back({"22", "with the resonator the response amplitude decreases as the input approaches f_res = 5.1 Hz",
                     "RMS absolute velocity within ±0.3 Hz of f_res, with / without resonator: " + c.Fmt(ratio), ratio < 1, {f22}});
   // Fig. 23: FRF of linear + resonator vs bistable + resonator.
-  ChirpFrfPlot p23;
-  p23.title = "Fig. 23: FRF of frequency sweeps, A0 = 10 mm, 1-8 Hz";
-  p23.freq_label = "f [Hz]";
+  ChirpFrfPlot p23 = ChirpFigure("Fig. 23: FRF of frequency sweeps, A0 = 10 mm, 1-8 Hz (with resonator, f_res = " + PlotNumber(f_res) + " Hz)", true);
   const SweepFrf lin = DimChirp(c, "linear + resonator", DimensionalParams::LinearTable2(), 10, 1, 8, &p23, nullptr);
   const SweepFrf bis = DimChirp(c, "bistable + resonator", DimensionalParams::BistableTable2(), 10, 1, 8, &p23, nullptr);
   const std::string f23 = (fs::path(c.out) / "fig22_24" / "fig23_frf.png").string();
@@ -451,9 +459,7 @@ Status Figs22to24(Ctx& c) {
   c.rows.push_back({"23", "bistable oscillator with resonator: FRF peak stays below 5 dB",
                     "band-averaged FRF peak " + c.Fmt(peak(bis)) + " dB", peak(bis) < 5, {}});
   // Fig. 24: attenuation onset at low and high amplitude (bistable + resonator).
-  ChirpFrfPlot p24;
-  p24.title = "Fig. 24: bistable + resonator, A0 = 5 mm (1-12 Hz) and 15 mm (1-5 Hz)";
-  p24.freq_label = "f [Hz]";
+  ChirpFrfPlot p24 = ChirpFigure("Fig. 24: bistable + resonator, A0 = 5 mm (1-12 Hz) and 15 mm (1-5 Hz)", true);
   const SweepFrf lo = DimChirp(c, "A0 5 mm", DimensionalParams::BistableTable2(), 5, 1, 12, &p24, nullptr);
   const SweepFrf hi = DimChirp(c, "A0 15 mm", DimensionalParams::BistableTable2(), 15, 1, 5, &p24, nullptr);
   const std::string f24 = (fs::path(c.out) / "fig22_24" / "fig24_frf.png").string();
@@ -474,6 +480,8 @@ int Reproduce(const std::string& what, const std::string& out, bool quick, int t
   if (what != "paper") return Fail(Status::InvalidArgument("what", "what = '" + what + "' violates what in {paper}"));
   Ctx c{out, (fs::path(out) / "data").string(), quick,
         threads > 0 ? threads : UsableCpus(), {}};
+  // The figures are this command's product: without gnuplot, say so before computing anything.
+  if (Status g = CheckGnuplot(); !g.ok()) return Fail(Status::FailedPrecondition("reproduce draws the paper's figures: " + g.message()));
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) return Fail(Status::IoError("out", "cannot create '" + out + "': " + ec.message()));

@@ -81,9 +81,17 @@ int RunSweep(const RunArgs& a) {
   const double seconds = std::chrono::duration<double>(t_published - t0).count();
   auto secs = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
   std::vector<std::string> files = {*path};
+  std::vector<std::string> warnings;
   if (!a.no_plots) {
-    const auto plot_dir = std::filesystem::path(*path).replace_extension("").string();
-    for (auto& f : RenderDefaultPlots(*spec, *path, plot_dir)) files.push_back(f);
+    // The map is the product; figures are a view of it. Without gnuplot: one warning saying what is
+    // missing and where the map is, and success (exit 0).
+    if (Status g = CheckGnuplot(); !g.ok()) {
+      warnings.push_back("no plots: " + g.message() + ", or pass --no-plots; the map is written to " + *path);
+      std::cerr << "warning: " << warnings.back() << "\n";
+    } else {
+      const auto plot_dir = std::filesystem::path(*path).replace_extension("").string();
+      for (auto& f : RenderDefaultPlots(*spec, *path, plot_dir)) files.push_back(f);
+    }
   }
   if (a.json) {
     nlohmann::json j = {{"id", plan->id},
@@ -98,6 +106,7 @@ int RunSweep(const RunArgs& a) {
                         {"threads", threads},
                         {"timing", {{"plan", secs(t0, t_planned)}, {"compute", secs(t_planned, t_computed)},
                                     {"publish", secs(t_computed, t_published)}}}};
+    if (!warnings.empty()) j["warnings"] = warnings;
     std::cout << j.dump(2) << "\n";
   } else {
     std::printf("sweep %s done: %ld points x %d = %ld items (%ld computed, %ld reused) in %.1f s, %.0f computed items/s\n",
@@ -119,7 +128,7 @@ void AddRunCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--threads", a->threads, "worker threads (0 = the CPUs this process may use: affinity and cgroup quota)")->capture_default_str();
   cmd->add_option("--job-items", a->job_items, "items per job (0 = about 0.25 s of work)");
   cmd->add_flag("--json", a->json, "print {id, data, files, points, seconds, ...} as JSON");
-  cmd->add_flag("--no-plots", a->no_plots, "do not render the default plots");
+  cmd->add_flag("--no-plots", a->no_plots, "do not render the default plots (without gnuplot they are skipped with a warning)");
   cmd->add_flag("--quiet", a->quiet, "no progress output");
   cmd->footer(
       "Re-running a spec reuses every stored point (content-keyed), so an interrupted sweep resumes\n"

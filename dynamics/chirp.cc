@@ -171,6 +171,48 @@ FrfEstimate FftFrf(const std::vector<double>& in, const std::vector<double>& out
   return e;
 }
 
+H1Estimate WelchH1(const std::vector<double>& in, const std::vector<double>& out, double dt, double f_lo, double f_hi,
+                   bool hz, int segment) {
+  H1Estimate e;
+  const size_t n = std::min(in.size(), out.size());
+  if (segment <= 0) {
+    segment = 64;
+    while (static_cast<size_t>(segment) * 2 <= n / 4) segment *= 2;
+  }
+  if (n < static_cast<size_t>(segment) || segment < 16) return e;
+  const size_t w_len = static_cast<size_t>(segment), hop = w_len / 2;
+  std::vector<double> w(w_len), xi(w_len), xo(w_len);
+  double w_sum = 0;
+  for (size_t i = 0; i < w_len; ++i) w[i] = 0.5 - 0.5 * std::cos(2.0 * M_PI * i / w_len), w_sum += w[i];
+  const size_t bins = w_len / 2 + 1;
+  std::vector<double> sxx(bins, 0.0), syy(bins, 0.0);
+  std::vector<std::complex<double>> sxy(bins, 0.0), a, b;
+  int k_seg = 0;
+  for (size_t start = 0; start + w_len <= n; start += hop, ++k_seg) {
+    double mi = 0, mo = 0;
+    for (size_t i = 0; i < w_len; ++i) mi += in[start + i], mo += out[start + i];
+    mi /= w_len, mo /= w_len;
+    for (size_t i = 0; i < w_len; ++i) xi[i] = (in[start + i] - mi) * w[i], xo[i] = (out[start + i] - mo) * w[i];
+    RealFftHalf(xi, &a);
+    RealFftHalf(xo, &b);
+    for (size_t k = 0; k < bins; ++k) sxx[k] += std::norm(a[k]), syy[k] += std::norm(b[k]), sxy[k] += std::conj(a[k]) * b[k];
+  }
+  e.segments = k_seg;
+  e.segment = segment;
+  const double df = (hz ? 1.0 : 2.0 * M_PI) / (w_len * dt);
+  const double scale = 2.0 / w_sum;
+  for (size_t k = 1; k < bins; ++k) {
+    const double f = k * df;
+    if (f < f_lo || f > f_hi) continue;
+    e.freq.push_back(f);
+    e.in_mag.push_back(std::sqrt(sxx[k] / k_seg) * scale);
+    e.out_mag.push_back(std::sqrt(syy[k] / k_seg) * scale);
+    e.db.push_back(sxx[k] > 0 ? 20.0 * std::log10(std::abs(sxy[k]) / sxx[k]) : NAN);
+    e.coherence.push_back(sxx[k] > 0 && syy[k] > 0 ? std::min(1.0, std::norm(sxy[k]) / (sxx[k] * syy[k])) : NAN);
+  }
+  return e;
+}
+
 Spectrogram ComputeSpectrogram(const std::vector<double>& x, double dt, int window, double f_max, bool hz) {
   Spectrogram s;
   if (window < 16 || static_cast<int>(x.size()) < window) return s;

@@ -47,6 +47,19 @@ struct FrfEstimate {
 FrfEstimate FftFrf(const std::vector<double>& in, const std::vector<double>& out, double dt, double f_lo, double f_hi,
                    bool hz);
 
+// Welch-averaged FRF: Hann-windowed segments of `segment` samples with 50 % overlap (mean removed per
+// segment); H1 = Σ conj(X) Y / Σ |X|² (unbiased by output noise), the coherence
+// γ² = |Σ conj(X) Y|² / (Σ |X|² Σ |Y|²) in [0, 1] (1 for a noise-free linear system; lower where the
+// output has power the input does not explain: noise, harmonics, jumps), and the averaged amplitude
+// spectra sqrt(Σ |X|² / K)·2/Σw (a sinusoid of amplitude A gives ≈ A), over the bins inside [f_lo, f_hi].
+// segment <= 0: the largest power of two ≤ n/4 (at least 64), so about 7 segments are averaged.
+struct H1Estimate {
+  std::vector<double> freq, in_mag, out_mag, db, coherence;
+  int segments = 0, segment = 0;
+};
+H1Estimate WelchH1(const std::vector<double>& in, const std::vector<double>& out, double dt, double f_lo, double f_hi,
+                   bool hz, int segment = 0);
+
 // Short-time Fourier magnitude (dB re the largest) with a Hann window of `window` samples and hop
 // window/4: times (window centres), frequencies (rad per time unit, or Hz), values [time][freq].
 struct Spectrogram {

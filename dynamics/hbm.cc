@@ -202,13 +202,28 @@ HbmPoint HarmonicBalance::Describe(const Eigen::VectorXd& z, double omega, doubl
   p.omega = omega;
   p.alpha = alpha;
   const std::vector<double> y = MainSamples(z, 256);
-  for (double v : y) p.amplitude = std::max(p.amplitude, std::fabs(v));
+  p.y_min = *std::min_element(y.begin(), y.end());
+  p.y_max = *std::max_element(y.begin(), y.end());
+  p.amplitude = std::max(std::fabs(p.y_min), std::fabs(p.y_max));
   p.mean = z[Index(0, 0)];
   p.harmonics.assign(z.data(), z.data() + per_dof_);
   p.z = z;
   p.max_multiplier = MaxMultiplier(z, omega, alpha, floquet_steps);
   p.stable = p.max_multiplier < 1.0;
   return p;
+}
+
+OrbitWell WellOf(const HbmPoint& p) {
+  return p.y_min > 0 ? OrbitWell::kPlus : p.y_max < 0 ? OrbitWell::kMinus : OrbitWell::kInterwell;
+}
+
+const char* OrbitWellName(OrbitWell w) {
+  switch (w) {
+    case OrbitWell::kPlus: return "+well";
+    case OrbitWell::kMinus: return "-well";
+    case OrbitWell::kInterwell: return "interwell";
+  }
+  return "interwell";
 }
 
 Eigen::VectorXd HarmonicBalance::Resize(const Eigen::VectorXd& z, int h_new) const {

@@ -38,6 +38,7 @@ struct HbmPoint {
   double omega = 0, alpha = 0;
   double amplitude = 0;        // max |y_m| over a period
   double mean = 0;             // constant term of y_m
+  double y_min = 0, y_max = 0; // extremes of y_m over a period
   bool stable = false;         // all Floquet multipliers inside the unit circle
   double max_multiplier = 0;   // largest |μ|
   bool converged = true;
@@ -46,6 +47,13 @@ struct HbmPoint {
   std::vector<double> harmonics;  // y_m: c0, a1, b1, ..., aH, bH
   Eigen::VectorXd z;           // all coefficients (DOF-major)
 };
+
+// Where a periodic orbit of a bistable cell lives, by the rule of the maps' motion metric
+// (point_metrics.cc): in the +well (y_m > 0 over the whole period, intrawell about +1), the −well
+// (y_m < 0, about −1), or interwell (y_m crosses 0). Meaningless for the linear models (one well).
+enum class OrbitWell { kPlus, kMinus, kInterwell };
+OrbitWell WellOf(const HbmPoint& p);
+const char* OrbitWellName(OrbitWell w);  // "+well", "-well", "interwell"
 
 struct HbmBranch {
   std::vector<HbmPoint> points;

@@ -2,6 +2,7 @@
 // the linear oscillator, ever closer as the sweep slows; spectrogram ridges follow the forcing.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -78,6 +79,36 @@ TEST(Chirp, DimensionalSweepRunsInSecondsAndHertz) {
   const FrfEstimate e = FftFrf(r->v0, r->v_abs, r->dt, 1.0, 8.0, true);
   ASSERT_FALSE(e.freq.empty());
   EXPECT_NEAR(e.freq.front(), 1.0, 0.2);
+}
+
+// Welch H1 on a known linear system: out = 2·in delayed one sample, plus independent output noise.
+// H1 stays at 2 (6.02 dB) whatever the noise (it divides by the input's auto-spectrum only), and the
+// coherence is the share of output power the input explains: 4σx² / (4σx² + σn²) = 0.8 for σn² = σx².
+TEST(Chirp, WelchH1IsUnbiasedByOutputNoiseAndCoherenceMeasuresIt) {
+  uint64_t s = 88172645463325252ull;
+  auto gauss = [&] {  // Box-Muller on xorshift64
+    auto u = [&] { s ^= s << 13, s ^= s >> 7, s ^= s << 17; return (static_cast<double>(s >> 11) + 0.5) / 9007199254740992.0; };
+    return std::sqrt(-2 * std::log(u())) * std::cos(2 * M_PI * u());
+  };
+  const size_t n = 1 << 16;
+  std::vector<double> in(n), clean(n), noisy(n);
+  for (size_t i = 0; i < n; ++i) in[i] = gauss();
+  for (size_t i = 1; i < n; ++i) clean[i] = 2 * in[i - 1], noisy[i] = clean[i] + gauss();
+  const H1Estimate a = WelchH1(in, clean, 0.01, 1.0, 40.0, true, 512);
+  const H1Estimate b = WelchH1(in, noisy, 0.01, 1.0, 40.0, true, 512);
+  ASSERT_GT(a.freq.size(), 100u);
+  EXPECT_EQ(a.segments, 255);
+  double db_a = 0, db_b = 0, coh_a = 0, coh_b = 0;
+  for (size_t k = 0; k < a.freq.size(); ++k) db_a += a.db[k], db_b += b.db[k], coh_a += a.coherence[k], coh_b += b.coherence[k];
+  const double m = static_cast<double>(a.freq.size());
+  EXPECT_NEAR(db_a / m, 20 * std::log10(2.0), 0.02);
+  EXPECT_NEAR(db_b / m, 20 * std::log10(2.0), 0.1);
+  EXPECT_GT(coh_a / m, 0.99);
+  EXPECT_NEAR(coh_b / m, 0.8, 0.03);
+  // The averaged amplitude spectra: white noise of unit variance, output twice the input.
+  EXPECT_NEAR(a.out_mag[a.freq.size() / 2] / a.in_mag[a.freq.size() / 2], 2.0, 0.4);
+  // Default segment: the largest power of two <= n/4.
+  EXPECT_EQ(WelchH1(in, clean, 0.01, 1.0, 40.0, true).segment, 1 << 14);
 }
 
 TEST(Chirp, BadOptionsNameTheField) {

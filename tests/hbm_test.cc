@@ -117,12 +117,21 @@ TEST(Hbm, OneHarmonicZeroMeanBalanceMatchesItsClosedForm) {
 TEST(Hbm, ContinuationPassesFoldsAndFindsIntrawellBranchesAboutPlusMinusOne) {
   auto r = ContinueBranches(Options(ModelKind::kStandalone, 0.3));
   ASSERT_TRUE(r.ok()) << r.status().ToString();
-  int intrawell_plus = 0, intrawell_minus = 0, interwell = 0;
+  int intrawell_plus = 0, intrawell_minus = 0, interwell = 0, interwell_points = 0;
   for (const HbmBranch& b : r->branches) {
     const double mean0 = b.points.front().mean;
     if (mean0 > 0.9) ++intrawell_plus;
     if (mean0 < -0.9) ++intrawell_minus;
     if (b.points.front().amplitude > 2.0 || std::fabs(mean0) < 0.1) ++interwell;
+    // The plots name branches by well (WellOf): the ±1 intrawell branches start in their well.
+    if (mean0 > 0.9) EXPECT_EQ(WellOf(b.points.front()), OrbitWell::kPlus) << b.start;
+    if (mean0 < -0.9) EXPECT_EQ(WellOf(b.points.front()), OrbitWell::kMinus) << b.start;
+    for (const HbmPoint& p : b.points) {
+      EXPECT_LE(p.y_min, p.mean + 1e-12);
+      EXPECT_GE(p.y_max, p.mean - 1e-12);
+      EXPECT_DOUBLE_EQ(p.amplitude, std::max(-p.y_min, p.y_max));
+      if (WellOf(p) == OrbitWell::kInterwell) ++interwell_points;
+    }
     int folds = 0, turns = 0;
     for (size_t i = 2; i < b.points.size(); ++i) {
       folds += b.points[i].fold;
@@ -138,6 +147,8 @@ TEST(Hbm, ContinuationPassesFoldsAndFindsIntrawellBranchesAboutPlusMinusOne) {
   EXPECT_EQ(intrawell_plus, 1);
   EXPECT_EQ(intrawell_minus, 1);
   EXPECT_GE(interwell, 1);
+  EXPECT_GT(interwell_points, 0) << "orbits crossing y = 0 are named interwell";
+  EXPECT_STREQ(OrbitWellName(OrbitWell::kMinus), "-well");
   EXPECT_LT(r->truncation_change, 0.01) << "5 harmonics suffice at alpha 0.3";
 }
 
