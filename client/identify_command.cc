@@ -163,29 +163,37 @@ nlohmann::json ParamsJson(const IdentModel& m, const FitResult& f) {
 }
 
 // --list-terms: the effect library, as a table or (--json) an array.
-int ListTerms(bool json) {
+nlohmann::json TermsJson() {
   nlohmann::json lib = nlohmann::json::array();
   for (const TermDef& t : EffectLibrary()) {
     nlohmann::json ps = nlohmann::json::array();
     for (const TermParam& p : t.params)
       ps.push_back({{"name", p.name}, {"unit", p.unit}, {"sign", p.sign == Sign::kNonNegative ? ">= 0" : "either"}});
     lib.push_back({{"term", t.id}, {"formula", t.formula}, {"meaning", t.meaning}, {"params", ps}});
-    if (!json) {
-      std::string pn;
-      for (const TermParam& p : t.params) pn += (pn.empty() ? "" : ", ") + p.name + " [" + p.unit + "]" + (p.sign == Sign::kNonNegative ? " >= 0" : "");
-      std::printf("%-20s %-44s %s\n", t.id.c_str(), t.formula.size() > 44 ? (t.formula.substr(0, 41) + "...").c_str() : t.formula.c_str(), pn.c_str());
-    }
   }
-  if (json) std::cout << lib.dump(2) << "\n";
+  return lib;
+}
+
+int ListTerms(bool json) {
+  if (json) {
+    std::cout << TermsJson().dump(2) << "\n";
+    return 0;
+  }
+  for (const TermDef& t : EffectLibrary()) {
+    std::string pn;
+    for (const TermParam& p : t.params) pn += (pn.empty() ? "" : ", ") + p.name + " [" + p.unit + "]" + (p.sign == Sign::kNonNegative ? " >= 0" : "");
+    std::printf("%-20s %-44s %s\n", t.id.c_str(), t.formula.size() > 44 ? (t.formula.substr(0, 41) + "...").c_str() : t.formula.c_str(), pn.c_str());
+  }
   return 0;
 }
 
 // --make-synthetic DIR: synthetic records for trying the loop: the paper's Table 2 linear rig (no
 // resonator) under 1 → 8 Hz chirps of 6, 10, 14 mm, sampled at 120 Hz with 0.05 mm noise.
-int MakeSynthetic(const std::string& dir, bool json) {
+StatusOr<nlohmann::json> SyntheticJson(const std::string& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
-  if (ec) return Fail(Status::IoError("make-synthetic", "cannot create '" + dir + "': " + ec.message()));
+  if (ec) return Status::IoError("make-synthetic", "cannot create '" + dir + "': " + ec.message());
+  nlohmann::json files = nlohmann::json::array();
   DimensionalParams p = DimensionalParams::LinearTable2();
   p.has_resonator = false;
   unsigned seed = 1;
@@ -194,11 +202,20 @@ int MakeSynthetic(const std::string& dir, bool json) {
     o.a0_m = mm * 1e-3;
     o.seed = seed++;
     auto r = MakeSyntheticRecord(p, o, "chirp");
-    if (!r.ok()) return Fail(r.status());
+    if (!r.ok()) return r.status();
     const std::string path = (std::filesystem::path(dir) / ("chirp_" + Fmt(mm, 3) + "mm.csv")).string();
-    if (Status st = WriteRecordCsv(*r, path); !st.ok()) return Fail(st);
-    if (!json) std::printf("wrote %s\n", path.c_str());
+    BISTABLE_RETURN_IF_ERROR(WriteRecordCsv(*r, path));
+    files.push_back(path);
   }
+  return nlohmann::json{{"files", files}};
+}
+
+int MakeSynthetic(const std::string& dir, bool json) {
+  auto j = SyntheticJson(dir);
+  if (!j.ok()) return Fail(j.status());
+  if (json) std::cout << j->dump(2) << "\n";
+  else
+    for (const auto& f : (*j)["files"]) std::printf("wrote %s\n", f.get<std::string>().c_str());
   return 0;
 }
 
@@ -547,38 +564,38 @@ void PrintSummary(const IdentifyArgs& a, const IdentifyResult& r, const nlohmann
   std::printf("%.1f s, %lld simulations%s\n", r.seconds, simulations, a.report.empty() ? "" : ("; report in " + a.report).c_str());
 }
 
+// The fit: what --json prints (and report.json holds); the report directory is written when asked.
+StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
+  if (a.list_terms) return TermsJson();
+  if (!a.synth.empty()) return SyntheticJson(a.synth);
+  const auto plan = PlanFromFlags(a);
+  if (!plan.ok()) return plan.status();
+  const auto loaded = LoadAll(a, plan->columns);
+  if (!loaded.ok()) return loaded.status();
+  const auto recs = PrepareFitted(*loaded, a, *plan);
+  if (!recs.ok()) return recs.status();
+  if (!a.json) std::fprintf(stderr, "identify: %zu record(s), %zu parameters declared; fitting...\n", recs->size(), static_cast<size_t>(plan->model.NumParams()));
+  const IdentifyResult r = Identify(plan->model, *recs, plan->setup, plan->opt);
+  BISTABLE_RETURN_IF_ERROR(CheckFitted(r, a.objective));
+  const auto tests = TestSplits(r, *loaded, *plan, a.deriv_cutoff);
+  if (!tests.ok()) return tests.status();
+  const long long simulations = TotalSimulations(r);
+  nlohmann::json j = ResultJson(a, *plan, r, *recs, *tests, simulations);
+  if (!a.report.empty()) BISTABLE_RETURN_IF_ERROR(WriteReport(a, plan->setup, r, *recs, j, simulations));
+  if (!a.json) PrintSummary(a, r, *tests, simulations);
+  return j;
+}
+
 int RunIdentify(const IdentifyArgs& a) {
   if (a.list_terms) return ListTerms(a.json);
   if (!a.synth.empty()) return MakeSynthetic(a.synth, a.json);
-  const auto plan = PlanFromFlags(a);
-  if (!plan.ok()) return Fail(plan.status());
-  const auto loaded = LoadAll(a, plan->columns);
-  if (!loaded.ok()) return Fail(loaded.status());
-  const auto recs = PrepareFitted(*loaded, a, *plan);
-  if (!recs.ok()) return Fail(recs.status());
-  if (!a.json) std::fprintf(stderr, "identify: %zu record(s), %zu parameters declared; fitting...\n", recs->size(), static_cast<size_t>(plan->model.NumParams()));
-  const IdentifyResult r = Identify(plan->model, *recs, plan->setup, plan->opt);
-  if (Status st = CheckFitted(r, a.objective); !st.ok()) return Fail(st);
-  const auto tests = TestSplits(r, *loaded, *plan, a.deriv_cutoff);
-  if (!tests.ok()) return Fail(tests.status());
-  const long long simulations = TotalSimulations(r);
-  const nlohmann::json j = ResultJson(a, *plan, r, *recs, *tests, simulations);
-  if (!a.report.empty()) {
-    if (Status st = WriteReport(a, plan->setup, r, *recs, j, simulations); !st.ok()) return Fail(st);
-  }
-  if (a.json) {
-    std::cout << j.dump(2) << "\n";
-    return 0;
-  }
-  PrintSummary(a, r, *tests, simulations);
+  auto j = IdentifyJson(a);
+  if (!j.ok()) return Fail(j.status());
+  if (a.json) std::cout << j->dump(2) << "\n";
   return 0;
 }
 
-}  // namespace
-
-void AddIdentifyCommand(CLI::App& app, int* exit_code) {
-  auto a = std::make_shared<IdentifyArgs>();
-  CLI::App* c = app.add_subcommand("identify", "Fit the model to measured records, trace the residual to missing effects, add them, report before/after");
+void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
   c->add_option("--data", a->data, "CSV record(s) with a header: , tab or ; separated, # comments, units in names (docs/identification.md); repeat for several, fitted jointly");
   c->add_option("--terms", a->terms, "declared terms, comma-separated (see --list-terms), e.g. main.linear,main.stiffness_y3,main.viscous");
   c->add_option("--known", a->known, "known constants: m_main, m_res [kg], v_sp, v_t [m/s] (defaults 0.002, 0.001), e.g. m_main=0.282");
@@ -605,7 +622,29 @@ void AddIdentifyCommand(CLI::App& app, int* exit_code) {
   c->add_flag("--fit-offsets", a->fit_offsets, "velocity outputs: fit each record's displacement offset (which well)");
   c->add_flag("--list-terms", a->list_terms, "list the effect library (ids, formulas, units) and exit");
   c->add_flag("--json", a->json, "print the result as JSON");
+}
+
+}  // namespace
+
+void AddIdentifyCommand(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<IdentifyArgs>();
+  CLI::App* c = app.add_subcommand("identify", "Fit the model to measured records, trace the residual to missing effects, add them, report before/after");
+  AddIdentifyOptions(c, a.get());
   c->callback([a, exit_code] { *exit_code = RunIdentify(*a); });
+}
+
+StatusOr<nlohmann::json> IdentifyFromArgs(const std::vector<std::string>& args) {
+  IdentifyArgs a;
+  CLI::App app("identify");
+  AddIdentifyOptions(&app, &a);
+  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 takes the arguments last first
+  try {
+    app.parse(reversed);
+  } catch (const CLI::ParseError& e) {
+    return Status::InvalidArgument("identify", e.what());
+  }
+  a.json = true;  // nothing printed: the caller gets the object
+  return IdentifyJson(a);
 }
 
 }  // namespace bistable

@@ -89,4 +89,27 @@ nlohmann::json PointJson(const PointSpec& spec, const PointResult& r) {
   };
 }
 
+nlohmann::json SweepStatusJson(const SweepInfo& s) {
+  return {{"id", s.id},         {"state", SweepStateName(s.state)}, {"items_done", s.items_done},
+          {"items_total", s.items_total}, {"items_cached", s.items_cached}, {"workers", s.workers},
+          {"seconds", s.seconds}, {"file", s.file}, {"name", s.name}, {"model", s.model}, {"error", s.error},
+          {"owner", s.owner}};
+}
+
+nlohmann::json RemoteSweepJson(const SweepInfo& s) {
+  return {{"id", s.id}, {"name", s.name}, {"model", s.model}, {"status", SweepStateName(s.state)},
+          {"owner", s.owner}, {"items_total", s.items_total}, {"items_done", s.items_done},
+          {"items_cached", s.items_cached}, {"workers", s.workers}, {"seconds", s.seconds},
+          {"file", s.file.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.file)},
+          {"error", s.error.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.error)}};
+}
+
+nlohmann::json SubmittedJson(const CoordinatorClient::Submitted& s) {
+  return {{"id", s.id}, {"items_total", s.items_total}, {"items_cached", s.items_cached}, {"jobs", s.jobs}};
+}
+
+nlohmann::json WorkerJson(const WorkerInfo& w) {
+  return {{"name", w.name}, {"last_seen", JsonTime(w.last_seen)}, {"leases", w.leases}, {"items_done", w.items_done}};
+}
+
 }  // namespace bistable

@@ -7,6 +7,8 @@
 #include <nlohmann/json.hpp>
 
 #include "dynamics/point_spec.h"
+#include "engine/sweep_state.h"
+#include "proto/coordinator_client.h"
 
 namespace bistable {
 
@@ -29,6 +31,13 @@ nlohmann::json SettingsJson(const PointSpec& spec);
 // The `bistable point --json` object: frf_db, lle, lle_rosenstein, motion, period, hd_index, hd_peaks,
 // edr_b, edr_r, edr_t, energy_balance_residual, energies, termination, settings. NaN prints as null.
 nlohmann::json PointJson(const PointSpec& spec, const PointResult& r);
+
+// A coordinator's answers: `status --json` (SweepStatusJson), a row of `sweeps --coordinator --json`
+// (RemoteSweepJson), `submit --json` (SubmittedJson), a row of `workers --json` (WorkerJson).
+nlohmann::json SweepStatusJson(const SweepInfo& s);
+nlohmann::json RemoteSweepJson(const SweepInfo& s);
+nlohmann::json SubmittedJson(const CoordinatorClient::Submitted& s);
+nlohmann::json WorkerJson(const WorkerInfo& w);
 
 }  // namespace bistable
 

@@ -17,6 +17,7 @@
 
 #include "client/cli_common.h"
 #include "client/json_out.h"
+#include "client/map_query.h"
 #include "client/map_slice.h"
 #include "client/map_source.h"
 #include "client/plot.h"
@@ -49,12 +50,7 @@ int ListRemoteSweeps(const SweepsArgs& a) {
   if (!sweeps.ok()) return Fail(sweeps.status());
   if (a.json) {
     nlohmann::json arr = nlohmann::json::array();
-    for (const SweepInfo& s : *sweeps)
-      arr.push_back({{"id", s.id}, {"name", s.name}, {"model", s.model}, {"status", SweepStateName(s.state)},
-                     {"owner", s.owner}, {"items_total", s.items_total}, {"items_done", s.items_done},
-                     {"items_cached", s.items_cached}, {"workers", s.workers}, {"seconds", s.seconds},
-                     {"file", s.file.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.file)},
-                     {"error", s.error.empty() ? nlohmann::json(nullptr) : nlohmann::json(s.error)}});
+    for (const SweepInfo& s : *sweeps) arr.push_back(RemoteSweepJson(s));
     std::cout << arr.dump(2) << "\n";
     return 0;
   }
@@ -81,19 +77,7 @@ int ListSweeps(const SweepsArgs& a) {
   auto rows = (*db)->ListSweeps();
   if (!rows.ok()) return Fail(rows.status());
   if (a.json) {
-    nlohmann::json arr = nlohmann::json::array();
-    for (const SweepRow& r : *rows) {
-      nlohmann::json maps = nlohmann::json::array();
-      if (auto ms = (*db)->ListMaps(r.id); ms.ok())
-        for (const MapRow& m : *ms)
-          maps.push_back({{"metric", m.metric}, {"shape", m.shape}, {"min", MetricNumberJson(m.metric, m.min)},
-                          {"max", MetricNumberJson(m.metric, m.max)}});
-      arr.push_back({{"id", r.id}, {"name", r.name}, {"model", r.model}, {"status", SweepStateName(r.state)},
-                     {"items_total", r.items_total}, {"items_done", r.items_done},
-                     {"file", r.file.empty() ? nlohmann::json(nullptr) : nlohmann::json((std::filesystem::path(a.data) / r.file).string())},
-                     {"created", JsonTime(r.created)}, {"finished", JsonTime(r.finished)}, {"seconds", r.seconds}, {"maps", maps}});
-    }
-    std::cout << arr.dump(2) << "\n";
+    std::cout << LocalSweepsJson(**db, *rows, a.data).dump(2) << "\n";
     return 0;
   }
   std::printf("%-12s  %-11s  %-14s  %13s  %8s  %s\n", "id", "status", "model", "done/total", "seconds", "name");
@@ -295,84 +279,18 @@ struct QueryArgs {
 };
 
 int RunQuery(const QueryArgs& a) {
-  SweepRefLite ref;
-  auto metrics = a.src.Metrics(a.id, &ref.id, &ref.name);
-  if (!metrics.ok()) return Fail(metrics.status());
-  std::vector<std::string> vars;
-  for (const auto& m : *metrics)
-    if (m != "hd_peak_freq" && m != "hd_peak_amp") vars.push_back(m);
-  if (vars.empty()) return Fail(Status::FailedPrecondition("sweep " + ref.id + " stores no metric a query can use"));
-  auto first = a.src.Metric(ref.id, vars.front());
-  if (!first.ok()) return Fail(first.status());
-  const std::vector<Axis> axes = first->axes;
-  const size_t n_axes_vars = axes.size();
-  std::vector<std::string> names;
-  for (const Axis& ax : axes) names.push_back(ax.name);
-  for (const auto& m : vars) names.push_back(m);
-  auto q = Query::Parse(a.expr, names);
-  if (!q.ok()) return Fail(q.status());
-  // Load only the metrics the query uses; items = points (× ic when present).
-  std::map<int, MapArray> loaded;
-  size_t n_items = 1, n_points = 1;
-  for (const Axis& ax : axes) n_points *= ax.values.size();
-  for (int v : q->used()) {
-    if (v < static_cast<int>(n_axes_vars)) continue;
-    auto m = a.src.Metric(ref.id, names[v]);
-    if (!m.ok()) return Fail(m.status());
-    n_items = std::max(n_items, m->values.size());
-    loaded.emplace(v, std::move(*m));
-  }
-  n_items = std::max(n_items, n_points);
-  const size_t per_point = n_items / n_points;
-  // Cell weights: product of each axis's cell width (midpoint rule), for the area fraction.
-  auto width = [](const std::vector<double>& v, size_t i) {
-    if (v.size() == 1) return 1.0;
-    const double lo = i == 0 ? v[0] : 0.5 * (v[i - 1] + v[i]);
-    const double hi = i + 1 == v.size() ? v.back() : 0.5 * (v[i] + v[i + 1]);
-    return hi - lo;
-  };
-  long count = 0;
-  double area = 0, area_total = 0;
-  nlohmann::json points = nlohmann::json::array();
-  std::vector<size_t> idx(axes.size());
-  for (size_t item = 0; item < n_items; ++item) {
-    size_t p = item / per_point, rest = p;
-    double w = 1;
-    for (long k = static_cast<long>(axes.size()) - 1; k >= 0; --k) {
-      idx[k] = rest % axes[k].values.size();
-      rest /= axes[k].values.size();
-      w *= width(axes[k].values, idx[k]);
-    }
-    area_total += w;
-    auto value = [&](int v) -> double {
-      if (v < static_cast<int>(n_axes_vars)) return axes[v].values[idx[v]];
-      const MapArray& m = loaded.at(v);
-      return m.values.size() == n_items ? m.values[item] : m.values[p];
-    };
-    if (!q->Eval(value)) continue;
-    ++count;
-    area += w;
-    if (static_cast<int>(points.size()) < a.limit || a.json) {
-      nlohmann::json pt = nlohmann::json::object();
-      for (size_t k = 0; k < axes.size(); ++k) pt[axes[k].name] = axes[k].values[idx[k]];
-      if (per_point > 1) pt["ic"] = item % per_point;
-      for (int v : q->used())
-        if (v >= static_cast<int>(n_axes_vars)) pt[names[v]] = MetricValueJson(names[v], value(v));
-      points.push_back(pt);
-    }
-  }
-  const double fraction = n_items ? static_cast<double>(count) / static_cast<double>(n_items) : 0.0;
-  const double area_fraction = area_total > 0 ? area / area_total : 0.0;
+  auto j = QueryJson(a.src, a.id, a.expr, a.json ? SIZE_MAX : static_cast<size_t>(std::max(a.limit, 0)));
+  if (!j.ok()) return Fail(j.status());
   if (a.json) {
-    nlohmann::json j = {{"sweep", ref.id}, {"query", a.expr}, {"count", count}, {"total", n_items},
-                        {"fraction", fraction}, {"area_fraction", area_fraction}, {"points", points}};
-    std::cout << j.dump(1) << "\n";
+    std::cout << j->dump(1) << "\n";
     return 0;
   }
-  std::printf("%ld of %zu points match (%.2f%% of points, %.2f%% of the grid's area): %s\n", count, n_items, 100 * fraction,
-              100 * area_fraction, a.expr.c_str());
-  for (const auto& pt : points) std::cout << "  " << pt.dump() << "\n";
-  if (count > static_cast<long>(points.size())) std::printf("  ... (%ld more; --json lists all)\n", count - static_cast<long>(points.size()));
+  const long count = (*j)["count"].get<long>();
+  std::printf("%ld of %zu points match (%.2f%% of points, %.2f%% of the grid's area): %s\n", count, (*j)["total"].get<size_t>(),
+              100 * (*j)["fraction"].get<double>(), 100 * (*j)["area_fraction"].get<double>(), a.expr.c_str());
+  for (const auto& pt : (*j)["points"]) std::cout << "  " << pt.dump() << "\n";
+  if (count > static_cast<long>((*j)["points"].size()))
+    std::printf("  ... (%ld more; --json lists all)\n", count - static_cast<long>((*j)["points"].size()));
   return 0;
 }
 

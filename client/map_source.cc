@@ -2,9 +2,11 @@
 
 #include <filesystem>
 
+#include "base/file.h"
 #include "base/limits.h"
 #include "base/names.h"
 #include "client/cli_common.h"
+#include "dynamics/cancel.h"
 #include "proto/coordinator_client.h"
 #include "storage/metric_name.h"
 
@@ -62,6 +64,27 @@ StatusOr<MapArray> MapSource::Metric(const std::string& id, const std::string& m
   auto client = Client(*this);
   if (!client.ok()) return client.status();
   return (*client)->GetMap(id, metric);
+}
+
+StatusOr<nlohmann::json> FetchMapFile(CoordinatorClient& c, const std::string& id, const std::string& out) {
+  std::unique_ptr<AtomicFile> file;
+  auto fetched = c.FetchMap(id, [&](std::string_view data) -> Status {
+    if (CancelRequested()) return Status::IoError("fetch", "interrupted");
+    if (!file) {
+      auto f = AtomicFile::Create(out, "out");
+      if (!f.ok()) return f.status();
+      file = std::move(f).value();
+    }
+    return file->Write(data);
+  });
+  if (!fetched.ok()) return fetched.status();
+  if (!file) {  // an empty file: nothing was written yet
+    auto f = AtomicFile::Create(out, "out");
+    if (!f.ok()) return f.status();
+    file = std::move(f).value();
+  }
+  BISTABLE_RETURN_IF_ERROR(file->Commit());
+  return nlohmann::json{{"id", fetched->id}, {"file", out}, {"bytes", fetched->bytes}, {"sha256", fetched->sha256}};
 }
 
 }  // namespace bistable

@@ -7,7 +7,10 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "proto/channel.h"
+#include "proto/coordinator_client.h"
 #include "storage/map_file.h"
 
 namespace bistable {
@@ -21,6 +24,11 @@ struct MapSource {
   StatusOr<std::vector<std::string>> Metrics(const std::string& id_or_prefix, std::string* id, std::string* name) const;
   StatusOr<MapArray> Metric(const std::string& id, const std::string& metric) const;
 };
+
+// Streams a published map file from a coordinator into `out` (AtomicFile: temporary, fsync, rename; the
+// stream's SHA-256 checked by CoordinatorClient::FetchMap). Stops with an error when cancellation is
+// requested (dynamics/cancel.h); nothing is left at `out` then. Returns {"id", "file", "bytes", "sha256"}.
+StatusOr<nlohmann::json> FetchMapFile(CoordinatorClient& c, const std::string& id, const std::string& out);
 
 }  // namespace bistable
 

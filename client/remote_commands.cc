@@ -11,6 +11,7 @@
 #include "base/names.h"
 #include "client/cli_common.h"
 #include "client/json_out.h"
+#include "client/map_source.h"
 #include "client/progress.h"
 #include "client/remote_commands.h"
 #include "dynamics/cancel.h"
@@ -26,13 +27,6 @@ struct RemoteArgs {
   bool json = false, watch = false;
 };
 
-nlohmann::json StatusJson(const SweepInfo& s) {
-  return {{"id", s.id},         {"state", SweepStateName(s.state)}, {"items_done", s.items_done},
-          {"items_total", s.items_total}, {"items_cached", s.items_cached}, {"workers", s.workers},
-          {"seconds", s.seconds}, {"file", s.file}, {"name", s.name}, {"model", s.model}, {"error", s.error},
-          {"owner", s.owner}};
-}
-
 // The client for one command: the token and CA resolved once; errors name the flag.
 StatusOr<std::unique_ptr<CoordinatorClient>> Connect(const RemoteArgs& a) {
   auto token = LoadToken(a.token_file);
@@ -46,8 +40,7 @@ int Submit(CoordinatorClient& c, const RemoteArgs& a) {
   auto rep = c.Submit(*text, a.target);
   if (!rep.ok()) return Fail(rep.status());
   if (a.json) {
-    std::cout << nlohmann::json({{"id", rep->id}, {"items_total", rep->items_total}, {"items_cached", rep->items_cached},
-                                 {"jobs", rep->jobs}}).dump() << "\n";
+    std::cout << SubmittedJson(*rep).dump() << "\n";
   } else {
     std::cout << rep->id << "\n";
   }
@@ -58,7 +51,7 @@ int StatusCmd(CoordinatorClient& c, const RemoteArgs& a) {
   if (!a.watch) {
     auto st = c.GetStatus(a.target);
     if (!st.ok()) return Fail(st.status());
-    if (a.json) std::cout << StatusJson(*st).dump() << "\n";
+    if (a.json) std::cout << SweepStatusJson(*st).dump() << "\n";
     else
       std::printf("%s  %s  %ld/%ld points (%ld reused)  %d workers  %.1f s  %s\n", st->id.c_str(), SweepStateName(st->state),
                   st->items_done, st->items_total, st->items_cached, st->workers, st->seconds, st->file.c_str());
@@ -69,7 +62,7 @@ int StatusCmd(CoordinatorClient& c, const RemoteArgs& a) {
   long base = 0;
   auto last = c.Watch(a.target, [&](const SweepInfo& st) {
     if (a.json) {
-      std::cout << StatusJson(st).dump() << std::endl;
+      std::cout << SweepStatusJson(st).dump() << std::endl;
       return true;
     }
     if (!bar) {
@@ -100,8 +93,7 @@ int WorkersCmd(CoordinatorClient& c, const RemoteArgs& a) {
   const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
   if (a.json) {
     nlohmann::json arr = nlohmann::json::array();
-    for (const WorkerInfo& w : *ws)
-      arr.push_back({{"name", w.name}, {"last_seen", JsonTime(w.last_seen)}, {"leases", w.leases}, {"items_done", w.items_done}});
+    for (const WorkerInfo& w : *ws) arr.push_back(WorkerJson(w));
     std::cout << arr.dump(1) << "\n";
     return kExitOk;
   }
@@ -118,32 +110,15 @@ struct FetchArgs {
 };
 
 int FetchCmd(CoordinatorClient& c, const FetchArgs& a) {
-  std::unique_ptr<AtomicFile> file;
-  std::string out = a.out;
   InstallCancelSignalHandlers();  // Ctrl-C: the transfer stops, the temp file is removed
-  auto fetched = c.FetchMap(a.r.target, [&](std::string_view data) -> Status {
-    if (CancelRequested()) return Status::IoError("fetch", "interrupted");
-    if (!file) {
-      auto f = AtomicFile::Create(out, "out");
-      if (!f.ok()) return f.status();
-      file = std::move(f).value();
-    }
-    return file->Write(data);
-  });
+  auto fetched = FetchMapFile(c, a.r.target, a.out);
   RestoreDefaultSignalHandlers();
   if (!fetched.ok()) return Fail(fetched.status());
-  if (!file) {  // an empty file: nothing was written yet
-    auto f = AtomicFile::Create(out, "out");
-    if (!f.ok()) return Fail(f.status());
-    file = std::move(f).value();
-  }
-  if (Status st = file->Commit(); !st.ok()) return Fail(st);
   if (a.r.json)
-    std::cout << nlohmann::json({{"id", fetched->id}, {"file", out}, {"bytes", fetched->bytes}, {"sha256", fetched->sha256}}).dump()
-              << "\n";
+    std::cout << fetched->dump() << "\n";
   else
-    std::printf("fetched sweep %s: %s (%llu bytes, sha256 %s)\n", fetched->id.c_str(), out.c_str(),
-                static_cast<unsigned long long>(fetched->bytes), fetched->sha256.c_str());
+    std::printf("fetched sweep %s: %s (%llu bytes, sha256 %s)\n", (*fetched)["id"].get<std::string>().c_str(), a.out.c_str(),
+                static_cast<unsigned long long>((*fetched)["bytes"].get<uint64_t>()), (*fetched)["sha256"].get<std::string>().c_str());
   return kExitOk;
 }
 

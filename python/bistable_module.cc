@@ -16,6 +16,7 @@
 #include <pybind11/stl.h>
 #include <signal.h>
 
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <mutex>
@@ -28,12 +29,16 @@
 #include "base/version.h"
 #include "client/cli_common.h"
 #include "client/embedded_run.h"
+#include "client/identify_command.h"
+#include "client/map_query.h"
+#include "client/map_source.h"
 #include "client/json_out.h"
 #include "dynamics/cancel.h"
 #include "dynamics/hbm.h"
 #include "dynamics/point.h"
 #include "engine/sweep_spec.h"
 #include "engine/sweep_state.h"
+#include "proto/coordinator_client.h"
 
 namespace py = pybind11;
 
@@ -61,7 +66,7 @@ std::thread::id g_main_thread;  // the thread that imported the module (Python's
 template <typename T>
 T Unwrap(StatusOr<T> v) {
   if (!v.ok()) Raise(v.status());
-  return std::move(*v);
+  return std::move(v).value();
 }
 
 // Runs `work` without the GIL. From the main thread, SIGINT requests cancellation for the duration
@@ -263,7 +268,8 @@ py::dict Hbm(const py::kwargs& kw) {
   py::list branches;
   for (const HbmBranch& b : r.branches) {
     const size_t n = b.points.size();
-    py::array_t<double> om(n), al(n), amp(n), mean(n), mu(n);
+    py::array_t<double> om(n), al(n), amp(n), mean(n), mu(n), ylo(n), yhi(n);
+    py::list well;
     py::array_t<bool> stable(n), fold(n), bp(n), conv(n);
     size_t h = n ? b.points[0].harmonics.size() : 0;
     py::array_t<double> harm({n, h});
@@ -273,11 +279,15 @@ py::dict Hbm(const py::kwargs& kw) {
       om.mutable_at(i) = p.omega, al.mutable_at(i) = p.alpha, amp.mutable_at(i) = p.amplitude, mean.mutable_at(i) = p.mean;
       mu.mutable_at(i) = p.max_multiplier, stable.mutable_at(i) = p.stable, fold.mutable_at(i) = p.fold;
       bp.mutable_at(i) = p.branch_point, conv.mutable_at(i) = p.converged;
+      ylo.mutable_at(i) = p.y_min, yhi.mutable_at(i) = p.y_max;
+      well.append(OrbitWellName(WellOf(p)));
       for (size_t k = 0; k < h && k < p.harmonics.size(); ++k) H(i, k) = p.harmonics[k];
     }
     py::dict d;
     d["start"] = b.start;
     d["omega"] = om, d["alpha"] = al, d["amplitude"] = amp, d["mean"] = mean, d["max_multiplier"] = mu;
+    d["y_min"] = ylo, d["y_max"] = yhi;
+    if (IsBistable(o.model)) d["well"] = well;  // as `hbm --json`: one well only in the linear models
     d["stable"] = stable, d["fold"] = fold, d["branch_point"] = bp, d["converged"] = conv, d["harmonics"] = harm;
     branches.append(d);
   }
@@ -294,6 +304,64 @@ py::dict Hbm(const py::kwargs& kw) {
   return out;
 }
 
+py::object Sweeps(const std::string& data) { return ToPython(Unwrap(LocalSweepsJson(data))); }
+
+py::object QueryMap(const std::string& id, const std::string& expr, const std::string& data, long long limit) {
+  MapSource src;
+  src.data_dir = data;
+  const size_t max_points = limit < 0 ? SIZE_MAX : static_cast<size_t>(limit);
+  return ToPython(Unwrap(Compute([&] { return QueryJson(src, id, expr, max_points); })));
+}
+
+py::object IdentifyArgs(const std::vector<std::string>& args) {
+  return ToPython(Unwrap(Compute([&] { return IdentifyFromArgs(args); })));
+}
+
+// A coordinator, through the CLI's CoordinatorClient (one channel; the token on every call).
+class PyClient {
+ public:
+  PyClient(const std::string& address, const std::string& token, const std::string& tls_ca)
+      : c_(Unwrap(CoordinatorClient::Connect({address, tls_ca, token}))) {}
+
+  py::object Submit(const std::string& toml, const std::string& origin) {
+    return ToPython(SubmittedJson(Unwrap(Compute([&] { return c_->Submit(toml, origin); }))));
+  }
+  py::object Status(const std::string& id) { return ToPython(SweepStatusJson(Unwrap(Compute([&] { return c_->GetStatus(id); })))); }
+  // Until the sweep is final, or `timeout` seconds (< 0: no limit) pass: its last status.
+  py::object Wait(const std::string& id, double timeout) {
+    const auto start = std::chrono::steady_clock::now();
+    auto last = Compute([&] {
+      return c_->Watch(id, [&](const SweepInfo&) {
+        return !CancelRequested() &&
+               (timeout < 0 || std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() < timeout);
+      });
+    });
+    return ToPython(SweepStatusJson(Unwrap(std::move(last))));
+  }
+  void Cancel(const std::string& id) {
+    const bistable::Status st = Compute([&] { return c_->Cancel(id); });
+    if (!st.ok()) Raise(st);
+  }
+  py::object Sweeps() {
+    auto list = Unwrap(Compute([&] { return c_->ListSweeps(); }));
+    nlohmann::json arr = nlohmann::json::array();
+    for (const SweepInfo& s : list) arr.push_back(RemoteSweepJson(s));
+    return ToPython(arr);
+  }
+  py::object Workers() {
+    auto list = Unwrap(Compute([&] { return c_->Workers(); }));
+    nlohmann::json arr = nlohmann::json::array();
+    for (const WorkerInfo& w : list) arr.push_back(WorkerJson(w));
+    return ToPython(arr);
+  }
+  py::object Fetch(const std::string& id, const std::string& path) {
+    return ToPython(Unwrap(Compute([&] { return FetchMapFile(*c_, id, path); })));
+  }
+
+ private:
+  std::unique_ptr<CoordinatorClient> c_;
+};
+
 }  // namespace
 }  // namespace bistable
 
@@ -308,4 +376,17 @@ PYBIND11_MODULE(_core, m) {
   m.def("run", &Run, py::arg("toml"), py::arg("origin"), py::arg("data"), py::arg("threads"), py::arg("progress"));
   m.def("find", &Find, py::arg("id"), py::arg("data"));
   m.def("hbm", &Hbm, "Harmonic balance with continuation and stability");
+  m.def("sweeps", &Sweeps, py::arg("data"));
+  m.def("query", &QueryMap, py::arg("id"), py::arg("expr"), py::arg("data"), py::arg("limit"));
+  m.def("identify", &IdentifyArgs, py::arg("args"));
+  py::class_<PyClient>(m, "Client")
+      .def(py::init<const std::string&, const std::string&, const std::string&>(), py::arg("address"), py::arg("token"),
+           py::arg("tls_ca"))
+      .def("submit", &PyClient::Submit)
+      .def("status", &PyClient::Status)
+      .def("wait", &PyClient::Wait)
+      .def("cancel", &PyClient::Cancel)
+      .def("sweeps", &PyClient::Sweeps)
+      .def("workers", &PyClient::Workers)
+      .def("fetch", &PyClient::Fetch);
 }

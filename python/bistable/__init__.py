@@ -144,8 +144,9 @@ def hbm(**kw):
     Keywords: model ("standalone", "coupled", "linear", "linear-coupled"), param ("omega" or "alpha",
     the continued parameter), start, stop (its range), alpha / omega (the fixed one), harmonics,
     zero_mean, eps, eta, eta_r, phi, lambda, ds. Returns {"branches": [{"start", "omega", "alpha",
-    "amplitude", "mean", "max_multiplier", "stable", "fold", "branch_point", "converged": arrays,
-    "harmonics": array [points, 2H+1]}], "settings", "truncation_change"}.
+    "amplitude", "mean", "y_min", "y_max", "max_multiplier", "stable", "fold", "branch_point", "converged":
+    arrays, "well": names per point ("+well", "-well", "interwell"), "harmonics": array [points, 2H+1]}],
+    "settings", "truncation_change"}.
     """
     return _core.hbm(**kw)
 

@@ -124,6 +124,7 @@ def test_hbm_branches_are_the_cli_branches():
         assert mine["start"] == theirs["start"]
         assert np.array_equal(mine["amplitude"], [p["amplitude"] for p in theirs["points"]])
         assert np.array_equal(mine["stable"], [p["stable"] for p in theirs["points"]])
+        assert mine["well"] == [p["well"] for p in theirs["points"]]
     with pytest.raises(ValueError, match="param"):
         bistable.hbm(param="beta")
 
@@ -177,3 +178,86 @@ def test_the_fig8b_example_runs_as_a_script(tmp_path):
 
     img = plt.imread(png)
     assert len(np.unique(img.reshape(-1, img.shape[-1]), axis=0)) > 50
+
+
+def test_sweeps_and_query_are_the_cli_json(tmp_path):
+    data = tmp_path / "d"
+    ds = bistable.run(SMALL, data=data)
+    sid = ds.attrs["sweep_id"]
+    mine = bistable.sweeps(data=data)
+    theirs = cli_json("sweeps", "--data", str(data))
+    assert mine == theirs and mine[0]["id"] == sid and mine[0]["created"].endswith("Z")
+    expr = "frf_db < 0 or motion == chaotic"
+    q = bistable.query(sid, expr, data=data)
+    assert q == cli_json("query", sid, expr, "--data", str(data))
+    assert q["count"] == len(q["points"]) and 0 < q["total"] == 20
+    chaotic = (ds.motion.values == 2) | (ds.frf_db.values < 0)
+    assert q["count"] == int(chaotic.sum())
+    assert all(isinstance(p["motion"], str) for p in q["points"])
+    assert len(bistable.query(sid, expr, data=data, limit=1)["points"]) == min(1, q["count"])
+    with pytest.raises(ValueError, match="query"):
+        bistable.query(sid, "frf_dbb < 0", data=data)
+    assert bistable.sweeps(data=tmp_path / "none") == []
+
+
+def test_identify_is_the_cli_identify(tmp_path):
+    syn = bistable.identify([], make_synthetic=str(tmp_path / "syn"))
+    assert len(syn["files"]) == 3
+    record = syn["files"][0]
+    args = dict(terms="main.linear,main.viscous", known={"m_main": 0.282}, max_seconds=6, global_evals=0, max_added=0)
+    mine = bistable.identify(record, **args)
+    flags = ["identify", "--data", record, "--terms", "main.linear,main.viscous", "--known", "m_main=0.282",
+             "--max-seconds", "6", "--global-evals", "0", "--max-added", "0"]
+    theirs = cli_json(*flags)
+    for k in ("params", "effects_added"):
+        assert mine[k] == theirs[k], k
+    assert mine["params"]["main.linear.k_lin"] > 0
+    terms = bistable.identify([], list_terms=True)
+    assert any(t["term"] == "main.friction" for t in terms)
+    with pytest.raises(ValueError, match="terms"):
+        bistable.identify(record, terms="main.nonsense")
+    with pytest.raises(ValueError, match="--no-such-flag"):
+        bistable.identify(record, no_such_flag=1)
+
+
+def start(cmd, log):
+    return subprocess.Popen(cmd, stdout=open(log, "w"), stderr=subprocess.STDOUT)
+
+
+def test_client_submits_watches_and_fetches_through_a_real_coordinator(tmp_path):
+    log = tmp_path / "coordinator.log"
+    coord = start([os.environ["BISTABLE_COORDINATOR"], "--listen", "127.0.0.1:0", "--data", str(tmp_path / "server"),
+                   "--lease-seconds", "2", "--job-seconds", "0.01"], log)
+    worker = None
+    try:
+        address = None
+        for _ in range(400):
+            lines = [x for x in open(log).read().splitlines() if x.startswith("listening on ")]
+            if lines:
+                address = lines[0].split()[-1]
+                break
+            time.sleep(0.025)
+        assert address, open(log).read()
+        c = bistable.Client(address)
+        sub = c.submit(SMALL)
+        assert sub["items_total"] == 20
+        worker = start([os.environ["BISTABLE_WORKER"], "--coordinator", address, "--threads", "1", "--name", "py-w"],
+                       tmp_path / "worker.log")
+        final = c.wait(sub["id"], timeout=120)
+        assert final["state"] == "done", final
+        assert c.status(sub["id"])["items_done"] == 20
+        assert [s["id"] for s in c.sweeps()] == [sub["id"]]
+        assert any(w["name"] == "py-w" and w["last_seen"].endswith("Z") for w in c.workers())
+        remote = c.map(sub["id"], path=tmp_path / "fetched.h5")
+        local = bistable.run(SMALL, data=tmp_path / "local")
+        for name in ("frf_db", "lle", "motion"):
+            assert np.array_equal(remote[name].values, local[name].values, equal_nan=True), name
+        with pytest.raises(ValueError):
+            c.status("not-an-id!")
+        with pytest.raises(OSError):
+            bistable.Client("127.0.0.1:1").status(sub["id"])
+    finally:
+        for p in (worker, coord):
+            if p:
+                p.terminate()
+                p.wait(timeout=20)

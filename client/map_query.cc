@@ -1,0 +1,112 @@
+#include "client/map_query.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <map>
+
+#include "client/json_out.h"
+#include "engine/query.h"
+#include "engine/sweep_state.h"
+
+namespace bistable {
+
+StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, const std::string& expr, size_t max_points) {
+  std::string sweep_id, sweep_name;
+  auto metrics = src.Metrics(id, &sweep_id, &sweep_name);
+  if (!metrics.ok()) return metrics.status();
+  std::vector<std::string> vars;
+  for (const auto& m : *metrics)
+    if (m != "hd_peak_freq" && m != "hd_peak_amp") vars.push_back(m);
+  if (vars.empty()) return Status::FailedPrecondition("sweep " + sweep_id + " stores no metric a query can use");
+  auto first = src.Metric(sweep_id, vars.front());
+  if (!first.ok()) return first.status();
+  const std::vector<Axis> axes = first->axes;
+  const size_t n_axes_vars = axes.size();
+  std::vector<std::string> names;
+  for (const Axis& ax : axes) names.push_back(ax.name);
+  for (const auto& m : vars) names.push_back(m);
+  auto q = Query::Parse(expr, names);
+  if (!q.ok()) return q.status();
+  // Load only the metrics the query uses; items = points (× ic when present).
+  std::map<int, MapArray> loaded;
+  size_t n_items = 1, n_points = 1;
+  for (const Axis& ax : axes) n_points *= ax.values.size();
+  for (int v : q->used()) {
+    if (v < static_cast<int>(n_axes_vars)) continue;
+    auto m = src.Metric(sweep_id, names[v]);
+    if (!m.ok()) return m.status();
+    n_items = std::max(n_items, m->values.size());
+    loaded.emplace(v, std::move(*m));
+  }
+  n_items = std::max(n_items, n_points);
+  const size_t per_point = n_items / n_points;
+  // Cell weights: product of each axis's cell width (midpoint rule), for the area fraction.
+  auto width = [](const std::vector<double>& v, size_t i) {
+    if (v.size() == 1) return 1.0;
+    const double lo = i == 0 ? v[0] : 0.5 * (v[i - 1] + v[i]);
+    const double hi = i + 1 == v.size() ? v.back() : 0.5 * (v[i] + v[i + 1]);
+    return hi - lo;
+  };
+  long count = 0;
+  double area = 0, area_total = 0;
+  nlohmann::json points = nlohmann::json::array();
+  std::vector<size_t> idx(axes.size());
+  for (size_t item = 0; item < n_items; ++item) {
+    size_t p = item / per_point, rest = p;
+    double w = 1;
+    for (long k = static_cast<long>(axes.size()) - 1; k >= 0; --k) {
+      idx[k] = rest % axes[k].values.size();
+      rest /= axes[k].values.size();
+      w *= width(axes[k].values, idx[k]);
+    }
+    area_total += w;
+    auto value = [&](int v) -> double {
+      if (v < static_cast<int>(n_axes_vars)) return axes[v].values[idx[v]];
+      const MapArray& m = loaded.at(v);
+      return m.values.size() == n_items ? m.values[item] : m.values[p];
+    };
+    if (!q->Eval(value)) continue;
+    ++count;
+    area += w;
+    if (points.size() < max_points) {
+      nlohmann::json pt = nlohmann::json::object();
+      for (size_t k = 0; k < axes.size(); ++k) pt[axes[k].name] = axes[k].values[idx[k]];
+      if (per_point > 1) pt["ic"] = item % per_point;
+      for (int v : q->used())
+        if (v >= static_cast<int>(n_axes_vars)) pt[names[v]] = MetricValueJson(names[v], value(v));
+      points.push_back(pt);
+    }
+  }
+  const double fraction = n_items ? static_cast<double>(count) / static_cast<double>(n_items) : 0.0;
+  const double area_fraction = area_total > 0 ? area / area_total : 0.0;
+  return nlohmann::json{{"sweep", sweep_id}, {"query", expr}, {"count", count}, {"total", n_items},
+                        {"fraction", fraction}, {"area_fraction", area_fraction}, {"points", points}};
+}
+
+nlohmann::json LocalSweepsJson(IndexDb& db, const std::vector<SweepRow>& rows, const std::string& data_dir) {
+  nlohmann::json arr = nlohmann::json::array();
+  for (const SweepRow& r : rows) {
+    nlohmann::json maps = nlohmann::json::array();
+    if (auto ms = db.ListMaps(r.id); ms.ok())
+      for (const MapRow& m : *ms)
+        maps.push_back({{"metric", m.metric}, {"shape", m.shape}, {"min", MetricNumberJson(m.metric, m.min)},
+                        {"max", MetricNumberJson(m.metric, m.max)}});
+    arr.push_back({{"id", r.id}, {"name", r.name}, {"model", r.model}, {"status", SweepStateName(r.state)},
+                   {"items_total", r.items_total}, {"items_done", r.items_done},
+                   {"file", r.file.empty() ? nlohmann::json(nullptr) : nlohmann::json((std::filesystem::path(data_dir) / r.file).string())},
+                   {"created", JsonTime(r.created)}, {"finished", JsonTime(r.finished)}, {"seconds", r.seconds}, {"maps", maps}});
+  }
+  return arr;
+}
+
+StatusOr<nlohmann::json> LocalSweepsJson(const std::string& data_dir) {
+  const auto index = std::filesystem::path(data_dir) / "index.sqlite";
+  if (!std::filesystem::exists(index)) return nlohmann::json::array();
+  auto db = IndexDb::Open(index.string());
+  if (!db.ok()) return db.status();
+  auto rows = (*db)->ListSweeps();
+  if (!rows.ok()) return rows.status();
+  return LocalSweepsJson(**db, *rows, data_dir);
+}
+
+}  // namespace bistable
