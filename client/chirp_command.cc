@@ -109,10 +109,12 @@ int RunChirpCommand(ChirpArgs& a) {
     for (double v : e.db)
       if (std::isfinite(v)) peak = std::max(peak, v), low = std::min(low, v);
     double h1_peak = -INFINITY, h1_low = INFINITY, coherence = 0;
+    size_t coherent_bins = 0;
     for (size_t i = 0; i < h1.db.size(); ++i) {
       if (std::isfinite(h1.db[i])) h1_peak = std::max(h1_peak, h1.db[i]), h1_low = std::min(h1_low, h1.db[i]);
-      if (std::isfinite(h1.coherence[i])) coherence += h1.coherence[i] / static_cast<double>(h1.db.size());
+      if (std::isfinite(h1.coherence[i])) coherence += h1.coherence[i], ++coherent_bins;
     }
+    coherence = coherent_bins ? coherence / static_cast<double>(coherent_bins) : 0.0;  // over the bins that have one
     summary["sweeps"].push_back({{"direction", dir}, {"frf_max_db", peak}, {"frf_min_db", low}, {"h1_max_db", h1_peak},
                                  {"h1_min_db", h1_low}, {"coherence_mean", coherence}, {"samples", rec->t.size()},
                                  {"dt", rec->dt}, {"diverged", rec->diverged}});
@@ -151,7 +153,9 @@ ChirpFrfPlot ChirpFigure(const std::string& title, bool hz) {
   ChirpFrfPlot p;
   p.title = title;
   p.freq_label = hz ? "frequency f [Hz]" : "frequency {/Symbol w} [rad/{/Symbol t}]";
-  p.mag_label = hz ? "velocity amplitude [m/s]" : "velocity amplitude [{/Symbol d}_s {/Symbol w}_n]";
+  // Welch-averaged spectral magnitudes of a swept sine: their scale depends on the sweep rate and the
+  // segment (docs/numerics.md), so they are compared with each other, not read as amplitudes.
+  p.mag_label = "averaged |velocity spectrum| [a.u.]";
   return p;
 }
 

@@ -371,8 +371,23 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
     s << "set ylabel " << GnuplotString(AxisLabel(d.axis_names[0], d.axis_units[0])) << "\n";
     s << "set cblabel " << GnuplotString(label) << " noenhanced\n" << kColourBoxMargins;
     s << "set tics out\nset key off\n";
-    s << "set xrange [" << Num(xs.front()) << ":" << Num(xs.back()) << "]\n";
-    s << "set yrange [" << Num(ys.front()) << ":" << Num(ys.back()) << "]\n";
+    // Every value owns a whole cell centred on its grid point: pm3d colours each quadrilateral by its
+    // first corner (c1), so the corners are the cell edges (midpoints between grid values, half a step
+    // beyond the ends) and edge (j, i) carries value (j, i); the last edges only close the cells.
+    auto edges = [](const std::vector<double>& v) {
+      std::vector<double> e(v.size() + 1);
+      if (v.size() == 1) {
+        const double h = 0.5 * std::max(std::fabs(v[0]) * 0.02, 1e-6);
+        return std::vector<double>{v[0] - h, v[0] + h};
+      }
+      e[0] = v[0] - 0.5 * (v[1] - v[0]);
+      for (size_t k = 1; k < v.size(); ++k) e[k] = 0.5 * (v[k - 1] + v[k]);
+      e[v.size()] = v.back() + 0.5 * (v.back() - v[v.size() - 2]);
+      return e;
+    };
+    const std::vector<double> xe = edges(xs), ye = edges(ys);
+    s << "set xrange [" << Num(xe.front()) << ":" << Num(xe.back()) << "]\n";
+    s << "set yrange [" << Num(ye.front()) << ":" << Num(ye.back()) << "]\n";
     if (!codes.empty()) {
       // Discrete: code i owns the colour band [i, i+1] and is drawn at i + 0.5; ticks name it.
       s << CodePalette(codes) << "set cbtics (";
@@ -387,13 +402,14 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
         s << kViridis;
       s << "set cbrange [" << Num(range.first) << ":" << Num(range.second) << "]\n";
     }
-    // Quadrilaterals between the given coordinates (pm3d map: gnuplot's image needs uniform spacing).
+    // Quadrilaterals between the cell edges (pm3d map: gnuplot's image needs uniform spacing).
     s << "set view map\nset pm3d map corners2color c1\nset pm3d interpolate 1,1\n";
     s << "$data << EOD\n";
-    for (size_t i = 0; i < ys.size(); ++i) {
-      for (size_t j = 0; j < xs.size(); ++j) {
-        const double v = d.values[i * xs.size() + j];
-        s << Num(xs[j]) << " " << Num(ys[i]) << " " << Num(codes.empty() ? v : coded(v) + 0.5) << "\n";
+    for (size_t i = 0; i < ye.size(); ++i) {
+      const size_t vi = std::min(i, ys.size() - 1);
+      for (size_t j = 0; j < xe.size(); ++j) {
+        const double v = d.values[vi * xs.size() + std::min(j, xs.size() - 1)];
+        s << Num(xe[j]) << " " << Num(ye[i]) << " " << Num(codes.empty() ? v : coded(v) + 0.5) << "\n";
       }
       s << "\n";
     }

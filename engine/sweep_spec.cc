@@ -246,8 +246,8 @@ std::string AxisLongName(const std::string& name) {
   static const std::map<std::string, std::string> kNames = {
       {"alpha", "base excitation amplitude alpha = A0/delta_s"},
       {"omega", "excitation frequency Omega = omega0/omega_n"},
-      {"eta", "main damping ratio eta = c/(m_m omega_n)"},
-      {"eta_r", "resonator damping eta_r = c_r/(m_r omega_n)"},
+      {"eta", "main damping coefficient eta = c/(m_m omega_n) (twice the damping ratio)"},
+      {"eta_r", "resonator damping coefficient eta_r = c_r/(m_r omega_n) (twice its damping ratio)"},
       {"lambda", "resonator tuning lambda = omega_r/omega_n"},
       {"phi", "mass ratio phi = m_r/m_m"},
       {"eps", "cubic stiffness epsilon = k3 delta_s^2/(m_m omega_n^2)"},
@@ -260,6 +260,10 @@ std::string AxisLongName(const std::string& name) {
       {"c2_m", "quadratic-in-displacement damping of the main mass (c2 y^2 y')"},
       {"fric_m_fs", "static (peak) Stribeck friction force on the main mass"},
       {"fric_m_fc", "kinetic (Coulomb) friction force on the main mass"},
+      {"fric_m_vsp", "Stribeck peak velocity of the main mass's friction"},
+      {"fric_m_vt", "transition velocity (tanh) of the main mass's friction"},
+      {"fric_r_vsp", "Stribeck peak velocity of the resonator's friction"},
+      {"fric_r_vt", "transition velocity (tanh) of the resonator's friction"},
       {"m_r", "resonator mass"},
       {"k_r", "resonator stiffness"},
       {"c0_r", "linear damping of the resonator"},
@@ -286,17 +290,26 @@ std::vector<FixedParameter> SweepSpec::FixedParameters() const {
     const DimensionalParams& d = dimensional.params;
     add("m_m", d.m_m, "kg"), add("k_lin", d.k_lin, "N/m"), add("k3", d.k3, "N/m^3"), add("c0_m", d.c0_m, "N s/m");
     add("c2_m", d.c2_m, "N s/m^3"), add("fric_m_fs", d.fric_m.f_s, "N"), add("fric_m_fc", d.fric_m.f_c, "N");
+    add("fric_m_vsp", d.fric_m.v_sp, "m/s"), add("fric_m_vt", d.fric_m.v_t, "m/s");
     if (d.has_resonator) {
       add("m_r", d.m_r, "kg"), add("k_r", d.k_r, "N/m"), add("c0_r", d.c0_r, "N s/m"), add("c2_r", d.c2_r, "N s/m^3");
       add("fric_r_fs", d.fric_r.f_s, "N"), add("fric_r_fc", d.fric_r.f_c, "N");
+      add("fric_r_vsp", d.fric_r.v_sp, "m/s"), add("fric_r_vt", d.fric_r.v_t, "m/s");
     }
     return out;
   }
   const bool resonator = model == ModelKind::kSeries ? series.resonators : HasResonator(model);
   const bool bistable = model == ModelKind::kSeries ? series.bistable : IsBistable(model);
+  auto overridden = [&](const std::string& n) {  // a series cell's own value: the base one is not the model's
+    for (const auto& cell : series.overrides)
+      for (const auto& [k, v] : cell)
+        if (k == n) return true;
+    return false;
+  };
   for (const std::string& n : {"alpha", "omega", "eta", "eta_r", "lambda", "phi", "eps"}) {
     if ((n == "eta_r" || n == "lambda" || n == "phi") && !resonator) continue;
     if (n == "eps" && !bistable) continue;
+    if (model == ModelKind::kSeries && overridden(n)) continue;
     add(n, *ParamSlot(const_cast<PointSpec&>(base), n), "");
   }
   return out;

@@ -139,8 +139,10 @@ constexpr UnitInfo kUnits[] = {
     {"um", Quantity::kLength, 1e-6},     {"\xc2\xb5m", Quantity::kLength, 1e-6}, {"\xce\xbcm", Quantity::kLength, 1e-6},
     {"nm", Quantity::kLength, 1e-9},     {"m/s", Quantity::kVelocity, 1},        {"cm/s", Quantity::kVelocity, 1e-2},
     {"mm/s", Quantity::kVelocity, 1e-3}, {"um/s", Quantity::kVelocity, 1e-6},    {"\xc2\xb5m/s", Quantity::kVelocity, 1e-6},
+    {"\xce\xbcm/s", Quantity::kVelocity, 1e-6},
     {"m/s^2", Quantity::kAcceleration, 1}, {"m/s\xc2\xb2", Quantity::kAcceleration, 1}, {"m/s2", Quantity::kAcceleration, 1},
-    {"mm/s^2", Quantity::kAcceleration, 1e-3}, {"mm/s\xc2\xb2", Quantity::kAcceleration, 1e-3},
+    {"mm/s^2", Quantity::kAcceleration, 1e-3}, {"mm/s\xc2\xb2", Quantity::kAcceleration, 1e-3}, {"mm/s2", Quantity::kAcceleration, 1e-3},
+    {"cm/s^2", Quantity::kAcceleration, 1e-2}, {"cm/s\xc2\xb2", Quantity::kAcceleration, 1e-2}, {"cm/s2", Quantity::kAcceleration, 1e-2},
     {"g", Quantity::kAcceleration, 9.80665}, {"N", Quantity::kForce, 1},      {"mN", Quantity::kForce, 1e-3},
     {"kN", Quantity::kForce, 1e3},
 };
@@ -184,8 +186,9 @@ struct ColumnRef {
 // The column `role` reads: the header cell whose text is `wanted`, else the one whose name (unit
 // suffix stripped) is; the nearest name suggested when none is, an error when two are. Its unit,
 // for a column of quantity `q`: a unit of q converts to SI (and then `scale` must be 1: one
-// conversion only); a unit of another quantity is an error; any other unit is read as is (the scale
-// applies), except on the time column, which must be in a time unit.
+// conversion only); a unit of another quantity is an error; any other unit (a sensor's volts) is read
+// as is only when the scale flag says how (scale != 1) — else a misspelt unit would be taken as SI; the
+// time column must be in a time unit.
 StatusOr<ColumnRef> FindColumn(const std::vector<HeaderCell>& header, const std::string& wanted, const std::string& role,
                                Quantity q, double scale, const char* scale_field, const std::string& file) {
   std::vector<int> hits;
@@ -222,6 +225,14 @@ StatusOr<ColumnRef> FindColumn(const std::vector<HeaderCell>& header, const std:
                                              "; a " + QuantityName(q) + " column takes " + Join(UnitNames(q)));
   if (q == Quantity::kTime)
     return Status::InvalidArgument(role, where + ": " + UnknownNameMessage("time unit", h.unit, UnitNames(q)));
+  if (scale == 1.0) {
+    const bool has_flag = scale_field[0] != '\0';
+    return Status::InvalidArgument(has_flag ? std::string(scale_field) : role,
+                                   where + ": '" + Printable(h.unit) + "' is no unit of " + QuantityName(q) + " (" + Join(UnitNames(q)) +
+                                       ")" + (has_flag ? std::string("; to read the column as is, give ") + scale_field +
+                                                             " (the factor to " + SiName(q) + ")"
+                                                       : std::string()));
+  }
   return ref;
 }
 

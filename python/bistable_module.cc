@@ -7,10 +7,10 @@
 //    where the CLI requires it); a bad one raises ValueError with the library's field-naming message;
 //  * the GIL is released while computing (gil_scoped_release), so other Python threads run;
 //  * Ctrl-C while a computation runs from the main thread requests cooperative cancellation
-//    (dynamics/cancel.h); the call then raises KeyboardInterrupt, nothing partial is returned, and the
-//    process-wide flag is cleared again so the next call runs (a Python session outlives one Ctrl-C);
+//    (dynamics/cancel.h); the call then raises KeyboardInterrupt and nothing partial is returned; the
+//    process-wide flag is cleared once no computation is in flight (see Compute);
 //  * results come back as Python dicts/lists built from the CLI's JSON objects (nlohmann::json → Python
-//    with doubles as they are, NaN as None exactly as --json prints), or numpy arrays.
+//    with doubles as they are, non-finite numbers as None exactly as --json prints null), or numpy arrays.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -20,6 +20,7 @@
 #include <cmath>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -45,7 +46,12 @@ namespace py = pybind11;
 namespace bistable {
 namespace {
 
-std::thread::id g_main_thread;  // the thread that imported the module (Python's main thread)
+// Python delivers signals to its main thread only; only there may a call take SIGINT over.
+bool OnPythonMainThread() {
+  py::module_ threading = py::module_::import("threading");
+  return threading.attr("get_ident")().cast<unsigned long>() ==
+         threading.attr("main_thread")().attr("ident").cast<unsigned long>();
+}
 
 // Status → the Python exception a user expects: bad input is ValueError, a missing sweep LookupError
 // (KeyError would quote the message), files and connections OSError, credentials PermissionError.
@@ -69,34 +75,66 @@ T Unwrap(StatusOr<T> v) {
   return std::move(v).value();
 }
 
-// Runs `work` without the GIL. From the main thread, SIGINT requests cancellation for the duration
-// (Python's own handler is put back afterwards); a cancelled call raises KeyboardInterrupt and clears
-// the flag. One cancellable call at a time owns the handler.
+// Runs `work` without the GIL and raises KeyboardInterrupt if cancellation was requested meanwhile
+// (its result may be cut short; nothing of it is returned).
+//
+// The cancel flag (dynamics/cancel.h) is process-wide and, for the engine, sticky: work that sees it
+// must not store what it cut short (engine/evaluate.cc checks it after a job). So it is cleared only
+// when no computation of this module is in flight — under the same mutex that admits new ones — and
+// a computation never starts, runs and finishes across a clear.
+//
+// `cancellable` work (it polls the flag: points, sweeps, HBM, queries, watching, fetching) started
+// from Python's main thread takes SIGINT for its duration: the first Ctrl-C requests cancellation,
+// a second one ends the process with the default action, as in the CLI; Python's handler is put back
+// afterwards. A SIGINT that was ignored stays ignored. Other work leaves Python's handler in place
+// (Ctrl-C then arrives as KeyboardInterrupt when the call returns).
+std::mutex g_flight_mutex;
+int g_in_flight = 0;
+
 template <typename F>
-auto Compute(F&& work) -> decltype(work()) {
+auto Compute(F&& work, bool cancellable = true) -> decltype(work()) {
   static std::mutex handler_mutex;
-  const bool main_thread = std::this_thread::get_id() == g_main_thread;
-  std::unique_lock<std::mutex> lock(handler_mutex, std::defer_lock);
+  std::unique_lock<std::mutex> handler(handler_mutex, std::defer_lock);
   struct sigaction old {};
   bool installed = false;
-  if (main_thread && lock.try_lock()) {
+  if (cancellable && OnPythonMainThread() && handler.try_lock() &&
+      ::sigaction(SIGINT, nullptr, &old) == 0 && old.sa_handler != SIG_IGN) {
     struct sigaction sa {};
-    sa.sa_handler = [](int) { RequestCancel(); };
+    sa.sa_handler = [](int) {
+      if (CancelRequested()) {  // the second Ctrl-C: stop now (async-signal-safe calls only)
+        ::signal(SIGINT, SIG_DFL);
+        ::raise(SIGINT);
+      }
+      RequestCancel();
+    };
     sigemptyset(&sa.sa_mask);
     sa.sa_flags = SA_RESTART;
-    installed = ::sigaction(SIGINT, &sa, &old) == 0;
+    installed = ::sigaction(SIGINT, &sa, nullptr) == 0;
   }
-  decltype(work()) result = [&] {
+  {
+    std::lock_guard<std::mutex> lock(g_flight_mutex);
+    ++g_in_flight;
+  }
+  auto finish = [&] {
+    if (installed) ::sigaction(SIGINT, &old, nullptr);
+    std::lock_guard<std::mutex> lock(g_flight_mutex);
+    const bool cancelled = CancelRequested();
+    if (--g_in_flight == 0 && cancelled) ScopedCancelReset reset;  // nothing running: the next call starts clean
+    return cancelled;
+  };
+  std::optional<decltype(work())> result;
+  try {
     py::gil_scoped_release release;
-    return work();
-  }();
-  if (installed) ::sigaction(SIGINT, &old, nullptr);
-  if (installed && CancelRequested()) {
-    ScopedCancelReset reset;  // clears the flag now (and again at scope end)
+    result.emplace(work());
+  } catch (...) {
+    finish();
+    throw;
+  }
+  if (finish()) {
     PyErr_SetNone(PyExc_KeyboardInterrupt);
     throw py::error_already_set();
   }
-  return result;
+  return std::move(*result);
 }
 
 py::object ToPython(const nlohmann::json& j) {
@@ -105,7 +143,10 @@ py::object ToPython(const nlohmann::json& j) {
     case nlohmann::json::value_t::boolean: return py::bool_(j.get<bool>());
     case nlohmann::json::value_t::number_integer: return py::int_(j.get<long long>());
     case nlohmann::json::value_t::number_unsigned: return py::int_(j.get<unsigned long long>());
-    case nlohmann::json::value_t::number_float: return py::float_(j.get<double>());
+    case nlohmann::json::value_t::number_float: {  // NaN/inf as --json prints them: null
+      const double v = j.get<double>();
+      return std::isfinite(v) ? py::object(py::float_(v)) : py::object(py::none());
+    }
     case nlohmann::json::value_t::string: return py::str(j.get<std::string>());
     case nlohmann::json::value_t::array: {
       py::list l;
@@ -180,7 +221,9 @@ PointSpec PointFromKeywords(const py::dict& kw) {
     } else if (k == "rosenstein") {
       s.metrics.rosenstein = Flag(value, k);
     } else if (k == "ic") {
-      const auto seq = py::cast<py::sequence>(value);
+      if (!py::isinstance<py::sequence>(value) || py::isinstance<py::str>(value))
+        throw py::value_error("ic = " + std::string(py::str(py::repr(value))) + " violates ic = (ym, vm) or (ym, vm, yr, vr)");
+      const auto seq = py::reinterpret_borrow<py::sequence>(value);
       if (seq.size() != 2 && seq.size() != 4) throw py::value_error("ic has " + std::to_string(seq.size()) + " numbers; violates ic = (ym, vm) or (ym, vm, yr, vr)");
       for (size_t i = 0; i < seq.size(); ++i) s.ic[i] = Number(seq[i], "ic[" + std::to_string(i) + "]");
       s.ic_given = true;
@@ -314,7 +357,7 @@ py::object QueryMap(const std::string& id, const std::string& expr, const std::s
 }
 
 py::object IdentifyArgs(const std::vector<std::string>& args) {
-  return ToPython(Unwrap(Compute([&] { return IdentifyFromArgs(args); })));
+  return ToPython(Unwrap(Compute([&] { return IdentifyFromArgs(args); }, /*cancellable=*/false)));
 }
 
 // A coordinator, through the CLI's CoordinatorClient (one channel; the token on every call).
@@ -324,9 +367,9 @@ class PyClient {
       : c_(Unwrap(CoordinatorClient::Connect({address, tls_ca, token}))) {}
 
   py::object Submit(const std::string& toml, const std::string& origin) {
-    return ToPython(SubmittedJson(Unwrap(Compute([&] { return c_->Submit(toml, origin); }))));
+    return ToPython(SubmittedJson(Unwrap(Compute([&] { return c_->Submit(toml, origin); }, false))));
   }
-  py::object Status(const std::string& id) { return ToPython(SweepStatusJson(Unwrap(Compute([&] { return c_->GetStatus(id); })))); }
+  py::object Status(const std::string& id) { return ToPython(SweepStatusJson(Unwrap(Compute([&] { return c_->GetStatus(id); }, false)))); }
   // Until the sweep is final, or `timeout` seconds (< 0: no limit) pass: its last status.
   py::object Wait(const std::string& id, double timeout) {
     const auto start = std::chrono::steady_clock::now();
@@ -339,17 +382,17 @@ class PyClient {
     return ToPython(SweepStatusJson(Unwrap(std::move(last))));
   }
   void Cancel(const std::string& id) {
-    const bistable::Status st = Compute([&] { return c_->Cancel(id); });
+    const bistable::Status st = Compute([&] { return c_->Cancel(id); }, false);
     if (!st.ok()) Raise(st);
   }
   py::object Sweeps() {
-    auto list = Unwrap(Compute([&] { return c_->ListSweeps(); }));
+    auto list = Unwrap(Compute([&] { return c_->ListSweeps(); }, false));
     nlohmann::json arr = nlohmann::json::array();
     for (const SweepInfo& s : list) arr.push_back(RemoteSweepJson(s));
     return ToPython(arr);
   }
   py::object Workers() {
-    auto list = Unwrap(Compute([&] { return c_->Workers(); }));
+    auto list = Unwrap(Compute([&] { return c_->Workers(); }, false));
     nlohmann::json arr = nlohmann::json::array();
     for (const WorkerInfo& w : list) arr.push_back(WorkerJson(w));
     return ToPython(arr);
@@ -367,7 +410,6 @@ class PyClient {
 
 PYBIND11_MODULE(_core, m) {
   using namespace bistable;
-  g_main_thread = std::this_thread::get_id();
   m.doc() = "bistable-sweep's C++ core (see the package bistable for the documented API)";
   m.attr("__version__") = kSoftwareVersion;
   m.attr("numerics_version") = kNumericsVersion;

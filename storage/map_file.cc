@@ -115,7 +115,8 @@ CfUnits CfUnitsFor(const std::string& label) {
       {"N/m", {"N/m", ""}},
       {"N/m^3", {"N/m3", ""}},
       {"N s/m", {"N s/m", ""}},
-      {"N s/m^3", {"N s/m3", ""}}};
+      {"N s/m^3", {"N s/m3", ""}},
+      {"m/s", {"m/s", ""}}};
   auto it = kUnits.find(label);
   if (it != kUnits.end()) return it->second;
   return {"1", "non-dimensional: " + label};  // the paper's ratios (A0/delta_s, omega_r/omega_n, ...)
@@ -183,13 +184,22 @@ Status AttachScales(hid_t file, const std::string& name, const std::vector<std::
   return Status::Ok();
 }
 
-// A coordinate variable: a 1-D dimension scale named like its dimension.
-Status WriteScale(hid_t file, const std::string& name, const std::vector<double>& values, const CfQuantity& q) {
+// A coordinate variable: a 1-D dimension scale named like its dimension. Index coordinates (ic,
+// direction, peak, turning_point) are 32-bit integers, so a flag_values attribute has their type (CF §3.5).
+Status WriteScale(hid_t file, const std::string& name, const std::vector<double>& values, const CfQuantity& q,
+                  bool integer = false) {
   const std::vector<hsize_t> dims = {values.size()};
   Handle space(H5Screate_simple(1, dims.data(), nullptr), H5Sclose);
-  Handle ds(H5Dcreate2(file, name.c_str(), H5T_NATIVE_DOUBLE, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
-  if (!ds.ok() || H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()) < 0)
-    return Status::IoError("map", "write axis " + name);
+  const hid_t type = integer ? H5T_NATIVE_INT32 : H5T_NATIVE_DOUBLE;
+  Handle ds(H5Dcreate2(file, name.c_str(), type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
+  herr_t rc = -1;
+  if (ds.ok() && integer) {
+    std::vector<int32_t> ints(values.begin(), values.end());
+    rc = H5Dwrite(ds.get(), H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT, ints.data());
+  } else if (ds.ok()) {
+    rc = H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data());
+  }
+  if (rc < 0) return Status::IoError("map", "write axis " + name);
   if (H5DSset_scale(ds.get(), name.c_str()) < 0) return Status::IoError("map", "set scale " + name);
   return WriteCfAttrs(ds.get(), q, "");
 }
@@ -252,7 +262,7 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
   if (nic > 1) {
     CfQuantity q{"index into the sweep's initial states ([initial_conditions] states)", "", ""};
     if (chained) q = {"direction of the continuation sweep along " + spec.continuation.axis, "", "", &kDirections};
-    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), item_dim, Iota(nic), q));
+    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), item_dim, Iota(nic), q, /*integer=*/true));
   }
   std::vector<hsize_t> dims = axis_dims;
   std::vector<std::string> names = axis_names;
@@ -272,7 +282,7 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
   }
   if (std::find(spec.metrics.begin(), spec.metrics.end(), "hd_peaks") != spec.metrics.end()) {
     BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), "peak", Iota(kHdPeaksStored),
-                                        {"rank of the spectral peak (0 = strongest)", "", ""}));
+                                        {"rank of the spectral peak (0 = strongest)", "", ""}, /*integer=*/true));
     std::vector<hsize_t> pd = dims;
     pd.push_back(kHdPeaksStored);
     std::vector<std::string> pn = names;
@@ -293,7 +303,8 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
   }
   if (spec.base.metrics.turning_points) {
     BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), "turning_point", Iota(kTurningPointsStored),
-                                        {"index of the turning point (time order within the last 64 of the window)", "", ""}));
+                                        {"index of the turning point (time order within the last 64 of the window)", "", ""},
+                                        /*integer=*/true));
     std::vector<hsize_t> td = dims;
     td.push_back(kTurningPointsStored);
     std::vector<std::string> tn = names;

@@ -250,6 +250,9 @@ TEST(Records, MalformedDaqFilesNameTheLineColumnAndBound) {
       {"thousands.csv", "t;x0;x\n0;1.234,5;0\n", c, "row 2 column 'x0': '1.234,5' is not a finite number"},
       {"control_bytes.csv", "t,x0,x\n0,\x1b[31m,0\n", c, "row 2 column 'x0': '\\x1b[31m' is not a finite number"},
       {"typo_with_units.csv", "t [s],x0 [m],pos [m]\n" + rows, c, "unknown column 'x'"},
+      {"misspelt_unit.csv", "t,x0 [mmm],x\n" + rows, c,
+       "column 'x0 [mmm]' (input, length): 'mmm' is no unit of length (m, cm, mm, um, \xc2\xb5m, \xce\xbcm, nm); to read the "
+       "column as is, give input_scale"},
   };
   for (const Case& k : cases) {
     auto r = LoadRecords(WriteFile(k.name, k.text), k.columns);

@@ -94,9 +94,15 @@ def check(path, spec):
         assert list(ds[name].dims[: len(axes)]) == axes, (name, ds[name].dims)
     # Fixed parameters are scalar coordinates holding the spec's values.
     params = spec.get("params", {})
+    per_cell = {k for cell in spec.get("series", {}).get("cell", []) for k in cell}  # not one value: no scalar
     for key, value in params.items():
-        if isinstance(value, (int, float)) and key in ds.coords:
-            assert ds.coords[key].ndim == 0 and float(ds.coords[key]) == float(value), (key, float(ds.coords[key]), value)
+        if key in axes or not isinstance(value, (int, float)):
+            continue
+        if key in per_cell:
+            assert key not in ds.coords, "%s is overridden per cell, yet written as one scalar" % key
+            continue
+        assert key in ds.coords, "fixed parameter %s of the spec is not a scalar coordinate" % key
+        assert ds.coords[key].ndim == 0 and float(ds.coords[key]) == float(value), (key, float(ds.coords[key]), value)
     scalars = [c for c in ds.coords if ds.coords[c].ndim == 0]
     assert scalars, "no fixed parameters as scalar coordinates"
     # Round trip: xarray (both engines) sees exactly the stored values.

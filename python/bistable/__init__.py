@@ -168,7 +168,7 @@ def identify(data, **kw):
                 args.append(flag)
             continue
         if isinstance(v, dict):
-            v = ",".join("%s=%r" % (a, b) for a, b in v.items())
+            v = ",".join("%s=%s" % (a, b) for a, b in v.items())
         elif isinstance(v, (list, tuple)):
             v = ",".join(str(x) for x in v)
         args += [flag, str(v)]
@@ -215,6 +215,8 @@ class Client:
         return self._c.fetch(str(id), _os.fspath(path))
 
     def map(self, id, path=None):
-        """The published map as an xarray.Dataset (fetched to `path`, default <id>.h5 in the cwd)."""
-        r = self.fetch(id, path or (str(id) + ".h5"))
+        """The published map as an xarray.Dataset (fetched to `path`, default <full sweep id>.h5 in the cwd)."""
+        if path is None:
+            path = self.status(id)["id"] + ".h5"  # the coordinator's id (12 hex digits), never the caller's text
+        r = self.fetch(id, path)
         return open_file(r["file"])

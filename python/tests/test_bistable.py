@@ -53,6 +53,12 @@ def test_point_is_the_cli_point_bit_for_bit(kw, flags):
     assert bistable.point(**kw) == cli_json("point", *flags)
 
 
+def test_nan_is_none_as_the_cli_prints_null():
+    r = bistable.point(model="coupled", alpha=1.0, omega=1.2, rosenstein=False)
+    assert r["lle_rosenstein"] is None
+    assert r == cli_json("point", "--model", "coupled", "--alpha", "1", "--omega", "1.2", "--no-rosenstein")
+
+
 def test_trajectory_gives_the_window_and_the_same_metrics():
     t = bistable.trajectory(model="coupled", alpha=1.0, omega=1.2, t_end=300.0, t_keep=200.0, sample_every=10)
     tau = t["tau"]
@@ -76,6 +82,7 @@ def test_trajectory_gives_the_window_and_the_same_metrics():
         (dict(alpha=1.0), "omega is required"),
         (dict(alpha=1.0, omega=1.0, t_keep=600.0), "t_keep"),
         (dict(alpha=1.0, omega=1.0, ic=(1, 2, 3)), "ic"),
+        (dict(alpha=1.0, omega=1.0, ic=5), "ic"),
     ],
 )
 def test_bad_point_arguments_raise_value_error_naming_the_field(kw, expect):
@@ -261,3 +268,34 @@ def test_client_submits_watches_and_fetches_through_a_real_coordinator(tmp_path)
             if p:
                 p.terminate()
                 p.wait(timeout=20)
+
+
+def test_ctrl_c_in_one_thread_does_not_let_another_store_a_cut_short_job(tmp_path):
+    # A sweep in a worker thread and a long point on the main thread: Ctrl-C stops both (the flag is
+    # process-wide); the sweep raises KeyboardInterrupt rather than publishing, and running it again
+    # afterwards gives the same map as an undisturbed run.
+    spec = dict(SMALL, axes={"alpha": {"linspace": [0.2, 2.0, 40]}, "omega": {"linspace": [0.5, 1.5, 40]}},
+                integration={"t_end": 2000.0, "t_keep": 1000.0})
+    outcome = {}
+
+    def sweep():
+        try:
+            outcome["path"] = bistable.run(spec, data=tmp_path / "a", threads=1, path_only=True)
+        except KeyboardInterrupt:
+            outcome["interrupted"] = True
+
+    t = threading.Thread(target=sweep)
+    t.start()
+    time.sleep(0.3)
+    timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        bistable.point(model="coupled", alpha=1.0, omega=1.2, t_end=9e5, t_keep=100.0, sample_every=50, rosenstein=False)
+    t.join()
+    timer.join()
+    assert outcome.get("interrupted") or "path" in outcome, outcome
+    resumed = bistable.run(spec, data=tmp_path / "a", path_only=True)
+    clean = bistable.run(spec, data=tmp_path / "b", path_only=True)
+    with h5py.File(resumed) as f, h5py.File(clean) as g:
+        for name in ("frf_db", "lle", "motion"):
+            assert np.array_equal(f[name][()], g[name][()], equal_nan=True), name
