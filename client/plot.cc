@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <functional>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -345,6 +346,36 @@ std::string AxisLabel(const std::string& name, const std::string& unit) {
   return Greek(name) + (u.empty() ? "" : " = " + u);
 }
 
+// A pm3d map in which every value owns a whole cell centred on its grid point (heatmaps, spectrograms):
+// pm3d colours each quadrilateral by its first corner (c1), so the corners are the cell edges —
+// midpoints between grid values, half a step beyond the ends — and edge (i, j) carries value(i, j);
+// the last edges only close the cells. Writes the ranges, the data block and the splot. x and y are
+// strictly increasing (axes, times, frequencies); pm3d takes uneven spacing, gnuplot's image does not.
+static void WriteCells(std::ostream& s, const std::vector<double>& xs, const std::vector<double>& ys,
+                       const std::function<double(size_t, size_t)>& value) {
+  auto edges = [](const std::vector<double>& v) {
+    if (v.size() == 1) {
+      const double h = 0.5 * std::max(std::fabs(v[0]) * 0.02, 1e-6);
+      return std::vector<double>{v[0] - h, v[0] + h};
+    }
+    std::vector<double> e(v.size() + 1);
+    e[0] = v[0] - 0.5 * (v[1] - v[0]);
+    for (size_t k = 1; k < v.size(); ++k) e[k] = 0.5 * (v[k - 1] + v[k]);
+    e[v.size()] = v.back() + 0.5 * (v.back() - v[v.size() - 2]);
+    return e;
+  };
+  const std::vector<double> xe = edges(xs), ye = edges(ys);
+  s << "set xrange [" << Num(xe.front()) << ":" << Num(xe.back()) << "]\n";
+  s << "set yrange [" << Num(ye.front()) << ":" << Num(ye.back()) << "]\n";
+  s << "set view map\nset pm3d map corners2color c1\nset pm3d interpolate 1,1\n$data << EOD\n";
+  for (size_t j = 0; j < ye.size(); ++j) {
+    for (size_t i = 0; i < xe.size(); ++i)
+      s << Num(xe[i]) << " " << Num(ye[j]) << " " << Num(value(std::min(i, xs.size() - 1), std::min(j, ys.size() - 1))) << "\n";
+    s << "\n";
+  }
+  s << "EOD\nsplot $data using 1:2:3 with pm3d\n";
+}
+
 Status RenderPlot(const PlotData& d, const std::string& out_path, std::string format) {
   if (format.empty()) format = std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png";
   if (format != "png" && format != "svg")
@@ -371,23 +402,6 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
     s << "set ylabel " << GnuplotString(AxisLabel(d.axis_names[0], d.axis_units[0])) << "\n";
     s << "set cblabel " << GnuplotString(label) << " noenhanced\n" << kColourBoxMargins;
     s << "set tics out\nset key off\n";
-    // Every value owns a whole cell centred on its grid point: pm3d colours each quadrilateral by its
-    // first corner (c1), so the corners are the cell edges (midpoints between grid values, half a step
-    // beyond the ends) and edge (j, i) carries value (j, i); the last edges only close the cells.
-    auto edges = [](const std::vector<double>& v) {
-      std::vector<double> e(v.size() + 1);
-      if (v.size() == 1) {
-        const double h = 0.5 * std::max(std::fabs(v[0]) * 0.02, 1e-6);
-        return std::vector<double>{v[0] - h, v[0] + h};
-      }
-      e[0] = v[0] - 0.5 * (v[1] - v[0]);
-      for (size_t k = 1; k < v.size(); ++k) e[k] = 0.5 * (v[k - 1] + v[k]);
-      e[v.size()] = v.back() + 0.5 * (v.back() - v[v.size() - 2]);
-      return e;
-    };
-    const std::vector<double> xe = edges(xs), ye = edges(ys);
-    s << "set xrange [" << Num(xe.front()) << ":" << Num(xe.back()) << "]\n";
-    s << "set yrange [" << Num(ye.front()) << ":" << Num(ye.back()) << "]\n";
     if (!codes.empty()) {
       // Discrete: code i owns the colour band [i, i+1] and is drawn at i + 0.5; ticks name it.
       s << CodePalette(codes) << "set cbtics (";
@@ -402,18 +416,10 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
         s << kViridis;
       s << "set cbrange [" << Num(range.first) << ":" << Num(range.second) << "]\n";
     }
-    // Quadrilaterals between the cell edges (pm3d map: gnuplot's image needs uniform spacing).
-    s << "set view map\nset pm3d map corners2color c1\nset pm3d interpolate 1,1\n";
-    s << "$data << EOD\n";
-    for (size_t i = 0; i < ye.size(); ++i) {
-      const size_t vi = std::min(i, ys.size() - 1);
-      for (size_t j = 0; j < xe.size(); ++j) {
-        const double v = d.values[vi * xs.size() + std::min(j, xs.size() - 1)];
-        s << Num(xe[j]) << " " << Num(ye[i]) << " " << Num(codes.empty() ? v : coded(v) + 0.5) << "\n";
-      }
-      s << "\n";
-    }
-    s << "EOD\nsplot $data using 1:2:3 with pm3d\n";
+    WriteCells(s, xs, ys, [&](size_t j, size_t i) {
+      const double v = d.values[i * xs.size() + j];
+      return codes.empty() ? v : coded(v) + 0.5;
+    });
   } else {
     const auto& xs = d.axis_values[0];
     const size_t n_series = std::max<size_t>(1, d.series.size());
@@ -625,13 +631,8 @@ Status RenderSpectrogram(const SpectrogramPlot& d, const std::string& out_path) 
   s << "set title " << GnuplotString(d.title) << " noenhanced\nset xlabel " << GnuplotString(d.time_label) << "\nset ylabel "
     << GnuplotString(d.freq_label) << "\nset cblabel 'magnitude [dB re max]'\nset cbrange [-80:0]\n" << kViridis
     << kColourBoxMargins;
-  s << "set view map\nset pm3d map corners2color c1\nset xrange [" << Num(d.time.front()) << ":" << Num(d.time.back())
-    << "]\nset yrange [0:" << Num(d.freq.back()) << "]\nset key off\n$data << EOD\n";
-  for (size_t i = 0; i < d.time.size(); ++i) {
-    for (size_t k = 0; k < d.freq.size(); ++k) s << Num(d.time[i]) << " " << Num(d.freq[k]) << " " << Num(std::max(-80.0, d.db[i][k])) << "\n";
-    s << "\n";
-  }
-  s << "EOD\nsplot $data using 1:2:3 with pm3d\n";
+  s << "set key off\n";
+  WriteCells(s, d.time, d.freq, [&](size_t i, size_t k) { return std::max(-80.0, d.db[i][k]); });
   return RunGnuplot(s.str(), out_path);
 }
 
