@@ -19,8 +19,8 @@ g++ -O3 -march=native -fopenmp-simd -mprefer-vector-width=512 -ffp-contract=off 
 [ -x "$BUILD/bench/bench_kernel" ] || { echo "build $BUILD/bench/bench_kernel first (cmake --build $BUILD --target bench_kernel)" >&2; exit 2; }
 
 for r in $(seq "$ROUNDS"); do
-  ref=$("$TMP/ref" 256 | sed -n 's/.* \([0-9.]*\) Msteps\/s.*/\1/p')
-  nofma=$("$TMP/ref_nofma" 256 | sed -n 's/.* \([0-9.]*\) Msteps\/s.*/\1/p')
+  ref=$("$TMP/ref" 1024 | sed -n 's/.* \([0-9.]*\) Msteps\/s.*/\1/p')
+  nofma=$("$TMP/ref_nofma" 1024 | sed -n 's/.* \([0-9.]*\) Msteps\/s.*/\1/p')
   ours=$("$BUILD/bench/bench_kernel" --benchmark_filter='BM_KernelCoupledTangent<(8|16)>' --benchmark_min_time=0.5 2>/dev/null |
          sed -n 's/^BM_KernelCoupledTangent<\([0-9]*\)>.*rk4_steps_per_s=\([0-9.]*\)M\/s.*/\1 \2/p' | tr '\n' ' ')
   echo "round $r: reference $ref M/s, reference without FMA $nofma M/s, kernel (lanes M/s) $ours"

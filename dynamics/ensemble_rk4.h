@@ -5,13 +5,17 @@
 //  - the forcing phase advanced by exact rotation (cos/sin of Ωh/2 per lane), re-anchored with
 //    sin/cos of Ω·nh every kReanchor steps so the phase error stays at rounding level;
 //  - the energy quadratures ∫P, ∫max(P,0), W_m, W_r integrated as extra RK4 components over the
-//    window, which makes the balance ∫P = W_m + W_r + ΔE hold to RK4's truncation error.
-// A lane's arithmetic never depends on other lanes or on W (no reductions across lanes, no FP
-// contraction): the same point gives bit-identical results at any lane width.
+//    window (RK4's quadrature of the stage values), which makes the balance ∫P = W_m + W_r + ΔE
+//    hold to RK4's truncation error.
+// A lane's arithmetic never depends on other lanes or on W (no reductions across lanes; fused
+// multiply-adds only where written, as Fma, and exact): the same point gives bit-identical results
+// at any lane width. Ordinary steps run in a call-free loop (RunFast); the few special ones
+// (window start, strobes, renormalisation, re-anchoring, the end) in the general loop of Run.
 // Cancellation (dynamics/cancel.h) is polled at the re-anchoring steps, every kReanchor steps.
 #ifndef BISTABLE_DYNAMICS_ENSEMBLE_RK4_H_
 #define BISTABLE_DYNAMICS_ENSEMBLE_RK4_H_
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 
@@ -78,20 +82,33 @@ class EnsembleRk4 {
     Anchor(omega, 0, s.h, &sn, &cs);
     V k1[D];
     Model::Rhs(c, x, amp * sn, k1);
-    V q[4] = {};  // ∫P, ∫max(P,0), W_m, W_r
+    // ∫P, ∫max(P,0), W_m, W_r over the window, as 6/h times the quadrature (the RK4 weights 1 2 2 1
+    // of each step's stage values summed; scaled once at the end).
+    V q[4] = {};
+    const double h6 = s.h / 6.0;
     V e_start = Broadcast<W>(0.0);
     bool diverged[W] = {};
 
+    // Ordinary steps (no window start, strobe, re-anchoring, renormalisation or end) run in RunFast,
+    // whose loop holds no call; the loop below does the others one at a time. A trace (keep_rows)
+    // takes the general path throughout.
+    const Consts k{c, amp, rot_c, rot_s, s.h};
     for (long step = 1; step <= s.n_total; ++step) {
+      if (!s.keep_rows) {
+        const long stop = NextSpecialStep(step, s, rec.next_due());
+        while (step < stop) {
+          step = step > s.n_keep ? RunFast<true>(k, step, stop, x, k1, w, q, &sn, &cs, &rec)
+                                 : RunFast<false>(k, step, stop, x, k1, w, q, &sn, &cs, &rec);
+          if (rec.TurningPointBufferFull()) rec.FlushTurningPoints();
+        }
+      }
       if (step == s.n_keep + 1) {
         e_start = Model::Energy(c, x);
         rec.OnStep(s.n_keep, x, k1, x, k1, cs);
       }
-      // The step's start state is kept only when a strobe falls inside this step (Hermite needs both ends).
+      // The step's start (turning points and strobes interpolate between both ends).
       V xp[D], kp[D];
-      const bool strobe_due = step > s.n_keep && step >= rec.next_due();
-      if (strobe_due)
-        for (int d = 0; d < D; ++d) xp[d] = x[d], kp[d] = k1[d];
+      for (int d = 0; d < D; ++d) xp[d] = x[d], kp[d] = k1[d];
       if (step > s.n_keep) {
         Step<true>(c, amp, rot_c, rot_s, s.h, x, k1, w, q, &sn, &cs);
       } else {
@@ -102,20 +119,20 @@ class EnsembleRk4 {
         Anchor(omega, step, s.h, &sn, &cs);
         Model::Rhs(c, x, amp * sn, k1);  // derivative consistent with the re-anchored phase
       }
-      if (step > s.n_keep) rec.OnStep(step, strobe_due ? xp : x, strobe_due ? kp : k1, x, k1, cs);
+      if (step > s.n_keep) rec.OnStep(step, xp, kp, x, k1, cs);
       if (step % s.renorm_every == 0 || step == s.n_keep || step == s.n_total) {
         V lg;
-        Renormalise(w, &lg, diverged, x);
+        Renormalise(w, step > s.n_keep ? &lg : nullptr, diverged, x);  // growth before the window is not used
         if (step > s.n_keep) rec.AddLogGrowth(lg);
       }
     }
     const V e_end = Model::Energy(c, x);
     for (int l = 0; l < n; ++l) {
       RawLane& r = rec.Lane(l);
-      r.q_p = q[0][l];
-      r.q_in = q[1][l];
-      r.q_m = q[2][l];
-      r.q_r = q[3][l];
+      r.q_p = h6 * q[0][l];
+      r.q_in = h6 * q[1][l];
+      r.q_m = h6 * q[2][l];
+      r.q_r = h6 * q[3][l];
       r.e_start = e_start[l];
       r.e_end = e_end[l];
       r.diverged = diverged[l] || !std::isfinite(x[0][l]);
@@ -128,6 +145,57 @@ class EnsembleRk4 {
   }
 
  private:
+  struct Consts {
+    CellCoeffs<V> c;
+    V amp, rot_c, rot_s;
+    double h;
+  };
+
+  static long RoundUp(long n, long m) { return (n + m - 1) / m * m; }
+
+  // The first step ≥ step that needs the general loop body: the window's first step or the step
+  // before it (a renormalisation point), a step with a strobe due, re-anchoring, renormalisation,
+  // or the last step.
+  static long NextSpecialStep(long step, const KernelSettings& s, long next_strobe) {
+    long stop = std::min({s.n_total, RoundUp(step, s.renorm_every), RoundUp(step, kReanchor)});
+    if (step <= s.n_keep) return std::min(stop, s.n_keep);
+    if (step == s.n_keep + 1) return step;
+    return std::min(stop, next_strobe);
+  }
+
+  // Steps [from, to), all ordinary (see NextSpecialStep); returns the next step to do, short of `to`
+  // when the recorder's turning-point buffer filled up. Not inlined, with its state copied into
+  // locals: a call clobbers every vector register, so the loop is kept free of them and its lane
+  // vectors stay in registers (the general loop around it calls log, sin, cos and allocators).
+  template <bool kWindow>
+  [[gnu::noinline]] static long RunFast(const Consts& kc, long from, long to, V* x_io, V* k1_io, V* w_io, V* q_io,
+                                        V* sn_io, V* cs_io, WindowRecorder<D, W>* rec) {
+    const Consts k = kc;
+    V x[D], k1[D], w[D], q[4], sn = *sn_io, cs = *cs_io;
+    for (int d = 0; d < D; ++d) x[d] = x_io[d], k1[d] = k1_io[d], w[d] = w_io[d];
+    for (int i = 0; i < 4; ++i) q[i] = q_io[i];
+    typename WindowRecorder<D, W>::Running r = rec->running();
+    V* samples = kWindow ? rec->ReserveSamples(to - from) : nullptr;
+    long step = from;
+    while (step < to) {
+      const V y0 = x[0], v0 = x[1];
+      Step<kWindow>(k.c, k.amp, k.rot_c, k.rot_s, k.h, x, k1, w, q, &sn, &cs);
+      if constexpr (kWindow) {
+        if (!rec->Track(r, step++, y0, v0, x, cs, samples)) break;
+      } else {
+        ++step;
+      }
+    }
+    for (int d = 0; d < D; ++d) x_io[d] = x[d], k1_io[d] = k1[d], w_io[d] = w[d];
+    for (int i = 0; i < 4; ++i) q_io[i] = q[i];
+    *sn_io = sn, *cs_io = cs;
+    if constexpr (kWindow) {
+      rec->running() = r;
+      rec->CommitSamples(samples);
+    }
+    return step;
+  }
+
   // Out of the hot loop: lanes of a cancelled run carry no result.
   [[gnu::cold, gnu::noinline]] static bool Cancelled(int n, long step, RawLane* out) {
     for (int l = 0; l < n; ++l) {
@@ -155,23 +223,28 @@ class EnsembleRk4 {
     dq[3] = Model::DissRes(c, x);
   }
 
-  // One RK4 step of state, tangent and (in the window) quadratures. On entry k1 = F(x, f(t));
+  // One RK4 step of state, tangent and (in the window) quadratures: q += Q₁ + 2Q₂ + 2Q₃ + Q₄ of the
+  // integrands at the stage points (times h/6 when read out). On entry k1 = F(x, f(t));
   // on exit x, w advanced, k1 = F(x_new, f(t + h)), (sn, cs) = (sin, cos)(Ω(t + h)).
   template <bool kWindow>
   static BISTABLE_INLINE void Step(const CellCoeffs<V>& c, V amp, V rot_c, V rot_s, double h, V* x, V* k1, V* w,
                           V* q, V* sn, V* cs) {
-    const V s_mid = *sn * rot_c + *cs * rot_s, c_mid = *cs * rot_c - *sn * rot_s;
-    const V s_end = s_mid * rot_c + c_mid * rot_s, c_end = c_mid * rot_c - s_mid * rot_s;
+    const V s_mid = Fma(*sn, rot_c, *cs * rot_s), c_mid = Fma(*cs, rot_c, -(*sn * rot_s));
+    const V s_end = Fma(s_mid, rot_c, c_mid * rot_s), c_end = Fma(c_mid, rot_c, -(s_mid * rot_s));
     const V f0 = amp * *sn, fm = amp * s_mid, f1 = amp * s_end;
     const double hh = 0.5 * h, h6 = h / 6.0;
-    // Stages are folded into running sums as they are made (acc = ((k1 + 2k2) + 2k3) + k4, the same
-    // IEEE operations as the textbook formula), which keeps ~2/3 of the lane vectors live.
-    V xs[D], ws[D], k[D], l[D], acc[D], accw[D], qk[4], qacc[4];
+    // Stages are folded into running sums as they are made, acc = ((k1 + 2k2) + 2k3) + k4 (each
+    // "+ 2k" one fused multiply-add, exact in the product), and x ← x + h/6·acc is fused as well:
+    // fewer operations and a shorter dependency chain per stage than separate multiplies and adds.
+    V xs[D], ws[D], k[D], l[D], acc[D], accw[D], qk[4];
     Model::Tangent(c, x, w, l);
-    if constexpr (kWindow) Quad(c, x, f0, qacc);
+    if constexpr (kWindow) {
+      Quad(c, x, f0, qk);
+      for (int i = 0; i < 4; ++i) q[i] = q[i] + qk[i];
+    }
     for (int d = 0; d < D; ++d) {
       acc[d] = k1[d], accw[d] = l[d];
-      xs[d] = x[d] + hh * k1[d], ws[d] = w[d] + hh * l[d];
+      xs[d] = Fma(hh, k1[d], x[d]), ws[d] = Fma(hh, l[d], w[d]);
     }
     // Stages 2 and 3: evaluate at the midpoint, add twice into the sums, step the next stage point
     // (by h/2 after stage 2, by h after stage 3).
@@ -180,11 +253,11 @@ class EnsembleRk4 {
       Model::Tangent(c, xs, ws, l);
       if constexpr (kWindow) {
         Quad(c, xs, fm, qk);
-        for (int i = 0; i < 4; ++i) qacc[i] = qacc[i] + 2.0 * qk[i];
+        for (int i = 0; i < 4; ++i) q[i] = Fma(2.0, qk[i], q[i]);
       }
       for (int d = 0; d < D; ++d) {
-        acc[d] = acc[d] + 2.0 * k[d], accw[d] = accw[d] + 2.0 * l[d];
-        xs[d] = x[d] + next * k[d], ws[d] = w[d] + next * l[d];
+        acc[d] = Fma(2.0, k[d], acc[d]), accw[d] = Fma(2.0, l[d], accw[d]);
+        xs[d] = Fma(next, k[d], x[d]), ws[d] = Fma(next, l[d], w[d]);
       }
     };
     mid_stage(hh);
@@ -193,24 +266,24 @@ class EnsembleRk4 {
     Model::Tangent(c, xs, ws, l);
     if constexpr (kWindow) {
       Quad(c, xs, f1, qk);
-      for (int i = 0; i < 4; ++i) q[i] = q[i] + h6 * (qacc[i] + qk[i]);
+      for (int i = 0; i < 4; ++i) q[i] = q[i] + qk[i];
     }
     for (int d = 0; d < D; ++d) {
-      x[d] = x[d] + h6 * (acc[d] + k[d]);
-      w[d] = w[d] + h6 * (accw[d] + l[d]);
+      x[d] = Fma(h6, acc[d] + k[d], x[d]);
+      w[d] = Fma(h6, accw[d] + l[d], w[d]);
     }
     *sn = s_end;
     *cs = c_end;
     Model::Rhs(c, x, f1, k1);
   }
 
-  // w ← w/|w|, lg = log|w|. Lanes that blew up are flagged and reset so they cannot poison timing.
+  // w ← w/|w|, *lg = log|w| (unless lg is null). Lanes that blew up are flagged and reset so they cannot poison timing.
   static void Renormalise(V* w, V* lg, bool* diverged, V* x) {
     V n2 = w[0] * w[0];
     for (int d = 1; d < D; ++d) n2 = n2 + w[d] * w[d];
     for (int l = 0; l < W; ++l) {
       const double nrm = std::sqrt(n2[l]);
-      (*lg)[l] = std::log(nrm);
+      if (lg) (*lg)[l] = std::log(nrm);
       const double inv = 1.0 / nrm;
       for (int d = 0; d < D; ++d) w[d][l] *= inv;
       if (!std::isfinite(x[0][l]) || std::fabs(x[0][l]) > 1e8 || !std::isfinite(nrm)) {

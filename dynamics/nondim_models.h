@@ -20,6 +20,8 @@
 #ifndef BISTABLE_DYNAMICS_NONDIM_MODELS_H_
 #define BISTABLE_DYNAMICS_NONDIM_MODELS_H_
 
+#include "dynamics/lanes.h"  // BISTABLE_INLINE
+
 namespace bistable {
 
 // Per-lane coefficients. lambda2 = λ².
@@ -34,25 +36,26 @@ struct SingleModel {
   static constexpr bool kHasResonator = false;
 
   template <class T>
-  static void Rhs(const CellCoeffs<T>& c, const T* x, T f, T* dx) {
+  BISTABLE_INLINE static void Rhs(const CellCoeffs<T>& c, const T* x, T f, T* dx) {
     const T y = x[0], v = x[1];
     dx[0] = v;
-    dx[1] = f - c.eta * v - c.k_lin * y - c.eps * (y * y * y);
+    dx[1] = Fma(-c.eta, v, f) - y * Fma(c.eps, y * y, c.k_lin);  // f − η y' − (k_lin y + ε y³)
   }
   template <class T>
-  static void Tangent(const CellCoeffs<T>& c, const T* x, const T* w, T* dw) {
+  BISTABLE_INLINE static void Tangent(const CellCoeffs<T>& c, const T* x, const T* w, T* dw) {
     const T y = x[0];
+    const T j10 = Fma(c.eps * -3.0, y * y, -c.k_lin);  // ∂F₁/∂y = −k_lin − 3εy²
     dw[0] = w[1];
-    dw[1] = -c.eta * w[1] - (c.k_lin + 3.0 * c.eps * (y * y)) * w[0];
+    dw[1] = Fma(j10, w[0], -c.eta * w[1]);
   }
   template <class T>
-  static T Power(const CellCoeffs<T>&, const T* x, T f) { return f * x[1]; }
+  BISTABLE_INLINE static T Power(const CellCoeffs<T>&, const T* x, T f) { return f * x[1]; }
   template <class T>
-  static T DissMain(const CellCoeffs<T>& c, const T* x) { return c.eta * (x[1] * x[1]); }
+  BISTABLE_INLINE static T DissMain(const CellCoeffs<T>& c, const T* x) { return c.eta * (x[1] * x[1]); }
   template <class T>
-  static T DissRes(const CellCoeffs<T>&, const T* x) { return 0.0 * x[0]; }
+  BISTABLE_INLINE static T DissRes(const CellCoeffs<T>&, const T* x) { return 0.0 * x[0]; }
   template <class T>
-  static T Energy(const CellCoeffs<T>& c, const T* x) {
+  BISTABLE_INLINE static T Energy(const CellCoeffs<T>& c, const T* x) {
     const T y = x[0], v = x[1], y2 = y * y;
     return 0.5 * (v * v) + 0.5 * c.k_lin * y2 + 0.25 * c.eps * (y2 * y2);
   }
@@ -64,35 +67,36 @@ struct CoupledModel {
   static constexpr bool kHasResonator = true;
 
   template <class T>
-  static void Rhs(const CellCoeffs<T>& c, const T* x, T f, T* dx) {
+  BISTABLE_INLINE static void Rhs(const CellCoeffs<T>& c, const T* x, T f, T* dx) {
     const T y = x[0], v = x[1], yr = x[2], vr = x[3];
-    const T dv = v - vr, dy = y - yr;
-    const T coupling = c.eta_r * dv + c.lambda2 * dy;  // per unit resonator mass
+    const T coupling = Fma(c.eta_r, v - vr, c.lambda2 * (y - yr));  // per unit resonator mass
     dx[0] = v;
-    dx[1] = f - c.eta * v - c.k_lin * y - c.eps * (y * y * y) - c.phi * coupling;
+    // f − η y' − (k_lin y + ε y³) − φ·coupling; y' is the stage's late input, so it enters last.
+    dx[1] = Fma(-c.phi, coupling, Fma(-c.eta, v, f) - y * Fma(c.eps, y * y, c.k_lin));
     dx[2] = vr;
     dx[3] = f + coupling;
   }
   template <class T>
-  static void Tangent(const CellCoeffs<T>& c, const T* x, const T* w, T* dw) {
+  BISTABLE_INLINE static void Tangent(const CellCoeffs<T>& c, const T* x, const T* w, T* dw) {
     const T y = x[0];
-    const T coupling = c.eta_r * (w[1] - w[3]) + c.lambda2 * (w[0] - w[2]);
+    const T j10 = Fma(c.eps * -3.0, y * y, -c.k_lin);  // ∂F₁/∂y = −k_lin − 3εy²
+    const T coupling = Fma(c.eta_r, w[1] - w[3], c.lambda2 * (w[0] - w[2]));
     dw[0] = w[1];
-    dw[1] = -c.eta * w[1] - (c.k_lin + 3.0 * c.eps * (y * y)) * w[0] - c.phi * coupling;
+    dw[1] = Fma(-c.phi, coupling, Fma(j10, w[0], -c.eta * w[1]));
     dw[2] = w[3];
     dw[3] = coupling;
   }
   template <class T>
-  static T Power(const CellCoeffs<T>& c, const T* x, T f) { return f * (x[1] + c.phi * x[3]); }
+  BISTABLE_INLINE static T Power(const CellCoeffs<T>& c, const T* x, T f) { return f * Fma(c.phi, x[3], x[1]); }
   template <class T>
-  static T DissMain(const CellCoeffs<T>& c, const T* x) { return c.eta * (x[1] * x[1]); }
+  BISTABLE_INLINE static T DissMain(const CellCoeffs<T>& c, const T* x) { return c.eta * (x[1] * x[1]); }
   template <class T>
-  static T DissRes(const CellCoeffs<T>& c, const T* x) {
+  BISTABLE_INLINE static T DissRes(const CellCoeffs<T>& c, const T* x) {
     const T dv = x[1] - x[3];
     return c.phi * c.eta_r * (dv * dv);
   }
   template <class T>
-  static T Energy(const CellCoeffs<T>& c, const T* x) {
+  BISTABLE_INLINE static T Energy(const CellCoeffs<T>& c, const T* x) {
     const T y = x[0], v = x[1], yr = x[2], vr = x[3], y2 = y * y, dy = y - yr;
     return 0.5 * (v * v) + 0.5 * c.phi * (vr * vr) + 0.5 * c.k_lin * y2 + 0.25 * c.eps * (y2 * y2) +
            0.5 * c.phi * c.lambda2 * (dy * dy);

@@ -51,42 +51,82 @@ class WindowRecorder {
       next_k_[l] = static_cast<long>(std::ceil((static_cast<double>(n_keep) * h) / strobe_period_[l]));
       Schedule(l);
     }
-    vabs_max_ = Broadcast<W>(0.0);
-    y_min_ = Broadcast<W>(std::numeric_limits<double>::infinity());
-    y_max_ = Broadcast<W>(-std::numeric_limits<double>::infinity());
+    run_.vabs_max = Broadcast<W>(0.0);
+    run_.y_min = Broadcast<W>(std::numeric_limits<double>::infinity());
+    run_.y_max = Broadcast<W>(-std::numeric_limits<double>::infinity());
+    run_.until_sample = 1;  // the window's first step (n_keep) is sampled
+  }
+
+  // Per-step running values of the window. The kernel's fast loop copies them into locals (registers)
+  // for a run of ordinary steps and hands them back (running()).
+  struct Running {
+    V vabs_max, y_min, y_max;
+    int until_sample;
+  };
+  Running& running() { return run_; }
+
+  // The call-free part of window step n (> n_keep, or == n_keep for the window's first point), which
+  // goes from (y0, v0) = (y_m, y_m') at its start to x1: turning points into the buffer, extremes, and every sample_every-th y_m written to *samples
+  // (room reserved by ReserveSamples). No strobes: callers use it only for steps with none due
+  // (OnStep does the rest). Returns false when the turning-point buffer is full: flush before the
+  // next step (Track needs room for one entry).
+  BISTABLE_INLINE bool Track(Running& r, long n, V y0, V v0, const V* x1, V cos_end, V*& samples) {
+    // Turning points: y_m' changes sign within the step; y_m at the crossing
+    // is found when the buffer is flushed (FlushTurningPoints).
+    if (n > n_keep_) {
+      if (PositiveMask(v0) != PositiveMask(x1[1])) tp_buf_[tp_count_++] = {y0, v0, x1[0], x1[1]};
+    }
+    const V vabs = Abs<W>(x1[1] + Load(alpha_omega_) * cos_end);
+    r.vabs_max = Max<W>(r.vabs_max, vabs);
+    r.y_min = Min<W>(r.y_min, x1[0]);
+    r.y_max = Max<W>(r.y_max, x1[0]);
+    if (--r.until_sample == 0) {
+      r.until_sample = sample_every_;
+      if (keep_samples_) *samples++ = x1[0];
+    }
+    return tp_count_ < kTpBuffer;
+  }
+
+  bool TurningPointBufferFull() const { return tp_count_ == kTpBuffer; }
+
+  // Room for the samples of the next `steps` steps; returns where the next one goes.
+  V* ReserveSamples(long steps) {
+    const size_t need = n_samples_ + static_cast<size_t>(steps / sample_every_ + 1);
+    if (keep_samples_ && y_samples_.size() < need) y_samples_.resize(std::max(need, 2 * y_samples_.size()));
+    return y_samples_.data() + n_samples_;
+  }
+  void CommitSamples(const V* end) { n_samples_ = static_cast<size_t>(end - y_samples_.data()); }
+
+  // y_m at each buffered crossing, by the cubic Hermite through both ends of its step (whose end
+  // slopes are exactly those velocities), appended per lane in time order.
+  void FlushTurningPoints() {
+    for (int i = 0; i < tp_count_; ++i) {
+      const TpEntry& e = tp_buf_[i];
+      const unsigned long crossed = PositiveMask(e.v0) ^ PositiveMask(e.v1);
+      for (int l = 0; l < W; ++l) {
+        if (!(crossed >> l & 1)) continue;
+        const double v0 = e.v0[l], v1 = e.v1[l], th = v0 / (v0 - v1);
+        const double t2 = th * th, t3 = t2 * th;
+        const double y = (2 * t3 - 3 * t2 + 1) * e.y0[l] + (t3 - 2 * t2 + th) * h_ * v0 + (-2 * t3 + 3 * t2) * e.y1[l] +
+                         (t3 - t2) * h_ * v1;
+        std::vector<double>& tp = lanes_[l].turning_points;
+        // Keep the last ones only (bounded memory on long windows; sweeps store the last 64).
+        if (tp.size() >= 2 * limits::kMaxTurningPointsKept) tp.erase(tp.begin(), tp.end() - limits::kMaxTurningPointsKept);
+        tp.push_back(y);
+      }
+    }
+    tp_count_ = 0;
   }
 
   // Step n (window steps n > n_keep) goes from τ = (n−1)h to τ = nh; x/d are state and derivative
-  // at both ends; cos_end = cos(Ω nh) per lane. The first call (n == n_keep) passes the window's
-  // start point as both ends.
-  BISTABLE_INLINE void OnStep(long n, const V* x0, const V* d0, const V* x1, const V* d1, V cos_end) {
-    // Turning points: y_m' changes sign between the previous step and this one. The recorder keeps
-    // the previous (y_m, y_m') itself; y_m at the crossing is the cubic Hermite through both ends,
-    // whose end slopes are exactly those velocities.
-    if (n > n_keep_) {
-      const auto crossed = (prev_v_ > 0.0) != (x1[1] > 0.0);
-      bool any = false;
-      for (int l = 0; l < W; ++l) any |= crossed[l] != 0;
-      if (any) {
-        for (int l = 0; l < W; ++l) {
-          if (!crossed[l]) continue;
-          const double v0 = prev_v_[l], v1 = x1[1][l], th = v0 / (v0 - v1);
-          const double t2 = th * th, t3 = t2 * th;
-          const double y = (2 * t3 - 3 * t2 + 1) * prev_y_[l] + (t3 - 2 * t2 + th) * h_ * v0 + (-2 * t3 + 3 * t2) * x1[0][l] +
-                           (t3 - t2) * h_ * v1;
-          std::vector<double>& tp = lanes_[l].turning_points;
-          // Keep the last ones only (bounded memory on long windows; sweeps store the last 64).
-          if (tp.size() >= 2 * limits::kMaxTurningPointsKept) tp.erase(tp.begin(), tp.end() - limits::kMaxTurningPointsKept);
-          tp.push_back(y);
-        }
-      }
-    }
-    prev_y_ = x1[0];
-    prev_v_ = x1[1];
-    const V vabs = Abs<W>(x1[1] + Load(alpha_omega_) * cos_end);
-    vabs_max_ = Max<W>(vabs_max_, vabs);
-    y_min_ = Min<W>(y_min_, x1[0]);
-    y_max_ = Max<W>(y_max_, x1[0]);
+  // at both ends (x0 is the state the step started from: turning points and strobes interpolate
+  // between the ends); cos_end = cos(Ω nh) per lane. The first call (n == n_keep) passes the
+  // window's start point as both ends.
+  void OnStep(long n, const V* x0, const V* d0, const V* x1, const V* d1, V cos_end) {
+    const bool sample_now = run_.until_sample == 1;
+    V* samples = ReserveSamples(1);
+    if (!Track(run_, n, x0[0], x0[1], x1, cos_end, samples)) FlushTurningPoints();
+    CommitSamples(samples);
     // Strobes: each lane's next τ_k is due in step strobe_step_[l]; one integer compare per step
     // against the earliest of them.
     if (n >= next_due_) {
@@ -106,15 +146,11 @@ class WindowRecorder {
       next_due_ = strobe_step_[0];
       for (int l = 1; l < W; ++l) next_due_ = std::min(next_due_, strobe_step_[l]);
     }
-    if (--until_sample_ == 0) {
-      until_sample_ = sample_every_;
-      if (keep_samples_) y_samples_.push_back(x1[0]);
-      if (keep_rows_) {
-        rows_.push_back(x1[0]);
-        rows_.push_back(x1[1]);
-        if constexpr (D > 2) rows_.push_back(x1[2]), rows_.push_back(x1[3]);
-        row_times_.push_back(static_cast<double>(n) * h_);
-      }
+    if (sample_now && keep_rows_) {
+      rows_.push_back(x1[0]);
+      rows_.push_back(x1[1]);
+      if constexpr (D > 2) rows_.push_back(x1[2]), rows_.push_back(x1[3]);
+      row_times_.push_back(static_cast<double>(n) * h_);
     }
   }
 
@@ -125,18 +161,19 @@ class WindowRecorder {
 
   // Moves per-lane results out; quadratures and energies are set by the integrator.
   RawLane& Lane(int l) {
+    FlushTurningPoints();
     RawLane& r = lanes_[l];
-    r.y_samples.resize(y_samples_.size());
-    for (size_t i = 0; i < y_samples_.size(); ++i) r.y_samples[i] = y_samples_[i][l];
+    r.y_samples.resize(n_samples_);
+    for (size_t i = 0; i < n_samples_; ++i) r.y_samples[i] = y_samples_[i][l];
     r.rows.resize(row_times_.size());
     for (size_t i = 0; i < row_times_.size(); ++i) {
       const V* row = &rows_[i * D];
       r.rows[i] = {row_times_[i], row[0][l], row[1][l], 0.0, 0.0};
       if constexpr (D > 2) r.rows[i][3] = row[2][l], r.rows[i][4] = row[3][l];
     }
-    lanes_[l].vabs_max = vabs_max_[l];
-    lanes_[l].y_min = y_min_[l];
-    lanes_[l].y_max = y_max_[l];
+    lanes_[l].vabs_max = run_.vabs_max[l];
+    lanes_[l].y_min = run_.y_min[l];
+    lanes_[l].y_max = run_.y_max[l];
     lanes_[l].log_growth = log_growth_[l];
     return lanes_[l];
   }
@@ -174,13 +211,18 @@ class WindowRecorder {
   long next_k_[W];
   long strobe_step_[W];
   long next_due_ = 0;
-  int until_sample_ = 1;  // the window's first step (n_keep) is sampled
-  std::vector<V> y_samples_;
+  Running run_;
+  struct TpEntry {
+    V y0, v0, y1, v1;  // (y_m, y_m') at both ends of a step in which some lane's y_m' changed sign
+  };
+  static constexpr int kTpBuffer = 32;
+  TpEntry tp_buf_[kTpBuffer];
+  int tp_count_ = 0;
+  std::vector<V> y_samples_;  // [0, n_samples_) written
+  size_t n_samples_ = 0;
   std::vector<V> rows_;   // D lane vectors per row
   std::vector<double> row_times_;
-  V vabs_max_, y_min_, y_max_;
   V log_growth_ = Broadcast<W>(0.0);
-  V prev_y_ = Broadcast<W>(0.0), prev_v_ = Broadcast<W>(0.0);
   std::array<RawLane, W> lanes_;
 };
 

@@ -15,8 +15,14 @@
 
 namespace bistable {
 
-// Lanes per kernel call in sweeps: 8 measured fastest on AVX-512 (docs/numerics.md).
+// Lanes per kernel call in sweeps: one vector register per lane vector — 8 on AVX-512, 4 on AVX2
+// (x86-64-v3, the portable build: 8 lanes there run at an eighth of 4; bench/kernel_ratio.sh,
+// docs/numerics.md). Results do not depend on it: a lane's bits are the same at every width.
+#if defined(__AVX512F__)
 inline constexpr int kSweepLanes = 8;
+#else
+inline constexpr int kSweepLanes = 4;
+#endif
 
 // The job's records, or nullopt when cancellation (dynamics/cancel.h) was requested before the job
 // finished: an integration may have stopped early, so no record of the job may be reported or stored

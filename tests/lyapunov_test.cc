@@ -111,12 +111,15 @@ TEST(Benettin, DuffingAtForcingPointTwoIsPeriodicAndMatchesFloquet) {
 
 // The ensemble kernel's inline tangent and the generic Benettin agree on the paper's coupled model.
 TEST(Benettin, KernelTangentAgreesWithGenericBenettinOnCoupledModel) {
-  for (double omega : {0.5, 1.2}) {
+  // Ω = 1.0 (α = 1) is chaotic at every step size and horizon tried (LLE 0.072–0.077 for h 0.01/0.005,
+  // τ_end 2000/4000). Ω = 1.2, used before, is a long chaotic transient that settles on a period-1
+  // orbit or not depending on rounding: no fixed answer for two different integrations to agree on.
+  for (double omega : {0.5, 1.0}) {
     PointSpec s;
     s.model = ModelKind::kCoupled;
     s.alpha = omega < 1 ? 0.3 : 1.0;
     s.omega = omega;
-    s.integration.t_end = 2000;
+    s.integration.t_end = 4000;  // a long average: finite-time estimates on the attractor scatter by ~0.01 at 1750
     s.integration.t_keep = 250;
     s.metrics.rosenstein = false;
     const auto kernel = EvaluatePoint(s);
@@ -125,7 +128,7 @@ TEST(Benettin, KernelTangentAgreesWithGenericBenettinOnCoupledModel) {
     BenettinOptions o;
     o.h = 0.01;
     o.t_transient = 250;
-    o.t_average = 1750;
+    o.t_average = 3750;
     const BenettinResult generic = BenettinLle(sys, Eigen::Vector4d(1, 0, 1, 0), 0.0, o);
     // Periodic: both converge to the orbit's exponent; chaotic: same trajectory, same estimate
     // up to the different initial tangent direction's transient.

@@ -2,6 +2,8 @@
 // lane-width independence, motion classification, and validation of bad input.
 #include <cmath>
 #include <cstring>
+#include <string>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -77,35 +79,74 @@ TEST(PointEnergy, StandaloneResonatorTermsAreZero) {
 // A point's result must not depend on the lane width or on the other points in the block:
 // sweeps run 16 lanes, `bistable point` runs one. Chaotic points amplify any rounding difference
 // exponentially, so they are the sharp test.
+// Every field of a lane's raw record, bit for bit (memcmp: NaNs and signed zeros included).
+void ExpectSameBits(const RawLane& a, const RawLane& b, const std::string& where) {
+  auto same = [](const double& x, const double& y) { return std::memcmp(&x, &y, sizeof(double)) == 0; };
+  auto same_vec = [](const std::vector<double>& x, const std::vector<double>& y) {
+    return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(double)) == 0);
+  };
+  for (auto [name, x, y] : {std::tuple{"vabs_max", a.vabs_max, b.vabs_max}, {"y_min", a.y_min, b.y_min},
+                            {"y_max", a.y_max, b.y_max}, {"log_growth", a.log_growth, b.log_growth},
+                            {"q_p", a.q_p, b.q_p}, {"q_in", a.q_in, b.q_in}, {"q_m", a.q_m, b.q_m},
+                            {"q_r", a.q_r, b.q_r}, {"e_start", a.e_start, b.e_start}, {"e_end", a.e_end, b.e_end}})
+    EXPECT_TRUE(same(x, y)) << where << ": " << name << " " << x << " vs " << y;
+  for (int d = 0; d < 4; ++d) EXPECT_TRUE(same(a.final_state[d], b.final_state[d])) << where << ": final_state " << d;
+  EXPECT_TRUE(same_vec(a.y_samples, b.y_samples)) << where << ": y_samples";
+  EXPECT_TRUE(same_vec(a.strobe_y, b.strobe_y)) << where << ": strobe_y";
+  EXPECT_TRUE(same_vec(a.strobe_v, b.strobe_v)) << where << ": strobe_v";
+  EXPECT_TRUE(same_vec(a.turning_points, b.turning_points)) << where << ": turning_points";
+  EXPECT_EQ(a.diverged, b.diverged) << where;
+  EXPECT_EQ(a.steps, b.steps) << where;
+}
+
+template <int W>
+void ExpectLaneEqualsOnePoint(const PointSpec& s, const RawLane& one, int position) {
+  const KernelSettings ks = KernelSettingsFor(s);
+  std::vector<LaneInput> lanes(W);
+  for (int l = 0; l < W; ++l) lanes[l] = LaneFor(Spec(ModelKind::kCoupled, 0.2 + 0.15 * l, 0.3 + 0.17 * l));
+  lanes[position] = LaneFor(s);
+  std::vector<RawLane> many(W);
+  ASSERT_TRUE(RunKernel<W>(s.model, lanes.data(), W, ks, many.data()));
+  ExpectSameBits(one, many[position], "width " + std::to_string(W) + " lane " + std::to_string(position));
+}
+
 TEST(EnsembleKernel, LaneResultsAreBitIdenticalAtAnyWidthAndPosition) {
-  PointSpec s = Spec(ModelKind::kCoupled, 1.0, 1.2);  // chaotic
+  // A chaotic point with many turning points (the recorder's buffer fills and is flushed several
+  // times), strobes and samples, among neighbours whose strobes and crossings fall elsewhere.
+  PointSpec s = Spec(ModelKind::kCoupled, 1.0, 1.0);
   const KernelSettings ks = KernelSettingsFor(s);
   const LaneInput target = LaneFor(s);
   RawLane one;
-  RunKernel<1>(s.model, &target, 1, ks, &one);
-
-  std::vector<LaneInput> lanes(16);
-  for (int l = 0; l < 16; ++l) {
-    PointSpec o = Spec(ModelKind::kCoupled, 0.2 + 0.15 * l, 0.3 + 0.17 * l);
-    lanes[l] = LaneFor(o);
-  }
-  lanes[7] = target;
-  std::vector<RawLane> many(16);
-  RunKernel<16>(s.model, lanes.data(), 16, ks, many.data());
-  const RawLane& b = many[7];
-  EXPECT_EQ(std::memcmp(&one.vabs_max, &b.vabs_max, sizeof(double)), 0);
-  EXPECT_EQ(std::memcmp(&one.log_growth, &b.log_growth, sizeof(double)), 0);
-  EXPECT_EQ(std::memcmp(&one.q_in, &b.q_in, sizeof(double)), 0);
-  EXPECT_EQ(std::memcmp(&one.e_end, &b.e_end, sizeof(double)), 0);
-  ASSERT_EQ(one.y_samples.size(), b.y_samples.size());
-  EXPECT_EQ(std::memcmp(one.y_samples.data(), b.y_samples.data(), one.y_samples.size() * sizeof(double)), 0);
-  ASSERT_EQ(one.strobe_y.size(), b.strobe_y.size());
-  EXPECT_EQ(std::memcmp(one.strobe_y.data(), b.strobe_y.data(), one.strobe_y.size() * sizeof(double)), 0);
+  ASSERT_TRUE(RunKernel<1>(s.model, &target, 1, ks, &one));
+  ASSERT_GE(one.turning_points.size(), 64u);  // > 2 buffers of 32
+  ASSERT_GT(one.strobe_y.size(), 30u);
+  ExpectLaneEqualsOnePoint<2>(s, one, 1);
+  ExpectLaneEqualsOnePoint<4>(s, one, 2);
+  ExpectLaneEqualsOnePoint<8>(s, one, 7);
+  ExpectLaneEqualsOnePoint<8>(s, one, 0);
+  ExpectLaneEqualsOnePoint<16>(s, one, 11);
   // And through the metric layer: EvaluatePoint equals the lane's metrics.
-  const PointResult p = Eval(s), q = ComputePointMetrics(b, s);
+  std::vector<RawLane> many(8);
+  std::vector<LaneInput> lanes(8, target);
+  ASSERT_TRUE(RunKernel<8>(s.model, lanes.data(), 8, ks, many.data()));
+  const PointResult p = Eval(s), q = ComputePointMetrics(many[8 - 1], s);
   EXPECT_EQ(std::memcmp(&p.frf_db, &q.frf_db, sizeof(double)), 0);
   EXPECT_EQ(std::memcmp(&p.lle, &q.lle, sizeof(double)), 0);
   EXPECT_EQ(p.hd_index, q.hd_index);
+  EXPECT_EQ(p.turning_points, q.turning_points);
+}
+
+// A trace (keep_rows) runs every step through the general loop; the fast loop must give the same bits.
+TEST(EnsembleKernel, FastLoopEqualsTheGeneralLoop) {
+  const PointSpec s = Spec(ModelKind::kCoupled, 1.0, 1.0);
+  KernelSettings ks = KernelSettingsFor(s);
+  const LaneInput target = LaneFor(s);
+  RawLane fast, general;
+  ASSERT_TRUE(RunKernel<1>(s.model, &target, 1, ks, &fast));
+  ks.keep_rows = true;
+  ASSERT_TRUE(RunKernel<1>(s.model, &target, 1, ks, &general));
+  ExpectSameBits(fast, general, "keep_rows");
+  EXPECT_FALSE(general.rows.empty());
 }
 
 TEST(EnsembleKernel, AdaptivePathAgreesWithRk4OnPeriodicPoints) {
