@@ -1,6 +1,9 @@
 #include "dynamics/dimensional_model.h"
 
+#include <algorithm>
 #include <string>
+
+#include <Eigen/Eigenvalues>
 
 #include "base/validate.h"
 
@@ -114,6 +117,18 @@ void DimensionalModel::Jac(double t, const State& x, Jacobian& J, State& dfdt) c
   }
   dfdt.setZero();
   dfdt[1] = -base_(t).j;
+}
+
+int Rk4Substeps(const DimensionalParams& p, double dt) {
+  DimensionalModel m(p, SineBase(0.0, 0.0));
+  DimensionalModel::State rest = DimensionalModel::State::Zero();
+  if (p.k_lin < 0 && p.k3 > 0) rest[0] = std::sqrt(-p.k_lin / p.k3);  // in the positive well
+  DimensionalModel::Jacobian J;
+  DimensionalModel::State dfdt;
+  m.Jac(0.0, rest, J, dfdt);
+  const double rho = Eigen::EigenSolver<DimensionalModel::Jacobian>(J, false).eigenvalues().cwiseAbs().maxCoeff();
+  const double h_max = 2.0 / rho;
+  return std::max(1, static_cast<int>(std::ceil(dt / h_max)));
 }
 
 }  // namespace bistable

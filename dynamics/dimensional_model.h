@@ -9,13 +9,15 @@
 #ifndef BISTABLE_DYNAMICS_DIMENSIONAL_MODEL_H_
 #define BISTABLE_DYNAMICS_DIMENSIONAL_MODEL_H_
 
+#include <array>
 #include <cmath>
 #include <functional>
 
 #include <Eigen/Dense>
 
-#include "dynamics/friction.h"
 #include "base/status.h"
+#include "dynamics/friction.h"
+#include "dynamics/lanes.h"
 
 namespace bistable {
 
@@ -71,6 +73,91 @@ class DimensionalModel {
  private:
   DimensionalParams p_;
   BaseMotion base_;
+};
+
+// Fixed-step RK4 on the rig: the stiffness sets the step. Where the model is stiffest — at rest, both
+// bodies stuck, where the friction law's slope peaks (≈ 10³ N s/m at the paper's v_sp, v_t) — the
+// largest |eigenvalue| ρ of the Jacobian bounds the step: h ≤ 2/ρ, 72 % of RK4's real-axis limit
+// 2.785/ρ (the margin covers the c2 dampers' growth with the deflection). Steps per output step dt:
+int Rk4Substeps(const DimensionalParams& p, double dt);
+
+// One lane of a dimensional sweep for the lane kernel (ensemble_generic.h): a sine base
+// x0 = A0 sin(ω t), output cell y, y'.
+struct DimensionalLaneInput {
+  double amp = 0, omega = 0, base_amp = 0;  // A0 ω² [m/s²], ω [rad/s], A0 [m]
+  DimensionalParams params;                 // the rig: the same in every lane of a run (lane 0's are used)
+  std::array<double, 4> x0 = {0, 0, 0, 0};
+};
+
+// DimensionalModel's equations for lane packs (the lane kernel's model concept). The Stribeck terms
+// call the scalar std::exp and std::tanh lane by lane (Stribeck::ForceSlope), so a lane's bits are
+// those of the same point at W = 1. All lanes share the rig's parameters (lane 0's).
+struct DimensionalLaneModel {
+  static constexpr int kDim = 4;
+  using Input = DimensionalLaneInput;
+
+  template <int W>
+  class Lanes {
+   public:
+    using V = Vec<W>;
+    // ∂F_m/∂y, ∂F_m/∂y', ∂G_r/∂z, ∂G_r/∂z' at the evaluated state.
+    struct Jac {
+      explicit Jac(const Lanes&) {}
+      V fy, fyd, gz, gzd;
+    };
+
+    explicit Lanes(const Input& in)
+        : p_(in.params), a_m_(p_.fric_m.HumpScale()), a_r_(p_.fric_r.HumpScale()) {}
+    int dim() const { return kDim; }
+    void Load(int, const Input&) {}
+
+    BISTABLE_INLINE void Eval(const V* x, V f, V* dx, Jac* j) const {
+      const V y = x[0], yd = x[1], z = x[2], zd = x[3];
+      V ff_m, sl_m, g = Broadcast<W>(0.0);
+      p_.fric_m.ForceSlope(a_m_, a_m_ / p_.fric_m.v_sp, yd, &ff_m, &sl_m);
+      const V y2 = y * y;
+      j->fy = -(p_.k_lin + 3.0 * p_.k3 * y2) - 2.0 * p_.c2_m * y * yd;
+      j->fyd = -(p_.c0_m + p_.c2_m * y2) - sl_m;
+      if (p_.has_resonator) {
+        V ff_r, sl_r;
+        p_.fric_r.ForceSlope(a_r_, a_r_ / p_.fric_r.v_sp, zd, &ff_r, &sl_r);
+        const V z2 = z * z;
+        g = p_.k_r * z + (p_.c0_r + p_.c2_r * z2) * zd + ff_r;
+        j->gz = p_.k_r + 2.0 * p_.c2_r * z * zd;
+        j->gzd = p_.c0_r + p_.c2_r * z2 + sl_r;
+      } else {
+        j->gz = j->gzd = g;
+      }
+      const V fm = (-(p_.k_lin * y + p_.k3 * (y2 * y)) - (p_.c0_m + p_.c2_m * y2) * yd - ff_m + g) / p_.m_m;
+      dx[0] = yd;
+      dx[1] = fm + f;  // f = −(base acceleration)
+      if (p_.has_resonator) {
+        dx[2] = zd;
+        dx[3] = -g / p_.m_r - fm;
+      } else {
+        dx[2] = dx[3] = g;
+      }
+    }
+    BISTABLE_INLINE void Apply(const Jac& j, const V* w, V* dw) const {
+      const V gw = j.gz * w[2] + j.gzd * w[3];
+      const V a = (j.fy * w[0] + j.fyd * w[1] + gw) / p_.m_m;
+      dw[0] = w[1];
+      dw[1] = a;
+      if (p_.has_resonator) {
+        dw[2] = w[3];
+        dw[3] = -gw / p_.m_r - a;
+      } else {
+        dw[2] = dw[3] = Broadcast<W>(0.0);
+      }
+    }
+    BISTABLE_INLINE void Output(const V* x, const V* dx, V* out, V* dout) const {
+      out[0] = x[0], out[1] = x[1], dout[0] = dx[0], dout[1] = dx[1];
+    }
+
+   private:
+    DimensionalParams p_;
+    double a_m_, a_r_;  // the friction humps' scales
+  };
 };
 
 }  // namespace bistable

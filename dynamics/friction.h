@@ -7,13 +7,33 @@
 #define BISTABLE_DYNAMICS_FRICTION_H_
 
 #include <cmath>
+#include <type_traits>
 
 namespace bistable {
+
+// std::exp of the hump's exponent x = 1/2 − u²/2, with the same bits: below −746 std::exp underflows
+// to +0 (its smallest nonzero result is at −745.13), and skipping the call there avoids libm's slow
+// underflow path (errno), which sliding at |v| > 39 v_sp otherwise takes at every evaluation.
+inline double HumpExpOf(double x) { return x < -746.0 ? 0.0 : std::exp(x); }
+inline double HumpExp(double u) { return HumpExpOf(0.5 - 0.5 * u * u); }
+
+// f applied to a double, or to each lane of a GCC vector pack (dynamics/lanes.h): a lane's value is
+// the scalar function's, whatever the width.
+template <class T, class F>
+inline T EachLane(T x, F f) {
+  if constexpr (std::is_floating_point_v<T>) {
+    return f(x);
+  } else {
+    T r;
+    for (int l = 0; l < static_cast<int>(sizeof(T) / sizeof(double)); ++l) r[l] = f(x[l]);
+    return r;
+  }
+}
 
 // scale · g(v), evaluated as (scale · v/v_sp) · exp(1/2 − v²/(2 v_sp²)) (scale = 1: g itself, exactly).
 inline double StribeckHump(double scale, double v, double v_sp) {
   const double u = v / v_sp;
-  return scale * u * std::exp(0.5 - 0.5 * u * u);
+  return scale * u * HumpExp(u);
 }
 
 struct Stribeck {
@@ -22,13 +42,27 @@ struct Stribeck {
   double v_sp = 0.002; // Stribeck peak velocity, m/s, > 0
   double v_t = 0.001;  // transition velocity of the tanh, m/s, > 0
 
-  double Force(double v) const { return StribeckHump(f_s - f_c * std::tanh(v_sp / v_t), v, v_sp) + f_c * std::tanh(v / v_t); }
+  // The hump's scale F_s − F_c tanh(v_sp/v_t) (constant: callers in a loop compute it once).
+  double HumpScale() const { return f_s - f_c * std::tanh(v_sp / v_t); }
+  double Force(double v) const { return StribeckHump(HumpScale(), v, v_sp) + f_c * std::tanh(v / v_t); }
   // dF_f/dv.
   double Slope(double v) const {
-    const double a = f_s - f_c * std::tanh(v_sp / v_t);
-    const double u = v / v_sp;
-    const double th = std::tanh(v / v_t);
-    return a / v_sp * std::exp(0.5 - 0.5 * u * u) * (1.0 - u * u) + f_c * (1.0 - th * th) / v_t;
+    const double a = HumpScale();
+    double force, slope;
+    ForceSlope(a, a / v_sp, v, &force, &slope);
+    return slope;
+  }
+  // F_f(v) and dF_f/dv from one exp and one tanh, for a double or a lane pack T (the lane models
+  // evaluate both at every stage); a = HumpScale(), a_vsp = a / v_sp. The same operations as Force(v)
+  // and Slope(v), lane by lane, so the same bits: divisions and products run on the whole pack, only
+  // exp and tanh go lane by lane (the scalar std:: functions).
+  template <class T>
+  void ForceSlope(double a, double a_vsp, T v, T* force, T* slope) const {
+    const T u = v / v_sp;
+    const T e = EachLane<T>(0.5 - 0.5 * u * u, HumpExpOf);
+    const T th = EachLane<T>(v / v_t, [](double x) { return std::tanh(x); });
+    *force = a * u * e + f_c * th;
+    *slope = a_vsp * e * (1.0 - u * u) + f_c * (1.0 - th * th) / v_t;
   }
   // The law is linear in the two forces: F_f(v) = F_s φ[0] + F_c φ[1] with φ[0] = g(v) and
   // φ[1] = tanh(v/v_t) − tanh(v_sp/v_t) g(v); φ depends on v_sp, v_t only (f_s, f_c unused).

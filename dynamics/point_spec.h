@@ -16,8 +16,8 @@ namespace bistable {
 inline constexpr const char* kNumericsVersion = "1.1.0";
 
 // The models of the project (docs/model.md). The first four are the non-dimensional cells that a point,
-// HBM, a chirp and the SIMD kernel run; series chains and the dimensional rig run through the generic
-// per-point path of sweeps (engine/evaluate.cc).
+// HBM, a chirp and the SIMD kernel run; series chains and the dimensional rig run in sweeps only, through
+// the lane kernel (RK4, dynamics/ensemble_generic.h) or one point at a time (adaptive; engine/evaluate.cc).
 enum class ModelKind {
   kStandalone,     // bistable beam alone (paper Eq. 2)
   kCoupled,        // bistable beam + linear resonator (paper Eq. 3)

@@ -7,6 +7,7 @@
 
 #include "base/limits.h"
 #include "dynamics/cancel.h"
+#include "dynamics/ensemble_generic.h"
 #include "dynamics/generic_point.h"
 #include "dynamics/point.h"
 
@@ -20,6 +21,81 @@ PointResult Unevaluated(const SweepSpec& spec, long index, int ic, const Status&
     std::fprintf(stderr, "evaluate: sweep %s point %ld ic %d could not be evaluated (%s); stored as diverged\n",
                  spec.Id().c_str(), index, ic, why.ToString().c_str());
   return PointResult{Termination::kDiverged};
+}
+
+// The metrics' view of a series or dimensional item: its window and metric settings, the cell kind
+// whose motion classification applies (bistable or linear links/beam), and for the rig SI units —
+// A0 in m, ω in rad/s, period_tol in m (units of δs, or of A0 for a linear beam).
+PointSpec MetricProxy(const SweepSpec& spec, const PointSpec& p) {
+  PointSpec proxy = p;
+  if (spec.model == ModelKind::kSeries) {
+    proxy.model = spec.series.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
+    return proxy;
+  }
+  const DimensionalParams& dp = spec.dimensional.params;
+  const double a0 = p.alpha * 1e-3, delta_s = spec.dimensional.bistable ? std::sqrt(-dp.k_lin / dp.k3) : 0.0;
+  proxy.model = spec.dimensional.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
+  proxy.alpha = a0;
+  proxy.omega = 2.0 * M_PI * p.omega;
+  proxy.metrics.period_tol = p.metrics.period_tol * (delta_s > 0 ? delta_s : a0);
+  return proxy;
+}
+
+// A chain at its point: the cells, at rest in every link's positive well.
+SeriesLaneInput SeriesInputFor(const SweepSpec& spec, const PointSpec& p) {
+  SeriesLaneInput in;
+  in.cells = spec.SeriesCells(p);
+  in.amp = p.alpha * p.omega * p.omega;
+  in.omega = p.omega;
+  in.base_amp = p.alpha;
+  const Eigen::VectorXd x0 = SeriesModel(in.cells, p.alpha, p.omega).WellState();
+  in.x0.assign(x0.data(), x0.data() + x0.size());
+  return in;
+}
+
+// The rig at its point (a0_mm, f0_hz): a sine base, at rest in the positive well (a linear beam at
+// the origin) unless initial states are given.
+DimensionalLaneInput DimensionalInputFor(const SweepSpec& spec, const PointSpec& p) {
+  DimensionalLaneInput in;
+  in.params = spec.dimensional.params;
+  in.base_amp = p.alpha * 1e-3;
+  in.omega = 2.0 * M_PI * p.omega;
+  in.amp = in.base_amp * in.omega * in.omega;
+  if (p.ic_given) in.x0 = p.ic;
+  else if (spec.dimensional.bistable) in.x0[0] = std::sqrt(-in.params.k_lin / in.params.k3);
+  return in;
+}
+
+// Items of a series or dimensional RK4 sweep through the lane kernel, W side by side. Every item of a
+// sweep has the same window, step and (for the rig) substeps — they depend on the sweep's settings and
+// rig parameters, never on the swept a0_mm, f0_hz — so any W items share a block.
+template <int W>
+std::optional<std::vector<PointResult>> ItemsInLanes(const SweepSpec& spec, const std::vector<WorkItem>& items) {
+  std::vector<PointResult> out(items.size());
+  std::array<PointSpec, W> specs;
+  std::array<RawLane, W> raw;
+  const PointSpec first = spec.PointAt(0, 0);
+  KernelSettings ks = KernelSettingsFor(first);
+  ks.keep_rows = false;
+  const int substeps =
+      spec.model == ModelKind::kDimensional ? Rk4Substeps(spec.dimensional.params, first.integration.dt) : 1;
+  for (size_t start = 0; start < items.size(); start += W) {
+    const int n = static_cast<int>(std::min<size_t>(W, items.size() - start));
+    for (int l = 0; l < n; ++l) specs[l] = spec.PointAt(items[start + l].point, items[start + l].ic);
+    bool done;
+    if (spec.model == ModelKind::kSeries) {
+      std::array<SeriesLaneInput, W> in;
+      for (int l = 0; l < n; ++l) in[l] = SeriesInputFor(spec, specs[l]);
+      done = RunSeriesLanes<W>(in.data(), n, ks, raw.data());
+    } else {
+      std::array<DimensionalLaneInput, W> in;
+      for (int l = 0; l < n; ++l) in[l] = DimensionalInputFor(spec, specs[l]);
+      done = RunDimensionalLanes<W>(in.data(), n, ks, substeps, raw.data());
+    }
+    if (!done) return std::nullopt;
+    for (int l = 0; l < n; ++l) out[start + l] = ComputePointMetrics(std::move(raw[l]), MetricProxy(spec, specs[l]));
+  }
+  return out;
 }
 
 }  // namespace
@@ -53,7 +129,11 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
       last = res.final_state;
       out[i] = PointRecord::From(res, turning);
     }
-  } else if (!spec.UsesKernel()) {  // series, dimensional, adaptive: one point at a time
+  } else if (spec.UsesGenericLanes()) {  // series and dimensional RK4: the lane kernel
+    auto results = EvaluateItemsInLanes(spec, items, kSweepLanes);
+    if (!results) return std::nullopt;
+    for (size_t i = 0; i < items.size(); ++i) out[i] = PointRecord::From((*results)[i], turning);
+  } else if (!spec.UsesKernel()) {  // adaptive: one point at a time
     for (size_t i = 0; i < items.size(); ++i) {
       if (CancelRequested()) return std::nullopt;
       // A cancelled evaluation comes back as a diverged record; the check below discards the job.
@@ -92,52 +172,49 @@ PointResult EvaluateItem(const SweepSpec& spec, long index, int ic) {
     auto r = EvaluatePoint(p);
     return r.ok() ? *r : Unevaluated(spec, index, ic, r.status());
   }
-  PointSpec proxy = p;  // carries window, metric settings and the motion classification's model kind
-  GenericWindow w;
+  if (spec.UsesGenericLanes()) {  // the lane kernel at width 1: the bits of the same item in a sweep
+    auto r = EvaluateItemsInLanes(spec, {WorkItem{index, ic}}, 1);
+    return r ? (*r)[0] : PointResult{Termination::kDiverged};  // cancelled: the caller discards the job
+  }
+  GenericWindow w;  // adaptive (Dormand–Prince), one point at a time
   w.t_end = p.integration.t_end;
   w.t_keep = p.integration.t_keep;
   w.dt = p.integration.dt;
-  w.adaptive = p.integration.integrator == IntegratorKind::kAdaptive;
+  w.adaptive = true;
   w.tol.rtol = p.integration.rtol;
   w.tol.atol = p.integration.atol;
   w.renorm_every = p.metrics.renorm_every;
   w.sample_every = p.metrics.sample_every;
   RawLane raw;
   if (spec.model == ModelKind::kSeries) {
-    const std::vector<SeriesCell> cells = spec.SeriesCells(p);
-    SeriesModel m(cells, p.alpha, p.omega);
+    const SeriesLaneInput in = SeriesInputFor(spec, p);
+    SeriesModel m(in.cells, p.alpha, p.omega);
     const int last = m.cells() - 1;
     const int yl = m.MainIndex(last), yp = last > 0 ? m.MainIndex(last - 1) : -1;
     w.position = [yl, yp](const Eigen::VectorXd& x) { return x[yl] - (yp >= 0 ? x[yp] : 0.0); };
     w.velocity = [yl](const Eigen::VectorXd& x) { return x[yl + 1]; };
-    w.amp = p.alpha;
-    w.omega = p.omega;
-    proxy.model = spec.series.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
-    raw = RunGenericWindow(m, m.WellState(), w);
+    w.amp = in.base_amp;
+    w.omega = in.omega;
+    raw = RunGenericWindow(m, Eigen::Map<const Eigen::VectorXd>(in.x0.data(), m.dim()), w);
   } else {
-    const DimensionalParams& dp = spec.dimensional.params;
-    const double a0 = p.alpha * 1e-3, f0 = p.omega, omega = 2.0 * M_PI * f0;
-    DimensionalModel m(dp, SineBase(a0, f0));
-    const double delta_s = spec.dimensional.bistable ? std::sqrt(-dp.k_lin / dp.k3) : 0.0;
-    Eigen::VectorXd x0 = Eigen::VectorXd::Zero(4);
-    if (p.ic_given) {
-      for (int i = 0; i < 4; ++i) x0[i] = p.ic[i];
-    } else {
-      x0[0] = delta_s;  // at rest in the positive well (linear beam: at rest at the origin)
-    }
+    const DimensionalLaneInput in = DimensionalInputFor(spec, p);
+    DimensionalModel m(in.params, SineBase(in.base_amp, p.omega));
     w.position = [](const Eigen::VectorXd& x) { return x[0]; };
     w.velocity = [](const Eigen::VectorXd& x) { return x[1]; };
-    w.amp = a0;
-    w.omega = omega;
-    w.adaptive = true;
-    proxy.model = spec.dimensional.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
-    proxy.alpha = a0;
-    proxy.omega = omega;
-    // Stroboscopic repetition tolerance in metres (and m/s): period_tol in units of δs (or of A0).
-    proxy.metrics.period_tol = p.metrics.period_tol * (delta_s > 0 ? delta_s : a0);
-    raw = RunGenericWindow(m, x0, w);
+    w.amp = in.base_amp;
+    w.omega = in.omega;
+    raw = RunGenericWindow(m, Eigen::Map<const Eigen::Vector4d>(in.x0.data()), w);
   }
-  return ComputePointMetrics(std::move(raw), proxy);
+  return ComputePointMetrics(std::move(raw), MetricProxy(spec, p));
+}
+
+std::optional<std::vector<PointResult>> EvaluateItemsInLanes(const SweepSpec& spec, const std::vector<WorkItem>& items,
+                                                             int width) {
+  switch (width) {
+    case 1: return ItemsInLanes<1>(spec, items);
+    case 4: return ItemsInLanes<4>(spec, items);
+    default: return ItemsInLanes<kSweepLanes>(spec, items);
+  }
 }
 
 long JobItems(const SweepSpec& spec, double seconds, long min_jobs) {

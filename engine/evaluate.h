@@ -1,6 +1,7 @@
 // How a sweep's items become records — the one place: the SIMD ensemble kernel for RK4 cell models
-// (kSweepLanes lanes per call), the generic per-point path for series chains, the dimensional model and
-// adaptive integration, continuation chains in order, and the size of the jobs they are cut into.
+// (kSweepLanes lanes per call), the lane kernel for RK4 series chains and the dimensional model
+// (kSweepLanes lanes), the generic per-point path for adaptive integration, continuation chains in
+// order, and the size of the jobs they are cut into.
 // Each item's record equals what `bistable point` prints for the same settings, bit for bit.
 // Used by the worker process and the embedded `bistable run` (through worker/pull_loop.h) alike.
 // Thread-safe: no shared state; run one job per thread.
@@ -34,10 +35,16 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
 // cancelled, which no coordinator accepts as a job's report.
 std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<WorkItem>& items);
 
-// One item outside the kernel (series, dimensional, adaptive cell models). An evaluation error is
+// One item outside the cell kernel (series, dimensional, adaptive cell models). An evaluation error is
 // returned as a diverged result (termination 1) and reported on stderr with its reason — the spec was
-// validated, so only a degenerate run gets there.
+// validated, so only a degenerate run gets there. Series and dimensional RK4 items run in the lane
+// kernel at width 1, so a sweep's record of the item has the same bits.
 PointResult EvaluateItem(const SweepSpec& spec, long index, int ic);
+
+// Items of a series or dimensional RK4 sweep (spec.UsesGenericLanes()) through the lane kernel,
+// `width` side by side (1, 4 or kSweepLanes); nullopt when cancelled. Results do not depend on width.
+std::optional<std::vector<PointResult>> EvaluateItemsInLanes(const SweepSpec& spec, const std::vector<WorkItem>& items,
+                                                             int width);
 
 // Items per job: about `seconds` of work on one core (≈ 1.5e7 lane-steps/s with metrics; points off
 // the kernel count 8 times as much), but at least `min_jobs` jobs where the sweep has the items (so

@@ -218,6 +218,10 @@ std::string ModelConfigText(const SweepSpec& spec) {
       os << "," << G17(v);
     os << "\n";
   }
+  // RK4 chains and rig points changed numerics when they moved into lanes (issue 14: rotated forcing
+  // phase, tangent from the lane model, the rig's stiffness-set substeps; the rig had ignored "rk4"):
+  // results of the per-point path must not be found under their keys.
+  if (spec.UsesGenericLanes()) os << "rk4=lanes\n";
   return os.str();
 }
 

@@ -104,6 +104,8 @@ struct SweepSpec {
 
   // True when items run through the SIMD ensemble kernel (cell models with RK4).
   bool UsesKernel() const { return IsCellModel(model) && base.integration.integrator == IntegratorKind::kRk4; }
+  // True when items run through the lane kernel of series chains and the rig (ensemble_generic.h): RK4.
+  bool UsesGenericLanes() const { return !IsCellModel(model) && base.integration.integrator == IntegratorKind::kRk4; }
   // Content key of an item: model configuration, parameters, settings, initial state, numerics version.
   std::string ItemKey(long index, int ic) const;
   // The cells of a series chain at a point: [params] and the axis values for all, then each cell's overrides.

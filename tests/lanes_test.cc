@@ -1,0 +1,250 @@
+// Series chains and the dimensional rig in lanes (dynamics/ensemble_generic.h): a sweep's record of a
+// point has the bits of the same point evaluated alone (EvaluateItem, the lane kernel at width 1) at
+// every lane width and lane position, and the lane models agree with the independent per-point
+// implementations (SeriesModel with its Jacobian, Dormand–Prince on DimensionalModel).
+#include <cmath>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "dynamics/cancel.h"
+#include "dynamics/ensemble_generic.h"
+#include "dynamics/friction.h"
+#include "dynamics/generic_point.h"
+#include "dynamics/point.h"
+#include "engine/evaluate.h"
+#include "engine/sweep_spec.h"
+
+namespace bistable {
+namespace {
+
+SweepSpec Parse(const std::string& toml) {
+  auto s = ParseSweepSpec(toml, "lanes_test.toml");
+  EXPECT_TRUE(s.ok()) << s.status().ToString();
+  return s.ok() ? *s : SweepSpec{};
+}
+
+bool SameBits(const PointRecord& a, const PointRecord& b) {
+  return a.v.size() == b.v.size() && std::memcmp(a.v.data(), b.v.data(), a.v.size() * sizeof(double)) == 0;
+}
+
+// Every item of the sweep, in an order that puts each point at another lane position at every width
+// and leaves the last block partly filled.
+std::vector<WorkItem> ShuffledItems(const SweepSpec& spec) {
+  std::vector<WorkItem> items;
+  const long n = spec.points();
+  for (long i = 0; i < n; ++i) items.push_back({(i * 7 + 3) % n, 0});
+  return items;
+}
+
+// The sweep at widths 1, 4 and 8, and through ComputeItems (the path of `bistable run` and workers),
+// against each item evaluated alone.
+void ExpectLanesEqualOnePointPath(const SweepSpec& spec) {
+  ASSERT_TRUE(spec.UsesGenericLanes());
+  const std::vector<WorkItem> items = ShuffledItems(spec);
+  std::vector<PointRecord> alone;
+  for (const WorkItem& it : items) alone.push_back(PointRecord::From(EvaluateItem(spec, it.point, it.ic)));
+  int finite_lle = 0;
+  for (const PointRecord& r : alone) finite_lle += std::isfinite(r.Get("lle"));
+  EXPECT_EQ(finite_lle, static_cast<int>(items.size()));  // real results, not NaN = NaN
+  for (int width : {1, 4, 8}) {
+    auto lanes = EvaluateItemsInLanes(spec, items, width);
+    ASSERT_TRUE(lanes.has_value());
+    for (size_t i = 0; i < items.size(); ++i)
+      EXPECT_TRUE(SameBits(PointRecord::From((*lanes)[i]), alone[i])) << "width " << width << " point " << items[i].point;
+  }
+  const std::vector<PointRecord> sweep = ComputeItems(spec, items);
+  ASSERT_EQ(sweep.size(), items.size());
+  for (size_t i = 0; i < items.size(); ++i) EXPECT_TRUE(SameBits(sweep[i], alone[i])) << "point " << items[i].point;
+}
+
+TEST(SeriesLanes, SweepRecordsHaveTheBitsOfOnePointAtAnyLaneWidth) {
+  // Two cells with resonators (state 8), a grid with periodic and chaotic points.
+  ExpectLanesEqualOnePointPath(Parse(R"(
+model = "series"
+[series]
+cells = 2
+[axes]
+alpha = [0.2, 0.8, 1.5]
+omega = [0.5, 0.9, 1.2, 1.6]
+[integration]
+t_end = 40.0
+t_keep = 20.0
+)"));
+}
+
+TEST(SeriesLanes, LongAndLinearChainsHaveTheBitsOfOnePoint) {
+  // Five cells take the run-time layout; linear links without resonators the other model variant;
+  // a swept per-lane coefficient (eta) checks that cells are loaded per lane.
+  ExpectLanesEqualOnePointPath(Parse(R"(
+model = "series"
+[series]
+cells = 5
+cell = [{}, {lambda = 0.9}]
+[axes]
+alpha = [0.3, 1.1]
+eta = [0.05, 0.1, 0.2]
+[integration]
+t_end = 30.0
+t_keep = 15.0
+)"));
+  ExpectLanesEqualOnePointPath(Parse(R"(
+model = "series"
+[series]
+cells = 3
+resonators = false
+bistable = false
+[axes]
+omega = [0.4, 0.8, 1.3, 1.7, 2.1]
+[integration]
+t_end = 30.0
+t_keep = 15.0
+)"));
+}
+
+TEST(DimensionalLanes, SweepRecordsHaveTheBitsOfOnePointAtAnyLaneWidth) {
+  // Table 2 rig with friction: sticking (small A0) and sliding points side by side.
+  ExpectLanesEqualOnePointPath(Parse(R"(
+model = "dimensional"
+[axes]
+a0_mm = [0.5, 3.0, 10.0]
+f0_hz = [2.0, 3.5, 6.0]
+[integration]
+integrator = "rk4"
+t_end = 1.0
+t_keep = 0.5
+dt = 0.001
+)"));
+}
+
+// The lane model of a chain against SeriesModel (Eigen, its own Jacobian) through the generic RK4
+// path: the same RK4 steps of the same equations, so the same orbit to rounding on periodic points.
+TEST(SeriesLanes, AgreeWithTheEigenModelThroughTheGenericPath) {
+  const SweepSpec spec = Parse(R"(
+model = "series"
+[series]
+cells = 3
+cell = [{eta = 0.15}, {}, {lambda = 0.9}]
+[axes]
+alpha = [0.1, 0.3]
+omega = [0.4, 1.4]
+[integration]
+t_end = 100.0
+t_keep = 50.0
+)");
+  for (long p = 0; p < spec.points(); ++p) {
+    const PointResult lanes = EvaluateItem(spec, p, 0);
+    const PointSpec ps = spec.PointAt(p, 0);
+    SeriesModel m(spec.SeriesCells(ps), ps.alpha, ps.omega);
+    GenericWindow w;
+    w.t_end = ps.integration.t_end;
+    w.t_keep = ps.integration.t_keep;
+    w.dt = ps.integration.dt;
+    w.amp = ps.alpha;
+    w.omega = ps.omega;
+    const int yl = m.MainIndex(2), yp = m.MainIndex(1);
+    w.position = [=](const Eigen::VectorXd& x) { return x[yl] - x[yp]; };
+    w.velocity = [=](const Eigen::VectorXd& x) { return x[yl + 1]; };
+    PointSpec proxy = ps;
+    proxy.model = ModelKind::kStandalone;
+    const PointResult eigen = ComputePointMetrics(RunGenericWindow(m, m.WellState(), w), proxy);
+    ASSERT_EQ(eigen.termination, Termination::kOk);
+    EXPECT_NEAR(lanes.frf_db, eigen.frf_db, 1e-6) << p;
+    EXPECT_NEAR(lanes.y_min, eigen.y_min, 1e-8) << p;
+    EXPECT_NEAR(lanes.y_max, eigen.y_max, 1e-8) << p;
+    // The tangents start along different directions; over a 50-τ window the estimates agree to ~1e-2.
+    EXPECT_NEAR(lanes.lle, eigen.lle, 0.02) << p;
+    EXPECT_EQ(lanes.motion, eigen.motion) << p;
+  }
+}
+
+// The rig in lanes (fixed-step RK4, substeps set by the stiffness) against the default per-point
+// Dormand–Prince (rtol 1e-8) on the same points: sticking and sliding.
+TEST(DimensionalLanes, FixedStepAgreesWithDormandPrince) {
+  const std::string grid = R"(
+model = "dimensional"
+[axes]
+a0_mm = [1.0, 10.0]
+f0_hz = [3.0, 5.0]
+[integration]
+t_end = 3.0
+t_keep = 1.5
+dt = 0.001
+rtol = 1e-8
+atol = 1e-11
+)";
+  const SweepSpec rk4 = Parse(grid + "integrator = \"rk4\"\n");
+  const SweepSpec dp5 = Parse(grid);
+  ASSERT_TRUE(rk4.UsesGenericLanes());
+  ASSERT_FALSE(dp5.UsesGenericLanes());
+  EXPECT_NE(rk4.ItemKey(0, 0), dp5.ItemKey(0, 0));
+  for (long p = 0; p < rk4.points(); ++p) {
+    const PointResult a = EvaluateItem(rk4, p, 0), b = EvaluateItem(dp5, p, 0);
+    ASSERT_EQ(a.termination, Termination::kOk);
+    ASSERT_EQ(b.termination, Termination::kOk);
+    EXPECT_NEAR(a.frf_db, b.frf_db, 1e-3) << p;  // measured ≤ 6e-6 dB
+    EXPECT_NEAR(a.y_max, b.y_max, 1e-6) << p;    // m; measured ≤ 2e-7 m
+    EXPECT_NEAR(a.y_min, b.y_min, 1e-6) << p;
+    EXPECT_EQ(a.motion, b.motion) << p;
+  }
+}
+
+// The stiffness sets the step: substeps grow as the friction law stiffens (smaller v_t) and as dt grows.
+TEST(DimensionalLanes, SubstepsFollowTheStiffness) {
+  DimensionalParams p = DimensionalParams::BistableTable2();
+  const int base = Rk4Substeps(p, 1e-3);
+  EXPECT_GE(base, 2);  // ≈ 10³ N s/m friction slope on a 0.28 kg mass: h ≈ 1/3000 s at most
+  EXPECT_GE(Rk4Substeps(p, 2e-3), 2 * base - 1);
+  DimensionalParams stiff = p;
+  stiff.fric_m.v_t = stiff.fric_r.v_t = 0.0002;
+  EXPECT_GT(Rk4Substeps(stiff, 1e-3), base);
+  DimensionalParams smooth = p;
+  smooth.fric_m = smooth.fric_r = Stribeck{0, 0};
+  EXPECT_EQ(Rk4Substeps(smooth, 1e-4), 1);
+}
+
+TEST(DimensionalLanes, FrictionForceAndSlopeInLanesHaveTheBitsOfEachAlone) {
+  const Stribeck f{1.2, 0.44};
+  const double a = f.HumpScale();
+  for (double v0 = -0.2; v0 <= 0.2; v0 += 0.000731) {
+    Vec<8> v, force, slope;
+    for (int l = 0; l < 8; ++l) v[l] = v0 * (1.0 + 0.37 * l);  // sticking to sliding across the lanes
+    f.ForceSlope(a, a / f.v_sp, v, &force, &slope);
+    for (int l = 0; l < 8; ++l) {
+      const double lane_force = force[l], lane_slope = slope[l];
+      const double alone_force = f.Force(v[l]), alone_slope = f.Slope(v[l]);
+      EXPECT_EQ(std::memcmp(&lane_force, &alone_force, sizeof lane_force), 0) << v[l];
+      EXPECT_EQ(std::memcmp(&lane_slope, &alone_slope, sizeof lane_slope), 0) << v[l];
+    }
+  }
+}
+
+// The hump's exp skips libm below its underflow: the same bits as std::exp everywhere, also across
+// the threshold and the subnormal band above it.
+TEST(DimensionalLanes, HumpExpHasTheBitsOfStdExp) {
+  for (double u = 0; u < 60; u += 0.0037) {
+    const double mine = HumpExp(u), libm = std::exp(0.5 - 0.5 * u * u);
+    EXPECT_EQ(std::memcmp(&mine, &libm, sizeof mine), 0) << u;
+  }
+}
+
+TEST(DimensionalLanes, CancelledRunHasNoResult) {
+  const SweepSpec spec = Parse(R"(
+model = "dimensional"
+[axes]
+a0_mm = [1.0, 2.0]
+[integration]
+integrator = "rk4"
+t_end = 1.0
+t_keep = 0.5
+)");
+  ScopedCancelReset reset;
+  RequestCancel();
+  EXPECT_FALSE(EvaluateItemsInLanes(spec, ShuffledItems(spec), 8).has_value());
+  EXPECT_FALSE(ComputeItemsUnlessCancelled(spec, ShuffledItems(spec)).has_value());
+}
+
+}  // namespace
+}  // namespace bistable
