@@ -88,6 +88,8 @@ class EnsembleRk4 {
     const double h6 = s.h / 6.0;
     V e_start = Broadcast<W>(0.0);
     bool diverged[W] = {};
+    V growth = Broadcast<W>(1.0);  // product of the tangent's norms since the last FlushGrowth
+    int growth_batch = 0;
 
     // Ordinary steps (no window start, strobe, re-anchoring, renormalisation or end) run in RunFast,
     // whose loop holds no call; the loop below does the others one at a time. A trace (keep_rows)
@@ -95,10 +97,11 @@ class EnsembleRk4 {
     const Consts k{c, amp, rot_c, rot_s, s.h};
     for (long step = 1; step <= s.n_total; ++step) {
       if (!s.keep_rows) {
-        const long stop = NextSpecialStep(step, s, rec.next_due());
+        const long stop = NextSpecialStep(step, s, rec.next_due(), growth_batch);
         while (step < stop) {
-          step = step > s.n_keep ? RunFast<true>(k, step, stop, x, k1, w, q, &sn, &cs, &rec)
-                                 : RunFast<false>(k, step, stop, x, k1, w, q, &sn, &cs, &rec);
+          TangentState tg{&growth, &growth_batch, diverged, s.renorm_every};
+          step = step > s.n_keep ? RunFast<true>(k, step, stop, x, k1, w, q, &sn, &cs, &rec, tg)
+                                 : RunFast<false>(k, step, stop, x, k1, w, q, &sn, &cs, &rec, tg);
           if (rec.TurningPointBufferFull()) rec.FlushTurningPoints();
         }
       }
@@ -121,9 +124,14 @@ class EnsembleRk4 {
       }
       if (step > s.n_keep) rec.OnStep(step, xp, kp, x, k1, cs);
       if (step % s.renorm_every == 0 || step == s.n_keep || step == s.n_total) {
-        V lg;
-        Renormalise(w, step > s.n_keep ? &lg : nullptr, diverged, x);  // growth before the window is not used
-        if (step > s.n_keep) rec.AddLogGrowth(lg);
+        if (step > s.n_keep) {
+          Renormalise(w, &growth, diverged, x);
+          const bool batch_done = ++growth_batch == kGrowthBatch || step == s.n_total;
+          if (batch_done) growth_batch = 0;
+          FlushGrowth(&growth, batch_done, &rec);
+        } else {
+          Renormalise(w, nullptr, diverged, x);  // growth before the window is not used
+        }
       }
     }
     const V e_end = Model::Energy(c, x);
@@ -153,14 +161,25 @@ class EnsembleRk4 {
 
   static long RoundUp(long n, long m) { return (n + m - 1) / m * m; }
 
+  // The renormalisation state RunFast advances: the window's growth product and its batch count,
+  // the divergence flags, and the interval.
+  struct TangentState {
+    V* growth;
+    int* growth_batch;
+    bool* diverged;
+    int renorm_every;
+  };
+
   // The first step ≥ step that needs the general loop body: the window's first step or the step
-  // before it (a renormalisation point), a step with a strobe due, re-anchoring, renormalisation,
-  // or the last step.
-  static long NextSpecialStep(long step, const KernelSettings& s, long next_strobe) {
-    long stop = std::min({s.n_total, RoundUp(step, s.renorm_every), RoundUp(step, kReanchor)});
+  // before it (a renormalisation point), a step with a strobe due, re-anchoring, the window's
+  // renormalisation that completes a growth batch (its log is taken there), or the last step.
+  // Other renormalisations run inside RunFast.
+  static long NextSpecialStep(long step, const KernelSettings& s, long next_strobe, int growth_batch) {
+    long stop = std::min(s.n_total, RoundUp(step, kReanchor));
     if (step <= s.n_keep) return std::min(stop, s.n_keep);
     if (step == s.n_keep + 1) return step;
-    return std::min(stop, next_strobe);
+    const long batch_end = RoundUp(step, s.renorm_every) + static_cast<long>(kGrowthBatch - 1 - growth_batch) * s.renorm_every;
+    return std::min({stop, next_strobe, batch_end});
   }
 
   // Steps [from, to), all ordinary (see NextSpecialStep); returns the next step to do, short of `to`
@@ -169,23 +188,32 @@ class EnsembleRk4 {
   // vectors stay in registers (the general loop around it calls log, sin, cos and allocators).
   template <bool kWindow>
   [[gnu::noinline]] static long RunFast(const Consts& kc, long from, long to, V* x_io, V* k1_io, V* w_io, V* q_io,
-                                        V* sn_io, V* cs_io, WindowRecorder<D, W>* rec) {
+                                        V* sn_io, V* cs_io, WindowRecorder<D, W>* rec, TangentState tg) {
     const Consts k = kc;
     V x[D], k1[D], w[D], q[4], sn = *sn_io, cs = *cs_io;
     for (int d = 0; d < D; ++d) x[d] = x_io[d], k1[d] = k1_io[d], w[d] = w_io[d];
     for (int i = 0; i < 4; ++i) q[i] = q_io[i];
     typename WindowRecorder<D, W>::Running r = rec->running();
     V* samples = kWindow ? rec->ReserveSamples(to - from) : nullptr;
+    V growth = *tg.growth;
+    int growth_batch = *tg.growth_batch;
+    int until_renorm = tg.renorm_every - static_cast<int>((from - 1) % tg.renorm_every);
     long step = from;
     while (step < to) {
       const V y0 = x[0], v0 = x[1];
       Step<kWindow>(k.c, k.amp, k.rot_c, k.rot_s, k.h, x, k1, w, q, &sn, &cs);
-      if constexpr (kWindow) {
-        if (!rec->Track(r, step++, y0, v0, x, cs, samples)) break;
-      } else {
-        ++step;
+      bool room = true;
+      if constexpr (kWindow) room = rec->Track(r, step, y0, v0, x, cs, samples);
+      if (--until_renorm == 0) {
+        until_renorm = tg.renorm_every;
+        Renormalise(w, kWindow ? &growth : nullptr, tg.diverged, x);
+        if constexpr (kWindow) ++growth_batch;
       }
+      ++step;
+      if (!room) break;
     }
+    *tg.growth = growth;
+    *tg.growth_batch = growth_batch;
     for (int d = 0; d < D; ++d) x_io[d] = x[d], k1_io[d] = k1[d], w_io[d] = w[d];
     for (int i = 0; i < 4; ++i) q_io[i] = q[i];
     *sn_io = sn, *cs_io = cs;
@@ -277,20 +305,40 @@ class EnsembleRk4 {
     Model::Rhs(c, x, f1, k1);
   }
 
-  // w ← w/|w|, *lg = log|w| (unless lg is null). Lanes that blew up are flagged and reset so they cannot poison timing.
-  static void Renormalise(V* w, V* lg, bool* diverged, V* x) {
+  // w ← w/|w|, and *growth ×= |w| (unless growth is null). Lanes that blew up are flagged and reset
+  // so they cannot poison timing.
+  static BISTABLE_INLINE void Renormalise(V* w, V* growth, bool* diverged, V* x) {
     V n2 = w[0] * w[0];
-    for (int d = 1; d < D; ++d) n2 = n2 + w[d] * w[d];
+    for (int d = 1; d < D; ++d) n2 = Fma(w[d], w[d], n2);
+    const V nrm = Sqrt<W>(n2);
+    const V inv = 1.0 / nrm;
+    for (int d = 0; d < D; ++d) w[d] = w[d] * inv;
+    if (growth) *growth = *growth * nrm;
     for (int l = 0; l < W; ++l) {
-      const double nrm = std::sqrt(n2[l]);
-      if (lg) (*lg)[l] = std::log(nrm);
-      const double inv = 1.0 / nrm;
-      for (int d = 0; d < D; ++d) w[d][l] *= inv;
-      if (!std::isfinite(x[0][l]) || std::fabs(x[0][l]) > 1e8 || !std::isfinite(nrm)) {
+      if (!std::isfinite(x[0][l]) || std::fabs(x[0][l]) > 1e8 || !std::isfinite(nrm[l])) {
         diverged[l] = true;
         for (int d = 0; d < D; ++d) x[d][l] = 0.0, w[d][l] = (d == 0);
       }
     }
+  }
+
+  // Σ log|w| over the window, one log per kGrowthBatch renormalisations instead of one each: the
+  // norms multiply into growth, whose log goes to the recorder at the end of a batch (all lanes) or
+  // as soon as a lane's product leaves [1e-150, 1e150] (that lane) — decisions of each lane's own,
+  // so its bits do not depend on its neighbours or on W.
+  static constexpr int kGrowthBatch = 16;
+  static void FlushGrowth(V* growth, bool all, WindowRecorder<D, W>* rec) {
+    V lg = Broadcast<W>(0.0);
+    bool any = false;
+    for (int l = 0; l < W; ++l) {
+      const double g = (*growth)[l];
+      if (all || !(g >= 1e-150 && g <= 1e150)) {
+        lg[l] = std::log(g);
+        (*growth)[l] = 1.0;
+        any = true;
+      }
+    }
+    if (any) rec->AddLogGrowth(lg);
   }
 };
 

@@ -135,6 +135,13 @@ BISTABLE_INLINE Vec<W> Min(Vec<W> a, Vec<W> b) {
                 [](auto x, auto y) BISTABLE_INLINE_LAMBDA { return _mm256_min_pd(x, y); },
                 [](double x, double y) BISTABLE_INLINE_LAMBDA { return x < y ? x : y; }, a, b);
 }
+// √a per lane, correctly rounded (IEEE 754) like std::sqrt.
+template <int W>
+BISTABLE_INLINE Vec<W> Sqrt(Vec<W> a) {
+  return LaneOp([](auto x) BISTABLE_INLINE_LAMBDA { return _mm512_sqrt_pd(x); },
+                [](auto x) BISTABLE_INLINE_LAMBDA { return _mm256_sqrt_pd(x); },
+                [](double x) BISTABLE_INLINE_LAMBDA { return __builtin_sqrt(x); }, a);
+}
 // |a| per lane: the sign bit cleared (IEEE 754 abs; |−0| = +0).
 template <int W>
 BISTABLE_INLINE Vec<W> Abs(Vec<W> a) {
