@@ -63,6 +63,21 @@ void BM_KernelCoupledTangent(benchmark::State& state) {
   state.counters["rk4_steps_per_s"] =
       benchmark::Counter(static_cast<double>(state.iterations()) * W * b.ks.n_total, benchmark::Counter::kIsRate);
 }
+// The same without the window (τ 0–500 all transient): state, tangent and renormalisation only — the
+// work per step of ../shared/bench/reference_kernel.cc (bench/kernel_ratio.sh compares the two).
+template <int W>
+void BM_KernelNoWindow(benchmark::State& state) {
+  LaneBlock b(W);
+  b.ks.n_keep = b.ks.n_total;
+  for (auto _ : state) {
+    RunKernel<W>(b.spec.model, b.lanes.data(), W, b.ks, b.out.data());
+    benchmark::DoNotOptimize(b.out.data());
+  }
+  state.counters["rk4_steps_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()) * W * b.ks.n_total, benchmark::Counter::kIsRate);
+}
+BENCHMARK_TEMPLATE(BM_KernelNoWindow, 8)->Unit(benchmark::kMillisecond);
+
 BENCHMARK_TEMPLATE(BM_KernelCoupledTangent, 1)->Unit(benchmark::kMillisecond);
 BENCHMARK_TEMPLATE(BM_KernelCoupledTangent, 4)->Unit(benchmark::kMillisecond);
 BENCHMARK_TEMPLATE(BM_KernelCoupledTangent, 8)->Unit(benchmark::kMillisecond);

@@ -57,6 +57,12 @@ class WindowRecorder {
     run_.until_sample = 1;  // the window's first step (n_keep) is sampled
   }
 
+  ~WindowRecorder() {
+    if (y_samples_.capacity() > Pool().capacity()) Pool() = std::move(y_samples_);
+  }
+  WindowRecorder(const WindowRecorder&) = delete;
+  WindowRecorder& operator=(const WindowRecorder&) = delete;
+
   // Per-step running values of the window. The kernel's fast loop copies them into locals (registers)
   // for a run of ordinary steps and hands them back (running()).
   struct Running {
@@ -218,7 +224,14 @@ class WindowRecorder {
   static constexpr int kTpBuffer = 32;
   TpEntry tp_buf_[kTpBuffer];
   int tp_count_ = 0;
-  std::vector<V> y_samples_;  // [0, n_samples_) written
+  // [0, n_samples_) written. The storage is borrowed from a per-thread pool and handed back by the
+  // destructor: sweeps run thousands of blocks per thread, and a fresh ~0.3 MB buffer each time
+  // costs page faults (a nested recorder simply starts with an empty one).
+  static std::vector<V>& Pool() {
+    thread_local std::vector<V> pool;
+    return pool;
+  }
+  std::vector<V> y_samples_ = std::move(Pool());
   size_t n_samples_ = 0;
   std::vector<V> rows_;   // D lane vectors per row
   std::vector<double> row_times_;
