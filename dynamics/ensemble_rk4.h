@@ -4,9 +4,9 @@
 //    (variational equation w' = J(x) w) and renormalised every `renorm_every` steps;
 //  - the forcing phase advanced by exact rotation (cos/sin of Ωh/2 per lane), re-anchored with
 //    sin/cos of Ω·nh every kReanchor steps so the phase error stays at rounding level;
-//  - the energy quadratures ∫P, ∫max(P,0), W_m, W_r integrated as extra RK4 components over the
-//    window (RK4's quadrature of the stage values), which makes the balance ∫P = W_m + W_r + ΔE
-//    hold to RK4's truncation error.
+//  - the energy quadratures ∫P, ∫max(P,0), W_m, W_r over the window by the trapezoid rule on the
+//    step ends with the Euler–Maclaurin end correction (4th order, one integrand evaluation per step),
+//    so the balance ∫P = W_m + W_r + ΔE holds to the order of RK4's truncation error.
 // A lane's arithmetic never depends on other lanes or on W (no reductions across lanes; fused
 // multiply-adds only where written, as Fma, and exact): the same point gives bit-identical results
 // at any lane width. Ordinary steps run in a call-free loop (RunFast); the few special ones
@@ -82,10 +82,13 @@ class EnsembleRk4 {
     Anchor(omega, 0, s.h, &sn, &cs);
     V k1[D];
     Model::Rhs(c, x, amp * sn, k1);
-    // ∫P, ∫max(P,0), W_m, W_r over the window, as 6/h times the quadrature (the RK4 weights 1 2 2 1
-    // of each step's stage values summed; scaled once at the end).
-    V q[4] = {};
-    const double h6 = s.h / 6.0;
+    // ∫P, ∫max(P,0), W_m, W_r over the window: the composite trapezoid rule on the step ends with the
+    // Euler–Maclaurin end correction, T − h²/12·(g'(end) − g'(start)), 4th order like RK4 itself.
+    // q sums the integrands g at every window step's end; g0/gd0 are g and g' at the window's start,
+    // g_last g at its end.
+    V q[4] = {}, g0[4] = {}, gd0[4] = {}, g_last[4] = {};
+    V om;
+    for (int l = 0; l < W; ++l) om[l] = omega[l];
     V e_start = Broadcast<W>(0.0);
     bool diverged[W] = {};
     V growth = Broadcast<W>(1.0);  // product of the tangent's norms since the last FlushGrowth
@@ -108,14 +111,16 @@ class EnsembleRk4 {
       if (step == s.n_keep + 1) {
         e_start = Model::Energy(c, x);
         rec.OnStep(s.n_keep, x, k1, x, k1, cs);
+        Quad(c, x, amp * sn, g0);
+        QuadRate(c, x, k1, amp * sn, amp * om * cs, g0, gd0);
       }
       // The step's start (turning points and strobes interpolate between both ends).
       V xp[D], kp[D];
       for (int d = 0; d < D; ++d) xp[d] = x[d], kp[d] = k1[d];
+      Step(c, amp, rot_c, rot_s, s.h, x, k1, w, &sn, &cs);
       if (step > s.n_keep) {
-        Step<true>(c, amp, rot_c, rot_s, s.h, x, k1, w, q, &sn, &cs);
-      } else {
-        Step<false>(c, amp, rot_c, rot_s, s.h, x, k1, w, q, &sn, &cs);
+        Quad(c, x, amp * sn, g_last);
+        for (int i = 0; i < 4; ++i) q[i] = q[i] + g_last[i];
       }
       if (step % kReanchor == 0) {
         if (CancelRequested()) [[unlikely]] return Cancelled(n, step, out);
@@ -135,12 +140,16 @@ class EnsembleRk4 {
       }
     }
     const V e_end = Model::Energy(c, x);
+    V gd_last[4];
+    QuadRate(c, x, k1, amp * sn, amp * om * cs, g_last, gd_last);
+    const double h = s.h, em = s.h * s.h / 12.0;
+    for (int i = 0; i < 4; ++i) q[i] = h * (q[i] + 0.5 * (g0[i] - g_last[i])) - em * (gd_last[i] - gd0[i]);
     for (int l = 0; l < n; ++l) {
       RawLane& r = rec.Lane(l);
-      r.q_p = h6 * q[0][l];
-      r.q_in = h6 * q[1][l];
-      r.q_m = h6 * q[2][l];
-      r.q_r = h6 * q[3][l];
+      r.q_p = q[0][l];
+      r.q_in = q[1][l];
+      r.q_m = q[2][l];
+      r.q_r = q[3][l];
       r.e_start = e_start[l];
       r.e_end = e_end[l];
       r.diverged = diverged[l] || !std::isfinite(x[0][l]);
@@ -201,9 +210,14 @@ class EnsembleRk4 {
     long step = from;
     while (step < to) {
       const V y0 = x[0], v0 = x[1];
-      Step<kWindow>(k.c, k.amp, k.rot_c, k.rot_s, k.h, x, k1, w, q, &sn, &cs);
+      Step(k.c, k.amp, k.rot_c, k.rot_s, k.h, x, k1, w, &sn, &cs);
       bool room = true;
-      if constexpr (kWindow) room = rec->Track(r, step, y0, v0, x, cs, samples);
+      if constexpr (kWindow) {
+        V g[4];
+        Quad(k.c, x, k.amp * sn, g);
+        for (int i = 0; i < 4; ++i) q[i] = q[i] + g[i];
+        room = rec->Track(r, step, y0, v0, x, cs, samples);
+      }
       if (--until_renorm == 0) {
         until_renorm = tg.renorm_every;
         Renormalise(w, kWindow ? &growth : nullptr, tg.diverged, x);
@@ -242,34 +256,36 @@ class EnsembleRk4 {
     }
   }
 
-  // Integrand of the window quadratures at a stage.
-  static BISTABLE_INLINE void Quad(const CellCoeffs<V>& c, const V* x, V f, V* dq) {
+  // Integrands of the window quadratures at state x under forcing f: P, max(P, 0), η y'², φη_r(y' − y_r')².
+  static BISTABLE_INLINE void Quad(const CellCoeffs<V>& c, const V* x, V f, V* g) {
     const V p = Model::Power(c, x, f);
-    dq[0] = p;
-    dq[1] = Max<W>(p, Broadcast<W>(0.0));
-    dq[2] = Model::DissMain(c, x);
-    dq[3] = Model::DissRes(c, x);
+    g[0] = p;
+    g[1] = Max<W>(p, Broadcast<W>(0.0));
+    g[2] = Model::DissMain(c, x);
+    g[3] = Model::DissRes(c, x);
+  }
+  // Their time derivatives along the flow (dx = F(x, f), fdot = df/dτ; g from Quad at the same point):
+  // the end correction of the trapezoid rule. max(P, 0)' is P' where P > 0, else 0.
+  static void QuadRate(const CellCoeffs<V>& c, const V* x, const V* dx, V f, V fdot, const V* g, V* gd) {
+    gd[0] = Model::PowerRate(c, x, dx, f, fdot);
+    for (int l = 0; l < W; ++l) gd[1][l] = g[0][l] > 0.0 ? gd[0][l] : 0.0;
+    gd[2] = Model::DissMainRate(c, x, dx);
+    gd[3] = Model::DissResRate(c, x, dx);
   }
 
-  // One RK4 step of state, tangent and (in the window) quadratures: q += Q₁ + 2Q₂ + 2Q₃ + Q₄ of the
-  // integrands at the stage points (times h/6 when read out). On entry k1 = F(x, f(t));
-  // on exit x, w advanced, k1 = F(x_new, f(t + h)), (sn, cs) = (sin, cos)(Ω(t + h)).
-  template <bool kWindow>
+  // One RK4 step of state and tangent. On entry k1 = F(x, f(t)); on exit x, w advanced,
+  // k1 = F(x_new, f(t + h)), (sn, cs) = (sin, cos)(Ω(t + h)).
   static BISTABLE_INLINE void Step(const CellCoeffs<V>& c, V amp, V rot_c, V rot_s, double h, V* x, V* k1, V* w,
-                          V* q, V* sn, V* cs) {
+                                   V* sn, V* cs) {
     const V s_mid = Fma(*sn, rot_c, *cs * rot_s), c_mid = Fma(*cs, rot_c, -(*sn * rot_s));
     const V s_end = Fma(s_mid, rot_c, c_mid * rot_s), c_end = Fma(c_mid, rot_c, -(s_mid * rot_s));
-    const V f0 = amp * *sn, fm = amp * s_mid, f1 = amp * s_end;
+    const V fm = amp * s_mid, f1 = amp * s_end;
     const double hh = 0.5 * h, h6 = h / 6.0;
     // Stages are folded into running sums as they are made, acc = ((k1 + 2k2) + 2k3) + k4 (each
     // "+ 2k" one fused multiply-add, exact in the product), and x ← x + h/6·acc is fused as well:
     // fewer operations and a shorter dependency chain per stage than separate multiplies and adds.
-    V xs[D], ws[D], k[D], l[D], acc[D], accw[D], qk[4];
+    V xs[D], ws[D], k[D], l[D], acc[D], accw[D];
     Model::Tangent(c, x, w, l);
-    if constexpr (kWindow) {
-      Quad(c, x, f0, qk);
-      for (int i = 0; i < 4; ++i) q[i] = q[i] + qk[i];
-    }
     for (int d = 0; d < D; ++d) {
       acc[d] = k1[d], accw[d] = l[d];
       xs[d] = Fma(hh, k1[d], x[d]), ws[d] = Fma(hh, l[d], w[d]);
@@ -279,10 +295,6 @@ class EnsembleRk4 {
     auto mid_stage = [&](double next) BISTABLE_INLINE_LAMBDA {
       Model::Rhs(c, xs, fm, k);
       Model::Tangent(c, xs, ws, l);
-      if constexpr (kWindow) {
-        Quad(c, xs, fm, qk);
-        for (int i = 0; i < 4; ++i) q[i] = Fma(2.0, qk[i], q[i]);
-      }
       for (int d = 0; d < D; ++d) {
         acc[d] = Fma(2.0, k[d], acc[d]), accw[d] = Fma(2.0, l[d], accw[d]);
         xs[d] = Fma(next, k[d], x[d]), ws[d] = Fma(next, l[d], w[d]);
@@ -292,10 +304,6 @@ class EnsembleRk4 {
     mid_stage(h);
     Model::Rhs(c, xs, f1, k);
     Model::Tangent(c, xs, ws, l);
-    if constexpr (kWindow) {
-      Quad(c, xs, f1, qk);
-      for (int i = 0; i < 4; ++i) q[i] = q[i] + qk[i];
-    }
     for (int d = 0; d < D; ++d) {
       x[d] = Fma(h6, acc[d] + k[d], x[d]);
       w[d] = Fma(h6, accw[d] + l[d], w[d]);

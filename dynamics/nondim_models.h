@@ -16,6 +16,8 @@
 //   Power(c, x, f)            P  = f (y_m' + φ y_r'), power injected by the base in the relative frame
 //   DissMain / DissRes(c, x)  η y_m'², φ η_r (y_m' − y_r')²
 //   Energy(c, x)              E = ½y_m'² + ½φ y_r'² + ½k_lin y_m² + ¼ε y_m⁴ + ½φλ²(y_m − y_r)²
+//   PowerRate, DissMainRate, DissResRate(c, x, dx[, f, f'])  their time derivatives along the flow
+//                             (the window quadratures' end correction)
 // so that dE/dτ = P − DissMain − DissRes exactly (model.md §3).
 #ifndef BISTABLE_DYNAMICS_NONDIM_MODELS_H_
 #define BISTABLE_DYNAMICS_NONDIM_MODELS_H_
@@ -54,6 +56,12 @@ struct SingleModel {
   BISTABLE_INLINE static T DissMain(const CellCoeffs<T>& c, const T* x) { return c.eta * (x[1] * x[1]); }
   template <class T>
   BISTABLE_INLINE static T DissRes(const CellCoeffs<T>&, const T* x) { return 0.0 * x[0]; }
+  template <class T>
+  static T PowerRate(const CellCoeffs<T>&, const T* x, const T* dx, T f, T fdot) { return fdot * x[1] + f * dx[1]; }
+  template <class T>
+  static T DissMainRate(const CellCoeffs<T>& c, const T* x, const T* dx) { return 2.0 * c.eta * (x[1] * dx[1]); }
+  template <class T>
+  static T DissResRate(const CellCoeffs<T>&, const T* x, const T*) { return 0.0 * x[0]; }
   template <class T>
   BISTABLE_INLINE static T Energy(const CellCoeffs<T>& c, const T* x) {
     const T y = x[0], v = x[1], y2 = y * y;
@@ -94,6 +102,16 @@ struct CoupledModel {
   BISTABLE_INLINE static T DissRes(const CellCoeffs<T>& c, const T* x) {
     const T dv = x[1] - x[3];
     return c.phi * c.eta_r * (dv * dv);
+  }
+  template <class T>
+  static T PowerRate(const CellCoeffs<T>& c, const T* x, const T* dx, T f, T fdot) {
+    return fdot * Fma(c.phi, x[3], x[1]) + f * Fma(c.phi, dx[3], dx[1]);
+  }
+  template <class T>
+  static T DissMainRate(const CellCoeffs<T>& c, const T* x, const T* dx) { return 2.0 * c.eta * (x[1] * dx[1]); }
+  template <class T>
+  static T DissResRate(const CellCoeffs<T>& c, const T* x, const T* dx) {
+    return 2.0 * c.phi * c.eta_r * ((x[1] - x[3]) * (dx[1] - dx[3]));
   }
   template <class T>
   BISTABLE_INLINE static T Energy(const CellCoeffs<T>& c, const T* x) {

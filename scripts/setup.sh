@@ -16,6 +16,7 @@ PACKAGES=(
   gnuplot-nox
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev python3-h5py python3-pil python3-numpy python3-scipy python3-yaml iproute2
+  time  # GNU time: peak memory in bench/cost_curve.sh
   # Python: the `bistable` module (pybind11), maps in xarray (CF-1.10), its tests and examples
   python3-dev pybind11-dev python3-xarray python3-h5netcdf python3-netcdf4 python3-matplotlib python3-pytest udunits-bin
   # deployment tests (deploy/container: base image, image build and run; runc where crun cannot run)
