@@ -20,6 +20,7 @@
 #include <cmath>
 
 #include "dynamics/cancel.h"
+#include "dynamics/lane_run.h"
 #include "dynamics/lanes.h"
 #include "dynamics/nondim_models.h"
 #include "dynamics/window_recorder.h"
@@ -79,7 +80,7 @@ class EnsembleRk4 {
     }
     WindowRecorder<D, W> rec(alpha, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows);
     V sn, cs;
-    Anchor(omega, 0, s.h, &sn, &cs);
+    AnchorPhase<W>(omega, 0, s.h, &sn, &cs);
     V k1[D];
     Model::Rhs(c, x, amp * sn, k1);
     // ∫P, ∫max(P,0), W_m, W_r over the window, as 6/h times the quadrature (the RK4 weights 1 2 2 1
@@ -115,8 +116,8 @@ class EnsembleRk4 {
         Step<false>(c, amp, rot_c, rot_s, s.h, x, k1, w, q, &sn, &cs);
       }
       if (step % kReanchor == 0) {
-        if (CancelRequested()) [[unlikely]] return Cancelled(n, step, out);
-        Anchor(omega, step, s.h, &sn, &cs);
+        if (CancelRequested()) [[unlikely]] return MarkCancelled(n, step, out);
+        AnchorPhase<W>(omega, step, s.h, &sn, &cs);
         Model::Rhs(c, x, amp * sn, k1);  // derivative consistent with the re-anchored phase
       }
       if (step > s.n_keep) rec.OnStep(step, xp, kp, x, k1, cs);
@@ -151,16 +152,8 @@ class EnsembleRk4 {
     double h;
   };
 
-  static long RoundUp(long n, long m) { return (n + m - 1) / m * m; }
-
-  // The first step ≥ step that needs the general loop body: the window's first step or the step
-  // before it (a renormalisation point), a step with a strobe due, re-anchoring, renormalisation,
-  // or the last step.
   static long NextSpecialStep(long step, const KernelSettings& s, long next_strobe) {
-    long stop = std::min({s.n_total, RoundUp(step, s.renorm_every), RoundUp(step, kReanchor)});
-    if (step <= s.n_keep) return std::min(stop, s.n_keep);
-    if (step == s.n_keep + 1) return step;
-    return std::min(stop, next_strobe);
+    return bistable::NextSpecialStep(step, s.n_total, s.n_keep, s.renorm_every, kReanchor, next_strobe);
   }
 
   // Steps [from, to), all ordinary (see NextSpecialStep); returns the next step to do, short of `to`
@@ -194,24 +187,6 @@ class EnsembleRk4 {
       rec->CommitSamples(samples);
     }
     return step;
-  }
-
-  // Out of the hot loop: lanes of a cancelled run carry no result.
-  [[gnu::cold, gnu::noinline]] static bool Cancelled(int n, long step, RawLane* out) {
-    for (int l = 0; l < n; ++l) {
-      out[l] = RawLane{};
-      out[l].diverged = true;
-      out[l].steps = step;
-    }
-    return false;
-  }
-
-  static void Anchor(const double* omega, long step, double h, V* sn, V* cs) {
-    const double t = static_cast<double>(step) * h;
-    for (int l = 0; l < W; ++l) {
-      (*sn)[l] = std::sin(omega[l] * t);
-      (*cs)[l] = std::cos(omega[l] * t);
-    }
   }
 
   // Integrand of the window quadratures at a stage.
