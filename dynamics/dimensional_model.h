@@ -89,9 +89,10 @@ struct DimensionalLaneInput {
   std::array<double, 4> x0 = {0, 0, 0, 0};
 };
 
-// DimensionalModel's equations for lane packs (the lane kernel's model concept). The Stribeck terms
-// call the scalar std::exp and std::tanh lane by lane (Stribeck::ForceSlope), so a lane's bits are
-// those of the same point at W = 1. All lanes share the rig's parameters (lane 0's).
+// DimensionalModel's equations for lane packs (the lane kernel's model concept): the Stribeck terms
+// through Stribeck::Lanes (the project's lane exp and tanh), fused multiply-adds, and products with
+// reciprocals of the masses, so a lane's bits are those of the same point at W = 1 (and within ulps
+// per evaluation of DimensionalModel's). All lanes share the rig's parameters (lane 0's).
 struct DimensionalLaneModel {
   static constexpr int kDim = 4;
   using Input = DimensionalLaneInput;
@@ -107,47 +108,48 @@ struct DimensionalLaneModel {
     };
 
     explicit Lanes(const Input& in)
-        : p_(in.params), a_m_(p_.fric_m.HumpScale()), a_r_(p_.fric_r.HumpScale()) {}
+        : p_(in.params), fric_m_(p_.fric_m), fric_r_(p_.fric_r), inv_m_m_(1.0 / p_.m_m), inv_m_r_(1.0 / p_.m_r) {}
     int dim() const { return kDim; }
     void Load(int, const Input&) {}
 
     BISTABLE_INLINE void Eval(const V* x, V f, V* dx, Jac* j) const {
       const V y = x[0], yd = x[1], z = x[2], zd = x[3];
-      V ff_m, sl_m, g = Broadcast<W>(0.0);
-      p_.fric_m.ForceSlope(a_m_, a_m_ / p_.fric_m.v_sp, yd, &ff_m, &sl_m);
-      const V y2 = y * y;
-      j->fy = -(p_.k_lin + 3.0 * p_.k3 * y2) - 2.0 * p_.c2_m * y * yd;
-      j->fyd = -(p_.c0_m + p_.c2_m * y2) - sl_m;
+      V ff_m, sl_m, g = Splat<W>(0.0);
+      fric_m_.ForceSlope<W>(yd, &ff_m, &sl_m);
+      const V y2 = y * y, damp_m = Fma(Splat<W>(p_.c2_m), y2, Splat<W>(p_.c0_m));
+      j->fy = Fma(Splat<W>(-3.0 * p_.k3), y2, Splat<W>(-p_.k_lin)) - (2.0 * p_.c2_m) * (y * yd);
+      j->fyd = -damp_m - sl_m;
       if (p_.has_resonator) {
         V ff_r, sl_r;
-        p_.fric_r.ForceSlope(a_r_, a_r_ / p_.fric_r.v_sp, zd, &ff_r, &sl_r);
-        const V z2 = z * z;
-        g = p_.k_r * z + (p_.c0_r + p_.c2_r * z2) * zd + ff_r;
-        j->gz = p_.k_r + 2.0 * p_.c2_r * z * zd;
-        j->gzd = p_.c0_r + p_.c2_r * z2 + sl_r;
+        fric_r_.ForceSlope<W>(zd, &ff_r, &sl_r);
+        const V z2 = z * z, damp_r = Fma(Splat<W>(p_.c2_r), z2, Splat<W>(p_.c0_r));
+        g = Fma(Splat<W>(p_.k_r), z, Fma(damp_r, zd, ff_r));
+        j->gz = Fma(Splat<W>(2.0 * p_.c2_r), z * zd, Splat<W>(p_.k_r));
+        j->gzd = damp_r + sl_r;
       } else {
         j->gz = j->gzd = g;
       }
-      const V fm = (-(p_.k_lin * y + p_.k3 * (y2 * y)) - (p_.c0_m + p_.c2_m * y2) * yd - ff_m + g) / p_.m_m;
+      const V spring = Fma(Splat<W>(p_.k3), y2 * y, p_.k_lin * y);
+      const V fm = (g - Fma(damp_m, yd, spring + ff_m)) * inv_m_m_;
       dx[0] = yd;
       dx[1] = fm + f;  // f = −(base acceleration)
       if (p_.has_resonator) {
         dx[2] = zd;
-        dx[3] = -g / p_.m_r - fm;
+        dx[3] = Fma(-g, Splat<W>(inv_m_r_), -fm);
       } else {
         dx[2] = dx[3] = g;
       }
     }
     BISTABLE_INLINE void Apply(const Jac& j, const V* w, V* dw) const {
-      const V gw = j.gz * w[2] + j.gzd * w[3];
-      const V a = (j.fy * w[0] + j.fyd * w[1] + gw) / p_.m_m;
+      const V gw = Fma(j.gz, w[2], j.gzd * w[3]);
+      const V a = Fma(j.fy, w[0], Fma(j.fyd, w[1], gw)) * inv_m_m_;
       dw[0] = w[1];
       dw[1] = a;
       if (p_.has_resonator) {
         dw[2] = w[3];
-        dw[3] = -gw / p_.m_r - a;
+        dw[3] = Fma(-gw, Splat<W>(inv_m_r_), -a);
       } else {
-        dw[2] = dw[3] = Broadcast<W>(0.0);
+        dw[2] = dw[3] = Splat<W>(0.0);
       }
     }
     BISTABLE_INLINE void Output(const V* x, const V* dx, V* out, V* dout) const {
@@ -156,7 +158,8 @@ struct DimensionalLaneModel {
 
    private:
     DimensionalParams p_;
-    double a_m_, a_r_;  // the friction humps' scales
+    Stribeck::Lanes fric_m_, fric_r_;
+    double inv_m_m_, inv_m_r_;
   };
 };
 

@@ -20,6 +20,7 @@
 #include <cmath>
 
 #include "dynamics/cancel.h"
+#include "dynamics/lane_run.h"
 #include "dynamics/lanes.h"
 #include "dynamics/nondim_models.h"
 #include "dynamics/window_recorder.h"
@@ -79,7 +80,7 @@ class EnsembleRk4 {
     }
     WindowRecorder<D, W> rec(alpha, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows);
     V sn, cs;
-    Anchor(omega, 0, s.h, &sn, &cs);
+    AnchorPhase<W>(omega, 0, s.h, &sn, &cs);
     V k1[D];
     Model::Rhs(c, x, amp * sn, k1);
     // ∫P, ∫max(P,0), W_m, W_r over the window: the composite trapezoid rule on the step ends with the
@@ -123,8 +124,8 @@ class EnsembleRk4 {
         for (int i = 0; i < 4; ++i) q[i] = q[i] + g_last[i];
       }
       if (step % kReanchor == 0) {
-        if (CancelRequested()) [[unlikely]] return Cancelled(n, step, out);
-        Anchor(omega, step, s.h, &sn, &cs);
+        if (CancelRequested()) [[unlikely]] return MarkCancelled(n, step, out);
+        AnchorPhase<W>(omega, step, s.h, &sn, &cs);
         Model::Rhs(c, x, amp * sn, k1);  // derivative consistent with the re-anchored phase
       }
       if (step > s.n_keep) rec.OnStep(step, xp, kp, x, k1, cs);
@@ -168,8 +169,6 @@ class EnsembleRk4 {
     double h;
   };
 
-  static long RoundUp(long n, long m) { return (n + m - 1) / m * m; }
-
   // The renormalisation state RunFast advances: the window's growth product and its batch count,
   // the divergence flags, and the interval.
   struct TangentState {
@@ -179,16 +178,13 @@ class EnsembleRk4 {
     int renorm_every;
   };
 
-  // The first step ≥ step that needs the general loop body: the window's first step or the step
-  // before it (a renormalisation point), a step with a strobe due, re-anchoring, the window's
-  // renormalisation that completes a growth batch (its log is taken there), or the last step.
-  // Other renormalisations run inside RunFast.
+  // The first step ≥ step that needs the general loop body (lane_run.h). Renormalisations run inside
+  // RunFast except the window's one that completes a growth batch (its log is taken there).
   static long NextSpecialStep(long step, const KernelSettings& s, long next_strobe, int growth_batch) {
-    long stop = std::min(s.n_total, RoundUp(step, kReanchor));
-    if (step <= s.n_keep) return std::min(stop, s.n_keep);
-    if (step == s.n_keep + 1) return step;
-    const long batch_end = RoundUp(step, s.renorm_every) + static_cast<long>(kGrowthBatch - 1 - growth_batch) * s.renorm_every;
-    return std::min({stop, next_strobe, batch_end});
+    const long batch_end =
+        step <= s.n_keep ? s.n_total
+                         : RoundUpTo(step, s.renorm_every) + static_cast<long>(kGrowthBatch - 1 - growth_batch) * s.renorm_every;
+    return bistable::NextSpecialStep(step, s.n_total, s.n_keep, kReanchor, next_strobe, batch_end);
   }
 
   // Steps [from, to), all ordinary (see NextSpecialStep); returns the next step to do, short of `to`
@@ -236,24 +232,6 @@ class EnsembleRk4 {
       rec->CommitSamples(samples);
     }
     return step;
-  }
-
-  // Out of the hot loop: lanes of a cancelled run carry no result.
-  [[gnu::cold, gnu::noinline]] static bool Cancelled(int n, long step, RawLane* out) {
-    for (int l = 0; l < n; ++l) {
-      out[l] = RawLane{};
-      out[l].diverged = true;
-      out[l].steps = step;
-    }
-    return false;
-  }
-
-  static void Anchor(const double* omega, long step, double h, V* sn, V* cs) {
-    const double t = static_cast<double>(step) * h;
-    for (int l = 0; l < W; ++l) {
-      (*sn)[l] = std::sin(omega[l] * t);
-      (*cs)[l] = std::cos(omega[l] * t);
-    }
   }
 
   // Integrands of the window quadratures at state x under forcing f: P, max(P, 0), η y'², φη_r(y' − y_r')².

@@ -9,6 +9,8 @@
 #include <cmath>
 #include <type_traits>
 
+#include "dynamics/lane_math.h"
+
 namespace bistable {
 
 // std::exp of the hump's exponent x = 1/2 − u²/2, with the same bits: below −746 std::exp underflows
@@ -52,10 +54,9 @@ struct Stribeck {
     ForceSlope(a, a / v_sp, v, &force, &slope);
     return slope;
   }
-  // F_f(v) and dF_f/dv from one exp and one tanh, for a double or a lane pack T (the lane models
-  // evaluate both at every stage); a = HumpScale(), a_vsp = a / v_sp. The same operations as Force(v)
-  // and Slope(v), lane by lane, so the same bits: divisions and products run on the whole pack, only
-  // exp and tanh go lane by lane (the scalar std:: functions).
+  // F_f(v) and dF_f/dv from one exp and one tanh, for a double or a lane pack T; a = HumpScale(),
+  // a_vsp = a / v_sp. For a double (the per-point models): the same operations as Force(v) and
+  // Slope(v), so the same bits. For a lane pack use Lanes below.
   template <class T>
   void ForceSlope(double a, double a_vsp, T v, T* force, T* slope) const {
     const T u = v / v_sp;
@@ -64,6 +65,24 @@ struct Stribeck {
     *force = a * u * e + f_c * th;
     *slope = a_vsp * e * (1.0 - u * u) + f_c * (1.0 - th * th) / v_t;
   }
+  // The law for lane packs (the lane models): F_f and dF_f/dv per lane with the project's Exp and Tanh
+  // (dynamics/lane_math.h) and fused multiply-adds, products with reciprocals instead of divisions —
+  // the same operations at every width, W = 1 included, so a lane's bits do not depend on W; within
+  // a few ulp of ForceSlope on doubles (glibc), not bit-equal to it.
+  struct Lanes {
+    explicit Lanes(const Stribeck& f)
+        : a(f.HumpScale()), a_vsp(a / f.v_sp), f_c(f.f_c), f_c_vt(f.f_c / f.v_t), inv_vsp(1.0 / f.v_sp),
+          inv_vt(1.0 / f.v_t) {}
+    template <int W>
+    BISTABLE_INLINE void ForceSlope(Vec<W> v, Vec<W>* force, Vec<W>* slope) const {
+      const Vec<W> u = v * inv_vsp, u2 = u * u, one = Splat<W>(1.0);
+      const Vec<W> e = Exp<W>(Fma(Splat<W>(-0.5), u2, Splat<W>(0.5)));
+      const Vec<W> th = Tanh<W>(v * inv_vt);
+      *force = Fma(a * u, e, f_c * th);
+      *slope = Fma(a_vsp * e, one - u2, f_c_vt * Fma(-th, th, one));
+    }
+    double a, a_vsp, f_c, f_c_vt, inv_vsp, inv_vt;
+  };
   // The law is linear in the two forces: F_f(v) = F_s φ[0] + F_c φ[1] with φ[0] = g(v) and
   // φ[1] = tanh(v/v_t) − tanh(v_sp/v_t) g(v); φ depends on v_sp, v_t only (f_s, f_c unused).
   void Basis(double v, double* phi) const {

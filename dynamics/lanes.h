@@ -33,6 +33,12 @@ inline Vec<W> Broadcast(double v) {
   for (int i = 0; i < W; ++i) r[i] = v;
   return r;
 }
+// v in every lane, as one broadcast: GCC compiles Broadcast's element loop over a run-time value into
+// one masked broadcast per lane. v − (+0) is v exactly (−0 and NaN included).
+template <int W>
+BISTABLE_INLINE Vec<W> Splat(double v) {
+  return v - Vec<W>{};
+}
 // Lane-wise operations through the vector instructions of the widest unit the target has, on
 // 8-lane (AVX-512) or 4-lane (AVX) chunks of a pack, and the scalar operation otherwise.
 // Chunk i of a pack (lanes i .. i + sizeof(C)/8) as the vector register type C, and back.
@@ -148,6 +154,17 @@ BISTABLE_INLINE Vec<W> Abs(Vec<W> a) {
   return LaneOp([](auto x) BISTABLE_INLINE_LAMBDA { return _mm512_abs_pd(x); },
                 [](auto x) BISTABLE_INLINE_LAMBDA { return _mm256_andnot_pd(-decltype(x){}, x); },
                 [](double x) BISTABLE_INLINE_LAMBDA { return __builtin_fabs(x); }, a);
+}
+
+// a < b ? x : y per lane (false for NaN): one compare into a mask and a blend per chunk.
+template <int W>
+BISTABLE_INLINE Vec<W> SelectLess(Vec<W> a, Vec<W> b, Vec<W> x, Vec<W> y) {
+  return LaneOp(
+      [](auto a, auto b, auto x, auto y)
+          BISTABLE_INLINE_LAMBDA { return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(a, b, _CMP_LT_OQ), y, x); },
+      [](auto a, auto b, auto x, auto y)
+          BISTABLE_INLINE_LAMBDA { return _mm256_blendv_pd(y, x, _mm256_cmp_pd(a, b, _CMP_LT_OQ)); },
+      [](double a, double b, double x, double y) BISTABLE_INLINE_LAMBDA { return a < b ? x : y; }, a, b, x, y);
 }
 
 // Scalar overloads so that models written for T = Vec<W> also compile for T = double.

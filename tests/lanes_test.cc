@@ -205,18 +205,25 @@ TEST(DimensionalLanes, SubstepsFollowTheStiffness) {
   EXPECT_EQ(Rk4Substeps(smooth, 1e-4), 1);
 }
 
-TEST(DimensionalLanes, FrictionForceAndSlopeInLanesHaveTheBitsOfEachAlone) {
+// The law in lanes (Stribeck::Lanes: the project's exp and tanh): a lane's force and slope have the
+// bits of the same velocity at width 1, whatever its neighbours, and agree with the per-point law
+// (glibc) to rounding.
+TEST(DimensionalLanes, FrictionForceAndSlopeInLanesHaveTheBitsOfWidthOne) {
   const Stribeck f{1.2, 0.44};
-  const double a = f.HumpScale();
+  const Stribeck::Lanes fl(f);
   for (double v0 = -0.2; v0 <= 0.2; v0 += 0.000731) {
     Vec<8> v, force, slope;
     for (int l = 0; l < 8; ++l) v[l] = v0 * (1.0 + 0.37 * l);  // sticking to sliding across the lanes
-    f.ForceSlope(a, a / f.v_sp, v, &force, &slope);
+    fl.ForceSlope<8>(v, &force, &slope);
     for (int l = 0; l < 8; ++l) {
-      const double lane_force = force[l], lane_slope = slope[l];
-      const double alone_force = f.Force(v[l]), alone_slope = f.Slope(v[l]);
+      Vec<1> v1, force1, slope1;
+      v1[0] = v[l];
+      fl.ForceSlope<1>(v1, &force1, &slope1);
+      const double lane_force = force[l], lane_slope = slope[l], alone_force = force1[0], alone_slope = slope1[0];
       EXPECT_EQ(std::memcmp(&lane_force, &alone_force, sizeof lane_force), 0) << v[l];
       EXPECT_EQ(std::memcmp(&lane_slope, &alone_slope, sizeof lane_slope), 0) << v[l];
+      EXPECT_NEAR(lane_force, f.Force(v[l]), 1e-14 * (1 + std::fabs(f.Force(v[l])))) << v[l];
+      EXPECT_NEAR(lane_slope, f.Slope(v[l]), 1e-12 * (1 + std::fabs(f.Slope(v[l])))) << v[l];
     }
   }
 }
@@ -228,6 +235,66 @@ TEST(DimensionalLanes, HumpExpHasTheBitsOfStdExp) {
     const double mine = HumpExp(u), libm = std::exp(0.5 - 0.5 * u * u);
     EXPECT_EQ(std::memcmp(&mine, &libm, sizeof mine), 0) << u;
   }
+}
+
+// The call-free loop of ordinary steps (RunFast) and the general loop body give the same bits: a
+// trace (keep_rows) takes the general loop at every step.
+template <class Input, class RunFn>
+void ExpectFastLoopEqualsGeneralLoop(const std::vector<Input>& in, KernelSettings ks, RunFn run) {
+  std::vector<RawLane> fast(8), general(8);
+  ks.keep_samples = true;
+  ks.keep_rows = false;
+  ASSERT_TRUE(run(in.data(), ks, fast.data()));
+  ks.keep_rows = true;
+  ASSERT_TRUE(run(in.data(), ks, general.data()));
+  auto same = [](const auto& a, const auto& b) { return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0; };
+  for (int l = 0; l < 8; ++l) {
+    const RawLane &f = fast[l], &g = general[l];
+    EXPECT_EQ(std::memcmp(&f.vabs_max, &g.vabs_max, sizeof(double)), 0) << l;
+    EXPECT_EQ(std::memcmp(&f.y_min, &g.y_min, sizeof(double)), 0) << l;
+    EXPECT_EQ(std::memcmp(&f.y_max, &g.y_max, sizeof(double)), 0) << l;
+    EXPECT_EQ(std::memcmp(&f.log_growth, &g.log_growth, sizeof(double)), 0) << l;
+    EXPECT_TRUE(same(f.strobe_y, g.strobe_y) && same(f.strobe_v, g.strobe_v)) << l;
+    EXPECT_TRUE(same(f.y_samples, g.y_samples)) << l;
+    EXPECT_TRUE(same(f.turning_points, g.turning_points)) << l;
+    EXPECT_FALSE(f.strobe_y.empty());
+    EXPECT_FALSE(f.turning_points.empty());
+  }
+}
+
+TEST(DimensionalLanes, FastLoopHasTheBitsOfTheGeneralLoop) {
+  const DimensionalParams p = DimensionalParams::BistableTable2();
+  std::vector<DimensionalLaneInput> in(8);
+  for (int l = 0; l < 8; ++l) {
+    in[l].params = p;
+    in[l].base_amp = (0.5 + 1.5 * l) * 1e-3;
+    in[l].omega = 2 * M_PI * (2.0 + 0.5 * l);
+    in[l].amp = in[l].base_amp * in[l].omega * in[l].omega;
+    in[l].x0[0] = std::sqrt(-p.k_lin / p.k3);
+  }
+  KernelSettings ks;
+  ks.h = 1e-3, ks.n_total = 1500, ks.n_keep = 700;
+  const int substeps = Rk4Substeps(p, ks.h);
+  ExpectFastLoopEqualsGeneralLoop(in, ks, [&](const DimensionalLaneInput* i, const KernelSettings& k, RawLane* o) {
+    return RunDimensionalLanes<8>(i, 8, k, substeps, o);
+  });
+}
+
+TEST(SeriesLanes, FastLoopHasTheBitsOfTheGeneralLoop) {
+  std::vector<SeriesLaneInput> in(8);
+  for (int l = 0; l < 8; ++l) {
+    in[l].cells.assign(2, SeriesCell{});
+    in[l].omega = 0.5 + 0.1 * l;
+    in[l].base_amp = 1.0;
+    in[l].amp = in[l].omega * in[l].omega;
+    const Eigen::VectorXd x0 = SeriesModel(in[l].cells, 1.0, in[l].omega).WellState();
+    in[l].x0.assign(x0.data(), x0.data() + x0.size());
+  }
+  KernelSettings ks;
+  ks.h = 0.01, ks.n_total = 6000, ks.n_keep = 2500;  // past several re-anchorings
+  ExpectFastLoopEqualsGeneralLoop(in, ks, [](const SeriesLaneInput* i, const KernelSettings& k, RawLane* o) {
+    return RunSeriesLanes<8>(i, 8, k, o);
+  });
 }
 
 TEST(DimensionalLanes, CancelledRunHasNoResult) {
