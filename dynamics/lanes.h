@@ -94,9 +94,7 @@ BISTABLE_INLINE T Fma(T a, T b, T c) {
 }
 template <class T>
 BISTABLE_INLINE T Fma(double a, T b, T c) {
-  T av;
-  for (int l = 0; l < static_cast<int>(sizeof(T) / sizeof(double)); ++l) av[l] = a;
-  return Fma(av, b, c);
+  return Fma(a - T{}, b, c);  // a in every lane as one broadcast (see Splat)
 }
 
 // Bit l set when lane l of a is > 0 (clear for NaN), for packs of up to 64 lanes: one compare into a
