@@ -90,9 +90,9 @@ class EnsembleRk4 {
     V q[4] = {}, g0[4] = {}, gd0[4] = {}, g_last[4] = {};
     V om;
     for (int l = 0; l < W; ++l) om[l] = omega[l];
-    V e_start = Broadcast<W>(0.0);
+    V e_start = Splat<W>(0.0);
     bool diverged[W] = {};
-    V growth = Broadcast<W>(1.0);  // product of the tangent's norms since the last FlushGrowth
+    V growth = Splat<W>(1.0);  // product of the tangent's norms since the last FlushGrowth
     int growth_batch = 0;
 
     // Ordinary steps (no window start, strobe, re-anchoring, renormalisation or end) run in RunFast,
@@ -238,7 +238,7 @@ class EnsembleRk4 {
   static BISTABLE_INLINE void Quad(const CellCoeffs<V>& c, const V* x, V f, V* g) {
     const V p = Model::Power(c, x, f);
     g[0] = p;
-    g[1] = Max<W>(p, Broadcast<W>(0.0));
+    g[1] = Max<W>(p, Splat<W>(0.0));
     g[2] = Model::DissMain(c, x);
     g[3] = Model::DissRes(c, x);
   }
@@ -314,7 +314,7 @@ class EnsembleRk4 {
   // so its bits do not depend on its neighbours or on W.
   static constexpr int kGrowthBatch = 16;
   static void FlushGrowth(V* growth, bool all, WindowRecorder<D, W>* rec) {
-    V lg = Broadcast<W>(0.0);
+    V lg = Splat<W>(0.0);
     bool any = false;
     for (int l = 0; l < W; ++l) {
       const double g = (*growth)[l];

@@ -27,14 +27,8 @@ struct VecType {
 template <int W>
 using Vec = typename VecType<W>::type;
 
-template <int W>
-inline Vec<W> Broadcast(double v) {
-  Vec<W> r;
-  for (int i = 0; i < W; ++i) r[i] = v;
-  return r;
-}
-// v in every lane, as one broadcast: GCC compiles Broadcast's element loop over a run-time value into
-// one masked broadcast per lane. v − (+0) is v exactly (−0 and NaN included).
+// v in every lane, as one broadcast (an element loop over a run-time value compiles to one masked
+// broadcast per lane). v − (+0) is v exactly (−0 and NaN included).
 template <int W>
 BISTABLE_INLINE Vec<W> Splat(double v) {
   return v - Vec<W>{};

@@ -100,7 +100,7 @@ struct SeriesLaneModel {
 
     // dx = F(x, f); the link stiffnesses into j.
     BISTABLE_INLINE void Eval(const V* x, V f, V* dx, Jac* j) const {
-      const V zero = Broadcast<W>(0.0);
+      const V zero = Splat<W>(0.0);
       V link = Link(0, x[0], x[1], zero, zero, j);
       for (int i = 0; i < cells(); ++i) {
         const int m = i * kStride;
@@ -111,7 +111,7 @@ struct SeriesLaneModel {
     }
     // dw = J w: the same equations, linearised (no forcing, link forces with the stiffness in j).
     BISTABLE_INLINE void Apply(const Jac& j, const V* w, V* dw) const {
-      const V zero = Broadcast<W>(0.0);
+      const V zero = Splat<W>(0.0);
       V link = LinearLink(0, j, w[0], w[1], zero, zero);
       for (int i = 0; i < cells(); ++i) {
         const int m = i * kStride;

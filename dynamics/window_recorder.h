@@ -51,9 +51,9 @@ class WindowRecorder {
       next_k_[l] = static_cast<long>(std::ceil((static_cast<double>(n_keep) * h) / strobe_period_[l]));
       Schedule(l);
     }
-    run_.vabs_max = Broadcast<W>(0.0);
-    run_.y_min = Broadcast<W>(std::numeric_limits<double>::infinity());
-    run_.y_max = Broadcast<W>(-std::numeric_limits<double>::infinity());
+    run_.vabs_max = Splat<W>(0.0);
+    run_.y_min = Splat<W>(std::numeric_limits<double>::infinity());
+    run_.y_max = Splat<W>(-std::numeric_limits<double>::infinity());
     run_.until_sample = 1;  // the window's first step (n_keep) is sampled
   }
 
@@ -235,7 +235,7 @@ class WindowRecorder {
   size_t n_samples_ = 0;
   std::vector<V> rows_;   // D lane vectors per row
   std::vector<double> row_times_;
-  V log_growth_ = Broadcast<W>(0.0);
+  V log_growth_ = Splat<W>(0.0);
   std::array<RawLane, W> lanes_;
 };
 
