@@ -29,6 +29,10 @@ bool RunKernel(ModelKind model, const LaneInput* lanes, int n, const KernelSetti
 
 // Window record → metrics (FRF, LLE, motion, period, spectrum, energy ratios, Rosenstein).
 PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec);
+// The same for the n ≤ W lanes of a block (raw is moved from): the response spectra are computed
+// side by side in lanes, and out[l] equals ComputePointMetrics(raw[l], specs[l]) bit for bit.
+template <int W>
+void ComputeBlockMetrics(RawLane* raw, const PointSpec* specs, int n, PointResult* out);
 
 }  // namespace bistable
 

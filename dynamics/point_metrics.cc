@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -52,7 +53,12 @@ int DetectPeriod(const std::vector<double>& y, const std::vector<double>& v, int
 
 }  // namespace
 
-PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec) {
+namespace {
+
+double SampleStep(const PointSpec& spec) { return spec.integration.dt * spec.metrics.sample_every; }
+
+// Every metric of one lane given its response spectrum (unused when the lane diverged).
+PointResult MetricsWithSpectrum(RawLane raw, const PointSpec& spec, const Spectrum& sp) {
   PointResult r;
   r.steps = raw.steps;
   r.rhs_evals = raw.rhs_evals;
@@ -83,8 +89,7 @@ PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec) {
   }
 
   // Spectrum of y_m over the window: harmonic diffusion.
-  const double dts = in.dt * ms.sample_every;
-  const Spectrum sp = AmplitudeSpectrum(raw.y_samples, dts);
+  const double dts = SampleStep(spec);
   r.hd_peaks = SpectralPeaks(sp, ms.hd_level, ms.hd_top_k);
   r.hd_index = HarmonicDiffusionIndex(sp, spec.omega);
   r.period = DetectPeriod(raw.strobe_y, raw.strobe_v, ms.max_period, ms.period_tol, sp, raw.y_samples, dts, spec.omega);
@@ -109,5 +114,36 @@ PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec) {
   if (ms.keep_samples) r.samples = std::move(raw.rows);
   return r;
 }
+
+}  // namespace
+
+PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec) {
+  PointResult r;
+  ComputeBlockMetrics<1>(&raw, &spec, 1, &r);
+  return r;
+}
+
+template <int W>
+void ComputeBlockMetrics(RawLane* raw, const PointSpec* specs, int n, PointResult* out) {
+  std::array<const std::vector<double>*, W> xs{};
+  std::array<double, W> dts{};
+  std::array<int, W> where{};
+  int m = 0;
+  for (int l = 0; l < n; ++l)
+    if (!raw[l].diverged) xs[m] = &raw[l].y_samples, dts[m] = SampleStep(specs[l]), where[m++] = l;
+  std::array<Spectrum, W> got;
+  AmplitudeSpectra<W>(xs.data(), dts.data(), m, got.data());
+  std::array<const Spectrum*, W> sp;
+  const Spectrum none;
+  for (int l = 0; l < n; ++l) sp[l] = &none;
+  for (int i = 0; i < m; ++i) sp[where[i]] = &got[i];
+  for (int l = 0; l < n; ++l) out[l] = MetricsWithSpectrum(std::move(raw[l]), specs[l], *sp[l]);
+}
+
+template void ComputeBlockMetrics<1>(RawLane*, const PointSpec*, int, PointResult*);
+template void ComputeBlockMetrics<2>(RawLane*, const PointSpec*, int, PointResult*);
+template void ComputeBlockMetrics<4>(RawLane*, const PointSpec*, int, PointResult*);
+template void ComputeBlockMetrics<8>(RawLane*, const PointSpec*, int, PointResult*);
+template void ComputeBlockMetrics<16>(RawLane*, const PointSpec*, int, PointResult*);
 
 }  // namespace bistable

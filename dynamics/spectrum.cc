@@ -3,9 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <memory>
 #include <numeric>
+#include <array>
 
 #include <unsupported/Eigen/FFT>
+
+#include "dynamics/lane_fft.h"
 
 namespace bistable {
 
@@ -20,19 +24,16 @@ size_t FastFftLength(size_t n) {
 namespace {
 
 // Per-thread caches: sweeps transform thousands of same-length series, and both the Hann window
-// (n cosines) and kissfft's twiddle tables (held by the FFT object per length) cost as much as the
-// transform itself.
-struct FftCache {
-  Eigen::FFT<double> fft;
-  size_t n = 0;
+// (n cosines) and the FFT's twiddle tables cost as much as the transform itself.
+template <int W>
+struct SpectrumCache {
+  std::unique_ptr<LaneRealFft<W>> fft;
   std::vector<double> window;
   double window_sum = 0;
-  std::vector<double> xw;
-  std::vector<std::complex<double>> spectrum;
-  FftCache() { fft.SetFlag(Eigen::FFT<double>::HalfSpectrum); }
-  void Prepare(size_t len) {
-    if (len == n) return;
-    n = len;
+  std::vector<Vec<W>> xw, re, im;
+  void Prepare(size_t n) {
+    if (fft && fft->size() == n) return;
+    fft = std::make_unique<LaneRealFft<W>>(n);
     window.resize(n);
     window_sum = 0;
     for (size_t i = 0; i < n; ++i) {
@@ -40,15 +41,78 @@ struct FftCache {
       window_sum += window[i];
     }
     xw.resize(n);
+    re.resize(fft->bins());
+    im.resize(fft->bins());
   }
 };
 
-FftCache& Cache() {
-  thread_local FftCache cache;
+template <int W>
+SpectrumCache<W>& Cache() {
+  thread_local SpectrumCache<W> cache;
   return cache;
 }
 
+// n ≤ W series of one length ≥ 4 (each lane's arithmetic is that of W = 1).
+template <int W>
+void SpectraOfLength(const std::vector<double>* const* xs, const double* dts, int n, Spectrum* out) {
+  using V = Vec<W>;
+  const size_t len = xs[0]->size(), nf = FastFftLength(len), skip = len - nf;
+  SpectrumCache<W>& c = Cache<W>();
+  c.Prepare(nf);
+  V sum = Splat<W>(0.0);
+  for (size_t i = 0; i < nf; ++i) {
+    V v = Splat<W>(0.0);
+    for (int l = 0; l < n; ++l) v[l] = (*xs[l])[skip + i];
+    c.xw[i] = v;
+    sum += v;
+  }
+  const V mean = sum / Splat<W>(static_cast<double>(nf));
+  for (size_t i = 0; i < nf; ++i) c.xw[i] = (c.xw[i] - mean) * Splat<W>(c.window[i]);
+  c.fft->Forward(c.xw.data(), c.re.data(), c.im.data());
+  const size_t bins = c.fft->bins();
+  const V two = Splat<W>(2.0), wsum = Splat<W>(c.window_sum);
+  for (int l = 0; l < n; ++l) {
+    out[l].d_omega = 2.0 * M_PI / (static_cast<double>(nf) * dts[l]);
+    out[l].amp.resize(bins);
+  }
+  for (size_t k = 0; k < bins; ++k) {
+    const V a = two * Sqrt<W>(c.re[k] * c.re[k] + c.im[k] * c.im[k]) / wsum;
+    for (int l = 0; l < n; ++l) out[l].amp[k] = a[l];
+  }
+}
+
 }  // namespace
+
+template <int W>
+void AmplitudeSpectra(const std::vector<double>* const* xs, const double* dts, int n, Spectrum* out) {
+  std::array<bool, W> done{};
+  for (int l = 0; l < n; ++l) {
+    out[l] = Spectrum{};
+    if (xs[l]->size() < 4) done[l] = true;
+  }
+  for (int l = 0; l < n; ++l) {
+    if (done[l]) continue;
+    // Every not-yet-done series of this length, side by side.
+    std::array<const std::vector<double>*, W> group;
+    std::array<double, W> group_dt;
+    std::array<int, W> where;
+    int g = 0;
+    for (int j = l; j < n; ++j)
+      if (!done[j] && xs[j]->size() == xs[l]->size()) {
+        group[g] = xs[j], group_dt[g] = dts[j], where[g++] = j;
+        done[j] = true;
+      }
+    std::array<Spectrum, W> got;
+    SpectraOfLength<W>(group.data(), group_dt.data(), g, got.data());
+    for (int i = 0; i < g; ++i) out[where[i]] = std::move(got[i]);
+  }
+}
+
+template void AmplitudeSpectra<1>(const std::vector<double>* const*, const double*, int, Spectrum*);
+template void AmplitudeSpectra<2>(const std::vector<double>* const*, const double*, int, Spectrum*);
+template void AmplitudeSpectra<4>(const std::vector<double>* const*, const double*, int, Spectrum*);
+template void AmplitudeSpectra<8>(const std::vector<double>* const*, const double*, int, Spectrum*);
+template void AmplitudeSpectra<16>(const std::vector<double>* const*, const double*, int, Spectrum*);
 
 namespace {
 Eigen::FFT<double>& HalfFft() {
@@ -78,23 +142,10 @@ size_t NextFastFftLength(size_t n) {
   return best;
 }
 
-Spectrum AmplitudeSpectrum(const std::vector<double>& x_all, double dt) {
+Spectrum AmplitudeSpectrum(const std::vector<double>& x, double dt) {
+  const std::vector<double>* xs = &x;
   Spectrum s;
-  if (x_all.size() < 4) return s;
-  const size_t n = FastFftLength(x_all.size());
-  const double* x = x_all.data() + (x_all.size() - n);
-  const double mean = std::accumulate(x, x + n, 0.0) / static_cast<double>(n);
-  FftCache& c = Cache();
-  c.Prepare(n);
-  for (size_t i = 0; i < n; ++i) c.xw[i] = (x[i] - mean) * c.window[i];
-  const double wsum = c.window_sum;
-  std::vector<std::complex<double>>& X = c.spectrum;
-  c.fft.fwd(X, c.xw);
-  s.d_omega = 2.0 * M_PI / (static_cast<double>(n) * dt);
-  s.amp.resize(X.size());
-  // |X| as sqrt(re² + im²): the amplitudes are far from overflow, and std::abs (hypot) costs a
-  // library call per bin.
-  for (size_t k = 0; k < X.size(); ++k) s.amp[k] = 2.0 * std::sqrt(std::norm(X[k])) / wsum;
+  AmplitudeSpectra<1>(&xs, &dt, 1, &s);
   return s;
 }
 

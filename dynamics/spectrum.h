@@ -1,5 +1,7 @@
 // One-sided amplitude spectra of sampled signals (Hann window, mean removed) and the harmonic
-// diffusion measures of model.md §3 (paper Fig. 6). FFT by Eigen's FFT module (kissfft backend, double).
+// diffusion measures of model.md §3 (paper Fig. 6). Response spectra by the lane FFT
+// (dynamics/lane_fft.h), W points at a time in sweeps; other transforms (chirps, Welch) by Eigen's FFT
+// module (kissfft backend, double).
 #ifndef BISTABLE_DYNAMICS_SPECTRUM_H_
 #define BISTABLE_DYNAMICS_SPECTRUM_H_
 
@@ -18,6 +20,11 @@ struct Spectrum {
 // Mean removed, Hann-windowed, amplitude-normalised (2|X_k| / Σw). Uses the last FastFftLength(N)
 // samples so the FFT never falls back to a slow prime-length transform (5001 = 3 · 1667 would).
 Spectrum AmplitudeSpectrum(const std::vector<double>& x, double dt);
+
+// The same for n ≤ W series side by side in lanes: out[l] is bit for bit AmplitudeSpectrum(*xs[l],
+// dts[l]) at any W. Series of different lengths are grouped by length.
+template <int W>
+void AmplitudeSpectra(const std::vector<double>* const* xs, const double* dts, int n, Spectrum* out);
 
 // Every FFT of the project goes through these three (one translation unit instantiates kissfft).
 // Two differently compiled copies of its inline code in one binary — a sweep's and an identification

@@ -93,7 +93,9 @@ std::optional<std::vector<PointResult>> ItemsInLanes(const SweepSpec& spec, cons
       done = RunDimensionalLanes<W>(in.data(), n, ks, substeps, raw.data());
     }
     if (!done) return std::nullopt;
-    for (int l = 0; l < n; ++l) out[start + l] = ComputePointMetrics(std::move(raw[l]), MetricProxy(spec, specs[l]));
+    std::array<PointSpec, W> proxies;
+    for (int l = 0; l < n; ++l) proxies[l] = MetricProxy(spec, specs[l]);
+    ComputeBlockMetrics<W>(raw.data(), proxies.data(), n, &out[start]);
   }
   return out;
 }
@@ -145,6 +147,7 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
     std::array<PointSpec, kSweepLanes> specs;
     std::array<LaneInput, kSweepLanes> lanes;
     std::array<RawLane, kSweepLanes> raw;
+    std::array<PointResult, kSweepLanes> results;
     for (size_t start = 0; start < items.size(); start += kSweepLanes) {
       const int n = static_cast<int>(std::min<size_t>(kSweepLanes, items.size() - start));
       for (int l = 0; l < n; ++l) {
@@ -152,7 +155,8 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
         lanes[l] = LaneFor(specs[l]);
       }
       if (!RunKernel<kSweepLanes>(spec.base.model, lanes.data(), n, ks, raw.data())) return std::nullopt;
-      for (int l = 0; l < n; ++l) out[start + l] = PointRecord::From(ComputePointMetrics(std::move(raw[l]), specs[l]), turning);
+      ComputeBlockMetrics<kSweepLanes>(raw.data(), specs.data(), n, results.data());
+      for (int l = 0; l < n; ++l) out[start + l] = PointRecord::From(std::move(results[l]), turning);
     }
   }
   // The flag is sticky: clear now means no integration of this job saw it, so every record is whole.
