@@ -259,15 +259,37 @@ StatusOr<std::vector<SweepRow>> IndexDb::ListSweeps() {
 
 StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(const std::vector<std::string>& keys,
                                                                                 size_t record_size, long* corrupt) {
-  BISTABLE_RETURN_IF_ERROR(FoldResults());
+  // Records folded just now come from staged rows whose checksum FoldResults verified: they are taken
+  // from memory instead of being read back by key (at publication that is every computed point).
+  std::unordered_map<std::string, std::vector<double>> folded;
+  BISTABLE_RETURN_IF_ERROR(FoldResults(&folded));
   if (corrupt) *corrupt = 0;
   std::unordered_map<std::string, PointRecord> found;
+  found.reserve(keys.size());
+  std::vector<const std::string*> order;
+  order.reserve(keys.size());
+  for (const std::string& k : keys) {
+    auto it = folded.find(k);
+    if (it == folded.end()) {
+      order.push_back(&k);
+    } else if (it->second.size() == record_size) {  // another layout: recompute
+      PointRecord r;
+      r.v = std::move(it->second);
+      found.emplace(k, std::move(r));
+      folded.erase(it);
+    }
+  }
+  if (order.empty()) return found;
   Transaction tx(db_, "BEGIN");  // one read snapshot for all keys
   if (!tx.ok()) return Error("begin point lookup");
   Stmt s(db_, "SELECT record FROM points WHERE key = ?");
   if (!s.ok()) return Error("prepare point lookup");
   const size_t n = record_size;
-  for (const std::string& k : keys) {
+  // In key order: consecutive lookups walk the B-tree's leaves in order, each page read once (in grid
+  // order they land on random pages, most of them outside the page cache).
+  std::sort(order.begin(), order.end(), [](const std::string* a, const std::string* b) { return *a < *b; });
+  for (const std::string* kp : order) {
+    const std::string& k = *kp;
     sqlite3_reset(s.get());
     s.Text(1, k);
     if (sqlite3_step(s.get()) == SQLITE_ROW) {
@@ -324,7 +346,7 @@ Status IndexDb::PutPoints(const std::vector<JobResults>& jobs) {
   return Status::Ok();
 }
 
-Status IndexDb::FoldResults() {
+Status IndexDb::FoldResults(std::unordered_map<std::string, std::vector<double>>* folded) {
   // Moves staged job rows into the keyed point cache, a bounded batch per transaction (each batch's
   // insert and delete are atomic, so a crash in between loses and duplicates nothing). Keys are
   // inserted in sorted order, which touches each B-tree leaf once per batch.
@@ -371,7 +393,7 @@ Status IndexDb::FoldResults() {
     sqlite3_stmt* ins = Cached("INSERT OR REPLACE INTO points(key, record, created) VALUES(?, ?, unixepoch())");
     if (!ins) return Error("prepare point insert");
     std::vector<unsigned char> blob;
-    for (const Entry& e : entries) {  // equal keys: the later report wins, as it did when stored directly
+    for (Entry& e : entries) {  // equal keys: the later report wins, as it did when stored directly
       const uint64_t sum = RecordSum(e.key.data(), e.key.size(), e.v.data(), e.v.size());
       blob.resize(e.v.size() * sizeof(double) + sizeof sum);
       std::memcpy(blob.data(), e.v.data(), e.v.size() * sizeof(double));
@@ -380,6 +402,7 @@ Status IndexDb::FoldResults() {
       sqlite3_bind_text(ins, 1, e.key.c_str(), static_cast<int>(e.key.size()), SQLITE_STATIC);
       sqlite3_bind_blob(ins, 2, blob.data(), static_cast<int>(blob.size()), SQLITE_STATIC);
       if (sqlite3_step(ins) != SQLITE_DONE) return Error("fold point results");
+      if (folded) (*folded)[e.key] = std::move(e.v);
     }
     sqlite3_reset(ins);
     sqlite3_stmt* del = Cached("DELETE FROM results WHERE seq <= ?");

@@ -74,8 +74,9 @@ class IndexDb {
     std::vector<double> values;  // records × width, in the same order
   };
   Status PutPoints(const std::vector<JobResults>& jobs);
-  // Moves every staged job row into the keyed point cache (sorted inserts, bounded transactions).
-  Status FoldResults();
+  // Moves every staged job row into the keyed point cache (sorted inserts, bounded transactions); with
+  // `folded`, also hands back each folded record by key (the later one where a key repeats).
+  Status FoldResults(std::unordered_map<std::string, std::vector<double>>* folded = nullptr);
   long CachedPointCount();
   // Staged rows dropped by FoldResults because their checksum failed, since Open.
   long corrupt_rows() const { return corrupt_rows_; }
