@@ -59,13 +59,19 @@ void SpectraOfLength(const std::vector<double>* const* xs, const double* dts, in
   const size_t len = xs[0]->size(), nf = FastFftLength(len), skip = len - nf;
   SpectrumCache<W>& c = Cache<W>();
   c.Prepare(nf);
-  V sum = Splat<W>(0.0);
-  for (size_t i = 0; i < nf; ++i) {
-    V v = Splat<W>(0.0);
-    for (int l = 0; l < n; ++l) v[l] = (*xs[l])[skip + i];
-    c.xw[i] = v;
-    sum += v;
+  // Into lanes by strided scalar stores (element inserts into a vector compile to a broadcast and a
+  // blend each, and cost more than the FFT).
+  double* xw = reinterpret_cast<double*>(c.xw.data());
+  for (int l = 0; l < W; ++l) {
+    if (l < n) {
+      const double* x = xs[l]->data() + skip;
+      for (size_t i = 0; i < nf; ++i) xw[i * W + l] = x[i];
+    } else {
+      for (size_t i = 0; i < nf; ++i) xw[i * W + l] = 0.0;
+    }
   }
+  V sum = Splat<W>(0.0);
+  for (size_t i = 0; i < nf; ++i) sum += c.xw[i];
   const V mean = sum / Splat<W>(static_cast<double>(nf));
   for (size_t i = 0; i < nf; ++i) c.xw[i] = (c.xw[i] - mean) * Splat<W>(c.window[i]);
   c.fft->Forward(c.xw.data(), c.re.data(), c.im.data());
@@ -75,9 +81,11 @@ void SpectraOfLength(const std::vector<double>* const* xs, const double* dts, in
     out[l].d_omega = 2.0 * M_PI / (static_cast<double>(nf) * dts[l]);
     out[l].amp.resize(bins);
   }
-  for (size_t k = 0; k < bins; ++k) {
-    const V a = two * Sqrt<W>(c.re[k] * c.re[k] + c.im[k] * c.im[k]) / wsum;
-    for (int l = 0; l < n; ++l) out[l].amp[k] = a[l];
+  for (size_t k = 0; k < bins; ++k) c.re[k] = two * Sqrt<W>(c.re[k] * c.re[k] + c.im[k] * c.im[k]) / wsum;
+  const double* amp = reinterpret_cast<const double*>(c.re.data());
+  for (int l = 0; l < n; ++l) {
+    double* a = out[l].amp.data();
+    for (size_t k = 0; k < bins; ++k) a[k] = amp[k * W + l];
   }
 }
 
