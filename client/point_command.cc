@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "base/exit_codes.h"
@@ -23,6 +24,7 @@ struct PointArgs {
   std::string trace;
   bool json = false;
   bool no_rosenstein = false;
+  bool spectrum = false;
   PointSpec spec;
 };
 
@@ -95,6 +97,14 @@ void PrintHuman(const PointSpec& spec, const PointResult& r) {
   line("energy balance residual", num(r.energy_balance_residual), "(relative to W_in)");
 }
 
+void PrintSpectrum(const LyapunovSpectrum& sp) {
+  std::printf("  Lyapunov spectrum (QR, per unit tau)\n");
+  for (size_t j = 0; j < sp.exponents.size(); ++j) std::printf("    lambda_%zu %+.6e\n", j + 1, sp.exponents[j]);
+  std::printf("    sum      %+.6e   (exact divergence tr J = %+.6e)\n", sp.sum, sp.divergence);
+  std::printf("    Kaplan-Yorke dimension %.4f (flow, with the forcing phase; Poincare section: %.4f)\n",
+              sp.kaplan_yorke, sp.kaplan_yorke > 0 ? sp.kaplan_yorke - 1 : 0.0);
+}
+
 int RunPoint(PointArgs& a) {
   auto model = ParseModel(a.model);
   if (!model.ok()) return Fail(model.status());
@@ -113,20 +123,32 @@ int RunPoint(PointArgs& a) {
   // Ctrl-C / SIGTERM stop the integration within ~1024 steps; nothing is printed or written then.
   InstallCancelSignalHandlers();
   auto result = EvaluatePoint(spec);
+  std::optional<StatusOr<LyapunovSpectrum>> spectrum;
+  if (a.spectrum && result.ok() && !CancelRequested()) spectrum = EvaluateLyapunovSpectrum(spec);
   RestoreDefaultSignalHandlers();
   if (CancelRequested()) {
     std::cerr << "interrupted: the point was not finished; nothing was printed or written\n";
     return CancelExitStatus();
   }
   if (!result.ok()) return Fail(result.status());
+  if (spectrum && !spectrum->ok()) return Fail(spectrum->status());
   if (!a.trace.empty()) {
     Status st = WriteTrace(a.trace, *result);
     if (!st.ok()) return Fail(st);
   }
   if (a.json) {
-    std::cout << PointJson(spec, *result).dump(2) << "\n";
+    nlohmann::json j = PointJson(spec, *result);
+    if (spectrum) {
+      const LyapunovSpectrum& sp = **spectrum;
+      j["lyapunov_spectrum"] = sp.exponents;
+      j["lyapunov_sum"] = sp.sum;
+      j["divergence"] = sp.divergence;
+      j["kaplan_yorke"] = sp.kaplan_yorke;
+    }
+    std::cout << j.dump(2) << "\n";
   } else {
     PrintHuman(spec, *result);
+    if (spectrum) PrintSpectrum(**spectrum);
     if (!a.trace.empty()) std::printf("  trace written to %s (%zu rows)\n", a.trace.c_str(), result->samples.size());
   }
   return 0;
@@ -159,6 +181,9 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--sample-every", s.metrics.sample_every, "window sampling for spectrum/Rosenstein/trace, steps")
       ->capture_default_str();
   cmd->add_flag("--no-rosenstein", args->no_rosenstein, "skip the Rosenstein estimate");
+  cmd->add_flag("--spectrum", args->spectrum,
+                "also the Lyapunov spectrum by QR (all exponents, their sum against the exact divergence, the "
+                "Kaplan-Yorke dimension; rk4 only; about D+1 times the point's cost)");
   cmd->add_flag("--json", args->json, "print one JSON object");
   cmd->add_option("--trace", args->trace, "write tau,y_m,dy_m,y_r,dy_r over the window to this CSV");
   cmd->footer(

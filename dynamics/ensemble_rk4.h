@@ -59,25 +59,7 @@ class EnsembleRk4 {
     double alpha[W], omega[W];
     CellCoeffs<V> c;
     V amp, x[D], w[D], rot_c, rot_s;
-    for (int l = 0; l < W; ++l) {
-      const LaneInput& in = lanes[l < n ? l : 0];
-      alpha[l] = in.alpha;
-      omega[l] = in.omega;
-      c.k_lin[l] = in.coeffs.k_lin;
-      c.eps[l] = in.coeffs.eps;
-      c.eta[l] = in.coeffs.eta;
-      c.eta_r[l] = in.coeffs.eta_r;
-      c.phi[l] = in.coeffs.phi;
-      c.lambda2[l] = in.coeffs.lambda2;
-      amp[l] = in.alpha * in.omega * in.omega;
-      rot_c[l] = std::cos(0.5 * in.omega * s.h);
-      rot_s[l] = std::sin(0.5 * in.omega * s.h);
-      for (int d = 0; d < D; ++d) {
-        x[d][l] = in.x0[d];
-        // Fixed, generic initial tangent direction; it aligns with the leading direction in the transient.
-        w[d][l] = 1.0 / std::sqrt(static_cast<double>(D)) * (d % 2 == 0 ? 1.0 : -1.0);
-      }
-    }
+    LoadLanes(lanes, n, s.h, alpha, omega, &c, &amp, x, w, &rot_c, &rot_s);
     WindowRecorder<D, W> rec(alpha, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows);
     V sn, cs;
     AnchorPhase<W>(omega, 0, s.h, &sn, &cs);
@@ -162,7 +144,126 @@ class EnsembleRk4 {
     return true;
   }
 
+  // Lyapunov spectrum (Benettin et al. 1980; Shimada & Nagashima 1979) of one point: D tangent
+  // vectors through the same RK4 stages, re-orthonormalised by modified Gram–Schmidt (the QR
+  // factorisation W = QR) at every renormalisation step of Run; log R_ii summed over the window,
+  // into log_sums[0..D). The state takes exactly Run's operations (the same bits: a chaotic orbit is
+  // the same orbit), and vector 0 exactly the operations of Run's tangent — Gram–Schmidt leaves the
+  // first vector's direction alone and normalises it as Run does — so log_sums[0] is Run's log
+  // growth up to the grouping of its logs. Lane 0 only. False when cancelled; *diverged when the
+  // state blew up (the sums are then meaningless).
+  static bool RunSpectrum(const LaneInput& in, const KernelSettings& s, double* log_sums, bool* diverged) {
+    double alpha[W], omega[W];
+    CellCoeffs<V> c;
+    V amp, x[D], w[D][D], rot_c, rot_s;
+    LoadLanes(&in, 1, s.h, alpha, omega, &c, &amp, x, w[0], &rot_c, &rot_s);  // w[0]: Run's tangent
+    for (int j = 1; j < D; ++j)
+      for (int d = 0; d < D; ++d) w[j][d] = Splat<W>(d == j ? 1.0 : 0.0);  // independent of w[0]
+    V sums[D] = {};
+    *diverged = false;
+    V sn, cs;
+    AnchorPhase<W>(omega, 0, s.h, &sn, &cs);
+    V k1[D];
+    Model::Rhs(c, x, amp * sn, k1);
+    for (long step = 1; step <= s.n_total; ++step) {
+      StepSpectrum(c, amp, rot_c, rot_s, s.h, x, k1, w, &sn, &cs);
+      if (step % kReanchor == 0) {
+        if (CancelRequested()) [[unlikely]] return false;
+        AnchorPhase<W>(omega, step, s.h, &sn, &cs);
+        Model::Rhs(c, x, amp * sn, k1);
+      }
+      if (step % s.renorm_every == 0 || step == s.n_keep || step == s.n_total) {
+        V r[D];
+        GramSchmidt(w, r);
+        if (!std::isfinite(x[0][0]) || std::fabs(x[0][0]) > 1e8 || !std::isfinite(r[0][0])) {
+          *diverged = true;
+          return true;
+        }
+        if (step > s.n_keep)
+          for (int j = 0; j < D; ++j)
+            for (int l = 0; l < W; ++l) sums[j][l] += std::log(r[j][l]);
+      }
+    }
+    for (int j = 0; j < D; ++j) log_sums[j] = sums[j][0];
+    return true;
+  }
+
  private:
+  // Lane inputs into packs (unused lanes repeat lane 0), the forcing's half-step rotation, and the
+  // tangent's fixed, generic start direction (it aligns with the leading direction in the transient).
+  static void LoadLanes(const LaneInput* lanes, int n, double h, double* alpha, double* omega, CellCoeffs<V>* c,
+                        V* amp, V* x, V* w, V* rot_c, V* rot_s) {
+    for (int l = 0; l < W; ++l) {
+      const LaneInput& in = lanes[l < n ? l : 0];
+      alpha[l] = in.alpha;
+      omega[l] = in.omega;
+      c->k_lin[l] = in.coeffs.k_lin;
+      c->eps[l] = in.coeffs.eps;
+      c->eta[l] = in.coeffs.eta;
+      c->eta_r[l] = in.coeffs.eta_r;
+      c->phi[l] = in.coeffs.phi;
+      c->lambda2[l] = in.coeffs.lambda2;
+      (*amp)[l] = in.alpha * in.omega * in.omega;
+      (*rot_c)[l] = std::cos(0.5 * in.omega * h);
+      (*rot_s)[l] = std::sin(0.5 * in.omega * h);
+      for (int d = 0; d < D; ++d) {
+        x[d][l] = in.x0[d];
+        w[d][l] = 1.0 / std::sqrt(static_cast<double>(D)) * (d % 2 == 0 ? 1.0 : -1.0);
+      }
+    }
+  }
+
+  // Step with D tangent vectors: the state's operations are Step's, and each vector's are Step's
+  // tangent operations.
+  static void StepSpectrum(const CellCoeffs<V>& c, V amp, V rot_c, V rot_s, double h, V* x, V* k1, V (*w)[D], V* sn,
+                           V* cs) {
+    const V s_mid = Fma(*sn, rot_c, *cs * rot_s), c_mid = Fma(*cs, rot_c, -(*sn * rot_s));
+    const V s_end = Fma(s_mid, rot_c, c_mid * rot_s), c_end = Fma(c_mid, rot_c, -(s_mid * rot_s));
+    const V fm = amp * s_mid, f1 = amp * s_end;
+    const double hh = 0.5 * h, h6 = h / 6.0;
+    V xs[D], k[D], acc[D], x_mid1[D], x_mid2[D], x_end[D];
+    // The state's stages first (they do not depend on the tangents), keeping every stage point.
+    for (int d = 0; d < D; ++d) acc[d] = k1[d], xs[d] = Fma(hh, k1[d], x[d]), x_mid1[d] = xs[d];
+    Model::Rhs(c, xs, fm, k);
+    for (int d = 0; d < D; ++d) acc[d] = Fma(2.0, k[d], acc[d]), xs[d] = Fma(hh, k[d], x[d]), x_mid2[d] = xs[d];
+    Model::Rhs(c, xs, fm, k);
+    for (int d = 0; d < D; ++d) acc[d] = Fma(2.0, k[d], acc[d]), xs[d] = Fma(h, k[d], x[d]), x_end[d] = xs[d];
+    Model::Rhs(c, xs, f1, k);
+    // Each tangent vector through the same stages at the same stage points.
+    for (int j = 0; j < D; ++j) {
+      V l[D], ws[D], accw[D];
+      Model::Tangent(c, x, w[j], l);
+      for (int d = 0; d < D; ++d) accw[d] = l[d], ws[d] = Fma(hh, l[d], w[j][d]);
+      Model::Tangent(c, x_mid1, ws, l);
+      for (int d = 0; d < D; ++d) accw[d] = Fma(2.0, l[d], accw[d]), ws[d] = Fma(hh, l[d], w[j][d]);
+      Model::Tangent(c, x_mid2, ws, l);
+      for (int d = 0; d < D; ++d) accw[d] = Fma(2.0, l[d], accw[d]), ws[d] = Fma(h, l[d], w[j][d]);
+      Model::Tangent(c, x_end, ws, l);
+      for (int d = 0; d < D; ++d) w[j][d] = Fma(h6, accw[d] + l[d], w[j][d]);
+    }
+    for (int d = 0; d < D; ++d) x[d] = Fma(h6, acc[d] + k[d], x[d]);
+    *sn = s_end;
+    *cs = c_end;
+    Model::Rhs(c, x, f1, k1);
+  }
+
+  // Modified Gram–Schmidt: w ← Q, r[j] = R_jj. Vector 0 is normalised with Renormalise's operations.
+  static void GramSchmidt(V (*w)[D], V* r) {
+    for (int j = 0; j < D; ++j) {
+      for (int i = 0; i < j; ++i) {
+        V p = w[i][0] * w[j][0];
+        for (int d = 1; d < D; ++d) p = Fma(w[i][d], w[j][d], p);
+        for (int d = 0; d < D; ++d) w[j][d] = Fma(-p, w[i][d], w[j][d]);
+      }
+      V n2 = w[j][0] * w[j][0];
+      for (int d = 1; d < D; ++d) n2 = Fma(w[j][d], w[j][d], n2);
+      const V nrm = Sqrt<W>(n2);
+      const V inv = 1.0 / nrm;
+      for (int d = 0; d < D; ++d) w[j][d] = w[j][d] * inv;
+      r[j] = nrm;
+    }
+  }
+
   struct Consts {
     CellCoeffs<V> c;
     V amp, rot_c, rot_s;

@@ -1,6 +1,9 @@
 #include "dynamics/point.h"
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
+#include <limits>
 
 #include "dynamics/cancel.h"
 #include "dynamics/dopri5.h"
@@ -125,6 +128,44 @@ KernelSettings KernelSettingsFor(const PointSpec& spec) {
   k.keep_samples = true;
   k.keep_rows = spec.metrics.keep_samples;
   return k;
+}
+
+double KaplanYorkeDimension(std::vector<double> e) {
+  std::sort(e.begin(), e.end(), std::greater<double>());
+  double partial = 0;
+  for (size_t j = 0; j < e.size(); ++j) {
+    if (partial + e[j] < 0) return j == 0 ? 0.0 : static_cast<double>(j) + partial / std::fabs(e[j]);
+    partial += e[j];
+  }
+  return static_cast<double>(e.size());
+}
+
+StatusOr<LyapunovSpectrum> EvaluateLyapunovSpectrum(const PointSpec& spec) {
+  BISTABLE_RETURN_IF_ERROR(ValidatePointSpec(spec));
+  if (spec.integration.integrator != IntegratorKind::kRk4)
+    return Status::InvalidArgument("integrator", std::string("integrator = '") + IntegratorName(spec.integration.integrator) +
+                                                     "' violates the Lyapunov spectrum's integrator = 'rk4'");
+  const LaneInput lane = LaneFor(spec);
+  const KernelSettings ks = KernelSettingsFor(spec);
+  const double window = spec.integration.t_end - spec.integration.t_keep;
+  double sums[4] = {};
+  bool diverged = false;
+  const bool res = HasResonator(spec.model);
+  const bool done = res ? EnsembleRk4<CoupledModel, 1>::RunSpectrum(lane, ks, sums, &diverged)
+                        : EnsembleRk4<SingleModel, 1>::RunSpectrum(lane, ks, sums, &diverged);
+  if (!done) return CancelledStatus();
+  LyapunovSpectrum out;
+  const int dim = res ? 4 : 2;
+  out.diverged = diverged;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (int j = 0; j < dim; ++j) out.exponents.push_back(diverged ? nan : sums[j] / window);
+  for (double e : out.exponents) out.sum += e;
+  const CellCoeffs<double>& c = lane.coeffs;
+  out.divergence = -(c.eta + c.phi * c.eta_r + c.eta_r);
+  std::vector<double> flow = out.exponents;
+  flow.push_back(0.0);  // the forcing phase's direction
+  out.kaplan_yorke = diverged ? nan : KaplanYorkeDimension(flow);
+  return out;
 }
 
 StatusOr<PointResult> EvaluatePoint(const PointSpec& spec) {

@@ -4,6 +4,8 @@
 #ifndef BISTABLE_DYNAMICS_POINT_H_
 #define BISTABLE_DYNAMICS_POINT_H_
 
+#include <vector>
+
 #include "dynamics/ensemble_rk4.h"
 #include "dynamics/point_spec.h"
 #include "dynamics/window_recorder.h"
@@ -26,6 +28,22 @@ bool RunKernel(ModelKind model, const LaneInput* lanes, int n, const KernelSetti
   if (HasResonator(model)) return EnsembleRk4<CoupledModel, W>::Run(lanes, n, s, out);
   return EnsembleRk4<SingleModel, W>::Run(lanes, n, s, out);
 }
+
+// The Lyapunov spectrum of a point (RK4 integrator only): the state space's exponents by QR
+// (EnsembleRk4::RunSpectrum), at the point's settings (step, window, renormalisation interval).
+struct LyapunovSpectrum {
+  std::vector<double> exponents;  // per unit τ, in QR order: largest first up to finite-time error
+  double sum = 0;                 // Σ exponents
+  double divergence = 0;          // the exact phase-space contraction rate tr J = −η − η_r(1 + φ)
+  double kaplan_yorke = 0;        // Kaplan–Yorke dimension of the flow (the exponents and the forcing
+                                  // phase's 0), e.g. 1 for a periodic orbit, 2 + λ1/|λ3| for a
+                                  // chaotic one-well cell; the Poincaré section's is one less
+  bool diverged = false;          // the orbit blew up: no spectrum (NaNs)
+};
+StatusOr<LyapunovSpectrum> EvaluateLyapunovSpectrum(const PointSpec& spec);
+// Kaplan–Yorke dimension of exponents sorted in descending order: j + (λ1 + … + λj)/|λ(j+1)| for the
+// largest j whose partial sum is ≥ 0 (0 when λ1 < 0; the count when every partial sum is ≥ 0).
+double KaplanYorkeDimension(std::vector<double> exponents);
 
 // Window record → metrics (FRF, LLE, motion, period, spectrum, energy ratios, Rosenstein).
 PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec);

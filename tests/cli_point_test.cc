@@ -45,6 +45,27 @@ TEST(CliPoint, JsonHasTheContractKeys) {
   EXPECT_TRUE(s.contains("numerics_version"));
 }
 
+// The script contract of --spectrum: the state space's exponents (largest first, the first within 1e-9
+// of `lle` of the same run), their sum against the exact divergence, and the Kaplan–Yorke dimension.
+TEST(CliPoint, SpectrumJsonContract) {
+  const ProcessResult r = Bistable("point --model coupled --alpha 1 --omega 1 --t-end 1000 --spectrum --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(j["lyapunov_spectrum"].is_array());
+  ASSERT_EQ(j["lyapunov_spectrum"].size(), 4u);
+  EXPECT_NEAR(j["lyapunov_spectrum"][0].get<double>(), j["lle"].get<double>(), 1e-9);
+  EXPECT_NEAR(j["lyapunov_sum"].get<double>(), -0.325, 1e-3);
+  EXPECT_DOUBLE_EQ(j["divergence"].get<double>(), -0.325);
+  EXPECT_GT(j["kaplan_yorke"].get<double>(), 2.0);
+  const ProcessResult text = Bistable("point --model standalone --alpha 0.3 --omega 2 --spectrum");
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("Lyapunov spectrum"), std::string::npos);
+  EXPECT_NE(text.out.find("Kaplan-Yorke"), std::string::npos);
+  const ProcessResult bad = Bistable("point --alpha 1 --omega 1 --integrator adaptive --spectrum");
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("integrator"), std::string::npos) << bad.err;
+}
+
 TEST(CliPoint, SettingsFromJsonReproduceTheResult) {
   const ProcessResult a = Bistable("point --model standalone --alpha 0.3 --omega 2 --eta 0.12 --json");
   ASSERT_EQ(a.exit_code, 0) << a.err;

@@ -1,5 +1,7 @@
 // Largest Lyapunov exponents against published values and independent Floquet computations.
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
@@ -134,6 +136,115 @@ TEST(Benettin, KernelTangentAgreesWithGenericBenettinOnCoupledModel) {
     // up to the different initial tangent direction's transient.
     EXPECT_NEAR(kernel->lle, generic.lle, 0.01) << "omega " << omega;
   }
+}
+
+PointSpec CoupledAt(double alpha, double omega, double t_end) {
+  PointSpec s;
+  s.model = ModelKind::kCoupled;
+  s.alpha = alpha;
+  s.omega = omega;
+  s.integration.t_end = t_end;
+  s.integration.t_keep = 250;
+  s.metrics.rosenstein = false;
+  return s;
+}
+
+// The QR spectrum's sum is the time average of tr J, which for these models is the constant
+// −η − η_r(1 + φ): exact, whatever the orbit. Its first exponent is the LLE of the same run (the
+// state's bits are the kernel's, the first vector evolves as the kernel's tangent).
+TEST(LyapunovSpectrum, SumIsTheExactDivergenceAndTheFirstIsTheLle) {
+  for (double omega : {0.5, 1.0}) {
+    const PointSpec s = CoupledAt(omega < 1 ? 0.3 : 1.0, omega, 2000);
+    const auto sp = EvaluateLyapunovSpectrum(s);
+    ASSERT_TRUE(sp.ok()) << sp.status().ToString();
+    ASSERT_EQ(sp->exponents.size(), 4u);
+    const double trace = -(s.params.eta + s.params.eta_r * (1 + s.params.phi));
+    EXPECT_DOUBLE_EQ(sp->divergence, trace);
+    EXPECT_NEAR(sp->sum, trace, 1e-3) << "omega " << omega;
+    const auto point = EvaluatePoint(s);
+    ASSERT_TRUE(point.ok());
+    EXPECT_NEAR(sp->exponents[0], point->lle, 1e-9) << "omega " << omega;
+    for (size_t j = 1; j < 4; ++j) EXPECT_LE(sp->exponents[j], sp->exponents[j - 1] + 2e-3) << "omega " << omega;
+  }
+}
+
+TEST(LyapunovSpectrum, ChaoticPointHasOnePositiveExponentAndAFractalDimension) {
+  const auto sp = EvaluateLyapunovSpectrum(CoupledAt(1.0, 1.0, 2000));
+  ASSERT_TRUE(sp.ok());
+  EXPECT_GT(sp->exponents[0], 0.03);
+  EXPECT_LT(sp->exponents[1], 0.01);
+  // (λ1, 0, λ2, λ3, λ4) with λ1 + λ2 > 0 here: between 3 and 4 (measured 3.41).
+  EXPECT_GT(sp->kaplan_yorke, 2.0);
+  EXPECT_LT(sp->kaplan_yorke, 5.0);
+  EXPECT_DOUBLE_EQ(sp->kaplan_yorke, KaplanYorkeDimension({sp->exponents[0], sp->exponents[1], sp->exponents[2],
+                                                           sp->exponents[3], 0.0}));
+}
+
+// On a periodic orbit the exponents are the Floquet exponents log|μ_i|/T of its monodromy matrix,
+// computed here independently (Dormand–Prince at 1e-12 on the variational equations over one period).
+TEST(LyapunovSpectrum, PeriodicOrbitMatchesFloquetExponents) {
+  const PointSpec s = CoupledAt(1.0, 2.5, 2000);  // interwell, period 1, a complex Floquet pair
+  const auto sp = EvaluateLyapunovSpectrum(s);
+  ASSERT_TRUE(sp.ok());
+  const auto point = EvaluatePoint(s);
+  ASSERT_TRUE(point.ok());
+  ASSERT_EQ(point->period, 1);
+  NondimSystem<CoupledModel> sys(LaneFor(s).coeffs, s.alpha, s.omega);
+  const double period = 2 * M_PI / s.omega;
+  // Start on the orbit at a multiple of the period (the forcing's phase 0).
+  const double t0 = std::ceil(s.integration.t_end / period) * period;
+  AdaptiveOptions ao;
+  ao.rtol = ao.atol = 1e-12;
+  Eigen::Vector4d x = Eigen::Map<const Eigen::Vector4d>(point->final_state.data());
+  Dopri5<NondimSystem<CoupledModel>>(sys, ao).Integrate(s.integration.t_end, x, t0);
+  TangentSystem<NondimSystem<CoupledModel>> ts(sys);
+  Eigen::Matrix4d mono;
+  for (int j = 0; j < 4; ++j) {
+    Eigen::VectorXd z(8);
+    z.head(4) = x;
+    z.tail(4) = Eigen::Vector4d::Unit(j);
+    Dopri5<TangentSystem<NondimSystem<CoupledModel>>>(ts, ao).Integrate(t0, z, t0 + period);
+    mono.col(j) = z.tail(4);
+  }
+  const auto mu = Eigen::EigenSolver<Eigen::Matrix4d>(mono).eigenvalues();
+  std::vector<double> floquet;
+  for (int j = 0; j < 4; ++j) floquet.push_back(std::log(std::abs(mu[j])) / period);
+  std::sort(floquet.begin(), floquet.end(), std::greater<double>());
+  std::vector<double> ours = sp->exponents;
+  std::sort(ours.begin(), ours.end(), std::greater<double>());
+  for (int j = 0; j < 4; ++j) EXPECT_NEAR(ours[j], floquet[j], 2e-3) << "exponent " << j;
+  EXPECT_NEAR(sp->kaplan_yorke, 1.0, 1e-12);
+}
+
+TEST(LyapunovSpectrum, StandaloneHasTwoExponentsSummingToMinusEta) {
+  PointSpec s;
+  s.model = ModelKind::kStandalone;
+  s.alpha = 0.5 / 1.44;
+  s.omega = 1.2;
+  s.params.eta = 0.3;
+  s.integration.t_end = 2000;
+  s.integration.t_keep = 250;
+  const auto sp = EvaluateLyapunovSpectrum(s);
+  ASSERT_TRUE(sp.ok());
+  ASSERT_EQ(sp->exponents.size(), 2u);
+  EXPECT_NEAR(sp->sum, -0.3, 1e-3);
+  EXPECT_DOUBLE_EQ(sp->divergence, -0.3);
+}
+
+TEST(LyapunovSpectrum, KaplanYorkeDimensionOfKnownSpectra) {
+  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({-0.1, -0.2}), 0.0);                // a fixed point
+  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({0.0, -0.1, -0.2}), 1.0);           // a limit cycle
+  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({0.1, 0.0, -0.4}), 2.25);           // 2 + 0.1/0.4
+  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({0.0, 0.1, -0.4, -1.0}), 2.25);     // order does not matter
+  EXPECT_NEAR(KaplanYorkeDimension({0.9056, 0.0, -14.5723}), 2.0621, 1e-4);  // Lorenz (Sprott)
+}
+
+TEST(LyapunovSpectrum, AdaptiveIntegratorIsRefusedByName) {
+  PointSpec s = CoupledAt(0.3, 0.5, 500);
+  s.integration.integrator = IntegratorKind::kAdaptive;
+  const auto sp = EvaluateLyapunovSpectrum(s);
+  ASSERT_FALSE(sp.ok());
+  EXPECT_NE(sp.status().ToString().find("integrator"), std::string::npos);
 }
 
 }  // namespace
