@@ -100,8 +100,19 @@ StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>&
   return s;
 }
 
-std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::vector<double>& values) {
+std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::vector<double>& values,
+                                       const std::vector<std::pair<int, std::string>>& file_categories) {
   const MetricInfo* info = FindMetric(metric);
+  if ((!info || !info->integer) && !file_categories.empty()) {  // codes named by the file (a basin map's attractors)
+    std::vector<PlotData::Code> codes;
+    for (const auto& [value, name] : file_categories) {
+      std::string label = name;  // flag_meanings are one word each; the legend reads better with spaces
+      std::replace(label.begin(), label.end(), '_', ' ');
+      codes.push_back({static_cast<double>(value), label, ""});
+    }
+    if (codes.size() > 16) return {};
+    return codes;
+  }
   if (!info || !info->integer) return {};
   std::set<double> present;
   for (double v : values)
@@ -151,7 +162,7 @@ StatusOr<PlotData> MapFigure(const MapArray& m, std::map<std::string, double> at
     d.series = {"sweep up", "sweep down"};
     fixed.erase("direction");
   }
-  d.codes = MetricCodes(d.metric, d.values);
+  d.codes = MetricCodes(d.metric, d.values, m.categories);
   d.title = title_prefix + ": " + s->metric;
   for (const auto& [name, value] : fixed) {
     const size_t k = std::find(m.dim_names.begin(), m.dim_names.end(), name) - m.dim_names.begin();

@@ -67,7 +67,7 @@ PointResult MetricsWithSpectrum(RawLane raw, const PointSpec& spec, const Spectr
   const double nan = std::numeric_limits<double>::quiet_NaN();
   if (raw.diverged) {
     r.termination = Termination::kDiverged;
-    r.frf_db = r.lle = r.lle_rosenstein = r.hd_index = nan;
+    r.frf_db = r.lle = r.lle_rosenstein = r.hd_index = r.strobe_y = r.strobe_v = nan;
     r.edr_b = r.edr_r = r.edr_t = r.energy_balance_residual = nan;
     return r;
   }
@@ -93,6 +93,15 @@ PointResult MetricsWithSpectrum(RawLane raw, const PointSpec& spec, const Spectr
   r.hd_peaks = SpectralPeaks(sp, ms.hd_level, ms.hd_top_k);
   r.hd_index = HarmonicDiffusionIndex(sp, spec.omega);
   r.period = DetectPeriod(raw.strobe_y, raw.strobe_v, ms.max_period, ms.period_tol, sp, raw.y_samples, dts, spec.omega);
+  r.strobe_y = r.strobe_v = nan;
+  if (const size_t m = raw.strobe_y.size(); m > 0) {
+    size_t best = m - 1;
+    for (size_t k = m - std::min<size_t>(m, std::max(r.period, 1)); k < m; ++k)
+      if (raw.strobe_y[k] < raw.strobe_y[best] || (raw.strobe_y[k] == raw.strobe_y[best] && raw.strobe_v[k] < raw.strobe_v[best]))
+        best = k;
+    r.strobe_y = raw.strobe_y[best];
+    r.strobe_v = raw.strobe_v[best];
+  }
 
   r.lle_rosenstein = nan;
   if (ms.rosenstein) {

@@ -109,6 +109,10 @@ struct PointResult {
   Motion motion = Motion::kUndefined;
   int period = 0;                 // stroboscopic period n (1, 2, ...), 0 when none found
   int strobe_samples = 0;         // number of stroboscopic samples in the window
+  // A point of the attractor's stroboscopic (Poincaré) section, the same for every start that ends on
+  // the same periodic attractor: of the last `period` strobe samples the one with the smallest y_m
+  // (then y_m'); the last sample when no period was found; NaN without samples or when diverged.
+  double strobe_y = 0, strobe_v = 0;
   double hd_index = 0;            // fraction of spectral power away from integer multiples of Ω
   std::vector<HdPeak> hd_peaks;   // strongest first
   double y_min = 0, y_max = 0;    // extremes of y_m over the window

@@ -37,6 +37,8 @@ const std::vector<MetricInfo>& MetricCatalog() {
       {"y_min", "delta_s", "minimum of y_m over the window", false, -1e150, 1e150, true, "minimum displacement of the main mass relative to the base"},
       {"y_max", "delta_s", "maximum of y_m over the window", false, -1e150, 1e150, true, "maximum displacement of the main mass relative to the base"},
       {"termination", "code", "0 ok, 1 diverged, 2 step size underflow, 3 max steps", true, 0, 3, false, "how the integration ended"},
+      {"strobe_y", "delta_s", "y_m at a stroboscopic sample (Omega tau a multiple of 2 pi) of the window: of the last `period` samples the one with the smallest y_m; the last sample when no period was found", false, -1e150, 1e150, true, "displacement of the main mass at a point of the attractor's Poincare section"},
+      {"strobe_v", "delta_s omega_n", "y_m' at the same stroboscopic sample as strobe_y", false, -1e150, 1e150, true, "velocity of the main mass at a point of the attractor's Poincare section"},
   };
   return kCatalog;
 }
@@ -136,7 +138,9 @@ PointRecord PointRecord::From(const PointResult& r, bool turning_points) {
          r.energy_balance_residual,
          r.y_min,
          r.y_max,
-         static_cast<double>(static_cast<int>(r.termination))};
+         static_cast<double>(static_cast<int>(r.termination)),
+         r.strobe_y,
+         r.strobe_v};
   const double nan = std::numeric_limits<double>::quiet_NaN();
   // A float outside its metric's domain is not a measurement (an overflow in a degenerate run): NaN.
   const auto& catalog = MetricCatalog();

@@ -194,6 +194,8 @@ double* ParamSlot(PointSpec& s, const std::string& name) {
   if (name == "eta_r") return &s.params.eta_r;
   if (name == "phi") return &s.params.phi;
   if (name == "lambda") return &s.params.lambda;
+  for (int k = 0; k < 4; ++k)
+    if (name == InitialStateAxisNames()[k]) return &s.ic[k];
   return nullptr;
 }
 
@@ -233,15 +235,37 @@ const std::vector<std::string>& DimensionalAxisNames() {
 }
 
 const std::vector<std::string>& CanonicalAxisNames() {
-  static const std::vector<std::string> kNames = {"alpha", "omega", "eta", "eta_r", "lambda", "phi", "eps"};
+  // Velocities before displacements: a map's first axis runs along the plot's vertical, so a basin
+  // map over (ym0, vm0) is drawn in the usual phase plane (y_m(0) across, y_m'(0) up).
+  static const std::vector<std::string> kNames = {"alpha", "omega", "eta", "eta_r", "lambda", "phi", "eps",
+                                                  "vm0", "ym0", "vr0", "yr0"};
   return kNames;
+}
+
+const std::vector<std::string>& InitialStateAxisNames() {
+  static const std::vector<std::string> kNames = {"ym0", "vm0", "yr0", "vr0"};
+  return kNames;
+}
+
+bool IsInitialStateAxis(const std::string& name) {
+  const auto& n = InitialStateAxisNames();
+  return std::find(n.begin(), n.end(), name) != n.end();
+}
+
+bool SweepSpec::HasInitialStateAxes() const {
+  return std::any_of(axes.begin(), axes.end(), [](const Axis& a) { return IsInitialStateAxis(a.name); });
+}
+
+bool SweepSpec::IsBasinSweep() const {
+  return !axes.empty() && std::all_of(axes.begin(), axes.end(), [](const Axis& a) { return IsInitialStateAxis(a.name); });
 }
 
 std::string AxisUnit(const std::string& name) {
   static const std::map<std::string, std::string> kUnits = {
       {"alpha", "A0/delta_s"}, {"omega", "omega0/omega_n"}, {"eta", "c/(m_m omega_n)"}, {"eta_r", "c_r/(m_r omega_n)"},
       {"lambda", "omega_r/omega_n"}, {"phi", "m_r/m_m"}, {"eps", "k3 delta_s^2/(m_m omega_n^2)"},
-      {"a0_mm", "mm"}, {"f0_hz", "Hz"}};
+      {"a0_mm", "mm"}, {"f0_hz", "Hz"}, {"ym0", "delta_s"}, {"vm0", "delta_s omega_n"}, {"yr0", "delta_s"},
+      {"vr0", "delta_s omega_n"}};
   auto it = kUnits.find(name);
   return it == kUnits.end() ? "" : it->second;
 }
@@ -255,6 +279,10 @@ std::string AxisLongName(const std::string& name) {
       {"lambda", "resonator tuning lambda = omega_r/omega_n"},
       {"phi", "mass ratio phi = m_r/m_m"},
       {"eps", "cubic stiffness epsilon = k3 delta_s^2/(m_m omega_n^2)"},
+      {"ym0", "initial displacement of the main mass relative to the base y_m(0)"},
+      {"vm0", "initial velocity of the main mass relative to the base y_m'(0)"},
+      {"yr0", "initial displacement of the resonator relative to the base y_r(0)"},
+      {"vr0", "initial velocity of the resonator relative to the base y_r'(0)"},
       {"a0_mm", "base displacement amplitude A0"},
       {"f0_hz", "excitation frequency f0"},
       {"m_m", "main mass"},
@@ -338,12 +366,22 @@ std::vector<int> SweepSpec::AxisIndices(long index) const {
 }
 
 PointSpec SweepSpec::PointAt(long index, int ic) const {
-  PointSpec p = base;
+  PointSpec p = StartOf(base, ic);
   const std::vector<int> idx = AxisIndices(index);
   for (size_t k = 0; k < axes.size(); ++k) *ParamSlot(p, axes[k].name) = axes[k].values[idx[k]];
+  return p;
+}
+
+// A point's start before the axes apply: [initial_conditions] state `ic` (continuation: the chains'
+// start), or with initial-state axes the model's default start whose swept components the axes then set.
+PointSpec SweepSpec::StartOf(const PointSpec& from, int ic) const {
+  PointSpec p = from;
   if (!initial_states.empty()) {
     p.ic_given = true;
-    p.ic = initial_states[continuation.enabled() ? 0 : ic];  // continuation: the chains' start state
+    p.ic = initial_states[continuation.enabled() ? 0 : ic];
+  } else if (HasInitialStateAxes()) {
+    p.ic = InitialState(p);
+    p.ic_given = true;
   }
   return p;
 }
@@ -738,6 +776,7 @@ Status ReadOutput(const toml::table& root, SweepSpec& spec) {
       std::vector<std::string> plottable = spec.metrics;
       if (spec.initial_states.size() > 1)
         for (const char* f : {"frac_intrawell", "frac_interwell", "frac_chaotic"}) plottable.push_back(f);
+      if (spec.IsBasinSweep()) plottable.push_back("attractor");
       for (size_t i = 0; i < names->size(); ++i)
         if (std::find(plottable.begin(), plottable.end(), (*names)[i]) == plottable.end())
           return UnknownValue("output.plots[" + std::to_string(i) + "]", (*names)[i], plottable);
@@ -761,9 +800,21 @@ Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
     if (!dimensional) return f;
     return f == "alpha" ? std::string("a0_mm") : f == "omega" ? std::string("f0_hz") : f;
   };
-  PointSpec probe = spec.base;
+  PointSpec probe = spec.StartOf(spec.base, 0);
   for (const Axis& a : spec.axes) *ParamSlot(probe, a.name) = a.values.front();
-  if (!spec.initial_states.empty()) probe.ic_given = true, probe.ic = spec.initial_states.front();
+  if (spec.HasInitialStateAxes()) {
+    if (!IsCellModel(spec.model))
+      return Status::InvalidArgument("axes", "initial-state axes (ym0, vm0, yr0, vr0) sweep the cell models only");
+    if (spec.initial_states.size() > 1)
+      return Status::InvalidArgument("initial_conditions.states",
+                                     "with initial-state axes give at most one state (it sets the components not swept)");
+    if (spec.continuation.enabled())
+      return Status::InvalidArgument("continuation", "continuation chains start states along an axis; it cannot be "
+                                                     "combined with initial-state axes");
+    for (const Axis& a : spec.axes)
+      if ((a.name == "yr0" || a.name == "vr0") && !HasResonator(spec.model))
+        return Status::InvalidArgument("axes." + a.name, "axes." + a.name + " needs a model with a resonator (coupled, linear-coupled)");
+  }
   for (const Axis& a : spec.axes) {
     for (size_t i = 0; i < a.values.size(); ++i) {
       PointSpec p = probe;

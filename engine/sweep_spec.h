@@ -46,6 +46,10 @@ struct ContinuationConfig {
 
 // Axis names in the canonical order used for enumeration and for the map datasets.
 const std::vector<std::string>& CanonicalAxisNames();
+// Axes over the start state (y_m, y_m', y_r, y_r')(0): basin maps. Unswept components come from the one
+// [initial_conditions] state, or the model's default start.
+const std::vector<std::string>& InitialStateAxisNames();
+bool IsInitialStateAxis(const std::string& name);
 const std::vector<std::string>& DimensionalAxisNames();  // a0_mm, f0_hz
 // Unit and meaning of an axis ("alpha" → "A0/delta_s", ...).
 std::string AxisUnit(const std::string& name);
@@ -97,6 +101,10 @@ struct SweepSpec {
   // Canonical text of everything that determines the numbers (not name/plots/source): its hash is the sweep id.
   std::string CanonicalText() const;
   std::string Id() const;           // 12 hex digits of the canonical text's hash
+  bool HasInitialStateAxes() const;
+  // Every axis is an initial-state axis: the map is a basin map (attractor ids, fractions; map_file).
+  bool IsBasinSweep() const;
+  PointSpec StartOf(const PointSpec& from, int ic) const;
   // The point spec of grid point `index` (row-major over axes, last axis fastest) with initial condition ic.
   PointSpec PointAt(long index, int ic) const;
   // Axis indices of a point.

@@ -17,6 +17,7 @@
 #include "base/limits.h"
 #include "base/version.h"
 #include "base/names.h"
+#include "engine/basins.h"
 #include "storage/metric_name.h"
 
 namespace bistable {
@@ -105,6 +106,7 @@ CfUnits CfUnitsFor(const std::string& label) {
       {"1/tau", {"1", "per unit of non-dimensional time tau = omega_n t"}},
       {"rad/tau", {"1", "angular frequency in units of omega_n (rad per unit of tau)"}},
       {"delta_s", {"1", "in units of delta_s, the static position of a well"}},
+      {"delta_s omega_n", {"1", "velocity in units of delta_s omega_n (delta_s per unit of tau)"}},
       {"1/s", {"s-1", ""}},
       {"rad/s", {"rad/s", ""}},
       {"m", {"m", ""}},
@@ -231,7 +233,7 @@ Status FsyncPath(const std::string& path, bool directory) {
 // Dimensional sweeps measure in SI: time in s, lengths in m, angular frequencies in rad/s.
 std::string UnitFor(const SweepSpec& spec, std::string unit) {
   if (spec.model != ModelKind::kDimensional) return unit;
-  for (auto [from, to] : {std::pair<std::string, std::string>{"rad/tau", "rad/s"}, {"1/tau", "1/s"}, {"delta_s", "m"}})
+  for (auto [from, to] : {std::pair<std::string, std::string>{"rad/tau", "rad/s"}, {"1/tau", "1/s"}, {"delta_s", "m"}, {"delta_s omega_n", "m/s"}})
     if (unit == from) return to;
   return unit;
 }
@@ -240,6 +242,53 @@ std::vector<double> Iota(size_t n) {
   std::vector<double> v(n);
   for (size_t i = 0; i < n; ++i) v[i] = static_cast<double>(i);
   return v;
+}
+
+// A basin map (every axis an initial-state axis): the attractor each start ends on, and per attractor
+// its description, basin fraction and boundary fraction over a trailing `attractor_id` dimension.
+Status WriteBasins(hid_t file, const SweepSpec& spec, const std::vector<PointRecord>& records,
+                   const std::vector<hsize_t>& dims, const std::vector<std::string>& names, const std::string& coordinates) {
+  const BasinMap basins = ClassifyAttractors(spec, records, 10 * spec.base.metrics.period_tol);
+  std::vector<Category> legend;
+  for (const Attractor& a : basins.attractors) legend.push_back({a.id, a.label.c_str()});
+  std::vector<double> ids(basins.ids.begin(), basins.ids.end());
+  BISTABLE_RETURN_IF_ERROR(WriteDataset(
+      file, "attractor", dims, ids, H5T_NATIVE_INT32,
+      {"attractor reached from the initial state (basin map)", "code",
+       "id of the attractor this start ends on (0 = largest basin; -1 undefined); the group attractors describes each",
+       &legend},
+      coordinates));
+  BISTABLE_RETURN_IF_ERROR(AttachScales(file, "attractor", names));
+  // The table of attractors, one row per id, in the group "attractors" (a netCDF-4 group: xarray's
+  // open_dataset(path, group="attractors")), so the root holds only gridded variables.
+  const size_t n = basins.attractors.size();
+  Handle group(H5Gcreate2(file, "attractors", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+  if (!group.ok()) return Status::IoError("map", "create group attractors");
+  const hid_t g = group.get();
+  BISTABLE_RETURN_IF_ERROR(WriteScale(g, "attractor_id", Iota(n), {"attractor id (0 = largest basin)", "", "", &legend}, /*integer=*/true));
+  auto column = [&](const char* name, auto get, hid_t type, const CfQuantity& q) -> Status {
+    std::vector<double> v(n);
+    for (size_t k = 0; k < n; ++k) v[k] = get(basins.attractors[k]);
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(g, name, {static_cast<hsize_t>(n)}, v, type, q, ""));
+    return AttachScales(g, name, {"attractor_id"});
+  };
+  const std::vector<Category>& motions = MetricCategories("motion");
+  BISTABLE_RETURN_IF_ERROR(column("basin_fraction", [](const Attractor& a) { return a.basin_fraction; }, H5T_NATIVE_DOUBLE,
+                                  {"fraction of the starts ending on the attractor", "fraction", "cells of its basin / all starts"}));
+  BISTABLE_RETURN_IF_ERROR(column("boundary_fraction", [](const Attractor& a) { return a.boundary_fraction; }, H5T_NATIVE_DOUBLE,
+                                  {"fraction of the basin's cells on a basin boundary", "fraction",
+                                   "cells with a grid neighbour (+-1 along an axis) ending on another attractor / cells of the basin"}));
+  BISTABLE_RETURN_IF_ERROR(column("motion", [](const Attractor& a) { return static_cast<double>(a.motion); }, H5T_NATIVE_INT32,
+                                  {"type of motion on the attractor", "code", MotionCodesText(), &motions}));
+  BISTABLE_RETURN_IF_ERROR(column("period", [](const Attractor& a) { return static_cast<double>(a.period); }, H5T_NATIVE_INT32,
+                                  {"period of the attractor in forcing periods (0: not periodic)", "forcing periods", "stroboscopic period"}));
+  BISTABLE_RETURN_IF_ERROR(column("strobe_y", [](const Attractor& a) { return a.strobe_y; }, H5T_NATIVE_DOUBLE,
+                                  {"displacement at the attractor's Poincare fingerprint", UnitFor(spec, "delta_s"),
+                                   "strobe_y of the attractor (NaN: not periodic)"}));
+  BISTABLE_RETURN_IF_ERROR(column("strobe_v", [](const Attractor& a) { return a.strobe_v; }, H5T_NATIVE_DOUBLE,
+                                  {"velocity at the attractor's Poincare fingerprint", UnitFor(spec, "delta_s omega_n"),
+                                   "strobe_v of the attractor (NaN: not periodic)"}));
+  return WriteNumberAttr(file, "basin_boundary_fraction", H5T_NATIVE_DOUBLE, &basins.boundary_fraction, 1);
 }
 
 Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records) {
@@ -343,6 +392,7 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
       BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), kNames[code], axis_names));
     }
   }
+  if (spec.IsBasinSweep()) BISTABLE_RETURN_IF_ERROR(WriteBasins(file.get(), spec, records, dims, names, coordinates));
   const IntegrationSettings& in = spec.base.integration;
   const bool dimensional = spec.model == ModelKind::kDimensional;
   char settings[256];
@@ -426,6 +476,28 @@ StatusOr<std::string> ReadMapAttribute(const std::string& path, const std::strin
   return ReadStringAttr(file.get(), name.c_str());
 }
 
+// flag_values / flag_meanings of a code dataset, when both are there and agree in count (bounded).
+void ReadCategories(hid_t ds, std::vector<std::pair<int, std::string>>* out) {
+  if (H5Aexists(ds, "flag_values") <= 0) return;
+  Handle attr(H5Aopen(ds, "flag_values", H5P_DEFAULT), H5Aclose);
+  Handle space(H5Aget_space(attr.get()), H5Sclose);
+  const hssize_t n = space.ok() ? H5Sget_simple_extent_npoints(space.get()) : -1;
+  if (n <= 0 || n > 4096) return;
+  std::vector<int32_t> values(static_cast<size_t>(n));
+  if (H5Aread(attr.get(), H5T_NATIVE_INT32, values.data()) < 0) return;
+  const std::string meanings = ReadStringAttr(ds, "flag_meanings");
+  std::vector<std::string> words;
+  size_t start = 0;
+  while (start < meanings.size()) {
+    size_t end = meanings.find(' ', start);
+    if (end == std::string::npos) end = meanings.size();
+    if (end > start) words.push_back(meanings.substr(start, std::min<size_t>(end - start, 128)));
+    start = end + 1;
+  }
+  if (words.size() != values.size()) return;
+  for (size_t k = 0; k < values.size(); ++k) out->emplace_back(values[k], words[k]);
+}
+
 StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& metric) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
@@ -456,6 +528,7 @@ StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& met
   out.unit = ReadStringAttr(ds.get(), "unit_label");  // the plots' label; "units" is CF's
   if (out.unit.empty()) out.unit = ReadStringAttr(ds.get(), "units");  // maps written before CF metadata
   out.definition = ReadStringAttr(ds.get(), "definition");
+  ReadCategories(ds.get(), &out.categories);
   const std::string axes = ReadStringAttr(file.get(), "axes");
   size_t start = 0;
   while (start < axes.size()) {

@@ -11,6 +11,7 @@
 #define BISTABLE_STORAGE_MAP_FILE_H_
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "base/status.h"
@@ -30,6 +31,7 @@ struct MapArray {
   std::vector<std::string> dim_names;
   std::vector<double> values;        // integers widened to double
   std::string unit, definition;
+  std::vector<std::pair<int, std::string>> categories;  // code datasets: flag_values and flag_meanings
 };
 
 StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& metric);

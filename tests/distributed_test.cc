@@ -13,6 +13,8 @@
 
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
+
+#include "engine/metric_catalog.h"
 #include <nlohmann/json.hpp>
 
 #include "bistable.grpc.pb.h"
@@ -199,7 +201,8 @@ TEST(Distributed, BadInputOverTheWireGetsTheRightStatusCode) {
   const auto l1 = lease();
   ASSERT_TRUE(l1.has_job());
   const size_t items = l1.points_size();
-  const std::vector<double> good(items * 33, 0.0);
+  const int width = static_cast<int>(bistable::PointRecord::Size());  // the record layout (engine/metric_catalog.h)
+  const std::vector<double> good(items * width, 0.0);
   std::vector<double> with_inf = good;
   with_inf[3] = INFINITY;
   struct Case {
@@ -214,16 +217,16 @@ TEST(Distributed, BadInputOverTheWireGetsTheRightStatusCode) {
        [&] { return submit("model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 10000] }\nomega = { linspace = [0.1, 3, 10000] }\n"); },
        grpc::StatusCode::INVALID_ARGUMENT},
       {"unknown key", [&] { return submit("model = \"coupled\"\n[axes]\nalpah = [1]\n"); }, grpc::StatusCode::INVALID_ARGUMENT},
-      {"result for an unknown lease", [&] { return report("no-such-lease", 33, good); }, grpc::StatusCode::NOT_FOUND},
-      {"result of the wrong shape", [&] { return report(l1.lease_id(), 33, std::vector<double>(33, 0.0)); },
+      {"result for an unknown lease", [&] { return report("no-such-lease", width, good); }, grpc::StatusCode::NOT_FOUND},
+      {"result of the wrong shape", [&] { return report(l1.lease_id(), width, std::vector<double>(width, 0.0)); },
        grpc::StatusCode::INVALID_ARGUMENT},
-      {"values not a whole number of records", [&] { return report(l1.lease_id(), 33, std::vector<double>(40, 0.0)); },
+      {"values not a whole number of records", [&] { return report(l1.lease_id(), width, std::vector<double>(width + 7, 0.0)); },
        grpc::StatusCode::INVALID_ARGUMENT},
-      {"infinity in a result", [&] { return report(l1.lease_id(), 33, with_inf); }, grpc::StatusCode::INVALID_ARGUMENT},
+      {"infinity in a result", [&] { return report(l1.lease_id(), width, with_inf); }, grpc::StatusCode::INVALID_ARGUMENT},
       {"result for an expired lease",
        [&] {
          std::this_thread::sleep_for(std::chrono::milliseconds(400));  // lease period 0.3 s
-         return report(l1.lease_id(), 33, good);
+         return report(l1.lease_id(), width, good);
        },
        grpc::StatusCode::FAILED_PRECONDITION},
       {"status of an unknown sweep",

@@ -138,7 +138,7 @@ std::vector<double> Honest(const v1::LeaseReply& l) {
   return flat;
 }
 
-constexpr uint32_t kWidth = 33;  // PointRecord::Size(false): 13 metrics + 10 peak frequencies + 10 amplitudes
+const uint32_t kWidth = static_cast<uint32_t>(bistable::PointRecord::Size(false));  // metrics + 10 peak frequencies + 10 amplitudes
 
 // A row: what is sent and what must come back. Returns "" when the row holds, else what went wrong.
 struct Row {

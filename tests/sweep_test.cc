@@ -18,6 +18,10 @@
 #include "engine/sweep_spec.h"
 #include "server/sweep_coordinator.h"
 #include "storage/map_file.h"
+#include "dynamics/dopri5.h"
+#include "dynamics/nondim_system.h"
+#include "dynamics/point.h"
+#include "engine/basins.h"
 #include "engine/evaluate.h"
 #include "tests/map_compare.h"
 
@@ -468,6 +472,87 @@ states = [[1, 0], [-1, 0], [0.0, 1.0]]
     EXPECT_DOUBLE_EQ(fi->values[p], intra / 3.0);
   }
   std::filesystem::remove_all(dir);
+}
+
+// A basin map against brute force: every start integrated on its own by Dormand–Prince (rtol 1e-10,
+// an integrator the sweep does not use) and classified by the well its orbit ends in. The double-well
+// Duffing at gamma 0.2 has two period-1 attractors, one per well, with intertwined basins.
+TEST(SweepEngine, BasinMapAgreesWithBruteForceClassification) {
+  const std::string dir = TempDir("basins");
+  auto c = SweepCoordinator::Open(dir);
+  ASSERT_TRUE(c.ok());
+  const SweepSpec spec = Parse(R"(
+model = "standalone"
+[params]
+eta = 0.3
+omega = 1.2
+alpha = 0.1388888888888889
+[axes]
+ym0 = { linspace = [-2.0, 2.0, 31] }
+vm0 = { linspace = [-2.0, 2.0, 31] }
+[metrics]
+store = ["motion", "period", "y_min", "y_max", "strobe_y", "strobe_v"]
+)");
+  ASSERT_TRUE(spec.IsBasinSweep());
+  SweepPlan plan;
+  const std::string path = RunSweep(**c, spec, 2, &plan);
+  auto ids = ReadMapMetric(path, "attractor");
+  ASSERT_TRUE(ids.ok()) << ids.status().ToString();
+  EXPECT_EQ(ids->dim_names, (std::vector<std::string>{"vm0", "ym0"}));
+  ASSERT_EQ(ids->categories.size(), 2u);  // one attractor per well
+  const std::string a0 = ids->categories[0].second, a1 = ids->categories[1].second;
+  EXPECT_NE(a0.find("P1"), std::string::npos) << a0;
+  EXPECT_NE(a1.find("P1"), std::string::npos) << a1;
+  // Which id is the +well orbit.
+  const int plus_id = a0.find("+well") != std::string::npos ? 0 : 1;
+  NondimSystem<SingleModel> sys(LaneFor(spec.PointAt(0, 0)).coeffs, spec.base.alpha, spec.base.omega);
+  AdaptiveOptions ao;
+  ao.rtol = ao.atol = 1e-10;
+  int agree = 0, total = 0;
+  for (size_t i = 0; i < ids->dims[0]; ++i)
+    for (size_t j = 0; j < ids->dims[1]; ++j) {
+      Eigen::Vector2d x(ids->axes[1].values[j], ids->axes[0].values[i]);  // (ym0, vm0)
+      Dopri5<NondimSystem<SingleModel>>(sys, ao).Integrate(0.0, x, 500.0);
+      const int brute = x[0] > 0 ? plus_id : 1 - plus_id;  // both orbits stay inside their well
+      agree += brute == static_cast<int>(ids->values[i * ids->dims[1] + j]);
+      ++total;
+    }
+  // Starts on a basin boundary may go either way under a different integrator; all others agree.
+  EXPECT_GE(agree, total - total / 50) << agree << " of " << total;
+  // Basin fractions sum to 1 and match the map.
+  auto frac = ReadMapAttribute(path, "basin_boundary_fraction");
+  long plus = 0;
+  for (double v : ids->values) plus += v == plus_id;
+  const BasinMap again = [&] {
+    std::vector<PointRecord> records;
+    for (long p = 0; p < spec.points(); ++p) records.push_back(PointRecord::From(EvaluateItem(spec, p, 0)));
+    return ClassifyAttractors(spec, records, 10 * spec.base.metrics.period_tol);
+  }();
+  ASSERT_EQ(again.attractors.size(), 2u);
+  EXPECT_DOUBLE_EQ(again.attractors[plus_id].basin_fraction, static_cast<double>(plus) / total);
+  EXPECT_NEAR(again.attractors[0].basin_fraction + again.attractors[1].basin_fraction, 1.0, 1e-12);
+  EXPECT_GT(again.boundary_fraction, 0.0);
+  EXPECT_LT(again.boundary_fraction, 0.5);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SweepSpec, InitialStateAxesAreCheckedByName) {
+  for (const auto& [toml, field] : std::vector<std::pair<std::string, std::string>>{
+           {"model = \"standalone\"\n[axes]\nyr0 = [0.0, 1.0]\n", "axes.yr0"},
+           {"model = \"coupled\"\n[axes]\nym0 = [0.0, 1.0]\n[initial_conditions]\nstates = [[1, 0], [-1, 0]]\n",
+            "initial_conditions.states"},
+           {"model = \"coupled\"\n[axes]\nym0 = [0.0, 1.0]\nalpha = [0.1, 0.2]\n[continuation]\naxis = \"alpha\"\n",
+            "continuation"}}) {
+    auto s = ParseSweepSpec(toml, "test.toml");
+    ASSERT_FALSE(s.ok()) << toml;
+    EXPECT_EQ(s.status().field(), field) << s.status().ToString();
+  }
+  // With parameter axes too, initial-state axes give maps over both, but no basin map.
+  auto mixed = ParseSweepSpec("model = \"coupled\"\n[axes]\nym0 = [0.0, 1.0]\nalpha = [0.1, 0.2]\n", "test.toml");
+  ASSERT_TRUE(mixed.ok()) << mixed.status().ToString();
+  EXPECT_FALSE(mixed->IsBasinSweep());
+  EXPECT_EQ(mixed->PointAt(1, 0).ic[0], 1.0);  // the last axis fastest: (alpha 0.1, ym0 1)
+  EXPECT_EQ(mixed->PointAt(1, 0).ic[2], 1.0);  // unswept components: the default start (resonator at +1)
 }
 
 TEST(SweepEngine, UnwritableDataDirectoryIsAClearError) {
