@@ -93,6 +93,11 @@ PointResult MetricsWithSpectrum(RawLane raw, const PointSpec& spec, const Spectr
   r.hd_peaks = SpectralPeaks(sp, ms.hd_level, ms.hd_top_k);
   r.hd_index = HarmonicDiffusionIndex(sp, spec.omega);
   r.period = DetectPeriod(raw.strobe_y, raw.strobe_v, ms.max_period, ms.period_tol, sp, raw.y_samples, dts, spec.omega);
+  r.section_k0 = raw.strobe_k0;
+  r.section_y = std::move(raw.strobe_y);
+  r.section_v = std::move(raw.strobe_v);
+  r.section_yr = std::move(raw.strobe_yr);
+  r.section_vr = std::move(raw.strobe_vr);
 
   r.lle_rosenstein = nan;
   if (ms.rosenstein) {
