@@ -90,10 +90,12 @@ Status SetPoincareWindow(long n, PointSpec* spec) {
   return Status::Ok();
 }
 
-// The section's columns: strobe index k, its time, the state there.
-std::vector<std::string> SectionColumns(const PointSpec& spec) {
-  std::vector<std::string> c = {"k", "tau", "y_m", "dy_m"};
-  if (HasResonator(spec.model)) c.push_back("y_r"), c.push_back("dy_r");
+// The section's columns (strobe index k, its time, the state there) and their units: τ = ωn t,
+// lengths in δs, velocities d/dτ in δs ωn.
+std::vector<std::pair<std::string, std::string>> SectionColumns(const PointSpec& spec) {
+  std::vector<std::pair<std::string, std::string>> c = {
+      {"k", ""}, {"tau", "1/omega_n"}, {"y_m", "delta_s"}, {"dy_m", "delta_s omega_n"}};
+  if (HasResonator(spec.model)) c.push_back({"y_r", "delta_s"}), c.push_back({"dy_r", "delta_s omega_n"});
   return c;
 }
 
@@ -113,12 +115,9 @@ std::vector<double> SectionRow(const PointSpec& spec, const PointResult& r, size
 
 std::string SectionCsv(const PointSpec& spec, const PointResult& r, long limit) {
   std::ostringstream out;
-  out << "# Poincare (stroboscopic) section, bistable point: model " << ModelName(spec.model) << ", alpha "
-      << FormatNumber(spec.alpha) << ", Omega " << FormatNumber(spec.omega) << ", phase " << FormatNumber(spec.metrics.poincare_phase)
-      << " rad\n# tau_k = (phase + 2 pi k)/Omega (tau = omega_n t); y in delta_s, dy = dy/dtau in delta_s per unit tau; "
-      << "window tau in [" << FormatNumber(spec.integration.t_keep) << ", " << FormatNumber(spec.integration.t_end) << "]\n";
-  const std::vector<std::string> cols = SectionColumns(spec);
-  for (size_t c = 0; c < cols.size(); ++c) out << (c ? "," : "") << cols[c];
+  // One header line, units in brackets (as measured-data files write them): every CSV reader takes it.
+  const auto cols = SectionColumns(spec);
+  for (size_t c = 0; c < cols.size(); ++c) out << (c ? "," : "") << cols[c].first << (cols[c].second.empty() ? "" : " [" + cols[c].second + "]");
   out << "\n";
   char b[32];
   for (size_t i = 0; i < SectionCount(r, limit); ++i) {
@@ -158,7 +157,9 @@ Status PlotSection(const PointSpec& spec, const PointResult& r, long limit, cons
 // they go nowhere else (--poincare -).
 nlohmann::json SectionJson(const PointSpec& spec, const PointResult& r, long limit, const std::string& file) {
   const size_t n = SectionCount(r, limit);
-  nlohmann::json j = {{"phase", spec.metrics.poincare_phase}, {"count", n}, {"k0", r.section_k0}, {"columns", SectionColumns(spec)}};
+  nlohmann::json columns = nlohmann::json::array(), units = nlohmann::json::array();
+  for (const auto& [name, unit] : SectionColumns(spec)) columns.push_back(name), units.push_back(unit);
+  nlohmann::json j = {{"phase", spec.metrics.poincare_phase}, {"count", n}, {"k0", r.section_k0}, {"columns", columns}, {"units", units}};
   if (file == "-") {
     nlohmann::json pts = nlohmann::json::array();
     for (size_t i = 0; i < n; ++i) pts.push_back(SectionRow(spec, r, i));
@@ -308,7 +309,7 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
       "Units are non-dimensional (model.md): tau = omega_n t, lengths in delta_s. FRF is the absolute-velocity\n"
       "transmissibility 20 log10(max|x_m'| / (alpha Omega)) over the window; LLE per unit tau.\n"
       "Poincare section: the state at tau_k = (phase + 2 pi k)/Omega for every k with tau_k in the window,\n"
-      "y in delta_s and y' = dy/dtau in delta_s omega_n; CSV columns k,tau,y_m,dy_m[,y_r,dy_r] after two '#' lines.");
+      "y in delta_s and y' = dy/dtau in delta_s omega_n; CSV columns k,tau,y_m,dy_m[,y_r,dy_r], units in the header.");
   cmd->callback([args, exit_code, periods]() {
     args->poincare_periods_given = periods->count() > 0;
     *exit_code = RunPoint(*args);

@@ -3,6 +3,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -108,7 +109,7 @@ TEST(CliPoint, BadInputNamesFieldAndExitsNonZero) {
   }
 }
 
-// --poincare: a CSV file (two '#' lines, then the columns), its count and file in --json; "-" with
+// --poincare: a CSV file (one header line, units in brackets), its count and file in --json; "-" with
 // --json puts the points into the JSON; the plot; bad values name the flag and the bound.
 TEST(CliPoint, PoincareSectionFileJsonAndPlot) {
   const std::string dir = ::testing::TempDir() + "/poincare_" + std::to_string(::getpid());
@@ -122,15 +123,12 @@ TEST(CliPoint, PoincareSectionFileJsonAndPlot) {
   EXPECT_EQ(j["poincare"]["count"], 3000);
   EXPECT_EQ(j["poincare"]["file"], dir + "/s.csv");
   EXPECT_EQ(j["poincare"]["columns"], nlohmann::json({"k", "tau", "y_m", "dy_m"}));
+  EXPECT_EQ(j["poincare"]["units"], nlohmann::json({"", "1/omega_n", "delta_s", "delta_s omega_n"}));
   EXPECT_FALSE(j["poincare"].contains("points")) << "points go to the file, not the JSON";
   std::ifstream in(dir + "/s.csv");
   std::string line;
   std::getline(in, line);
-  EXPECT_EQ(line.rfind("# Poincare", 0), 0u) << line;
-  std::getline(in, line);
-  EXPECT_NE(line.find("delta_s"), std::string::npos) << "units in the header: " << line;
-  std::getline(in, line);
-  EXPECT_EQ(line, "k,tau,y_m,dy_m");
+  EXPECT_EQ(line, "k,tau [1/omega_n],y_m [delta_s],dy_m [delta_s omega_n]");
   size_t rows = 0;
   while (std::getline(in, line)) ++rows;
   EXPECT_EQ(rows, 3000u);
@@ -151,8 +149,8 @@ TEST(CliPoint, PoincareSectionFileJsonAndPlot) {
   // "-" alone: standard output is the CSV.
   const ProcessResult csv = Bistable("point --model standalone --alpha 0.3 --omega 1.2 --no-rosenstein --poincare -");
   ASSERT_EQ(csv.exit_code, 0) << csv.err;
-  EXPECT_EQ(csv.out.rfind("# Poincare", 0), 0u);
-  EXPECT_NE(csv.out.find("\nk,tau,y_m,dy_m\n"), std::string::npos);
+  EXPECT_EQ(csv.out.rfind("k,tau [1/omega_n],y_m [delta_s],dy_m [delta_s omega_n]\n", 0), 0u) << csv.out.substr(0, 200);
+  EXPECT_GT(std::count(csv.out.begin(), csv.out.end(), '\n'), 40);
 
   struct Case {
     std::string args, expect;
