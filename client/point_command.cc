@@ -134,6 +134,9 @@ std::string SectionCsv(const PointSpec& spec, const PointResult& r, long limit) 
 // The section as panels of points: (y_m, y_m'), and (y_r, y_r') beside it for coupled models.
 Status PlotSection(const PointSpec& spec, const PointResult& r, long limit, const std::string& path) {
   const size_t n = SectionCount(r, limit);
+  if (n == 0)
+    return Status::InvalidArgument("poincare_plot", "the section has no points to plot (the run diverged, termination " +
+                                                        std::string(TerminationName(r.termination)) + ")");
   PanelPlot d;
   d.title = "Poincare section: " + std::string(ModelName(spec.model)) + ", alpha " + PlotNumber(spec.alpha) + ", Omega " +
             PlotNumber(spec.omega) + ", eta " + PlotNumber(spec.params.eta) + ", phase " + PlotNumber(spec.metrics.poincare_phase) +
@@ -302,7 +305,8 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
   CLI::Option* periods =
       cmd->add_option("--poincare-periods", args->poincare_periods,
                       "make the window N + 1 forcing periods long and keep the first N section points, N in [1, " +
-                          std::to_string(limits::kMaxPoincarePeriods) + "] (instead of --t-end)");
+                          std::to_string(limits::kMaxPoincarePeriods) + "] (instead of --t-end; very long windows need a "
+                          "larger --sample-every, see docs/limits.md)");
   cmd->add_option("--poincare-plot", args->poincare_plot, "plot the section (y_m, y_m'; and y_r, y_r') into this .png or .svg");
   periods->excludes(cmd->get_option("--t-end"));
   cmd->footer(
