@@ -25,6 +25,12 @@ inline constexpr int kMaxSeriesCells = 1000;                 // series.cells
 inline constexpr double kMaxStepsPerPoint = 1e8;             // t_end / dt
 inline constexpr double kMaxWindowSamples = 4'194'304;       // (t_end - t_keep) / dt / sample_every
 inline constexpr std::size_t kMaxTurningPointsKept = 65'536; // turning points held per point (the last ones)
+// `bistable point --poincare-periods N`: forcing periods of the section (the window is made N + 1
+// periods long). 4 doubles per period: 3.2 MB at the bound; the step and window-sample limits apply too.
+inline constexpr long kMaxPoincarePeriods = 100'000;
+// Sweeps: section points stored per (point, initial condition), `[metrics] poincare_points`. A report
+// of a full lease (kMaxJobItems records of at most 33 + 64 + 2·64 doubles) stays under kMaxMessageBytes.
+inline constexpr int kMaxPoincarePointsStored = 64;
 
 // --- The service -----------------------------------------------------------------------------------
 inline constexpr std::size_t kMaxMessageBytes = 8 << 20;     // any request to the coordinator

@@ -6,6 +6,8 @@
 #include <sstream>
 #include <iostream>
 
+#include "base/file.h"
+
 namespace bistable {
 
 StatusOr<std::map<std::string, std::string>> ParseNameValues(const std::string& text, const std::string& field) {
@@ -28,6 +30,14 @@ StatusOr<double> ParseFiniteNumber(const std::string& text, const std::string& f
   if (text.empty() || *end != '\0' || !std::isfinite(x))
     return Status::InvalidArgument(field, field + " = '" + text + "' violates a finite number");
   return x;
+}
+
+Status WriteTextOut(const std::string& path, const std::string& text, const std::string& field) {
+  if (path.empty() || path == "-") return WriteStdout(text, field);
+  auto f = AtomicFile::Create(path, field);
+  if (!f.ok()) return f.status();
+  BISTABLE_RETURN_IF_ERROR((*f)->Write(text));
+  return (*f)->Commit();
 }
 
 int Fail(const Status& st) {

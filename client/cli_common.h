@@ -22,6 +22,10 @@ StatusOr<double> ParseFiniteNumber(const std::string& text, const std::string& f
 // Prints "error: <status>" to stderr and returns kExitError (2).
 int Fail(const Status& st);
 
+// Text to standard output when `path` is "-" (or empty), else into the file, atomically (a temporary
+// beside it, renamed when complete; its directory must exist). Errors name `field`.
+Status WriteTextOut(const std::string& path, const std::string& text, const std::string& field);
+
 // Opens <data>/index.sqlite (which must exist) and finds the sweep by id or unique prefix.
 struct SweepRef {
   SweepRow row;

@@ -49,6 +49,7 @@ nlohmann::json SettingsJson(const PointSpec& s) {
       {"max_period", s.metrics.max_period},
       {"hd_level", s.metrics.hd_level},
       {"hd_top_k", s.metrics.hd_top_k},
+      {"poincare_phase", s.metrics.poincare_phase},
       {"numerics_version", kNumericsVersion},
   };
   if (HasResonator(s.model)) {

@@ -115,13 +115,7 @@ bool IsStdout(const std::string& out) { return out == "-"; }
 
 // Text formats: to standard output, or into the file (its directory must exist; the file is written
 // beside and renamed).
-Status WriteOut(const std::string& path, const std::string& text) {
-  if (path.empty() || IsStdout(path)) return WriteStdout(text, "out");
-  auto f = AtomicFile::Create(path, "out");
-  if (!f.ok()) return f.status();
-  BISTABLE_RETURN_IF_ERROR((*f)->Write(text));
-  return (*f)->Commit();
-}
+Status WriteOut(const std::string& path, const std::string& text) { return WriteTextOut(path, text, "out"); }
 
 // A plot for --out -: `render` draws it into a private temporary directory, whose file's bytes then go
 // to standard output (never PNG bytes onto a terminal). Otherwise `render` writes `out` and its path

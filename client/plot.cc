@@ -522,7 +522,7 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
 Status RenderPanels(const PanelPlot& d, const std::string& out_path) {
   if (d.panels.empty()) return Status::InvalidArgument("plot", "no panels to plot");
   std::ostringstream s;
-  const int w = 520 * d.cols, h = 400 * d.rows + 40;
+  const int w = std::clamp(d.panel_width, 100, 4000) * d.cols, h = std::clamp(d.panel_height, 100, 4000) * d.rows + 40;
   s << (std::filesystem::path(out_path).extension() == ".svg"
             ? "set terminal svg size " + std::to_string(w) + "," + std::to_string(h) + " dynamic noenhanced font 'Helvetica,13' background 'white'\n"
             : "set terminal pngcairo size " + std::to_string(w) + "," + std::to_string(h) + " noenhanced font 'Helvetica,11'\n");
@@ -541,7 +541,7 @@ Status RenderPanels(const PanelPlot& d, const std::string& out_path) {
       s << name << " << EOD\n";
       for (size_t i = 0; i < se.x.size() && i < se.y.size(); ++i) s << Num(se.x[i]) << " " << Num(se.y[i]) << "\n";
       s << "EOD\n";
-      plot += name + " using 1:2 with " + (se.points ? "points pt 7 ps 0.25" : "lines lw 1.2") +
+      plot += name + " using 1:2 with " + (se.points ? "points pt 7 ps " + Num(std::clamp(se.point_size, 0.01, 10.0)) : "lines lw 1.2") +
               (se.colour.empty() ? "" : " lc rgb " + GnuplotString(se.colour)) + " title " + GnuplotString(se.label) + ", ";
     }
     if (p.series.empty()) plot += "NaN notitle, ";

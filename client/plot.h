@@ -116,15 +116,17 @@ struct SpectrogramPlot {
 Status RenderSpectrogram(const SpectrogramPlot& d, const std::string& out_path);
 
 // Panels of curves or point clouds in a grid (multiplot): residual-force surfaces, measured vs
-// simulated time histories. Series labels and titles are plain text.
+// simulated time histories, Poincaré sections. Series labels and titles are plain text.
 struct PanelPlot {
   std::string title;
   int rows = 1, cols = 1;
+  int panel_width = 520, panel_height = 400;  // pixels of one panel (PNG; SVG the same units)
   struct Series {
     std::string label;
     std::vector<double> x, y;
     bool points = false;   // point cloud (else a line)
     std::string colour;    // "#rrggbb"; empty: automatic
+    double point_size = 0.25;  // points: gnuplot's pointsize of pt 7 (filled circle)
   };
   struct Panel {
     std::string title, x_label, y_label;

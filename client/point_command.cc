@@ -10,7 +10,11 @@
 #include <sstream>
 
 #include "base/exit_codes.h"
+#include "base/limits.h"
+#include "base/validate.h"
+#include "client/cli_common.h"
 #include "client/json_out.h"
+#include "client/plot.h"
 #include "dynamics/cancel.h"
 #include "dynamics/point.h"
 
@@ -22,16 +26,14 @@ struct PointArgs {
   std::string integrator = "rk4";
   std::string ic;
   std::string trace;
+  std::string poincare, poincare_plot;  // section CSV ("-": standard output) and figure
+  long poincare_periods = 0;            // > 0: the window is this many forcing periods (+1)
+  bool poincare_periods_given = false;
   bool json = false;
   bool no_rosenstein = false;
   bool spectrum = false;
   PointSpec spec;
 };
-
-int Fail(const Status& st) {
-  std::cerr << "error: " << st.ToString() << "\n";
-  return bistable::kExitError;
-}
 
 Status ParseIc(const std::string& text, std::array<double, 4>* ic) {
   std::stringstream ss(text);
@@ -65,6 +67,112 @@ Status WriteTrace(const std::string& path, const PointResult& r) {
   std::filesystem::rename(tmp, path, ec);
   if (ec) return Status::IoError("trace", "rename to '" + path + "' failed: " + ec.message());
   return Status::Ok();
+}
+
+// --poincare-periods N: the window [t_keep, t_end] is made N + 1 forcing periods long (rounded up to
+// whole steps), so it holds at least N strobes whatever the phase; the section keeps the first N.
+Status SetPoincareWindow(long n, PointSpec* spec) {
+  if (n < 1 || n > limits::kMaxPoincarePeriods)
+    return Violates("--poincare-periods", static_cast<double>(n), "in [1, " + std::to_string(limits::kMaxPoincarePeriods) + "]");
+  IntegrationSettings& in = spec->integration;
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("omega", spec->omega));
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("dt", in.dt));
+  BISTABLE_RETURN_IF_ERROR(CheckNonNegative("t_keep", in.t_keep));
+  const double period = 2 * M_PI / spec->omega;
+  const long n_keep = StepsFor(in.t_keep, in.dt);
+  const double window_steps = std::ceil(static_cast<double>(n + 1) * period / in.dt);
+  if (static_cast<double>(n_keep) + window_steps > limits::kMaxStepsPerPoint) {
+    const double most = std::floor((limits::kMaxStepsPerPoint - static_cast<double>(n_keep)) * in.dt / period) - 1;
+    return Violates("--poincare-periods", static_cast<double>(n),
+                    "<= " + FormatNumber(std::max(most, 0.0)) + " (the limit of " + FormatNumber(limits::kMaxStepsPerPoint) +
+                        " steps per point at dt = " + FormatNumber(in.dt) + ", Omega = " + FormatNumber(spec->omega) +
+                        ", t_keep = " + FormatNumber(in.t_keep) + ")");
+  }
+  in.t_end = static_cast<double>(n_keep + static_cast<long>(window_steps)) * in.dt;
+  return Status::Ok();
+}
+
+// The section's columns (strobe index k, its time, the state there) and their units: τ = ωn t,
+// lengths in δs, velocities d/dτ in δs ωn.
+std::vector<std::pair<std::string, std::string>> SectionColumns(const PointSpec& spec) {
+  std::vector<std::pair<std::string, std::string>> c = {
+      {"k", ""}, {"tau", "1/omega_n"}, {"y_m", "delta_s"}, {"dy_m", "delta_s omega_n"}};
+  if (HasResonator(spec.model)) c.push_back({"y_r", "delta_s"}), c.push_back({"dy_r", "delta_s omega_n"});
+  return c;
+}
+
+// Points of the section written (the first `limit` when > 0).
+size_t SectionCount(const PointResult& r, long limit) {
+  return limit > 0 ? std::min(r.section_y.size(), static_cast<size_t>(limit)) : r.section_y.size();
+}
+
+// Row i: k, τ_k = (φ + 2πk)/Ω as the recorder computes it, y_m, y_m' (, y_r, y_r').
+std::vector<double> SectionRow(const PointSpec& spec, const PointResult& r, size_t i) {
+  const long k = r.section_k0 + static_cast<long>(i);
+  const double tau = static_cast<double>(k) * (2.0 * M_PI / spec.omega) + spec.metrics.poincare_phase / spec.omega;
+  std::vector<double> row = {static_cast<double>(k), tau, r.section_y[i], r.section_v[i]};
+  if (HasResonator(spec.model)) row.push_back(r.section_yr[i]), row.push_back(r.section_vr[i]);
+  return row;
+}
+
+std::string SectionCsv(const PointSpec& spec, const PointResult& r, long limit) {
+  std::ostringstream out;
+  // One header line, units in brackets (as measured-data files write them): every CSV reader takes it.
+  const auto cols = SectionColumns(spec);
+  for (size_t c = 0; c < cols.size(); ++c) out << (c ? "," : "") << cols[c].first << (cols[c].second.empty() ? "" : " [" + cols[c].second + "]");
+  out << "\n";
+  char b[32];
+  for (size_t i = 0; i < SectionCount(r, limit); ++i) {
+    const std::vector<double> row = SectionRow(spec, r, i);
+    for (size_t c = 0; c < row.size(); ++c) {
+      std::snprintf(b, sizeof b, c == 0 ? "%.0f" : "%.17g", row[c]);
+      out << (c ? "," : "") << b;
+    }
+    out << "\n";
+  }
+  return out.str();
+}
+
+// The section as panels of points: (y_m, y_m'), and (y_r, y_r') beside it for coupled models.
+Status PlotSection(const PointSpec& spec, const PointResult& r, long limit, const std::string& path) {
+  const size_t n = SectionCount(r, limit);
+  if (n == 0)
+    return Status::InvalidArgument("poincare_plot", "the section has no points to plot (the run diverged, termination " +
+                                                        std::string(TerminationName(r.termination)) + ")");
+  PanelPlot d;
+  d.title = "Poincare section: " + std::string(ModelName(spec.model)) + ", alpha " + PlotNumber(spec.alpha) + ", Omega " +
+            PlotNumber(spec.omega) + ", eta " + PlotNumber(spec.params.eta) + ", phase " + PlotNumber(spec.metrics.poincare_phase) +
+            " rad, " + std::to_string(n) + " points";
+  const bool res = HasResonator(spec.model);
+  d.cols = res ? 2 : 1;
+  d.panel_width = res ? 640 : 900;
+  d.panel_height = res ? 600 : 760;
+  const double ps = n > 2000 ? 0.12 : n > 200 ? 0.3 : 0.8;
+  auto panel = [&](const char* title, const char* x, const char* y, const std::vector<double>& xs, const std::vector<double>& ys) {
+    PanelPlot::Series se{"", std::vector<double>(xs.begin(), xs.begin() + n), std::vector<double>(ys.begin(), ys.begin() + n),
+                         true, "#2166ac", ps};
+    d.panels.push_back({title, x, y, {se}});
+  };
+  panel("main mass at tau_k = (phase + 2 pi k)/Omega", "y_m [delta_s]", "dy_m/dtau [delta_s omega_n]", r.section_y, r.section_v);
+  if (res) panel("resonator at the same tau_k", "y_r [delta_s]", "dy_r/dtau [delta_s omega_n]", r.section_yr, r.section_vr);
+  return RenderPanels(d, path);
+}
+
+// What `--json` says about the section: its phase, size, columns and file; its points only when
+// they go nowhere else (--poincare -).
+nlohmann::json SectionJson(const PointSpec& spec, const PointResult& r, long limit, const std::string& file) {
+  const size_t n = SectionCount(r, limit);
+  nlohmann::json columns = nlohmann::json::array(), units = nlohmann::json::array();
+  for (const auto& [name, unit] : SectionColumns(spec)) columns.push_back(name), units.push_back(unit);
+  nlohmann::json j = {{"phase", spec.metrics.poincare_phase}, {"count", n}, {"k0", r.section_k0}, {"columns", columns}, {"units", units}};
+  if (file == "-") {
+    nlohmann::json pts = nlohmann::json::array();
+    for (size_t i = 0; i < n; ++i) pts.push_back(SectionRow(spec, r, i));
+    j["points"] = std::move(pts);
+  } else if (!file.empty()) {
+    j["file"] = file;
+  }
+  return j;
 }
 
 void PrintHuman(const PointSpec& spec, const PointResult& r) {
@@ -120,6 +228,17 @@ int RunPoint(PointArgs& a) {
   }
   spec.metrics.rosenstein = !a.no_rosenstein;
   spec.metrics.keep_samples = !a.trace.empty();
+  if (a.poincare_periods_given) {
+    Status st = SetPoincareWindow(a.poincare_periods, &spec);
+    if (!st.ok()) return Fail(st);
+  }
+  const long section_limit = a.poincare_periods_given ? a.poincare_periods : 0;
+  const bool section_to_stdout = a.poincare == "-";
+  if (!a.poincare_plot.empty()) {
+    const std::string ext = std::filesystem::path(a.poincare_plot).extension().string();
+    if (ext != ".png" && ext != ".svg")
+      return Fail(Status::InvalidArgument("poincare_plot", "--poincare-plot '" + a.poincare_plot + "' violates --poincare-plot ends in .png or .svg"));
+  }
   // Ctrl-C / SIGTERM stop the integration within ~1024 steps; nothing is printed or written then.
   InstallCancelSignalHandlers();
   auto result = EvaluatePoint(spec);
@@ -136,6 +255,15 @@ int RunPoint(PointArgs& a) {
     Status st = WriteTrace(a.trace, *result);
     if (!st.ok()) return Fail(st);
   }
+  // The section: a CSV file, or standard output (with --json: inside the JSON instead).
+  if (!a.poincare.empty() && !(section_to_stdout && a.json)) {
+    Status st = WriteTextOut(a.poincare, SectionCsv(spec, *result, section_limit), "poincare");
+    if (!st.ok()) return Fail(st);
+  }
+  if (!a.poincare_plot.empty()) {
+    Status st = PlotSection(spec, *result, section_limit, a.poincare_plot);
+    if (!st.ok()) return Fail(st);
+  }
   if (a.json) {
     nlohmann::json j = PointJson(spec, *result);
     if (spectrum) {
@@ -145,11 +273,17 @@ int RunPoint(PointArgs& a) {
       j["divergence"] = sp.divergence;
       j["kaplan_yorke"] = sp.kaplan_yorke;
     }
+    if (!a.poincare.empty() || !a.poincare_plot.empty() || a.poincare_periods_given)
+      j["poincare"] = SectionJson(spec, *result, section_limit, a.poincare);
     std::cout << j.dump(2) << "\n";
-  } else {
+  } else if (!section_to_stdout) {  // "-" without --json: standard output is the CSV alone
     PrintHuman(spec, *result);
     if (spectrum) PrintSpectrum(**spectrum);
     if (!a.trace.empty()) std::printf("  trace written to %s (%zu rows)\n", a.trace.c_str(), result->samples.size());
+    if (!a.poincare.empty())
+      std::printf("  Poincare section written to %s (%zu points, phase %g rad)\n", a.poincare.c_str(),
+                  SectionCount(*result, section_limit), spec.metrics.poincare_phase);
+    if (!a.poincare_plot.empty()) std::printf("  Poincare section plotted in %s\n", a.poincare_plot.c_str());
   }
   return 0;
 }
@@ -186,10 +320,28 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
                 "Kaplan-Yorke dimension; rk4 only; about D+1 times the point's cost)");
   cmd->add_flag("--json", args->json, "print one JSON object");
   cmd->add_option("--trace", args->trace, "write tau,y_m,dy_m,y_r,dy_r over the window to this CSV");
+  cmd->add_option("--poincare", args->poincare,
+                  "write the Poincare (stroboscopic) section to this CSV ('-': standard output; with --json, into the JSON)");
+  cmd->add_option("--poincare-phase", s.metrics.poincare_phase,
+                  "section phase in [0, 2 pi), radians of Omega tau: strobes at tau_k = (phase + 2 pi k)/Omega "
+                  "(the period test uses the same strobes)")
+      ->capture_default_str();
+  CLI::Option* periods =
+      cmd->add_option("--poincare-periods", args->poincare_periods,
+                      "make the window N + 1 forcing periods long and keep the first N section points, N in [1, " +
+                          std::to_string(limits::kMaxPoincarePeriods) + "] (instead of --t-end; very long windows need a "
+                          "larger --sample-every, see docs/limits.md)");
+  cmd->add_option("--poincare-plot", args->poincare_plot, "plot the section (y_m, y_m'; and y_r, y_r') into this .png or .svg");
+  periods->excludes(cmd->get_option("--t-end"));
   cmd->footer(
       "Units are non-dimensional (model.md): tau = omega_n t, lengths in delta_s. FRF is the absolute-velocity\n"
-      "transmissibility 20 log10(max|x_m'| / (alpha Omega)) over the window; LLE per unit tau.");
-  cmd->callback([args, exit_code]() { *exit_code = RunPoint(*args); });
+      "transmissibility 20 log10(max|x_m'| / (alpha Omega)) over the window; LLE per unit tau.\n"
+      "Poincare section: the state at tau_k = (phase + 2 pi k)/Omega for every k with tau_k in the window,\n"
+      "y in delta_s and y' = dy/dtau in delta_s omega_n; CSV columns k,tau,y_m,dy_m[,y_r,dy_r], units in the header.");
+  cmd->callback([args, exit_code, periods]() {
+    args->poincare_periods_given = periods->count() > 0;
+    *exit_code = RunPoint(*args);
+  });
 }
 
 }  // namespace bistable

@@ -81,7 +81,7 @@ class EnsembleGeneric {
         st.w[d][l] = 1.0 / std::sqrt(static_cast<double>(dim)) * (d % 2 == 0 ? 1.0 : -1.0);
       }
     }
-    WindowRecorder<2, W> rec(base_amp, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows);
+    WindowRecorder<2, W> rec(base_amp, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows, s.strobe_phase);
     V sn, cs;
     AnchorPhase<W>(omega, 0, k.h, &sn, &cs);
     m.Eval(st.x.data(), k.amp * sn, st.k1.data(), &st.j1);

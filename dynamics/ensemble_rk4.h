@@ -42,6 +42,7 @@ struct KernelSettings {
   int sample_every = 5;
   bool keep_samples = false;  // y_m samples (spectrum, Rosenstein)
   bool keep_rows = false;     // full rows (trace)
+  double strobe_phase = 0;    // φ of the strobes τ_k = (φ + 2πk)/Ω (Poincaré section, period)
 };
 
 template <class Model, int W>
@@ -60,7 +61,7 @@ class EnsembleRk4 {
     CellCoeffs<V> c;
     V amp, x[D], w[D], rot_c, rot_s;
     LoadLanes(lanes, n, s.h, alpha, omega, &c, &amp, x, w, &rot_c, &rot_s);
-    WindowRecorder<D, W> rec(alpha, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows);
+    WindowRecorder<D, W> rec(alpha, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows, s.strobe_phase);
     V sn, cs;
     AnchorPhase<W>(omega, 0, s.h, &sn, &cs);
     V k1[D];

@@ -26,6 +26,7 @@ struct GenericWindow {
   AdaptiveOptions tol;
   int renorm_every = 50, sample_every = 5;
   bool keep_samples = true, keep_rows = false;
+  double strobe_phase = 0;    // φ of the strobes τ_k = (φ + 2πk)/ω (Poincaré section, period)
   double amp = 1, omega = 1;  // base x0 = amp sin(omega t): absolute velocity = v_out + amp·omega·cos(omega t)
   // The output cell: its position and velocity as functions of the state (e.g. the last link's deflection).
   std::function<double(const Eigen::VectorXd&)> position, velocity;
@@ -42,7 +43,7 @@ RawLane RunGenericWindow(const System& sys, const Eigen::VectorXd& x0, const Gen
   Eigen::VectorXd z(2 * n), zi(2 * n);
   z.head(n) = x0;
   z.tail(n).setConstant(1.0 / std::sqrt(static_cast<double>(n)));
-  WindowRecorder<2, 1> rec(&w.amp, &w.omega, w.dt, n_keep, w.sample_every, w.keep_samples, w.keep_rows);
+  WindowRecorder<2, 1> rec(&w.amp, &w.omega, w.dt, n_keep, w.sample_every, w.keep_samples, w.keep_rows, w.strobe_phase);
   RawLane raw;
   Vec<1> xp[2], dp[2], x1[2], d1[2];
   typename System::State xs(n), dxs(n);

@@ -32,7 +32,7 @@ RawLane RunAdaptive(const PointSpec& spec, bool* cancelled) {
   opt.h_max = ks.h * ks.renorm_every;
   Dopri5<Aug> stepper(sys, opt);
   WindowRecorder<D, 1> rec(&lane.alpha, &lane.omega, ks.h, ks.n_keep, ks.sample_every, ks.keep_samples,
-                           ks.keep_rows);
+                           ks.keep_rows, ks.strobe_phase);
   const CellCoeffs<Vec<1>> c1{{lane.coeffs.k_lin}, {lane.coeffs.eps}, {lane.coeffs.eta},
                               {lane.coeffs.eta_r}, {lane.coeffs.phi}, {lane.coeffs.lambda2}};
   RawLane raw;
@@ -127,6 +127,7 @@ KernelSettings KernelSettingsFor(const PointSpec& spec) {
   k.sample_every = spec.metrics.sample_every;
   k.keep_samples = true;
   k.keep_rows = spec.metrics.keep_samples;
+  k.strobe_phase = spec.metrics.poincare_phase;
   return k;
 }
 

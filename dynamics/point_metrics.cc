@@ -102,6 +102,11 @@ PointResult MetricsWithSpectrum(RawLane raw, const PointSpec& spec, const Spectr
     r.strobe_y = raw.strobe_y[best];
     r.strobe_v = raw.strobe_v[best];
   }
+  r.section_k0 = raw.strobe_k0;
+  r.section_y = std::move(raw.strobe_y);
+  r.section_v = std::move(raw.strobe_v);
+  r.section_yr = std::move(raw.strobe_yr);
+  r.section_vr = std::move(raw.strobe_vr);
 
   r.lle_rosenstein = nan;
   if (ms.rosenstein) {

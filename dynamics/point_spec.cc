@@ -137,6 +137,10 @@ Status ValidatePointSpec(const PointSpec& s) {
   if (m.max_period < 1 || m.max_period > 64) return Violates("max_period", m.max_period, "in [1, 64]");
   if (!(m.hd_level > 0 && m.hd_level < 1)) return Violates("hd_level", m.hd_level, "in (0, 1)");
   if (m.hd_top_k < 1 || m.hd_top_k > 100) return Violates("hd_top_k", m.hd_top_k, "in [1, 100]");
+  if (!(m.poincare_phase >= 0 && m.poincare_phase < 2 * M_PI))
+    return Violates("poincare_phase", m.poincare_phase, "in [0, 2 pi) (radians of Omega tau)");
+  if (m.poincare_points < 0 || m.poincare_points > limits::kMaxPoincarePointsStored)
+    return Violates("poincare_points", m.poincare_points, "in [0, " + std::to_string(limits::kMaxPoincarePointsStored) + "]");
   return Status::Ok();
 }
 

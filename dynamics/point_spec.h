@@ -67,6 +67,10 @@ struct MetricSettings {
   bool rosenstein = true;          // also estimate the LLE from sampled y_m (Rosenstein 1993)
   bool keep_samples = false;       // return the sampled window (for --trace)
   bool turning_points = false;     // sweeps: store y_m at y_m' = 0 (bifurcation diagrams)
+  // Phase φ ∈ [0, 2π) of the stroboscopic samples τ_k = (φ + 2πk)/Ω: the Poincaré section and the
+  // period test both use them (0: τ_k = 2πk/Ω).
+  double poincare_phase = 0;
+  int poincare_points = 0;         // sweeps: store the last this many section points (y_m, y_m'); 0 = none
 };
 
 struct PointSpec {
@@ -123,6 +127,11 @@ struct PointResult {
   double edr_b = 0, edr_r = 0, edr_t = 0;  // 100 W_m/W_in, 100 W_r/W_in, 100 (W_m+W_r)/W_in  [%]
   double energy_balance_residual = 0;      // |∫P − W_m − W_r − ΔE| / max(W_in, tiny)
   std::vector<double> turning_points;  // y_m at y_m' = 0 in the window, in time order
+  // Poincaré (stroboscopic) section over the window, in time order: the state at
+  // τ_k = (φ + 2πk)/Ω for k = section_k0, section_k0 + 1, … (φ = metrics.poincare_phase); y_r, y_r'
+  // only for models with a resonator. Empty when the run diverged.
+  long section_k0 = 0;
+  std::vector<double> section_y, section_v, section_yr, section_vr;
   std::array<double, 4> final_state = {0, 0, 0, 0};  // (y_m, y_m', y_r, y_r') at t_end
   long steps = 0;                 // integrator steps taken (accepted)
   long rhs_evals = 0;             // right-hand-side evaluations (adaptive path)

@@ -1,6 +1,7 @@
 // Collects, per lane, what the metrics of model.md §3 need from the steady-state window, one
 // integration step at a time: max |absolute velocity| (FRF), extremes of y_m (motion type),
-// stroboscopic samples at τ_k = 2πk/Ω by cubic Hermite interpolation inside the step (period n),
+// stroboscopic samples at τ_k = (φ + 2πk)/Ω by cubic Hermite interpolation inside the step (period n
+// and the Poincaré section; φ the section phase, 0 by default),
 // decimated samples (spectrum, Rosenstein, trace) and the Benettin log-growth sum.
 // Both the SIMD RK4 kernel (W lanes) and the adaptive path (W = 1) feed it, so the metrics are
 // computed by one piece of code. Not thread-safe; one recorder per integration.
@@ -23,7 +24,9 @@ struct RawLane {
   double vabs_max = 0;                 // max |y_m' + αΩ cos Ωτ| over window steps
   double y_min = 0, y_max = 0;
   double log_growth = 0;               // Σ log(|w| before renormalisation) over the window
-  std::vector<double> strobe_y, strobe_v;  // y_m, y_m' at τ_k = 2πk/Ω in the window
+  std::vector<double> strobe_y, strobe_v;  // y_m, y_m' at τ_k = (φ + 2πk)/Ω in the window (φ: strobe phase)
+  std::vector<double> strobe_yr, strobe_vr;  // y_r, y_r' at the same τ_k (models with a resonator, D = 4)
+  long strobe_k0 = 0;                  // k of the first strobe (τ_k ≥ t_keep)
   std::vector<double> y_samples;       // y_m every sample_every steps
   std::vector<std::array<double, 5>> rows;  // (τ, y_m, y_m', y_r, y_r') when keep_rows
   std::vector<double> turning_points;  // y_m where y_m' changes sign in the window (bifurcation diagrams)
@@ -41,14 +44,19 @@ class WindowRecorder {
   using V = Vec<W>;
 
   // alpha/omega: per lane. h: step. n_keep: index of the first window step. sample_every: decimation.
+  // strobe_phase: φ ∈ [0, 2π), the phase Ωτ mod 2π of the strobes (0: τ_k = 2πk/Ω, bit for bit as
+  // without it).
   WindowRecorder(const double* alpha, const double* omega, double h, long n_keep, int sample_every,
-                 bool keep_samples, bool keep_rows)
+                 bool keep_samples, bool keep_rows, double strobe_phase = 0.0)
       : h_(h), n_keep_(n_keep), sample_every_(sample_every), keep_samples_(keep_samples), keep_rows_(keep_rows) {
     for (int l = 0; l < W; ++l) {
       alpha_omega_[l] = alpha[l] * omega[l];
       strobe_period_[l] = 2.0 * M_PI / omega[l];
+      strobe_offset_[l] = strobe_phase / omega[l];
       // First strobe index k with τ_k ≥ t_keep.
-      next_k_[l] = static_cast<long>(std::ceil((static_cast<double>(n_keep) * h) / strobe_period_[l]));
+      next_k_[l] = static_cast<long>(
+          std::ceil((static_cast<double>(n_keep) * h - strobe_offset_[l]) / strobe_period_[l]));
+      lanes_[l].strobe_k0 = next_k_[l];
       Schedule(l);
     }
     run_.vabs_max = Splat<W>(0.0);
@@ -139,7 +147,7 @@ class WindowRecorder {
       const double t0 = static_cast<double>(n - 1) * h_;
       for (int l = 0; l < W; ++l) {
         while (strobe_step_[l] <= n) {
-          const double ts = static_cast<double>(next_k_[l]) * strobe_period_[l];
+          const double ts = StrobeTime(l);
           if (n == n_keep_) {
             Strobe(l, 0.0, x1, d1, x1, d1);
           } else {
@@ -190,22 +198,24 @@ class WindowRecorder {
     for (int l = 0; l < W; ++l) v[l] = a[l];
     return v;
   }
+  // τ_k of lane l's next strobe.
+  double StrobeTime(int l) const { return static_cast<double>(next_k_[l]) * strobe_period_[l] + strobe_offset_[l]; }
   // The step in which lane l's next strobe time falls: the smallest n with n·h ≥ τ_k.
   void Schedule(int l) {
-    const double ts = static_cast<double>(next_k_[l]) * strobe_period_[l];
+    const double ts = StrobeTime(l);
     long n = static_cast<long>(std::ceil(ts / h_));
     if (static_cast<double>(n - 1) * h_ >= ts) --n;  // guard the division's rounding
     strobe_step_[l] = std::max(n, n_keep_);
   }
 
-  // Cubic Hermite on [x0, x1] at θ ∈ [0, 1] for y_m (derivative y_m') and y_m' (derivative y_m'').
+  // Cubic Hermite on [x0, x1] at θ ∈ [0, 1] for each state component (its derivative is d's).
   void Strobe(int l, double th, const V* x0, const V* d0, const V* x1, const V* d1) {
     const double t2 = th * th, t3 = t2 * th;
     const double h00 = 2 * t3 - 3 * t2 + 1, h10 = t3 - 2 * t2 + th, h01 = -2 * t3 + 3 * t2, h11 = t3 - t2;
-    const double y = h00 * x0[0][l] + h10 * h_ * d0[0][l] + h01 * x1[0][l] + h11 * h_ * d1[0][l];
-    const double v = h00 * x0[1][l] + h10 * h_ * d0[1][l] + h01 * x1[1][l] + h11 * h_ * d1[1][l];
-    lanes_[l].strobe_y.push_back(y);
-    lanes_[l].strobe_v.push_back(v);
+    auto at = [&](int d) { return h00 * x0[d][l] + h10 * h_ * d0[d][l] + h01 * x1[d][l] + h11 * h_ * d1[d][l]; };
+    lanes_[l].strobe_y.push_back(at(0));
+    lanes_[l].strobe_v.push_back(at(1));
+    if constexpr (D > 2) lanes_[l].strobe_yr.push_back(at(2)), lanes_[l].strobe_vr.push_back(at(3));
   }
 
   double h_;
@@ -214,6 +224,7 @@ class WindowRecorder {
   bool keep_samples_, keep_rows_;
   double alpha_omega_[W];
   double strobe_period_[W];
+  double strobe_offset_[W];  // φ/Ω: τ_k = k·2π/Ω + φ/Ω
   long next_k_[W];
   long strobe_step_[W];
   long next_due_ = 0;

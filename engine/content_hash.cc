@@ -74,6 +74,10 @@ std::string PointKey(const PointSpec& p) {
   t.Field("pmax", static_cast<long>(m.max_period)).Field("hdl", m.hd_level).Field("hdk", static_cast<long>(m.hd_top_k));
   t.Field("ros", static_cast<long>(m.rosenstein ? 1 : 0)).Field("tp", static_cast<long>(m.turning_points ? 1 : 0));
   t.Field("ic0", ic[0]).Field("ic1", ic[1]).Field("ic2", ic[2]).Field("ic3", ic[3]);
+  // The section changes the record (its phase also the period's strobes): keyed only when set, so the
+  // keys of points without one stay those already cached.
+  if (m.poincare_points > 0 || m.poincare_phase != 0)
+    t.Field("pc_n", static_cast<long>(m.poincare_points)).Field("pc_phase", m.poincare_phase);
   return t.Hash();
 }
 

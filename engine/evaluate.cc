@@ -107,6 +107,7 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
                                                                     const std::vector<WorkItem>& items) {
   std::vector<PointRecord> out(items.size());
   const bool turning = spec.base.metrics.turning_points;
+  const int section = spec.base.metrics.poincare_points;
   if (spec.continuation.enabled()) {
     // Chains in order: a point that continues the previous item's chain (same line and direction,
     // next index along the axis) starts from that item's final state; a chain's first point from the
@@ -129,17 +130,17 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
       if (!r.ok() && CancelRequested()) return std::nullopt;  // cancelled: no result, not "diverged"
       const PointResult res = r.ok() ? *r : Unevaluated(spec, items[i].point, items[i].ic, r.status());
       last = res.final_state;
-      out[i] = PointRecord::From(res, turning);
+      out[i] = PointRecord::From(res, turning, section);
     }
   } else if (spec.UsesGenericLanes()) {  // series and dimensional RK4: the lane kernel
     auto results = EvaluateItemsInLanes(spec, items, kSweepLanes);
     if (!results) return std::nullopt;
-    for (size_t i = 0; i < items.size(); ++i) out[i] = PointRecord::From((*results)[i], turning);
+    for (size_t i = 0; i < items.size(); ++i) out[i] = PointRecord::From((*results)[i], turning, section);
   } else if (!spec.UsesKernel()) {  // adaptive: one point at a time
     for (size_t i = 0; i < items.size(); ++i) {
       if (CancelRequested()) return std::nullopt;
       // A cancelled evaluation comes back as a diverged record; the check below discards the job.
-      out[i] = PointRecord::From(EvaluateItem(spec, items[i].point, items[i].ic), turning);
+      out[i] = PointRecord::From(EvaluateItem(spec, items[i].point, items[i].ic), turning, section);
     }
   } else {
     const PointSpec first = spec.PointAt(0, 0);
@@ -156,7 +157,7 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
       }
       if (!RunKernel<kSweepLanes>(spec.base.model, lanes.data(), n, ks, raw.data())) return std::nullopt;
       ComputeBlockMetrics<kSweepLanes>(raw.data(), specs.data(), n, results.data());
-      for (int l = 0; l < n; ++l) out[start + l] = PointRecord::From(std::move(results[l]), turning);
+      for (int l = 0; l < n; ++l) out[start + l] = PointRecord::From(std::move(results[l]), turning, section);
     }
   }
   // The flag is sticky: clear now means no integration of this job saw it, so every record is whole.
@@ -189,6 +190,7 @@ PointResult EvaluateItem(const SweepSpec& spec, long index, int ic) {
   w.tol.atol = p.integration.atol;
   w.renorm_every = p.metrics.renorm_every;
   w.sample_every = p.metrics.sample_every;
+  w.strobe_phase = p.metrics.poincare_phase;
   RawLane raw;
   if (spec.model == ModelKind::kSeries) {
     const SeriesLaneInput in = SeriesInputFor(spec, p);

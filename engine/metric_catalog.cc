@@ -3,11 +3,14 @@
 #define XXH_INLINE_ALL
 #include <xxhash.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <string_view>
 #include <limits>
+
+#include "base/limits.h"
 
 namespace bistable {
 namespace {
@@ -38,7 +41,7 @@ const std::vector<MetricInfo>& MetricCatalog() {
       {"y_max", "delta_s", "maximum of y_m over the window", false, -1e150, 1e150, true, "maximum displacement of the main mass relative to the base"},
       {"termination", "code", "0 ok, 1 diverged, 2 step size underflow, 3 max steps", true, 0, 3, false, "how the integration ended"},
       {"strobe_y", "delta_s", "y_m at a stroboscopic sample (Omega tau a multiple of 2 pi) of the window: of the last `period` samples the one with the smallest y_m; the last sample when no period was found", false, -1e150, 1e150, true, "displacement of the main mass at a point of the attractor's Poincare section"},
-      {"strobe_v", "delta_s omega_n", "y_m' at the same stroboscopic sample as strobe_y", false, -1e150, 1e150, true, "velocity of the main mass at a point of the attractor's Poincare section"},
+      {"strobe_v", "delta_s/tau", "y_m' at the same stroboscopic sample as strobe_y", false, -1e150, 1e150, true, "velocity of the main mass at a point of the attractor's Poincare section"},
   };
   return kCatalog;
 }
@@ -46,7 +49,8 @@ const std::vector<MetricInfo>& MetricCatalog() {
 uint64_t CatalogHash() {
   static const uint64_t kHash = [] {
     std::string text = std::string("numerics=") + kNumericsVersion + ";peaks=" + std::to_string(kHdPeaksStored) +
-                       ";turning=" + std::to_string(kTurningPointsStored) + ";metrics=";
+                       ";turning=" + std::to_string(kTurningPointsStored) +
+                       ";poincare<=" + std::to_string(limits::kMaxPoincarePointsStored) + "x2;metrics=";
     for (const MetricInfo& m : MetricCatalog()) text += std::string(m.name) + (m.integer ? ":i," : ":f,");
     return XXH3_64bits(text.data(), text.size());
   }();
@@ -72,6 +76,7 @@ std::vector<std::string> MetricNames() {
   for (const MetricInfo& m : MetricCatalog()) names.push_back(m.name);
   names.push_back("hd_peaks");
   names.push_back("turning_points");
+  names.push_back("poincare");
   return names;
 }
 
@@ -118,13 +123,26 @@ const char* CategoryName(const std::string& metric, double code) {
   return nullptr;
 }
 
-size_t PointRecord::Size(bool turning_points) {
-  return MetricCatalog().size() + 2 * kHdPeaksStored + (turning_points ? kTurningPointsStored : 0);
+size_t PointRecord::Size(bool turning_points, int poincare_points) {
+  return MetricCatalog().size() + 2 * kHdPeaksStored + (turning_points ? kTurningPointsStored : 0) +
+         2 * static_cast<size_t>(std::max(poincare_points, 0));
 }
 
 double PointRecord::TurningPoint(int k) const { return v[MetricCatalog().size() + 2 * kHdPeaksStored + k]; }
 
-PointRecord PointRecord::From(const PointResult& r, bool turning_points) {
+double PointRecord::Poincare(int k, int component, bool turning_points, int poincare_points) const {
+  return v[Size(turning_points) + static_cast<size_t>(component) * poincare_points + k];
+}
+
+namespace {
+// The last n values of xs in order, NaN-filled to n.
+void AppendLast(const std::vector<double>& xs, int n, std::vector<double>* out) {
+  const size_t have = xs.size(), first = have > static_cast<size_t>(n) ? have - n : 0;
+  for (int k = 0; k < n; ++k) out->push_back(first + k < have ? xs[first + k] : std::numeric_limits<double>::quiet_NaN());
+}
+}  // namespace
+
+PointRecord PointRecord::From(const PointResult& r, bool turning_points, int poincare_points) {
   PointRecord p;
   p.v = {r.frf_db,
          r.lle,
@@ -148,21 +166,22 @@ PointRecord PointRecord::From(const PointResult& r, bool turning_points) {
     if (!catalog[i].integer && !InDomain(catalog[i], p.v[i])) p.v[i] = nan;
   for (int k = 0; k < kHdPeaksStored; ++k) p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].freq : nan);
   for (int k = 0; k < kHdPeaksStored; ++k) p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].amp : nan);
-  if (turning_points) {
-    const size_t n = r.turning_points.size(), first = n > kTurningPointsStored ? n - kTurningPointsStored : 0;
-    for (int k = 0; k < kTurningPointsStored; ++k) p.v.push_back(first + k < n ? r.turning_points[first + k] : nan);
+  if (turning_points) AppendLast(r.turning_points, kTurningPointsStored, &p.v);
+  if (poincare_points > 0) {  // y_m and y_m' of the same strobes (a diverged run has none: NaN)
+    AppendLast(r.section_y, poincare_points, &p.v);
+    AppendLast(r.section_v, poincare_points, &p.v);
   }
   for (size_t i = catalog.size(); i < p.v.size(); ++i)
     if (!(std::fabs(p.v[i]) <= kMaxPeakOrTurningValue)) p.v[i] = nan;
   return p;
 }
 
-Status CheckRecord(const double* v, size_t width, bool turning_points) {
-  const size_t expected = PointRecord::Size(turning_points);
-  if (width != expected)
-    return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) +
-                                                       " violates record_width = " + std::to_string(expected) +
-                                                       " (the sweep's layout)");
+namespace {
+
+// Every metric's domain in v[0, width); values after the peaks belong to the optional tails (turning
+// points, section values), all bounded alike and named by tail_name(i) in a message.
+template <class TailName>
+Status CheckDomains(const double* v, size_t width, TailName tail_name) {
   const auto& catalog = MetricCatalog();
   auto bad = [&](size_t i, const std::string& what, const std::string& bound) {
     char b[40];
@@ -189,8 +208,36 @@ Status CheckRecord(const double* v, size_t width, bool turning_points) {
       return bad(catalog.size() + kHdPeaksStored + k, "hd_peak_amp", "NaN or in [0, 1e150]");
   }
   for (size_t i = catalog.size() + 2 * kHdPeaksStored; i < width; ++i)
-    if (!std::isnan(v[i]) && !(std::fabs(v[i]) <= kMaxPeakOrTurningValue)) return bad(i, "turning_points", "NaN or |y| <= 1e150");
+    if (!std::isnan(v[i]) && !(std::fabs(v[i]) <= kMaxPeakOrTurningValue)) return bad(i, tail_name(i), "NaN or |y| <= 1e150");
   return Status::Ok();
+}
+
+}  // namespace
+
+Status CheckRecord(const double* v, size_t width, bool turning_points, int poincare_points) {
+  const size_t expected = PointRecord::Size(turning_points, poincare_points);
+  if (width != expected)
+    return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) +
+                                                       " violates record_width = " + std::to_string(expected) +
+                                                       " (the sweep's layout)");
+  const size_t section_from = PointRecord::Size(turning_points);
+  return CheckDomains(v, width, [&](size_t i) {
+    if (i < section_from) return "turning_points";
+    return i < section_from + static_cast<size_t>(poincare_points) ? "poincare_y" : "poincare_v";
+  });
+}
+
+Status CheckAnyRecordWidth(size_t width) {
+  const size_t lo = PointRecord::Size(false), hi = PointRecord::Size(true, limits::kMaxPoincarePointsStored);
+  if (width < lo || width > hi)
+    return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) + " violates record_width in [" +
+                                                       std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  return Status::Ok();
+}
+
+Status CheckAnyRecord(const double* v, size_t width) {
+  BISTABLE_RETURN_IF_ERROR(CheckAnyRecordWidth(width));
+  return CheckDomains(v, width, [](size_t) { return "turning_points or poincare"; });
 }
 
 double PointRecord::PeakFreq(int k) const { return v[MetricCatalog().size() + k]; }

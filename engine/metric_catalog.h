@@ -14,6 +14,8 @@ namespace bistable {
 
 inline constexpr int kHdPeaksStored = 10;        // spectral peaks kept per point (freq, amp)
 inline constexpr int kTurningPointsStored = 64;  // last turning points of y_m in the window, when requested
+// Poincaré section points stored per record: `[metrics] poincare_points` (0 = none), at most
+// limits::kMaxPoincarePointsStored; each point is (y_m, y_m').
 
 struct MetricInfo {
   const char* name;
@@ -37,13 +39,17 @@ std::vector<std::string> MetricNames();
 
 // Fixed-layout record of one (point, IC) result: the scalar metrics in MetricCatalog() order, then
 // kHdPeaksStored peak frequencies and amplitudes (NaN-filled), then — only when the sweep stores
-// turning points — the last kTurningPointsStored of them (NaN-filled). This is what the point cache
-// stores; the two layouts never share a key (the turning-point flag is part of it).
+// turning points — the last kTurningPointsStored of them (NaN-filled), then — only when it stores a
+// Poincaré section of n = poincare_points points — the last n section values of y_m, then of y_m' (time
+// order, NaN-filled). This is what the point cache stores; layouts never share a key (the
+// turning-point flag and the section's count are part of it).
 struct PointRecord {
   std::vector<double> v;
-  static size_t Size(bool turning_points = false);
-  static PointRecord From(const PointResult& r, bool turning_points = false);
+  static size_t Size(bool turning_points = false, int poincare_points = 0);
+  static PointRecord From(const PointResult& r, bool turning_points = false, int poincare_points = 0);
   double TurningPoint(int k) const;
+  // Section point k < poincare_points of a record of that layout: y_m (component 0) or y_m' (1).
+  double Poincare(int k, int component, bool turning_points, int poincare_points) const;
   double Get(size_t metric_index) const { return v[metric_index]; }
   double Get(const char* metric) const { return v[MetricIndex(metric)]; }
   double PeakFreq(int k) const;
@@ -54,10 +60,15 @@ struct PointRecord {
 // Workers send it with every report; the coordinator refuses records of another layout.
 uint64_t CatalogHash();
 
-// Checks a record of `width` values (the sweep's layout: PointRecord::Size(turning_points)) against
-// every metric's domain; the message names the metric, the value and the bound. The coordinator runs
-// this on every reported record before storing it.
-Status CheckRecord(const double* v, size_t width, bool turning_points);
+// Checks a record of `width` values (the sweep's layout: PointRecord::Size(turning_points,
+// poincare_points)) against every metric's domain; the message names the metric, the value and the
+// bound. The coordinator runs this on every reported record before storing it.
+Status CheckRecord(const double* v, size_t width, bool turning_points, int poincare_points = 0);
+// The same for a record of any layout (the sweep not known yet): `width` within the smallest and the
+// largest layout (CheckAnyRecordWidth), the optional tails (turning points, section values) checked by
+// their common bound.
+Status CheckAnyRecordWidth(size_t width);
+Status CheckAnyRecord(const double* v, size_t width);
 
 // Motion codes stored in maps.
 inline constexpr int kMotionUndefined = -1;

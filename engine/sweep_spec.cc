@@ -34,7 +34,10 @@ const std::vector<std::string> kParamKeys = {"eps", "eta", "eta_r", "phi", "lamb
 const std::vector<std::string> kAxisForms = {"list", "linspace", "logspace"};
 const std::vector<std::string> kIntegrationKeys = {"integrator", "dt", "t_end", "t_keep", "rtol", "atol"};
 const std::vector<std::string> kMetricKeys = {"store",     "chaos_threshold", "rosenstein", "renorm_every",
-                                              "sample_every", "period_tol",  "max_period", "hd_level"};
+                                              "sample_every", "period_tol",  "max_period", "hd_level",
+                                              "poincare_points", "poincare_phase"};
+// Section points stored per point when "poincare" is stored and poincare_points is not given.
+constexpr int kDefaultPoincarePoints = 32;
 const std::vector<std::string> kIcKeys = {"states"};
 const std::vector<std::string> kOutputKeys = {"plots"};
 
@@ -264,8 +267,8 @@ std::string AxisUnit(const std::string& name) {
   static const std::map<std::string, std::string> kUnits = {
       {"alpha", "A0/delta_s"}, {"omega", "omega0/omega_n"}, {"eta", "c/(m_m omega_n)"}, {"eta_r", "c_r/(m_r omega_n)"},
       {"lambda", "omega_r/omega_n"}, {"phi", "m_r/m_m"}, {"eps", "k3 delta_s^2/(m_m omega_n^2)"},
-      {"a0_mm", "mm"}, {"f0_hz", "Hz"}, {"ym0", "delta_s"}, {"vm0", "delta_s omega_n"}, {"yr0", "delta_s"},
-      {"vr0", "delta_s omega_n"}};
+      {"a0_mm", "mm"}, {"f0_hz", "Hz"}, {"ym0", "delta_s"}, {"vm0", "delta_s/tau"}, {"yr0", "delta_s"},
+      {"vr0", "delta_s/tau"}};
   auto it = kUnits.find(name);
   return it == kUnits.end() ? "" : it->second;
 }
@@ -402,6 +405,9 @@ std::string SweepSpec::CanonicalText() const {
   os << "renorm_every=" << m.renorm_every << "\nchaos_threshold=" << G17(m.chaos_threshold)
      << "\nsample_every=" << m.sample_every << "\nperiod_tol=" << G17(m.period_tol) << "\nmax_period=" << m.max_period
      << "\nhd_level=" << G17(m.hd_level) << "\nhd_top_k=" << m.hd_top_k << "\nrosenstein=" << m.rosenstein << "\n";
+  // Only when set, so the ids of sweeps without a section stay what they were.
+  if (m.poincare_points > 0 || m.poincare_phase != 0)
+    os << "poincare_points=" << m.poincare_points << "\npoincare_phase=" << G17(m.poincare_phase) << "\n";
   for (const auto& ic : initial_states) os << "ic=" << G17(ic[0]) << "," << G17(ic[1]) << "," << G17(ic[2]) << "," << G17(ic[3]) << "\n";
   if (continuation.enabled())
     os << "continuation=" << continuation.axis << "," << continuation.up << "," << continuation.down << "\n";
@@ -692,6 +698,18 @@ Status ReadMetrics(const toml::table& root, SweepSpec& spec) {
       if (!r->is_boolean()) return Status::InvalidArgument("metrics.rosenstein", "metrics.rosenstein must be true or false");
       m.rosenstein = *r->value<bool>();
     }
+    // The Poincaré section: its phase (also the period test's strobes) and the points stored.
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "poincare_phase", "metrics.poincare_phase", &m.poincare_phase));
+    if (!(m.poincare_phase >= 0 && m.poincare_phase < 2 * M_PI))
+      return Violates("metrics.poincare_phase", m.poincare_phase, "in [0, 2 pi) (radians of Omega tau)");
+    const bool stored = std::find(spec.metrics.begin(), spec.metrics.end(), "poincare") != spec.metrics.end();
+    if (stored) m.poincare_points = kDefaultPoincarePoints;
+    BISTABLE_RETURN_IF_ERROR(
+        ReadInt(*t, "poincare_points", "metrics.poincare_points", &m.poincare_points, 1, limits::kMaxPoincarePointsStored));
+    if (t->get("poincare_points") && !stored)
+      return Status::InvalidArgument("metrics.poincare_points",
+                                     "metrics.poincare_points needs \"poincare\" in metrics.store (it sets how many section "
+                                     "points are stored)");
   }
   spec.base.metrics.turning_points =
       std::find(spec.metrics.begin(), spec.metrics.end(), "turning_points") != spec.metrics.end();

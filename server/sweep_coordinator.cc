@@ -170,7 +170,7 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
   // commit in between.
   constexpr size_t kBatch = 65536;
   std::vector<bool> is_missing(s.keys.size(), true);
-  const size_t width = PointRecord::Size(spec.base.metrics.turning_points);
+  const size_t width = PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points);
   long corrupt_total = 0;
   for (size_t b = 0; b < s.keys.size(); b += kBatch) {
     const std::vector<std::string> batch(s.keys.begin() + b, s.keys.begin() + std::min(s.keys.size(), b + kBatch));
@@ -446,13 +446,10 @@ Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<P
 }
 
 Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const double* values, size_t n_values) {
-  // The record layout is checked first, without the lock: the width must be one of the two layouts
-  // and every value in its metric's domain (forged or corrupt numbers never reach the cache).
-  const bool tp = width == PointRecord::Size(true);
-  if (width != PointRecord::Size(false) && !tp)
-    return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) + " violates record_width in {" +
-                                                       std::to_string(PointRecord::Size(false)) + ", " +
-                                                       std::to_string(PointRecord::Size(true)) + "}");
+  // The record layout is checked first, without the lock: the width must be that of some layout
+  // and every value in its metric's domain (forged or corrupt numbers never reach the cache). The
+  // sweep's exact layout (turning points, section points) is compared under the lock below.
+  BISTABLE_RETURN_IF_ERROR(CheckAnyRecordWidth(width));
   if (n_values % width != 0)
     return Status::InvalidArgument("values", std::to_string(n_values) + " values do not split into records of width " +
                                                  std::to_string(width));
@@ -460,7 +457,7 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
   // Every value's domain, and the one copy of the values, outside the coordinator's lock: concurrent
   // reports check and copy in parallel; under the lock only the lease and the keys are looked at.
   for (size_t i = 0; i < n_records; ++i)
-    if (Status st = CheckRecord(values + i * width, width, tp); !st.ok())
+    if (Status st = CheckAnyRecord(values + i * width, width); !st.ok())
       return Status::InvalidArgument("values", "record " + std::to_string(i) + ": " + st.message());
   IndexDb::JobResults rows;
   rows.width = width;
@@ -501,7 +498,7 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
     if (n_records != lease_items)
       return Status::InvalidArgument("values", "the lease's job has " + std::to_string(lease_items) +
                                                    " items, the report has " + std::to_string(n_records) + " records");
-    const size_t expected = PointRecord::Size(s.spec.base.metrics.turning_points);
+    const size_t expected = PointRecord::Size(s.spec.base.metrics.turning_points, s.spec.base.metrics.poincare_points);
     if (width != expected)
       return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) +
                                                          " violates record_width = " + std::to_string(expected) +
@@ -694,7 +691,7 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
                                                       bool* incomplete) {
   // Every record is read back through its checksum: a corrupt one counts as missing.
   long corrupt = 0;
-  auto found = Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points), &corrupt);
+  auto found = Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points), &corrupt);
   if (!found.ok()) return found.status();
   if (corrupt > 0)
     Log(log::Level::kWarn, "sweep.checksum_failed", {{"sweep", row.id}, {"items", corrupt}, {"action", "replan"}});

@@ -18,6 +18,7 @@
 #include "base/version.h"
 #include "base/names.h"
 #include "engine/basins.h"
+#include "base/validate.h"
 #include "storage/metric_name.h"
 
 namespace bistable {
@@ -106,7 +107,7 @@ CfUnits CfUnitsFor(const std::string& label) {
       {"1/tau", {"1", "per unit of non-dimensional time tau = omega_n t"}},
       {"rad/tau", {"1", "angular frequency in units of omega_n (rad per unit of tau)"}},
       {"delta_s", {"1", "in units of delta_s, the static position of a well"}},
-      {"delta_s omega_n", {"1", "velocity in units of delta_s omega_n (delta_s per unit of tau)"}},
+      {"delta_s/tau", {"1", "velocity in units of delta_s omega_n (delta_s per unit of non-dimensional time tau)"}},
       {"1/s", {"s-1", ""}},
       {"rad/s", {"rad/s", ""}},
       {"m", {"m", ""}},
@@ -233,7 +234,8 @@ Status FsyncPath(const std::string& path, bool directory) {
 // Dimensional sweeps measure in SI: time in s, lengths in m, angular frequencies in rad/s.
 std::string UnitFor(const SweepSpec& spec, std::string unit) {
   if (spec.model != ModelKind::kDimensional) return unit;
-  for (auto [from, to] : {std::pair<std::string, std::string>{"rad/tau", "rad/s"}, {"1/tau", "1/s"}, {"delta_s", "m"}, {"delta_s omega_n", "m/s"}})
+  for (auto [from, to] : {std::pair<std::string, std::string>{"rad/tau", "rad/s"}, {"1/tau", "1/s"}, {"delta_s", "m"},
+                         {"delta_s/tau", "m/s"}})
     if (unit == from) return to;
   return unit;
 }
@@ -286,7 +288,7 @@ Status WriteBasins(hid_t file, const SweepSpec& spec, const std::vector<PointRec
                                   {"displacement at the attractor's Poincare fingerprint", UnitFor(spec, "delta_s"),
                                    "strobe_y of the attractor (NaN: not periodic)"}));
   BISTABLE_RETURN_IF_ERROR(column("strobe_v", [](const Attractor& a) { return a.strobe_v; }, H5T_NATIVE_DOUBLE,
-                                  {"velocity at the attractor's Poincare fingerprint", UnitFor(spec, "delta_s omega_n"),
+                                  {"velocity at the attractor's Poincare fingerprint", UnitFor(spec, "delta_s/tau"),
                                    "strobe_v of the attractor (NaN: not periodic)"}));
   return WriteNumberAttr(file, "basin_boundary_fraction", H5T_NATIVE_DOUBLE, &basins.boundary_fraction, 1);
 }
@@ -373,6 +375,38 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
                                            "y_m where y_m' = 0 in the window (last 64, time order; NaN = none): bifurcation diagrams"},
                                           coordinates));
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "turning_points", tn));
+  }
+  if (const int np_section = spec.base.metrics.poincare_points; np_section > 0) {
+    const bool tp = spec.base.metrics.turning_points;
+    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), "poincare_point", Iota(np_section),
+                                        {"index of the Poincare section point (time order within the last " +
+                                             std::to_string(np_section) + " of the window)",
+                                         "", ""},
+                                        /*integer=*/true));
+    std::vector<hsize_t> sd = dims;
+    sd.push_back(np_section);
+    std::vector<std::string> sn = names;
+    sn.push_back("poincare_point");
+    const char* phase_note = spec.model == ModelKind::kDimensional ? "t_k = (phase + 2 pi k)/omega_0" : "tau_k = (phase + 2 pi k)/Omega";
+    const std::string when = std::string(" at the strobes ") + phase_note + ", phase = poincare_phase = " +
+                             FormatNumber(spec.base.metrics.poincare_phase) + " rad, the last " + std::to_string(np_section) +
+                             " in the window (time order; NaN = none)";
+    const struct {
+      const char* name;
+      int component;
+      const char* long_name;
+      const char* unit;
+      const char* what;
+    } kSection[] = {{"poincare_y", 0, "displacement y_m on the Poincare (stroboscopic) section", "delta_s", "y_m"},
+                    {"poincare_v", 1, "velocity y_m' on the Poincare (stroboscopic) section", "delta_s/tau", "y_m'"}};
+    for (const auto& c : kSection) {
+      std::vector<double> values(records.size() * np_section);
+      for (size_t i = 0; i < records.size(); ++i)
+        for (int k = 0; k < np_section; ++k) values[i * np_section + k] = records[i].Poincare(k, c.component, tp, np_section);
+      BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), c.name, sd, values, H5T_NATIVE_DOUBLE,
+                                            {c.long_name, UnitFor(spec, c.unit), std::string(c.what) + when}, coordinates));
+      BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), c.name, sn));
+    }
   }
   if (nic > 1 && !chained) {  // multistability: fraction of initial conditions ending in each motion type
     const size_t motion_index = MetricIndex("motion");

@@ -3,6 +3,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -128,11 +130,82 @@ TEST(CliPoint, BadInputNamesFieldAndExitsNonZero) {
   }
 }
 
+// --poincare: a CSV file (one header line, units in brackets), its count and file in --json; "-" with
+// --json puts the points into the JSON; the plot; bad values name the flag and the bound.
+TEST(CliPoint, PoincareSectionFileJsonAndPlot) {
+  const std::string dir = ::testing::TempDir() + "/poincare_" + std::to_string(::getpid());
+  std::filesystem::create_directories(dir);
+  const std::string duffing = "point --model standalone --alpha 0.3472222222222222 --omega 1.2 --eta 0.3 --no-rosenstein ";
+  const ProcessResult r = Bistable(duffing + "--poincare-periods 3000 --poincare " + dir + "/s.csv --poincare-plot " + dir +
+                                   "/s.png --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["motion"], "chaotic");
+  EXPECT_EQ(j["poincare"]["count"], 3000);
+  EXPECT_EQ(j["poincare"]["file"], dir + "/s.csv");
+  EXPECT_EQ(j["poincare"]["columns"], nlohmann::json({"k", "tau", "y_m", "dy_m"}));
+  EXPECT_EQ(j["poincare"]["units"], nlohmann::json({"", "1/omega_n", "delta_s", "delta_s omega_n"}));
+  EXPECT_FALSE(j["poincare"].contains("points")) << "points go to the file, not the JSON";
+  std::ifstream in(dir + "/s.csv");
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "k,tau [1/omega_n],y_m [delta_s],dy_m [delta_s omega_n]");
+  size_t rows = 0;
+  while (std::getline(in, line)) ++rows;
+  EXPECT_EQ(rows, 3000u);
+  EXPECT_GT(std::filesystem::file_size(dir + "/s.png"), 10000u);
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << "left behind: " << e.path();
+
+  // "-" with --json: the points inside the JSON (coupled: six columns, the resonator's too), at the phase.
+  const ProcessResult c = Bistable("point --model coupled --alpha 0.3 --omega 0.8 --no-rosenstein --poincare - --poincare-phase 1.5 --json");
+  ASSERT_EQ(c.exit_code, 0) << c.err;
+  const auto jc = nlohmann::json::parse(c.out);
+  ASSERT_EQ(jc["poincare"]["points"].size(), jc["poincare"]["count"].get<size_t>());
+  ASSERT_GT(jc["poincare"]["count"].get<int>(), 20);
+  const auto& first = jc["poincare"]["points"][0];
+  ASSERT_EQ(first.size(), 6u);
+  EXPECT_NEAR(first[1].get<double>(), (1.5 + 2 * M_PI * first[0].get<double>()) / 0.8, 1e-9);
+  EXPECT_EQ(jc["poincare"]["phase"], 1.5);
+  // "-" alone: standard output is the CSV.
+  const ProcessResult csv = Bistable("point --model standalone --alpha 0.3 --omega 1.2 --no-rosenstein --poincare -");
+  ASSERT_EQ(csv.exit_code, 0) << csv.err;
+  EXPECT_EQ(csv.out.rfind("k,tau [1/omega_n],y_m [delta_s],dy_m [delta_s omega_n]\n", 0), 0u) << csv.out.substr(0, 200);
+  EXPECT_GT(std::count(csv.out.begin(), csv.out.end(), '\n'), 40);
+
+  struct Case {
+    std::string args, expect;
+  };
+  for (const Case& bad : std::vector<Case>{
+           {"--poincare-periods 0", "--poincare-periods = 0 violates --poincare-periods in [1, 100000]"},
+           {"--poincare-periods 100001", "--poincare-periods = 100001 violates --poincare-periods in [1, 100000]"},
+           {"--poincare-periods -3", "--poincare-periods = -3 violates --poincare-periods in [1, 100000]"},
+           {"--poincare-periods abc", "--poincare-periods"},
+           {"--poincare-periods 10 --t-end 600", "--t-end excludes --poincare-periods"},
+           {"--poincare-phase 6.3", "poincare_phase = 6.3 violates poincare_phase in [0, 2 pi)"},
+           {"--poincare-phase -1", "poincare_phase = -1 violates poincare_phase in [0, 2 pi)"},
+           {"--poincare-plot " + dir + "/x.pdf", "--poincare-plot ends in .png or .svg"},
+           {"--poincare " + dir + "/missing/x.csv", "poincare"},
+       }) {
+    const ProcessResult e = Bistable("point --model standalone --alpha 0.3 --omega 0.01 " + bad.args);
+    EXPECT_EQ(e.exit_code, 2) << bad.args;
+    EXPECT_NE(e.err.find(bad.expect), std::string::npos) << bad.args << ": " << e.err;
+    EXPECT_TRUE(e.out.empty()) << bad.args;
+  }
+  // The steps-per-point limit, said in terms of the flag.
+  const ProcessResult far = Bistable("point --model standalone --alpha 0.3 --omega 0.01 --poincare-periods 100000");
+  EXPECT_EQ(far.exit_code, 2);
+  EXPECT_NE(far.err.find("--poincare-periods = 100000 violates --poincare-periods <= 1590"), std::string::npos) << far.err;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(CliPoint, HelpDocumentsUnits) {
   const ProcessResult r = Bistable("point --help");
   EXPECT_EQ(r.exit_code, 0);
   EXPECT_NE(r.out.find("--alpha"), std::string::npos);
   EXPECT_NE(r.out.find("non-dimensional"), std::string::npos);
+  EXPECT_NE(r.out.find("--poincare-periods"), std::string::npos);
+  EXPECT_NE(r.out.find("tau_k = (phase + 2 pi k)/Omega"), std::string::npos);
 }
 
 }  // namespace

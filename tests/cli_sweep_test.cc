@@ -256,6 +256,95 @@ TEST(JsonOut, CategoryCodesNameTheirMotionAndTermination) {
     EXPECT_NE(text.find(std::to_string(code) + " " + CategoryName("motion", code)), std::string::npos) << code;
 }
 
+// A stored Poincaré section (metric "poincare", poincare_points = 12, a phase): datasets poincare_y
+// and poincare_v shaped (alpha, poincare_point) with CF attributes, equal bit for bit to the last 12
+// points of `bistable point --poincare -` (map == point), period 1 one point repeated, period 2 two.
+TEST(CliSweep, PoincareDatasetsEqualThePointSection) {
+  const std::string dir = Dir("poincare");
+  // The Duffing oscillator of the examples at γ = αΩ² = 0.2 (period 1), 0.28 (period 2), 0.5 (chaos).
+  const std::string spec = WriteSpec(dir, R"(
+model = "standalone"
+[params]
+eta = 0.3
+omega = 1.2
+[axes]
+alpha = [0.1388888888888889, 0.19444444444444445, 0.3472222222222222]
+[integration]
+t_keep = 1000.0
+t_end = 2000.0
+[metrics]
+store = ["period", "lle", "poincare"]
+poincare_points = 12
+poincare_phase = 0.75
+)");
+  const ProcessResult run = Bistable("run " + spec + " --data " + dir + "/data --json --no-plots");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const std::string h5 = nlohmann::json::parse(run.out)["files"][0];
+  auto y = bistable::ReadMapMetric(h5, "poincare_y");
+  auto v = bistable::ReadMapMetric(h5, "poincare_v");
+  auto period = bistable::ReadMapMetric(h5, "period");
+  ASSERT_TRUE(y.ok() && v.ok() && period.ok()) << y.status().ToString() << v.status().ToString();
+  EXPECT_EQ(y->dims, (std::vector<size_t>{3, 12}));
+  EXPECT_EQ(y->dim_names, (std::vector<std::string>{"alpha", "poincare_point"}));
+  EXPECT_EQ(y->unit, "delta_s");
+  EXPECT_EQ(v->unit, "delta_s/tau");
+  EXPECT_NE(y->definition.find("phase = poincare_phase = 0.75"), std::string::npos) << y->definition;
+  EXPECT_EQ(period->values, (std::vector<double>{1, 2, 0}));
+  const double alphas[] = {0.1388888888888889, 0.19444444444444445, 0.3472222222222222};
+  for (int p = 0; p < 3; ++p) {
+    char args[256];
+    std::snprintf(args, sizeof args,
+                  "point --model standalone --alpha %.17g --omega 1.2 --eta 0.3 --t-keep 1000 --t-end 2000 --no-rosenstein "
+                  "--poincare - --poincare-phase 0.75 --json",
+                  alphas[p]);
+    const ProcessResult pt = Bistable(args);
+    ASSERT_EQ(pt.exit_code, 0) << pt.err;
+    const auto pts = nlohmann::json::parse(pt.out)["poincare"]["points"];
+    ASSERT_GE(pts.size(), 12u);
+    for (int k = 0; k < 12; ++k) {
+      const auto& row = pts[pts.size() - 12 + k];
+      const double ym = row[2].get<double>(), vm = row[3].get<double>();
+      EXPECT_EQ(std::memcmp(&ym, &y->values[p * 12 + k], sizeof(double)), 0) << "point " << p << " k " << k;
+      EXPECT_EQ(std::memcmp(&vm, &v->values[p * 12 + k], sizeof(double)), 0) << "point " << p << " k " << k;
+    }
+  }
+  auto spread = [&](int p, int n) {
+    double worst = 0;
+    for (int k = n; k < 12; ++k)
+      worst = std::max({worst, std::fabs(y->values[p * 12 + k] - y->values[p * 12 + k - n]),
+                        std::fabs(v->values[p * 12 + k] - v->values[p * 12 + k - n])});
+    return worst;
+  };
+  EXPECT_LT(spread(0, 1), 1e-9) << "period 1: one point";
+  EXPECT_LT(spread(1, 2), 1e-9) << "period 2: two points";
+  EXPECT_GT(std::fabs(y->values[12] - y->values[13]), 0.01) << "period 2: two distinct points";
+  EXPECT_GT(spread(2, 1), 0.1) << "chaos: scattered";
+
+  // CF metadata as h5py sees it (every variable has long_name and units).
+  const int rc = std::system(("/usr/bin/python3 -c \"import h5py,sys; f=h5py.File(sys.argv[1]); "
+                              "d=f['poincare_y']; assert d.shape==(3,12), d.shape; "
+                              "assert d.attrs['units']=='1' and 'long_name' in d.attrs; "
+                              "assert f['poincare_v'].attrs['unit_label']=='delta_s/tau'; "
+                              "assert list(f['poincare_point'][:])==list(range(12))\" " + h5).c_str());
+  EXPECT_EQ(rc, 0);
+
+  // Bad settings name the field and the bound.
+  struct Case {
+    std::string text, expect;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"store = [\"poincare\"]\npoincare_points = 65", "metrics.poincare_points = 65 violates metrics.poincare_points in [1, 64]"},
+           {"store = [\"poincare\"]\npoincare_points = 0", "metrics.poincare_points = 0 violates metrics.poincare_points in [1, 64]"},
+           {"store = [\"lle\"]\npoincare_points = 8", "metrics.poincare_points needs \"poincare\" in metrics.store"},
+           {"poincare_phase = 6.5", "metrics.poincare_phase = 6.5 violates metrics.poincare_phase in [0, 2 pi)"},
+       }) {
+    std::ofstream(dir + "/bad.toml") << "model = \"standalone\"\n[axes]\nalpha = [0.1, 0.2]\n[metrics]\n" << c.text << "\n";
+    const ProcessResult r = Bistable("run " + dir + "/bad.toml --data " + dir + "/data --no-plots");
+    EXPECT_EQ(r.exit_code, 2) << c.text;
+    EXPECT_NE(r.err.find(c.expect), std::string::npos) << c.text << "\n" << r.err;
+  }
+}
+
 TEST(CliSweep, BadInputIsAClearErrorAndLosesNothing) {
   const std::string dir = Dir("bad");
   const std::string good = WriteSpec(dir, kGrid);

@@ -94,6 +94,9 @@ void ExpectSameBits(const RawLane& a, const RawLane& b, const std::string& where
   EXPECT_TRUE(same_vec(a.y_samples, b.y_samples)) << where << ": y_samples";
   EXPECT_TRUE(same_vec(a.strobe_y, b.strobe_y)) << where << ": strobe_y";
   EXPECT_TRUE(same_vec(a.strobe_v, b.strobe_v)) << where << ": strobe_v";
+  EXPECT_TRUE(same_vec(a.strobe_yr, b.strobe_yr)) << where << ": strobe_yr";
+  EXPECT_TRUE(same_vec(a.strobe_vr, b.strobe_vr)) << where << ": strobe_vr";
+  EXPECT_EQ(a.strobe_k0, b.strobe_k0) << where << ": strobe_k0";
   EXPECT_TRUE(same_vec(a.turning_points, b.turning_points)) << where << ": turning_points";
   EXPECT_EQ(a.diverged, b.diverged) << where;
   EXPECT_EQ(a.steps, b.steps) << where;
@@ -108,6 +111,18 @@ void ExpectLaneEqualsOnePoint(const PointSpec& s, const RawLane& one, int positi
   std::vector<RawLane> many(W);
   ASSERT_TRUE(RunKernel<W>(s.model, lanes.data(), W, ks, many.data()));
   ExpectSameBits(one, many[position], "width " + std::to_string(W) + " lane " + std::to_string(position));
+}
+
+TEST(EnsembleKernel, SectionAtAPhaseIsBitIdenticalAtAnyWidthAndPosition) {
+  // The Poincaré section's phase shifts every lane's strobes (and so the steps the general loop takes).
+  PointSpec s = Spec(ModelKind::kCoupled, 1.0, 1.2);
+  s.metrics.poincare_phase = 2.5;
+  const LaneInput target = LaneFor(s);
+  RawLane one;
+  ASSERT_TRUE(RunKernel<1>(s.model, &target, 1, KernelSettingsFor(s), &one));
+  ASSERT_GT(one.strobe_yr.size(), 30u);
+  ExpectLaneEqualsOnePoint<4>(s, one, 3);
+  ExpectLaneEqualsOnePoint<16>(s, one, 5);
 }
 
 TEST(EnsembleKernel, LaneResultsAreBitIdenticalAtAnyWidthAndPosition) {
