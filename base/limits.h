@@ -26,6 +26,10 @@ inline constexpr double kMaxStepsPerPoint = 1e8;             // t_end / dt
 inline constexpr double kMaxWindowSamples = 4'194'304;       // (t_end - t_keep) / dt / sample_every
 inline constexpr std::size_t kMaxTurningPointsKept = 65'536; // turning points held per point (the last ones)
 
+// --- Harmonic balance (`bistable hbm`) -------------------------------------------------------------
+inline constexpr int kMaxHbmSwitchedBranches = 64;           // branches switched onto at period doublings
+inline constexpr int kMaxHbmFoldCurves = 64;                 // fold curves continued in (alpha, Omega)
+
 // --- The service -----------------------------------------------------------------------------------
 inline constexpr std::size_t kMaxMessageBytes = 8 << 20;     // any request to the coordinator
 inline constexpr std::size_t kMaxJobsPerLease = 16;          // jobs one Lease call may ask for
