@@ -501,6 +501,30 @@ TEST(HbmFoldCurve, FoldsOfOneParameterContinuationsLieOnTheFoldCurveAndItsCuspEn
   }
 }
 
+// The coupled model (paper defaults, α 0.2) loses stability through Neimark–Sacker points: located
+// where a complex pair is on the unit circle, the stability changing across the step.
+TEST(HbmNeimarkSacker, LocatedWhereAComplexPairCrossesTheUnitCircle) {
+  HbmOptions o = Options(ModelKind::kCoupled, 0.2);
+  o.harmonics = 7;
+  auto r = ContinueBranches(o);
+  ASSERT_TRUE(r.ok());
+  int located = 0;
+  for (const HbmBranch& b : r->branches)
+    for (size_t i = 1; i < b.points.size(); ++i) {
+      const HbmPoint& p = b.points[i];
+      if (!p.neimark_sacker || !p.neimark_sacker_at.valid()) continue;
+      const std::complex<double> mu = p.neimark_sacker_at.multiplier;
+      EXPECT_NEAR(std::abs(mu), 1.0, 1e-6) << b.start << " Omega " << p.neimark_sacker_at.omega;
+      EXPECT_GT(std::fabs(mu.imag()), 0.1);
+      const double lo = std::min(b.points[i - 1].omega, p.omega), hi = std::max(b.points[i - 1].omega, p.omega);
+      EXPECT_GE(p.neimark_sacker_at.omega, lo);
+      EXPECT_LE(p.neimark_sacker_at.omega, hi);
+      if (!p.period_doubling && !p.fold) EXPECT_NE(p.stable, b.points[i - 1].stable);
+      ++located;
+    }
+  EXPECT_GE(located, 2);
+}
+
 TEST(HbmFoldCurve, BadOptionsNameTheField) {
   HbmOptions o = Options(ModelKind::kStandalone, 0.3);
   FoldCurveOptions f;
