@@ -32,6 +32,10 @@ inline constexpr long kMaxPoincarePeriods = 100'000;
 // of a full lease (kMaxJobItems records of at most 33 + 64 + 2·64 doubles) stays under kMaxMessageBytes.
 inline constexpr int kMaxPoincarePointsStored = 64;
 
+// --- Harmonic balance (`bistable hbm`) -------------------------------------------------------------
+inline constexpr int kMaxHbmSwitchedBranches = 64;           // branches switched onto at period doublings
+inline constexpr int kMaxHbmFoldCurves = 64;                 // fold curves continued in (alpha, Omega)
+
 // --- The service -----------------------------------------------------------------------------------
 inline constexpr std::size_t kMaxMessageBytes = 8 << 20;     // any request to the coordinator
 inline constexpr std::size_t kMaxJobsPerLease = 16;          // jobs one Lease call may ask for

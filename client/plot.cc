@@ -352,7 +352,7 @@ std::string AxisLabel(const std::string& name, const std::string& unit) {
 // the last edges only close the cells. Writes the ranges, the data block and the splot. x and y are
 // strictly increasing (axes, times, frequencies); pm3d takes uneven spacing, gnuplot's image does not.
 static void WriteCells(std::ostream& s, const std::vector<double>& xs, const std::vector<double>& ys,
-                       const std::function<double(size_t, size_t)>& value) {
+                       const std::function<double(size_t, size_t)>& value, const std::string& more_plots = "") {
   auto edges = [](const std::vector<double>& v) {
     if (v.size() == 1) {
       const double h = 0.5 * std::max(std::fabs(v[0]) * 0.02, 1e-6);
@@ -373,7 +373,7 @@ static void WriteCells(std::ostream& s, const std::vector<double>& xs, const std
       s << Num(xe[i]) << " " << Num(ye[j]) << " " << Num(value(std::min(i, xs.size() - 1), std::min(j, ys.size() - 1))) << "\n";
     s << "\n";
   }
-  s << "EOD\nsplot $data using 1:2:3 with pm3d\n";
+  s << "EOD\nsplot $data using 1:2:3 with pm3d notitle" << more_plots << "\n";
 }
 
 Status RenderPlot(const PlotData& d, const std::string& out_path, std::string format) {
@@ -416,10 +416,22 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
         s << kViridis;
       s << "set cbrange [" << Num(range.first) << ":" << Num(range.second) << "]\n";
     }
+    // Overlays: drawn on the map's plane after the cells, legend below.
+    std::string more;
+    for (size_t k = 0; k < d.overlays.size(); ++k) {
+      const PlotData::Overlay& ov = d.overlays[k];
+      s << "$o" << k << " << EOD\n";
+      for (size_t i = 0; i < ov.x.size() && i < ov.y.size(); ++i) s << Num(ov.x[i]) << " " << Num(ov.y[i]) << "\n";
+      s << "EOD\n";
+      more += ", $o" + std::to_string(k) + " using 1:2:(0) with " + (ov.points ? "points pt 6 ps 2 lw 2" : "lines lw 2.5") + " lc rgb " +
+              GnuplotString(ov.colour.empty() ? "#000000" : ov.colour) + " " +
+              (ov.label.empty() ? std::string("notitle") : "title " + GnuplotString(ov.label));
+    }
+    if (!d.overlays.empty()) s << "set bmargin 5\nset key at screen 0.5, 0.07 center bottom horizontal noenhanced\n";
     WriteCells(s, xs, ys, [&](size_t j, size_t i) {
       const double v = d.values[i * xs.size() + j];
       return codes.empty() ? v : coded(v) + 0.5;
-    });
+    }, more);
   } else {
     const auto& xs = d.axis_values[0];
     const size_t n_series = std::max<size_t>(1, d.series.size());
@@ -480,11 +492,12 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
     const auto& br = d.branches[b];
     const size_t colour = std::find(names.begin(), names.end(), br.name) - names.begin();
     for (int stable = 1; stable >= 0; --stable) {
+      if (!d.stability && !stable) continue;
       std::ostringstream block;
       bool any = false;
       for (size_t i = 0; i < br.x.size() && i < br.y.size() && i < br.stable.size(); ++i) {
-        const bool in = br.stable[i] == static_cast<bool>(stable);
-        const bool next_in = i + 1 < br.x.size() && i + 1 < br.stable.size() && br.stable[i + 1] == static_cast<bool>(stable);
+        const bool in = !d.stability || br.stable[i] == static_cast<bool>(stable);
+        const bool next_in = i + 1 < br.x.size() && i + 1 < br.stable.size() && (!d.stability || br.stable[i + 1] == static_cast<bool>(stable));
         if (in && next_in) any = true;  // a segment, not a lone point
         if (in || next_in) block << Num(br.x[i]) << " " << Num(br.y[i]) << "\n";
         if (in && !next_in) block << "\n";
@@ -494,7 +507,9 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
       s << name << " << EOD\n" << block.str() << "EOD\n";
       const bool first = std::find(titled.begin(), titled.end(), std::make_pair(br.name, stable)) == titled.end();
       if (first) titled.emplace_back(br.name, stable);
-      const std::string title = br.name.empty() ? (stable ? "stable" : "unstable") : br.name + (stable ? ", stable" : ", unstable");
+      const std::string title = !d.stability ? br.name
+                                : br.name.empty() ? (stable ? "stable" : "unstable")
+                                                  : br.name + (stable ? ", stable" : ", unstable");
       plot += name + " using 1:2 with lines lw " + Num(br.width) + " dt " + (stable ? "1" : "2") + " lc rgb " +
               GnuplotString(kQualitative[colour % 12]) + " title " + GnuplotString(first ? title : "") + ", ";
     }
@@ -506,6 +521,15 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
   if (!folds.str().empty()) {
     s << "$folds << EOD\n" << folds.str() << "EOD\n";
     plot += "$folds using 1:2 with points pt 9 ps 1.4 lc rgb 'black' title 'fold', ";
+  }
+  for (size_t k = 0; k < d.markers.size(); ++k) {
+    const BranchPlot::Marker& m = d.markers[k];
+    if (m.x.empty()) continue;
+    s << "$m" << k << " << EOD\n";
+    for (size_t i = 0; i < m.x.size() && i < m.y.size(); ++i) s << Num(m.x[i]) << " " << Num(m.y[i]) << "\n";
+    s << "EOD\n";
+    plot += "$m" + std::to_string(k) + " using 1:2 with points pt " + std::to_string(m.point_type) + " ps 1.4 lc rgb " +
+            GnuplotString(m.colour.empty() ? "#000000" : m.colour) + " title " + GnuplotString(m.label) + ", ";
   }
   if (!d.extra_x.empty()) {
     s << "$extra << EOD\n";

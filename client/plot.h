@@ -42,6 +42,15 @@ struct PlotData {
   std::vector<Code> codes;
   // Colour range (heatmaps of continuous metrics) shared with other maps; NaN: ColourRange of values.
   double cb_lo = NAN, cb_hi = NAN;
+  // Heatmaps: curves (or points) in the axes' coordinates drawn over the map (e.g. fold curves of
+  // harmonic balance), each with a legend entry (below the plot) unless its label is empty.
+  struct Overlay {
+    std::string label;
+    std::vector<double> x, y;
+    bool points = false;
+    std::string colour = "#000000";
+  };
+  std::vector<Overlay> overlays;
 };
 
 // format: "png" or "svg" (from the output's extension when empty).
@@ -68,7 +77,9 @@ Status RenderHdScatter(const ScatterData& d, const std::string& out_path);
 // Continuation branches (amplitude vs parameter): each branch piece named (e.g. "+well", "-well",
 // "interwell"; one colour per name), stable runs solid, unstable dashed, folds marked; the legend has
 // one entry per (name, stability) actually drawn, plus "fold" when a fold is, below the plot.
-// Optional extra points (e.g. the one-harmonic closed form) in grey.
+// Further markers (period doublings, Neimark–Sacker points, cusps) with their own legend entries.
+// Optional extra points (e.g. the one-harmonic closed form) in grey. With stability = false every
+// curve is solid and its legend entry is its name alone (curves that are not orbits: fold curves).
 struct BranchPlot {
   std::string title, x_name, x_unit, y_label;
   struct Branch {
@@ -79,6 +90,14 @@ struct BranchPlot {
     std::vector<double> fold_x, fold_y;
   };
   std::vector<Branch> branches;
+  struct Marker {
+    std::string label;       // legend entry (one per marker set that has points)
+    int point_type = 7;      // gnuplot pt
+    std::string colour;      // "#rrggbb"
+    std::vector<double> x, y;
+  };
+  std::vector<Marker> markers;
+  bool stability = true;
   std::vector<double> extra_x, extra_y;
   std::string extra_label;
 };

@@ -3,20 +3,31 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <tuple>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
+#include <Eigen/SVD>
 
 #include "dynamics/cancel.h"
 #include "dynamics/dopri5.h"
 #include "dynamics/nondim_system.h"
 #include "dynamics/point.h"
+#include "base/limits.h"
 #include "base/validate.h"
 
 namespace bistable {
 namespace {
 
 double ParamOf(const HbmOptions& o, double omega, double alpha) { return o.param == ContinuationParam::kOmega ? omega : alpha; }
+
+// The options of a period-ν branch: harmonics of Ω/ν, H doubled (to at most 50) at every doubling.
+HbmOptions ForPeriod(const HbmOptions& o, int nu) {
+  HbmOptions ob = o;
+  ob.subharmonic = nu;
+  for (int d = 1; d < nu; d *= 2) ob.harmonics = std::min(50, 2 * ob.harmonics);
+  return ob;
+}
 
 }  // namespace
 
@@ -39,10 +50,14 @@ Status ValidateHbmOptions(const HbmOptions& o) {
   }
   if (!(o.ds > 0 && o.ds_min > 0 && o.ds_max >= o.ds && o.ds >= o.ds_min)) return Violates("ds", o.ds, "in [ds_min, ds_max]");
   if (o.max_points < 2) return Violates("max_points", o.max_points, ">= 2");
+  if (o.switch_depth < 0 || o.switch_depth > 3) return Violates("switch_pd", o.switch_depth, "in [0, 3]");
+  if (o.subharmonic != 1 && o.subharmonic != 2 && o.subharmonic != 4 && o.subharmonic != 8)
+    return Violates("subharmonic", o.subharmonic, "in {1, 2, 4, 8}");
+  if (o.subharmonic > o.harmonics) return Violates("harmonics", o.harmonics, ">= subharmonic (the forcing is harmonic subharmonic)");
   return Status::Ok();
 }
 
-HarmonicBalance::HarmonicBalance(const HbmOptions& o) : o_(o), h_(o.harmonics) {
+HarmonicBalance::HarmonicBalance(const HbmOptions& o) : o_(o), h_(o.harmonics), nu_(std::max(1, o.subharmonic)) {
   dofs_ = HasResonator(o.model) ? 2 : 1;
   per_dof_ = 2 * h_ + 1;
   n_ = dofs_ * per_dof_;
@@ -66,6 +81,7 @@ void HarmonicBalance::Residual(const Eigen::VectorXd& z, double omega, double al
                                Eigen::MatrixXd* jac) const {
   r->setZero(n_);
   if (jac) jac->setZero(n_, n_);
+  const double w = omega / nu_;  // base frequency: harmonic k is kΩ/ν
   // Linear part, harmonic by harmonic.
   for (int i = 0; i < dofs_; ++i) {
     for (int j = 0; j < dofs_; ++j) {
@@ -73,7 +89,7 @@ void HarmonicBalance::Residual(const Eigen::VectorXd& z, double omega, double al
       if (jac) (*jac)(Index(i, 0), Index(j, 0)) += k_(i, j);
       for (int k = 1; k <= h_; ++k) {
         const int ia = Index(i, 2 * k - 1), ib = Index(i, 2 * k), ja = Index(j, 2 * k - 1), jb = Index(j, 2 * k);
-        const double kw = k * omega, stiff = k_(i, j) - (i == j ? kw * kw : 0.0), damp = c_(i, j) * kw;
+        const double kw = k * w, stiff = k_(i, j) - (i == j ? kw * kw : 0.0), damp = c_(i, j) * kw;
         (*r)[ia] += stiff * z[ja] + damp * z[jb];
         (*r)[ib] += stiff * z[jb] - damp * z[ja];
         if (jac) {
@@ -82,7 +98,7 @@ void HarmonicBalance::Residual(const Eigen::VectorXd& z, double omega, double al
         }
       }
     }
-    (*r)[Index(i, 2)] -= alpha * omega * omega;  // forcing αΩ² sin Ωτ on every mass
+    (*r)[Index(i, 2 * nu_)] -= alpha * omega * omega;  // forcing αΩ² sin Ωτ (harmonic ν) on every mass
   }
   // Cubic stiffness of the main DOF by alternating frequency–time.
   if (eps_ != 0.0) {
@@ -161,13 +177,16 @@ std::vector<double> HarmonicBalance::MainSamples(const Eigen::VectorXd& z, int m
   return y;
 }
 
-double HarmonicBalance::MaxMultiplier(const Eigen::VectorXd& z, double omega, double alpha, int steps) const {
-  // Monodromy of w' = J(x(τ)) w along the harmonic-balance orbit x(τ), RK4 over one period.
+void HarmonicBalance::Propagate(const Eigen::VectorXd& z, double omega, int steps, Eigen::MatrixXd* phi,
+                                const std::function<void(int, const Eigen::MatrixXd&)>& each) const {
+  // w' = J(x(τ)) w along the harmonic-balance orbit x(τ), RK4 over one period of the orbit (2πν/Ω).
   const int d = 2 * dofs_;
-  const double period = 2.0 * M_PI / omega, h = period / steps;
+  const double w = omega / nu_;
+  const int total = steps * nu_;
+  const double period = 2.0 * M_PI * nu_ / omega, h = period / total;
   auto y_main = [&](double t) {
     double v = z[Index(0, 0)];
-    for (int k = 1; k <= h_; ++k) v += z[Index(0, 2 * k - 1)] * std::cos(k * omega * t) + z[Index(0, 2 * k)] * std::sin(k * omega * t);
+    for (int k = 1; k <= h_; ++k) v += z[Index(0, 2 * k - 1)] * std::cos(k * w * t) + z[Index(0, 2 * k)] * std::sin(k * w * t);
     return v;
   };
   auto jac = [&](double t) {
@@ -183,17 +202,33 @@ double HarmonicBalance::MaxMultiplier(const Eigen::VectorXd& z, double omega, do
     a(1, 0) -= 3.0 * eps_ * y * y;
     return a;
   };
-  (void)alpha;
-  Eigen::MatrixXd phi = Eigen::MatrixXd::Identity(d, d);
-  for (int s = 0; s < steps; ++s) {
+  Eigen::MatrixXd& p = *phi;
+  for (int s = 0; s < total; ++s) {
+    if (each) each(s, p);
     const double t = s * h;
     const Eigen::MatrixXd j1 = jac(t), j2 = jac(t + 0.5 * h), j4 = jac(t + h);
-    const Eigen::MatrixXd k1 = j1 * phi, k2 = j2 * (phi + 0.5 * h * k1), k3 = j2 * (phi + 0.5 * h * k2), k4 = j4 * (phi + h * k3);
-    phi += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+    const Eigen::MatrixXd k1 = j1 * p, k2 = j2 * (p + 0.5 * h * k1), k3 = j2 * (p + 0.5 * h * k2), k4 = j4 * (p + h * k3);
+    p += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
   }
-  const Eigen::VectorXcd mu = Eigen::EigenSolver<Eigen::MatrixXd>(phi, false).eigenvalues();
+}
+
+Eigen::MatrixXd HarmonicBalance::Monodromy(const Eigen::VectorXd& z, double omega, int steps) const {
+  Eigen::MatrixXd phi = Eigen::MatrixXd::Identity(2 * dofs_, 2 * dofs_);
+  Propagate(z, omega, steps, &phi, nullptr);
+  return phi;
+}
+
+std::vector<std::complex<double>> HarmonicBalance::Multipliers(const Eigen::VectorXd& z, double omega, int steps) const {
+  const Eigen::VectorXcd mu = Eigen::EigenSolver<Eigen::MatrixXd>(Monodromy(z, omega, steps), false).eigenvalues();
+  std::vector<std::complex<double>> out(mu.data(), mu.data() + mu.size());
+  std::stable_sort(out.begin(), out.end(), [](auto a, auto b) { return std::abs(a) > std::abs(b); });
+  return out;
+}
+
+double HarmonicBalance::MaxMultiplier(const Eigen::VectorXd& z, double omega, double alpha, int steps) const {
+  (void)alpha;
   double best = 0;
-  for (int i = 0; i < mu.size(); ++i) best = std::max(best, std::abs(mu[i]));
+  for (const auto& m : Multipliers(z, omega, steps)) best = std::max(best, std::abs(m));
   return best;
 }
 
@@ -201,14 +236,16 @@ HbmPoint HarmonicBalance::Describe(const Eigen::VectorXd& z, double omega, doubl
   HbmPoint p;
   p.omega = omega;
   p.alpha = alpha;
-  const std::vector<double> y = MainSamples(z, 256);
+  const std::vector<double> y = MainSamples(z, 256 * nu_);
   p.y_min = *std::min_element(y.begin(), y.end());
   p.y_max = *std::max_element(y.begin(), y.end());
   p.amplitude = std::max(std::fabs(p.y_min), std::fabs(p.y_max));
   p.mean = z[Index(0, 0)];
   p.harmonics.assign(z.data(), z.data() + per_dof_);
   p.z = z;
-  p.max_multiplier = MaxMultiplier(z, omega, alpha, floquet_steps);
+  p.period = nu_;
+  p.multipliers = Multipliers(z, omega, floquet_steps);
+  p.max_multiplier = p.multipliers.empty() ? 0.0 : std::abs(p.multipliers.front());
   p.stable = p.max_multiplier < 1.0;
   return p;
 }
@@ -234,33 +271,201 @@ Eigen::VectorXd HarmonicBalance::Resize(const Eigen::VectorXd& z, int h_new) con
   return out;
 }
 
+Eigen::VectorXd HarmonicBalance::Doubled(const Eigen::VectorXd& z, int h_new) const {
+  const int per_new = 2 * h_new + 1;
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(dofs_ * per_new);
+  for (int i = 0; i < dofs_; ++i) {
+    out[i * per_new] = z[Index(i, 0)];
+    for (int k = 1; k <= h_ && 2 * k <= h_new; ++k) {
+      out[i * per_new + 4 * k - 1] = z[Index(i, 2 * k - 1)];
+      out[i * per_new + 4 * k] = z[Index(i, 2 * k)];
+    }
+  }
+  return out;
+}
+
+Eigen::VectorXd HarmonicBalance::DoublingDirection(const Eigen::VectorXd& z, double omega, int steps, int h_new,
+                                                   std::complex<double>* mu) const {
+  const int d = 2 * dofs_;
+  Eigen::EigenSolver<Eigen::MatrixXd> es(Monodromy(z, omega, steps), true);
+  int best = -1;
+  for (int i = 0; i < d; ++i)
+    if (es.eigenvalues()[i].imag() == 0.0 && es.eigenvalues()[i].real() < 0 &&
+        (best < 0 || std::abs(es.eigenvalues()[i] + 1.0) < std::abs(es.eigenvalues()[best] + 1.0)))
+      best = i;
+  if (best < 0) return {};
+  if (mu) *mu = es.eigenvalues()[best];
+  Eigen::MatrixXd w = es.eigenvectors().col(best).real();
+  // w(τ) over one period, then −w(τ − T) over the next: the anti-periodic Floquet solution (μ ≈ −1).
+  const int total = steps * nu_;
+  std::vector<std::vector<double>> samples(dofs_, std::vector<double>(2 * total));
+  Propagate(z, omega, steps, &w, [&](int s, const Eigen::MatrixXd& ws) {
+    for (int i = 0; i < dofs_; ++i) samples[i][s] = ws(2 * i, 0), samples[i][s + total] = -ws(2 * i, 0);
+  });
+  HbmOptions o2 = o_;
+  o2.harmonics = h_new;
+  o2.subharmonic = 2 * nu_;
+  Eigen::VectorXd c = HarmonicBalance(o2).FromSamples(samples);
+  if (o_.zero_mean)
+    for (int i = 0; i < dofs_; ++i) c[i * (2 * h_new + 1)] = 0.0;
+  const double norm = c.norm();
+  return norm > 0 && std::isfinite(norm) ? Eigen::VectorXd(c / norm) : Eigen::VectorXd();
+}
+
 namespace {
+
+// The branch's equations in (coefficients, parameter): R(z, p) = 0 with ∂R/∂p by central differences,
+// the tangent from the bordered Jacobian and the pseudo-arclength corrector.
+class Arclength {
+ public:
+  Arclength(const HarmonicBalance& hb, const HbmOptions& o) : hb_(hb), o_(o), n_(hb.size()) {}
+  std::pair<double, double> OmAl(double p) const {
+    return o_.param == ContinuationParam::kOmega ? std::pair<double, double>{p, o_.alpha} : std::pair<double, double>{o_.omega, p};
+  }
+  // R and [∂R/∂z, ∂R/∂p] at u = (z, p).
+  void Full(const Eigen::VectorXd& zz, double p, Eigen::VectorXd* g, Eigen::MatrixXd* a) const {
+    auto [om, al] = OmAl(p);
+    Eigen::VectorXd r, rp, rm;
+    Eigen::MatrixXd j;
+    hb_.Residual(zz, om, al, &r, &j);
+    const double hp = 1e-7 * std::max(1.0, std::fabs(p));
+    auto [om_p, al_p] = OmAl(p + hp);
+    auto [om_m, al_m] = OmAl(p - hp);
+    hb_.Residual(zz, om_p, al_p, &rp, nullptr);
+    hb_.Residual(zz, om_m, al_m, &rm, nullptr);
+    *g = r;
+    a->setZero(n_, n_ + 1);
+    a->leftCols(n_) = j;
+    a->col(n_) = (rp - rm) / (2 * hp);
+  }
+  // The unit tangent at u, oriented along `prev`; *det_sign: the sign of the bordered determinant.
+  Eigen::VectorXd Tangent(const Eigen::VectorXd& u, const Eigen::VectorXd& prev, double* det_sign) const {
+    Eigen::VectorXd g;
+    Eigen::MatrixXd a;
+    Full(u.head(n_), u[n_], &g, &a);
+    Eigen::MatrixXd aug(n_ + 1, n_ + 1);
+    aug.topRows(n_) = a;
+    aug.row(n_) = prev.transpose();
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n_ + 1);
+    rhs[n_] = 1.0;
+    Eigen::PartialPivLU<Eigen::MatrixXd> lu(aug);
+    Eigen::VectorXd t = lu.solve(rhs);
+    t.normalize();
+    if (t.dot(prev) < 0) t = -t;
+    if (det_sign) *det_sign = lu.determinant() > 0 ? 1.0 : -1.0;
+    return t;
+  }
+  // Newton on [R(v) = 0, t·(v − pred) = 0] from pred; the iterations it took, or −1.
+  int Correct(const Eigen::VectorXd& pred, const Eigen::VectorXd& t, Eigen::VectorXd* out) const {
+    Eigen::VectorXd v = pred;
+    for (int it = 0; it < o_.newton_max_iter; ++it) {
+      Eigen::VectorXd gv;
+      Eigen::MatrixXd av;
+      Full(v.head(n_), v[n_], &gv, &av);
+      Eigen::VectorXd res(n_ + 1);
+      res.head(n_) = gv;
+      res[n_] = t.dot(v - pred);
+      if (!res.allFinite()) return -1;
+      if (gv.cwiseAbs().maxCoeff() < o_.newton_tol && std::fabs(res[n_]) < 1e-12) {
+        *out = v;
+        return it;
+      }
+      Eigen::MatrixXd m(n_ + 1, n_ + 1);
+      m.topRows(n_) = av;
+      m.row(n_) = t.transpose();
+      v -= m.partialPivLu().solve(res);
+    }
+    return -1;
+  }
+  int n() const { return n_; }
+
+ private:
+  const HarmonicBalance& hb_;
+  const HbmOptions& o_;
+  int n_;
+};
+
+// An accepted arclength step: from u along the unit tangent t by ds.
+struct ArcStep {
+  Eigen::VectorXd u, t;
+  double ds = 0;
+};
+
+// The Floquet test functions of a point: period doubling det(Φ + I) = Π(μ + 1); Neimark–Sacker the
+// bialternate product Π_{i<j}(μ_i μ_j − 1) (zero when a complex pair crosses |μ| = 1, or at a neutral
+// saddle μ_i μ_j = 1, which the count of complex multipliers outside the circle tells apart).
+double PeriodDoublingTest(const std::vector<std::complex<double>>& mu) {
+  std::complex<double> p = 1.0;
+  for (const auto& m : mu) p *= m + 1.0;
+  return p.real();
+}
+double NeimarkSackerTest(const std::vector<std::complex<double>>& mu) {
+  std::complex<double> p = 1.0;
+  for (size_t i = 0; i < mu.size(); ++i)
+    for (size_t j = i + 1; j < mu.size(); ++j) p *= mu[i] * mu[j] - 1.0;
+  return p.real();
+}
+int ComplexOutside(const std::vector<std::complex<double>>& mu) {
+  int c = 0;
+  for (const auto& m : mu) c += m.imag() != 0.0 && std::abs(m) > 1.0;
+  return c;
+}
+
+// Bisection on the step: corrected points at σ ∈ (0, ds) along the step's predictor, keeping the
+// sub-interval where `test` changes sign (test(σ = 0) has sign s0), until the parameter is bracketed
+// to 1e-10 (or 60 halvings). `critical` picks the multiplier reported. Invalid when a corrector fails.
+HbmLocated Locate(const HarmonicBalance& hb, const HbmOptions& o, const Arclength& al, const ArcStep& st, double s0,
+                  const std::function<double(const Eigen::VectorXd& v, const std::vector<std::complex<double>>& mu)>& test,
+                  const std::function<std::complex<double>(const std::vector<std::complex<double>>&)>& critical) {
+  const int n = al.n();
+  double lo = 0, hi = st.ds;
+  Eigen::VectorXd v_lo = st.u, v_hi;
+  if (al.Correct(st.u + st.ds * st.t, st.t, &v_hi) < 0) return {};
+  for (int it = 0; it < 60 && std::fabs(v_hi[n] - v_lo[n]) > 1e-10 * std::max(1.0, std::fabs(v_hi[n])); ++it) {
+    ThrowIfCancelled();
+    const double mid = 0.5 * (lo + hi);
+    Eigen::VectorXd v;
+    if (al.Correct(st.u + mid * st.t, st.t, &v) < 0) return {};
+    auto [om, alpha] = al.OmAl(v[n]);
+    const double f = test(v, hb.Multipliers(v.head(n), om, o.floquet_steps));
+    if ((f > 0) == (s0 > 0)) lo = mid, v_lo = v;
+    else hi = mid, v_hi = v;
+  }
+  const Eigen::VectorXd v = 0.5 * (v_lo + v_hi);
+  HbmLocated out;
+  Eigen::VectorXd zz = v.head(n);
+  std::tie(out.omega, out.alpha) = al.OmAl(v[n]);
+  hb.Solve(&zz, out.omega, out.alpha);  // onto the branch at the located parameter (a tiny correction)
+  const HbmPoint p = hb.Describe(zz, out.omega, out.alpha, o.floquet_steps);
+  out.amplitude = p.amplitude;
+  out.multiplier = critical(p.multipliers);
+  out.z = zz;
+  return out;
+}
+
+std::complex<double> NearestTo(const std::vector<std::complex<double>>& mu, std::complex<double> target) {
+  std::complex<double> best = NAN;
+  for (const auto& m : mu)
+    if (!(std::abs(best - target) <= std::abs(m - target))) best = m;
+  return best;
+}
+std::complex<double> NearestToCircle(const std::vector<std::complex<double>>& mu) {
+  std::complex<double> best = NAN;
+  for (const auto& m : mu)
+    if (m.imag() > 0 && !(std::fabs(std::abs(best) - 1.0) <= std::fabs(std::abs(m) - 1.0))) best = m;
+  return best;
+}
 
 // Pseudo-arclength continuation of one branch from a converged z at parameter p0, setting out
 // toward increasing (direction +1) or decreasing (−1) parameter, until it leaves [from, to].
-// Cancellation unwinds (CancelUnwind) at every point and corrector attempt.
+// Folds, period doublings and Neimark–Sacker points are flagged at the point after the crossing and
+// located on the step before it. Cancellation unwinds (CancelUnwind) at every point and corrector attempt.
 HbmBranch Continue(const HarmonicBalance& hb, const HbmOptions& o, Eigen::VectorXd z, double p0, double direction) {
   HbmBranch branch;
+  branch.period = hb.subharmonic();
+  const Arclength al(hb, o);
   const int n = hb.size();
   const double lo = std::min(o.from, o.to), hi = std::max(o.from, o.to);
-  auto om_al = [&](double p) {
-    return o.param == ContinuationParam::kOmega ? std::pair<double, double>{p, o.alpha} : std::pair<double, double>{o.omega, p};
-  };
-  auto full = [&](const Eigen::VectorXd& zz, double p, Eigen::VectorXd* g, Eigen::MatrixXd* a) {
-    auto [om, al] = om_al(p);
-    Eigen::VectorXd r, rp, rm;
-    Eigen::MatrixXd j;
-    hb.Residual(zz, om, al, &r, &j);
-    const double hp = 1e-7 * std::max(1.0, std::fabs(p));
-    auto [om_p, al_p] = om_al(p + hp);
-    auto [om_m, al_m] = om_al(p - hp);
-    hb.Residual(zz, om_p, al_p, &rp, nullptr);
-    hb.Residual(zz, om_m, al_m, &rm, nullptr);
-    *g = r;
-    a->setZero(n, n + 1);
-    a->leftCols(n) = j;
-    a->col(n) = (rp - rm) / (2 * hp);
-  };
   Eigen::VectorXd u(n + 1), t(n + 1);
   u.head(n) = z;
   u[n] = p0;
@@ -268,61 +473,54 @@ HbmBranch Continue(const HarmonicBalance& hb, const HbmOptions& o, Eigen::Vector
   Eigen::VectorXd t_prev = Eigen::VectorXd::Zero(n + 1);
   t_prev[n] = direction;
   double ds = o.ds;
-  double prev_tp = 0, prev_det_sign = 0;
+  double prev_tp = 0, prev_det_sign = 0, prev_pd = 0, prev_ns = 0;
+  int prev_ns_count = 0;
+  ArcStep step;  // the accepted step that led to u
   for (int count = 0; count < o.max_points; ++count) {
     ThrowIfCancelled();
-    Eigen::VectorXd g;
-    Eigen::MatrixXd a;
-    full(u.head(n), u[n], &g, &a);
-    Eigen::MatrixXd aug(n + 1, n + 1);
-    aug.topRows(n) = a;
-    aug.row(n) = t_prev.transpose();
-    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n + 1);
-    rhs[n] = 1.0;
-    Eigen::PartialPivLU<Eigen::MatrixXd> lu(aug);
-    t = lu.solve(rhs);
-    t.normalize();
-    if (t.dot(t_prev) < 0) t = -t;
+    double det_sign = 0;
+    t = al.Tangent(u, t_prev, &det_sign);
     if (u[n] < lo - 1e-12 || u[n] > hi + 1e-12) break;  // left the range: the branch ends here
-    auto [om, al] = om_al(u[n]);
-    HbmPoint pt = hb.Describe(u.head(n), om, al, o.floquet_steps);
-    const double det_sign = lu.determinant() > 0 ? 1.0 : -1.0;
+    auto [om, alpha] = al.OmAl(u[n]);
+    HbmPoint pt = hb.Describe(u.head(n), om, alpha, o.floquet_steps);
+    const double pd = PeriodDoublingTest(pt.multipliers), ns = NeimarkSackerTest(pt.multipliers);
+    const int ns_count = ComplexOutside(pt.multipliers);
     if (count > 0) {
       pt.fold = (t[n] > 0) != (prev_tp > 0);
       pt.branch_point = !pt.fold && det_sign != prev_det_sign;
+      if (pt.fold)
+        pt.fold_at = Locate(hb, o, al, step, prev_tp,
+                            [&](const Eigen::VectorXd& v, const auto&) { return al.Tangent(v, step.t, nullptr)[n]; },
+                            [](const auto& mu) { return NearestTo(mu, 1.0); });
+      if ((pd > 0) != (prev_pd > 0)) {
+        pt.period_doubling = true;
+        pt.period_doubling_at = Locate(hb, o, al, step, prev_pd, [](const auto&, const auto& mu) { return PeriodDoublingTest(mu); },
+                                       [](const auto& mu) { return NearestTo(mu, -1.0); });
+      }
+      if (ns_count != prev_ns_count) {
+        pt.neimark_sacker = true;
+        if ((ns > 0) != (prev_ns > 0))
+          pt.neimark_sacker_at = Locate(hb, o, al, step, prev_ns, [](const auto&, const auto& mu) { return NeimarkSackerTest(mu); },
+                                        NearestToCircle);
+      }
     }
     prev_tp = t[n];
     prev_det_sign = det_sign;
+    prev_pd = pd, prev_ns = ns, prev_ns_count = ns_count;
     branch.points.push_back(pt);
     // Predictor–corrector with step control.
     bool accepted = false;
     while (!accepted) {
       ThrowIfCancelled();
       const Eigen::VectorXd pred = u + ds * t;
-      Eigen::VectorXd v = pred;
-      int it = 0;
-      bool ok = false;
-      for (; it < o.newton_max_iter; ++it) {
-        Eigen::VectorXd gv;
-        Eigen::MatrixXd av;
-        full(v.head(n), v[n], &gv, &av);
-        Eigen::VectorXd res(n + 1);
-        res.head(n) = gv;
-        res[n] = t.dot(v - pred);
-        if (!res.allFinite()) break;
-        if (gv.cwiseAbs().maxCoeff() < o.newton_tol && std::fabs(res[n]) < 1e-12) {
-          ok = true;
-          break;
-        }
-        Eigen::MatrixXd m(n + 1, n + 1);
-        m.topRows(n) = av;
-        m.row(n) = t.transpose();
-        v -= m.partialPivLu().solve(res);
-      }
+      Eigen::VectorXd v;
+      const int it = al.Correct(pred, t, &v);
+      bool ok = it >= 0;
       // A corrector that lands far from its predictor has jumped to another part of the solution
       // set (a sharp turn): refuse it and retry with a shorter step.
       if (ok && (v - pred).norm() > 2.0 * ds) ok = false;
       if (ok) {
+        step = {u, t, ds};
         u = v;
         t_prev = t;
         accepted = true;
@@ -333,7 +531,8 @@ HbmBranch Continue(const HarmonicBalance& hb, const HbmOptions& o, Eigen::Vector
         if (ds < o.ds_min) {
           HbmPoint failed = pt;
           failed.converged = false;
-          failed.fold = failed.branch_point = false;
+          failed.fold = failed.branch_point = failed.period_doubling = failed.neimark_sacker = false;
+          failed.fold_at = failed.period_doubling_at = failed.neimark_sacker_at = HbmLocated{};
           branch.points.push_back(failed);
           return branch;
         }
@@ -343,6 +542,67 @@ HbmBranch Continue(const HarmonicBalance& hb, const HbmOptions& o, Eigen::Vector
     if (count > 10 && (u - (Eigen::VectorXd(n + 1) << branch.points.front().z, p0).finished()).norm() < 0.5 * ds) break;
   }
   return branch;
+}
+
+// The period-2ν branch from a located period doubling of a period-ν branch of hb: the doubled orbit
+// plus δ along the critical Floquet vector (DoublingDirection), solved with that component fixed and
+// the parameter free (the branch leaves the period doubling as a pitchfork of the doubled balance),
+// continued away from the period doubling. The located point itself leads the branch.
+bool SwitchAtPeriodDoubling(const HarmonicBalance& hb, const HbmOptions& o, const HbmLocated& pd, HbmBranch* out) {
+  HbmOptions o2 = o;  // o: the period-ν branch's options
+  o2.subharmonic = 2 * hb.subharmonic();
+  o2.harmonics = std::min(50, 2 * hb.harmonics());
+  const HarmonicBalance hb2(o2);
+  const Arclength al2(hb2, o2);
+  const int n2 = hb2.size();
+  const double p_pd = ParamOf(o, pd.omega, pd.alpha);
+  std::complex<double> mu;
+  const Eigen::VectorXd e = hb.DoublingDirection(pd.z, pd.omega, o.floquet_steps, o2.harmonics, &mu);
+  if (e.size() != n2) return false;
+  const Eigen::VectorXd z_pd = hb.Doubled(pd.z, o2.harmonics);
+  for (double delta : {0.05, 0.02, 0.01}) {
+    ThrowIfCancelled();
+    Eigen::VectorXd v(n2 + 1);
+    v.head(n2) = z_pd + delta * e;
+    v[n2] = p_pd;
+    bool ok = false;
+    for (int it = 0; it < o.newton_max_iter && !ok; ++it) {
+      Eigen::VectorXd g;
+      Eigen::MatrixXd a;
+      al2.Full(v.head(n2), v[n2], &g, &a);
+      Eigen::VectorXd res(n2 + 1);
+      res.head(n2) = g;
+      res[n2] = e.dot(v.head(n2) - z_pd) - delta;
+      if (!res.allFinite()) break;
+      if (g.cwiseAbs().maxCoeff() < o.newton_tol && std::fabs(res[n2]) < 1e-12) {
+        ok = true;
+        break;
+      }
+      Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n2 + 1, n2 + 1);
+      m.topRows(n2) = a;
+      m.row(n2).head(n2) = e.transpose();
+      v -= m.partialPivLu().solve(res);
+    }
+    const double p = v[n2];
+    if (!ok || p < std::min(o.from, o.to) || p > std::max(o.from, o.to)) continue;
+    HbmBranch b = Continue(hb2, o2, v.head(n2), p, p >= p_pd ? 1.0 : -1.0);
+    out->period = o2.subharmonic;
+    out->start = "period-doubling at " + std::string(o.param == ContinuationParam::kOmega ? "Omega = " : "alpha = ") +
+                 FormatNumber(p_pd) + " (period " + std::to_string(hb.subharmonic()) + " -> " + std::to_string(o2.subharmonic) + ")";
+    out->points.clear();
+    out->points.push_back(hb2.Describe(z_pd, pd.omega, pd.alpha, o.floquet_steps));
+    for (HbmPoint& q : b.points) out->points.push_back(std::move(q));
+    return true;
+  }
+  return false;
+}
+
+// Moves the bifurcation flags and located points of `from` (none when null) onto `to`.
+void MoveFlags(HbmPoint* from, HbmPoint* to) {
+  const HbmPoint none;
+  const HbmPoint& f = from ? *from : none;
+  to->fold = f.fold, to->branch_point = f.branch_point, to->period_doubling = f.period_doubling, to->neimark_sacker = f.neimark_sacker;
+  to->fold_at = f.fold_at, to->period_doubling_at = f.period_doubling_at, to->neimark_sacker_at = f.neimark_sacker_at;
 }
 
 // Steady state of a time integration at (Ω, α) from x0, sampled over one period, as coefficients.
@@ -356,6 +616,7 @@ bool SeedFromTime(const HarmonicBalance& hb, const HbmOptions& o, double omega, 
   const LaneInput lane = LaneFor(s);
   const double period = 2.0 * M_PI / omega;
   const double t_settle = std::ceil(300.0 / period) * period;
+  const double orbit = period * hb.subharmonic();  // sampled over the orbit's period
   AdaptiveOptions ao;
   ao.rtol = 1e-9;
   ao.atol = 1e-11;
@@ -372,7 +633,7 @@ bool SeedFromTime(const HarmonicBalance& hb, const HbmOptions& o, double omega, 
     for (int k = 0; k < m; ++k) {
       ThrowIfCancelled();
       Dopri5<NondimSystem<Model>> step(sys, ao);
-      if (k > 0 && step.Integrate(t_settle + (k - 1) * period / m, x, t_settle + k * period / m) != OdeTermination::kOk) return false;
+      if (k > 0 && step.Integrate(t_settle + (k - 1) * orbit / m, x, t_settle + k * orbit / m) != OdeTermination::kOk) return false;
       for (int i = 0; i < hb.dofs(); ++i) samples[i][k] = x[2 * i];
     }
     return true;
@@ -428,25 +689,58 @@ StatusOr<HbmResult> ContinueBranchesOrUnwind(const HbmOptions& o) {
       HbmBranch joined;
       joined.start = std::string(st.name) + " at " + (o.param == ContinuationParam::kOmega ? "Omega = " : "alpha = ") +
                      FormatNumber(p);
+      // Joined in branch order (the down half reversed). A flag marks the point that ends the step of
+      // the crossing: in the reversed half that is the point before the one it was found at.
+      for (size_t k = 1; k < down.points.size(); ++k) MoveFlags(&down.points[k], &down.points[k - 1]);
+      if (!down.points.empty()) MoveFlags(nullptr, &down.points.back());
       for (auto it = down.points.rbegin(); it != down.points.rend(); ++it) joined.points.push_back(*it);
       for (size_t i = 1; i < up.points.size(); ++i) joined.points.push_back(up.points[i]);
-      // Joined in parameter order: fold flags of the reversed half mark the same turning points.
+      joined.period = hb.subharmonic();
       result.branches.push_back(std::move(joined));
     }
   }
+  // Branch switching at period doublings (breadth first: period 2 before 4), each located period
+  // doubling once: one that lies on an already computed doubled branch (its other end) is skipped.
+  int switched = 0;
+  for (size_t bi = 0; bi < result.branches.size() && o.switch_depth > 0; ++bi) {
+    const int nu = result.branches[bi].period;
+    if (nu >= (1 << o.switch_depth)) continue;
+    const HbmOptions ob = ForPeriod(o, nu);
+    const HarmonicBalance hbb(ob);
+    const int h2 = std::min(50, 2 * ob.harmonics);
+    for (size_t pi = 0; pi < result.branches[bi].points.size(); ++pi) {
+      const HbmPoint pt = result.branches[bi].points[pi];  // a copy: branches grows below
+      if (!pt.period_doubling || !pt.period_doubling_at.valid()) continue;
+      const Eigen::VectorXd zd = hbb.Doubled(pt.period_doubling_at.z, h2);
+      const double p = ParamOf(o, pt.period_doubling_at.omega, pt.period_doubling_at.alpha);
+      bool known = false;
+      for (const HbmBranch& b : result.branches)
+        if (b.period == 2 * nu)
+          for (const HbmPoint& q : b.points)
+            known |= std::fabs(ParamOf(o, q.omega, q.alpha) - p) <= o.ds_max && (q.z - zd).norm() <= 0.05 * (1.0 + zd.norm());
+      if (known) continue;
+      if (switched >= limits::kMaxHbmSwitchedBranches) break;
+      HbmBranch doubled;
+      if (!SwitchAtPeriodDoubling(hbb, ob, pt.period_doubling_at, &doubled)) continue;
+      doubled.start += ", from branch " + std::to_string(bi);
+      result.branches.push_back(std::move(doubled));
+      ++switched;
+    }
+  }
   // Truncation check: re-solve a few points with H + 2 harmonics and compare amplitudes.
-  HbmOptions more = o;
-  more.harmonics = o.harmonics + 2;
-  HarmonicBalance hb2(more);
   for (const HbmBranch& b : result.branches) {
+    const HbmOptions ob = ForPeriod(o, b.period);
+    HbmOptions more = ob;
+    more.harmonics = ob.harmonics + 2;
+    const HarmonicBalance hbk(ob), hb2(more);
     for (size_t i = 0; i < b.points.size(); i += std::max<size_t>(1, b.points.size() / 8)) {
       ThrowIfCancelled();
       const HbmPoint& p = b.points[i];
       if (!p.converged) continue;
-      Eigen::VectorXd z2 = hb.Resize(p.z, more.harmonics);
+      Eigen::VectorXd z2 = hbk.Resize(p.z, more.harmonics);
       if (hb2.Solve(&z2, p.omega, p.alpha) < 0) continue;
       double amp2 = 0;
-      for (double v : hb2.MainSamples(z2, 256)) amp2 = std::max(amp2, std::fabs(v));
+      for (double v : hb2.MainSamples(z2, 256 * b.period)) amp2 = std::max(amp2, std::fabs(v));
       result.truncation_change = std::max(result.truncation_change, std::fabs(amp2 - p.amplitude) / std::max(p.amplitude, 1e-12));
     }
   }
@@ -466,6 +760,269 @@ StatusOr<HbmResult> ContinueBranches(const HbmOptions& o) {
   } catch (const CancelUnwind&) {
     return CancelledStatus();
   }
+}
+
+Status ValidateFoldCurveOptions(const FoldCurveOptions& f) {
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("alpha_range", f.alpha_lo));
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("alpha_range", f.alpha_hi));
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("omega_range", f.omega_lo));
+  BISTABLE_RETURN_IF_ERROR(CheckPositive("omega_range", f.omega_hi));
+  if (!(f.alpha_lo < f.alpha_hi)) return Violates("alpha_range", f.alpha_hi, "> its low end " + FormatNumber(f.alpha_lo));
+  if (!(f.omega_lo < f.omega_hi)) return Violates("omega_range", f.omega_hi, "> its low end " + FormatNumber(f.omega_lo));
+  if (!(f.ds > 0 && f.ds_min > 0 && f.ds_max >= f.ds && f.ds >= f.ds_min)) return Violates("ds", f.ds, "in [ds_min, ds_max]");
+  if (f.max_points < 2 || f.max_points > 100000) return Violates("max_points", f.max_points, "in [2, 100000]");
+  return Status::Ok();
+}
+
+namespace {
+
+// The minimally augmented fold system in U = (z, Ω, α): F(U) = (R(z, Ω, α), g) with
+// [J b; cᵀ 0] [v; g] = [0; 1]. b and c (unit vectors) are fixed during a Newton solve and moved to the
+// left and right null vectors after every accepted point.
+class FoldSystem {
+ public:
+  FoldSystem(const HarmonicBalance& hb, const HbmOptions& o) : hb_(hb), o_(o), n_(hb.size()) {}
+  int n() const { return n_; }
+  void InitBorders(const Eigen::VectorXd& u) {
+    Eigen::VectorXd r;
+    Eigen::MatrixXd j;
+    hb_.Residual(u.head(n_), u[n_], u[n_ + 1], &r, &j);
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(j, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    b_ = svd.matrixU().col(n_ - 1);
+    c_ = svd.matrixV().col(n_ - 1);
+  }
+  // g at u, and (when asked) v and w, the right and left null-vector estimates.
+  double G(const Eigen::VectorXd& u, Eigen::VectorXd* v = nullptr, Eigen::VectorXd* w = nullptr) const {
+    Eigen::VectorXd r;
+    Eigen::MatrixXd j;
+    hb_.Residual(u.head(n_), u[n_], u[n_ + 1], &r, &j);
+    Eigen::MatrixXd m = Eigen::MatrixXd::Zero(n_ + 1, n_ + 1);
+    m.topLeftCorner(n_, n_) = j;
+    m.col(n_).head(n_) = b_;
+    m.row(n_).head(n_) = c_.transpose();
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n_ + 1);
+    rhs[n_] = 1.0;
+    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(m);
+    const Eigen::VectorXd x = lu.solve(rhs);
+    if (v) *v = x.head(n_);
+    if (w) *w = m.transpose().partialPivLu().solve(rhs).head(n_);
+    return x[n_];
+  }
+  // F(u) (n + 1) and its Jacobian (n + 1) × (n + 2): ∂R/∂z exact, the rest by central differences.
+  void Full(const Eigen::VectorXd& u, Eigen::VectorXd* f, Eigen::MatrixXd* a) const {
+    Eigen::VectorXd r;
+    Eigen::MatrixXd j;
+    hb_.Residual(u.head(n_), u[n_], u[n_ + 1], &r, &j);
+    f->resize(n_ + 1);
+    f->head(n_) = r;
+    (*f)[n_] = G(u);
+    if (!a) return;
+    a->setZero(n_ + 1, n_ + 2);
+    a->topLeftCorner(n_, n_) = j;
+    for (int k = 0; k < n_ + 2; ++k) {
+      const double h = 1e-6 * std::max(1.0, std::fabs(u[k]));
+      Eigen::VectorXd up = u, um = u;
+      up[k] += h, um[k] -= h;
+      if (k >= n_) {
+        Eigen::VectorXd rp, rm;
+        hb_.Residual(up.head(n_), up[n_], up[n_ + 1], &rp, nullptr);
+        hb_.Residual(um.head(n_), um[n_], um[n_ + 1], &rm, nullptr);
+        a->col(k).head(n_) = (rp - rm) / (2 * h);
+      }
+      (*a)(n_, k) = (G(up) - G(um)) / (2 * h);
+    }
+  }
+  // Newton on F(u) = 0 plus one more equation e·u = target (an arclength or a fixed α); iterations or −1.
+  int Correct(Eigen::VectorXd* u, const Eigen::VectorXd& e, double target) const {
+    for (int it = 0; it < o_.newton_max_iter; ++it) {
+      Eigen::VectorXd f;
+      Eigen::MatrixXd a;
+      Full(*u, &f, &a);
+      Eigen::VectorXd res(n_ + 2);
+      res.head(n_ + 1) = f;
+      res[n_ + 1] = e.dot(*u) - target;
+      if (!res.allFinite()) return -1;
+      if (f.head(n_).cwiseAbs().maxCoeff() < o_.newton_tol && std::fabs(f[n_]) < 1e-9 && std::fabs(res[n_ + 1]) < 1e-12) return it;
+      Eigen::MatrixXd m(n_ + 2, n_ + 2);
+      m.topRows(n_ + 1) = a;
+      m.row(n_ + 1) = e.transpose();
+      *u -= m.partialPivLu().solve(res);
+    }
+    return -1;
+  }
+  Eigen::VectorXd Tangent(const Eigen::VectorXd& u, const Eigen::VectorXd& prev) const {
+    Eigen::VectorXd f;
+    Eigen::MatrixXd a;
+    Full(u, &f, &a);
+    Eigen::MatrixXd aug(n_ + 2, n_ + 2);
+    aug.topRows(n_ + 1) = a;
+    aug.row(n_ + 1) = prev.transpose();
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n_ + 2);
+    rhs[n_ + 1] = 1.0;
+    Eigen::VectorXd t = aug.partialPivLu().solve(rhs);
+    t.normalize();
+    if (t.dot(prev) < 0) t = -t;
+    return t;
+  }
+  // A direction of the curve without a previous one: the kernel of the (n + 1) × (n + 2) Jacobian.
+  Eigen::VectorXd Kernel(const Eigen::VectorXd& u) const {
+    Eigen::VectorXd f;
+    Eigen::MatrixXd a;
+    Full(u, &f, &a);
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(a, Eigen::ComputeFullV);
+    return svd.matrixV().col(n_ + 1);
+  }
+  void MoveBorders(const Eigen::VectorXd& u) {
+    Eigen::VectorXd v, w;
+    G(u, &v, &w);
+    if (v.allFinite() && v.norm() > 0) c_ = v.normalized();
+    if (w.allFinite() && w.norm() > 0) b_ = w.normalized();
+  }
+
+ private:
+  const HarmonicBalance& hb_;
+  const HbmOptions& o_;
+  int n_;
+  Eigen::VectorXd b_, c_;
+};
+
+FoldCurvePoint FoldPointOf(const HarmonicBalance& hb, const Eigen::VectorXd& u) {
+  const int n = hb.size();
+  FoldCurvePoint p;
+  p.z = u.head(n);
+  p.omega = u[n];
+  p.alpha = u[n + 1];
+  const std::vector<double> y = hb.MainSamples(p.z, 256 * hb.subharmonic());
+  p.y_min = *std::min_element(y.begin(), y.end());
+  p.y_max = *std::max_element(y.begin(), y.end());
+  p.amplitude = std::max(std::fabs(p.y_min), std::fabs(p.y_max));
+  p.mean = p.z[0];
+  return p;
+}
+
+// One direction of the fold curve from the converged fold point u with tangent t0.
+FoldCurve FoldHalf(const HarmonicBalance& hb, const FoldCurveOptions& f, FoldSystem sys,
+                   Eigen::VectorXd u, Eigen::VectorXd t) {
+  FoldCurve c;
+  const int n = hb.size();
+  const Eigen::VectorXd u0 = u;
+  double ds = f.ds;
+  auto inside = [&](const Eigen::VectorXd& x) {
+    return x[n] >= f.omega_lo && x[n] <= f.omega_hi && x[n + 1] >= f.alpha_lo && x[n + 1] <= f.alpha_hi;
+  };
+  for (int count = 0; count < f.max_points; ++count) {
+    ThrowIfCancelled();
+    c.points.push_back(FoldPointOf(hb, u));
+    if (!inside(u)) break;  // the point just outside closes the curve at the box's edge
+    bool accepted = false;
+    while (!accepted) {
+      ThrowIfCancelled();
+      const Eigen::VectorXd pred = u + ds * t;
+      Eigen::VectorXd v = pred;
+      const int it = sys.Correct(&v, t, t.dot(pred));
+      if (it >= 0 && (v - pred).norm() <= 2.0 * ds) {
+        u = v;
+        sys.MoveBorders(u);
+        t = sys.Tangent(u, t);
+        accepted = true;
+        if (it <= 3) ds = std::min(f.ds_max, ds * 1.5);
+        if (it >= 8) ds = std::max(f.ds_min, ds * 0.7);
+      } else {
+        ds *= 0.5;
+        if (ds < f.ds_min) {
+          c.converged = false;
+          return c;
+        }
+      }
+    }
+    if (count > 10 && (u - u0).norm() < 0.5 * ds) {  // a closed curve: back at the start
+      c.points.push_back(FoldPointOf(hb, u));
+      break;
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
+StatusOr<FoldCurve> ContinueFoldCurve(const HbmOptions& o, const FoldCurveOptions& f, const Eigen::VectorXd& z, double omega,
+                                      double alpha) {
+  BISTABLE_RETURN_IF_ERROR(ValidateHbmOptions(o));
+  BISTABLE_RETURN_IF_ERROR(ValidateFoldCurveOptions(f));
+  try {
+    const HarmonicBalance hb(o);
+    const int n = hb.size();
+    if (z.size() != n) return Status::InvalidArgument("z", "the fold's coefficients do not match the balance's size");
+    FoldSystem sys(hb, o);
+    Eigen::VectorXd u(n + 2);
+    u << z, omega, alpha;
+    sys.InitBorders(u);
+    // The fold at this α: Ω and z free.
+    Eigen::VectorXd e_alpha = Eigen::VectorXd::Zero(n + 2);
+    e_alpha[n + 1] = 1.0;
+    bool ok = false;
+    for (int round = 0; round < 3 && !ok; ++round) {
+      ok = sys.Correct(&u, e_alpha, alpha) >= 0;
+      sys.MoveBorders(u);
+    }
+    if (!ok) return Status::FailedPrecondition("no fold converged near Omega = " + FormatNumber(omega) + ", alpha = " + FormatNumber(alpha));
+    ok = sys.Correct(&u, e_alpha, alpha) >= 0;  // once more with the borders at the fold
+    if (!ok) return Status::FailedPrecondition("no fold converged near Omega = " + FormatNumber(omega) + ", alpha = " + FormatNumber(alpha));
+    Eigen::VectorXd t = sys.Kernel(u);
+    t.normalize();
+    if (t[n + 1] < 0) t = -t;
+    FoldCurve up = FoldHalf(hb, f, sys, u, t);
+    FoldCurve down = FoldHalf(hb, f, sys, u, -t);
+    FoldCurve out;
+    out.converged = up.converged && down.converged;
+    for (auto it = down.points.rbegin(); it != down.points.rend(); ++it) out.points.push_back(*it);
+    for (size_t i = 1; i < up.points.size(); ++i) out.points.push_back(up.points[i]);
+    // Cusps: the (α, Ω) chords on either side of a point point in opposite directions.
+    for (size_t i = 1; i + 1 < out.points.size(); ++i) {
+      const FoldCurvePoint &a = out.points[i - 1], &b = out.points[i], &c = out.points[i + 1];
+      out.points[i].cusp = (b.alpha - a.alpha) * (c.alpha - b.alpha) + (b.omega - a.omega) * (c.omega - b.omega) < 0;
+    }
+    out.start = "fold at Omega = " + FormatNumber(omega) + ", alpha = " + FormatNumber(alpha);
+    return out;
+  } catch (const CancelUnwind&) {
+    return CancelledStatus();
+  }
+}
+
+StatusOr<std::vector<FoldCurve>> ContinueFoldCurves(const HbmOptions& o, const FoldCurveOptions& f, const HbmResult& r) {
+  BISTABLE_RETURN_IF_ERROR(ValidateHbmOptions(o));
+  BISTABLE_RETURN_IF_ERROR(ValidateFoldCurveOptions(f));
+  std::vector<FoldCurve> curves;
+  // A fold on a computed curve (or its mirror image, with the same (α, Ω, max |y_m|)): within 5e-3 of
+  // one of the curve's chords in (α, Ω, amplitude).
+  auto known = [&](const HbmLocated& l) {
+    const Eigen::Vector3d q(l.alpha, l.omega, l.amplitude);
+    for (const FoldCurve& c : curves)
+      for (size_t i = 0; i + 1 < c.points.size(); ++i) {
+        const Eigen::Vector3d a(c.points[i].alpha, c.points[i].omega, c.points[i].amplitude);
+        const Eigen::Vector3d b(c.points[i + 1].alpha, c.points[i + 1].omega, c.points[i + 1].amplitude);
+        const double len2 = (b - a).squaredNorm();
+        const double s = len2 > 0 ? std::clamp((q - a).dot(b - a) / len2, 0.0, 1.0) : 0.0;
+        if ((a + s * (b - a) - q).norm() < 5e-3) return true;
+      }
+    return false;
+  };
+  for (const HbmBranch& b : r.branches) {
+    if (b.period != 1) continue;
+    for (const HbmPoint& p : b.points) {
+      if (!p.fold || !p.fold_at.valid() || known(p.fold_at)) continue;
+      if (static_cast<int>(curves.size()) >= limits::kMaxHbmFoldCurves) return curves;
+      auto c = ContinueFoldCurve(o, f, p.fold_at.z, p.fold_at.omega, p.fold_at.alpha);
+      if (!c.ok()) {
+        if (c.status().message().find("cancelled") != std::string::npos) return c.status();
+        continue;
+      }
+      FoldCurve fc = std::move(c).value();
+      fc.start += " (" + b.start + ")";
+      curves.push_back(std::move(fc));
+    }
+  }
+  return curves;
 }
 
 std::vector<double> Eq9Amplitudes(ModelKind model, const NondimParams& p, double alpha, double omega) {

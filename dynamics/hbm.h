@@ -1,12 +1,19 @@
 // Harmonic balance for the stand-alone and coupled oscillators (model.md §4): each degree of freedom
-// y_i(τ) = c_i0 + Σ_{k=1..H} (a_ik cos kΩτ + b_ik sin kΩτ); the linear terms are balanced exactly per
-// harmonic, the cubic stiffness by alternating frequency–time (AFT: evaluate on Nt ≥ 4H+4 samples of
-// one period, project back), Newton on the residual, pseudo-arclength continuation in Ω or α, and the
-// stability of every point from the Floquet multipliers of its orbit's monodromy matrix.
+// y_i(τ) = c_i0 + Σ_{k=1..H} (a_ik cos kωτ + b_ik sin kωτ), ω = Ω/ν (ν = 1: period-1 orbits; ν = 2, 4, ...:
+// branches switched onto at period doublings); the linear terms are balanced exactly per harmonic, the
+// cubic stiffness by alternating frequency–time (AFT: evaluate on Nt ≥ 4H+4 samples of one period,
+// project back), Newton on the residual, pseudo-arclength continuation in Ω or α, and the stability of
+// every point from the Floquet multipliers of its orbit's monodromy matrix. Along a branch, folds,
+// period doublings (a real multiplier through −1) and Neimark–Sacker points (a complex pair through
+// |μ| = 1) are flagged and located by bisection on the arclength step; folds can be continued in
+// (α, Ω) (ContinueFoldCurve: the boundary of the bistable region).
 // Non-convergence is a result: a point that fails is recorded with converged = false.
 #ifndef BISTABLE_DYNAMICS_HBM_H_
 #define BISTABLE_DYNAMICS_HBM_H_
 
+#include <cmath>
+#include <complex>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -31,7 +38,21 @@ struct HbmOptions {
   int max_points = 4000;                     // per branch
   double newton_tol = 1e-10;                 // on the residual's max norm
   int newton_max_iter = 20;
-  int floquet_steps = 400;                   // RK4 steps per period for the monodromy matrix
+  int floquet_steps = 400;                   // RK4 steps per forcing period for the monodromy matrix
+  // Period doubling: at every period-doubling point of a branch of period ν < 2^switch_depth, switch onto
+  // the period-2ν branch (harmonics of Ω/2ν, 2H of them, at most 50) and continue it. 0: flag only.
+  int switch_depth = 0;
+  int subharmonic = 1;                       // ν: harmonics of Ω/ν (the forcing is harmonic ν); set by switching
+};
+
+// A bifurcation located on the arclength step that ends at the flagged point (bisection on the step's
+// corrected points until the parameter is bracketed to 1e-10).
+struct HbmLocated {
+  double omega = NAN, alpha = NAN;
+  double amplitude = NAN;            // max |y_m| of the orbit there
+  std::complex<double> multiplier;   // the critical multiplier there (≈ −1 at a period doubling, e^{±iθ} at Neimark–Sacker)
+  Eigen::VectorXd z;                 // the orbit there
+  bool valid() const { return std::isfinite(omega) && std::isfinite(alpha); }
 };
 
 struct HbmPoint {
@@ -41,10 +62,15 @@ struct HbmPoint {
   double y_min = 0, y_max = 0; // extremes of y_m over a period
   bool stable = false;         // all Floquet multipliers inside the unit circle
   double max_multiplier = 0;   // largest |μ|
+  std::vector<std::complex<double>> multipliers;  // all Floquet multipliers over the orbit's period, largest |μ| first
+  int period = 1;              // forcing periods per orbit: ν (2 on a branch switched onto at a period doubling)
   bool converged = true;
   bool fold = false;           // the parameter turns here (saddle-node)
   bool branch_point = false;   // the augmented Jacobian's determinant changes sign without a fold
-  std::vector<double> harmonics;  // y_m: c0, a1, b1, ..., aH, bH
+  bool period_doubling = false;  // a real multiplier passed through −1 on the step ending here
+  bool neimark_sacker = false;   // a complex pair passed through the unit circle on the step ending here
+  HbmLocated fold_at, period_doubling_at, neimark_sacker_at;  // located on that step (valid() when flagged)
+  std::vector<double> harmonics;  // y_m: c0, a1, b1, ..., aH, bH (harmonics of Ω/ν)
   Eigen::VectorXd z;           // all coefficients (DOF-major)
 };
 
@@ -57,7 +83,8 @@ const char* OrbitWellName(OrbitWell w);  // "+well", "-well", "interwell"
 
 struct HbmBranch {
   std::vector<HbmPoint> points;
-  std::string start;           // how the branch was seeded
+  std::string start;           // how the branch was seeded ("period-doubling at alpha = ..." for switched ones)
+  int period = 1;              // ν of its points
 };
 
 struct HbmResult {
@@ -86,19 +113,64 @@ class HarmonicBalance {
   Eigen::VectorXd FromSamples(const std::vector<std::vector<double>>& samples) const;
   // y_m over one period at m points.
   std::vector<double> MainSamples(const Eigen::VectorXd& z, int m) const;
+  // Monodromy matrix of w' = J(x(τ)) w over the orbit's period 2πν/Ω (RK4, steps per forcing period),
+  // the state ordered (y_m, y_m', y_r, y_r').
+  Eigen::MatrixXd Monodromy(const Eigen::VectorXd& z, double omega, int steps) const;
+  // Its eigenvalues, the Floquet multipliers, largest |μ| first (real ones have imag exactly 0).
+  std::vector<std::complex<double>> Multipliers(const Eigen::VectorXd& z, double omega, int steps) const;
   // Floquet multipliers' largest modulus of the orbit z at (Ω, α).
   double MaxMultiplier(const Eigen::VectorXd& z, double omega, double alpha, int steps) const;
   HbmPoint Describe(const Eigen::VectorXd& z, double omega, double alpha, int floquet_steps) const;
   // Moves coefficients to H' harmonics (zero-padded or truncated).
   Eigen::VectorXd Resize(const Eigen::VectorXd& z, int h_new) const;
+  // The period-doubled counterpart (ν' = 2ν, H' harmonics) of z: harmonic k of Ω/ν becomes harmonic 2k of Ω/2ν.
+  Eigen::VectorXd Doubled(const Eigen::VectorXd& z, int h_new) const;
+  // The critical Floquet vector of a period doubling at (z, Ω): the variational solution from the
+  // eigenvector of the multiplier nearest −1, continued anti-periodically over two periods, as
+  // coefficients of the doubled balance (ν' = 2ν, H' harmonics; odd harmonics only), unit norm.
+  // *mu: that multiplier. Empty when the monodromy has no real negative multiplier.
+  Eigen::VectorXd DoublingDirection(const Eigen::VectorXd& z, double omega, int steps, int h_new, std::complex<double>* mu) const;
+  int subharmonic() const { return nu_; }
+  int harmonics() const { return h_; }
 
  private:
   int Index(int dof, int coeff) const { return dof * per_dof_ + coeff; }
+  // Integrates the columns of *phi along the orbit over its period; each(s, phi) before step s.
+  void Propagate(const Eigen::VectorXd& z, double omega, int steps, Eigen::MatrixXd* phi,
+                 const std::function<void(int, const Eigen::MatrixXd&)>& each) const;
   HbmOptions o_;
-  int h_, dofs_, per_dof_, n_, nt_;
+  int h_, nu_, dofs_, per_dof_, n_, nt_;
   double k_lin_, eps_;
   Eigen::Matrix2d c_, k_;  // damping and stiffness (top-left 1x1 for one DOF)
 };
+
+// Two-parameter continuation of a fold in (α, Ω): the fold point (z, Ω, α) solves R = 0 together with
+// the minimally augmented condition g = 0, where [J b; cᵀ 0] [v; g] = [0; 1] (J = ∂R/∂z, b and c the
+// left and right null vectors of the previous point), continued by pseudo-arclength in (z, Ω, α). It
+// passes through cusps (where two fold curves of the (α, Ω) plane meet), so one start traces both edges
+// of a bistable (hysteresis) region.
+struct FoldCurveOptions {
+  double alpha_lo = 0.01, alpha_hi = 3.0, omega_lo = 0.05, omega_hi = 3.0;  // the box the curve stays in
+  double ds = 0.01, ds_min = 1e-6, ds_max = 0.05;
+  int max_points = 2000;  // per direction
+};
+struct FoldCurvePoint {
+  double alpha = 0, omega = 0, amplitude = 0, mean = 0, y_min = 0, y_max = 0;
+  bool cusp = false;  // the curve's (α, Ω) direction reverses here (its chords on either side point apart)
+  Eigen::VectorXd z;
+};
+struct FoldCurve {
+  std::vector<FoldCurvePoint> points;
+  std::string start;   // the fold it was started from
+  bool converged = true;  // false when the corrector failed before the curve left the box
+};
+Status ValidateFoldCurveOptions(const FoldCurveOptions& f);
+// One fold curve through the fold at (z, Ω, α) (a point near it: the first corrector finds it at this α).
+StatusOr<FoldCurve> ContinueFoldCurve(const HbmOptions& o, const FoldCurveOptions& f, const Eigen::VectorXd& z, double omega,
+                                      double alpha);
+// Fold curves through the located folds of the period-1 branches of r (continued with o), one per
+// distinct curve: a fold already on a computed curve, or the mirror image (y → −y) of one, is skipped.
+StatusOr<std::vector<FoldCurve>> ContinueFoldCurves(const HbmOptions& o, const FoldCurveOptions& f, const HbmResult& r);
 
 // The one-harmonic, zero-mean balance in closed form: the corrected counterpart of the paper's Eq. 9
 // (which has sign and factor slips), for the stand-alone and the coupled oscillator. With complex

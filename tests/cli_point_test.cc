@@ -227,6 +227,44 @@ TEST(CliHbm, JsonHasBranchesWithTheContractKeys) {
   EXPECT_TRUE(intrawell) << "an intrawell branch about +1";
 }
 
+// Period doublings flagged with their located values and the switched period-2 branch; fold curves
+// with a cusp (the double-well Duffing cases of tests/hbm_test.cc).
+TEST(CliHbm, JsonHasPeriodDoublingsSwitchedBranchesAndFoldCurves) {
+  ProcessResult r = Bistable("hbm --continue alpha --omega 1.2 --eta 0.3 --from 0.1 --to 0.25 --harmonics 10 --switch-pd 1 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto j = nlohmann::json::parse(r.out);
+  int pd = 0, period2 = 0;
+  for (const auto& b : j["bifurcations"])
+    if (b["kind"] == "period_doubling" && b["period"] == 1) {
+      EXPECT_NEAR(b["alpha"].get<double>(), 0.18443, 1e-5);
+      EXPECT_NEAR(b["multiplier"][0].get<double>(), -1.0, 1e-6);
+      const auto& p = j["branches"][b["branch"].get<int>()]["points"][b["point"].get<int>()];
+      EXPECT_TRUE(p["period_doubling"].get<bool>());
+      EXPECT_EQ(p["period_doubling_at"]["alpha"], b["alpha"]);
+      EXPECT_EQ(p["multipliers"].size(), 2u);
+      ++pd;
+    }
+  for (const auto& b : j["branches"])
+    if (b["period"] == 2) {
+      ++period2;
+      EXPECT_EQ(b["points"][0]["period"], 2);
+      EXPECT_EQ(b["start"].get<std::string>().rfind("period-doubling at alpha = 0.18443", 0), 0u) << b["start"];
+    }
+  EXPECT_EQ(pd, 2);       // the +well orbit and its mirror image
+  EXPECT_EQ(period2, 2);  // one doubled branch from each
+  r = Bistable("hbm --alpha 0.3 --fold-curve --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  ASSERT_GE(j["fold_curves"].size(), 1u);
+  int cusps = 0;
+  for (const auto& c : j["fold_curves"])
+    for (const auto& p : c["points"]) {
+      for (const char* k : {"alpha", "omega", "amplitude", "mean", "cusp", "well"}) ASSERT_TRUE(p.contains(k)) << k;
+      cusps += p["cusp"].get<bool>();
+    }
+  EXPECT_EQ(cusps, 1);
+}
+
 TEST(CliHbm, BadInputNamesTheField) {
   for (auto [args, expect] : std::vector<std::pair<std::string, std::string>>{
            {"hbm --harmonics 0", "harmonics = 0 violates harmonics in [1, 50]"},
@@ -234,6 +272,11 @@ TEST(CliHbm, BadInputNamesTheField) {
            {"hbm --continue eta", "continue = 'eta' violates continue in {omega, alpha}"},
            {"hbm --model duffing", "model"},
            {"hbm --alpha -2", "alpha"},
+           {"hbm --switch-pd 4", "switch_pd = 4 violates switch_pd in [0, 3]"},
+           {"hbm --fold-curve --alpha-range 2,1", "alpha_range = 1 violates alpha_range > its low end 2"},
+           {"hbm --fold-curve --omega-range 0,1", "omega_range = 0 violates omega_range > 0"},
+           {"hbm --over-map x.h5", "over_map: draws fold curves: add --fold-curve"},
+           {"hbm --fold-curve --over-map no-such-sweep --data /nonexistent", "over_map"},
        }) {
     const ProcessResult r = Bistable(args);
     EXPECT_EQ(r.exit_code, 2) << args;

@@ -1,6 +1,9 @@
 // Harmonic balance against closed forms (linear transmissibility, the one-harmonic balance), against
 // long time integration (stable period-1 points), continuation through folds, stability flags that
 // time integration confirms, and intrawell branches about ±1 that the paper's Eq. 9 cannot produce.
+// Period doubling of the double-well Duffing against a brute-force bifurcation diagram, the switched
+// period-2 branch against the integrated period-2 orbit, and fold curves in (α, Ω) against
+// one-parameter continuations.
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -255,6 +258,283 @@ TEST(Hbm, BadOptionsNameTheFieldAndNonConvergenceIsARecordedResult) {
   for (const auto& b : r->branches)
     for (const auto& p : b.points) any_failed |= !p.converged;
   EXPECT_TRUE(any_failed || r->branches.empty());
+}
+
+
+// ---- Period doubling, branch switching and fold curves ----------------------------------------------
+
+// The double-well Duffing y'' + 0.3 y' − y + y³ = αΩ² sin Ωτ at Ω = 1.2 (forcing amplitude 1.44 α, the
+// classic γ cos ωt case of Guckenheimer & Holmes): the intrawell orbit of the + well period-doubles
+// near α = 0.1844, the period-2 orbit near α = 0.1991 (a cascade follows).
+HbmOptions DuffingCascade() {
+  HbmOptions o;
+  o.model = ModelKind::kStandalone;
+  o.params.eta = 0.3;
+  o.omega = 1.2;
+  o.param = ContinuationParam::kAlpha;
+  o.from = 0.1;
+  o.to = 0.25;
+  o.harmonics = 10;
+  o.switch_depth = 1;
+  return o;
+}
+
+// Brute-force bifurcation diagram: α stepped up over a grid, each run continuing from the previous
+// one's final state (DP5, rtol 1e-10), 300 forcing periods of transient, then the stroboscopic samples
+// (y, y') at τ = kT, k = 0..4, and max |y| over those 4 periods (400 dense samples per period).
+struct Strobes {
+  double alpha;
+  std::array<double, 5> y, v;
+  double amplitude;
+  double Split(int n) const { return std::hypot(y[n] - y[0], v[n] - v[0]); }  // |s_n − s_0|
+};
+std::vector<Strobes> BruteForceDiagram(const HbmOptions& o, double a0, double da, int count) {
+  using Sys = NondimSystem<SingleModel>;
+  AdaptiveOptions ao;
+  ao.rtol = 1e-10;
+  ao.atol = 1e-12;
+  const double period = 2 * M_PI / o.omega;
+  Sys::State x;
+  x[0] = 1, x[1] = 0;
+  double t = 0;
+  std::vector<Strobes> out;
+  for (int k = 0; k < count; ++k) {
+    PointSpec s;
+    s.model = o.model;
+    s.params = o.params;
+    s.omega = o.omega;
+    s.alpha = a0 + k * da;
+    Sys sys(LaneFor(s).coeffs, s.alpha, o.omega);
+    Dopri5<Sys> dp(sys, ao);
+    dp.Integrate(t, x, t + 300 * period);
+    t += 300 * period;
+    Strobes st{s.alpha, {}, {}, 0};
+    for (int n = 0; n < 5; ++n) {
+      st.y[n] = x[0], st.v[n] = x[1];
+      if (n == 4) break;
+      Dopri5<Sys> step(sys, ao);
+      const double t0 = t;
+      int m = 0;
+      Sys::State xi;
+      step.Integrate(t, x, t + period, [&](const Dopri5<Sys>& d) {
+        for (; m < 400 && t0 + m * period / 400 <= d.t(); ++m) {
+          d.Interpolate(t0 + m * period / 400, xi);
+          st.amplitude = std::max(st.amplitude, std::fabs(xi[0]));
+        }
+      });
+      t += period;
+    }
+    out.push_back(st);
+  }
+  return out;
+}
+
+// The first flagged period doubling of the +well branch of `period` (mean > 0).
+const HbmPoint* FirstPeriodDoubling(const HbmResult& r, int period, size_t* branch = nullptr) {
+  for (size_t b = 0; b < r.branches.size(); ++b)
+    if (r.branches[b].period == period && r.branches[b].points.front().mean > 0)
+      for (const HbmPoint& p : r.branches[b].points)
+        if (p.period_doubling) {
+          if (branch) *branch = b;
+          return &p;
+        }
+  return nullptr;
+}
+
+TEST(HbmPeriodDoubling, CascadeOfTheDoubleWellDuffingMatchesABruteForceBifurcationDiagram) {
+  const HbmOptions o = DuffingCascade();
+  auto r = ContinueBranches(o);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  size_t b1 = 0;
+  const HbmPoint* pd1 = FirstPeriodDoubling(*r, 1, &b1);
+  ASSERT_NE(pd1, nullptr);
+  ASSERT_TRUE(pd1->period_doubling_at.valid());
+  const double a_pd1 = pd1->period_doubling_at.alpha;
+  // Located by bisection inside the step that ends at the flagged point, the multiplier at −1.
+  const HbmPoint& before = (&*pd1)[-1];
+  EXPECT_GT(a_pd1, before.alpha);
+  EXPECT_LT(a_pd1, pd1->alpha);
+  EXPECT_GT(pd1->alpha - a_pd1, 1e-3) << "the flagged point is a step away; the located one is not";
+  EXPECT_NEAR(pd1->period_doubling_at.multiplier.real(), -1.0, 1e-6);
+  EXPECT_EQ(pd1->period_doubling_at.multiplier.imag(), 0.0);
+  EXPECT_TRUE(before.stable);
+  EXPECT_FALSE(pd1->stable);
+  // The period-2 branch's own period doubling (period 4), the cascade's next step.
+  const HbmPoint* pd2 = FirstPeriodDoubling(*r, 2);
+  ASSERT_NE(pd2, nullptr);
+  ASSERT_TRUE(pd2->period_doubling_at.valid());
+  const double a_pd2 = pd2->period_doubling_at.alpha;
+  EXPECT_GT(a_pd2, a_pd1 + 0.01);
+
+  // Brute force over α in [0.180, 0.2025], step 0.0005: period 2 where |s1 − s0| > 1e-3 and
+  // |s2 − s0| < 0.1 |s1 − s0|, period 4 where |s2 − s0| > 1e-3 and |s4 − s0| < 0.1 |s2 − s0| (near a
+  // period doubling 300 periods do not settle the samples to rounding: |μ| ≈ 1).
+  const double da = 0.0005;
+  const std::vector<Strobes> diagram = BruteForceDiagram(o, 0.180, da, 46);
+  double first2 = NAN, first4 = NAN;
+  for (const Strobes& s : diagram) {
+    const bool p2 = s.Split(1) > 1e-3 && s.Split(2) < 0.1 * s.Split(1), p4 = s.Split(2) > 1e-3 && s.Split(4) < 0.1 * s.Split(2);
+    if (std::isnan(first2) && p2) first2 = s.alpha;
+    if (std::isnan(first4) && p4) first4 = s.alpha;
+  }
+  ASSERT_FALSE(std::isnan(first2));
+  ASSERT_FALSE(std::isnan(first4));
+  // The grid agrees to its step (near a period doubling, a run's transient from the previous grid
+  // point decays as |μ|^n with |μ| ≈ 1 and may still look doubled one step early).
+  EXPECT_LT(std::fabs(a_pd1 - first2), da);
+  EXPECT_LT(std::fabs(a_pd2 - first4), da);
+  // Sharper: past a period doubling the doubled splitting grows as √(α − α_pd), so |s_n − s0|² is
+  // linear in α; a least-squares line through the 4 grid points after the first doubled one crosses 0
+  // at the brute-force α_pd.
+  auto extrapolate = [&](double first, int n) {
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    int count = 0;
+    for (const Strobes& s : diagram)
+      if (s.alpha > first + 0.5 * da && s.alpha < first + 4.5 * da) {
+        const double d2 = s.Split(n) * s.Split(n);
+        sx += s.alpha, sy += d2, sxx += s.alpha * s.alpha, sxy += s.alpha * d2, ++count;
+      }
+    EXPECT_EQ(count, 4);
+    const double slope = (count * sxy - sx * sy) / (count * sxx - sx * sx), intercept = (sy - slope * sx) / count;
+    return -intercept / slope;
+  };
+  const double a_brute = extrapolate(first2, 1), a_brute2 = extrapolate(first4, 2);
+  EXPECT_NEAR(a_pd1, a_brute, 1e-5) << "brute force " << a_brute << ", continuation " << a_pd1;
+  EXPECT_NEAR(a_pd2, a_brute2, 1e-4) << "brute force " << a_brute2 << ", continuation " << a_pd2;
+  RecordProperty("alpha_pd1_hbm", std::to_string(a_pd1));
+  RecordProperty("alpha_pd1_brute", std::to_string(a_brute));
+  std::printf("period doubling 1: continuation %.8f, brute force %.8f (grid: first period 2 at %.4f); "
+              "period doubling 2: continuation %.8f, brute force %.8f (grid: first period 4 at %.4f)\n",
+              a_pd1, a_brute, first2, a_pd2, a_brute2, first4);
+
+  // The switched period-2 branch against the integrated period-2 orbit at α = 0.19 (a grid point).
+  const double a = 0.19;
+  const Strobes* s19 = nullptr;
+  for (const Strobes& s : diagram)
+    if (std::fabs(s.alpha - a) < 1e-12) s19 = &s;
+  ASSERT_NE(s19, nullptr);
+  ASSERT_GT(s19->Split(1), 0.1);
+  const HbmBranch* two = nullptr;
+  for (const HbmBranch& b : r->branches)
+    if (b.period == 2 && b.points.front().mean > 0) two = &b;
+  ASSERT_NE(two, nullptr);
+  EXPECT_NE(two->start.find("period-doubling at alpha = 0.18443"), std::string::npos) << two->start;
+  for (const HbmPoint& p : two->points) EXPECT_EQ(p.period, 2);
+  HbmOptions o2 = o;
+  o2.subharmonic = 2;
+  o2.harmonics = 20;
+  const HarmonicBalance hb2(o2);
+  Eigen::VectorXd z;
+  for (size_t i = 1; i < two->points.size() && z.size() == 0; ++i) {
+    const HbmPoint &p = two->points[i - 1], &q = two->points[i];
+    if ((p.alpha - a) * (q.alpha - a) <= 0) z = p.z + (a - p.alpha) / (q.alpha - p.alpha) * (q.z - p.z);
+  }
+  ASSERT_EQ(z.size(), hb2.size()) << "the period-2 branch passes alpha 0.19";
+  ASSERT_GE(hb2.Solve(&z, o.omega, a), 0);
+  const HbmPoint p2 = hb2.Describe(z, o.omega, a, o.floquet_steps);
+  EXPECT_TRUE(p2.stable);
+  EXPECT_NEAR(p2.amplitude, s19->amplitude, 2e-4 * s19->amplitude);
+  // The orbit's stroboscopic pair y(0), y(T) (the harmonics of Ω/2 at τ = 0 and τ = 2π/Ω) is the
+  // integration's pair of samples, in one order or the other.
+  double y0 = z[0], yt = z[0];
+  for (int k = 1; k <= 20; ++k) y0 += z[2 * k - 1], yt += z[2 * k - 1] * (k % 2 ? -1.0 : 1.0);
+  const double d_same = std::max(std::fabs(y0 - s19->y[0]), std::fabs(yt - s19->y[1]));
+  const double d_swap = std::max(std::fabs(y0 - s19->y[1]), std::fabs(yt - s19->y[0]));
+  EXPECT_LT(std::min(d_same, d_swap), 1e-6) << "HBM " << y0 << ", " << yt << "; integration " << s19->y[0] << ", " << s19->y[1];
+  std::printf("period-2 orbit at alpha 0.19: amplitude %.6f (HBM) vs %.6f (integration); strobes %.8f %.8f vs %.8f %.8f\n",
+              p2.amplitude, s19->amplitude, y0, yt, s19->y[0], s19->y[1]);
+}
+
+TEST(HbmFoldCurve, FoldsOfOneParameterContinuationsLieOnTheFoldCurveAndItsCuspEndsTheHysteresis) {
+  HbmOptions o = Options(ModelKind::kStandalone, 0.3);
+  auto r = ContinueBranches(o);
+  ASSERT_TRUE(r.ok());
+  auto curves = ContinueFoldCurves(o, FoldCurveOptions{}, *r);
+  ASSERT_TRUE(curves.ok()) << curves.status().ToString();
+  // The +well softening resonance: one curve through both of its folds at α = 0.3, with one cusp.
+  const FoldCurve* c = nullptr;
+  for (const FoldCurve& fc : *curves)
+    if (fc.start.find("positive well") != std::string::npos) c = &fc;
+  ASSERT_NE(c, nullptr);
+  EXPECT_TRUE(c->converged);
+  const FoldCurvePoint* cusp = nullptr;
+  int cusps = 0;
+  for (const FoldCurvePoint& p : c->points)
+    if (p.cusp) cusp = &p, ++cusps;
+  ASSERT_EQ(cusps, 1);
+  EXPECT_LT(cusp->alpha, 0.05);
+  // Points of the curve on either side of the cusp, low and high: a continuation in Ω at that α has a
+  // located fold at that Ω.
+  for (double target : {0.1, 0.6}) {
+    for (int side = 0; side < 2; ++side) {
+      const FoldCurvePoint* q = nullptr;
+      for (const FoldCurvePoint& p : c->points) {
+        const bool left = &p < cusp;
+        if (left == (side == 0) && (!q || std::fabs(p.alpha - target) < std::fabs(q->alpha - target))) q = &p;
+      }
+      ASSERT_NE(q, nullptr);
+      HbmOptions one = o;
+      one.alpha = q->alpha;
+      auto r1 = ContinueBranches(one);
+      ASSERT_TRUE(r1.ok());
+      double nearest = INFINITY;
+      for (const HbmBranch& b : r1->branches)
+        for (const HbmPoint& p : b.points)
+          if (p.fold && p.fold_at.valid()) nearest = std::min(nearest, std::fabs(p.fold_at.omega - q->omega));
+      EXPECT_LT(nearest, 1e-6) << "alpha " << q->alpha << ", Omega on the fold curve " << q->omega;
+      std::printf("fold curve point alpha %.6f Omega %.8f: one-parameter fold within %.2e\n", q->alpha, q->omega, nearest);
+    }
+  }
+  // Below the cusp the +well resonance does not fold (one orbit per Ω: no hysteresis); above it, twice.
+  for (double f : {0.7, 1.5}) {
+    HbmOptions one = o;
+    one.alpha = f * cusp->alpha;
+    auto r1 = ContinueBranches(one);
+    ASSERT_TRUE(r1.ok());
+    int folds = -1;
+    for (const HbmBranch& b : r1->branches)
+      if (b.points.front().mean > 0.9) {
+        folds = 0;
+        for (const HbmPoint& p : b.points) folds += p.fold;
+      }
+    EXPECT_EQ(folds, f < 1 ? 0 : 2) << "alpha " << one.alpha;
+  }
+}
+
+// The coupled model (paper defaults, α 0.2) loses stability through Neimark–Sacker points: located
+// where a complex pair is on the unit circle, the stability changing across the step.
+TEST(HbmNeimarkSacker, LocatedWhereAComplexPairCrossesTheUnitCircle) {
+  HbmOptions o = Options(ModelKind::kCoupled, 0.2);
+  o.harmonics = 7;
+  auto r = ContinueBranches(o);
+  ASSERT_TRUE(r.ok());
+  int located = 0;
+  for (const HbmBranch& b : r->branches)
+    for (size_t i = 1; i < b.points.size(); ++i) {
+      const HbmPoint& p = b.points[i];
+      if (!p.neimark_sacker || !p.neimark_sacker_at.valid()) continue;
+      const std::complex<double> mu = p.neimark_sacker_at.multiplier;
+      EXPECT_NEAR(std::abs(mu), 1.0, 1e-6) << b.start << " Omega " << p.neimark_sacker_at.omega;
+      EXPECT_GT(std::fabs(mu.imag()), 0.1);
+      const double lo = std::min(b.points[i - 1].omega, p.omega), hi = std::max(b.points[i - 1].omega, p.omega);
+      EXPECT_GE(p.neimark_sacker_at.omega, lo);
+      EXPECT_LE(p.neimark_sacker_at.omega, hi);
+      if (!p.period_doubling && !p.fold) EXPECT_NE(p.stable, b.points[i - 1].stable);
+      ++located;
+    }
+  EXPECT_GE(located, 2);
+}
+
+TEST(HbmFoldCurve, BadOptionsNameTheField) {
+  HbmOptions o = Options(ModelKind::kStandalone, 0.3);
+  FoldCurveOptions f;
+  f.alpha_lo = 2, f.alpha_hi = 1;
+  EXPECT_EQ(ContinueFoldCurve(o, f, Eigen::VectorXd::Zero(11), 1.0, 0.3).status().field(), "alpha_range");
+  f = FoldCurveOptions{};
+  f.omega_lo = -1;
+  EXPECT_EQ(ContinueFoldCurve(o, f, Eigen::VectorXd::Zero(11), 1.0, 0.3).status().field(), "omega_range");
+  o.switch_depth = 4;
+  EXPECT_EQ(ContinueBranches(o).status().field(), "switch_pd");
 }
 
 }  // namespace

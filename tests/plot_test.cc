@@ -180,6 +180,47 @@ TEST_F(Figures, BranchLegendNamesOnlyWhatIsDrawn) {
   EXPECT_EQ(text.find("+well, unstable"), std::string::npos) << "no unstable +well run is drawn";
 }
 
+// Period-doubling and Neimark–Sacker markers in their colours with legend entries; drawn only when
+// the marker set has points.
+TEST_F(Figures, BranchMarkersHaveTheirOwnLegendEntries) {
+  bistable::BranchPlot d;
+  d.title = "branches";
+  d.x_name = "alpha";
+  d.x_unit = "A0/delta_s";
+  d.y_label = "max |y_m|";
+  d.branches = {{"+well", 2, {0.1, 0.2, 0.3}, {1.0, 1.1, 1.2}, {true, true, false}, {}, {}}};
+  d.markers = {{"period doubling", 7, "#d7191c", {0.25}, {1.15}}, {"Neimark-Sacker", 5, "#7b3294", {}, {}}};
+  const std::string out = File("markers.png");
+  ExpectDrawn(bistable::RenderBranches(d, out), out, 900, 700, {"#d7191c"}, 20);
+  const std::string svg = File("markers.svg");
+  ASSERT_TRUE(bistable::RenderBranches(d, svg).ok());
+  const std::string text = bistable_test::ReadText(svg);
+  EXPECT_NE(text.find("period doubling"), std::string::npos);
+  EXPECT_EQ(text.find("Neimark"), std::string::npos) << "an empty marker set has no legend entry";
+}
+
+// Curves over a coded heatmap (fold curves over a motion map): drawn in their colour, named below.
+TEST_F(Figures, HeatmapOverlaysAreDrawnWithALegend) {
+  bistable::PlotData d;
+  d.title = "motion with fold curves";
+  d.metric = "motion";
+  d.unit = "code";
+  d.axis_names = {"alpha", "omega"};
+  d.axis_units = {"A0/delta_s", "omega0/omega_n"};
+  for (int i = 0; i < 20; ++i) d.axis_values.resize(2), d.axis_values[0].push_back(0.05 * (i + 1)), d.axis_values[1].push_back(0.1 * (i + 1));
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) d.values.push_back(i + j < 20 ? 0 : 1);
+  d.codes = bistable::MetricCodes("motion", d.values);
+  bistable::PlotData::Overlay curve{"fold curves", {}, {}, false, "#ff00ff"};
+  for (int k = 0; k <= 50; ++k) curve.x.push_back(0.2 + 0.03 * k), curve.y.push_back(0.9 - 0.015 * k);
+  d.overlays = {curve};
+  const std::string out = File("overlay.png");
+  ExpectDrawn(bistable::RenderPlot(d, out), out, 900, 700, {"#ff00ff"}, 100);
+  const std::string svg = File("overlay.svg");
+  ASSERT_TRUE(bistable::RenderPlot(d, svg).ok());
+  EXPECT_NE(bistable_test::ReadText(svg).find("fold curves"), std::string::npos);
+}
+
 TEST_F(Figures, HarmonicDiffusionScatter) {
   bistable::ScatterData d;
   d.title = "hd, alpha = " + bistable::PlotNumber(1.0 / 3);
