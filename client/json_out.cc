@@ -90,6 +90,13 @@ nlohmann::json PointJson(const PointSpec& spec, const PointResult& r) {
   };
 }
 
+void AddSpectrumJson(const LyapunovSpectrum& sp, nlohmann::json* j) {
+  (*j)["lyapunov_spectrum"] = sp.exponents;
+  (*j)["lyapunov_sum"] = sp.sum;
+  (*j)["divergence"] = sp.divergence;
+  (*j)["kaplan_yorke"] = sp.kaplan_yorke;
+}
+
 nlohmann::json SweepStatusJson(const SweepInfo& s) {
   return {{"id", s.id},         {"state", SweepStateName(s.state)}, {"items_done", s.items_done},
           {"items_total", s.items_total}, {"items_cached", s.items_cached}, {"workers", s.workers},

@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "dynamics/point.h"
 #include "dynamics/point_spec.h"
 #include "engine/sweep_state.h"
 #include "proto/coordinator_client.h"
@@ -31,6 +32,8 @@ nlohmann::json SettingsJson(const PointSpec& spec);
 // The `bistable point --json` object: frf_db, lle, lle_rosenstein, motion, period, hd_index, hd_peaks,
 // edr_b, edr_r, edr_t, energy_balance_residual, energies, termination, settings. NaN prints as null.
 nlohmann::json PointJson(const PointSpec& spec, const PointResult& r);
+// `point --spectrum`'s keys: lyapunov_spectrum, lyapunov_sum, divergence, kaplan_yorke (CLI and Python).
+void AddSpectrumJson(const LyapunovSpectrum& sp, nlohmann::json* j);
 
 // A coordinator's answers: `status --json` (SweepStatusJson), a row of `sweeps --coordinator --json`
 // (RemoteSweepJson), `submit --json` (SubmittedJson), a row of `workers --json` (WorkerJson).

@@ -266,13 +266,7 @@ int RunPoint(PointArgs& a) {
   }
   if (a.json) {
     nlohmann::json j = PointJson(spec, *result);
-    if (spectrum) {
-      const LyapunovSpectrum& sp = **spectrum;
-      j["lyapunov_spectrum"] = sp.exponents;
-      j["lyapunov_sum"] = sp.sum;
-      j["divergence"] = sp.divergence;
-      j["kaplan_yorke"] = sp.kaplan_yorke;
-    }
+    if (spectrum) AddSpectrumJson(**spectrum, &j);
     if (!a.poincare.empty() || !a.poincare_plot.empty() || a.poincare_periods_given)
       j["poincare"] = SectionJson(spec, *result, section_limit, a.poincare);
     std::cout << j.dump(2) << "\n";

@@ -239,9 +239,14 @@ PointSpec PointFromKeywords(const py::dict& kw) {
 }
 
 py::dict Point(const py::kwargs& kw) {
-  const PointSpec spec = PointFromKeywords(kw);
+  py::dict rest = py::reinterpret_borrow<py::dict>(kw).attr("copy")();
+  bool spectrum = false;
+  if (rest.contains("spectrum")) spectrum = Flag(rest["spectrum"], "spectrum"), PyDict_DelItemString(rest.ptr(), "spectrum");
+  const PointSpec spec = PointFromKeywords(rest);
   auto r = Compute([&] { return EvaluatePoint(spec); });
-  return ToPython(PointJson(spec, Unwrap(std::move(r))));
+  nlohmann::json j = PointJson(spec, Unwrap(std::move(r)));
+  if (spectrum) AddSpectrumJson(Unwrap(Compute([&] { return EvaluateLyapunovSpectrum(spec); })), &j);
+  return ToPython(j);
 }
 
 // The sampled window: tau, y_m, dy_m, y_r, dy_r as numpy arrays, plus the metrics.

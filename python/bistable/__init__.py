@@ -28,7 +28,9 @@ def point(**kw):
     Keywords are the CLI's flags with '_' for '-': model ("coupled", "standalone", "linear",
     "linear-coupled"), alpha and omega (required), eps, eta, eta_r, phi, lambda, t_end, t_keep,
     integrator ("rk4" or "adaptive"), dt, rtol, atol, ic=(ym, vm[, yr, vr]), chaos_threshold,
-    renorm_every, sample_every, rosenstein (bool). Results are bit-identical to the CLI's.
+    renorm_every, sample_every, rosenstein (bool), spectrum (bool: also the Lyapunov spectrum,
+    lyapunov_spectrum / lyapunov_sum / divergence / kaplan_yorke as `point --spectrum --json`).
+    Results are bit-identical to the CLI's.
     """
     return _core.point(**kw)
 

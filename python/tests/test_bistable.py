@@ -53,6 +53,14 @@ def test_point_is_the_cli_point_bit_for_bit(kw, flags):
     assert bistable.point(**kw) == cli_json("point", *flags)
 
 
+def test_point_spectrum_is_the_cli_spectrum():
+    r = bistable.point(model="coupled", alpha=1.0, omega=1.0, t_end=1000.0, spectrum=True)
+    assert r == cli_json("point", "--model", "coupled", "--alpha", "1", "--omega", "1", "--t-end", "1000", "--spectrum")
+    assert len(r["lyapunov_spectrum"]) == 4 and abs(r["lyapunov_spectrum"][0] - r["lle"]) <= 1e-9
+    with pytest.raises(ValueError, match="spectrum"):
+        bistable.point(alpha=1.0, omega=1.0, spectrum="yes")
+
+
 def test_nan_is_none_as_the_cli_prints_null():
     r = bistable.point(model="coupled", alpha=1.0, omega=1.2, rosenstein=False)
     assert r["lle_rosenstein"] is None
