@@ -244,7 +244,7 @@ int RunHbm(HbmArgs& a) {
                                {"switch_pd", a.o.switch_depth}, {"numerics_version", kNumericsVersion}};
     if (HasResonator(a.o.model)) settings.update({{"eta_r", a.o.params.eta_r}, {"phi", a.o.params.phi}, {"lambda", a.o.params.lambda}});
     nlohmann::json out = {{"branches", branches}, {"bifurcations", BifurcationsJson(*r)}, {"settings", settings},
-                          {"truncation_change", r->truncation_change}};
+                          {"truncation_change", r->truncation_change}, {"notes", r->notes}};
     if (a.fold_curve) {
       out["fold_curves"] = FoldCurvesJson(*curves, IsBistable(a.o.model));
       out["settings"].update({{"alpha_range", a.alpha_range}, {"omega_range", a.omega_range}});
@@ -282,6 +282,8 @@ int RunHbm(HbmArgs& a) {
     if (!st.ok()) return Fail(st);
     if (!a.json) std::cout << out << "\n";
   }
+  if (!a.json)
+    for (const std::string& n : r->notes) std::cerr << "note: " << n << "\n";
   if (!a.json && a.format.empty() && a.out.empty()) {
     std::printf("%zu branches (truncation check: amplitude changes by %.2g%% with H+2 harmonics)\n", r->branches.size(),
                 100 * r->truncation_change);
@@ -415,7 +417,7 @@ void AddHbmCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--data", a->data, "data directory for --over-map <sweep id>")->capture_default_str();
   cmd->add_flag("--eq9", a->eq9, "overlay the closed-form one-harmonic zero-mean balance on the plot");
   cmd->add_flag("--json", a->json,
-                "print {branches: [{start, period, points: [...]}], bifurcations: [...], settings, truncation_change"
+                "print {branches: [{start, period, points: [...]}], bifurcations: [...], settings, truncation_change, notes"
                 "[, fold_curves: [...]]}");
   cmd->add_option("--format", a->format, "png | svg: plot amplitude vs the parameter (and the fold curves with --fold-curve)");
   cmd->add_option("--out", a->out, "plot file (default hbm_<model>.<format>)");

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <complex>
 #include <tuple>
 
@@ -721,7 +722,15 @@ StatusOr<HbmResult> ContinueBranchesOrUnwind(const HbmOptions& o) {
       if (known) continue;
       if (switched >= limits::kMaxHbmSwitchedBranches) break;
       HbmBranch doubled;
-      if (!SwitchAtPeriodDoubling(hbb, ob, pt.period_doubling_at, &doubled)) continue;
+      if (!SwitchAtPeriodDoubling(hbb, ob, pt.period_doubling_at, &doubled)) {
+        char note[200];
+        std::snprintf(note, sizeof note,
+                      "no period-%d branch could be seeded at the period doubling at %s = %.8g (branch %zu); "
+                      "more harmonics (--harmonics) often help",
+                      2 * nu, o.param == ContinuationParam::kOmega ? "Omega" : "alpha", p, bi);
+        result.notes.push_back(note);
+        continue;
+      }
       doubled.start += ", from branch " + std::to_string(bi);
       result.branches.push_back(std::move(doubled));
       ++switched;

@@ -91,6 +91,9 @@ struct HbmResult {
   std::vector<HbmBranch> branches;
   // Truncation check: max relative change of the amplitude on sample points when H grows by 2.
   double truncation_change = 0;
+  // What the continuation could not do and the user should know (e.g. a period doubling whose doubled
+  // branch could not be seeded), one sentence each.
+  std::vector<std::string> notes;
 };
 
 Status ValidateHbmOptions(const HbmOptions& o);

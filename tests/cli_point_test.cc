@@ -225,6 +225,22 @@ TEST(CliHbm, JsonHasBranchesWithTheContractKeys) {
   bool intrawell = false;
   for (const auto& b : j["branches"]) intrawell |= std::fabs(b["points"][0]["mean"].get<double>() - 1.0) < 0.05;
   EXPECT_TRUE(intrawell) << "an intrawell branch about +1";
+  EXPECT_TRUE(j["notes"].is_array());
+}
+
+// A period doubling whose doubled branch cannot be seeded is said, not dropped silently (H = 5 at
+// alpha 0.3 fails near Omega 0.55; more harmonics succeed).
+TEST(CliHbm, FailedBranchSwitchIsReported) {
+  const ProcessResult r = Bistable("hbm --model standalone --alpha 0.3 --switch-pd 1 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(j["notes"].is_array());
+  bool said = false;
+  for (const auto& n : j["notes"]) said |= n.get<std::string>().find("period doubling") != std::string::npos;
+  bool doubled = false;
+  for (const auto& b : j["branches"]) doubled |= b["period"] == 2;
+  EXPECT_TRUE(said || doubled) << r.out.substr(0, 400);  // either the branch or the reason
+  EXPECT_FALSE(said && doubled && j["notes"].size() > 4);
 }
 
 // Period doublings flagged with their located values and the switched period-2 branch; fold curves
