@@ -31,6 +31,9 @@ inline constexpr long kMaxPoincarePeriods = 100'000;
 // Sweeps: section points stored per (point, initial condition), `[metrics] poincare_points`. A report
 // of a full lease (kMaxJobItems records of at most 33 + 64 + 2·64 doubles) stays under kMaxMessageBytes.
 inline constexpr int kMaxPoincarePointsStored = 64;
+// Attractor classes a basin map tells apart (engine/basins.cc): starts beyond them join one "other"
+// class, so classification stays O(starts × classes) and the flag_meanings attribute stays small.
+inline constexpr int kMaxAttractors = 255;
 
 // --- Harmonic balance (`bistable hbm`) -------------------------------------------------------------
 inline constexpr int kMaxHbmSwitchedBranches = 64;           // branches switched onto at period doublings

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <numeric>
 
+#include "base/limits.h"
+
 namespace bistable {
 
 BasinMap ClassifyAttractors(const SweepSpec& spec, const std::vector<PointRecord>& records, double tol) {
@@ -13,6 +15,7 @@ BasinMap ClassifyAttractors(const SweepSpec& spec, const std::vector<PointRecord
   BasinMap out;
   out.ids.assign(records.size(), -1);
   std::vector<Attractor> found;  // in order of discovery; renumbered by basin size below
+  int other = -1;                // the class of starts past limits::kMaxAttractors kinds
   for (size_t i = 0; i < records.size(); ++i) {
     const PointRecord& r = records[i];
     const double motion = r.Get(motion_i);
@@ -25,9 +28,22 @@ BasinMap ClassifyAttractors(const SweepSpec& spec, const std::vector<PointRecord
     int hit = -1;
     for (size_t a = 0; a < found.size() && hit < 0; ++a) {
       const Attractor& at = found[a];
+      if (static_cast<int>(a) == other) continue;
       if (at.motion != static_cast<int>(motion) || at.period != (periodic ? period : 0)) continue;
       if (periodic ? (std::fabs(at.strobe_y - y) <= tol && std::fabs(at.strobe_v - v) <= tol) : at.well == well)
         hit = static_cast<int>(a);
+    }
+    if (hit < 0 && static_cast<int>(found.size()) >= limits::kMaxAttractors) {
+      // Past the limit: one class for every further kind (its label says so).
+      if (other < 0) {
+        Attractor at;
+        at.motion = -2;
+        at.well = "other";
+        at.strobe_y = at.strobe_v = NAN;
+        found.push_back(at);
+        other = static_cast<int>(found.size()) - 1;
+      }
+      hit = other;
     }
     if (hit < 0) {
       Attractor at;
@@ -54,7 +70,9 @@ BasinMap ClassifyAttractors(const SweepSpec& spec, const std::vector<PointRecord
     Attractor at = found[order[k]];
     at.id = static_cast<int>(k);
     char buf[96];
-    if (at.period > 0)
+    if (at.motion == -2)
+      std::snprintf(buf, sizeof buf, "A%d_other_(more_than_%d_kinds)", at.id, limits::kMaxAttractors);
+    else if (at.period > 0)
       std::snprintf(buf, sizeof buf, "A%d_P%d_%s_y%.3f_v%.3f", at.id, at.period, at.well.c_str(), at.strobe_y, at.strobe_v);
     else
       std::snprintf(buf, sizeof buf, "A%d_%s_%s", at.id, at.motion == 2 ? "chaotic" : "aperiodic", at.well.c_str());

@@ -15,7 +15,7 @@ namespace bistable {
 
 struct Attractor {
   int id = 0;                  // 0 = the largest basin
-  int motion = 0;              // motion code (0 intrawell, 1 interwell, 2 chaotic)
+  int motion = 0;              // motion code (0 intrawell, 1 interwell, 2 chaotic; −2 the "other" class)
   int period = 0;              // forcing periods, 0 = none found (chaotic, quasi-periodic, unsettled)
   std::string well;            // "+well", "-well" or "interwell" (from the window's y_m range)
   double strobe_y = 0, strobe_v = 0;  // the Poincaré fingerprint (NaN for non-periodic attractors)
@@ -32,8 +32,9 @@ struct BasinMap {
 };
 
 // Periodic starts are one attractor when motion and period agree and their fingerprints lie within
-// `tol` (in y_m and y_m'); non-periodic starts are grouped by motion and well. Neighbours: ±1 along
-// each axis of the grid.
+// `tol` (in y_m and y_m'); non-periodic starts are grouped by motion and well. Past
+// limits::kMaxAttractors kinds, further kinds share one "other" class. Neighbours: ±1 along each axis
+// of the grid.
 BasinMap ClassifyAttractors(const SweepSpec& spec, const std::vector<PointRecord>& records, double tol);
 
 }  // namespace bistable

@@ -280,7 +280,7 @@ Status WriteBasins(hid_t file, const SweepSpec& spec, const std::vector<PointRec
   BISTABLE_RETURN_IF_ERROR(column("boundary_fraction", [](const Attractor& a) { return a.boundary_fraction; }, H5T_NATIVE_DOUBLE,
                                   {"fraction of the basin's cells on a basin boundary", "fraction",
                                    "cells with a grid neighbour (+-1 along an axis) ending on another attractor / cells of the basin"}));
-  BISTABLE_RETURN_IF_ERROR(column("motion", [](const Attractor& a) { return static_cast<double>(a.motion); }, H5T_NATIVE_INT32,
+  BISTABLE_RETURN_IF_ERROR(column("motion", [](const Attractor& a) { return static_cast<double>(a.motion < 0 ? kMotionUndefined : a.motion); }, H5T_NATIVE_INT32,
                                   {"type of motion on the attractor", "code", MotionCodesText(), &motions}));
   BISTABLE_RETURN_IF_ERROR(column("period", [](const Attractor& a) { return static_cast<double>(a.period); }, H5T_NATIVE_INT32,
                                   {"period of the attractor in forcing periods (0: not periodic)", "forcing periods", "stroboscopic period"}));

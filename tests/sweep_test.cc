@@ -536,6 +536,31 @@ store = ["motion", "period", "y_min", "y_max", "strobe_y", "strobe_v"]
   std::filesystem::remove_all(dir);
 }
 
+// A map whose starts end on more kinds than the limit (here: 400 distinct period-1 fingerprints) keeps
+// the classification bounded: the 255 first kinds, then one "other" class for the rest.
+TEST(Basins, KindsPastTheLimitShareOneClass) {
+  const SweepSpec spec = Parse("model = \"standalone\"\n[axes]\nym0 = { linspace = [-2.0, 2.0, 400] }\n");
+  ASSERT_TRUE(spec.IsBasinSweep());
+  std::vector<PointRecord> records(400);
+  for (int i = 0; i < 400; ++i) {
+    records[i].v.assign(PointRecord::Size(), 0.0);
+    records[i].v[MetricIndex("motion")] = 0;
+    records[i].v[MetricIndex("period")] = 1;
+    records[i].v[MetricIndex("y_min")] = 0.5;
+    records[i].v[MetricIndex("y_max")] = 1.5;
+    records[i].v[MetricIndex("strobe_y")] = i;  // 400 different orbits
+    records[i].v[MetricIndex("strobe_v")] = 0;
+  }
+  const BasinMap b = ClassifyAttractors(spec, records, 0.01);
+  ASSERT_EQ(b.attractors.size(), 256u);
+  const Attractor& other = b.attractors[0];  // the largest class: 400 - 255 starts
+  EXPECT_EQ(other.cells, 400 - 255);
+  EXPECT_NE(other.label.find("other"), std::string::npos) << other.label;
+  long total = 0;
+  for (const Attractor& a : b.attractors) total += a.cells;
+  EXPECT_EQ(total, 400);
+}
+
 TEST(SweepSpec, InitialStateAxesAreCheckedByName) {
   for (const auto& [toml, field] : std::vector<std::pair<std::string, std::string>>{
            {"model = \"standalone\"\n[axes]\nyr0 = [0.0, 1.0]\n", "axes.yr0"},
