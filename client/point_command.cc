@@ -96,8 +96,8 @@ Status SetPoincareWindow(long n, PointSpec* spec) {
 // lengths in δs, velocities d/dτ in δs ωn.
 std::vector<std::pair<std::string, std::string>> SectionColumns(const PointSpec& spec) {
   std::vector<std::pair<std::string, std::string>> c = {
-      {"k", ""}, {"tau", "1/omega_n"}, {"y_m", "delta_s"}, {"dy_m", "delta_s omega_n"}};
-  if (HasResonator(spec.model)) c.push_back({"y_r", "delta_s"}), c.push_back({"dy_r", "delta_s omega_n"});
+      {"k", ""}, {"tau", "1/omega_n"}, {"y_m", "delta_s"}, {"dy_m", "delta_s/tau"}};
+  if (HasResonator(spec.model)) c.push_back({"y_r", "delta_s"}), c.push_back({"dy_r", "delta_s/tau"});
   return c;
 }
 
@@ -153,8 +153,8 @@ Status PlotSection(const PointSpec& spec, const PointResult& r, long limit, cons
                          true, "#2166ac", ps};
     d.panels.push_back({title, x, y, {se}});
   };
-  panel("main mass at tau_k = (phase + 2 pi k)/Omega", "y_m [delta_s]", "dy_m/dtau [delta_s omega_n]", r.section_y, r.section_v);
-  if (res) panel("resonator at the same tau_k", "y_r [delta_s]", "dy_r/dtau [delta_s omega_n]", r.section_yr, r.section_vr);
+  panel("main mass at tau_k = (phase + 2 pi k)/Omega", "y_m [delta_s]", "dy_m/dtau [delta_s/tau]", r.section_y, r.section_v);
+  if (res) panel("resonator at the same tau_k", "y_r [delta_s]", "dy_r/dtau [delta_s/tau]", r.section_yr, r.section_vr);
   return RenderPanels(d, path);
 }
 
@@ -331,7 +331,7 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
       "Units are non-dimensional (model.md): tau = omega_n t, lengths in delta_s. FRF is the absolute-velocity\n"
       "transmissibility 20 log10(max|x_m'| / (alpha Omega)) over the window; LLE per unit tau.\n"
       "Poincare section: the state at tau_k = (phase + 2 pi k)/Omega for every k with tau_k in the window,\n"
-      "y in delta_s and y' = dy/dtau in delta_s omega_n; CSV columns k,tau,y_m,dy_m[,y_r,dy_r], units in the header.");
+      "y in delta_s and y' = dy/dtau in delta_s/tau (delta_s omega_n in physical units); CSV columns k,tau,y_m,dy_m[,y_r,dy_r], units in the header.");
   cmd->callback([args, exit_code, periods]() {
     args->poincare_periods_given = periods->count() > 0;
     *exit_code = RunPoint(*args);

@@ -144,12 +144,12 @@ TEST(CliPoint, PoincareSectionFileJsonAndPlot) {
   EXPECT_EQ(j["poincare"]["count"], 3000);
   EXPECT_EQ(j["poincare"]["file"], dir + "/s.csv");
   EXPECT_EQ(j["poincare"]["columns"], nlohmann::json({"k", "tau", "y_m", "dy_m"}));
-  EXPECT_EQ(j["poincare"]["units"], nlohmann::json({"", "1/omega_n", "delta_s", "delta_s omega_n"}));
+  EXPECT_EQ(j["poincare"]["units"], nlohmann::json({"", "1/omega_n", "delta_s", "delta_s/tau"}));
   EXPECT_FALSE(j["poincare"].contains("points")) << "points go to the file, not the JSON";
   std::ifstream in(dir + "/s.csv");
   std::string line;
   std::getline(in, line);
-  EXPECT_EQ(line, "k,tau [1/omega_n],y_m [delta_s],dy_m [delta_s omega_n]");
+  EXPECT_EQ(line, "k,tau [1/omega_n],y_m [delta_s],dy_m [delta_s/tau]");
   size_t rows = 0;
   while (std::getline(in, line)) ++rows;
   EXPECT_EQ(rows, 3000u);
@@ -170,7 +170,7 @@ TEST(CliPoint, PoincareSectionFileJsonAndPlot) {
   // "-" alone: standard output is the CSV.
   const ProcessResult csv = Bistable("point --model standalone --alpha 0.3 --omega 1.2 --no-rosenstein --poincare -");
   ASSERT_EQ(csv.exit_code, 0) << csv.err;
-  EXPECT_EQ(csv.out.rfind("k,tau [1/omega_n],y_m [delta_s],dy_m [delta_s omega_n]\n", 0), 0u) << csv.out.substr(0, 200);
+  EXPECT_EQ(csv.out.rfind("k,tau [1/omega_n],y_m [delta_s],dy_m [delta_s/tau]\n", 0), 0u) << csv.out.substr(0, 200);
   EXPECT_GT(std::count(csv.out.begin(), csv.out.end(), '\n'), 40);
 
   struct Case {
