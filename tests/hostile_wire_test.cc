@@ -172,9 +172,11 @@ std::string Lin(const char* axis, const std::string& count) {
 void AfterTheStorm() {
   ASSERT_TRUE(Alive(g->coord));
   ASSERT_TRUE(GetStatus(g->unheld_id).ok());
-  // The coordinator returns freed heap to the system every few seconds (malloc_trim); allow one round.
+  // The coordinator returns freed heap to the system every few seconds (malloc_trim); allow a few
+  // rounds: on a loaded machine (a sweep running beside the suite) one run still held 39 MB against a
+  // 29 MB baseline after 12 s, then passed in reruns; up to 30 s costs nothing when memory is back.
   long rss = RssKb(g->coord);
-  for (int i = 0; i < 60 && rss > g->rss_before * 1.2; ++i) {
+  for (int i = 0; i < 150 && rss > g->rss_before * 1.2; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
     rss = RssKb(g->coord);
   }
