@@ -34,6 +34,9 @@ inline constexpr int kMaxPoincarePointsStored = 64;
 // Attractor classes a basin map tells apart (engine/basins.cc): starts beyond them join one "other"
 // class, so classification stays O(starts × classes) and the flag_meanings attribute stays small.
 inline constexpr int kMaxAttractors = 255;
+// Tolerance samples per grid point of a robustness map ([robustness] samples; also bounded by the
+// sweep's items: points x samples).
+inline constexpr int kMaxRobustnessSamples = 4096;
 
 // --- Harmonic balance (`bistable hbm`) -------------------------------------------------------------
 inline constexpr int kMaxHbmSwitchedBranches = 64;           // branches switched onto at period doublings

@@ -22,7 +22,10 @@ namespace bistable {
 namespace {
 
 const std::vector<std::string> kTopKeys = {"name", "model", "params", "axes", "integration", "metrics",
-                                           "initial_conditions", "output", "series", "dimensional", "continuation"};
+                                           "initial_conditions", "output", "series", "dimensional", "continuation",
+                                           "robustness"};
+const std::vector<std::string> kRobustnessKeys = {"samples", "seed", "tolerance", "ic_radius"};
+const std::vector<std::string> kToleranceKeys = {"eps", "eta", "eta_r", "phi", "lambda", "alpha", "omega"};
 const std::vector<std::string> kContinuationKeys = {"axis", "direction"};
 const std::vector<std::string> kSeriesKeys = {"cells", "resonators", "bistable", "cell"};
 const std::vector<std::string> kCellOverrideKeys = {"eps", "eta", "eta_r", "phi", "lambda"};
@@ -372,7 +375,54 @@ PointSpec SweepSpec::PointAt(long index, int ic) const {
   PointSpec p = StartOf(base, ic);
   const std::vector<int> idx = AxisIndices(index);
   for (size_t k = 0; k < axes.size(); ++k) *ParamSlot(p, axes[k].name) = axes[k].values[idx[k]];
+  if (robustness.enabled()) ApplyRobustnessSample(robustness, ic, &p);
   return p;
+}
+
+namespace {
+
+// Coordinate d of the k-th point (k ≥ 1) of the Halton sequence (radical inverse in the d-th prime
+// base), shifted by a seed-derived offset modulo 1 (Cranley–Patterson rotation): a low-discrepancy,
+// reproducible sample in [0, 1), the same bits on every machine.
+double ShiftedHalton(uint64_t k, int d, uint64_t seed) {
+  static const int kPrimes[] = {2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31};
+  const uint64_t base = static_cast<uint64_t>(kPrimes[d]);
+  double f = 1.0, r = 0.0;
+  for (uint64_t i = k; i > 0; i /= base) {
+    f /= static_cast<double>(base);
+    r += f * static_cast<double>(i % base);
+  }
+  uint64_t z = seed + 0x9E3779B97F4A7C15ull * static_cast<uint64_t>(d + 1);  // splitmix64
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z ^= z >> 31;
+  const double shift = static_cast<double>(z >> 11) * 0x1.0p-53;
+  const double u = r + shift;
+  return u >= 1.0 ? u - 1.0 : u;
+}
+
+}  // namespace
+
+// Sample `k` of a robustness map: each toleranced parameter times 1 + tol (2u − 1), then the start moved
+// to a point of the disc of radius ic_radius about it (uniform in area), one Halton coordinate each.
+void ApplyRobustnessSample(const RobustnessConfig& r, int k, PointSpec* p) {
+  int d = 0;
+  for (const std::string& name : kToleranceKeys) {
+    auto it = r.tolerance.find(name);
+    if (it == r.tolerance.end()) continue;
+    const double u = ShiftedHalton(static_cast<uint64_t>(k) + 1, d++, r.seed);
+    *ParamSlot(*p, name) *= 1.0 + it->second * (2.0 * u - 1.0);
+  }
+  if (r.ic_radius > 0) {
+    const double ua = ShiftedHalton(static_cast<uint64_t>(k) + 1, d++, r.seed);
+    const double ub = ShiftedHalton(static_cast<uint64_t>(k) + 1, d++, r.seed);
+    const auto start = InitialState(*p);
+    const double rad = r.ic_radius * std::sqrt(ua), th = 2.0 * M_PI * ub;
+    p->ic = start;
+    p->ic[0] += rad * std::cos(th);
+    p->ic[1] += rad * std::sin(th);
+    p->ic_given = true;
+  }
 }
 
 // A point's start before the axes apply: [initial_conditions] state `ic` (continuation: the chains'
@@ -381,7 +431,7 @@ PointSpec SweepSpec::StartOf(const PointSpec& from, int ic) const {
   PointSpec p = from;
   if (!initial_states.empty()) {
     p.ic_given = true;
-    p.ic = initial_states[continuation.enabled() ? 0 : ic];
+    p.ic = initial_states[continuation.enabled() || robustness.enabled() ? 0 : ic];
   } else if (HasInitialStateAxes()) {
     p.ic = InitialState(p);
     p.ic_given = true;
@@ -411,6 +461,11 @@ std::string SweepSpec::CanonicalText() const {
   for (const auto& ic : initial_states) os << "ic=" << G17(ic[0]) << "," << G17(ic[1]) << "," << G17(ic[2]) << "," << G17(ic[3]) << "\n";
   if (continuation.enabled())
     os << "continuation=" << continuation.axis << "," << continuation.up << "," << continuation.down << "\n";
+  if (robustness.enabled()) {
+    os << "robustness=" << robustness.samples << "," << robustness.seed << "," << G17(robustness.ic_radius);
+    for (const auto& [k, v] : robustness.tolerance) os << "," << k << ":" << G17(v);
+    os << "\n";
+  }
   os << "metrics=";
   for (const auto& s : metrics) os << s << ",";
   os << "\n";
@@ -781,6 +836,45 @@ Status ReadContinuation(const toml::table& root, SweepSpec& spec) {
   return Status::Ok();
 }
 
+// [robustness].
+Status ReadRobustness(const toml::table& root, SweepSpec& spec) {
+  const toml::node* n = root.get("robustness");
+  if (!n) return Status::Ok();
+  const toml::table* t = n->as_table();
+  if (!t) return Status::InvalidArgument("robustness", "robustness must be a table");
+  BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "robustness", kRobustnessKeys));
+  if (!IsCellModel(spec.model))
+    return Status::InvalidArgument("robustness", "robustness maps run for standalone, coupled and linear models only");
+  RobustnessConfig& r = spec.robustness;
+  int samples = 0, seed = 1;
+  BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "samples", "robustness.samples", &samples, 1, limits::kMaxRobustnessSamples));
+  if (samples == 0) return Status::InvalidArgument("robustness.samples", "robustness.samples is required (samples per grid point)");
+  BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "seed", "robustness.seed", &seed, 0, 2147483647));
+  r.samples = samples;
+  r.seed = static_cast<uint64_t>(seed);
+  if (const toml::node* tn = t->get("tolerance")) {
+    const toml::table* tt = tn->as_table();
+    if (!tt) return Status::InvalidArgument("robustness.tolerance", "robustness.tolerance must be a table, e.g. { eta = 0.2, lambda = 0.02 }");
+    BISTABLE_RETURN_IF_ERROR(CheckKeys(*tt, "robustness.tolerance", kToleranceKeys));
+    for (const std::string& k : kToleranceKeys) {
+      if (!tt->get(k)) continue;
+      double v = 0;
+      BISTABLE_RETURN_IF_ERROR(ReadNumber(*tt, k, "robustness.tolerance." + k, &v));
+      if (!(v >= 0 && v <= 0.5)) return Violates("robustness.tolerance." + k, v, "in [0, 0.5] (relative)");
+      r.tolerance[k] = v;
+    }
+  }
+  BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "ic_radius", "robustness.ic_radius", &r.ic_radius));
+  if (!(r.ic_radius >= 0 && r.ic_radius <= 10)) return Violates("robustness.ic_radius", r.ic_radius, "in [0, 10] (delta_s)");
+  if (spec.initial_states.size() > 1)
+    return Status::InvalidArgument("initial_conditions.states", "with [robustness] give at most one state (the centre of the start disc)");
+  if (spec.continuation.enabled())
+    return Status::InvalidArgument("robustness", "robustness samples cannot be combined with continuation");
+  if (spec.HasInitialStateAxes())
+    return Status::InvalidArgument("robustness", "robustness samples cannot be combined with initial-state axes");
+  return Status::Ok();
+}
+
 // [output].
 Status ReadOutput(const toml::table& root, SweepSpec& spec) {
   spec.plots = {};
@@ -792,7 +886,7 @@ Status ReadOutput(const toml::table& root, SweepSpec& spec) {
       auto names = StringArray(*p, "output.plots");
       if (!names.ok()) return names.status();
       std::vector<std::string> plottable = spec.metrics;
-      if (spec.initial_states.size() > 1)
+      if (spec.initial_states.size() > 1 || spec.robustness.enabled())
         for (const char* f : {"frac_intrawell", "frac_interwell", "frac_chaotic"}) plottable.push_back(f);
       if (spec.IsBasinSweep()) plottable.push_back("attractor");
       for (size_t i = 0; i < names->size(); ++i)
@@ -897,6 +991,7 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
   BISTABLE_RETURN_IF_ERROR(ReadMetrics(root, spec));
   BISTABLE_RETURN_IF_ERROR(ReadInitialConditions(root, spec));
   BISTABLE_RETURN_IF_ERROR(ReadContinuation(root, spec));
+  BISTABLE_RETURN_IF_ERROR(ReadRobustness(root, spec));
   BISTABLE_RETURN_IF_ERROR(ReadOutput(root, spec));
   BISTABLE_RETURN_IF_ERROR(CheckWholeSpec(spec, swept));
   spec.canonical_hash = ContentHashHex(spec.CanonicalText());

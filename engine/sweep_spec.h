@@ -5,6 +5,8 @@
 #define BISTABLE_ENGINE_SWEEP_SPEC_H_
 
 #include <array>
+#include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -44,6 +46,23 @@ struct ContinuationConfig {
   int directions() const { return (up ? 1 : 0) + (down ? 1 : 0); }
 };
 
+// Robustness maps (issue 17): every grid point is run `samples` times with its parameters scattered
+// within relative tolerances and its start within a disc in (y_m, y_m'), by a seeded, shifted Halton
+// sequence (reproducible on any machine); the map holds the fractions of motion types per point and
+// their Monte-Carlo standard errors. Samples are the point's items (the `ic` slot), so they run in lanes.
+struct RobustnessConfig {
+  int samples = 0;                          // 0 = off
+  uint64_t seed = 1;
+  std::map<std::string, double> tolerance;  // parameter -> relative half-width (x (1 + tol (2u - 1)))
+  double ic_radius = 0;                     // radius of the start disc in (y_m, y_m'), delta_s
+  bool enabled() const { return samples > 0; }
+};
+
+// Sample k (0-based) of a robustness map applied to a point: each toleranced parameter times
+// 1 + tol (2u − 1), the start moved within the disc of radius ic_radius (uniform in area); u from a
+// seeded, shifted Halton sequence, one coordinate per toleranced parameter (canonical order), two for the disc.
+void ApplyRobustnessSample(const RobustnessConfig& r, int k, PointSpec* p);
+
 // Axis names in the canonical order used for enumeration and for the map datasets.
 const std::vector<std::string>& CanonicalAxisNames();
 // Axes over the start state (y_m, y_m', y_r, y_r')(0): basin maps. Unswept components come from the one
@@ -77,6 +96,7 @@ struct SweepSpec {
   SeriesConfig series;
   DimensionalConfig dimensional;
   ContinuationConfig continuation;
+  RobustnessConfig robustness;
   PointSpec base;                   // fixed parameters and settings; alpha/omega used when not swept
   std::vector<Axis> axes;           // in canonical order, only the swept ones
   std::vector<std::array<double, 4>> initial_states;  // empty: the model's default start
@@ -89,6 +109,7 @@ struct SweepSpec {
   // Items per point: initial conditions, or the continuation directions (up, down).
   int ic_count() const {
     if (continuation.enabled()) return continuation.directions();
+    if (robustness.enabled()) return robustness.samples;
     return initial_states.empty() ? 1 : static_cast<int>(initial_states.size());
   }
   // With continuation: whether item slot ic sweeps downward, and every chain (line of the

@@ -320,6 +320,8 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
   if (nic > 1) {
     CfQuantity q{"index into the sweep's initial states ([initial_conditions] states)", "", ""};
     if (chained) q = {"direction of the continuation sweep along " + spec.continuation.axis, "", "", &kDirections};
+    if (spec.robustness.enabled())
+      q = {"index of the tolerance sample ([robustness]: seeded, shifted Halton sequence)", "", ""};
     BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), item_dim, Iota(nic), q, /*integer=*/true));
   }
   std::vector<hsize_t> dims = axis_dims;
@@ -424,6 +426,16 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
                                              "fraction of the initial conditions whose motion type is this one"},
                                             coordinates));
       BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), kNames[code], axis_names));
+      if (spec.robustness.enabled()) {  // a probability estimated from nic samples: its standard error
+        std::vector<double> se(np);
+        for (long p = 0; p < np; ++p) se[p] = std::sqrt(frac[p] * (1.0 - frac[p]) / nic);
+        const std::string name = std::string(kNames[code]) + "_stderr";
+        BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), name, axis_dims, se, H5T_NATIVE_DOUBLE,
+                                              {"Monte-Carlo standard error of " + std::string(kNames[code]), "fraction",
+                                               "sqrt(p (1 - p) / samples) of the fraction p over the tolerance samples"},
+                                              coordinates));
+        BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), name, axis_names));
+      }
     }
   }
   if (spec.IsBasinSweep()) BISTABLE_RETURN_IF_ERROR(WriteBasins(file.get(), spec, records, dims, names, coordinates));

@@ -561,6 +561,80 @@ TEST(Basins, KindsPastTheLimitShareOneClass) {
   EXPECT_EQ(total, 400);
 }
 
+// Robustness maps: with no tolerance every sample is the same point, so every probability is 0 or 1;
+// with tolerances a band of intermediate probabilities appears at the regime boundaries and widens
+// with the tolerance, while points far from any boundary stay 0 or 1. Samples are seeded: the same
+// seed gives the same map, another seed another sample set.
+TEST(SweepEngine, RobustnessBandWidensWithTheTolerance) {
+  const std::string dir = TempDir("robust");
+  auto c = SweepCoordinator::Open(dir);
+  ASSERT_TRUE(c.ok());
+  auto spec_for = [](double tol, int seed) {
+    char t[640];
+    std::snprintf(t, sizeof t, R"(
+model = "coupled"
+[params]
+alpha = 0.5
+[axes]
+omega = { linspace = [0.3, 2.5, 45] }
+[metrics]
+store = ["motion", "lle"]
+[robustness]
+samples = 16
+seed = %d
+tolerance = { eta = %g, lambda = %g, eps = %g }
+ic_radius = %g
+)",
+                  seed, 4 * tol, tol, tol, tol);
+    return Parse(t);
+  };
+  auto band = [&](const SweepSpec& spec, std::vector<double>* chaotic) {
+    SweepPlan plan;
+    const std::string path = RunSweep(**c, spec, 2, &plan);
+    EXPECT_EQ(plan.items_total, 45 * 16);
+    auto fc = ReadMapMetric(path, "frac_chaotic");
+    auto fw = ReadMapMetric(path, "frac_interwell");
+    auto se = ReadMapMetric(path, "frac_chaotic_stderr");
+    EXPECT_TRUE(fc.ok() && fw.ok() && se.ok());
+    if (!fc.ok() || !fw.ok() || !se.ok()) return -1;
+    int mid = 0;
+    for (size_t i = 0; i < fc->values.size(); ++i) {
+      const double p = fc->values[i], q = fw->values[i];
+      mid += (p > 0 && p < 1) || (q > 0 && q < 1);
+      EXPECT_DOUBLE_EQ(se->values[i], std::sqrt(p * (1 - p) / 16));
+    }
+    *chaotic = fc->values;
+    return mid;
+  };
+  std::vector<double> c0, c1, c5, c5b, c5s;
+  const int none = band(spec_for(0.0, 7), &c0), small = band(spec_for(0.01, 7), &c1), wide = band(spec_for(0.05, 7), &c5);
+  EXPECT_EQ(none, 0);  // identical samples: 0 or 1 everywhere
+  EXPECT_GT(small, 0);
+  EXPECT_GT(wide, small) << "the band widens with the tolerance";
+  // Far from any boundary (Omega 1.2-1.45 is periodic intrawell for every sample): probability 0.
+  for (size_t i = 18; i <= 23; ++i) EXPECT_EQ(c5[i], 0.0) << "omega index " << i;
+  band(spec_for(0.05, 7), &c5b);
+  EXPECT_EQ(c5, c5b);  // reproducible
+  band(spec_for(0.05, 8), &c5s);
+  EXPECT_NE(c5, c5s);  // another seed, another sample set
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SweepSpec, RobustnessIsCheckedByName) {
+  for (const auto& [toml, field] : std::vector<std::pair<std::string, std::string>>{
+           {"[robustness]\nsamples = 0\n", "robustness.samples"},
+           {"[robustness]\nsamples = 5000\n", "robustness.samples"},
+           {"[robustness]\nseed = 3\n", "robustness.samples"},
+           {"[robustness]\nsamples = 8\ntolerance = { eta = 0.7 }\n", "robustness.tolerance.eta"},
+           {"[robustness]\nsamples = 8\ntolerance = { etta = 0.1 }\n", "robustness.tolerance.etta"},
+           {"[robustness]\nsamples = 8\nic_radius = -1\n", "robustness.ic_radius"},
+           {"[robustness]\nsamples = 8\n[initial_conditions]\nstates = [[1, 0], [-1, 0]]\n", "initial_conditions.states"}}) {
+    auto s = ParseSweepSpec("model = \"coupled\"\n[axes]\nomega = [1.0, 2.0]\n" + toml, "test.toml");
+    ASSERT_FALSE(s.ok()) << toml;
+    EXPECT_EQ(s.status().field(), field) << s.status().ToString();
+  }
+}
+
 TEST(SweepSpec, InitialStateAxesAreCheckedByName) {
   for (const auto& [toml, field] : std::vector<std::pair<std::string, std::string>>{
            {"model = \"standalone\"\n[axes]\nyr0 = [0.0, 1.0]\n", "axes.yr0"},
