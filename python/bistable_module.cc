@@ -297,7 +297,7 @@ py::dict Hbm(const py::kwargs& kw) {
   std::map<std::string, double*> numbers = {{"start", &o.from}, {"stop", &o.to}, {"alpha", &o.alpha}, {"omega", &o.omega},
                                            {"eps", &o.params.eps}, {"eta", &o.params.eta}, {"eta_r", &o.params.eta_r},
                                            {"phi", &o.params.phi}, {"lambda", &o.params.lambda}, {"ds", &o.ds}};
-  std::vector<std::string> known = {"model", "param", "harmonics", "zero_mean"};
+  std::vector<std::string> known = {"model", "param", "harmonics", "zero_mean", "switch_pd"};
   for (const auto& [k, _] : numbers) known.push_back(k);
   for (const auto& [key, value] : kw) {
     const std::string k = py::str(key);
@@ -305,6 +305,7 @@ py::dict Hbm(const py::kwargs& kw) {
     else if (k == "model") model = Text(value, k);
     else if (k == "param") param = Text(value, k);
     else if (k == "harmonics") o.harmonics = Integer(value, k);
+    else if (k == "switch_pd") o.switch_depth = Integer(value, k);
     else if (k == "zero_mean") o.zero_mean = Flag(value, k);
     else UnknownKeyword(k, known);
   }
@@ -318,7 +319,7 @@ py::dict Hbm(const py::kwargs& kw) {
     const size_t n = b.points.size();
     py::array_t<double> om(n), al(n), amp(n), mean(n), mu(n), ylo(n), yhi(n);
     py::list well;
-    py::array_t<bool> stable(n), fold(n), bp(n), conv(n);
+    py::array_t<bool> stable(n), fold(n), bp(n), conv(n), pd(n), ns(n);
     size_t h = n ? b.points[0].harmonics.size() : 0;
     py::array_t<double> harm({n, h});
     auto H = harm.mutable_unchecked<2>();
@@ -327,12 +328,15 @@ py::dict Hbm(const py::kwargs& kw) {
       om.mutable_at(i) = p.omega, al.mutable_at(i) = p.alpha, amp.mutable_at(i) = p.amplitude, mean.mutable_at(i) = p.mean;
       mu.mutable_at(i) = p.max_multiplier, stable.mutable_at(i) = p.stable, fold.mutable_at(i) = p.fold;
       bp.mutable_at(i) = p.branch_point, conv.mutable_at(i) = p.converged;
+      pd.mutable_at(i) = p.period_doubling, ns.mutable_at(i) = p.neimark_sacker;
       ylo.mutable_at(i) = p.y_min, yhi.mutable_at(i) = p.y_max;
       well.append(OrbitWellName(WellOf(p)));
       for (size_t k = 0; k < h && k < p.harmonics.size(); ++k) H(i, k) = p.harmonics[k];
     }
     py::dict d;
     d["start"] = b.start;
+    d["period"] = b.period;
+    d["period_doubling"] = pd, d["neimark_sacker"] = ns;
     d["omega"] = om, d["alpha"] = al, d["amplitude"] = amp, d["mean"] = mean, d["max_multiplier"] = mu;
     d["y_min"] = ylo, d["y_max"] = yhi;
     if (IsBistable(o.model)) d["well"] = well;  // as `hbm --json`: one well only in the linear models
@@ -349,6 +353,8 @@ py::dict Hbm(const py::kwargs& kw) {
   out["branches"] = branches;
   out["settings"] = settings;
   out["truncation_change"] = r.truncation_change;
+  out["notes"] = r.notes;
+  settings["switch_pd"] = o.switch_depth;
   return out;
 }
 

@@ -145,10 +145,11 @@ def hbm(**kw):
 
     Keywords: model ("standalone", "coupled", "linear", "linear-coupled"), param ("omega" or "alpha",
     the continued parameter), start, stop (its range), alpha / omega (the fixed one), harmonics,
-    zero_mean, eps, eta, eta_r, phi, lambda, ds. Returns {"branches": [{"start", "omega", "alpha",
-    "amplitude", "mean", "y_min", "y_max", "max_multiplier", "stable", "fold", "branch_point", "converged":
-    arrays, "well": names per point ("+well", "-well", "interwell"), "harmonics": array [points, 2H+1]}],
-    "settings", "truncation_change"}.
+    zero_mean, eps, eta, eta_r, phi, lambda, ds, switch_pd (branch switching at period doublings, 0-3
+    levels). Returns {"branches": [{"start", "period", "omega", "alpha", "amplitude", "mean", "y_min",
+    "y_max", "max_multiplier", "stable", "fold", "branch_point", "period_doubling", "neimark_sacker",
+    "converged": arrays, "well": names per point ("+well", "-well", "interwell"), "harmonics": array
+    [points, 2H+1]}], "settings", "truncation_change", "notes"}.
     """
     return _core.hbm(**kw)
 

@@ -144,6 +144,18 @@ def test_hbm_branches_are_the_cli_branches():
         bistable.hbm(param="beta")
 
 
+def test_hbm_period_doubling_and_switching_are_the_cli_ones():
+    kw = dict(model="standalone", param="alpha", start=0.1, stop=0.25, omega=1.2, eta=0.3, harmonics=10, switch_pd=1)
+    h = bistable.hbm(**kw)
+    c = cli_json("hbm", "--model", "standalone", "--continue", "alpha", "--from", "0.1", "--to", "0.25", "--omega", "1.2",
+                 "--eta", "0.3", "--harmonics", "10", "--switch-pd", "1")
+    assert [b["period"] for b in h["branches"]] == [b["period"] for b in c["branches"]]
+    assert any(b["period"] == 2 for b in h["branches"])  # switched onto the doubled branch
+    for mine, theirs in zip(h["branches"], c["branches"]):
+        assert list(mine["period_doubling"]) == [bool(p.get("period_doubling", False)) for p in theirs["points"]]
+    assert h["notes"] == c["notes"]
+
+
 def test_the_gil_is_released_while_computing():
     ticks = []
     done = threading.Event()
