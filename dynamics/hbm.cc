@@ -20,6 +20,14 @@
 namespace bistable {
 namespace {
 
+// The arclength step after an accepted corrector, for every continuation here: grow it when the
+// corrector converged fast (≤ 3 iterations), shrink it when slowly (≥ 8), within [ds_min, ds_max].
+double NextArclengthStep(int iterations, double ds, double ds_min, double ds_max) {
+  if (iterations <= 3) return std::min(ds_max, ds * 1.5);
+  if (iterations >= 8) return std::max(ds_min, ds * 0.7);
+  return ds;
+}
+
 double ParamOf(const HbmOptions& o, double omega, double alpha) { return o.param == ContinuationParam::kOmega ? omega : alpha; }
 
 // The options of a period-ν branch: harmonics of Ω/ν, H doubled (to at most 50) at every doubling.
@@ -525,8 +533,7 @@ HbmBranch Continue(const HarmonicBalance& hb, const HbmOptions& o, Eigen::Vector
         u = v;
         t_prev = t;
         accepted = true;
-        if (it <= 3) ds = std::min(o.ds_max, ds * 1.5);
-        if (it >= 8) ds = std::max(o.ds_min, ds * 0.7);
+        ds = NextArclengthStep(it, ds, o.ds_min, o.ds_max);
       } else {
         ds *= 0.5;
         if (ds < o.ds_min) {
@@ -934,8 +941,7 @@ FoldCurve FoldHalf(const HarmonicBalance& hb, const FoldCurveOptions& f, FoldSys
         sys.MoveBorders(u);
         t = sys.Tangent(u, t);
         accepted = true;
-        if (it <= 3) ds = std::min(f.ds_max, ds * 1.5);
-        if (it >= 8) ds = std::max(f.ds_min, ds * 0.7);
+        ds = NextArclengthStep(it, ds, f.ds_min, f.ds_max);
       } else {
         ds *= 0.5;
         if (ds < f.ds_min) {

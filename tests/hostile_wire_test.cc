@@ -173,8 +173,9 @@ void AfterTheStorm() {
   ASSERT_TRUE(Alive(g->coord));
   ASSERT_TRUE(GetStatus(g->unheld_id).ok());
   // The coordinator returns freed heap to the system every few seconds (malloc_trim); allow a few
-  // rounds: on a loaded machine (a sweep running beside the suite) one run still held 39 MB against a
-  // 29 MB baseline after 12 s, then passed in reruns; up to 30 s costs nothing when memory is back.
+  // rounds. Known open problem (docs/STATUS.md): with other tests running beside this suite
+  // (`ctest -j2`), the coordinator has twice kept ~8 MB above its 29 MB baseline for the whole 30 s;
+  // run alone, as `.ci/run` runs it, it is back within the bound in well under a second.
   long rss = RssKb(g->coord);
   for (int i = 0; i < 150 && rss > g->rss_before * 1.2; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));

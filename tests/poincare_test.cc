@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "dynamics/point.h"
+#include "tests/eval_point.h"
 
 namespace bistable {
 namespace {
@@ -27,11 +28,6 @@ PointSpec Duffing(double gamma, double t_keep, double t_end) {
   return s;
 }
 
-PointResult Eval(const PointSpec& s) {
-  auto r = EvaluatePoint(s);
-  EXPECT_TRUE(r.ok()) << r.status().ToString();
-  return r.ok() ? *r : PointResult{};
-}
 
 // Largest distance (max norm over y, y') between section points i and j of the same residue mod n.
 double SpreadWithinResidues(const PointResult& r, int n) {

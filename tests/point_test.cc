@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "dynamics/point.h"
+#include "tests/eval_point.h"
 
 namespace bistable {
 namespace {
@@ -22,11 +23,6 @@ PointSpec Spec(ModelKind m, double alpha, double omega) {
   return s;
 }
 
-PointResult Eval(const PointSpec& s) {
-  auto r = EvaluatePoint(s);
-  EXPECT_TRUE(r.ok()) << r.status().ToString();
-  return r.ok() ? *r : PointResult{};
-}
 
 // Absolute-velocity transmissibility of y'' + ηy' + y = αΩ² sin Ωτ: |1 + iηΩ| / |1 − Ω² + iηΩ|.
 double LinearTransmissibilityDb(double eta, double omega) {

@@ -520,7 +520,6 @@ store = ["motion", "period", "y_min", "y_max", "strobe_y", "strobe_v"]
   // Starts on a basin boundary may go either way under a different integrator; all others agree.
   EXPECT_GE(agree, total - total / 50) << agree << " of " << total;
   // Basin fractions sum to 1 and match the map.
-  auto frac = ReadMapAttribute(path, "basin_boundary_fraction");
   long plus = 0;
   for (double v : ids->values) plus += v == plus_id;
   const BasinMap again = [&] {
