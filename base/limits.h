@@ -37,6 +37,8 @@ inline constexpr int kMaxAttractors = 255;
 // Tolerance samples per grid point of a robustness map ([robustness] samples; also bounded by the
 // sweep's items: points x samples).
 inline constexpr int kMaxRobustnessSamples = 4096;
+// Halvings of an adaptive map ([refine] levels: the coarse grid takes every 2^levels-th axis value).
+inline constexpr int kMaxRefineLevels = 10;
 
 // --- Harmonic balance (`bistable hbm`) -------------------------------------------------------------
 inline constexpr int kMaxHbmSwitchedBranches = 64;           // branches switched onto at period doublings

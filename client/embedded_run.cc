@@ -232,7 +232,9 @@ Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, 
   const SweepProgress start = c.progress(id);
   auto stopping = [&] { return CancelRequested() || (stop && stop->load()) || failed.load(); };
   const auto shared = std::make_shared<const SweepSpec>(spec);
+  std::atomic<int> running{0};
   for (int t = 0; t < threads && any_work; ++t) {
+    ++running;
     pool.emplace_back([&] {
       EmbeddedJobSource source(c, shared);
       PullLoopOptions opt;
@@ -249,12 +251,13 @@ Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, 
         failed.store(true);
         c.Stop();
       }
+      --running;
     });
   }
   while (!pool.empty()) {
     if (stopping()) c.Stop();
     const SweepProgress p = c.progress(id);
-    if (p.items_done >= p.items_total || stopping()) break;
+    if (p.items_done >= p.items_total || stopping() || running.load() == 0) break;
     if (bar) bar->Update(p.items_done - start.items_done);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
@@ -263,20 +266,41 @@ Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, 
   return worker_error;
 }
 
+StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& spec, int threads, bool progress,
+                                        const std::string& label, EmbeddedRunStats* stats) {
+  const std::string id = spec.Id();
+  const long first = c.progress(id).items_done;
+  // A refined sweep ([refine]) computes level by level: publishing a stored level plans the next one
+  // (one progress line per level); any other sweep goes round once.
+  for (int round = 0;; ++round) {
+    const SweepProgress p = c.progress(id);
+    const long to_compute = p.items_total - p.items_done;
+    ProgressBar bar(to_compute, spec.refine.enabled() ? label + " (refine level " + std::to_string(round) + ")" : label, progress);
+    const Status worker_error = ComputeEmbedded(c, spec, threads, to_compute > 0, nullptr, progress ? &bar : nullptr);
+    const SweepProgress after = c.progress(id);
+    if (stats) stats->computed = after.items_done - first, stats->items = after.items_total;
+    // (A refined sweep's next level may be planned already, by the publisher thread: its items are not missing.)
+    if (!worker_error.ok() || CancelRequested() || (!spec.refine.enabled() && after.items_done < after.items_total)) {
+      c.MarkInterrupted(id);  // stored jobs stay stored; a later run resumes from them
+      if (!worker_error.ok()) return worker_error;
+      return CancelledStatus();
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    auto path = c.Publish(id);
+    if (stats) stats->publish_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (path.ok() || !spec.refine.enabled() || round > spec.refine.levels) return path;
+    const SweepProgress next = c.progress(id);
+    if (next.items_done >= next.items_total) return path;  // no new level was planned: the failure stands
+  }
+}
+
 StatusOr<std::string> RunEmbeddedSweep(const SweepSpec& spec, const std::string& data_dir, int threads, bool progress) {
   if (CancelRequested()) return CancelledStatus();  // not even the planning of a new sweep
   auto coord = SweepCoordinator::Open(data_dir, {.lease_seconds = 3600, .resume = false, .log = false});
   if (!coord.ok()) return coord.status();
   auto plan = (*coord)->Submit(spec, JobItems(spec, 0.25));
   if (!plan.ok()) return plan.status();
-  const long to_compute = plan->items_total - plan->items_cached;
-  ProgressBar bar(to_compute, "  " + (spec.name.empty() ? plan->id : spec.name), progress);
-  BISTABLE_RETURN_IF_ERROR(ComputeEmbedded(**coord, spec, threads, to_compute > 0, nullptr, progress ? &bar : nullptr));
-  if (CancelRequested()) {  // stored jobs stay stored; a later run resumes from them
-    (*coord)->MarkInterrupted(plan->id);
-    return CancelledStatus();
-  }
-  return (*coord)->Publish(plan->id);
+  return ComputeAndPublish(**coord, spec, threads, progress, "  " + (spec.name.empty() ? plan->id : spec.name), nullptr);
 }
 
 }  // namespace bistable

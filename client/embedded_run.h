@@ -19,6 +19,18 @@ namespace bistable {
 Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, bool any_work, std::atomic<bool>* stop,
                        ProgressBar* bar);
 
+// Computes a submitted sweep's queued work on `threads` worker threads and publishes its map; a
+// refined sweep ([refine]) goes level by level, one progress line (`label`) per level. Cancellation or
+// a worker error marks the sweep interrupted (CancelledStatus() or that error); what was stored stays.
+// *stats (may be null): what this call did.
+struct EmbeddedRunStats {
+  long computed = 0;           // items computed in this call
+  long items = 0;              // items of the sweep (a refined sweep: the points it computed, cached or not)
+  double publish_seconds = 0;  // writing the map (and planning refinement levels)
+};
+StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& spec, int threads, bool progress,
+                                        const std::string& label, EmbeddedRunStats* stats);
+
 // Submit + compute + publish in one call (no signal handling; callers install it): the map file's
 // path, or CancelledStatus() when cancellation stopped it (the sweep is marked interrupted; what was
 // stored stays in the cache).

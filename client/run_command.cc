@@ -59,25 +59,23 @@ int RunSweep(const RunArgs& a) {
   // Ctrl-C / SIGTERM: the computing jobs stop within about a millisecond of kernel work
   // (dynamics/cancel.h), are released unreported, and every job already stored stays stored.
   InstallCancelSignalHandlers("\nstopping: finished jobs are kept (press Ctrl-C again to quit at once)\n");
-  ProgressBar bar(to_compute, "sweep " + plan->id, !a.quiet && !a.json);
-  const Status worker_error = ComputeEmbedded(c, *spec, threads, to_compute > 0, nullptr, &bar);
+  EmbeddedRunStats run;
+  auto path = ComputeAndPublish(c, *spec, threads, !a.quiet && !a.json, "sweep " + plan->id, &run);
   RestoreDefaultSignalHandlers();
-  if (!worker_error.ok()) {
-    c.MarkInterrupted(plan->id);
-    std::cerr << "error: " << worker_error.ToString() << "\n"
+  if (!path.ok() && CancelRequested()) {
+    const SweepProgress p = c.progress(plan->id);
+    std::cerr << "interrupted: " << p.items_done << "/" << p.items_total << " items stored; rerun the same command to resume\n";
+    return CancelExitStatus();
+  }
+  if (!path.ok()) {
+    std::cerr << "error: " << path.status().ToString() << "\n"
               << "finished blocks are stored; rerun the same command to resume\n";
     return kExitError;
   }
-  if (CancelRequested() || c.progress(plan->id).items_done < plan->items_total) {
-    c.MarkInterrupted(plan->id);
-    std::cerr << "interrupted: " << c.progress(plan->id).items_done << "/" << plan->items_total
-              << " items stored; rerun the same command to resume\n";
-    return CancelRequested() ? CancelExitStatus() : ExitForSignal(SIGINT);
-  }
-  const auto t_computed = std::chrono::steady_clock::now();
-  auto path = c.Publish(plan->id);
-  if (!path.ok()) return Fail(path.status());
   const auto t_published = std::chrono::steady_clock::now();
+  const auto t_computed = t_published - std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                            std::chrono::duration<double>(run.publish_seconds));
+  const long computed = run.computed, items = run.items;
   const double seconds = std::chrono::duration<double>(t_published - t0).count();
   auto secs = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
   std::vector<std::string> files = {*path};
@@ -98,11 +96,11 @@ int RunSweep(const RunArgs& a) {
                         {"data", std::filesystem::absolute(a.data).string()},
                         {"files", files},
                         {"points", spec->points()},
-                        {"items", plan->items_total},
-                        {"cached", plan->items_cached},
-                        {"computed", to_compute},
+                        {"items", items},
+                        {"cached", items - computed},
+                        {"computed", computed},
                         {"seconds", seconds},
-                        {"points_per_second", seconds > 0 ? static_cast<double>(to_compute) / seconds : 0.0},
+                        {"points_per_second", seconds > 0 ? static_cast<double>(computed) / seconds : 0.0},
                         {"threads", threads},
                         {"timing", {{"plan", secs(t0, t_planned)}, {"compute", secs(t_planned, t_computed)},
                                     {"publish", secs(t_computed, t_published)}}}};
@@ -110,8 +108,11 @@ int RunSweep(const RunArgs& a) {
     std::cout << j.dump(2) << "\n";
   } else {
     std::printf("sweep %s done: %ld points x %d = %ld items (%ld computed, %ld reused) in %.1f s, %.0f computed items/s\n",
-                plan->id.c_str(), spec->points(), spec->ic_count(), plan->items_total, to_compute, plan->items_cached,
-                seconds, seconds > 0 ? static_cast<double>(to_compute) / seconds : 0.0);
+                plan->id.c_str(), spec->points(), spec->ic_count(), items, computed, items - computed, seconds,
+                seconds > 0 ? static_cast<double>(computed) / seconds : 0.0);
+    if (spec->refine.enabled())
+      std::printf("refined map: %ld of %ld grid points integrated (%.1f %% of the uniform grid), the rest filled\n", items,
+                  spec->points(), 100.0 * static_cast<double>(items) / static_cast<double>(spec->points()));
     std::printf("map: %s\n", path->c_str());
     for (size_t i = 1; i < files.size(); ++i) std::printf("plot: %s\n", files[i].c_str());
   }

@@ -23,7 +23,9 @@ namespace {
 
 const std::vector<std::string> kTopKeys = {"name", "model", "params", "axes", "integration", "metrics",
                                            "initial_conditions", "output", "series", "dimensional", "continuation",
-                                           "robustness"};
+                                           "robustness", "refine"};
+const std::vector<std::string> kRefineKeys = {"levels", "criterion", "mixed_after"};
+const std::vector<std::string> kRefineCriteria = {"frf_0db", "motion", "lle_sign", "period"};
 const std::vector<std::string> kRobustnessKeys = {"samples", "seed", "tolerance", "ic_radius"};
 const std::vector<std::string> kToleranceKeys = {"eps", "eta", "eta_r", "phi", "lambda", "alpha", "omega"};
 const std::vector<std::string> kContinuationKeys = {"axis", "direction"};
@@ -466,11 +468,15 @@ std::string SweepSpec::CanonicalText() const {
     for (const auto& [k, v] : robustness.tolerance) os << "," << k << ":" << G17(v);
     os << "\n";
   }
+  if (refine.enabled())
+    os << "refine=" << refine.levels << "," << RefineCriterionName(refine.criterion) << "," << refine.mixed_after << "\n";
   os << "metrics=";
   for (const auto& s : metrics) os << s << ",";
   os << "\n";
   return os.str();
 }
+
+const char* RefineCriterionName(RefineCriterion c) { return kRefineCriteria[static_cast<int>(c)].c_str(); }
 
 std::string SweepSpec::ModelLabel() const { return ModelName(model); }
 
@@ -875,6 +881,43 @@ Status ReadRobustness(const toml::table& root, SweepSpec& spec) {
   return Status::Ok();
 }
 
+// [refine]: needs a grid whose every axis splits into 2^levels equal index steps, one item per point.
+Status ReadRefine(const toml::table& root, SweepSpec& spec) {
+  const toml::node* n = root.get("refine");
+  if (!n) return Status::Ok();
+  const toml::table* t = n->as_table();
+  if (!t) return Status::InvalidArgument("refine", "refine must be a table, e.g. { levels = 3, criterion = \"motion\" }");
+  BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "refine", kRefineKeys));
+  RefineConfig& r = spec.refine;
+  int levels = 0;
+  BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "levels", "refine.levels", &levels, 1, limits::kMaxRefineLevels));
+  if (levels == 0) return Status::InvalidArgument("refine.levels", "refine.levels is required (halvings from the coarse grid to the axes' grid)");
+  BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "mixed_after", "refine.mixed_after", &r.mixed_after, 0, limits::kMaxRefineLevels));
+  if (const toml::node* c = t->get("criterion")) {
+    auto s = String(*c, "refine.criterion");
+    if (!s.ok()) return s.status();
+    const auto it = std::find(kRefineCriteria.begin(), kRefineCriteria.end(), *s);
+    if (it == kRefineCriteria.end()) return UnknownValue("refine.criterion", *s, kRefineCriteria);
+    r.criterion = static_cast<RefineCriterion>(it - kRefineCriteria.begin());
+  }
+  if (spec.axes.empty() || spec.axes.size() > 3)
+    return Violates("axes", static_cast<double>(spec.axes.size()), "1 <= swept axes <= 3 with [refine]");
+  const long step = 1L << levels;
+  for (const Axis& a : spec.axes) {
+    const long n_values = static_cast<long>(a.values.size());
+    if (n_values < step + 1 || (n_values - 1) % step != 0)
+      return Status::InvalidArgument("axes." + a.name, "axes." + a.name + " has " + std::to_string(n_values) +
+                                                           " values; with refine.levels = " + std::to_string(levels) +
+                                                           " it needs k * " + std::to_string(step) + " + 1 values (k >= 1), e.g. " +
+                                                           std::to_string(step * ((n_values - 1) / step + 1) + 1));
+  }
+  if (spec.initial_states.size() > 1 || spec.continuation.enabled() || spec.robustness.enabled() || spec.HasInitialStateAxes())
+    return Status::InvalidArgument("refine", "refined maps take one item per grid point: no several initial states, "
+                                             "continuation, robustness samples or initial-state axes");
+  r.levels = levels;
+  return Status::Ok();
+}
+
 // [output].
 Status ReadOutput(const toml::table& root, SweepSpec& spec) {
   spec.plots = {};
@@ -889,6 +932,7 @@ Status ReadOutput(const toml::table& root, SweepSpec& spec) {
       if (spec.initial_states.size() > 1 || spec.robustness.enabled())
         for (const char* f : {"frac_intrawell", "frac_interwell", "frac_chaotic"}) plottable.push_back(f);
       if (spec.IsBasinSweep()) plottable.push_back("attractor");
+      if (spec.refine.enabled()) plottable.push_back("refine_level");
       for (size_t i = 0; i < names->size(); ++i)
         if (std::find(plottable.begin(), plottable.end(), (*names)[i]) == plottable.end())
           return UnknownValue("output.plots[" + std::to_string(i) + "]", (*names)[i], plottable);
@@ -897,6 +941,7 @@ Status ReadOutput(const toml::table& root, SweepSpec& spec) {
   } else {
     for (const char* m : {"frf_db", "lle", "motion", "edr_t"})
       if (std::find(spec.metrics.begin(), spec.metrics.end(), m) != spec.metrics.end()) spec.plots.push_back(m);
+    if (spec.refine.enabled()) spec.plots.push_back("refine_level");
   }
 
   return Status::Ok();
@@ -992,6 +1037,7 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
   BISTABLE_RETURN_IF_ERROR(ReadInitialConditions(root, spec));
   BISTABLE_RETURN_IF_ERROR(ReadContinuation(root, spec));
   BISTABLE_RETURN_IF_ERROR(ReadRobustness(root, spec));
+  BISTABLE_RETURN_IF_ERROR(ReadRefine(root, spec));
   BISTABLE_RETURN_IF_ERROR(ReadOutput(root, spec));
   BISTABLE_RETURN_IF_ERROR(CheckWholeSpec(spec, swept));
   spec.canonical_hash = ContentHashHex(spec.CanonicalText());

@@ -58,6 +58,20 @@ struct RobustnessConfig {
   bool enabled() const { return samples > 0; }
 };
 
+// Adaptive maps (issue 17; engine/refine.h): the axes give the finest grid; the sweep first computes
+// the coarse grid of every 2^levels-th value along each axis, then splits only the cells whose corners
+// disagree on `criterion`, level by level, down to the finest spacing. Cells that stay mixed in every
+// child for `mixed_after` levels in a row (chaotic speckle, not a boundary line) stop refining and are
+// marked chaotic-mixed. The map is stored at the finest grid with refine_level / refine_fill datasets.
+enum class RefineCriterion { kFrf0db, kMotion, kLleSign, kPeriod };
+struct RefineConfig {
+  int levels = 0;  // 0 = off
+  RefineCriterion criterion = RefineCriterion::kMotion;
+  int mixed_after = 2;  // 0 = never stop refining a mixed region
+  bool enabled() const { return levels > 0; }
+};
+const char* RefineCriterionName(RefineCriterion c);  // "frf_0db", "motion", "lle_sign", "period"
+
 // Sample k (0-based) of a robustness map applied to a point: each toleranced parameter times
 // 1 + tol (2u − 1), the start moved within the disc of radius ic_radius (uniform in area); u from a
 // seeded, shifted Halton sequence, one coordinate per toleranced parameter (canonical order), two for the disc.
@@ -97,6 +111,7 @@ struct SweepSpec {
   DimensionalConfig dimensional;
   ContinuationConfig continuation;
   RobustnessConfig robustness;
+  RefineConfig refine;
   PointSpec base;                   // fixed parameters and settings; alpha/omega used when not swept
   std::vector<Axis> axes;           // in canonical order, only the swept ones
   std::vector<std::array<double, 4>> initial_states;  // empty: the model's default start

@@ -11,6 +11,7 @@
 #include <random>
 
 #include "base/limits.h"
+#include "engine/refine.h"
 #include "base/log.h"
 #include "engine/evaluate.h"
 #include "storage/map_file.h"
@@ -163,6 +164,10 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
     s.items_done = s.items_cached = plan.items_total;
     return out;
   }
+  if (spec.refine.enabled()) {
+    BISTABLE_RETURN_IF_ERROR(BuildRefinedPlan(spec, job_items, s, plan));
+    return out;
+  }
   s.keys.reserve(plan.items_total);
   for (long p = 0; p < points; ++p)
     for (int i = 0; i < nic; ++i) s.keys.push_back(spec.ItemKey(p, i));
@@ -222,6 +227,65 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
   return out;
 }
 
+Status SweepCoordinator::BuildRefinedPlan(const SweepSpec& spec, long job_items, Sweep& s, SweepPlan& plan) {
+  const size_t width = PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points);
+  std::vector<std::pair<long, std::string>> keyed;  // every planned point's key, as looked up
+  long corrupt_total = 0;
+  auto step = PlanRefinement(spec, [&](const std::vector<long>& pts, std::vector<std::optional<int64_t>>* classes) {
+    classes->assign(pts.size(), std::nullopt);
+    constexpr size_t kBatch = 65536;  // batches, each under the index lock on its own
+    for (size_t b = 0; b < pts.size(); b += kBatch) {
+      const size_t e = std::min(pts.size(), b + kBatch);
+      std::vector<std::string> batch;
+      batch.reserve(e - b);
+      for (size_t i = b; i < e; ++i) batch.push_back(spec.ItemKey(pts[i], 0));
+      long corrupt = 0;
+      auto cached = Db()->LookupPoints(batch, width, &corrupt);
+      if (!cached.ok()) return cached.status();
+      corrupt_total += corrupt;
+      for (size_t i = b; i < e; ++i) {
+        if (auto it = cached->find(batch[i - b]); it != cached->end())
+          (*classes)[i] = RefineClass(spec.refine, spec.base.metrics, it->second);
+        keyed.emplace_back(pts[i], std::move(batch[i - b]));
+      }
+    }
+    return Status::Ok();
+  });
+  if (!step.ok()) return step.status();
+  if (corrupt_total > 0)
+    Log(log::Level::kWarn, "sweep.checksum_failed", {{"sweep", plan.id}, {"items", corrupt_total}, {"action", "recompute"}});
+  std::sort(keyed.begin(), keyed.end());
+  s.points.clear();
+  s.keys.clear();
+  s.points.reserve(keyed.size());
+  s.keys.reserve(keyed.size());
+  for (auto& [p, k] : keyed) s.points.push_back(p), s.keys.push_back(std::move(k));
+  s.refine_level = step->level;
+  s.refine_complete = step->complete;
+  Job j;
+  for (long p : step->missing) {
+    j.items.push_back({p, 0});
+    if (static_cast<long>(j.items.size()) == job_items) {
+      j.id = static_cast<long>(s.jobs.size());
+      s.jobs.push_back(std::move(j));
+      j = Job{};
+    }
+  }
+  if (!j.items.empty()) j.id = static_cast<long>(s.jobs.size()), s.jobs.push_back(std::move(j));
+  for (const Job& job : s.jobs) s.queue.push_back(job.id);
+  s.job_state.assign(s.jobs.size(), JobState::kQueued);
+  plan.items_total = static_cast<long>(s.points.size());  // grows level by level
+  plan.items_cached = plan.items_total - static_cast<long>(step->missing.size());
+  plan.jobs = static_cast<long>(s.jobs.size());
+  s.items_cached = s.items_done = plan.items_cached;
+  return Status::Ok();
+}
+
+const std::string& SweepCoordinator::KeyOf(const Sweep& s, const WorkItem& w) {
+  if (s.points.empty()) return s.keys[w.point * s.spec.ic_count() + w.ic];
+  return s.keys[std::lower_bound(s.points.begin(), s.points.end(), w.point) - s.points.begin()];
+}
+
 StatusOr<SweepPlan> SweepCoordinator::InstallLocked(Planned p, const std::string& owner) {
   Sweep& s = p.sweep;
   const SweepPlan& plan = p.plan;
@@ -271,7 +335,12 @@ Status SweepCoordinator::Replan(const std::string& id) {
   if (!built.ok()) return built.status();
   auto plan = InstallLocked(std::move(*built), owner);
   if (!plan.ok()) return plan.status();
-  Log(log::Level::kInfo, "sweep.replanned", {{"sweep", id}, {"items", plan->items_total - plan->items_cached}});
+  if (spec.refine.enabled())
+    Log(log::Level::kInfo, "sweep.refined",
+        {{"sweep", id}, {"level", sweeps_.at(id).refine_level}, {"items", plan->items_total - plan->items_cached},
+         {"planned", plan->items_total}, {"complete", sweeps_.at(id).refine_complete}});
+  else
+    Log(log::Level::kInfo, "sweep.replanned", {{"sweep", id}, {"items", plan->items_total - plan->items_cached}});
   if (plan->jobs == 0) {
     std::lock_guard<std::mutex> p(publish_queue_mu_);
     publish_queue_.push_back(id);
@@ -293,6 +362,7 @@ void SweepCoordinator::RevokeLeasesLocked(const std::string& sweep_id) {
 
 void SweepCoordinator::FreePlan(Sweep& s) {
   std::vector<std::string>().swap(s.keys);
+  std::vector<long>().swap(s.points);
   std::vector<Job>().swap(s.jobs);
   std::vector<JobState>().swap(s.job_state);
   std::deque<long>().swap(s.queue);
@@ -514,12 +584,11 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
       RememberFinishedLocked(lease_id, s.row.id);
       return Status::Ok();
     }
-    const int nic = s.spec.ic_count();
     rows.sweep_id = s.row.id;
     rows.keys.reserve(n_records * (s.keys.empty() ? 0 : s.keys[0].size() + 1));
     for (long j : lease.job_ids)
       for (const WorkItem& w : s.jobs[j].items) {
-        rows.keys += s.keys[w.point * nic + w.ic];
+        rows.keys += KeyOf(s, w);
         rows.keys += '\n';
       }
     committing_[lease_id] = lease;  // not in leases_ while stored: it cannot expire or be requeued meanwhile
@@ -641,20 +710,35 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
   std::vector<std::string> keys;
   SweepRow row;
   double started = 0;
+  std::vector<long> points;
   bool needs_plan = false;
   const std::string path = MapPath(sweep_id);
-  {
-    std::lock_guard<std::mutex> lock(mu_);
-    auto it = sweeps_.find(sweep_id);
-    if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
-    const Sweep& s = it->second;
-    if (s.row.state == SweepState::kDone && !s.row.file.empty() && std::filesystem::exists(path)) return path;
-    if (s.cancelled) return Status::FailedPrecondition("sweep " + sweep_id + " was cancelled");
-    needs_plan = static_cast<long>(s.keys.size()) != s.row.items_total;  // plan freed after an earlier publication
-    spec = s.spec;
-    keys = s.keys;
-    row = s.row;
-    started = s.started;
+  // A refined sweep whose level is stored plans its next level here (the publisher thread runs this
+  // when a level's last report is stored), and is published once no level is left.
+  for (int attempt = 0;; ++attempt) {
+    bool advance = false;
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      auto it = sweeps_.find(sweep_id);
+      if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
+      const Sweep& s = it->second;
+      if (s.row.state == SweepState::kDone && !s.row.file.empty() && std::filesystem::exists(path)) return path;
+      if (s.cancelled) return Status::FailedPrecondition("sweep " + sweep_id + " was cancelled");
+      needs_plan = static_cast<long>(s.keys.size()) != s.row.items_total;  // plan freed after an earlier publication
+      if (!needs_plan && s.spec.refine.enabled() && !s.refine_complete) {
+        if (s.items_done < s.row.items_total || attempt > 0)
+          return Status::FailedPrecondition("sweep " + sweep_id + " is refining: level " + std::to_string(s.refine_level) + " has " +
+                                            std::to_string(s.row.items_total - s.items_done) + " items to compute");
+        advance = true;
+      }
+      spec = s.spec;
+      keys = s.keys;
+      points = s.points;
+      row = s.row;
+      started = s.started;
+    }
+    if (!advance) break;
+    BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));
   }
   if (needs_plan) {
     BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));
@@ -662,7 +746,7 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
   }
   bool incomplete = false;
   const auto publish_start = std::chrono::steady_clock::now();
-  auto published = WriteAndIndexMap(spec, keys, row, started, path, &incomplete);
+  auto published = WriteAndIndexMap(spec, keys, points, row, started, path, &incomplete);
   std::unique_lock<std::mutex> lock(mu_);
   Sweep& s = sweeps_.at(sweep_id);
   if (!published.ok()) {
@@ -687,8 +771,8 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
 }
 
 StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys,
-                                                      const SweepRow& row, double started, const std::string& path,
-                                                      bool* incomplete) {
+                                                      const std::vector<long>& points, const SweepRow& row, double started,
+                                                      const std::string& path, bool* incomplete) {
   // Every record is read back through its checksum: a corrupt one counts as missing.
   long corrupt = 0;
   auto found = Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points), &corrupt);
@@ -706,10 +790,21 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
     }
     records.push_back(it->second);
   }
-  BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, records));
   SweepRow done = row;
-  done.state = SweepState::kDone;
   done.items_done = static_cast<long>(records.size());
+  if (spec.refine.enabled()) {  // the finest grid, completed from the computed points
+    auto refined = FillRefinedGrid(spec, points, records);
+    if (!refined.ok()) {
+      *incomplete = refined.status().code() == Status::Code::kFailedPrecondition;
+      return refined.status();
+    }
+    RefinedGrid grid = std::move(refined).value();
+    BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, grid));
+    records = std::move(grid.records);  // the map rows' ranges are those of the map as written
+  } else {
+    BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, records));
+  }
+  done.state = SweepState::kDone;
   done.file = std::filesystem::relative(path, data_dir_).string();
   done.finished = Clock();
   done.seconds = done.finished - started;

@@ -142,7 +142,10 @@ class SweepCoordinator {
     SweepSpec spec;
     SweepRow row;
     unsigned long long generation = 0;  // this plan's number: leases of other plans are void
-    std::vector<std::string> keys;  // content key of item point·ic_count + ic
+    std::vector<std::string> keys;  // content key of item point·ic_count + ic; refined: of points[j]
+    std::vector<long> points;       // refined sweeps ([refine]): the grid points planned so far, ascending
+    int refine_level = 0;           // refined sweeps: the level being computed
+    bool refine_complete = false;   // refined sweeps: every level stored, ready to publish
     std::vector<Job> jobs;
     std::vector<JobState> job_state;
     std::deque<long> queue;
@@ -178,6 +181,11 @@ class SweepCoordinator {
   void RevokeLeasesLocked(const std::string& sweep_id);
   // Frees a finished or cancelled sweep's plan (keys, jobs) and returns the memory to the system.
   static void FreePlan(Sweep& s);
+  // The content key of a planned item (dense grid, or a refined sweep's planned points).
+  static const std::string& KeyOf(const Sweep& s, const WorkItem& w);
+  // A refined sweep's plan: walks its levels against the cache (engine/refine.h) and queues the first
+  // level's missing points. Part of BuildPlan.
+  Status BuildRefinedPlan(const SweepSpec& spec, long job_items, Sweep& s, SweepPlan& plan);
   void RememberFinishedLocked(const std::string& lease_id, const std::string& sweep_id);
   void TouchWorkerLocked(const std::string& worker, double now);
   void RequeueExpiredLocked(double now);
@@ -189,8 +197,10 @@ class SweepCoordinator {
   // Gathers the records, writes the map file, indexes it; returns the sweep's row as published.
   // Called without mu_ (it takes db_mu_ for the index).
   // *incomplete: some item is missing or failed its checksum (the sweep must be planned again).
-  StatusOr<SweepRow> WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys, const SweepRow& row,
-                                      double started, const std::string& path, bool* incomplete);
+  // `points`: a refined sweep's computed grid points (keys[i] is points[i]'s); empty otherwise.
+  StatusOr<SweepRow> WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys,
+                                      const std::vector<long>& points, const SweepRow& row, double started,
+                                      const std::string& path, bool* incomplete);
   void PublisherLoop();
   Status MarkLocked(Sweep& s, SweepState state);
 

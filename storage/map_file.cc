@@ -293,7 +293,34 @@ Status WriteBasins(hid_t file, const SweepSpec& spec, const std::vector<PointRec
   return WriteNumberAttr(file, "basin_boundary_fraction", H5T_NATIVE_DOUBLE, &basins.boundary_fraction, 1);
 }
 
-Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records) {
+// A refined map (engine/refine.h): how each grid point got its values, and the cost in global attributes.
+Status WriteRefinement(hid_t file, const SweepSpec& spec, const RefinedGrid& refined, const std::vector<hsize_t>& dims,
+                       const std::vector<std::string>& names, const std::string& coordinates) {
+  const std::string levels = std::to_string(spec.refine.levels);
+  BISTABLE_RETURN_IF_ERROR(WriteDataset(
+      file, "refine_level", dims, refined.level, H5T_NATIVE_INT32,
+      {"refinement level of the smallest cell holding the point", "",
+       "0 = the coarse grid (every 2^" + levels + "-th axis value), " + levels +
+           " = the axes' own spacing; cells split where their corners disagree on " + RefineCriterionName(spec.refine.criterion)},
+      coordinates));
+  BISTABLE_RETURN_IF_ERROR(AttachScales(file, "refine_level", names));
+  BISTABLE_RETURN_IF_ERROR(WriteDataset(
+      file, "refine_fill", dims, refined.fill, H5T_NATIVE_INT32,
+      {"how the point's values were obtained in the refined map", "code",
+       "computed = integrated at this point; interpolated = inside a cell whose corners agree on the criterion "
+       "(real-valued metrics multilinear in the corners, codes from the nearest corner); chaotic_mixed = inside a "
+       "cell that stayed mixed in every child for refine.mixed_after levels (values of the nearest corner sample)",
+       &RefineFillCategories()},
+      coordinates));
+  BISTABLE_RETURN_IF_ERROR(AttachScales(file, "refine_fill", names));
+  const long total = spec.points();
+  BISTABLE_RETURN_IF_ERROR(WriteNumberAttr(file, "refine_points_computed", H5T_NATIVE_LONG, &refined.computed, 1));
+  BISTABLE_RETURN_IF_ERROR(WriteNumberAttr(file, "refine_points_uniform", H5T_NATIVE_LONG, &total, 1));
+  return WriteStringAttr(file, "refine_criterion", RefineCriterionName(spec.refine.criterion));
+}
+
+Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records,
+                const RefinedGrid* refined) {
   Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
   if (!file.ok()) return H5Fail(tmp, "create");
   const long np = spec.points();
@@ -439,6 +466,7 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
     }
   }
   if (spec.IsBasinSweep()) BISTABLE_RETURN_IF_ERROR(WriteBasins(file.get(), spec, records, dims, names, coordinates));
+  if (refined) BISTABLE_RETURN_IF_ERROR(WriteRefinement(file.get(), spec, *refined, dims, names, coordinates));
   const IntegrationSettings& in = spec.base.integration;
   const bool dimensional = spec.model == ModelKind::kDimensional;
   char settings[256];
@@ -480,12 +508,14 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
 
 }  // namespace
 
-Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::vector<PointRecord>& records) {
+namespace {
+Status WriteMapFileImpl(const std::string& path, const SweepSpec& spec, const std::vector<PointRecord>& records,
+                        const RefinedGrid* refined) {
   if (records.size() != static_cast<size_t>(spec.points()) * spec.ic_count())
     return Status::Internal("map file: record count does not match the grid");
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors come back as Status, not printed
   const std::string tmp = path + ".tmp";
-  Status st = WriteAll(tmp, spec, records);
+  Status st = WriteAll(tmp, spec, records, refined);
   if (st.ok()) st = FsyncPath(tmp, false);
   if (st.ok()) {
     std::error_code ec;
@@ -495,6 +525,15 @@ Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::v
   if (st.ok()) st = FsyncPath(std::filesystem::path(path).parent_path().string(), true);
   if (!st.ok()) std::filesystem::remove(tmp);
   return st;
+}
+}  // namespace
+
+Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::vector<PointRecord>& records) {
+  return WriteMapFileImpl(path, spec, records, nullptr);
+}
+
+Status WriteMapFile(const std::string& path, const SweepSpec& spec, const RefinedGrid& refined) {
+  return WriteMapFileImpl(path, spec, refined.records, &refined);
 }
 
 StatusOr<std::vector<std::string>> ListMapMetrics(const std::string& path) {

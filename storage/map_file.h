@@ -16,12 +16,15 @@
 
 #include "base/status.h"
 #include "engine/metric_catalog.h"
+#include "engine/refine.h"
 #include "engine/sweep_spec.h"
 
 namespace bistable {
 
 // records[point * ic_count + ic], point in the spec's row-major order.
 Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::vector<PointRecord>& records);
+// A refined map ([refine]): the finest grid's records plus refine_level and refine_fill.
+Status WriteMapFile(const std::string& path, const SweepSpec& spec, const RefinedGrid& refined);
 
 // A metric read back: values in row-major order over dims.
 struct MapArray {

@@ -23,6 +23,7 @@
 #include "dynamics/point.h"
 #include "engine/basins.h"
 #include "engine/evaluate.h"
+#include "engine/refine.h"
 #include "tests/map_compare.h"
 
 namespace bistable {
@@ -617,6 +618,207 @@ ic_radius = %g
   band(spec_for(0.05, 8), &c5s);
   EXPECT_NE(c5, c5s);  // another seed, another sample set
   std::filesystem::remove_all(dir);
+}
+
+// A refined sweep ([refine]) through the coordinator: lease and report until no work is left, publish
+// (which plans the next level while one is left), round after round.
+std::string RunRefined(SweepCoordinator& c, const SweepSpec& spec, SweepPlan* plan, int* rounds) {
+  auto p = c.Submit(spec, 64);
+  EXPECT_TRUE(p.ok()) << p.status().ToString();
+  if (!p.ok()) return "";
+  *plan = *p;
+  for (*rounds = 1; *rounds <= spec.refine.levels + 3; ++*rounds) {
+    while (auto lease = c.Lease("test")) EXPECT_TRUE(c.Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
+    auto path = c.Publish(p->id);
+    if (path.ok()) return *path;
+    EXPECT_EQ(path.status().code(), Status::Code::kFailedPrecondition) << path.status().ToString();
+  }
+  ADD_FAILURE() << "refinement did not finish";
+  return "";
+}
+
+std::string RefineSpec(const char* criterion, int mixed_after, double t_end = 200) {
+  char t[900];
+  std::snprintf(t, sizeof t, R"(
+name = "refined"
+model = "coupled"
+[axes]
+alpha = { linspace = [0.015, 1.2, 65] }
+omega = { linspace = [0.3, 3.0, 65] }
+[integration]
+t_end = %g
+t_keep = %g
+[metrics]
+store = ["frf_db", "lle", "motion", "period", "y_max"]
+[refine]
+levels = 3
+criterion = "%s"
+mixed_after = %d
+)",
+                t_end, t_end / 2, criterion, mixed_after);
+  return t;
+}
+
+TEST(SweepEngine, RefinedMapEqualsTheUniformMapWhereComputedAndCostsLess) {
+  const std::string dir_r = TempDir("refined"), dir_u = TempDir("uniform");
+  for (const char* criterion : {"frf_0db", "motion"}) {
+    SCOPED_TRACE(criterion);
+    const SweepSpec refined = Parse(RefineSpec(criterion, 2));
+    std::string uniform_text = RefineSpec(criterion, 2);
+    uniform_text = uniform_text.substr(0, uniform_text.find("[refine]"));
+    const SweepSpec uniform = Parse(uniform_text);
+    auto cr = SweepCoordinator::Open(dir_r);
+    auto cu = SweepCoordinator::Open(dir_u);  // its own cache: nothing is shared with the refined run
+    ASSERT_TRUE(cr.ok() && cu.ok());
+    SweepPlan pr, pu;
+    int rounds = 0;
+    const std::string path_r = RunRefined(**cr, refined, &pr, &rounds);
+    const std::string path_u = RunSweep(**cu, uniform, 2, &pu);
+    ASSERT_FALSE(path_r.empty());
+    auto fill = ReadMapMetric(path_r, "refine_fill");
+    auto level = ReadMapMetric(path_r, "refine_level");
+    ASSERT_TRUE(fill.ok() && level.ok());
+    EXPECT_EQ(fill->categories.size(), 3u);
+    long computed = 0, boundary_points = 0;
+    for (size_t i = 0; i < fill->values.size(); ++i) computed += fill->values[i] == 0, boundary_points += level->values[i] == 3;
+    EXPECT_LT(computed, 65 * 65 / 2) << "refinement computes a fraction of the uniform grid";
+    EXPECT_GT(boundary_points, 0) << "some cells were refined to the finest spacing";
+    auto attr = ReadMapAttribute(path_r, "refine_criterion");
+    EXPECT_TRUE(attr.ok() && *attr == criterion);
+    // Every computed point equals the uniform map's value bit for bit (every stored metric).
+    for (const char* metric : {"frf_db", "lle", "motion", "period", "y_max"}) {
+      auto a = ReadMapMetric(path_r, metric);
+      auto b = ReadMapMetric(path_u, metric);
+      ASSERT_TRUE(a.ok() && b.ok());
+      ASSERT_EQ(a->values.size(), b->values.size());
+      long differ = 0;
+      for (size_t i = 0; i < a->values.size(); ++i)
+        if (fill->values[i] == 0 && std::memcmp(&a->values[i], &b->values[i], sizeof(double)) != 0) ++differ;
+      EXPECT_EQ(differ, 0) << metric;
+    }
+    // Interpolated points: the criterion agrees with the uniform map almost everywhere (an island
+    // smaller than a coarse cell between agreeing corners is missed: that is the method's bet).
+    auto crit = ReadMapMetric(path_r, std::string(criterion) == "motion" ? "motion" : "frf_db");
+    auto crit_u = ReadMapMetric(path_u, std::string(criterion) == "motion" ? "motion" : "frf_db");
+    long filled = 0, agree = 0;
+    for (size_t i = 0; i < fill->values.size(); ++i) {
+      if (fill->values[i] != 1) continue;
+      ++filled;
+      const bool same = std::string(criterion) == "motion" ? crit->values[i] == crit_u->values[i]
+                                                           : (crit->values[i] >= 0) == (crit_u->values[i] >= 0);
+      agree += same;
+    }
+    EXPECT_GT(filled, 0);
+    EXPECT_GE(static_cast<double>(agree), 0.95 * static_cast<double>(filled));
+    // Published like any map: the index row counts the computed points.
+    auto info = (*cr)->Info(pr.id);
+    ASSERT_TRUE(info.ok());
+    EXPECT_EQ(info->state, SweepState::kDone);
+    EXPECT_EQ(info->items_done, computed);
+  }
+  std::filesystem::remove_all(dir_r);
+  std::filesystem::remove_all(dir_u);
+}
+
+TEST(SweepEngine, RefinedSweepResumesFromItsStoredLevels) {
+  const std::string dir = TempDir("refine_resume"), fresh = TempDir("refine_fresh");
+  const SweepSpec spec = Parse(RefineSpec("frf_0db", 2, 120));
+  long level0 = 0;
+  {
+    auto c = SweepCoordinator::Open(dir);
+    ASSERT_TRUE(c.ok());
+    auto plan = (*c)->Submit(spec, 64);
+    ASSERT_TRUE(plan.ok());
+    level0 = plan->items_total;
+    EXPECT_EQ(level0, 9 * 9);  // the coarse grid: every 8th value of 65
+    while (auto lease = (*c)->Lease("w")) ASSERT_TRUE((*c)->Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
+    // "crash" here: the next level may or may not have been planned
+  }
+  auto c = SweepCoordinator::Open(dir);  // resumes: plans again from the stored levels
+  ASSERT_TRUE(c.ok());
+  auto info = (*c)->Info(spec.Id());
+  ASSERT_TRUE(info.ok());
+  EXPECT_GE(info->items_done, level0) << "the coarse level is not computed again";
+  SweepPlan plan;
+  int rounds = 0;
+  const std::string resumed = RunRefined(**c, spec, &plan, &rounds);
+  auto f = SweepCoordinator::Open(fresh);
+  ASSERT_TRUE(f.ok());
+  SweepPlan plan_f;
+  const std::string once = RunRefined(**f, spec, &plan_f, &rounds);
+  for (const char* metric : {"frf_db", "motion", "refine_level", "refine_fill"}) {
+    auto a = ReadMapMetric(resumed, metric);
+    auto b = ReadMapMetric(once, metric);
+    ASSERT_TRUE(a.ok() && b.ok());
+    EXPECT_EQ(std::memcmp(a->values.data(), b->values.data(), a->values.size() * sizeof(double)), 0) << metric;
+  }
+  std::filesystem::remove_all(dir);
+  std::filesystem::remove_all(fresh);
+}
+
+TEST(Refine, SpeckledRegionsStopRefiningAndBoundaryLinesDoNot) {
+  // Classes from a rule on the grid: a straight boundary (class by the sign of i + j - 40) everywhere
+  // except a speckled square (pseudo-random classes) at the top: the line is refined to the end,
+  // the square stops after mixed_after levels of all-mixed children.
+  SweepSpec spec = Parse(R"(
+model = "coupled"
+[axes]
+alpha = { linspace = [0.1, 1.0, 65] }
+omega = { linspace = [0.1, 1.0, 65] }
+[refine]
+levels = 4
+criterion = "motion"
+mixed_after = 2
+)");
+  auto cls = [](long p) -> int64_t {
+    const long i = p / 65, j = p % 65;
+    if (i >= 48 && j >= 48) return static_cast<int64_t>((i * 7919 + j * 104729) % 3);
+    return i + j >= 40 ? 1 : 0;
+  };
+  std::vector<long> all;
+  auto step = PlanRefinement(spec, [&](const std::vector<long>& pts, std::vector<std::optional<int64_t>>* out) {
+    out->clear();
+    for (long p : pts) out->push_back(cls(p)), all.push_back(p);
+    return Status::Ok();
+  });
+  ASSERT_TRUE(step.ok());
+  ASSERT_TRUE(step->complete);
+  EXPECT_GT(step->cells_mixed, 0);
+  int finest_mixed_on_line = 0, finest_in_square = 0;
+  for (const RefineCell& c : step->cells) {
+    const long i = c.origin / 65, j = c.origin % 65;
+    if (c.level == 4 && c.mixed) (i >= 48 && j >= 48 ? finest_in_square : finest_mixed_on_line) += 1;
+  }
+  EXPECT_GT(finest_mixed_on_line, 20) << "the boundary line is refined to the finest spacing";
+  EXPECT_EQ(finest_in_square, 0) << "the speckled square is not";
+  // Every finest cell on the line has its corners computed on both sides of the line.
+  std::sort(all.begin(), all.end());
+  for (long d = 0; d <= 40; ++d) {
+    const long p = d * 65 + (40 - d);  // on the line i + j = 40
+    if (40 - d < 0 || 40 - d > 64) continue;
+    EXPECT_TRUE(std::binary_search(all.begin(), all.end(), p)) << "point on the boundary line " << d;
+  }
+  EXPECT_LT(all.size(), 65u * 65u / 3);
+}
+
+TEST(SweepSpec, RefineIsCheckedByName) {
+  for (const auto& [toml, field] : std::vector<std::pair<std::string, std::string>>{
+           {"[refine]\ncriterion = \"motion\"\n", "refine.levels"},
+           {"[refine]\nlevels = 11\n", "refine.levels"},
+           {"[refine]\nlevels = 2\ncriterion = \"chaos\"\n", "refine.criterion"},
+           {"[refine]\nlevels = 2\nmixed_after = -1\n", "refine.mixed_after"},
+           {"[refine]\nlevels = 2\nlevel = 3\n", "refine.level"},
+           {"[refine]\nlevels = 3\n", "axes.omega"},  // 5 values do not split into 8 steps
+           {"[refine]\nlevels = 2\n[initial_conditions]\nstates = [[1, 0], [-1, 0]]\n", "refine"}}) {
+    auto s = ParseSweepSpec("model = \"coupled\"\n[axes]\nomega = { linspace = [1.0, 2.0, 5] }\n" + toml, "test.toml");
+    ASSERT_FALSE(s.ok()) << toml;
+    EXPECT_EQ(s.status().field(), field) << s.status().ToString();
+  }
+  auto ok = ParseSweepSpec("model = \"coupled\"\n[axes]\nomega = { linspace = [1.0, 2.0, 5] }\n[refine]\nlevels = 2\n", "t.toml");
+  ASSERT_TRUE(ok.ok()) << ok.status().ToString();
+  auto plain = ParseSweepSpec("model = \"coupled\"\n[axes]\nomega = { linspace = [1.0, 2.0, 5] }\n", "t.toml");
+  EXPECT_NE(ok->Id(), plain->Id()) << "refinement is part of the sweep's identity";
+  EXPECT_EQ(ok->ItemKey(2, 0), plain->ItemKey(2, 0)) << "but its points share the cache with the uniform sweep";
 }
 
 TEST(SweepSpec, RobustnessIsCheckedByName) {

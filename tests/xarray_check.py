@@ -41,8 +41,11 @@ os.makedirs(work, exist_ok=True)
 
 
 def coarse(text):
-    """The spec with every axis cut to at most 4 values (counts of linspace/logspace, list items)."""
-    text = re.sub(r"((?:lin|log)space\s*=\s*\[[^,\]]+,[^,\]]+,\s*)(\d+)", lambda m: m.group(1) + str(min(int(m.group(2)), 4)), text)
+    """The spec with every axis cut to at most 4 values (counts of linspace/logspace, list items); a refined
+    map ([refine] levels = L) keeps 2^L + 1 values, the fewest it accepts."""
+    levels = re.search(r"^\s*levels\s*=\s*(\d+)", text[text.find("[refine]"):], re.M) if "[refine]" in text else None
+    most = 2 ** int(levels.group(1)) + 1 if levels else 4
+    text = re.sub(r"((?:lin|log)space\s*=\s*\[[^,\]]+,[^,\]]+,\s*)(\d+)", lambda m: m.group(1) + str(min(int(m.group(2)), most)), text)
     out, in_axes = [], False
     for line in text.splitlines():
         if line.startswith("["):
