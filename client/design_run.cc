@@ -87,8 +87,14 @@ class RemoteSweeps : public DesignSweeps {
   StatusOr<SweepOutcome> Run(const std::string& toml) override {
     const auto t0 = Clock::now();
     if (CancelRequested()) return CancelledStatus();
+    // A sweep the coordinator already finished is all cache (a new Submit of it would report its old plan).
+    auto parsed = ParseSweepSpec(toml, "design");
+    if (!parsed.ok()) return parsed.status();
+    auto known = c_->GetStatus(parsed->Id());
+    const bool done_before = known.ok() && known->state == SweepState::kDone;
     auto sub = c_->Submit(toml, "bistable design");
     if (!sub.ok()) return sub.status();
+    if (done_before) sub.value().items_cached = sub->items_total;
     auto last = c_->Watch(sub->id, [](const SweepInfo&) { return !CancelRequested(); });
     if (!last.ok()) return last.status();
     if (CancelRequested()) return CancelledStatus();  // the coordinator keeps computing; a rerun picks it up

@@ -6,7 +6,6 @@
 
 #include <toml++/toml.h>
 
-#include "base/file.h"
 #include "base/limits.h"
 #include "base/names.h"
 #include "base/validate.h"
@@ -42,18 +41,17 @@ StatusOr<double> Num(const toml::node& n, const std::string& field) {
   return Status::InvalidArgument(field, field + " must be a number");
 }
 
-// The engine reports errors of the candidate spec by its own field names; a design spec's user wrote
-// them under [design].
-Status Renamed(Status st) {
+// The engine reports errors of a spec built here by its own field names (axes.omega); the user wrote
+// them under [design] (design.omega). `renames`: engine prefix -> design field.
+Status Renamed(Status st, const std::vector<std::pair<std::string, std::string>>& renames) {
   if (st.ok() || st.code() != Status::Code::kInvalidArgument) return st;
   std::string field = st.field(), msg = st.message();
-  for (const std::string& from : {std::string("axes.omega"), std::string("axes.alpha")}) {
-    const std::string to = "design." + from.substr(5);
+  for (const auto& [from, to] : renames)
     for (std::string* s : {&field, &msg})
       for (size_t p = s->find(from); p != std::string::npos; p = s->find(from, p + to.size())) s->replace(p, from.size(), to);
-  }
   return Status::InvalidArgument(field, msg);
 }
+const std::vector<std::pair<std::string, std::string>> kCandidateFields = {{"axes.omega", "design.omega"}, {"axes.alpha", "design.alpha"}};
 
 toml::table ParseTable(const std::string& text) { return toml::parse(text, std::string("design")); }
 
@@ -268,29 +266,17 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
                         "," + FormatNumber(d.lo[1]) + FormatNumber(d.hi[1]) + "," + FormatNumber(d.lo[2]) + FormatNumber(d.hi[2]))
              .substr(0, 12);
   auto cand = ParseSweepSpec(d.CandidateToml(d.lo), origin);
-  if (!cand.ok()) return Renamed(cand.status());
+  if (!cand.ok()) return Renamed(cand.status(), kCandidateFields);
   for (const Axis& a : cand->axes)
     if (a.name == "omega") d.omega = a.values;
   if (d.omega.size() < 2)
     return Violates("design.omega", static_cast<double>(d.omega.size()), "count >= 2 (a band is measured between Omega values)");
-  if (auto hi = ParseSweepSpec(d.CandidateToml(d.hi), origin); !hi.ok()) return Renamed(hi.status());
+  if (auto hi = ParseSweepSpec(d.CandidateToml(d.hi), origin); !hi.ok()) return Renamed(hi.status(), kCandidateFields);
   if (d.maps > 0) {
     auto m = ParseSweepSpec(d.MapToml(d.lo, "map"), origin);
-    if (!m.ok()) {
-      Status st = m.status();
-      std::string field = st.field(), msg = st.message();
-      if (field.rfind("axes.alpha", 0) == 0) field = "design.map_alpha" + field.substr(10);
-      for (size_t p = msg.find("axes.alpha"); p != std::string::npos; p = msg.find("axes.alpha", p + 16)) msg.replace(p, 10, "design.map_alpha");
-      return Status::InvalidArgument(field, msg);
-    }
+    if (!m.ok()) return Renamed(m.status(), {{"axes.alpha", "design.map_alpha"}, {"axes.omega", "design.omega"}});
   }
   return d;
-}
-
-StatusOr<DesignSpec> LoadDesignSpec(const std::string& path) {
-  auto text = ReadTextFile(path, "spec", limits::kMaxSpecBytes);
-  if (!text.ok()) return text.status();
-  return ParseDesignSpec(*text, path);
 }
 
 }  // namespace bistable

@@ -52,7 +52,6 @@ struct DesignSpec {
 // Parses and validates every field up front (errors name the field and the bound it violates: "design.budget =
 // 0 violates design.budget in [1, 10000]"); the base spec is checked by the engine's own parser.
 StatusOr<DesignSpec> ParseDesignSpec(const std::string& toml_text, const std::string& origin);
-StatusOr<DesignSpec> LoadDesignSpec(const std::string& path);
 
 }  // namespace bistable
 
