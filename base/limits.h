@@ -40,6 +40,16 @@ inline constexpr int kMaxRobustnessSamples = 4096;
 // Halvings of an adaptive map ([refine] levels: the coarse grid takes every 2^levels-th axis value).
 inline constexpr int kMaxRefineLevels = 10;
 
+// --- Design search (`bistable design`, [design]) ---------------------------------------------------
+inline constexpr int kMaxDesignBudget = 10'000;              // candidates one search may evaluate (design.budget)
+inline constexpr int kMaxDesignAlphas = 16;                  // forcing amplitudes a band must hold at (design.alpha)
+inline constexpr int kMaxDesignMaps = 3;                     // alpha x omega maps of the best designs (design.maps)
+inline constexpr int kMaxBruteForceSide = 64;                // --brute-force N: N values per free parameter
+inline constexpr double kMinDesignRatio = 1e-3;              // design.bounds.lambda / .phi in [1e-3, 100]
+inline constexpr double kMaxDesignRatio = 100;
+inline constexpr double kMinDesignDamping = 0;               // design.bounds.eta_r in [0, 100]
+inline constexpr double kMaxDesignDamping = 100;
+
 // --- Harmonic balance (`bistable hbm`) -------------------------------------------------------------
 inline constexpr int kMaxHbmSwitchedBranches = 64;           // branches switched onto at period doublings
 inline constexpr int kMaxHbmFoldCurves = 64;                 // fold curves continued in (alpha, Omega)

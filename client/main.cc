@@ -7,6 +7,7 @@
 
 #include "base/exit_codes.h"
 #include "client/chirp_command.h"
+#include "client/design_command.h"
 #include "client/hbm_command.h"
 #include "client/identify_command.h"
 #include "client/point_command.h"
@@ -31,6 +32,7 @@ int main(int argc, char** argv) {
   bistable::AddHbmCommand(app, &exit_code);
   bistable::AddChirpCommand(app, &exit_code);
   bistable::AddReproduceCommand(app, &exit_code);
+  bistable::AddDesignCommand(app, &exit_code);
   bistable::AddIdentifyCommand(app, &exit_code);
   bistable::AddRemoteCommands(app, &exit_code);
   bistable::AddSweepsCommand(app, &exit_code);
