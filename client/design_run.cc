@@ -53,13 +53,8 @@ class EmbeddedSweeps : public DesignSweeps {
     if (!spec.ok()) return spec.status();
     auto plan = c_->Submit(*spec, JobItems(*spec, 0.25));
     if (!plan.ok()) return plan.status();
-    const long to_compute = plan->items_total - plan->items_cached;
-    BISTABLE_RETURN_IF_ERROR(ComputeEmbedded(*c_, *spec, threads_, to_compute > 0, nullptr, nullptr));
-    if (CancelRequested()) {  // stored jobs stay stored; the search run again resumes from them
-      c_->MarkInterrupted(plan->id);
-      return CancelledStatus();
-    }
-    auto path = c_->Publish(plan->id);
+    // Stored jobs stay stored on cancellation; the search run again resumes from them.
+    auto path = ComputeAndPublish(*c_, *spec, threads_, false, "", nullptr);
     if (!path.ok()) return path.status();
     SweepOutcome o;
     o.sweep_id = plan->id;
