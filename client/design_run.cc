@@ -212,7 +212,7 @@ StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOption
   if (!sweeps.ok()) return sweeps.status();
 
   // The search, with a progress line over candidates (ETA from the candidates' pace).
-  ProgressBar bar(spec.budget, "design " + spec.id + " candidates", o.progress);
+  ProgressBar bar(spec.budget, "design " + spec.id, o.progress, "candidates");
   double best_w = NAN;
   long done = 0;
   auto search = RunDesignSearch(spec, [&](const std::string& t) { return sweeps.value()->Run(t); }, [&](const Candidate& c) {

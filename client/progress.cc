@@ -6,8 +6,8 @@
 
 namespace bistable {
 
-ProgressBar::ProgressBar(long total, std::string label, bool enabled)
-    : total_(total), label_(std::move(label)), enabled_(enabled), tty_(::isatty(STDERR_FILENO) == 1),
+ProgressBar::ProgressBar(long total, std::string label, bool enabled, std::string unit)
+    : total_(total), label_(std::move(label)), unit_(std::move(unit)), enabled_(enabled), tty_(::isatty(STDERR_FILENO) == 1),
       start_(std::chrono::steady_clock::now()), last_(start_) {}
 
 std::string ProgressBar::Line(long done, const std::string& extra) const {
@@ -23,9 +23,9 @@ std::string ProgressBar::Line(long done, const std::string& extra) const {
     std::snprintf(eta, sizeof eta, "0s");
   }
   char buf[256];
-  std::snprintf(buf, sizeof buf, "%s [%.*s%.*s] %5.1f%%  %ld/%ld points  %.0f points/s  ETA %s", label_.c_str(), fill,
+  std::snprintf(buf, sizeof buf, "%s [%.*s%.*s] %5.1f%%  %ld/%ld %s  %.*f %s/s  ETA %s", label_.c_str(), fill,
                 "##############################", width - fill, "..............................", 100.0 * frac, done,
-                total_, rate, eta);
+                total_, unit_.c_str(), rate < 10 ? 1 : 0, rate, unit_.c_str(), eta);
   return extra.empty() ? std::string(buf) : std::string(buf) + "  " + extra;
 }
 

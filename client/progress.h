@@ -10,8 +10,9 @@ namespace bistable {
 
 class ProgressBar {
  public:
-  // total: items to compute in this run (cached ones excluded); label printed in front.
-  ProgressBar(long total, std::string label, bool enabled);
+  // total: items to compute in this run (cached ones excluded); label printed in front; unit names
+  // what is counted ("points", "candidates").
+  ProgressBar(long total, std::string label, bool enabled, std::string unit = "points");
   // `extra` is appended to the line (e.g. "3 workers").
   void Update(long done, const std::string& extra = "");
   void Finish(long done, const std::string& extra = "");
@@ -19,7 +20,7 @@ class ProgressBar {
  private:
   std::string Line(long done, const std::string& extra) const;
   long total_;
-  std::string label_;
+  std::string label_, unit_;
   bool enabled_, tty_;
   std::chrono::steady_clock::time_point start_, last_;
 };

@@ -82,7 +82,9 @@ std::vector<int> ParetoFront(const std::vector<Candidate>& c) {
   for (size_t i = 0; i < c.size(); ++i) {
     bool dominated = false;
     for (size_t j = 0; j < c.size() && !dominated; ++j) dominated = j != i && Dominates(c[j], c[i]);
-    if (!dominated) front.push_back(static_cast<int>(i));
+    // The optimiser may propose a design twice: the front lists each design once (its first evaluation).
+    const bool repeat = std::any_of(front.begin(), front.end(), [&](int f) { return c[f].x == c[i].x; });
+    if (!dominated && !repeat) front.push_back(static_cast<int>(i));
   }
   std::stable_sort(front.begin(), front.end(), [&](int a, int b) { return c[a].score.band_width > c[b].score.band_width; });
   return front;

@@ -62,7 +62,8 @@ struct Candidate {
 };
 
 // Non-dominated candidates (maximise band_width, minimise chaotic_share_band and cost): indices in
-// descending band width. Candidates with equal objectives are all kept.
+// descending band width. Distinct designs with equal objectives are all kept; a design evaluated twice
+// appears once.
 std::vector<int> ParetoFront(const std::vector<Candidate>& c);
 // Whether a dominates b (at least as good in all three, better in one).
 bool Dominates(const Candidate& a, const Candidate& b);

@@ -148,15 +148,18 @@ TEST(DesignSearch, FindsTheClosedFormBandOfTheLinearTmdAndReusesEveryCandidate) 
   EXPECT_NEAR(b.score.band_width, ClosedFormBand(spec->omega, b.x), 0.01);
   EXPECT_EQ(b.score.chaotic_in_band, 0);
 
-  // Pareto front: no member dominated by any candidate, every other candidate dominated by a member.
+  // Pareto front: no member dominated by any candidate, every other candidate dominated by a member
+  // or a repeat of a member's design; no design listed twice.
   ASSERT_FALSE(r->front.empty());
   for (int i : r->front)
     for (const Candidate& c : r->candidates) EXPECT_FALSE(Dominates(c, r->candidates[i])) << c.index << " dominates " << i;
+  for (size_t a = 0; a < r->front.size(); ++a)
+    for (size_t b = a + 1; b < r->front.size(); ++b) EXPECT_FALSE(r->candidates[r->front[a]].x == r->candidates[r->front[b]].x);
   for (const Candidate& c : r->candidates) {
     if (std::find(r->front.begin(), r->front.end(), c.index) != r->front.end()) continue;
-    bool dominated = false;
-    for (int i : r->front) dominated = dominated || Dominates(r->candidates[i], c);
-    EXPECT_TRUE(dominated) << c.index;
+    bool dominated = false, repeat = false;  // a design evaluated twice is listed once
+    for (int i : r->front) dominated = dominated || Dominates(r->candidates[i], c), repeat = repeat || r->candidates[i].x == c.x;
+    EXPECT_TRUE(dominated || repeat) << c.index;
   }
 
   // Run again (a new process would open the same data directory): every candidate comes from the cache.
