@@ -340,8 +340,8 @@ TEST(Observability, APortInUseIsAnErrorNotShared) {
 
 TEST(HttpServer, RoutesMethodsAndBounds) {
   auto server = bistable::HttpServer::Start(
-      "127.0.0.1:0", {{"/x", [] { return bistable::HttpResponse{200, "text/plain", "hello\n"}; }},
-                      {"/boom", []() -> bistable::HttpResponse { throw std::runtime_error("no"); }}});
+      "127.0.0.1:0", {{"/x", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain", "hello\n"}; }},
+                      {"/boom", [](const bistable::HttpRequest&) -> bistable::HttpResponse { throw std::runtime_error("no"); }}});
   ASSERT_TRUE(server.ok()) << server.status().ToString();
   const int port = (*server)->port();
   EXPECT_EQ(HttpRequest(port, "/x").body, "hello\n");
