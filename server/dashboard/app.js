@@ -104,6 +104,7 @@ async function pollSweeps() {
 
 // ---- one sweep: spec, axes, map ----
 async function openSweep(id) {
+  if (state.sweep !== id) { $('cell-view').hidden = true; state.cell = null; }
   state.sweep = id;
   state.mask = null;
   $('query-result').textContent = '';
@@ -172,7 +173,7 @@ async function drawMap() {
 }
 
 // ---- the heatmap ----
-const M = { left: 64, right: 110, top: 12, bottom: 44 };
+const M = { left: 80, right: 110, top: 12, bottom: 44 };
 
 function geometry() {
   const c = $('map'), m = state.map;
@@ -217,13 +218,13 @@ function render() {
     for (let i = 0; i < n; i += step) {
       const label = fmt(axis.values[i], 3);
       if (horizontal) ctx.fillText(label, M.left + (i + 0.5) * g.cw - 10, M.top + g.h + 16);
-      else ctx.fillText(label, 4, M.top + g.h - (i + 0.5) * g.ch + 4);
+      else ctx.fillText(label, 22, M.top + g.h - (i + 0.5) * g.ch + 4);
     }
   };
   if (m.x) { ticks(m.x, g.nx, true); ctx.fillText(m.x.name + ' [' + m.x.unit + ']', M.left + g.w / 2 - 30, c.height - 8); }
   if (m.y) {
     ticks(m.y, g.ny, false);
-    ctx.save(); ctx.translate(12, M.top + g.h / 2 + 30); ctx.rotate(-Math.PI / 2); ctx.fillText(m.y.name, 0, 0); ctx.restore();
+    ctx.save(); ctx.translate(12, M.top + g.h / 2 + 50); ctx.rotate(-Math.PI / 2); ctx.fillText(m.y.name + ' [' + m.y.unit + ']', 0, 0); ctx.restore();
   }
   // Colour bar, or the categories' legend.
   const bx = c.width - M.right + 16;
@@ -335,9 +336,9 @@ function showCell(d) {
     else flat.push([k, v]);
   }
   flat.push(['hd_peaks', r.hd_peaks.map((p) => fmt(p.freq, 4) + '@' + fmt(p.amp, 3)).join(', ') || '–']);
-  for (let i = 0; i < flat.length; i += 3) {
+  for (let i = 0; i < flat.length; i += 2) {
     const tr = el('tr');
-    for (const [k, v] of flat.slice(i, i + 3)) {
+    for (const [k, v] of flat.slice(i, i + 2)) {
       tr.appendChild(el('th', k));
       const td = el('td', typeof v === 'number' ? String(v) : v === null ? 'null' : String(v));
       td.dataset.metric = k;
