@@ -6,41 +6,16 @@
 
 #include <nlohmann/json.hpp>
 
-#include "dynamics/point.h"
-#include "dynamics/point_spec.h"
+#include "engine/json_shapes.h"
 #include "engine/sweep_state.h"
 #include "proto/coordinator_client.h"
 
 namespace bistable {
 
-// Conventions of every JSON output: a non-finite number prints as null; a metric's category code
-// (motion, termination) as its name; an integer metric (period, the codes) as an integer; a time as
-// ISO 8601 UTC ("2026-11-22T21:04:05.123Z").
-
-// `v`, or null when it is not finite.
-nlohmann::json JsonNumber(double v);
-// A Unix time as ISO 8601 UTC (IsoTimeUtc); null for 0 (not set, e.g. an unfinished sweep's end) or a
-// time that cannot be printed.
-nlohmann::json JsonTime(double unix_seconds);
-// A stored value of `metric` as a number: an integer for the catalog's integer metrics, else JsonNumber.
-nlohmann::json MetricNumberJson(const std::string& metric, double v);
-// A stored value of `metric` as JSON prints it: a category's name (CategoryName), else MetricNumberJson.
-nlohmann::json MetricValueJson(const std::string& metric, double v);
-
-// Everything needed to reproduce a point run.
-nlohmann::json SettingsJson(const PointSpec& spec);
-// The `bistable point --json` object: frf_db, lle, lle_rosenstein, motion, period, hd_index, hd_peaks,
-// edr_b, edr_r, edr_t, energy_balance_residual, energies, termination, settings. NaN prints as null.
-nlohmann::json PointJson(const PointSpec& spec, const PointResult& r);
-// `point --spectrum`'s keys: lyapunov_spectrum, lyapunov_sum, divergence, kaplan_yorke (CLI and Python).
-void AddSpectrumJson(const LyapunovSpectrum& sp, nlohmann::json* j);
-
-// A coordinator's answers: `status --json` (SweepStatusJson), a row of `sweeps --coordinator --json`
-// (RemoteSweepJson), `submit --json` (SubmittedJson), a row of `workers --json` (WorkerJson).
-nlohmann::json SweepStatusJson(const SweepInfo& s);
+// A coordinator's answers beyond engine/json_shapes.h's SweepStatusJson and WorkerJson: a row of
+// `sweeps --coordinator --json` (RemoteSweepJson), `submit --json` (SubmittedJson).
 nlohmann::json RemoteSweepJson(const SweepInfo& s);
 nlohmann::json SubmittedJson(const CoordinatorClient::Submitted& s);
-nlohmann::json WorkerJson(const WorkerInfo& w);
 
 }  // namespace bistable
 

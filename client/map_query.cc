@@ -40,47 +40,22 @@ StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, 
   }
   n_items = std::max(n_items, n_points);
   const size_t per_point = n_items / n_points;
-  // Cell weights: product of each axis's cell width (midpoint rule), for the area fraction.
-  auto width = [](const std::vector<double>& v, size_t i) {
-    if (v.size() == 1) return 1.0;
-    const double lo = i == 0 ? v[0] : 0.5 * (v[i - 1] + v[i]);
-    const double hi = i + 1 == v.size() ? v.back() : 0.5 * (v[i] + v[i + 1]);
-    return hi - lo;
-  };
-  long count = 0;
-  double area = 0, area_total = 0;
   nlohmann::json points = nlohmann::json::array();
-  std::vector<size_t> idx(axes.size());
-  for (size_t item = 0; item < n_items; ++item) {
-    size_t p = item / per_point, rest = p;
-    double w = 1;
-    for (long k = static_cast<long>(axes.size()) - 1; k >= 0; --k) {
-      idx[k] = rest % axes[k].values.size();
-      rest /= axes[k].values.size();
-      w *= width(axes[k].values, idx[k]);
+  auto column = [&](int v) -> const std::vector<double>& { return loaded.at(v).values; };
+  const QueryScan scan = ScanQuery(*q, axes, per_point, column, [&](size_t item, const std::vector<size_t>& idx) {
+    if (points.size() >= max_points) return;
+    nlohmann::json pt = nlohmann::json::object();
+    for (size_t k = 0; k < axes.size(); ++k) pt[axes[k].name] = axes[k].values[idx[k]];
+    if (per_point > 1) pt["ic"] = item % per_point;
+    for (int v : q->used()) {
+      if (v < static_cast<int>(n_axes_vars)) continue;
+      const std::vector<double>& m = loaded.at(v).values;
+      pt[names[v]] = MetricValueJson(names[v], m.size() == n_items ? m[item] : m[item / per_point]);
     }
-    area_total += w;
-    auto value = [&](int v) -> double {
-      if (v < static_cast<int>(n_axes_vars)) return axes[v].values[idx[v]];
-      const MapArray& m = loaded.at(v);
-      return m.values.size() == n_items ? m.values[item] : m.values[p];
-    };
-    if (!q->Eval(value)) continue;
-    ++count;
-    area += w;
-    if (points.size() < max_points) {
-      nlohmann::json pt = nlohmann::json::object();
-      for (size_t k = 0; k < axes.size(); ++k) pt[axes[k].name] = axes[k].values[idx[k]];
-      if (per_point > 1) pt["ic"] = item % per_point;
-      for (int v : q->used())
-        if (v >= static_cast<int>(n_axes_vars)) pt[names[v]] = MetricValueJson(names[v], value(v));
-      points.push_back(pt);
-    }
-  }
-  const double fraction = n_items ? static_cast<double>(count) / static_cast<double>(n_items) : 0.0;
-  const double area_fraction = area_total > 0 ? area / area_total : 0.0;
-  return nlohmann::json{{"sweep", sweep_id}, {"query", expr}, {"count", count}, {"total", n_items},
-                        {"fraction", fraction}, {"area_fraction", area_fraction}, {"points", points}};
+    points.push_back(pt);
+  });
+  return nlohmann::json{{"sweep", sweep_id}, {"query", expr}, {"count", scan.count}, {"total", scan.total},
+                        {"fraction", scan.fraction}, {"area_fraction", scan.area_fraction}, {"points", points}};
 }
 
 nlohmann::json LocalSweepsJson(IndexDb& db, const std::vector<SweepRow>& rows, const std::string& data_dir) {

@@ -208,11 +208,11 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
   auto role = std::make_shared<std::string>("client");
   auto name = std::make_shared<std::string>();
   CLI::App* tok = app.add_subcommand("token", "Mint a bearer token: prints the token and its line for the coordinator's tokens file");
-  tok->add_option("--role", *role, "client | worker | admin")->capture_default_str();
+  tok->add_option("--role", *role, "viewer (read only: status, maps, the dashboard) | client | worker | admin")->capture_default_str();
   tok->add_option("--name", *name, "a name for the token (shown as the submitter, never the token)");
   tok->callback([role, name, exit_code]() {
-    if (*role != "client" && *role != "worker" && *role != "admin") {
-      *exit_code = Fail(Status::InvalidArgument("role", "role = '" + *role + "' violates role in {client, worker, admin}"));
+    if (*role != "viewer" && *role != "client" && *role != "worker" && *role != "admin") {
+      *exit_code = Fail(Status::InvalidArgument("role", "role = '" + *role + "' violates role in {viewer, client, worker, admin}"));
       return;
     }
     const std::string t = NewToken();

@@ -22,6 +22,8 @@
 #include "client/progress.h"
 #include "client/sweep_commands.h"
 #include "dynamics/cancel.h"
+#include "net/http_server.h"
+#include "server/dashboard.h"
 #include "server/sweep_coordinator.h"
 #include "storage/map_file.h"
 #include "engine/evaluate.h"
@@ -34,6 +36,7 @@ struct RunArgs {
   std::string data = kDefaultDataDir;
   int threads = 0;
   bool json = false, no_plots = false, quiet = false;
+  std::string serve;  // dashboard address (loopback)
   long job_items = 0;
 };
 
@@ -44,6 +47,18 @@ int RunSweep(const RunArgs& a) {
   auto coord = SweepCoordinator::Open(a.data, {.lease_seconds = 3600, .resume = false, .log = false});
   if (!coord.ok()) return Fail(coord.status());
   SweepCoordinator& c = **coord;
+  // --serve: the dashboard over this process's coordinator (no tokens: loopback only).
+  const TokenStore open_tokens;
+  std::unique_ptr<HttpServer> dashboard;
+  if (!a.serve.empty()) {
+    if (!IsLoopbackAddress(a.serve))
+      return Fail(Status::InvalidArgument("serve", a.serve + " is not a loopback address (the embedded dashboard has no tokens; "
+                                                             "use bistable-coordinator --http with TLS and tokens to serve others)"));
+    auto h = HttpServer::Start(a.serve, DashboardRoutes(&c, &open_tokens));
+    if (!h.ok()) return Fail(h.status());
+    dashboard = std::move(h).value();
+    std::cerr << "dashboard on http://" << a.serve.substr(0, a.serve.rfind(':')) << ":" << dashboard->port() << "/" << std::endl;
+  }
   const auto t0 = std::chrono::steady_clock::now();
   auto plan = c.Submit(*spec, a.job_items > 0 ? a.job_items : JobItems(*spec, 0.25));
   if (!plan.ok()) return Fail(plan.status());
@@ -116,6 +131,13 @@ int RunSweep(const RunArgs& a) {
     std::printf("map: %s\n", path->c_str());
     for (size_t i = 1; i < files.size(); ++i) std::printf("plot: %s\n", files[i].c_str());
   }
+  if (dashboard) {  // the sweep is done; its maps stay on view until Ctrl-C / SIGTERM
+    std::fflush(stdout);
+    std::cerr << "dashboard: the sweep is done; serving until Ctrl-C" << std::endl;
+    InstallCancelSignalHandlers();
+    while (!CancelRequested()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    RestoreDefaultSignalHandlers();
+  }
   return 0;
 }
 
@@ -131,6 +153,9 @@ void AddRunCommand(CLI::App& app, int* exit_code) {
   cmd->add_flag("--json", a->json, "print {id, data, files, points, seconds, ...} as JSON");
   cmd->add_flag("--no-plots", a->no_plots, "do not render the default plots (without gnuplot they are skipped with a warning)");
   cmd->add_flag("--quiet", a->quiet, "no progress output");
+  cmd->add_option("--serve", a->serve,
+                  "serve the live dashboard on HOST:PORT (loopback; docs/dashboard.md) while the sweep runs and, "
+                  "after it is done, until Ctrl-C");
   cmd->footer(
       "Re-running a spec reuses every stored point (content-keyed), so an interrupted sweep resumes\n"
       "where it stopped and overlapping sweeps only compute what is new. Ctrl-C (or SIGTERM) stops within\n"

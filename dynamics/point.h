@@ -45,6 +45,8 @@ StatusOr<LyapunovSpectrum> EvaluateLyapunovSpectrum(const PointSpec& spec);
 // largest j whose partial sum is ≥ 0 (0 when λ1 < 0; the count when every partial sum is ≥ 0).
 double KaplanYorkeDimension(std::vector<double> exponents);
 
+// Time between the window's samples (y_m for the spectrum, PointResult::samples): dt · sample_every.
+double SampleStep(const PointSpec& spec);
 // Window record → metrics (FRF, LLE, motion, period, spectrum, energy ratios, Rosenstein).
 PointResult ComputePointMetrics(RawLane raw, const PointSpec& spec);
 // The same for the n ≤ W lanes of a block (raw is moved from): the response spectra are computed

@@ -53,9 +53,10 @@ int DetectPeriod(const std::vector<double>& y, const std::vector<double>& v, int
 
 }  // namespace
 
+double SampleStep(const PointSpec& spec) { return spec.integration.dt * spec.metrics.sample_every; }
+
 namespace {
 
-double SampleStep(const PointSpec& spec) { return spec.integration.dt * spec.metrics.sample_every; }
 
 // Every metric of one lane given its response spectrum (unused when the lane diverged).
 PointResult MetricsWithSpectrum(RawLane raw, const PointSpec& spec, const Spectrum& sp) {

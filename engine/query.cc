@@ -211,4 +211,46 @@ StatusOr<Query> Query::Parse(const std::string& text, const std::vector<std::str
 
 bool Query::Eval(const std::function<double(int)>& value) const { return EvalNode(*root_, value); }
 
+QueryScan ScanQuery(const Query& q, const std::vector<Axis>& axes, size_t per_point,
+                    const std::function<const std::vector<double>&(int)>& column,
+                    const std::function<void(size_t, const std::vector<size_t>&)>& on_match) {
+  size_t n_points = 1;
+  for (const Axis& ax : axes) n_points *= ax.values.size();
+  const size_t n_items = n_points * per_point;
+  const int n_axes = static_cast<int>(axes.size());
+  // Cell weights: product of each axis's cell width (midpoint rule), for the area fraction.
+  auto width = [](const std::vector<double>& v, size_t i) {
+    if (v.size() == 1) return 1.0;
+    const double lo = i == 0 ? v[0] : 0.5 * (v[i - 1] + v[i]);
+    const double hi = i + 1 == v.size() ? v.back() : 0.5 * (v[i] + v[i + 1]);
+    return hi - lo;
+  };
+  QueryScan scan;
+  scan.total = n_items;
+  double area = 0, area_total = 0;
+  std::vector<size_t> idx(axes.size());
+  for (size_t item = 0; item < n_items; ++item) {
+    size_t p = item / per_point, rest = p;
+    double w = 1;
+    for (long k = static_cast<long>(axes.size()) - 1; k >= 0; --k) {
+      idx[k] = rest % axes[k].values.size();
+      rest /= axes[k].values.size();
+      w *= width(axes[k].values, idx[k]);
+    }
+    area_total += w;
+    auto value = [&](int v) -> double {
+      if (v < n_axes) return axes[v].values[idx[v]];
+      const std::vector<double>& m = column(v);
+      return m.size() == n_items ? m[item] : m[p];
+    };
+    if (!q.Eval(value)) continue;
+    ++scan.count;
+    area += w;
+    if (on_match) on_match(item, idx);
+  }
+  scan.fraction = n_items ? static_cast<double>(scan.count) / static_cast<double>(n_items) : 0.0;
+  scan.area_fraction = area_total > 0 ? area / area_total : 0.0;
+  return scan;
+}
+
 }  // namespace bistable

@@ -38,6 +38,22 @@ class Query {
   std::vector<int> used_;
 };
 
+struct Axis;
+
+// A query evaluated over every item of a map (items = points in row-major order over `axes`, last axis
+// fastest, × per_point items each). Variable v < axes.size() is axis v's value; any other variable the
+// query uses is read from column(v): one value per item, or one per point (then shared by its items).
+// on_match(item, axis indices) is called for every item where the query holds (may be empty).
+// Area: each item weighs the product of its cells' widths (midpoint rule), for area_fraction.
+struct QueryScan {
+  long count = 0;
+  size_t total = 0;
+  double fraction = 0, area_fraction = 0;
+};
+QueryScan ScanQuery(const Query& q, const std::vector<Axis>& axes, size_t per_point,
+                    const std::function<const std::vector<double>&(int)>& column,
+                    const std::function<void(size_t, const std::vector<size_t>&)>& on_match);
+
 }  // namespace bistable
 
 #endif  // BISTABLE_ENGINE_QUERY_H_

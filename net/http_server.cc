@@ -1,12 +1,16 @@
 #include "net/http_server.h"
 
 #include <atomic>
+#include <optional>
 #include <thread>
+#include <type_traits>
 
 #include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/ssl.hpp>
 #include <boost/asio/strand.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
 
 namespace bistable {
 
@@ -27,6 +31,7 @@ struct HttpServer::Impl {
   // Declared before io: sessions destroyed with the io_context's pending handlers still count down.
   std::atomic<int> connections{0};
   std::map<std::string, HttpHandler> routes;
+  std::unique_ptr<asio::ssl::context> tls;  // set: every connection is TLS
   asio::io_context io{1};
   tcp::acceptor acceptor{io};
   std::thread thread;
@@ -37,26 +42,47 @@ struct HttpServer::Impl {
 
 namespace {
 
-class Session : public std::enable_shared_from_this<Session> {
+// One connection: plaintext (beast::tcp_stream) or TLS (beast::ssl_stream over it).
+template <class Stream>
+class Session : public std::enable_shared_from_this<Session<Stream>> {
  public:
-  Session(tcp::socket socket, HttpServer::Impl* server) : stream_(std::move(socket)), server_(server) {
+  template <class... Args>
+  Session(HttpServer::Impl* server, Args&&... args) : stream_(std::forward<Args>(args)...), server_(server) {
     ++server_->connections;
   }
   ~Session() { --server_->connections; }
+
+  void Start() {
+    if constexpr (kTls) {
+      beast::get_lowest_layer(stream_).expires_after(kRequestTimeout);
+      stream_.async_handshake(asio::ssl::stream_base::server, [self = this->shared_from_this()](beast::error_code ec) {
+        if (!ec) self->Read();
+      });
+    } else {
+      Read();
+    }
+  }
+
+ private:
+  static constexpr bool kTls = !std::is_same_v<Stream, beast::tcp_stream>;
 
   void Read() {
     parser_.emplace();
     parser_->header_limit(kMaxHeaderBytes);
     parser_->body_limit(0);
-    stream_.expires_after(kRequestTimeout);
+    beast::get_lowest_layer(stream_).expires_after(kRequestTimeout);
     http::async_read(stream_, buffer_, *parser_,
-                     [self = shared_from_this()](beast::error_code ec, size_t) { self->OnRead(ec); });
+                     [self = this->shared_from_this()](beast::error_code ec, size_t) { self->OnRead(ec); });
   }
 
- private:
+  void Close() {
+    beast::error_code ec;
+    beast::get_lowest_layer(stream_).socket().shutdown(tcp::socket::shutdown_both, ec);
+  }
+
   void OnRead(beast::error_code ec) {
     if (ec == http::error::end_of_stream) {
-      stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+      Close();
       return;
     }
     if (ec) {  // timeout, oversized header, a body, garbage: answer 400 when we can, then close
@@ -72,21 +98,29 @@ class Session : public std::enable_shared_from_this<Session> {
       Send(std::move(res));
       return;
     }
-    std::string path(req.target());
-    if (auto q = path.find('?'); q != std::string::npos) path.resize(q);
-    auto it = server_->routes.find(path);
+    HttpRequest request;
+    request.path = std::string(req.target());
+    if (auto q = request.path.find('?'); q != std::string::npos) {
+      request.query = request.path.substr(q + 1);
+      request.path.resize(q);
+    }
+    request.authorization = std::string(req[http::field::authorization]);
+    request.cookie = std::string(req[http::field::cookie]);
+    request.tls = kTls;
+    auto it = server_->routes.find(request.path);
     if (it == server_->routes.end()) {
       Send(Make(404, "not found\n", req.method(), req.version(), req.keep_alive()));
       return;
     }
     HttpResponse r;
     try {
-      r = it->second();
+      r = it->second(request);
     } catch (const std::exception& e) {
-      r = {500, "text/plain; charset=utf-8", "internal error\n"};
+      r = {500, "text/plain; charset=utf-8", "internal error\n", {}};
     }
     auto res = Make(r.status, std::move(r.body), req.method(), req.version(), req.keep_alive());
     res.set(http::field::content_type, r.content_type);
+    for (const auto& [name, value] : r.headers) res.insert(name, value);
     Send(std::move(res));
   }
 
@@ -96,6 +130,7 @@ class Session : public std::enable_shared_from_this<Session> {
     res.set(http::field::server, "bistable");
     res.set(http::field::content_type, "text/plain; charset=utf-8");
     res.set(http::field::cache_control, "no-store");
+    res.set("X-Content-Type-Options", "nosniff");
     res.keep_alive(keep_alive);
     const size_t n = body.size();
     if (method != http::verb::head) res.body() = std::move(body);
@@ -105,18 +140,18 @@ class Session : public std::enable_shared_from_this<Session> {
 
   void Send(http::response<http::string_body> res) {
     auto sp = std::make_shared<http::response<http::string_body>>(std::move(res));
-    stream_.expires_after(kRequestTimeout);
-    http::async_write(stream_, *sp, [self = shared_from_this(), sp](beast::error_code ec, size_t) {
+    beast::get_lowest_layer(stream_).expires_after(kRequestTimeout);
+    http::async_write(stream_, *sp, [self = this->shared_from_this(), sp](beast::error_code ec, size_t) {
       if (ec) return;
       if (!sp->keep_alive()) {
-        self->stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+        self->Close();
         return;
       }
       self->Read();
     });
   }
 
-  beast::tcp_stream stream_;
+  Stream stream_;
   beast::flat_buffer buffer_{kMaxHeaderBytes};
   std::optional<http::request_parser<http::empty_body>> parser_;
   HttpServer::Impl* server_;
@@ -151,7 +186,10 @@ void HttpServer::Impl::Accept() {
       if (connections.load() >= kMaxConnections) {
         socket.close(ec);  // over the limit: refuse by closing
       } else {
-        std::make_shared<Session>(std::move(socket), this)->Read();
+        if (tls)
+          std::make_shared<Session<beast::ssl_stream<beast::tcp_stream>>>(this, std::move(socket), *tls)->Start();
+        else
+          std::make_shared<Session<beast::tcp_stream>>(this, std::move(socket))->Start();
       }
     }
     Accept();
@@ -171,12 +209,23 @@ HttpServer::~HttpServer() {
 
 int HttpServer::port() const { return impl_->port; }
 
-StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(const std::string& address, std::map<std::string, HttpHandler> routes) {
+StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(const std::string& address, std::map<std::string, HttpHandler> routes,
+                                                       const Options& options) {
   auto ep = ParseEndpoint(address);
   if (!ep.ok()) return ep.status();
   auto impl = std::make_unique<Impl>();
   impl->routes = std::move(routes);
   beast::error_code ec;
+  if (options.tls_cert_pem.empty() != options.tls_key_pem.empty())
+    return Status::InvalidArgument("tls", "a TLS certificate and its key go together");
+  if (!options.tls_cert_pem.empty()) {
+    impl->tls = std::make_unique<asio::ssl::context>(asio::ssl::context::tls_server);
+    impl->tls->set_options(asio::ssl::context::default_workarounds | asio::ssl::context::no_sslv2 |
+                           asio::ssl::context::no_sslv3 | asio::ssl::context::no_tlsv1 | asio::ssl::context::no_tlsv1_1);
+    impl->tls->use_certificate_chain(asio::buffer(options.tls_cert_pem), ec);
+    if (!ec) impl->tls->use_private_key(asio::buffer(options.tls_key_pem), asio::ssl::context::pem, ec);
+    if (ec) return Status::InvalidArgument("tls", "cannot use the TLS certificate and key: " + ec.message());
+  }
   impl->acceptor.open(ep->protocol(), ec);
   if (!ec) impl->acceptor.set_option(asio::socket_base::reuse_address(true), ec);
   if (!ec) impl->acceptor.bind(*ep, ec);
@@ -187,6 +236,74 @@ StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(const std::string& addre
   Impl* raw = impl.get();
   impl->thread = std::thread([raw] { raw->io.run(); });
   return std::unique_ptr<HttpServer>(new HttpServer(std::move(impl)));
+}
+
+namespace {
+
+int HexDigit(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+StatusOr<std::string> Unescape(const std::string& s) {
+  std::string out;
+  out.reserve(s.size());
+  for (size_t i = 0; i < s.size(); ++i) {
+    char c = s[i];
+    if (c == '+') {
+      c = ' ';
+    } else if (c == '%') {
+      const int hi = i + 2 < s.size() ? HexDigit(s[i + 1]) : -1, lo = i + 2 < s.size() ? HexDigit(s[i + 2]) : -1;
+      if (hi < 0 || lo < 0) return Status::InvalidArgument("query", "malformed %-escape in the query string");
+      c = static_cast<char>(hi * 16 + lo);
+      i += 2;
+    }
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+      return Status::InvalidArgument("query", "control character in the query string");
+    out += c;
+  }
+  return out;
+}
+
+}  // namespace
+
+StatusOr<std::map<std::string, std::string>> ParseQueryString(const std::string& query, size_t max_params) {
+  std::map<std::string, std::string> out;
+  size_t start = 0;
+  while (start <= query.size() && !query.empty()) {
+    size_t amp = query.find('&', start);
+    if (amp == std::string::npos) amp = query.size();
+    const std::string part = query.substr(start, amp - start);
+    start = amp + 1;
+    if (part.empty()) continue;
+    const size_t eq = part.find('=');
+    auto name = Unescape(part.substr(0, eq));
+    auto value = Unescape(eq == std::string::npos ? "" : part.substr(eq + 1));
+    if (!name.ok()) return name.status();
+    if (!value.ok()) return value.status();
+    if (name->empty()) return Status::InvalidArgument("query", "a query parameter without a name");
+    if (out.size() >= max_params)
+      return Status::InvalidArgument("query", "more than " + std::to_string(max_params) + " query parameters");
+    if (!out.emplace(*name, *value).second) return Status::InvalidArgument("query", "query parameter '" + name->substr(0, 32) + "' repeated");
+  }
+  return out;
+}
+
+std::string CookieValue(const std::string& header, const std::string& name) {
+  size_t pos = 0;
+  while (pos < header.size()) {
+    size_t end = header.find(';', pos);
+    if (end == std::string::npos) end = header.size();
+    size_t b = header.find_first_not_of(' ', pos);
+    if (b < end) {
+      const size_t eq = header.find('=', b);
+      if (eq < end && header.compare(b, eq - b, name) == 0 && eq - b == name.size()) return header.substr(eq + 1, end - eq - 1);
+    }
+    pos = end + 1;
+  }
+  return "";
 }
 
 }  // namespace bistable

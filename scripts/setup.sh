@@ -19,6 +19,8 @@ PACKAGES=(
   time  # GNU time: peak memory in bench/cost_curve.sh
   # Python: the `bistable` module (pybind11), maps in xarray (CF-1.10), its tests and examples
   python3-dev pybind11-dev python3-xarray python3-h5netcdf python3-netcdf4 python3-matplotlib python3-pytest udunits-bin
+  # the dashboard's browser test (tests/dashboard_test.py: headless chromium over the DevTools protocol)
+  chromium python3-websocket
   # deployment tests (deploy/container: base image, image build and run; runc where crun cannot run)
   podman debootstrap runc uidmap fuse-overlayfs slirp4netns
   # deployment tests (deploy/slurm/test-cluster.sh: a Slurm cluster in network namespaces)

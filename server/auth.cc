@@ -21,6 +21,7 @@ std::string NewToken() {
 
 const char* RoleName(Role r) {
   switch (r) {
+    case Role::kViewer: return "viewer";
     case Role::kClient: return "client";
     case Role::kWorker: return "worker";
     case Role::kAdmin: return "admin";
@@ -43,10 +44,11 @@ StatusOr<TokenStore> TokenStore::Load(const std::string& path) {
     ss >> digest >> name;
     const std::string where = "tokens file line " + std::to_string(n);
     Role r;
-    if (role == "client") r = Role::kClient;
+    if (role == "viewer") r = Role::kViewer;
+    else if (role == "client") r = Role::kClient;
     else if (role == "worker") r = Role::kWorker;
     else if (role == "admin") r = Role::kAdmin;
-    else return Status::InvalidArgument("tokens", where + ": role '" + role + "' violates role in {client, worker, admin}");
+    else return Status::InvalidArgument("tokens", where + ": role '" + role + "' violates role in {viewer, client, worker, admin}");
     if (digest.size() != 64 || digest.find_first_not_of("0123456789abcdef") != std::string::npos)
       return Status::InvalidArgument("tokens", where + ": expected the token's SHA-256 as 64 lowercase hex digits "
                                                "(`bistable token --role " + role + "` prints such a line)");
@@ -59,24 +61,31 @@ StatusOr<TokenStore> TokenStore::Load(const std::string& path) {
 }
 
 Status TokenStore::Check(const grpc::ServerContext* ctx, Op op, std::string* who, Role* role) const {
-  if (!enabled()) {
-    if (who) *who = "local";
-    if (role) *role = Role::kAdmin;
-    return Status::Ok();
-  }
+  if (!enabled()) return CheckToken("", op, who, role);
   const auto& md = ctx->client_metadata();
   auto it = md.find("authorization");
   if (it == md.end()) return Status::Unauthenticated("missing 'authorization: Bearer <token>' metadata");
   const std::string value(it->second.data(), it->second.size());
   if (value.rfind("Bearer ", 0) != 0) return Status::Unauthenticated("authorization metadata is not 'Bearer <token>'");
-  auto e = by_hash_.find(Sha256Hex(value.substr(7)));
+  return CheckToken(value.substr(7), op, who, role);
+}
+
+Status TokenStore::CheckToken(const std::string& token, Op op, std::string* who, Role* role) const {
+  if (!enabled()) {
+    if (who) *who = "local";
+    if (role) *role = Role::kAdmin;
+    return Status::Ok();
+  }
+  if (token.empty()) return Status::Unauthenticated("missing token");
+  auto e = by_hash_.find(Sha256Hex(token));
   if (e == by_hash_.end()) return Status::Unauthenticated("unknown token");
   if (who) *who = e->second.name;
   const Role r = e->second.role;
   if (role) *role = r;
   if (r == Role::kAdmin) return Status::Ok();
   const bool worker_op = op == Op::kRegister || op == Op::kLease || op == Op::kHeartbeat || op == Op::kReport || op == Op::kRelease;
-  if (worker_op != (r == Role::kWorker))
+  const bool read_op = op == Op::kStatus || op == Op::kList || op == Op::kMap || op == Op::kWorkers;
+  if (r == Role::kViewer ? !read_op : worker_op != (r == Role::kWorker))
     return Status::PermissionDenied(std::string("a ") + RoleName(r) + " token may not make this call");
   return Status::Ok();
 }

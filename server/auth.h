@@ -1,9 +1,11 @@
 // Bearer tokens with roles for the coordinator. The tokens file holds one token per line as
-// "<role> <sha256-hex-of-token> [name]" (roles: client, worker, admin; '#' starts a comment), so the
+// "<role> <sha256-hex-of-token> [name]" (roles: viewer, client, worker, admin; '#' starts a comment), so the
 // file never contains a usable token; tokens are never logged. Without a tokens file (loopback
 // only) every call is allowed: a single-user local service.
-// Permissions: client — submit, status, watch, list, map, workers, cancel of sweeps it submitted;
-// worker — register, lease, heartbeat, report, release; admin — everything.
+// Permissions: viewer — read only: status, watch, list, map, workers (and the dashboard, server/dashboard.h);
+// client — those and submit, cancel of sweeps it submitted; worker — register, lease, heartbeat, report,
+// release; admin — everything. The same tokens and roles guard gRPC calls (Check) and HTTP requests
+// (CheckBearer on the Authorization header or the dashboard's cookie).
 #ifndef BISTABLE_SERVER_AUTH_H_
 #define BISTABLE_SERVER_AUTH_H_
 
@@ -18,7 +20,7 @@
 
 namespace bistable {
 
-enum class Role { kClient, kWorker, kAdmin };
+enum class Role { kViewer, kClient, kWorker, kAdmin };
 enum class Op { kSubmit, kStatus, kCancel, kList, kMap, kWorkers, kRegister, kLease, kHeartbeat, kReport, kRelease };
 
 // A fresh random token (64 hex digits).
@@ -35,6 +37,8 @@ class TokenStore {
   // unnamed tokens are two owners — and *role its role (admin when auth is off, identity "local").
   // Unauthenticated vs PermissionDenied, with the reason.
   Status Check(const grpc::ServerContext* ctx, Op op, std::string* who, Role* role = nullptr) const;
+  // The same for a bare token (an HTTP request's "Bearer <token>" or cookie value; "" = none given).
+  Status CheckToken(const std::string& token, Op op, std::string* who, Role* role = nullptr) const;
 
  private:
   struct Entry {

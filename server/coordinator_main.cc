@@ -16,6 +16,7 @@
 #include "proto/channel.h"
 #include "proto/health.h"
 #include "server/coordinator_service.h"
+#include "server/dashboard.h"
 #include "server/metrics.h"
 
 namespace {
@@ -29,7 +30,7 @@ int main(int argc, char** argv) {
   CLI::App app{"bistable-coordinator: serves sweeps to clients and workers over gRPC"};
   std::string listen = "127.0.0.1:50051", data = "bistable-data", tls_cert, tls_key, tokens_file;
   double lease_seconds = 60, job_seconds = 2.0;
-  std::string log_level = "info", log_format = "text", metrics_addr, health_addr;
+  std::string log_level = "info", log_format = "text", metrics_addr, health_addr, http_addr;
   app.add_option("--listen", listen, "address to listen on (loopback unless TLS and tokens are configured); port 0 picks one")
       ->capture_default_str();
   app.add_option("--data", data, "data directory (index.sqlite, sweeps/)")->capture_default_str();
@@ -44,6 +45,9 @@ int main(int argc, char** argv) {
   app.add_option("--log-format", log_format, "text or json (one object per line), on stderr")->capture_default_str();
   app.add_option("--metrics", metrics_addr,
                  "serve Prometheus metrics (/metrics) and /healthz over HTTP on HOST:PORT (e.g. 0.0.0.0:9090)");
+  app.add_option("--http", http_addr,
+                 "serve the dashboard (docs/dashboard.md) on HOST:PORT, with /metrics and /healthz; over TLS with "
+                 "--tls-cert/--tls-key, behind --tokens (viewer, client or admin tokens); loopback unless both are given");
   app.add_option("--health", health_addr,
                  "also serve grpc.health.v1 alone, plaintext, on HOST:PORT (Kubernetes gRPC probes); the main port serves it too");
   CLI11_PARSE(app, argc, argv);
@@ -66,6 +70,9 @@ int main(int argc, char** argv) {
   if (!bistable::IsLoopbackAddress(listen) && (tls_cert.empty() || tokens_file.empty()))
     return fail(bistable::Status::InvalidArgument(
         "listen", listen + " is not a loopback address: serving other hosts requires --tls-cert/--tls-key and --tokens"));
+  if (!http_addr.empty() && !bistable::IsLoopbackAddress(http_addr) && (tls_cert.empty() || tokens_file.empty()))
+    return fail(bistable::Status::InvalidArgument(
+        "http", http_addr + " is not a loopback address: serving the dashboard to other hosts requires --tls-cert/--tls-key and --tokens"));
   bistable::TokenStore tokens;
   if (!tokens_file.empty()) {
     auto t = bistable::TokenStore::Load(tokens_file);
@@ -73,6 +80,7 @@ int main(int argc, char** argv) {
     tokens = std::move(*t);
   }
   std::shared_ptr<grpc::ServerCredentials> creds = grpc::InsecureServerCredentials();
+  bistable::HttpServer::Options http_tls;  // the dashboard takes the same certificate and key
   if (!tls_cert.empty()) {
     auto cert = bistable::ReadTextFile(tls_cert, "tls-cert", 1 << 20);
     auto key = bistable::ReadTextFile(tls_key, "tls-key", 1 << 20);
@@ -81,6 +89,7 @@ int main(int argc, char** argv) {
     grpc::SslServerCredentialsOptions ssl;
     ssl.pem_key_cert_pairs.push_back({*key, *cert});
     creds = grpc::SslServerCredentials(ssl);
+    http_tls = {*cert, *key};
   }
   if (!(lease_seconds > 0)) {
     std::cerr << "error: invalid argument (lease-seconds: lease-seconds = " << lease_seconds << " violates lease-seconds > 0)\n";
@@ -91,16 +100,34 @@ int main(int argc, char** argv) {
     std::cerr << "error: " << coord.status().ToString() << "\n";
     return bistable::kExitError;
   }
+  const bistable::TokenStore dashboard_tokens = tokens;
   bistable::CoordinatorService service(coord->get(), lease_seconds, job_seconds, std::move(tokens));
   bistable::CoordinatorMetrics metrics(coord->get());
   service.SetMetrics(&metrics);
-  std::unique_ptr<bistable::HttpServer> http;
+  std::map<std::string, bistable::HttpHandler> metric_routes = {
+      {"/metrics", [&metrics](const bistable::HttpRequest&) { return bistable::PrometheusText(metrics.Sources()); }},
+      {"/healthz", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n", {}}; }}};
+  std::unique_ptr<bistable::HttpServer> http, dashboard;
   if (!metrics_addr.empty()) {
-    auto h = bistable::HttpServer::Start(
-        metrics_addr, {{"/metrics", [&metrics] { return bistable::PrometheusText(metrics.Sources()); }},
-                       {"/healthz", [] { return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n"}; }}});
+    auto h = bistable::HttpServer::Start(metrics_addr, metric_routes);
     if (!h.ok()) return fail(h.status());
     http = std::move(h).value();
+  }
+  // --http: a second listener of the same server class (TLS when the gRPC side has it): the dashboard,
+  // and /metrics and /healthz so that one port can serve everything.
+  if (!http_addr.empty()) {
+    auto routes = bistable::DashboardRoutes(coord->get(), &dashboard_tokens);
+    routes.insert(metric_routes.begin(), metric_routes.end());
+    if (dashboard_tokens.enabled())  // behind tokens, the metrics are data too (Prometheus sends a bearer token)
+      routes["/metrics"] = [&metrics, &dashboard_tokens](const bistable::HttpRequest& req) {
+        const std::string token = req.authorization.rfind("Bearer ", 0) == 0 ? req.authorization.substr(7) : "";
+        if (!dashboard_tokens.CheckToken(token, bistable::Op::kStatus, nullptr).ok())
+          return bistable::HttpResponse{401, "text/plain; charset=utf-8", "unauthenticated\n", {{"WWW-Authenticate", "Bearer"}}};
+        return bistable::PrometheusText(metrics.Sources());
+      };
+    auto h = bistable::HttpServer::Start(http_addr, std::move(routes), http_tls);
+    if (!h.ok()) return fail(h.status());
+    dashboard = std::move(h).value();
   }
   bistable::HealthService health_service;
   grpc::ServerBuilder builder;
@@ -128,8 +155,12 @@ int main(int argc, char** argv) {
                        {{"listen", host + ":" + std::to_string(port)}, {"data", data}, {"tls", !tls_cert.empty()},
                         {"tokens", !tokens_file.empty()}, {"lease_seconds", lease_seconds},
                         {"metrics", http ? metrics_addr.substr(0, metrics_addr.rfind(':')) + ":" + std::to_string(http->port()) : ""},
+                        {"dashboard", dashboard ? http_addr.substr(0, http_addr.rfind(':')) + ":" + std::to_string(dashboard->port()) : ""},
                         {"health", health ? health_addr.substr(0, health_addr.rfind(':')) + ":" + std::to_string(health_port) : ""}});
   std::cout << "listening on " << host << ":" << port << std::endl;
+  if (dashboard)
+    std::cout << "dashboard on " << (tls_cert.empty() ? "http://" : "https://") << http_addr.substr(0, http_addr.rfind(':')) << ":"
+              << dashboard->port() << "/" << std::endl;
   if (http) std::cout << "metrics on " << metrics_addr.substr(0, metrics_addr.rfind(':')) << ":" << http->port() << std::endl;
   if (health) std::cout << "health on " << health_addr.substr(0, health_addr.rfind(':')) << ":" << health_port << std::endl;
   std::signal(SIGINT, OnSignal);

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <limits>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -870,6 +871,32 @@ StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
     if (l.sweep_id == s.row.id) holders[l.worker] = true;
   info.workers = static_cast<int>(holders.size());
   return info;
+}
+
+StatusOr<std::vector<double>> SweepCoordinator::StoredValues(const std::string& sweep_id, const std::string& metric) const {
+  const MetricInfo* m = FindMetric(metric);
+  if (!m) return Status::InvalidArgument("metric", "unknown metric");
+  std::vector<std::string> keys;
+  std::vector<long> points;  // a refined sweep's planned grid points (keys[i] is points[i]'s)
+  long items = 0;
+  size_t width = 0;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = sweeps_.find(sweep_id);
+    if (it == sweeps_.end() || it->second.keys.empty()) return Status::NotFound("sweep " + sweep_id + " has no plan in memory");
+    keys = it->second.keys;
+    points = it->second.points;
+    items = it->second.spec.points() * it->second.spec.ic_count();
+    const MetricSettings& ms = it->second.spec.base.metrics;
+    width = PointRecord::Size(ms.turning_points, ms.poincare_points);
+  }
+  auto found = Db()->LookupPoints(keys, width);
+  if (!found.ok()) return found.status();
+  const size_t mi = MetricIndex(m->name);
+  std::vector<double> out(points.empty() ? keys.size() : static_cast<size_t>(items), std::numeric_limits<double>::quiet_NaN());
+  for (size_t i = 0; i < keys.size(); ++i)
+    if (auto f = found->find(keys[i]); f != found->end()) out[points.empty() ? i : static_cast<size_t>(points[i])] = f->second.v[mi];
+  return out;
 }
 
 StatusOr<SweepInfo> SweepCoordinator::AwaitFinal(const std::string& sweep_id, double seconds) const {

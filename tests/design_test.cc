@@ -91,6 +91,20 @@ TEST(DesignSpec, EveryFieldIsCheckedByName) {
   EXPECT_TRUE(ParseDesignSpec(kLinearTmd, "t").ok());
 }
 
+TEST(DesignSpec, ShippedDesignExamplesParse) {
+  int found = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(BISTABLE_EXAMPLES_DIR)) {
+    if (entry.path().extension() != ".toml") continue;
+    std::ifstream in(entry.path());
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (text.find("\n[design]") == std::string::npos) continue;
+    ++found;
+    auto d = ParseDesignSpec(text, entry.path().string());
+    EXPECT_TRUE(d.ok()) << entry.path() << ": " << d.status().ToString();
+  }
+  EXPECT_GE(found, 1);
+}
+
 TEST(DesignScore, BandIsTheMeasureBelowZeroDbWithChaosCounted) {
   const std::vector<double> w = {1, 2, 3, 4};
   // g: +1, -1 (crossing at 1.5), -1, +3 (crossing at 3.25): band [1.5, 3.25] = 1.75.

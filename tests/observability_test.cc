@@ -340,8 +340,8 @@ TEST(Observability, APortInUseIsAnErrorNotShared) {
 
 TEST(HttpServer, RoutesMethodsAndBounds) {
   auto server = bistable::HttpServer::Start(
-      "127.0.0.1:0", {{"/x", [] { return bistable::HttpResponse{200, "text/plain", "hello\n"}; }},
-                      {"/boom", []() -> bistable::HttpResponse { throw std::runtime_error("no"); }}});
+      "127.0.0.1:0", {{"/x", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain", "hello\n"}; }},
+                      {"/boom", [](const bistable::HttpRequest&) -> bistable::HttpResponse { throw std::runtime_error("no"); }}});
   ASSERT_TRUE(server.ok()) << server.status().ToString();
   const int port = (*server)->port();
   EXPECT_EQ(HttpRequest(port, "/x").body, "hello\n");
@@ -368,6 +368,25 @@ TEST(HttpServer, RoutesMethodsAndBounds) {
   EXPECT_EQ(HttpRequest(port, "/x").status, 200);
   EXPECT_FALSE(bistable::HttpServer::Start("127.0.0.1:99999", {}).ok());
   EXPECT_FALSE(bistable::HttpServer::Start("example.com:80", {}).ok());
+}
+
+// Query strings and cookies as the dashboard reads them: decoded, bounded, hostile forms refused.
+TEST(HttpServer, QueryStringsAndCookies) {
+  auto q = bistable::ParseQueryString("id=ab12&q=frf_db%20%3C%20-3+and+lle%3E0&x=");
+  ASSERT_TRUE(q.ok());
+  EXPECT_EQ(q->at("id"), "ab12");
+  EXPECT_EQ(q->at("q"), "frf_db < -3 and lle>0");
+  EXPECT_EQ(q->at("x"), "");
+  EXPECT_FALSE(bistable::ParseQueryString("a=1&a=2").ok());       // repeated
+  EXPECT_FALSE(bistable::ParseQueryString("a=%zz").ok());         // malformed escape
+  EXPECT_FALSE(bistable::ParseQueryString("a=%0a").ok());         // control character
+  EXPECT_FALSE(bistable::ParseQueryString("=1").ok());            // no name
+  std::string many;
+  for (int i = 0; i < 17; ++i) many += "p" + std::to_string(i) + "=1&";
+  EXPECT_FALSE(bistable::ParseQueryString(many).ok());            // more than 16
+  EXPECT_EQ(bistable::CookieValue("a=1; bistable_token=t0k; b=2", "bistable_token"), "t0k");
+  EXPECT_EQ(bistable::CookieValue("xbistable_token=no", "bistable_token"), "");
+  EXPECT_EQ(bistable::CookieValue("", "bistable_token"), "");
 }
 
 // ---- structured logs ----

@@ -192,8 +192,8 @@ int main(int argc, char** argv) {
   std::unique_ptr<bistable::HttpServer> http;
   if (!metrics_addr.empty()) {
     auto h = bistable::HttpServer::Start(
-        metrics_addr, {{"/metrics", [&metrics] { return bistable::PrometheusText({metrics.registry}); }},
-                       {"/healthz", [] { return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n"}; }}});
+        metrics_addr, {{"/metrics", [&metrics](const bistable::HttpRequest&) { return bistable::PrometheusText({metrics.registry}); }},
+                       {"/healthz", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n"}; }}});
     if (!h.ok()) return Fail(h.status());
     http = std::move(h).value();
   }

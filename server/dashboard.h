@@ -1,0 +1,33 @@
+// The live dashboard: routes for the project's one HTTP server (net/http_server.h) over a sweep
+// coordinator — the page and its assets (compiled into the binary from server/dashboard/), and a JSON
+// API the page polls: sweeps and workers, a sweep's spec and axes, a map slice (published file, or what
+// is stored so far of a running sweep), a query's matching cells, and one cell computed on demand by
+// the same code and JSON builder as `bistable point --json` (engine/json_shapes.h). Served by
+// `bistable-coordinator --http` and `bistable run --serve`. docs/dashboard.md describes every route.
+//
+// Auth: with a tokens file, every /api/ route needs a token of role viewer, client or admin (worker
+// tokens are refused), given as "Authorization: Bearer <token>" or in the HttpOnly cookie that
+// /api/session sets from such a header; the page itself and its assets carry no data and are public.
+// Every parameter is bounded and checked: ids through SweepCoordinator::ResolveId, metric and axis names
+// against the sweep's, indices against the shape, numbers parsed whole.
+#ifndef BISTABLE_SERVER_DASHBOARD_H_
+#define BISTABLE_SERVER_DASHBOARD_H_
+
+#include <map>
+#include <string>
+
+#include "net/http_server.h"
+#include "server/auth.h"
+#include "server/sweep_coordinator.h"
+
+namespace bistable {
+
+// The dashboard's routes over `c` (both must outlive the server). `tokens` disabled: open (loopback).
+std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens);
+
+// The cookie /api/session sets (HttpOnly, SameSite=Strict, Secure over TLS).
+inline constexpr const char* kDashboardCookie = "bistable_token";
+
+}  // namespace bistable
+
+#endif  // BISTABLE_SERVER_DASHBOARD_H_
