@@ -270,12 +270,12 @@ StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& sp
                                         const std::string& label, EmbeddedRunStats* stats) {
   const std::string id = spec.Id();
   const long first = c.progress(id).items_done;
-  // A refined sweep ([refine]) computes level by level: publishing a stored level plans the next one
-  // (one progress line per level); any other sweep goes round once.
+  // A refined sweep ([refine]) computes round by round: publishing a stored round plans the next one
+  // (one progress line per round); any other sweep goes round once.
   for (int round = 0;; ++round) {
     const SweepProgress p = c.progress(id);
     const long to_compute = p.items_total - p.items_done;
-    ProgressBar bar(to_compute, spec.refine.enabled() ? label + " (refine level " + std::to_string(round) + ")" : label, progress);
+    ProgressBar bar(to_compute, spec.refine.enabled() ? label + " (refine round " + std::to_string(round) + ")" : label, progress);
     const Status worker_error = ComputeEmbedded(c, spec, threads, to_compute > 0, nullptr, progress ? &bar : nullptr);
     const SweepProgress after = c.progress(id);
     if (stats) stats->computed = after.items_done - first, stats->items = after.items_total;
@@ -288,9 +288,10 @@ StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& sp
     const auto t0 = std::chrono::steady_clock::now();
     auto path = c.Publish(id);
     if (stats) stats->publish_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (path.ok() || !spec.refine.enabled() || round > spec.refine.levels) return path;
+    if (path.ok() || !spec.refine.enabled()) return path;
     const SweepProgress next = c.progress(id);
-    if (next.items_done >= next.items_total) return path;  // no new level was planned: the failure stands
+    if (next.items_done >= next.items_total) return path;  // no new round was planned: the failure stands
+    // (Rounds end: every round splits cells into smaller ones, down to the grid spacing.)
   }
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <climits>
 #include <cmath>
+#include <map>
 
 namespace bistable {
 namespace {
@@ -42,7 +43,9 @@ void ForBox(const Grid& g, long origin, long s, long m, F&& f) {
 
 struct Active {
   long origin;
-  int run;  // levels in a row the parent's sibling group was all mixed
+  int level;
+  int run;     // levels in a row the parent's sibling group was all mixed
+  long group;  // the split that made this cell (siblings share it); -1: a coarse or reopened cell
 };
 
 }  // namespace
@@ -52,117 +55,175 @@ const std::vector<Category>& RefineFillCategories() {
   return kFill;
 }
 
-int64_t RefineClass(const RefineConfig& r, const MetricSettings& m, const PointRecord& rec) {
+RefineMark RefineClass(const RefineConfig& r, const MetricSettings& m, const PointRecord& rec) {
+  RefineMark out;
+  out.chaotic = rec.Get("motion") == MotionCode(Motion::kChaotic);
   switch (r.criterion) {
     case RefineCriterion::kFrf0db: {
       const double v = rec.Get("frf_db");
-      return !std::isfinite(v) ? kNonFinite : v >= 0 ? 1 : 0;
+      out.cls = !std::isfinite(v) ? kNonFinite : v >= 0 ? 1 : 0;
+      break;
     }
     case RefineCriterion::kLleSign: {
       const double v = rec.Get("lle");
-      return !std::isfinite(v) ? kNonFinite : v > m.chaos_threshold ? 1 : 0;
+      out.cls = !std::isfinite(v) ? kNonFinite : v > m.chaos_threshold ? 1 : 0;
+      break;
     }
     case RefineCriterion::kMotion:
     case RefineCriterion::kPeriod: {
       const double v = rec.Get(r.criterion == RefineCriterion::kMotion ? "motion" : "period");
-      return !std::isfinite(v) ? kNonFinite : static_cast<int64_t>(std::llround(v));
+      out.cls = !std::isfinite(v) ? kNonFinite : static_cast<int64_t>(std::llround(v));
+      break;
     }
   }
-  return kNonFinite;
+  return out;
 }
 
-StatusOr<RefineStep> PlanRefinement(const SweepSpec& spec, const RefineLookup& lookup) {
-  const RefineConfig& r = spec.refine;
-  if (!r.enabled()) return Status::Internal("PlanRefinement on a sweep without [refine]");
-  const Grid g(spec);
-  const int L = r.levels;
-  const long group = 1L << g.d;  // children of a split cell
-  std::vector<int64_t> cls(g.points, INT64_MIN);  // INT64_MIN: not planned
-  RefineStep out;
-  // Level 0: the coarse grid, and its cells.
-  std::vector<long> level_points;
-  std::vector<Active> active;
-  {
-    const long s0 = 1L << L;
-    // Every point with each index a multiple of s0; cells at those with room for one more step.
-    std::vector<long> c(g.d, 0);
-    while (true) {
-      long p = 0;
-      bool origin = true;
-      for (int k = 0; k < g.d; ++k) p += c[k] * s0 * g.step[k], origin = origin && (c[k] + 1) * s0 <= g.n[k] - 1;
-      level_points.push_back(p);
-      if (origin) active.push_back({p, 0});
-      int k = g.d - 1;
-      while (k >= 0 && (c[k] + 1) * s0 > g.n[k] - 1) c[k--] = 0;
-      if (k < 0) break;
-      ++c[k];
-    }
+struct RefinePlanner::State {
+  explicit State(const SweepSpec& spec) : g(spec), r(spec.refine), L(spec.refine.levels) {}
+  static constexpr int64_t kUnplanned = INT64_MIN, kPending = INT64_MIN + 2;
+  Grid g;
+  RefineConfig r;
+  int L;
+  std::vector<int64_t> cls;
+  std::vector<char> chaotic;
+  std::vector<long> points;        // every point planned (rounds 0..round), in planning order
+  std::vector<long> round_points;  // the current round's points, ascending
+  std::vector<Active> active;      // the cells the current round's points decide
+  std::vector<RefineCell> resolved, uniform;  // final cells; agreeing cells (reopened when a face point disagrees)
+  long groups = 0, cells_mixed = 0;
+  int round = 0;
+  bool complete = false;
+  long stride(int level) const { return 1L << (L - level); }
+};
+
+RefinePlanner::RefinePlanner(const SweepSpec& spec) : st_(std::make_unique<State>(spec)) {
+  State& s = *st_;
+  s.cls.assign(s.g.points, State::kUnplanned);
+  s.chaotic.assign(s.g.points, 0);
+  // Round 0: the coarse grid, and its cells.
+  const long s0 = s.stride(0);
+  std::vector<long> c(s.g.d, 0);
+  while (true) {
+    long p = 0;
+    bool origin = true;
+    for (int k = 0; k < s.g.d; ++k) p += c[k] * s0 * s.g.step[k], origin = origin && (c[k] + 1) * s0 <= s.g.n[k] - 1;
+    s.round_points.push_back(p);
+    s.cls[p] = State::kPending;
+    if (origin) s.active.push_back({p, 0, 0, -1});
+    int k = s.g.d - 1;
+    while (k >= 0 && (c[k] + 1) * s0 > s.g.n[k] - 1) c[k--] = 0;
+    if (k < 0) break;
+    ++c[k];
   }
-  long group_size = 1;  // level 0 cells have no siblings
-  for (int level = 0;; ++level) {
-    std::vector<std::optional<int64_t>> got;
-    BISTABLE_RETURN_IF_ERROR(lookup(level_points, &got));
-    if (got.size() != level_points.size()) return Status::Internal("refine lookup returned a wrong count");
-    for (size_t i = 0; i < level_points.size(); ++i) {
-      out.points.push_back(level_points[i]);
+  s.points = s.round_points;
+}
+
+RefinePlanner::~RefinePlanner() = default;
+
+StatusOr<RefineStep> RefinePlanner::Advance(const RefineLookup& lookup) {
+  State& s = *st_;
+  const Grid& g = s.g;
+  RefineStep out;
+  while (!s.complete) {
+    std::vector<std::optional<RefineMark>> got;
+    BISTABLE_RETURN_IF_ERROR(lookup(s.round_points, &got));
+    if (got.size() != s.round_points.size()) return Status::Internal("refine lookup returned a wrong count");
+    for (size_t i = 0; i < s.round_points.size(); ++i) {
       if (got[i]) {
-        cls[level_points[i]] = *got[i];
+        s.cls[s.round_points[i]] = got[i]->cls;
+        s.chaotic[s.round_points[i]] = got[i]->chaotic;
       } else {
-        cls[level_points[i]] = INT64_MIN + 2;  // planned, not stored
-        out.missing.push_back(level_points[i]);
+        out.missing.push_back(s.round_points[i]);
       }
     }
     if (!out.missing.empty()) {
+      out.points = s.points;
       std::sort(out.points.begin(), out.points.end());
-      out.level = level;
+      out.round = s.round;
       return out;
     }
-    const long s = 1L << (L - level);
-    std::vector<char> mixed(active.size());
-    for (size_t i = 0; i < active.size(); ++i) {
-      const int64_t first = cls[active[i].origin];
-      bool m = false;
-      ForBox(g, active[i].origin, s, 1, [&](long p, const std::vector<long>&) { m = m || cls[p] != first; });
-      mixed[i] = m;
+    auto known = [&](long p) { return s.cls[p] != State::kUnplanned && s.cls[p] != State::kPending; };
+    // Agreeing cells with a disagreeing point on a face (computed since, by a finer neighbour) reopen.
+    if (s.round > 0) {
+      std::vector<RefineCell> keep;
+      for (const RefineCell& c : s.uniform) {
+        const int64_t first = s.cls[c.origin];
+        bool disagree = false;
+        ForBox(g, c.origin, 1, s.stride(c.level),
+               [&](long p, const std::vector<long>&) { disagree = disagree || (known(p) && s.cls[p] != first); });
+        if (disagree)
+          s.active.push_back({c.origin, c.level, 0, -1});
+        else
+          keep.push_back(c);
+      }
+      s.uniform = std::move(keep);
     }
-    if (level == L) {  // finest cells: resolved, mixed ones are boundary cells
-      for (size_t i = 0; i < active.size(); ++i) out.cells.push_back({active[i].origin, level, mixed[i] != 0});
-      break;
+    if (s.active.empty()) break;
+    // Mixed: any two computed points of the cell (its corners, and points on its faces computed by
+    // finer neighbours) disagree. A sibling group is all mixed when every one of its 2^d cells is.
+    std::vector<char> mixed(s.active.size()), has_chaos(s.active.size());
+    std::map<long, int> group_mixed, group_size;
+    for (size_t i = 0; i < s.active.size(); ++i) {
+      const int64_t first = s.cls[s.active[i].origin];
+      bool m = false, ch = false;
+      ForBox(g, s.active[i].origin, 1, s.stride(s.active[i].level), [&](long p, const std::vector<long>&) {
+        if (!known(p)) return;
+        m = m || s.cls[p] != first;
+        ch = ch || s.chaotic[p];
+      });
+      mixed[i] = m, has_chaos[i] = ch;
+      if (s.active[i].group >= 0) ++group_size[s.active[i].group], group_mixed[s.active[i].group] += m;
     }
     std::vector<Active> next;
     std::vector<long> next_points;
-    const long h = s / 2;
-    for (size_t g0 = 0; g0 < active.size(); g0 += group_size) {
-      const size_t g1 = std::min(active.size(), g0 + group_size);
-      bool all_mixed = group_size > 1;
-      for (size_t i = g0; i < g1; ++i) all_mixed = all_mixed && mixed[i];
-      const int run = all_mixed ? active[g0].run + 1 : 0;
-      for (size_t i = g0; i < g1; ++i) {
-        if (!mixed[i]) {
-          out.cells.push_back({active[i].origin, level, false});
-          continue;
-        }
-        if (r.mixed_after > 0 && run >= r.mixed_after) {  // speckle: stop, keep the samples
-          out.cells.push_back({active[i].origin, level, true});
-          ++out.cells_mixed;
-          continue;
-        }
-        ForBox(g, active[i].origin, h, 1, [&](long p, const std::vector<long>&) { next.push_back({p, run}); });
-        ForBox(g, active[i].origin, h, 2, [&](long p, const std::vector<long>&) {
-          if (cls[p] == INT64_MIN) cls[p] = INT64_MIN + 2, next_points.push_back(p);
-        });
+    for (size_t i = 0; i < s.active.size(); ++i) {
+      const Active& a = s.active[i];
+      const long st = s.stride(a.level);
+      if (!mixed[i]) {
+        s.uniform.push_back({a.origin, a.level, false});
+        continue;
       }
+      if (st == 1) {  // a boundary cell: every point of it computed
+        s.resolved.push_back({a.origin, a.level, true});
+        continue;
+      }
+      const bool all_mixed = a.group >= 0 && group_size[a.group] == (1 << g.d) && group_mixed[a.group] == (1 << g.d);
+      const int run = all_mixed ? a.run + 1 : 0;
+      if (s.r.mixed_after > 0 && run >= s.r.mixed_after && has_chaos[i]) {  // chaotic speckle: stop, keep the samples
+        s.resolved.push_back({a.origin, a.level, true});
+        ++s.cells_mixed;
+        continue;
+      }
+      const long group = s.groups++;
+      ForBox(g, a.origin, st / 2, 1, [&](long p, const std::vector<long>&) { next.push_back({p, a.level + 1, run, group}); });
+      ForBox(g, a.origin, st / 2, 2, [&](long p, const std::vector<long>&) {
+        if (s.cls[p] == State::kUnplanned) s.cls[p] = State::kPending, next_points.push_back(p);
+      });
     }
     std::sort(next_points.begin(), next_points.end());
-    active = std::move(next);
-    level_points = std::move(next_points);
-    group_size = group;
-    if (active.empty()) break;  // nothing mixed left: done at a coarser level
+    s.active = std::move(next);
+    s.round_points = std::move(next_points);
+    s.points.insert(s.points.end(), s.round_points.begin(), s.round_points.end());
+    ++s.round;
   }
+  s.complete = true;
+  // Coarse to fine (the fill lets a finer cell own the points it shares with a coarser one).
+  out.cells = s.uniform;
+  out.cells.insert(out.cells.end(), s.resolved.begin(), s.resolved.end());
+  std::stable_sort(out.cells.begin(), out.cells.end(), [](const RefineCell& a, const RefineCell& b) { return a.level < b.level; });
+  out.points = s.points;
   std::sort(out.points.begin(), out.points.end());
-  out.level = L;
+  out.round = s.round;
   out.complete = true;
+  out.cells_mixed = s.cells_mixed;
   return out;
+}
+
+StatusOr<RefineStep> PlanRefinement(const SweepSpec& spec, const RefineLookup& lookup) {
+  if (!spec.refine.enabled()) return Status::Internal("PlanRefinement on a sweep without [refine]");
+  RefinePlanner planner(spec);
+  return planner.Advance(lookup);
 }
 
 StatusOr<RefinedGrid> FillRefinedGrid(const SweepSpec& spec, const std::vector<long>& computed,
@@ -174,16 +235,16 @@ StatusOr<RefinedGrid> FillRefinedGrid(const SweepSpec& spec, const std::vector<l
     if (computed[i] < 0 || computed[i] >= g.points) return Status::Internal("FillRefinedGrid: point outside the grid");
     slot[computed[i]] = static_cast<long>(i);
   }
-  auto plan = PlanRefinement(spec, [&](const std::vector<long>& pts, std::vector<std::optional<int64_t>>* out) {
+  auto plan = PlanRefinement(spec, [&](const std::vector<long>& pts, std::vector<std::optional<RefineMark>>* out) {
     out->clear();
     for (long p : pts)
       out->push_back(slot[p] < 0 ? std::nullopt
-                                 : std::optional<int64_t>(RefineClass(spec.refine, spec.base.metrics, stored[slot[p]])));
+                                 : std::optional<RefineMark>(RefineClass(spec.refine, spec.base.metrics, stored[slot[p]])));
     return Status::Ok();
   });
   if (!plan.ok()) return plan.status();
   if (!plan->complete) return Status::FailedPrecondition("refined sweep is incomplete: " + std::to_string(plan->missing.size()) +
-                                                         " points of level " + std::to_string(plan->level) + " are not stored");
+                                                         " points of round " + std::to_string(plan->round) + " are not stored");
   const int L = spec.refine.levels;
   RefinedGrid out;
   out.computed = static_cast<long>(computed.size());

@@ -132,6 +132,7 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
   planning_.erase(id);
   plan_cv_.notify_all();
   if (!built.ok()) return built.status();
+  built.value().sweep.job_items = items;
   auto plan = InstallLocked(std::move(*built), owner);
   lock.unlock();
   if (plan.ok())
@@ -144,7 +145,7 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
   return plan;
 }
 
-StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec& spec, long job_items) {
+StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec& spec, long job_items, RefineCarry carry) {
   Planned out;
   SweepPlan& plan = out.plan;
   Sweep& s = out.sweep;
@@ -166,7 +167,7 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
     return out;
   }
   if (spec.refine.enabled()) {
-    BISTABLE_RETURN_IF_ERROR(BuildRefinedPlan(spec, job_items, s, plan));
+    BISTABLE_RETURN_IF_ERROR(BuildRefinedPlan(spec, job_items, std::move(carry), s, plan));
     return out;
   }
   s.keys.reserve(plan.items_total);
@@ -228,11 +229,12 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
   return out;
 }
 
-Status SweepCoordinator::BuildRefinedPlan(const SweepSpec& spec, long job_items, Sweep& s, SweepPlan& plan) {
+Status SweepCoordinator::BuildRefinedPlan(const SweepSpec& spec, long job_items, RefineCarry carry, Sweep& s, SweepPlan& plan) {
   const size_t width = PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points);
-  std::vector<std::pair<long, std::string>> keyed;  // every planned point's key, as looked up
+  std::map<long, std::string> looked_up;  // keys of the points looked up now (the current round's)
   long corrupt_total = 0;
-  auto step = PlanRefinement(spec, [&](const std::vector<long>& pts, std::vector<std::optional<int64_t>>* classes) {
+  if (!carry.planner) carry = RefineCarry{std::make_shared<RefinePlanner>(spec), {}, {}};  // a walk from the start
+  auto step = carry.planner->Advance([&](const std::vector<long>& pts, std::vector<std::optional<RefineMark>>* classes) {
     classes->assign(pts.size(), std::nullopt);
     constexpr size_t kBatch = 65536;  // batches, each under the index lock on its own
     for (size_t b = 0; b < pts.size(); b += kBatch) {
@@ -247,21 +249,33 @@ Status SweepCoordinator::BuildRefinedPlan(const SweepSpec& spec, long job_items,
       for (size_t i = b; i < e; ++i) {
         if (auto it = cached->find(batch[i - b]); it != cached->end())
           (*classes)[i] = RefineClass(spec.refine, spec.base.metrics, it->second);
-        keyed.emplace_back(pts[i], std::move(batch[i - b]));
+        looked_up[pts[i]] = std::move(batch[i - b]);
       }
     }
     return Status::Ok();
   });
-  if (!step.ok()) return step.status();
+  if (!step.ok()) {
+    s.refiner.reset();  // a failed lookup leaves the walk mid-round: the next plan walks from the start
+    return step.status();
+  }
+  s.refiner = carry.planner;
   if (corrupt_total > 0)
     Log(log::Level::kWarn, "sweep.checksum_failed", {{"sweep", plan.id}, {"items", corrupt_total}, {"action", "recompute"}});
-  std::sort(keyed.begin(), keyed.end());
-  s.points.clear();
+  // Every planned point's key: looked up now, or carried from the last plan (both ascending).
+  s.points = step->points;
   s.keys.clear();
-  s.points.reserve(keyed.size());
-  s.keys.reserve(keyed.size());
-  for (auto& [p, k] : keyed) s.points.push_back(p), s.keys.push_back(std::move(k));
-  s.refine_level = step->level;
+  s.keys.reserve(s.points.size());
+  size_t c = 0;
+  for (long p : s.points) {
+    while (c < carry.points.size() && carry.points[c] < p) ++c;
+    if (auto it = looked_up.find(p); it != looked_up.end())
+      s.keys.push_back(std::move(it->second));
+    else if (c < carry.points.size() && carry.points[c] == p)
+      s.keys.push_back(std::move(carry.keys[c]));
+    else
+      s.keys.push_back(spec.ItemKey(p, 0));
+  }
+  s.refine_round = step->round;
   s.refine_complete = step->complete;
   Job j;
   for (long p : step->missing) {
@@ -318,27 +332,40 @@ StatusOr<SweepPlan> SweepCoordinator::InstallLocked(Planned p, const std::string
 Status SweepCoordinator::Replan(const std::string& id) {
   SweepSpec spec;
   std::string owner;
+  unsigned long long generation = 0;
+  long job_items = 0;
+  RefineCarry carry;
   {
-    std::lock_guard<std::mutex> lock(mu_);
+    std::unique_lock<std::mutex> lock(mu_);
+    plan_cv_.wait(lock, [&] { return !planning_.count(id); });  // one planning per sweep at a time
     auto it = sweeps_.find(id);
     if (it == sweeps_.end() || it->second.cancelled) return Status::Ok();
     spec = it->second.spec;
     owner = it->second.row.owner;
-    it->second.generation = ++generation_counter_;  // reports of the old plan store, but count nowhere
+    job_items = it->second.job_items;
+    if (it->second.refiner && !it->second.refine_complete)  // continue the walk: look up only the new round
+      carry = RefineCarry{it->second.refiner, it->second.points, it->second.keys};
+    generation = it->second.generation = ++generation_counter_;  // reports of the old plan store, but count nowhere
     it->second.queue.clear();                       // and nothing is leased while the new one is built
     RevokeLeasesLocked(id);
     planning_[id] = 1;
   }
-  auto built = BuildPlan(spec, JobItems(spec, 2.0, 64));
+  auto built = BuildPlan(spec, job_items > 0 ? job_items : JobItems(spec, 2.0, 64), std::move(carry));
   std::unique_lock<std::mutex> lock(mu_);
   planning_.erase(id);
   plan_cv_.notify_all();
   if (!built.ok()) return built.status();
+  // Cancelled, interrupted or planned again while this plan was built (outside the lock): the newer
+  // decision stands and this plan is dropped (installing it would bring a cancelled sweep back).
+  if (auto it = sweeps_.find(id); it == sweeps_.end() || it->second.cancelled || it->second.generation != generation ||
+                                  it->second.row.state == SweepState::kInterrupted || it->second.row.state == SweepState::kFailed)
+    return Status::Ok();
+  built.value().sweep.job_items = job_items;
   auto plan = InstallLocked(std::move(*built), owner);
   if (!plan.ok()) return plan.status();
   if (spec.refine.enabled())
     Log(log::Level::kInfo, "sweep.refined",
-        {{"sweep", id}, {"level", sweeps_.at(id).refine_level}, {"items", plan->items_total - plan->items_cached},
+        {{"sweep", id}, {"round", sweeps_.at(id).refine_round}, {"items", plan->items_total - plan->items_cached},
          {"planned", plan->items_total}, {"complete", sweeps_.at(id).refine_complete}});
   else
     Log(log::Level::kInfo, "sweep.replanned", {{"sweep", id}, {"items", plan->items_total - plan->items_cached}});
@@ -364,6 +391,7 @@ void SweepCoordinator::RevokeLeasesLocked(const std::string& sweep_id) {
 void SweepCoordinator::FreePlan(Sweep& s) {
   std::vector<std::string>().swap(s.keys);
   std::vector<long>().swap(s.points);
+  s.refiner.reset();
   std::vector<Job>().swap(s.jobs);
   std::vector<JobState>().swap(s.job_state);
   std::deque<long>().swap(s.queue);
@@ -728,7 +756,7 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
       needs_plan = static_cast<long>(s.keys.size()) != s.row.items_total;  // plan freed after an earlier publication
       if (!needs_plan && s.spec.refine.enabled() && !s.refine_complete) {
         if (s.items_done < s.row.items_total || attempt > 0)
-          return Status::FailedPrecondition("sweep " + sweep_id + " is refining: level " + std::to_string(s.refine_level) + " has " +
+          return Status::FailedPrecondition("sweep " + sweep_id + " is refining: round " + std::to_string(s.refine_round) + " has " +
                                             std::to_string(s.row.items_total - s.items_done) + " items to compute");
         advance = true;
       }

@@ -30,6 +30,7 @@
 
 #include "base/log.h"
 #include "engine/metric_catalog.h"
+#include "engine/refine.h"
 #include "engine/sweep_spec.h"
 #include "storage/index_db.h"
 
@@ -149,7 +150,9 @@ class SweepCoordinator {
     unsigned long long generation = 0;  // this plan's number: leases of other plans are void
     std::vector<std::string> keys;  // content key of item point·ic_count + ic; refined: of points[j]
     std::vector<long> points;       // refined sweeps ([refine]): the grid points planned so far, ascending
-    int refine_level = 0;           // refined sweeps: the level being computed
+    long job_items = 0;             // items per job as submitted (replans and refinement rounds keep it)
+    std::shared_ptr<RefinePlanner> refiner;  // refined sweeps: the walk so far (engine/refine.h)
+    int refine_round = 0;           // refined sweeps: the round being computed (engine/refine.h)
     bool refine_complete = false;   // refined sweeps: every level stored, ready to publish
     std::vector<Job> jobs;
     std::vector<JobState> job_state;
@@ -175,7 +178,13 @@ class SweepCoordinator {
   SweepCoordinator(std::string dir, std::unique_ptr<IndexDb> db, Options opt)
       : data_dir_(std::move(dir)), db_(std::move(db)), opt_(opt), publisher_([this] { PublisherLoop(); }) {}
   // Plans a sweep against the point cache (keys, lookups in bounded batches, jobs). Without mu_.
-  StatusOr<Planned> BuildPlan(const SweepSpec& spec, long job_items);
+  // A refined sweep's planner and keys carried from its last plan to the next round (Replan).
+  struct RefineCarry {
+    std::shared_ptr<RefinePlanner> planner;
+    std::vector<long> points;
+    std::vector<std::string> keys;
+  };
+  StatusOr<Planned> BuildPlan(const SweepSpec& spec, long job_items, RefineCarry carry = {});
   // Makes a built plan the sweep's current one (a new generation) and persists its row. Under mu_.
   StatusOr<SweepPlan> InstallLocked(Planned p, const std::string& owner);
   // The plan of an active (not cancelled) sweep, if any. Under mu_.
@@ -189,8 +198,8 @@ class SweepCoordinator {
   // The content key of a planned item (dense grid, or a refined sweep's planned points).
   static const std::string& KeyOf(const Sweep& s, const WorkItem& w);
   // A refined sweep's plan: walks its levels against the cache (engine/refine.h) and queues the first
-  // level's missing points. Part of BuildPlan.
-  Status BuildRefinedPlan(const SweepSpec& spec, long job_items, Sweep& s, SweepPlan& plan);
+  // round's missing points. Part of BuildPlan.
+  Status BuildRefinedPlan(const SweepSpec& spec, long job_items, RefineCarry carry, Sweep& s, SweepPlan& plan);
   void RememberFinishedLocked(const std::string& lease_id, const std::string& sweep_id);
   void TouchWorkerLocked(const std::string& worker, double now);
   void RequeueExpiredLocked(double now);
