@@ -52,12 +52,12 @@ StatusOr<DesignSpec> LoadWithFlags(const DesignArgs& a) {
 
 void PrintCandidate(const char* label, const nlohmann::json& c) {
   const auto& d = c["design"];
-  std::printf("%s lambda = %.4g, phi = %.4g, eta_r = %.4g: band %.4g wide (Omega %s .. %s), chaotic share in band %.3g, "
-              "over the line %.3g%s%s\n",
+  std::printf("%s lambda = %.4g, phi = %.4g, eta_r = %.4g: band %.4g wide (Omega %s .. %s), chaotic share in band %.3g "
+              "(unsafe %.3g), over the line %.3g%s%s\n",
               label, d["lambda"].get<double>(), d["phi"].get<double>(), d["eta_r"].get<double>(), c["band_width"].get<double>(),
               c["band"][0].is_null() ? "-" : PlotNumber(c["band"][0].get<double>()).c_str(),
               c["band"][1].is_null() ? "-" : PlotNumber(c["band"][1].get<double>()).c_str(), c["chaotic_share_band"].get<double>(),
-              c["chaotic_share"].get<double>(), c.contains("sweep_id") ? ", sweep " : "",
+              c["unsafe_share_band"].get<double>(), c["chaotic_share"].get<double>(), c.contains("sweep_id") ? ", sweep " : "",
               c.contains("sweep_id") ? c["sweep_id"].get<std::string>().c_str() : "");
 }
 
@@ -89,7 +89,7 @@ int Design(DesignArgs& a) {
               s["seconds"].get<double>());
   if ((*j)["best"].is_null()) std::printf("best: none (no candidate has a band without chaotic points)\n");
   else PrintCandidate("best:", (*j)["best"]);
-  std::printf("Pareto front (band width up, chaotic share in band down, %s down): %zu candidates\n", spec->cost.c_str(),
+  std::printf("Pareto front (band width up, unsafe (chaotic or diverged) share in band down, %s down): %zu candidates\n", spec->cost.c_str(),
               (*j)["front"].size());
   for (const auto& c : (*j)["front"]) PrintCandidate("  ", c);
   for (const auto& m : (*j)["maps"])

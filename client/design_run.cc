@@ -134,6 +134,8 @@ nlohmann::json CandidateJson(const Candidate& c) {
   j["band_points"] = c.score.band_points;
   j["chaotic_in_band"] = c.score.chaotic_in_band;
   j["chaotic_share_band"] = c.score.chaotic_share_band;
+  j["unsafe_in_band"] = c.score.unsafe_in_band;
+  j["unsafe_share_band"] = c.score.unsafe_share_band;
   j["chaotic_share"] = c.score.chaotic_share;
   j["feasible"] = c.score.feasible();
   j["items"] = c.items;
@@ -145,16 +147,18 @@ nlohmann::json CandidateJson(const Candidate& c) {
 std::string Csv(const std::vector<Candidate>& cs, const std::vector<int>& front) {
   std::ostringstream os;
   os.precision(10);
-  os << "index,lambda,phi,eta_r,cost,band_width,safe_band_width,chaotic_share_band,chaotic_share,feasible,on_front,sweep_id,items,computed,seconds\n";
+  os << "index,lambda,phi,eta_r,cost,band_width,safe_band_width,chaotic_share_band,unsafe_share_band,chaotic_share,feasible,on_front,sweep_id,items,computed,seconds\n";
   for (const Candidate& c : cs)
     os << c.index << "," << c.x[0] << "," << c.x[1] << "," << c.x[2] << "," << c.cost << "," << c.score.band_width << ","
-       << c.score.safe_band_width << "," << c.score.chaotic_share_band << "," << c.score.chaotic_share << ","
+       << c.score.safe_band_width << "," << c.score.chaotic_share_band << "," << c.score.unsafe_share_band << ","
+       << c.score.chaotic_share << ","
        << (c.score.feasible() ? 1 : 0) << "," << (std::find(front.begin(), front.end(), c.index) != front.end() ? 1 : 0) << ","
        << c.sweep_id << "," << c.items << "," << c.computed << "," << c.seconds << "\n";
   return os.str();
 }
 
-// The Pareto front figure: band width against the cost and against the chaotic share in the band;
+// The Pareto front figure: band width against the cost and against the unsafe (chaotic or diverged) share
+// in the band, the front's objectives;
 // every candidate in grey, the front in colour, the best design marked (and the brute-force grid's best).
 Status RenderFront(const DesignSpec& spec, const SearchResult& r, const Candidate* grid_best, const std::string& out) {
   PanelPlot p;
@@ -164,10 +168,10 @@ Status RenderFront(const DesignSpec& spec, const SearchResult& r, const Candidat
   const std::string cost_label = spec.cost == "phi" ? "cost: phi = m_r/m_m" : "cost: lambda = omega_r/omega_n";
   for (int panel = 0; panel < 2; ++panel) {
     PanelPlot::Panel pa;
-    pa.title = panel == 0 ? "band width vs cost" : "band width vs chaotic share in the band";
-    pa.x_label = panel == 0 ? cost_label : "chaotic share of the band's Omega points";
+    pa.title = panel == 0 ? "band width vs cost" : "band width vs unsafe share in the band";
+    pa.x_label = panel == 0 ? cost_label : "unsafe (chaotic or diverged) share of the band's Omega points";
     pa.y_label = "band width (measure of Omega with FRF < 0 dB)";
-    auto xof = [&](const Candidate& c) { return panel == 0 ? c.cost : c.score.chaotic_share_band; };
+    auto xof = [&](const Candidate& c) { return panel == 0 ? c.cost : c.score.unsafe_share_band; };
     PanelPlot::Series all{"candidates", {}, {}, true, "#999999", 0.6}, front{"Pareto front", {}, {}, true, "#1f77b4", 1.0};
     for (const Candidate& c : r.candidates) all.x.push_back(xof(c)), all.y.push_back(c.score.band_width);
     for (int i : r.front) front.x.push_back(xof(r.candidates[i])), front.y.push_back(r.candidates[i].score.band_width);

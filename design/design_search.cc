@@ -66,13 +66,14 @@ DesignScore ScoreDesign(const std::vector<double>& omega, size_t n_alpha, const 
   }
   if (n == 1 && g[0] < 0) s.band_lo = s.band_hi = omega[0];
   s.chaotic_share_band = s.band_points ? static_cast<double>(s.chaotic_in_band) / static_cast<double>(s.band_points) : 0;
+  s.unsafe_share_band = s.band_points ? static_cast<double>(s.unsafe_in_band) / static_cast<double>(s.band_points) : 0;
   s.chaotic_share = n ? static_cast<double>(chaotic_points) / static_cast<double>(n) : 0;
   return s;
 }
 
 bool Dominates(const Candidate& a, const Candidate& b) {
   const double wa = a.score.band_width, wb = b.score.band_width;
-  const double sa = a.score.chaotic_share_band, sb = b.score.chaotic_share_band;
+  const double sa = a.score.unsafe_share_band, sb = b.score.unsafe_share_band;  // chaotic or diverged
   if (!(wa >= wb && sa <= sb && a.cost <= b.cost)) return false;
   return wa > wb || sa < sb || a.cost < b.cost;
 }

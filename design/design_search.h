@@ -1,7 +1,7 @@
 // The design search (issue 17, `bistable design`): a global optimiser (NLopt) proposes resonator
 // designs (lambda, phi, eta_r) within bounds; each is scored from its sub-sweep over Ω (an ordinary
 // sweep run by the caller's evaluator: embedded or through a coordinator); the Pareto front over
-// (band width up, chaotic share in the band down, cost down) is taken over every evaluated candidate.
+// (band width up, unsafe share in the band down, cost down) is taken over every evaluated candidate.
 // Definitions (docs/design-search.md):
 //   g(Ω_i)     = max over the design's alphas of frf_db(alpha, Ω_i) (NaN: not attenuated);
 //   chaotic_i  = at some alpha, motion == chaotic or lle > chaos_threshold; unsafe_i = chaotic_i or
@@ -9,6 +9,8 @@
 //   band       = {Ω in [Ω_0, Ω_n-1] : G(Ω) < 0}, G the piecewise-linear interpolant of g over the Ω line;
 //   band_width = its measure (a zero crossing inside a cell is found by linear interpolation);
 //   band points = {i : g_i < 0}; chaotic_share_band = chaotic band points / band points (0 with none);
+//   unsafe_share_band = unsafe band points / band points (0 with none): chaotic or diverged, the front's
+//                second objective (a diverged band point is as unusable as a chaotic one);
 //   chaotic_share = chaotic points / all points of the Ω line;
 //   safe_band_width = band_width without the cells that have an unsafe band point at either end;
 //   feasible   = at least one band point and no unsafe band point (then safe_band_width == band_width).
@@ -28,7 +30,7 @@ namespace bistable {
 
 struct DesignScore {
   double band_width = 0, safe_band_width = 0;
-  double chaotic_share_band = 0, chaotic_share = 0;
+  double chaotic_share_band = 0, unsafe_share_band = 0, chaotic_share = 0;
   long band_points = 0, chaotic_in_band = 0, unsafe_in_band = 0;
   double band_lo = NAN, band_hi = NAN;  // the smallest and largest Ω of the band (NaN: empty)
   bool feasible() const { return band_points > 0 && unsafe_in_band == 0; }
@@ -61,7 +63,7 @@ struct Candidate {
   double seconds = 0;
 };
 
-// Non-dominated candidates (maximise band_width, minimise chaotic_share_band and cost): indices in
+// Non-dominated candidates (maximise band_width, minimise unsafe_share_band and cost): indices in
 // descending band width. Distinct designs with equal objectives are all kept; a design evaluated twice
 // appears once.
 std::vector<int> ParetoFront(const std::vector<Candidate>& c);

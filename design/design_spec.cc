@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 #include <toml++/toml.h>
@@ -107,6 +108,28 @@ std::string DesignSpec::BruteForceToml(int n) const {
   for (int k = 0; k < 3; ++k)
     if (Free(k)) t["params"].as_table()->erase(kDesignParameters[k]);
   return Toml(t);
+}
+
+std::string DesignSpec::CanonicalText() const {
+  // One field a line, each named, every text length-prefixed: no two different searches share a text
+  // (a joined "0.1" "12" and "0.11" "2" would). The base spec carries [metrics] (chaos_threshold) and the name.
+  std::string out = "bistable-design-v2\n";
+  auto text = [&](const char* key, const std::string& v) { out += std::string(key) + " " + std::to_string(v.size()) + ":" + v + "\n"; };
+  text("base", base_toml);
+  text("omega", omega_toml);
+  text("alpha", alpha_toml);
+  text("map_alpha", map_alpha_toml);
+  text("optimizer", optimizer);
+  text("cost", cost);
+  out += "budget " + std::to_string(budget) + "\nseed " + std::to_string(seed) + "\nmaps " + std::to_string(maps) + "\n";
+  auto exact = [](double v) {  // 17 significant digits: every double its own text
+    char b[32];
+    std::snprintf(b, sizeof b, "%.17g", v);
+    return std::string(b);
+  };
+  for (size_t k = 0; k < kDesignParameters.size(); ++k)
+    out += "bounds." + kDesignParameters[k] + " " + exact(lo[k]) + " " + exact(hi[k]) + "\n";
+  return out;
 }
 
 StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string& origin) {
@@ -261,10 +284,7 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
   BISTABLE_RETURN_IF_ERROR(word("cost", kCosts, &d.cost));
 
   // Every sweep the search runs is an ordinary spec: check them with the engine's parser now, before any work.
-  d.id = ContentHashHex(d.base_toml + "|" + d.omega_toml + "|" + d.alpha_toml + "|" + d.optimizer + "|" +
-                        std::to_string(d.budget) + "|" + std::to_string(d.seed) + "|" + FormatNumber(d.lo[0]) + FormatNumber(d.hi[0]) +
-                        "," + FormatNumber(d.lo[1]) + FormatNumber(d.hi[1]) + "," + FormatNumber(d.lo[2]) + FormatNumber(d.hi[2]))
-             .substr(0, 12);
+  d.id = ContentHashHex(d.CanonicalText()).substr(0, 12);
   auto cand = ParseSweepSpec(d.CandidateToml(d.lo), origin);
   if (!cand.ok()) return Renamed(cand.status(), kCandidateFields);
   for (const Axis& a : cand->axes)

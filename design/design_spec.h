@@ -34,7 +34,7 @@ struct DesignSpec {
   std::string cost = "phi";           // the device's cost on the Pareto front: phi (resonator mass) | lambda (stiffness)
   int maps = 2;                       // alpha x omega maps of the best designs (0 .. limits::kMaxDesignMaps)
   double chaos_threshold = 0.01;      // from [metrics]: lle above it is chaotic
-  std::string id;                     // 12 hex digits of the canonical content (bounds, alphas, base spec, ...)
+  std::string id;                     // 12 hex digits of the hash of CanonicalText(): the report directory DATA/designs/<id>
 
   bool Free(int k) const { return hi[k] > lo[k]; }
   int CostIndex() const { return cost == "lambda" ? 0 : 1; }
@@ -42,6 +42,9 @@ struct DesignSpec {
   std::string CandidateToml(const DesignPoint& x) const;
   // The regular map of design x over map_alpha × omega, with frf_db and motion plots ("" map_alpha: no maps).
   std::string MapToml(const DesignPoint& x, const std::string& title) const;
+  // Everything that determines the search's result and report (base spec, Ω line, alphas, map_alpha,
+  // bounds, optimizer, budget, seed, cost, maps), one named, unambiguous field a line: the id hashes it.
+  std::string CanonicalText() const;
   // One sweep over every free parameter's grid (n values from lo to hi) × alphas × omega: the brute force.
   std::string BruteForceToml(int n) const;
 

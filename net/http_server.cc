@@ -106,6 +106,7 @@ class Session : public std::enable_shared_from_this<Session<Stream>> {
     }
     request.authorization = std::string(req[http::field::authorization]);
     request.cookie = std::string(req[http::field::cookie]);
+    request.host = std::string(req[http::field::host]);
     request.tls = kTls;
     auto it = server_->routes.find(request.path);
     if (it == server_->routes.end()) {
@@ -289,6 +290,29 @@ StatusOr<std::map<std::string, std::string>> ParseQueryString(const std::string&
     if (!out.emplace(*name, *value).second) return Status::InvalidArgument("query", "query parameter '" + name->substr(0, 32) + "' repeated");
   }
   return out;
+}
+
+bool IsLoopbackHost(const std::string& host) {
+  std::string name = host;
+  size_t port_start = std::string::npos;
+  if (!name.empty() && name.front() == '[') {  // [v6] or [v6]:port
+    const size_t close = name.find(']');
+    if (close == std::string::npos) return false;
+    if (close + 1 < name.size()) {
+      if (name[close + 1] != ':') return false;
+      port_start = close + 2;
+    }
+    name = name.substr(0, close + 1);
+  } else if (const size_t colon = name.find(':'); colon != std::string::npos) {
+    port_start = colon + 1;
+    name = name.substr(0, colon);
+  }
+  if (port_start != std::string::npos) {
+    const std::string port = host.substr(port_start);
+    if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos) return false;
+  }
+  for (char& ch : name) ch = static_cast<char>(ch >= 'A' && ch <= 'Z' ? ch - 'A' + 'a' : ch);
+  return name == "localhost" || name == "127.0.0.1" || name == "[::1]";
 }
 
 std::string CookieValue(const std::string& header, const std::string& name) {

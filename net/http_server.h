@@ -18,11 +18,12 @@
 namespace bistable {
 
 // What a handler sees of a request: the path, the raw query string (after '?', not decoded: see
-// ParseQueryString) and the two headers a handler may act on. Everything is within the header bound.
+// ParseQueryString) and the headers a handler may act on. Everything is within the header bound.
 struct HttpRequest {
   std::string path, query;
   std::string authorization;  // the Authorization header, "" when absent
   std::string cookie;         // the Cookie header, "" when absent
+  std::string host;           // the Host header, "" when absent (HTTP/1.0); see IsLoopbackHost
   bool tls = false;           // the connection is TLS (cookies are then marked Secure)
 };
 
@@ -61,6 +62,11 @@ class HttpServer {
 // "a=1&b=x%20y" → {a: "1", b: "x y"} ('+' is a space). InvalidArgument for a malformed escape, a
 // repeated or empty name, a byte below 0x20 after decoding, or more than `max_params` parameters.
 StatusOr<std::map<std::string, std::string>> ParseQueryString(const std::string& query, size_t max_params = 16);
+
+// Whether a Host header names this machine's loopback: localhost (any case), 127.0.0.1 or [::1], with or
+// without ":port". A server without tokens answers only such requests, so that a web page elsewhere cannot
+// read it through DNS rebinding (its requests carry the attacker's host name).
+bool IsLoopbackHost(const std::string& host);
 
 // The value of cookie `name` in a Cookie header ("" when absent).
 std::string CookieValue(const std::string& cookie_header, const std::string& name);

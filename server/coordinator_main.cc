@@ -125,6 +125,8 @@ int main(int argc, char** argv) {
           return bistable::HttpResponse{401, "text/plain; charset=utf-8", "unauthenticated\n", {{"WWW-Authenticate", "Bearer"}}};
         return bistable::PrometheusText(metrics.Sources());
       };
+    else  // without tokens, the loopback's Host names only (DNS rebinding); /healthz carries no data
+      routes["/metrics"] = bistable::LoopbackHostOnly(routes["/metrics"]);
     auto h = bistable::HttpServer::Start(http_addr, std::move(routes), http_tls);
     if (!h.ok()) return fail(h.status());
     dashboard = std::move(h).value();

@@ -4,7 +4,12 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <chrono>
 #include <limits>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -13,6 +18,7 @@
 #include "dynamics/spectrum.h"
 #include "engine/json_shapes.h"
 #include "engine/query.h"
+#include "engine/refine.h"
 #include "server/embedded_files.h"
 #include "storage/map_file.h"
 
@@ -22,7 +28,10 @@ namespace {
 using nlohmann::json;
 
 // Bounds of what one answer carries (the page draws at most this much).
-constexpr size_t kMaxSliceCells = 1 << 20;     // a map slice: 1024 × 1024 cells
+constexpr size_t kMaxSliceSide = 1024;         // a map slice: at most 1024 × 1024 cells (larger: every k-th cell)
+constexpr long kMaxLiveItems = 1 << 18;        // a running sweep's partial map: looked up only up to this many items
+constexpr double kCacheSeconds = 2;            // a loaded metric serves every request for (sweep, metric) this long
+constexpr size_t kCacheEntries = 8;            // (sweep, metric) pairs kept
 constexpr size_t kMaxSeriesRows = 4000;        // time series rows of a cell (decimated)
 constexpr size_t kMaxSpectrumBins = 4000;      // spectrum bins of a cell (the low end)
 constexpr size_t kMaxSectionPoints = 5000;     // Poincaré section points of a cell
@@ -104,11 +113,33 @@ StatusOr<SweepView> ResolveSweep(SweepCoordinator* c, const std::map<std::string
   return SweepView{*id, *info, std::move(*spec)};
 }
 
-// Metrics a map view offers: the sweep's stored scalar metrics of the catalog.
-std::vector<std::string> MapMetrics(const SweepSpec& spec) {
+// A published sweep: its map file is what every view reads.
+bool Published(const SweepInfo& info) { return !info.file.empty() && info.state == SweepState::kDone; }
+
+// The name of the trailing item dimension, as the map file names it (storage/map_file.cc): the
+// continuation directions (up, down) of a chained sweep, else the initial conditions.
+std::string ItemDim(const SweepSpec& spec) { return spec.continuation.enabled() ? "direction" : "ic"; }
+
+// The sweep's item shape (axes, then the item dimension when there are several items per point).
+MapArray ShapeOf(const SweepSpec& spec) {
+  MapArray a;
+  a.axes = spec.axes;
+  for (const Axis& ax : a.axes) a.dims.push_back(ax.values.size()), a.dim_names.push_back(ax.name);
+  if (spec.ic_count() > 1) a.dims.push_back(static_cast<size_t>(spec.ic_count())), a.dim_names.push_back(ItemDim(spec));
+  return a;
+}
+
+// The datasets a refined map ([refine]) carries besides the catalog's metrics (written at publication).
+constexpr const char* kRefineLevel = "refine_level";
+constexpr const char* kRefineFill = "refine_fill";
+
+// Metrics a map view offers: the sweep's stored scalar metrics of the catalog, and for a published
+// refined sweep its refine_level and refine_fill.
+std::vector<std::string> MapMetrics(const SweepSpec& spec, bool published) {
   std::vector<std::string> out;
   for (const std::string& m : spec.metrics)
     if (FindMetric(m)) out.push_back(m);
+  if (published && spec.refine.enabled()) out.push_back(kRefineLevel), out.push_back(kRefineFill);
   return out;
 }
 
@@ -118,39 +149,111 @@ json CategoriesJson(const std::vector<std::pair<int, std::string>>& cats) {
   return out;
 }
 
-// A metric over the sweep's items: the published map file, or what is stored so far of a planned sweep.
-StatusOr<MapArray> LoadMetric(SweepCoordinator* c, const SweepView& s, const std::string& metric, bool* partial) {
-  const auto offered = MapMetrics(s.spec);
+// What /api/sweep says of an offered metric.
+json MetricJson(const std::string& m) {
+  std::vector<std::pair<int, std::string>> cats;
+  if (m == kRefineLevel)
+    return {{"name", m}, {"unit", ""}, {"definition", "refinement level of the smallest cell holding the point (0: the coarse grid)"},
+            {"integer", true}, {"categories", json::array()}};
+  if (m == kRefineFill) {
+    for (const Category& k : RefineFillCategories()) cats.push_back({k.code, k.name});
+    return {{"name", m}, {"unit", "code"}, {"definition", "how the point's values were obtained in the refined map"},
+            {"integer", true}, {"categories", CategoriesJson(cats)}};
+  }
+  const MetricInfo* info = FindMetric(m);
+  for (const Category& k : MetricCategories(m)) cats.push_back({k.code, k.name});
+  return {{"name", m}, {"unit", info->unit}, {"definition", info->definition}, {"integer", info->integer},
+          {"categories", CategoriesJson(cats)}};
+}
+
+// A metric loaded for the views: the whole map's values (empty: not shown, see note) and their range.
+struct Loaded {
+  std::shared_ptr<const MapArray> array;
+  bool partial = false;   // what is stored so far of a running sweep
+  std::string note;       // why no values are shown
+  double lo = NAN, hi = NAN;  // over every finite value (one colour range for every slice)
+};
+
+// Loaded metrics, shared by every request for the same (sweep, metric, source) for kCacheSeconds: any
+// number of open tabs on a running sweep cost one lookup in the point cache per kCacheSeconds.
+class DashboardCache {
+ public:
+  std::optional<Loaded> Get(const std::string& key) {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = entries_.find(key);
+    if (it == entries_.end() || Now() - it->second.first > kCacheSeconds) return std::nullopt;
+    return it->second.second;
+  }
+  void Put(const std::string& key, const Loaded& l) {
+    std::lock_guard<std::mutex> lock(mu_);
+    entries_.erase(key);
+    while (entries_.size() >= kCacheEntries) {
+      auto oldest = entries_.begin();
+      for (auto it = entries_.begin(); it != entries_.end(); ++it)
+        if (it->second.first < oldest->second.first) oldest = it;
+      entries_.erase(oldest);
+    }
+    entries_.emplace(key, std::make_pair(Now(), l));
+  }
+
+ private:
+  static double Now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
+  std::mutex mu_;
+  std::map<std::string, std::pair<double, Loaded>> entries_;
+};
+
+// A metric over the sweep's items: the published map file, or what is stored so far of a planned sweep
+// (looked up only when the sweep has at most kMaxLiveItems items: the size comes from the spec's axis
+// lengths, before anything is loaded). Cached for kCacheSeconds.
+StatusOr<Loaded> LoadMetric(SweepCoordinator* c, DashboardCache* cache, const SweepView& s, const std::string& metric) {
+  const bool published = Published(s.info);
+  const auto offered = MapMetrics(s.spec, published);
   if (std::find(offered.begin(), offered.end(), metric) == offered.end())
-    return Status::InvalidArgument("metric", "sweep " + s.id + " stores no metric '" + metric.substr(0, 32) + "'");
-  const MetricInfo* info = FindMetric(metric);
-  *partial = false;
-  if (!s.info.file.empty() && s.info.state == SweepState::kDone) {
+    return Status::InvalidArgument("metric", "sweep " + s.id + " stores no metric '" + metric.substr(0, 32) + "'" +
+                                                 (s.spec.refine.enabled() && (metric == kRefineLevel || metric == kRefineFill)
+                                                      ? " yet (written when the refined map is published)"
+                                                      : ""));
+  const std::string key = s.id + "\n" + metric + "\n" + (published ? s.info.file : std::string("live"));
+  if (auto hit = cache->Get(key)) return *hit;
+  Loaded l;
+  if (published) {
     auto a = ReadMapMetric((std::filesystem::path(c->data_dir()) / s.info.file).string(), metric);
     if (!a.ok()) return a.status();
     if (a->dims.size() != a->axes.size() && a->dims.size() != a->axes.size() + 1)
       return Status::FailedPrecondition("metric '" + metric + "' is not one value per item");
-    return a;
+    l.array = std::make_shared<const MapArray>(std::move(*a));
+  } else {
+    const MetricInfo* info = FindMetric(metric);
+    MapArray a = ShapeOf(s.spec);
+    a.metric = metric;
+    a.unit = info->unit;
+    a.definition = info->definition;
+    for (const Category& k : MetricCategories(metric)) a.categories.push_back({k.code, k.name});
+    const long items = s.spec.points() * s.spec.ic_count();
+    if (items > kMaxLiveItems) {
+      l.note = "partial map not shown above " + std::to_string(kMaxLiveItems) + " items (this sweep has " + std::to_string(items) +
+               "); the published map will be";
+    } else {
+      auto values = c->StoredValues(s.id, metric);
+      if (!values.ok()) return Status::NotFound("sweep " + s.id + " has no map yet (state " + SweepStateName(s.info.state) + ")");
+      a.values = std::move(*values);
+    }
+    l.array = std::make_shared<const MapArray>(std::move(a));
+    l.partial = true;
   }
-  auto values = c->StoredValues(s.id, metric);
-  if (!values.ok()) return Status::NotFound("sweep " + s.id + " has no map yet (state " + SweepStateName(s.info.state) + ")");
-  MapArray a;
-  a.metric = metric;
-  a.axes = s.spec.axes;
-  for (const Axis& ax : a.axes) a.dims.push_back(ax.values.size()), a.dim_names.push_back(ax.name);
-  if (s.spec.ic_count() > 1) a.dims.push_back(static_cast<size_t>(s.spec.ic_count())), a.dim_names.push_back("ic");
-  a.values = std::move(*values);
-  a.unit = info->unit;
-  a.definition = info->definition;
-  for (const Category& k : MetricCategories(metric)) a.categories.push_back({k.code, k.name});
-  *partial = true;
-  return a;
+  for (double v : l.array->values)
+    if (std::isfinite(v)) l.lo = std::isnan(l.lo) ? v : std::min(l.lo, v), l.hi = std::isnan(l.hi) ? v : std::max(l.hi, v);
+  cache->Put(key, l);
+  return l;
 }
 
 // Which cells a slice shows: x (and y) axis, every other dimension fixed by "at" = "name:index,...".
+// An axis longer than kMaxSliceSide is shown decimated: every stride-th value (0, stride, 2·stride, ...).
 struct Slice {
   int x = -1, y = -1;           // dimension indices (y = -1: a one-axis slice)
   std::vector<size_t> fixed;    // index of every dimension (x and y ignored)
+  size_t sx = 1, sy = 1;        // strides along x and y
+  size_t nx = 1, ny = 1;        // cells shown along x and y
 };
 
 StatusOr<Slice> ParseSlice(const std::map<std::string, std::string>& p, const MapArray& a) {
@@ -187,22 +290,32 @@ StatusOr<Slice> ParseSlice(const std::map<std::string, std::string>& p, const Ma
     if (!i.ok()) return i.status();
     s.fixed[d] = static_cast<size_t>(*i);
   }
-  const size_t nx = s.x >= 0 ? a.dims[s.x] : 1, ny = s.y >= 0 ? a.dims[s.y] : 1;
-  if (nx * ny > kMaxSliceCells) return Status::InvalidArgument("x", "the slice has more than 2^20 cells");
+  auto decimate = [](size_t n, size_t* stride, size_t* shown) {
+    *stride = (n + kMaxSliceSide - 1) / kMaxSliceSide;
+    if (*stride < 1) *stride = 1;
+    *shown = (n + *stride - 1) / *stride;
+  };
+  if (s.x >= 0) decimate(a.dims[s.x], &s.sx, &s.nx);
+  if (s.y >= 0) decimate(a.dims[s.y], &s.sy, &s.ny);
   return s;
 }
 
-// Flat index into a.values of the cell (ix, iy) of a slice.
+// Flat index into a.values of the shown cell (ix, iy) of a slice.
 size_t FlatIndex(const MapArray& a, const Slice& s, size_t ix, size_t iy) {
   size_t flat = 0;
   for (size_t d = 0; d < a.dims.size(); ++d) {
-    const size_t i = static_cast<int>(d) == s.x ? ix : static_cast<int>(d) == s.y ? iy : s.fixed[d];
+    const size_t i = static_cast<int>(d) == s.x ? ix * s.sx : static_cast<int>(d) == s.y ? iy * s.sy : s.fixed[d];
     flat = flat * a.dims[d] + i;
   }
   return flat;
 }
 
-json AxisJson(const Axis& ax) { return {{"name", ax.name}, {"unit", AxisUnit(ax.name)}, {"values", ax.values}}; }
+// An axis as the page sees it (every stride-th value of a decimated slice axis).
+json AxisJson(const Axis& ax, size_t stride = 1) {
+  std::vector<double> v;
+  for (size_t i = 0; i < ax.values.size(); i += stride) v.push_back(ax.values[i]);
+  return {{"name", ax.name}, {"unit", AxisUnit(ax.name)}, {"values", v}, {"stride", stride}, {"size", ax.values.size()}};
+}
 
 HttpResponse SweepsRoute(SweepCoordinator* c) {
   auto list = c->ListSweeps();
@@ -228,86 +341,84 @@ HttpResponse SweepRoute(SweepCoordinator* c, const HttpRequest& req) {
   auto s = ResolveSweep(c, *p);
   if (!s.ok()) return Error(s.status());
   json metrics = json::array();
-  for (const std::string& m : MapMetrics(s->spec)) {
-    const MetricInfo* info = FindMetric(m);
-    std::vector<std::pair<int, std::string>> cats;
-    for (const Category& k : MetricCategories(m)) cats.push_back({k.code, k.name});
-    metrics.push_back({{"name", m}, {"unit", info->unit}, {"definition", info->definition}, {"integer", info->integer},
-                       {"categories", CategoriesJson(cats)}});
-  }
+  for (const std::string& m : MapMetrics(s->spec, Published(s->info))) metrics.push_back(MetricJson(m));
   json axes = json::array();
   for (const Axis& ax : s->spec.axes) axes.push_back(AxisJson(ax));
+  // Every dimension of the sweep's maps by the name /api/map's "at" takes (the map file's names).
+  const MapArray shape = ShapeOf(s->spec);
+  json dims = json::array();
+  for (size_t d = 0; d < shape.dims.size(); ++d) dims.push_back({{"name", shape.dim_names[d]}, {"size", shape.dims[d]}});
   std::string cell_note;
   if (!IsCellModel(s->spec.model)) cell_note = "cells of " + s->spec.ModelLabel() + " sweeps cannot be opened (bistable point runs cell models)";
   else if (s->spec.continuation.enabled()) cell_note = "continuation sweeps start each point from the previous one: a cell alone is not that item";
+  const long items = s->spec.points() * s->spec.ic_count();
   return Json({{"status", SweepStatusJson(s->info)}, {"spec", s->spec.source}, {"axes", axes}, {"ic_count", s->spec.ic_count()},
+               {"dims", dims}, {"item_dim", shape.dims.size() > shape.axes.size() ? json(ItemDim(s->spec)) : json(nullptr)},
+               {"refined", s->spec.refine.enabled()}, {"live_map", items <= kMaxLiveItems},
                {"metrics", metrics}, {"cells", cell_note.empty()}, {"cell_note", cell_note}});
 }
 
-HttpResponse MapRoute(SweepCoordinator* c, const HttpRequest& req) {
+HttpResponse MapRoute(SweepCoordinator* c, DashboardCache* cache, const HttpRequest& req) {
   auto p = Params(req);
   if (!p.ok()) return Error(p.status());
   auto s = ResolveSweep(c, *p);
   if (!s.ok()) return Error(s.status());
-  bool partial = false;
-  auto a = LoadMetric(c, *s, Get(*p, "metric"), &partial);
-  if (!a.ok()) return Error(a.status());
-  auto sl = ParseSlice(*p, *a);
+  auto l = LoadMetric(c, cache, *s, Get(*p, "metric"));
+  if (!l.ok()) return Error(l.status());
+  const MapArray& a = *l->array;
+  auto sl = ParseSlice(*p, a);
   if (!sl.ok()) return Error(sl.status());
-  const size_t nx = sl->x >= 0 ? a->dims[sl->x] : 1, ny = sl->y >= 0 ? a->dims[sl->y] : 1;
   json values = json::array();
-  double lo = NAN, hi = NAN;
-  for (size_t iy = 0; iy < ny; ++iy)
-    for (size_t ix = 0; ix < nx; ++ix) values.push_back(JsonNumber(a->values[FlatIndex(*a, *sl, ix, iy)]));
-  for (double v : a->values)  // one colour range for every slice of the metric
-    if (std::isfinite(v)) lo = std::isnan(lo) ? v : std::min(lo, v), hi = std::isnan(hi) ? v : std::max(hi, v);
+  const bool shown = !a.values.empty();
+  for (size_t iy = 0; iy < sl->ny; ++iy)
+    for (size_t ix = 0; ix < sl->nx; ++ix) values.push_back(shown ? JsonNumber(a.values[FlatIndex(a, *sl, ix, iy)]) : json(nullptr));
   json dims = json::array();
-  for (size_t d = 0; d < a->dims.size(); ++d) dims.push_back({{"name", a->dim_names[d]}, {"size", a->dims[d]}});
-  return Json({{"sweep", s->id}, {"metric", a->metric}, {"unit", a->unit}, {"partial", partial},
-               {"x", sl->x >= 0 ? AxisJson(a->axes[sl->x]) : json(nullptr)},
-               {"y", sl->y >= 0 ? AxisJson(a->axes[sl->y]) : json(nullptr)}, {"dims", dims},
-               {"categories", CategoriesJson(a->categories)}, {"min", JsonNumber(lo)}, {"max", JsonNumber(hi)},
-               {"values", values}});
+  for (size_t d = 0; d < a.dims.size(); ++d) dims.push_back({{"name", a.dim_names[d]}, {"size", a.dims[d]}});
+  return Json({{"sweep", s->id}, {"metric", a.metric}, {"unit", a.unit}, {"partial", l->partial}, {"note", l->note},
+               {"x", sl->x >= 0 ? AxisJson(a.axes[sl->x], sl->sx) : json(nullptr)},
+               {"y", sl->y >= 0 ? AxisJson(a.axes[sl->y], sl->sy) : json(nullptr)}, {"stride", {{"x", sl->sx}, {"y", sl->sy}}},
+               {"dims", dims}, {"categories", CategoriesJson(a.categories)}, {"min", JsonNumber(l->lo)},
+               {"max", JsonNumber(l->hi)}, {"values", values}});
 }
 
-HttpResponse QueryRoute(SweepCoordinator* c, const HttpRequest& req) {
+HttpResponse QueryRoute(SweepCoordinator* c, DashboardCache* cache, const HttpRequest& req) {
   auto p = Params(req);
   if (!p.ok()) return Error(p.status());
   auto s = ResolveSweep(c, *p);
   if (!s.ok()) return Error(s.status());
   std::vector<std::string> names;
   for (const Axis& ax : s->spec.axes) names.push_back(ax.name);
-  const auto metrics = MapMetrics(s->spec);
+  const auto metrics = MapMetrics(s->spec, Published(s->info));
   for (const std::string& m : metrics) names.push_back(m);
   auto q = Query::Parse(Get(*p, "q"), names);
   if (!q.ok()) return Error(q.status());
-  std::map<int, MapArray> loaded;
+  // The slice shown (the same parameters as /api/map) picks the cells to mark: checked before loading.
+  const MapArray shape = ShapeOf(s->spec);
+  auto sl = ParseSlice(*p, shape);
+  if (!sl.ok()) return Error(sl.status());
+  std::map<int, Loaded> loaded;
   bool partial = false;
   for (int v : q->used()) {
     if (v < static_cast<int>(s->spec.axes.size())) continue;
-    auto a = LoadMetric(c, *s, names[v], &partial);
-    if (!a.ok()) return Error(a.status());
-    loaded.emplace(v, std::move(*a));
+    auto l = LoadMetric(c, cache, *s, names[v]);
+    if (!l.ok()) return Error(l.status());
+    if (l->array->values.empty()) return Error(Status::FailedPrecondition(l->note));
+    partial = partial || l->partial;
+    loaded.emplace(v, std::move(*l));
   }
-  // The slice shown (the same parameters as /api/map) picks the cells to mark.
-  MapArray shape;
-  shape.axes = s->spec.axes;
-  for (const Axis& ax : shape.axes) shape.dims.push_back(ax.values.size()), shape.dim_names.push_back(ax.name);
   const size_t per_point = static_cast<size_t>(s->spec.ic_count());
-  if (per_point > 1) shape.dims.push_back(per_point), shape.dim_names.push_back("ic");
-  auto sl = ParseSlice(*p, shape);
-  if (!sl.ok()) return Error(sl.status());
-  const size_t nx = sl->x >= 0 ? shape.dims[sl->x] : 1, ny = sl->y >= 0 ? shape.dims[sl->y] : 1;
-  std::vector<int> mask(nx * ny, 0);
-  auto column = [&](int v) -> const std::vector<double>& { return loaded.at(v).values; };
+  std::vector<int> mask(sl->nx * sl->ny, 0);
+  auto column = [&](int v) -> const std::vector<double>& { return loaded.at(v).array->values; };
   const QueryScan scan = ScanQuery(*q, s->spec.axes, per_point, column, [&](size_t item, const std::vector<size_t>& idx) {
     for (size_t d = 0; d < s->spec.axes.size(); ++d)
       if (static_cast<int>(d) != sl->x && static_cast<int>(d) != sl->y && idx[d] != sl->fixed[d]) return;
     if (per_point > 1 && item % per_point != sl->fixed.back()) return;
-    mask[(sl->y >= 0 ? idx[sl->y] * nx : 0) + (sl->x >= 0 ? idx[sl->x] : 0)] = 1;
+    if ((sl->x >= 0 && idx[sl->x] % sl->sx) || (sl->y >= 0 && idx[sl->y] % sl->sy)) return;  // not a shown cell
+    mask[(sl->y >= 0 ? idx[sl->y] / sl->sy * sl->nx : 0) + (sl->x >= 0 ? idx[sl->x] / sl->sx : 0)] = 1;
   });
   return Json({{"sweep", s->id}, {"count", scan.count}, {"total", scan.total}, {"fraction", scan.fraction},
-               {"area_fraction", scan.area_fraction}, {"partial", partial}, {"mask", mask}});
+               {"area_fraction", scan.area_fraction}, {"partial", partial}, {"stride", {{"x", sl->sx}, {"y", sl->sy}}},
+               {"mask", mask}});
 }
 
 std::string Num(double v) {
@@ -338,7 +449,7 @@ std::string PointCommand(const PointSpec& s, std::string* note) {
   return cmd;
 }
 
-HttpResponse CellRoute(SweepCoordinator* c, const HttpRequest& req) {
+HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, const HttpRequest& req) {
   auto p = Params(req);
   if (!p.ok()) return Error(p.status());
   auto s = ResolveSweep(c, *p);
@@ -357,6 +468,30 @@ HttpResponse CellRoute(SweepCoordinator* c, const HttpRequest& req) {
   json j = {{"sweep", s->id}, {"point", *point}, {"ic", *ic}, {"result", PointJson(spec, *r)}};
   j["command"] = PointCommand(spec, &note);
   j["command_note"] = note;
+  // A refined map: how the map got this cell. Where it was interpolated (or filled from a chaotic-mixed
+  // cell's corner), the map's values are not this computation's: say so.
+  if (s->spec.refine.enabled()) {
+    json fill = nullptr;
+    std::string refine_note;
+    if (Published(s->info)) {
+      auto l = LoadMetric(c, cache, *s, kRefineFill);
+      const size_t item = static_cast<size_t>(*point) * static_cast<size_t>(s->spec.ic_count()) + static_cast<size_t>(*ic);
+      if (l.ok() && item < l->array->values.size()) {
+        const double code = l->array->values[item];
+        for (const Category& k : RefineFillCategories())
+          if (code == k.code) fill = k.name;
+        if (code == static_cast<int>(RefineFill::kInterpolated))
+          refine_note = "this cell was interpolated in the refined map (not computed there); the values shown are computed now at this point";
+        else if (code == static_cast<int>(RefineFill::kChaoticMixed))
+          refine_note = "this cell lies in a chaotic-mixed region of the refined map (its map values are a corner's, not computed here); "
+                        "the values shown are computed now at this point";
+      }
+    } else {
+      refine_note = "refined sweep still running: the map holds computed points only; the values shown are computed now at this point";
+    }
+    j["refine_fill"] = fill;
+    j["refine_note"] = refine_note;
+  }
   json at = json::object();
   const std::vector<int> idx = s->spec.AxisIndices(*point);
   for (size_t k = 0; k < s->spec.axes.size(); ++k) at[s->spec.axes[k].name] = s->spec.axes[k].values[idx[k]];
@@ -400,8 +535,17 @@ HttpResponse SessionRoute(const TokenStore* tokens, const HttpRequest& req) {
 
 }  // namespace
 
+HttpHandler LoopbackHostOnly(HttpHandler handler) {
+  return [handler = std::move(handler)](const HttpRequest& req) {
+    if (!IsLoopbackHost(req.host))  // the header is not echoed
+      return Json({{"error", "misdirected request: without tokens this server answers only Host localhost, 127.0.0.1 or [::1]"}}, 421);
+    return handler(req);
+  };
+}
+
 std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens) {
   std::map<std::string, HttpHandler> routes;
+  auto cache = std::make_shared<DashboardCache>();
   for (const EmbeddedFile& f : DashboardAssets()) {
     HttpResponse r{200, std::string(f.content_type), std::string(f.bytes), {}};
     r.headers.push_back({"Content-Security-Policy", "default-src 'self'; img-src 'self' data:; frame-ancestors 'none'"});
@@ -424,9 +568,12 @@ std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const To
   };
   routes["/api/sweeps"] = guarded([c](const HttpRequest&) { return SweepsRoute(c); });
   routes["/api/sweep"] = guarded([c](const HttpRequest& req) { return SweepRoute(c, req); });
-  routes["/api/map"] = guarded([c](const HttpRequest& req) { return MapRoute(c, req); });
-  routes["/api/query"] = guarded([c](const HttpRequest& req) { return QueryRoute(c, req); });
-  routes["/api/cell"] = guarded([c](const HttpRequest& req) { return CellRoute(c, req); });
+  routes["/api/map"] = guarded([c, cache](const HttpRequest& req) { return MapRoute(c, cache.get(), req); });
+  routes["/api/query"] = guarded([c, cache](const HttpRequest& req) { return QueryRoute(c, cache.get(), req); });
+  routes["/api/cell"] = guarded([c, cache](const HttpRequest& req) { return CellRoute(c, cache.get(), req); });
+  // Without tokens, only requests that name the loopback (DNS rebinding: a page elsewhere names its own host).
+  if (!tokens->enabled())
+    for (auto& [path, handler] : routes) handler = LoopbackHostOnly(std::move(handler));
   return routes;
 }
 

@@ -22,8 +22,14 @@
 
 namespace bistable {
 
-// The dashboard's routes over `c` (both must outlive the server). `tokens` disabled: open (loopback).
+// The dashboard's routes over `c` (both must outlive the server). `tokens` disabled: open (loopback),
+// and every route answers only requests whose Host names the loopback (LoopbackHostOnly).
 std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens);
+
+// `handler` for requests whose Host header is localhost, 127.0.0.1 or [::1] (any port); others get 421
+// and a JSON error that does not echo the header. A server without tokens serves data through this, so
+// that a web page elsewhere cannot read it by DNS rebinding (net/http_server.h: IsLoopbackHost).
+HttpHandler LoopbackHostOnly(HttpHandler handler);
 
 // The cookie /api/session sets (HttpOnly, SameSite=Strict, Secure over TLS).
 inline constexpr const char* kDashboardCookie = "bistable_token";

@@ -918,12 +918,18 @@ StatusOr<std::vector<double>> SweepCoordinator::StoredValues(const std::string& 
     const MetricSettings& ms = it->second.spec.base.metrics;
     width = PointRecord::Size(ms.turning_points, ms.poincare_points);
   }
-  auto found = Db()->LookupPoints(keys, width);
-  if (!found.ok()) return found.status();
+  // In batches, each its own read transaction under db_mu_: reports committing meanwhile wait for one
+  // batch at most, not for the whole sweep.
+  constexpr size_t kBatch = 16384;
   const size_t mi = MetricIndex(m->name);
   std::vector<double> out(points.empty() ? keys.size() : static_cast<size_t>(items), std::numeric_limits<double>::quiet_NaN());
-  for (size_t i = 0; i < keys.size(); ++i)
-    if (auto f = found->find(keys[i]); f != found->end()) out[points.empty() ? i : static_cast<size_t>(points[i])] = f->second.v[mi];
+  for (size_t b = 0; b < keys.size(); b += kBatch) {
+    const std::vector<std::string> batch(keys.begin() + static_cast<long>(b), keys.begin() + static_cast<long>(std::min(keys.size(), b + kBatch)));
+    auto found = Db()->LookupPoints(batch, width);
+    if (!found.ok()) return found.status();
+    for (size_t i = b; i < b + batch.size(); ++i)
+      if (auto f = found->find(keys[i]); f != found->end()) out[points.empty() ? i : static_cast<size_t>(points[i])] = f->second.v[mi];
+  }
   return out;
 }
 
@@ -987,10 +993,17 @@ std::vector<WorkerInfo> SweepCoordinator::Workers() const {
 }
 
 StatusOr<std::string> SweepCoordinator::SpecText(const std::string& sweep_id) const {
-  std::lock_guard<std::mutex> lock(mu_);
-  auto it = sweeps_.find(sweep_id);
-  if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
-  return it->second.spec.source;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = sweeps_.find(sweep_id);
+    if (it != sweeps_.end()) return it->second.spec.source;
+  }
+  // A sweep this process holds no plan of (finished before a restart, or never submitted here): the
+  // spec as stored in its index row.
+  auto row = Db()->GetSweep(sweep_id);
+  if (!row.ok()) return row.status();
+  if (!row.value() || row.value()->id != sweep_id) return Status::NotFound("no sweep '" + sweep_id + "'");
+  return row.value()->spec;
 }
 
 SweepProgress SweepCoordinator::progress(const std::string& sweep_id) const {

@@ -131,12 +131,13 @@ class SweepCoordinator {
   StatusOr<std::string> ResolveId(const std::string& id_or_prefix) const;
   // Every sweep of the index, oldest first, as Info reports it.
   StatusOr<std::vector<SweepInfo>> ListSweeps() const;
-  // The spec text (TOML) of a sweep, for workers that parse it themselves.
+  // The spec text (TOML) of a sweep, for workers that parse it themselves and the dashboard: the plan's
+  // in memory, else the index row's (a sweep finished before this process started).
   StatusOr<std::string> SpecText(const std::string& sweep_id) const;
   SweepProgress progress(const std::string& sweep_id) const;
   // What is stored so far of a planned (queued or running) sweep: scalar metric `metric` (a catalog
   // name) for every item in grid order (point · ic_count + ic; a refined sweep: every grid point), NaN where nothing is stored yet,
-  // looked up by content key in the point cache (one read transaction). NotFound when the sweep has no
+  // looked up by content key in the point cache (read transactions of at most 16,384 keys each). NotFound when the sweep has no
   // plan in memory (published, cancelled or unknown: read its map file instead). For live views.
   StatusOr<std::vector<double>> StoredValues(const std::string& sweep_id, const std::string& metric) const;
   const std::string& data_dir() const { return data_dir_; }

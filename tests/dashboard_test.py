@@ -208,28 +208,52 @@ def figure(name):
     return os.path.join(FIGURES, f"dashboard-{name}.png") if FIGURES else None
 
 
-def open_coordinator(tmp):
-    """Coordinator (open, loopback) + one worker; a small published sweep."""
-    data = os.path.join(tmp, "data")
+def open_coordinator(tmp, data_name="data", worker=True):
+    """Coordinator (open, loopback) + one worker; returns its gRPC address, dashboard URL and process."""
+    data = os.path.join(tmp, data_name)
     coord, (grpc_port,) = start([COORD, "--listen", "127.0.0.1:0", "--data", data, "--http", "127.0.0.1:0",
                                  "--log-level", "warn"], r"listening on 127\.0\.0\.1:(\d+)")
     http_port = re.search(r":(\d+)/", coord.stdout.readline()).group(1)
     addr = "127.0.0.1:" + grpc_port
-    worker = subprocess.Popen([WORKER, "--coordinator", addr, "--threads", "1", "--log-level", "warn"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    procs.append(worker)
-    return addr, "http://127.0.0.1:" + http_port
+    if worker:
+        w = subprocess.Popen([WORKER, "--coordinator", addr, "--threads", "1", "--log-level", "warn"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        procs.append(w)
+    return addr, "http://127.0.0.1:" + http_port, coord
+
+
+def stop(p, sig=signal.SIGTERM):
+    p.send_signal(sig)
+    try:
+        p.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.wait()
+
+
+def write_spec(tmp, name, na, no, t_end, t_keep, extra_toml=""):
+    path = os.path.join(tmp, name.replace(" ", "_") + ".toml")
+    with open(path, "w") as f:
+        f.write(SPEC.format(name=name, na=na, no=no, t_end=t_end, t_keep=t_keep) + extra_toml)
+    return path
 
 
 def submit(addr, tmp, name, na, no, t_end, t_keep, env=None, extra=()):
-    path = os.path.join(tmp, name + ".toml")
-    with open(path, "w") as f:
-        f.write(SPEC.format(name=name, na=na, no=no, t_end=t_end, t_keep=t_keep))
+    path = write_spec(tmp, name, na, no, t_end, t_keep)
     return run([BISTABLE, "submit", path, "--coordinator", addr, "--json", *extra], env=env)
 
 
+def api(base, route, host=None):
+    """GET base + route as JSON: (status, parsed body or raw text)."""
+    status, body, _ = get(base + route, {"Host": host} if host else None)
+    try:
+        return status, json.loads(body)
+    except ValueError:
+        return status, body
+
+
 def browser_checks(tmp):
-    addr, base = open_coordinator(tmp)
+    addr, base, coord = open_coordinator(tmp)
     r = submit(addr, tmp, "published map", 16, 20, 200.0, 100.0)
     assert r.returncode == 0, r.stderr
     done_id = json.loads(r.stdout)["id"]
@@ -244,6 +268,7 @@ def browser_checks(tmp):
     check(b.wait("window.dashboard.state.map && window.dashboard.state.map.metric === 'frf_db'") is not None, "the frf_db map loads")
     time.sleep(0.3)
     m = b.eval("window.dashboard.state.map")
+    m0_values = m["values"]
     rect = b.eval("(() => { const r = document.getElementById('map').getBoundingClientRect(); return [r.left, r.top]; })()")
     shot = b.screenshot(figure("map"))
     nx, ny = len(m["x"]["values"]), len(m["y"]["values"])
@@ -296,7 +321,8 @@ def browser_checks(tmp):
     b.screenshot(figure("motion"))
 
     # A running sweep: its progress advances on the page and its map fills in.
-    r = submit(addr, tmp, "running map", 100, 120, 400.0, 200.0)
+    # (long enough to be seen running: the server caches a live map for 2 s)
+    r = submit(addr, tmp, "running map", 100, 120, 1200.0, 600.0)
     run_id = json.loads(r.stdout)["id"]
     b.eval(f"window.dashboard.openSweep('{run_id}')")
     progress = f"(() => {{ const r = document.querySelector('#sweeps tr[data-id=\"{run_id}\"]'); return r ? r.children[5].textContent : ''; }})()"
@@ -307,9 +333,136 @@ def browser_checks(tmp):
     check(partial is not None, "the running sweep's map is partial: some cells stored, some not yet")
     b.screenshot(figure("running"))
     run([BISTABLE, "cancel", run_id, "--coordinator", addr])
+
+    # A map with an axis over 1024 values is decimated on the server (every 2nd omega of 1500); hover
+    # and click map the shown cell to the sweep's own point index.
+    r = submit(addr, tmp, "long axis", 2, 1500, 20.0, 10.0)
+    long_id = json.loads(r.stdout)["id"]
+    w = run([BISTABLE, "status", long_id, "--coordinator", addr, "--watch", "--json"])
+    check('"done"' in w.stdout, "the long-axis sweep is published")
+    status, m = api(base, f"/api/map?id={long_id}&metric=frf_db&x=omega&y=alpha")
+    check(status == 200 and m["stride"] == {"x": 2, "y": 1} and len(m["x"]["values"]) == 750 and m["x"]["size"] == 1500
+          and len(m["values"]) == 2 * 750, f"a 1500-value axis is shown every 2nd value (stride {m.get('stride') if status == 200 else m})")
+    if status == 200:
+        want = 0.2 + 20 * (2.5 - 0.2) / 1499
+        check(abs(m["x"]["values"][10] - want) < 1e-12, f"shown x value 10 is omega[20] = {want}: {m['x']['values'][10]}")
+    b.eval(f"window.dashboard.openSweep('{long_id}')")
+    b.eval("document.getElementById('metric').value = 'frf_db'; document.getElementById('metric').onchange(); 1")
+    got = b.wait(f"window.dashboard.state.map && window.dashboard.state.map.sweep === '{long_id}' && window.dashboard.state.map.metric === 'frf_db' "
+                 "&& window.dashboard.state.map.x.stride === 2")
+    item = b.eval("window.dashboard.itemOf({ix: 10, iy: 1})") if got else None
+    check(item is not None and item["point"] == 1 * 1500 + 20, f"shown cell (10, 1) of the decimated map is point 1520: {item}")
+    note = b.eval("document.getElementById('map-state').textContent")
+    check(note is not None and "1 of every 2 cells shown along x" in note, f"the page says the map is decimated: {note!r}")
     time.sleep(1.5)
     check(not b.errors, "no console errors: " + "; ".join(b.errors))
     b.close()
+
+    # The coordinator restarted on the same data: every sweep published before is served (spec from the index).
+    stop(coord)
+    addr, base, coord = open_coordinator(tmp)
+    for route in (f"/api/sweep?id={done_id}", f"/api/map?id={done_id}&metric=frf_db", f"/api/query?id={done_id}&q=frf_db%20%3C%200",
+                  f"/api/cell?id={done_id}&point=3&ic=0"):
+        status, body = api(base, route)
+        check(status == 200 and done_id in json.dumps(body), f"after a restart {route.split('?')[0]} serves the earlier sweep -> {status}")
+    status, body = api(base, f"/api/map?id={done_id}&metric=frf_db")
+    check(status == 200 and body["values"] == m0_values, "after a restart the map is the one published before")
+
+
+def serve_checks(tmp):
+    """Tokenless servers: Host names other than the loopback's are refused (DNS rebinding); a sweep too big
+    for a live map says so instead of looking every item up; `bistable run --serve` serves the sweeps
+    of earlier runs of its data directory, and a refined sweep's refine_level / refine_fill."""
+    addr, base, coord = open_coordinator(tmp, "data-bare", worker=False)
+    # 513 x 513 = 263,169 items > 2^18: planned (no worker), its partial map is not looked up.
+    r = submit(addr, tmp, "too big to watch", 513, 513, 20.0, 10.0)
+    check(r.returncode == 0, "a 513 x 513 sweep is submitted: " + r.stderr.strip()[:80])
+    big = json.loads(r.stdout)["id"] if r.returncode == 0 else "0"
+    t0 = time.time()
+    status, m = api(base, f"/api/map?id={big}&metric=frf_db")
+    check(status == 200 and m["partial"] and "not shown above 262144 items" in m["note"] and all(v is None for v in m["values"])
+          and m["stride"] == {"x": 1, "y": 1} and len(m["values"]) == 513 * 513,
+          f"a running sweep over 2^18 items: no live lookup, a note instead ({time.time() - t0:.2f} s): {m.get('note') if status == 200 else m}")
+    status, q = api(base, f"/api/query?id={big}&q=frf_db%20%3C%200")
+    check(status == 409 and "not shown above" in q.get("error", ""), f"its query says why it has no answer -> {status}")
+    status, info = api(base, f"/api/sweep?id={big}")
+    check(status == 200 and info["live_map"] is False, "/api/sweep says the live map is off")
+    # DNS rebinding: a page elsewhere reaches the tokenless port under its own host name.
+    port = base.rsplit(":", 1)[1]
+    for route in ("/api/sweeps", f"/api/sweep?id={big}", f"/api/map?id={big}&metric=frf_db", "/", "/app.js", "/metrics"):
+        status, body = api(base, route, host="evil.example:" + port)
+        text = json.dumps(body)
+        check(status == 421 and big not in text and "evil" not in text and "frf" not in text and len(text) < 200,
+              f"Host evil.example: {route} -> {status}, no data, header not echoed")
+    for host in ("localhost:" + port, "127.0.0.1:" + port, "[::1]:" + port, "localhost"):
+        status, body = api(base, "/api/sweeps", host=host)
+        check(status == 200 and big in json.dumps(body), f"Host {host}: served")
+    status, body = api(base, "/healthz", host="evil.example")
+    check(status == 200, "/healthz answers any host (no data)")
+    run([BISTABLE, "cancel", big, "--coordinator", addr])
+    stop(coord)
+
+    # `bistable run --serve`: an earlier run's sweeps of the data directory, and a refined sweep.
+    data = os.path.join(tmp, "data-run")
+    refined = write_spec(tmp, "refined", 17, 17, 100.0, 50.0, '[refine]\nlevels = 2\ncriterion = "motion"\nmixed_after = 2\n')
+    r = run([BISTABLE, "run", refined, "--data", data, "--no-plots", "--json", "--quiet"])
+    check(r.returncode == 0, "a refined sweep runs: " + r.stderr.strip()[:120])
+    ref_id = json.loads(r.stdout)["id"] if r.returncode == 0 else "0"
+    other = write_spec(tmp, "served", 3, 3, 20.0, 10.0)
+    p = subprocess.Popen([BISTABLE, "run", other, "--data", data, "--no-plots", "--quiet", "--serve", "127.0.0.1:0"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    procs.append(p)
+    m = re.search(r"dashboard on (http://127\.0\.0\.1:\d+)/", p.stderr.readline())
+    check(m is not None, "bistable run --serve prints its dashboard address")
+    if not m:
+        return
+    sbase = m.group(1)
+    status, info = api(sbase, f"/api/sweep?id={ref_id}")
+    names = [x["name"] for x in info.get("metrics", [])] if status == 200 else []
+    check(status == 200 and "refine_level" in names and "refine_fill" in names,
+          f"run --serve opens a sweep of an earlier run, and offers refine_level/refine_fill: {status} {names}")
+    status, fill = api(sbase, f"/api/map?id={ref_id}&metric=refine_fill")
+    k_interp, nx = None, 17
+    check(status == 200 and [c[1] for c in fill["categories"]] == ["computed", "interpolated", "chaotic_mixed"],
+          f"refine_fill is a category map -> {status}")
+    status, level = api(sbase, f"/api/map?id={ref_id}&metric=refine_level")
+    check(status == 200 and level["min"] is not None and level["min"] == 0 and level["max"] == 2,
+          f"refine_level map -> {status} ({level.get('min') if status == 200 else ''} .. {level.get('max') if status == 200 else ''})")
+    if status == 200 and fill.get("values"):
+        nx = len(fill["x"]["values"])
+        k = k_interp = next((k for k, v in enumerate(fill["values"]) if v == 1), None)
+        check(k is not None, "the refined map has interpolated cells")
+        if k is not None:
+            point = (k // nx) * 17 + k % nx  # y = alpha (first axis), x = omega
+            status, cell = api(sbase, f"/api/cell?id={ref_id}&point={point}&ic=0")
+            check(status == 200 and cell["refine_fill"] == "interpolated" and "interpolated" in cell["refine_note"]
+                  and "computed now" in cell["refine_note"], f"an interpolated cell says so: {cell.get('refine_note') if status == 200 else cell}")
+        k = fill["values"].index(0)
+        status, cell = api(sbase, f"/api/cell?id={ref_id}&point={(k // nx) * 17 + k % nx}&ic=0")
+        check(status == 200 and cell["refine_fill"] == "computed" and cell["refine_note"] == "", "a computed cell has no note")
+    status, _ = api(sbase, "/api/sweeps", host="attacker.example")
+    check(status == 421, f"run --serve refuses a foreign Host -> {status}")
+    # On the page: the refine_fill map, and a clicked interpolated cell marked as such above its values.
+    if status and fill.get("values") and k_interp is not None:
+        os.makedirs(os.path.join(tmp, "browser2"), exist_ok=True)
+        b = Browser(os.path.join(tmp, "browser2"))  # a profile of its own (the first chromium still holds its own)
+        b.navigate(sbase + "/")
+        b.wait("document.querySelectorAll('#sweeps tbody tr').length >= 2")
+        b.eval(f"window.dashboard.openSweep('{ref_id}')")
+        b.eval("document.getElementById('metric').value = 'refine_fill'; document.getElementById('metric').onchange(); 1")
+        shown = b.wait(f"window.dashboard.state.map && window.dashboard.state.map.sweep === '{ref_id}' && window.dashboard.state.map.metric === 'refine_fill'")
+        check(shown is not None, "the page draws refine_fill")
+        rect = b.eval("(() => { const r = document.getElementById('map').getBoundingClientRect(); return [r.left, r.top]; })()")
+        cx, cy = b.eval(f"window.dashboard.cellCenter({k_interp % nx}, {k_interp // nx})")
+        b.click(rect[0] + 1 + cx, rect[1] + 1 + cy)
+        note = b.wait("window.dashboard.state.cell && !document.getElementById('cell-refine').hidden && document.getElementById('cell-refine').textContent", 30)
+        check(note is not None and "interpolated" in note and "computed now" in note, f"the page marks the interpolated cell: {note!r}")
+        b.eval("document.getElementById('cell-view').scrollIntoView(); window.scrollBy(0, -420); 1")
+        time.sleep(0.3)
+        b.screenshot(figure("refined"))
+        check(not b.errors, "no console errors: " + "; ".join(b.errors))
+        b.close()
+    stop(p, signal.SIGINT)  # Ctrl-C ends the run's serving
 
 
 def auth_checks(tmp):
@@ -367,6 +520,7 @@ def main():
     t0 = time.time()
     try:
         browser_checks(tmp)
+        serve_checks(tmp)
         auth_checks(tmp)
     finally:
         for p in reversed(procs):

@@ -5,6 +5,7 @@
 #include <complex>
 #include <filesystem>
 #include <fstream>
+#include <set>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -105,6 +106,38 @@ TEST(DesignSpec, ShippedDesignExamplesParse) {
   EXPECT_GE(found, 1);
 }
 
+// The design id (and so the report directory DATA/designs/<id>) hashes an unambiguous text of
+// everything that determines the result: bounds that join to the same digits, cost, maps, map_alpha.
+TEST(DesignSpec, IdSeparatesEveryFieldThatChangesTheResult) {
+  auto with = [](const std::string& key, const std::string& line) {
+    std::string text = kLinearTmd;
+    const size_t at = text.find("\n" + key + " ");
+    if (at != std::string::npos) text.erase(at + 1, text.find('\n', at + 1) - at);
+    auto s = ParseDesignSpec(text + line + "\n", "t.toml");
+    EXPECT_TRUE(s.ok()) << line << ": " << s.status().ToString();
+    return s.ok() ? s->id : std::string();
+  };
+  const std::string base = with("budget", "budget = 40");
+  EXPECT_EQ(base.size(), 12u);
+  EXPECT_EQ(with("budget", "budget = 40"), base);  // deterministic
+  // lo 0.1, hi 12 and lo 0.11, hi 2 once joined to the same "0.112".
+  const std::string a = with("bounds", "bounds = { lambda = [0.5, 1.5], phi = [0.1, 12], eta_r = [0.01, 0.5] }");
+  const std::string b = with("bounds", "bounds = { lambda = [0.5, 1.5], phi = [0.11, 2], eta_r = [0.01, 0.5] }");
+  EXPECT_NE(a, b);
+  std::set<std::string> ids = {base, a, b};
+  for (const auto& [key, line] : std::vector<std::pair<std::string, std::string>>{
+           {"cost", "cost = \"lambda\""},
+           {"maps", "maps = 1"},
+           {"map_alpha", "map_alpha = { linspace = [0.1, 2.0, 7] }"},
+           {"seed", "seed = 2"},
+           {"optimizer", "optimizer = \"crs2\""},
+           {"budget", "budget = 41"},
+           {"bounds", "bounds = { lambda = [0.5, 1.5], phi = [0.05, 0.5], eta_r = [0.01, 0.50000000000001] }"}}) {
+    const std::string id = with(key, line);
+    EXPECT_TRUE(ids.insert(id).second) << line << " shares id " << id;
+  }
+}
+
 TEST(DesignScore, BandIsTheMeasureBelowZeroDbWithChaosCounted) {
   const std::vector<double> w = {1, 2, 3, 4};
   // g: +1, -1 (crossing at 1.5), -1, +3 (crossing at 3.25): band [1.5, 3.25] = 1.75.
@@ -122,6 +155,27 @@ TEST(DesignScore, BandIsTheMeasureBelowZeroDbWithChaosCounted) {
   EXPECT_DOUBLE_EQ(s.chaotic_share_band, 0.5);
   EXPECT_DOUBLE_EQ(s.chaotic_share, 0.25);
   EXPECT_DOUBLE_EQ(s.safe_band_width, 0.25);  // only [3, 3.25] is left
+  EXPECT_DOUBLE_EQ(s.unsafe_share_band, 0.5);
+  // A diverged band point (motion undefined, FRF finite): not chaotic, but unsafe; the front sees it.
+  const std::vector<double> diverged = {0, -1, 0, 0};
+  s = ScoreDesign(w, 1, f, diverged, lle, 0.01);
+  EXPECT_FALSE(s.feasible());
+  EXPECT_DOUBLE_EQ(s.chaotic_share_band, 0);
+  EXPECT_DOUBLE_EQ(s.unsafe_share_band, 0.5);
+  Candidate wide_diverged, clean;
+  wide_diverged.score = s;
+  wide_diverged.cost = clean.cost = 1;
+  clean.score = ScoreDesign(w, 1, f, calm, lle, 0.01);
+  wide_diverged.score.band_width = clean.score.band_width + 0.5;  // wider, but with a diverged band point
+  wide_diverged.x = {1, 1, 1};
+  clean.x = {2, 2, 2};
+  clean.index = 1;
+  EXPECT_FALSE(Dominates(wide_diverged, clean));
+  EXPECT_FALSE(Dominates(clean, wide_diverged));
+  EXPECT_EQ(ParetoFront({wide_diverged, clean}).size(), 2u);  // the clean design stays on the front
+  Candidate narrower_diverged = wide_diverged;
+  narrower_diverged.score.band_width = clean.score.band_width;
+  EXPECT_TRUE(Dominates(clean, narrower_diverged));  // same band, no unsafe point: dominates
   // Several amplitudes: the band must hold at each (the max over alpha).
   const std::vector<double> two = {1, -1, -1, 3, 1, 1, -1, 3};
   s = ScoreDesign(w, 2, two, std::vector<double>(8, 0), std::vector<double>(8, -1), 0.01);
@@ -201,7 +255,8 @@ TEST(DesignCli, JsonContractAndBadFlags) {
   ASSERT_EQ(j["candidates"].size(), 8u);
   for (const auto& c : j["candidates"]) {
     EXPECT_EQ(c["sweep_id"].get<std::string>().size(), 12u);
-    for (const char* k : {"design", "cost", "band_width", "chaotic_share_band", "chaotic_share", "feasible", "items", "computed"})
+    for (const char* k : {"design", "cost", "band_width", "chaotic_share_band", "unsafe_share_band", "chaotic_share", "feasible", "items",
+                          "computed"})
       EXPECT_TRUE(c.contains(k)) << k;
   }
   EXPECT_EQ(j["search"]["points"].get<long>(), 8 * 29);

@@ -389,6 +389,16 @@ TEST(HttpServer, QueryStringsAndCookies) {
   EXPECT_EQ(bistable::CookieValue("", "bistable_token"), "");
 }
 
+// The Host names a tokenless dashboard answers (DNS rebinding: a page elsewhere sends its own host name).
+TEST(HttpServer, LoopbackHostsOnly) {
+  for (const char* ok : {"localhost", "LocalHost:8080", "127.0.0.1", "127.0.0.1:65535", "[::1]", "[::1]:80"})
+    EXPECT_TRUE(bistable::IsLoopbackHost(ok)) << ok;
+  for (const char* bad : {"", "evil.example", "evil.example:8080", "localhost.evil.example", "127.0.0.1.nip.io", "127.0.0.2",
+                          "localhost:", "localhost:80x", "localhost:123456", "[::1", "[::1]x", "[::2]:80", "::1", "0.0.0.0",
+                          "localhost.", " localhost", "127.0.0.1:80:80"})
+    EXPECT_FALSE(bistable::IsLoopbackHost(bad)) << bad;
+}
+
 // ---- structured logs ----
 
 TEST(Log, FieldsFromHostileInputCannotForgeLines) {

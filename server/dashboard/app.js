@@ -131,13 +131,17 @@ function fillAxisSelect(sel, names, def) {
   sel.value = names.includes(keep) ? keep : def;
 }
 
-// A select for every dimension that is neither x nor y: the other axes, and the initial condition.
+// A select for every dimension that is neither x nor y: the other axes, and the item dimension by the
+// name the map files give it (/api/sweep's item_dim: "ic", or "direction" for up/down continuation).
 function buildFixed() {
   const box = $('fixed');
   box.replaceChildren();
   const info = state.info, x = $('x-axis').value, y = $('y-axis').value;
   const dims = info.axes.map((a) => ({ name: a.name, labels: a.values.map((v) => fmt(v)) }));
-  if (info.ic_count > 1) dims.push({ name: 'ic', labels: [...Array(info.ic_count).keys()].map(String) });
+  if (info.item_dim) {
+    const n = info.ic_count, labels = info.item_dim === 'direction' ? ['up', 'down'] : [...Array(n).keys()].map(String);
+    dims.push({ name: info.item_dim, labels: labels.slice(0, n) });
+  }
   for (const d of dims) {
     if (d.name === x || d.name === y) continue;
     const sel = el('select');
@@ -163,7 +167,12 @@ async function drawMap() {
   if (!state.info || !state.info.metrics.length) return;
   try {
     state.map = await api('map', sliceParams());
-    $('map-state').textContent = state.map.partial ? 'partial: what is stored so far (grey: not yet)' : '';
+    const m = state.map, notes = [];
+    if (m.note) notes.push(m.note);
+    else if (m.partial) notes.push('partial: what is stored so far (grey: not yet)');
+    for (const [k, a] of [['x', m.x], ['y', m.y]])  // a slice side over 1024 cells: every stride-th shown
+      if (a && a.stride > 1) notes.push('decimated: 1 of every ' + a.stride + ' cells shown along ' + k + ' (' + a.values.length + ' of ' + a.size + ')');
+    $('map-state').textContent = notes.join('; ');
   } catch (e) {
     state.map = null;
     $('map-state').textContent = e.message;
@@ -173,7 +182,7 @@ async function drawMap() {
 }
 
 // ---- the heatmap ----
-const M = { left: 80, right: 110, top: 12, bottom: 44 };
+const M = { left: 80, right: 125, top: 12, bottom: 44 };  // right: the colour bar or legend (chaotic_mixed)
 
 function geometry() {
   const c = $('map'), m = state.map;
@@ -257,15 +266,17 @@ function cellAt(ev) {
   return { ix: Math.floor(px / g.cw), iy: g.ny - 1 - Math.floor(py / g.ch) };
 }
 
-// Row-major point index (last axis fastest) and initial condition of a slice cell.
+// Row-major point index (last axis fastest) and initial condition of a slice cell; a decimated slice
+// shows every stride-th cell, so shown cell ix is axis index ix * stride.
 function itemOf(cell) {
-  const info = state.info, x = $('x-axis').value, y = $('y-axis').value;
+  const info = state.info, x = $('x-axis').value, y = $('y-axis').value, m = state.map;
+  const sx = m && m.x ? m.x.stride : 1, sy = m && m.y ? m.y.stride : 1;
   let point = 0;
   for (const a of info.axes) {
-    const i = a.name === x ? cell.ix : a.name === y ? cell.iy : state.fixed[a.name] || 0;
+    const i = a.name === x ? cell.ix * sx : a.name === y ? cell.iy * sy : state.fixed[a.name] || 0;
     point = point * a.values.length + i;
   }
-  return { point, ic: info.ic_count > 1 ? state.fixed.ic || 0 : 0 };
+  return { point, ic: info.item_dim ? state.fixed[info.item_dim] || 0 : 0 };
 }
 
 function hover(ev) {
@@ -326,6 +337,8 @@ function showCell(d) {
   $('cell-title').textContent = 'cell ' + d.point + (d.ic ? ' (ic ' + d.ic + ')' : '') + ': ' + at;
   $('cell-command').textContent = d.command;
   $('cell-note').textContent = d.command_note;
+  $('cell-refine').textContent = d.refine_note || '';
+  $('cell-refine').hidden = !d.refine_note;
   const r = d.result, rows = d.series.rows;
   const tb = $('cell-metrics');
   tb.replaceChildren();
