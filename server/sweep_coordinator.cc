@@ -233,7 +233,7 @@ Status SweepCoordinator::BuildRefinedPlan(const SweepSpec& spec, long job_items,
   const size_t width = PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points);
   std::map<long, std::string> looked_up;  // keys of the points looked up now (the current round's)
   long corrupt_total = 0;
-  if (!carry.planner) carry = RefineCarry{std::make_shared<RefinePlanner>(spec), {}, {}};  // a walk from the start
+  if (!carry.planner) carry = RefineCarry{std::make_shared<RefinePlanner>(spec), {}, {}, false, 0, 0};  // a walk from the start
   auto step = carry.planner->Advance([&](const std::vector<long>& pts, std::vector<std::optional<RefineMark>>* classes) {
     classes->assign(pts.size(), std::nullopt);
     constexpr size_t kBatch = 65536;  // batches, each under the index lock on its own
@@ -289,10 +289,15 @@ Status SweepCoordinator::BuildRefinedPlan(const SweepSpec& spec, long job_items,
   if (!j.items.empty()) j.id = static_cast<long>(s.jobs.size()), s.jobs.push_back(std::move(j));
   for (const Job& job : s.jobs) s.queue.push_back(job.id);
   s.job_state.assign(s.jobs.size(), JobState::kQueued);
-  plan.items_total = static_cast<long>(s.points.size());  // grows level by level
-  plan.items_cached = plan.items_total - static_cast<long>(step->missing.size());
+  plan.items_total = static_cast<long>(s.points.size());  // grows round by round
   plan.jobs = static_cast<long>(s.jobs.size());
-  s.items_cached = s.items_done = plan.items_cached;
+  s.items_done = plan.items_total - static_cast<long>(step->missing.size());
+  s.refine_queued = static_cast<long>(step->missing.size());
+  // Reused from the cache: at the first plan, what was stored; later rounds add what they found stored
+  // beyond the items this coordinator computed for the round before (carry.computed).
+  const long found = static_cast<long>(looked_up.size()) - static_cast<long>(step->missing.size());
+  s.items_cached = carry.continued ? carry.cached + found - carry.computed : s.items_done;
+  plan.items_cached = s.items_cached;
   return Status::Ok();
 }
 
@@ -311,7 +316,12 @@ StatusOr<SweepPlan> SweepCoordinator::InstallLocked(Planned p, const std::string
     sweeps_[plan.id] = std::move(s);
     return plan;
   }
-  s.started = Clock();
+  // A plan that replaces a running plan of the sweep (a refinement round, a replan) keeps its start time.
+  auto prev = sweeps_.find(plan.id);
+  s.started = prev != sweeps_.end() && !prev->second.cancelled && prev->second.row.state == SweepState::kRunning &&
+                      prev->second.started > 0
+                  ? prev->second.started
+                  : Clock();
   s.row.id = plan.id;
   s.row.name = s.spec.name;
   s.row.model = s.spec.ModelLabel();
@@ -344,7 +354,8 @@ Status SweepCoordinator::Replan(const std::string& id) {
     owner = it->second.row.owner;
     job_items = it->second.job_items;
     if (it->second.refiner && !it->second.refine_complete)  // continue the walk: look up only the new round
-      carry = RefineCarry{it->second.refiner, it->second.points, it->second.keys};
+      carry = RefineCarry{it->second.refiner, it->second.points, it->second.keys, true, it->second.items_cached,
+                          it->second.refine_queued};
     generation = it->second.generation = ++generation_counter_;  // reports of the old plan store, but count nowhere
     it->second.queue.clear();                       // and nothing is leased while the new one is built
     RevokeLeasesLocked(id);

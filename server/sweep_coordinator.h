@@ -73,6 +73,16 @@ struct CoordinatorStats {
   std::vector<WorkerInfo> workers;
 };
 
+// A refined sweep's planner and keys carried from its last plan to the next round (Replan).
+struct RefineCarry {
+  std::shared_ptr<RefinePlanner> planner;
+  std::vector<long> points;
+  std::vector<std::string> keys;
+  bool continued = false;  // the sweep's last plan is continued (else a walk from the start)
+  long cached = 0;         // items the last plan counted as reused from the cache
+  long computed = 0;       // items the last plan queued (computed by this coordinator since)
+};
+
 class SweepCoordinator {
  public:
   struct Options {
@@ -153,7 +163,8 @@ class SweepCoordinator {
     std::vector<long> points;       // refined sweeps ([refine]): the grid points planned so far, ascending
     long job_items = 0;             // items per job as submitted (replans and refinement rounds keep it)
     std::shared_ptr<RefinePlanner> refiner;  // refined sweeps: the walk so far (engine/refine.h)
-    int refine_round = 0;           // refined sweeps: the round being computed (engine/refine.h)
+    int refine_round = 0;
+    long refine_queued = 0;         // refined sweeps: items this round queued (not found stored)           // refined sweeps: the round being computed (engine/refine.h)
     bool refine_complete = false;   // refined sweeps: every level stored, ready to publish
     std::vector<Job> jobs;
     std::vector<JobState> job_state;
@@ -179,12 +190,6 @@ class SweepCoordinator {
   SweepCoordinator(std::string dir, std::unique_ptr<IndexDb> db, Options opt)
       : data_dir_(std::move(dir)), db_(std::move(db)), opt_(opt), publisher_([this] { PublisherLoop(); }) {}
   // Plans a sweep against the point cache (keys, lookups in bounded batches, jobs). Without mu_.
-  // A refined sweep's planner and keys carried from its last plan to the next round (Replan).
-  struct RefineCarry {
-    std::shared_ptr<RefinePlanner> planner;
-    std::vector<long> points;
-    std::vector<std::string> keys;
-  };
   StatusOr<Planned> BuildPlan(const SweepSpec& spec, long job_items, RefineCarry carry = {});
   // Makes a built plan the sweep's current one (a new generation) and persists its row. Under mu_.
   StatusOr<SweepPlan> InstallLocked(Planned p, const std::string& owner);
