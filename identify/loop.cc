@@ -162,13 +162,12 @@ struct ForceEvidence {
   Eigen::VectorXd r0;             // residual force of the fitted model
   LinearFit base;                 // r0 on the declared columns
   double n_eff = 0;               // rows / correlation time
-  std::vector<double> step_of_col;  // typical parameter step of every column
 };
 
 ForceEvidence ForceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                             const Setup& setup, const std::vector<const TermDef*>& fresh) {
   const int p = m.NumParams();
-  ForceEvidence f{BuildRegression(m, recs, setup, fresh, 30000), {}, {}, 0, {}};
+  ForceEvidence f{BuildRegression(m, recs, setup, fresh, 30000), {}, {}, 0};
   const Regression& reg = f.reg;
   Eigen::VectorXd t(p);
   for (int i = 0; i < p; ++i) t[i] = th[i];
@@ -177,75 +176,37 @@ ForceEvidence ForceResidual(const IdentModel& m, const std::vector<double>& th, 
   Eigen::VectorXd d(p);
   for (int i = 0; i < p; ++i) d[i] = f.base.theta[i];
   f.n_eff = static_cast<double>(reg.X.rows()) / CorrTime(f.r0 - reg.X.leftCols(p) * d, reg.record_of_row);
-  // Typical parameter steps: a change worth 2 % of the RMS inertial force along the trajectory.
-  const double f_typ = std::sqrt(reg.b.squaredNorm() / std::max<double>(1.0, static_cast<double>(reg.b.size()))) + 1e-300;
-  f.step_of_col.resize(reg.X.cols());
-  for (long j = 0; j < reg.X.cols(); ++j) {
-    const double rms = reg.X.col(j).norm() / std::sqrt(static_cast<double>(std::max<long>(1, reg.X.rows())));
-    f.step_of_col[j] = rms > 0 ? 0.02 * f_typ / rms : 1e-6;
-  }
   return f;
 }
 
 // Deciding evidence: the simulation residual e of the fitted model, the output sensitivities J to its
-// parameters (central differences), and the part of −e they cannot explain (base).
+// parameters and Jc to every candidate's at zero (one sensitivity pass: exact derivatives of the
+// discrete simulation), and the part of −e that J cannot explain (base).
 struct SimulationEvidence {
   std::vector<int> sub;     // substeps held fixed for every simulation of the trace
   std::vector<double> e0;   // residual vector
   Eigen::VectorXd target;   // −e
-  Eigen::MatrixXd J;
+  Eigen::MatrixXd J, Jc;    // declared parameters; candidates' parameters (in `fresh` order)
   LinearFit base;           // target on J
   double n_eff = 0;         // samples / correlation time of what J leaves
 };
 
 // False when the fitted model diverges on a record.
 bool SimulationResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                        const Setup& setup, Objective obj, const std::vector<double>& step_of_col, SimulationEvidence* s) {
+                        const Setup& setup, Objective obj, const std::vector<const TermDef*>& fresh, SimulationEvidence* s) {
   const int p = m.NumParams();
   s->sub = FixedSubsteps(m, th, recs);
-  if (!ObjectiveResiduals(m, th, recs, setup, obj, s->sub, &s->e0)) return false;
+  Eigen::MatrixXd all;
+  if (!ObjectiveJacobian(m, th, recs, setup, obj, s->sub, fresh, &s->e0, &all)) return false;
   const long N = static_cast<long>(s->e0.size());
   s->target = -Eigen::Map<const Eigen::VectorXd>(s->e0.data(), N);
-  s->J.resize(N, p);
-  std::vector<double> ep, em;
-  for (int i = 0; i < p; ++i) {
-    const double h = 1e-4 * (std::abs(th[i]) > 0 ? std::abs(th[i]) : step_of_col[i]);
-    std::vector<double> a = th, b = th;
-    a[i] += h, b[i] -= h;
-    if (!ObjectiveResiduals(m, a, recs, setup, obj, s->sub, &ep) || !ObjectiveResiduals(m, b, recs, setup, obj, s->sub, &em)) {
-      s->J.col(i).setZero();
-      continue;
-    }
-    for (long k = 0; k < N; ++k) s->J(k, i) = (ep[k] - em[k]) / (2 * h);
-  }
+  s->J = all.leftCols(p);
+  s->Jc = all.rightCols(all.cols() - p);
   s->base = SolveRegression(s->J, s->target, std::vector<Sign>(p, Sign::kEither));
   Eigen::VectorXd db(p);
   for (int i = 0; i < p; ++i) db[i] = std::isfinite(s->base.theta[i]) ? s->base.theta[i] : 0.0;
   const Eigen::VectorXd e_base = s->target - s->J * db;
   s->n_eff = static_cast<double>(N) / CorrelationTimeOf(std::vector<double>(e_base.data(), e_base.data() + N));
-  return true;
-}
-
-// The output's sensitivity to candidate c's parameters at β = 0 (forward differences of the model
-// with c at steps `init_steps`, substeps no fewer than the trace's); false on divergence.
-bool CandidateSensitivity(const IdentModel& m, const std::vector<double>& th, const TermDef* c, const double* init_steps,
-                          const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj, const SimulationEvidence& sim,
-                          Eigen::MatrixXd* Jc) {
-  const int k = static_cast<int>(c->params.size());
-  const long N = static_cast<long>(sim.e0.size());
-  Jc->resize(N, k);
-  for (int j = 0; j < k; ++j) {
-    std::vector<double> init(k, 0.0);
-    init[j] = init_steps[j];
-    const IdentModel mc = m.With(c, init);
-    std::vector<int> subc = FixedSubsteps(mc, mc.theta, recs);
-    for (size_t r = 0; r < subc.size(); ++r) subc[r] = std::max(subc[r], sim.sub[r]);
-    std::vector<double> ec, e0c = sim.e0;
-    if (!ObjectiveResiduals(mc, mc.theta, recs, setup, obj, subc, &ec) ||
-        !(subc == sim.sub || ObjectiveResiduals(m, th, recs, setup, obj, subc, &e0c)))
-      return false;
-    for (long i = 0; i < N; ++i) (*Jc)(i, j) = (ec[i] - e0c[i]) / init[j];
-  }
   return true;
 }
 
@@ -281,7 +242,7 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
   const ForceEvidence force = ForceResidual(m, th, recs, setup, fresh);
   step.residual_rms = std::sqrt(force.r0.squaredNorm() / static_cast<double>(force.reg.X.rows()));
   SimulationEvidence sim;
-  if (!SimulationResidual(m, th, recs, setup, opt.fit.objective, force.step_of_col, &sim)) {
+  if (!SimulationResidual(m, th, recs, setup, opt.fit.objective, fresh, &sim)) {
     step.verdict = "the fitted model diverges on a record; nothing traced";
     return step;
   }
@@ -289,16 +250,7 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
   int col = p;
   for (const TermDef* c : fresh) {
     const int k = static_cast<int>(c->params.size());
-    Eigen::MatrixXd Jc;
-    CandidateScore s;
-    if (CandidateSensitivity(m, th, c, &force.step_of_col[col], recs, setup, opt.fit.objective, sim, &Jc)) {
-      s = ScoreColumns(sim.J, Jc, sim.target, sim.base.rss, sim.n_eff);
-    } else {
-      s.explained = 0;
-      s.delta_bic = INFINITY;
-      s.estimate.assign(k, 0.0);
-      s.sigma.assign(k, NAN);
-    }
+    CandidateScore s = ScoreColumns(sim.J, sim.Jc.middleCols(col - p, k), sim.target, sim.base.rss, sim.n_eff);
     s.term = c->id;
     if (c->params[0].sign == Sign::kNonNegative) s.sign_ok = DissipatesEnergy(*c, s.estimate, recs, m.fc);
     const CandidateScore fs = ScoreColumns(force.reg.X.leftCols(p), force.reg.X.middleCols(col, k), force.r0, force.base.rss, force.n_eff);

@@ -18,6 +18,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Dense>
+
 #include "base/status.h"
 #include "identify/effects.h"
 #include "identify/record.h"
@@ -130,6 +132,15 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
 // smooth function of the parameters); 0 chooses them from the parameters (SubstepsFor).
 bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
               std::vector<double>* out, std::vector<double>* out_res = nullptr, int substeps = 0, int restart_every = 0);
+// Simulate, and the output's sensitivities: column j of `dout` (n × P) is ∂out/∂θ_j for the model's
+// parameters (ParamNames order), then for the parameters of the `extra` terms at value 0 (the trace's
+// candidates); `dres` likewise for the resonator output. From the variational equations integrated with
+// the state by the same RK4 steps: the exact derivative of the discrete simulation (fixed substeps), for
+// every parameter in one pass, where finite differences cost a simulation per parameter (or two).
+bool SimulateSensitivities(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
+                           const PreparedRecord& r, const Setup& setup, int substeps, int restart_every,
+                           std::vector<double>* out, Eigen::MatrixXd* dout, std::vector<double>* out_res = nullptr,
+                           Eigen::MatrixXd* dres = nullptr);
 // restart_every > 0: the state is reset to the measured (smoothed) one every so many samples —
 // short-horizon simulation error (multiple shooting), whose minimum lies where the long-horizon one
 // does but whose basin is far wider (no accumulated phase drift); fits use it as a first stage.
