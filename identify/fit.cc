@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 #include <complex>
+#include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <future>
 #include <limits>
@@ -29,7 +31,7 @@ struct Sims {
 // model's parameters and those terms'.
 Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                  const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0,
-                 const std::vector<const TermDef*>* extra = nullptr) {
+                 const std::vector<const TermDef*>* extra = nullptr, std::vector<EarlyStop>* stops = nullptr) {
   Sims s;
   s.out.resize(recs.size());
   s.res.resize(recs.size());
@@ -41,7 +43,8 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
     const bool with_res = !recs[i].meas_res.empty();
     ok[i] = extra ? SimulateSensitivities(m, th, *extra, recs[i], setup, sub, restart, &s.out[i], &s.dout[i],
                                           with_res ? &s.res[i] : nullptr, with_res ? &s.dres[i] : nullptr)
-                  : Simulate(m, th, recs[i], setup, &s.out[i], with_res ? &s.res[i] : nullptr, sub, restart);
+                  : Simulate(m, th, recs[i], setup, &s.out[i], with_res ? &s.res[i] : nullptr, sub, restart,
+                             stops ? &(*stops)[i] : nullptr);
   };
   const size_t nt = std::min<size_t>(recs.size(), threads > 0 ? static_cast<size_t>(threads) : static_cast<size_t>(UsableCpus()));
   if (nt <= 1) {
@@ -454,6 +457,30 @@ struct FitStages {
     return u;
   }
   // The objective's sum of squares at u (1e30 when a simulation diverges).
+  // The time objective's sum of squares at u, or — once it exceeds `budget` — the part summed when a
+  // record's simulation passed it (a lower bound: the point is no better than the budget's).
+  double BoundedSumOfSquares(const std::vector<double>& u, double budget) {
+    std::vector<EarlyStop> stops(recs.size());
+    for (size_t i = 0; i < recs.size(); ++i)
+      stops[i] = {&recs[i].meas, 1.0 / (recs[i].meas_scale * std::sqrt(static_cast<double>(recs[i].n()))), budget};
+    const Sims s = SimulateAll(m, Theta(u), recs, setup, {}, opt.threads, 0, nullptr, &stops);
+    AddSimulations(&result.simulations, 1);
+    double sse = 0;
+    bool stopped = false;
+    for (const EarlyStop& e : stops) sse += e.sse, stopped = stopped || e.stopped;
+    if (stopped) return std::max(sse, budget);
+    if (!s.ok) return 1e30;
+    for (size_t i = 0; i < recs.size(); ++i) {  // a measured resonator's part (not in the running sum)
+      if (recs[i].meas_res.empty()) continue;
+      double mean = 0, ss = 0, e2 = 0;
+      for (double v : recs[i].meas_res) mean += v;
+      mean /= static_cast<double>(recs[i].n());
+      for (double v : recs[i].meas_res) ss += (v - mean) * (v - mean);
+      for (size_t j = 0; j < recs[i].n(); ++j) e2 += (s.res[i][j] - recs[i].meas_res[j]) * (s.res[i][j] - recs[i].meas_res[j]);
+      sse += e2 / std::max(ss, 1e-300);
+    }
+    return std::isfinite(sse) ? sse : 1e30;
+  }
   double SumOfSquares(const std::vector<double>& u, const std::vector<int>& sub) {
     SimCost c = cost;
     c.substeps = sub;
@@ -484,13 +511,19 @@ std::vector<double> FitStages::GlobalStage(const std::vector<double>& centre) {
   g.set_lower_bounds(lo);
   g.set_upper_bounds(hi);
   g.set_maxeval(opt.global_evals);
-  std::function<double(const std::vector<double>&)> f = [&](const std::vector<double>& x) { return SumOfSquares(x, {}); };
+  // Time objective: a candidate stops as soon as its error passes the centre's (only a better point is
+  // used), which most random points of the box do early in the record.
+  double budget = INFINITY;
+  std::function<double(const std::vector<double>&)> f = [&](const std::vector<double>& x) {
+    return opt.objective == Objective::kTime ? BoundedSumOfSquares(x, budget) : SumOfSquares(x, {});
+  };
   g.set_min_objective(
       [](const std::vector<double>& x, std::vector<double>&, void* data) {
         return (*static_cast<std::function<double(const std::vector<double>&)>*>(data))(x);
       },
       &f);
   const double start = SumOfSquares(centre, {});
+  budget = start;
   std::vector<double> x = centre;
   for (int i = 0; i < p; ++i) x[i] = std::clamp(x[i], lo[i], hi[i]);
   double best = 0;
@@ -518,7 +551,11 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
   for (int round = 0; round < 3; ++round) {
     const std::vector<int> sub = FixedSubsteps(m, Theta(u), recs);
     lc.substeps = sub;
-    auto* fn = new SimCostFunction(lc);
+    // Time objective: exact Jacobians. Spectral objective (chaotic records): forward differences, whose
+    // finite step averages over the exponential sensitivity of a long chaotic simulation (loop.cc).
+    ceres::DynamicCostFunction* fn = nullptr;
+    if (obj == Objective::kTime) fn = new SimCostFunction(lc);
+    else fn = new ceres::DynamicNumericDiffCostFunction<SimCost, ceres::FORWARD>(new SimCost(lc), ceres::TAKE_OWNERSHIP);
     fn->AddParameterBlock(p);
     fn->SetNumResiduals(static_cast<int>(lres));
     ceres::Problem problem;
@@ -535,11 +572,13 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
     ceres::Solve(so, &problem, &summary);
     // Ceres leaves both counts at -1 when it stops before evaluating (invalid start or problem):
     // summing them as they are gave a negative count of simulations.
-    // One pass per evaluation, with or without sensitivities (Ceres' counts are -1 when it stopped
-    // before evaluating anything).
+    // One pass per evaluation with sensitivities, p more with forward differences (Ceres' counts are
+    // -1 when it stopped before evaluating anything).
     AddSimulations(&result.simulations, std::max(summary.num_residual_evaluations, 0) +
-                                            static_cast<long long>(std::max(summary.num_jacobian_evaluations, 0)));
+                                            static_cast<long long>(std::max(summary.num_jacobian_evaluations, 0)) *
+                                                (obj == Objective::kTime ? 1 : p));
     result.message = summary.BriefReport();
+    if (std::getenv("BISTABLE_IDENTIFY_DEBUG")) std::fprintf(stderr, "  %s\n", result.message.c_str());
     final_cost = summary.final_cost;
     const std::vector<double> th = Theta(u);
     bool enough = true;
@@ -584,26 +623,40 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
   FitStages fs(m, scale_in, recs, setup, opt);
   // LM from the start; then the global stage around that result, and LM again from the global
   // stage's best when it found a lower cost; the better of the two wins.
+  // BISTABLE_IDENTIFY_DEBUG: each stage's wall time and simulations on stderr (where a fit's time goes).
+  static const bool debug = std::getenv("BISTABLE_IDENTIFY_DEBUG") != nullptr;
+  auto stage = [&](const char* name, auto&& fn) {
+    const auto s0 = std::chrono::steady_clock::now();
+    const int n0 = fs.result.simulations;
+    auto r = fn();
+    if (debug)
+      std::fprintf(stderr, "fit stage %-14s %7.2f s %5d simulations\n", name,
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count(), fs.result.simulations - n0);
+    return r;
+  };
   const std::vector<double> start_u = fs.ScaledStart();
   std::vector<double> u = start_u;
-  double best_cost = fs.LocalStage(u, opt.objective);
+  double best_cost = stage("lm", [&] { return fs.LocalStage(u, opt.objective); });
   if (opt.objective == Objective::kTime && opt.shooting_horizon_s > 0) {
     // Short-horizon simulation error first (its basin is wide; stick-slip friction makes the long
     // simulation error a narrow valley in a plateau), then the full simulation error from there.
     std::vector<double> f = start_u;
-    fs.LocalStage(f, Objective::kTime, opt.shooting_horizon_s);
-    const double fc = fs.LocalStage(f, Objective::kTime);
+    stage("shooting", [&] { return fs.LocalStage(f, Objective::kTime, opt.shooting_horizon_s); });
+    const double fc = stage("lm-after-shoot", [&] { return fs.LocalStage(f, Objective::kTime); });
     if (fc < best_cost) u = f, best_cost = fc;
   }
   if (opt.global_evals > 0) {
-    std::vector<double> g = fs.GlobalStage(u);
+    std::vector<double> g = stage("global", [&] { return fs.GlobalStage(u); });
     if (!g.empty()) {
-      const double gc = fs.LocalStage(g, opt.objective);
+      const double gc = stage("lm-after-glob", [&] { return fs.LocalStage(g, opt.objective); });
       if (gc < best_cost) u = g, best_cost = gc;
     }
   }
   fs.result.theta = fs.Theta(u);
-  fs.Uncertainties(u);
+  stage("sigma", [&] {
+    fs.Uncertainties(u);
+    return 0;
+  });
   fs.result.errors = Evaluate(m, fs.result.theta, recs, setup);
   fs.result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return fs.result;

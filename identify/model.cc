@@ -573,7 +573,7 @@ class RecordSystem {
 template <bool kSens>
 bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
                   const PreparedRecord& r, const Setup& setup, int substeps, int restart_every, std::vector<double>* out,
-                  std::vector<double>* out_res, Eigen::MatrixXd* dout, Eigen::MatrixXd* dres) {
+                  std::vector<double>* out_res, Eigen::MatrixXd* dout, Eigen::MatrixXd* dres, EarlyStop* stop = nullptr) {
   const size_t n = r.n();
   out->assign(n, NAN);
   if (out_res) out_res->assign(n, NAN);
@@ -623,6 +623,11 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
       value += r.base_v[i];
     }
     (*out)[i] = value;
+    if (stop) {
+      const double d = (value - (*stop->meas)[i]) * stop->w;
+      stop->sse += d * d;
+      stop->stopped = stop->sse > stop->budget;
+    }
     if (out_res && res) (*out_res)[i] = res_plus_p ? s[2] + s[0] : s[2];
     if constexpr (kSens) {
       for (int j = 0; j < P; ++j) (*dout)(static_cast<long>(i), j) = s[4 + 4 * j + oc];
@@ -642,6 +647,7 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
     for (int sub = 0; sub < ns; ++sub) rk4.Step(r.t0 + static_cast<double>(i - 1) * r.dt + sub * h, s, h);
     if (!std::isfinite(s[0]) || !std::isfinite(s[1]) || std::abs(s[0]) > limit_p) return false;
     emit(i);
+    if (stop && stop->stopped) return false;
   }
   return true;
 }
@@ -649,8 +655,8 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
 }  // namespace
 
 bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
-              std::vector<double>* out, std::vector<double>* out_res, int substeps, int restart_every) {
-  return SimulateImpl<false>(m, th, {}, r, setup, substeps, restart_every, out, out_res, nullptr, nullptr);
+              std::vector<double>* out, std::vector<double>* out_res, int substeps, int restart_every, EarlyStop* stop) {
+  return SimulateImpl<false>(m, th, {}, r, setup, substeps, restart_every, out, out_res, nullptr, nullptr, stop);
 }
 
 bool SimulateSensitivities(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
