@@ -11,6 +11,7 @@
 #include "base/names.h"
 #include "base/validate.h"
 #include "engine/content_hash.h"
+#include "engine/spec_toml.h"
 
 namespace bistable {
 namespace {
@@ -133,17 +134,9 @@ std::string DesignSpec::CanonicalText() const {
 }
 
 StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string& origin) {
-  if (text.size() > limits::kMaxSpecBytes)
-    return Status::InvalidArgument("spec", "spec is " + std::to_string(text.size()) + " bytes, over the limit of " +
-                                               std::to_string(limits::kMaxSpecBytes));
-  toml::table root;
-  try {
-    root = toml::parse(text, origin);
-  } catch (const toml::parse_error& e) {
-    const auto& b = e.source().begin;
-    return Status::InvalidArgument("spec", origin + (b ? ":" + std::to_string(b.line) + ":" + std::to_string(b.column) : "") +
-                                               ": malformed TOML: " + std::string(e.description()));
-  }
+  auto parsed = ParseSpecToml(text, origin);
+  if (!parsed.ok()) return parsed.status();
+  const toml::table& root = *parsed;
   DesignSpec d;
   d.origin = origin;
   d.source = text;

@@ -17,6 +17,7 @@
 #include "base/validate.h"
 #include "engine/content_hash.h"
 #include "engine/metric_catalog.h"
+#include "engine/spec_toml.h"
 
 namespace bistable {
 namespace {
@@ -45,11 +46,6 @@ const std::vector<std::string> kMetricKeys = {"store",     "chaos_threshold", "r
 constexpr int kDefaultPoincarePoints = 32;
 const std::vector<std::string> kIcKeys = {"states"};
 const std::vector<std::string> kOutputKeys = {"plots"};
-
-std::string Where(const toml::source_region& r, const std::string& origin) {
-  if (!r.begin) return origin;
-  return origin + ":" + std::to_string(r.begin.line) + ":" + std::to_string(r.begin.column);
-}
 
 Status Unknown(const std::string& field, const std::string& key, const std::vector<std::string>& allowed) {
   return Status::InvalidArgument(field.empty() ? key : field + "." + key, UnknownNameMessage("key", key, allowed));
@@ -1014,15 +1010,9 @@ Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
 }  // namespace
 
 StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& origin) {
-  if (text.size() > limits::kMaxSpecBytes)
-    return Status::InvalidArgument("spec", "spec is " + std::to_string(text.size()) + " bytes, over the limit of " +
-                                               std::to_string(limits::kMaxSpecBytes));
-  toml::table root;
-  try {
-    root = toml::parse(text, origin);
-  } catch (const toml::parse_error& e) {
-    return Status::InvalidArgument("spec", Where(e.source(), origin) + ": malformed TOML: " + std::string(e.description()));
-  }
+  auto parsed = ParseSpecToml(text, origin);
+  if (!parsed.ok()) return parsed.status();
+  const toml::table& root = *parsed;
   BISTABLE_RETURN_IF_ERROR(CheckKeys(root, "", kTopKeys));
   SweepSpec spec;
   spec.source = text;

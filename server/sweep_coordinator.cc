@@ -145,6 +145,30 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
   return plan;
 }
 
+namespace {
+// Cuts a plan's items into jobs of about `job_items`: a group (a continuation chain) is never split,
+// so a job closes once it holds job_items or more.
+struct JobBuilder {
+  std::vector<Job>& jobs;
+  long job_items;
+  Job open{};
+  void Add(const WorkItem& item) {
+    open.items.push_back(item);
+    if (static_cast<long>(open.items.size()) >= job_items) Close();
+  }
+  void Add(const std::vector<WorkItem>& group) {
+    open.items.insert(open.items.end(), group.begin(), group.end());
+    if (static_cast<long>(open.items.size()) >= job_items) Close();
+  }
+  void Close() {
+    if (open.items.empty()) return;
+    open.id = static_cast<long>(jobs.size());
+    jobs.push_back(std::move(open));
+    open = Job{};
+  }
+};
+}  // namespace
+
 StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec& spec, long job_items, RefineCarry carry) {
   Planned out;
   SweepPlan& plan = out.plan;
@@ -193,32 +217,19 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
   if (spec.continuation.enabled()) {
     // Chains run whole and in order (each point starts where the previous ended): a chain with any
     // missing item is recomputed entirely; jobs hold whole chains.
-    Job j;
+    JobBuilder jobs{s.jobs, job_items};
     for (const auto& chain : spec.ContinuationChains()) {
       bool any = false;
       for (const WorkItem& w : chain) any = any || is_missing[w.point * nic + w.ic];
-      if (!any) continue;
-      j.items.insert(j.items.end(), chain.begin(), chain.end());
-      if (static_cast<long>(j.items.size()) >= job_items) {
-        j.id = static_cast<long>(s.jobs.size());
-        s.jobs.push_back(std::move(j));
-        j = Job{};
-      }
+      if (any) jobs.Add(chain);
     }
-    if (!j.items.empty()) j.id = static_cast<long>(s.jobs.size()), s.jobs.push_back(std::move(j));
+    jobs.Close();
   } else {
-    Job j;
+    JobBuilder jobs{s.jobs, job_items};
     for (long p = 0; p < points; ++p)
-      for (int i = 0; i < nic; ++i) {
-        if (!is_missing[p * nic + i]) continue;
-        j.items.push_back({p, i});
-        if (static_cast<long>(j.items.size()) == job_items) {
-          j.id = static_cast<long>(s.jobs.size());
-          s.jobs.push_back(std::move(j));
-          j = Job{};
-        }
-      }
-    if (!j.items.empty()) j.id = static_cast<long>(s.jobs.size()), s.jobs.push_back(std::move(j));
+      for (int i = 0; i < nic; ++i)
+        if (is_missing[p * nic + i]) jobs.Add(WorkItem{p, i});
+    jobs.Close();
   }
   long queued = 0;
   for (const Job& j : s.jobs) queued += static_cast<long>(j.items.size()), s.queue.push_back(j.id);
@@ -277,16 +288,9 @@ Status SweepCoordinator::BuildRefinedPlan(const SweepSpec& spec, long job_items,
   }
   s.refine_round = step->round;
   s.refine_complete = step->complete;
-  Job j;
-  for (long p : step->missing) {
-    j.items.push_back({p, 0});
-    if (static_cast<long>(j.items.size()) == job_items) {
-      j.id = static_cast<long>(s.jobs.size());
-      s.jobs.push_back(std::move(j));
-      j = Job{};
-    }
-  }
-  if (!j.items.empty()) j.id = static_cast<long>(s.jobs.size()), s.jobs.push_back(std::move(j));
+  JobBuilder jobs{s.jobs, job_items};
+  for (long p : step->missing) jobs.Add(WorkItem{p, 0});
+  jobs.Close();
   for (const Job& job : s.jobs) s.queue.push_back(job.id);
   s.job_state.assign(s.jobs.size(), JobState::kQueued);
   plan.items_total = static_cast<long>(s.points.size());  // grows round by round
