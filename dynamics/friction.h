@@ -85,10 +85,19 @@ struct Stribeck {
   };
   // The law is linear in the two forces: F_f(v) = F_s φ[0] + F_c φ[1] with φ[0] = g(v) and
   // φ[1] = tanh(v/v_t) − tanh(v_sp/v_t) g(v); φ depends on v_sp, v_t only (f_s, f_c unused).
-  void Basis(double v, double* phi) const {
-    const double g = StribeckHump(1.0, v, v_sp);
+  void Basis(double v, double* phi) const { BasisSlope(v, std::tanh(v_sp / v_t), phi, nullptr); }
+  // φ and, when dphi is given, dφ/dv, from one exp and one tanh; tanh_sp = tanh(v_sp/v_t), a constant
+  // that callers in a loop compute once (identification's simulator evaluates this per RK4 stage).
+  void BasisSlope(double v, double tanh_sp, double* phi, double* dphi) const {
+    const double u = v / v_sp, e = HumpExp(u), g = u * e;  // g = StribeckHump(1, v, v_sp), the same bits
+    const double th = std::tanh(v / v_t);
     phi[0] = g;
-    phi[1] = std::tanh(v / v_t) - std::tanh(v_sp / v_t) * g;
+    phi[1] = th - tanh_sp * g;
+    if (dphi) {
+      const double gd = e * (1.0 - u * u) / v_sp;
+      dphi[0] = gd;
+      dphi[1] = (1.0 - th * th) / v_t - tanh_sp * gd;
+    }
   }
 };
 

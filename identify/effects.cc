@@ -84,37 +84,39 @@ StatusOr<std::vector<const TermDef*>> ParseTerms(const std::string& list) {
   return out;
 }
 
-void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc, double* out) {
+void TermBasisSlopes(const TermDef& t, double q, double v, const FrictionConstants& fc, double tanh_sp, double* phi,
+                     double* phi_q, double* phi_v) {
+  const bool d = phi_q != nullptr;  // derivatives wanted (both or neither)
+  double dq = 0, dv = 0;
   switch (t.kind) {
-    case TermKind::kLinear: out[0] = q; break;
-    case TermKind::kStiffness2: out[0] = q * q; break;
-    case TermKind::kStiffness3: out[0] = q * q * q; break;
-    case TermKind::kStiffness5: out[0] = q * q * q * q * q; break;
-    case TermKind::kViscous: out[0] = v; break;
-    case TermKind::kDamping2: out[0] = q * q * v; break;
-    case TermKind::kDampingV3: out[0] = v * v * v; break;
-    case TermKind::kDrag: out[0] = v * std::abs(v); break;
-    case TermKind::kFriction: FrictionLaw(fc).Basis(v, out); break;
-    case TermKind::kBias: out[0] = 1.0; break;
+    case TermKind::kLinear: phi[0] = q, dq = 1; break;
+    case TermKind::kStiffness2: phi[0] = q * q, dq = 2 * q; break;
+    case TermKind::kStiffness3: phi[0] = q * q * q, dq = 3 * q * q; break;
+    case TermKind::kStiffness5: phi[0] = q * q * q * q * q, dq = 5 * q * q * q * q; break;
+    case TermKind::kViscous: phi[0] = v, dv = 1; break;
+    case TermKind::kDamping2: phi[0] = q * q * v, dq = 2 * q * v, dv = q * q; break;
+    case TermKind::kDampingV3: phi[0] = v * v * v, dv = 3 * v * v; break;
+    case TermKind::kDrag: phi[0] = v * std::abs(v), dv = 2 * std::abs(v); break;
+    case TermKind::kFriction:
+      FrictionLaw(fc).BasisSlope(v, tanh_sp, phi, d ? phi_v : nullptr);
+      if (d) phi_q[0] = phi_q[1] = 0;
+      return;
+    case TermKind::kBias: phi[0] = 1.0; break;
   }
+  if (d) phi_q[0] = dq, phi_v[0] = dv;
+}
+
+void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc, double* out) {
+  TermBasisSlopes(t, q, v, fc, std::tanh(fc.v_sp / fc.v_t), out, nullptr, nullptr);
 }
 
 void TermSlopes(const TermDef& t, const double* th, double q, double v, const FrictionConstants& fc, double* dfdq,
                 double* dfdv) {
+  double phi[2], pq[2], pv[2];
+  TermBasisSlopes(t, q, v, fc, std::tanh(fc.v_sp / fc.v_t), phi, pq, pv);
   *dfdq = 0;
   *dfdv = 0;
-  switch (t.kind) {
-    case TermKind::kLinear: *dfdq = th[0]; break;
-    case TermKind::kStiffness2: *dfdq = 2 * th[0] * q; break;
-    case TermKind::kStiffness3: *dfdq = 3 * th[0] * q * q; break;
-    case TermKind::kStiffness5: *dfdq = 5 * th[0] * q * q * q * q; break;
-    case TermKind::kViscous: *dfdv = th[0]; break;
-    case TermKind::kDamping2: *dfdq = 2 * th[0] * q * v, *dfdv = th[0] * q * q; break;
-    case TermKind::kDampingV3: *dfdv = 3 * th[0] * v * v; break;
-    case TermKind::kDrag: *dfdv = 2 * th[0] * std::abs(v); break;
-    case TermKind::kFriction: *dfdv = FrictionLaw(fc, th[0], th[1]).Slope(v); break;
-    case TermKind::kBias: break;
-  }
+  for (size_t j = 0; j < t.params.size(); ++j) *dfdq += th[j] * pq[j], *dfdv += th[j] * pv[j];
 }
 
 }  // namespace bistable

@@ -65,6 +65,11 @@ struct FrictionConstants {
 
 // Appends the term's basis values φ_k(q, v) (one per parameter) to `out`.
 void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc, double* out);
+// The basis values and, when phi_q and phi_v are given, their derivatives ∂φ/∂q and ∂φ/∂v — the one
+// switch over term kinds (simulation, sensitivities, regressions); tanh_sp = tanh(v_sp/v_t), constant
+// per model, so that a simulation computes it once rather than per step.
+void TermBasisSlopes(const TermDef& t, double q, double v, const FrictionConstants& fc, double tanh_sp, double* phi,
+                     double* phi_q, double* phi_v);
 // dF/dv and dF/dq of the term at (q, v) for parameters `theta` (its own slice), for step-size bounds.
 void TermSlopes(const TermDef& t, const double* theta, double q, double v, const FrictionConstants& fc, double* dfdq,
                 double* dfdv);

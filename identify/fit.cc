@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 #include <complex>
+#include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <future>
 #include <limits>
@@ -21,19 +23,28 @@ namespace {
 
 struct Sims {
   std::vector<std::vector<double>> out, res;
+  std::vector<Eigen::MatrixXd> dout, dres;  // sensitivities (SimulateSensitivities), when asked for
   bool ok = true;
 };
 
+// Every record simulated (in parallel over records); with `extra` given, with sensitivities to the
+// model's parameters and those terms'.
 Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                 const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0) {
+                 const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0,
+                 const std::vector<const TermDef*>* extra = nullptr, std::vector<EarlyStop>* stops = nullptr) {
   Sims s;
   s.out.resize(recs.size());
   s.res.resize(recs.size());
+  if (extra) s.dout.resize(recs.size()), s.dres.resize(recs.size());
   std::vector<char> ok(recs.size(), 1);
   auto one = [&](size_t i) {
-    ok[i] = Simulate(m, th, recs[i], setup, &s.out[i], recs[i].meas_res.empty() ? nullptr : &s.res[i],
-                     substeps.empty() ? 0 : substeps[i],
-                     horizon_s > 0 ? std::max(2, static_cast<int>(std::lround(horizon_s / recs[i].dt))) : 0);
+    const int sub = substeps.empty() ? 0 : substeps[i];
+    const int restart = horizon_s > 0 ? std::max(2, static_cast<int>(std::lround(horizon_s / recs[i].dt))) : 0;
+    const bool with_res = !recs[i].meas_res.empty();
+    ok[i] = extra ? SimulateSensitivities(m, th, *extra, recs[i], setup, sub, restart, &s.out[i], &s.dout[i],
+                                          with_res ? &s.res[i] : nullptr, with_res ? &s.dres[i] : nullptr)
+                  : Simulate(m, th, recs[i], setup, &s.out[i], with_res ? &s.res[i] : nullptr, sub, restart,
+                             stops ? &(*stops)[i] : nullptr);
   };
   const size_t nt = std::min<size_t>(recs.size(), threads > 0 ? static_cast<size_t>(threads) : static_cast<size_t>(UsableCpus()));
   if (nt <= 1) {
@@ -50,8 +61,9 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
   return s;
 }
 
-// |FFT| / n of the velocity form of a compared output (derivative of displacement outputs).
-std::vector<double> VelocityMagnitudes(const std::vector<double>& series, double dt, bool displacement) {
+// FFT / n of the velocity form of a compared output (derivative of displacement outputs), mean removed:
+// linear in the series, so a sensitivity column goes through the same map.
+std::vector<std::complex<double>> VelocitySpectrum(const std::vector<double>& series, double dt, bool displacement) {
   std::vector<double> v = displacement ? SavitzkyGolay(series, dt, 3, 1) : series;
   double mean = 0;
   for (double x : v) mean += x;
@@ -61,8 +73,16 @@ std::vector<double> VelocityMagnitudes(const std::vector<double>& series, double
   for (size_t i = 0; i < v.size(); ++i) x[i] = v[i] - mean;
   std::vector<std::complex<double>> X;
   RealFftFull(x, &X);
-  std::vector<double> mag(len / 2 + 1);
-  for (size_t k = 0; k < mag.size(); ++k) mag[k] = std::abs(X[k]) / static_cast<double>(v.size());
+  X.resize(len / 2 + 1);
+  for (auto& c : X) c /= static_cast<double>(v.size());
+  return X;
+}
+
+// |FFT| / n of the velocity form of a compared output.
+std::vector<double> VelocityMagnitudes(const std::vector<double>& series, double dt, bool displacement) {
+  const std::vector<std::complex<double>> X = VelocitySpectrum(series, dt, displacement);
+  std::vector<double> mag(X.size());
+  for (size_t k = 0; k < mag.size(); ++k) mag[k] = std::abs(X[k]);
   return mag;
 }
 
@@ -75,18 +95,28 @@ size_t NumResiduals(const std::vector<PreparedRecord>& recs, Objective obj) {
   return n;
 }
 
-// Residuals of the objective; false when a simulation diverged.
+// Residuals of the objective; false when a simulation diverged. With `jac` (and `extra`): the
+// residuals' derivatives by θ (N × P: the model's parameters, then the extra terms' at 0), from one
+// pass of SimulateSensitivities per record.
 bool Residuals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                const Setup& setup, Objective obj, const std::vector<int>& substeps, int threads,
-               const std::vector<std::vector<double>>& meas_mag, double* res, double horizon_s = 0) {
-  const Sims s = SimulateAll(m, th, recs, setup, substeps, threads, horizon_s);
+               const std::vector<std::vector<double>>& meas_mag, double* res, double horizon_s = 0,
+               Eigen::MatrixXd* jac = nullptr, const std::vector<const TermDef*>& extra = {}) {
+  const Sims s = SimulateAll(m, th, recs, setup, substeps, threads, horizon_s, jac ? &extra : nullptr);
   if (!s.ok) return false;
+  if (jac) {
+    long P = m.NumParams();
+    for (const TermDef* t : extra) P += static_cast<long>(t->params.size());
+    jac->resize(static_cast<long>(NumResiduals(recs, obj)), P);
+  }
   size_t k = 0;
   const bool disp = setup.output != OutputKind::kVelocity;
   for (size_t i = 0; i < recs.size(); ++i) {
     const PreparedRecord& r = recs[i];
+    const long n = static_cast<long>(r.n());
     if (obj == Objective::kTime) {
       const double w = 1.0 / (r.meas_scale * std::sqrt(static_cast<double>(r.n())));
+      if (jac) jac->middleRows(static_cast<long>(k), n) = s.dout[i] * w;
       for (size_t j = 0; j < r.n(); ++j) res[k++] = (s.out[i][j] - r.meas[j]) * w;
       if (!r.meas_res.empty()) {
         double mean = 0, ss = 0;
@@ -94,18 +124,30 @@ bool Residuals(const IdentModel& m, const std::vector<double>& th, const std::ve
         mean /= static_cast<double>(r.n());
         for (double v : r.meas_res) ss += (v - mean) * (v - mean);
         const double wr = 1.0 / std::sqrt(std::max(ss, 1e-300));
+        if (jac) jac->middleRows(static_cast<long>(k), n) = s.dres[i] * wr;
         for (size_t j = 0; j < r.n(); ++j) res[k++] = (s.res[i][j] - r.meas_res[j]) * wr;
       }
     } else {
-      const std::vector<double> mag = VelocityMagnitudes(s.out[i], r.dt, disp);
+      const std::vector<std::complex<double>> X = VelocitySpectrum(s.out[i], r.dt, disp);
       double norm = 0;
       for (double v : meas_mag[i]) norm += v * v;
       norm = std::sqrt(std::max(norm, 1e-300));
-      for (size_t j = 0; j < mag.size(); ++j) res[k++] = (mag[j] - meas_mag[i][j]) / norm;
+      if (jac) {  // d|X| = Re(conj(X) dX) / |X|
+        for (long c = 0; c < jac->cols(); ++c) {
+          const Eigen::VectorXd col = s.dout[i].col(c);
+          const std::vector<std::complex<double>> dX = VelocitySpectrum(std::vector<double>(col.data(), col.data() + n), r.dt, disp);
+          for (size_t j = 0; j < X.size(); ++j) {
+            const double a = std::abs(X[j]);
+            (*jac)(static_cast<long>(k + j), c) = a > 0 ? std::real(std::conj(X[j]) * dX[j]) / a / norm : 0.0;
+          }
+        }
+      }
+      for (size_t j = 0; j < X.size(); ++j) res[k++] = (std::abs(X[j]) - meas_mag[i][j]) / norm;
     }
   }
   for (size_t j = 0; j < k; ++j)
     if (!std::isfinite(res[j])) return false;
+  if (jac && !jac->allFinite()) return false;
   return true;
 }
 
@@ -143,6 +185,14 @@ bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, cons
   out->assign(NumResiduals(recs, obj), 0.0);
   const auto mags = obj == Objective::kFft ? MeasuredMagnitudes(recs, setup) : std::vector<std::vector<double>>{};
   return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data());
+}
+
+bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                       const Setup& setup, Objective obj, const std::vector<int>& substeps,
+                       const std::vector<const TermDef*>& extra, std::vector<double>* out, Eigen::MatrixXd* jac) {
+  out->assign(NumResiduals(recs, obj), 0.0);
+  const auto mags = obj == Objective::kFft ? MeasuredMagnitudes(recs, setup) : std::vector<std::vector<double>>{};
+  return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data(), 0.0, jac, extra);
 }
 
 std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
@@ -345,6 +395,32 @@ struct SimCost {
     ++calls;
     return Residuals(*m, Theta(params[0]), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s);
   }
+  // Residuals and, when `jac` is given, their derivatives by the scaled parameters u (row-major,
+  // Ceres' layout), from one sensitivity pass.
+  bool Eval(const double* u, double* residuals, double* jac) const {
+    ++calls;
+    if (!jac) return Residuals(*m, Theta(u), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s);
+    Eigen::MatrixXd J;
+    if (!Residuals(*m, Theta(u), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s, &J)) return false;
+    const long p = static_cast<long>(scale.size());
+    for (long r = 0; r < J.rows(); ++r)
+      for (long j = 0; j < p; ++j) jac[r * p + j] = J(r, j) * scale[static_cast<size_t>(j)];
+    return true;
+  }
+};
+
+// The simulation error for Ceres with exact Jacobians (SimCost::Eval): one sensitivity pass per
+// Jacobian where forward differences took a simulation per parameter.
+class SimCostFunction : public ceres::DynamicCostFunction {
+ public:
+  explicit SimCostFunction(SimCost c) : c_(std::move(c)) {}
+  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
+    return c_.Eval(params[0], residuals, jacobians ? jacobians[0] : nullptr);
+  }
+  int Calls() const { return c_.calls; }
+
+ private:
+  SimCost c_;
 };
 
 // What the stages of one fit share: the problem in scaled parameters u = θ / scale (the cost functor
@@ -381,6 +457,30 @@ struct FitStages {
     return u;
   }
   // The objective's sum of squares at u (1e30 when a simulation diverges).
+  // The time objective's sum of squares at u, or — once it exceeds `budget` — the part summed when a
+  // record's simulation passed it (a lower bound: the point is no better than the budget's).
+  double BoundedSumOfSquares(const std::vector<double>& u, double budget) {
+    std::vector<EarlyStop> stops(recs.size());
+    for (size_t i = 0; i < recs.size(); ++i)
+      stops[i] = {&recs[i].meas, 1.0 / (recs[i].meas_scale * std::sqrt(static_cast<double>(recs[i].n()))), budget};
+    const Sims s = SimulateAll(m, Theta(u), recs, setup, {}, opt.threads, 0, nullptr, &stops);
+    AddSimulations(&result.simulations, 1);
+    double sse = 0;
+    bool stopped = false;
+    for (const EarlyStop& e : stops) sse += e.sse, stopped = stopped || e.stopped;
+    if (stopped) return std::max(sse, budget);
+    if (!s.ok) return 1e30;
+    for (size_t i = 0; i < recs.size(); ++i) {  // a measured resonator's part (not in the running sum)
+      if (recs[i].meas_res.empty()) continue;
+      double mean = 0, ss = 0, e2 = 0;
+      for (double v : recs[i].meas_res) mean += v;
+      mean /= static_cast<double>(recs[i].n());
+      for (double v : recs[i].meas_res) ss += (v - mean) * (v - mean);
+      for (size_t j = 0; j < recs[i].n(); ++j) e2 += (s.res[i][j] - recs[i].meas_res[j]) * (s.res[i][j] - recs[i].meas_res[j]);
+      sse += e2 / std::max(ss, 1e-300);
+    }
+    return std::isfinite(sse) ? sse : 1e30;
+  }
   double SumOfSquares(const std::vector<double>& u, const std::vector<int>& sub) {
     SimCost c = cost;
     c.substeps = sub;
@@ -411,13 +511,19 @@ std::vector<double> FitStages::GlobalStage(const std::vector<double>& centre) {
   g.set_lower_bounds(lo);
   g.set_upper_bounds(hi);
   g.set_maxeval(opt.global_evals);
-  std::function<double(const std::vector<double>&)> f = [&](const std::vector<double>& x) { return SumOfSquares(x, {}); };
+  // Time objective: a candidate stops as soon as its error passes the centre's (only a better point is
+  // used), which most random points of the box do early in the record.
+  double budget = INFINITY;
+  std::function<double(const std::vector<double>&)> f = [&](const std::vector<double>& x) {
+    return opt.objective == Objective::kTime ? BoundedSumOfSquares(x, budget) : SumOfSquares(x, {});
+  };
   g.set_min_objective(
       [](const std::vector<double>& x, std::vector<double>&, void* data) {
         return (*static_cast<std::function<double(const std::vector<double>&)>*>(data))(x);
       },
       &f);
   const double start = SumOfSquares(centre, {});
+  budget = start;
   std::vector<double> x = centre;
   for (int i = 0; i < p; ++i) x[i] = std::clamp(x[i], lo[i], hi[i]);
   double best = 0;
@@ -445,7 +551,11 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
   for (int round = 0; round < 3; ++round) {
     const std::vector<int> sub = FixedSubsteps(m, Theta(u), recs);
     lc.substeps = sub;
-    auto* fn = new ceres::DynamicNumericDiffCostFunction<SimCost, ceres::FORWARD>(new SimCost(lc), ceres::TAKE_OWNERSHIP);
+    // Time objective: exact Jacobians. Spectral objective (chaotic records): forward differences, whose
+    // finite step averages over the exponential sensitivity of a long chaotic simulation (loop.cc).
+    ceres::DynamicCostFunction* fn = nullptr;
+    if (obj == Objective::kTime) fn = new SimCostFunction(lc);
+    else fn = new ceres::DynamicNumericDiffCostFunction<SimCost, ceres::FORWARD>(new SimCost(lc), ceres::TAKE_OWNERSHIP);
     fn->AddParameterBlock(p);
     fn->SetNumResiduals(static_cast<int>(lres));
     ceres::Problem problem;
@@ -462,9 +572,13 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
     ceres::Solve(so, &problem, &summary);
     // Ceres leaves both counts at -1 when it stops before evaluating (invalid start or problem):
     // summing them as they are gave a negative count of simulations.
+    // One pass per evaluation with sensitivities, p more with forward differences (Ceres' counts are
+    // -1 when it stopped before evaluating anything).
     AddSimulations(&result.simulations, std::max(summary.num_residual_evaluations, 0) +
-                                            static_cast<long long>(std::max(summary.num_jacobian_evaluations, 0)) * p);
+                                            static_cast<long long>(std::max(summary.num_jacobian_evaluations, 0)) *
+                                                (obj == Objective::kTime ? 1 : p));
     result.message = summary.BriefReport();
+    if (std::getenv("BISTABLE_IDENTIFY_DEBUG")) std::fprintf(stderr, "  %s\n", result.message.c_str());
     final_cost = summary.final_cost;
     const std::vector<double> th = Theta(u);
     bool enough = true;
@@ -474,29 +588,18 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
   return final_cost;
 }
 
-// Uncertainty: Gauss–Newton covariance at the solution u, central differences (time objective only:
+// Uncertainty: Gauss–Newton covariance at the solution u, exact sensitivities (time objective only:
 // the spectral residual's bins are neither independent nor of known correlation, so no σ is given).
 void FitStages::Uncertainties(const std::vector<double>& u) {
   result.sigma.assign(p, NAN);
   if (opt.objective != Objective::kTime) return;
   SimCost c = cost;
   c.substeps = FixedSubsteps(m, result.theta, recs, 1.5);
-  std::vector<double> r0(nres), rp(nres), rm(nres);
-  const double* pp = u.data();
-  if (!c(&pp, r0.data())) return;
-  Eigen::MatrixXd J(static_cast<long>(nres), p);
-  bool ok = true;
-  for (int i = 0; i < p && ok; ++i) {
-    std::vector<double> up = u, um = u;
-    const double h = 1e-5 * std::max(std::abs(u[i]), 1e-3);
-    up[i] += h, um[i] -= h;
-    const double* a = up.data();
-    const double* b = um.data();
-    ok = c(&a, rp.data()) && c(&b, rm.data());
-    for (size_t k = 0; k < nres && ok; ++k) J(static_cast<long>(k), i) = (rp[k] - rm[k]) / (2 * h);
-  }
-  AddSimulations(&result.simulations, 2LL * p + 1);
-  if (!ok) return;
+  std::vector<double> r0(nres), jac(nres * static_cast<size_t>(p));
+  if (!c.Eval(u.data(), r0.data(), jac.data())) return;
+  AddSimulations(&result.simulations, 1);
+  const Eigen::MatrixXd J = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+      jac.data(), static_cast<long>(nres), p);
   double rss = 0;
   for (double v : r0) rss += v * v;
   const double dof = std::max(1.0, static_cast<double>(nres) - p);
@@ -520,26 +623,40 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
   FitStages fs(m, scale_in, recs, setup, opt);
   // LM from the start; then the global stage around that result, and LM again from the global
   // stage's best when it found a lower cost; the better of the two wins.
+  // BISTABLE_IDENTIFY_DEBUG: each stage's wall time and simulations on stderr (where a fit's time goes).
+  static const bool debug = std::getenv("BISTABLE_IDENTIFY_DEBUG") != nullptr;
+  auto stage = [&](const char* name, auto&& fn) {
+    const auto s0 = std::chrono::steady_clock::now();
+    const int n0 = fs.result.simulations;
+    auto r = fn();
+    if (debug)
+      std::fprintf(stderr, "fit stage %-14s %7.2f s %5d simulations\n", name,
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count(), fs.result.simulations - n0);
+    return r;
+  };
   const std::vector<double> start_u = fs.ScaledStart();
   std::vector<double> u = start_u;
-  double best_cost = fs.LocalStage(u, opt.objective);
+  double best_cost = stage("lm", [&] { return fs.LocalStage(u, opt.objective); });
   if (opt.objective == Objective::kTime && opt.shooting_horizon_s > 0) {
     // Short-horizon simulation error first (its basin is wide; stick-slip friction makes the long
     // simulation error a narrow valley in a plateau), then the full simulation error from there.
     std::vector<double> f = start_u;
-    fs.LocalStage(f, Objective::kTime, opt.shooting_horizon_s);
-    const double fc = fs.LocalStage(f, Objective::kTime);
+    stage("shooting", [&] { return fs.LocalStage(f, Objective::kTime, opt.shooting_horizon_s); });
+    const double fc = stage("lm-after-shoot", [&] { return fs.LocalStage(f, Objective::kTime); });
     if (fc < best_cost) u = f, best_cost = fc;
   }
   if (opt.global_evals > 0) {
-    std::vector<double> g = fs.GlobalStage(u);
+    std::vector<double> g = stage("global", [&] { return fs.GlobalStage(u); });
     if (!g.empty()) {
-      const double gc = fs.LocalStage(g, opt.objective);
+      const double gc = stage("lm-after-glob", [&] { return fs.LocalStage(g, opt.objective); });
       if (gc < best_cost) u = g, best_cost = gc;
     }
   }
   fs.result.theta = fs.Theta(u);
-  fs.Uncertainties(u);
+  stage("sigma", [&] {
+    fs.Uncertainties(u);
+    return 0;
+  });
   fs.result.errors = Evaluate(m, fs.result.theta, recs, setup);
   fs.result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return fs.result;

@@ -4,8 +4,8 @@
 //      residual force used to trace missing effects (loop.h).
 //   2. Global stage: NLopt CRS2 (controlled random search with local mutation) in a box around the
 //      start, on the simulation error; sign constraints are bounds.
-//   3. Local stage: Ceres Levenberg–Marquardt on the simulation error (scaled parameters, central
-//      differences, RK4 substeps held fixed so the objective is smooth).
+//   3. Local stage: Ceres Levenberg–Marquardt on the simulation error (scaled parameters, exact
+//      Jacobians from sensitivity equations, RK4 substeps held fixed so the objective is smooth).
 //   Uncertainty: σ_θ from the Gauss–Newton covariance s²(JᵀJ)⁻¹ at the solution, inflated by the
 //   residuals' correlation time (samples of a simulation error are far from independent).
 // Objectives: "time" — Σ_records NRMSE² of the output (each record weighs the same); "fft" — the
@@ -60,6 +60,11 @@ LinearFit SolveRegression(const Eigen::MatrixXd& X, const Eigen::VectorXd& b, co
 // differences); substeps per record as Simulate (empty: automatic). False on divergence.
 bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                         const Setup& setup, Objective obj, const std::vector<int>& substeps, std::vector<double>* out);
+// The residual vector and its derivatives by θ (N × P: the model's parameters, then the `extra` terms'
+// at value 0), exact for the discrete simulation (SimulateSensitivities). False on divergence.
+bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                       const Setup& setup, Objective obj, const std::vector<int>& substeps,
+                       const std::vector<const TermDef*>& extra, std::vector<double>* out, Eigen::MatrixXd* jac);
 // Substeps per record for parameters th, times a safety factor.
 std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                                double safety = 1.5);

@@ -162,7 +162,7 @@ struct ForceEvidence {
   Eigen::VectorXd r0;             // residual force of the fitted model
   LinearFit base;                 // r0 on the declared columns
   double n_eff = 0;               // rows / correlation time
-  std::vector<double> step_of_col;  // typical parameter step of every column
+  std::vector<double> step_of_col;  // typical parameter step of every column (finite differences)
 };
 
 ForceEvidence ForceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
@@ -188,28 +188,31 @@ ForceEvidence ForceResidual(const IdentModel& m, const std::vector<double>& th, 
 }
 
 // Deciding evidence: the simulation residual e of the fitted model, the output sensitivities J to its
-// parameters (central differences), and the part of −e they cannot explain (base).
+// parameters and Jc to every candidate's at zero (one sensitivity pass: exact derivatives of the
+// discrete simulation), and the part of −e that J cannot explain (base).
 struct SimulationEvidence {
   std::vector<int> sub;     // substeps held fixed for every simulation of the trace
   std::vector<double> e0;   // residual vector
   Eigen::VectorXd target;   // −e
-  Eigen::MatrixXd J;
+  Eigen::MatrixXd J, Jc;    // declared parameters; candidates' parameters (in `fresh` order)
   LinearFit base;           // target on J
   double n_eff = 0;         // samples / correlation time of what J leaves
 };
 
-// False when the fitted model diverges on a record.
-bool SimulationResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                        const Setup& setup, Objective obj, const std::vector<double>& step_of_col, SimulationEvidence* s) {
+// J and Jc by finite differences (the spectral objective): central differences for the declared
+// parameters, forward differences of the model with each candidate parameter at its typical step
+// `steps` (substeps no fewer than the trace's); a candidate whose simulation diverges gets NaN columns.
+// Why not the sensitivities: a chaotic record's exact derivative grows like e^{λt} over the record and
+// says nothing about the spectrum a step away; differences at a finite step average over that.
+void DifferenceSensitivities(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& fresh,
+                             const double* steps, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                             Objective obj, SimulationEvidence* s) {
   const int p = m.NumParams();
-  s->sub = FixedSubsteps(m, th, recs);
-  if (!ObjectiveResiduals(m, th, recs, setup, obj, s->sub, &s->e0)) return false;
   const long N = static_cast<long>(s->e0.size());
-  s->target = -Eigen::Map<const Eigen::VectorXd>(s->e0.data(), N);
   s->J.resize(N, p);
   std::vector<double> ep, em;
   for (int i = 0; i < p; ++i) {
-    const double h = 1e-4 * (std::abs(th[i]) > 0 ? std::abs(th[i]) : step_of_col[i]);
+    const double h = 1e-4 * (std::abs(th[i]) > 0 ? std::abs(th[i]) : steps[i]);
     std::vector<double> a = th, b = th;
     a[i] += h, b[i] -= h;
     if (!ObjectiveResiduals(m, a, recs, setup, obj, s->sub, &ep) || !ObjectiveResiduals(m, b, recs, setup, obj, s->sub, &em)) {
@@ -218,34 +221,52 @@ bool SimulationResidual(const IdentModel& m, const std::vector<double>& th, cons
     }
     for (long k = 0; k < N; ++k) s->J(k, i) = (ep[k] - em[k]) / (2 * h);
   }
+  long cols = 0;
+  for (const TermDef* c : fresh) cols += static_cast<long>(c->params.size());
+  s->Jc.resize(N, cols);
+  long col = 0;
+  for (const TermDef* c : fresh) {
+    const int k = static_cast<int>(c->params.size());
+    for (int j = 0; j < k; ++j, ++col) {
+      std::vector<double> init(k, 0.0);
+      init[j] = steps[p + col];
+      const IdentModel mc = m.With(c, init);
+      std::vector<int> subc = FixedSubsteps(mc, mc.theta, recs);
+      for (size_t r = 0; r < subc.size(); ++r) subc[r] = std::max(subc[r], s->sub[r]);
+      std::vector<double> ec, e0c = s->e0;
+      if (!ObjectiveResiduals(mc, mc.theta, recs, setup, obj, subc, &ec) ||
+          !(subc == s->sub || ObjectiveResiduals(m, th, recs, setup, obj, subc, &e0c))) {
+        s->Jc.col(col).setConstant(NAN);
+        continue;
+      }
+      for (long i = 0; i < N; ++i) s->Jc(i, col) = (ec[i] - e0c[i]) / init[j];
+    }
+  }
+}
+
+// False when the fitted model diverges on a record. Time objective: J and Jc from one sensitivity pass;
+// spectral objective: finite differences (DifferenceSensitivities).
+bool SimulationResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                        const Setup& setup, Objective obj, const std::vector<const TermDef*>& fresh,
+                        const std::vector<double>& steps, SimulationEvidence* s) {
+  const int p = m.NumParams();
+  s->sub = FixedSubsteps(m, th, recs);
+  if (obj == Objective::kTime) {
+    Eigen::MatrixXd all;
+    if (!ObjectiveJacobian(m, th, recs, setup, obj, s->sub, fresh, &s->e0, &all)) return false;
+    s->J = all.leftCols(p);
+    s->Jc = all.rightCols(all.cols() - p);
+  } else {
+    if (!ObjectiveResiduals(m, th, recs, setup, obj, s->sub, &s->e0)) return false;
+    DifferenceSensitivities(m, th, fresh, steps.data(), recs, setup, obj, s);
+  }
+  const long N = static_cast<long>(s->e0.size());
+  s->target = -Eigen::Map<const Eigen::VectorXd>(s->e0.data(), N);
   s->base = SolveRegression(s->J, s->target, std::vector<Sign>(p, Sign::kEither));
   Eigen::VectorXd db(p);
   for (int i = 0; i < p; ++i) db[i] = std::isfinite(s->base.theta[i]) ? s->base.theta[i] : 0.0;
   const Eigen::VectorXd e_base = s->target - s->J * db;
   s->n_eff = static_cast<double>(N) / CorrelationTimeOf(std::vector<double>(e_base.data(), e_base.data() + N));
-  return true;
-}
-
-// The output's sensitivity to candidate c's parameters at β = 0 (forward differences of the model
-// with c at steps `init_steps`, substeps no fewer than the trace's); false on divergence.
-bool CandidateSensitivity(const IdentModel& m, const std::vector<double>& th, const TermDef* c, const double* init_steps,
-                          const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj, const SimulationEvidence& sim,
-                          Eigen::MatrixXd* Jc) {
-  const int k = static_cast<int>(c->params.size());
-  const long N = static_cast<long>(sim.e0.size());
-  Jc->resize(N, k);
-  for (int j = 0; j < k; ++j) {
-    std::vector<double> init(k, 0.0);
-    init[j] = init_steps[j];
-    const IdentModel mc = m.With(c, init);
-    std::vector<int> subc = FixedSubsteps(mc, mc.theta, recs);
-    for (size_t r = 0; r < subc.size(); ++r) subc[r] = std::max(subc[r], sim.sub[r]);
-    std::vector<double> ec, e0c = sim.e0;
-    if (!ObjectiveResiduals(mc, mc.theta, recs, setup, obj, subc, &ec) ||
-        !(subc == sim.sub || ObjectiveResiduals(m, th, recs, setup, obj, subc, &e0c)))
-      return false;
-    for (long i = 0; i < N; ++i) (*Jc)(i, j) = (ec[i] - e0c[i]) / init[j];
-  }
   return true;
 }
 
@@ -281,7 +302,7 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
   const ForceEvidence force = ForceResidual(m, th, recs, setup, fresh);
   step.residual_rms = std::sqrt(force.r0.squaredNorm() / static_cast<double>(force.reg.X.rows()));
   SimulationEvidence sim;
-  if (!SimulationResidual(m, th, recs, setup, opt.fit.objective, force.step_of_col, &sim)) {
+  if (!SimulationResidual(m, th, recs, setup, opt.fit.objective, fresh, force.step_of_col, &sim)) {
     step.verdict = "the fitted model diverges on a record; nothing traced";
     return step;
   }
@@ -289,11 +310,10 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
   int col = p;
   for (const TermDef* c : fresh) {
     const int k = static_cast<int>(c->params.size());
-    Eigen::MatrixXd Jc;
     CandidateScore s;
-    if (CandidateSensitivity(m, th, c, &force.step_of_col[col], recs, setup, opt.fit.objective, sim, &Jc)) {
-      s = ScoreColumns(sim.J, Jc, sim.target, sim.base.rss, sim.n_eff);
-    } else {
+    if (sim.Jc.middleCols(col - p, k).allFinite()) {
+      s = ScoreColumns(sim.J, sim.Jc.middleCols(col - p, k), sim.target, sim.base.rss, sim.n_eff);
+    } else {  // its simulation diverged
       s.explained = 0;
       s.delta_bic = INFINITY;
       s.estimate.assign(k, 0.0);
@@ -410,7 +430,10 @@ IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& 
     out.steps.push_back(step);
   }
   for (int round = 0; round < (finite_fit ? opt.max_added : 0); ++round) {
+    const auto tr0 = std::chrono::steady_clock::now();
     LoopStep step = TraceResidual(m, m.theta, recs, setup, opt);
+    if (std::getenv("BISTABLE_IDENTIFY_DEBUG"))
+      std::fprintf(stderr, "trace %.2f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - tr0).count());
     if (step.chosen.empty()) {
       step.verdict = "no candidate beats the noise (ΔBIC < −" + std::to_string(static_cast<int>(opt.bic_threshold)) +
                      ", ≥ " + std::to_string(static_cast<int>(100 * opt.min_explained)) + " % of the residual, signed)";

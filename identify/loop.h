@@ -4,8 +4,9 @@
 //
 // Tracing. Two residuals are scored against every candidate term c (k_c parameters β):
 //  * the simulation-error residual e (the objective's residual vector, fit.h) — the deciding one, a
-//    score test: −e ≈ J_θ δ + J_c β by least squares, with J the output sensitivities (finite
-//    differences of simulations; J_c at β = 0), so the declared values may shift while c enters;
+//    score test: −e ≈ J_θ δ + J_c β by least squares, with J the output sensitivities (exact
+//    derivatives of the discrete simulation from its sensitivity equations, one pass for the declared
+//    parameters and every candidate's; J_c at β = 0), so the declared values may shift while c enters;
 //  * the restoring force the model lacks along the measured trajectory, r = b − X θ of the
 //    equation-error rows (smoothed second derivatives: noisy, reported as supporting evidence and
 //    drawn against displacement and velocity).

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <type_traits>
 
 #include <Eigen/Dense>
 
@@ -453,14 +454,42 @@ int SubstepsFor(const IdentModel& m, const std::vector<double>& th, const Prepar
 
 namespace {
 
-// A record's equations of motion (model.h) as a System for dynamics/rk4.h: state (p, p', r, r'), fixed
-// size, so that stepping allocates nothing (Simulate is the hot loop of identification).
+// One term of a simulation: its definition and first parameter column (model terms at their place in
+// ParamNames; candidate terms after all the model's parameters, at value 0).
+struct SimTerm {
+  const TermDef* t;
+  int col;
+};
+
+// A record's equations of motion (model.h) as a System for dynamics/rk4.h. Without sensitivities the
+// state is (p, p', r, r'), fixed size, so that stepping allocates nothing (Simulate is the hot loop of
+// identification). With them (kSens) it is that state followed by one column (∂p, ∂p', ∂r, ∂r')/∂θ_j per
+// parameter: the variational equations S' = (∂f/∂x) S + ∂f/∂θ_j, integrated by the same RK4 steps, so
+// that the columns are the exact derivative of the discrete simulation. Force terms are linear in their
+// parameters, so ∂F/∂θ_j is the basis value φ_j, already computed for F.
+template <bool kSens>
 class RecordSystem {
  public:
-  using State = Eigen::Matrix<double, 4, 1>;
-  RecordSystem(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, InputKind in)
-      : m_(m), th_(th), r_(r), in_(in), res_(m.HasResonator()), mm_(m.Mass(th)) {}
-  int dim() const { return 4; }
+  using State = std::conditional_t<kSens, Eigen::VectorXd, Eigen::Matrix<double, 4, 1>>;
+  RecordSystem(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
+               const PreparedRecord& r, InputKind in)
+      : r_(r), in_(in), res_(m.HasResonator()), mm_(m.Mass(th)), mr_(m.m_res), fc_(m.fc),
+        tanh_sp_(std::tanh(m.fc.v_sp / m.fc.v_t)), th_(th) {
+    int col = 0;
+    for (const TermDef* t : m.terms) terms_.push_back({t, col}), col += static_cast<int>(t->params.size());
+    cols_ = m.NumParams();
+    mass_col_ = m.FitsMass() ? m.NumTermParams() : -1;
+    if constexpr (kSens) {
+      for (const TermDef* t : extra) terms_.push_back({t, cols_}), cols_ += static_cast<int>(t->params.size());
+    }
+    th_.resize(cols_, 0.0);
+    body_of_col_.assign(cols_, 0);
+    for (const SimTerm& st : terms_)
+      for (size_t j = 0; j < st.t->params.size(); ++j) body_of_col_[st.col + j] = st.t->body == Body::kMain ? 1 : 2;
+    phi_col_.assign(cols_, 0.0);
+  }
+  int dim() const { return kSens ? 4 + 4 * cols_ : 4; }
+  int cols() const { return cols_; }
   void operator()(double t, const State& x, State& dx) const {
     double u, ud;
     r_.in_spline.Eval(t, &u, &ud);
@@ -472,45 +501,79 @@ class RecordSystem {
       y = x[0], yd = x[1];
       if (res_) z = x[2], zd = x[3];
     }
-    const double F = m_.Force(Body::kMain, th_, y, yd);
-    const double G = res_ ? m_.Force(Body::kResonator, th_, z, zd) : 0.0;
-    // p'' and r'' (a₁, a₃), then dx written whole: one vector store, which the integrator's next
-    // vector load of dx can forward (four scalar stores cannot be, and cost ~4 % of the simulation).
-    double a1 = 0, a3 = 0;
+    double F = 0, Fq = 0, Fv = 0, G = 0, Gq = 0, Gv = 0;
+    double phi[2], pq[2], pv[2];
+    for (const SimTerm& st : terms_) {
+      const bool main = st.t->body == Body::kMain;
+      if (!main && !res_) continue;
+      TermBasisSlopes(*st.t, main ? y : z, main ? yd : zd, fc_, tanh_sp_, phi, kSens ? pq : nullptr, kSens ? pv : nullptr);
+      double f = 0, fq = 0, fv = 0;
+      for (size_t j = 0; j < st.t->params.size(); ++j) {
+        const double th = th_[st.col + j];
+        f += th * phi[j];
+        if constexpr (kSens) fq += th * pq[j], fv += th * pv[j], phi_col_[st.col + j] = phi[j];
+      }
+      if (main) F += f, Fq += fq, Fv += fv;
+      else G += f, Gq += fq, Gv += fv;
+    }
+    // p'' and r'' (a₁, a₃); `inv`: the part divided by the main mass (its derivative by m_main is −inv/m).
+    double a1 = 0, a3 = 0, inv = 0;
     switch (in_) {
       case InputKind::kBaseDisplacement:
-        a1 = (-F + G) / mm_;
-        a3 = res_ ? -G / m_.m_res : a1;
+        a1 = inv = (-F + G) / mm_;
+        a3 = res_ ? -G / mr_ : a1;
         break;
-      case InputKind::kBaseAcceleration: {
-        const double am = (-F + G) / mm_;
-        a1 = am - u;
-        a3 = res_ ? -G / m_.m_res - am : 0.0;
+      case InputKind::kBaseAcceleration:
+        inv = (-F + G) / mm_;
+        a1 = inv - u;
+        a3 = res_ ? -G / mr_ - inv : 0.0;
         break;
-      }
-      case InputKind::kForce: {
-        const double ydd = (u - F + G) / mm_;
-        a1 = ydd;
-        a3 = res_ ? -G / m_.m_res - ydd : 0.0;
+      case InputKind::kForce:
+        a1 = inv = (u - F + G) / mm_;
+        a3 = res_ ? -G / mr_ - a1 : 0.0;
         break;
+    }
+    if constexpr (!kSens) {
+      // dx written whole: one vector store, which the integrator's next vector load of dx can forward
+      // (four scalar stores cannot be, and cost ~4 % of the simulation).
+      dx = State(x[1], a1, x[3], a3);
+    } else {
+      dx[0] = x[1], dx[1] = a1, dx[2] = x[3], dx[3] = a3;
+      const bool disp = in_ == InputKind::kBaseDisplacement;
+      for (int j = 0; j < cols_; ++j) {
+        const double* S = &x[4 + 4 * j];
+        const double dy = S[0], dyd = S[1];
+        const double dz = disp ? S[2] - S[0] : S[2], dzd = disp ? S[3] - S[1] : S[3];
+        const double dF = Fq * dy + Fv * dyd + (body_of_col_[j] == 1 ? phi_col_[j] : 0.0);
+        const double dG = res_ ? Gq * dz + Gv * dzd + (body_of_col_[j] == 2 ? phi_col_[j] : 0.0) : 0.0;
+        const double dinv = (-dF + dG) / mm_ - (j == mass_col_ ? inv / mm_ : 0.0);
+        double da3 = 0;
+        if (disp) da3 = res_ ? -dG / mr_ : dinv;
+        else da3 = res_ ? -dG / mr_ - dinv : 0.0;
+        double* D = &dx[4 + 4 * j];
+        D[0] = S[1], D[1] = dinv, D[2] = S[3], D[3] = da3;
       }
     }
-    dx = State(x[1], a1, x[3], a3);
   }
 
  private:
-  const IdentModel& m_;
-  const std::vector<double>& th_;
   const PreparedRecord& r_;
   const InputKind in_;
   const bool res_;
-  const double mm_;
+  const double mm_, mr_;
+  const FrictionConstants fc_;
+  const double tanh_sp_;
+  std::vector<double> th_;  // the model's values, then 0 for candidate columns
+  std::vector<SimTerm> terms_;
+  int cols_ = 0, mass_col_ = -1;
+  std::vector<int> body_of_col_;        // 1 main, 2 resonator, 0 neither (mass, offsets)
+  mutable std::vector<double> phi_col_;  // basis value of every term column at the current stage
 };
 
-}  // namespace
-
-bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
-              std::vector<double>* out, std::vector<double>* out_res, int substeps, int restart_every) {
+template <bool kSens>
+bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
+                  const PreparedRecord& r, const Setup& setup, int substeps, int restart_every, std::vector<double>* out,
+                  std::vector<double>* out_res, Eigen::MatrixXd* dout, Eigen::MatrixXd* dres, EarlyStop* stop = nullptr) {
   const size_t n = r.n();
   out->assign(n, NAN);
   if (out_res) out_res->assign(n, NAN);
@@ -523,40 +586,84 @@ bool Simulate(const IdentModel& m, const std::vector<double>& th, const Prepared
   const int ns = substeps > 0 ? substeps : SubstepsFor(m, th, r);
   const double h = r.dt / ns;
   const InputKind in = setup.input;
+  using Sys = RecordSystem<kSens>;
+  const Sys sys(m, th, extra, r, in);
+  const int P = kSens ? sys.cols() : 0;
+  if constexpr (kSens) {
+    dout->setConstant(static_cast<long>(n), P, NAN);
+    if (dres) dres->setConstant(static_cast<long>(n), P, NAN);
+  }
   // State (p, p', r, r'); initial values from the smoothed measurement.
   const double offset = m.Offset(th, r.index);
-  RecordSystem::State s;
-  s << r.ic_p[0] + offset, r.ic_pd[0], res && !r.ic_r.empty() ? r.ic_r[0] : (in == InputKind::kBaseDisplacement ? r.ic_p[0] : 0.0),
-      res && !r.ic_rd.empty() ? r.ic_rd[0] : (in == InputKind::kBaseDisplacement ? r.ic_pd[0] : 0.0);
+  const int offset_col = m.offsets > 0 && r.index >= 0 && r.index < m.offsets ? m.OffsetIndex(r.index) : -1;
+  typename Sys::State s;
+  if constexpr (kSens) s.resize(sys.dim());
+  s.setZero();
+  s[0] = r.ic_p[0] + offset;
+  s[1] = r.ic_pd[0];
+  s[2] = res && !r.ic_r.empty() ? r.ic_r[0] : (in == InputKind::kBaseDisplacement ? r.ic_p[0] : 0.0);
+  s[3] = res && !r.ic_rd.empty() ? r.ic_rd[0] : (in == InputKind::kBaseDisplacement ? r.ic_pd[0] : 0.0);
+  auto reset_sensitivities = [&] {  // at a (re)start only the offset moves the state
+    if constexpr (kSens) {
+      s.tail(4 * P).setZero();
+      if (offset_col >= 0) s[4 + 4 * offset_col] = 1.0;
+    }
+  };
+  reset_sensitivities();
   const double limit_p = 100.0 * (r.p_range + std::abs(r.ic_p[0]) + std::abs(offset)) + 1e-12;
+  const bool vel = setup.output == OutputKind::kVelocity;
+  // The compared output is state component `oc` (plus a known signal); the resonator's is s[2] (+ s[0]).
+  const int oc = in != InputKind::kBaseDisplacement && vel ? 1 : 0;
+  const bool res_plus_p = in != InputKind::kBaseDisplacement;
   auto emit = [&](size_t i) {
-    double value;
-    const bool vel = setup.output == OutputKind::kVelocity;
+    double value = s[oc];
     if (in == InputKind::kBaseDisplacement) {
-      value = s[0];
       if (setup.frame == OutputFrame::kRelative) value -= r.base_x[i];
-    } else if (vel) {
-      value = s[1];
-      if (in == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute) value += r.base_v[i];
-    } else {
-      value = s[0];
+    } else if (vel && in == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute) {
+      value += r.base_v[i];
     }
     (*out)[i] = value;
-    if (out_res && res) (*out_res)[i] = in == InputKind::kBaseDisplacement ? s[2] : s[2] + s[0];
+    if (stop) {
+      const double d = (value - (*stop->meas)[i]) * stop->w;
+      stop->sse += d * d;
+      stop->stopped = stop->sse > stop->budget;
+    }
+    if (out_res && res) (*out_res)[i] = res_plus_p ? s[2] + s[0] : s[2];
+    if constexpr (kSens) {
+      for (int j = 0; j < P; ++j) (*dout)(static_cast<long>(i), j) = s[4 + 4 * j + oc];
+      if (dres && res)
+        for (int j = 0; j < P; ++j)
+          (*dres)(static_cast<long>(i), j) = s[4 + 4 * j + 2] + (res_plus_p ? s[4 + 4 * j] : 0.0);
+    }
   };
   emit(0);
-  const RecordSystem sys(m, th, r, in);
-  Rk4<RecordSystem> rk4(sys);
+  Rk4<Sys> rk4(sys);
   for (size_t i = 1; i < n; ++i) {
     if (restart_every > 0 && (i - 1) % static_cast<size_t>(restart_every) == 0 && i > 1) {
       s[0] = r.ic_p[i - 1] + offset, s[1] = r.ic_pd[i - 1];
       if (res && !r.ic_r.empty()) s[2] = r.ic_r[i - 1], s[3] = r.ic_rd[i - 1];
+      reset_sensitivities();
     }
     for (int sub = 0; sub < ns; ++sub) rk4.Step(r.t0 + static_cast<double>(i - 1) * r.dt + sub * h, s, h);
     if (!std::isfinite(s[0]) || !std::isfinite(s[1]) || std::abs(s[0]) > limit_p) return false;
     emit(i);
+    if (stop && stop->stopped) return false;
   }
   return true;
+}
+
+}  // namespace
+
+bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
+              std::vector<double>* out, std::vector<double>* out_res, int substeps, int restart_every, EarlyStop* stop) {
+  return SimulateImpl<false>(m, th, {}, r, setup, substeps, restart_every, out, out_res, nullptr, nullptr, stop);
+}
+
+bool SimulateSensitivities(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
+                           const PreparedRecord& r, const Setup& setup, int substeps, int restart_every,
+                           std::vector<double>* out, Eigen::MatrixXd* dout, std::vector<double>* out_res,
+                           Eigen::MatrixXd* dres) {
+  return SimulateImpl<true>(m, th, extra, r, setup, substeps, restart_every, out, out_res, dout, dres);
 }
 
 }  // namespace bistable

@@ -13,10 +13,13 @@
 #ifndef BISTABLE_IDENTIFY_MODEL_H_
 #define BISTABLE_IDENTIFY_MODEL_H_
 
+#include <cmath>
 #include <map>
 #include <memory>
 #include <string>
 #include <vector>
+
+#include <Eigen/Dense>
 
 #include "base/status.h"
 #include "identify/effects.h"
@@ -128,8 +131,27 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
 // form at every sample, `out_res` the resonator displacement when measured. False on divergence.
 // `substeps` > 0 fixes the RK4 substeps per sample (fits hold it fixed so that the objective is a
 // smooth function of the parameters); 0 chooses them from the parameters (SubstepsFor).
+// Early stop of a hopeless simulation (a fit's global stage): Σ ((out − meas)·w)² over the samples so far
+// is kept in `sse`; once it exceeds `budget` the simulation stops (Simulate returns false, `stopped` set),
+// since the candidate cannot beat the point the budget came from.
+struct EarlyStop {
+  const std::vector<double>* meas = nullptr;
+  double w = 1, budget = INFINITY;
+  double sse = 0;
+  bool stopped = false;
+};
 bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
-              std::vector<double>* out, std::vector<double>* out_res = nullptr, int substeps = 0, int restart_every = 0);
+              std::vector<double>* out, std::vector<double>* out_res = nullptr, int substeps = 0, int restart_every = 0,
+              EarlyStop* stop = nullptr);
+// Simulate, and the output's sensitivities: column j of `dout` (n × P) is ∂out/∂θ_j for the model's
+// parameters (ParamNames order), then for the parameters of the `extra` terms at value 0 (the trace's
+// candidates); `dres` likewise for the resonator output. From the variational equations integrated with
+// the state by the same RK4 steps: the exact derivative of the discrete simulation (fixed substeps), for
+// every parameter in one pass, where finite differences cost a simulation per parameter (or two).
+bool SimulateSensitivities(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
+                           const PreparedRecord& r, const Setup& setup, int substeps, int restart_every,
+                           std::vector<double>* out, Eigen::MatrixXd* dout, std::vector<double>* out_res = nullptr,
+                           Eigen::MatrixXd* dres = nullptr);
 // restart_every > 0: the state is reset to the measured (smoothed) one every so many samples —
 // short-horizon simulation error (multiple shooting), whose minimum lies where the long-horizon one
 // does but whose basin is far wider (no accumulated phase drift); fits use it as a first stage.
