@@ -31,7 +31,7 @@ struct IdentifyArgs {
   std::string terms, known, columns, candidates, guesses;
   std::string input_kind = "base_displacement", output_kind = "displacement", frame = "absolute";
   double input_scale = 1, output_scale = 1;
-  std::string range, objective = "time", report, synth;
+  std::string range, objective = "time", report, synth, synth_kind = "linear";
   std::vector<std::string> test_ranges;
   double max_seconds = 0;
   int decimate = 1, global_evals = 150, max_added = 3, threads = 0;
@@ -187,13 +187,34 @@ int ListTerms(bool json) {
   return 0;
 }
 
-// --make-synthetic DIR: synthetic records for trying the loop: the paper's Table 2 linear rig (no
-// resonator) under 1 → 8 Hz chirps of 6, 10, 14 mm, sampled at 120 Hz with 0.05 mm noise.
-StatusOr<nlohmann::json> SyntheticJson(const std::string& dir) {
+// --make-synthetic DIR: synthetic records for trying the loop (noise 0.05 mm on every measured
+// position, sampled at 120 Hz like the paper's camera):
+//   linear   the paper's Table 2 linear rig (no resonator) under 1 → 8 Hz chirps of 6, 10, 14 mm, 20 s each;
+//   coupled  the Table 2 bistable beam with its resonator (friction on both bodies), one 1 → 6 Hz chirp of
+//            4 mm over 70 s, started in the right well: columns t, x0, x, xr.
+StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const std::string& kind) {
+  if (kind != "linear" && kind != "coupled")
+    return Status::InvalidArgument("synthetic", "'" + kind + "' is not linear or coupled");
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return Status::IoError("make-synthetic", "cannot create '" + dir + "': " + ec.message());
   nlohmann::json files = nlohmann::json::array();
+  auto write = [&](const DimensionalParams& p, const SyntheticOptions& o, const std::string& file) -> Status {
+    auto r = MakeSyntheticRecord(p, o, file);
+    if (!r.ok()) return r.status();
+    const std::string path = (std::filesystem::path(dir) / file).string();
+    BISTABLE_RETURN_IF_ERROR(WriteRecordCsv(*r, path));
+    files.push_back(path);
+    return Status::Ok();
+  };
+  if (kind == "coupled") {
+    const DimensionalParams p = DimensionalParams::BistableTable2();
+    SyntheticOptions o;
+    o.a0_m = 4e-3, o.f_start_hz = 1, o.f_end_hz = 6, o.duration_s = 70;
+    o.y0_m = std::sqrt(-p.k_lin / p.k3);
+    BISTABLE_RETURN_IF_ERROR(write(p, o, "coupled_70s.csv"));
+    return nlohmann::json{{"files", files}};
+  }
   DimensionalParams p = DimensionalParams::LinearTable2();
   p.has_resonator = false;
   unsigned seed = 1;
@@ -201,17 +222,13 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir) {
     SyntheticOptions o;
     o.a0_m = mm * 1e-3;
     o.seed = seed++;
-    auto r = MakeSyntheticRecord(p, o, "chirp");
-    if (!r.ok()) return r.status();
-    const std::string path = (std::filesystem::path(dir) / ("chirp_" + Fmt(mm, 3) + "mm.csv")).string();
-    BISTABLE_RETURN_IF_ERROR(WriteRecordCsv(*r, path));
-    files.push_back(path);
+    BISTABLE_RETURN_IF_ERROR(write(p, o, "chirp_" + Fmt(mm, 3) + "mm.csv"));
   }
   return nlohmann::json{{"files", files}};
 }
 
-int MakeSynthetic(const std::string& dir, bool json) {
-  auto j = SyntheticJson(dir);
+int MakeSynthetic(const std::string& dir, const std::string& kind, bool json) {
+  auto j = SyntheticJson(dir, kind);
   if (!j.ok()) return Fail(j.status());
   if (json) std::cout << j->dump(2) << "\n";
   else
@@ -567,7 +584,7 @@ void PrintSummary(const IdentifyArgs& a, const IdentifyResult& r, const nlohmann
 // The fit: what --json prints (and report.json holds); the report directory is written when asked.
 StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
   if (a.list_terms) return TermsJson();
-  if (!a.synth.empty()) return SyntheticJson(a.synth);
+  if (!a.synth.empty()) return SyntheticJson(a.synth, a.synth_kind);
   const auto plan = PlanFromFlags(a);
   if (!plan.ok()) return plan.status();
   const auto loaded = LoadAll(a, plan->columns);
@@ -588,7 +605,7 @@ StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
 
 int RunIdentify(const IdentifyArgs& a) {
   if (a.list_terms) return ListTerms(a.json);
-  if (!a.synth.empty()) return MakeSynthetic(a.synth, a.json);
+  if (!a.synth.empty()) return MakeSynthetic(a.synth, a.synth_kind, a.json);
   auto j = IdentifyJson(a);
   if (!j.ok()) return Fail(j.status());
   if (a.json) std::cout << j->dump(2) << "\n";
@@ -618,7 +635,8 @@ void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
   c->add_option("--guess", a->guesses, "initial values, e.g. main.linear.k_lin=480 (others from the regression)");
   c->add_option("--threads", a->threads, "records simulated in parallel (0: the CPUs this process may use: affinity and cgroup quota)")->capture_default_str();
   c->add_option("--report", a->report, "directory for report.md, report.json and PNG figures");
-  c->add_option("--make-synthetic", a->synth, "write synthetic chirp records (Table 2 linear rig) into DIR and exit");
+  c->add_option("--make-synthetic", a->synth, "write synthetic chirp records into DIR and exit (see --synthetic)");
+  c->add_option("--synthetic", a->synth_kind, "linear: Table 2 linear rig, 1-8 Hz chirps of 6/10/14 mm, 20 s each | coupled: Table 2 bistable beam + resonator, friction on both, 1-6 Hz chirp of 4 mm, 70 s (120 Hz, 0.05 mm noise)")->capture_default_str();
   c->add_flag("--fit-offsets", a->fit_offsets, "velocity outputs: fit each record's displacement offset (which well)");
   c->add_flag("--list-terms", a->list_terms, "list the effect library (ids, formulas, units) and exit");
   c->add_flag("--json", a->json, "print the result as JSON");
