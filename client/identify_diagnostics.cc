@@ -8,11 +8,7 @@
 namespace bistable {
 namespace {
 
-std::string F(double v, int digits = 4) {
-  char b[48];
-  std::snprintf(b, sizeof b, "%.*g", digits, v);
-  return b;
-}
+std::string F(double v, int digits = 4) { return FormatSignificant(v, digits); }
 
 nlohmann::json InvariantsObject(const Invariants& v) {
   return {{"poincare_energy", JsonNumber(v.poincare)},

@@ -12,13 +12,16 @@
 #include "dynamics/spectrum.h"
 
 namespace bistable {
-namespace {
 
-std::string Num(double v, int digits = 3) {
+std::string FormatSignificant(double v, int digits) {
   char b[48];
   std::snprintf(b, sizeof b, "%.*g", digits, v);
   return b;
 }
+
+namespace {
+
+std::string Num(double v, int digits = 3) { return FormatSignificant(v, digits); }
 
 // The residual low-passed to [0, band_hz] by an FFT brick wall and resampled every d-th sample,
 // d = ⌊1/(2 band dt)⌋: white noise stays white (the kept bins of a white series are independent).

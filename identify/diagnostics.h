@@ -121,6 +121,9 @@ struct LoopDiagnostics {
                                           // while the final fit separates the two (|ρ| < 0.9)
 };
 
+// v with `digits` significant digits (printf %g), as the messages above and the reports print numbers.
+std::string FormatSignificant(double v, int digits);
+
 // The diagnostics of a loop's fits (fits[0] the declared model's; the final model is the last one
 // kept); `stop` says why the loop stopped (its last verdict).
 LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector<PreparedRecord>& recs, const Setup& setup,
