@@ -235,7 +235,7 @@ std::string PairHint(const TermDef& a, const double* tha, const TermDef& b, cons
   }
   const auto [pa, qa] = AmplitudePowers(a, tha, 0.5 * q, 0.5 * v, fc);
   const auto [pb, qb] = AmplitudePowers(b, thb, 0.5 * q, 0.5 * v, fc);
-  const std::string here = "max |y| " + Num(1e3 * q) + " mm, max |y'| " + Num(1e3 * v) + " mm/s";
+  const std::string here = "max |y| " + Num(q) + " m, max |y'| " + Num(v) + " m/s";
   if (!std::isfinite(pa) || !std::isfinite(pb)) return "one of them is zero here; a record at another amplitude would show it";
   if (std::abs(pa - pb) >= 0.5) {
     const TermDef& hi = pa > pb ? a : b;
@@ -335,9 +335,12 @@ LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector
                     std::to_string(d.whiteness.dof) + " lags, p = " + Num(d.whiteness.p_value, 2) + " < " + Num(d.whiteness.alpha, 2) +
                     "; spectral flatness " + Num(d.whiteness.flatness, 2) + ": " + Num(100 * (1 - d.whiteness.flatness), 2) +
                     " % of it predictable from its past" + (lines.empty() ? "" : "; strongest lines " + lines + " Hz") +
-                    ") and the loop stopped: " + stop +
-                    ". The model lacks something the candidates do not hold (a term not in the library, or a sensor effect); "
-                    "nothing was added for it.";
+                    ") and the loop stopped: " + stop + ". " +
+                    (stop.rfind("it reached --max-added", 0) == 0
+                         ? "More candidates may explain part of it (raise --max-added); what they leave is a term not in the library or a "
+                           "sensor effect."
+                         : "The model lacks something the candidates do not hold (a term not in the library, or a sensor effect); nothing "
+                           "was added for it.");
   }
   d.correlations = StrongCorrelations(fin.model.ParamNames(), fin.fit.covariance);
   Separability(fin, fits, d.steps, d.correlations, recs, &d);
