@@ -17,6 +17,7 @@
 
 #include "base/names.h"
 #include "client/cli_common.h"
+#include "client/identify_diagnostics.h"
 #include "client/json_out.h"
 #include "client/plot.h"
 #include "engine/sweep_spec.h"
@@ -499,6 +500,7 @@ nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const
                    {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"input_kind", a.input_kind},
                    {"output_kind", a.output_kind}, {"output_frame", a.frame},
                    {"fit_offsets", a.fit_offsets}};
+  AddDiagnosticsJson(r, recs, &j);
   return j;
 }
 
@@ -550,6 +552,7 @@ Status WriteReport(const IdentifyArgs& a, const Setup& setup, const IdentifyResu
   for (size_t i = 0; i < recs.size(); ++i) md << (i ? ", " : "") << "`" << recs[i].name << "` (" << recs[i].n() << " samples)";
   md << ".\n\n";
   WriteReportEvidence(md, r, recs, j["tests"]);
+  WriteDiagnosticsReport(md, r);
   md << "## Final model\n\n| parameter | value | ± σ | unit |\n|---|---|---|---|\n";
   const auto names = r.final_model.ParamNames();
   const auto units = r.final_model.ParamUnits();
@@ -578,6 +581,7 @@ void PrintSummary(const IdentifyArgs& a, const IdentifyResult& r, const nlohmann
   for (const auto& t : tests)
     std::printf("test %s [%s): RMS %s before, %s after\n", t["record"].get<std::string>().c_str(), t["range"].get<std::string>().c_str(),
                 TestRms(t, "rms_before").c_str(), TestRms(t, "rms_after").c_str());
+  std::printf("%s", DiagnosticsSummary(r).c_str());
   std::printf("%.1f s, %lld simulations%s\n", r.seconds, simulations, a.report.empty() ? "" : ("; report in " + a.report).c_str());
 }
 

@@ -205,8 +205,11 @@ double HarmonicDiffusionIndex(const Spectrum& s, double omega, double tol_bins) 
   return total > 0 ? off / total : 0.0;
 }
 
-double ToneAmplitude(const double* x, size_t n, double dt, double w) {
-  if (n < 4) return 0.0;
+namespace {
+
+// Hann-weighted sums Σ w_i (x_i − mean) cos(ω t_i), … sin(ω t_i) and Σ w_i (false when n < 4).
+bool ToneSums(const double* x, size_t n, double dt, double w, double* re_out, double* im_out, double* wsum_out) {
+  if (n < 4) return false;
   double mean = 0;
   for (size_t i = 0; i < n; ++i) mean += x[i];
   mean /= static_cast<double>(n);
@@ -230,7 +233,22 @@ double ToneAmplitude(const double* x, size_t n, double dt, double w) {
     z_win *= r_win;
     z_ph *= r_ph;
   }
+  *re_out = re, *im_out = im, *wsum_out = wsum;
+  return true;
+}
+
+}  // namespace
+
+double ToneAmplitude(const double* x, size_t n, double dt, double w) {
+  double re = 0, im = 0, wsum = 0;
+  if (!ToneSums(x, n, dt, w, &re, &im, &wsum)) return 0.0;
   return 2.0 * std::hypot(re, im) / wsum;
+}
+
+std::complex<double> TonePhasor(const double* x, size_t n, double dt, double w) {
+  double re = 0, im = 0, wsum = 0;
+  if (!ToneSums(x, n, dt, w, &re, &im, &wsum)) return 0.0;
+  return std::complex<double>(re, -im) * (2.0 / wsum);
 }
 
 double SubharmonicFraction(const Spectrum& s, double omega, int n, double tol_bins) {

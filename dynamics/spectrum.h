@@ -57,6 +57,9 @@ double HarmonicDiffusionIndex(const Spectrum& s, double omega, double tol_bins =
 // Amplitude of the component at angular frequency w in x[0..n) sampled every dt (Hann-weighted
 // projection; a sinusoid of amplitude A at w gives ≈ A).
 double ToneAmplitude(const double* x, size_t n, double dt, double w);
+// The same projection as a phasor P: x ≈ Re(P e^{iωt}) with t = i·dt, so |P| is the amplitude (as
+// ToneAmplitude) and arg P the phase φ of A cos(ωt + φ).
+std::complex<double> TonePhasor(const double* x, size_t n, double dt, double w);
 
 // Fraction of spectral power within `tol_bins` of the sub-harmonics kΩ/n with k not a multiple of n:
 // the spectral signature of period-n motion (0 for n = 1).

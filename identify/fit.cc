@@ -607,6 +607,8 @@ void FitStages::Uncertainties(const std::vector<double>& u) {
   const Eigen::MatrixXd JtJ = J.transpose() * J;
   const Eigen::MatrixXd cov = JtJ.completeOrthogonalDecomposition().pseudoInverse() * (rss / dof * tau);
   for (int i = 0; i < p; ++i) result.sigma[i] = std::sqrt(std::max(cov(i, i), 0.0)) * cost.scale[i];
+  const Eigen::VectorXd scale = Eigen::Map<const Eigen::VectorXd>(cost.scale.data(), p);
+  result.covariance = scale.asDiagonal() * cov * scale.asDiagonal();
 }
 
 }  // namespace

@@ -80,6 +80,7 @@ struct FitOptions {
 
 struct FitResult {
   std::vector<double> theta, sigma;
+  Eigen::MatrixXd covariance;  // Gauss–Newton covariance of theta (σ² on its diagonal); empty for the spectral objective
   Errors errors;
   int simulations = 0;
   double seconds = 0;

@@ -422,6 +422,7 @@ IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& 
   FitResult fit = Fit(m, ScaleOf(m, m.theta, sigma0, recs, setup), recs, setup, opt.fit);
   m.theta = fit.theta;
   out.before = fit;
+  out.fits.push_back({m, fit, "", true});
   out.residual_before = ResidualForce(m, m.theta, recs, setup);
   const bool finite_fit = std::all_of(fit.theta.begin(), fit.theta.end(), [](double v) { return std::isfinite(v); });
   if (!finite_fit) {  // nothing to trace from (the caller reports the non-finite parameters as an error)
@@ -444,8 +445,10 @@ IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& 
     IdentModel next;
     const FitResult refit = RefitWith(m, fit, t, step, recs, setup, opt, &next);
     const double before = ErrorOf(fit, opt.fit.objective), after = ErrorOf(refit, opt.fit.objective);
+    const bool confirmed = after < before * (1.0 - opt.min_improvement);
+    out.fits.push_back({next, refit, t->id, confirmed});
     char buf[256];
-    if (!(after < before * (1.0 - opt.min_improvement))) {
+    if (!confirmed) {
       std::snprintf(buf, sizeof buf, "%s scored best but the refit by simulation did not confirm it (error %.3g %% -> %.3g %%); not added",
                     t->id.c_str(), before, after);
       step.verdict = buf;
@@ -466,6 +469,10 @@ IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& 
   out.after = fit;
   for (AddedEffect& a : out.added) TakeValues(&a, m, fit);  // the final values (later additions refit everything)
   out.residual_after = ResidualForce(m, m.theta, recs, setup);
+  const std::string stop = out.steps.empty()                  ? "--max-added 0, nothing traced"
+                           : out.steps.back().chosen.empty() ? out.steps.back().verdict
+                                                             : "it reached --max-added after: " + out.steps.back().verdict;
+  out.diagnostics = Diagnose(out.fits, recs, setup, opt.fit, stop);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "identify/diagnostics.h"
 #include "identify/fit.h"
 
 namespace bistable {
@@ -75,6 +76,8 @@ struct IdentifyResult {
   std::vector<LoopStep> steps;
   std::vector<AddedEffect> added;
   ResidualCloud residual_before, residual_after;
+  std::vector<FitSnapshot> fits;   // the declared fit, then every refit with a candidate (kept or not)
+  LoopDiagnostics diagnostics;     // whiteness / unexplained, correlations, drift, invariants (diagnostics.h)
   double seconds = 0;
 };
 

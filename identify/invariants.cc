@@ -1,0 +1,217 @@
+#include "identify/invariants.h"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+
+#include "dynamics/spectrum.h"
+
+namespace bistable {
+
+double ForcingFrequency(const std::vector<double>& input, double dt) {
+  if (input.size() < 16 || !(dt > 0)) return NAN;
+  const Spectrum s = AmplitudeSpectrum(input, dt);
+  const std::vector<HdPeak> peaks = SpectralPeaks(s, 0.0, 1);
+  if (peaks.empty()) return NAN;
+  // Golden-section search for the maximum of the Hann-weighted projection within ±1 bin of the peak:
+  // the bin's parabola leaves ~1 % of a bin, which over a record of N periods is a phase drift of
+  // N/100 cycles in the stroboscopic section.
+  auto amp = [&](double w) { return ToneAmplitude(input.data(), input.size(), dt, w); };
+  double a = std::max(peaks[0].freq - s.d_omega, 0.5 * peaks[0].freq), b = peaks[0].freq + s.d_omega;
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  double c = b - g * (b - a), d = a + g * (b - a), fc = amp(c), fd = amp(d);
+  for (int it = 0; it < 60 && b - a > 1e-9 * peaks[0].freq; ++it) {
+    if (fc > fd) b = d, d = c, fd = fc, c = b - g * (b - a), fc = amp(c);
+    else a = c, c = d, fc = fd, d = a + g * (b - a), fd = amp(d);
+  }
+  return 0.25 * (a + b) / M_PI;  // midpoint, rad/s → Hz
+}
+
+void MainBodyMotion(const std::vector<double>& out, const PreparedRecord& r, const Setup& setup, std::vector<double>* y,
+                    std::vector<double>* yd) {
+  if (setup.output == OutputKind::kVelocity) {
+    *yd = out;
+    if (setup.input == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute)
+      for (size_t i = 0; i < yd->size() && i < r.base_v.size(); ++i) (*yd)[i] -= r.base_v[i];
+    *y = IntegrateFft(*yd, r.dt, 0.0);
+    return;
+  }
+  *y = out;
+  if (setup.input == InputKind::kBaseDisplacement && setup.frame == OutputFrame::kAbsolute)
+    for (size_t i = 0; i < y->size() && i < r.input.size(); ++i) (*y)[i] -= r.input[i];
+  *yd = SpectralDerivative(*y, r.dt, 1, r.f_cut > 0 ? r.f_cut : 0.45 / r.dt);
+}
+
+Eigen::MatrixXd StroboscopicSection(const std::vector<double>& y, const std::vector<double>& yd, const std::vector<double>& input,
+                                    double dt, double f_hz) {
+  const size_t n = std::min({y.size(), yd.size(), input.size()});
+  if (n < 16 || !(f_hz > 0) || !std::isfinite(f_hz)) return Eigen::MatrixXd(0, 2);
+  const double w = 2.0 * M_PI * f_hz;
+  const double phi = std::arg(TonePhasor(input.data(), n, dt, w));
+  const UniformSpline sy(0.0, dt, std::vector<double>(y.begin(), y.begin() + static_cast<long>(n)));
+  const UniformSpline sv(0.0, dt, std::vector<double>(yd.begin(), yd.begin() + static_cast<long>(n)));
+  const double t_end = static_cast<double>(n - 1) * dt;
+  std::vector<double> rows;
+  for (long k = static_cast<long>(std::ceil(phi / (2.0 * M_PI)));; ++k) {
+    const double t = (2.0 * M_PI * static_cast<double>(k) - phi) / w;
+    if (t > t_end) break;
+    if (t < 0) continue;
+    double q, dq, v, dv;
+    sy.Eval(t, &q, &dq);
+    sv.Eval(t, &v, &dv);
+    rows.push_back(q), rows.push_back(v);
+  }
+  Eigen::MatrixXd out(static_cast<long>(rows.size() / 2), 2);
+  for (long i = 0; i < out.rows(); ++i) out(i, 0) = rows[2 * i], out(i, 1) = rows[2 * i + 1];
+  return out;
+}
+
+namespace {
+
+constexpr long kMaxCloud = 2000;
+
+Eigen::MatrixXd Thinned(const Eigen::MatrixXd& a) {
+  if (a.rows() <= kMaxCloud) return a;
+  Eigen::MatrixXd t(kMaxCloud, a.cols());
+  for (long i = 0; i < kMaxCloud; ++i) t.row(i) = a.row(i * a.rows() / kMaxCloud);
+  return t;
+}
+
+// Mean Euclidean distance between the rows of a and those of b (all pairs, a row with itself included).
+double MeanDistance(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  double s = 0;
+  for (long i = 0; i < a.rows(); ++i)
+    for (long j = 0; j < b.rows(); ++j) s += (a.row(i) - b.row(j)).norm();
+  return s / (static_cast<double>(a.rows()) * static_cast<double>(b.rows()));
+}
+
+bool Usable(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return a.rows() > 0 && b.rows() > 0 && a.cols() == b.cols() && a.allFinite() && b.allFinite();
+}
+
+}  // namespace
+
+double EnergyDistanceSquared(const Eigen::MatrixXd& a_in, const Eigen::MatrixXd& b_in) {
+  if (!Usable(a_in, b_in)) return NAN;
+  const Eigen::MatrixXd a = Thinned(a_in), b = Thinned(b_in);
+  return std::max(0.0, 2.0 * MeanDistance(a, b) - MeanDistance(a, a) - MeanDistance(b, b));
+}
+
+double EnergyCoefficient(const Eigen::MatrixXd& a_in, const Eigen::MatrixXd& b_in) {
+  if (!Usable(a_in, b_in)) return NAN;
+  Eigen::MatrixXd a = Thinned(a_in), b = Thinned(b_in);
+  for (long j = 0; j < a.cols(); ++j) {
+    const double va = (a.col(j).array() - a.col(j).mean()).square().mean();
+    const double vb = (b.col(j).array() - b.col(j).mean()).square().mean();
+    const double s = std::sqrt(0.5 * (va + vb));
+    if (s > 0) a.col(j) /= s, b.col(j) /= s;
+  }
+  const double cross = MeanDistance(a, b);
+  if (!(cross > 0)) return 0.0;  // every point of both clouds the same
+  return std::clamp((2.0 * cross - MeanDistance(a, a) - MeanDistance(b, b)) / (2.0 * cross), 0.0, 1.0);
+}
+
+int CountSwitches(const std::vector<double>& y, double barrier, double h) {
+  int side = 0, n = 0;
+  for (double v : y) {
+    const int s = v > barrier + h ? 1 : v < barrier - h ? -1 : 0;
+    if (s == 0) continue;  // inside the hysteresis band (or NaN)
+    if (side != 0 && s != side) ++n;
+    side = s;
+  }
+  return n;
+}
+
+double HistogramHellinger(const std::vector<double>& meas, const std::vector<double>& sim, int bins) {
+  if (meas.empty() || sim.empty() || bins < 1) return NAN;
+  const auto [mn, mx] = std::minmax_element(meas.begin(), meas.end());
+  if (!std::isfinite(*mn) || !std::isfinite(*mx)) return NAN;
+  const double span = std::max(*mx - *mn, 1e-300);
+  const double lo = *mn - 0.05 * span, width = 1.1 * span / bins;
+  auto histogram = [&](const std::vector<double>& x, std::vector<double>* p) {
+    p->assign(static_cast<size_t>(bins) + 2, 0.0);
+    for (double v : x) {
+      if (!std::isfinite(v)) return false;
+      const double k = std::floor((v - lo) / width);
+      (*p)[k < 0 ? 0 : k >= bins ? static_cast<size_t>(bins) + 1 : static_cast<size_t>(k) + 1] += 1.0 / static_cast<double>(x.size());
+    }
+    return true;
+  };
+  std::vector<double> p, q;
+  if (!histogram(meas, &p) || !histogram(sim, &q)) return NAN;
+  double bc = 0;  // Bhattacharyya coefficient
+  for (size_t k = 0; k < p.size(); ++k) bc += std::sqrt(p[k] * q[k]);
+  return std::sqrt(std::max(0.0, 1.0 - bc));
+}
+
+ChaosCheck CheckChaos(const std::vector<PreparedRecord>& recs, const Setup& setup, Objective objective) {
+  ChaosCheck c;
+  for (const PreparedRecord& r : recs) {
+    const double f = ForcingFrequency(r.input, r.dt);
+    double in_bb = NAN, out_bb = NAN;
+    if (std::isfinite(f)) {
+      std::vector<double> y, yd;
+      MainBodyMotion(r.meas, r, setup, &y, &yd);
+      in_bb = HarmonicDiffusionIndex(AmplitudeSpectrum(r.input, r.dt), 2.0 * M_PI * f);
+      out_bb = HarmonicDiffusionIndex(AmplitudeSpectrum(yd, r.dt), 2.0 * M_PI * f);
+    }
+    const bool marked = objective == Objective::kFft || (in_bb <= kPeriodicInput && out_bb >= kBroadbandChaotic);
+    c.forcing_hz.push_back(f);
+    c.input_broadband.push_back(in_bb);
+    c.output_broadband.push_back(out_bb);
+    c.record_chaotic.push_back(marked);
+    c.chaotic = c.chaotic || marked;
+  }
+  char buf[240];
+  std::snprintf(buf, sizeof buf,
+                "%s a record is chaotic when its input is periodic (broadband share <= %.2g) and its output velocity is not "
+                "(broadband share >= %.2g: power farther than 3 bins from every harmonic of the forcing)",
+                objective == Objective::kFft ? "spectral objective: every record;" : "time objective:", kPeriodicInput, kBroadbandChaotic);
+  c.rule = buf;
+  return c;
+}
+
+Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                             const Setup& setup, const ChaosCheck& check, const Errors& errors) {
+  Invariants inv;
+  double h_sum = 0, floor_sum = 0, hist_sum = 0, fft_sum = 0, seconds = 0;
+  int h_n = 0, floor_n = 0, hist_n = 0, fft_n = 0, sw_sim = 0, sw_meas = 0;
+  for (size_t i = 0; i < recs.size() && i < check.record_chaotic.size(); ++i) {
+    if (!check.record_chaotic[i]) continue;
+    const PreparedRecord& r = recs[i];
+    std::vector<double> out, ym, vm, ys, vs;
+    if (!Simulate(m, th, r, setup, &out)) return Invariants{};  // diverged: nothing reproduced
+    MainBodyMotion(r.meas, r, setup, &ym, &vm);
+    MainBodyMotion(out, r, setup, &ys, &vs);
+    if (i < errors.record_fft.size() && std::isfinite(errors.record_fft[i])) fft_sum += errors.record_fft[i], ++fft_n;
+    const double f = check.forcing_hz[i];
+    if (std::isfinite(f)) {
+      const Eigen::MatrixXd a = StroboscopicSection(ym, vm, r.input, r.dt, f), b = StroboscopicSection(ys, vs, r.input, r.dt, f);
+      const double h = EnergyCoefficient(a, b), floor = EnergyCoefficient(a.topRows(a.rows() / 2), a.bottomRows(a.rows() - a.rows() / 2));
+      inv.section_points += static_cast<int>(a.rows());
+      if (std::isfinite(h)) h_sum += h, ++h_n;
+      if (std::isfinite(floor)) floor_sum += floor, ++floor_n;
+    }
+    double rms = 0;
+    for (double v : ym) rms += v * v;
+    rms = std::sqrt(rms / static_cast<double>(std::max<size_t>(1, ym.size())));
+    sw_meas += CountSwitches(ym, 0.0, 0.5 * rms);
+    sw_sim += CountSwitches(ys, 0.0, 0.5 * rms);
+    seconds += static_cast<double>(r.n()) * r.dt;
+    const double hh = HistogramHellinger(vm, vs);
+    if (std::isfinite(hh)) hist_sum += hh, ++hist_n;
+  }
+  if (h_n) inv.poincare = h_sum / h_n;
+  if (floor_n) inv.poincare_floor = floor_sum / floor_n;
+  if (hist_n) inv.velocity_hellinger = hist_sum / hist_n;
+  if (fft_n) inv.spectral_error = fft_sum / fft_n;
+  if (seconds > 0) {
+    inv.switching_rate = sw_sim / seconds;
+    inv.switching_rate_measured = sw_meas / seconds;
+    if (sw_meas > 0) inv.switching_error = std::abs(inv.switching_rate - inv.switching_rate_measured) / inv.switching_rate_measured;
+  }
+  return inv;
+}
+
+}  // namespace bistable

@@ -1,0 +1,305 @@
+// The loop's diagnostics (identify/invariants.h, identify/diagnostics.h): the invariants of chaotic
+// records on point clouds and signals with known answers, the residual whiteness test, correlations
+// and drift, a loop whose structured residual no candidate explains, and the JSON contract through
+// the CLI (the harvester's chaotic record when the measured data are present).
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "dynamics/spectrum.h"
+#include "identify/diagnostics.h"
+#include "identify/loop.h"
+#include "identify/synthetic.h"
+#include "tests/process_util.h"
+
+namespace bistable {
+namespace {
+
+using bistable_test::Bistable;
+using bistable_test::FreshDir;
+
+Eigen::MatrixXd Gaussian(long n, long dims, double mean, unsigned seed) {
+  std::mt19937 g(seed);
+  std::normal_distribution<double> d(mean, 1.0);
+  Eigen::MatrixXd x(n, dims);
+  for (long i = 0; i < n; ++i)
+    for (long j = 0; j < dims; ++j) x(i, j) = d(g);
+  return x;
+}
+
+// D² of N(0, 1) against N(μ, 1): 2 E|X − Y| − E|X − X'| − E|Y − Y'| with X − Y ~ N(μ, 2).
+double GaussianEnergy(double mu) { return 4.0 / std::sqrt(M_PI) * (std::exp(-mu * mu / 4) - 1) + 2 * mu * std::erf(mu / 2); }
+
+TEST(IdentifyInvariants, EnergyDistanceOfGaussiansMatchesTheClosedForm) {
+  const Eigen::MatrixXd a = Gaussian(2000, 1, 0.0, 1);
+  for (double mu : {0.5, 1.0, 2.0}) {
+    const Eigen::MatrixXd b = Gaussian(2000, 1, mu, 2);
+    EXPECT_NEAR(EnergyDistanceSquared(a, b), GaussianEnergy(mu), 0.06 * GaussianEnergy(mu) + 0.004) << "mu " << mu;
+  }
+  // The same sample shifted: D² = 2 ∫ (F_n(x) − F_n(x − δ))² dx, → δ²/√π for a small shift.
+  Eigen::MatrixXd s = a;
+  s.array() += 0.05;
+  EXPECT_NEAR(EnergyDistanceSquared(a, s), 0.05 * 0.05 / std::sqrt(M_PI), 0.1 * 0.05 * 0.05 / std::sqrt(M_PI));
+}
+
+TEST(IdentifyInvariants, EnergyCoefficientIsZeroForIdenticalCloudsAndGrowsWithTheShift) {
+  const Eigen::MatrixXd a = Gaussian(500, 2, 0.0, 3);
+  EXPECT_EQ(EnergyCoefficient(a, a), 0.0);
+  double last = 0;
+  for (double shift : {0.1, 0.3, 1.0, 3.0, 10.0}) {
+    Eigen::MatrixXd b = a;
+    b.col(0).array() += shift;
+    const double h = EnergyCoefficient(a, b);
+    EXPECT_GT(h, last) << "shift " << shift;
+    EXPECT_LE(h, 1.0);
+    last = h;
+  }
+  EXPECT_GT(last, 0.8) << "clouds ten standard deviations apart";
+  // Two samples of one distribution: small; scale-free (each axis divided by its pooled spread).
+  const Eigen::MatrixXd b = Gaussian(500, 2, 0.0, 4);
+  EXPECT_LT(EnergyCoefficient(a, b), 0.01);
+  Eigen::MatrixXd as = a, bs = b;
+  as.col(1) *= 1e-3, bs.col(1) *= 1e-3;
+  EXPECT_NEAR(EnergyCoefficient(as, bs), EnergyCoefficient(a, b), 1e-9);
+  // 1-D, analytic: H = D² / (2 E|X − Y|) for N(0, 1) against N(1, 1).
+  const double d2 = GaussianEnergy(1.0), cross = 2 / std::sqrt(M_PI) * std::exp(-0.25) + std::erf(0.5);
+  EXPECT_NEAR(EnergyCoefficient(Gaussian(2000, 1, 0.0, 5), Gaussian(2000, 1, 1.0, 6)), d2 / (2 * cross), 0.02);
+  EXPECT_TRUE(std::isnan(EnergyCoefficient(Eigen::MatrixXd(0, 2), a)));
+}
+
+TEST(IdentifyInvariants, ForcingFrequencyAndTheStroboscopicSection) {
+  const double dt = 1.0 / 512, f = 6.5, w = 2 * M_PI * f, phi = 0.7;
+  std::vector<double> in, y, yd;
+  for (int i = 0; i < 4096; ++i) {  // 8 s, 52 periods, with a harmonic
+    const double t = i * dt;
+    in.push_back(3 * std::cos(w * t + phi) + 0.4 * std::cos(2 * w * t));
+    y.push_back(0.01 * std::sin(w * t + phi));
+    yd.push_back(0.01 * w * std::cos(w * t + phi));
+  }
+  EXPECT_NEAR(ForcingFrequency(in, dt), f, 1e-4);
+  // Sampled where the input's fundamental peaks (ωt + φ = 2πk): y = 0, y' = 0.01 ω, every period.
+  const Eigen::MatrixXd s = StroboscopicSection(y, yd, in, dt, ForcingFrequency(in, dt));
+  EXPECT_EQ(s.rows(), 52);
+  for (long i = 0; i < s.rows(); ++i) {
+    EXPECT_NEAR(s(i, 0), 0.0, 1e-4);
+    EXPECT_NEAR(s(i, 1), 0.01 * w, 1e-3);
+  }
+}
+
+TEST(IdentifyInvariants, SwitchesAndVelocityHistograms) {
+  // Two wells at ±1 with small oscillations inside: 7 switches; oscillations of ±0.3 about 0 cross
+  // nothing with hysteresis 0.5.
+  std::vector<double> y, wiggle;
+  for (int i = 0; i < 8000; ++i) {
+    const double well = (i / 1000) % 2 ? 1.0 : -1.0;
+    y.push_back(well + 0.2 * std::sin(0.3 * i));
+    wiggle.push_back(0.3 * std::sin(0.3 * i));
+  }
+  EXPECT_EQ(CountSwitches(y, 0.0, 0.5), 7);
+  EXPECT_EQ(CountSwitches(wiggle, 0.0, 0.5), 0);
+  const Eigen::MatrixXd a = Gaussian(20000, 1, 0.0, 7), b = Gaussian(20000, 1, 0.0, 8), c = Gaussian(20000, 1, 1.0, 9);
+  auto vec = [](const Eigen::MatrixXd& m) { return std::vector<double>(m.data(), m.data() + m.size()); };
+  EXPECT_EQ(HistogramHellinger(vec(a), vec(a)), 0.0);
+  EXPECT_LT(HistogramHellinger(vec(a), vec(b)), 0.03);
+  // N(0, 1) against N(1, 1): H² = 1 − exp(−μ²/8).
+  EXPECT_NEAR(HistogramHellinger(vec(a), vec(c)), std::sqrt(1 - std::exp(-1.0 / 8)), 0.03);
+  std::vector<double> far = vec(a);
+  for (double& v : far) v += 100;
+  EXPECT_NEAR(HistogramHellinger(vec(a), far), 1.0, 1e-12);
+}
+
+// A record under a force input with a displacement output: periodic forcing, the output given.
+PreparedRecord ForcedRecord(const std::vector<double>& out, double dt) {
+  Record r;
+  r.dt = dt;
+  for (size_t i = 0; i < out.size(); ++i) r.t.push_back(i * dt), r.input.push_back(std::cos(2 * M_PI * 6.5 * i * dt)), r.output.push_back(out[i]);
+  bistable::Setup s;
+  s.input = InputKind::kForce;
+  s.output = OutputKind::kDisplacement;
+  return *PrepareRecord(r, s, 0, r.t.size(), 0.0, "forced");
+}
+
+TEST(IdentifyInvariants, BroadbandResponsesToPeriodicForcingAreMarkedChaotic) {
+  const double dt = 1.0 / 512;
+  std::mt19937 g(10);
+  std::normal_distribution<double> n(0, 1);
+  std::vector<double> locked, broad;
+  double lp = 0;
+  for (int i = 0; i < 4096; ++i) {
+    const double t = i * dt;
+    locked.push_back(0.01 * std::sin(2 * M_PI * 6.5 * t) + 0.002 * std::sin(2 * M_PI * 19.5 * t));
+    lp += 0.05 * (n(g) - lp);  // low-passed noise: a broadband response
+    broad.push_back(0.01 * lp + 0.002 * std::sin(2 * M_PI * 6.5 * t));
+  }
+  bistable::Setup s;
+  s.input = InputKind::kForce;
+  s.output = OutputKind::kDisplacement;
+  const ChaosCheck c = CheckChaos({ForcedRecord(locked, dt), ForcedRecord(broad, dt)}, s, Objective::kTime);
+  EXPECT_NEAR(c.forcing_hz[0], 6.5, 1e-3);
+  EXPECT_LT(c.input_broadband[0], kPeriodicInput);
+  EXPECT_LT(c.output_broadband[0], 0.01);
+  EXPECT_GT(c.output_broadband[1], kBroadbandChaotic);
+  EXPECT_FALSE(c.record_chaotic[0]);
+  EXPECT_TRUE(c.record_chaotic[1]);
+  EXPECT_TRUE(c.chaotic);
+  EXPECT_TRUE(CheckChaos({ForcedRecord(locked, dt)}, s, Objective::kFft).chaotic) << "the spectral objective marks every record";
+}
+
+std::vector<double> WhiteNoise(size_t n, unsigned seed) {
+  std::mt19937 g(seed);
+  std::normal_distribution<double> d(0, 1);
+  std::vector<double> x(n);
+  for (double& v : x) v = d(g);
+  return x;
+}
+
+TEST(IdentifyWhiteness, WhiteNoisePassesAndASinusoidInNoiseFailsWithItsFrequency) {
+  const double dt = 1.0 / 120;
+  int passed = 0;
+  for (unsigned seed = 1; seed <= 10; ++seed) {
+    const Whiteness w = WhitenessTest({WhiteNoise(2400, seed), WhiteNoise(2400, seed + 100)}, {dt, dt}, {0.0, 0.0});
+    EXPECT_EQ(w.dof, 40);
+    EXPECT_GT(w.flatness, 0.9);
+    passed += w.white;
+  }
+  EXPECT_GE(passed, 9) << "white noise passes (α = 1e-3)";
+  std::vector<double> e = WhiteNoise(2400, 3);
+  for (size_t i = 0; i < e.size(); ++i) e[i] += 1.5 * std::sin(2 * M_PI * 17.3 * i * dt);
+  const Whiteness w = WhitenessTest({e}, {dt}, {0.0});
+  EXPECT_FALSE(w.white);
+  EXPECT_LT(w.p_value, 1e-10);
+  ASSERT_FALSE(w.dominant_hz.empty());
+  EXPECT_NEAR(w.dominant_hz[0], 17.3, 0.05);
+}
+
+TEST(IdentifyWhiteness, OversampledNoiseIsWhiteInItsBand) {
+  // White noise low-passed to 10 Hz and sampled at 120 Hz: correlated sample to sample, white at the
+  // band's Nyquist rate — tested in its band [0, 10 Hz] it passes, over the whole band it does not.
+  const double dt = 1.0 / 120;
+  std::vector<std::complex<double>> X;
+  RealFftFull(WhiteNoise(7200, 5), &X);
+  for (size_t k = 0; k < X.size(); ++k) {
+    const double f = std::min(k, X.size() - k) / (X.size() * dt);
+    if (f > 10.0) X[k] = 0;
+  }
+  std::vector<double> x;
+  InverseFftReal(X, &x);
+  EXPECT_TRUE(WhitenessTest({x}, {dt}, {10.0}).white);
+  const Whiteness all = WhitenessTest({x}, {dt}, {0.0});
+  EXPECT_FALSE(all.white);
+  EXPECT_NEAR(WhitenessTest({x}, {dt}, {10.0}).n_eff, 7200.0 / 6, 1.0);
+}
+
+TEST(IdentifyDiagnostics, CorrelationsAndDrift) {
+  Eigen::MatrixXd cov(3, 3);
+  cov << 4, 1.9, 0.1, 1.9, 1, 0, 0.1, 0, 9;
+  const auto c = StrongCorrelations({"a", "b", "c"}, cov);
+  ASSERT_EQ(c.size(), 1u);
+  EXPECT_EQ(c[0].a, "a");
+  EXPECT_EQ(c[0].b, "b");
+  EXPECT_NEAR(c[0].rho, 0.95, 1e-12);
+  IdentModel m;
+  m.terms = *ParseTerms("main.linear,main.viscous");
+  m.m_main = 1;
+  m.theta = {100, 2};
+  FitResult before, after;
+  before.theta = {100, 2}, before.sigma = {1, 0.1};
+  after.theta = {101, 3, 5};
+  const IdentModel m2 = m.With(*FindTerm("main.drag"), {5});
+  const auto d = DriftOf(m, before, m2, after);
+  ASSERT_EQ(d.size(), 2u);
+  EXPECT_EQ(d[1].name, "main.viscous.c0");
+  EXPECT_NEAR(d[1].relative, 0.5, 1e-12);
+  EXPECT_NEAR(d[1].in_sigma, 10.0, 1e-12);
+  EXPECT_NEAR(d[0].relative, 0.01, 1e-12);
+}
+
+// A structured residual no candidate can explain: a 17 Hz hum on the position sensor of a synthetic
+// chirp record (the declared model is complete): nothing is added, and the residual is reported as
+// unexplained with the hum's frequency.
+TEST(IdentifyDiagnostics, AStructuredResidualNoCandidateExplainsIsUnexplained) {
+  DimensionalParams p = DimensionalParams::LinearTable2();
+  p.has_resonator = false;
+  SyntheticOptions o;
+  o.a0_m = 0.014;
+  o.seed = 21;
+  Record r = *MakeSyntheticRecord(p, o, "chirp with hum");
+  for (size_t i = 0; i < r.t.size(); ++i) r.output[i] += 0.3e-3 * std::sin(2 * M_PI * 17.0 * r.t[i]);
+  const auto rec = PrepareRecord(r, bistable::Setup{}, 0, r.t.size(), 0.0, r.name);
+  ASSERT_TRUE(rec.ok()) << rec.status().ToString();
+  IdentModel m;
+  m.terms = *ParseTerms("main.linear,main.viscous,main.damping_y2,main.friction");
+  m.m_main = 0.282;
+  IdentifyOptions opt;
+  opt.fit.global_evals = 0;
+  opt.candidates = *ParseTerms("main.stiffness_y2,main.stiffness_y3,main.damping_v3,main.drag,main.bias");
+  const IdentifyResult res = Identify(m, {*rec}, bistable::Setup{}, opt);
+  EXPECT_TRUE(res.added.empty()) << res.added[0].term;
+  const LoopDiagnostics& d = res.diagnostics;
+  EXPECT_FALSE(d.whiteness.white);
+  EXPECT_FALSE(d.unexplained.empty());
+  ASSERT_FALSE(d.whiteness.dominant_hz.empty());
+  EXPECT_NEAR(d.whiteness.dominant_hz[0], 17.0, 0.1);
+  EXPECT_FALSE(d.chaos.chaotic) << "a chirp is not a periodic forcing";
+  std::printf("hum: %s\n%.1f s\n", d.unexplained.c_str(), res.seconds);
+}
+
+// The JSON contract on the harvester's chaotic record: invariants before/after every step, the
+// whiteness test, unexplained, correlations and drift — and the existing keys.
+TEST(IdentifyDiagnostics, CliReportsInvariantsOfTheChaoticHarvesterRecord) {
+  const std::string data = std::string(BISTABLE_MEASURED_DIR) + "/bistable-harvester/bistable_sym_interwell_6p5Hz.csv";
+  if (!std::filesystem::exists(data)) GTEST_SKIP() << data << " absent";
+  const auto p = Bistable("identify --data " + data +
+                          " --input-kind base_acceleration --input-scale 9.81 --output-kind velocity --output-scale 0.1"
+                          " --columns input=base_acc_g,output=laser_V --known m_main=1 --terms main.linear,main.stiffness_y3,main.viscous"
+                          " --candidates main.stiffness_y2,main.stiffness_y5,main.damping_y2,main.damping_v3,main.drag,main.bias"
+                          " --objective fft --max-seconds 8 --decimate 4 --json");
+  ASSERT_EQ(p.exit_code, 0) << p.err;
+  const auto j = nlohmann::json::parse(p.out);
+  for (const char* key : {"error_before", "error_after", "effects_added", "params", "records", "seconds", "invariants", "unexplained",
+                          "correlations", "whiteness", "chaos_check", "refits", "separability"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_TRUE(j["chaos_check"]["chaotic"].get<bool>());
+  EXPECT_NEAR(j["chaos_check"]["records"][0]["forcing_hz"].get<double>(), 6.5, 1e-3);
+  const auto& inv = j["invariants"];
+  ASSERT_TRUE(inv.is_object());
+  for (const char* when : {"before", "after"})
+    for (const char* key : {"poincare_energy", "poincare_floor", "switching_rate_hz", "switching_rate_measured_hz", "velocity_hellinger",
+                            "spectral_error_percent"})
+      EXPECT_TRUE(inv[when][key].is_number()) << when << "." << key;
+  EXPECT_EQ(inv["steps"].size(), j["refits"].size());
+  EXPECT_NEAR(inv["before"]["spectral_error_percent"].get<double>(), j["fft_error_before"].get<double>(), 1e-9);
+  EXPECT_GT(inv["before"]["switching_rate_measured_hz"].get<double>(), 1.0) << "cross-well motion";
+  for (const auto& e : j["effects_added"]) EXPECT_TRUE(e.contains("drift")) << e.dump();
+  ASSERT_TRUE(j["unexplained"].is_object()) << "a chaotic record's residual is far from white here";
+  for (const char* key : {"statistic", "p_value", "dominant_frequencies_hz", "message"}) EXPECT_TRUE(j["unexplained"].contains(key)) << key;
+}
+
+// A record without periodic forcing: invariants null; a white residual: unexplained null.
+TEST(IdentifyDiagnostics, CliGivesNullInvariantsAndUnexplainedForAWhiteNonChaoticFit) {
+  const std::string dir = FreshDir("identify", "diag");
+  DimensionalParams p = DimensionalParams::LinearTable2();
+  p.has_resonator = false;
+  SyntheticOptions o;
+  o.a0_m = 0.010;
+  o.seed = 5;
+  ASSERT_TRUE(WriteRecordCsv(*MakeSyntheticRecord(p, o, "chirp"), dir + "/c.csv").ok());
+  const auto r = Bistable("identify --data " + dir +
+                          "/c.csv --terms main.linear,main.viscous,main.damping_y2,main.friction --known m_main=0.282 --max-added 0 "
+                          "--global-evals 0 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j["invariants"].is_null());
+  EXPECT_TRUE(j["unexplained"].is_null()) << j["whiteness"].dump();
+  EXPECT_TRUE(j["whiteness"]["white"].get<bool>());
+  EXPECT_TRUE(j["correlations"].is_array());
+  EXPECT_TRUE(j["seconds"].is_number());
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace bistable
