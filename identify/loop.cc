@@ -158,9 +158,13 @@ std::vector<const TermDef*> FreshCandidates(const IdentModel& m, const std::vect
       if (t.IsForce() && (t.body == Body::kMain || (res_data && m.HasResonator()))) cands.push_back(&t);
       else if (volt_data && (t.kind == TermKind::kPiezo || (t.body == Body::kOutput && measured(t)))) cands.push_back(&t);
     }
+  // A gain on the voltage is the piezo's own scale (w → λw, c → λc, a → a/λ leaves the beam as it is):
+  // with main.piezo in the model, out.voltage.scale would only fit the start of the voltage transient.
+  const bool piezo = m.PiezoIndex() >= 0;
   std::vector<const TermDef*> fresh;
   for (const TermDef* c : cands)
-    if (std::find(m.terms.begin(), m.terms.end(), c) == m.terms.end() && (c->body != Body::kOutput || measured(*c)))
+    if (std::find(m.terms.begin(), m.terms.end(), c) == m.terms.end() && (c->body != Body::kOutput || measured(*c)) &&
+        !(piezo && c->kind == TermKind::kOutputScale && c->output == "voltage"))
       fresh.push_back(c);
   return fresh;
 }
