@@ -466,6 +466,7 @@ long long TotalSimulations(const IdentifyResult& r) {
 struct FrameDecision {
   bool made = false;
   std::string chosen;
+  bool fft = false;               // errors compared: spectral (--objective fft) or NRMSE
   double error[2] = {NAN, NAN};   // absolute, relative: the final error of each frame's loop
   Errors errors[2];
 };
@@ -487,10 +488,10 @@ nlohmann::json FrameJson(const FrameDecision& f) {
   nlohmann::json by = nlohmann::json::object();
   for (int k = 0; k < 2; ++k) {
     nlohmann::json o = nlohmann::json::object();
-    for (const OutputErrors& e : f.errors[k].outputs) o[e.name] = JsonNumber(e.nrmse);
+    for (const OutputErrors& e : f.errors[k].outputs) o[e.name] = JsonNumber(f.fft ? e.fft : e.nrmse);
     by[k == 0 ? "absolute" : "relative"] = o;
   }
-  return {{"chosen", f.chosen}, {"error_absolute", JsonNumber(f.error[0])}, {"error_relative", JsonNumber(f.error[1])},
+  return {{"chosen", f.chosen}, {"metric", f.fft ? "spectral" : "nrmse"}, {"error_absolute", JsonNumber(f.error[0])}, {"error_relative", JsonNumber(f.error[1])},
           {"errors_by_output", by}};
 }
 
@@ -581,9 +582,9 @@ void WriteReportEvidence(std::ostream& md, const IdentifyResult& r, const std::v
   if (!j["velocity_frame"].is_null()) {
     const auto& f = j["velocity_frame"];
     md << "\n## Velocity frame\n\nThe loop was run with the sensor read as absolute and as base-relative velocity; final error "
-          "(RMS over the outputs of each one's NRMSE) "
+          "(RMS over the outputs of each one's " << (f["metric"] == "spectral" ? "spectral error" : "NRMSE") << ") "
        << JsonFmt(f["error_absolute"]) << " % (absolute) and " << JsonFmt(f["error_relative"]) << " % (relative): **"
-       << f["chosen"].get<std::string>() << "** kept.\n\n| frame | final NRMSE per output |\n|---|---|\n";
+       << f["chosen"].get<std::string>() << "** kept.\n\n| frame | final error per output |\n|---|---|\n";
     for (const char* fr : {"absolute", "relative"}) {
       md << "| " << fr << " |";
       for (const auto& [name, v] : f["errors_by_output"][fr].items()) md << " " << name << " " << JsonFmt(v) << " %;";
@@ -682,6 +683,7 @@ StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
       // Every output counts the same here (the fit's noise weights would let the cleanest output decide
       // alone): the RMS over outputs of the final NRMSE (spectral error for --objective fft).
       frame.made = true;
+      frame.fft = a.objective == "fft";
       frame.errors[f] = rf.after.errors;
       double ss = 0;
       for (const OutputErrors& o : rf.after.errors.outputs) ss += std::pow(a.objective == "fft" ? o.fft : o.nrmse, 2);

@@ -462,6 +462,13 @@ void StartDeclared(IdentModel* m, const std::vector<PreparedRecord>& recs, const
       if (!std::isfinite(m->theta[i])) m->theta[i] = start[i];
 }
 
+// Physically signed as fitted: a piezo coupling takes energy from the beam (a c > 0; a c < 0 would feed
+// the beam from the circuit). Signed force parameters are bounds of the fit and need no check here.
+bool Physical(const IdentModel& m, const std::vector<double>& th) {
+  const int pz = m.PiezoIndex();
+  return pz < 0 || th[pz] * th[pz + 2] > 0;
+}
+
 // The model `m` (fitted: `fit`) with the step's chosen term added (`*next`), refitted by simulation
 // from two starts — the trace's estimate, and the extended model's equation-error regression
 // (another basin) — the better kept.
@@ -480,7 +487,8 @@ FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t,
   std::vector<double> sig_alt;
   alt.theta = StartFromRegression(alt, recs, setup, &sig_alt);
   FitResult refit2 = Fit(alt, ScaleOf(alt, alt.theta, sig_alt, recs, setup), recs, setup, opt.fit);
-  if (ErrorOf(refit2, opt.fit.objective) < ErrorOf(refit, opt.fit.objective)) refit = refit2;
+  const bool p1 = Physical(*next, refit.theta), p2 = Physical(*next, refit2.theta);
+  if ((p2 && !p1) || (p2 == p1 && ErrorOf(refit2, opt.fit.objective) < ErrorOf(refit, opt.fit.objective))) refit = refit2;
   return refit;
 }
 
@@ -537,6 +545,15 @@ IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& 
     const FitResult refit = RefitWith(m, fit, t, step, recs, setup, opt, &next);
     const double before = ErrorOf(fit, opt.fit.objective), after = ErrorOf(refit, opt.fit.objective);
     char buf[256];
+    if (!Physical(next, refit.theta)) {
+      const int pz = next.PiezoIndex();
+      std::snprintf(buf, sizeof buf, "%s scored best but its refit feeds energy into the beam (a c = %.3g < 0; error %.3g %% -> %.3g %%); not added",
+                    t->id.c_str(), refit.theta[pz] * refit.theta[pz + 2], before, after);
+      step.verdict = buf;
+      step.chosen.clear();
+      out.steps.push_back(step);
+      break;
+    }
     if (!(after < before * (1.0 - opt.min_improvement))) {
       std::snprintf(buf, sizeof buf, "%s scored best but the refit by simulation did not confirm it (error %.3g %% -> %.3g %%); not added",
                     t->id.c_str(), before, after);
