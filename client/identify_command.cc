@@ -31,7 +31,8 @@ struct IdentifyArgs {
   std::vector<std::string> data;
   std::string terms, known, columns, candidates, guesses;
   std::string input_kind = "base_displacement", output_kind = "displacement", frame = "absolute";
-  double input_scale = 1, output_scale = 1;
+  double input_scale = 1, output_scale = 1, output2_scale = 1;
+  std::string output2_kind = "voltage";
   std::string range, objective = "time", report, synth, synth_kind = "linear";
   std::vector<std::string> test_ranges;
   double max_seconds = 0;
@@ -67,6 +68,11 @@ StatusOr<ColumnMap> BuildColumns(const IdentifyArgs& a) {
   else return Status::InvalidArgument("output-kind", "'" + a.output_kind + "' violates output-kind in {displacement, velocity, analogue}");
   if (!(a.input_scale != 0) || !std::isfinite(a.input_scale)) return Status::InvalidArgument("input-scale", "must be a finite non-zero factor");
   if (!(a.output_scale != 0) || !std::isfinite(a.output_scale)) return Status::InvalidArgument("output-scale", "must be a finite non-zero factor");
+  if (!(a.output2_scale != 0) || !std::isfinite(a.output2_scale)) return Status::InvalidArgument("output2-scale", "must be a finite non-zero factor");
+  if (a.output2_kind != "voltage")
+    return Status::InvalidArgument("output2-kind", "'" + a.output2_kind + "' violates output2-kind in {voltage} (a second output is the "
+                                                   "piezo voltage, compared with main.piezo's state; a resonator is --columns resonator=...)");
+  c.voltage_scale = a.output2_scale;
   c.input_scale = a.input_scale;
   c.output_scale = a.output_scale;
   auto pairs = ParseNameValues(a.columns, "columns");
@@ -76,12 +82,13 @@ StatusOr<ColumnMap> BuildColumns(const IdentifyArgs& a) {
     else if (k == "input") c.input = v;
     else if (k == "output") c.output = v;
     else if (k == "resonator") c.resonator = v;
+    else if (k == "output2") c.voltage = v;
     else if (k == "group") {
       std::stringstream ss(v);
       std::string g;
       while (std::getline(ss, g, ';')) c.group.push_back(g);
     } else {
-      return Status::InvalidArgument("columns", UnknownNameMessage("role", k, {"t", "input", "output", "resonator", "group"}));
+      return Status::InvalidArgument("columns", UnknownNameMessage("role", k, {"t", "input", "output", "output2", "resonator", "group"}));
     }
   }
   return c;
@@ -123,28 +130,32 @@ Status WritePlots(const IdentifyResult& r, const std::vector<PreparedRecord>& re
   BISTABLE_RETURN_IF_ERROR(RenderPanels(res, f1));
   files->push_back("residual_force.png");
   for (size_t i = 0; i < recs.size(); ++i) {
-    std::vector<double> before, after;
-    Simulate(r.declared, r.before.theta, recs[i], setup, &before);
-    Simulate(r.final_model, r.after.theta, recs[i], setup, &after);
+    SimOutputs before, after;
+    SimulateOutputs(r.declared, r.before.theta, {}, recs[i], setup, 0, 0, false, &before);
+    SimulateOutputs(r.final_model, r.after.theta, {}, recs[i], setup, 0, 0, false, &after);
+    const bool volt = recs[i].Has(OutputSlot::kVoltage);
     PanelPlot tp;
-    tp.title = "record " + recs[i].name + ": measured and simulated output";
-    tp.rows = 2, tp.cols = 1;
-    for (int row = 0; row < 2; ++row) {
+    tp.title = "record " + recs[i].name + ": measured and simulated output" + (volt ? "s" : "");
+    tp.rows = volt ? 4 : 2, tp.cols = 1;
+    for (int row = 0; row < tp.rows; ++row) {
+      const int slot = row < 2 ? 0 : 2;
+      const bool declared = row % 2 == 0;
       PanelPlot::Panel p;
-      p.title = row == 0 ? "declared model" : "final model";
+      p.title = std::string(declared ? "declared model" : "final model") + (volt ? ": " + OutputName(setup, static_cast<OutputSlot>(slot)) : "");
       p.x_label = "t [s]";
-      p.y_label = "output (SI)";
+      p.y_label = slot == 2 ? "voltage [V]" : "output (SI)";
       PanelPlot::Series m, s, e;
       m.label = "measured", m.colour = "#444444";
-      s.label = "simulated", s.colour = row == 0 ? "#b2182b" : "#2166ac";
+      s.label = "simulated", s.colour = declared ? "#b2182b" : "#2166ac";
       e.label = "error", e.colour = "#1a9850";
-      const std::vector<double>& sim = row == 0 ? before : after;
+      const std::vector<double>& sim = (declared ? before : after).out[slot];
+      const std::vector<double>& meas = recs[i].Measured(static_cast<OutputSlot>(slot));
       const size_t stride = std::max<size_t>(1, recs[i].n() / 6000);
-      for (size_t k = 0; k < recs[i].n(); k += stride) {
+      for (size_t k = 0; k < recs[i].n() && k < sim.size(); k += stride) {
         const double t = recs[i].t0 + k * recs[i].dt;
-        m.x.push_back(t), m.y.push_back(recs[i].meas[k]);
+        m.x.push_back(t), m.y.push_back(meas[k]);
         s.x.push_back(t), s.y.push_back(sim[k]);
-        e.x.push_back(t), e.y.push_back(sim[k] - recs[i].meas[k]);
+        e.x.push_back(t), e.y.push_back(sim[k] - meas[k]);
       }
       p.series = {m, s, e};
       tp.panels.push_back(p);
@@ -244,6 +255,7 @@ struct IdentifyPlan {
   Setup setup;
   IdentModel model;
   IdentifyOptions opt;
+  bool frame_auto = false;  // --output-frame auto: fit both frames, keep the better (velocity outputs)
   std::pair<size_t, size_t> fit_range{0, SIZE_MAX};
   std::vector<std::pair<size_t, size_t>> tests;
 };
@@ -286,6 +298,20 @@ Status ApplyGuesses(const std::string& guesses, IdentModel* model) {
   return Status::Ok();
 }
 
+// Output terms (out.<output>.offset / .scale) name a measured output of this run.
+Status CheckOutputTerms(const std::vector<const TermDef*>& terms, const ColumnMap& columns, const Setup& setup, const std::string& flag) {
+  std::vector<std::string> outputs = {OutputName(setup, OutputSlot::kMain)};
+  if (!columns.resonator.empty()) outputs.push_back("resonator");
+  if (!columns.voltage.empty()) outputs.push_back("voltage");
+  for (const TermDef* t : terms) {
+    if (t->body != Body::kOutput || std::find(outputs.begin(), outputs.end(), t->output) != outputs.end()) continue;
+    std::string list;
+    for (const std::string& o : outputs) list += (list.empty() ? "" : ", ") + o;
+    return Status::InvalidArgument(flag, "term '" + t->id + "' acts on a " + t->output + " output; this run's outputs are " + list);
+  }
+  return Status::Ok();
+}
+
 // Columns, setup and the declared model: --terms, --input-kind/--output-kind/--output-frame, the
 // scales, --columns, --known, --guess.
 Status PlanModel(const IdentifyArgs& a, IdentifyPlan* plan) {
@@ -300,7 +326,11 @@ Status PlanModel(const IdentifyArgs& a, IdentifyPlan* plan) {
   setup.output = columns->output_kind;
   if (a.frame == "absolute") setup.frame = OutputFrame::kAbsolute;
   else if (a.frame == "relative") setup.frame = OutputFrame::kRelative;
-  else return Status::InvalidArgument("output-frame", "'" + a.frame + "' violates output-frame in {absolute, relative}");
+  else if (a.frame == "auto") plan->frame_auto = true;
+  else return Status::InvalidArgument("output-frame", "'" + a.frame + "' violates output-frame in {absolute, relative, auto}");
+  if (plan->frame_auto && !(setup.output == OutputKind::kVelocity && setup.input == InputKind::kBaseAcceleration))
+    return Status::InvalidArgument("output-frame", "--output-frame auto decides whether a velocity sensor reads absolute or base-relative "
+                                                   "velocity: it needs --output-kind velocity and --input-kind base_acceleration");
   IdentModel& model = plan->model;
   model.terms = *terms;
   BISTABLE_RETURN_IF_ERROR(ApplyKnown(a.known, &model, &setup));
@@ -311,6 +341,7 @@ Status PlanModel(const IdentifyArgs& a, IdentifyPlan* plan) {
   if (model.HasResonator() && !(model.m_res > 0))
     return Status::InvalidArgument("known.m_res", "resonator terms are declared: give its mass (--known m_res=0.62)");
   BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));
+  BISTABLE_RETURN_IF_ERROR(CheckOutputTerms(model.terms, plan->columns, setup, "terms"));
   return ApplyGuesses(a.guesses, &model);
 }
 
@@ -334,6 +365,7 @@ Status PlanLoop(const IdentifyArgs& a, IdentifyPlan* plan) {
   if (!a.candidates.empty()) {
     auto c = ParseTerms(a.candidates);
     if (!c.ok()) return Status::InvalidArgument("candidates", c.status().message());
+    BISTABLE_RETURN_IF_ERROR(CheckOutputTerms(*c, plan->columns, plan->setup, "candidates"));
     opt.candidates = *c;
   }
   if (!a.range.empty()) {
@@ -360,10 +392,11 @@ StatusOr<IdentifyPlan> PlanFromFlags(const IdentifyArgs& a) {
 // Every k-th sample of a record.
 Record Decimated(const Record& r, int k) {
   Record d = r;
-  d.t.clear(), d.input.clear(), d.output.clear(), d.resonator.clear();
+  d.t.clear(), d.input.clear(), d.output.clear(), d.resonator.clear(), d.voltage.clear();
   for (size_t i = 0; i < r.t.size(); i += k) {
     d.t.push_back(r.t[i]), d.input.push_back(r.input[i]), d.output.push_back(r.output[i]);
     if (!r.resonator.empty()) d.resonator.push_back(r.resonator[i]);
+    if (!r.voltage.empty()) d.voltage.push_back(r.voltage[i]);
   }
   d.dt = r.dt * k;
   return d;
@@ -413,14 +446,17 @@ Status CheckFitted(const IdentifyResult& r, const std::string& objective) {
 }
 
 // --test-range splits of every record, simulated with the declared and the final model.
-StatusOr<nlohmann::json> TestSplits(const IdentifyResult& r, const std::vector<Record>& loaded, const IdentifyPlan& plan, double deriv_cutoff) {
+StatusOr<nlohmann::json> TestSplits(const IdentifyResult& r, const std::vector<Record>& loaded, const IdentifyPlan& plan, double deriv_cutoff,
+                                    const double* weights) {
   nlohmann::json out = nlohmann::json::array();
   for (const auto& [tb, te] : plan.tests)
     for (const Record& rec : loaded) {
-      auto p = PrepareRecord(rec, plan.setup, tb, te, deriv_cutoff, rec.name);
-      if (!p.ok()) return Status::InvalidArgument("test-range", p.status().message());
-      const Errors eb = Evaluate(r.declared, r.before.theta, {*p}, plan.setup);
-      const Errors ea = Evaluate(r.final_model, r.after.theta, {*p}, plan.setup);
+      auto prepared = PrepareRecord(rec, plan.setup, tb, te, deriv_cutoff, rec.name);
+      if (!prepared.ok()) return Status::InvalidArgument("test-range", prepared.status().message());
+      PreparedRecord p = *prepared;
+      std::copy(weights, weights + kOutputSlots, p.weight);  // the fit's output weights
+      const Errors eb = Evaluate(r.declared, r.before.theta, {p}, plan.setup);
+      const Errors ea = Evaluate(r.final_model, r.after.theta, {p}, plan.setup);
       out.push_back({{"record", rec.name},
                      {"range", std::to_string(tb) + ":" + std::to_string(std::min(te, rec.t.size()))},
                      {"rms_before", JsonNumber(eb.record_rms[0])},
@@ -441,6 +477,40 @@ long long TotalSimulations(const IdentifyResult& r) {
                              static_cast<long long>(std::max(r.after.simulations, 0)), &simulations))
     simulations = std::numeric_limits<long long>::max();
   return simulations;
+}
+
+// --output-frame auto: the loop run in both frames; the one with the lower final error over all outputs
+// (each output's NRMSE counting the same) kept.
+struct FrameDecision {
+  bool made = false;
+  std::string chosen;
+  bool fft = false;               // errors compared: spectral (--objective fft) or NRMSE
+  double error[2] = {NAN, NAN};   // absolute, relative: the final error of each frame's loop
+  Errors errors[2];
+};
+
+nlohmann::json ErrorsByOutputJson(const Errors& before, const Errors& after) {
+  nlohmann::json j = nlohmann::json::object();
+  for (size_t k = 0; k < after.outputs.size(); ++k) {
+    const OutputErrors& a = after.outputs[k];
+    const OutputErrors* b = k < before.outputs.size() ? &before.outputs[k] : nullptr;
+    j[a.name] = {{"before", JsonNumber(b ? b->nrmse : NAN)}, {"after", JsonNumber(a.nrmse)},
+                 {"fft_before", JsonNumber(b ? b->fft : NAN)}, {"fft_after", JsonNumber(a.fft)},
+                 {"noise", JsonNumber(a.noise)}, {"weight", JsonNumber(a.weight)}};
+  }
+  return j;
+}
+
+nlohmann::json FrameJson(const FrameDecision& f) {
+  if (!f.made) return nullptr;
+  nlohmann::json by = nlohmann::json::object();
+  for (int k = 0; k < 2; ++k) {
+    nlohmann::json o = nlohmann::json::object();
+    for (const OutputErrors& e : f.errors[k].outputs) o[e.name] = JsonNumber(f.fft ? e.fft : e.nrmse);
+    by[k == 0 ? "absolute" : "relative"] = o;
+  }
+  return {{"chosen", f.chosen}, {"metric", f.fft ? "spectral" : "nrmse"}, {"error_absolute", JsonNumber(f.error[0])}, {"error_relative", JsonNumber(f.error[1])},
+          {"errors_by_output", by}};
 }
 
 // The loop's evidence: per step the verdict and every candidate's scores.
@@ -481,6 +551,7 @@ nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const
   const auto names = r.final_model.ParamNames();
   for (size_t i = 0; i < names.size(); ++i) j["uncertainty"][names[i]] = JsonNumber(r.after.sigma[i]);
   j["params_declared_fit"] = ParamsJson(r.declared, r.before);
+  j["errors_by_output"] = ErrorsByOutputJson(r.before.errors, r.after.errors);
   j["records"] = nlohmann::json::array();
   for (size_t i = 0; i < recs.size(); ++i)
     j["records"].push_back({{"name", recs[i].name},
@@ -506,7 +577,10 @@ nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const
 
 // report.md's sections from the errors to the evidence: error before/after (records, tests), the
 // effects added, and every step's candidate table.
-void WriteReportEvidence(std::ostream& md, const IdentifyResult& r, const std::vector<PreparedRecord>& recs, const nlohmann::json& tests) {
+std::string JsonFmt(const nlohmann::json& v) { return Fmt(v.is_number() ? v.get<double>() : NAN); }
+
+void WriteReportEvidence(std::ostream& md, const IdentifyResult& r, const std::vector<PreparedRecord>& recs, const nlohmann::json& j) {
+  const nlohmann::json& tests = j["tests"];
   md << "## Error before and after\n\n| | declared model | final model |\n|---|---|---|\n";
   md << "| NRMSE of the output, all records | " << Fmt(r.before.errors.nrmse) << " % | " << Fmt(r.after.errors.nrmse) << " % |\n";
   md << "| spectral error (Eq. 20, normalised) | " << Fmt(r.before.errors.fft) << " % | " << Fmt(r.after.errors.fft) << " % |\n";
@@ -516,6 +590,26 @@ void WriteReportEvidence(std::ostream& md, const IdentifyResult& r, const std::v
   for (const auto& t : tests)
     md << "| test `" << t["record"].get<std::string>() << "` [" << t["range"].get<std::string>() << ") RMS | " << TestRms(t, "rms_before")
        << " | " << TestRms(t, "rms_after") << " |\n";
+  if (!j["errors_by_output"].empty()) {
+    md << "\n## Outputs\n\nFitted jointly; each output's NRMSE² weighs λ = (ν_main/ν)² in the objective, ν = noise σ / RMS "
+          "(σ from the spectral floor above the signal's band).\n\n| output | NRMSE declared | NRMSE final | spectral declared | "
+          "spectral final | noise σ | weight λ |\n|---|---|---|---|---|---|---|\n";
+    for (const auto& [name, o] : j["errors_by_output"].items())
+      md << "| " << name << " | " << JsonFmt(o["before"]) << " % | " << JsonFmt(o["after"]) << " % | " << JsonFmt(o["fft_before"]) << " % | "
+         << JsonFmt(o["fft_after"]) << " % | " << JsonFmt(o["noise"]) << " | " << JsonFmt(o["weight"]) << " |\n";
+  }
+  if (!j["velocity_frame"].is_null()) {
+    const auto& f = j["velocity_frame"];
+    md << "\n## Velocity frame\n\nThe loop was run with the sensor read as absolute and as base-relative velocity; final error "
+          "(RMS over the outputs of each one's " << (f["metric"] == "spectral" ? "spectral error" : "NRMSE") << ") "
+       << JsonFmt(f["error_absolute"]) << " % (absolute) and " << JsonFmt(f["error_relative"]) << " % (relative): **"
+       << f["chosen"].get<std::string>() << "** kept.\n\n| frame | final error per output |\n|---|---|\n";
+    for (const char* fr : {"absolute", "relative"}) {
+      md << "| " << fr << " |";
+      for (const auto& [name, v] : f["errors_by_output"][fr].items()) md << " " << name << " " << JsonFmt(v) << " %;";
+      md << " |\n";
+    }
+  }
   md << "\n## Effects added\n\n";
   if (r.added.empty()) md << "None: nothing in the residual beat the noise.\n";
   for (const AddedEffect& e : r.added) {
@@ -551,7 +645,7 @@ Status WriteReport(const IdentifyArgs& a, const Setup& setup, const IdentifyResu
   md << "Declared terms: `" << a.terms << "`; records: ";
   for (size_t i = 0; i < recs.size(); ++i) md << (i ? ", " : "") << "`" << recs[i].name << "` (" << recs[i].n() << " samples)";
   md << ".\n\n";
-  WriteReportEvidence(md, r, recs, j["tests"]);
+  WriteReportEvidence(md, r, recs, j);
   WriteDiagnosticsReport(md, r);
   md << "## Final model\n\n| parameter | value | ± σ | unit |\n|---|---|---|---|\n";
   const auto names = r.final_model.ParamNames();
@@ -589,20 +683,50 @@ void PrintSummary(const IdentifyArgs& a, const IdentifyResult& r, const nlohmann
 StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
   if (a.list_terms) return TermsJson();
   if (!a.synth.empty()) return SyntheticJson(a.synth, a.synth_kind);
-  const auto plan = PlanFromFlags(a);
-  if (!plan.ok()) return plan.status();
-  const auto loaded = LoadAll(a, plan->columns);
+  const auto planned = PlanFromFlags(a);
+  if (!planned.ok()) return planned.status();
+  IdentifyPlan plan = *planned;
+  const auto loaded = LoadAll(a, plan.columns);
   if (!loaded.ok()) return loaded.status();
-  const auto recs = PrepareFitted(*loaded, a, *plan);
-  if (!recs.ok()) return recs.status();
-  if (!a.json) std::fprintf(stderr, "identify: %zu record(s), %zu parameters declared; fitting...\n", recs->size(), static_cast<size_t>(plan->model.NumParams()));
-  const IdentifyResult r = Identify(plan->model, *recs, plan->setup, plan->opt);
-  BISTABLE_RETURN_IF_ERROR(CheckFitted(r, a.objective));
-  const auto tests = TestSplits(r, *loaded, *plan, a.deriv_cutoff);
+  FrameDecision frame;
+  std::vector<PreparedRecord> recs;
+  IdentifyResult r;
+  for (int f = 0; f < (plan.frame_auto ? 2 : 1); ++f) {
+    if (plan.frame_auto) plan.setup.frame = f == 0 ? OutputFrame::kAbsolute : OutputFrame::kRelative;
+    auto prepared = PrepareFitted(*loaded, a, plan);
+    if (!prepared.ok()) return prepared.status();
+    if (!a.json)
+      std::fprintf(stderr, "identify: %zu record(s), %zu parameters declared%s; fitting...\n", prepared->size(),
+                   static_cast<size_t>(plan.model.NumParams()), plan.frame_auto ? (f == 0 ? " (absolute frame)" : " (relative frame)") : "");
+    IdentifyResult rf = Identify(plan.model, *prepared, plan.setup, plan.opt);
+    BISTABLE_RETURN_IF_ERROR(CheckFitted(rf, a.objective));
+    if (plan.frame_auto) {
+      // Every output counts the same here (the fit's noise weights would let the cleanest output decide
+      // alone): the RMS over outputs of the final NRMSE (spectral error for --objective fft).
+      frame.made = true;
+      frame.fft = a.objective == "fft";
+      frame.errors[f] = rf.after.errors;
+      double ss = 0;
+      for (const OutputErrors& o : rf.after.errors.outputs) ss += std::pow(a.objective == "fft" ? o.fft : o.nrmse, 2);
+      frame.error[f] = std::sqrt(ss / static_cast<double>(std::max<size_t>(1, rf.after.errors.outputs.size())));
+      if (f == 1 && !(frame.error[1] < frame.error[0])) continue;  // keep the absolute frame's
+    }
+    r = std::move(rf);
+    recs = std::move(prepared).value();
+  }
+  if (frame.made) {
+    frame.chosen = frame.error[1] < frame.error[0] ? "relative" : "absolute";
+    plan.setup.frame = frame.chosen == "relative" ? OutputFrame::kRelative : OutputFrame::kAbsolute;
+  }
+  std::vector<PreparedRecord> weighted = recs;
+  SetOutputWeights(&weighted);
+  const auto tests = TestSplits(r, *loaded, plan, a.deriv_cutoff, weighted[0].weight);
   if (!tests.ok()) return tests.status();
   const long long simulations = TotalSimulations(r);
-  nlohmann::json j = ResultJson(a, *plan, r, *recs, *tests, simulations);
-  if (!a.report.empty()) BISTABLE_RETURN_IF_ERROR(WriteReport(a, plan->setup, r, *recs, j, simulations));
+  nlohmann::json j = ResultJson(a, plan, r, recs, *tests, simulations);
+  j["velocity_frame"] = FrameJson(frame);
+  j["settings"]["output_frame"] = plan.setup.frame == OutputFrame::kRelative ? "relative" : "absolute";
+  if (!a.report.empty()) BISTABLE_RETURN_IF_ERROR(WriteReport(a, plan.setup, r, recs, j, simulations));
   if (!a.json) PrintSummary(a, r, *tests, simulations);
   return j;
 }
@@ -620,12 +744,16 @@ void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
   c->add_option("--data", a->data, "CSV record(s) with a header: , tab or ; separated, # comments, units in names (docs/identification.md); repeat for several, fitted jointly");
   c->add_option("--terms", a->terms, "declared terms, comma-separated (see --list-terms), e.g. main.linear,main.stiffness_y3,main.viscous");
   c->add_option("--known", a->known, "known constants: m_main, m_res [kg], v_sp, v_t [m/s] (defaults 0.002, 0.001), e.g. m_main=0.282");
-  c->add_option("--columns", a->columns, "column roles: t=..,input=..,output=..,resonator=..,group=a;b (defaults t, x0|a0|u, x|v|y)");
+  c->add_option("--columns", a->columns, "column roles: t=..,input=..,output=..,output2=..,resonator=..,group=a;b (defaults t, x0|a0|u, x|v|y; "
+                                        "output2: a second output, the piezo voltage, fitted jointly with the first)");
   c->add_option("--input-kind", a->input_kind, "base_displacement [m] | base_acceleration [m/s^2] | force [N]")->capture_default_str();
   c->add_option("--input-scale", a->input_scale, "factor to SI for the input column (9.81 for g)")->capture_default_str();
   c->add_option("--output-kind", a->output_kind, "displacement [m] | velocity [m/s] | analogue (a displacement-like signal)")->capture_default_str();
   c->add_option("--output-scale", a->output_scale, "factor to SI for the output column")->capture_default_str();
-  c->add_option("--output-frame", a->frame, "absolute | relative (to the base)")->capture_default_str();
+  c->add_option("--output2-kind", a->output2_kind, "kind of the output2 column: voltage [V] (compared with main.piezo's voltage state)")->capture_default_str();
+  c->add_option("--output2-scale", a->output2_scale, "factor to SI (volts) for the output2 column")->capture_default_str();
+  c->add_option("--output-frame", a->frame, "absolute | relative (to the base) | auto (velocity output, base acceleration input: run the loop "
+                                           "in both frames, keep the lower final error, report both)")->capture_default_str();
   c->add_option("--range", a->range, "sample range A:B used for fitting (0-based, end exclusive)");
   c->add_option("--test-range", a->test_ranges, "sample range A:B simulated for a test error (repeatable)");
   c->add_option("--max-seconds", a->max_seconds, "use at most this many seconds of each record (0: all)");
@@ -635,7 +763,8 @@ void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
   c->add_option("--global-evals", a->global_evals, "evaluations of the global stage (NLopt CRS2; 0: none)")->capture_default_str();
   c->add_option("--horizon", a->horizon, "short-horizon (multiple shooting) first stage [s] (0: none)")->capture_default_str();
   c->add_option("--max-added", a->max_added, "at most this many effects added")->capture_default_str();
-  c->add_option("--candidates", a->candidates, "terms the trace may add (default: the whole library of the bodies measured)");
+  c->add_option("--candidates", a->candidates, "terms the trace may add (default: the force terms of the bodies measured; with an output2 "
+                                              "voltage also main.piezo and out.<output>.offset/.scale of every output)");
   c->add_option("--guess", a->guesses, "initial values, e.g. main.linear.k_lin=480 (others from the regression)");
   c->add_option("--threads", a->threads, "records simulated in parallel (0: the CPUs this process may use: affinity and cgroup quota)")->capture_default_str();
   c->add_option("--report", a->report, "directory for report.md, report.json and PNG figures");

@@ -12,6 +12,14 @@ namespace {
 // The friction term is dynamics/friction.h's law with the known v_sp, v_t and the fitted forces.
 Stribeck FrictionLaw(const FrictionConstants& fc, double f_s = 0, double f_c = 0) { return Stribeck{f_s, f_c, fc.v_sp, fc.v_t}; }
 
+TermDef Def(std::string id, Body body, TermKind kind, std::string formula, std::string meaning, std::vector<TermParam> params,
+            std::string output = "") {
+  TermDef t;
+  t.id = std::move(id), t.body = body, t.kind = kind, t.formula = std::move(formula), t.meaning = std::move(meaning);
+  t.params = std::move(params), t.output = std::move(output);
+  return t;
+}
+
 std::vector<TermDef> BuildLibrary() {
   std::vector<TermDef> lib;
   for (Body body : {Body::kMain, Body::kResonator}) {
@@ -20,28 +28,41 @@ std::vector<TermDef> BuildLibrary() {
     const std::string q = main ? "y" : "z";
     const std::string v = q + "'";
     const std::string where = main ? "main body (y = x - x0)" : "resonator (z = xr - x)";
-    lib.push_back({p + "linear", body, TermKind::kLinear, "k_lin " + q, "linear stiffness of the " + where,
-                   {{"k_lin", "N/m", Sign::kEither}}});
-    lib.push_back({p + "stiffness_" + q + "2", body, TermKind::kStiffness2, "k2 " + q + "^2",
-                   "quadratic (asymmetric) stiffness of the " + where, {{"k2", "N/m^2", Sign::kEither}}});
-    lib.push_back({p + "stiffness_" + q + "3", body, TermKind::kStiffness3, "k3 " + q + "^3", "cubic stiffness of the " + where,
-                   {{"k3", "N/m^3", Sign::kEither}}});
-    lib.push_back({p + "stiffness_" + q + "5", body, TermKind::kStiffness5, "k5 " + q + "^5", "quintic stiffness of the " + where,
-                   {{"k5", "N/m^5", Sign::kEither}}});
-    lib.push_back({p + "viscous", body, TermKind::kViscous, "c0 " + v, "viscous damping of the " + where,
-                   {{"c0", "N s/m", Sign::kNonNegative}}});
-    lib.push_back({p + "damping_" + q + "2", body, TermKind::kDamping2, "c2 " + q + "^2 " + v,
+    lib.push_back(Def(p + "linear", body, TermKind::kLinear, "k_lin " + q, "linear stiffness of the " + where,
+                   {{"k_lin", "N/m", Sign::kEither}}));
+    lib.push_back(Def(p + "stiffness_" + q + "2", body, TermKind::kStiffness2, "k2 " + q + "^2",
+                   "quadratic (asymmetric) stiffness of the " + where, {{"k2", "N/m^2", Sign::kEither}}));
+    lib.push_back(Def(p + "stiffness_" + q + "3", body, TermKind::kStiffness3, "k3 " + q + "^3", "cubic stiffness of the " + where,
+                   {{"k3", "N/m^3", Sign::kEither}}));
+    lib.push_back(Def(p + "stiffness_" + q + "5", body, TermKind::kStiffness5, "k5 " + q + "^5", "quintic stiffness of the " + where,
+                   {{"k5", "N/m^5", Sign::kEither}}));
+    lib.push_back(Def(p + "viscous", body, TermKind::kViscous, "c0 " + v, "viscous damping of the " + where,
+                   {{"c0", "N s/m", Sign::kNonNegative}}));
+    lib.push_back(Def(p + "damping_" + q + "2", body, TermKind::kDamping2, "c2 " + q + "^2 " + v,
                    "displacement-dependent damping (c2 " + q + "^2) of the " + where,
-                   {{"c2", "N s/m^3", Sign::kNonNegative}}});
-    lib.push_back({p + "damping_v3", body, TermKind::kDampingV3, "c3 " + v + "^3", "cubic velocity damping of the " + where,
-                   {{"c3", "N s^3/m^3", Sign::kNonNegative}}});
-    lib.push_back({p + "drag", body, TermKind::kDrag, "cq " + v + " |" + v + "|", "quadratic (air) drag of the " + where,
-                   {{"cq", "N s^2/m^2", Sign::kNonNegative}}});
-    lib.push_back({p + "friction", body, TermKind::kFriction,
+                   {{"c2", "N s/m^3", Sign::kNonNegative}}));
+    lib.push_back(Def(p + "damping_v3", body, TermKind::kDampingV3, "c3 " + v + "^3", "cubic velocity damping of the " + where,
+                   {{"c3", "N s^3/m^3", Sign::kNonNegative}}));
+    lib.push_back(Def(p + "drag", body, TermKind::kDrag, "cq " + v + " |" + v + "|", "quadratic (air) drag of the " + where,
+                   {{"cq", "N s^2/m^2", Sign::kNonNegative}}));
+    lib.push_back(Def(p + "friction", body, TermKind::kFriction,
                    "(F_s - F_c tanh(v_sp/v_t)) g(" + v + ") + F_c tanh(" + v + "/v_t), g(v) = (v/v_sp) exp(1/2 - v^2/(2 v_sp^2))",
                    "Stribeck friction of the " + where + " (F_s static peak at v_sp, F_c Coulomb level)",
-                   {{"F_s", "N", Sign::kNonNegative}, {"F_c", "N", Sign::kNonNegative}}});
-    lib.push_back({p + "bias", body, TermKind::kBias, "f_b", "constant force on the " + where, {{"f_b", "N", Sign::kEither}}});
+                   {{"F_s", "N", Sign::kNonNegative}, {"F_c", "N", Sign::kNonNegative}}));
+    lib.push_back(Def(p + "bias", body, TermKind::kBias, "f_b", "constant force on the " + where, {{"f_b", "N", Sign::kEither}}));
+    if (main)
+      lib.push_back(Def("main.piezo", body, TermKind::kPiezo, "-a w on the beam; w' = -b w - c y' (voltage state w)",
+                     "piezoelectric coupling: back-force -theta w, circuit C_p w' + w/R + theta y' = 0 (a = theta, b = 1/(R C_p), "
+                     "c = theta/C_p; a coupling that damps the beam has a c > 0)",
+                     {{"a", "N/V", Sign::kEither}, {"b", "1/s", Sign::kNonNegative}, {"c", "V/m", Sign::kEither}}));
+  }
+  // Output-side effects, one pair per output kind.
+  for (const auto& [name, unit] : std::vector<std::pair<std::string, std::string>>{
+           {"displacement", "m"}, {"velocity", "m/s"}, {"analogue", "1"}, {"resonator", "m"}, {"voltage", "V"}}) {
+    lib.push_back(Def("out." + name + ".offset", Body::kOutput, TermKind::kOutputOffset, name + " = model + d",
+                      "offset of the measured " + name + " output (sensor zero)", {{"d", unit, Sign::kEither}}, name));
+    lib.push_back(Def("out." + name + ".scale", Body::kOutput, TermKind::kOutputScale, name + " = (1 + g) model",
+                      "gain error of the measured " + name + " output (sensor sensitivity)", {{"g", "1", Sign::kEither}}, name));
   }
   return lib;
 }
@@ -102,6 +123,12 @@ void TermBasisSlopes(const TermDef& t, double q, double v, const FrictionConstan
       if (d) phi_q[0] = phi_q[1] = 0;
       return;
     case TermKind::kBias: phi[0] = 1.0; break;
+    case TermKind::kPiezo:  // no force of (q, v): the back-force needs the voltage state (model.cc)
+      phi[0] = phi[1] = phi[2] = 0;
+      if (d) phi_q[0] = phi_q[1] = phi_q[2] = phi_v[0] = phi_v[1] = phi_v[2] = 0;
+      return;
+    case TermKind::kOutputOffset:
+    case TermKind::kOutputScale: phi[0] = 0; break;  // not a force
   }
   if (d) phi_q[0] = dq, phi_v[0] = dv;
 }
@@ -112,7 +139,7 @@ void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc
 
 void TermSlopes(const TermDef& t, const double* th, double q, double v, const FrictionConstants& fc, double* dfdq,
                 double* dfdv) {
-  double phi[2], pq[2], pv[2];
+  double phi[kMaxTermParams], pq[kMaxTermParams], pv[kMaxTermParams];
   TermBasisSlopes(t, q, v, fc, std::tanh(fc.v_sp / fc.v_t), phi, pq, pv);
   *dfdq = 0;
   *dfdv = 0;

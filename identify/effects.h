@@ -21,6 +21,18 @@
 //  friction       g(v), tanh(v/v_t) − tanh(v_sp/v_t) g(v)  F_s, F_c  N        ≥ 0 (Stribeck: dynamics/friction.h's
 //                 law and basis; g(v) = (v/v_sp) exp(1/2 − v²/2v_sp²); v_sp, v_t are known constants)
 //  bias           1                                      f_b        N         either
+//
+// A term with its own state (main body only):
+//  piezo          the piezoelectric transducer: a voltage state w with C_p w' + w/R + θ y' = 0 and the
+//                 back-force −θ w on the beam (m y'' + … − θ w = −m a_base). Identifiable per unit of the
+//                 main mass: a = θ/m_main · m_main = θ [N/V] (with m_main = 1: θ/m), b = 1/(R C_p) [1/s] (≥ 0),
+//                 c = θ/C_p [V/m]: w' = −b w − c y', F = −a w. The model then predicts a voltage output
+//                 (w); a coupling that damps the beam has a·c > 0 (an electrode polarity flips both signs).
+//
+// Output-side effects (on a measured output, not forces; ids out.<output>.offset / .scale, where
+// <output> is the output's kind: displacement, velocity, analogue, resonator, voltage):
+//  offset         output = model + d                     d          output unit  either
+//  scale          output = (1 + g) model                 g          1            either (sensor gain error)
 #ifndef BISTABLE_IDENTIFY_EFFECTS_H_
 #define BISTABLE_IDENTIFY_EFFECTS_H_
 
@@ -31,8 +43,15 @@
 
 namespace bistable {
 
-enum class Body { kMain, kResonator };
-enum class TermKind { kLinear, kStiffness2, kStiffness3, kStiffness5, kViscous, kDamping2, kDampingV3, kDrag, kFriction, kBias };
+enum class Body { kMain, kResonator, kOutput };
+enum class TermKind { kLinear, kStiffness2, kStiffness3, kStiffness5, kViscous, kDamping2, kDampingV3, kDrag, kFriction, kBias,
+                      kPiezo, kOutputOffset, kOutputScale };
+// The outputs a record may have: the main body's (the setup's output kind: displacement, velocity or
+// analogue), the resonator's displacement and the piezo voltage. An output term names its output by kind.
+enum class OutputSlot { kMain = 0, kResonator = 1, kVoltage = 2 };
+constexpr int kOutputSlots = 3;
+// The most parameters one term has (the piezo: a, b, c): basis buffers are this long.
+constexpr int kMaxTermParams = 3;
 enum class Sign { kEither, kNonNegative };
 
 struct TermParam {
@@ -48,6 +67,10 @@ struct TermDef {
   std::string formula;      // "k3 y^3"
   std::string meaning;      // one line for reports
   std::vector<TermParam> params;
+  // Output terms (Body::kOutput): the output they act on, by its kind name ("velocity", "voltage", ...).
+  std::string output;
+  // A force term of the main or resonator body: F = Σ θ_k φ_k(q, v) (not the piezo nor an output term).
+  bool IsForce() const { return body != Body::kOutput && kind != TermKind::kPiezo; }
 };
 
 // Every term of the library, main body first; ids are stable (used in specs, JSON and reports).

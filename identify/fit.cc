@@ -1,6 +1,7 @@
 #include "identify/fit.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <complex>
@@ -22,8 +23,7 @@ namespace bistable {
 namespace {
 
 struct Sims {
-  std::vector<std::vector<double>> out, res;
-  std::vector<Eigen::MatrixXd> dout, dres;  // sensitivities (SimulateSensitivities), when asked for
+  std::vector<SimOutputs> o;  // per record: every output (and, when asked for, its sensitivities)
   bool ok = true;
 };
 
@@ -33,18 +33,14 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
                  const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0,
                  const std::vector<const TermDef*>* extra = nullptr, std::vector<EarlyStop>* stops = nullptr) {
   Sims s;
-  s.out.resize(recs.size());
-  s.res.resize(recs.size());
-  if (extra) s.dout.resize(recs.size()), s.dres.resize(recs.size());
+  s.o.resize(recs.size());
   std::vector<char> ok(recs.size(), 1);
+  const std::vector<const TermDef*> none;
   auto one = [&](size_t i) {
     const int sub = substeps.empty() ? 0 : substeps[i];
     const int restart = horizon_s > 0 ? std::max(2, static_cast<int>(std::lround(horizon_s / recs[i].dt))) : 0;
-    const bool with_res = !recs[i].meas_res.empty();
-    ok[i] = extra ? SimulateSensitivities(m, th, *extra, recs[i], setup, sub, restart, &s.out[i], &s.dout[i],
-                                          with_res ? &s.res[i] : nullptr, with_res ? &s.dres[i] : nullptr)
-                  : Simulate(m, th, recs[i], setup, &s.out[i], with_res ? &s.res[i] : nullptr, sub, restart,
-                             stops ? &(*stops)[i] : nullptr);
+    ok[i] = SimulateOutputs(m, th, extra ? *extra : none, recs[i], setup, sub, restart, extra != nullptr, &s.o[i],
+                            stops ? &(*stops)[i] : nullptr);
   };
   const size_t nt = std::min<size_t>(recs.size(), threads > 0 ? static_cast<size_t>(threads) : static_cast<size_t>(UsableCpus()));
   if (nt <= 1) {
@@ -60,6 +56,9 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
   for (char c : ok) s.ok = s.ok && c;
   return s;
 }
+
+// The outputs of the spectral objective: the main output (velocity form) and a voltage (as is).
+bool InSpectrum(OutputSlot k) { return k != OutputSlot::kResonator; }
 
 // FFT / n of the velocity form of a compared output (derivative of displacement outputs), mean removed:
 // linear in the series, so a sensitivity column goes through the same map.
@@ -88,19 +87,25 @@ std::vector<double> VelocityMagnitudes(const std::vector<double>& series, double
 
 size_t NumResiduals(const std::vector<PreparedRecord>& recs, Objective obj) {
   size_t n = 0;
-  for (const PreparedRecord& r : recs) {
-    if (obj == Objective::kTime) n += r.n() + (r.meas_res.empty() ? 0 : r.n());
-    else n += NextFastFftLength(r.n()) / 2 + 1;
-  }
+  for (const PreparedRecord& r : recs)
+    for (int k = 0; k < kOutputSlots; ++k) {
+      const OutputSlot slot = static_cast<OutputSlot>(k);
+      if (!r.Has(slot)) continue;
+      if (obj == Objective::kTime) n += r.n();
+      else if (InSpectrum(slot)) n += NextFastFftLength(r.n()) / 2 + 1;
+    }
   return n;
 }
+
+// Measured spectrum magnitudes per record and output slot (empty where not in the spectral objective).
+using Magnitudes = std::vector<std::array<std::vector<double>, kOutputSlots>>;
 
 // Residuals of the objective; false when a simulation diverged. With `jac` (and `extra`): the
 // residuals' derivatives by θ (N × P: the model's parameters, then the extra terms' at 0), from one
 // pass of SimulateSensitivities per record.
 bool Residuals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                const Setup& setup, Objective obj, const std::vector<int>& substeps, int threads,
-               const std::vector<std::vector<double>>& meas_mag, double* res, double horizon_s = 0,
+               const Magnitudes& meas_mag, double* res, double horizon_s = 0,
                Eigen::MatrixXd* jac = nullptr, const std::vector<const TermDef*>& extra = {}) {
   const Sims s = SimulateAll(m, th, recs, setup, substeps, threads, horizon_s, jac ? &extra : nullptr);
   if (!s.ok) return false;
@@ -110,31 +115,30 @@ bool Residuals(const IdentModel& m, const std::vector<double>& th, const std::ve
     jac->resize(static_cast<long>(NumResiduals(recs, obj)), P);
   }
   size_t k = 0;
-  const bool disp = setup.output != OutputKind::kVelocity;
   for (size_t i = 0; i < recs.size(); ++i) {
     const PreparedRecord& r = recs[i];
     const long n = static_cast<long>(r.n());
-    if (obj == Objective::kTime) {
-      const double w = 1.0 / (r.meas_scale * std::sqrt(static_cast<double>(r.n())));
-      if (jac) jac->middleRows(static_cast<long>(k), n) = s.dout[i] * w;
-      for (size_t j = 0; j < r.n(); ++j) res[k++] = (s.out[i][j] - r.meas[j]) * w;
-      if (!r.meas_res.empty()) {
-        double mean = 0, ss = 0;
-        for (double v : r.meas_res) mean += v;
-        mean /= static_cast<double>(r.n());
-        for (double v : r.meas_res) ss += (v - mean) * (v - mean);
-        const double wr = 1.0 / std::sqrt(std::max(ss, 1e-300));
-        if (jac) jac->middleRows(static_cast<long>(k), n) = s.dres[i] * wr;
-        for (size_t j = 0; j < r.n(); ++j) res[k++] = (s.res[i][j] - r.meas_res[j]) * wr;
+    for (int slot = 0; slot < kOutputSlots; ++slot) {
+      const OutputSlot os = static_cast<OutputSlot>(slot);
+      if (!r.Has(os)) continue;
+      const std::vector<double>& sim = s.o[i].out[slot];
+      const std::vector<double>& meas = r.Measured(os);
+      if (obj == Objective::kTime) {
+        // Σ squares = λ NRMSE² of this output on this record (λ = 1 for the main output).
+        const double w = std::sqrt(r.weight[slot]) / (r.Scale(os) * std::sqrt(static_cast<double>(r.n())));
+        if (jac) jac->middleRows(static_cast<long>(k), n) = s.o[i].d[slot] * w;
+        for (size_t j = 0; j < r.n(); ++j) res[k++] = (sim[j] - meas[j]) * w;
+        continue;
       }
-    } else {
-      const std::vector<std::complex<double>> X = VelocitySpectrum(s.out[i], r.dt, disp);
+      if (!InSpectrum(os)) continue;
+      const bool disp = os == OutputSlot::kMain && setup.output != OutputKind::kVelocity;
+      const std::vector<std::complex<double>> X = VelocitySpectrum(sim, r.dt, disp);
       double norm = 0;
-      for (double v : meas_mag[i]) norm += v * v;
-      norm = std::sqrt(std::max(norm, 1e-300));
+      for (double v : meas_mag[i][slot]) norm += v * v;
+      norm = std::sqrt(std::max(norm, 1e-300)) / std::sqrt(r.weight[slot]);
       if (jac) {  // d|X| = Re(conj(X) dX) / |X|
         for (long c = 0; c < jac->cols(); ++c) {
-          const Eigen::VectorXd col = s.dout[i].col(c);
+          const Eigen::VectorXd col = s.o[i].d[slot].col(c);
           const std::vector<std::complex<double>> dX = VelocitySpectrum(std::vector<double>(col.data(), col.data() + n), r.dt, disp);
           for (size_t j = 0; j < X.size(); ++j) {
             const double a = std::abs(X[j]);
@@ -142,7 +146,7 @@ bool Residuals(const IdentModel& m, const std::vector<double>& th, const std::ve
           }
         }
       }
-      for (size_t j = 0; j < X.size(); ++j) res[k++] = (std::abs(X[j]) - meas_mag[i][j]) / norm;
+      for (size_t j = 0; j < X.size(); ++j) res[k++] = (std::abs(X[j]) - meas_mag[i][slot][j]) / norm;
     }
   }
   for (size_t j = 0; j < k; ++j)
@@ -151,9 +155,13 @@ bool Residuals(const IdentModel& m, const std::vector<double>& th, const std::ve
   return true;
 }
 
-std::vector<std::vector<double>> MeasuredMagnitudes(const std::vector<PreparedRecord>& recs, const Setup& setup) {
-  std::vector<std::vector<double>> out;
-  for (const PreparedRecord& r : recs) out.push_back(VelocityMagnitudes(r.meas, r.dt, setup.output != OutputKind::kVelocity));
+Magnitudes MeasuredMagnitudes(const std::vector<PreparedRecord>& recs, const Setup& setup) {
+  Magnitudes out;
+  for (const PreparedRecord& r : recs) {
+    out.emplace_back();
+    out.back()[0] = VelocityMagnitudes(r.meas, r.dt, setup.output != OutputKind::kVelocity);
+    if (r.Has(OutputSlot::kVoltage)) out.back()[2] = VelocityMagnitudes(r.volt, r.dt, false);
+  }
   return out;
 }
 
@@ -183,7 +191,7 @@ double CorrelationTime(const std::vector<double>& e) {
 bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                         const Setup& setup, Objective obj, const std::vector<int>& substeps, std::vector<double>* out) {
   out->assign(NumResiduals(recs, obj), 0.0);
-  const auto mags = obj == Objective::kFft ? MeasuredMagnitudes(recs, setup) : std::vector<std::vector<double>>{};
+  const auto mags = obj == Objective::kFft ? MeasuredMagnitudes(recs, setup) : Magnitudes{};
   return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data());
 }
 
@@ -191,7 +199,7 @@ bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const
                        const Setup& setup, Objective obj, const std::vector<int>& substeps,
                        const std::vector<const TermDef*>& extra, std::vector<double>* out, Eigen::MatrixXd* jac) {
   out->assign(NumResiduals(recs, obj), 0.0);
-  const auto mags = obj == Objective::kFft ? MeasuredMagnitudes(recs, setup) : std::vector<std::vector<double>>{};
+  const auto mags = obj == Objective::kFft ? MeasuredMagnitudes(recs, setup) : Magnitudes{};
   return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data(), 0.0, jac, extra);
 }
 
@@ -215,7 +223,7 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
     mean /= static_cast<double>(r.n());
     double ei = 0, mi = 0;
     for (size_t j = 0; j < r.n(); ++j) {
-      const double d = s.out[i][j] - r.meas[j];
+      const double d = s.o[i].out[0][j] - r.meas[j];
       ei += std::isfinite(d) ? d * d : INFINITY;
       mi += (r.meas[j] - mean) * (r.meas[j] - mean);
     }
@@ -224,7 +232,7 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
     e.record_rms.push_back(std::sqrt(ei / static_cast<double>(r.n())));
     double fi = NAN;
     if (std::isfinite(ei)) {
-      const std::vector<double> a = VelocityMagnitudes(s.out[i], r.dt, disp), b = VelocityMagnitudes(r.meas, r.dt, disp);
+      const std::vector<double> a = VelocityMagnitudes(s.o[i].out[0], r.dt, disp), b = VelocityMagnitudes(r.meas, r.dt, disp);
       double d2 = 0, b2 = 0;
       for (size_t k = 0; k < a.size(); ++k) d2 += (a[k] - b[k]) * (a[k] - b[k]), b2 += b[k] * b[k];
       fi = 100.0 * std::sqrt(d2 / b2);
@@ -237,6 +245,56 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
   e.nrmse = 100.0 * std::sqrt(se / sm);
   e.fft = fft_sum / static_cast<double>(recs.size());
   e.eq20 = eq20 / static_cast<double>(recs.size());
+  // Per output (every record has the same outputs): NRMSE pooled over records, spectral error averaged.
+  for (int k = 0; k < kOutputSlots; ++k) {
+    const OutputSlot slot = static_cast<OutputSlot>(k);
+    if (recs.empty() || !recs[0].Has(slot)) continue;
+    OutputErrors o;
+    o.name = OutputName(setup, slot);
+    o.weight = recs[0].weight[k];
+    if (k == 0) {
+      o.nrmse = e.nrmse, o.fft = e.fft;
+    } else {
+      double ek = 0, mk = 0, fk = 0;
+      for (size_t i = 0; i < recs.size(); ++i) {
+        const std::vector<double>& meas = recs[i].Measured(slot);
+        const std::vector<double>& sim = s.o[i].out[k];
+        double mean = 0;
+        for (double v : meas) mean += v;
+        mean /= static_cast<double>(meas.size());
+        double ei = 0;
+        for (size_t j = 0; j < meas.size(); ++j) {
+          const double d = sim[j] - meas[j];
+          ei += std::isfinite(d) ? d * d : INFINITY;
+          mk += (meas[j] - mean) * (meas[j] - mean);
+        }
+        ek += ei;
+        if (std::isfinite(ei)) {
+          const std::vector<double> a = VelocityMagnitudes(sim, recs[i].dt, false), b = VelocityMagnitudes(meas, recs[i].dt, false);
+          double d2 = 0, b2 = 0;
+          for (size_t j = 0; j < a.size(); ++j) d2 += (a[j] - b[j]) * (a[j] - b[j]), b2 += b[j] * b[j];
+          fk += 100.0 * std::sqrt(d2 / b2);
+        } else {
+          fk = NAN;
+        }
+      }
+      o.nrmse = 100.0 * std::sqrt(ek / mk);
+      o.fft = fk / static_cast<double>(recs.size());
+    }
+    double ns = 0;
+    for (const PreparedRecord& r : recs) ns += r.noise[k] * r.noise[k];
+    o.noise = std::sqrt(ns / static_cast<double>(recs.size()));
+    e.outputs.push_back(o);
+  }
+  if (e.outputs.size() > 1) {  // the joint error: λ-weighted over outputs (the resonator is not in the spectrum)
+    double wn = 0, wf = 0, sn = 0, sf = 0;
+    for (const OutputErrors& o : e.outputs) {
+      wn += o.weight, sn += o.weight * o.nrmse * o.nrmse;
+      if (o.name != "resonator") wf += o.weight, sf += o.weight * o.fft * o.fft;
+    }
+    e.nrmse = std::sqrt(sn / wn);
+    e.fft = std::sqrt(sf / wf);
+  }
   return e;
 }
 
@@ -254,7 +312,7 @@ Regression BuildRegression(const IdentModel& m, const std::vector<PreparedRecord
   const int mass_col = m.FitsMass() ? m.NumTermParams() : -1;
   auto add_body_columns = [&](std::vector<double>& row, Body body, double sign, double q, double v) {
     int k = 0;
-    double phi[2];
+    double phi[kMaxTermParams];
     for (const TermDef* t : m.terms) {
       if (t->body == body) {
         TermBasis(*t, q, v, m.fc, phi);
@@ -271,9 +329,35 @@ Regression BuildRegression(const IdentModel& m, const std::vector<PreparedRecord
       k += static_cast<int>(t->params.size());
     }
   };
+  // The piezo (model or extra): its back-force column a is −w along the measured voltage; its circuit is
+  // rows of its own, b w + c y' = −w' (model piezo only), scaled to the force rows' size (the two row sets
+  // share no column, so the scale changes no estimate, only the pooled σ).
+  int piezo_col = m.PiezoIndex();
+  const bool model_piezo = piezo_col >= 0;
+  if (!model_piezo) {
+    int k = p_model;
+    for (const TermDef* t : extra) {
+      if (t->kind == TermKind::kPiezo) piezo_col = k;
+      k += static_cast<int>(t->params.size());
+    }
+  }
+  double circuit_scale = 1;
+  if (model_piezo) {
+    double f2 = 0, w2 = 0, nf = 0, nw = 0;
+    for (const PreparedRecord& r : recs) {
+      if (r.wd.empty()) continue;
+      for (size_t i = 0; i < r.n(); ++i) {
+        const double a = setup.input == InputKind::kBaseAcceleration ? r.pdd[i] + r.input[i] : r.pdd[i];
+        f2 += a * a, w2 += r.wd[i] * r.wd[i], ++nf, ++nw;
+      }
+    }
+    const double mm = m.FitsMass() ? 1.0 : m.m_main;
+    if (w2 > 0 && f2 > 0) circuit_scale = mm * std::sqrt(f2 / nf) / std::sqrt(w2 / nw);
+  }
   for (size_t ri = 0; ri < recs.size(); ++ri) {
     const PreparedRecord& r = recs[ri];
     const bool res = !r.z.empty();
+    const bool volt = !r.w.empty();
     const size_t edge = std::min<size_t>(std::max<size_t>(12, r.n() / 50), r.n() / 4);  // derivative end effects
     for (size_t i = edge; i + edge < r.n(); i += stride) {
       // Main body: F(y, y') − G(z, z') [+ m p''] = target.
@@ -289,11 +373,22 @@ Regression BuildRegression(const IdentModel& m, const std::vector<PreparedRecord
         case InputKind::kForce: target = r.input[i] - mm * r.pdd[i]; break;
       }
       if (mass_col >= 0) row[mass_col] = setup.input == InputKind::kBaseAcceleration ? r.pdd[i] + r.input[i] : r.pdd[i];
+      if (piezo_col >= 0 && volt) row[piezo_col] = -r.w[i];
       rows.push_back(std::move(row));
       rhs.push_back(target);
       reg.record_of_row.push_back(static_cast<int>(ri));
       reg.q.push_back(yi);
       reg.v.push_back(r.yd[i]);
+      if (model_piezo && volt) {  // the circuit: b w + c y' = −w'
+        std::vector<double> crow(p_model + p_extra, 0.0);
+        crow[piezo_col + 1] = circuit_scale * r.w[i];
+        crow[piezo_col + 2] = circuit_scale * r.yd[i];
+        rows.push_back(std::move(crow));
+        rhs.push_back(-circuit_scale * r.wd[i]);
+        reg.record_of_row.push_back(static_cast<int>(ri));
+        reg.q.push_back(NAN);
+        reg.v.push_back(NAN);
+      }
       if (res && m.m_res > 0) {  // resonator: G(z, z') = −m_r x_r''
         std::vector<double> rrow(p_model + p_extra, 0.0);
         add_body_columns(rrow, Body::kResonator, 1.0, r.z[i], r.zd[i]);
@@ -382,7 +477,7 @@ struct SimCost {
   Objective obj;
   std::vector<int> substeps;
   std::vector<double> scale;
-  std::vector<std::vector<double>> meas_mag;
+  Magnitudes meas_mag;
   int threads;
   double horizon_s = 0;  // > 0: short-horizon (multiple shooting) simulation error
   mutable int calls = 0;
@@ -470,15 +565,16 @@ struct FitStages {
     for (const EarlyStop& e : stops) sse += e.sse, stopped = stopped || e.stopped;
     if (stopped) return std::max(sse, budget);
     if (!s.ok) return 1e30;
-    for (size_t i = 0; i < recs.size(); ++i) {  // a measured resonator's part (not in the running sum)
-      if (recs[i].meas_res.empty()) continue;
-      double mean = 0, ss = 0, e2 = 0;
-      for (double v : recs[i].meas_res) mean += v;
-      mean /= static_cast<double>(recs[i].n());
-      for (double v : recs[i].meas_res) ss += (v - mean) * (v - mean);
-      for (size_t j = 0; j < recs[i].n(); ++j) e2 += (s.res[i][j] - recs[i].meas_res[j]) * (s.res[i][j] - recs[i].meas_res[j]);
-      sse += e2 / std::max(ss, 1e-300);
-    }
+    for (size_t i = 0; i < recs.size(); ++i)  // further outputs' parts (not in the running sum)
+      for (int k = 1; k < kOutputSlots; ++k) {
+        const OutputSlot slot = static_cast<OutputSlot>(k);
+        if (!recs[i].Has(slot)) continue;
+        const std::vector<double>& meas = recs[i].Measured(slot);
+        double e2 = 0;
+        for (size_t j = 0; j < recs[i].n(); ++j) e2 += (s.o[i].out[k][j] - meas[j]) * (s.o[i].out[k][j] - meas[j]);
+        const double sc = recs[i].Scale(slot);
+        sse += recs[i].weight[k] * e2 / std::max(sc * sc * static_cast<double>(recs[i].n()), 1e-300);
+      }
     return std::isfinite(sse) ? sse : 1e30;
   }
   double SumOfSquares(const std::vector<double>& u, const std::vector<int>& sub) {

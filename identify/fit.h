@@ -8,9 +8,10 @@
 //      Jacobians from sensitivity equations, RK4 substeps held fixed so the objective is smooth).
 //   Uncertainty: σ_θ from the Gauss–Newton covariance s²(JᵀJ)⁻¹ at the solution, inflated by the
 //   residuals' correlation time (samples of a simulation error are far from independent).
-// Objectives: "time" — Σ_records NRMSE² of the output (each record weighs the same); "fft" — the
-// paper's Eq. 20 on velocity spectra magnitudes (for chaotic records, where a time-domain match is
-// not expected), normalised per record by the measured spectrum's norm.
+// Objectives: "time" — Σ_records Σ_outputs λ_o NRMSE² (each record weighs the same; outputs weighted by
+// their noise levels, model.h SetOutputWeights); "fft" — the paper's Eq. 20 on velocity spectra
+// magnitudes (for chaotic records, where a time-domain match is not expected), normalised per record by
+// the measured spectrum's norm (a voltage output: its own spectrum, weighted likewise).
 #ifndef BISTABLE_IDENTIFY_FIT_H_
 #define BISTABLE_IDENTIFY_FIT_H_
 
@@ -25,11 +26,23 @@ namespace bistable {
 
 enum class Objective { kTime, kFft };
 
+// One output's errors (over all records): the output's name (OutputName), NRMSE and spectral error,
+// and its noise level and weight in the joint fit (SetOutputWeights).
+struct OutputErrors {
+  std::string name;
+  double nrmse = NAN, fft = NAN;      // %
+  double noise = NAN;                 // σ, RMS over records, output unit
+  double weight = 1;                  // λ of its NRMSE² in the objective
+};
+
 struct Errors {
-  double nrmse = NAN;                 // % over all records: 100 sqrt(Σ e² / Σ (meas − mean)²)
+  // % over all records: 100 sqrt(Σ e² / Σ (meas − mean)²) of the main output; with several outputs the
+  // weighted mean over outputs, sqrt(Σ λ_o NRMSE_o² / Σ λ_o) (the loop's decision error).
+  double nrmse = NAN;
   double fft = NAN;                   // % mean over records of 100 ‖|V_sim| − |V_meas|‖ / ‖V_meas‖
   double eq20 = NAN;                  // the paper's Eq. 20 value, in the output's velocity unit (m/s)
-  std::vector<double> record_nrmse;   // % per record
+  std::vector<OutputErrors> outputs;  // every measured output, main first
+  std::vector<double> record_nrmse;   // % per record (main output)
   std::vector<double> record_fft;     // % per record
   std::vector<double> record_rms;     // RMS of sim − meas per record, output unit
   bool diverged = false;

@@ -142,18 +142,63 @@ CandidateScore ScoreColumns(const Eigen::MatrixXd& A, const Eigen::MatrixXd& C, 
 
 // The library terms not yet in m that the trace may add (opt.candidates, or every term of a body
 // the data constrain).
-std::vector<const TermDef*> FreshCandidates(const IdentModel& m, const std::vector<PreparedRecord>& recs, const IdentifyOptions& opt) {
+// Default: the force terms of the bodies measured; with a measured voltage also main.piezo and the
+// offset and scale of every measured output. Output terms of an output the records lack are dropped.
+std::vector<const TermDef*> FreshCandidates(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                                            const IdentifyOptions& opt) {
   std::vector<const TermDef*> cands = opt.candidates;
-  bool res_data = true;
-  for (const PreparedRecord& r : recs) res_data = res_data && !r.z.empty();
+  bool res_data = true, volt_data = !recs.empty();
+  for (const PreparedRecord& r : recs) res_data = res_data && !r.z.empty(), volt_data = volt_data && r.Has(OutputSlot::kVoltage);
+  auto measured = [&](const TermDef& t) {
+    const int slot = OutputSlotOf(t, setup);
+    return slot >= 0 && !recs.empty() && recs[0].Has(static_cast<OutputSlot>(slot));
+  };
   if (cands.empty())
-    for (const TermDef& t : EffectLibrary())
-      if (t.body == Body::kMain || (res_data && m.HasResonator())) cands.push_back(&t);
+    for (const TermDef& t : EffectLibrary()) {
+      if (t.IsForce() && (t.body == Body::kMain || (res_data && m.HasResonator()))) cands.push_back(&t);
+      else if (volt_data && (t.kind == TermKind::kPiezo || (t.body == Body::kOutput && measured(t)))) cands.push_back(&t);
+    }
+  // A gain on the voltage is the piezo's own scale (w → λw, c → λc, a → a/λ leaves the beam as it is):
+  // with main.piezo in the model, out.voltage.scale would only fit the start of the voltage transient.
+  const bool piezo = m.PiezoIndex() >= 0;
   std::vector<const TermDef*> fresh;
   for (const TermDef* c : cands)
-    if (std::find(m.terms.begin(), m.terms.end(), c) == m.terms.end()) fresh.push_back(c);
+    if (std::find(m.terms.begin(), m.terms.end(), c) == m.terms.end() && (c->body != Body::kOutput || measured(*c)) &&
+        !(piezo && c->kind == TermKind::kOutputScale && c->output == "voltage"))
+      fresh.push_back(c);
   return fresh;
 }
+
+// The point a candidate is scored at: 0 for a term linear in its parameters (its output sensitivities at 0
+// say what it adds). The piezo's output is bilinear (a multiplies the state that c drives), so at 0 it
+// adds nothing to first order: it is scored at a = 0 with its circuit from the measured voltage (b, c by
+// least squares on w' = −b w − c y'), where the voltage output and ∂(outputs)/∂a are those of the fitted
+// circuit; without a measured voltage, b = ω (max|y'| / max|y|) and c = 1 (then only a c is identified).
+std::vector<double> CandidateBase(const TermDef& c, const std::vector<PreparedRecord>& recs) {
+  std::vector<double> base(c.params.size(), 0.0);
+  if (c.kind != TermKind::kPiezo) return base;
+  Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
+  double omega = 0;
+  for (const PreparedRecord& r : recs) {
+    omega += r.v_range / std::max(r.p_range, 1e-300) / static_cast<double>(recs.size());
+    if (r.w.empty()) continue;
+    const size_t edge = std::min<size_t>(std::max<size_t>(12, r.n() / 50), r.n() / 4);
+    for (size_t i = edge; i + edge < r.n(); ++i) {
+      const Eigen::Vector2d x(r.w[i], r.yd[i]);
+      A += x * x.transpose();
+      rhs -= x * r.wd[i];
+    }
+  }
+  if (A(0, 0) > 0) {
+    const Eigen::Vector2d bc = A.ldlt().solve(rhs);
+    base[1] = std::max(bc[0], 0.0), base[2] = bc[1];
+  } else {
+    base[1] = omega, base[2] = 1.0;
+  }
+  return base;
+}
+bool IsZero(const std::vector<double>& v) { return std::all_of(v.begin(), v.end(), [](double x) { return x == 0.0; }); }
 
 // Supporting evidence: the restoring-force residual of the equation-error rows, regressed on the
 // declared columns (base) and scored against each candidate's columns (after them in `reg`).
@@ -277,7 +322,7 @@ bool DissipatesEnergy(const TermDef& c, const std::vector<double>& estimate, con
                       const FrictionConstants& fc) {
   double vmax = 0, qmax = 0;
   for (const PreparedRecord& r : recs) vmax = std::max(vmax, r.v_range), qmax = std::max(qmax, r.p_range);
-  double phi[2];
+  double phi[kMaxTermParams];
   bool any = false;
   for (int iv = 1; iv <= 200; ++iv) {
     const double v = vmax * 1.5 * iv / 200.0;
@@ -292,12 +337,55 @@ bool DissipatesEnergy(const TermDef& c, const std::vector<double>& estimate, con
   return any;
 }
 
+// A candidate scored at its base point (CandidateBase): the model with the candidate at `base`, its
+// residual e_c and sensitivities (declared parameters J_d, candidate J_c: one sensitivity pass, or finite
+// differences for the spectral objective); −e_c ≈ J_d δ + J_c (β − base) by least squares, compared with
+// what the declared parameters alone leave of −e (sim.base.rss).
+CandidateScore ScoreAtBase(const IdentModel& m, const std::vector<double>& th, const TermDef& c, const std::vector<double>& base,
+                           const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj, const ForceEvidence& force,
+                           const SimulationEvidence& sim) {
+  CandidateScore s;
+  const int p = m.NumParams(), nt = m.NumTermParams(), k = static_cast<int>(c.params.size());
+  IdentModel mc = m;
+  mc.theta = th;
+  mc = mc.With(&c, base);
+  SimulationEvidence ev;
+  ev.sub = FixedSubsteps(mc, mc.theta, recs);
+  for (size_t r = 0; r < ev.sub.size(); ++r) ev.sub[r] = std::max(ev.sub[r], sim.sub[r]);
+  bool ok = false;
+  Eigen::MatrixXd all;
+  if (obj == Objective::kTime) {
+    ok = ObjectiveJacobian(mc, mc.theta, recs, setup, obj, ev.sub, {}, &ev.e0, &all);
+  } else if (ObjectiveResiduals(mc, mc.theta, recs, setup, obj, ev.sub, &ev.e0)) {
+    std::vector<double> steps(mc.NumParams());
+    for (int i = 0; i < mc.NumParams(); ++i) {
+      const int fi = i < nt ? i : i < nt + k ? -1 : i - k;  // the column in the force regression (declared)
+      steps[i] = fi >= 0 ? force.step_of_col[fi] : std::max(std::abs(base[i - nt]), 1e-6);
+    }
+    DifferenceSensitivities(mc, mc.theta, {}, steps.data(), recs, setup, obj, &ev);
+    all = ev.J;
+    ok = all.allFinite();
+  }
+  if (!ok || static_cast<long>(ev.e0.size()) != static_cast<long>(sim.e0.size())) {
+    s.explained = 0, s.delta_bic = INFINITY;
+    s.estimate = base, s.sigma.assign(k, NAN);
+    return s;
+  }
+  const long N = static_cast<long>(ev.e0.size());
+  Eigen::MatrixXd Jd(N, p);
+  Jd << all.leftCols(nt), all.rightCols(p - nt);
+  const Eigen::VectorXd target = -Eigen::Map<const Eigen::VectorXd>(ev.e0.data(), N);
+  s = ScoreColumns(Jd, all.middleCols(nt, k), target, sim.base.rss, sim.n_eff);
+  for (int j = 0; j < k; ++j) s.estimate[j] += base[j];
+  return s;
+}
+
 }  // namespace
 
 LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                        const Setup& setup, const IdentifyOptions& opt) {
   LoopStep step;
-  const std::vector<const TermDef*> fresh = FreshCandidates(m, recs, opt);
+  const std::vector<const TermDef*> fresh = FreshCandidates(m, recs, setup, opt);
   const int p = m.NumParams();
   const ForceEvidence force = ForceResidual(m, th, recs, setup, fresh);
   step.residual_rms = std::sqrt(force.r0.squaredNorm() / static_cast<double>(force.reg.X.rows()));
@@ -319,8 +407,11 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
       s.estimate.assign(k, 0.0);
       s.sigma.assign(k, NAN);
     }
+    const std::vector<double> base = CandidateBase(*c, recs);
+    if (!IsZero(base)) s = ScoreAtBase(m, th, *c, base, recs, setup, opt.fit.objective, force, sim);
     s.term = c->id;
     if (c->params[0].sign == Sign::kNonNegative) s.sign_ok = DissipatesEnergy(*c, s.estimate, recs, m.fc);
+    if (c->kind == TermKind::kPiezo) s.sign_ok = s.estimate[0] * s.estimate[2] > 0;  // the coupling damps the beam
     const CandidateScore fs = ScoreColumns(force.reg.X.leftCols(p), force.reg.X.middleCols(col, k), force.r0, force.base.rss, force.n_eff);
     s.force_delta_bic = fs.delta_bic;
     s.force_explained = fs.explained;
@@ -350,6 +441,7 @@ IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRe
   }
   std::vector<PreparedRecord> indexed = recs;  // each record knows its offset parameter
   for (size_t i = 0; i < indexed.size(); ++i) indexed[i].index = static_cast<int>(i);
+  SetOutputWeights(&indexed);  // several outputs: weights from their noise levels
   return IdentifyIndexed(m, indexed, setup, opt);
 }
 
@@ -370,6 +462,13 @@ void StartDeclared(IdentModel* m, const std::vector<PreparedRecord>& recs, const
       if (!std::isfinite(m->theta[i])) m->theta[i] = start[i];
 }
 
+// Physically signed as fitted: a piezo coupling takes energy from the beam (a c > 0; a c < 0 would feed
+// the beam from the circuit). Signed force parameters are bounds of the fit and need no check here.
+bool Physical(const IdentModel& m, const std::vector<double>& th) {
+  const int pz = m.PiezoIndex();
+  return pz < 0 || th[pz] * th[pz + 2] > 0;
+}
+
 // The model `m` (fitted: `fit`) with the step's chosen term added (`*next`), refitted by simulation
 // from two starts — the trace's estimate, and the extended model's equation-error regression
 // (another basin) — the better kept.
@@ -388,7 +487,8 @@ FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t,
   std::vector<double> sig_alt;
   alt.theta = StartFromRegression(alt, recs, setup, &sig_alt);
   FitResult refit2 = Fit(alt, ScaleOf(alt, alt.theta, sig_alt, recs, setup), recs, setup, opt.fit);
-  if (ErrorOf(refit2, opt.fit.objective) < ErrorOf(refit, opt.fit.objective)) refit = refit2;
+  const bool p1 = Physical(*next, refit.theta), p2 = Physical(*next, refit2.theta);
+  if ((p2 && !p1) || (p2 == p1 && ErrorOf(refit2, opt.fit.objective) < ErrorOf(refit, opt.fit.objective))) refit = refit2;
   return refit;
 }
 
@@ -445,9 +545,18 @@ IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& 
     IdentModel next;
     const FitResult refit = RefitWith(m, fit, t, step, recs, setup, opt, &next);
     const double before = ErrorOf(fit, opt.fit.objective), after = ErrorOf(refit, opt.fit.objective);
-    const bool confirmed = after < before * (1.0 - opt.min_improvement);
+    const bool confirmed = Physical(next, refit.theta) && after < before * (1.0 - opt.min_improvement);
     out.fits.push_back({next, refit, t->id, confirmed});
     char buf[256];
+    if (!Physical(next, refit.theta)) {
+      const int pz = next.PiezoIndex();
+      std::snprintf(buf, sizeof buf, "%s scored best but its refit feeds energy into the beam (a c = %.3g < 0; error %.3g %% -> %.3g %%); not added",
+                    t->id.c_str(), refit.theta[pz] * refit.theta[pz + 2], before, after);
+      step.verdict = buf;
+      step.chosen.clear();
+      out.steps.push_back(step);
+      break;
+    }
     if (!confirmed) {
       std::snprintf(buf, sizeof buf, "%s scored best but the refit by simulation did not confirm it (error %.3g %% -> %.3g %%); not added",
                     t->id.c_str(), before, after);

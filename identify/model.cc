@@ -177,6 +177,33 @@ std::vector<double> IntegrateFft(const std::vector<double>& y, double dt, double
   return out;
 }
 
+double NoiseLevel(const std::vector<double>& y, double dt) {
+  const size_t n = y.size();
+  if (n < 64) return NAN;
+  double mean = 0;
+  for (double v : y) mean += v;
+  mean /= static_cast<double>(n);
+  const size_t len = NextFastFftLength(n);
+  std::vector<double> x(len, 0.0);
+  double w2 = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const double w = 0.5 - 0.5 * std::cos(2.0 * M_PI * static_cast<double>(i) / static_cast<double>(n - 1));
+    x[i] = (y[i] - mean) * w;
+    w2 += w * w;
+  }
+  std::vector<std::complex<double>> X;
+  RealFftFull(x, &X);
+  const double nyq = 0.5 / dt, df = 1.0 / (static_cast<double>(len) * dt);
+  const double f_lo = std::min(AutoCutoff(y, dt), 0.6 * nyq);
+  std::vector<double> pw;
+  for (size_t k = 1; k <= len / 2; ++k)
+    if (static_cast<double>(k) * df >= f_lo) pw.push_back(std::norm(X[k]));
+  if (pw.size() < 8) return NAN;
+  std::nth_element(pw.begin(), pw.begin() + static_cast<long>(pw.size() / 2), pw.end());
+  const double median = pw[pw.size() / 2];
+  return std::sqrt(median / std::log(2.0) / w2);
+}
+
 Status ValidateSetup(const Setup& s) {
   if (!(s.fc.v_sp > 0) || !std::isfinite(s.fc.v_sp)) return Status::InvalidArgument("v_sp", "v_sp must be > 0 m/s");
   if (!(s.fc.v_t > 0) || !std::isfinite(s.fc.v_t)) return Status::InvalidArgument("v_t", "v_t must be > 0 m/s");
@@ -188,6 +215,61 @@ Status ValidateSetup(const Setup& s) {
     return Status::InvalidArgument("output", "with a base displacement input the output must be a displacement "
                                              "(camera/laser position); velocity outputs go with a base acceleration input");
   return Status::Ok();
+}
+
+std::string OutputName(const Setup& s, OutputSlot slot) {
+  switch (slot) {
+    case OutputSlot::kMain:
+      return s.output == OutputKind::kVelocity ? "velocity" : s.output == OutputKind::kDisplacement ? "displacement" : "analogue";
+    case OutputSlot::kResonator: return "resonator";
+    case OutputSlot::kVoltage: return "voltage";
+  }
+  return "";
+}
+
+int OutputSlotOf(const TermDef& t, const Setup& s) {
+  if (t.body != Body::kOutput) return -1;
+  for (int k = 0; k < kOutputSlots; ++k)
+    if (t.output == OutputName(s, static_cast<OutputSlot>(k))) return k;
+  return -1;
+}
+
+double PreparedRecord::Scale(OutputSlot s) const {
+  return s == OutputSlot::kMain ? meas_scale : s == OutputSlot::kVoltage ? volt_scale : [&] {
+    double mean = 0, ss = 0;
+    for (double v : meas_res) mean += v;
+    mean /= static_cast<double>(std::max<size_t>(1, meas_res.size()));
+    for (double v : meas_res) ss += (v - mean) * (v - mean);
+    return std::sqrt(ss / static_cast<double>(std::max<size_t>(1, meas_res.size())));
+  }();
+}
+
+void SetOutputWeights(std::vector<PreparedRecord>* recs) {
+  double nu[kOutputSlots] = {0, 0, 0};
+  int count[kOutputSlots] = {0, 0, 0};
+  for (const PreparedRecord& r : *recs)
+    for (int k = 0; k < kOutputSlots; ++k) {
+      const OutputSlot s = static_cast<OutputSlot>(k);
+      const double rel = r.noise[k] / r.Scale(s);
+      if (r.Has(s) && std::isfinite(rel)) nu[k] += rel * rel, ++count[k];
+    }
+  for (int k = 0; k < kOutputSlots; ++k) nu[k] = count[k] ? std::sqrt(nu[k] / count[k]) : NAN;
+  for (PreparedRecord& r : *recs) {
+    r.weight[0] = 1.0;
+    for (int k = 1; k < kOutputSlots; ++k) {
+      const double lam = (nu[0] / nu[k]) * (nu[0] / nu[k]);
+      r.weight[k] = std::isfinite(lam) && lam > 0 ? std::clamp(lam, 0.01, 100.0) : 1.0;
+    }
+  }
+}
+
+int IdentModel::PiezoIndex() const {
+  int k = 0;
+  for (const TermDef* t : terms) {
+    if (t->kind == TermKind::kPiezo) return k;
+    k += static_cast<int>(t->params.size());
+  }
+  return -1;
 }
 
 bool IdentModel::HasResonator() const {
@@ -241,7 +323,7 @@ int IdentModel::Offset(const TermDef* t) const {
 }
 
 double IdentModel::Force(Body body, const std::vector<double>& th, double q, double v) const {
-  double f = 0, phi[2];
+  double f = 0, phi[kMaxTermParams];
   int k = 0;
   for (const TermDef* t : terms) {
     const int np = static_cast<int>(t->params.size());
@@ -418,6 +500,22 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
   }
   RestartStates(&r, out, setup);
   BISTABLE_RETURN_IF_ERROR(SetScales(&r));
+  r.noise[0] = NoiseLevel(r.meas, r.dt);
+  if (!r.meas_res.empty()) r.noise[1] = NoiseLevel(r.meas_res, r.dt);
+  if (!rec.voltage.empty()) {
+    r.volt = slice(rec.voltage);
+    r.w = Derivative(r, r.volt, 0);
+    r.wd = Derivative(r, r.volt, 1);
+    r.ic_w = SavitzkyGolay(r.volt, r.dt, 4, 0);
+    double mean = 0, ss = 0;
+    for (double v : r.volt) mean += v;
+    mean /= static_cast<double>(r.n());
+    for (double v : r.volt) ss += (v - mean) * (v - mean);
+    r.volt_scale = std::sqrt(ss / static_cast<double>(r.n()));
+    if (!(r.volt_scale > 0))
+      return Status::InvalidArgument("data", "record '" + r.name + "': the voltage output is constant over the range used");
+    r.noise[2] = NoiseLevel(r.volt, r.dt);
+  }
   return r;
 }
 
@@ -443,6 +541,8 @@ int SubstepsFor(const IdentModel& m, const std::vector<double>& th, const Prepar
     k += static_cast<int>(t->params.size());
   }
   double lam = dv_main / mm, om2 = dq_main / mm;
+  const int pz = m.PiezoIndex();  // the circuit's rate b; the coupling's stiffness a c (w ≈ −c y when b is slow)
+  if (pz >= 0) lam += std::abs(th[pz + 1]), om2 += std::abs(th[pz] * th[pz + 2]) / mm;
   if (m.HasResonator() && m.m_res > 0) {
     lam += dv_res * (1.0 / m.m_res + 1.0 / mm);
     om2 += dq_res * (1.0 / m.m_res + 1.0 / mm);
@@ -461,34 +561,67 @@ struct SimTerm {
   int col;
 };
 
-// A record's equations of motion (model.h) as a System for dynamics/rk4.h. Without sensitivities the
-// state is (p, p', r, r'), fixed size, so that stepping allocates nothing (Simulate is the hot loop of
-// identification). With them (kSens) it is that state followed by one column (∂p, ∂p', ∂r, ∂r')/∂θ_j per
-// parameter: the variational equations S' = (∂f/∂x) S + ∂f/∂θ_j, integrated by the same RK4 steps, so
-// that the columns are the exact derivative of the discrete simulation. Force terms are linear in their
-// parameters, so ∂F/∂θ_j is the basis value φ_j, already computed for F.
-template <bool kSens>
+// The columns of the non-force terms of a simulation (model terms, then the candidates'): the piezo's
+// a, b, c and, per output slot, the offset d and the scale g (−1 where absent).
+struct SpecialCols {
+  int piezo = -1;
+  int offset[kOutputSlots] = {-1, -1, -1}, scale[kOutputSlots] = {-1, -1, -1};
+};
+
+SpecialCols FindSpecialCols(const IdentModel& m, const std::vector<const TermDef*>& extra, const Setup* setup) {
+  SpecialCols sc;
+  int col = 0;
+  auto visit = [&](const TermDef* t) {
+    if (t->kind == TermKind::kPiezo) sc.piezo = col;
+    if (t->body == Body::kOutput && setup) {
+      const int slot = OutputSlotOf(*t, *setup);
+      if (slot >= 0) (t->kind == TermKind::kOutputOffset ? sc.offset : sc.scale)[slot] = col;
+    }
+    col += static_cast<int>(t->params.size());
+  };
+  for (const TermDef* t : m.terms) visit(t);
+  col = m.NumParams();
+  for (const TermDef* t : extra) visit(t);
+  return sc;
+}
+
+// A record's equations of motion (model.h) as a System for dynamics/rk4.h. The state is (p, p', r, r')
+// and, with a piezo (kD = 5), the voltage w. Without sensitivities it is of fixed size, so that stepping
+// allocates nothing (Simulate is the hot loop of identification). With them (kSens) it is that state
+// followed by one column (∂p, ∂p', ∂r, ∂r'[, ∂w])/∂θ_j per parameter: the variational equations
+// S' = (∂f/∂x) S + ∂f/∂θ_j, integrated by the same RK4 steps, so that the columns are the exact derivative
+// of the discrete simulation. Force terms are linear in their parameters, so ∂F/∂θ_j is the basis value
+// φ_j, already computed for F; the piezo's a multiplies −w, its b and c the circuit's w and y'.
+template <bool kSens, int kD>
 class RecordSystem {
  public:
-  using State = std::conditional_t<kSens, Eigen::VectorXd, Eigen::Matrix<double, 4, 1>>;
+  using State = std::conditional_t<kSens, Eigen::VectorXd, Eigen::Matrix<double, kD, 1>>;
   RecordSystem(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
                const PreparedRecord& r, InputKind in)
       : r_(r), in_(in), res_(m.HasResonator()), mm_(m.Mass(th)), mr_(m.m_res), fc_(m.fc),
         tanh_sp_(std::tanh(m.fc.v_sp / m.fc.v_t)), th_(th) {
     int col = 0;
-    for (const TermDef* t : m.terms) terms_.push_back({t, col}), col += static_cast<int>(t->params.size());
+    for (const TermDef* t : m.terms) {
+      if (t->IsForce()) terms_.push_back({t, col});
+      col += static_cast<int>(t->params.size());
+    }
     cols_ = m.NumParams();
     mass_col_ = m.FitsMass() ? m.NumTermParams() : -1;
     if constexpr (kSens) {
-      for (const TermDef* t : extra) terms_.push_back({t, cols_}), cols_ += static_cast<int>(t->params.size());
+      for (const TermDef* t : extra) {
+        if (t->IsForce()) terms_.push_back({t, cols_});
+        cols_ += static_cast<int>(t->params.size());
+      }
     }
     th_.resize(cols_, 0.0);
+    piezo_col_ = FindSpecialCols(m, kSens ? extra : std::vector<const TermDef*>{}, nullptr).piezo;
     body_of_col_.assign(cols_, 0);
     for (const SimTerm& st : terms_)
       for (size_t j = 0; j < st.t->params.size(); ++j) body_of_col_[st.col + j] = st.t->body == Body::kMain ? 1 : 2;
+    if (piezo_col_ >= 0) body_of_col_[piezo_col_] = 1;  // a: its basis value −w on the main body
     phi_col_.assign(cols_, 0.0);
   }
-  int dim() const { return kSens ? 4 + 4 * cols_ : 4; }
+  int dim() const { return kSens ? kD + kD * cols_ : kD; }
   int cols() const { return cols_; }
   void operator()(double t, const State& x, State& dx) const {
     double u, ud;
@@ -502,7 +635,7 @@ class RecordSystem {
       if (res_) z = x[2], zd = x[3];
     }
     double F = 0, Fq = 0, Fv = 0, G = 0, Gq = 0, Gv = 0;
-    double phi[2], pq[2], pv[2];
+    double phi[kMaxTermParams], pq[kMaxTermParams], pv[kMaxTermParams];
     for (const SimTerm& st : terms_) {
       const bool main = st.t->body == Body::kMain;
       if (!main && !res_) continue;
@@ -515,6 +648,17 @@ class RecordSystem {
       }
       if (main) F += f, Fq += fq, Fv += fv;
       else G += f, Gq += fq, Gv += fv;
+    }
+    // The piezo: back-force −a w on the main body, circuit w' = −b w − c y'.
+    double w = 0, wdot = 0, pa = 0, pb = 0, pc = 0;
+    if constexpr (kD == 5) {
+      w = x[4];
+      if (piezo_col_ >= 0) {
+        pa = th_[piezo_col_], pb = th_[piezo_col_ + 1], pc = th_[piezo_col_ + 2];
+        F += -pa * w;
+        wdot = -pb * w - pc * yd;
+        if constexpr (kSens) phi_col_[piezo_col_] = -w;
+      }
     }
     // p'' and r'' (a₁, a₃); `inv`: the part divided by the main mass (its derivative by m_main is −inv/m).
     double a1 = 0, a3 = 0, inv = 0;
@@ -536,21 +680,29 @@ class RecordSystem {
     if constexpr (!kSens) {
       // dx written whole: one vector store, which the integrator's next vector load of dx can forward
       // (four scalar stores cannot be, and cost ~4 % of the simulation).
-      dx = State(x[1], a1, x[3], a3);
+      if constexpr (kD == 4) dx = State(x[1], a1, x[3], a3);
+      else dx << x[1], a1, x[3], a3, wdot;
     } else {
       dx[0] = x[1], dx[1] = a1, dx[2] = x[3], dx[3] = a3;
+      if constexpr (kD == 5) dx[4] = wdot;
       const bool disp = in_ == InputKind::kBaseDisplacement;
       for (int j = 0; j < cols_; ++j) {
-        const double* S = &x[4 + 4 * j];
+        const double* S = &x[kD + kD * j];
         const double dy = S[0], dyd = S[1];
         const double dz = disp ? S[2] - S[0] : S[2], dzd = disp ? S[3] - S[1] : S[3];
-        const double dF = Fq * dy + Fv * dyd + (body_of_col_[j] == 1 ? phi_col_[j] : 0.0);
+        double dF = Fq * dy + Fv * dyd + (body_of_col_[j] == 1 ? phi_col_[j] : 0.0);
         const double dG = res_ ? Gq * dz + Gv * dzd + (body_of_col_[j] == 2 ? phi_col_[j] : 0.0) : 0.0;
+        double* D = &dx[kD + kD * j];
+        if constexpr (kD == 5) {
+          const double dw = S[4];
+          dF += -pa * dw;
+          D[4] = -pb * dw - pc * dyd - (j == piezo_col_ + 1 ? w : 0.0) - (j == piezo_col_ + 2 ? yd : 0.0);
+          if (piezo_col_ < 0) D[4] = 0.0;
+        }
         const double dinv = (-dF + dG) / mm_ - (j == mass_col_ ? inv / mm_ : 0.0);
         double da3 = 0;
         if (disp) da3 = res_ ? -dG / mr_ : dinv;
         else da3 = res_ ? -dG / mr_ - dinv : 0.0;
-        double* D = &dx[4 + 4 * j];
         D[0] = S[1], D[1] = dinv, D[2] = S[3], D[3] = da3;
       }
     }
@@ -564,19 +716,20 @@ class RecordSystem {
   const FrictionConstants fc_;
   const double tanh_sp_;
   std::vector<double> th_;  // the model's values, then 0 for candidate columns
-  std::vector<SimTerm> terms_;
-  int cols_ = 0, mass_col_ = -1;
-  std::vector<int> body_of_col_;        // 1 main, 2 resonator, 0 neither (mass, offsets)
+  std::vector<SimTerm> terms_;  // force terms
+  int cols_ = 0, mass_col_ = -1, piezo_col_ = -1;
+  std::vector<int> body_of_col_;        // 1 main, 2 resonator, 0 neither (mass, offsets, b, c, output terms)
   mutable std::vector<double> phi_col_;  // basis value of every term column at the current stage
 };
 
-template <bool kSens>
+template <bool kSens, int kD>
 bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
-                  const PreparedRecord& r, const Setup& setup, int substeps, int restart_every, std::vector<double>* out,
-                  std::vector<double>* out_res, Eigen::MatrixXd* dout, Eigen::MatrixXd* dres, EarlyStop* stop = nullptr) {
+                  const PreparedRecord& r, const Setup& setup, int substeps, int restart_every, SimOutputs* so,
+                  EarlyStop* stop = nullptr) {
   const size_t n = r.n();
-  out->assign(n, NAN);
-  if (out_res) out_res->assign(n, NAN);
+  for (int k = 0; k < kOutputSlots; ++k) so->out[k].clear();
+  for (int k = 0; k < kOutputSlots; ++k)
+    if (r.Has(static_cast<OutputSlot>(k))) so->out[k].assign(n, NAN);
   const double mm = m.Mass(th);
   if (!(mm > 0) || !std::isfinite(mm)) return false;
   for (double v : th)
@@ -586,16 +739,20 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   const int ns = substeps > 0 ? substeps : SubstepsFor(m, th, r);
   const double h = r.dt / ns;
   const InputKind in = setup.input;
-  using Sys = RecordSystem<kSens>;
+  using Sys = RecordSystem<kSens, kD>;
   const Sys sys(m, th, extra, r, in);
   const int P = kSens ? sys.cols() : 0;
+  const SpecialCols sc = FindSpecialCols(m, extra, &setup);
+  std::vector<double> thx = th;  // the model's values, then 0 for candidate columns
+  thx.resize(std::max<size_t>(thx.size(), static_cast<size_t>(P)), 0.0);
   if constexpr (kSens) {
-    dout->setConstant(static_cast<long>(n), P, NAN);
-    if (dres) dres->setConstant(static_cast<long>(n), P, NAN);
+    for (int k = 0; k < kOutputSlots; ++k)
+      if (r.Has(static_cast<OutputSlot>(k))) so->d[k].setConstant(static_cast<long>(n), P, NAN);
   }
-  // State (p, p', r, r'); initial values from the smoothed measurement.
+  // State (p, p', r, r'[, w]); initial values from the smoothed measurement (w: the measured voltage, or 0).
   const double offset = m.Offset(th, r.index);
   const int offset_col = m.offsets > 0 && r.index >= 0 && r.index < m.offsets ? m.OffsetIndex(r.index) : -1;
+  const bool volt_meas = !r.ic_w.empty();
   typename Sys::State s;
   if constexpr (kSens) s.resize(sys.dim());
   s.setZero();
@@ -603,18 +760,36 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   s[1] = r.ic_pd[0];
   s[2] = res && !r.ic_r.empty() ? r.ic_r[0] : (in == InputKind::kBaseDisplacement ? r.ic_p[0] : 0.0);
   s[3] = res && !r.ic_rd.empty() ? r.ic_rd[0] : (in == InputKind::kBaseDisplacement ? r.ic_pd[0] : 0.0);
-  auto reset_sensitivities = [&] {  // at a (re)start only the offset moves the state
+  if constexpr (kD == 5) s[4] = volt_meas ? r.ic_w[0] : 0.0;
+  // At a (re)start only the offset moves the state; an unmeasured voltage runs on (state and columns).
+  auto reset_sensitivities = [&](bool keep_w) {
     if constexpr (kSens) {
-      s.tail(4 * P).setZero();
-      if (offset_col >= 0) s[4 + 4 * offset_col] = 1.0;
+      for (int j = 0; j < P; ++j)
+        for (int c = 0; c < (keep_w ? 4 : kD); ++c) s[kD + kD * j + c] = 0.0;
+      if (offset_col >= 0) s[kD + kD * offset_col] = 1.0;
     }
   };
-  reset_sensitivities();
+  reset_sensitivities(false);
   const double limit_p = 100.0 * (r.p_range + std::abs(r.ic_p[0]) + std::abs(offset)) + 1e-12;
   const bool vel = setup.output == OutputKind::kVelocity;
   // The compared output is state component `oc` (plus a known signal); the resonator's is s[2] (+ s[0]).
   const int oc = in != InputKind::kBaseDisplacement && vel ? 1 : 0;
   const bool res_plus_p = in != InputKind::kBaseDisplacement;
+  bool any_output_term = false;
+  for (int k = 0; k < kOutputSlots; ++k) any_output_term = any_output_term || sc.offset[k] >= 0 || sc.scale[k] >= 0;
+  // Output effects of slot k on a model value (and its sensitivity row): (1 + g) value + d.
+  auto output_effects = [&](int k, size_t i, double value) {
+    if (!any_output_term) return value;
+    const double g = sc.scale[k] >= 0 ? thx[sc.scale[k]] : 0.0, d = sc.offset[k] >= 0 ? thx[sc.offset[k]] : 0.0;
+    if constexpr (kSens) {
+      if (sc.scale[k] >= 0) {
+        for (int j = 0; j < P; ++j) so->d[k](static_cast<long>(i), j) *= 1.0 + g;
+        so->d[k](static_cast<long>(i), sc.scale[k]) = value;
+      }
+      if (sc.offset[k] >= 0) so->d[k](static_cast<long>(i), sc.offset[k]) = 1.0;
+    }
+    return (1.0 + g) * value + d;
+  };
   auto emit = [&](size_t i) {
     double value = s[oc];
     if (in == InputKind::kBaseDisplacement) {
@@ -622,18 +797,27 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
     } else if (vel && in == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute) {
       value += r.base_v[i];
     }
-    (*out)[i] = value;
+    if constexpr (kSens)
+      for (int j = 0; j < P; ++j) so->d[0](static_cast<long>(i), j) = s[kD + kD * j + oc];
+    value = output_effects(0, i, value);
+    so->out[0][i] = value;
     if (stop) {
       const double d = (value - (*stop->meas)[i]) * stop->w;
       stop->sse += d * d;
       stop->stopped = stop->sse > stop->budget;
     }
-    if (out_res && res) (*out_res)[i] = res_plus_p ? s[2] + s[0] : s[2];
-    if constexpr (kSens) {
-      for (int j = 0; j < P; ++j) (*dout)(static_cast<long>(i), j) = s[4 + 4 * j + oc];
-      if (dres && res)
+    if (!so->out[1].empty() && res) {
+      if constexpr (kSens)
         for (int j = 0; j < P; ++j)
-          (*dres)(static_cast<long>(i), j) = s[4 + 4 * j + 2] + (res_plus_p ? s[4 + 4 * j] : 0.0);
+          so->d[1](static_cast<long>(i), j) = s[kD + kD * j + 2] + (res_plus_p ? s[kD + kD * j] : 0.0);
+      so->out[1][i] = output_effects(1, i, res_plus_p ? s[2] + s[0] : s[2]);
+    }
+    if (!so->out[2].empty()) {  // the voltage: the piezo's state, 0 without a piezo
+      double w = 0;
+      if constexpr (kD == 5) w = s[4];
+      if constexpr (kSens)
+        for (int j = 0; j < P; ++j) so->d[2](static_cast<long>(i), j) = kD == 5 ? s[kD + kD * j + kD - 1] : 0.0;
+      so->out[2][i] = output_effects(2, i, w);
     }
   };
   emit(0);
@@ -642,10 +826,14 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
     if (restart_every > 0 && (i - 1) % static_cast<size_t>(restart_every) == 0 && i > 1) {
       s[0] = r.ic_p[i - 1] + offset, s[1] = r.ic_pd[i - 1];
       if (res && !r.ic_r.empty()) s[2] = r.ic_r[i - 1], s[3] = r.ic_rd[i - 1];
-      reset_sensitivities();
+      if constexpr (kD == 5)
+        if (volt_meas) s[4] = r.ic_w[i - 1];
+      reset_sensitivities(!volt_meas);
     }
     for (int sub = 0; sub < ns; ++sub) rk4.Step(r.t0 + static_cast<double>(i - 1) * r.dt + sub * h, s, h);
     if (!std::isfinite(s[0]) || !std::isfinite(s[1]) || std::abs(s[0]) > limit_p) return false;
+    if constexpr (kD == 5)
+      if (!std::isfinite(s[4])) return false;
     emit(i);
     if (stop && stop->stopped) return false;
   }
@@ -654,16 +842,39 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
 
 }  // namespace
 
+bool SimulateOutputs(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
+                     const PreparedRecord& r, const Setup& setup, int substeps, int restart_every, bool sensitivities,
+                     SimOutputs* out, EarlyStop* stop) {
+  bool piezo = m.PiezoIndex() >= 0;
+  if (sensitivities)
+    for (const TermDef* t : extra) piezo = piezo || t->kind == TermKind::kPiezo;
+  if (sensitivities)
+    return piezo ? SimulateImpl<true, 5>(m, th, extra, r, setup, substeps, restart_every, out, stop)
+                 : SimulateImpl<true, 4>(m, th, extra, r, setup, substeps, restart_every, out, stop);
+  return piezo ? SimulateImpl<false, 5>(m, th, {}, r, setup, substeps, restart_every, out, stop)
+               : SimulateImpl<false, 4>(m, th, {}, r, setup, substeps, restart_every, out, stop);
+}
+
 bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
               std::vector<double>* out, std::vector<double>* out_res, int substeps, int restart_every, EarlyStop* stop) {
-  return SimulateImpl<false>(m, th, {}, r, setup, substeps, restart_every, out, out_res, nullptr, nullptr, stop);
+  SimOutputs so;
+  const bool ok = SimulateOutputs(m, th, {}, r, setup, substeps, restart_every, false, &so, stop);
+  *out = std::move(so.out[0]);
+  if (out_res) *out_res = so.out[1].empty() ? std::vector<double>(r.n(), NAN) : std::move(so.out[1]);
+  return ok;
 }
 
 bool SimulateSensitivities(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
                            const PreparedRecord& r, const Setup& setup, int substeps, int restart_every,
                            std::vector<double>* out, Eigen::MatrixXd* dout, std::vector<double>* out_res,
                            Eigen::MatrixXd* dres) {
-  return SimulateImpl<true>(m, th, extra, r, setup, substeps, restart_every, out, out_res, dout, dres);
+  SimOutputs so;
+  const bool ok = SimulateOutputs(m, th, extra, r, setup, substeps, restart_every, true, &so);
+  *out = std::move(so.out[0]);
+  *dout = std::move(so.d[0]);
+  if (out_res) *out_res = std::move(so.out[1]);
+  if (dres) *dres = std::move(so.d[1]);
+  return ok;
 }
 
 }  // namespace bistable

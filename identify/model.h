@@ -1,7 +1,8 @@
 // A model to identify (declared terms over the effect library, known constants, a parameter vector)
 // and its simulation driven by a measured record's input.
 //
-// Three input forms (record.h), one state (p, p', r, r'):
+// Three input forms (record.h), one state (p, p', r, r') — and a voltage w when the model has main.piezo
+// (w' = −b w − c y', back-force −a w on the main body; effects.h):
 //   base displacement x0 [m]   p = x (absolute main mass), r = x_r: needs x0 and x0' (cubic spline of the samples)
 //       m_m x'' = −F(y, y') + G(z, z'),  y = x − x0,  m_r x_r'' = −G(z, z'),  z = x_r − x
 //   base acceleration a0 [m/s²] p = y (relative), r = z:  y'' = (−F + G)/m_m − a0,  z'' = −G/m_r − (−F + G)/m_m
@@ -53,6 +54,11 @@ double AutoCutoff(const std::vector<double>& y, double dt);
 // base velocity from base acceleration, displacement from velocity.
 std::vector<double> IntegrateFft(const std::vector<double>& y, double dt, double f_min_hz);
 
+// A noise level of a sampled signal: the spectral floor, σ = sqrt(median Hann-windowed periodogram /
+// ln 2 / Σ w²) over the bins above min(AutoCutoff, 0.6 × Nyquist) (white noise's power is flat; the
+// signal's lies below the cutoff). Per-output weights of a joint fit come from it.
+double NoiseLevel(const std::vector<double>& y, double dt);
+
 enum class OutputFrame { kAbsolute, kRelative };
 
 // How records relate to the model.
@@ -64,6 +70,12 @@ struct Setup {
 };
 
 Status ValidateSetup(const Setup& s);
+
+// The name of an output (its kind: displacement, velocity or analogue for the main body's; resonator;
+// voltage): keys of errors_by_output and the <output> of out.<output>.offset / .scale.
+std::string OutputName(const Setup& s, OutputSlot slot);
+// The slot an output term acts on in this setup, or −1 (a term of an output kind the setup lacks).
+int OutputSlotOf(const TermDef& t, const Setup& s);
 
 struct IdentModel {
   std::vector<const TermDef*> terms;  // main body and resonator terms, in declaration order
@@ -83,6 +95,8 @@ struct IdentModel {
     return offsets > 0 && record >= 0 && record < offsets && static_cast<int>(th.size()) > OffsetIndex(record) ? th[OffsetIndex(record)] : 0.0;
   }
   bool HasResonator() const;
+  // Index of main.piezo's first parameter (a; then b, c), −1 without it.
+  int PiezoIndex() const;
   int NumParams() const;
   std::vector<std::string> ParamNames() const;   // "main.stiffness_y3.k3", ..., "m_main"
   std::vector<std::string> ParamUnits() const;
@@ -104,6 +118,21 @@ struct PreparedRecord {
   std::vector<double> input;       // SI
   std::vector<double> meas;        // the measured output in the compared form (see Setup)
   std::vector<double> meas_res;    // measured resonator absolute displacement, or empty
+  // Measured piezo voltage [V] (output 2), or empty; its band-limited value and derivative (regression)
+  // and local cubic fit (initial and restart states of the voltage).
+  std::vector<double> volt, w, wd, ic_w;
+  double volt_scale = 1;           // RMS of volt about its mean
+  // Per output slot (OutputSlot): the noise level σ (NoiseLevel) and the weight λ of the output's NRMSE²
+  // in a joint fit (main output 1; SetOutputWeights), for the outputs the record has.
+  double noise[kOutputSlots] = {NAN, NAN, NAN};
+  double weight[kOutputSlots] = {1, 1, 1};
+  bool Has(OutputSlot s) const {
+    return s == OutputSlot::kMain || (s == OutputSlot::kResonator ? !meas_res.empty() : !volt.empty());
+  }
+  const std::vector<double>& Measured(OutputSlot s) const {
+    return s == OutputSlot::kMain ? meas : s == OutputSlot::kResonator ? meas_res : volt;
+  }
+  double Scale(OutputSlot s) const;  // RMS about the mean of the measured output
   std::vector<double> base_v;      // base velocity at samples (acceleration input, absolute velocity output)
   std::vector<double> base_x;      // base displacement at samples (displacement input)
   // The body's coordinate p and its derivatives from the measurement (smoothed), for initial states
@@ -127,6 +156,11 @@ struct PreparedRecord {
 StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, size_t begin, size_t end, double f_cut_hz,
                                        const std::string& name);
 
+// Joint fits of several outputs: the weight of output o's NRMSE² is λ_o = (ν_main / ν_o)², ν = σ / RMS the
+// relative noise level (pooled over records: RMS of σ/RMS), clipped to [0.01, 100]; the main output's is 1
+// (a single output fits as before). Sets PreparedRecord::weight of every record.
+void SetOutputWeights(std::vector<PreparedRecord>* recs);
+
 // Simulates one record from its measured initial state; `out` receives the output in the compared
 // form at every sample, `out_res` the resonator displacement when measured. False on divergence.
 // `substeps` > 0 fixes the RK4 substeps per sample (fits hold it fixed so that the objective is a
@@ -140,6 +174,16 @@ struct EarlyStop {
   double sse = 0;
   bool stopped = false;
 };
+// Every output of a simulation, by slot (empty where the record lacks that output), and with
+// sensitivities their derivatives (n × P; as SimulateSensitivities).
+struct SimOutputs {
+  std::vector<double> out[kOutputSlots];
+  Eigen::MatrixXd d[kOutputSlots];
+};
+bool SimulateOutputs(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
+                     const PreparedRecord& r, const Setup& setup, int substeps, int restart_every, bool sensitivities,
+                     SimOutputs* out, EarlyStop* stop = nullptr);
+
 bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
               std::vector<double>* out, std::vector<double>* out_res = nullptr, int substeps = 0, int restart_every = 0,
               EarlyStop* stop = nullptr);

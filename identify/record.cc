@@ -110,7 +110,7 @@ HeaderCell ParseHeaderCell(const std::string& text) {
   return h;
 }
 
-enum class Quantity { kNone, kTime, kLength, kVelocity, kAcceleration, kForce };
+enum class Quantity { kNone, kTime, kLength, kVelocity, kAcceleration, kForce, kVoltage };
 
 const char* QuantityName(Quantity q) {
   switch (q) {
@@ -119,6 +119,7 @@ const char* QuantityName(Quantity q) {
     case Quantity::kVelocity: return "velocity";
     case Quantity::kAcceleration: return "acceleration";
     case Quantity::kForce: return "force";
+    case Quantity::kVoltage: return "voltage";
     case Quantity::kNone: break;
   }
   return "other";
@@ -144,7 +145,8 @@ constexpr UnitInfo kUnits[] = {
     {"mm/s^2", Quantity::kAcceleration, 1e-3}, {"mm/s\xc2\xb2", Quantity::kAcceleration, 1e-3}, {"mm/s2", Quantity::kAcceleration, 1e-3},
     {"cm/s^2", Quantity::kAcceleration, 1e-2}, {"cm/s\xc2\xb2", Quantity::kAcceleration, 1e-2}, {"cm/s2", Quantity::kAcceleration, 1e-2},
     {"g", Quantity::kAcceleration, 9.80665}, {"N", Quantity::kForce, 1},      {"mN", Quantity::kForce, 1e-3},
-    {"kN", Quantity::kForce, 1e3},
+    {"kN", Quantity::kForce, 1e3},       {"V", Quantity::kVoltage, 1},           {"mV", Quantity::kVoltage, 1e-3},
+    {"uV", Quantity::kVoltage, 1e-6},    {"\xc2\xb5V", Quantity::kVoltage, 1e-6}, {"kV", Quantity::kVoltage, 1e3},
 };
 
 const UnitInfo* FindUnit(const std::string& unit) {
@@ -173,6 +175,7 @@ const char* SiName(Quantity q) {
     case Quantity::kVelocity: return "m/s";
     case Quantity::kAcceleration: return "m/s^2";
     case Quantity::kForce: return "N";
+    case Quantity::kVoltage: return "V";
     case Quantity::kNone: break;
   }
   return "";
@@ -212,6 +215,9 @@ StatusOr<ColumnRef> FindColumn(const std::vector<HeaderCell>& header, const std:
   const std::string where = file + " column '" + Printable(h.text) + "' (" + role +
                             (role == QuantityName(q) ? std::string() : std::string(", ") + QuantityName(q)) + ")";
   const UnitInfo* u = FindUnit(h.unit);
+  // Volts on a column of another quantity are a sensor's raw reading (`laser [V]`): an unknown unit
+  // there, read as is with a scale, not a unit of the wrong quantity.
+  if (u && u->quantity == Quantity::kVoltage && q != Quantity::kVoltage) u = nullptr;
   if (u && u->quantity == q) {
     if (scale != 1.0)
       return Status::InvalidArgument(scale_field, where + ": the header gives the unit " + Printable(h.unit) + ", converted to " +
@@ -259,6 +265,7 @@ Quantity OutputQuantity(OutputKind k) {
 StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnMap& c) {
   if (!(std::isfinite(c.input_scale) && c.input_scale != 0)) return Violates("input_scale", c.input_scale, "finite and != 0");
   if (!(std::isfinite(c.output_scale) && c.output_scale != 0)) return Violates("output_scale", c.output_scale, "finite and != 0");
+  if (!(std::isfinite(c.voltage_scale) && c.voltage_scale != 0)) return Violates("output2_scale", c.voltage_scale, "finite and != 0");
   auto reader = LineReader::Open(path, "data", limits::kMaxDataLineBytes);
   if (!reader.ok()) return reader.status();
   const std::string name = std::filesystem::path(path).filename().string();  // records' names
@@ -335,6 +342,12 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     if (!r.ok()) return r.status();
     cr = *r;
   }
+  ColumnRef cv;
+  if (!c.voltage.empty()) {
+    auto r = FindColumn(header, c.voltage, "output2", Quantity::kVoltage, c.voltage_scale, "output2_scale", file);
+    if (!r.ok()) return r.status();
+    cv = *r;
+  }
   std::vector<int> cg;
   for (const auto& g : c.group) {
     auto r = FindColumn(header, g, "group", Quantity::kNone, 1.0, "", file);
@@ -394,8 +407,10 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     }
     const double scaled_in = row[ci->index] * in_factor, scaled_out = row[co->index] * out_factor;
     const double scaled_res = cr.index >= 0 ? row[cr.index] * cr.factor : 0.0;
+    const double volt_factor = cv.factor * c.voltage_scale;
+    const double scaled_volt = cv.index >= 0 ? row[cv.index] * volt_factor : 0.0;
     for (auto [v, k, factor] : {std::tuple{scaled_in, ci->index, in_factor}, std::tuple{scaled_out, co->index, out_factor},
-                                std::tuple{scaled_res, cr.index, cr.factor}})
+                                std::tuple{scaled_res, cr.index, cr.factor}, std::tuple{scaled_volt, cv.index, volt_factor}})
       if (k >= 0 && !(std::fabs(v) <= limits::kMaxDataMagnitude))
         return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) + "': " + Printable(cells[k]) +
                                                    " x scale " + FormatNumber(factor) + " violates |value| <= " +
@@ -405,6 +420,7 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     r.input.push_back(scaled_in);
     r.output.push_back(scaled_out);
     if (cr.index >= 0) r.resonator.push_back(scaled_res);
+    if (cv.index >= 0) r.voltage.push_back(scaled_volt);
   }
   if (records.empty()) return Status::InvalidArgument("data", file + " has a header but no rows");
   for (Record& r : records) {

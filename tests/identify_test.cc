@@ -246,6 +246,8 @@ TEST(Identify, BadInputNamesTheFileRowOrTerm) {
       {"--data " + ok + " --terms main.linear,res.linear --known m_main=1", "give its mass"},
       {"--data " + ok + " --terms main.linear --known m_main=1 --objective phase", "objective in {time, fft}"},
       {"--data " + dir + "/absent.csv --terms main.linear --known m_main=1", "absent.csv"},
+      {"--data " + ok + " --terms main.linear,out.voltage.offset --known m_main=1", "acts on a voltage output; this run's outputs are displacement"},
+      {"--data " + ok + " --columns output2=piezo --terms main.linear --known m_main=1", "(output2): unknown column 'piezo'"},
   };
   for (const Case& c : cases) {
     const auto p = Bistable("identify " + c.args + " --max-added 0 --global-evals 0");
