@@ -723,35 +723,56 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
   // stage's best when it found a lower cost; the better of the two wins.
   // BISTABLE_IDENTIFY_DEBUG: each stage's wall time and simulations on stderr (where a fit's time goes).
   static const bool debug = std::getenv("BISTABLE_IDENTIFY_DEBUG") != nullptr;
-  auto stage = [&](const char* name, auto&& fn) {
+  auto stage = [&](FitStages& st, const char* name, auto&& fn) {
     const auto s0 = std::chrono::steady_clock::now();
-    const int n0 = fs.result.simulations;
+    const int n0 = st.result.simulations;
     auto r = fn();
     if (debug)
       std::fprintf(stderr, "fit stage %-14s %7.2f s %5d simulations\n", name,
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count(), fs.result.simulations - n0);
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count(), st.result.simulations - n0);
     return r;
   };
   const std::vector<double> start_u = fs.ScaledStart();
   std::vector<double> u = start_u;
-  double best_cost = stage("lm", [&] { return fs.LocalStage(u, opt.objective); });
+  double best_cost = INFINITY;
+  auto lm = [&] { best_cost = stage(fs, "lm", [&] { return fs.LocalStage(u, opt.objective); }); };
   if (opt.objective == Objective::kTime && opt.shooting_horizon_s > 0) {
     // Short-horizon simulation error first (its basin is wide; stick-slip friction makes the long
     // simulation error a narrow valley in a plateau), then the full simulation error from there.
     std::vector<double> f = start_u;
-    stage("shooting", [&] { return fs.LocalStage(f, Objective::kTime, opt.shooting_horizon_s); });
-    const double fc = stage("lm-after-shoot", [&] { return fs.LocalStage(f, Objective::kTime); });
+    double fc = INFINITY;
+    auto shoot = [&](FitStages& st) {
+      stage(st, "shooting", [&] { return st.LocalStage(f, Objective::kTime, opt.shooting_horizon_s); });
+      fc = stage(st, "lm-after-shoot", [&] { return st.LocalStage(f, Objective::kTime); });
+    };
+    // The two starts are independent: with one record (whose simulation uses one core) and a second
+    // core, run them side by side, each with its own stages' state; the result is the sequential one.
+    const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
+    if (recs.size() == 1 && cpus >= 2) {
+      FitStages other = fs;
+      other.result = FitResult{};
+      std::thread t([&] { shoot(other); });
+      lm();
+      t.join();
+      AddSimulations(&fs.result.simulations, other.result.simulations);
+      fs.result.message = other.result.message;  // the last Ceres run, as in the sequential order
+    } else {
+      lm();
+      shoot(fs);
+    }
     if (fc < best_cost) u = f, best_cost = fc;
+  } else {
+    lm();
   }
   if (opt.global_evals > 0) {
-    std::vector<double> g = stage("global", [&] { return fs.GlobalStage(u); });
+    std::vector<double> g = stage(fs, "global", [&] { return fs.GlobalStage(u); });
     if (!g.empty()) {
-      const double gc = stage("lm-after-glob", [&] { return fs.LocalStage(g, opt.objective); });
+      const double gc = stage(fs, "lm-after-glob", [&] { return fs.LocalStage(g, opt.objective); });
       if (gc < best_cost) u = g, best_cost = gc;
     }
   }
   fs.result.theta = fs.Theta(u);
-  stage("sigma", [&] {
+  stage(fs, "sigma", [&] {
     fs.Uncertainties(u);
     return 0;
   });
