@@ -153,6 +153,29 @@ TEST(Identify, NothingIsAddedWhenNothingIsMissing) {
   EXPECT_NEAR(r.after.theta[4], p.fric_m.f_c, 0.05 * p.fric_m.f_c);
 }
 
+// With one record, Fit runs its two independent starts (LM; multiple shooting then LM) on two threads:
+// the result must be the sequential one to the bit, simulations counted alike.
+TEST(Identify, OneRecordFitOnTwoThreadsEqualsTheSequentialFit) {
+  Record rec = Chirps(0.05e-3)[0];
+  const size_t n = 6 * 120;  // the first 6 s
+  auto p = PrepareRecord(rec, bistable::Setup{}, 0, n, 0.0, rec.name);
+  ASSERT_TRUE(p.ok()) << p.status().ToString();
+  const std::vector<PreparedRecord> recs{*p};
+  IdentModel m = Declared("main.linear,main.viscous,main.friction");
+  m.theta = {400.0, 2.0, 0.8, 0.4};
+  FitOptions o;
+  o.global_evals = 20;
+  o.threads = 1;
+  const FitResult one = Fit(m, m.theta, recs, bistable::Setup{}, o);
+  o.threads = 2;
+  const FitResult two = Fit(m, m.theta, recs, bistable::Setup{}, o);
+  ASSERT_EQ(one.theta.size(), two.theta.size());
+  for (size_t i = 0; i < one.theta.size(); ++i) EXPECT_EQ(one.theta[i], two.theta[i]) << i;
+  EXPECT_EQ(one.simulations, two.simulations);
+  EXPECT_EQ(one.message, two.message);
+  EXPECT_LT(two.errors.nrmse, 5.0);  // it did fit (8 % from the regression start without c2)
+}
+
 // The friction case end to end through the CLI: CSV files in, the JSON contract out, a report.
 TEST(Identify, CliFindsTheUndeclaredFrictionAndWritesTheReport) {
   const std::string dir = FreshDir("identify", "friction");
