@@ -58,6 +58,7 @@ void AddDiagnosticsJson(const IdentifyResult& r, const std::vector<PreparedRecor
     (*j)["invariants"] = nullptr;
   }
   (*j)["whiteness"] = WhitenessObject(d.whiteness);
+  for (const auto& [name, w] : d.whiteness_by_output) (*j)["whiteness"]["by_output"][name] = WhitenessObject(w);
   if (d.unexplained.empty()) {
     (*j)["unexplained"] = nullptr;
   } else {
@@ -107,6 +108,12 @@ void WriteDiagnosticsReport(std::ostream& md, const IdentifyResult& r) {
     md << "Strongest lines:";
     for (double f : w.dominant_hz) md << " " << F(f) << " Hz";
     md << ".";
+  }
+  if (d.whiteness_by_output.size() > 1) {
+    md << "\n\n| output | Q | lags | p | predictable share | white |\n|---|---|---|---|---|---|\n";
+    for (const auto& [name, wo] : d.whiteness_by_output)
+      md << "| " << name << " | " << F(wo.statistic) << " | " << wo.dof << " | " << F(wo.p_value, 2) << " | " << F(100 * (1 - wo.flatness), 3)
+         << " % | " << (wo.white ? "yes" : "no") << " |\n";
   }
   md << "\n\n" << (d.unexplained.empty() ? "The residual is white: nothing left unexplained.\n\n" : "**Unexplained:** " + d.unexplained + "\n\n");
   md << "## Parameter correlations and drift\n\n";

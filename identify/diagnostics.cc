@@ -189,22 +189,26 @@ std::vector<ParamDrift> DriftOf(const IdentModel& before, const FitResult& fit_b
 
 namespace {
 
-// The final model's residual per record: the simulation error, or for chaotic records the
-// short-horizon one (restarted from the measured state every `horizon_s`).
+// The final model's residual of one output per record: the simulation error, or for chaotic records
+// the short-horizon one (restarted from the measured state every `horizon_s`). Records without that
+// output are left out.
 Whiteness FinalWhiteness(const FitSnapshot& f, const std::vector<PreparedRecord>& recs, const Setup& setup, const ChaosCheck& chaos,
-                         double horizon_s) {
+                         double horizon_s, OutputSlot slot) {
   std::vector<std::vector<double>> res;
   std::vector<double> dts, bands;
   bool any_short = false, any_full = false;
   std::string diverged;
   for (size_t i = 0; i < recs.size(); ++i) {
     const PreparedRecord& r = recs[i];
+    if (!r.Has(slot)) continue;
     const bool shortened = i < chaos.record_chaotic.size() && chaos.record_chaotic[i];
     const int restart = shortened ? std::max(2, static_cast<int>(std::lround(horizon_s / r.dt))) : 0;
-    std::vector<double> out;
-    Simulate(f.model, f.fit.theta, r, setup, &out, nullptr, 0, restart);
+    SimOutputs so;
+    SimulateOutputs(f.model, f.fit.theta, {}, r, setup, 0, restart, false, &so);
+    const std::vector<double>& out = so.out[static_cast<int>(slot)];
+    const std::vector<double>& meas = r.Measured(slot);
     std::vector<double> e;
-    for (size_t j = 0; j < r.n() && j < out.size() && std::isfinite(out[j]); ++j) e.push_back(out[j] - r.meas[j]);
+    for (size_t j = 0; j < r.n() && j < out.size() && std::isfinite(out[j]); ++j) e.push_back(out[j] - meas[j]);
     if (e.size() < r.n()) diverged += (diverged.empty() ? "" : ", ") + r.name + " at t = " + Num(static_cast<double>(e.size()) * r.dt) + " s";
     res.push_back(std::move(e));
     dts.push_back(r.dt);
@@ -324,14 +328,29 @@ LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector
   }
   const FitSnapshot& fin = fits[base];
   d.final = base_inv;
-  d.whiteness = FinalWhiteness(fin, recs, setup, d.chaos, fo.shooting_horizon_s > 0 ? fo.shooting_horizon_s : 0.5);
+  // Every measured output's residual is tested; the verdict is the first output (main first) far from
+  // white, so a structured residual on a second output (e.g. the voltage) is not hidden by a white one.
+  const double horizon = fo.shooting_horizon_s > 0 ? fo.shooting_horizon_s : 0.5;
+  for (int k = 0; k < kOutputSlots; ++k) {
+    const OutputSlot slot = static_cast<OutputSlot>(k);
+    if (!std::any_of(recs.begin(), recs.end(), [&](const PreparedRecord& r) { return r.Has(slot); })) continue;
+    d.whiteness_by_output.emplace_back(OutputName(setup, slot), FinalWhiteness(fin, recs, setup, d.chaos, horizon, slot));
+  }
+  std::string tested = d.whiteness_by_output.empty() ? "" : d.whiteness_by_output[0].first;
+  if (!d.whiteness_by_output.empty()) d.whiteness = d.whiteness_by_output[0].second;
+  for (const auto& [name, w] : d.whiteness_by_output)
+    if (!w.white || (w.dof == 0 && w.diverged)) {
+      d.whiteness = w, tested = name;
+      break;
+    }
+  const std::string of = d.whiteness_by_output.size() > 1 ? " of the " + tested + " output" : "";
   if (d.whiteness.dof == 0 && d.whiteness.diverged) {
     d.unexplained = "the final model diverges when simulated from the measured state (" + d.whiteness.residual +
                     "), before its residual could be tested; the loop stopped: " + stop + ".";
   } else if (!d.whiteness.white) {
     std::string lines;
     for (double f : d.whiteness.dominant_hz) lines += (lines.empty() ? "" : ", ") + Num(f, 4);
-    d.unexplained = "the final residual is far from white (Ljung-Box Q = " + Num(d.whiteness.statistic, 4) + " on " +
+    d.unexplained = "the final residual" + of + " is far from white (Ljung-Box Q = " + Num(d.whiteness.statistic, 4) + " on " +
                     std::to_string(d.whiteness.dof) + " lags, p = " + Num(d.whiteness.p_value, 2) + " < " + Num(d.whiteness.alpha, 2) +
                     "; spectral flatness " + Num(d.whiteness.flatness, 2) + ": " + Num(100 * (1 - d.whiteness.flatness), 2) +
                     " % of it predictable from its past" + (lines.empty() ? "" : "; strongest lines " + lines + " Hz") +

@@ -43,6 +43,7 @@
 
 #include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -113,7 +114,8 @@ struct LoopDiagnostics {
   ChaosCheck chaos;
   Invariants declared, final;         // the declared fit and the final model (chaotic records)
   std::vector<StepDiagnostics> steps; // one per refit, in order
-  Whiteness whiteness;                // of the final model's residual
+  Whiteness whiteness;                // of the final model's residual: the first output far from white, else the main one
+  std::vector<std::pair<std::string, Whiteness>> whiteness_by_output;  // every measured output, by OutputName
   std::string unexplained;            // "" when the residual is white, else what is left and why
   std::vector<ParamCorrelation> correlations;
   std::vector<std::string> separability;  // hints: which records would separate terms these cannot

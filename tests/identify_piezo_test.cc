@@ -172,6 +172,12 @@ TEST(IdentifyPiezo, CliFindsThePiezoOnTheIntrawellRecord) {
   EXPECT_NEAR(v["before"].get<double>(), 100.0, 2.0);
   EXPECT_LT(v["after"].get<double>(), 60.0);
   EXPECT_TRUE(j["errors_by_output"].contains("velocity"));
+  // Both outputs' residuals are tested for whiteness; the verdict names the first far from white.
+  for (const char* o : {"velocity", "voltage"}) EXPECT_TRUE(j["whiteness"]["by_output"][o]["p_value"].is_number()) << o;
+  if (!j["unexplained"].is_null()) {
+    const std::string msg = j["unexplained"]["message"];
+    EXPECT_NE(msg.find(" output is far from white"), std::string::npos) << msg;
+  }
   const auto& f = j["velocity_frame"];
   EXPECT_TRUE(f["chosen"] == "absolute" || f["chosen"] == "relative");
   EXPECT_TRUE(f["error_absolute"].is_number() && f["error_relative"].is_number());
