@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "identify/loop.h"
+#include "tests/harvester_flags.h"
 #include "tests/process_util.h"
 
 namespace bistable {
@@ -148,12 +149,10 @@ TEST(IdentifyPiezo, TheLoopFindsTheCouplingOnASyntheticTwoOutputRecord) {
 // declared Duffing model; the loop must add main.piezo with a damping coupling, fit the voltage, and
 // decide the velocity frame; the JSON contract holds.
 TEST(IdentifyPiezo, CliFindsThePiezoOnTheIntrawellRecord) {
-  const std::string file = std::string(BISTABLE_MEASURED_DIR) + "/bistable-harvester/bistable_sym_intrawell_left_6p5Hz.csv";
+  const std::string file = bistable_test::HarvesterFile("bistable_sym_intrawell_left_6p5Hz.csv");
   if (!std::filesystem::exists(file)) GTEST_SKIP() << "no measured data at " << file;
-  const auto p = Bistable("identify --data " + file +
-                          " --input-kind base_acceleration --input-scale 9.81 --output-kind velocity --output-scale 0.1"
-                          " --columns input=base_acc_g,output=laser_V,output2=piezo_V --known m_main=1"
-                          " --terms main.linear,main.stiffness_y3,main.viscous"
+  const auto p = Bistable("identify --data " + file + bistable_test::kHarvesterFlags +
+                          " --columns input=base_acc_g,output=laser_V,output2=piezo_V"
                           " --candidates main.stiffness_y2,main.stiffness_y5,main.damping_y2,main.bias,main.piezo"
                           " --max-seconds 3 --decimate 4 --global-evals 40 --max-added 2 --output-frame auto --json");
   ASSERT_EQ(p.exit_code, 0) << p.err;

@@ -14,6 +14,7 @@
 #include "identify/diagnostics.h"
 #include "identify/loop.h"
 #include "identify/synthetic.h"
+#include "tests/harvester_flags.h"
 #include "tests/process_util.h"
 
 namespace bistable {
@@ -251,11 +252,9 @@ TEST(IdentifyDiagnostics, AStructuredResidualNoCandidateExplainsIsUnexplained) {
 // The JSON contract on the harvester's chaotic record: invariants before/after every step, the
 // whiteness test, unexplained, correlations and drift — and the existing keys.
 TEST(IdentifyDiagnostics, CliReportsInvariantsOfTheChaoticHarvesterRecord) {
-  const std::string data = std::string(BISTABLE_MEASURED_DIR) + "/bistable-harvester/bistable_sym_interwell_6p5Hz.csv";
+  const std::string data = bistable_test::HarvesterFile("bistable_sym_interwell_6p5Hz.csv");
   if (!std::filesystem::exists(data)) GTEST_SKIP() << data << " absent";
-  const auto p = Bistable("identify --data " + data +
-                          " --input-kind base_acceleration --input-scale 9.81 --output-kind velocity --output-scale 0.1"
-                          " --columns input=base_acc_g,output=laser_V --known m_main=1 --terms main.linear,main.stiffness_y3,main.viscous"
+  const auto p = Bistable("identify --data " + data + bistable_test::kHarvesterFlags + " --columns input=base_acc_g,output=laser_V"
                           " --candidates main.stiffness_y2,main.stiffness_y5,main.damping_y2,main.damping_v3,main.drag,main.bias"
                           " --objective fft --max-seconds 8 --decimate 4 --json");
   ASSERT_EQ(p.exit_code, 0) << p.err;
