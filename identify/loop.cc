@@ -545,10 +545,11 @@ IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& 
     IdentModel next;
     const FitResult refit = RefitWith(m, fit, t, step, recs, setup, opt, &next);
     const double before = ErrorOf(fit, opt.fit.objective), after = ErrorOf(refit, opt.fit.objective);
-    const bool confirmed = Physical(next, refit.theta) && after < before * (1.0 - opt.min_improvement);
+    const bool physical = Physical(next, refit.theta);
+    const bool confirmed = physical && after < before * (1.0 - opt.min_improvement);
     out.fits.push_back({next, refit, t->id, confirmed});
     char buf[256];
-    if (!Physical(next, refit.theta)) {
+    if (!physical) {
       const int pz = next.PiezoIndex();
       std::snprintf(buf, sizeof buf, "%s scored best but its refit feeds energy into the beam (a c = %.3g < 0; error %.3g %% -> %.3g %%); not added",
                     t->id.c_str(), refit.theta[pz] * refit.theta[pz + 2], before, after);
