@@ -351,12 +351,15 @@ Status PlanLoop(const IdentifyArgs& a, IdentifyPlan* plan) {
   IdentifyOptions& opt = plan->opt;
   if (a.objective == "time") opt.fit.objective = Objective::kTime;
   else if (a.objective == "fft") opt.fit.objective = Objective::kFft;
-  else return Status::InvalidArgument("objective", "'" + a.objective + "' violates objective in {time, fft}");
+  else if (a.objective == "shooting") opt.fit.objective = Objective::kShooting;
+  else return Status::InvalidArgument("objective", "'" + a.objective + "' violates objective in {time, fft, shooting}");
   if (a.global_evals < 0 || a.global_evals > 100000) return Status::InvalidArgument("global-evals", "must be in [0, 100000]");
   if (a.max_added < 0 || a.max_added > 10) return Status::InvalidArgument("max-added", "must be in [0, 10]");
   if (!(a.deriv_cutoff >= 0)) return Status::InvalidArgument("deriv-cutoff", "deriv-cutoff = " + Fmt(a.deriv_cutoff) + " violates deriv-cutoff >= 0 Hz");
   if (a.decimate < 1 || a.decimate > 1000) return Status::InvalidArgument("decimate", "must be in [1, 1000]");
-  if (!(a.horizon >= 0)) return Status::InvalidArgument("horizon", "must be >= 0 s");
+  if (!(a.horizon >= 0) || !(a.horizon <= 3600)) return Status::InvalidArgument("horizon", "horizon = " + Fmt(a.horizon) + " violates 0 <= horizon <= 3600 s");
+  if (a.objective == "shooting" && !(a.horizon > 0))
+    return Status::InvalidArgument("horizon", "horizon = 0 violates horizon > 0 s (--objective shooting cuts the records into segments of --horizon)");
   opt.fit.global_evals = a.global_evals;
   opt.fit.threads = a.threads;
   opt.fit.shooting_horizon_s = a.horizon;
@@ -437,7 +440,7 @@ Status CheckFitted(const IdentifyResult& r, const std::string& objective) {
     if (!bad.empty() || fr->theta.size() != names.size())
       return Status::FailedPrecondition(std::string("identify: the fit of the ") + what + " gave non-finite parameters (" + bad +
                                         "); check the data's units and the scales (--input-scale, --output-scale)");
-    const double err = objective == "fft" ? fr->errors.fft : fr->errors.nrmse;
+    const double err = objective == "fft" ? fr->errors.fft : objective == "shooting" ? fr->errors.shooting : fr->errors.nrmse;
     if (!std::isfinite(err))
       return Status::FailedPrecondition(std::string("identify: the ") + what + " as fitted cannot be simulated on the records (" +
                                         objective + " error " + Fmt(err) + "); check the data's units, the scales and --guess");
@@ -484,10 +487,15 @@ long long TotalSimulations(const IdentifyResult& r) {
 struct FrameDecision {
   bool made = false;
   std::string chosen;
-  bool fft = false;               // errors compared: spectral (--objective fft) or NRMSE
+  std::string metric = "nrmse";   // errors compared: nrmse, spectral (--objective fft) or shooting
   double error[2] = {NAN, NAN};   // absolute, relative: the final error of each frame's loop
   Errors errors[2];
 };
+
+// An output's error by the loop's metric: "nrmse", "spectral" or "shooting".
+double OutputError(const OutputErrors& e, const std::string& metric) {
+  return metric == "spectral" ? e.fft : metric == "shooting" ? e.shooting : e.nrmse;
+}
 
 nlohmann::json ErrorsByOutputJson(const Errors& before, const Errors& after) {
   nlohmann::json j = nlohmann::json::object();
@@ -496,6 +504,7 @@ nlohmann::json ErrorsByOutputJson(const Errors& before, const Errors& after) {
     const OutputErrors* b = k < before.outputs.size() ? &before.outputs[k] : nullptr;
     j[a.name] = {{"before", JsonNumber(b ? b->nrmse : NAN)}, {"after", JsonNumber(a.nrmse)},
                  {"fft_before", JsonNumber(b ? b->fft : NAN)}, {"fft_after", JsonNumber(a.fft)},
+                 {"shooting_before", JsonNumber(b ? b->shooting : NAN)}, {"shooting_after", JsonNumber(a.shooting)},
                  {"noise", JsonNumber(a.noise)}, {"weight", JsonNumber(a.weight)}};
   }
   return j;
@@ -506,10 +515,10 @@ nlohmann::json FrameJson(const FrameDecision& f) {
   nlohmann::json by = nlohmann::json::object();
   for (int k = 0; k < 2; ++k) {
     nlohmann::json o = nlohmann::json::object();
-    for (const OutputErrors& e : f.errors[k].outputs) o[e.name] = JsonNumber(f.fft ? e.fft : e.nrmse);
+    for (const OutputErrors& e : f.errors[k].outputs) o[e.name] = JsonNumber(OutputError(e, f.metric));
     by[k == 0 ? "absolute" : "relative"] = o;
   }
-  return {{"chosen", f.chosen}, {"metric", f.fft ? "spectral" : "nrmse"}, {"error_absolute", JsonNumber(f.error[0])}, {"error_relative", JsonNumber(f.error[1])},
+  return {{"chosen", f.chosen}, {"metric", f.metric}, {"error_absolute", JsonNumber(f.error[0])}, {"error_relative", JsonNumber(f.error[1])},
           {"errors_by_output", by}};
 }
 
@@ -537,6 +546,8 @@ nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const
   j["fft_error_after"] = JsonNumber(r.after.errors.fft);
   j["eq20_before"] = JsonNumber(r.before.errors.eq20);
   j["eq20_after"] = JsonNumber(r.after.errors.eq20);
+  j["shooting_error_before"] = JsonNumber(r.before.errors.shooting);  // null unless --objective shooting
+  j["shooting_error_after"] = JsonNumber(r.after.errors.shooting);
   j["objective"] = a.objective;
   j["declared"] = a.terms;
   j["effects_added"] = nlohmann::json::array();
@@ -584,6 +595,8 @@ void WriteReportEvidence(std::ostream& md, const IdentifyResult& r, const std::v
   md << "## Error before and after\n\n| | declared model | final model |\n|---|---|---|\n";
   md << "| NRMSE of the output, all records | " << Fmt(r.before.errors.nrmse) << " % | " << Fmt(r.after.errors.nrmse) << " % |\n";
   md << "| spectral error (Eq. 20, normalised) | " << Fmt(r.before.errors.fft) << " % | " << Fmt(r.after.errors.fft) << " % |\n";
+  if (std::isfinite(r.after.errors.shooting))
+    md << "| short-horizon (shooting) NRMSE | " << Fmt(r.before.errors.shooting) << " % | " << Fmt(r.after.errors.shooting) << " % |\n";
   for (size_t i = 0; i < recs.size(); ++i)
     md << "| `" << recs[i].name << "` NRMSE / RMS | " << Fmt(r.before.errors.record_nrmse[i]) << " % / " << Fmt(r.before.errors.record_rms[i])
        << " | " << Fmt(r.after.errors.record_nrmse[i]) << " % / " << Fmt(r.after.errors.record_rms[i]) << " |\n";
@@ -666,6 +679,9 @@ Status WriteReport(const IdentifyArgs& a, const Setup& setup, const IdentifyResu
 void PrintSummary(const IdentifyArgs& a, const IdentifyResult& r, const nlohmann::json& tests, long long simulations) {
   std::printf("error (NRMSE of the output): %s %% before, %s %% after   (spectral: %s %% -> %s %%)\n", Fmt(r.before.errors.nrmse).c_str(),
               Fmt(r.after.errors.nrmse).c_str(), Fmt(r.before.errors.fft).c_str(), Fmt(r.after.errors.fft).c_str());
+  if (std::isfinite(r.after.errors.shooting))
+    std::printf("short-horizon error (--objective shooting, %s s segments): %s %% before, %s %% after\n", Fmt(a.horizon).c_str(),
+                Fmt(r.before.errors.shooting).c_str(), Fmt(r.after.errors.shooting).c_str());
   for (const LoopStep& s : r.steps) std::printf("  %s\n", s.verdict.c_str());
   const auto names = r.final_model.ParamNames();
   const auto units = r.final_model.ParamUnits();
@@ -704,10 +720,10 @@ StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
       // Every output counts the same here (the fit's noise weights would let the cleanest output decide
       // alone): the RMS over outputs of the final NRMSE (spectral error for --objective fft).
       frame.made = true;
-      frame.fft = a.objective == "fft";
+      frame.metric = a.objective == "fft" ? "spectral" : a.objective == "shooting" ? "shooting" : "nrmse";
       frame.errors[f] = rf.after.errors;
       double ss = 0;
-      for (const OutputErrors& o : rf.after.errors.outputs) ss += std::pow(a.objective == "fft" ? o.fft : o.nrmse, 2);
+      for (const OutputErrors& o : rf.after.errors.outputs) ss += std::pow(OutputError(o, frame.metric), 2);
       frame.error[f] = std::sqrt(ss / static_cast<double>(std::max<size_t>(1, rf.after.errors.outputs.size())));
       if (f == 1 && !(frame.error[1] < frame.error[0])) continue;  // keep the absolute frame's
     }
@@ -759,9 +775,11 @@ void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
   c->add_option("--max-seconds", a->max_seconds, "use at most this many seconds of each record (0: all)");
   c->add_option("--decimate", a->decimate, "keep every k-th sample")->capture_default_str();
   c->add_option("--deriv-cutoff", a->deriv_cutoff, "low-pass cutoff of measured derivatives [Hz] (0: four times the 99.9 % power bandwidth)")->capture_default_str();
-  c->add_option("--objective", a->objective, "time (simulation NRMSE) | fft (the paper's Eq. 20, for chaotic records)")->capture_default_str();
+  c->add_option("--objective", a->objective, "time (simulation NRMSE) | fft (the paper's Eq. 20) | shooting (chaotic records: segments of "
+                                             "--horizon from re-estimated states, scored on invariants)")->capture_default_str();
   c->add_option("--global-evals", a->global_evals, "evaluations of the global stage (NLopt CRS2; 0: none)")->capture_default_str();
-  c->add_option("--horizon", a->horizon, "short-horizon (multiple shooting) first stage [s] (0: none)")->capture_default_str();
+  c->add_option("--horizon", a->horizon, "time objective: short-horizon first stage [s] (0: none); shooting objective: the segment "
+                                         "length [s] (a few forcing periods)")->capture_default_str();
   c->add_option("--max-added", a->max_added, "at most this many effects added")->capture_default_str();
   c->add_option("--candidates", a->candidates, "terms the trace may add (default: the force terms of the bodies measured; with an output2 "
                                               "voltage also main.piezo and out.<output>.offset/.scale of every output)");

@@ -193,7 +193,7 @@ namespace {
 // the short-horizon one (restarted from the measured state every `horizon_s`). Records without that
 // output are left out.
 Whiteness FinalWhiteness(const FitSnapshot& f, const std::vector<PreparedRecord>& recs, const Setup& setup, const ChaosCheck& chaos,
-                         double horizon_s, OutputSlot slot) {
+                         double horizon_s, bool reestimated, OutputSlot slot) {
   std::vector<std::vector<double>> res;
   std::vector<double> dts, bands;
   bool any_short = false, any_full = false;
@@ -202,9 +202,10 @@ Whiteness FinalWhiteness(const FitSnapshot& f, const std::vector<PreparedRecord>
     const PreparedRecord& r = recs[i];
     if (!r.Has(slot)) continue;
     const bool shortened = i < chaos.record_chaotic.size() && chaos.record_chaotic[i];
-    const int restart = shortened ? std::max(2, static_cast<int>(std::lround(horizon_s / r.dt))) : 0;
+    const int restart = shortened ? ShootingSegment(horizon_s, r.dt) : 0;
     SimOutputs so;
-    SimulateOutputs(f.model, f.fit.theta, {}, r, setup, 0, restart, false, &so);
+    if (shortened && reestimated) SimulateShooting(f.model, f.fit.theta, r, setup, horizon_s, &so);
+    else SimulateOutputs(f.model, f.fit.theta, {}, r, setup, 0, restart, false, &so);
     const std::vector<double>& out = so.out[static_cast<int>(slot)];
     const std::vector<double>& meas = r.Measured(slot);
     std::vector<double> e;
@@ -219,8 +220,9 @@ Whiteness FinalWhiteness(const FitSnapshot& f, const std::vector<PreparedRecord>
   Whiteness w = WhitenessTest(res, dts, bands);
   w.residual = any_full ? "simulation error (sim - meas)" : "";
   if (any_short)
-    w.residual += std::string(any_full ? "; " : "") + "short-horizon simulation error of the chaotic records (state reset to the measured one every " +
-                  Num(horizon_s) + " s)";
+    w.residual += std::string(any_full ? "; " : "") + "short-horizon simulation error of the chaotic records (" +
+                  (reestimated ? "segments of " + Num(horizon_s) + " s from re-estimated states"
+                               : "state reset to the measured one every " + Num(horizon_s) + " s") + ")";
   if (!diverged.empty()) {
     w.diverged = true;
     w.residual += "; the simulation diverged (" + diverged + "), tested up to there";
@@ -334,7 +336,7 @@ LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector
   for (int k = 0; k < kOutputSlots; ++k) {
     const OutputSlot slot = static_cast<OutputSlot>(k);
     if (!std::any_of(recs.begin(), recs.end(), [&](const PreparedRecord& r) { return r.Has(slot); })) continue;
-    d.whiteness_by_output.emplace_back(OutputName(setup, slot), FinalWhiteness(fin, recs, setup, d.chaos, horizon, slot));
+    d.whiteness_by_output.emplace_back(OutputName(setup, slot), FinalWhiteness(fin, recs, setup, d.chaos, horizon, fo.objective == Objective::kShooting, slot));
   }
   std::string tested = d.whiteness_by_output.empty() ? "" : d.whiteness_by_output[0].first;
   if (!d.whiteness_by_output.empty()) d.whiteness = d.whiteness_by_output[0].second;

@@ -11,7 +11,13 @@
 // Objectives: "time" — Σ_records Σ_outputs λ_o NRMSE² (each record weighs the same; outputs weighted by
 // their noise levels, model.h SetOutputWeights); "fft" — the paper's Eq. 20 on velocity spectra
 // magnitudes (for chaotic records, where a time-domain match is not expected), normalised per record by
-// the measured spectrum's norm (a voltage output: its own spectrum, weighted likewise).
+// the measured spectrum's norm (a voltage output: its own spectrum, weighted likewise); "shooting" —
+// multiple shooting for chaotic records: the record cut into segments of a few forcing periods
+// (FitOptions::shooting_horizon_s), each simulated from its own start state, which is re-estimated for
+// every θ (Levenberg–Marquardt per segment from the measured state: variable projection), the error
+// weighted as "time". The θ-Jacobian is the exact sensitivity with the state directions projected out
+// per segment (Kaufman's variable-projection Jacobian), so a segment's error grows at most like
+// e^{λ·horizon} and the fit sees the vector field, not the long-run phase of a chaotic orbit.
 #ifndef BISTABLE_IDENTIFY_FIT_H_
 #define BISTABLE_IDENTIFY_FIT_H_
 
@@ -24,13 +30,14 @@
 
 namespace bistable {
 
-enum class Objective { kTime, kFft };
+enum class Objective { kTime, kFft, kShooting };
 
 // One output's errors (over all records): the output's name (OutputName), NRMSE and spectral error,
 // and its noise level and weight in the joint fit (SetOutputWeights).
 struct OutputErrors {
   std::string name;
   double nrmse = NAN, fft = NAN;      // %
+  double shooting = NAN;              // % NRMSE of the segment predictions (shooting objective only)
   double noise = NAN;                 // σ, RMS over records, output unit
   double weight = 1;                  // λ of its NRMSE² in the objective
 };
@@ -41,6 +48,9 @@ struct Errors {
   double nrmse = NAN;
   double fft = NAN;                   // % mean over records of 100 ‖|V_sim| − |V_meas|‖ / ‖V_meas‖
   double eq20 = NAN;                  // the paper's Eq. 20 value, in the output's velocity unit (m/s)
+  // % short-horizon error (Objective::kShooting, segments from re-estimated states): like nrmse, with
+  // several outputs the λ-weighted mean; NaN for the other objectives.
+  double shooting = NAN;
   std::vector<OutputErrors> outputs;  // every measured output, main first
   std::vector<double> record_nrmse;   // % per record (main output)
   std::vector<double> record_fft;     // % per record
@@ -48,8 +58,9 @@ struct Errors {
   bool diverged = false;
 };
 
+// `shooting_horizon_s` > 0: also the shooting error (Errors::shooting) for segments of that length.
 Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                const Setup& setup);
+                const Setup& setup, double shooting_horizon_s = 0);
 
 // Rows of the equation-error regression X θ = b over a subsample of every record (edges dropped).
 struct Regression {
@@ -70,14 +81,23 @@ struct LinearFit {
 LinearFit SolveRegression(const Eigen::MatrixXd& X, const Eigen::VectorXd& b, const std::vector<Sign>& signs);
 
 // The objective's residual vector (weighted: Σ squares = Σ_records NRMSE², or the normalised Eq. 20
-// differences); substeps per record as Simulate (empty: automatic). False on divergence.
+// differences); substeps per record as Simulate (empty: automatic); `horizon_s`: the shooting objective's
+// segment length. False on divergence.
 bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                        const Setup& setup, Objective obj, const std::vector<int>& substeps, std::vector<double>* out);
+                        const Setup& setup, Objective obj, const std::vector<int>& substeps, std::vector<double>* out,
+                        double horizon_s = 0);
 // The residual vector and its derivatives by θ (N × P: the model's parameters, then the `extra` terms'
 // at value 0), exact for the discrete simulation (SimulateSensitivities). False on divergence.
 bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                        const Setup& setup, Objective obj, const std::vector<int>& substeps,
-                       const std::vector<const TermDef*>& extra, std::vector<double>* out, Eigen::MatrixXd* jac);
+                       const std::vector<const TermDef*>& extra, std::vector<double>* out, Eigen::MatrixXd* jac,
+                       double horizon_s = 0);
+// The shooting objective's segment length in samples of a record (≥ 2).
+int ShootingSegment(double horizon_s, double dt);
+// One record's outputs under the shooting objective: segments of horizon_s from re-estimated start
+// states (fit.cc ShootRecord). False on divergence.
+bool SimulateShooting(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
+                      double horizon_s, SimOutputs* out);
 // Substeps per record for parameters th, times a safety factor.
 std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                                double safety = 1.5);
@@ -87,7 +107,9 @@ struct FitOptions {
   int global_evals = 150;     // CRS2 evaluations (0: local stage only)
   double global_box = 1.0;    // the box: θ0 ± global_box · max(|θ0|, σ0)
   int lm_iterations = 60;
-  double shooting_horizon_s = 0.5;  // time objective: also start from a short-horizon fit (0: off)
+  // Time objective: also start from a short-horizon fit (restarts from the measured state; 0: off).
+  // Shooting objective: the segment length.
+  double shooting_horizon_s = 0.5;
   int threads = 0;            // records simulated in parallel (0: all cores)
 };
 

@@ -156,7 +156,7 @@ ChaosCheck CheckChaos(const std::vector<PreparedRecord>& recs, const Setup& setu
       in_bb = HarmonicDiffusionIndex(AmplitudeSpectrum(r.input, r.dt), 2.0 * M_PI * f);
       out_bb = HarmonicDiffusionIndex(AmplitudeSpectrum(yd, r.dt), 2.0 * M_PI * f);
     }
-    const bool marked = objective == Objective::kFft || (in_bb <= kPeriodicInput && out_bb >= kBroadbandChaotic);
+    const bool marked = objective != Objective::kTime || (in_bb <= kPeriodicInput && out_bb >= kBroadbandChaotic);
     c.forcing_hz.push_back(f);
     c.input_broadband.push_back(in_bb);
     c.output_broadband.push_back(out_bb);
@@ -167,7 +167,10 @@ ChaosCheck CheckChaos(const std::vector<PreparedRecord>& recs, const Setup& setu
   std::snprintf(buf, sizeof buf,
                 "%s a record is chaotic when its input is periodic (broadband share <= %.2g) and its output velocity is not "
                 "(broadband share >= %.2g: power farther than 3 bins from every harmonic of the forcing)",
-                objective == Objective::kFft ? "spectral objective: every record;" : "time objective:", kPeriodicInput, kBroadbandChaotic);
+                objective == Objective::kFft        ? "spectral objective: every record;"
+                : objective == Objective::kShooting ? "shooting objective: every record;"
+                                                    : "time objective:",
+                kPeriodicInput, kBroadbandChaotic);
   c.rule = buf;
   return c;
 }

@@ -104,7 +104,9 @@ std::vector<double> ScaleOf(const IdentModel& m, const std::vector<double>& th, 
 
 double CorrelationTimeOf(const std::vector<double>& e) { return CorrTime(Eigen::Map<const Eigen::VectorXd>(e.data(), static_cast<long>(e.size())), std::vector<int>(e.size(), 0)); }
 
-double ErrorOf(const FitResult& f, Objective obj) { return obj == Objective::kFft ? f.errors.fft : f.errors.nrmse; }
+double ErrorOf(const FitResult& f, Objective obj) {
+  return obj == Objective::kFft ? f.errors.fft : obj == Objective::kShooting ? f.errors.shooting : f.errors.nrmse;
+}
 
 }  // namespace
 
@@ -292,13 +294,13 @@ void DifferenceSensitivities(const IdentModel& m, const std::vector<double>& th,
 // False when the fitted model diverges on a record. Time objective: J and Jc from one sensitivity pass;
 // spectral objective: finite differences (DifferenceSensitivities).
 bool SimulationResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                        const Setup& setup, Objective obj, const std::vector<const TermDef*>& fresh,
+                        const Setup& setup, Objective obj, double horizon_s, const std::vector<const TermDef*>& fresh,
                         const std::vector<double>& steps, SimulationEvidence* s) {
   const int p = m.NumParams();
   s->sub = FixedSubsteps(m, th, recs);
-  if (obj == Objective::kTime) {
+  if (obj != Objective::kFft) {
     Eigen::MatrixXd all;
-    if (!ObjectiveJacobian(m, th, recs, setup, obj, s->sub, fresh, &s->e0, &all)) return false;
+    if (!ObjectiveJacobian(m, th, recs, setup, obj, s->sub, fresh, &s->e0, &all, horizon_s)) return false;
     s->J = all.leftCols(p);
     s->Jc = all.rightCols(all.cols() - p);
   } else {
@@ -342,8 +344,8 @@ bool DissipatesEnergy(const TermDef& c, const std::vector<double>& estimate, con
 // differences for the spectral objective); −e_c ≈ J_d δ + J_c (β − base) by least squares, compared with
 // what the declared parameters alone leave of −e (sim.base.rss).
 CandidateScore ScoreAtBase(const IdentModel& m, const std::vector<double>& th, const TermDef& c, const std::vector<double>& base,
-                           const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj, const ForceEvidence& force,
-                           const SimulationEvidence& sim) {
+                           const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj, double horizon_s,
+                           const ForceEvidence& force, const SimulationEvidence& sim) {
   CandidateScore s;
   const int p = m.NumParams(), nt = m.NumTermParams(), k = static_cast<int>(c.params.size());
   IdentModel mc = m;
@@ -354,8 +356,8 @@ CandidateScore ScoreAtBase(const IdentModel& m, const std::vector<double>& th, c
   for (size_t r = 0; r < ev.sub.size(); ++r) ev.sub[r] = std::max(ev.sub[r], sim.sub[r]);
   bool ok = false;
   Eigen::MatrixXd all;
-  if (obj == Objective::kTime) {
-    ok = ObjectiveJacobian(mc, mc.theta, recs, setup, obj, ev.sub, {}, &ev.e0, &all);
+  if (obj != Objective::kFft) {
+    ok = ObjectiveJacobian(mc, mc.theta, recs, setup, obj, ev.sub, {}, &ev.e0, &all, horizon_s);
   } else if (ObjectiveResiduals(mc, mc.theta, recs, setup, obj, ev.sub, &ev.e0)) {
     std::vector<double> steps(mc.NumParams());
     for (int i = 0; i < mc.NumParams(); ++i) {
@@ -390,7 +392,7 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
   const ForceEvidence force = ForceResidual(m, th, recs, setup, fresh);
   step.residual_rms = std::sqrt(force.r0.squaredNorm() / static_cast<double>(force.reg.X.rows()));
   SimulationEvidence sim;
-  if (!SimulationResidual(m, th, recs, setup, opt.fit.objective, fresh, force.step_of_col, &sim)) {
+  if (!SimulationResidual(m, th, recs, setup, opt.fit.objective, opt.fit.shooting_horizon_s, fresh, force.step_of_col, &sim)) {
     step.verdict = "the fitted model diverges on a record; nothing traced";
     return step;
   }
@@ -408,7 +410,8 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
       s.sigma.assign(k, NAN);
     }
     const std::vector<double> base = CandidateBase(*c, recs);
-    if (!IsZero(base)) s = ScoreAtBase(m, th, *c, base, recs, setup, opt.fit.objective, force, sim);
+    if (!IsZero(base))
+      s = ScoreAtBase(m, th, *c, base, recs, setup, opt.fit.objective, opt.fit.shooting_horizon_s, force, sim);
     s.term = c->id;
     if (c->params[0].sign == Sign::kNonNegative) s.sign_ok = DissipatesEnergy(*c, s.estimate, recs, m.fc);
     if (c->kind == TermKind::kPiezo) s.sign_ok = s.estimate[0] * s.estimate[2] > 0;  // the coupling damps the beam

@@ -596,8 +596,10 @@ template <bool kSens, int kD>
 class RecordSystem {
  public:
   using State = std::conditional_t<kSens, Eigen::VectorXd, Eigen::Matrix<double, kD, 1>>;
+  // `param_cols` false: no parameter columns; `state_cols` (0 or kD): columns ∂x/∂x(t_k) of the segment's
+  // start state after the parameters' (multiple shooting, SegmentStates).
   RecordSystem(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
-               const PreparedRecord& r, InputKind in)
+               const PreparedRecord& r, InputKind in, bool param_cols = true, int state_cols = 0)
       : r_(r), in_(in), res_(m.HasResonator()), mm_(m.Mass(th)), mr_(m.m_res), fc_(m.fc),
         tanh_sp_(std::tanh(m.fc.v_sp / m.fc.v_t)), th_(th) {
     int col = 0;
@@ -615,13 +617,15 @@ class RecordSystem {
     }
     th_.resize(cols_, 0.0);
     piezo_col_ = FindSpecialCols(m, kSens ? extra : std::vector<const TermDef*>{}, nullptr).piezo;
-    body_of_col_.assign(cols_, 0);
+    body_of_col_.assign(cols_ + state_cols, 0);  // state columns: no forcing term of their own
     for (const SimTerm& st : terms_)
       for (size_t j = 0; j < st.t->params.size(); ++j) body_of_col_[st.col + j] = st.t->body == Body::kMain ? 1 : 2;
     if (piezo_col_ >= 0) body_of_col_[piezo_col_] = 1;  // a: its basis value −w on the main body
-    phi_col_.assign(cols_, 0.0);
+    phi_col_.assign(cols_ + state_cols, 0.0);
+    first_ = param_cols ? 0 : cols_;
+    end_ = cols_ + state_cols;
   }
-  int dim() const { return kSens ? kD + kD * cols_ : kD; }
+  int dim() const { return kSens ? kD + kD * (end_ - first_) : kD; }
   int cols() const { return cols_; }
   void operator()(double t, const State& x, State& dx) const {
     double u, ud;
@@ -686,13 +690,13 @@ class RecordSystem {
       dx[0] = x[1], dx[1] = a1, dx[2] = x[3], dx[3] = a3;
       if constexpr (kD == 5) dx[4] = wdot;
       const bool disp = in_ == InputKind::kBaseDisplacement;
-      for (int j = 0; j < cols_; ++j) {
-        const double* S = &x[kD + kD * j];
+      for (int j = first_; j < end_; ++j) {
+        const double* S = &x[kD + kD * (j - first_)];
         const double dy = S[0], dyd = S[1];
         const double dz = disp ? S[2] - S[0] : S[2], dzd = disp ? S[3] - S[1] : S[3];
         double dF = Fq * dy + Fv * dyd + (body_of_col_[j] == 1 ? phi_col_[j] : 0.0);
         const double dG = res_ ? Gq * dz + Gv * dzd + (body_of_col_[j] == 2 ? phi_col_[j] : 0.0) : 0.0;
-        double* D = &dx[kD + kD * j];
+        double* D = &dx[kD + kD * (j - first_)];
         if constexpr (kD == 5) {
           const double dw = S[4];
           dF += -pa * dw;
@@ -718,6 +722,7 @@ class RecordSystem {
   std::vector<double> th_;  // the model's values, then 0 for candidate columns
   std::vector<SimTerm> terms_;  // force terms
   int cols_ = 0, mass_col_ = -1, piezo_col_ = -1;
+  int first_ = 0, end_ = 0;             // sensitivity columns held: [first_, end_) (state columns from cols_)
   std::vector<int> body_of_col_;        // 1 main, 2 resonator, 0 neither (mass, offsets, b, c, output terms)
   mutable std::vector<double> phi_col_;  // basis value of every term column at the current stage
 };
@@ -725,9 +730,9 @@ class RecordSystem {
 template <bool kSens, int kD>
 bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
                   const PreparedRecord& r, const Setup& setup, int substeps, int restart_every, SimOutputs* so,
-                  EarlyStop* stop = nullptr) {
+                  EarlyStop* stop = nullptr, const SegmentStates* seg = nullptr) {
   const size_t n = r.n();
-  for (int k = 0; k < kOutputSlots; ++k) so->out[k].clear();
+  for (int k = 0; k < kOutputSlots; ++k) so->out[k].clear(), so->d[k].resize(0, 0), so->ds[k].resize(0, 0);
   for (int k = 0; k < kOutputSlots; ++k)
     if (r.Has(static_cast<OutputSlot>(k))) so->out[k].assign(n, NAN);
   const double mm = m.Mass(th);
@@ -739,19 +744,29 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   const int ns = substeps > 0 ? substeps : SubstepsFor(m, th, r);
   const double h = r.dt / ns;
   const InputKind in = setup.input;
+  // Multiple shooting with given segment states (and their sensitivity columns).
+  const std::vector<double>* given = seg && restart_every > 0 ? seg->states : nullptr;
+  if (given && given->size() != NumSegments(n, restart_every) * kStateDim) return false;
+  const std::vector<char>* active = given ? seg->active : nullptr;
+  if (active && active->size() != NumSegments(n, restart_every)) return false;
+  const bool pcols = !seg || seg->parameters;
+  const int SC = kSens && seg && seg->sensitivities ? kD : 0;  // state columns
   using Sys = RecordSystem<kSens, kD>;
-  const Sys sys(m, th, extra, r, in);
-  const int P = kSens ? sys.cols() : 0;
+  const Sys sys(m, th, extra, r, in, pcols, SC);
+  const int P = kSens && pcols ? sys.cols() : 0;
   const SpecialCols sc = FindSpecialCols(m, extra, &setup);
   std::vector<double> thx = th;  // the model's values, then 0 for candidate columns
-  thx.resize(std::max<size_t>(thx.size(), static_cast<size_t>(P)), 0.0);
+  thx.resize(std::max<size_t>(thx.size(), static_cast<size_t>(sys.cols())), 0.0);
   if constexpr (kSens) {
     for (int k = 0; k < kOutputSlots; ++k)
-      if (r.Has(static_cast<OutputSlot>(k))) so->d[k].setConstant(static_cast<long>(n), P, NAN);
+      if (r.Has(static_cast<OutputSlot>(k))) {
+        if (pcols) so->d[k].setConstant(static_cast<long>(n), P, NAN);
+        if (SC > 0) so->ds[k].setZero(static_cast<long>(n), kStateDim);
+      }
   }
   // State (p, p', r, r'[, w]); initial values from the smoothed measurement (w: the measured voltage, or 0).
   const double offset = m.Offset(th, r.index);
-  const int offset_col = m.offsets > 0 && r.index >= 0 && r.index < m.offsets ? m.OffsetIndex(r.index) : -1;
+  const int offset_col = pcols && m.offsets > 0 && r.index >= 0 && r.index < m.offsets ? m.OffsetIndex(r.index) : -1;
   const bool volt_meas = !r.ic_w.empty();
   typename Sys::State s;
   if constexpr (kSens) s.resize(sys.dim());
@@ -761,12 +776,24 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   s[2] = res && !r.ic_r.empty() ? r.ic_r[0] : (in == InputKind::kBaseDisplacement ? r.ic_p[0] : 0.0);
   s[3] = res && !r.ic_rd.empty() ? r.ic_rd[0] : (in == InputKind::kBaseDisplacement ? r.ic_pd[0] : 0.0);
   if constexpr (kD == 5) s[4] = volt_meas ? r.ic_w[0] : 0.0;
+  // Segment k's given start state (the voltage only where measured; else it runs on).
+  auto set_given = [&](size_t k) {
+    const double* g = given->data() + k * kStateDim;
+    for (int c = 0; c < 4; ++c) s[c] = g[c];
+    if constexpr (kD == 5)
+      if (volt_meas) s[4] = g[4];
+  };
+  if (given) set_given(0);
   // At a (re)start only the offset moves the state; an unmeasured voltage runs on (state and columns).
+  // State columns restart as the identity (the new segment's start state).
+  const int state_base = kD + kD * P;
   auto reset_sensitivities = [&](bool keep_w) {
     if constexpr (kSens) {
       for (int j = 0; j < P; ++j)
         for (int c = 0; c < (keep_w ? 4 : kD); ++c) s[kD + kD * j + c] = 0.0;
       if (offset_col >= 0) s[kD + kD * offset_col] = 1.0;
+      for (int j = 0; j < SC; ++j)
+        for (int c = 0; c < kD; ++c) s[state_base + kD * j + c] = c == j ? 1.0 : 0.0;
     }
   };
   reset_sensitivities(false);
@@ -784,11 +811,21 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
     if constexpr (kSens) {
       if (sc.scale[k] >= 0) {
         for (int j = 0; j < P; ++j) so->d[k](static_cast<long>(i), j) *= 1.0 + g;
-        so->d[k](static_cast<long>(i), sc.scale[k]) = value;
+        for (int j = 0; j < SC; ++j) so->ds[k](static_cast<long>(i), j) *= 1.0 + g;
+        if (P > 0) so->d[k](static_cast<long>(i), sc.scale[k]) = value;
       }
-      if (sc.offset[k] >= 0) so->d[k](static_cast<long>(i), sc.offset[k]) = 1.0;
+      if (sc.offset[k] >= 0 && P > 0) so->d[k](static_cast<long>(i), sc.offset[k]) = 1.0;
     }
     return (1.0 + g) * value + d;
+  };
+  // Row i of slot k's sensitivities: component c of every column, plus component c2 when c2 >= 0.
+  auto sens_row = [&](int k, size_t i, int c, int c2) {
+    if constexpr (kSens) {
+      for (int j = 0; j < P; ++j)
+        so->d[k](static_cast<long>(i), j) = s[kD + kD * j + c] + (c2 >= 0 ? s[kD + kD * j + c2] : 0.0);
+      for (int j = 0; j < SC; ++j)
+        so->ds[k](static_cast<long>(i), j) = s[state_base + kD * j + c] + (c2 >= 0 ? s[state_base + kD * j + c2] : 0.0);
+    }
   };
   auto emit = [&](size_t i) {
     double value = s[oc];
@@ -797,8 +834,7 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
     } else if (vel && in == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute) {
       value += r.base_v[i];
     }
-    if constexpr (kSens)
-      for (int j = 0; j < P; ++j) so->d[0](static_cast<long>(i), j) = s[kD + kD * j + oc];
+    sens_row(0, i, oc, -1);
     value = output_effects(0, i, value);
     so->out[0][i] = value;
     if (stop) {
@@ -807,16 +843,17 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
       stop->stopped = stop->sse > stop->budget;
     }
     if (!so->out[1].empty() && res) {
-      if constexpr (kSens)
-        for (int j = 0; j < P; ++j)
-          so->d[1](static_cast<long>(i), j) = s[kD + kD * j + 2] + (res_plus_p ? s[kD + kD * j] : 0.0);
+      sens_row(1, i, 2, res_plus_p ? 0 : -1);
       so->out[1][i] = output_effects(1, i, res_plus_p ? s[2] + s[0] : s[2]);
     }
     if (!so->out[2].empty()) {  // the voltage: the piezo's state, 0 without a piezo
       double w = 0;
-      if constexpr (kD == 5) w = s[4];
-      if constexpr (kSens)
-        for (int j = 0; j < P; ++j) so->d[2](static_cast<long>(i), j) = kD == 5 ? s[kD + kD * j + kD - 1] : 0.0;
+      if constexpr (kD == 5) {
+        w = s[4];
+        sens_row(2, i, 4, -1);
+      } else if constexpr (kSens) {
+        if (P > 0) so->d[2].row(static_cast<long>(i)).setZero();
+      }
       so->out[2][i] = output_effects(2, i, w);
     }
   };
@@ -824,12 +861,17 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   Rk4<Sys> rk4(sys);
   for (size_t i = 1; i < n; ++i) {
     if (restart_every > 0 && (i - 1) % static_cast<size_t>(restart_every) == 0 && i > 1) {
-      s[0] = r.ic_p[i - 1] + offset, s[1] = r.ic_pd[i - 1];
-      if (res && !r.ic_r.empty()) s[2] = r.ic_r[i - 1], s[3] = r.ic_rd[i - 1];
-      if constexpr (kD == 5)
-        if (volt_meas) s[4] = r.ic_w[i - 1];
+      if (given) {
+        set_given((i - 1) / static_cast<size_t>(restart_every));
+      } else {
+        s[0] = r.ic_p[i - 1] + offset, s[1] = r.ic_pd[i - 1];
+        if (res && !r.ic_r.empty()) s[2] = r.ic_r[i - 1], s[3] = r.ic_rd[i - 1];
+        if constexpr (kD == 5)
+          if (volt_meas) s[4] = r.ic_w[i - 1];
+      }
       reset_sensitivities(!volt_meas);
     }
+    if (active && !(*active)[(i - 1) / static_cast<size_t>(restart_every)]) continue;  // a skipped segment
     for (int sub = 0; sub < ns; ++sub) rk4.Step(r.t0 + static_cast<double>(i - 1) * r.dt + sub * h, s, h);
     if (!std::isfinite(s[0]) || !std::isfinite(s[1]) || std::abs(s[0]) > limit_p) return false;
     if constexpr (kD == 5)
@@ -842,17 +884,32 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
 
 }  // namespace
 
+std::array<double, kStateDim> MeasuredState(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r,
+                                            const Setup& setup, size_t i) {
+  const bool res = m.HasResonator(), disp = setup.input == InputKind::kBaseDisplacement;
+  std::array<double, kStateDim> x{};
+  x[0] = r.ic_p[i] + m.Offset(th, r.index);
+  x[1] = r.ic_pd[i];
+  x[2] = res && !r.ic_r.empty() ? r.ic_r[i] : (disp ? r.ic_p[i] : 0.0);
+  x[3] = res && !r.ic_rd.empty() ? r.ic_rd[i] : (disp ? r.ic_pd[i] : 0.0);
+  x[4] = r.ic_w.empty() ? 0.0 : r.ic_w[i];
+  return x;
+}
+
 bool SimulateOutputs(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
                      const PreparedRecord& r, const Setup& setup, int substeps, int restart_every, bool sensitivities,
-                     SimOutputs* out, EarlyStop* stop) {
+                     SimOutputs* out, EarlyStop* stop, const SegmentStates* segments) {
   bool piezo = m.PiezoIndex() >= 0;
   if (sensitivities)
     for (const TermDef* t : extra) piezo = piezo || t->kind == TermKind::kPiezo;
-  if (sensitivities)
-    return piezo ? SimulateImpl<true, 5>(m, th, extra, r, setup, substeps, restart_every, out, stop)
-                 : SimulateImpl<true, 4>(m, th, extra, r, setup, substeps, restart_every, out, stop);
-  return piezo ? SimulateImpl<false, 5>(m, th, {}, r, setup, substeps, restart_every, out, stop)
-               : SimulateImpl<false, 4>(m, th, {}, r, setup, substeps, restart_every, out, stop);
+  const bool sens = sensitivities || (segments && segments->sensitivities);
+  if (sens) {
+    const std::vector<const TermDef*>& x = sensitivities ? extra : std::vector<const TermDef*>{};
+    return piezo ? SimulateImpl<true, 5>(m, th, x, r, setup, substeps, restart_every, out, stop, segments)
+                 : SimulateImpl<true, 4>(m, th, x, r, setup, substeps, restart_every, out, stop, segments);
+  }
+  return piezo ? SimulateImpl<false, 5>(m, th, {}, r, setup, substeps, restart_every, out, stop, segments)
+               : SimulateImpl<false, 4>(m, th, {}, r, setup, substeps, restart_every, out, stop, segments);
 }
 
 bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,

@@ -14,6 +14,7 @@
 #ifndef BISTABLE_IDENTIFY_MODEL_H_
 #define BISTABLE_IDENTIFY_MODEL_H_
 
+#include <array>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -179,10 +180,33 @@ struct EarlyStop {
 struct SimOutputs {
   std::vector<double> out[kOutputSlots];
   Eigen::MatrixXd d[kOutputSlots];
+  // With SegmentStates::sensitivities: each output's derivative by the start state of its own segment
+  // (n × kStateDim, state order p, p', r, r', w).
+  Eigen::MatrixXd ds[kOutputSlots];
 };
+// The simulation state (p, p', r, r', w): the main body's coordinate and velocity, the resonator's, and
+// the piezo's voltage.
+inline constexpr int kStateDim = 5;
+// Multiple shooting with re-estimated states (restart_every > 0): segment k starts at sample k·restart_every
+// from states[kStateDim k …] instead of the measured state (the voltage only when the record measures it);
+// it emits samples k·restart_every + 1 … (k + 1)·restart_every (segment 0 also sample 0). With
+// `sensitivities`, SimOutputs::ds; `parameters` false leaves out the parameters' columns (d stays empty).
+struct SegmentStates {
+  const std::vector<double>* states = nullptr;  // NumSegments × kStateDim, or null: the measured states
+  bool sensitivities = false;
+  bool parameters = true;
+  // Segments simulated (1) or skipped (0: their samples are left NaN), or null: all.
+  const std::vector<char>* active = nullptr;
+};
+// Segments of a record of n samples cut every `every` samples, and the segment that emits sample i.
+inline size_t NumSegments(size_t n, int every) { return n <= 1 ? 1 : (n - 2) / static_cast<size_t>(every) + 1; }
+inline size_t SegmentOf(size_t i, int every) { return i == 0 ? 0 : (i - 1) / static_cast<size_t>(every); }
+// The measured (smoothed) state at sample i, in state order, offset included (MeasuredState of a restart).
+std::array<double, kStateDim> MeasuredState(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r,
+                                            const Setup& setup, size_t i);
 bool SimulateOutputs(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
                      const PreparedRecord& r, const Setup& setup, int substeps, int restart_every, bool sensitivities,
-                     SimOutputs* out, EarlyStop* stop = nullptr);
+                     SimOutputs* out, EarlyStop* stop = nullptr, const SegmentStates* segments = nullptr);
 
 bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
               std::vector<double>* out, std::vector<double>* out_res = nullptr, int substeps = 0, int restart_every = 0,
