@@ -206,8 +206,9 @@ std::vector<std::string> Observability(const Setup& setup, bool piezo) {
                 "small-orbit frequency w.");
   o.push_back("switches_per_s.measured/predicted: invariants.h's count on the zero-mean displacement (barrier 0, hysteresis half "
               "the measured RMS): for an orbit in one well it counts every cycle. well_scale: the same displacement with the "
-              "hysteresis half the model's barrier-to-well distance (an orbit in one well does not count). model: the model's own "
-              "displacement across its barrier.");
+              "hysteresis half the model's barrier-to-well distance (a small orbit in one well does not count; an orbit in one well "
+              "wider than that band still does). model: the model's own displacement (not zero-mean) across its barrier: whether "
+              "the model really changes wells; the measured counterpart is not observable from a velocity.");
   o.push_back("amplitudes: the component at the drive frequency (the input's strongest line), Hann-weighted projection over "
               "the whole record, start transient included.");
   return o;
@@ -332,6 +333,7 @@ std::string PredictionText(const nlohmann::json& root) {
     }
     o << "\n";
   }
+  o << "units: " << m["units"].get<std::string>() << "\n";
   if (!m["piezo"].is_null()) o << "piezo a c = " << N(m["piezo"]["a_c"]) << (m["piezo"]["damps_the_beam"].get<bool>() ? " > 0: damps the beam" : " <= 0: feeds the beam") << "\n";
   for (const auto& n : m["notes"]) o << "note: " << n.get<std::string>() << "\n";
   o << "\nrecord                         f [Hz]  output     amp meas    amp pred   ratio  NRMSE %  spectral %\n";
