@@ -84,6 +84,12 @@ inline constexpr double kMaxDataMagnitude = 1e12;
 // resonator then hold 128 MB; the Silverbox file has 131,072 rows).
 inline constexpr std::size_t kMaxDataLineBytes = 65'536;
 inline constexpr long kMaxDataRows = 4'194'304;
+// A fitted model read back by `identify --predict --model FILE` (an `identify --json` output or a
+// report.json: a few hundred KB with every step's scores), its JSON nesting (the format nests 5 deep)
+// and the size of a parameter value (k5 per unit mass reaches 1e13 on the harvester).
+inline constexpr std::size_t kMaxModelJsonBytes = 16u << 20;
+inline constexpr int kMaxModelJsonDepth = 64;
+inline constexpr double kMaxModelParamMagnitude = 1e100;
 
 }  // namespace bistable::limits
 

@@ -2,6 +2,7 @@
 // records, trace the residual to the effect the model lacks, add it, refit, report before/after.
 #include "client/identify_command.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -10,6 +11,7 @@
 #include <iostream>
 #include <limits>
 #include <map>
+#include <set>
 #include <sstream>
 #include <tuple>
 
@@ -18,6 +20,7 @@
 #include "base/names.h"
 #include "client/cli_common.h"
 #include "client/identify_diagnostics.h"
+#include "client/identify_predict.h"
 #include "client/json_out.h"
 #include "client/plot.h"
 #include "engine/sweep_spec.h"
@@ -39,6 +42,10 @@ struct IdentifyArgs {
   int decimate = 1, global_evals = 150, max_added = 3, threads = 0;
   double horizon = 0.5, deriv_cutoff = 0;
   bool json = false, list_terms = false, fit_offsets = false;
+  // --predict: simulate the --data records with the fitted model of --model (nothing fitted).
+  bool predict = false;
+  std::string model_file, start_well;
+  bool frame_given = false;  // --output-frame given (else --predict takes the fit's frame)
 };
 
 // "A:B" sample range (0-based, end exclusive; either side may be empty).
@@ -550,6 +557,8 @@ nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const
   j["shooting_error_after"] = JsonNumber(r.after.errors.shooting);
   j["objective"] = a.objective;
   j["declared"] = a.terms;
+  j["final_terms"] = nlohmann::json::array();  // the final model's terms in order (--predict rebuilds it from them)
+  for (const TermDef* t : r.final_model.terms) j["final_terms"].push_back(t->id);
   j["effects_added"] = nlohmann::json::array();
   for (const AddedEffect& e : r.added) {
     nlohmann::json p = nlohmann::json::object(), u = nlohmann::json::object();
@@ -695,10 +704,152 @@ void PrintSummary(const IdentifyArgs& a, const IdentifyResult& r, const nlohmann
   std::printf("%.1f s, %lld simulations%s\n", r.seconds, simulations, a.report.empty() ? "" : ("; report in " + a.report).c_str());
 }
 
+// --predict: --terms and --known are not needed (the model file has them); given, they must agree.
+Status CheckPredictFlagsAgree(const IdentifyArgs& a, const FittedModel& fm) {
+  if (!a.terms.empty()) {
+    auto given = ParseTerms(a.terms);
+    if (!given.ok()) return given.status();
+    std::set<std::string> g, d;
+    for (const TermDef* t : *given) g.insert(t->id);
+    if (!fm.declared.empty()) {
+      auto declared = ParseTerms(fm.declared);
+      if (!declared.ok()) return Status::InvalidArgument("model.declared", declared.status().message());
+      for (const TermDef* t : *declared) d.insert(t->id);
+    }
+    std::set<std::string> final_terms;
+    std::string final_list;
+    for (const TermDef* t : fm.model.terms) final_terms.insert(t->id), final_list += (final_list.empty() ? "" : ",") + t->id;
+    if (g != d && g != final_terms)
+      return Status::InvalidArgument("terms", "--terms " + a.terms + " is neither the model's declared terms (" +
+                                                  (fm.declared.empty() ? std::string("not recorded") : fm.declared) + ") nor its final terms (" +
+                                                  final_list + ") in " + fm.path + "; --predict takes the terms from the model file");
+  }
+  auto kv = ParseNameValues(a.known, "known");
+  if (!kv.ok()) return kv.status();
+  IdentModel scratch;
+  Setup scratch_setup;
+  BISTABLE_RETURN_IF_ERROR(ApplyKnown(a.known, &scratch, &scratch_setup));
+  for (const auto& [k, v] : *kv) {
+    const double given = k == "m_main" ? scratch.m_main : k == "m_res" ? scratch.m_res : k == "v_sp" ? scratch_setup.fc.v_sp : scratch_setup.fc.v_t;
+    const double model = k == "m_main" ? fm.model.m_main : k == "m_res" ? fm.model.m_res : k == "v_sp" ? fm.model.fc.v_sp : fm.model.fc.v_t;
+    if (given != model)
+      return Status::InvalidArgument("known." + k, "--known " + k + "=" + v + " differs from the model's " + k + " = " + Fmt(model, 17) + " (" +
+                                                       fm.path + (k == "m_main" && model == 0 ? ": the mass was fitted" : "") + ")");
+  }
+  return Status::Ok();
+}
+
+// --start-well: one value for every --data file, or one per file; none | left | right.
+StatusOr<std::vector<std::string>> ParseStartWells(const IdentifyArgs& a) {
+  std::vector<std::string> w;
+  std::stringstream ss(a.start_well.empty() ? "none" : a.start_well);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (item != "none" && item != "left" && item != "right")
+      return Status::InvalidArgument("start-well", "'" + item + "' violates start-well in {none, left, right}");
+    w.push_back(item);
+  }
+  if (w.size() == 1) w.assign(a.data.size(), w[0]);
+  if (w.size() != a.data.size())
+    return Status::InvalidArgument("start-well", "give one value for all --data files or one per file (" + std::to_string(a.data.size()) + "), not " +
+                                                     std::to_string(w.size()));
+  return w;
+}
+
+// --predict: the fitted model of --model simulated on every --data record (its columns, input, output and
+// frame flags as in a fit, --range/--max-seconds/--decimate selecting the samples); nothing is fitted.
+StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (a.model_file.empty())
+    return Status::InvalidArgument("model", "--predict needs --model FILE: a `bistable identify --json` output or a report directory (its report.json)");
+  if (a.data.empty()) return Status::InvalidArgument("data", "give at least one --data FILE.csv to predict");
+  if (!a.guesses.empty()) return Status::InvalidArgument("guess", "--predict fits nothing: the parameter values are the model file's");
+  if (a.fit_offsets) return Status::InvalidArgument("fit-offsets", "--predict fits nothing; --start-well sets where each record starts");
+  if (!a.report.empty()) return Status::InvalidArgument("report", "--predict writes no report directory (use --json)");
+  if (!a.test_ranges.empty())
+    return Status::InvalidArgument("test-range", "--predict simulates the --data records themselves (--range and --max-seconds select the samples)");
+  auto read = ReadFittedModel(a.model_file);
+  if (!read.ok()) return read.status();
+  FittedModel fitted = std::move(read).value();
+  FittedModel* fm = &fitted;
+  BISTABLE_RETURN_IF_ERROR(CheckPredictFlagsAgree(a, *fm));
+  IdentifyPlan plan;
+  auto columns = BuildColumns(a);
+  if (!columns.ok()) return columns.status();
+  plan.columns = *columns;
+  Setup& setup = plan.setup;
+  setup.input = columns->input_kind;
+  setup.output = columns->output_kind;
+  if (!fm->input_kind.empty() && fm->input_kind != a.input_kind)
+    return Status::InvalidArgument("input-kind", "the model was fitted with --input-kind " + fm->input_kind + " (" + fm->path +
+                                                     "); its parameters do not describe a " + a.input_kind + " input");
+  const std::string frame = a.frame == "auto" || !a.frame_given ? (fm->frame.empty() ? "absolute" : fm->frame) : a.frame;
+  if (frame == "absolute") setup.frame = OutputFrame::kAbsolute;
+  else if (frame == "relative") setup.frame = OutputFrame::kRelative;
+  else return Status::InvalidArgument("output-frame", "'" + a.frame + "' violates output-frame in {absolute, relative, auto}");
+  if (a.frame_given && a.frame != "auto" && !fm->frame.empty() && frame != fm->frame)
+    fm->notes.push_back("the fit read the velocity as " + fm->frame + "; predicted as " + frame + " (--output-frame)");
+  plan.model = fm->model;
+  setup.fc = plan.model.fc;
+  BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));
+  BISTABLE_RETURN_IF_ERROR(CheckOutputTerms(plan.model.terms, plan.columns, setup, "model.final_terms"));
+  BISTABLE_RETURN_IF_ERROR(PlanLoop(a, &plan));
+  auto statics = AnalyseStatics(plan.model, plan.model.theta);
+  if (!statics.ok()) return statics.status();
+  auto wells = ParseStartWells(a);
+  if (!wells.ok()) return wells.status();
+  // Every record, with the --data file it came from.
+  std::vector<Record> loaded;
+  std::vector<size_t> file_of;
+  for (size_t f = 0; f < a.data.size(); ++f) {
+    auto recs = LoadRecords(a.data[f], plan.columns);
+    if (!recs.ok()) return recs.status();
+    for (const Record& r : recs.value()) loaded.push_back(a.decimate > 1 ? Decimated(r, a.decimate) : r), file_of.push_back(f);
+  }
+  auto prepared = PrepareFitted(loaded, a, plan);
+  if (!prepared.ok()) return prepared.status();
+  std::vector<PreparedRecord> recs = std::move(prepared).value();
+  // The start: the record's integrated (zero-mean) displacement as in a fit, plus the chosen well's
+  // centre — the model's offset parameters, one per record.
+  IdentModel m = plan.model;
+  std::vector<double> th = m.theta;
+  const bool any_well = std::any_of(wells->begin(), wells->end(), [](const std::string& w) { return w != "none"; });
+  if (any_well) {
+    if (setup.output != OutputKind::kVelocity)
+      return Status::InvalidArgument("start-well", "--start-well is for velocity outputs (a displacement output gives the start itself)");
+    if (!statics->bistable) return Status::InvalidArgument("start-well", "the model has one well (no barrier): start left or right has no meaning");
+    m.offsets = static_cast<int>(recs.size());
+    for (size_t i = 0; i < recs.size(); ++i) {
+      const std::string& w = (*wells)[file_of[i]];
+      th.push_back(w == "left" ? statics->wells[0].at.y : w == "right" ? statics->wells[1].at.y : 0.0);
+    }
+  }
+  for (size_t i = 0; i < recs.size(); ++i) recs[i].index = static_cast<int>(i);
+  SetOutputWeights(&recs);
+  std::vector<PredictedRecord> out;
+  for (size_t i = 0; i < recs.size(); ++i) {
+    PredictedRecord pr;
+    pr.p = PredictRecord(m, th, recs[i], setup, *statics, plan.opt.fit.objective);
+    for (size_t g = 0; g < plan.columns.group.size() && g < loaded[i].group_values.size(); ++g)
+      pr.group.emplace_back(plan.columns.group[g], loaded[i].group_values[g]);
+    pr.start_well = (*wells)[file_of[i]];
+    out.push_back(std::move(pr));
+  }
+  const Errors joint = Evaluate(m, th, recs, setup);
+  nlohmann::json settings = {{"data", a.data}, {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"range", a.range},
+                             {"deriv_cutoff_hz", a.deriv_cutoff}, {"objective", a.objective}, {"input_kind", a.input_kind},
+                             {"output_kind", a.output_kind}, {"output_frame", frame}, {"start_well", *wells}};
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return PredictionJson(*fm, *statics, out, joint, setup, settings, seconds);
+}
+
 // The fit: what --json prints (and report.json holds); the report directory is written when asked.
 StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
   if (a.list_terms) return TermsJson();
   if (!a.synth.empty()) return SyntheticJson(a.synth, a.synth_kind);
+  if (a.predict) return PredictJson(a);
+  if (!a.model_file.empty()) return Status::InvalidArgument("model", "--model is read by --predict (add --predict, or drop --model to fit)");
+  if (!a.start_well.empty()) return Status::InvalidArgument("start-well", "--start-well is a --predict option");
   const auto planned = PlanFromFlags(a);
   if (!planned.ok()) return planned.status();
   IdentifyPlan plan = *planned;
@@ -753,6 +904,7 @@ int RunIdentify(const IdentifyArgs& a) {
   auto j = IdentifyJson(a);
   if (!j.ok()) return Fail(j.status());
   if (a.json) std::cout << j->dump(2) << "\n";
+  else if (a.predict) std::cout << PredictionText(*j);
   return 0;
 }
 
@@ -769,7 +921,10 @@ void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
   c->add_option("--output2-kind", a->output2_kind, "kind of the output2 column: voltage [V] (compared with main.piezo's voltage state)")->capture_default_str();
   c->add_option("--output2-scale", a->output2_scale, "factor to SI (volts) for the output2 column")->capture_default_str();
   c->add_option("--output-frame", a->frame, "absolute | relative (to the base) | auto (velocity output, base acceleration input: run the loop "
-                                           "in both frames, keep the lower final error, report both)")->capture_default_str();
+                                           "in both frames, keep the lower final error, report both; with --predict: the fit's frame, "
+                                           "also the default there)")
+      ->capture_default_str()
+      ->each([a](const std::string&) { a->frame_given = true; });
   c->add_option("--range", a->range, "sample range A:B used for fitting (0-based, end exclusive)");
   c->add_option("--test-range", a->test_ranges, "sample range A:B simulated for a test error (repeatable)");
   c->add_option("--max-seconds", a->max_seconds, "use at most this many seconds of each record (0: all)");
@@ -791,6 +946,13 @@ void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
   c->add_flag("--fit-offsets", a->fit_offsets, "velocity outputs: fit each record's displacement offset (which well)");
   c->add_flag("--list-terms", a->list_terms, "list the effect library (ids, formulas, units) and exit");
   c->add_flag("--json", a->json, "print the result as JSON");
+  c->add_flag("--predict", a->predict, "fit nothing: simulate every --data record with the fitted model of --model and report errors, the "
+                                       "amplitudes at the drive frequency (measured, predicted), well switching, invariants of chaotic "
+                                       "records, and the model's wells and small-orbit frequencies");
+  c->add_option("--model", a->model_file, "with --predict: a previous `bistable identify --json` output, or a --report directory (its report.json)");
+  c->add_option("--start-well", a->start_well, "with --predict, velocity outputs: where the model starts, none | left | right, one for all "
+                                              "--data files or one per file, comma-separated (none: the integrated velocity, zero-mean, as "
+                                              "in a fit; left/right: plus that well's centre)");
 }
 
 }  // namespace

@@ -10,17 +10,6 @@ namespace {
 
 std::string F(double v, int digits = 4) { return FormatSignificant(v, digits); }
 
-nlohmann::json InvariantsObject(const Invariants& v) {
-  return {{"poincare_energy", JsonNumber(v.poincare)},
-          {"poincare_floor", JsonNumber(v.poincare_floor)},
-          {"section_points", v.section_points},
-          {"switching_rate_hz", JsonNumber(v.switching_rate)},
-          {"switching_rate_measured_hz", JsonNumber(v.switching_rate_measured)},
-          {"switching_rate_error", JsonNumber(v.switching_error)},
-          {"velocity_hellinger", JsonNumber(v.velocity_hellinger)},
-          {"spectral_error_percent", JsonNumber(v.spectral_error)}};
-}
-
 nlohmann::json DriftObject(const std::vector<ParamDrift>& drift) {
   nlohmann::json d = nlohmann::json::object();
   for (const ParamDrift& p : drift)
@@ -38,6 +27,17 @@ nlohmann::json WhitenessObject(const Whiteness& w) {
 }
 
 }  // namespace
+
+nlohmann::json InvariantsObject(const Invariants& v) {
+  return {{"poincare_energy", JsonNumber(v.poincare)},
+          {"poincare_floor", JsonNumber(v.poincare_floor)},
+          {"section_points", v.section_points},
+          {"switching_rate_hz", JsonNumber(v.switching_rate)},
+          {"switching_rate_measured_hz", JsonNumber(v.switching_rate_measured)},
+          {"switching_rate_error", JsonNumber(v.switching_error)},
+          {"velocity_hellinger", JsonNumber(v.velocity_hellinger)},
+          {"spectral_error_percent", JsonNumber(v.spectral_error)}};
+}
 
 void AddDiagnosticsJson(const IdentifyResult& r, const std::vector<PreparedRecord>& recs, nlohmann::json* j) {
   const LoopDiagnostics& d = r.diagnostics;

@@ -14,6 +14,9 @@
 
 namespace bistable {
 
+// One set of invariants as JSON (the keys of "invariants.before" / "after").
+nlohmann::json InvariantsObject(const Invariants& v);
+
 // Adds "chaos_check", "invariants" (null unless a record is chaotic), "whiteness", "unexplained"
 // (null when the residual is white), "correlations", "separability", "refits" and every
 // effects_added entry's "drift" to `j`.

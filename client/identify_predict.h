@@ -1,0 +1,50 @@
+// `bistable identify --predict --model FILE`: a fitted model read back from a previous `identify --json`
+// output (or a report directory's report.json) and simulated on other records without refitting;
+// its JSON and text output. The computations are identify/predict.h's.
+#ifndef BISTABLE_CLIENT_IDENTIFY_PREDICT_H_
+#define BISTABLE_CLIENT_IDENTIFY_PREDICT_H_
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "identify/predict.h"
+
+namespace bistable {
+
+// What a fit's JSON says about its final model. The file is untrusted: bounded in size and nesting,
+// every value checked, errors name the field ("model.params.main.linear.k_lin", "model.final_terms[2]").
+struct FittedModel {
+  std::string path;                     // the JSON file read
+  IdentModel model;                     // terms, m_main, m_res, fc; theta the fit's final values
+  std::string declared;                 // the fit's --terms ("" when the file lacks it)
+  std::string frame;                    // the fit's velocity frame: "absolute", "relative" or "" (not recorded)
+  std::string input_kind, output_kind;  // the fit's, "" when not recorded
+  std::vector<std::string> notes;       // what was read with a caveat (dropped offsets)
+};
+
+// FILE or DIR (then DIR/report.json). The final terms come from "final_terms" or, in older files, from
+// "declared" followed by every "effects_added[].term"; their values from "params" (every parameter of
+// those terms, finite, signs as the library's; "offset.k", a fit's per-record displacement offsets,
+// are dropped: they belong to the fit's records); m_main, m_res, v_sp, v_t from "settings".
+StatusOr<FittedModel> ReadFittedModel(const std::string& path);
+
+// One predicted record with what the CLI knows about it: its group values (--columns group=...) and
+// the well its simulation started in.
+struct PredictedRecord {
+  RecordPrediction p;
+  std::vector<std::pair<std::string, double>> group;  // column name, value
+  std::string start_well;                               // "none", "left", "right"
+};
+
+// {"prediction": {model, records, error, observability, settings, seconds}}.
+nlohmann::json PredictionJson(const FittedModel& fm, const ModelStatics& st, const std::vector<PredictedRecord>& recs,
+                              const Errors& joint, const Setup& setup, const nlohmann::json& settings, double seconds);
+
+// The same as a readable text: the model's wells and small-orbit frequencies, then a table per record.
+std::string PredictionText(const nlohmann::json& j);
+
+}  // namespace bistable
+
+#endif  // BISTABLE_CLIENT_IDENTIFY_PREDICT_H_
