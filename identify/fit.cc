@@ -42,7 +42,7 @@ struct Sims {
 // False when the simulation at the start diverges.
 bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>* extra,
                  const PreparedRecord& r, const Setup& setup, int substeps, int every, SimOutputs* out,
-                 const std::vector<double>* start = nullptr, std::vector<double>* fitted = nullptr) {
+                 const std::vector<double>* start = nullptr, std::vector<double>* fitted = nullptr, int threads = 1) {
   const size_t n = r.n(), nseg = NumSegments(n, every);
   std::vector<int> live = {0, 1};
   if (m.HasResonator()) live.push_back(2), live.push_back(3);
@@ -55,6 +55,42 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
   auto rows = [&](size_t k, size_t* a, size_t* b) {
     *a = k == 0 ? 0 : k * static_cast<size_t>(every) + 1;
     *b = std::min((k + 1) * static_cast<size_t>(every), n - 1);
+  };
+  // One simulation of the segments `mask` marks (null: all) from the states `st`; with `threads` ≥ 2 the
+  // segments (independent of each other) in two halves side by side, the second half's rows merged in.
+  const std::vector<const TermDef*> none;
+  auto simulate = [&](const std::vector<double>& st, bool sens_states, bool params, const std::vector<char>* mask, SimOutputs* o) {
+    const std::vector<const TermDef*>& ex = params ? *extra : none;
+    if (threads < 2 || nseg < 4) {
+      const SegmentStates g{&st, sens_states, params, mask};
+      return SimulateOutputs(m, th, ex, r, setup, substeps, every, params, o, nullptr, &g);
+    }
+    const size_t half = nseg / 2;
+    std::vector<char> ma(nseg, 0), mb(nseg, 0);
+    for (size_t k = 0; k < nseg; ++k) (k < half ? ma : mb)[k] = mask ? (*mask)[k] : 1;
+    SimOutputs ob;
+    bool okb = false;
+    std::thread t([&] {
+      const SegmentStates g{&st, sens_states, params, &mb};
+      okb = SimulateOutputs(m, th, ex, r, setup, substeps, every, params, &ob, nullptr, &g);
+    });
+    const SegmentStates g{&st, sens_states, params, &ma};
+    const bool oka = SimulateOutputs(m, th, ex, r, setup, substeps, every, params, o, nullptr, &g);
+    t.join();
+    if (!oka || !okb) return false;
+    for (size_t k = half; k < nseg; ++k) {
+      if (!mb[k]) continue;
+      size_t a, b;
+      rows(k, &a, &b);
+      const long la = static_cast<long>(a), len = static_cast<long>(b - a + 1);
+      for (int slot = 0; slot < kOutputSlots; ++slot) {
+        if (o->out[slot].empty()) continue;
+        std::copy(ob.out[slot].begin() + la, ob.out[slot].begin() + la + len, o->out[slot].begin() + la);
+        if (o->d[slot].size() > 0) o->d[slot].middleRows(la, len) = ob.d[slot].middleRows(la, len);
+        if (o->ds[slot].size() > 0) o->ds[slot].middleRows(la, len) = ob.ds[slot].middleRows(la, len);
+      }
+    }
+    return true;
   };
   std::vector<double> states(nseg * kStateDim), trial;
   for (size_t k = 0; k < nseg; ++k) {
@@ -111,8 +147,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
     for (int g = -1; g < kGrid; ++g) {
       for (size_t k = 0; k < nseg; ++k)
         scan[k * kStateDim] = g < 0 ? measured[k * kStateDim] : r.p_range * (-1.5 + 3.0 * g / (kGrid - 1));
-      SegmentStates sg{&scan, false, true};
-      if (!SimulateOutputs(m, th, {}, r, setup, substeps, every, false, &so, nullptr, &sg)) continue;
+      if (!simulate(scan, false, false, nullptr, &so)) continue;
       for (size_t k = 0; k < nseg; ++k) {
         size_t a, b;
         rows(k, &a, &b);
@@ -126,8 +161,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
       }
     }
   }
-  SegmentStates ss{&states, true, false};
-  if (!SimulateOutputs(m, th, {}, r, setup, substeps, every, false, &best, nullptr, &ss)) return false;
+  if (!simulate(states, true, false, nullptr, &best)) return false;
   measure(best, &acc);
   // Levenberg–Marquardt steps per segment; a pass simulates every moving segment's trial state at once. A
   // segment stops when a step gains less than 1e-9 of its error, or after its damping reached 1e6 (its
@@ -149,10 +183,9 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
     }
   };
   constexpr int kPasses = 60;
-  SegmentStates ts{&trial, true, false, &active};
   for (int pass = 0; pass < kPasses && std::find(active.begin(), active.end(), 1) != active.end(); ++pass) {
     propose();
-    const bool ok = SimulateOutputs(m, th, {}, r, setup, substeps, every, false, &so, nullptr, &ts);
+    const bool ok = simulate(trial, true, false, &active, &so);
     if (ok) measure(so, &now);
     for (size_t k = 0; k < nseg; ++k) {
       if (!active[k]) continue;
@@ -181,8 +214,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
   }
   // The Jacobian at the fitted states: parameters' and states' columns in one pass, then per segment the
   // parameters' columns minus their least-squares projection on the states' (weighted as the error).
-  SegmentStates fs{&states, true, true};
-  if (!SimulateOutputs(m, th, *extra, r, setup, substeps, every, true, out, nullptr, &fs)) return false;
+  if (!simulate(states, true, true, nullptr, out)) return false;
   const long P = out->d[0].cols();
   for (size_t k = 0; k < nseg; ++k) {
     size_t a, b;
@@ -247,18 +279,22 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
   if (fitted) fitted->assign(recs.size(), {});
   std::vector<char> ok(recs.size(), 1);
   const std::vector<const TermDef*> none;
+  const int cpus = threads > 0 ? threads : UsableCpus();
+  // Shooting: the CPUs left over by the records run a record's segments side by side.
+  const int inner = std::max<int>(1, cpus / static_cast<int>(std::max<size_t>(1, recs.size())));
   auto one = [&](size_t i) {
     const int sub = substeps.empty() ? 0 : substeps[i];
     const int restart = horizon_s > 0 ? ShootingSegment(horizon_s, recs[i].dt) : 0;
     if (shoot) {
       ok[i] = restart > 0 && ShootRecord(m, th, extra, recs[i], setup, sub, restart, &s.o[i],
-                                         start && i < start->size() ? &(*start)[i] : nullptr, fitted ? &(*fitted)[i] : nullptr);
+                                         start && i < start->size() ? &(*start)[i] : nullptr, fitted ? &(*fitted)[i] : nullptr,
+                                         inner);
       return;
     }
     ok[i] = SimulateOutputs(m, th, extra ? *extra : none, recs[i], setup, sub, restart, extra != nullptr, &s.o[i],
                             stops ? &(*stops)[i] : nullptr);
   };
-  const size_t nt = std::min<size_t>(recs.size(), threads > 0 ? static_cast<size_t>(threads) : static_cast<size_t>(UsableCpus()));
+  const size_t nt = std::min<size_t>(recs.size(), static_cast<size_t>(cpus));
   if (nt <= 1) {
     for (size_t i = 0; i < recs.size(); ++i) one(i);
   } else {

@@ -125,3 +125,30 @@ TEST(IdentifyShooting, RecoversTheParametersOfAChaoticRecord) {
 
 }  // namespace
 }  // namespace bistable
+
+namespace bistable {
+namespace {
+
+TEST(IdentifyShooting, SegmentsSplitOverTwoThreadsGiveTheSameFit) {
+  // One record: the second CPU simulates half of the segments; segments are independent, so the fit is
+  // the one-thread fit to the bit.
+  const IdentModel truth = Model(kBistable, BistableTheta());
+  std::vector<PreparedRecord> recs = {SyntheticRecord(truth, 4.0, 640, 2e-3, 2e-3, kChaoticDrive)};
+  SetOutputWeights(&recs);
+  IdentModel m = truth;
+  for (size_t i = 0; i < m.theta.size(); ++i) m.theta[i] *= i % 2 ? 0.9 : 1.1;
+  FitOptions o;
+  o.objective = Objective::kShooting;
+  o.shooting_horizon_s = 0.46;
+  o.global_evals = 0;
+  o.threads = 1;
+  const FitResult one = Fit(m, m.theta, recs, HarvesterSetup(), o);
+  o.threads = 2;
+  const FitResult two = Fit(m, m.theta, recs, HarvesterSetup(), o);
+  EXPECT_EQ(one.theta, two.theta);
+  EXPECT_EQ(one.errors.shooting, two.errors.shooting);
+  EXPECT_EQ(one.simulations, two.simulations);
+}
+
+}  // namespace
+}  // namespace bistable
