@@ -99,6 +99,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
   }
   using Mat = Eigen::MatrixXd;
   using Vec = Eigen::VectorXd;
+  using Row = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kStateDim, 1>;  // a row's state sensitivities: no heap
   // Per segment: the weighted error's sum of squares, gradient and Gauss–Newton matrix at a pass's states.
   struct Seg {
     double cost = INFINITY, mu = 1e-3;
@@ -121,7 +122,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
         const std::vector<double>& meas = r.Measured(static_cast<OutputSlot>(slot));
         for (size_t i = a; i <= b; ++i) {
           const double e = (so.out[slot][i] - meas[i]) * w[slot];
-          Vec J(nl);
+          Row J(nl);
           for (int c = 0; c < nl; ++c) J[c] = so.ds[slot](static_cast<long>(i), live[c]) * w[slot];
           sg.cost += e * e;
           sg.g += J * e;
@@ -224,7 +225,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
       if (out->out[slot].empty()) continue;
       const double w2 = w[slot] * w[slot];
       for (size_t i = a; i <= b; ++i) {
-        Vec J(nl);
+        Row J(nl);
         for (int c = 0; c < nl; ++c) J[c] = out->ds[slot](static_cast<long>(i), live[c]);
         A += w2 * J * J.transpose();
         AB += w2 * J * out->d[slot].row(static_cast<long>(i));
@@ -234,7 +235,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
     for (int slot = 0; slot < kOutputSlots; ++slot) {
       if (out->out[slot].empty()) continue;
       for (size_t i = a; i <= b; ++i) {
-        Vec J(nl);
+        Row J(nl);
         for (int c = 0; c < nl; ++c) J[c] = out->ds[slot](static_cast<long>(i), live[c]);
         out->d[slot].row(static_cast<long>(i)) -= J.transpose() * G;
       }

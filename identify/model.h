@@ -201,7 +201,7 @@ struct SegmentStates {
 // Segments of a record of n samples cut every `every` samples, and the segment that emits sample i.
 inline size_t NumSegments(size_t n, int every) { return n <= 1 ? 1 : (n - 2) / static_cast<size_t>(every) + 1; }
 inline size_t SegmentOf(size_t i, int every) { return i == 0 ? 0 : (i - 1) / static_cast<size_t>(every); }
-// The measured (smoothed) state at sample i, in state order, offset included (MeasuredState of a restart).
+// The measured (smoothed) state at sample i in state order, offset included: what a restart sets.
 std::array<double, kStateDim> MeasuredState(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r,
                                             const Setup& setup, size_t i);
 bool SimulateOutputs(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,

@@ -26,6 +26,28 @@ std::vector<double> BistableTheta() { return {-1974.0, 2.19e8, 0.8, -130.0, 7.0,
 // in a well, at 16 m/s² it locks onto a large periodic orbit).
 constexpr double kChaoticDrive = 9.0;
 
+// The chaotic record (seconds long, noise 2e-3 on both outputs, output weights set) and the true model
+// with every parameter moved by ±off (alternately up and down): a fit's problem.
+std::vector<PreparedRecord> ChaoticRecords(double seconds) {
+  std::vector<PreparedRecord> recs = {SyntheticRecord(Model(kBistable, BistableTheta()), seconds, 640, 2e-3, 2e-3, kChaoticDrive)};
+  SetOutputWeights(&recs);
+  return recs;
+}
+IdentModel MovedStart(double off) {
+  IdentModel m = Model(kBistable, BistableTheta());
+  for (size_t i = 0; i < m.theta.size(); ++i) m.theta[i] *= i % 2 ? 1.0 - off : 1.0 + off;
+  return m;
+}
+// Shooting over three forcing periods, local stage only.
+FitOptions ShootingOptions(int threads = 0) {
+  FitOptions o;
+  o.objective = Objective::kShooting;
+  o.shooting_horizon_s = 0.46;
+  o.global_evals = 0;
+  o.threads = threads;
+  return o;
+}
+
 TEST(IdentifyShooting, SegmentStateSensitivitiesMatchFiniteDifferences) {
   // ds: the derivative of each output by its own segment's start state, against central differences of
   // simulations from perturbed given states (the parameters' columns are checked in identify_piezo_test).
@@ -101,17 +123,9 @@ TEST(IdentifyShooting, ReestimatedStatesReachTheNoiseOnTheModelsOwnChaoticRecord
 TEST(IdentifyShooting, RecoversTheParametersOfAChaoticRecord) {
   // Started 25 % off, the shooting fit returns the true parameters within a few σ and a few per cent;
   // the same start's free run is no sample-by-sample match of a chaotic record (its NRMSE stays large).
-  const IdentModel truth = Model(kBistable, BistableTheta());
-  const PreparedRecord r = SyntheticRecord(truth, 8.0, 640, 2e-3, 2e-3, kChaoticDrive);
-  std::vector<PreparedRecord> recs = {r};
-  SetOutputWeights(&recs);
-  IdentModel m = truth;
-  for (size_t i = 0; i < m.theta.size(); ++i) m.theta[i] *= i % 2 ? 0.75 : 1.25;
-  FitOptions o;
-  o.objective = Objective::kShooting;
-  o.shooting_horizon_s = 0.46;
-  o.global_evals = 0;
-  const FitResult f = Fit(m, m.theta, recs, HarvesterSetup(), o);
+  const std::vector<PreparedRecord> recs = ChaoticRecords(8.0);
+  const IdentModel m = MovedStart(0.25);
+  const FitResult f = Fit(m, m.theta, recs, HarvesterSetup(), ShootingOptions());
   const auto names = m.ParamNames();
   for (size_t i = 0; i < f.theta.size(); ++i) {
     SCOPED_TRACE(names[i]);
@@ -123,28 +137,13 @@ TEST(IdentifyShooting, RecoversTheParametersOfAChaoticRecord) {
   EXPECT_GT(f.errors.nrmse, 30.0) << "a free run of a chaotic record drifts off it";
 }
 
-}  // namespace
-}  // namespace bistable
-
-namespace bistable {
-namespace {
-
 TEST(IdentifyShooting, SegmentsSplitOverTwoThreadsGiveTheSameFit) {
   // One record: the second CPU simulates half of the segments; segments are independent, so the fit is
   // the one-thread fit to the bit.
-  const IdentModel truth = Model(kBistable, BistableTheta());
-  std::vector<PreparedRecord> recs = {SyntheticRecord(truth, 4.0, 640, 2e-3, 2e-3, kChaoticDrive)};
-  SetOutputWeights(&recs);
-  IdentModel m = truth;
-  for (size_t i = 0; i < m.theta.size(); ++i) m.theta[i] *= i % 2 ? 0.9 : 1.1;
-  FitOptions o;
-  o.objective = Objective::kShooting;
-  o.shooting_horizon_s = 0.46;
-  o.global_evals = 0;
-  o.threads = 1;
-  const FitResult one = Fit(m, m.theta, recs, HarvesterSetup(), o);
-  o.threads = 2;
-  const FitResult two = Fit(m, m.theta, recs, HarvesterSetup(), o);
+  const std::vector<PreparedRecord> recs = ChaoticRecords(4.0);
+  const IdentModel m = MovedStart(0.1);
+  const FitResult one = Fit(m, m.theta, recs, HarvesterSetup(), ShootingOptions(1));
+  const FitResult two = Fit(m, m.theta, recs, HarvesterSetup(), ShootingOptions(2));
   EXPECT_EQ(one.theta, two.theta);
   EXPECT_EQ(one.errors.shooting, two.errors.shooting);
   EXPECT_EQ(one.simulations, two.simulations);
