@@ -1,5 +1,7 @@
 #include "server/metrics.h"
 
+#include <malloc.h>
+
 #include <chrono>
 #include <deque>
 #include <mutex>
@@ -66,6 +68,13 @@ class StatsCollector : public prometheus::Collectable {
     out.push_back(Family("bistable_sweeps", "Sweeps this coordinator holds, by state", MetricType::Gauge));
     for (int st = 0; st < static_cast<int>(s.sweeps_by_state.size()); ++st)
       Add(out.back(), static_cast<double>(s.sweeps_by_state[st]), {{"state", SweepStateName(static_cast<SweepState>(st))}});
+    // The heap as malloc sees it: what is allocated now, and what is free but kept (fragments in the
+    // arenas that malloc_trim cannot give back). RSS alone mixes the two with the mapped libraries.
+    const struct mallinfo2 mi = ::mallinfo2();
+    one("bistable_heap_in_use_bytes", "Heap bytes allocated now (malloc arenas and mmapped blocks)", MetricType::Gauge,
+        static_cast<double>(mi.uordblks + mi.hblkhd));
+    one("bistable_heap_free_retained_bytes", "Heap bytes free inside the malloc arenas, not yet returned to the system",
+        MetricType::Gauge, static_cast<double>(mi.fordblks));
     return out;
   }
 

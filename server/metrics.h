@@ -13,6 +13,8 @@
 //   bistable_workers                     workers with a lease or seen within 3 lease periods
 //   bistable_worker_items_total{worker}  items stored per worker
 //   bistable_sweeps{state}               sweeps this process holds, by state
+//   bistable_heap_in_use_bytes           heap allocated now (mallinfo2: arenas + mmapped blocks)
+//   bistable_heap_free_retained_bytes    heap free inside the arenas, kept by malloc
 #ifndef BISTABLE_SERVER_METRICS_H_
 #define BISTABLE_SERVER_METRICS_H_
 

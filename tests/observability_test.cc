@@ -15,6 +15,7 @@
 #include "base/sha256.h"
 #include "net/http_server.h"
 #include "proto/health.h"
+#include "tests/http_client.h"
 #include "tests/process_util.h"
 
 namespace {
@@ -25,45 +26,10 @@ namespace http = beast::http;
 namespace asio = boost::asio;
 using asio::ip::tcp;
 using bistable_test::ExecResult;
+using bistable_test::HttpReply;
+using bistable_test::HttpRequest;
+using bistable_test::ParseMetrics;
 using bistable_test::RunArgv;
-
-struct HttpReply {
-  int status = 0;
-  std::string body, content_type;
-};
-
-// One request over a fresh connection (a real HTTP/1.1 client).
-HttpReply HttpRequest(int port, const std::string& target, http::verb verb = http::verb::get,
-                      const std::string& extra_header = "") {
-  asio::io_context io;
-  tcp::socket sock(io);
-  sock.connect(tcp::endpoint(asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)));
-  http::request<http::empty_body> req{verb, target, 11};
-  req.set(http::field::host, "127.0.0.1");
-  if (!extra_header.empty()) req.set("X-Padding", extra_header);
-  http::write(sock, req);
-  beast::flat_buffer buf;
-  http::response_parser<http::string_body> parser;
-  parser.body_limit(64 << 20);
-  if (verb == http::verb::head) parser.skip(true);
-  beast::error_code ec;
-  http::read(sock, buf, parser, ec);
-  if (ec) return {-1, ec.message(), ""};
-  const auto& res = parser.get();
-  return {static_cast<int>(res.result_int()), res.body(), std::string(res[http::field::content_type])};
-}
-
-// Prometheus text → {"name{labels}": value}.
-std::map<std::string, double> ParseMetrics(const std::string& text) {
-  std::map<std::string, double> out;
-  std::istringstream in(text);
-  for (std::string line; std::getline(in, line);) {
-    if (line.empty() || line[0] == '#') continue;
-    const size_t sp = line.rfind(' ');
-    out[line.substr(0, sp)] = std::stod(line.substr(sp + 1));
-  }
-  return out;
-}
 
 double SumOf(const std::map<std::string, double>& m, const std::string& prefix) {
   double s = 0;
