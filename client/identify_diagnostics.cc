@@ -29,6 +29,9 @@ nlohmann::json WhitenessObject(const Whiteness& w) {
 }  // namespace
 
 nlohmann::json InvariantsObject(const Invariants& v) {
+  nlohmann::json outs = nlohmann::json::object();
+  for (const Invariants::Output& o : v.by_output)
+    outs[o.name] = {{"hellinger", JsonNumber(o.hellinger)}, {"spectral_error_percent", JsonNumber(o.spectral_error)}};
   return {{"poincare_energy", JsonNumber(v.poincare)},
           {"poincare_floor", JsonNumber(v.poincare_floor)},
           {"section_points", v.section_points},
@@ -36,7 +39,8 @@ nlohmann::json InvariantsObject(const Invariants& v) {
           {"switching_rate_measured_hz", JsonNumber(v.switching_rate_measured)},
           {"switching_rate_error", JsonNumber(v.switching_error)},
           {"velocity_hellinger", JsonNumber(v.velocity_hellinger)},
-          {"spectral_error_percent", JsonNumber(v.spectral_error)}};
+          {"spectral_error_percent", JsonNumber(v.spectral_error)},
+          {"by_output", outs}};
 }
 
 void AddDiagnosticsJson(const IdentifyResult& r, const std::vector<PreparedRecord>& recs, nlohmann::json* j) {
@@ -85,10 +89,20 @@ void WriteDiagnosticsReport(std::ostream& md, const IdentifyResult& r) {
     for (size_t i = 0; i < d.chaos.forcing_hz.size(); ++i)
       md << (i ? ", " : "") << F(d.chaos.forcing_hz[i]) << " Hz (output broadband share " << F(d.chaos.output_broadband[i], 3)
          << (d.chaos.record_chaotic[i] ? ", chaotic" : "") << ")";
-    md << ".\n\n| model | Poincaré H | switches/s (measured) | velocity Hellinger | spectral error |\n|---|---|---|---|---|\n";
+    md << ".\n\n| model | Poincaré H | switches/s (measured) | velocity Hellinger | spectral error |";
+    for (const Invariants::Output& o : d.declared.by_output) md << " " << o.name << " Hellinger | " << o.name << " spectral |";
+    md << "\n|---|---|---|---|---|";
+    for (size_t k = 0; k < d.declared.by_output.size(); ++k) md << "---|---|";
+    md << "\n";
     auto row = [&](const std::string& what, const Invariants& v) {
       md << "| " << what << " | " << F(v.poincare, 3) << " | " << F(v.switching_rate, 3) << " (" << F(v.switching_rate_measured, 3) << ") | "
-         << F(v.velocity_hellinger, 3) << " | " << F(v.spectral_error, 3) << " % |\n";
+         << F(v.velocity_hellinger, 3) << " | " << F(v.spectral_error, 3) << " % |";
+      for (size_t k = 0; k < d.declared.by_output.size(); ++k)
+        if (k < v.by_output.size())
+          md << " " << F(v.by_output[k].hellinger, 3) << " | " << F(v.by_output[k].spectral_error, 3) << " % |";
+        else
+          md << " – | – |";
+      md << "\n";
     };
     row("declared", d.declared);
     for (const StepDiagnostics& s : d.steps) row("+ " + s.term + (s.kept ? "" : " (refit, not kept)"), s.after);

@@ -180,11 +180,21 @@ Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th,
   Invariants inv;
   double h_sum = 0, floor_sum = 0, hist_sum = 0, fft_sum = 0, seconds = 0;
   int h_n = 0, floor_n = 0, hist_n = 0, fft_n = 0, sw_sim = 0, sw_meas = 0;
+  double out_hist[kOutputSlots] = {0, 0, 0};
+  int out_hist_n[kOutputSlots] = {0, 0, 0};
   for (size_t i = 0; i < recs.size() && i < check.record_chaotic.size(); ++i) {
     if (!check.record_chaotic[i]) continue;
     const PreparedRecord& r = recs[i];
-    std::vector<double> out, ym, vm, ys, vs;
-    if (!Simulate(m, th, r, setup, &out)) return Invariants{};  // diverged: nothing reproduced
+    std::vector<double> ym, vm, ys, vs;
+    SimOutputs so;
+    if (!SimulateOutputs(m, th, {}, r, setup, 0, 0, false, &so)) return Invariants{};  // diverged: nothing reproduced
+    const std::vector<double>& out = so.out[0];
+    for (int k = 0; k < kOutputSlots; ++k) {
+      const OutputSlot slot = static_cast<OutputSlot>(k);
+      if (!r.Has(slot) || so.out[k].size() != r.Measured(slot).size()) continue;
+      const double hk = HistogramHellinger(r.Measured(slot), so.out[k]);
+      if (std::isfinite(hk)) out_hist[k] += hk, ++out_hist_n[k];
+    }
     MainBodyMotion(r.meas, r, setup, &ym, &vm);
     MainBodyMotion(out, r, setup, &ys, &vs);
     if (i < errors.record_fft.size() && std::isfinite(errors.record_fft[i])) fft_sum += errors.record_fft[i], ++fft_n;
@@ -209,6 +219,15 @@ Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th,
   if (floor_n) inv.poincare_floor = floor_sum / floor_n;
   if (hist_n) inv.velocity_hellinger = hist_sum / hist_n;
   if (fft_n) inv.spectral_error = fft_sum / fft_n;
+  for (int k = 0; k < kOutputSlots; ++k) {
+    if (!out_hist_n[k]) continue;
+    Invariants::Output o;
+    o.name = OutputName(setup, static_cast<OutputSlot>(k));
+    o.hellinger = out_hist[k] / out_hist_n[k];
+    for (const OutputErrors& e : errors.outputs)
+      if (e.name == o.name) o.spectral_error = e.fft;
+    inv.by_output.push_back(o);
+  }
   if (seconds > 0) {
     inv.switching_rate = sw_sim / seconds;
     inv.switching_rate_measured = sw_meas / seconds;

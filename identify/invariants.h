@@ -16,6 +16,9 @@
 //    on common bins (40 over the measured range widened by 10 %, one overflow bin each side).
 //    Dimensionless, in [0, 1].
 //  * Spectrum: the normalised Eq. 20 error of fit.h (Errors::fft), %.
+//  * Per output (velocity and voltage, displacement and resonator): the histogram distance of the
+//    output's own samples and its spectral error — a second output's statistics are invariants of the
+//    attractor too.
 // y is the relative displacement: the output itself (displacement outputs; minus the base for an
 // absolute one under base displacement) or, for velocity outputs, the FFT integral of the relative
 // velocity (IntegrateFft; zero-mean, so the barrier at 0 assumes the motion visits both wells alike).
@@ -82,6 +85,14 @@ struct Invariants {
   double switching_error = NAN;       // |sim − meas| / meas
   double velocity_hellinger = NAN;    // dimensionless [0, 1]
   double spectral_error = NAN;        // % (Errors::fft)
+  // Every measured output (main first): the Hellinger distance of its measured and simulated sample
+  // histograms (as for the velocity) and its spectral error (OutputErrors::fft, all records).
+  struct Output {
+    std::string name;
+    double hellinger = NAN;
+    double spectral_error = NAN;
+  };
+  std::vector<Output> by_output;
 };
 
 // Per record: the forcing and the rule's inputs.
