@@ -42,6 +42,7 @@ struct IdentifyArgs {
   int decimate = 1, global_evals = 150, max_added = 3, threads = 0;
   double horizon = 0.5, deriv_cutoff = 0;
   bool json = false, list_terms = false, fit_offsets = false;
+  std::string output_weights = "residual";
   // --predict: simulate the --data records with the fitted model of --model (nothing fitted).
   bool predict = false;
   std::string model_file, start_well;
@@ -372,6 +373,9 @@ Status PlanLoop(const IdentifyArgs& a, IdentifyPlan* plan) {
   opt.fit.shooting_horizon_s = a.horizon;
   opt.max_added = a.max_added;
   opt.fit_offsets = a.fit_offsets;
+  if (a.output_weights == "residual") opt.output_weights = IdentifyOptions::OutputWeights::kResidual;
+  else if (a.output_weights == "noise") opt.output_weights = IdentifyOptions::OutputWeights::kNoise;
+  else return Status::InvalidArgument("output-weights", "'" + a.output_weights + "' violates output-weights in {residual, noise}");
   if (!a.candidates.empty()) {
     auto c = ParseTerms(a.candidates);
     if (!c.ok()) return Status::InvalidArgument("candidates", c.status().message());
@@ -590,7 +594,7 @@ nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const
                    {"deriv_cutoff_hz", recs.empty() ? 0.0 : recs[0].f_cut}, {"global_evals", a.global_evals}, {"shooting_horizon_s", a.horizon},
                    {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"input_kind", a.input_kind},
                    {"output_kind", a.output_kind}, {"output_frame", a.frame},
-                   {"fit_offsets", a.fit_offsets}};
+                   {"fit_offsets", a.fit_offsets}, {"output_weights", a.output_weights}};
   AddDiagnosticsJson(r, recs, &j);
   return j;
 }
@@ -825,7 +829,12 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
     }
   }
   for (size_t i = 0; i < recs.size(); ++i) recs[i].index = static_cast<int>(i);
-  SetOutputWeights(&recs);
+  SetOutputWeights(&recs);  // the fit's weights where the model file has them
+  for (PreparedRecord& r : recs)
+    for (int k = 1; k < kOutputSlots; ++k) {
+      const auto it = fm->output_weights.find(OutputName(setup, static_cast<OutputSlot>(k)));
+      if (it != fm->output_weights.end()) r.weight[k] = it->second;
+    }
   std::vector<PredictedRecord> out;
   for (size_t i = 0; i < recs.size(); ++i) {
     PredictedRecord pr;
@@ -885,9 +894,12 @@ StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
     frame.chosen = frame.error[1] < frame.error[0] ? "relative" : "absolute";
     plan.setup.frame = frame.chosen == "relative" ? OutputFrame::kRelative : OutputFrame::kAbsolute;
   }
-  std::vector<PreparedRecord> weighted = recs;
-  SetOutputWeights(&weighted);
-  const auto tests = TestSplits(r, *loaded, plan, a.deriv_cutoff, weighted[0].weight);
+  // The test splits are scored under the fit's final output weights (which the loop may have re-estimated).
+  double weights[kOutputSlots] = {1, 1, 1};
+  for (int k = 1; k < kOutputSlots; ++k)
+    for (const OutputErrors& o : r.after.errors.outputs)
+      if (o.name == OutputName(plan.setup, static_cast<OutputSlot>(k))) weights[k] = o.weight;
+  const auto tests = TestSplits(r, *loaded, plan, a.deriv_cutoff, weights);
   if (!tests.ok()) return tests.status();
   const long long simulations = TotalSimulations(r);
   nlohmann::json j = ResultJson(a, plan, r, recs, *tests, simulations);
@@ -944,6 +956,11 @@ void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
   c->add_option("--make-synthetic", a->synth, "write synthetic chirp records into DIR and exit (see --synthetic)");
   c->add_option("--synthetic", a->synth_kind, "linear: Table 2 linear rig, 1-8 Hz chirps of 6/10/14 mm, 20 s each | coupled: Table 2 bistable beam + resonator, friction on both, 1-6 Hz chirp of 4 mm, 70 s (120 Hz, 0.05 mm noise)")->capture_default_str();
   c->add_flag("--fit-offsets", a->fit_offsets, "velocity outputs: fit each record's displacement offset (which well)");
+  c->add_option("--output-weights", a->output_weights,
+                "several outputs: weight of each output's error in the joint fit — residual: from each output's error in the "
+                "declared fit and after every added effect, floored at its noise (maximum likelihood with per-output error "
+                "levels) | noise: from the noise levels alone")
+      ->capture_default_str();
   c->add_flag("--list-terms", a->list_terms, "list the effect library (ids, formulas, units) and exit");
   c->add_flag("--json", a->json, "print the result as JSON");
   c->add_flag("--predict", a->predict, "fit nothing: simulate every --data record with the fitted model of --model and report errors, the "

@@ -251,6 +251,16 @@ StatusOr<FittedModel> ReadFittedModel(const std::string& path_in) {
   if (m.HasResonator() && !(m.m_res > 0)) return Status::InvalidArgument("model.settings.m_res", "the model has resonator terms but no m_res > 0");
   fm.frame = SettingString(j, "output_frame");
   if (fm.frame != "absolute" && fm.frame != "relative") fm.frame.clear();
+  if (j.contains("errors_by_output") && j["errors_by_output"].is_object() && j["errors_by_output"].size() <= kOutputSlots)
+    for (const auto& [name, o] : j["errors_by_output"].items()) {
+      if (!o.is_object() || !o.contains("weight") || name.size() > 16) continue;
+      const std::string field = "model.errors_by_output." + name + ".weight";
+      auto w = JsonFinite(o["weight"], field);
+      if (!w.ok()) return w.status();
+      if (!(*w >= kMinOutputWeight && *w <= kMaxOutputWeight))
+        return Status::InvalidArgument(field, field + " = " + F(*w) + " violates " + F(kMinOutputWeight) + " <= weight <= " + F(kMaxOutputWeight));
+      fm.output_weights[name] = *w;
+    }
   fm.input_kind = SettingString(j, "input_kind");
   fm.output_kind = SettingString(j, "output_kind");
   const nlohmann::json& params = j["params"];

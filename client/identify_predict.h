@@ -4,6 +4,7 @@
 #ifndef BISTABLE_CLIENT_IDENTIFY_PREDICT_H_
 #define BISTABLE_CLIENT_IDENTIFY_PREDICT_H_
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,9 @@ struct FittedModel {
   std::string frame;                    // the fit's velocity frame: "absolute", "relative" or "" (not recorded)
   std::string input_kind, output_kind;  // the fit's, "" when not recorded
   std::vector<std::string> notes;       // what was read with a caveat (dropped offsets)
+  // The fit's final output weights by output name (errors_by_output.<name>.weight), empty in older files
+  // (then the noise weights): a joint error is comparable with the fit's only under its weights.
+  std::map<std::string, double> output_weights;
 };
 
 // FILE or DIR (then DIR/report.json). The final terms come from "final_terms" or, in older files, from

@@ -1,6 +1,7 @@
 #include "identify/loop.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -473,6 +474,35 @@ bool Physical(const IdentModel& m, const std::vector<double>& th) {
   return pz < 0 || th[pz] * th[pz + 2] > 0;
 }
 
+}  // namespace
+
+bool ReweightOutputs(const Errors& e, Objective obj, const Setup& setup, std::vector<PreparedRecord>* recs) {
+  if (recs->empty()) return false;
+  std::array<double, kOutputSlots> level = RelativeNoise(*recs);
+  int outputs = 0;
+  for (int k = 0; k < kOutputSlots; ++k) {
+    const OutputSlot slot = static_cast<OutputSlot>(k);
+    if (!(*recs)[0].Has(slot)) continue;
+    ++outputs;
+    for (const OutputErrors& o : e.outputs)
+      if (o.name == OutputName(setup, slot)) {
+        const double err = 0.01 * (obj == Objective::kFft ? o.fft : obj == Objective::kShooting ? o.shooting : o.nrmse);
+        if (std::isfinite(err)) level[k] = std::isfinite(level[k]) ? std::max(level[k], err) : err;
+      }
+  }
+  if (outputs < 2) return false;
+  const std::vector<PreparedRecord> old = *recs;
+  SetOutputWeightsFrom(level, recs);
+  bool moved = false;
+  for (int k = 1; k < kOutputSlots; ++k) {
+    const double ratio = (*recs)[0].weight[k] / old[0].weight[k];
+    moved = moved || !(ratio < 2.0 && ratio > 0.5);
+  }
+  return moved;
+}
+
+namespace {
+
 // The model `m` (fitted: `fit`) with the step's chosen term added (`*next`), refitted by simulation
 // from two starts — the trace's estimate, and the extended model's equation-error regression
 // (another basin) — the better kept. The trace's estimate is a linearisation about the fit: far from
@@ -531,14 +561,21 @@ AddedEffect Added(const TermDef* t, const IdentModel& m, const FitResult& fit, d
 
 }  // namespace
 
-IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& recs, const Setup& setup,
+IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& recs_in, const Setup& setup,
                                const IdentifyOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
+  std::vector<PreparedRecord> recs = recs_in;  // their output weights may be re-estimated below
+  const bool reweight = opt.output_weights == IdentifyOptions::OutputWeights::kResidual;
   IdentifyResult out;
   std::vector<double> sigma0;
   StartDeclared(&m, recs, setup, &sigma0);
   out.declared = m;
   FitResult fit = Fit(m, ScaleOf(m, m.theta, sigma0, recs, setup), recs, setup, opt.fit);
+  // The reweighted declared fit starts from the first one (σ as scale): the same basin, new weights.
+  if (reweight && ReweightOutputs(fit.errors, opt.fit.objective, setup, &recs)) {
+    m.theta = fit.theta;
+    fit = Fit(m, ScaleOf(m, m.theta, fit.sigma, recs, setup), recs, setup, opt.fit);
+  }
   m.theta = fit.theta;
   out.before = fit;
   out.fits.push_back({m, fit, "", true});
@@ -593,6 +630,14 @@ IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& 
     m = next;
     m.theta = refit.theta;
     fit = refit;
+    if (reweight && ReweightOutputs(fit.errors, opt.fit.objective, setup, &recs)) {
+      // The step's verdict and error_after stay those of the refit (both errors under one set of
+      // weights); the model goes on, and is diagnosed, as refitted with the new weights.
+      fit = Fit(m, ScaleOf(m, m.theta, fit.sigma, recs, setup), recs, setup, opt.fit);
+      m.theta = fit.theta;
+      out.fits.back().fit = fit;
+      out.fits.back().model.theta = fit.theta;
+    }
   }
   out.final_model = m;
   out.after = fit;

@@ -68,6 +68,11 @@ struct IdentifyOptions {
   // equation-error scan. Off by default: on the harvester's chaotic record it traded off against a
   // bias term (docs/identification.md).
   bool fit_offsets = false;
+  // Several outputs: their weights in the joint error. kNoise: from the noise levels only
+  // (SetOutputWeights). kResidual: from each output's error in the declared fit and again after every
+  // added effect (ReweightOutputs in loop.cc), floored at the noise — the noise weights once the model
+  // matches to the noise, and no output dominating because it is clean while the model misses it.
+  enum class OutputWeights { kNoise, kResidual } output_weights = OutputWeights::kResidual;
 };
 
 struct IdentifyResult {
@@ -80,6 +85,15 @@ struct IdentifyResult {
   LoopDiagnostics diagnostics;     // whiteness / unexplained, correlations, drift, invariants (diagnostics.h)
   double seconds = 0;
 };
+
+// Output weights from a fit's errors (IdentifyOptions::OutputWeights::kResidual): the level of output o
+// is its relative error under the objective, floored at its relative noise ν_o, and λ_o = (level_main /
+// level_o)² (SetOutputWeightsFrom). These are the maximum-likelihood weights when each output's error
+// variance is estimated from its own residual. Noise weights alone say how well a perfect model would
+// match: while the model misses by far more than the noise they let the cleanest output dominate (the
+// harvester's voltage, σ 4 µV: λ = 100 at the clip; the fit then gave up velocity for voltage). True
+// when a weight moved by more than a factor 2 (the fit is then repeated with the new weights).
+bool ReweightOutputs(const Errors& e, Objective obj, const Setup& setup, std::vector<PreparedRecord>* recs);
 
 IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRecord>& recs, const Setup& setup,
                         const IdentifyOptions& opt);

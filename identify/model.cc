@@ -1,6 +1,7 @@
 #include "identify/model.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <type_traits>
@@ -244,24 +245,30 @@ double PreparedRecord::Scale(OutputSlot s) const {
   }();
 }
 
-void SetOutputWeights(std::vector<PreparedRecord>* recs) {
-  double nu[kOutputSlots] = {0, 0, 0};
+std::array<double, kOutputSlots> RelativeNoise(const std::vector<PreparedRecord>& recs) {
+  std::array<double, kOutputSlots> nu = {0, 0, 0};
   int count[kOutputSlots] = {0, 0, 0};
-  for (const PreparedRecord& r : *recs)
+  for (const PreparedRecord& r : recs)
     for (int k = 0; k < kOutputSlots; ++k) {
       const OutputSlot s = static_cast<OutputSlot>(k);
       const double rel = r.noise[k] / r.Scale(s);
       if (r.Has(s) && std::isfinite(rel)) nu[k] += rel * rel, ++count[k];
     }
   for (int k = 0; k < kOutputSlots; ++k) nu[k] = count[k] ? std::sqrt(nu[k] / count[k]) : NAN;
+  return nu;
+}
+
+void SetOutputWeightsFrom(const std::array<double, kOutputSlots>& level, std::vector<PreparedRecord>* recs) {
   for (PreparedRecord& r : *recs) {
     r.weight[0] = 1.0;
     for (int k = 1; k < kOutputSlots; ++k) {
-      const double lam = (nu[0] / nu[k]) * (nu[0] / nu[k]);
-      r.weight[k] = std::isfinite(lam) && lam > 0 ? std::clamp(lam, 0.01, 100.0) : 1.0;
+      const double lam = (level[0] / level[k]) * (level[0] / level[k]);
+      r.weight[k] = std::isfinite(lam) && lam > 0 ? std::clamp(lam, kMinOutputWeight, kMaxOutputWeight) : 1.0;
     }
   }
 }
+
+void SetOutputWeights(std::vector<PreparedRecord>* recs) { SetOutputWeightsFrom(RelativeNoise(*recs), recs); }
 
 int IdentModel::PiezoIndex() const {
   int k = 0;

@@ -161,6 +161,12 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
 // relative noise level (pooled over records: RMS of σ/RMS), clipped to [0.01, 100]; the main output's is 1
 // (a single output fits as before). Sets PreparedRecord::weight of every record.
 void SetOutputWeights(std::vector<PreparedRecord>* recs);
+inline constexpr double kMinOutputWeight = 0.01, kMaxOutputWeight = 100.0;
+// Per output slot: the relative noise level ν = σ / RMS pooled over records (NaN for an output no record has).
+std::array<double, kOutputSlots> RelativeNoise(const std::vector<PreparedRecord>& recs);
+// λ_o = (level_main / level_o)², clipped to [kMinOutputWeight, kMaxOutputWeight] (1 where not finite), for
+// any relative error level per output: the noise (SetOutputWeights) or a fit's error (loop.cc).
+void SetOutputWeightsFrom(const std::array<double, kOutputSlots>& level, std::vector<PreparedRecord>* recs);
 
 // Simulates one record from its measured initial state; `out` receives the output in the compared
 // form at every sample, `out_res` the resonator displacement when measured. False on divergence.

@@ -99,6 +99,36 @@ TEST(IdentifyPiezo, TheLoopFindsTheCouplingOnASyntheticTwoOutputRecord) {
   EXPECT_LT(res.after.errors.outputs[0].nrmse, 5.0);
 }
 
+TEST(IdentifyPiezo, OutputWeightsFollowTheResidualsFlooredAtTheNoise) {
+  // λ_voltage = (e_velocity / e_voltage)² from a fit's errors while they exceed the noise; the noise
+  // weights (SetOutputWeights) once both are below it; "moved" only when a weight changed by over 2×.
+  std::vector<PreparedRecord> recs = {SyntheticRecord(Model(kTerms, TrueTheta()), 4.0, 640, 2e-4, 2e-5)};
+  SetOutputWeights(&recs);
+  const double noise_weight = recs[0].weight[2];
+  auto errors = [](double velocity, double voltage) {
+    Errors e;
+    e.outputs.resize(2);
+    e.outputs[0].name = "velocity", e.outputs[0].nrmse = velocity;
+    e.outputs[1].name = "voltage", e.outputs[1].nrmse = voltage;
+    return e;
+  };
+  std::vector<PreparedRecord> w = recs;
+  const bool moved = ReweightOutputs(errors(40.0, 20.0), Objective::kTime, HarvesterSetup(), &w);
+  EXPECT_DOUBLE_EQ(w[0].weight[2], 4.0);
+  EXPECT_EQ(w[0].weight[0], 1.0);
+  EXPECT_EQ(moved, !(noise_weight / 4.0 < 2.0 && noise_weight / 4.0 > 0.5)) << "noise weight " << noise_weight;
+  EXPECT_FALSE(ReweightOutputs(errors(40.0, 20.0), Objective::kTime, HarvesterSetup(), &w)) << "nothing moved";
+  EXPECT_TRUE(ReweightOutputs(errors(40.0, 2.0), Objective::kTime, HarvesterSetup(), &w)) << "400 against 4";
+  EXPECT_DOUBLE_EQ(w[0].weight[2], kMaxOutputWeight) << "clipped";
+  ReweightOutputs(errors(1e-9, 1e-9), Objective::kTime, HarvesterSetup(), &w);
+  EXPECT_EQ(w[0].weight[2], noise_weight) << "below the noise: the noise weights";
+  // The objective's own error is read: shooting errors, not the NRMSE.
+  Errors e = errors(NAN, NAN);
+  e.outputs[0].shooting = 30.0, e.outputs[1].shooting = 60.0;
+  ReweightOutputs(e, Objective::kShooting, HarvesterSetup(), &w);
+  EXPECT_DOUBLE_EQ(w[0].weight[2], 0.25);
+}
+
 // The measured harvester (skipped without the data): the left intrawell record, both outputs, the
 // declared Duffing model; the loop must add main.piezo with a damping coupling, fit the voltage, and
 // decide the velocity frame; the JSON contract holds.

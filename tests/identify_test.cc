@@ -270,6 +270,7 @@ TEST(Identify, BadInputNamesTheFileRowOrTerm) {
       {"--data " + ok + " --terms main.linear --known m_main=1 --objective phase", "objective in {time, fft, shooting}"},
       {"--data " + ok + " --terms main.linear --known m_main=1 --objective shooting --horizon 0", "violates horizon > 0 s"},
       {"--data " + ok + " --terms main.linear --known m_main=1 --horizon 1e9", "violates 0 <= horizon <= 3600 s"},
+      {"--data " + ok + " --terms main.linear --known m_main=1 --output-weights equal", "violates output-weights in {residual, noise}"},
       {"--data " + dir + "/absent.csv --terms main.linear --known m_main=1", "absent.csv"},
       {"--data " + ok + " --terms main.linear,out.voltage.offset --known m_main=1", "acts on a voltage output; this run's outputs are displacement"},
       {"--data " + ok + " --columns output2=piezo --terms main.linear --known m_main=1", "(output2): unknown column 'piezo'"},
