@@ -71,17 +71,21 @@ struct Stribeck {
   // a few ulp of ForceSlope on doubles (glibc), not bit-equal to it.
   struct Lanes {
     explicit Lanes(const Stribeck& f)
-        : a(f.HumpScale()), a_vsp(a / f.v_sp), f_c(f.f_c), f_c_vt(f.f_c / f.v_t), inv_vsp(1.0 / f.v_sp),
-          inv_vt(1.0 / f.v_t) {}
+        : a(f.HumpScale()), f_c(f.f_c), f_c_vt(f.f_c / f.v_t), inv_vt(1.0 / f.v_t), a_vsp(a / f.v_sp),
+          two_a_vsp(2.0 * a_vsp), neg_half_inv_vsp2(-0.5 / (f.v_sp * f.v_sp)) {}
+    // The hump's exponent x = 1/2 − u²/2 (u = v/v_sp) as one fused multiply-add, its slope factor
+    // 1 − u² = 2x: 10 multiplications and fused multiply-adds per call besides Exp and Tanh (the rig's
+    // step is bound by the multiply-add units: docs/numerics.md).
     template <int W>
     BISTABLE_INLINE void ForceSlope(Vec<W> v, Vec<W>* force, Vec<W>* slope) const {
-      const Vec<W> u = v * inv_vsp, u2 = u * u, one = Splat<W>(1.0);
-      const Vec<W> e = Exp<W>(Fma(Splat<W>(-0.5), u2, Splat<W>(0.5)));
+      const Vec<W> one = Splat<W>(1.0);
+      const Vec<W> x = Fma(v * neg_half_inv_vsp2, v, Splat<W>(0.5));
+      const Vec<W> e = Exp<W>(x);
       const Vec<W> th = Tanh<W>(v * inv_vt);
-      *force = Fma(a * u, e, f_c * th);
-      *slope = Fma(a_vsp * e, one - u2, f_c_vt * Fma(-th, th, one));
+      *force = Fma(Splat<W>(f_c), th, (v * a_vsp) * e);
+      *slope = Fma(e * two_a_vsp, x, f_c_vt * Fma(-th, th, one));
     }
-    double a, a_vsp, f_c, f_c_vt, inv_vsp, inv_vt;
+    double a, f_c, f_c_vt, inv_vt, a_vsp, two_a_vsp, neg_half_inv_vsp2;
   };
   // The law is linear in the two forces: F_f(v) = F_s φ[0] + F_c φ[1] with φ[0] = g(v) and
   // φ[1] = tanh(v/v_t) − tanh(v_sp/v_t) g(v); φ depends on v_sp, v_t only (f_s, f_c unused).

@@ -7,17 +7,18 @@
 //
 //   Exp(x):  n = round(x/ln 2) (a shift constant), r = x − n·ln 2 (Cody–Waite in two parts with fused
 //            multiply-adds: the first part is exact), exp(r) = 1 + r·P(r) with P a degree-10
-//            Chebyshev fit of (e^r − 1)/r on |r| ≤ ln 2 / 2 (fit error 2e-17), scaled by 2^n as
-//            (e^r · 2^⌊n/2⌋) · 2^(n − ⌊n/2⌋): both factors normal, so one rounding also for subnormal
-//            results. x is clamped to [−746, 710] first: exp(−746) rounds to +0 and exp(710) to +inf,
-//            so the clamp keeps both limits (no slow underflow path); NaN passes the clamp and
-//            propagates.
+//            Chebyshev fit of (e^r − 1)/r on |r| ≤ ln 2 / 2 (fit error 2e-17; evaluated as two
+//            interleaved Horner chains in r², see ExpP), scaled by 2^n with one rounding also for
+//            subnormal results (VSCALEFPD on AVX-512, else (e^r · 2^⌊n/2⌋) · 2^(n − ⌊n/2⌋), both
+//            factors normal: the same bits). x is clamped to [−746, 710] first: exp(−746) rounds
+//            to +0 and exp(710) to +inf, so the clamp keeps both limits (no slow underflow path);
+//            NaN passes the clamp and propagates.
 //   Tanh(x): for |x| < 0.55 (tanh < 0.5), |x| + |x|³·T(x²) with T a degree-10 Chebyshev fit of
 //            (tanh t − t)/t³ in t² (fit error 8e-18; relative accuracy down to subnormals);
 //            otherwise 1 − 2/(e^{2|x|} + 1) (no cancellation: the result is ≥ 0.5) with e^{2|x|} + 1 =
 //            2^n (1 + r P(r)) + 1 as above, one fused multiply-add of the unrounded parts; the sign of
-//            x copied onto the result (tanh(−0) = −0). Both branches
-//            are computed and one selected per lane.
+//            x copied onto the result (tanh(−0) = −0). Both branches are computed and one selected
+//            per lane.
 #ifndef BISTABLE_DYNAMICS_LANE_MATH_H_
 #define BISTABLE_DYNAMICS_LANE_MATH_H_
 
@@ -92,6 +93,38 @@ BISTABLE_INLINE Vec<W> Pow2(Bits<W> n) {
   return FromBits<W>((n + BroadcastBits<W>(1023)) << 52);
 }
 
+// P(r) = (e^r − 1)/r = Σ kExpP[i] r^i for |r| ≤ ln 2/2 (a reduced argument), as 1 + r·(E(r²) + r·O(r²)):
+// the odd- and even-indexed coefficients of kExpP[1..10] by Horner's rule in r², two independent
+// chains of 4 fused multiply-adds, then the last two steps of Horner's rule in r (so E and O's roundings
+// are scaled by r² ≤ 0.12 in e^r = 1 + r·P(r): as accurate as Horner's rule throughout). Dependency
+// depth 7 instead of 10 for one more multiplication (r²): the rig's step waits on these chains.
+template <int W>
+BISTABLE_INLINE Vec<W> ExpP(Vec<W> r) {
+  const Vec<W> r2 = r * r;
+  Vec<W> e = Splat<W>(kExpP[9]), o = Splat<W>(kExpP[10]);
+#pragma GCC unroll 4
+  for (int i = 7; i >= 1; i -= 2) e = Fma(e, r2, Splat<W>(kExpP[i])), o = Fma(o, r2, Splat<W>(kExpP[i + 1]));
+  return Fma(Fma(o, r, e), r, Splat<W>(kExpP[0]));
+}
+
+// v · 2^n for v in [1/2, 2) and n in [−1076, 1025], given as a double (n) and as an integer (ni):
+// rounded once (also to a subnormal or to ±inf). AVX-512's VSCALEFPD where the unit has it;
+// elsewhere (v · 2^⌊n/2⌋) · 2^(n − ⌊n/2⌋), the first product exact (both factors and the product
+// normal), so the same bits.
+template <int W>
+BISTABLE_INLINE Vec<W> ScaleByPow2(Vec<W> v, [[maybe_unused]] Vec<W> n, Bits<W> ni) {
+#if defined(__AVX512F__)
+  if constexpr (W % 8 == 0)
+    return MapChunks<__m512d>([](__m512d v, __m512d n) BISTABLE_INLINE_LAMBDA { return _mm512_scalef_pd(v, n); }, v, n);
+#endif
+#if defined(__AVX512VL__)
+  if constexpr (W % 4 == 0)
+    return MapChunks<__m256d>([](__m256d v, __m256d n) BISTABLE_INLINE_LAMBDA { return _mm256_scalef_pd(v, n); }, v, n);
+#endif
+  const Bits<W> n1 = ni >> 1;
+  return (v * Pow2<W>(n1)) * Pow2<W>(ni - n1);
+}
+
 }  // namespace lane_math
 
 // e^x per lane.
@@ -99,12 +132,10 @@ template <int W>
 BISTABLE_INLINE Vec<W> Exp(Vec<W> x) {
   using namespace lane_math;
   x = Max<W>(Splat<W>(-746.0), Min<W>(Splat<W>(710.0), x));  // NaN stays NaN (MINPD/MAXPD order)
-  Vec<W> n;
-  Bits<W> ni;  // −1076 … 1025
+  Vec<W> n;  // −1076 … 1025
+  Bits<W> ni;
   const Vec<W> r = Reduce<W>(x, &n, &ni);
-  const Vec<W> er = Fma(r, Horner<W>(r, kExpP), Splat<W>(1.0));
-  const Bits<W> n1 = ni >> 1;
-  return (er * Pow2<W>(n1)) * Pow2<W>(ni - n1);
+  return ScaleByPow2<W>(Fma(r, ExpP<W>(r), Splat<W>(1.0)), n, ni);
 }
 
 // tanh x per lane.
@@ -112,6 +143,7 @@ template <int W>
 BISTABLE_INLINE Vec<W> Tanh(Vec<W> x) {
   using namespace lane_math;
   const Vec<W> a = Abs<W>(x), s = a * a;
+  // Horner's rule here: this branch is off the critical path (the other one waits on a division).
   const Vec<W> small = Fma(a * s, Horner<W>(s, kTanhT), a);
   // 1 − 2/(e^{2a} + 1) with e^{2a} = 2^n (1 + r P(r)): the denominator one fused multiply-add of the
   // unrounded parts (2^n + 1 exact for n ≤ 52; the clamp at 2a = 40, n ≤ 58, where tanh rounds to 1).
@@ -119,8 +151,7 @@ BISTABLE_INLINE Vec<W> Tanh(Vec<W> x) {
   Bits<W> ni;
   const Vec<W> r = Reduce<W>(Min<W>(Splat<W>(40.0), a + a), &n, &ni);
   const Vec<W> p2 = Pow2<W>(ni);
-  const Vec<W> large =
-      Splat<W>(1.0) - Splat<W>(2.0) / Fma(p2 * r, Horner<W>(r, kExpP), p2 + Splat<W>(1.0));
+  const Vec<W> large = Splat<W>(1.0) - Splat<W>(2.0) / Fma(p2 * r, ExpP<W>(r), p2 + Splat<W>(1.0));
   const Vec<W> t = SelectLess<W>(a, Splat<W>(kTanhSmall), small, large);  // NaN: large, NaN
   const Bits<W> sign = ToBits<W>(x) & BroadcastBits<W>(INT64_MIN);
   return FromBits<W>(ToBits<W>(t) | sign);

@@ -13,7 +13,7 @@
 namespace bistable {
 
 // Bumped whenever a change can alter any stored number; part of every result's provenance and content key.
-inline constexpr const char* kNumericsVersion = "1.2.0";
+inline constexpr const char* kNumericsVersion = "1.3.0";
 
 // The models of the project (docs/model.md). The first four are the non-dimensional cells that a point,
 // HBM, a chirp and the SIMD kernel run; series chains and the dimensional rig run in sweeps only, through
