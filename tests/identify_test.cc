@@ -176,6 +176,30 @@ TEST(Identify, OneRecordFitOnTwoThreadsEqualsTheSequentialFit) {
   EXPECT_LT(two.errors.nrmse, 5.0);  // it did fit (8 % from the regression start without c2)
 }
 
+TEST(Identify, FitsOfSeveralRecordsDoNotDependOnThreads) {
+  // The loop runs a refit's two starts side by side, each fit on one thread, where a fit alone spreads its
+  // records over the CPUs: the same fit either way, to the bit.
+  std::vector<PreparedRecord> recs;
+  for (const Record& rec : Chirps(0.05e-3)) {
+    auto p = PrepareRecord(rec, bistable::Setup{}, 0, 4 * 120, 0.0, rec.name);
+    ASSERT_TRUE(p.ok()) << p.status().ToString();
+    recs.push_back(*p);
+  }
+  ASSERT_GT(recs.size(), 2u);
+  IdentModel m = Declared("main.linear,main.viscous,main.friction");
+  m.theta = {400.0, 2.0, 0.8, 0.4};
+  FitOptions o;
+  o.global_evals = 20;
+  o.threads = 1;
+  const FitResult one = Fit(m, m.theta, recs, bistable::Setup{}, o);
+  o.threads = 2;
+  const FitResult two = Fit(m, m.theta, recs, bistable::Setup{}, o);
+  EXPECT_EQ(one.theta, two.theta);
+  EXPECT_EQ(one.sigma, two.sigma);
+  EXPECT_EQ(one.simulations, two.simulations);
+  EXPECT_EQ(one.errors.nrmse, two.errors.nrmse);
+}
+
 // The friction case end to end through the CLI: CSV files in, the JSON contract out, a report.
 TEST(Identify, CliFindsTheUndeclaredFrictionAndWritesTheReport) {
   const std::string dir = FreshDir("identify", "friction");
