@@ -424,17 +424,18 @@ Magnitudes MeasuredMagnitudes(const std::vector<PreparedRecord>& recs, const Set
 }
 
 // Correlation time of a residual series (1 + 2 Σ ρ_k up to the first ρ_k < 0.05), ≥ 1.
-double CorrelationTime(const std::vector<double>& e) {
-  const size_t n = e.size();
+}  // namespace
+
+double CorrelationTime(const double* e, size_t n, size_t max_lag) {
   if (n < 8) return 1.0;
   double mean = 0;
-  for (double v : e) mean += v;
+  for (size_t i = 0; i < n; ++i) mean += e[i];
   mean /= static_cast<double>(n);
   double c0 = 0;
-  for (double v : e) c0 += (v - mean) * (v - mean);
+  for (size_t i = 0; i < n; ++i) c0 += (e[i] - mean) * (e[i] - mean);
   if (!(c0 > 0)) return 1.0;
   double tau = 1.0;
-  for (size_t lag = 1; lag < std::min<size_t>(n / 4, 2000); ++lag) {
+  for (size_t lag = 1; lag < std::min<size_t>(n / 4, max_lag); ++lag) {
     double c = 0;
     for (size_t i = lag; i < n; ++i) c += (e[i] - mean) * (e[i - lag] - mean);
     const double rho = c / c0;
@@ -443,8 +444,6 @@ double CorrelationTime(const std::vector<double>& e) {
   }
   return tau;
 }
-
-}  // namespace
 
 bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                         const Setup& setup, Objective obj, const std::vector<int>& substeps, std::vector<double>* out,
@@ -1026,7 +1025,7 @@ void FitStages::Uncertainties(const std::vector<double>& u) {
   double rss = 0;
   for (double v : r0) rss += v * v;
   const double dof = std::max(1.0, static_cast<double>(nres) - p);
-  const double tau = CorrelationTime(r0);
+  const double tau = CorrelationTime(r0.data(), r0.size(), 2000);
   const Eigen::MatrixXd JtJ = J.transpose() * J;
   const Eigen::MatrixXd cov = JtJ.completeOrthogonalDecomposition().pseudoInverse() * (rss / dof * tau);
   for (int i = 0; i < p; ++i) result.sigma[i] = std::sqrt(std::max(cov(i, i), 0.0)) * cost.scale[i];

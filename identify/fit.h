@@ -58,6 +58,11 @@ struct Errors {
   bool diverged = false;
 };
 
+// Integrated autocorrelation time of a series, 1 + 2 Σ_{k≥1} ρ_k summed up to the first ρ_k < 0.05 (lags below
+// n/4 and max_lag): samples per independent sample, for σ (fit) and effective sample counts (the trace).
+// 1 for fewer than 8 samples or a constant series.
+double CorrelationTime(const double* e, size_t n, size_t max_lag);
+
 // `shooting_horizon_s` > 0: also the shooting error (Errors::shooting) for segments of that length.
 Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                 const Setup& setup, double shooting_horizon_s = 0);

@@ -13,8 +13,8 @@
 namespace bistable {
 namespace {
 
+// Mean over records (of ≥ 16 rows) of their correlation times (lags below 500), at least 1.
 double CorrTime(const Eigen::VectorXd& e, const std::vector<int>& record_of_row) {
-  // Mean over records of 1 + 2 Σ ρ_k (up to the first ρ_k < 0.05).
   double total = 0;
   int count = 0;
   size_t i = 0;
@@ -22,23 +22,7 @@ double CorrTime(const Eigen::VectorXd& e, const std::vector<int>& record_of_row)
   while (i < n) {
     size_t j = i;
     while (j < n && record_of_row[j] == record_of_row[i]) ++j;
-    const size_t len = j - i;
-    if (len >= 16) {
-      double mean = 0;
-      for (size_t k = i; k < j; ++k) mean += e[static_cast<long>(k)];
-      mean /= static_cast<double>(len);
-      double c0 = 0;
-      for (size_t k = i; k < j; ++k) c0 += (e[static_cast<long>(k)] - mean) * (e[static_cast<long>(k)] - mean);
-      double tau = 1;
-      for (size_t lag = 1; lag < std::min<size_t>(len / 4, 500) && c0 > 0; ++lag) {
-        double c = 0;
-        for (size_t k = i + lag; k < j; ++k) c += (e[static_cast<long>(k)] - mean) * (e[static_cast<long>(k - lag)] - mean);
-        if (c / c0 < 0.05) break;
-        tau += 2 * c / c0;
-      }
-      total += tau;
-      ++count;
-    }
+    if (j - i >= 16) total += CorrelationTime(e.data() + i, j - i, 500), ++count;
     i = j;
   }
   return count ? std::max(1.0, total / count) : 1.0;
@@ -105,8 +89,6 @@ std::vector<double> ScaleOf(const IdentModel& m, const std::vector<double>& th, 
   }
   return s;
 }
-
-double CorrelationTimeOf(const std::vector<double>& e) { return CorrTime(Eigen::Map<const Eigen::VectorXd>(e.data(), static_cast<long>(e.size())), std::vector<int>(e.size(), 0)); }
 
 double ErrorOf(const Errors& e, Objective obj) {
   return obj == Objective::kFft ? e.fft : obj == Objective::kShooting ? e.shooting : e.nrmse;
@@ -318,7 +300,7 @@ bool SimulationResidual(const IdentModel& m, const std::vector<double>& th, cons
   Eigen::VectorXd db(p);
   for (int i = 0; i < p; ++i) db[i] = std::isfinite(s->base.theta[i]) ? s->base.theta[i] : 0.0;
   const Eigen::VectorXd e_base = s->target - s->J * db;
-  s->n_eff = static_cast<double>(N) / CorrelationTimeOf(std::vector<double>(e_base.data(), e_base.data() + N));
+  s->n_eff = static_cast<double>(N) / CorrTime(e_base, std::vector<int>(static_cast<size_t>(N), 0));
   return true;
 }
 
