@@ -384,6 +384,25 @@ std::vector<Row> Rows() {
                        .Files({{"{dir}/d.csv", daq}})
                        .Json(JsonCheck::kIdentifyFinite));
   }
+  // -- 7. The output weights and a model file read by --predict: names and bounds in the errors, no shell.
+  rows.push_back(data_row("identify_output_weights_shell", RecordCsv(200), "violates output-weights in {residual, noise}",
+                          {"--output-weights", "$(touch pwned)`touch pwned`"}));
+  {
+    const std::string model = R"({"final_terms": ["main.linear", "main.viscous"], "params": {"main.linear.k_lin": 100, "main.viscous.c0": 1},
+                                  "settings": {"m_main": 1}, "errors_by_output": {"voltage": {"weight": WEIGHT}}})";
+    auto with_weight = [&](const std::string& w) { return std::string(model).replace(model.find("WEIGHT"), 6, w); };
+    const std::vector<std::string> predict = {"identify", "--predict", "--model", "{dir}/m.json", "--data", "{dir}/d.csv"};
+    rows.push_back(Case("identify_predict_weight_beyond_bound", {predict})
+                       .Error("model.errors_by_output.voltage.weight = 1e+06 violates 0.01 <= weight <= 100")
+                       .Files({{"{dir}/d.csv", RecordCsv(200)}, {"{dir}/m.json", with_weight("1e6")}}));
+    rows.push_back(Case("identify_predict_weight_not_a_number", {predict})
+                       .Error("model.errors_by_output.voltage.weight")
+                       .Files({{"{dir}/d.csv", RecordCsv(200)}, {"{dir}/m.json", with_weight("\"$(touch pwned)\"")}}));
+    rows.push_back(Case("identify_predict_model_path_hostile",
+                        {{"identify", "--predict", "--model", "{dir}/m`touch pwned`$(touch pwned).json", "--data", "{dir}/d.csv"}})
+                       .Error("model")
+                       .Files({{"{dir}/d.csv", RecordCsv(200)}}));
+  }
   return rows;
 }
 
