@@ -423,7 +423,6 @@ Magnitudes MeasuredMagnitudes(const std::vector<PreparedRecord>& recs, const Set
   return out;
 }
 
-// Correlation time of a residual series (1 + 2 Σ ρ_k up to the first ρ_k < 0.05), ≥ 1.
 }  // namespace
 
 double CorrelationTime(const double* e, size_t n, size_t max_lag) {

@@ -6,7 +6,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 #include <thread>
+#include <utility>
 
 #include "base/cpus.h"
 
@@ -94,6 +96,9 @@ double ErrorOf(const Errors& e, Objective obj) {
   return obj == Objective::kFft ? e.fft : obj == Objective::kShooting ? e.shooting : e.nrmse;
 }
 double ErrorOf(const FitResult& f, Objective obj) { return ErrorOf(f.errors, obj); }
+double ErrorOf(const OutputErrors& o, Objective obj) {  // one output's error under the objective
+  return obj == Objective::kFft ? o.fft : obj == Objective::kShooting ? o.shooting : o.nrmse;
+}
 
 }  // namespace
 
@@ -418,7 +423,7 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
   return step;
 }
 
-IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& recs, const Setup& setup,
+IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, const Setup& setup,
                                const IdentifyOptions& opt);
 
 IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRecord>& recs, const Setup& setup,
@@ -432,7 +437,7 @@ IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRe
   std::vector<PreparedRecord> indexed = recs;  // each record knows its offset parameter
   for (size_t i = 0; i < indexed.size(); ++i) indexed[i].index = static_cast<int>(i);
   SetOutputWeights(&indexed);  // several outputs: weights from their noise levels
-  return IdentifyIndexed(m, indexed, setup, opt);
+  return IdentifyIndexed(m, std::move(indexed), setup, opt);
 }
 
 namespace {
@@ -471,16 +476,17 @@ bool ReweightOutputs(const Errors& e, Objective obj, const Setup& setup, std::ve
     ++outputs;
     for (const OutputErrors& o : e.outputs)
       if (o.name == OutputName(setup, slot)) {
-        const double err = 0.01 * (obj == Objective::kFft ? o.fft : obj == Objective::kShooting ? o.shooting : o.nrmse);
+        const double err = 0.01 * ErrorOf(o, obj);
         if (std::isfinite(err)) level[k] = std::isfinite(level[k]) ? std::max(level[k], err) : err;
       }
   }
   if (outputs < 2) return false;
-  const std::vector<PreparedRecord> old = *recs;
+  double old[kOutputSlots];
+  std::copy(std::begin((*recs)[0].weight), std::end((*recs)[0].weight), old);
   SetOutputWeightsFrom(level, recs);
   bool moved = false;
   for (int k = 1; k < kOutputSlots; ++k) {
-    const double ratio = (*recs)[0].weight[k] / old[0].weight[k];
+    const double ratio = (*recs)[0].weight[k] / old[k];
     moved = moved || !(ratio < 2.0 && ratio > 0.5);
   }
   return moved;
@@ -560,10 +566,10 @@ AddedEffect Added(const TermDef* t, const IdentModel& m, const FitResult& fit, d
 
 }  // namespace
 
-IdentifyResult IdentifyIndexed(IdentModel m, const std::vector<PreparedRecord>& recs_in, const Setup& setup,
+// `recs` by value: their output weights may be re-estimated below.
+IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, const Setup& setup,
                                const IdentifyOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
-  std::vector<PreparedRecord> recs = recs_in;  // their output weights may be re-estimated below
   const bool reweight = opt.output_weights == IdentifyOptions::OutputWeights::kResidual;
   IdentifyResult out;
   std::vector<double> sigma0;
