@@ -38,6 +38,10 @@ nlohmann::json InvariantsObject(const Invariants& v) {
           {"switching_rate_hz", JsonNumber(v.switching_rate)},
           {"switching_rate_measured_hz", JsonNumber(v.switching_rate_measured)},
           {"switching_rate_error", JsonNumber(v.switching_error)},
+          {"right_well_fraction", JsonNumber(v.right_well_fraction)},
+          {"right_well_fraction_measured", JsonNumber(v.right_well_fraction_measured)},
+          {"well_centres_m", {{"simulated", nlohmann::json::array({JsonNumber(v.well_centres[0]), JsonNumber(v.well_centres[1])})},
+                              {"measured", nlohmann::json::array({JsonNumber(v.well_centres_measured[0]), JsonNumber(v.well_centres_measured[1])})}}},
           {"velocity_hellinger", JsonNumber(v.velocity_hellinger)},
           {"spectral_error_percent", JsonNumber(v.spectral_error)},
           {"by_output", outs}};
@@ -89,14 +93,14 @@ void WriteDiagnosticsReport(std::ostream& md, const IdentifyResult& r) {
     for (size_t i = 0; i < d.chaos.forcing_hz.size(); ++i)
       md << (i ? ", " : "") << F(d.chaos.forcing_hz[i]) << " Hz (output broadband share " << F(d.chaos.output_broadband[i], 3)
          << (d.chaos.record_chaotic[i] ? ", chaotic" : "") << ")";
-    md << ".\n\n| model | Poincaré H | switches/s (measured) | velocity Hellinger | spectral error |";
+    md << ".\n\n| model | Poincaré H | switches/s (measured) | right-well share (measured) | velocity Hellinger | spectral error |";
     for (const Invariants::Output& o : d.declared.by_output) md << " " << o.name << " Hellinger | " << o.name << " spectral |";
-    md << "\n|---|---|---|---|---|";
+    md << "\n|---|---|---|---|---|---|";
     for (size_t k = 0; k < d.declared.by_output.size(); ++k) md << "---|---|";
     md << "\n";
     auto row = [&](const std::string& what, const Invariants& v) {
       md << "| " << what << " | " << F(v.poincare, 3) << " | " << F(v.switching_rate, 3) << " (" << F(v.switching_rate_measured, 3) << ") | "
-         << F(v.velocity_hellinger, 3) << " | " << F(v.spectral_error, 3) << " % |";
+         << F(v.right_well_fraction, 2) << " (" << F(v.right_well_fraction_measured, 2) << ") | " << F(v.velocity_hellinger, 3) << " | " << F(v.spectral_error, 3) << " % |";
       for (size_t k = 0; k < d.declared.by_output.size(); ++k)
         if (k < v.by_output.size())
           md << " " << F(v.by_output[k].hellinger, 3) << " | " << F(v.by_output[k].spectral_error, 3) << " % |";
@@ -153,7 +157,8 @@ std::string DiagnosticsSummary(const IdentifyResult& r) {
   if (d.chaos.chaotic)
     s += "invariants (declared -> final): Poincare H " + F(d.declared.poincare, 3) + " -> " + F(d.final.poincare, 3) + ", switches/s " +
          F(d.declared.switching_rate, 3) + " -> " + F(d.final.switching_rate, 3) + " (measured " + F(d.final.switching_rate_measured, 3) +
-         "), velocity Hellinger " + F(d.declared.velocity_hellinger, 3) + " -> " + F(d.final.velocity_hellinger, 3) + "\n";
+         "), right-well share " + F(d.declared.right_well_fraction, 2) + " -> " + F(d.final.right_well_fraction, 2) + " (measured " +
+         F(d.final.right_well_fraction_measured, 2) + "), velocity Hellinger " + F(d.declared.velocity_hellinger, 3) + " -> " + F(d.final.velocity_hellinger, 3) + "\n";
   s += d.unexplained.empty() ? "residual white (Ljung-Box p = " + F(d.whiteness.p_value, 2) + ")\n" : "unexplained: " + d.unexplained + "\n";
   for (const std::string& h : d.separability) s += h + "\n";
   return s;

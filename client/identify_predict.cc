@@ -204,8 +204,9 @@ std::vector<std::string> Observability(const Setup& setup, bool piezo) {
     o.push_back("with_circuit: the beam and the piezo circuit linearised together, (m s^2 + C s + K)(s + b) + a c s = 0; "
                 "added_stiffness and added_damping are the circuit's a c w^2/(b^2 + w^2) and a c b/(b^2 + w^2) at the mechanical "
                 "small-orbit frequency w.");
-  o.push_back("switches_per_s.measured/predicted: invariants.h's count on the zero-mean displacement (barrier 0, hysteresis half "
-              "the measured RMS): for an orbit in one well it counts every cycle. well_scale: the same displacement with the "
+  o.push_back("switches_per_s.measured/predicted: changes of well by forcing period on the zero-mean displacement (the period "
+              "means split into two wells by two-means on the measured ones; hysteresis_m a quarter of the wells' distance): an "
+              "orbit inside one well does not count. well_scale: the same displacement with the "
               "hysteresis half the model's barrier-to-well distance (a small orbit in one well does not count; an orbit in one well "
               "wider than that band still does). model: the model's own displacement (not zero-mean) across its barrier: whether "
               "the model really changes wells; the measured counterpart is not observable from a velocity.");
@@ -367,7 +368,8 @@ std::string PredictionText(const nlohmann::json& root) {
     if (!r["invariants"].is_null()) {
       const auto& v = r["invariants"];
       o << "    chaotic: Poincare H " << N(v["poincare_energy"], 1, 3) << " (floor " << N(v["poincare_floor"], 1, 3) << "), switches/s "
-        << N(v["switching_rate_hz"], 1, 3) << " (measured " << N(v["switching_rate_measured_hz"], 1, 3) << "), velocity Hellinger "
+        << N(v["switching_rate_hz"], 1, 3) << " (measured " << N(v["switching_rate_measured_hz"], 1, 3) << "), right-well share "
+        << N(v["right_well_fraction"], 1, 2) << " (measured " << N(v["right_well_fraction_measured"], 1, 2) << "), velocity Hellinger "
         << N(v["velocity_hellinger"], 1, 3) << "\n";
     }
   }

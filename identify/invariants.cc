@@ -123,6 +123,81 @@ int CountSwitches(const std::vector<double>& y, double barrier, double h) {
   return n;
 }
 
+PeriodMotion PeriodsOf(const std::vector<double>& y, double dt, double f_hz) {
+  PeriodMotion p;
+  if (!(dt > 0) || !(f_hz > 0) || !std::isfinite(f_hz)) return p;
+  const double samples_per_period = 1.0 / (f_hz * dt);
+  if (!(samples_per_period >= 2) || !(samples_per_period <= static_cast<double>(y.size()))) return p;
+  for (size_t k = 0;; ++k) {
+    const size_t a = static_cast<size_t>(std::ceil(static_cast<double>(k) * samples_per_period));
+    const size_t b = static_cast<size_t>(std::ceil(static_cast<double>(k + 1) * samples_per_period));
+    if (b > y.size()) break;
+    double s = 0, s2 = 0;
+    for (size_t i = a; i < b; ++i) s += y[i];
+    const double mean = s / static_cast<double>(b - a);
+    for (size_t i = a; i < b; ++i) s2 += (y[i] - mean) * (y[i] - mean);
+    p.mean.push_back(mean);
+    p.spread.push_back(std::sqrt(s2 / static_cast<double>(b - a)));
+  }
+  return p;
+}
+
+WellSplit SplitWells(const PeriodMotion& p) {
+  WellSplit w;
+  const size_t n = p.mean.size();
+  if (n < 4) return w;
+  std::vector<double> x = p.mean;
+  for (double v : x)
+    if (!std::isfinite(v)) return w;
+  std::sort(x.begin(), x.end());
+  std::vector<double> prefix(n + 1, 0.0), prefix2(n + 1, 0.0);
+  for (size_t i = 0; i < n; ++i) prefix[i + 1] = prefix[i] + x[i], prefix2[i + 1] = prefix2[i] + x[i] * x[i];
+  auto ss = [&](size_t a, size_t b) {  // within sum of squares of x[a, b)
+    const double s = prefix[b] - prefix[a], c = static_cast<double>(b - a);
+    return prefix2[b] - prefix2[a] - s * s / c;
+  };
+  size_t best = 1;
+  double best_ss = INFINITY;
+  for (size_t k = 1; k < n; ++k) {
+    const double v = ss(0, k) + ss(k, n);
+    if (v < best_ss) best_ss = v, best = k;
+  }
+  w.centre_left = (prefix[best] - prefix[0]) / static_cast<double>(best);
+  w.centre_right = (prefix[n] - prefix[best]) / static_cast<double>(n - best);
+  w.split = 0.5 * (w.centre_left + w.centre_right);
+  w.band = 0.25 * (w.centre_right - w.centre_left);
+  std::vector<double> spread = p.spread;
+  std::nth_element(spread.begin(), spread.begin() + static_cast<long>(spread.size() / 2), spread.end());
+  w.two_wells = w.centre_right - w.centre_left > spread[spread.size() / 2];
+  return w;
+}
+
+WellCount CountWells(const std::vector<double>& means, const WellSplit& s) {
+  WellCount c;
+  if (!s.two_wells) return c;
+  int well = 0;
+  for (double m : means) {
+    const int now = m > s.split + s.band ? 1 : m < s.split - s.band ? -1 : 0;
+    if (now == 0) continue;  // between the wells (or NaN): the last well
+    if (well != 0 && now != well) ++c.switches;
+    well = now;
+    if (now > 0) ++c.right, c.sum_right += m;
+    else ++c.left, c.sum_left += m;
+  }
+  return c;
+}
+
+WellSwitching WellsOf(const std::vector<double>& y_meas, const std::vector<double>& y_sim, double dt, double f_hz) {
+  WellSwitching w;
+  const PeriodMotion pm = PeriodsOf(y_meas, dt, f_hz), ps = PeriodsOf(y_sim, dt, f_hz);
+  w.seconds = static_cast<double>(pm.mean.size()) / f_hz;
+  w.measured_split = SplitWells(pm);
+  w.simulated_split = SplitWells(ps);
+  w.measured = CountWells(pm.mean, w.measured_split);
+  w.simulated = CountWells(ps.mean, w.simulated_split);
+  return w;
+}
+
 double HistogramHellinger(const std::vector<double>& meas, const std::vector<double>& sim, int bins) {
   if (meas.empty() || sim.empty() || bins < 1) return NAN;
   const auto [mn, mx] = std::minmax_element(meas.begin(), meas.end());
@@ -179,7 +254,8 @@ Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th,
                              const Setup& setup, const ChaosCheck& check, const Errors& errors) {
   Invariants inv;
   double h_sum = 0, floor_sum = 0, hist_sum = 0, fft_sum = 0, seconds = 0;
-  int h_n = 0, floor_n = 0, hist_n = 0, fft_n = 0, sw_sim = 0, sw_meas = 0;
+  int h_n = 0, floor_n = 0, hist_n = 0, fft_n = 0;
+  WellCount wells_meas, wells_sim;  // summed over the records
   double out_hist[kOutputSlots] = {0, 0, 0};
   int out_hist_n[kOutputSlots] = {0, 0, 0};
   for (size_t i = 0; i < recs.size() && i < check.record_chaotic.size(); ++i) {
@@ -206,12 +282,13 @@ Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th,
       if (std::isfinite(h)) h_sum += h, ++h_n;
       if (std::isfinite(floor)) floor_sum += floor, ++floor_n;
     }
-    double rms = 0;
-    for (double v : ym) rms += v * v;
-    rms = std::sqrt(rms / static_cast<double>(std::max<size_t>(1, ym.size())));
-    sw_meas += CountSwitches(ym, 0.0, 0.5 * rms);
-    sw_sim += CountSwitches(ys, 0.0, 0.5 * rms);
-    seconds += static_cast<double>(r.n()) * r.dt;
+    if (std::isfinite(f)) {
+      const WellSwitching w = WellsOf(ym, ys, r.dt, f);
+      wells_meas.switches += w.measured.switches, wells_sim.switches += w.simulated.switches;
+      for (auto [sum, c] : {std::pair{&wells_meas, &w.measured}, std::pair{&wells_sim, &w.simulated}})
+        sum->left += c->left, sum->right += c->right, sum->sum_left += c->sum_left, sum->sum_right += c->sum_right;
+      seconds += w.seconds;
+    }
     const double hh = HistogramHellinger(vm, vs);
     if (std::isfinite(hh)) hist_sum += hh, ++hist_n;
   }
@@ -229,9 +306,17 @@ Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th,
     inv.by_output.push_back(o);
   }
   if (seconds > 0) {
-    inv.switching_rate = sw_sim / seconds;
-    inv.switching_rate_measured = sw_meas / seconds;
-    if (sw_meas > 0) inv.switching_error = std::abs(inv.switching_rate - inv.switching_rate_measured) / inv.switching_rate_measured;
+    inv.switching_rate = wells_sim.switches / seconds;
+    inv.switching_rate_measured = wells_meas.switches / seconds;
+    if (wells_meas.switches > 0)
+      inv.switching_error = std::abs(inv.switching_rate - inv.switching_rate_measured) / inv.switching_rate_measured;
+    auto occupancy = [](const WellCount& c, double* fraction, double* centres) {
+      if (c.left + c.right > 0) *fraction = static_cast<double>(c.right) / (c.left + c.right);
+      if (c.left > 0) centres[0] = c.sum_left / c.left;
+      if (c.right > 0) centres[1] = c.sum_right / c.right;
+    };
+    occupancy(wells_sim, &inv.right_well_fraction, inv.well_centres);
+    occupancy(wells_meas, &inv.right_well_fraction_measured, inv.well_centres_measured);
   }
   return inv;
 }

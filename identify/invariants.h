@@ -9,9 +9,15 @@
 //    coefficient H = D² / (2 E|X − Y|), D² = 2 E|X − Y| − E|X − X'| − E|Y − Y'| (Székely & Rizzo's
 //    energy distance, V-statistics), each coordinate divided by the two clouds' pooled standard
 //    deviation. Dimensionless, in [0, 1]: 0 for identical clouds (exactly), → 1 for clouds far apart.
-//  * Well-switching rate [1/s]: crossings of the barrier at y = 0 with hysteresis ±h (a switch counts
-//    when y goes from below −h to above +h or back), h = half the measured y's RMS about 0; the same
-//    h for both. Compared as |rate_sim − rate_meas| / rate_meas.
+//  * Well occupancy and switching rate [1/s], by forcing period (WellsOf): y averaged over each
+//    whole forcing period; the period means split into two wells by exact 1-D two-means, a period
+//    joins a well when its mean lies beyond the split by a quarter of the wells' distance (hysteresis:
+//    between, the period stays in the last well). Measured and simulated y each by their own split:
+//    a velocity sensor's integral is zero-mean, which shifts the period means by the occupancy-weighted
+//    centre, so only each series' own clusters are where its wells are. A switch is a change of well;
+//    an orbit inside one well, however wide, moves the period mean little and does not count, nor does
+//    a large orbit across both wells (no two clusters). Compared as |rate_sim − rate_meas| / rate_meas,
+//    and by the share of well periods in the right well (undefined for a series in one well).
 //  * Velocity histogram: Hellinger distance sqrt(1 − Σ sqrt(p_k q_k)) between the histograms of y'
 //    on common bins (40 over the measured range widened by 10 %, one overflow bin each side).
 //    Dimensionless, in [0, 1].
@@ -66,8 +72,44 @@ double EnergyCoefficient(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b);
 // The raw energy distance D² (V-statistics, no scaling) of the same clouds.
 double EnergyDistanceSquared(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b);
 
-// Barrier crossings of y at `barrier` with hysteresis ±h.
+// Barrier crossings of y at `barrier` with hysteresis ±h (y goes from below barrier − h to above
+// barrier + h or back).
 int CountSwitches(const std::vector<double>& y, double barrier, double h);
+
+// y over whole forcing periods from t = 0 (period k: samples with t in [k/f, (k+1)/f)): each period's
+// mean and standard deviation. Empty without a forcing frequency or a whole period.
+struct PeriodMotion {
+  std::vector<double> mean, spread;
+};
+PeriodMotion PeriodsOf(const std::vector<double>& y, double dt, double f_hz);
+
+// Two wells in the period means: the split of the sorted means that minimises the within-cluster sum of
+// squares (exact 1-D two-means), centres the clusters' means. `two_wells` when the centres lie farther
+// apart than the median within-period spread: a change of well moves the period mean by more than the
+// orbit's own size, while the means of a record in one well cluster only by their scatter. band is a
+// quarter of the centres' distance.
+struct WellSplit {
+  bool two_wells = false;
+  double split = NAN, band = NAN, centre_left = NAN, centre_right = NAN;
+};
+WellSplit SplitWells(const PeriodMotion& p);
+
+// Period means classified by a split: left below split − band, right above split + band, otherwise
+// the last well (none before the first classified period). Switches: changes of well.
+struct WellCount {
+  int switches = 0, left = 0, right = 0;
+  double sum_left = 0, sum_right = 0;  // of the classified period means
+};
+WellCount CountWells(const std::vector<double>& means, const WellSplit& s);
+
+// The measured and the simulated y of one record, each by its own split (no switches for a series
+// without two wells).
+struct WellSwitching {
+  WellSplit measured_split, simulated_split;
+  WellCount measured, simulated;
+  double seconds = 0;  // whole forcing periods
+};
+WellSwitching WellsOf(const std::vector<double>& y_meas, const std::vector<double>& y_sim, double dt, double f_hz);
 
 // Hellinger distance between the histograms of `sim` and `meas` on `bins` common bins over meas's range
 // widened by 10 % (plus one overflow bin each side). NaN when either is empty or non-finite.
@@ -80,9 +122,13 @@ struct Invariants {
   double poincare_floor = NAN;        // H between the first and second half of the measured section: what
                                       // another stretch of the same measurement gives (a model cannot do better)
   int section_points = 0;             // measured section points, all records
-  double switching_rate = NAN;        // simulated, 1/s
+  double switching_rate = NAN;        // simulated, 1/s (changes of well by forcing period)
   double switching_rate_measured = NAN;
   double switching_error = NAN;       // |sim − meas| / meas
+  double right_well_fraction = NAN;   // simulated periods in the right well / periods in a well
+  double right_well_fraction_measured = NAN;
+  double well_centres[2] = {NAN, NAN};           // simulated: mean period mean in the left, right well, m
+  double well_centres_measured[2] = {NAN, NAN};  // (y zero-mean for velocity outputs: relative positions)
   double velocity_hellinger = NAN;    // dimensionless [0, 1]
   double spectral_error = NAN;        // % (Errors::fft)
   // Every measured output (main first): the Hellinger distance of its measured and simulated sample

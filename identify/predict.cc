@@ -243,9 +243,14 @@ RecordPrediction PredictRecord(const IdentModel& m, const std::vector<double>& t
   MainBodyMotion(r.meas, r, setup, &ym, &vm);
   p.displacement_amplitude_measured = AmplitudeAt(ym, r.dt, p.forcing_hz);
   if (setup.output != OutputKind::kVelocity) p.mean_displacement_measured = Mean(ym);
-  const double rms = Rms(ym, false);
-  p.switches.hysteresis = 0.5 * rms;
-  p.switches.measured = CountSwitches(ym, 0.0, p.switches.hysteresis) / p.seconds;
+  auto by_period = [&](const std::vector<double>& ys) {  // invariants.h's rule
+    const WellSwitching w = WellsOf(ym, ys, r.dt, p.forcing_hz);
+    if (!(w.seconds > 0)) return;
+    p.switches.hysteresis = w.measured_split.band;
+    p.switches.measured = w.measured.switches / w.seconds;
+    if (!ys.empty()) p.switches.predicted = w.simulated.switches / w.seconds;
+  };
+  by_period({});
   if (statics.bistable) {
     p.switches.well_hysteresis =
         0.5 * std::min(statics.barrier.y - statics.wells[0].at.y, statics.wells[1].at.y - statics.barrier.y);
@@ -258,7 +263,7 @@ RecordPrediction PredictRecord(const IdentModel& m, const std::vector<double>& t
   std::vector<double> ys, vs;
   MainBodyMotion(so.out[0], r, setup, &ys, &vs);
   p.displacement_amplitude_predicted = AmplitudeAt(ys, r.dt, p.forcing_hz);
-  p.switches.predicted = CountSwitches(ys, 0.0, p.switches.hysteresis) / p.seconds;
+  by_period(ys);
   if (statics.bistable) p.switches.well_predicted = CountSwitches(ys, 0.0, p.switches.well_hysteresis) / p.seconds;
   // The model's own displacement: a displacement output is it (MainBodyMotion: relative to the base
   // where the base moves); a velocity output's relative velocity integrated (trapezoids) from the state's

@@ -90,9 +90,8 @@ struct OutputPrediction {
 };
 
 // Well switching of one record, by three counts (switches per second):
-//  * `measured` / `predicted`: invariants.h's rule — y the zero-mean relative displacement of each
-//    output (MainBodyMotion), barrier 0, hysteresis half the measured y's RMS. For a record in one well
-//    this counts every cycle of the orbit (the zero-mean y crosses 0 twice per period);
+//  * `measured` / `predicted`: invariants.h's rule (WellsOf) — y the zero-mean relative displacement
+//    of each output (MainBodyMotion), changes of well by forcing period; `hysteresis` is its band, m;
 //  * `well_measured` / `well_predicted`: the same y, hysteresis `well_hysteresis` = half the model's
 //    smaller barrier-to-well distance, so an orbit within one well does not count;
 //  * `model`: the model's own displacement (the state, not zero-mean: its initial value plus the

@@ -113,6 +113,58 @@ TEST(IdentifyInvariants, SwitchesAndVelocityHistograms) {
   EXPECT_NEAR(HistogramHellinger(vec(a), far), 1.0, 1e-12);
 }
 
+// Wells by forcing period: an orbit wider than the wells' distance switches at every half period by the
+// barrier rule but never changes well; the period rule counts the changes of well only, whatever the
+// displacement's mean (a velocity sensor loses it), and classifies the simulated periods by the measured
+// split.
+TEST(IdentifyInvariants, WellsByForcingPeriodIgnoreWideOrbitsAndTheMean) {
+  const double dt = 1e-3, f = 5.0;               // 200 samples per period
+  const std::vector<int> wells = {-1, -1, 1, 1, 1, -1, 1, 1, -1, -1, -1, -1};  // 4 changes, 5 of 12 periods right
+  auto record = [&](double offset, double orbit, const std::vector<int>& pattern) {
+    std::vector<double> y;
+    for (size_t k = 0; k < pattern.size(); ++k)
+      for (int i = 0; i < 200; ++i) y.push_back(offset + 0.02 * pattern[k] + orbit * std::sin(2 * M_PI * f * (200 * k + i) * dt));
+    return y;
+  };
+  const std::vector<double> y = record(0.0, 0.05, wells);  // orbit ±50 mm about wells at ±20 mm
+  EXPECT_GE(CountSwitches(y, 0.0, 0.01), 23) << "the barrier rule counts the orbit";
+  const PeriodMotion p = PeriodsOf(y, dt, f);
+  ASSERT_EQ(p.mean.size(), wells.size());
+  EXPECT_NEAR(p.spread[0], 0.05 / std::sqrt(2.0), 1e-9);
+  const WellSplit s = SplitWells(p);
+  ASSERT_TRUE(s.two_wells);
+  EXPECT_NEAR(s.centre_left, -0.02, 1e-9);
+  EXPECT_NEAR(s.centre_right, 0.02, 1e-9);
+  const WellCount c = CountWells(p.mean, s);
+  EXPECT_EQ(c.switches, 4);
+  EXPECT_EQ(c.right, 5);
+  EXPECT_EQ(c.left, 7);
+  // A mean of 7 mm (a zero-mean integral of an unequal occupancy) changes nothing.
+  const WellSwitching shifted = WellsOf(record(0.007, 0.05, wells), record(0.007, 0.05, std::vector<int>(12, 1)), dt, f);
+  EXPECT_EQ(shifted.measured.switches, 4);
+  EXPECT_EQ(shifted.simulated.switches, 0) << "a model staying in one well";
+  EXPECT_FALSE(shifted.simulated_split.two_wells);
+  // A model mostly in one well with a visit to the other: its zero-mean periods sit near 0 and far
+  // below; its own split sees the two wells where the measured split would not.
+  std::vector<int> mostly_right(12, 1);
+  mostly_right[5] = mostly_right[6] = -1;
+  const WellSwitching visit = WellsOf(y, record(-0.0133, 0.003, mostly_right), dt, f);
+  EXPECT_EQ(visit.simulated.switches, 2);
+  EXPECT_EQ(visit.simulated.right, 10);
+  EXPECT_NEAR(shifted.seconds, 12 / f, 1e-12);
+  // One well with a noisy orbit: the period means cluster by their scatter only; no wells, no switches.
+  std::vector<double> one = record(0.0, 0.003, std::vector<int>(12, 1));
+  for (size_t i = 0; i < one.size(); ++i) one[i] += 1e-4 * std::sin(0.37 * i * i);
+  const WellSplit s1 = SplitWells(PeriodsOf(one, dt, f));
+  EXPECT_FALSE(s1.two_wells);
+  EXPECT_EQ(CountWells(PeriodsOf(one, dt, f).mean, s1).switches, 0);
+  // ...and a model that switches where the measurement stays in one well counts its own switches.
+  const WellSwitching w = WellsOf(one, y, dt, f);
+  EXPECT_EQ(w.simulated.switches, 4);
+  EXPECT_TRUE(PeriodsOf(y, dt, 0.0).mean.empty());
+  EXPECT_TRUE(PeriodsOf(y, dt, NAN).mean.empty());
+}
+
 // A record under a force input with a displacement output: periodic forcing, the output given.
 PreparedRecord ForcedRecord(const std::vector<double>& out, double dt) {
   Record r;
