@@ -817,10 +817,27 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
 StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys,
                                                       const std::vector<long>& points, const SweepRow& row, double started,
                                                       const std::string& path, bool* incomplete) {
-  // Every record is read back through its checksum: a corrupt one counts as missing.
+  // Every record is read back through its checksum: a corrupt one counts as missing. The staged
+  // records are read where they are staged; moving them into the keyed point cache (SQLite inserts,
+  // as long as the map's HDF5 writing) runs on a second thread beside the writing, and ends before the
+  // index row: a crash in between leaves them staged, folded by the next lookup.
   long corrupt = 0;
-  auto found = Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points), &corrupt);
+  auto found = Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points), &corrupt,
+                                  IndexDb::Fold::kLater);
   if (!found.ok()) return found.status();
+  Status folded = Status::Ok();
+  std::thread folder;
+  try {
+    folder = std::thread([this, &folded] { folded = Db()->FoldResults(); });
+  } catch (const std::system_error&) {  // no thread to be had: fold here
+    folded = Db()->FoldResults();
+  }
+  struct Join {
+    std::thread& t;
+    ~Join() {
+      if (t.joinable()) t.join();
+    }
+  } join{folder};
   if (corrupt > 0)
     Log(log::Level::kWarn, "sweep.checksum_failed", {{"sweep", row.id}, {"items", corrupt}, {"action", "replan"}});
   std::vector<PointRecord> records;
@@ -869,6 +886,9 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
     }
     maps.push_back({done.id, catalog[mi].name, done.file, shape, lo, hi});
   }
+  if (folder.joinable()) folder.join();
+  if (!folded.ok())  // the records stay staged and are folded by a later lookup; the map is complete
+    Log(log::Level::kWarn, "sweep.fold_failed", {{"sweep", row.id}, {"reason", folded.ToString()}});
   BISTABLE_RETURN_IF_ERROR(Db()->PublishSweep(done, maps));
   return done;
 }

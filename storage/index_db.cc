@@ -258,11 +258,12 @@ StatusOr<std::vector<SweepRow>> IndexDb::ListSweeps() {
 }
 
 StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(const std::vector<std::string>& keys,
-                                                                                size_t record_size, long* corrupt) {
-  // Records folded just now come from staged rows whose checksum FoldResults verified: they are taken
-  // from memory instead of being read back by key (at publication that is every computed point).
+                                                                                size_t record_size, long* corrupt, Fold fold) {
+  // Staged records (folded just now, or read where they are staged) come from rows whose checksum was
+  // verified: they are taken from memory instead of being read back by key (at publication that is
+  // every computed point).
   std::unordered_map<std::string, std::vector<double>> folded;
-  BISTABLE_RETURN_IF_ERROR(FoldResults(&folded));
+  BISTABLE_RETURN_IF_ERROR(fold == Fold::kNow ? FoldResults(&folded) : ReadStaged(&folded));
   if (corrupt) *corrupt = 0;
   std::unordered_map<std::string, PointRecord> found;
   found.reserve(keys.size());
@@ -346,6 +347,55 @@ Status IndexDb::PutPoints(const std::vector<JobResults>& jobs) {
   return Status::Ok();
 }
 
+StatusOr<long> IndexDb::ReadStagedRows(long after_seq, int limit, bool count_corrupt, std::vector<StagedEntry>* entries) {
+  sqlite3_stmt* sel = Cached("SELECT seq, width, keys, records, sum FROM results WHERE seq > ? ORDER BY seq LIMIT ?");
+  if (!sel) return Error("prepare result scan");
+  sqlite3_bind_int64(sel, 1, after_seq);
+  sqlite3_bind_int(sel, 2, limit);
+  long last_seq = -1;
+  int rc;
+  while ((rc = sqlite3_step(sel)) == SQLITE_ROW) {
+    last_seq = sqlite3_column_int64(sel, 0);
+    const size_t width = static_cast<size_t>(sqlite3_column_int64(sel, 1));
+    const char* keys = reinterpret_cast<const char*>(sqlite3_column_text(sel, 2));
+    const auto* vals = static_cast<const double*>(sqlite3_column_blob(sel, 3));
+    const size_t nvals = static_cast<size_t>(sqlite3_column_bytes(sel, 3)) / sizeof(double);
+    const size_t key_bytes = static_cast<size_t>(sqlite3_column_bytes(sel, 2));
+    // A staged row whose checksum fails is dropped whole: its points are missing and recomputed.
+    if (sqlite3_column_type(sel, 4) != SQLITE_NULL &&
+        static_cast<uint64_t>(sqlite3_column_int64(sel, 4)) != RecordSum(keys ? keys : "", keys ? key_bytes : 0, vals, nvals)) {
+      if (count_corrupt) ++corrupt_rows_;
+      continue;
+    }
+    if (width == 0) continue;
+    size_t k = 0;
+    for (const char* p = keys; p && *p; ++k) {
+      const char* nl = std::strchr(p, '\n');
+      if (!nl || (k + 1) * width > nvals) break;  // a malformed row: stop (its points are recomputed)
+      entries->push_back({std::string(p, nl), static_cast<long>(entries->size()), std::vector<double>(vals + k * width, vals + (k + 1) * width)});
+      p = nl + 1;
+    }
+  }
+  sqlite3_reset(sel);
+  if (rc != SQLITE_DONE) return Error("scan staged results");
+  return last_seq;
+}
+
+Status IndexDb::ReadStaged(std::unordered_map<std::string, std::vector<double>>* staged) {
+  Transaction tx(db_, "BEGIN");  // one read snapshot of every staged row
+  if (!tx.ok()) return Error("begin reading staged results");
+  std::vector<StagedEntry> entries;
+  for (long seq = -1;;) {
+    auto last = ReadStagedRows(seq, 4096, false, &entries);
+    if (!last.ok()) return last.status();
+    if (*last < 0) break;
+    seq = *last;
+  }
+  tx.Commit();
+  for (StagedEntry& e : entries) (*staged)[e.key] = std::move(e.v);  // in staging order: the later report wins
+  return Status::Ok();
+}
+
 Status IndexDb::FoldResults(std::unordered_map<std::string, std::vector<double>>* folded) {
   // Moves staged job rows into the keyed point cache, a bounded batch per transaction (each batch's
   // insert and delete are atomic, so a crash in between loses and duplicates nothing). Keys are
@@ -354,46 +404,17 @@ Status IndexDb::FoldResults(std::unordered_map<std::string, std::vector<double>>
   while (true) {
     Transaction tx(db_, "BEGIN IMMEDIATE");
     if (!tx.ok()) return Error("begin folding results");
-    sqlite3_stmt* sel = Cached("SELECT seq, width, keys, records, sum FROM results ORDER BY seq LIMIT ?");
-    if (!sel) return Error("prepare result scan");
-    sqlite3_bind_int(sel, 1, kBatchRows);
-    struct Entry {
-      std::string key;
-      long order;
-      std::vector<double> v;
-    };
-    std::vector<Entry> entries;
-    long last_seq = -1, order = 0;
-    while (sqlite3_step(sel) == SQLITE_ROW) {
-      last_seq = sqlite3_column_int64(sel, 0);
-      const size_t width = static_cast<size_t>(sqlite3_column_int64(sel, 1));
-      const char* keys = reinterpret_cast<const char*>(sqlite3_column_text(sel, 2));
-      const auto* vals = static_cast<const double*>(sqlite3_column_blob(sel, 3));
-      const size_t nvals = static_cast<size_t>(sqlite3_column_bytes(sel, 3)) / sizeof(double);
-      const size_t key_bytes = static_cast<size_t>(sqlite3_column_bytes(sel, 2));
-      // A staged row whose checksum fails is dropped whole: its points are missing and recomputed.
-      if (sqlite3_column_type(sel, 4) != SQLITE_NULL &&
-          static_cast<uint64_t>(sqlite3_column_int64(sel, 4)) != RecordSum(keys ? keys : "", keys ? key_bytes : 0, vals, nvals)) {
-        ++corrupt_rows_;
-        continue;
-      }
-      if (width == 0) continue;
-      size_t k = 0;
-      for (const char* p = keys; p && *p; ++k) {
-        const char* nl = std::strchr(p, '\n');
-        if (!nl || (k + 1) * width > nvals) break;  // a malformed row: stop (its points are recomputed)
-        entries.push_back({std::string(p, nl), order++, std::vector<double>(vals + k * width, vals + (k + 1) * width)});
-        p = nl + 1;
-      }
-    }
-    sqlite3_reset(sel);
+    std::vector<StagedEntry> entries;
+    auto last = ReadStagedRows(-1, kBatchRows, true, &entries);
+    if (!last.ok()) return last.status();
+    const long last_seq = *last;
     if (last_seq < 0) return Status::Ok();  // nothing staged
     std::sort(entries.begin(), entries.end(),
-              [](const Entry& a, const Entry& b) { return a.key != b.key ? a.key < b.key : a.order < b.order; });
+              [](const StagedEntry& a, const StagedEntry& b) { return a.key != b.key ? a.key < b.key : a.order < b.order; });
     sqlite3_stmt* ins = Cached("INSERT OR REPLACE INTO points(key, record, created) VALUES(?, ?, unixepoch())");
     if (!ins) return Error("prepare point insert");
     std::vector<unsigned char> blob;
-    for (Entry& e : entries) {  // equal keys: the later report wins, as it did when stored directly
+    for (StagedEntry& e : entries) {  // equal keys: the later report wins, as it did when stored directly
       const uint64_t sum = RecordSum(e.key.data(), e.key.size(), e.v.data(), e.v.size());
       blob.resize(e.v.size() * sizeof(double) + sizeof sum);
       std::memcpy(blob.data(), e.v.data(), e.v.size() * sizeof(double));

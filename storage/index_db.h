@@ -60,8 +60,12 @@ class IndexDb {
   // Looks up many keys in one read transaction; the result holds the ones found with `record_size`
   // doubles whose checksum holds (a record of another layout is treated as missing and recomputed;
   // so is a corrupt one, counted in *corrupt).
+  // Staged records are folded into the keyed cache first (kNow), or read where they are staged and left
+  // there (kLater: the caller folds them afterwards, e.g. on another thread while it writes the map).
+  enum class Fold { kNow, kLater };
   StatusOr<std::unordered_map<std::string, PointRecord>> LookupPoints(const std::vector<std::string>& keys,
-                                                                      size_t record_size, long* corrupt = nullptr);
+                                                                      size_t record_size, long* corrupt = nullptr,
+                                                                      Fold fold = Fold::kNow);
   // Stores the records of one or more reported jobs in one transaction (all or nothing) and, in the
   // same transaction, adds each job's item count to its sweep's items_done. The records are staged
   // as one appended row per job (a few pages per commit, where keyed inserts cost a page per point)
@@ -77,6 +81,8 @@ class IndexDb {
   // Moves every staged job row into the keyed point cache (sorted inserts, bounded transactions); with
   // `folded`, also hands back each folded record by key (the later one where a key repeats).
   Status FoldResults(std::unordered_map<std::string, std::vector<double>>* folded = nullptr);
+  // Every staged record by key (the later one where a key repeats), checksums verified, left staged.
+  Status ReadStaged(std::unordered_map<std::string, std::vector<double>>* staged);
   long CachedPointCount();
   // Staged rows dropped by FoldResults because their checksum failed, since Open.
   long corrupt_rows() const { return corrupt_rows_; }
@@ -93,6 +99,15 @@ class IndexDb {
   explicit IndexDb(sqlite3* db) : db_(db) {}
   // A prepared statement kept for the connection's lifetime (reset, bindings cleared); nullptr on error.
   sqlite3_stmt* Cached(const char* sql);
+  // Up to `limit` staged rows after `after_seq` in staging order, split into records (a row whose
+  // checksum fails is skipped whole, counted in corrupt_rows_ when `count_corrupt`); the last seq read,
+  // −1 when there was none.
+  struct StagedEntry {
+    std::string key;
+    long order;
+    std::vector<double> v;
+  };
+  StatusOr<long> ReadStagedRows(long after_seq, int limit, bool count_corrupt, std::vector<StagedEntry>* entries);
   Status Exec(const std::string& sql);
   Status Error(const std::string& what);
   sqlite3* db_;

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include "dynamics/point.h"
 #include "engine/content_hash.h"
@@ -304,6 +305,9 @@ TEST(SweepEngine, ConcurrentReportsAreStoredOnceAndGiveTheSameMap) {
     }
     auto db = IndexDb::Open(dir + "/index.sqlite");
     ASSERT_TRUE(db.ok());
+    std::unordered_map<std::string, std::vector<double>> left;
+    ASSERT_TRUE((*db)->FoldResults(&left).ok());
+    EXPECT_TRUE(left.empty()) << "publication folds the staged records (beside the map's writing) before its index row";
     EXPECT_EQ((*db)->CachedPointCount(), 15);
     files.push_back(dir + "/sweeps/" + spec.Id() + ".h5");
   }
@@ -384,6 +388,67 @@ TEST(SweepEngine, MergedLeasesCoverSeveralJobsAndRequeueTogether) {
   bistable_test::ExpectSameMaps((*c)->MapPath(plan->id), ref);
   std::filesystem::remove_all(dir);
   std::filesystem::remove_all(ref_dir);
+}
+
+// A lookup that leaves the staged records staged (publication folds them on another thread while it
+// writes the map) finds what a folding lookup finds, skips a corrupt staged row the same way, and
+// leaves the rows for the fold, which then hands back the same records.
+TEST(SweepEngine, LookupWithoutFoldingFindsWhatFoldingFinds) {
+  const SweepSpec spec = Parse(kSmall);
+  std::vector<WorkItem> all;
+  for (long p = 0; p < spec.points(); ++p) all.push_back({p, 0});
+  const auto rec = ComputeItems(spec, all);
+  std::vector<std::string> keys;
+  std::vector<IndexDb::JobResults> jobs;
+  for (size_t i = 0; i < all.size(); ++i) {
+    if (i % 4 == 0) jobs.push_back({spec.Id(), rec[0].v.size(), "", {}});
+    keys.push_back(spec.ItemKey(all[i].point, 0));
+    jobs.back().keys += keys.back() + "\n";
+    jobs.back().values.insert(jobs.back().values.end(), rec[i].v.begin(), rec[i].v.end());
+  }
+  ASSERT_GE(jobs.size(), 3u);
+  const std::string dir = TempDir("lookup_later");
+  std::filesystem::create_directories(dir);
+  std::unordered_map<std::string, std::vector<double>> by_fold;
+  std::unordered_map<std::string, PointRecord> folded_lookup;
+  auto same_bits = [](const std::vector<double>& a, const std::vector<double>& b) {  // NaN metrics included
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
+  };
+  for (int variant = 0; variant < 2; ++variant) {
+    const std::string path = dir + "/index" + std::to_string(variant) + ".sqlite";
+    auto db = IndexDb::Open(path);
+    ASSERT_TRUE(db.ok());
+    ASSERT_TRUE((*db)->PutPoints(jobs).ok());
+    {  // corrupt the second staged row's records: its four points go missing either way
+      sqlite3* raw = nullptr;
+      ASSERT_EQ(sqlite3_open(path.c_str(), &raw), SQLITE_OK);
+      ASSERT_EQ(sqlite3_exec(raw, "UPDATE results SET records = zeroblob(length(records)) WHERE seq = (SELECT min(seq) + 1 FROM results)",
+                             nullptr, nullptr, nullptr), SQLITE_OK);
+      sqlite3_close(raw);
+    }
+    long corrupt = -1;
+    auto found = (*db)->LookupPoints(keys, rec[0].v.size(), &corrupt, variant ? IndexDb::Fold::kLater : IndexDb::Fold::kNow);
+    ASSERT_TRUE(found.ok());
+    EXPECT_EQ(found->size(), keys.size() - 4);
+    for (size_t i = 4; i < 8; ++i) EXPECT_EQ(found->count(keys[i]), 0u) << "the corrupt row's point " << i;
+    if (variant == 0) {
+      folded_lookup = *found;
+      EXPECT_EQ((*db)->corrupt_rows(), 1);
+      std::unordered_map<std::string, std::vector<double>> left;
+      ASSERT_TRUE((*db)->FoldResults(&left).ok());
+      EXPECT_TRUE(left.empty()) << "kNow folded everything";
+      continue;
+    }
+    ASSERT_EQ(found->size(), folded_lookup.size());
+    for (const auto& [k, r] : *found) EXPECT_TRUE(same_bits(r.v, folded_lookup.at(k).v)) << k;
+    EXPECT_EQ((*db)->corrupt_rows(), 0) << "counted by the fold, not by the read";
+    ASSERT_TRUE((*db)->FoldResults(&by_fold).ok());
+    EXPECT_EQ((*db)->corrupt_rows(), 1);
+    EXPECT_EQ(by_fold.size(), found->size()) << "the rows were left staged for the fold";
+    for (const auto& [k, r] : *found) EXPECT_TRUE(same_bits(by_fold.at(k), r.v)) << k;
+    EXPECT_EQ((*db)->CachedPointCount(), static_cast<long>(found->size()));
+  }
+  std::filesystem::remove_all(dir);
 }
 
 // Found by bench/fault_run.sh: a coordinator killed after storing the last report but before
