@@ -81,8 +81,8 @@ void AddDiagnosticsJson(const IdentifyResult& r, const std::vector<PreparedRecor
   (*j)["refits"] = nlohmann::json::array();
   size_t added = 0;
   for (const StepDiagnostics& s : d.steps) {
-    (*j)["refits"].push_back({{"term", s.term}, {"kept", s.kept}, {"drift", DriftObject(s.drift)}});
-    if (s.kept && added < (*j)["effects_added"].size()) (*j)["effects_added"][added++]["drift"] = DriftObject(s.drift);
+    (*j)["refits"].push_back({{"term", s.term}, {"kept", s.kept && !s.refound}, {"refound", s.refound}, {"drift", DriftObject(s.drift)}});
+    if (s.kept && !s.refound && added < (*j)["effects_added"].size()) (*j)["effects_added"][added++]["drift"] = DriftObject(s.drift);
   }
 }
 

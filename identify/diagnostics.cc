@@ -289,6 +289,7 @@ void Separability(const FitSnapshot& fin, const std::vector<FitSnapshot>& fits, 
     hint(TermOfParam(fin.model, c.a), TermOfParam(fin.model, c.b), fin, "correlated in the final fit, ρ = " + Num(c.rho, 3));
   for (size_t k = 0; k < steps.size() && k + 1 < fits.size(); ++k) {
     const FitSnapshot& f = fits[k + 1];
+    if (f.refound) continue;  // a better optimum of the same model: its drift is no term's doing
     const TermDef* added = *FindTerm(steps[k].term);
     for (const ParamDrift& p : steps[k].drift) {
       const TermDef* moved = TermOfParam(f.model, p.name);
@@ -322,6 +323,7 @@ LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector
     StepDiagnostics s;
     s.term = fits[k].term;
     s.kept = fits[k].kept;
+    s.refound = fits[k].refound;
     s.drift = DriftOf(fits[base].model, fits[base].fit, fits[k].model, fits[k].fit);
     s.before = base_inv;
     s.after = invariants(fits[k]);

@@ -101,11 +101,15 @@ struct FitSnapshot {
   FitResult fit;
   std::string term;   // the candidate added ("" for the declared fit)
   bool kept = false;
+  // The refit with `term` gained by leaving the fit's basin, not by the term (its parameters within 2σ of
+  // zero): the snapshot is the model before the step at the refit's other values, kept in its place.
+  bool refound = false;
 };
 
 struct StepDiagnostics {
   std::string term;
   bool kept = false;
+  bool refound = false;               // FitSnapshot::refound
   std::vector<ParamDrift> drift;      // the model before against this refit
   Invariants before, after;           // when the records are chaotic
 };

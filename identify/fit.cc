@@ -12,6 +12,7 @@
 #include <limits>
 #include <memory>
 #include <thread>
+#include <type_traits>
 
 #include <ceres/ceres.h>
 #include <glog/logging.h>
@@ -1052,9 +1053,12 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
     const auto s0 = std::chrono::steady_clock::now();
     const int n0 = st.result.simulations;
     auto r = fn();
-    if (debug)
-      std::fprintf(stderr, "fit stage %-14s %7.2f s %5d simulations\n", name,
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count(), st.result.simulations - n0);
+    if (debug) {
+      char cost[48] = "";
+      if constexpr (std::is_same_v<decltype(r), double>) std::snprintf(cost, sizeof cost, "  cost %.6g", r);
+      std::fprintf(stderr, "fit stage %-14s %7.2f s %5d simulations%s\n", name,
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count(), st.result.simulations - n0, cost);
+    }
     return r;
   };
   const std::vector<double> start_u = fs.ScaledStart();

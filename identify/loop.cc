@@ -546,6 +546,38 @@ FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t,
   return refit;
 }
 
+}  // namespace
+
+// Whether a confirmed refit with term `t` (model `next` = `m` with t) gained by the term or by leaving the
+// fit's basin: when every parameter of t ends within 2σ of zero (or at zero) and the model without it, at the
+// refit's other values, keeps all but min_improvement of the gain, it is the latter, and *without is that
+// model's fit (θ, σ and covariance without t's rows; its errors evaluated).
+bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitResult& refit, const TermDef* t,
+                        const std::vector<PreparedRecord>& recs, const Setup& setup, const IdentifyOptions& opt, FitResult* without) {
+  const int off = next.Offset(t), np = static_cast<int>(t->params.size());
+  if (off < 0 || static_cast<size_t>(off + np) > refit.theta.size() || refit.sigma.size() != refit.theta.size()) return false;
+  for (int j = off; j < off + np; ++j)
+    if (!(refit.theta[j] == 0.0 || std::abs(refit.theta[j]) <= 2.0 * refit.sigma[j])) return false;  // NaN σ: significant
+  std::vector<int> keep;
+  for (int i = 0; i < static_cast<int>(refit.theta.size()); ++i)
+    if (i < off || i >= off + np) keep.push_back(i);
+  FitResult w;
+  for (int i : keep) w.theta.push_back(refit.theta[i]), w.sigma.push_back(refit.sigma[i]);
+  if (w.theta.size() != m.theta.size()) return false;
+  if (refit.covariance.rows() == static_cast<long>(refit.theta.size())) w.covariance = refit.covariance(keep, keep);
+  const double horizon = opt.fit.objective == Objective::kShooting ? opt.fit.shooting_horizon_s : 0;
+  w.errors = Evaluate(m, w.theta, recs, setup, horizon);
+  w.simulations = refit.simulations + 1;
+  w.seconds = refit.seconds;
+  w.message = refit.message;
+  const double e = ErrorOf(w, opt.fit.objective), after = ErrorOf(refit, opt.fit.objective);
+  if (!(e <= after * (1.0 + opt.min_improvement))) return false;  // the term holds part of the gain
+  *without = std::move(w);
+  return true;
+}
+
+namespace {
+
 // An added effect's values and σ as fitted in `fit` of model `m`.
 void TakeValues(AddedEffect* a, const IdentModel& m, const FitResult& fit) {
   const int off = m.Offset(*FindTerm(a->term));
@@ -591,6 +623,20 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
     step.verdict = "the fit of the declared model gave non-finite parameters; nothing traced";
     out.steps.push_back(step);
   }
+  // The loop goes on from `model` fitted as `f` (the last snapshot). When the output weights move, it is
+  // refitted under the new ones; the step's verdict and errors stay those of `f` (both errors under one
+  // set of weights), the model goes on, and is diagnosed, as refitted.
+  auto go_on = [&](const IdentModel& model, const FitResult& f) {
+    m = model;
+    m.theta = f.theta;
+    fit = f;
+    if (reweight && ReweightOutputs(fit.errors, opt.fit.objective, setup, &recs)) {
+      fit = Fit(m, ScaleOf(m, m.theta, fit.sigma, recs, setup), recs, setup, opt.fit);
+      m.theta = fit.theta;
+      out.fits.back().fit = fit;
+      out.fits.back().model.theta = fit.theta;
+    }
+  };
   for (int round = 0; round < (finite_fit ? opt.max_added : 0); ++round) {
     const auto tr0 = std::chrono::steady_clock::now();
     LoopStep step = TraceResidual(m, m.theta, recs, setup, opt);
@@ -627,22 +673,27 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
       out.steps.push_back(step);
       break;
     }
+    if (FitResult without; GainWithoutTheTerm(m, next, refit, t, recs, setup, opt, &without)) {
+      // A better optimum of the model before the step: it goes on in that model's place (traced again).
+      const double e = ErrorOf(without, opt.fit.objective);
+      std::snprintf(buf, sizeof buf,
+                    "%s scored best and its refit gained (error %.3g %% -> %.3g %%), but by leaving the fit's basin: its "
+                    "parameters ended within 2 sigma of zero and the model without it keeps the gain (%.3g %%); not added, "
+                    "the model goes on from there",
+                    t->id.c_str(), before, after, e);
+      step.verdict = buf;
+      step.chosen.clear();
+      out.steps.push_back(step);
+      out.fits.back() = {m, without, t->id, true, true};
+      go_on(m, without);
+      continue;
+    }
     std::snprintf(buf, sizeof buf, "added %s: error %.3g %% -> %.3g %%", t->id.c_str(), before, after);
     if (std::getenv("BISTABLE_IDENTIFY_DEBUG")) std::fprintf(stderr, "refit: %s (%d simulations, %.1f s)\n", refit.message.c_str(), refit.simulations, refit.seconds);
     step.verdict = buf;
     out.steps.push_back(step);
     out.added.push_back(Added(t, next, refit, before, after));
-    m = next;
-    m.theta = refit.theta;
-    fit = refit;
-    if (reweight && ReweightOutputs(fit.errors, opt.fit.objective, setup, &recs)) {
-      // The step's verdict and error_after stay those of the refit (both errors under one set of
-      // weights); the model goes on, and is diagnosed, as refitted with the new weights.
-      fit = Fit(m, ScaleOf(m, m.theta, fit.sigma, recs, setup), recs, setup, opt.fit);
-      m.theta = fit.theta;
-      out.fits.back().fit = fit;
-      out.fits.back().model.theta = fit.theta;
-    }
+    go_on(next, refit);
   }
   out.final_model = m;
   out.after = fit;

@@ -95,6 +95,15 @@ struct IdentifyResult {
 // when a weight moved by more than a factor 2 (the fit is then repeated with the new weights).
 bool ReweightOutputs(const Errors& e, Objective obj, const Setup& setup, std::vector<PreparedRecord>* recs);
 
+// Whether a confirmed refit with term `t` (the model `next` = `m` with t, fitted: `refit`) gained by the term
+// or by leaving the fit's basin (a restart from elsewhere can find a better optimum of the model before
+// the step): true when every parameter of t ends within 2σ of zero (or at zero) and the model without it,
+// at the refit's other values, keeps all but min_improvement of the gain; then *without is that model's fit
+// (θ, σ and covariance without t's rows, its errors evaluated) and the loop goes on from it, t not added.
+bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitResult& refit, const TermDef* t,
+                        const std::vector<PreparedRecord>& recs, const Setup& setup, const IdentifyOptions& opt,
+                        FitResult* without);
+
 IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRecord>& recs, const Setup& setup,
                         const IdentifyOptions& opt);
 
