@@ -60,7 +60,7 @@ void AddDiagnosticsJson(const IdentifyResult& r, const std::vector<PreparedRecor
   if (d.chaos.chaotic) {
     nlohmann::json steps = nlohmann::json::array();
     for (const StepDiagnostics& s : d.steps)
-      steps.push_back({{"term", s.term}, {"kept", s.kept}, {"before", InvariantsObject(s.before)}, {"after", InvariantsObject(s.after)}});
+      steps.push_back({{"term", s.term}, {"kept", s.kept && !s.refound}, {"refound", s.refound}, {"before", InvariantsObject(s.before)}, {"after", InvariantsObject(s.after)}});
     (*j)["invariants"] = {{"before", InvariantsObject(d.declared)}, {"after", InvariantsObject(d.final)}, {"steps", steps}};
   } else {
     (*j)["invariants"] = nullptr;
@@ -109,12 +109,14 @@ void WriteDiagnosticsReport(std::ostream& md, const IdentifyResult& r) {
       md << "\n";
     };
     row("declared", d.declared);
-    for (const StepDiagnostics& s : d.steps) row("+ " + s.term + (s.kept ? "" : " (refit, not kept)"), s.after);
+    for (const StepDiagnostics& s : d.steps)
+      row(s.refound ? "refit with " + s.term + ": a better optimum without it" : "+ " + s.term + (s.kept ? "" : " (refit, not kept)"), s.after);
     md << "\nThe measured section's first half against its second half gives H = " << F(d.declared.poincare_floor, 3)
        << " (what another stretch of the same measurement gives).\n";
     md << "\nPoincaré H: energy coefficient of the stroboscopic sections (y, y') at the forcing (0 identical, 1 far apart); "
-          "switches: barrier crossings of y = 0 with hysteresis ±half the measured RMS; Hellinger distance of the velocity "
-          "histograms (0 identical, 1 disjoint); spectral error: Eq. 20, normalised.\n\n";
+          "switches: changes of well between forcing periods (the period means of y split into two wells by two-means, "
+          "hysteresis a quarter of the wells' distance); right-well share: periods in the right well of those in a well; "
+          "Hellinger distance of the velocity histograms (0 identical, 1 disjoint); spectral error: Eq. 20, normalised.\n\n";
   }
   md << "## Residual whiteness\n\n";
   const Whiteness& w = d.whiteness;
@@ -140,7 +142,7 @@ void WriteDiagnosticsReport(std::ostream& md, const IdentifyResult& r) {
   for (const ParamCorrelation& c : d.correlations) md << "- ρ(" << c.a << ", " << c.b << ") = " << F(c.rho, 3) << "\n";
   if (!d.correlations.empty()) md << "\n";
   for (const StepDiagnostics& s : d.steps) {
-    md << "Refit with `" << s.term << "` (" << (s.kept ? "kept" : "not kept") << "): drift of the parameters before it\n\n"
+    md << "Refit with `" << s.term << "` (" << (s.refound ? "a better optimum without it, not kept" : s.kept ? "kept" : "not kept") << "): drift of the parameters before it\n\n"
        << "| parameter | before | after | relative | in σ |\n|---|---|---|---|---|\n";
     for (const ParamDrift& p : s.drift)
       md << "| " << p.name << " | " << F(p.before) << " | " << F(p.after) << " | " << F(100 * p.relative, 3) << " % | " << F(p.in_sigma, 3) << " |\n";

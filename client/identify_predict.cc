@@ -204,8 +204,8 @@ std::vector<std::string> Observability(const Setup& setup, bool piezo) {
     o.push_back("with_circuit: the beam and the piezo circuit linearised together, (m s^2 + C s + K)(s + b) + a c s = 0; "
                 "added_stiffness and added_damping are the circuit's a c w^2/(b^2 + w^2) and a c b/(b^2 + w^2) at the mechanical "
                 "small-orbit frequency w.");
-  o.push_back("switches_per_s.measured/predicted: changes of well by forcing period on the zero-mean displacement (the period "
-              "means split into two wells by two-means on the measured ones; hysteresis_m a quarter of the wells' distance): an "
+  o.push_back("switches_per_s.measured/predicted: changes of well by forcing period on the zero-mean displacement (each series' "
+              "period means split into two wells by its own two-means; hysteresis_m a quarter of the measured wells' distance): an "
               "orbit inside one well does not count. well_scale: the same displacement with the "
               "hysteresis half the model's barrier-to-well distance (a small orbit in one well does not count; an orbit in one well "
               "wider than that band still does). model: the model's own displacement (not zero-mean) across its barrier: whether "

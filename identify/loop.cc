@@ -377,7 +377,7 @@ CandidateScore ScoreAtBase(const IdentModel& m, const std::vector<double>& th, c
 }  // namespace
 
 LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                       const Setup& setup, const IdentifyOptions& opt) {
+                       const Setup& setup, const IdentifyOptions& opt, const std::vector<std::string>& passed_over) {
   LoopStep step;
   const std::vector<const TermDef*> fresh = FreshCandidates(m, recs, setup, opt);
   const int p = m.NumParams();
@@ -417,6 +417,7 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
             [](const CandidateScore& a, const CandidateScore& b) { return a.delta_bic < b.delta_bic; });
   for (const CandidateScore& s : step.scores) {
     if (!s.sign_ok || !(s.delta_bic < -opt.bic_threshold) || !(s.explained >= opt.min_explained)) continue;
+    if (std::find(passed_over.begin(), passed_over.end(), s.term) != passed_over.end()) continue;
     step.chosen = s.term;
     break;
   }
@@ -552,26 +553,40 @@ FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t,
 // fit's basin: when every parameter of t ends within 2σ of zero (or at zero) and the model without it, at the
 // refit's other values, keeps all but min_improvement of the gain, it is the latter, and *without is that
 // model's fit (θ, σ and covariance without t's rows; its errors evaluated).
-bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitResult& refit, const TermDef* t,
+bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitResult& refit, const TermDef* t, double before,
                         const std::vector<PreparedRecord>& recs, const Setup& setup, const IdentifyOptions& opt, FitResult* without) {
-  const int off = next.Offset(t), np = static_cast<int>(t->params.size());
-  if (off < 0 || static_cast<size_t>(off + np) > refit.theta.size() || refit.sigma.size() != refit.theta.size()) return false;
-  for (int j = off; j < off + np; ++j)
-    if (!(refit.theta[j] == 0.0 || std::abs(refit.theta[j]) <= 2.0 * refit.sigma[j])) return false;  // NaN σ: significant
-  std::vector<int> keep;
-  for (int i = 0; i < static_cast<int>(refit.theta.size()); ++i)
-    if (i < off || i >= off + np) keep.push_back(i);
+  const int off = next.Offset(t), np = static_cast<int>(t->params.size()), n = static_cast<int>(refit.theta.size());
+  if (off < 0 || off + np > n || static_cast<int>(refit.sigma.size()) != n) return false;
+  std::vector<int> term, keep;
+  for (int i = 0; i < n; ++i) (i >= off && i < off + np ? term : keep).push_back(i);
+  const bool has_cov = refit.covariance.rows() == n && refit.covariance.cols() == n && refit.covariance.allFinite();
+  Eigen::VectorXd th_t(np);
+  for (int j = 0; j < np; ++j) th_t[j] = refit.theta[off + j];
+  if (!th_t.isZero(0.0)) {  // exactly zero: the model without t is the same model
+    constexpr double kChi2_95[] = {3.841, 5.991, 7.815, 9.488, 11.070, 12.592};
+    if (!has_cov || np > 6) return false;
+    const Eigen::MatrixXd s_tt = refit.covariance(term, term);
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(s_tt);
+    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0)) return false;  // singular: cannot tell
+    const double wald = th_t.dot(ldlt.solve(th_t));
+    if (!(wald < kChi2_95[np - 1])) return false;  // NaN: significant
+  }
   FitResult w;
   for (int i : keep) w.theta.push_back(refit.theta[i]), w.sigma.push_back(refit.sigma[i]);
   if (w.theta.size() != m.theta.size()) return false;
-  if (refit.covariance.rows() == static_cast<long>(refit.theta.size())) w.covariance = refit.covariance(keep, keep);
+  if (has_cov) {  // conditional on θ_t = 0: the model without t has no t to trade against
+    const Eigen::MatrixXd s_kk = refit.covariance(keep, keep), s_kt = refit.covariance(keep, term), s_tt = refit.covariance(term, term);
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(s_tt);
+    w.covariance = ldlt.info() == Eigen::Success && ldlt.vectorD().minCoeff() > 0 ? Eigen::MatrixXd(s_kk - s_kt * ldlt.solve(s_kt.transpose())) : s_kk;
+    for (int i = 0; i < static_cast<int>(keep.size()); ++i) w.sigma[i] = std::sqrt(std::max(0.0, w.covariance(i, i)));
+  }
   const double horizon = opt.fit.objective == Objective::kShooting ? opt.fit.shooting_horizon_s : 0;
   w.errors = Evaluate(m, w.theta, recs, setup, horizon);
   w.simulations = refit.simulations + 1;
   w.seconds = refit.seconds;
   w.message = refit.message;
   const double e = ErrorOf(w, opt.fit.objective), after = ErrorOf(refit, opt.fit.objective);
-  if (!(e <= after * (1.0 + opt.min_improvement))) return false;  // the term holds part of the gain
+  if (!(e <= after + opt.min_improvement * (before - after)) || !(e < before * (1.0 - opt.min_improvement))) return false;
   *without = std::move(w);
   return true;
 }
@@ -637,9 +652,10 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
       out.fits.back().model.theta = fit.theta;
     }
   };
+  std::vector<std::string> passed_over;  // terms whose refit gained by leaving the basin (not chosen again)
   for (int round = 0; round < (finite_fit ? opt.max_added : 0); ++round) {
     const auto tr0 = std::chrono::steady_clock::now();
-    LoopStep step = TraceResidual(m, m.theta, recs, setup, opt);
+    LoopStep step = TraceResidual(m, m.theta, recs, setup, opt, passed_over);
     if (std::getenv("BISTABLE_IDENTIFY_DEBUG"))
       std::fprintf(stderr, "trace %.2f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - tr0).count());
     if (step.chosen.empty()) {
@@ -655,7 +671,7 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
     const bool physical = Physical(next, refit.theta);
     const bool confirmed = physical && after < before * (1.0 - opt.min_improvement);
     out.fits.push_back({next, refit, t->id, confirmed});
-    char buf[256];
+    char buf[512];
     if (!physical) {
       const int pz = next.PiezoIndex();
       std::snprintf(buf, sizeof buf, "%s scored best but its refit feeds energy into the beam (a c = %.3g < 0; error %.3g %% -> %.3g %%); not added",
@@ -673,16 +689,17 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
       out.steps.push_back(step);
       break;
     }
-    if (FitResult without; GainWithoutTheTerm(m, next, refit, t, recs, setup, opt, &without)) {
+    if (FitResult without; GainWithoutTheTerm(m, next, refit, t, before, recs, setup, opt, &without)) {
       // A better optimum of the model before the step: it goes on in that model's place (traced again).
       const double e = ErrorOf(without, opt.fit.objective);
       std::snprintf(buf, sizeof buf,
                     "%s scored best and its refit gained (error %.3g %% -> %.3g %%), but by leaving the fit's basin: its "
-                    "parameters ended within 2 sigma of zero and the model without it keeps the gain (%.3g %%); not added, "
-                    "the model goes on from there",
+                    "parameters ended insignificant (Wald test, 95 %%) and the model without it keeps the gain (%.3g %%); "
+                    "not added, the model before goes on at the refit's values",
                     t->id.c_str(), before, after, e);
       step.verdict = buf;
       step.chosen.clear();
+      passed_over.push_back(t->id);
       out.steps.push_back(step);
       out.fits.back() = {m, without, t->id, true, true};
       go_on(m, without);
@@ -699,9 +716,10 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
   out.after = fit;
   for (AddedEffect& a : out.added) TakeValues(&a, m, fit);  // the final values (later additions refit everything)
   out.residual_after = ResidualForce(m, m.theta, recs, setup);
-  const std::string stop = out.steps.empty()                  ? "--max-added 0, nothing traced"
-                           : out.steps.back().chosen.empty() ? out.steps.back().verdict
-                                                             : "it reached --max-added after: " + out.steps.back().verdict;
+  const bool went_on = !out.steps.empty() && (!out.steps.back().chosen.empty() || out.fits.back().refound);  // not a stop
+  const std::string stop = out.steps.empty() ? "--max-added 0, nothing traced"
+                           : went_on         ? "it reached --max-added after: " + out.steps.back().verdict
+                                             : out.steps.back().verdict;
   out.diagnostics = Diagnose(out.fits, recs, setup, opt.fit, stop);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;

@@ -95,12 +95,16 @@ struct IdentifyResult {
 // when a weight moved by more than a factor 2 (the fit is then repeated with the new weights).
 bool ReweightOutputs(const Errors& e, Objective obj, const Setup& setup, std::vector<PreparedRecord>* recs);
 
-// Whether a confirmed refit with term `t` (the model `next` = `m` with t, fitted: `refit`) gained by the term
+// Whether a confirmed refit with term `t` (the model `next` = `m` with t, fitted: `refit`; `before`: the error
+// of the fit of `m` it started from) gained by the term
 // or by leaving the fit's basin (a restart from elsewhere can find a better optimum of the model before
-// the step): true when every parameter of t ends within 2σ of zero (or at zero) and the model without it,
-// at the refit's other values, keeps all but min_improvement of the gain; then *without is that model's fit
-// (θ, σ and covariance without t's rows, its errors evaluated) and the loop goes on from it, t not added.
-bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitResult& refit, const TermDef* t,
+// the step): true when t's parameters are not significant — all exactly zero, or a Wald test θ_tᵀ Σ_tt⁻¹ θ_t
+// below the χ² 95 % quantile (one parameter: |θ| < 1.96 σ; NaN σ or no covariance: significant) — and
+// the model without t, at the refit's other values, keeps the gain: its error at most after +
+// min_improvement·(before − after) and below before·(1 − min_improvement). Then *without is that model's
+// fit (θ; the covariance conditional on t = 0, Σ_kk − Σ_kt Σ_tt⁻¹ Σ_tk, and its σ; its errors evaluated)
+// and the loop goes on from it, t not added and passed over by the next traces.
+bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitResult& refit, const TermDef* t, double before,
                         const std::vector<PreparedRecord>& recs, const Setup& setup, const IdentifyOptions& opt,
                         FitResult* without);
 
@@ -111,9 +115,10 @@ IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRe
 ResidualCloud ResidualForce(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                             const Setup& setup);
 
-// Scores every candidate against the residual of `m` (fitted `th`); exposed for tests and reports.
+// Scores every candidate against the residual of `m` (fitted `th`); exposed for tests and reports. Terms in
+// `passed_over` (whose refit gained by leaving the basin, GainWithoutTheTerm) are scored but not chosen.
 LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                       const Setup& setup, const IdentifyOptions& opt);
+                       const Setup& setup, const IdentifyOptions& opt, const std::vector<std::string>& passed_over = {});
 
 }  // namespace bistable
 

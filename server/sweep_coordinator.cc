@@ -849,7 +849,7 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
       return Status::FailedPrecondition("sweep " + row.id + " is incomplete: " +
                                         std::to_string(keys.size() - found->size()) + " items are not stored (or failed their checksum)");
     }
-    records.push_back(std::move(it->second));
+    records.push_back(it->second);  // a copy: two items of a sweep can share a key (equal initial states)
   }
   SweepRow done = row;
   done.items_done = static_cast<long>(records.size());

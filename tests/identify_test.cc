@@ -183,8 +183,9 @@ TEST(Identify, OneRecordFitOnTwoThreadsEqualsTheSequentialFit) {
 
 // A refit that gains by leaving the fit's basin, not by its term (the coupled rig's declared fit stops at
 // 3.1 % in a friction/c2 trade-off; the refit with drag reached 1.15 % with drag = 0 ± 0.68): the term's
-// parameter within 2σ of zero and the model without it keeping the gain → the loop goes on from the model
-// without it. A significant term, or one whose removal loses the gain, stays a real addition.
+// parameter insignificant and the model without it keeping the gain → the loop goes on from the model
+// without it, with the covariance conditional on the term being zero. A significant term, one without σ,
+// or one whose removal loses the gain stays a real addition.
 TEST(Identify, AGainByLeavingTheBasinIsNotCreditedToTheTerm) {
   Record rec = Chirps(0.05e-3)[0];
   auto p = PrepareRecord(rec, bistable::Setup{}, 0, 6 * 120, 0.0, rec.name);
@@ -213,30 +214,42 @@ TEST(Identify, AGainByLeavingTheBasinIsNotCreditedToTheTerm) {
     return std::make_pair(next, r);
   };
   IdentifyOptions io;
+  const double e0 = Evaluate(m, fit.theta, recs, bistable::Setup{}, 0.0).nrmse, before = 1.5 * e0;  // as if from a worse basin
   {
     const auto [next, refit] = refit_with(0.0, 0.5);
     FitResult without;
-    ASSERT_TRUE(GainWithoutTheTerm(m, next, refit, drag, recs, bistable::Setup{}, io, &without));
+    ASSERT_TRUE(GainWithoutTheTerm(m, next, refit, drag, before, recs, bistable::Setup{}, io, &without));
     EXPECT_EQ(without.theta, fit.theta);
-    EXPECT_EQ(without.sigma, fit.sigma);
-    EXPECT_EQ(without.covariance, fit.covariance);
-    EXPECT_EQ(without.errors.nrmse, Evaluate(m, fit.theta, recs, bistable::Setup{}, 0.0).nrmse);
+    EXPECT_EQ(without.errors.nrmse, e0);
+    EXPECT_TRUE(without.covariance.isApprox(fit.covariance, 1e-12)) << "no cross terms: conditional = marginal";
+    EXPECT_FALSE(GainWithoutTheTerm(m, next, refit, drag, e0, recs, bistable::Setup{}, io, &without)) << "no gain to keep";
   }
   {
-    auto [next, refit] = refit_with(0.02, 0.5);  // within 2σ; the refit's own error claimed much lower than without it
+    // Drag correlated with c0 (ρ = −0.9): the model without drag has c0's conditional variance σ²(1 − ρ²), not σ².
+    auto [next, refit] = refit_with(0.1, 0.5);
+    const int off = next.Offset(drag), c0 = 1;
+    const double s0 = std::sqrt(refit.covariance(c0, c0)), rho = -0.9;
+    refit.covariance(c0, off) = refit.covariance(off, c0) = rho * s0 * 0.5;
+    FitResult without;
+    ASSERT_TRUE(GainWithoutTheTerm(m, next, refit, drag, before, recs, bistable::Setup{}, io, &without));
+    EXPECT_NEAR(without.sigma[c0], s0 * std::sqrt(1 - rho * rho), 1e-9 * s0);
+    EXPECT_EQ(without.theta, fit.theta);
+  }
+  {
+    auto [next, refit] = refit_with(0.02, 0.5);  // insignificant; the refit's own error claimed far lower than without it
     refit.errors.nrmse *= 0.5;
     FitResult without;
-    EXPECT_FALSE(GainWithoutTheTerm(m, next, refit, drag, recs, bistable::Setup{}, io, &without));
+    EXPECT_FALSE(GainWithoutTheTerm(m, next, refit, drag, before, recs, bistable::Setup{}, io, &without));
   }
   {
     const auto [next, refit] = refit_with(0.02, 0.002);  // 10 σ: a real term
     FitResult without;
-    EXPECT_FALSE(GainWithoutTheTerm(m, next, refit, drag, recs, bistable::Setup{}, io, &without));
+    EXPECT_FALSE(GainWithoutTheTerm(m, next, refit, drag, before, recs, bistable::Setup{}, io, &without));
   }
   {
     const auto [next, refit] = refit_with(0.02, NAN);  // no σ (spectral objective): cannot tell, a real term
     FitResult without;
-    EXPECT_FALSE(GainWithoutTheTerm(m, next, refit, drag, recs, bistable::Setup{}, io, &without));
+    EXPECT_FALSE(GainWithoutTheTerm(m, next, refit, drag, before, recs, bistable::Setup{}, io, &without));
   }
 }
 

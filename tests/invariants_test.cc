@@ -115,8 +115,7 @@ TEST(IdentifyInvariants, SwitchesAndVelocityHistograms) {
 
 // Wells by forcing period: an orbit wider than the wells' distance switches at every half period by the
 // barrier rule but never changes well; the period rule counts the changes of well only, whatever the
-// displacement's mean (a velocity sensor loses it), and classifies the simulated periods by the measured
-// split.
+// displacement's mean (a velocity sensor loses it), each series by its own split.
 TEST(IdentifyInvariants, WellsByForcingPeriodIgnoreWideOrbitsAndTheMean) {
   const double dt = 1e-3, f = 5.0;               // 200 samples per period
   const std::vector<int> wells = {-1, -1, 1, 1, 1, -1, 1, 1, -1, -1, -1, -1};  // 4 changes, 5 of 12 periods right

@@ -451,6 +451,42 @@ TEST(SweepEngine, LookupWithoutFoldingFindsWhatFoldingFinds) {
   std::filesystem::remove_all(dir);
 }
 
+// Staged records override the point cache and, where a key repeats among them, the later report wins —
+// with and without folding; and a lookup that does not fold pages through more staged rows than one read.
+TEST(SweepEngine, StagedRecordsOverrideTheCacheAndTheLaterReportWins) {
+  const std::string dir = TempDir("lookup_order");
+  std::filesystem::create_directories(dir);
+  auto job = [](const std::vector<std::string>& keys, double value) {
+    IndexDb::JobResults j{"s", 2, "", {}};
+    for (const std::string& k : keys) j.keys += k + "\n", j.values.push_back(value), j.values.push_back(-value);
+    return j;
+  };
+  for (IndexDb::Fold fold : {IndexDb::Fold::kNow, IndexDb::Fold::kLater}) {
+    auto db = IndexDb::Open(dir + (fold == IndexDb::Fold::kNow ? "/now.sqlite" : "/later.sqlite"));
+    ASSERT_TRUE(db.ok());
+    ASSERT_TRUE((*db)->PutPoints({job({"a", "b"}, 1.0)}).ok());
+    ASSERT_EQ((*db)->CachedPointCount(), 2);  // folded: a and b are in the point cache with 1
+    std::vector<IndexDb::JobResults> staged;
+    for (int i = 0; i < 5000; ++i) staged.push_back(job({"k" + std::to_string(i)}, i));  // more rows than one page of reads
+    staged.push_back(job({"a"}, 2.0));
+    staged.push_back(job({"a"}, 3.0));  // the later report of a
+    ASSERT_TRUE((*db)->PutPoints(staged).ok());
+    long corrupt = -1;
+    auto found = (*db)->LookupPoints({"a", "b", "k0", "k4999", "missing"}, 2, &corrupt, fold);
+    ASSERT_TRUE(found.ok());
+    EXPECT_EQ(corrupt, 0);
+    EXPECT_EQ(found->size(), 4u);
+    EXPECT_EQ(found->at("a").v, (std::vector<double>{3.0, -3.0})) << "staged over cached, the later over the earlier";
+    EXPECT_EQ(found->at("b").v, (std::vector<double>{1.0, -1.0}));
+    EXPECT_EQ(found->at("k4999").v, (std::vector<double>{4999.0, -4999.0}));
+    EXPECT_EQ((*db)->CachedPointCount(), 5002);
+    auto again = (*db)->LookupPoints({"a"}, 2, nullptr);
+    ASSERT_TRUE(again.ok());
+    EXPECT_EQ(again->at("a").v, (std::vector<double>{3.0, -3.0})) << "and so folded";
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // Found by bench/fault_run.sh: a coordinator killed after storing the last report but before
 // publishing came back with nothing to compute and waited forever for a report.
 TEST(SweepEngine, ReopenedCoordinatorPublishesASweepWhoseItemsAreAllStored) {
