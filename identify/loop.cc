@@ -653,7 +653,10 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
     }
   };
   std::vector<std::string> passed_over;  // terms whose refit gained by leaving the basin (not chosen again)
-  for (int round = 0; round < (finite_fit ? opt.max_added : 0); ++round) {
+  // Rounds that add a term count against --max-added; a refound one does not (it adds nothing), and each
+  // passes its term over, so the loop still ends: at most max_added + the candidates' number of traces.
+  const int max_traces = opt.max_added + static_cast<int>(FreshCandidates(m, recs, setup, opt).size());
+  for (int round = 0, traces = 0; round < (finite_fit ? opt.max_added : 0) && traces < max_traces; ++round, ++traces) {
     const auto tr0 = std::chrono::steady_clock::now();
     LoopStep step = TraceResidual(m, m.theta, recs, setup, opt, passed_over);
     if (std::getenv("BISTABLE_IDENTIFY_DEBUG"))
@@ -703,6 +706,7 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
       out.steps.push_back(step);
       out.fits.back() = {m, without, t->id, true, true};
       go_on(m, without);
+      --round;  // nothing was added
       continue;
     }
     std::snprintf(buf, sizeof buf, "added %s: error %.3g %% -> %.3g %%", t->id.c_str(), before, after);
