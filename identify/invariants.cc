@@ -191,6 +191,8 @@ WellSwitching WellsOf(const std::vector<double>& y_meas, const std::vector<doubl
   WellSwitching w;
   const PeriodMotion pm = PeriodsOf(y_meas, dt, f_hz), ps = PeriodsOf(y_sim, dt, f_hz);
   w.seconds = static_cast<double>(pm.mean.size()) / f_hz;
+  for (const PeriodMotion* p : {&pm, &ps})
+    for (double v : p->mean) w.finite = w.finite && std::isfinite(v);
   w.measured_split = SplitWells(pm);
   w.simulated_split = SplitWells(ps);
   w.measured = CountWells(pm.mean, w.measured_split);
@@ -282,8 +284,8 @@ Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th,
       if (std::isfinite(h)) h_sum += h, ++h_n;
       if (std::isfinite(floor)) floor_sum += floor, ++floor_n;
     }
-    if (std::isfinite(f)) {
-      const WellSwitching w = WellsOf(ym, ys, r.dt, f);
+    if (const WellSwitching w = std::isfinite(f) ? WellsOf(ym, ys, r.dt, f) : WellSwitching{}; w.finite && w.seconds > 0) {
+      // (a record with a non-finite period mean adds neither switches nor seconds)
       wells_meas.switches += w.measured.switches, wells_sim.switches += w.simulated.switches;
       for (auto [sum, c] : {std::pair{&wells_meas, &w.measured}, std::pair{&wells_sim, &w.simulated}})
         sum->left += c->left, sum->right += c->right, sum->sum_left += c->sum_left, sum->sum_right += c->sum_right;

@@ -108,6 +108,7 @@ struct WellSwitching {
   WellSplit measured_split, simulated_split;
   WellCount measured, simulated;
   double seconds = 0;  // whole forcing periods
+  bool finite = true;  // every period mean of both series finite; otherwise the counts mean nothing
 };
 WellSwitching WellsOf(const std::vector<double>& y_meas, const std::vector<double>& y_sim, double dt, double f_hz);
 

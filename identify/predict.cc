@@ -245,7 +245,7 @@ RecordPrediction PredictRecord(const IdentModel& m, const std::vector<double>& t
   if (setup.output != OutputKind::kVelocity) p.mean_displacement_measured = Mean(ym);
   auto by_period = [&](const std::vector<double>& ys) {  // invariants.h's rule
     const WellSwitching w = WellsOf(ym, ys, r.dt, p.forcing_hz);
-    if (!(w.seconds > 0)) return;
+    if (!(w.seconds > 0) || !w.finite) return;
     p.switches.hysteresis = w.measured_split.band;
     p.switches.measured = w.measured.switches / w.seconds;
     if (!ys.empty()) p.switches.predicted = w.simulated.switches / w.seconds;

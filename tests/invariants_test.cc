@@ -160,6 +160,10 @@ TEST(IdentifyInvariants, WellsByForcingPeriodIgnoreWideOrbitsAndTheMean) {
   // ...and a model that switches where the measurement stays in one well counts its own switches.
   const WellSwitching w = WellsOf(one, y, dt, f);
   EXPECT_EQ(w.simulated.switches, 4);
+  std::vector<double> broken = y;
+  broken[1000] = NAN;  // a simulation that went non-finite: no count, rather than "no switches"
+  EXPECT_FALSE(WellsOf(y, broken, dt, f).finite);
+  EXPECT_TRUE(WellsOf(y, y, dt, f).finite);
   EXPECT_TRUE(PeriodsOf(y, dt, 0.0).mean.empty());
   EXPECT_TRUE(PeriodsOf(y, dt, NAN).mean.empty());
 }
