@@ -101,8 +101,8 @@ struct FitSnapshot {
   FitResult fit;
   std::string term;   // the candidate added ("" for the declared fit)
   bool kept = false;
-  // The refit with `term` gained by leaving the fit's basin, not by the term (its parameters within 2σ of
-  // zero): the snapshot is the model before the step at the refit's other values, kept in its place.
+  // The refit with `term` gained by leaving the fit's basin, not by the term (GainWithoutTheTerm): the
+  // snapshot is the model before the step at the refit's other values, kept in its place.
   bool refound = false;
 };
 

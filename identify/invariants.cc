@@ -286,9 +286,8 @@ Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th,
     }
     if (const WellSwitching w = std::isfinite(f) ? WellsOf(ym, ys, r.dt, f) : WellSwitching{}; w.finite && w.seconds > 0) {
       // (a record with a non-finite period mean adds neither switches nor seconds)
-      wells_meas.switches += w.measured.switches, wells_sim.switches += w.simulated.switches;
-      for (auto [sum, c] : {std::pair{&wells_meas, &w.measured}, std::pair{&wells_sim, &w.simulated}})
-        sum->left += c->left, sum->right += c->right, sum->sum_left += c->sum_left, sum->sum_right += c->sum_right;
+      wells_meas.Add(w.measured);
+      wells_sim.Add(w.simulated);
       seconds += w.seconds;
     }
     const double hh = HistogramHellinger(vm, vs);

@@ -99,6 +99,9 @@ WellSplit SplitWells(const PeriodMotion& p);
 struct WellCount {
   int switches = 0, left = 0, right = 0;
   double sum_left = 0, sum_right = 0;  // of the classified period means
+  void Add(const WellCount& o) {       // another record's periods
+    switches += o.switches, left += o.left, right += o.right, sum_left += o.sum_left, sum_right += o.sum_right;
+  }
 };
 WellCount CountWells(const std::vector<double>& means, const WellSplit& s);
 

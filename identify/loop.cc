@@ -1,6 +1,7 @@
 #include "identify/loop.h"
 
 #include <algorithm>
+#include <optional>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -560,24 +561,25 @@ bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitRe
   std::vector<int> term, keep;
   for (int i = 0; i < n; ++i) (i >= off && i < off + np ? term : keep).push_back(i);
   const bool has_cov = refit.covariance.rows() == n && refit.covariance.cols() == n && refit.covariance.allFinite();
+  // Σ_tt's factorisation, when it is positive definite: the Wald test and the conditional covariance.
+  std::optional<Eigen::LDLT<Eigen::MatrixXd>> tt;
+  if (has_cov) {
+    Eigen::LDLT<Eigen::MatrixXd> ldlt(refit.covariance(term, term));
+    if (ldlt.info() == Eigen::Success && ldlt.vectorD().minCoeff() > 0) tt = std::move(ldlt);
+  }
   Eigen::VectorXd th_t(np);
   for (int j = 0; j < np; ++j) th_t[j] = refit.theta[off + j];
   if (!th_t.isZero(0.0)) {  // exactly zero: the model without t is the same model
     constexpr double kChi2_95[] = {3.841, 5.991, 7.815, 9.488, 11.070, 12.592};
-    if (!has_cov || np > 6) return false;
-    const Eigen::MatrixXd s_tt = refit.covariance(term, term);
-    const Eigen::LDLT<Eigen::MatrixXd> ldlt(s_tt);
-    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0)) return false;  // singular: cannot tell
-    const double wald = th_t.dot(ldlt.solve(th_t));
-    if (!(wald < kChi2_95[np - 1])) return false;  // NaN: significant
+    if (!tt || np > 6) return false;  // no covariance, or a singular one: cannot tell, significant
+    if (!(th_t.dot(tt->solve(th_t)) < kChi2_95[np - 1])) return false;  // NaN: significant
   }
   FitResult w;
   for (int i : keep) w.theta.push_back(refit.theta[i]), w.sigma.push_back(refit.sigma[i]);
   if (w.theta.size() != m.theta.size()) return false;
   if (has_cov) {  // conditional on θ_t = 0: the model without t has no t to trade against
-    const Eigen::MatrixXd s_kk = refit.covariance(keep, keep), s_kt = refit.covariance(keep, term), s_tt = refit.covariance(term, term);
-    const Eigen::LDLT<Eigen::MatrixXd> ldlt(s_tt);
-    w.covariance = ldlt.info() == Eigen::Success && ldlt.vectorD().minCoeff() > 0 ? Eigen::MatrixXd(s_kk - s_kt * ldlt.solve(s_kt.transpose())) : s_kk;
+    const Eigen::MatrixXd s_kk = refit.covariance(keep, keep), s_kt = refit.covariance(keep, term);
+    w.covariance = tt ? Eigen::MatrixXd(s_kk - s_kt * tt->solve(s_kt.transpose())) : s_kk;
     for (int i = 0; i < static_cast<int>(keep.size()); ++i) w.sigma[i] = std::sqrt(std::max(0.0, w.covariance(i, i)));
   }
   const double horizon = opt.fit.objective == Objective::kShooting ? opt.fit.shooting_horizon_s : 0;
