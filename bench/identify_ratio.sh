@@ -3,7 +3,7 @@
 # and the current one), run one after the other per loop in the same script so both see the same
 # machine load: wall seconds of each, the ratio old/new, and each run's errors and added terms (the
 # result must not get worse while the time falls). Run it alone (or under the build lock) for honest
-# ratios.
+# ratios. The json column says whether both runs gave the same JSON but for wall times.
 #   bench/identify_ratio.sh OLD_BISTABLE NEW_BISTABLE [MEASURED_DIR] [LOOPS]
 #   e.g. git worktree add /tmp/old <commit> && cmake -S /tmp/old -B /tmp/old/build -G Ninja \
 #          -DCMAKE_BUILD_TYPE=Release && cmake --build /tmp/old/build --target bistable
@@ -45,6 +45,15 @@ summary() {  # JSON → "error a -> b, added [...]"
   /usr/bin/python3 -c "import json, sys; d = json.load(open(sys.argv[1]))
 print('error %.4g -> %.4g %%, added %s' % (d['error_before'], d['error_after'], [e['term'] for e in d['effects_added']]))" "$1"
 }
+same() {  # two JSON outputs equal but for wall times ("seconds" keys) → "same" | "differ"
+  /usr/bin/python3 -c "import json, sys
+def strip(x):
+    if isinstance(x, dict): return {k: strip(v) for k, v in x.items() if k != 'seconds'}
+    if isinstance(x, list): return [strip(v) for v in x]
+    return x
+a, b = (strip(json.load(open(f))) for f in sys.argv[1:3])
+print('same' if a == b else 'differ')" "$1" "$2"
+}
 run() {  # binary args out → wall seconds
   local t0 t1
   t0=$(date +%s.%N)
@@ -53,7 +62,7 @@ run() {  # binary args out → wall seconds
   t1=$(date +%s.%N)
   echo "$t0 $t1" | awk '{printf "%.2f", $2 - $1}'
 }
-printf '%-16s %9s %9s %7s  %s\n' loop old_s new_s ratio "result (old | new)"
+printf '%-16s %9s %9s %7s %6s  %s\n' loop old_s new_s ratio json "result (old | new)"
 IFS=, read -ra L <<< "$LOOPS"
 for loop in "${L[@]}"; do
   a=$(args_of "$loop")
@@ -63,6 +72,7 @@ for loop in "${L[@]}"; do
   esac
   to=$(run "$OLD" "$a" "$TMP/old.json")
   tn=$(run "$NEW" "$a" "$TMP/new.json")
-  printf '%-16s %9s %9s %7s  %s | %s\n' "$loop" "$to" "$tn" "$(awk -v a="$to" -v b="$tn" 'BEGIN{printf "%.2f", a / b}')" \
+  printf '%-16s %9s %9s %7s %6s  %s | %s\n' "$loop" "$to" "$tn" "$(awk -v a="$to" -v b="$tn" 'BEGIN{printf "%.2f", a / b}')" \
+    "$(same "$TMP/old.json" "$TMP/new.json")" \
     "$(summary "$TMP/old.json")" "$(summary "$TMP/new.json")"
 done

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <complex>
@@ -810,6 +811,51 @@ class SimCostFunction : public ceres::DynamicCostFunction {
   SimCost c_;
 };
 
+// The spectral objective's forward-difference Jacobian: the arithmetic of Ceres'
+// DynamicNumericDiffCostFunction<FORWARD> (step max(√ε, 1e-6 |u_j|), (r(u + δ e_j) − r(u)) · (1/δ)), so
+// the same bits, with the columns' simulations spread over the CPUs the records leave idle: with one
+// record a simulation uses one core, and the p columns are independent.
+class ForwardDiffFunction : public ceres::DynamicCostFunction {
+ public:
+  ForwardDiffFunction(SimCost c, int column_threads) : c_(std::move(c)), threads_(std::max(1, column_threads)) {
+    if (threads_ > 1) c_.threads = 1;  // the columns are the parallelism (Residuals does not depend on it)
+  }
+  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
+    if (!c_(params, residuals)) return false;
+    if (!jacobians || !jacobians[0]) return true;
+    const int p = parameter_block_sizes()[0], n = num_residuals();
+    const double* u = params[0];
+    const double min_step = std::sqrt(std::numeric_limits<double>::epsilon());
+    std::atomic<int> next{0};
+    std::atomic<bool> ok{true};
+    auto columns = [&] {
+      SimCost c = c_;
+      std::vector<double> up(u, u + p), r(static_cast<size_t>(n));
+      const double* pp[1] = {up.data()};
+      for (int j = next++; j < p && ok; j = next++) {
+        const double delta = std::max(min_step, std::abs(u[j]) * 1e-6);
+        up[j] = u[j] + delta;
+        if (!c(pp, r.data())) {
+          ok = false;
+          return;
+        }
+        up[j] = u[j];
+        const double inv = 1.0 / delta;
+        for (int i = 0; i < n; ++i) jacobians[0][static_cast<size_t>(i) * p + j] = (r[i] - residuals[i]) * inv;
+      }
+    };
+    std::vector<std::thread> pool;
+    for (int t = 1; t < std::min(threads_, p); ++t) pool.emplace_back(columns);
+    columns();
+    for (std::thread& t : pool) t.join();
+    return ok;
+  }
+
+ private:
+  SimCost c_;
+  int threads_;
+};
+
 // What the stages of one fit share: the problem in scaled parameters u = θ / scale (the cost functor
 // `cost` holds the scales), the sign bounds, and the result they fill in (simulation count, Ceres'
 // message).
@@ -946,7 +992,10 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
     if (lc.warm) lc.warm = std::make_shared<ShootCache>();
     ceres::DynamicCostFunction* fn = nullptr;
     if (obj != Objective::kFft) fn = new SimCostFunction(lc);
-    else fn = new ceres::DynamicNumericDiffCostFunction<SimCost, ceres::FORWARD>(new SimCost(lc), ceres::TAKE_OWNERSHIP);
+    else {  // the CPUs the records leave idle compute columns
+      const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
+      fn = new ForwardDiffFunction(lc, recs.size() < static_cast<size_t>(cpus) ? cpus : 1);
+    }
     fn->AddParameterBlock(p);
     fn->SetNumResiduals(static_cast<int>(lres));
     ceres::Problem problem;
@@ -1063,6 +1112,14 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
   };
   const std::vector<double> start_u = fs.ScaledStart();
   std::vector<double> u = start_u;
+  // BISTABLE_IDENTIFY_DEBUG: the start and, after the stages, the end (which basin a fit went to).
+  auto print_theta = [&](const char* what, const std::vector<double>& uu) {
+    if (!debug) return;
+    std::fprintf(stderr, "fit %s θ:", what);
+    for (double v : fs.Theta(uu)) std::fprintf(stderr, " %.5g", v);
+    std::fprintf(stderr, "\n");
+  };
+  print_theta("start", u);
   double best_cost = INFINITY;
   auto lm = [&] { best_cost = stage(fs, "lm", [&] { return fs.LocalStage(u, opt.objective); }); };
   if (opt.objective == Objective::kTime && opt.shooting_horizon_s > 0) {
@@ -1104,6 +1161,7 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
     }
   }
   fs.result.theta = fs.Theta(u);
+  print_theta("end", u);
   stage(fs, "sigma", [&] {
     fs.Uncertainties(u);
     return 0;

@@ -181,6 +181,30 @@ TEST(Identify, OneRecordFitOnTwoThreadsEqualsTheSequentialFit) {
   EXPECT_LT(ExpectTheSameFitOnOneAndTwoThreads({*p}).errors.nrmse, 5.0);  // it did fit (8 % from the regression start without c2)
 }
 
+TEST(Identify, SpectralFitOnTwoThreadsEqualsTheSequentialFit) {
+  // The spectral objective's forward-difference Jacobian: with one record its columns' simulations run
+  // on both threads, each column with the step and arithmetic of the sequential one.
+  Record rec = Chirps(0.05e-3)[0];
+  auto p = PrepareRecord(rec, bistable::Setup{}, 0, 3 * 120, 0.0, rec.name);  // the first 3 s
+  ASSERT_TRUE(p.ok()) << p.status().ToString();
+  IdentModel m = Declared("main.linear,main.viscous,main.friction");
+  m.theta = {400.0, 2.0, 0.8, 0.4};
+  FitOptions o;
+  o.objective = Objective::kFft;
+  o.global_evals = 0;
+  o.lm_iterations = 4;
+  o.threads = 1;
+  const FitResult one = Fit(m, m.theta, {*p}, bistable::Setup{}, o);
+  o.threads = 2;
+  const FitResult two = Fit(m, m.theta, {*p}, bistable::Setup{}, o);
+  EXPECT_EQ(one.theta, two.theta);
+  EXPECT_EQ(one.simulations, two.simulations);
+  EXPECT_EQ(one.message, two.message);
+  EXPECT_EQ(one.errors.fft, two.errors.fft);
+  EXPECT_GT(two.simulations, 2 * 5);  // Jacobians were evaluated (p + 1 simulations each)
+  EXPECT_NE(two.theta, m.theta);     // and the fit moved
+}
+
 // A refit that gains by leaving the fit's basin, not by its term (the coupled rig's declared fit stops at
 // 3.1 % in a friction/c2 trade-off; the refit with drag reached 1.15 % with drag = 0 ± 0.68): the term's
 // parameter insignificant and the model without it keeping the gain → the loop goes on from the model
