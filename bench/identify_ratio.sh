@@ -41,9 +41,10 @@ args_of() {
     *) echo "error: unknown loop '$1' (syn_c2, syn_friction, syn_null, silverbox, harvester_inter, harvester_intra)" >&2; exit 2 ;;
   esac
 }
-summary() {  # JSON → "error a -> b, added [...]"
+summary() {  # JSON → "error a -> b, added [...]" (the error the loop minimised: spectral for --objective fft)
   /usr/bin/python3 -c "import json, sys; d = json.load(open(sys.argv[1]))
-print('error %.4g -> %.4g %%, added %s' % (d['error_before'], d['error_after'], [e['term'] for e in d['effects_added']]))" "$1"
+k = {'fft': 'fft_error_', 'shooting': 'shooting_error_'}.get(d.get('objective'), 'error_')
+print('%serror %.4g -> %.4g %%, added %s' % (k[:-6].replace('_', ' '), d[k + 'before'], d[k + 'after'], [e['term'] for e in d['effects_added']]))" "$1"
 }
 same() {  # two JSON outputs equal but for wall times ("seconds" keys) → "same" | "differ"
   /usr/bin/python3 -c "import json, sys
