@@ -60,8 +60,10 @@ void AddDiagnosticsJson(const IdentifyResult& r, const std::vector<PreparedRecor
   if (d.chaos.chaotic) {
     nlohmann::json steps = nlohmann::json::array();
     for (const StepDiagnostics& s : d.steps)
-      steps.push_back({{"term", s.term}, {"kept", s.kept && !s.refound}, {"refound", s.refound}, {"before", InvariantsObject(s.before)}, {"after", InvariantsObject(s.after)}});
-    (*j)["invariants"] = {{"before", InvariantsObject(d.declared)}, {"after", InvariantsObject(d.final)}, {"steps", steps}};
+      steps.push_back({{"term", s.term}, {"kept", s.kept && !s.refound}, {"refound", s.refound}, {"before", InvariantsObject(s.before)}, {"after", InvariantsObject(s.after)},
+                       {"attractor_lost", s.attractor_loss.empty() ? nlohmann::json() : nlohmann::json(s.attractor_loss)}});
+    (*j)["invariants"] = {{"before", InvariantsObject(d.declared)}, {"after", InvariantsObject(d.final)}, {"steps", steps},
+                          {"attractor_lost", d.attractor_loss.empty() ? nlohmann::json() : nlohmann::json(d.attractor_loss)}};
   } else {
     (*j)["invariants"] = nullptr;
   }
@@ -113,6 +115,9 @@ void WriteDiagnosticsReport(std::ostream& md, const IdentifyResult& r) {
       row(s.refound ? "refit with " + s.term + ": a better optimum without it" : "+ " + s.term + (s.kept ? "" : " (refit, not kept)"), s.after);
     md << "\nThe measured section's first half against its second half gives H = " << F(d.declared.poincare_floor, 3)
        << " (what another stretch of the same measurement gives).\n";
+    for (const StepDiagnostics& s : d.steps)
+      if (!s.attractor_loss.empty()) md << "\n**The model with `" << s.term << "` loses the attractor** that the model before it had: " << s.attractor_loss << ".\n";
+    if (!d.attractor_loss.empty()) md << "\n**The final model loses the attractor** that the declared model had: " << d.attractor_loss << ".\n";
     md << "\nPoincaré H: energy coefficient of the stroboscopic sections (y, y') at the forcing (0 identical, 1 far apart); "
           "switches: changes of well between forcing periods (the period means of y split into two wells by two-means, "
           "hysteresis a quarter of the wells' distance); right-well share: periods in the right well of those in a well; "
@@ -161,6 +166,7 @@ std::string DiagnosticsSummary(const IdentifyResult& r) {
          F(d.declared.switching_rate, 3) + " -> " + F(d.final.switching_rate, 3) + " (measured " + F(d.final.switching_rate_measured, 3) +
          "), right-well share " + F(d.declared.right_well_fraction, 2) + " -> " + F(d.final.right_well_fraction, 2) + " (measured " +
          F(d.final.right_well_fraction_measured, 2) + "), velocity Hellinger " + F(d.declared.velocity_hellinger, 3) + " -> " + F(d.final.velocity_hellinger, 3) + "\n";
+  if (!d.attractor_loss.empty()) s += "the final model loses the attractor the declared model had: " + d.attractor_loss + "\n";
   s += d.unexplained.empty() ? "residual white (Ljung-Box p = " + F(d.whiteness.p_value, 2) + ")\n" : "unexplained: " + d.unexplained + "\n";
   for (const std::string& h : d.separability) s += h + "\n";
   return s;

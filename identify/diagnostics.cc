@@ -327,11 +327,13 @@ LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector
     s.drift = DriftOf(fits[base].model, fits[base].fit, fits[k].model, fits[k].fit);
     s.before = base_inv;
     s.after = invariants(fits[k]);
+    if (d.chaos.chaotic) s.attractor_loss = AttractorLoss(s.before, s.after);
     if (s.kept) base = k, base_inv = s.after;
     d.steps.push_back(std::move(s));
   }
   const FitSnapshot& fin = fits[base];
   d.final = base_inv;
+  if (d.chaos.chaotic) d.attractor_loss = AttractorLoss(d.declared, d.final);
   // Every measured output's residual is tested; the verdict is the first output (main first) far from
   // white, so a structured residual on a second output (e.g. the voltage) is not hidden by a white one.
   const double horizon = fo.shooting_horizon_s > 0 ? fo.shooting_horizon_s : 0.5;

@@ -112,11 +112,13 @@ struct StepDiagnostics {
   bool refound = false;               // FitSnapshot::refound
   std::vector<ParamDrift> drift;      // the model before against this refit
   Invariants before, after;           // when the records are chaotic
+  std::string attractor_loss;         // AttractorLoss(before, after), chaotic records
 };
 
 struct LoopDiagnostics {
   ChaosCheck chaos;
   Invariants declared, final;         // the declared fit and the final model (chaotic records)
+  std::string attractor_loss;         // AttractorLoss(declared, final): what the loop's model lost
   std::vector<StepDiagnostics> steps; // one per refit, in order
   Whiteness whiteness;                // of the final model's residual: the first output far from white, else the main one
   std::vector<std::pair<std::string, Whiteness>> whiteness_by_output;  // every measured output, by OutputName

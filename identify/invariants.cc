@@ -4,6 +4,7 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
+#include <string>
 
 #include "dynamics/spectrum.h"
 
@@ -250,6 +251,22 @@ ChaosCheck CheckChaos(const std::vector<PreparedRecord>& recs, const Setup& setu
                 kPeriodicInput, kBroadbandChaotic);
   c.rule = buf;
   return c;
+}
+
+std::string AttractorLoss(const Invariants& before, const Invariants& after) {
+  auto num = [](double v, int digits) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.*g", digits, v);
+    return std::string(b);
+  };
+  std::string lost;
+  if (after.switching_rate_measured > 0 && before.switching_rate > 0 && !(after.switching_rate > 0))
+    lost = "no change of well over the record (" + num(before.switching_rate, 3) + "/s before, measured " +
+           num(after.switching_rate_measured, 3) + "/s" + (std::isnan(after.right_well_fraction) ? ", one well" : "") + ")";
+  if (before.poincare <= before.poincare_floor && !(after.poincare <= after.poincare_floor))
+    lost += (lost.empty() ? "" : "; ") + std::string("the Poincaré section beyond the measured floor (H ") + num(before.poincare, 3) + " -> " +
+            num(after.poincare, 3) + ", floor " + num(after.poincare_floor, 3) + ")";
+  return lost;
 }
 
 Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,

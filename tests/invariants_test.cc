@@ -116,6 +116,44 @@ TEST(IdentifyInvariants, SwitchesAndVelocityHistograms) {
 // Wells by forcing period: an orbit wider than the wells' distance switches at every half period by the
 // barrier rule but never changes well; the period rule counts the changes of well only, whatever the
 // displacement's mean (a velocity sensor loses it), each series by its own split.
+// A step whose free run stops changing well, or leaves the measured section, is said to lose the
+// attractor the model before it had; one that keeps both (or never had them) is not.
+TEST(IdentifyInvariants, AttractorLossNamesWhatTheFreeRunLost) {
+  Invariants before;
+  before.switching_rate = 2.23, before.switching_rate_measured = 0.50;
+  before.poincare = 0.031, before.poincare_floor = 0.156;
+  before.right_well_fraction = 0.42;
+  Invariants after = before;
+  EXPECT_EQ(AttractorLoss(before, after), "");
+  after.switching_rate = 0.0;
+  after.right_well_fraction = NAN;  // one well
+  EXPECT_EQ(AttractorLoss(before, after), "no change of well over the record (2.23/s before, measured 0.5/s, one well)");
+  after.poincare = 0.398;
+  EXPECT_EQ(AttractorLoss(before, after),
+            "no change of well over the record (2.23/s before, measured 0.5/s, one well); the Poincaré section beyond the measured floor "
+            "(H 0.031 -> 0.398, floor 0.156)");
+  after = before;
+  after.poincare = NAN;  // the free run gave no section (diverged)
+  EXPECT_NE(AttractorLoss(before, after).find("Poincaré section"), std::string::npos);
+  after = before;
+  after.switching_rate = NAN;  // no two wells in the free run
+  EXPECT_NE(AttractorLoss(before, after).find("no change of well"), std::string::npos);
+  Invariants never = before;  // a model that never switched, or a record that never does: nothing to lose
+  never.switching_rate = 0.0;
+  after = never;
+  EXPECT_EQ(AttractorLoss(never, after), "");
+  Invariants still = before;
+  still.switching_rate_measured = 0.0;
+  after = still;
+  after.switching_rate = 0.0;
+  EXPECT_EQ(AttractorLoss(still, after), "");
+  Invariants outside = before;  // already beyond the floor: getting worse there is not a loss of it
+  outside.poincare = 0.3;
+  after = outside;
+  after.poincare = 0.5;
+  EXPECT_EQ(AttractorLoss(outside, after), "");
+}
+
 TEST(IdentifyInvariants, WellsByForcingPeriodIgnoreWideOrbitsAndTheMean) {
   const double dt = 1e-3, f = 5.0;               // 200 samples per period
   const std::vector<int> wells = {-1, -1, 1, 1, 1, -1, 1, 1, -1, -1, -1, -1};  // 4 changes, 5 of 12 periods right
@@ -326,6 +364,8 @@ TEST(IdentifyDiagnostics, CliReportsInvariantsOfTheChaoticHarvesterRecord) {
                             "spectral_error_percent"})
       EXPECT_TRUE(inv[when][key].is_number()) << when << "." << key;
   EXPECT_EQ(inv["steps"].size(), j["refits"].size());
+  EXPECT_TRUE(inv["attractor_lost"].is_null() || inv["attractor_lost"].is_string());
+  for (const auto& s : inv["steps"]) EXPECT_TRUE(s.contains("attractor_lost")) << s.dump();
   EXPECT_NEAR(inv["before"]["spectral_error_percent"].get<double>(), j["fft_error_before"].get<double>(), 1e-9);
   EXPECT_GT(inv["before"]["switching_rate_measured_hz"].get<double>(), 1.0) << "cross-well motion";
   for (const auto& e : j["effects_added"]) EXPECT_TRUE(e.contains("drift")) << e.dump();
