@@ -3,7 +3,8 @@
 # and the current one), run one after the other per loop in the same script so both see the same
 # machine load: wall seconds of each, the ratio old/new, and each run's errors and added terms (the
 # result must not get worse while the time falls). Run it alone (or under the build lock) for honest
-# ratios. The json column says whether both runs gave the same JSON but for wall times.
+# ratios. The json column: same (the same JSON but for wall times), same* (and but for keys only one build
+# writes), differ. A failing run stops the script.
 #   bench/identify_ratio.sh OLD_BISTABLE NEW_BISTABLE [MEASURED_DIR] [LOOPS]
 #   e.g. git worktree add /tmp/old <commit> && cmake -S /tmp/old -B /tmp/old/build -G Ninja \
 #          -DCMAKE_BUILD_TYPE=Release && cmake --build /tmp/old/build --target bistable
@@ -44,22 +45,31 @@ args_of() {
 summary() {  # JSON → "error a -> b, added [...]" (the error the loop minimised: spectral for --objective fft)
   /usr/bin/python3 -c "import json, sys; d = json.load(open(sys.argv[1]))
 k = {'fft': 'fft_error_', 'shooting': 'shooting_error_'}.get(d.get('objective'), 'error_')
-print('%serror %.4g -> %.4g %%, added %s' % (k[:-6].replace('_', ' '), d[k + 'before'], d[k + 'after'], [e['term'] for e in d['effects_added']]))" "$1"
+g = lambda v: 'null' if v is None else '%.4g' % v
+print('%serror %s -> %s %%, added %s' % (k[:-6].replace('_', ' '), g(d.get(k + 'before')), g(d.get(k + 'after')), [e['term'] for e in d['effects_added']]))" "$1"
 }
-same() {  # two JSON outputs equal but for wall times ("seconds" keys) → "same" | "differ"
+same() {  # two JSON outputs → "same" (but for wall times, the "seconds" keys) | "same*" (and for keys only one
+  # build writes: a newer build's new keys) | "differ"
   /usr/bin/python3 -c "import json, sys
-def strip(x):
-    if isinstance(x, dict): return {k: strip(v) for k, v in x.items() if k != 'seconds'}
-    if isinstance(x, list): return [strip(v) for v in x]
+def strip(x, other):
+    if isinstance(x, dict) and isinstance(other, dict):
+        return {k: strip(v, other[k]) for k, v in x.items() if k != 'seconds' and k in other}
+    if isinstance(x, list) and isinstance(other, list) and len(x) == len(other):
+        return [strip(v, o) for v, o in zip(x, other)]
     return x
-a, b = (strip(json.load(open(f))) for f in sys.argv[1:3])
-print('same' if a == b else 'differ')" "$1" "$2"
+def keys(x):
+    if isinstance(x, dict): return {k for k in x if k != 'seconds'} | {k + '.' + s for k, v in x.items() for s in keys(v)}
+    if isinstance(x, list): return set().union(*[keys(v) for v in x]) if x else set()
+    return set()
+a, b = (json.load(open(f)) for f in sys.argv[1:3])
+if strip(a, b) != strip(b, a): print('differ')
+else: print('same' if keys(a) == keys(b) else 'same*')" "$1" "$2"
 }
 run() {  # binary args out → wall seconds
   local t0 t1
   t0=$(date +%s.%N)
   # shellcheck disable=SC2086
-  "$1" identify $2 --json > "$3"
+  "$1" identify $2 --json > "$3" || { echo "error: $1 identify failed (exit $?) on: $2" >&2; return 1; }
   t1=$(date +%s.%N)
   echo "$t0 $t1" | awk '{printf "%.2f", $2 - $1}'
 }

@@ -116,7 +116,10 @@ void WriteDiagnosticsReport(std::ostream& md, const IdentifyResult& r) {
     md << "\nThe measured section's first half against its second half gives H = " << F(d.declared.poincare_floor, 3)
        << " (what another stretch of the same measurement gives).\n";
     for (const StepDiagnostics& s : d.steps)
-      if (!s.attractor_loss.empty()) md << "\n**The model with `" << s.term << "` loses the attractor** that the model before it had: " << s.attractor_loss << ".\n";
+      if (!s.attractor_loss.empty())
+        md << "\n**" << (s.refound ? "The model refound by the refit with `" + s.term + "` (without it)"
+                                   : "The model with `" + s.term + "`" + (s.kept ? "" : " (refit, not kept)"))
+           << " loses the attractor** that the model before it had: " << s.attractor_loss << ".\n";
     if (!d.attractor_loss.empty()) md << "\n**The final model loses the attractor** that the declared model had: " << d.attractor_loss << ".\n";
     md << "\nPoincaré H: energy coefficient of the stroboscopic sections (y, y') at the forcing (0 identical, 1 far apart); "
           "switches: changes of well between forcing periods (the period means of y split into two wells by two-means, "

@@ -3,15 +3,18 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cassert>
 #include <chrono>
 #include <cmath>
 #include <complex>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <functional>
 #include <future>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <thread>
 #include <type_traits>
 
@@ -813,12 +816,13 @@ class SimCostFunction : public ceres::DynamicCostFunction {
 
 // The spectral objective's forward-difference Jacobian: the arithmetic of Ceres'
 // DynamicNumericDiffCostFunction<FORWARD> (step max(√ε, 1e-6 |u_j|), (r(u + δ e_j) − r(u)) · (1/δ)), so
-// the same bits, with the columns' simulations spread over the CPUs the records leave idle: with one
-// record a simulation uses one core, and the p columns are independent.
+// the same bits (Identify.ForwardDifferencesEqualCeresToTheBit), with the columns' simulations spread over
+// the CPUs the records leave idle: with one record a simulation uses one core, and the p columns are
+// independent. The residuals at u are computed as before (records over the cost's threads).
 class ForwardDiffFunction : public ceres::DynamicCostFunction {
  public:
   ForwardDiffFunction(SimCost c, int column_threads) : c_(std::move(c)), threads_(std::max(1, column_threads)) {
-    if (threads_ > 1) c_.threads = 1;  // the columns are the parallelism (Residuals does not depend on it)
+    assert(!c_.warm);  // segment states (shooting) are shared by copies: one evaluation at a time only
   }
   bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
     if (!c_(params, residuals)) return false;
@@ -826,28 +830,42 @@ class ForwardDiffFunction : public ceres::DynamicCostFunction {
     const int p = parameter_block_sizes()[0], n = num_residuals();
     const double* u = params[0];
     const double min_step = std::sqrt(std::numeric_limits<double>::epsilon());
+    const int threads = std::min(threads_, p);
     std::atomic<int> next{0};
     std::atomic<bool> ok{true};
+    std::exception_ptr error;
+    std::mutex error_mu;
     auto columns = [&] {
-      SimCost c = c_;
-      std::vector<double> up(u, u + p), r(static_cast<size_t>(n));
-      const double* pp[1] = {up.data()};
-      for (int j = next++; j < p && ok; j = next++) {
-        const double delta = std::max(min_step, std::abs(u[j]) * 1e-6);
-        up[j] = u[j] + delta;
-        if (!c(pp, r.data())) {
-          ok = false;
-          return;
+      try {
+        SimCost c = c_;
+        if (threads > 1) c.threads = 1;  // the columns are the parallelism (Residuals does not depend on it)
+        std::vector<double> up(u, u + p), r(static_cast<size_t>(n));
+        const double* pp[1] = {up.data()};
+        for (int j = next++; j < p && ok; j = next++) {
+          const double delta = std::max(min_step, std::abs(u[j]) * 1e-6);
+          up[j] = u[j] + delta;
+          if (!c(pp, r.data())) {
+            ok = false;
+            return;
+          }
+          up[j] = u[j];
+          const double inv = 1.0 / delta;
+          for (int i = 0; i < n; ++i) jacobians[0][static_cast<size_t>(i) * p + j] = (r[i] - residuals[i]) * inv;
         }
-        up[j] = u[j];
-        const double inv = 1.0 / delta;
-        for (int i = 0; i < n; ++i) jacobians[0][static_cast<size_t>(i) * p + j] = (r[i] - residuals[i]) * inv;
+      } catch (...) {  // rethrown on the calling thread once every column thread has joined
+        std::lock_guard<std::mutex> lock(error_mu);
+        if (!error) error = std::current_exception();
+        ok = false;
       }
     };
     std::vector<std::thread> pool;
-    for (int t = 1; t < std::min(threads_, p); ++t) pool.emplace_back(columns);
+    try {
+      for (int t = 1; t < threads; ++t) pool.emplace_back(columns);
+    } catch (...) {  // no thread to be had: the columns left run on this one
+    }
     columns();
     for (std::thread& t : pool) t.join();
+    if (error) std::rethrow_exception(error);
     return ok;
   }
 
@@ -855,6 +873,29 @@ class ForwardDiffFunction : public ceres::DynamicCostFunction {
   SimCost c_;
   int threads_;
 };
+
+}  // namespace
+
+bool SpectralForwardJacobian(const IdentModel& m, const std::vector<double>& scale, const std::vector<double>& u,
+                             const std::vector<PreparedRecord>& recs, const Setup& setup, const std::vector<int>& substeps,
+                             int column_threads, bool ceres_reference, std::vector<double>* residuals, std::vector<double>* jac) {
+  const int p = static_cast<int>(u.size());
+  if (p == 0 || static_cast<int>(scale.size()) != p) return false;
+  const SimCost lc{&m, &recs, &setup, Objective::kFft, substeps, scale, MeasuredMagnitudes(recs, setup), 0, 0.0, nullptr};
+  const int n = static_cast<int>(NumResiduals(recs, Objective::kFft));
+  std::unique_ptr<ceres::DynamicCostFunction> fn;
+  if (ceres_reference) fn.reset(new ceres::DynamicNumericDiffCostFunction<SimCost, ceres::FORWARD>(new SimCost(lc), ceres::TAKE_OWNERSHIP));
+  else fn.reset(new ForwardDiffFunction(lc, column_threads));
+  fn->AddParameterBlock(p);
+  fn->SetNumResiduals(n);
+  residuals->assign(static_cast<size_t>(n), 0.0);
+  jac->assign(static_cast<size_t>(n) * p, 0.0);
+  const double* params[1] = {u.data()};
+  double* jacs[1] = {jac->data()};
+  return fn->Evaluate(params, residuals->data(), jacs);
+}
+
+namespace {
 
 // What the stages of one fit share: the problem in scaled parameters u = θ / scale (the cost functor
 // `cost` holds the scales), the sign bounds, and the result they fill in (simulation count, Ceres'
@@ -1113,11 +1154,13 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
   const std::vector<double> start_u = fs.ScaledStart();
   std::vector<double> u = start_u;
   // BISTABLE_IDENTIFY_DEBUG: the start and, after the stages, the end (which basin a fit went to).
-  auto print_theta = [&](const char* what, const std::vector<double>& uu) {
+  auto print_theta = [&](const char* what, const std::vector<double>& uu) {  // one write: fits may run side by side
     if (!debug) return;
-    std::fprintf(stderr, "fit %s θ:", what);
-    for (double v : fs.Theta(uu)) std::fprintf(stderr, " %.5g", v);
-    std::fprintf(stderr, "\n");
+    std::string line = std::string("fit ") + what + " θ (" + std::to_string(uu.size()) + " parameters):";
+    char num[32];
+    for (double v : fs.Theta(uu)) std::snprintf(num, sizeof num, " %.5g", v), line += num;
+    line += "\n";
+    std::fputs(line.c_str(), stderr);
   };
   print_theta("start", u);
   double best_cost = INFINITY;

@@ -93,6 +93,13 @@ bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, cons
                         double horizon_s = 0);
 // The residual vector and its derivatives by θ (N × P: the model's parameters, then the `extra` terms'
 // at value 0), exact for the discrete simulation (SimulateSensitivities). False on divergence.
+// The spectral objective's Jacobian in scaled parameters u = θ / scale as a fit's local stage computes it:
+// forward differences with the columns on `column_threads` threads — or, with ceres_reference, by Ceres'
+// DynamicNumericDiffCostFunction<FORWARD>, which the fit's must equal to the bit. Row-major, residuals ×
+// parameters; false when a simulation fails. For tests.
+bool SpectralForwardJacobian(const IdentModel& m, const std::vector<double>& scale, const std::vector<double>& u,
+                             const std::vector<PreparedRecord>& recs, const Setup& setup, const std::vector<int>& substeps,
+                             int column_threads, bool ceres_reference, std::vector<double>* residuals, std::vector<double>* jac);
 bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                        const Setup& setup, Objective obj, const std::vector<int>& substeps,
                        const std::vector<const TermDef*>& extra, std::vector<double>* out, Eigen::MatrixXd* jac,

@@ -181,6 +181,26 @@ TEST(Identify, OneRecordFitOnTwoThreadsEqualsTheSequentialFit) {
   EXPECT_LT(ExpectTheSameFitOnOneAndTwoThreads({*p}).errors.nrmse, 5.0);  // it did fit (8 % from the regression start without c2)
 }
 
+TEST(Identify, ForwardDifferencesEqualCeresToTheBit) {
+  // The spectral objective's Jacobian as the fits compute it (columns on 1 or 3 threads) against Ceres' own
+  // DynamicNumericDiffCostFunction<FORWARD>: the same step and arithmetic, so the same bits — including a
+  // parameter at 0 (Ceres' √ε floor of the step).
+  Record rec = Chirps(0.05e-3)[0];
+  auto p = PrepareRecord(rec, bistable::Setup{}, 0, 2 * 120, 0.0, rec.name);  // the first 2 s
+  ASSERT_TRUE(p.ok()) << p.status().ToString();
+  const IdentModel m = Declared("main.linear,main.viscous,main.friction");
+  const std::vector<double> scale = {400.0, 2.0, 1.0, 0.5}, u = {1.1, 0.9, 0.8, 0.0};
+  std::vector<double> r_ref, j_ref, r, j;
+  ASSERT_TRUE(SpectralForwardJacobian(m, scale, u, {*p}, bistable::Setup{}, {2}, 1, true, &r_ref, &j_ref));
+  ASSERT_EQ(j_ref.size(), r_ref.size() * 4);
+  EXPECT_GT(std::count_if(j_ref.begin(), j_ref.end(), [](double v) { return v != 0.0; }), static_cast<long>(j_ref.size() / 2));
+  for (int threads : {1, 3}) {
+    ASSERT_TRUE(SpectralForwardJacobian(m, scale, u, {*p}, bistable::Setup{}, {2}, threads, false, &r, &j));
+    EXPECT_EQ(r, r_ref) << threads;
+    EXPECT_EQ(j, j_ref) << threads;
+  }
+}
+
 TEST(Identify, SpectralFitOnTwoThreadsEqualsTheSequentialFit) {
   // The spectral objective's forward-difference Jacobian: with one record its columns' simulations run
   // on both threads, each column with the step and arithmetic of the sequential one.

@@ -113,9 +113,6 @@ TEST(IdentifyInvariants, SwitchesAndVelocityHistograms) {
   EXPECT_NEAR(HistogramHellinger(vec(a), far), 1.0, 1e-12);
 }
 
-// Wells by forcing period: an orbit wider than the wells' distance switches at every half period by the
-// barrier rule but never changes well; the period rule counts the changes of well only, whatever the
-// displacement's mean (a velocity sensor loses it), each series by its own split.
 // A step whose free run stops changing well, or leaves the measured section, is said to lose the
 // attractor the model before it had; one that keeps both (or never had them) is not.
 TEST(IdentifyInvariants, AttractorLossNamesWhatTheFreeRunLost) {
@@ -132,12 +129,13 @@ TEST(IdentifyInvariants, AttractorLossNamesWhatTheFreeRunLost) {
   EXPECT_EQ(AttractorLoss(before, after),
             "no change of well over the record (2.23/s before, measured 0.5/s, one well); the Poincaré section beyond the measured floor "
             "(H 0.031 -> 0.398, floor 0.156)");
+  after = Invariants{};  // the free run diverged: ComputeInvariants gives no field, the measured ones neither
+  EXPECT_EQ(AttractorLoss(before, after),
+            "no change of well over the record (2.23/s before, measured 0.5/s, the free run diverged); the Poincaré section beyond the "
+            "measured floor (H 0.031 -> nan, floor 0.156)");
   after = before;
-  after.poincare = NAN;  // the free run gave no section (diverged)
-  EXPECT_NE(AttractorLoss(before, after).find("Poincaré section"), std::string::npos);
-  after = before;
-  after.switching_rate = NAN;  // no two wells in the free run
-  EXPECT_NE(AttractorLoss(before, after).find("no change of well"), std::string::npos);
+  after.switching_rate = 0.0;  // two wells, but no change between them
+  EXPECT_EQ(AttractorLoss(before, after), "no change of well over the record (2.23/s before, measured 0.5/s)");
   Invariants never = before;  // a model that never switched, or a record that never does: nothing to lose
   never.switching_rate = 0.0;
   after = never;
@@ -154,6 +152,9 @@ TEST(IdentifyInvariants, AttractorLossNamesWhatTheFreeRunLost) {
   EXPECT_EQ(AttractorLoss(outside, after), "");
 }
 
+// Wells by forcing period: an orbit wider than the wells' distance switches at every half period by the
+// barrier rule but never changes well; the period rule counts the changes of well only, whatever the
+// displacement's mean (a velocity sensor loses it), each series by its own split.
 TEST(IdentifyInvariants, WellsByForcingPeriodIgnoreWideOrbitsAndTheMean) {
   const double dt = 1e-3, f = 5.0;               // 200 samples per period
   const std::vector<int> wells = {-1, -1, 1, 1, 1, -1, 1, 1, -1, -1, -1, -1};  // 4 changes, 5 of 12 periods right
