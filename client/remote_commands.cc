@@ -166,12 +166,20 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
     auto a = std::make_shared<FetchArgs>();
     CLI::App* cmd = app.add_subcommand("fetch", "Download a published map file from a coordinator (streamed, SHA-256 checked, written atomically)");
     cmd->add_option("id", a->r.target, "sweep id (or unique prefix)")->required();
-    cmd->add_option("--out", a->out, "output file (default: <id>.h5 in the current directory)");
+    cmd->add_option("--out", a->out,
+                    "output file (default: <id>.h5 in the current directory; not '-': the file is checked before it is renamed into "
+                    "place, which standard output cannot be — ./- names a file '-')");
     cmd->add_option("--coordinator", a->r.coordinator, "coordinator address")->capture_default_str();
     cmd->add_option("--token-file", a->r.token_file, "file holding a bearer token (else $BISTABLE_TOKEN)");
     cmd->add_option("--tls-ca", a->r.tls_ca, "PEM CA certificate to verify a TLS coordinator");
     cmd->add_flag("--json", a->r.json, "print JSON");
     cmd->callback([a, exit_code]() {
+      if (a->out == "-") {  // a file named "-" would surprise; stdout would get bytes before their checksum
+        *exit_code = Fail(Status::InvalidArgument("out", "--out - (standard output) is not supported by fetch: the map is written to a "
+                                                         "file and checked (SHA-256) before it is renamed into place; give a file name "
+                                                         "(./- for a file named '-')"));
+        return;
+      }
       auto client = Connect(a->r);
       if (!client.ok()) {
         *exit_code = Fail(client.status());

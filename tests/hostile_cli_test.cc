@@ -262,6 +262,10 @@ std::vector<Row> Rows() {
     rows.push_back(r);
   }
   rows.push_back(Case("hbm_missing_dir", {{"hbm", "--out", "{dir}/nodir/b.png"}}).Error("invalid argument (out: ").Absent({"{dir}/nodir"}));
+  // fetch --out -: refused before any connection (no file named "-", nothing half-written to stdout).
+  rows.push_back(Case("fetch_out_stdout", {{"fetch", "abc", "--out", "-", "--coordinator", "127.0.0.1:9"}})
+                     .Error("invalid argument (out: --out - (standard output) is not supported by fetch")
+                     .Absent({"{dir}/-"}));
   rows.push_back(Case("hbm_hostile_out", {{"hbm", "--out", "b`touch pwned`$(touch pwned).png"}})
                      .OkFiles({"{dir}/b`touch pwned`$(touch pwned).png"}));
   rows.push_back(Case("chirp_hostile_out", {{"chirp", "--duration", "200", "--out", "c`touch pwned`$(touch pwned)"}})
