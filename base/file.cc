@@ -1,28 +1,38 @@
 #include "base/file.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <random>
 
 namespace bistable {
 namespace {
 
-// The file exists and is a regular file (not a directory, a FIFO that would block, a device).
-Status CheckRegularFile(const std::string& path, const std::string& field) {
-  std::error_code ec;
-  const auto st = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(st))
-    return Status::InvalidArgument(field, "cannot read " + field + " file '" + path + "': no such file");
-  if (!std::filesystem::is_regular_file(st))
+// `path` opened for reading and checked to be a regular file on the descriptor itself, not by name first: a
+// FIFO or a device swapped in between a check by name and the open would block the open, or never end. The
+// open is non-blocking (a FIFO without a writer opens at once), the descriptor blocking again afterwards.
+StatusOr<int> OpenRegularFile(const std::string& path, const std::string& field, off_t* size) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
+  if (fd < 0)
+    return Status::InvalidArgument(field, "cannot read " + field + " file '" + path + "': " +
+                                              (errno == ENOENT ? std::string("no such file") : std::string(std::strerror(errno))));
+  struct stat st;
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
     return Status::InvalidArgument(field, field + " file '" + path + "' is not a regular file");
-  return Status::Ok();
+  }
+  const int flags = ::fcntl(fd, F_GETFL);
+  if (flags < 0 || ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK) != 0) {
+    ::close(fd);
+    return Status::IoError(field, "cannot read " + field + " file '" + path + "': " + std::strerror(errno));
+  }
+  if (size) *size = st.st_size;
+  return fd;
 }
 
 // All of `data` to `fd` (short writes and EINTR retried); errors say "writing <what> failed".
@@ -40,17 +50,33 @@ Status WriteAll(int fd, std::string_view data, const std::string& field, const s
 }  // namespace
 
 StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& field, size_t max_bytes) {
-  BISTABLE_RETURN_IF_ERROR(CheckRegularFile(path, field));
-  std::error_code ec;
-  const auto size = std::filesystem::file_size(path, ec);
-  if (!ec && size > max_bytes)
-    return Status::InvalidArgument(field, field + " file '" + path + "' is " + std::to_string(size) +
-                                              " bytes, over the limit of " + std::to_string(max_bytes));
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status::InvalidArgument(field, "cannot read " + field + " file '" + path + "'");
-  std::string text(std::istreambuf_iterator<char>(in), {});
-  if (text.size() > max_bytes)
-    return Status::InvalidArgument(field, field + " file '" + path + "' is over the limit of " + std::to_string(max_bytes) + " bytes");
+  off_t size = 0;
+  auto opened = OpenRegularFile(path, field, &size);
+  if (!opened.ok()) return opened.status();
+  const int fd = *opened;
+  if (static_cast<unsigned long long>(size) > max_bytes) {
+    ::close(fd);
+    return Status::InvalidArgument(field, field + " file '" + path + "' is " + std::to_string(size) + " bytes, over the limit of " +
+                                              std::to_string(max_bytes));
+  }
+  std::string text;
+  char buf[1 << 16];
+  for (;;) {  // the file may grow after the fstat: the limit holds on what is read
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      const int e = errno;
+      ::close(fd);
+      return Status::IoError(field, "reading " + field + " file '" + path + "' failed: " + std::strerror(e));
+    }
+    if (n == 0) break;
+    text.append(buf, static_cast<size_t>(n));
+    if (text.size() > max_bytes) {
+      ::close(fd);
+      return Status::InvalidArgument(field, field + " file '" + path + "' is over the limit of " + std::to_string(max_bytes) + " bytes");
+    }
+  }
+  ::close(fd);
   return text;
 }
 
@@ -91,10 +117,9 @@ Status WriteStdout(std::string_view data, const std::string& field) {
 }
 
 StatusOr<std::unique_ptr<LineReader>> LineReader::Open(const std::string& path, const std::string& field, size_t max_line_bytes) {
-  BISTABLE_RETURN_IF_ERROR(CheckRegularFile(path, field));
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return Status::InvalidArgument(field, "cannot read " + field + " file '" + path + "': " + std::strerror(errno));
-  return std::unique_ptr<LineReader>(new LineReader(path, field, fd, max_line_bytes));
+  auto fd = OpenRegularFile(path, field, nullptr);
+  if (!fd.ok()) return fd.status();
+  return std::unique_ptr<LineReader>(new LineReader(path, field, *fd, max_line_bytes));
 }
 
 LineReader::~LineReader() {

@@ -1,5 +1,8 @@
 // Loading measured records: the real Silverbox and harvester files, what DAQ exports write (each quirk
 // read to the same numbers as the plain CSV), and bad CSVs named precisely.
+#include <sys/stat.h>
+
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -129,6 +132,29 @@ std::string WriteFile(const std::string& name, const std::string& text) {
   const std::string path = ::testing::TempDir() + "/" + name;
   std::ofstream(path, std::ios::binary) << text;
   return path;
+}
+
+// A FIFO, a directory, a missing file: refused at once with the reason. The check is made on the opened
+// descriptor (a non-blocking open), so a FIFO without a writer neither blocks the open nor the read.
+TEST(Records, NonRegularDataFilesAreRefusedWithoutBlocking) {
+  const std::string dir = ::testing::TempDir() + "/nonregular";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir + "/a_directory.csv");
+  const std::string fifo = dir + "/fifo.csv";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  ColumnMap c;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (const auto& [file, expect] : std::vector<std::pair<std::string, std::string>>{
+           {fifo, "data file '" + fifo + "' is not a regular file"},
+           {dir + "/a_directory.csv", "is not a regular file"},
+           {dir + "/missing.csv", "no such file"},
+           {"/dev/zero", "data file '/dev/zero' is not a regular file"}}) {
+    auto r = LoadRecords(file, c);
+    ASSERT_FALSE(r.ok()) << file;
+    EXPECT_NE(r.status().ToString().find(expect), std::string::npos) << r.status().ToString();
+  }
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Records, DaqQuirksReadAsThePlainCsv) {
