@@ -3,6 +3,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -23,22 +24,16 @@ struct ChirpArgs {
   ChirpOptions o;
 };
 
+// Written whole by an exclusive temporary beside the target, renamed over it when complete (AtomicFile).
 Status WriteCsv(const std::string& path, const std::string& header, const std::vector<std::vector<double>>& cols) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    if (!f) return Status::IoError("out", "cannot write '" + tmp + "'");
-    f.precision(12);
-    f << header << "\n";
-    for (size_t i = 0; i < cols[0].size(); ++i) {
-      for (size_t c = 0; c < cols.size(); ++c) f << (c ? "," : "") << cols[c][i];
-      f << "\n";
-    }
-    if (!f) return Status::IoError("out", "write to '" + tmp + "' failed");
+  std::ostringstream f;
+  f.precision(12);
+  f << header << "\n";
+  for (size_t i = 0; i < cols[0].size(); ++i) {
+    for (size_t c = 0; c < cols.size(); ++c) f << (c ? "," : "") << cols[c][i];
+    f << "\n";
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  return ec ? Status::IoError("out", "rename to '" + path + "': " + ec.message()) : Status::Ok();
+  return WriteTextOut(path, f.str(), "out");
 }
 
 int RunChirpCommand(ChirpArgs& a) {

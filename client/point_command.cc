@@ -51,22 +51,14 @@ Status ParseIc(const std::string& text, std::array<double, 4>* ic) {
   return Status::Ok();
 }
 
-// Writes rows atomically: a temporary beside the target, renamed over it when complete.
+// The rows to `path` ("-": standard output), written whole by an exclusive temporary beside the target and
+// renamed over it when complete (AtomicFile).
 Status WriteTrace(const std::string& path, const PointResult& r) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp);
-    if (!out) return Status::IoError("trace", "cannot open '" + tmp + "' for writing");
-    out << "tau,y_m,dy_m,y_r,dy_r\n";
-    out.precision(17);
-    for (const auto& row : r.samples) out << row[0] << ',' << row[1] << ',' << row[2] << ',' << row[3] << ',' << row[4] << '\n';
-    out.flush();
-    if (!out) return Status::IoError("trace", "write to '" + tmp + "' failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) return Status::IoError("trace", "rename to '" + path + "' failed: " + ec.message());
-  return Status::Ok();
+  std::ostringstream out;
+  out << "tau,y_m,dy_m,y_r,dy_r\n";
+  out.precision(17);
+  for (const auto& row : r.samples) out << row[0] << ',' << row[1] << ',' << row[2] << ',' << row[3] << ',' << row[4] << '\n';
+  return WriteTextOut(path, out.str(), "trace");
 }
 
 // --poincare-periods N: the window [t_keep, t_end] is made N + 1 forcing periods long (rounded up to
@@ -234,6 +226,10 @@ int RunPoint(PointArgs& a) {
   }
   const long section_limit = a.poincare_periods_given ? a.poincare_periods : 0;
   const bool section_to_stdout = a.poincare == "-";
+  const bool trace_to_stdout = a.trace == "-";  // without --json: standard output is the trace CSV alone
+  if (trace_to_stdout && (a.json || section_to_stdout))
+    return Fail(Status::InvalidArgument("trace", std::string("--trace - writes the trace CSV to standard output, which ") +
+                                                     (a.json ? "--json" : "--poincare -") + " uses too: give --trace a file name"));
   if (!a.poincare_plot.empty()) {
     const std::string ext = std::filesystem::path(a.poincare_plot).extension().string();
     if (ext != ".png" && ext != ".svg")
@@ -270,7 +266,7 @@ int RunPoint(PointArgs& a) {
     if (!a.poincare.empty() || !a.poincare_plot.empty() || a.poincare_periods_given)
       j["poincare"] = SectionJson(spec, *result, section_limit, a.poincare);
     std::cout << j.dump(2) << "\n";
-  } else if (!section_to_stdout) {  // "-" without --json: standard output is the CSV alone
+  } else if (!section_to_stdout && !trace_to_stdout) {  // "-" without --json: standard output is the CSV alone
     PrintHuman(spec, *result);
     if (spectrum) PrintSpectrum(**spectrum);
     if (!a.trace.empty()) std::printf("  trace written to %s (%zu rows)\n", a.trace.c_str(), result->samples.size());
@@ -313,7 +309,7 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
                 "also the Lyapunov spectrum by QR (all exponents, their sum against the exact divergence, the "
                 "Kaplan-Yorke dimension; rk4 only; about D+1 times the point's cost)");
   cmd->add_flag("--json", args->json, "print one JSON object");
-  cmd->add_option("--trace", args->trace, "write tau,y_m,dy_m,y_r,dy_r over the window to this CSV");
+  cmd->add_option("--trace", args->trace, "write tau,y_m,dy_m,y_r,dy_r over the window to this CSV (-: standard output, alone)");
   cmd->add_option("--poincare", args->poincare,
                   "write the Poincare (stroboscopic) section to this CSV ('-': standard output; with --json, into the JSON)");
   cmd->add_option("--poincare-phase", s.metrics.poincare_phase,

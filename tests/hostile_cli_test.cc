@@ -274,6 +274,10 @@ std::vector<Row> Rows() {
                       {{"point", "--alpha", "1", "--omega", "1", "--t-end", "20", "--t-keep", "10", "--trace", "{dir}/nodir/t.csv"}})
                      .Error("trace")
                      .Absent({"{dir}/nodir"}));
+  rows.push_back(Case("point_trace_stdout_and_json",
+                      {{"point", "--alpha", "1", "--omega", "1", "--t-end", "20", "--t-keep", "10", "--trace", "-", "--json"}})
+                     .Error("--trace - writes the trace CSV to standard output, which --json uses too")
+                     .Absent({"{dir}/-"}));
   rows.push_back(Case("point_trace_hostile", {{"point", "--alpha", "1", "--omega", "1", "--t-end", "20", "--t-keep", "10", "--trace",
                                                "t`touch pwned`$(touch pwned).csv"}})
                      .OkFiles({"{dir}/t`touch pwned`$(touch pwned).csv"}));
