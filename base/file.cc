@@ -17,19 +17,33 @@ namespace {
 // FIFO or a device swapped in between a check by name and the open would block the open, or never end. The
 // open is non-blocking (a FIFO without a writer opens at once), the descriptor blocking again afterwards.
 StatusOr<int> OpenRegularFile(const std::string& path, const std::string& field, off_t* size) {
+  const auto not_regular = [&] { return Status::InvalidArgument(field, field + " file '" + path + "' is not a regular file"); };
+  // By name first: a device or FIFO is refused without being opened (opening one can have effects: a FIFO's
+  // writer is released, some devices act on open); the descriptor's check below closes the race.
+  std::error_code ec;
+  const auto named = std::filesystem::status(path, ec);
+  if (!ec && std::filesystem::exists(named) && !std::filesystem::is_regular_file(named)) return not_regular();
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
-  if (fd < 0)
+  if (fd < 0) {
+    const int e = errno;
     return Status::InvalidArgument(field, "cannot read " + field + " file '" + path + "': " +
-                                              (errno == ENOENT ? std::string("no such file") : std::string(std::strerror(errno))));
+                                              (e == ENOENT ? std::string("no such file") : std::string(std::strerror(e))));
+  }
   struct stat st;
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+  if (::fstat(fd, &st) != 0) {
+    const int e = errno;
     ::close(fd);
-    return Status::InvalidArgument(field, field + " file '" + path + "' is not a regular file");
+    return Status::IoError(field, "cannot read " + field + " file '" + path + "': " + std::strerror(e));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return not_regular();
   }
   const int flags = ::fcntl(fd, F_GETFL);
   if (flags < 0 || ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK) != 0) {
+    const int e = errno;
     ::close(fd);
-    return Status::IoError(field, "cannot read " + field + " file '" + path + "': " + std::strerror(errno));
+    return Status::IoError(field, "cannot read " + field + " file '" + path + "': " + std::strerror(e));
   }
   if (size) *size = st.st_size;
   return fd;

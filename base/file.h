@@ -13,8 +13,9 @@
 
 namespace bistable {
 
-// The file's bytes; InvalidArgument naming `field` when it cannot be read, is not a regular file, or
-// holds more than `max_bytes`.
+// The file's bytes; InvalidArgument naming `field` when it is missing, cannot be opened, is not a regular
+// file (checked by name and again on the opened descriptor, so a FIFO swapped in never blocks), or holds
+// more than `max_bytes`; IoError when reading it fails.
 StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& field, size_t max_bytes = size_t{1} << 30);
 
 // A text file read one line at a time, each line at most `max_line_bytes` long (its "\n" not counted),

@@ -24,6 +24,7 @@
 #include "client/json_out.h"
 #include "client/plot.h"
 #include "engine/sweep_spec.h"
+#include "dynamics/cancel.h"
 #include "identify/loop.h"
 #include "identify/synthetic.h"
 
@@ -875,6 +876,7 @@ StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
       std::fprintf(stderr, "identify: %zu record(s), %zu parameters declared%s; fitting...\n", prepared->size(),
                    static_cast<size_t>(plan.model.NumParams()), plan.frame_auto ? (f == 0 ? " (absolute frame)" : " (relative frame)") : "");
     IdentifyResult rf = Identify(plan.model, *prepared, plan.setup, plan.opt);
+    if (CancelRequested()) return CancelledStatus();  // cut short: nothing of it is reported or written
     BISTABLE_RETURN_IF_ERROR(CheckFitted(rf, a.objective));
     if (plan.frame_auto) {
       // Every output counts the same here (the fit's noise weights would let the cleanest output decide
@@ -905,6 +907,7 @@ StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
   nlohmann::json j = ResultJson(a, plan, r, recs, *tests, simulations);
   j["velocity_frame"] = FrameJson(frame);
   j["settings"]["output_frame"] = plan.setup.frame == OutputFrame::kRelative ? "relative" : "absolute";
+  if (CancelRequested()) return CancelledStatus();  // the test splits may have been cut short
   if (!a.report.empty()) BISTABLE_RETURN_IF_ERROR(WriteReport(a, plan.setup, r, recs, j, simulations));
   if (!a.json) PrintSummary(a, r, *tests, simulations);
   return j;
@@ -913,7 +916,14 @@ StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
 int RunIdentify(const IdentifyArgs& a) {
   if (a.list_terms) return ListTerms(a.json);
   if (!a.synth.empty()) return MakeSynthetic(a.synth, a.synth_kind, a.json);
+  // Ctrl-C / SIGTERM: every simulation stops at its next sample, the loop ends, nothing is printed or written.
+  InstallCancelSignalHandlers();
   auto j = IdentifyJson(a);
+  RestoreDefaultSignalHandlers();
+  if (CancelRequested()) {
+    std::cerr << "interrupted: the identification was stopped; nothing was printed or written\n";
+    return CancelExitStatus();
+  }
   if (!j.ok()) return Fail(j.status());
   if (a.json) std::cout << j->dump(2) << "\n";
   else if (a.predict) std::cout << PredictionText(*j);

@@ -66,7 +66,14 @@ StatusOr<MapArray> MapSource::Metric(const std::string& id, const std::string& m
   return (*client)->GetMap(id, metric);
 }
 
+Status CheckFetchOut(const std::string& out) {
+  if (out != "-") return Status::Ok();
+  return Status::InvalidArgument("out", "--out - (standard output) is not supported by fetch: the map is written to a file and checked "
+                                        "(SHA-256) before it is renamed into place; give a file name (./- for a file named '-')");
+}
+
 StatusOr<nlohmann::json> FetchMapFile(CoordinatorClient& c, const std::string& id, const std::string& out) {
+  BISTABLE_RETURN_IF_ERROR(CheckFetchOut(out));
   std::unique_ptr<AtomicFile> file;
   auto fetched = c.FetchMap(id, [&](std::string_view data) -> Status {
     if (CancelRequested()) return Status::IoError("fetch", "interrupted");

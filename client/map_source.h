@@ -25,6 +25,10 @@ struct MapSource {
   StatusOr<MapArray> Metric(const std::string& id, const std::string& metric) const;
 };
 
+// `out` for a fetched map: a file name, not "-" (standard output would get the bytes before their
+// SHA-256 is checked; the file is renamed into place only after). InvalidArgument naming "out".
+Status CheckFetchOut(const std::string& out);
+
 // Streams a published map file from a coordinator into `out` (AtomicFile: temporary, fsync, rename; the
 // stream's SHA-256 checked by CoordinatorClient::FetchMap). Stops with an error when cancellation is
 // requested (dynamics/cancel.h); nothing is left at `out` then. Returns {"id", "file", "bytes", "sha256"}.

@@ -227,9 +227,10 @@ int RunPoint(PointArgs& a) {
   const long section_limit = a.poincare_periods_given ? a.poincare_periods : 0;
   const bool section_to_stdout = a.poincare == "-";
   const bool trace_to_stdout = a.trace == "-";  // without --json: standard output is the trace CSV alone
-  if (trace_to_stdout && (a.json || section_to_stdout))
+  if (trace_to_stdout && (a.json || section_to_stdout || a.spectrum))
     return Fail(Status::InvalidArgument("trace", std::string("--trace - writes the trace CSV to standard output, which ") +
-                                                     (a.json ? "--json" : "--poincare -") + " uses too: give --trace a file name"));
+                                                     (a.json ? "--json" : section_to_stdout ? "--poincare -" : "--spectrum") +
+                                                     " uses too: give --trace a file name"));
   if (!a.poincare_plot.empty()) {
     const std::string ext = std::filesystem::path(a.poincare_plot).extension().string();
     if (ext != ".png" && ext != ".svg")

@@ -174,10 +174,8 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
     cmd->add_option("--tls-ca", a->r.tls_ca, "PEM CA certificate to verify a TLS coordinator");
     cmd->add_flag("--json", a->r.json, "print JSON");
     cmd->callback([a, exit_code]() {
-      if (a->out == "-") {  // a file named "-" would surprise; stdout would get bytes before their checksum
-        *exit_code = Fail(Status::InvalidArgument("out", "--out - (standard output) is not supported by fetch: the map is written to a "
-                                                         "file and checked (SHA-256) before it is renamed into place; give a file name "
-                                                         "(./- for a file named '-')"));
+      if (Status st = CheckFetchOut(a->out); !st.ok()) {  // before connecting
+        *exit_code = Fail(st);
         return;
       }
       auto client = Connect(a->r);

@@ -1,3 +1,4 @@
+#include "dynamics/cancel.h"
 #include "identify/loop.h"
 
 #include <algorithm>
@@ -659,6 +660,7 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
   // passes its term over, so the loop still ends: at most max_added + the candidates' number of traces.
   const int max_traces = opt.max_added + static_cast<int>(FreshCandidates(m, recs, setup, opt).size());
   for (int round = 0, traces = 0; round < (finite_fit ? opt.max_added : 0) && traces < max_traces; ++round, ++traces) {
+    if (CancelRequested()) break;  // what follows would be cut short (the caller reports nothing)
     const auto tr0 = std::chrono::steady_clock::now();
     LoopStep step = TraceResidual(m, m.theta, recs, setup, opt, passed_over);
     if (std::getenv("BISTABLE_IDENTIFY_DEBUG"))

@@ -8,6 +8,7 @@
 
 #include <Eigen/Dense>
 
+#include "dynamics/cancel.h"
 #include "dynamics/rk4.h"
 #include "dynamics/spectrum.h"
 
@@ -867,6 +868,7 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   emit(0);
   Rk4<Sys> rk4(sys);
   for (size_t i = 1; i < n; ++i) {
+    if (CancelRequested()) [[unlikely]] return false;  // Ctrl-C: every simulation fails at once, the loop ends
     if (restart_every > 0 && (i - 1) % static_cast<size_t>(restart_every) == 0 && i > 1) {
       if (given) {
         set_given((i - 1) / static_cast<size_t>(restart_every));

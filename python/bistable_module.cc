@@ -368,7 +368,7 @@ py::object QueryMap(const std::string& id, const std::string& expr, const std::s
 }
 
 py::object IdentifyArgs(const std::vector<std::string>& args) {
-  return ToPython(Unwrap(Compute([&] { return IdentifyFromArgs(args); }, /*cancellable=*/false)));
+  return ToPython(Unwrap(Compute([&] { return IdentifyFromArgs(args); })));
 }
 
 // A coordinator, through the CLI's CoordinatorClient (one channel; the token on every call).

@@ -4,9 +4,10 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <fstream>
 #include <random>
 #include <sstream>
+
+#include "base/file.h"
 
 namespace bistable {
 
@@ -30,8 +31,10 @@ const char* RoleName(Role r) {
 }
 
 StatusOr<TokenStore> TokenStore::Load(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return Status::InvalidArgument("tokens", "cannot read tokens file '" + path + "'");
+  // A regular file of at most 16 MiB (base/file: a FIFO or device neither blocks nor streams forever).
+  auto text = ReadTextFile(path, "tokens", size_t{16} << 20);
+  if (!text.ok()) return text.status();
+  std::istringstream in(*text);
   TokenStore store;
   std::string line;
   int n = 0;

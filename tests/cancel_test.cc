@@ -292,6 +292,31 @@ void PointStopsOnSignal(int sig) {
 TEST(CancelCli, PointStopsWithinASecondOfCtrlC) { PointStopsOnSignal(SIGINT); }
 TEST(CancelCli, PointStopsWithinASecondOfSigterm) { PointStopsOnSignal(SIGTERM); }
 
+// (1b) `bistable identify` (the synthetic records' friction loop, several seconds), Ctrl-C after 1.5 s: every
+// simulation stops at its next sample and the loop ends — within 1.5 s, 130, nothing printed, no report.
+TEST(CancelCli, IdentifyStopsWithinASecondOfCtrlCAndWritesNothing) {
+  const std::string dir = Dir("identify");
+  ASSERT_EQ(std::system((std::string(BISTABLE_CLI) + " identify --make-synthetic " + dir + "/syn > /dev/null").c_str()), 0);
+  const Child c = Spawn({BISTABLE_CLI, "identify", "--data", dir + "/syn/chirp_6mm.csv", "--data", dir + "/syn/chirp_10mm.csv", "--data",
+                         dir + "/syn/chirp_14mm.csv", "--known", "m_main=0.282", "--terms", "main.linear,main.viscous,main.damping_y2",
+                         "--report", dir + "/report", "--json"},
+                        dir + "/out.txt");
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  const auto t_signal = Clock::now();
+  ASSERT_EQ(::kill(c.pid, SIGINT), 0);
+  const int status = WaitFor(c.pid, 20);
+  const double latency = Since(t_signal);
+  ASSERT_NE(status, -1) << "bistable identify did not stop within 20 s of SIGINT";
+  std::printf("bistable identify, SIGINT after 1.5 s: stopped in %.3f s\n", latency);
+  EXPECT_LT(latency, 1.5);
+  ASSERT_TRUE(WIFEXITED(status)) << "killed by the signal instead of stopping cleanly";
+  EXPECT_EQ(WEXITSTATUS(status), 130) << Slurp(c.err_file);
+  EXPECT_NE(Slurp(c.err_file).find("interrupted"), std::string::npos) << Slurp(c.err_file);
+  EXPECT_EQ(Slurp(dir + "/out.txt"), "") << "a cancelled identification prints no result";
+  EXPECT_FALSE(fs::exists(dir + "/report")) << "nor writes a report";
+  fs::remove_all(dir);
+}
+
 // Long points: 2e7 steps each (t_end 2e5), so one 8-item job is about a second of kernel work.
 constexpr const char* kLongPoints = R"(
 name = "cancel test"

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -85,7 +86,9 @@ TEST(CliPoint, SettingsFromJsonReproduceTheResult) {
 }
 
 TEST(CliPoint, TraceWritesTheWindow) {
-  const std::string path = ::testing::TempDir() + "/trace_" + std::to_string(::getpid()) + ".csv";
+  const std::string dir = ::testing::TempDir() + "/trace_" + std::to_string(::getpid());
+  std::filesystem::create_directories(dir);
+  const std::string path = dir + "/trace.csv";
   const ProcessResult r = Bistable("point --model coupled --alpha 0.3 --omega 0.8 --trace " + path);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::ifstream in(path);
@@ -98,8 +101,15 @@ TEST(CliPoint, TraceWritesTheWindow) {
   EXPECT_EQ(first.substr(0, 4), "250,");
   EXPECT_EQ(last.substr(0, 4), "500,");
   EXPECT_EQ(rows, 250 / 0.05 + 1);
-  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
-  std::filesystem::remove(path);
+  for (const auto& e : std::filesystem::directory_iterator(dir))  // the AtomicFile temporary is gone
+    EXPECT_EQ(e.path().filename().string().find(".bistable-out-"), std::string::npos) << "left behind: " << e.path();
+  // "-": the same CSV on standard output, alone.
+  const ProcessResult s = Bistable("point --model coupled --alpha 0.3 --omega 0.8 --trace -");
+  ASSERT_EQ(s.exit_code, 0) << s.err;
+  std::ifstream again(path);
+  const std::string file((std::istreambuf_iterator<char>(again)), {});
+  EXPECT_EQ(s.out, file);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(CliPoint, BadInputNamesFieldAndExitsNonZero) {
@@ -155,7 +165,7 @@ TEST(CliPoint, PoincareSectionFileJsonAndPlot) {
   EXPECT_EQ(rows, 3000u);
   EXPECT_GT(std::filesystem::file_size(dir + "/s.png"), 10000u);
   for (const auto& e : std::filesystem::directory_iterator(dir))
-    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << "left behind: " << e.path();
+    EXPECT_EQ(e.path().filename().string().find(".bistable-out-"), std::string::npos) << "left behind: " << e.path();
 
   // "-" with --json: the points inside the JSON (coupled: six columns, the resonator's too), at the phase.
   const ProcessResult c = Bistable("point --model coupled --alpha 0.3 --omega 0.8 --no-rosenstein --poincare - --poincare-phase 1.5 --json");
