@@ -267,6 +267,19 @@ std::string Slurp(const std::string& path) { return bistable_test::ReadText(path
 
 std::string Dir(const std::string& name) { return bistable_test::FreshDir("bistable_cancel", name); }
 
+// Sends `sig` to `pid` and waits up to `wait_s` seconds for it to end: its wait status (-1: still
+// running, or the signal could not be sent) and the seconds from the signal to the end.
+struct Stopped {
+  int status = -1;
+  double latency = 0;
+};
+Stopped SignalAndWait(pid_t pid, int sig, double wait_s) {
+  const auto t_signal = Clock::now();
+  if (::kill(pid, sig) != 0) return {};
+  const int status = WaitFor(pid, wait_s);
+  return {status, Since(t_signal)};
+}
+
 // (1) `bistable point` of 9e7 steps (minutes to the end), signalled after 0.5 s: it stops within
 // 1.5 s of the signal with 128 + signal and a message, printing no result.
 void PointStopsOnSignal(int sig) {
@@ -275,10 +288,7 @@ void PointStopsOnSignal(int sig) {
                          "899000", "--no-rosenstein", "--json"},
                         dir + "/out.txt");
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  const auto t_signal = Clock::now();
-  ASSERT_EQ(::kill(c.pid, sig), 0);
-  const int status = WaitFor(c.pid, 10);
-  const double latency = Since(t_signal);
+  const auto [status, latency] = SignalAndWait(c.pid, sig, 10);
   ASSERT_NE(status, -1) << "bistable point did not stop within 10 s of " << strsignal(sig);
   std::printf("bistable point, %s after 0.5 s: stopped in %.3f s\n", strsignal(sig), latency);
   EXPECT_LT(latency, 1.5);
@@ -302,10 +312,7 @@ TEST(CancelCli, IdentifyStopsWithinASecondOfCtrlCAndWritesNothing) {
                          "--report", dir + "/report", "--json"},
                         dir + "/out.txt");
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
-  const auto t_signal = Clock::now();
-  ASSERT_EQ(::kill(c.pid, SIGINT), 0);
-  const int status = WaitFor(c.pid, 20);
-  const double latency = Since(t_signal);
+  const auto [status, latency] = SignalAndWait(c.pid, SIGINT, 20);
   ASSERT_NE(status, -1) << "bistable identify did not stop within 20 s of SIGINT";
   std::printf("bistable identify, SIGINT after 1.5 s: stopped in %.3f s\n", latency);
   EXPECT_LT(latency, 1.5);
@@ -349,10 +356,7 @@ TEST(CancelCli, RunStopsWithinASecondOfCtrlCAndResumesToTheSameMap) {
   while (PointsDone(data) < 8 && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(5));
   ASSERT_GE(PointsDone(data), 8) << Slurp(c.err_file);
   std::this_thread::sleep_for(std::chrono::milliseconds(200));  // well inside the second job
-  const auto t_signal = Clock::now();
-  ASSERT_EQ(::kill(c.pid, SIGINT), 0);
-  const int status = WaitFor(c.pid, 30);
-  const double latency = Since(t_signal);
+  const auto [status, latency] = SignalAndWait(c.pid, SIGINT, 30);
   ASSERT_NE(status, -1) << "bistable run did not stop within 30 s of SIGINT";
   std::printf("bistable run (8-lane jobs of 2e7-step points), SIGINT: stopped in %.3f s\n", latency);
   EXPECT_LT(latency, 1.5);
@@ -417,10 +421,7 @@ TEST(CancelCli, WorkerStopsWithinASecondOfSigtermAndReleasesItsLease) {
   while (leases_of("w1") < 1 && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   ASSERT_GE(leases_of("w1"), 1) << Slurp(w1.err_file);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  const auto t_signal = Clock::now();
-  ASSERT_EQ(::kill(w1.pid, SIGTERM), 0);
-  const int status = WaitFor(w1.pid, 30);
-  const double latency = Since(t_signal);
+  const auto [status, latency] = SignalAndWait(w1.pid, SIGTERM, 30);
   ASSERT_NE(status, -1) << "bistable-worker did not stop within 30 s of SIGTERM";
   std::printf("bistable-worker (8-lane job of 2e7-step points), SIGTERM: stopped in %.3f s\n", latency);
   EXPECT_LT(latency, 1.5);
