@@ -13,9 +13,9 @@
 namespace bistable {
 namespace {
 
-// `path` opened for reading and checked to be a regular file on the descriptor itself, not by name first: a
-// FIFO or a device swapped in between a check by name and the open would block the open, or never end. The
-// open is non-blocking (a FIFO without a writer opens at once), the descriptor blocking again afterwards.
+// `path` opened for reading and checked to be a regular file by name and again on the descriptor itself: a
+// FIFO or a device swapped in between the check by name and the open would otherwise block the open, or never
+// end. The open is non-blocking (a FIFO without a writer opens at once), the descriptor blocking again after.
 StatusOr<int> OpenRegularFile(const std::string& path, const std::string& field, off_t* size) {
   const auto not_regular = [&] { return Status::InvalidArgument(field, field + " file '" + path + "' is not a regular file"); };
   // By name first: a device or FIFO is refused without being opened (opening one can have effects: a FIFO's
