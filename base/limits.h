@@ -69,6 +69,9 @@ inline constexpr long kMaxJobItems = 4096;                   // items in one job
 inline constexpr double kMinWatchInterval = 0.25;            // seconds between two status messages
 inline constexpr int kMaxServerThreads = 128;                // gRPC threads (each open watch holds one)
 inline constexpr std::size_t kMaxServerMemoryBytes = 512u << 20;  // gRPC transport buffers in all
+inline constexpr std::size_t kMaxTokenFileBytes = 1 << 16;   // a client's --token-file (one bearer token)
+inline constexpr std::size_t kMaxPemFileBytes = 1 << 20;     // TLS CA, certificate and key files
+inline constexpr std::size_t kMaxTokensFileBytes = 16 << 20; // the coordinator's tokens file (one hash per line)
 
 // --- Queries, map files and measured data ---------------------------------------------------------
 inline constexpr std::size_t kMaxQueryBytes = 4096;          // a query expression

@@ -40,6 +40,11 @@ Status WriteTextOut(const std::string& path, const std::string& text, const std:
   return (*f)->Commit();
 }
 
+Status NotStdout(const std::string& path, const std::string& field, const std::string& flag, const std::string& why) {
+  if (path != "-") return Status::Ok();
+  return Status::InvalidArgument(field, flag + " - (standard output) is not supported: " + why + "; give a file name (./- for a file named '-')");
+}
+
 int Fail(const Status& st) {
   std::cerr << "error: " << st.ToString() << "\n";
   return kExitError;

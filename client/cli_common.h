@@ -25,6 +25,9 @@ int Fail(const Status& st);
 // Text to standard output when `path` is "-" (or empty), else into the file, atomically (a temporary
 // beside it, renamed when complete; its directory must exist). Errors name `field`.
 Status WriteTextOut(const std::string& path, const std::string& text, const std::string& field);
+// `path` given to `flag` (error field `field`) may not be "-": standard output is not an option there, for
+// the reason `why`; a file named "-" is ./- (never created by accident).
+Status NotStdout(const std::string& path, const std::string& field, const std::string& flag, const std::string& why);
 
 // Opens <data>/index.sqlite (which must exist) and finds the sweep by id or unique prefix.
 struct SweepRef {

@@ -216,11 +216,9 @@ int RunHbm(HbmArgs& a) {
   if (Status st = ValidateFoldCurveOptions(f); !st.ok()) return Fail(st);
   if (!a.fold_curve && (!a.over_map.empty() || !a.fold_out.empty()))
     return Fail(Status::InvalidArgument(a.over_map.empty() ? "fold_out" : "over_map", "draws fold curves: add --fold-curve"));
-  for (const auto& [field, path] : {std::pair<const char*, const std::string&>{"out", a.out}, {"fold_out", a.fold_out}})
-    if (path == "-")  // not a file named "-": the summary and --json use standard output
-      return Fail(Status::InvalidArgument(field, std::string("--") + (std::string(field) == "out" ? "out" : "fold-out") +
-                                                     " - (standard output) is not supported by hbm, whose summary and --json use it: "
-                                                     "give a file name (./- for a file named '-')"));
+  const std::string why = "hbm's summary and --json use standard output";
+  if (Status st = NotStdout(a.out, "out", "--out", why); !st.ok()) return Fail(st);
+  if (Status st = NotStdout(a.fold_out, "fold_out", "--fold-out", why); !st.ok()) return Fail(st);
   InstallCancelSignalHandlers();  // Ctrl-C / SIGTERM: the continuation stops at its next point
   auto r = ContinueBranches(a.o);
   StatusOr<std::vector<FoldCurve>> curves = std::vector<FoldCurve>{};

@@ -67,9 +67,7 @@ StatusOr<MapArray> MapSource::Metric(const std::string& id, const std::string& m
 }
 
 Status CheckFetchOut(const std::string& out) {
-  if (out != "-") return Status::Ok();
-  return Status::InvalidArgument("out", "--out - (standard output) is not supported by fetch: the map is written to a file and checked "
-                                        "(SHA-256) before it is renamed into place; give a file name (./- for a file named '-')");
+  return NotStdout(out, "out", "--out", "a fetched map is written to a file and checked (SHA-256) before it is renamed into place");
 }
 
 StatusOr<nlohmann::json> FetchMapFile(CoordinatorClient& c, const std::string& id, const std::string& out) {

@@ -308,6 +308,21 @@ void Separability(const FitSnapshot& fin, const std::vector<FitSnapshot>& fits, 
 
 }  // namespace
 
+std::string AttractorLoss(const Invariants& before, const Invariants& after) {
+  // The measured side is the same for both models; `before` carries it (a diverged free run gives
+  // Invariants{}, measured fields NaN too).
+  const double measured_rate = before.switching_rate_measured, floor = before.poincare_floor;
+  const bool diverged = std::isnan(after.switching_rate_measured);
+  std::string lost;
+  if (measured_rate > 0 && before.switching_rate > 0 && !(after.switching_rate > 0))
+    lost = "no change of well over the record (" + Num(before.switching_rate, 3) + "/s before, measured " + Num(measured_rate, 3) + "/s" +
+           (diverged ? ", the free run diverged" : std::isnan(after.right_well_fraction) ? ", one well" : "") + ")";
+  if (before.poincare <= floor && !(after.poincare <= floor))
+    lost += (lost.empty() ? "" : "; ") + std::string("the Poincaré section beyond the measured floor (H ") + Num(before.poincare, 3) + " -> " +
+            Num(after.poincare, 3) + ", floor " + Num(floor, 3) + ")";
+  return lost;
+}
+
 LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector<PreparedRecord>& recs, const Setup& setup,
                          const FitOptions& fo, const std::string& stop) {
   LoopDiagnostics d;

@@ -129,6 +129,14 @@ struct LoopDiagnostics {
                                           // while the final fit separates the two (|ρ| < 0.9)
 };
 
+// What the free run of a model (its invariants `after`) lost of the measured attractor that the model
+// before it (`before`) still had; "" when nothing. A step can fit the short horizons better and still do
+// this (the asym harvester record over 40 s: the piezo lowers the short-horizon error 72 → 56 % while the
+// model stops changing well). Lost are: the changes of well — the record changes well, `before` did, and
+// `after` does not (no change over the record, or no second well); and the section — `before` within the
+// measured section's half-against-half floor, `after` beyond it (or not computed).
+std::string AttractorLoss(const Invariants& before, const Invariants& after);
+
 // v with `digits` significant digits (printf %g), as the messages above and the reports print numbers.
 std::string FormatSignificant(double v, int digits);
 

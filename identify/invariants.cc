@@ -4,7 +4,6 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
-#include <string>
 
 #include "dynamics/spectrum.h"
 
@@ -251,26 +250,6 @@ ChaosCheck CheckChaos(const std::vector<PreparedRecord>& recs, const Setup& setu
                 kPeriodicInput, kBroadbandChaotic);
   c.rule = buf;
   return c;
-}
-
-std::string AttractorLoss(const Invariants& before, const Invariants& after) {
-  auto num = [](double v, int digits) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%.*g", digits, v);
-    return std::string(b);
-  };
-  // The measured side is the same for both models; `before` carries it (a diverged free run gives
-  // Invariants{}, measured fields NaN too).
-  const double measured_rate = before.switching_rate_measured, floor = before.poincare_floor;
-  const bool diverged = std::isnan(after.switching_rate_measured);
-  std::string lost;
-  if (measured_rate > 0 && before.switching_rate > 0 && !(after.switching_rate > 0))
-    lost = "no change of well over the record (" + num(before.switching_rate, 3) + "/s before, measured " + num(measured_rate, 3) + "/s" +
-           (diverged ? ", the free run diverged" : std::isnan(after.right_well_fraction) ? ", one well" : "") + ")";
-  if (before.poincare <= floor && !(after.poincare <= floor))
-    lost += (lost.empty() ? "" : "; ") + std::string("the Poincaré section beyond the measured floor (H ") + num(before.poincare, 3) + " -> " +
-            num(after.poincare, 3) + ", floor " + num(floor, 3) + ")";
-  return lost;
 }
 
 Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,

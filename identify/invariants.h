@@ -157,14 +157,6 @@ struct ChaosCheck {
 
 ChaosCheck CheckChaos(const std::vector<PreparedRecord>& recs, const Setup& setup, Objective objective);
 
-// What the free run of a model (its invariants `after`) lost of the measured attractor that the model
-// before it (`before`) still had; "" when nothing. A step can fit the short horizons better and still do
-// this (the asym harvester record over 40 s: the piezo lowers the short-horizon error 72 → 56 % while the
-// model stops changing well). Lost are: the changes of well — the record changes well, `before` did, and
-// `after` does not (no change over the record, or no second well); and the section — `before` within the
-// measured section's half-against-half floor, `after` beyond it (or not computed).
-std::string AttractorLoss(const Invariants& before, const Invariants& after);
-
 // Simulates every marked record with (m, th) and compares; `errors` supplies the spectral error.
 Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                              const Setup& setup, const ChaosCheck& check, const Errors& errors);

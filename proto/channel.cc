@@ -6,13 +6,14 @@
 #include <sstream>
 
 #include "base/file.h"
+#include "base/limits.h"
 
 namespace bistable {
 
 StatusOr<std::string> LoadToken(const std::string& token_file) {
   std::string t;
   if (!token_file.empty()) {
-    auto text = ReadTextFile(token_file, "token-file", 1 << 16);
+    auto text = ReadTextFile(token_file, "token-file", limits::kMaxTokenFileBytes);
     if (!text.ok()) return text.status();
     t = *text;
   } else if (const char* env = std::getenv("BISTABLE_TOKEN")) {
@@ -28,7 +29,7 @@ StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ConnectOptions& o) {
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
   if (o.tls_ca.empty()) return grpc::CreateCustomChannel(o.address, grpc::InsecureChannelCredentials(), args);
-  auto ca = ReadTextFile(o.tls_ca, "tls-ca", 1 << 20);
+  auto ca = ReadTextFile(o.tls_ca, "tls-ca", limits::kMaxPemFileBytes);
   if (!ca.ok()) return ca.status();
   grpc::SslCredentialsOptions ssl;
   ssl.pem_root_certs = *ca;

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "base/file.h"
+#include "base/limits.h"
 
 namespace bistable {
 
@@ -31,8 +32,8 @@ const char* RoleName(Role r) {
 }
 
 StatusOr<TokenStore> TokenStore::Load(const std::string& path) {
-  // A regular file of at most 16 MiB (base/file: a FIFO or device neither blocks nor streams forever).
-  auto text = ReadTextFile(path, "tokens", size_t{16} << 20);
+  // A regular file within its limit (base/file: a FIFO or device neither blocks nor streams forever).
+  auto text = ReadTextFile(path, "tokens", limits::kMaxTokensFileBytes);
   if (!text.ok()) return text.status();
   std::istringstream in(*text);
   TokenStore store;

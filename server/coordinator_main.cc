@@ -10,6 +10,7 @@
 
 #include "base/exit_codes.h"
 #include "base/file.h"
+#include "base/limits.h"
 #include "base/log.h"
 #include "net/http_server.h"
 #include "net/prometheus_text.h"
@@ -82,8 +83,8 @@ int main(int argc, char** argv) {
   std::shared_ptr<grpc::ServerCredentials> creds = grpc::InsecureServerCredentials();
   bistable::HttpServer::Options http_tls;  // the dashboard takes the same certificate and key
   if (!tls_cert.empty()) {
-    auto cert = bistable::ReadTextFile(tls_cert, "tls-cert", 1 << 20);
-    auto key = bistable::ReadTextFile(tls_key, "tls-key", 1 << 20);
+    auto cert = bistable::ReadTextFile(tls_cert, "tls-cert", bistable::limits::kMaxPemFileBytes);
+    auto key = bistable::ReadTextFile(tls_key, "tls-key", bistable::limits::kMaxPemFileBytes);
     if (!cert.ok()) return fail(cert.status());
     if (!key.ok()) return fail(key.status());
     grpc::SslServerCredentialsOptions ssl;

@@ -262,13 +262,13 @@ std::vector<Row> Rows() {
     rows.push_back(r);
   }
   rows.push_back(Case("hbm_missing_dir", {{"hbm", "--out", "{dir}/nodir/b.png"}}).Error("invalid argument (out: ").Absent({"{dir}/nodir"}));
-  rows.push_back(Case("hbm_out_stdout", {{"hbm", "--out", "-"}}).Error("invalid argument (out: --out - (standard output) is not supported by hbm").Absent({"{dir}/-"}));
+  rows.push_back(Case("hbm_out_stdout", {{"hbm", "--out", "-"}}).Error("invalid argument (out: --out - (standard output) is not supported: hbm's summary and --json use standard output").Absent({"{dir}/-"}));
   rows.push_back(Case("hbm_fold_out_stdout", {{"hbm", "--fold-curve", "--fold-out", "-"}})
-                     .Error("invalid argument (fold_out: --fold-out - (standard output) is not supported by hbm")
+                     .Error("invalid argument (fold_out: --fold-out - (standard output) is not supported: hbm's summary")
                      .Absent({"{dir}/-"}));
   // fetch --out -: refused before any connection (no file named "-", nothing half-written to stdout).
   rows.push_back(Case("fetch_out_stdout", {{"fetch", "abc", "--out", "-", "--coordinator", "127.0.0.1:9"}})
-                     .Error("invalid argument (out: --out - (standard output) is not supported by fetch")
+                     .Error("invalid argument (out: --out - (standard output) is not supported: a fetched map is written to a file")
                      .Absent({"{dir}/-"}));
   rows.push_back(Case("hbm_hostile_out", {{"hbm", "--out", "b`touch pwned`$(touch pwned).png"}})
                      .OkFiles({"{dir}/b`touch pwned`$(touch pwned).png"}));
