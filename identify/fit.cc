@@ -1177,10 +1177,12 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
       stage(st, "shooting", [&] { return st.LocalStage(f, Objective::kTime, opt.shooting_horizon_s, 1e-4); });
       fc = stage(st, "lm-after-shoot", [&] { return st.LocalStage(f, Objective::kTime); });
     };
-    // The two starts are independent: with one record (whose simulation uses one core) and a second
-    // core, run them side by side, each with its own stages' state; the result is the sequential one.
+    // The two starts are independent. When the records leave a core idle (one record, whose simulation
+    // uses one core; three records on two cores), run them side by side, each with its own stages' state,
+    // so one start's simulations fill the other's gaps; the result is the sequential one (a fit does not
+    // depend on its thread count: Identify.FitsOfSeveralRecordsDoNotDependOnThreads).
     const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
-    if (recs.size() == 1 && cpus >= 2) {
+    if (cpus >= 2 && recs.size() % static_cast<size_t>(cpus) != 0) {
       FitStages other = fs;
       other.result = FitResult{};
       std::thread t([&] { shoot(other); });

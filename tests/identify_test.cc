@@ -298,8 +298,9 @@ TEST(Identify, AGainByLeavingTheBasinIsNotCreditedToTheTerm) {
 }
 
 TEST(Identify, FitsOfSeveralRecordsDoNotDependOnThreads) {
-  // Several records: a fit spreads them over the CPUs; the loop runs a refit's two starts side by side,
-  // each fit on one thread. The same fit either way.
+  // Several records: a fit spreads them over the CPUs, and three records on two threads also run the fit's
+  // two starts side by side (they leave a core idle); the loop runs a refit's two fits side by side, each
+  // on one thread. The same fit either way.
   std::vector<PreparedRecord> recs;
   for (const Record& rec : Chirps(0.05e-3)) {
     auto p = PrepareRecord(rec, bistable::Setup{}, 0, 4 * 120, 0.0, rec.name);
