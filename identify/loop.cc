@@ -530,13 +530,16 @@ FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t,
   alt.theta = StartFromRegression(alt, recs, setup, &sig_alt);
   const std::vector<double> scale = ScaleOf(*next, next->theta, sig, recs, setup), scale_alt = ScaleOf(alt, alt.theta, sig_alt, recs, setup);
   FitResult refit, refit2;
-  // The two fits are independent. With several records and two CPUs, run them side by side, each on one
-  // thread: a fit spreads its records over the CPUs, and three records on two cores leave one idle half
-  // the time. Fits do not depend on their thread count (Identify.FitsOfSeveralRecordsDoNotDependOnThreads).
+  // The two fits are independent: with two CPUs, run them side by side. With several records each fit
+  // runs on one thread (a fit spreads its records over the CPUs, and three records on two cores leave one
+  // idle half the time); with one record each keeps its threads (the record's simulation uses one core, a
+  // fit's sequential stages — CRS2, the trace — leave the other idle, and the two fits fill each other's
+  // gaps). Fits do not depend on their thread count (Identify.FitsOfSeveralRecordsDoNotDependOnThreads,
+  // Identify.OneRecordFitOnTwoThreadsEqualsTheSequentialFit).
   const int cpus = opt.fit.threads > 0 ? opt.fit.threads : UsableCpus();
-  if (recs.size() > 1 && cpus >= 2) {
+  if (cpus >= 2) {
     FitOptions one = opt.fit;
-    one.threads = 1;
+    if (recs.size() > 1) one.threads = 1;
     std::thread t([&] { refit2 = Fit(alt, scale_alt, recs, setup, one); });
     refit = Fit(*next, scale, recs, setup, one);
     t.join();
