@@ -7,7 +7,9 @@
 
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/ssl.hpp>
+#include <boost/asio/post.hpp>
 #include <boost/asio/strand.hpp>
+#include <boost/asio/thread_pool.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/ssl.hpp>
@@ -31,10 +33,13 @@ struct HttpServer::Impl {
   // Declared before io: sessions destroyed with the io_context's pending handlers still count down.
   std::atomic<int> connections{0};
   std::map<std::string, HttpHandler> routes;
+  std::set<std::string> slow_routes;
   std::unique_ptr<asio::ssl::context> tls;  // set: every connection is TLS
   asio::io_context io{1};
   tcp::acceptor acceptor{io};
   std::thread thread;
+  // Declared after io: destroyed (joined) first, so no slow handler posts its answer to a destroyed io.
+  asio::thread_pool slow{HttpServer::kSlowThreads};
   int port = 0;
 
   void Accept();
@@ -113,13 +118,31 @@ class Session : public std::enable_shared_from_this<Session<Stream>> {
       Send(Make(404, "not found\n", req.method(), req.version(), req.keep_alive()));
       return;
     }
-    HttpResponse r;
-    try {
-      r = it->second(request);
-    } catch (const std::exception& e) {
-      r = {500, "text/plain; charset=utf-8", "internal error\n", {}};
+    const HttpHandler* handler = &it->second;
+    if (!server_->slow_routes.count(request.path)) {
+      Respond(Call(*handler, request), req.method(), req.version(), req.keep_alive());
+      return;
     }
-    auto res = Make(r.status, std::move(r.body), req.method(), req.version(), req.keep_alive());
+    // A slow route: computed on the pool, answered on this connection's strand.
+    asio::post(server_->slow, [self = this->shared_from_this(), handler, request = std::move(request), method = req.method(),
+                               version = req.version(), keep_alive = req.keep_alive()] {
+      HttpResponse r = Call(*handler, request);
+      asio::post(self->stream_.get_executor(), [self, r = std::move(r), method, version, keep_alive]() mutable {
+        self->Respond(std::move(r), method, version, keep_alive);
+      });
+    });
+  }
+
+  static HttpResponse Call(const HttpHandler& handler, const HttpRequest& request) {
+    try {
+      return handler(request);
+    } catch (...) {  // on the pool an escaping exception would end the process
+      return {500, "text/plain; charset=utf-8", "internal error\n", {}};
+    }
+  }
+
+  void Respond(HttpResponse r, http::verb method, unsigned version, bool keep_alive) {
+    auto res = Make(r.status, std::move(r.body), method, version, keep_alive);
     res.set(http::field::content_type, r.content_type);
     for (const auto& [name, value] : r.headers) res.insert(name, value);
     Send(std::move(res));
@@ -206,6 +229,8 @@ HttpServer::~HttpServer() {
   });
   impl_->io.stop();
   if (impl_->thread.joinable()) impl_->thread.join();
+  impl_->slow.stop();  // queued slow requests are dropped; the running ones finish (their answers go nowhere)
+  impl_->slow.join();
 }
 
 int HttpServer::port() const { return impl_->port; }
@@ -216,6 +241,7 @@ StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(const std::string& addre
   if (!ep.ok()) return ep.status();
   auto impl = std::make_unique<Impl>();
   impl->routes = std::move(routes);
+  impl->slow_routes = options.slow_routes;
   beast::error_code ec;
   if (options.tls_cert_pem.empty() != options.tls_key_pem.empty())
     return Status::InvalidArgument("tls", "a TLS certificate and its key go together");

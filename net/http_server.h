@@ -9,6 +9,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -39,15 +40,22 @@ class HttpServer {
  public:
   struct Options {
     std::string tls_cert_pem, tls_key_pem;  // both set: serve HTTPS only
+    // Routes whose handlers may take long (a dashboard cell integrates a point): they run on a pool of
+    // kSlowThreads threads, so that the others (/healthz, /metrics) keep answering meanwhile. At most one
+    // request per connection is in flight, so at most 64 wait for the pool.
+    std::set<std::string> slow_routes;
   };
+  static constexpr int kSlowThreads = 2;
   // Listens on "host:port" (an IP literal, "localhost" or "[v6]"; port 0 picks a free one) and serves
-  // `routes` (path → handler, e.g. "/metrics") on one thread of its own. Handlers run on that thread.
+  // `routes` (path → handler, e.g. "/metrics") on one thread of its own. Handlers run on that thread, but
+  // those of Options::slow_routes (which must be safe to call from several threads at once).
   static StatusOr<std::unique_ptr<HttpServer>> Start(const std::string& address, std::map<std::string, HttpHandler> routes,
                                                      const Options& options);
   static StatusOr<std::unique_ptr<HttpServer>> Start(const std::string& address, std::map<std::string, HttpHandler> routes) {
     return Start(address, std::move(routes), Options{});
   }
-  ~HttpServer();  // stops: closes the listener and every connection, joins the thread
+  ~HttpServer();  // stops: closes the listener and every connection, joins the thread and waits for the slow
+                  // handlers that are running (those still queued are dropped)
   int port() const;
   HttpServer(const HttpServer&) = delete;
   HttpServer& operator=(const HttpServer&) = delete;

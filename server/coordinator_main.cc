@@ -128,7 +128,9 @@ int main(int argc, char** argv) {
       };
     else  // without tokens, the loopback's Host names only (DNS rebinding); /healthz carries no data
       routes["/metrics"] = bistable::LoopbackHostOnly(routes["/metrics"]);
-    auto h = bistable::HttpServer::Start(http_addr, std::move(routes), http_tls);
+    bistable::HttpServer::Options options = http_tls;
+    options.slow_routes = bistable::DashboardSlowRoutes();
+    auto h = bistable::HttpServer::Start(http_addr, std::move(routes), options);
     if (!h.ok()) return fail(h.status());
     dashboard = std::move(h).value();
   }

@@ -543,6 +543,8 @@ HttpHandler LoopbackHostOnly(HttpHandler handler) {
   };
 }
 
+std::set<std::string> DashboardSlowRoutes() { return {"/api/map", "/api/query", "/api/cell"}; }
+
 std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens) {
   std::map<std::string, HttpHandler> routes;
   auto cache = std::make_shared<DashboardCache>();

@@ -14,6 +14,7 @@
 #define BISTABLE_SERVER_DASHBOARD_H_
 
 #include <map>
+#include <set>
 #include <string>
 
 #include "net/http_server.h"
@@ -25,6 +26,10 @@ namespace bistable {
 // The dashboard's routes over `c` (both must outlive the server). `tokens` disabled: open (loopback),
 // and every route answers only requests whose Host names the loopback (LoopbackHostOnly).
 std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens);
+
+// The routes of DashboardRoutes that may take long (a cell integrates a point; a map or query reads a map
+// file): HttpServer::Options::slow_routes, so that /healthz and /metrics on the same listener keep answering.
+std::set<std::string> DashboardSlowRoutes();
 
 // `handler` for requests whose Host header is localhost, 127.0.0.1 or [::1] (any port); others get 421
 // and a JSON error that does not echo the header. A server without tokens serves data through this, so

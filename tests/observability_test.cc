@@ -4,6 +4,9 @@
 #include <sched.h>
 #include <sys/socket.h>
 
+#include <atomic>
+#include <future>
+
 #include <boost/asio/connect.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
@@ -334,6 +337,67 @@ TEST(HttpServer, RoutesMethodsAndBounds) {
   EXPECT_EQ(HttpRequest(port, "/x").status, 200);
   EXPECT_FALSE(bistable::HttpServer::Start("127.0.0.1:99999", {}).ok());
   EXPECT_FALSE(bistable::HttpServer::Start("example.com:80", {}).ok());
+}
+
+// Slow routes (a dashboard cell integrates a point) run on the server's pool: /healthz answers while both
+// pool threads are busy, a third slow request waits for a free thread, and stopping the server waits for the
+// running handlers and drops the queued one.
+TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  std::atomic<int> started{0};
+  bistable::HttpServer::Options options;
+  options.slow_routes = {"/slow", "/slow-boom"};
+  auto server = bistable::HttpServer::Start(
+      "127.0.0.1:0",
+      {{"/slow", [&](const bistable::HttpRequest&) {
+          ++started;
+          released.wait();
+          return bistable::HttpResponse{200, "text/plain", "slow\n"};
+        }},
+       {"/slow-boom", [](const bistable::HttpRequest&) -> bistable::HttpResponse { throw 42; }},
+       {"/healthz", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain", "ok\n"}; }}},
+      options);
+  ASSERT_TRUE(server.ok()) << server.status().ToString();
+  std::unique_ptr<bistable::HttpServer> srv = std::move(server).value();
+  const int port = srv->port();
+  EXPECT_EQ(HttpRequest(port, "/slow-boom").status, 500);  // not even a non-std exception ends the process
+  auto wait_for = [](auto pred) {
+    for (int i = 0; i < 500 && !pred(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    return pred();
+  };
+  std::vector<std::future<HttpReply>> slow;
+  for (int i = 0; i < 2; ++i) slow.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
+  ASSERT_TRUE(wait_for([&] { return started.load() == 2; })) << started.load();
+  auto health = std::async(std::launch::async, [port] { return HttpRequest(port, "/healthz"); });
+  const bool answered = health.wait_for(std::chrono::seconds(5)) == std::future_status::ready;
+  EXPECT_TRUE(answered) << "/healthz waited for the slow handlers";
+  slow.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_EQ(started.load(), 2);  // the third waits for a pool thread
+  release.set_value();
+  if (answered) EXPECT_EQ(health.get().body, "ok\n");
+  for (auto& f : slow) {
+    const HttpReply r = f.get();
+    EXPECT_EQ(r.status, 200);
+    EXPECT_EQ(r.body, "slow\n");
+  }
+  EXPECT_EQ(started.load(), 3);
+
+  // Stopping: the two running handlers finish, the queued one never starts.
+  std::promise<void> release2;
+  released = release2.get_future().share();
+  started = 0;
+  std::vector<std::future<HttpReply>> more;
+  for (int i = 0; i < 3; ++i) more.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
+  ASSERT_TRUE(wait_for([&] { return started.load() == 2; })) << started.load();
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // the third is queued
+  auto stopped = std::async(std::launch::async, [&] { srv.reset(); });
+  EXPECT_EQ(stopped.wait_for(std::chrono::milliseconds(200)), std::future_status::timeout);  // waits for the running two
+  release2.set_value();
+  stopped.get();
+  EXPECT_EQ(started.load(), 2);
+  for (auto& f : more) EXPECT_EQ(f.get().status, -1);  // closed without an answer
 }
 
 // Query strings and cookies as the dashboard reads them: decoded, bounded, hostile forms refused.
