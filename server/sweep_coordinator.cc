@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <random>
+#include <set>
 
 #include "base/limits.h"
 #include "engine/refine.h"
@@ -913,27 +914,41 @@ void SweepCoordinator::Stop() {
   stopped_ = true;
 }
 
-StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
-  std::lock_guard<std::mutex> lock(mu_);
-  auto it = sweeps_.find(sweep_id);
-  if (it == sweeps_.end()) {
-    auto row = Db()->GetSweep(sweep_id);
-    if (!row.ok()) return row.status();
-    if (!row.value()) return Status::NotFound("no sweep '" + sweep_id + "'");
-    const SweepRow& r = *row.value();
-    return SweepInfo{r.id, r.name, r.model, r.owner, r.state, r.items_total, r.items_done, 0, 0, r.seconds, r.file, ""};
-  }
-  const Sweep& s = it->second;
+namespace {
+
+// A sweep that is not active in this process, as its index row says.
+SweepInfo InfoOfRow(const SweepRow& r) {
+  return SweepInfo{r.id, r.name, r.model, r.owner, r.state, r.items_total, r.items_done, 0, 0, r.seconds, r.file, ""};
+}
+
+}  // namespace
+
+SweepInfo SweepCoordinator::InfoLocked(const Sweep& s, int workers) const {
   SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.owner, s.row.state, s.row.items_total, s.items_done, s.items_cached, 0,
                  s.row.state == SweepState::kDone ? s.row.seconds : Clock() - s.started, s.row.file, ""};
   if (info.state == SweepState::kRunning && !s.any_leased && s.items_done == s.items_cached) info.state = SweepState::kQueued;
   if (s.cancelled) info.state = SweepState::kCancelled;
   info.error = s.error;
-  std::map<std::string, bool> holders;
-  for (const auto& [id, l] : leases_)
-    if (l.sweep_id == s.row.id) holders[l.worker] = true;
-  info.workers = static_cast<int>(holders.size());
+  info.workers = workers;
   return info;
+}
+
+StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    auto it = sweeps_.find(sweep_id);
+    if (it != sweeps_.end()) {
+      std::set<std::string> holders;
+      for (const auto& [id, l] : leases_)
+        if (l.sweep_id == sweep_id) holders.insert(l.worker);
+      return InfoLocked(it->second, static_cast<int>(holders.size()));
+    }
+  }
+  // Not active here: the index row (read outside the coordinator's lock).
+  auto row = Db()->GetSweep(sweep_id);
+  if (!row.ok()) return row.status();
+  if (!row.value()) return Status::NotFound("no sweep '" + sweep_id + "'");
+  return InfoOfRow(*row.value());
 }
 
 StatusOr<std::vector<double>> SweepCoordinator::StoredValues(const std::string& sweep_id, const std::string& metric) const {
@@ -993,11 +1008,23 @@ StatusOr<std::string> SweepCoordinator::ResolveId(const std::string& id) const {
 }
 
 StatusOr<std::vector<SweepInfo>> SweepCoordinator::ListSweeps() const {
+  // One index query and one pass over the leases, not a query and a pass per sweep under the lock.
   auto rows = Db()->ListSweeps();
   if (!rows.ok()) return rows.status();
   std::vector<SweepInfo> out;
-  for (const SweepRow& r : *rows)
-    if (auto info = Info(r.id); info.ok()) out.push_back(*info);
+  out.reserve(rows->size());
+  std::lock_guard<std::mutex> lock(mu_);
+  std::map<std::string, std::set<std::string>> holders;  // sweep → the workers holding a lease of it
+  for (const auto& [id, l] : leases_) holders[l.sweep_id].insert(l.worker);
+  for (const SweepRow& r : *rows) {
+    auto it = sweeps_.find(r.id);
+    if (it == sweeps_.end()) {
+      out.push_back(InfoOfRow(r));
+      continue;
+    }
+    auto h = holders.find(r.id);
+    out.push_back(InfoLocked(it->second, h == holders.end() ? 0 : static_cast<int>(h->second.size())));
+  }
   return out;
 }
 

@@ -223,6 +223,8 @@ class SweepCoordinator {
                                       const std::string& path, bool* incomplete);
   void PublisherLoop();
   Status MarkLocked(Sweep& s, SweepState state);
+  // Info of an active sweep (mu_ held); `workers` = how many workers hold a lease of it.
+  SweepInfo InfoLocked(const Sweep& s, int workers) const;
 
   // The SQLite connection, used under db_mu_ (lock order: mu_ before db_mu_; batch_mu_ is a leaf).
   struct LockedDb {

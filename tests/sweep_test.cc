@@ -272,6 +272,57 @@ TEST(SweepEngine, DuplicateReportIsAcknowledgedAndNotStoredTwice) {
   std::filesystem::remove_all(dir);
 }
 
+// The sweep list (`bistable sweeps`, the dashboard) says what Info says of each sweep: a sweep finished before
+// this process started, from its index row; an active one with the workers holding its leases.
+TEST(SweepEngine, SweepListAgreesWithInfo) {
+  const std::string dir = TempDir("list");
+  std::string old_id;
+  {
+    auto c = SweepCoordinator::Open(dir);
+    ASSERT_TRUE(c.ok());
+    SweepPlan plan;
+    RunSweep(**c, Parse(kSmall), 2, &plan);
+    old_id = plan.id;
+  }
+  auto c = SweepCoordinator::Open(dir);
+  ASSERT_TRUE(c.ok());
+  auto plan = (*c)->Submit(Parse(R"(
+model = "coupled"
+[axes]
+alpha = { linspace = [0.3, 1.1, 4] }
+omega = [0.9, 1.3, 1.7, 2.1]
+)"),
+                           4);
+  ASSERT_TRUE(plan.ok());
+  auto a = (*c)->Lease("w1");
+  auto b = (*c)->Lease("w2");
+  auto a2 = (*c)->Lease("w1");
+  ASSERT_TRUE(a && b && a2);
+  auto list = (*c)->ListSweeps();
+  ASSERT_TRUE(list.ok()) << list.status().ToString();
+  ASSERT_EQ(list->size(), 2u);
+  for (const SweepInfo& s : *list) {
+    auto one = (*c)->Info(s.id);
+    ASSERT_TRUE(one.ok());
+    EXPECT_EQ(s.name, one->name);
+    EXPECT_EQ(s.state, one->state) << s.id;
+    EXPECT_EQ(s.items_total, one->items_total);
+    EXPECT_EQ(s.items_done, one->items_done);
+    EXPECT_EQ(s.items_cached, one->items_cached);
+    EXPECT_EQ(s.workers, one->workers);
+    EXPECT_EQ(s.file, one->file);
+  }
+  const SweepInfo& old = (*list)[0].id == old_id ? (*list)[0] : (*list)[1];
+  const SweepInfo& now = (*list)[0].id == old_id ? (*list)[1] : (*list)[0];
+  EXPECT_EQ(old.state, SweepState::kDone);
+  EXPECT_EQ(old.items_done, 15);
+  EXPECT_FALSE(old.file.empty());
+  EXPECT_EQ(now.id, plan->id);
+  EXPECT_EQ(now.state, SweepState::kRunning);
+  EXPECT_EQ(now.workers, 2);  // w1 holds two leases
+  std::filesystem::remove_all(dir);
+}
+
 // Group commit: concurrent reports share transactions; every job is stored and counted exactly once
 // and the published map equals the one computed by a single reporter.
 TEST(SweepEngine, ConcurrentReportsAreStoredOnceAndGiveTheSameMap) {
