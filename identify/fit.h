@@ -122,6 +122,10 @@ struct FitOptions {
   // Time objective: also start from a short-horizon fit (restarts from the measured state; 0: off).
   // Shooting objective: the segment length.
   double shooting_horizon_s = 0.5;
+  // Time objective with friction terms: the short-horizon stage fits the law with its tanh transition
+  // velocity v_t times this factor (a smoothed law; 1: the declared one), the full-error stage after it the
+  // declared law from there (fit.cc, "Smoothed friction").
+  double shooting_friction_smoothing = 2.5;
   int threads = 0;            // records simulated in parallel (0: all cores)
 };
 
