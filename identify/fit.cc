@@ -1087,7 +1087,11 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
       double gain = 0;  // relative
       std::deque<double> gains;
       ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-        if (it.iteration == 0 || !it.step_is_successful) return ceres::SOLVER_CONTINUE;
+        if (it.iteration == 0) return ceres::SOLVER_CONTINUE;
+        if (!it.step_is_successful) {  // a refused step shrinks the trust region: the next small gains may be
+          gains.clear();               // the radius's, not the cost's; the window starts again
+          return ceres::SOLVER_CONTINUE;
+        }
         gains.push_back(it.cost_change);
         if (gains.size() > static_cast<size_t>(kPlateauIterations)) gains.pop_front();
         const double sum = std::accumulate(gains.begin(), gains.end(), 0.0);

@@ -26,6 +26,7 @@ namespace {
 constexpr size_t kMaxHeaderBytes = 8 * 1024;
 constexpr int kMaxConnections = 64;
 constexpr auto kRequestTimeout = std::chrono::seconds(10);
+constexpr int kMaxSlowPending = 4 * HttpServer::kSlowThreads;  // slow requests queued or running at once
 
 }  // namespace
 
@@ -34,6 +35,7 @@ struct HttpServer::Impl {
   std::atomic<int> connections{0};
   std::map<std::string, HttpHandler> routes;
   std::set<std::string> slow_routes;
+  std::atomic<int> slow_pending{0};  // slow requests queued or running
   std::unique_ptr<asio::ssl::context> tls;  // set: every connection is TLS
   asio::io_context io{1};
   tcp::acceptor acceptor{io};
@@ -123,11 +125,22 @@ class Session : public std::enable_shared_from_this<Session<Stream>> {
       Respond(Call(*handler, request), req.method(), req.version(), req.keep_alive());
       return;
     }
-    // A slow route: computed on the pool, answered on this connection's strand.
+    // A slow route: computed on the pool, answered on this connection's strand. At most kMaxSlowPending wait
+    // or run; more are answered 503 at once here, so that a flood of them cannot hold every connection slot
+    // (and with them /healthz) for as long as the pool needs to work through it.
+    if (server_->slow_pending.fetch_add(1) >= kMaxSlowPending) {
+      --server_->slow_pending;
+      HttpResponse busy{503, "text/plain; charset=utf-8", "busy: too many slow requests at once, retry\n", {{"Retry-After", "1"}}};
+      Respond(std::move(busy), req.method(), req.version(), req.keep_alive());
+      return;
+    }
     asio::post(server_->slow, [self = this->shared_from_this(), handler, request = std::move(request), method = req.method(),
-                               version = req.version(), keep_alive = req.keep_alive()] {
+                               version = req.version(), keep_alive = req.keep_alive()]() mutable {
       HttpResponse r = Call(*handler, request);
-      asio::post(self->stream_.get_executor(), [self, r = std::move(r), method, version, keep_alive]() mutable {
+      --self->server_->slow_pending;
+      // The session's last reference goes with the answer onto its strand (it is destroyed there).
+      auto& strand = self->stream_;
+      asio::post(strand.get_executor(), [self = std::move(self), r = std::move(r), method, version, keep_alive]() mutable {
         self->Respond(std::move(r), method, version, keep_alive);
       });
     });

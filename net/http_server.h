@@ -41,8 +41,8 @@ class HttpServer {
   struct Options {
     std::string tls_cert_pem, tls_key_pem;  // both set: serve HTTPS only
     // Routes whose handlers may take long (a dashboard cell integrates a point): they run on a pool of
-    // kSlowThreads threads, so that the others (/healthz, /metrics) keep answering meanwhile. At most one
-    // request per connection is in flight, so at most 64 wait for the pool.
+    // kSlowThreads threads, so that the others (/healthz, /metrics) keep answering meanwhile. At most
+    // 4 · kSlowThreads wait or run at once; more get 503 with Retry-After: 1.
     std::set<std::string> slow_routes;
   };
   static constexpr int kSlowThreads = 2;

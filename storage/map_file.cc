@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <mutex>
 #include <ctime>
 #include <limits>
 #include <map>
@@ -40,6 +41,14 @@ class Handle {
   hid_t id_;
   herr_t (*close_)(hid_t);
 };
+
+// Every HDF5 call of the process is in this file, under this one lock: the dashboard reads maps on two threads
+// beside the publisher thread's writing, HDF5's high-level dimension-scale API (H5DS, used here) is not
+// thread-safe even in thread-safe builds, and default builds of the library are not thread-safe at all.
+std::recursive_mutex& Hdf5Mutex() {
+  static std::recursive_mutex mu;
+  return mu;
+}
 
 Status H5Fail(const std::string& path, const std::string& what) {
   return Status::IoError("map", "HDF5 " + what + " failed for '" + path + "'");
@@ -513,9 +522,13 @@ Status WriteMapFileImpl(const std::string& path, const SweepSpec& spec, const st
                         const RefinedGrid* refined) {
   if (records.size() != static_cast<size_t>(spec.points()) * spec.ic_count())
     return Status::Internal("map file: record count does not match the grid");
-  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors come back as Status, not printed
   const std::string tmp = path + ".tmp";
-  Status st = WriteAll(tmp, spec, records, refined);
+  Status st;
+  {
+    std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors come back as Status, not printed
+    st = WriteAll(tmp, spec, records, refined);
+  }
   if (st.ok()) st = FsyncPath(tmp, false);
   if (st.ok()) {
     std::error_code ec;
@@ -537,6 +550,7 @@ Status WriteMapFile(const std::string& path, const SweepSpec& spec, const Refine
 }
 
 StatusOr<std::vector<std::string>> ListMapMetrics(const std::string& path) {
+  std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!file.ok()) return Status::IoError("map", "cannot open map file '" + path + "'");
@@ -555,6 +569,7 @@ StatusOr<std::vector<std::string>> ListMapMetrics(const std::string& path) {
 }
 
 StatusOr<std::string> ReadMapAttribute(const std::string& path, const std::string& name) {
+  std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!file.ok()) return Status::IoError("map", "cannot open map file '" + path + "'");
@@ -584,6 +599,7 @@ void ReadCategories(hid_t ds, std::vector<std::pair<int, std::string>>* out) {
 }
 
 StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& metric) {
+  std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!file.ok()) return Status::IoError("map", "cannot open map file '" + path + "'");

@@ -5,7 +5,9 @@
 #include <sys/socket.h>
 
 #include <atomic>
+#include <functional>
 #include <future>
+#include <mutex>
 
 #include <boost/asio/connect.hpp>
 #include <boost/asio/ip/tcp.hpp>
@@ -340,11 +342,19 @@ TEST(HttpServer, RoutesMethodsAndBounds) {
 }
 
 // Slow routes (a dashboard cell integrates a point) run on the server's pool: /healthz answers while both
-// pool threads are busy, a third slow request waits for a free thread, and stopping the server waits for the
-// running handlers and drops the queued one.
+// pool threads are busy, further slow requests wait for a free thread up to 4 · kSlowThreads at once and the
+// next is answered 503 at once, and stopping the server waits for the running handlers and drops the queued.
 TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
-  std::promise<void> release;
-  std::shared_future<void> released = release.get_future().share();
+  // The handlers block until released; every way out of this test releases them (a failed ASSERT included),
+  // or the server's stop and the clients' futures would wait for ever.
+  std::mutex mu;
+  std::vector<std::promise<void>> releases(2);
+  std::shared_future<void> released = releases[0].get_future().share();
+  std::vector<bool> done(2, false);
+  auto release = [&](size_t k) {
+    std::lock_guard<std::mutex> lock(mu);
+    if (!done[k]) releases[k].set_value(), done[k] = true;
+  };
   std::atomic<int> started{0};
   bistable::HttpServer::Options options;
   options.slow_routes = {"/slow", "/slow-boom"};
@@ -352,7 +362,12 @@ TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
       "127.0.0.1:0",
       {{"/slow", [&](const bistable::HttpRequest&) {
           ++started;
-          released.wait();
+          std::shared_future<void> r;
+          {
+            std::lock_guard<std::mutex> lock(mu);
+            r = released;
+          }
+          r.wait();
           return bistable::HttpResponse{200, "text/plain", "slow\n"};
         }},
        {"/slow-boom", [](const bistable::HttpRequest&) -> bistable::HttpResponse { throw 42; }},
@@ -361,40 +376,59 @@ TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
   ASSERT_TRUE(server.ok()) << server.status().ToString();
   std::unique_ptr<bistable::HttpServer> srv = std::move(server).value();
   const int port = srv->port();
+  struct Guard {
+    std::function<void()> f;
+    ~Guard() { f(); }
+  } guard{[&] { release(0), release(1); }};  // destroyed before srv
   EXPECT_EQ(HttpRequest(port, "/slow-boom").status, 500);  // not even a non-std exception ends the process
   auto wait_for = [](auto pred) {
     for (int i = 0; i < 500 && !pred(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
     return pred();
   };
+  constexpr int kLimit = 4 * bistable::HttpServer::kSlowThreads;
   std::vector<std::future<HttpReply>> slow;
   for (int i = 0; i < 2; ++i) slow.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
-  ASSERT_TRUE(wait_for([&] { return started.load() == 2; })) << started.load();
+  if (!wait_for([&] { return started.load() == 2; })) {
+    release(0);
+    FAIL() << "slow handlers started: " << started.load();
+  }
   auto health = std::async(std::launch::async, [port] { return HttpRequest(port, "/healthz"); });
   const bool answered = health.wait_for(std::chrono::seconds(5)) == std::future_status::ready;
   EXPECT_TRUE(answered) << "/healthz waited for the slow handlers";
-  slow.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  EXPECT_EQ(started.load(), 2);  // the third waits for a pool thread
-  release.set_value();
+  for (int i = 2; i < kLimit; ++i) slow.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(started.load(), 2);  // the others wait for a pool thread
+  auto busy = std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); });  // one past the limit
+  const bool refused_at_once = busy.wait_for(std::chrono::seconds(2)) == std::future_status::ready;
+  EXPECT_TRUE(refused_at_once) << "the request past the limit was queued";
+  release(0);
+  const HttpReply b = busy.get();
+  if (refused_at_once) EXPECT_EQ(b.status, 503) << b.body;
   if (answered) EXPECT_EQ(health.get().body, "ok\n");
   for (auto& f : slow) {
     const HttpReply r = f.get();
     EXPECT_EQ(r.status, 200);
     EXPECT_EQ(r.body, "slow\n");
   }
-  EXPECT_EQ(started.load(), 3);
+  EXPECT_EQ(started.load(), kLimit);
+  EXPECT_EQ(HttpRequest(port, "/slow").status, 200);  // the count went back down
 
   // Stopping: the two running handlers finish, the queued one never starts.
-  std::promise<void> release2;
-  released = release2.get_future().share();
+  {
+    std::lock_guard<std::mutex> lock(mu);
+    released = releases[1].get_future().share();
+  }
   started = 0;
   std::vector<std::future<HttpReply>> more;
   for (int i = 0; i < 3; ++i) more.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
-  ASSERT_TRUE(wait_for([&] { return started.load() == 2; })) << started.load();
-  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // the third is queued
+  if (!wait_for([&] { return started.load() == 2; })) {
+    release(1);
+    FAIL() << "slow handlers started: " << started.load();
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the third is queued by now
   auto stopped = std::async(std::launch::async, [&] { srv.reset(); });
   EXPECT_EQ(stopped.wait_for(std::chrono::milliseconds(200)), std::future_status::timeout);  // waits for the running two
-  release2.set_value();
+  release(1);
   stopped.get();
   EXPECT_EQ(started.load(), 2);
   for (auto& f : more) EXPECT_EQ(f.get().status, -1);  // closed without an answer
