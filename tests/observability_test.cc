@@ -368,10 +368,10 @@ TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
             r = released;
           }
           r.wait();
-          return bistable::HttpResponse{200, "text/plain", "slow\n"};
+          return bistable::HttpResponse{200, "text/plain", "slow\n", {}};
         }},
        {"/slow-boom", [](const bistable::HttpRequest&) -> bistable::HttpResponse { throw 42; }},
-       {"/healthz", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain", "ok\n"}; }}},
+       {"/healthz", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain", "ok\n", {}}; }}},
       options);
   ASSERT_TRUE(server.ok()) << server.status().ToString();
   std::unique_ptr<bistable::HttpServer> srv = std::move(server).value();
@@ -403,8 +403,12 @@ TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
   EXPECT_TRUE(refused_at_once) << "the request past the limit was queued";
   release(0);
   const HttpReply b = busy.get();
-  if (refused_at_once) EXPECT_EQ(b.status, 503) << b.body;
-  if (answered) EXPECT_EQ(health.get().body, "ok\n");
+  if (refused_at_once) {
+    EXPECT_EQ(b.status, 503) << b.body;
+  }
+  if (answered) {
+    EXPECT_EQ(health.get().body, "ok\n");
+  }
   for (auto& f : slow) {
     const HttpReply r = f.get();
     EXPECT_EQ(r.status, 200);
