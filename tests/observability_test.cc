@@ -311,7 +311,7 @@ TEST(Observability, APortInUseIsAnErrorNotShared) {
 
 TEST(HttpServer, RoutesMethodsAndBounds) {
   auto server = bistable::HttpServer::Start(
-      "127.0.0.1:0", {{"/x", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain", "hello\n"}; }},
+      "127.0.0.1:0", {{"/x", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain", "hello\n", {}}; }},
                       {"/boom", [](const bistable::HttpRequest&) -> bistable::HttpResponse { throw std::runtime_error("no"); }}});
   ASSERT_TRUE(server.ok()) << server.status().ToString();
   const int port = (*server)->port();
