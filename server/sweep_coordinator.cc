@@ -923,13 +923,22 @@ SweepInfo InfoOfRow(const SweepRow& r) {
 
 }  // namespace
 
-SweepInfo SweepCoordinator::InfoLocked(const Sweep& s, int workers) const {
+std::map<std::string, int> SweepCoordinator::LeaseHoldersLocked() const {
+  std::map<std::string, std::set<std::string>> workers;  // sweep → the workers holding a lease of it
+  for (const auto& [id, l] : leases_) workers[l.sweep_id].insert(l.worker);
+  std::map<std::string, int> out;
+  for (const auto& [sweep, w] : workers) out[sweep] = static_cast<int>(w.size());
+  return out;
+}
+
+SweepInfo SweepCoordinator::InfoLocked(const Sweep& s, const std::map<std::string, int>& holders) const {
   SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.owner, s.row.state, s.row.items_total, s.items_done, s.items_cached, 0,
                  s.row.state == SweepState::kDone ? s.row.seconds : Clock() - s.started, s.row.file, ""};
   if (info.state == SweepState::kRunning && !s.any_leased && s.items_done == s.items_cached) info.state = SweepState::kQueued;
   if (s.cancelled) info.state = SweepState::kCancelled;
   info.error = s.error;
-  info.workers = workers;
+  auto h = holders.find(s.row.id);
+  info.workers = h == holders.end() ? 0 : h->second;
   return info;
 }
 
@@ -937,12 +946,7 @@ StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
   {
     std::lock_guard<std::mutex> lock(mu_);
     auto it = sweeps_.find(sweep_id);
-    if (it != sweeps_.end()) {
-      std::set<std::string> holders;
-      for (const auto& [id, l] : leases_)
-        if (l.sweep_id == sweep_id) holders.insert(l.worker);
-      return InfoLocked(it->second, static_cast<int>(holders.size()));
-    }
+    if (it != sweeps_.end()) return InfoLocked(it->second, LeaseHoldersLocked());
   }
   // Not active here: the index row (read outside the coordinator's lock).
   auto row = Db()->GetSweep(sweep_id);
@@ -1014,16 +1018,10 @@ StatusOr<std::vector<SweepInfo>> SweepCoordinator::ListSweeps() const {
   std::vector<SweepInfo> out;
   out.reserve(rows->size());
   std::lock_guard<std::mutex> lock(mu_);
-  std::map<std::string, std::set<std::string>> holders;  // sweep → the workers holding a lease of it
-  for (const auto& [id, l] : leases_) holders[l.sweep_id].insert(l.worker);
+  const std::map<std::string, int> holders = LeaseHoldersLocked();
   for (const SweepRow& r : *rows) {
     auto it = sweeps_.find(r.id);
-    if (it == sweeps_.end()) {
-      out.push_back(InfoOfRow(r));
-      continue;
-    }
-    auto h = holders.find(r.id);
-    out.push_back(InfoLocked(it->second, h == holders.end() ? 0 : static_cast<int>(h->second.size())));
+    out.push_back(it == sweeps_.end() ? InfoOfRow(r) : InfoLocked(it->second, holders));
   }
   return out;
 }

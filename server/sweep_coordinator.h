@@ -223,8 +223,10 @@ class SweepCoordinator {
                                       const std::string& path, bool* incomplete);
   void PublisherLoop();
   Status MarkLocked(Sweep& s, SweepState state);
-  // Info of an active sweep (mu_ held); `workers` = how many workers hold a lease of it.
-  SweepInfo InfoLocked(const Sweep& s, int workers) const;
+  // Sweep id → how many workers hold a lease of it (mu_ held).
+  std::map<std::string, int> LeaseHoldersLocked() const;
+  // Info of an active sweep (mu_ held), its worker count from LeaseHoldersLocked.
+  SweepInfo InfoLocked(const Sweep& s, const std::map<std::string, int>& holders) const;
 
   // The SQLite connection, used under db_mu_ (lock order: mu_ before db_mu_; batch_mu_ is a leaf).
   struct LockedDb {

@@ -9,10 +9,10 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <mutex>
 #include <ctime>
 #include <limits>
 #include <map>
+#include <mutex>
 
 #include "base/iso_time.h"
 #include "base/limits.h"
