@@ -89,12 +89,13 @@ struct Stribeck {
   };
   // The law is linear in the two forces: F_f(v) = F_s φ[0] + F_c φ[1] with φ[0] = g(v) and
   // φ[1] = tanh(v/v_t) − tanh(v_sp/v_t) g(v); φ depends on v_sp, v_t only (f_s, f_c unused).
-  void Basis(double v, double* phi) const { BasisSlope(v, std::tanh(v_sp / v_t), phi, nullptr); }
-  // φ and, when dphi is given, dφ/dv, from one exp and one tanh; tanh_sp = tanh(v_sp/v_t), a constant
-  // that callers in a loop compute once (identification's simulator evaluates this per RK4 stage).
+  // φ and, when dphi is given, dφ/dv, from one exp and one tanh of the project's lane math at W = 1
+  // (dynamics/lane_math.h: within 1–2 ulp of glibc's, at a third of glibc tanh's cost; identification's
+  // simulator evaluates this per RK4 stage and body); tanh_sp = tanh(v_sp/v_t), a constant that callers
+  // in a loop compute once.
   void BasisSlope(double v, double tanh_sp, double* phi, double* dphi) const {
-    const double u = v / v_sp, e = HumpExp(u), g = u * e;  // g = StribeckHump(1, v, v_sp), the same bits
-    const double th = std::tanh(v / v_t);
+    const double u = v / v_sp, e = Exp<1>(Vec<1>{0.5 - 0.5 * u * u})[0], g = u * e;
+    const double th = Tanh<1>(Vec<1>{v / v_t})[0];
     phi[0] = g;
     phi[1] = th - tanh_sp * g;
     if (dphi) {

@@ -276,6 +276,12 @@ struct ShootCache {
   }
 };
 
+// RK4 substeps per sample for parameters th on record r, times a safety factor (SubstepsFor: h λ ≤ 2 and h ω ≤ 0.5).
+constexpr double kSubstepSafety = 1.5;
+int SafeSubsteps(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, double safety) {
+  return static_cast<int>(std::ceil(safety * SubstepsFor(m, th, r)));
+}
+
 // `shoot`: the shooting objective's simulation (ShootRecord) with segments of horizon_s.
 Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                  const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0,
@@ -291,7 +297,12 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
   // Shooting: the CPUs left over by the records run a record's segments side by side.
   const int inner = std::max<int>(1, cpus / static_cast<int>(std::max<size_t>(1, recs.size())));
   auto one = [&](size_t i) {
-    const int sub = substeps.empty() ? 0 : substeps[i];
+    // Held substeps are raised to what keeps RK4 stable at th (StableSubsteps): below it the state chatters
+    // where friction sticks, bounded by the law's saturation, while its sensitivities grow without bound (on
+    // the coupled rig the third LM iteration ran 6 substeps where SubstepsFor asked 24: a gradient of 1e62, and which
+    // basin the fit reached depended on the last bits of tanh). The count is then a function of θ, constant
+    // between stiffness thresholds.
+    const int sub = substeps.empty() ? 0 : std::max(substeps[i], StableSubsteps(m, th, recs[i]));
     const int restart = horizon_s > 0 ? ShootingSegment(horizon_s, recs[i].dt) : 0;
     if (shoot) {
       ok[i] = restart > 0 && ShootRecord(m, th, extra, recs[i], setup, sub, restart, &s.o[i],
@@ -479,7 +490,7 @@ bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const
 std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                                double safety) {
   std::vector<int> sub;
-  for (const PreparedRecord& r : recs) sub.push_back(static_cast<int>(std::ceil(safety * SubstepsFor(m, th, r))));
+  for (const PreparedRecord& r : recs) sub.push_back(SafeSubsteps(m, th, r, safety));
   return sub;
 }
 
@@ -1109,17 +1120,22 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
     // BISTABLE_IDENTIFY_DEBUG=2: every Levenberg–Marquardt iteration on stderr (where a stage's
     // iterations go: a crawling tail, refused steps, a shrinking trust region).
     struct Trace : ceres::IterationCallback {
+      const FitStages* fs;
+      const std::vector<double>* u;
+      int sub;
       ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-        std::fprintf(stderr, "    iteration %3d cost %.6e change %.3e %s radius %.3e gradient %.3e\n", it.iteration, it.cost,
-                     it.cost_change, it.step_is_successful ? "accepted" : "refused", it.trust_region_radius, it.gradient_max_norm);
+        std::fprintf(stderr, "    iteration %3d cost %.6e change %.3e %s radius %.3e gradient %.3e substeps %d of %d\n",
+                     it.iteration, it.cost, it.cost_change, it.step_is_successful ? "accepted" : "refused",
+                     it.trust_region_radius, it.gradient_max_norm, SubstepsFor(fs->m, fs->Theta(*u), fs->recs[0]), sub);
         return ceres::SOLVER_CONTINUE;
       }
     } trace;
+    trace.fs = this, trace.u = &u, trace.sub = sub.empty() ? 0 : sub[0];
     static const bool trace_iterations = [] {
       const char* d = std::getenv("BISTABLE_IDENTIFY_DEBUG");
       return d && std::string(d) == "2";
     }();
-    if (trace_iterations) so.callbacks.push_back(&trace);
+    if (trace_iterations) so.callbacks.push_back(&trace), so.update_state_every_iteration = true;
     ceres::Solver::Summary summary;
     ceres::Solve(so, &problem, &summary);
     // Ceres leaves both counts at -1 when it stops before evaluating (invalid start or problem):

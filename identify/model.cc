@@ -9,6 +9,7 @@
 #include <Eigen/Dense>
 
 #include "dynamics/cancel.h"
+#include "dynamics/lanes.h"
 #include "dynamics/rk4.h"
 #include "dynamics/spectrum.h"
 
@@ -527,9 +528,13 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
   return r;
 }
 
-int SubstepsFor(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r) {
-  // Bound the largest rates along the measured range: damping-like |∂a/∂v| (RK4 is stable for
-  // h λ < 2.78; we keep h λ ≤ 2) and stiffness-like sqrt(|∂a/∂q|) (h ω ≤ 0.5 for accuracy).
+namespace {
+
+// Bounds of the largest rates along the measured range: damping-like λ ≥ |∂a/∂v| and stiffness-like
+// ω² ≥ |∂a/∂q| (sums over the terms of their largest slopes on a grid of the measured range), and the
+// RK4 substeps per sample that keep h λ ≤ lam_limit and h ω ≤ om_limit.
+int SubstepsWithin(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, double lam_limit,
+                   double om_limit) {
   const double mm = std::max(std::abs(m.Mass(th)), 1e-300);
   double dv_main = 0, dq_main = 0, dv_res = 0, dq_res = 0;
   const double qs[] = {0.0, 0.5 * r.p_range, r.p_range, 1.5 * r.p_range};
@@ -555,9 +560,21 @@ int SubstepsFor(const IdentModel& m, const std::vector<double>& th, const Prepar
     lam += dv_res * (1.0 / m.m_res + 1.0 / mm);
     om2 += dq_res * (1.0 / m.m_res + 1.0 / mm);
   }
-  const double h_max = std::min(2.0 / std::max(lam, 1e-300), 0.5 / std::sqrt(std::max(om2, 1e-300)));
+  const double h_max = std::min(lam_limit / std::max(lam, 1e-300), om_limit / std::sqrt(std::max(om2, 1e-300)));
   const double steps = std::ceil(r.dt / h_max);
   return static_cast<int>(std::clamp(steps, 1.0, 2000.0));
+}
+
+}  // namespace
+
+// RK4 is stable for h λ < 2.785 on the real axis; h λ ≤ 2 keeps a margin, h ω ≤ 0.5 the accuracy.
+int SubstepsFor(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r) {
+  return SubstepsWithin(m, th, r, 2.0, 0.5);
+}
+
+// RK4's stability limits are 2.785 (real axis) and 2.83 (imaginary axis); 2.5 for both keeps a margin.
+int StableSubsteps(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r) {
+  return SubstepsWithin(m, th, r, 2.5, 2.5);
 }
 
 namespace {
@@ -596,10 +613,13 @@ SpecialCols FindSpecialCols(const IdentModel& m, const std::vector<const TermDef
 // A record's equations of motion (model.h) as a System for dynamics/rk4.h. The state is (p, p', r, r')
 // and, with a piezo (kD = 5), the voltage w. Without sensitivities it is of fixed size, so that stepping
 // allocates nothing (Simulate is the hot loop of identification). With them (kSens) it is that state
-// followed by one column (∂p, ∂p', ∂r, ∂r'[, ∂w])/∂θ_j per parameter: the variational equations
-// S' = (∂f/∂x) S + ∂f/∂θ_j, integrated by the same RK4 steps, so that the columns are the exact derivative
-// of the discrete simulation. Force terms are linear in their parameters, so ∂F/∂θ_j is the basis value
-// φ_j, already computed for F; the piezo's a multiplies −w, its b and c the circuit's w and y'.
+// followed by the sensitivity columns (∂p, ∂p', ∂r, ∂r'[, ∂w])/∂θ_j, one per parameter: the variational
+// equations S' = (∂f/∂x) S + ∂f/∂θ_j, integrated by the same RK4 steps, so that the columns are the exact
+// derivative of the discrete simulation. Force terms are linear in their parameters, so ∂F/∂θ_j is the
+// basis value φ_j, already computed for F; the piezo's a multiplies −w, its b and c the circuit's w and y'.
+// The columns are stored component-major (SensIndex: every column's ∂p, then every column's ∂p', ...,
+// padded to whole packs), so that one branch-free loop runs over the columns in SIMD packs; the few
+// columns with a term of their own beyond φ (the mass, the piezo's b and c) are redone after it.
 template <bool kSens, int kD>
 class RecordSystem {
  public:
@@ -625,16 +645,20 @@ class RecordSystem {
     }
     th_.resize(cols_, 0.0);
     piezo_col_ = FindSpecialCols(m, kSens ? extra : std::vector<const TermDef*>{}, nullptr).piezo;
-    body_of_col_.assign(cols_ + state_cols, 0);  // state columns: no forcing term of their own
-    for (const SimTerm& st : terms_)
-      for (size_t j = 0; j < st.t->params.size(); ++j) body_of_col_[st.col + j] = st.t->body == Body::kMain ? 1 : 2;
-    if (piezo_col_ >= 0) body_of_col_[piezo_col_] = 1;  // a: its basis value −w on the main body
-    phi_col_.assign(cols_ + state_cols, 0.0);
+    // φ_j on the main body (phi_main_) or the resonator (phi_res_); 0 for columns without a force term
+    // there (the other body's, the mass, offsets, b, c, output terms, state columns), never written.
     first_ = param_cols ? 0 : cols_;
     end_ = cols_ + state_cols;
+    stride_ = (end_ - first_ + kW - 1) / kW * kW;
+    phi_main_.assign(first_ + stride_, 0.0);
+    phi_res_.assign(first_ + stride_, 0.0);
+    for (int j : {mass_col_, piezo_col_ >= 0 ? piezo_col_ + 1 : -1, piezo_col_ >= 0 ? piezo_col_ + 2 : -1})
+      if (j >= first_ && j < end_) special_.push_back(j);
   }
-  int dim() const { return kSens ? kD + kD * (end_ - first_) : kD; }
+  int dim() const { return kSens ? kD + kD * stride_ : kD; }
   int cols() const { return cols_; }
+  // Position in the state of component c of held sensitivity column l (0 ≤ l < end − first).
+  int SensIndex(int c, int l) const { return kD + c * stride_ + l; }
   void operator()(double t, const State& x, State& dx) const {
     double u, ud;
     r_.in_spline.Eval(t, &u, &ud);
@@ -653,10 +677,11 @@ class RecordSystem {
       if (!main && !res_) continue;
       TermBasisSlopes(*st.t, main ? y : z, main ? yd : zd, fc_, tanh_sp_, phi, kSens ? pq : nullptr, kSens ? pv : nullptr);
       double f = 0, fq = 0, fv = 0;
+      double* phi_col = main ? phi_main_.data() : phi_res_.data();
       for (size_t j = 0; j < st.t->params.size(); ++j) {
         const double th = th_[st.col + j];
         f += th * phi[j];
-        if constexpr (kSens) fq += th * pq[j], fv += th * pv[j], phi_col_[st.col + j] = phi[j];
+        if constexpr (kSens) fq += th * pq[j], fv += th * pv[j], phi_col[st.col + j] = phi[j];
       }
       if (main) F += f, Fq += fq, Fv += fv;
       else G += f, Gq += fq, Gv += fv;
@@ -669,7 +694,7 @@ class RecordSystem {
         pa = th_[piezo_col_], pb = th_[piezo_col_ + 1], pc = th_[piezo_col_ + 2];
         F += -pa * w;
         wdot = -pb * w - pc * yd;
-        if constexpr (kSens) phi_col_[piezo_col_] = -w;
+        if constexpr (kSens) phi_main_[piezo_col_] = -w;
       }
     }
     // p'' and r'' (a₁, a₃); `inv`: the part divided by the main mass (its derivative by m_main is −inv/m).
@@ -697,30 +722,95 @@ class RecordSystem {
     } else {
       dx[0] = x[1], dx[1] = a1, dx[2] = x[3], dx[3] = a3;
       if constexpr (kD == 5) dx[4] = wdot;
+      const Coefs k{Fq, Fv, Gq, Gv, pa, pb, pc, piezo_col_ >= 0};
       const bool disp = in_ == InputKind::kBaseDisplacement;
-      for (int j = first_; j < end_; ++j) {
-        const double* S = &x[kD + kD * (j - first_)];
-        const double dy = S[0], dyd = S[1];
-        const double dz = disp ? S[2] - S[0] : S[2], dzd = disp ? S[3] - S[1] : S[3];
-        double dF = Fq * dy + Fv * dyd + (body_of_col_[j] == 1 ? phi_col_[j] : 0.0);
-        const double dG = res_ ? Gq * dz + Gv * dzd + (body_of_col_[j] == 2 ? phi_col_[j] : 0.0) : 0.0;
-        double* D = &dx[kD + kD * (j - first_)];
-        if constexpr (kD == 5) {
-          const double dw = S[4];
-          dF += -pa * dw;
-          D[4] = -pb * dw - pc * dyd - (j == piezo_col_ + 1 ? w : 0.0) - (j == piezo_col_ + 2 ? yd : 0.0);
-          if (piezo_col_ < 0) D[4] = 0.0;
-        }
-        const double dinv = (-dF + dG) / mm_ - (j == mass_col_ ? inv / mm_ : 0.0);
-        double da3 = 0;
-        if (disp) da3 = res_ ? -dG / mr_ : dinv;
-        else da3 = res_ ? -dG / mr_ - dinv : 0.0;
-        D[0] = S[1], D[1] = dinv, D[2] = S[3], D[3] = da3;
+      if (disp) res_ ? Columns<true, true>(k, x, dx) : Columns<true, false>(k, x, dx);
+      else res_ ? Columns<false, true>(k, x, dx) : Columns<false, false>(k, x, dx);
+      // The columns with a term beyond φ: ∂/∂m_main of (−F + G)/m is −inv/m; ∂w'/∂b = −w, ∂w'/∂c = −y'.
+      for (int j : special_) {
+        const double mass = j == mass_col_ ? inv / mm_ : 0.0;
+        const double wb = j == piezo_col_ + 1 ? w : 0.0, wc = j == piezo_col_ + 2 ? yd : 0.0;
+        if (disp) res_ ? Column<true, true>(k, x, dx, j, mass, wb, wc) : Column<true, false>(k, x, dx, j, mass, wb, wc);
+        else res_ ? Column<false, true>(k, x, dx, j, mass, wb, wc) : Column<false, false>(k, x, dx, j, mass, wb, wc);
       }
     }
   }
 
  private:
+  // The stage's slopes of the forces and the piezo's values, shared by every column.
+  struct Coefs {
+    double Fq, Fv, Gq, Gv, pa, pb, pc;
+    bool piezo;
+  };
+  // Column l's derivative (components D_c[l] from S_c[l]): `mass`, `wb`, `wc` are 0 except for the columns
+  // that carry the mass's or the circuit's own term (then the operations are those of the general case
+  // with that term subtracted, which for a 0 leaves every bit unchanged).
+  template <bool kDisp, bool kRes>
+  static BISTABLE_INLINE void ColumnAt(const Coefs& k, double mm, double mr, const double* phi_f, const double* phi_g,
+                                       const double* __restrict S, double* __restrict D, int N, int l, double mass,
+                                       double wb, double wc) {
+    const double dy = S[l], dyd = S[N + l];
+    const double dz = kDisp ? S[2 * N + l] - S[l] : S[2 * N + l];
+    const double dzd = kDisp ? S[3 * N + l] - S[N + l] : S[3 * N + l];
+    double dF = k.Fq * dy + k.Fv * dyd + phi_f[l];
+    const double dG = kRes ? k.Gq * dz + k.Gv * dzd + phi_g[l] : 0.0;
+    if constexpr (kD == 5) {
+      const double dw = S[4 * N + l];
+      dF += -k.pa * dw;
+      D[4 * N + l] = k.piezo ? -k.pb * dw - k.pc * dyd - wb - wc : 0.0;
+    }
+    const double dinv = (-dF + dG) / mm - mass;
+    double da3;
+    if constexpr (kDisp) da3 = kRes ? -dG / mr : dinv;
+    else da3 = kRes ? -dG / mr - dinv : 0.0;
+    D[l] = S[N + l], D[N + l] = dinv, D[2 * N + l] = S[3 * N + l], D[3 * N + l] = da3;
+  }
+  // Every held column in packs of kW (the stride is a multiple of kW; padding columns stay 0): the
+  // operations of ColumnAt lane by lane (-ffp-contract=off: the same bits as the scalar path).
+  template <bool kDisp, bool kRes>
+  void Columns(const Coefs& k, const State& x, State& dx) const {
+    using V = Vec<kW>;
+    auto load = [](const double* p) {
+      V v;
+      std::memcpy(&v, p, sizeof v);
+      return v;
+    };
+    auto store = [](double* p, const V& v) { std::memcpy(p, &v, sizeof v); };
+    const int N = stride_;
+    const V Fq = Splat<kW>(k.Fq), Fv = Splat<kW>(k.Fv), Gq = Splat<kW>(k.Gq), Gv = Splat<kW>(k.Gv);
+    const V pa = Splat<kW>(k.pa), pb = Splat<kW>(k.pb), pc = Splat<kW>(k.pc);
+    const V mm = Splat<kW>(mm_), mr = Splat<kW>(mr_);
+    const double* phi_f = phi_main_.data() + first_;
+    const double* phi_g = phi_res_.data() + first_;
+    const double* S = x.data() + kD;
+    double* D = dx.data() + kD;
+    for (int l = 0; l < N; l += kW) {
+      const V dy = load(S + l), dyd = load(S + N + l);
+      const V dz = kDisp ? load(S + 2 * N + l) - dy : load(S + 2 * N + l);
+      const V dzd = kDisp ? load(S + 3 * N + l) - dyd : load(S + 3 * N + l);
+      V dF = Fq * dy + Fv * dyd + load(phi_f + l);
+      const V dG = kRes ? Gq * dz + Gv * dzd + load(phi_g + l) : V{};
+      if constexpr (kD == 5) {
+        const V dw = load(S + 4 * N + l);
+        dF += -pa * dw;
+        store(D + 4 * N + l, k.piezo ? -pb * dw - pc * dyd : V{});
+      }
+      const V dinv = (-dF + dG) / mm;
+      V da3;
+      if constexpr (kDisp) da3 = kRes ? -dG / mr : dinv;
+      else da3 = kRes ? -dG / mr - dinv : V{};
+      store(D + l, dyd);
+      store(D + N + l, dinv);
+      store(D + 2 * N + l, load(S + 3 * N + l));
+      store(D + 3 * N + l, da3);
+    }
+  }
+  template <bool kDisp, bool kRes>
+  void Column(const Coefs& k, const State& x, State& dx, int j, double mass, double wb, double wc) const {
+    ColumnAt<kDisp, kRes>(k, mm_, mr_, phi_main_.data() + first_, phi_res_.data() + first_, x.data() + kD,
+                          dx.data() + kD, stride_, j - first_, mass, wb, wc);
+  }
+
   const PreparedRecord& r_;
   const InputKind in_;
   const bool res_;
@@ -731,8 +821,10 @@ class RecordSystem {
   std::vector<SimTerm> terms_;  // force terms
   int cols_ = 0, mass_col_ = -1, piezo_col_ = -1;
   int first_ = 0, end_ = 0;             // sensitivity columns held: [first_, end_) (state columns from cols_)
-  std::vector<int> body_of_col_;        // 1 main, 2 resonator, 0 neither (mass, offsets, b, c, output terms)
-  mutable std::vector<double> phi_col_;  // basis value of every term column at the current stage
+  static constexpr int kW = 4;          // columns per pack
+  int stride_ = 0;                      // end_ − first_ rounded up to packs: the state's stride per component
+  std::vector<int> special_;            // held columns with a term beyond φ: the mass, the piezo's b and c
+  mutable std::vector<double> phi_main_, phi_res_;  // basis value of every term column at the current stage
 };
 
 template <bool kSens, int kD>
@@ -794,14 +886,15 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   if (given) set_given(0);
   // At a (re)start only the offset moves the state; an unmeasured voltage runs on (state and columns).
   // State columns restart as the identity (the new segment's start state).
-  const int state_base = kD + kD * P;
+  // Component c of sensitivity column j (parameters 0 … P − 1, then the state columns).
+  auto sens = [&](int c, int j) -> double& { return s[sys.SensIndex(c, j)]; };
   auto reset_sensitivities = [&](bool keep_w) {
     if constexpr (kSens) {
       for (int j = 0; j < P; ++j)
-        for (int c = 0; c < (keep_w ? 4 : kD); ++c) s[kD + kD * j + c] = 0.0;
-      if (offset_col >= 0) s[kD + kD * offset_col] = 1.0;
+        for (int c = 0; c < (keep_w ? 4 : kD); ++c) sens(c, j) = 0.0;
+      if (offset_col >= 0) sens(0, offset_col) = 1.0;
       for (int j = 0; j < SC; ++j)
-        for (int c = 0; c < kD; ++c) s[state_base + kD * j + c] = c == j ? 1.0 : 0.0;
+        for (int c = 0; c < kD; ++c) sens(c, P + j) = c == j ? 1.0 : 0.0;
     }
   };
   reset_sensitivities(false);
@@ -829,10 +922,9 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   // Row i of slot k's sensitivities: component c of every column, plus component c2 when c2 >= 0.
   auto sens_row = [&](int k, size_t i, int c, int c2) {
     if constexpr (kSens) {
-      for (int j = 0; j < P; ++j)
-        so->d[k](static_cast<long>(i), j) = s[kD + kD * j + c] + (c2 >= 0 ? s[kD + kD * j + c2] : 0.0);
+      for (int j = 0; j < P; ++j) so->d[k](static_cast<long>(i), j) = sens(c, j) + (c2 >= 0 ? sens(c2, j) : 0.0);
       for (int j = 0; j < SC; ++j)
-        so->ds[k](static_cast<long>(i), j) = s[state_base + kD * j + c] + (c2 >= 0 ? s[state_base + kD * j + c2] : 0.0);
+        so->ds[k](static_cast<long>(i), j) = sens(c, P + j) + (c2 >= 0 ? sens(c2, P + j) : 0.0);
     }
   };
   auto emit = [&](size_t i) {

@@ -230,8 +230,13 @@ bool SimulateSensitivities(const IdentModel& m, const std::vector<double>& th, c
 // short-horizon simulation error (multiple shooting), whose minimum lies where the long-horizon one
 // does but whose basin is far wider (no accumulated phase drift); fits use it as a first stage.
 
-// RK4 substeps per sample for these parameters along this record.
+// RK4 substeps per sample for these parameters along this record (stable with a margin, and accurate).
 int SubstepsFor(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r);
+// The fewest RK4 substeps per sample that keep the simulation stable for these parameters (SubstepsFor's
+// rate bounds against RK4's stability limits, without its accuracy margin). Below it, RK4 on a sticking
+// friction law chatters: the state stays bounded by the law's saturation while its sensitivities grow
+// without bound.
+int StableSubsteps(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r);
 
 }  // namespace bistable
 

@@ -181,6 +181,39 @@ TEST(Identify, OneRecordFitOnTwoThreadsEqualsTheSequentialFit) {
   EXPECT_LT(ExpectTheSameFitOnOneAndTwoThreads({*p}).errors.nrmse, 5.0);  // it did fit (8 % from the regression start without c2)
 }
 
+// Substeps held by a fit are raised to what keeps RK4 stable at the evaluated parameters. Held below it (a
+// start without friction, an iterate with it), RK4 chatters where friction sticks: the state stays bounded by
+// the law's saturation while its sensitivities explode — on the coupled rig a gradient of 1e62 steered the fit.
+TEST(Identify, HeldSubstepsAreRaisedToWhatKeepsRk4Stable) {
+  Record rec = Chirps(0.05e-3)[0];
+  auto p = PrepareRecord(rec, bistable::Setup{}, 0, 4 * 120, 0.0, rec.name);  // the first 4 s
+  ASSERT_TRUE(p.ok()) << p.status().ToString();
+  const IdentModel m = Declared("main.linear,main.viscous,main.friction");
+  const DimensionalParams truth = Rig();
+  const std::vector<double> th = {truth.k_lin, truth.c0_m, truth.fric_m.f_s, truth.fric_m.f_c};
+  const int stable = StableSubsteps(m, th, *p);
+  ASSERT_GT(stable, 2);
+  EXPECT_LE(stable, SubstepsFor(m, th, *p));
+  auto largest_sensitivity = [&](int substeps) {
+    std::vector<double> out;
+    Eigen::MatrixXd d;
+    const bool ok = SimulateSensitivities(m, th, {}, *p, bistable::Setup{}, substeps, 0, &out, &d);
+    return ok && d.allFinite() ? d.cwiseAbs().maxCoeff() : INFINITY;
+  };
+  // The failure mode: one substep per sample at the truth's friction.
+  const double at_stable = largest_sensitivity(stable), at_one = largest_sensitivity(1);
+  EXPECT_LT(at_stable, 1e3);
+  EXPECT_GT(at_one, 1e6 * at_stable);
+  // A fit's objective with one substep held: evaluated at the stable count, the same bits.
+  std::vector<double> r_held, r_stable;
+  Eigen::MatrixXd j_held, j_stable;
+  ASSERT_TRUE(ObjectiveJacobian(m, th, {*p}, bistable::Setup{}, Objective::kTime, {1}, {}, &r_held, &j_held));
+  ASSERT_TRUE(ObjectiveJacobian(m, th, {*p}, bistable::Setup{}, Objective::kTime, {stable}, {}, &r_stable, &j_stable));
+  EXPECT_EQ(r_held, r_stable);
+  EXPECT_TRUE(j_held == j_stable);
+  EXPECT_LT(j_held.cwiseAbs().maxCoeff(), 1e6);
+}
+
 TEST(Identify, ForwardDifferencesEqualCeresToTheBit) {
   // The spectral objective's Jacobian as the fits compute it (columns on 1 or 3 threads) against Ceres' own
   // DynamicNumericDiffCostFunction<FORWARD>: the same step and arithmetic, so the same bits — including a
