@@ -143,6 +143,12 @@ template <int W>
 BISTABLE_INLINE Vec<W> Tanh(Vec<W> x) {
   using namespace lane_math;
   const Vec<W> a = Abs<W>(x), s = a * a;
+  if constexpr (W == 1) {
+    // One lane: only the branch the select below would take (the same operations, so the same bits).
+    const Bits<W> sign = ToBits<W>(x) & BroadcastBits<W>(INT64_MIN);
+    if (a[0] < kTanhSmall) return FromBits<W>(ToBits<W>(Fma(a * s, Horner<W>(s, kTanhT), a)) | sign);
+    if (a[0] >= 20.0) return FromBits<W>(ToBits<W>(Splat<W>(1.0)) | sign);  // 1 − 2/(e^40 + 1) rounds to 1
+  }
   // Horner's rule here: this branch is off the critical path (the other one waits on a division).
   const Vec<W> small = Fma(a * s, Horner<W>(s, kTanhT), a);
   // 1 − 2/(e^{2a} + 1) with e^{2a} = 2^n (1 + r P(r)): the denominator one fused multiply-add of the

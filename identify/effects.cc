@@ -4,13 +4,9 @@
 #include <set>
 
 #include "base/names.h"
-#include "dynamics/friction.h"
 
 namespace bistable {
 namespace {
-
-// The friction term is dynamics/friction.h's law with the known v_sp, v_t and the fitted forces.
-Stribeck FrictionLaw(const FrictionConstants& fc, double f_s = 0, double f_c = 0) { return Stribeck{f_s, f_c, fc.v_sp, fc.v_t}; }
 
 TermDef Def(std::string id, Body body, TermKind kind, std::string formula, std::string meaning, std::vector<TermParam> params,
             std::string output = "") {
@@ -105,42 +101,14 @@ StatusOr<std::vector<const TermDef*>> ParseTerms(const std::string& list) {
   return out;
 }
 
-void TermBasisSlopes(const TermDef& t, double q, double v, const FrictionConstants& fc, double tanh_sp, double* phi,
-                     double* phi_q, double* phi_v) {
-  const bool d = phi_q != nullptr;  // derivatives wanted (both or neither)
-  double dq = 0, dv = 0;
-  switch (t.kind) {
-    case TermKind::kLinear: phi[0] = q, dq = 1; break;
-    case TermKind::kStiffness2: phi[0] = q * q, dq = 2 * q; break;
-    case TermKind::kStiffness3: phi[0] = q * q * q, dq = 3 * q * q; break;
-    case TermKind::kStiffness5: phi[0] = q * q * q * q * q, dq = 5 * q * q * q * q; break;
-    case TermKind::kViscous: phi[0] = v, dv = 1; break;
-    case TermKind::kDamping2: phi[0] = q * q * v, dq = 2 * q * v, dv = q * q; break;
-    case TermKind::kDampingV3: phi[0] = v * v * v, dv = 3 * v * v; break;
-    case TermKind::kDrag: phi[0] = v * std::abs(v), dv = 2 * std::abs(v); break;
-    case TermKind::kFriction:
-      FrictionLaw(fc).BasisSlope(v, tanh_sp, phi, d ? phi_v : nullptr);
-      if (d) phi_q[0] = phi_q[1] = 0;
-      return;
-    case TermKind::kBias: phi[0] = 1.0; break;
-    case TermKind::kPiezo:  // no force of (q, v): the back-force needs the voltage state (model.cc)
-      phi[0] = phi[1] = phi[2] = 0;
-      if (d) phi_q[0] = phi_q[1] = phi_q[2] = phi_v[0] = phi_v[1] = phi_v[2] = 0;
-      return;
-    case TermKind::kOutputOffset:
-    case TermKind::kOutputScale: phi[0] = 0; break;  // not a force
-  }
-  if (d) phi_q[0] = dq, phi_v[0] = dv;
-}
-
 void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc, double* out) {
-  TermBasisSlopes(t, q, v, fc, std::tanh(fc.v_sp / fc.v_t), out, nullptr, nullptr);
+  TermBasisSlopes(t, q, v, FrictionBasis(fc), out, nullptr, nullptr);
 }
 
 void TermSlopes(const TermDef& t, const double* th, double q, double v, const FrictionConstants& fc, double* dfdq,
                 double* dfdv) {
   double phi[kMaxTermParams], pq[kMaxTermParams], pv[kMaxTermParams];
-  TermBasisSlopes(t, q, v, fc, std::tanh(fc.v_sp / fc.v_t), phi, pq, pv);
+  TermBasisSlopes(t, q, v, FrictionBasis(fc), phi, pq, pv);
   *dfdq = 0;
   *dfdv = 0;
   for (size_t j = 0; j < t.params.size(); ++j) *dfdq += th[j] * pq[j], *dfdv += th[j] * pv[j];

@@ -36,10 +36,12 @@
 #ifndef BISTABLE_IDENTIFY_EFFECTS_H_
 #define BISTABLE_IDENTIFY_EFFECTS_H_
 
+#include <cmath>
 #include <string>
 #include <vector>
 
 #include "base/status.h"
+#include "dynamics/friction.h"
 
 namespace bistable {
 
@@ -86,13 +88,41 @@ struct FrictionConstants {
   double v_t = 0.001;   // m/s
 };
 
+// The friction term's law (dynamics/friction.h) with these constants.
+inline StribeckBasis FrictionBasis(const FrictionConstants& fc) { return StribeckBasis(fc.v_sp, fc.v_t); }
+
 // Appends the term's basis values φ_k(q, v) (one per parameter) to `out`.
 void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc, double* out);
 // The basis values and, when phi_q and phi_v are given, their derivatives ∂φ/∂q and ∂φ/∂v — the one
-// switch over term kinds (simulation, sensitivities, regressions); tanh_sp = tanh(v_sp/v_t), constant
-// per model, so that a simulation computes it once rather than per step.
-void TermBasisSlopes(const TermDef& t, double q, double v, const FrictionConstants& fc, double tanh_sp, double* phi,
-                     double* phi_q, double* phi_v);
+// switch over term kinds (simulation, sensitivities, regressions); `fb`: FrictionBasis(fc), constant per
+// model, so that a simulation computes it once rather than per step. Inline: the simulator's inner loop.
+inline void TermBasisSlopes(const TermDef& t, double q, double v, const StribeckBasis& fb, double* phi, double* phi_q,
+                            double* phi_v) {
+  const bool d = phi_q != nullptr;  // derivatives wanted (both or neither)
+  double dq = 0, dv = 0;
+  switch (t.kind) {
+    case TermKind::kLinear: phi[0] = q, dq = 1; break;
+    case TermKind::kStiffness2: phi[0] = q * q, dq = 2 * q; break;
+    case TermKind::kStiffness3: phi[0] = q * q * q, dq = 3 * q * q; break;
+    case TermKind::kStiffness5: phi[0] = q * q * q * q * q, dq = 5 * q * q * q * q; break;
+    case TermKind::kViscous: phi[0] = v, dv = 1; break;
+    case TermKind::kDamping2: phi[0] = q * q * v, dq = 2 * q * v, dv = q * q; break;
+    case TermKind::kDampingV3: phi[0] = v * v * v, dv = 3 * v * v; break;
+    case TermKind::kDrag: phi[0] = v * std::abs(v), dv = 2 * std::abs(v); break;
+    case TermKind::kFriction:
+      fb.Eval(v, phi, d ? phi_v : nullptr);
+      if (d) phi_q[0] = phi_q[1] = 0;
+      return;
+    case TermKind::kBias: phi[0] = 1.0; break;
+    case TermKind::kPiezo:  // no force of (q, v): the back-force needs the voltage state (model.cc)
+      phi[0] = phi[1] = phi[2] = 0;
+      if (d) phi_q[0] = phi_q[1] = phi_q[2] = phi_v[0] = phi_v[1] = phi_v[2] = 0;
+      return;
+    case TermKind::kOutputOffset:
+    case TermKind::kOutputScale: phi[0] = 0; break;  // not a force
+  }
+  if (d) phi_q[0] = dq, phi_v[0] = dv;
+}
 // dF/dv and dF/dq of the term at (q, v) for parameters `theta` (its own slice), for step-size bounds.
 void TermSlopes(const TermDef& t, const double* theta, double q, double v, const FrictionConstants& fc, double* dfdq,
                 double* dfdv);

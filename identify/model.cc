@@ -628,8 +628,8 @@ class RecordSystem {
   // start state after the parameters' (multiple shooting, SegmentStates).
   RecordSystem(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
                const PreparedRecord& r, InputKind in, bool param_cols = true, int state_cols = 0)
-      : r_(r), in_(in), res_(m.HasResonator()), mm_(m.Mass(th)), mr_(m.m_res), fc_(m.fc),
-        tanh_sp_(std::tanh(m.fc.v_sp / m.fc.v_t)), th_(th) {
+      : r_(r), in_(in), res_(m.HasResonator()), mm_(m.Mass(th)), mr_(m.m_res),
+        fb_(FrictionBasis(m.fc)), th_(th) {
     int col = 0;
     for (const TermDef* t : m.terms) {
       if (t->IsForce()) terms_.push_back({t, col});
@@ -675,7 +675,7 @@ class RecordSystem {
     for (const SimTerm& st : terms_) {
       const bool main = st.t->body == Body::kMain;
       if (!main && !res_) continue;
-      TermBasisSlopes(*st.t, main ? y : z, main ? yd : zd, fc_, tanh_sp_, phi, kSens ? pq : nullptr, kSens ? pv : nullptr);
+      TermBasisSlopes(*st.t, main ? y : z, main ? yd : zd, fb_, phi, kSens ? pq : nullptr, kSens ? pv : nullptr);
       double f = 0, fq = 0, fv = 0;
       double* phi_col = main ? phi_main_.data() : phi_res_.data();
       for (size_t j = 0; j < st.t->params.size(); ++j) {
@@ -815,8 +815,7 @@ class RecordSystem {
   const InputKind in_;
   const bool res_;
   const double mm_, mr_;
-  const FrictionConstants fc_;
-  const double tanh_sp_;
+  const StribeckBasis fb_;
   std::vector<double> th_;  // the model's values, then 0 for candidate columns
   std::vector<SimTerm> terms_;  // force terms
   int cols_ = 0, mass_col_ = -1, piezo_col_ = -1;
