@@ -96,7 +96,7 @@ void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc
 // The basis values and, when phi_q and phi_v are given, their derivatives ∂φ/∂q and ∂φ/∂v — the one
 // switch over term kinds (simulation, sensitivities, regressions); `fb`: FrictionBasis(fc), constant per
 // model, so that a simulation computes it once rather than per step. Inline: the simulator's inner loop.
-inline void TermBasisSlopes(const TermDef& t, double q, double v, const StribeckBasis& fb, double* phi, double* phi_q,
+BISTABLE_INLINE void TermBasisSlopes(const TermDef& t, double q, double v, const StribeckBasis& fb, double* phi, double* phi_q,
                             double* phi_v) {
   const bool d = phi_q != nullptr;  // derivatives wanted (both or neither)
   double dq = 0, dv = 0;

@@ -660,8 +660,9 @@ class RecordSystem {
   // Position in the state of component c of held sensitivity column l (0 ≤ l < end − first).
   int SensIndex(int c, int l) const { return kD + c * stride_ + l; }
   void operator()(double t, const State& x, State& dx) const {
-    double u, ud;
-    r_.in_spline.Eval(t, &u, &ud);
+    // RK4's second and third stages are at the same time: the input is evaluated once for both.
+    if (t != input_t_) r_.in_spline.Eval(t, &input_u_, &input_ud_), input_t_ = t;
+    const double u = input_u_, ud = input_ud_;
     double y, yd, z = 0, zd = 0;
     if (in_ == InputKind::kBaseDisplacement) {
       y = x[0] - u, yd = x[1] - ud;
@@ -824,6 +825,7 @@ class RecordSystem {
   int stride_ = 0;                      // end_ − first_ rounded up to packs: the state's stride per component
   std::vector<int> special_;            // held columns with a term beyond φ: the mass, the piezo's b and c
   mutable std::vector<double> phi_main_, phi_res_;  // basis value of every term column at the current stage
+  mutable double input_t_ = NAN, input_u_ = 0, input_ud_ = 0;  // the input and its slope at time input_t_
 };
 
 template <bool kSens, int kD>
