@@ -659,7 +659,7 @@ class RecordSystem {
   int cols() const { return cols_; }
   // Position in the state of component c of held sensitivity column l (0 ≤ l < end − first).
   int SensIndex(int c, int l) const { return kD + c * stride_ + l; }
-  void operator()(double t, const State& x, State& dx) const {
+  BISTABLE_INLINE void operator()(double t, const State& x, State& dx) const {
     // RK4's second and third stages are at the same time: the input is evaluated once for both.
     if (t != input_t_) r_.in_spline.Eval(t, &input_u_, &input_ud_), input_t_ = t;
     const double u = input_u_, ud = input_ud_;
