@@ -95,7 +95,8 @@ struct Stribeck {
 // project's lane math at W = 1 (dynamics/lane_math.h: within 1–2 ulp of glibc's at a fraction of glibc tanh's
 // cost). It divides by v_sp and v_t rather than multiplying by their reciprocals: the coupled rig's fit ends in
 // another of its near-truth minima (1.087 % against 1.080 %) when the law's last bits change that way
-// (docs/identification.md, "Session 15").
+// (docs/identification.md, "Session 15"). tanh_sp is glibc's and th the lane Tanh, so φ[1](v_sp) is within a
+// few ulp of 0 rather than exactly 0 (F_f(v_sp) = F_s to that).
 struct StribeckBasis {
   StribeckBasis(double v_sp, double v_t) : v_sp(v_sp), v_t(v_t), tanh_sp(std::tanh(v_sp / v_t)) {}
   // φ and, when dphi is given, dφ/dv.

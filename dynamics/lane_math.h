@@ -18,7 +18,7 @@
 //            otherwise 1 − 2/(e^{2|x|} + 1) (no cancellation: the result is ≥ 0.5) with e^{2|x|} + 1 =
 //            2^n (1 + r P(r)) + 1 as above, one fused multiply-add of the unrounded parts; the sign of
 //            x copied onto the result (tanh(−0) = −0). Both branches are computed and one selected
-//            per lane.
+//            per lane; at W = 1 only the taken one, and ±1 from |x| ≥ 20 on (the same bits).
 #ifndef BISTABLE_DYNAMICS_LANE_MATH_H_
 #define BISTABLE_DYNAMICS_LANE_MATH_H_
 

@@ -277,7 +277,6 @@ struct ShootCache {
 };
 
 // RK4 substeps per sample for parameters th on record r, times a safety factor (SubstepsFor: h λ ≤ 2 and h ω ≤ 0.5).
-constexpr double kSubstepSafety = 1.5;
 int SafeSubsteps(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, double safety) {
   return static_cast<int>(std::ceil(safety * SubstepsFor(m, th, r)));
 }
@@ -1124,9 +1123,13 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
       const std::vector<double>* u;
       int sub;
       ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-        std::fprintf(stderr, "    iteration %3d cost %.6e change %.3e %s radius %.3e gradient %.3e substeps %d of %d\n",
+        // The first record's substeps: what the iterate asks (SubstepsFor), the stability floor, and those held.
+        const std::vector<double> th = fs->Theta(*u);
+        std::fprintf(stderr,
+                     "    iteration %3d cost %.6e change %.3e %s radius %.3e gradient %.3e substeps %d (stable %d) of %d\n",
                      it.iteration, it.cost, it.cost_change, it.step_is_successful ? "accepted" : "refused",
-                     it.trust_region_radius, it.gradient_max_norm, SubstepsFor(fs->m, fs->Theta(*u), fs->recs[0]), sub);
+                     it.trust_region_radius, it.gradient_max_norm, SubstepsFor(fs->m, th, fs->recs[0]),
+                     StableSubsteps(fs->m, th, fs->recs[0]), sub);
         return ceres::SOLVER_CONTINUE;
       }
     } trace;

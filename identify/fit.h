@@ -112,7 +112,7 @@ bool SimulateShooting(const IdentModel& m, const std::vector<double>& th, const 
                       double horizon_s, SimOutputs* out);
 // Substeps per record for parameters th, times a safety factor.
 std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                               double safety = 1.5);  // fit.cc kSubstepSafety
+                               double safety = 1.5);
 
 struct FitOptions {
   Objective objective = Objective::kTime;

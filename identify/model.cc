@@ -562,6 +562,7 @@ int SubstepsWithin(const IdentModel& m, const std::vector<double>& th, const Pre
   }
   const double h_max = std::min(lam_limit / std::max(lam, 1e-300), om_limit / std::sqrt(std::max(om2, 1e-300)));
   const double steps = std::ceil(r.dt / h_max);
+  if (std::isnan(steps)) return 1;  // non-finite parameters: the simulation refuses them (SimulateImpl)
   return static_cast<int>(std::clamp(steps, 1.0, 2000.0));
 }
 
