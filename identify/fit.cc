@@ -24,6 +24,7 @@
 #include <glog/logging.h>
 #include <nlopt.hpp>
 
+#include "base/beside.h"
 #include "base/cpus.h"
 #include "dynamics/spectrum.h"
 
@@ -77,13 +78,16 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
     for (size_t k = 0; k < nseg; ++k) (k < half ? ma : mb)[k] = mask ? (*mask)[k] : 1;
     SimOutputs ob;
     bool okb = false;
-    std::thread t([&] {
-      const SegmentStates g{&st, sens_states, params, &mb};
-      okb = SimulateOutputs(m, th, ex, r, setup, substeps, every, params, &ob, nullptr, &g);
-    });
-    const SegmentStates g{&st, sens_states, params, &ma};
-    const bool oka = SimulateOutputs(m, th, ex, r, setup, substeps, every, params, o, nullptr, &g);
-    t.join();
+    bool oka = false;
+    RunBeside(
+        [&] {
+          const SegmentStates g{&st, sens_states, params, &mb};
+          okb = SimulateOutputs(m, th, ex, r, setup, substeps, every, params, &ob, nullptr, &g);
+        },
+        [&] {
+          const SegmentStates g{&st, sens_states, params, &ma};
+          oka = SimulateOutputs(m, th, ex, r, setup, substeps, every, params, o, nullptr, &g);
+        });
     if (!oka || !okb) return false;
     for (size_t k = half; k < nseg; ++k) {
       if (!mb[k]) continue;
@@ -1257,9 +1261,7 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
     if (cpus >= 2 && recs.size() % static_cast<size_t>(cpus) != 0) {
       FitStages other = fs;
       other.result = FitResult{};
-      std::thread t([&] { shoot(other); });
-      lm();
-      t.join();
+      RunBeside([&] { shoot(other); }, lm);
       AddSimulations(&fs.result.simulations, other.result.simulations);
       fs.result.message = other.result.message;  // the last Ceres run, as in the sequential order
     } else {

@@ -12,6 +12,7 @@
 #include <thread>
 #include <utility>
 
+#include "base/beside.h"
 #include "base/cpus.h"
 
 namespace bistable {
@@ -540,9 +541,7 @@ FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t,
   if (cpus >= 2) {
     FitOptions one = opt.fit;
     if (recs.size() > 1) one.threads = 1;
-    std::thread t([&] { refit2 = Fit(alt, scale_alt, recs, setup, one); });
-    refit = Fit(*next, scale, recs, setup, one);
-    t.join();
+    RunBeside([&] { refit2 = Fit(alt, scale_alt, recs, setup, one); }, [&] { refit = Fit(*next, scale, recs, setup, one); });
   } else {
     refit = Fit(*next, scale, recs, setup, opt.fit);
     refit2 = Fit(alt, scale_alt, recs, setup, opt.fit);

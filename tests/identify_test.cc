@@ -3,14 +3,19 @@
 // 1 → 8 Hz chirps of 6, 10, 14 mm, 120 Hz sampling, 0.05 mm noise. Each case leaves one effect out of
 // the declared terms (or none) and checks that the loop finds exactly it, with the error falling to
 // the noise floor; plus the simulator against the reference, and bad input through the CLI.
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "base/beside.h"
 #include "identify/loop.h"
 #include "identify/synthetic.h"
 #include "tests/process_util.h"
@@ -212,6 +217,30 @@ TEST(Identify, HeldSubstepsAreRaisedToWhatKeepsRk4Stable) {
   EXPECT_EQ(r_held, r_stable);
   EXPECT_TRUE(j_held == j_stable);
   EXPECT_LT(j_held.cwiseAbs().maxCoeff(), 1e6);
+}
+
+// The side-by-side fits run through RunBeside: both pieces finish whichever throws, and the exception reaches
+// the caller (a bare std::thread ended the process when the calling thread threw before its join).
+TEST(RunBeside, BothFinishAndTheFirstErrorReachesTheCaller) {
+  std::atomic<int> done{0};
+  RunBeside([&] { done += 1; }, [&] { done += 10; });
+  EXPECT_EQ(done.load(), 11);
+  done = 0;
+  EXPECT_THROW(RunBeside(
+                   [&] {
+                     std::this_thread::sleep_for(std::chrono::milliseconds(50));
+                     done += 1;
+                   },
+                   [&]() { throw std::runtime_error("main"); }),
+               std::runtime_error);
+  EXPECT_EQ(done.load(), 1);  // the side finished before the rethrow
+  try {
+    RunBeside([] { throw std::logic_error("side"); }, [] { throw std::runtime_error("main"); });
+    ADD_FAILURE() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "main");  // main's before side's
+  }
+  EXPECT_THROW(RunBeside([] { throw std::logic_error("side"); }, [] {}), std::logic_error);
 }
 
 TEST(Identify, ForwardDifferencesEqualCeresToTheBit) {
