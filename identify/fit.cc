@@ -280,11 +280,6 @@ struct ShootCache {
   }
 };
 
-// RK4 substeps per sample for parameters th on record r, times a safety factor (SubstepsFor: h λ ≤ 2 and h ω ≤ 0.5).
-int SafeSubsteps(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, double safety) {
-  return static_cast<int>(std::ceil(safety * SubstepsFor(m, th, r)));
-}
-
 // `shoot`: the shooting objective's simulation (ShootRecord) with segments of horizon_s.
 Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                  const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0,
@@ -493,7 +488,7 @@ bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const
 std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                                double safety) {
   std::vector<int> sub;
-  for (const PreparedRecord& r : recs) sub.push_back(SafeSubsteps(m, th, r, safety));
+  for (const PreparedRecord& r : recs) sub.push_back(static_cast<int>(std::ceil(safety * SubstepsFor(m, th, r))));
   return sub;
 }
 

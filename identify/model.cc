@@ -620,7 +620,7 @@ SpecialCols FindSpecialCols(const IdentModel& m, const std::vector<const TermDef
 // basis value φ_j, already computed for F; the piezo's a multiplies −w, its b and c the circuit's w and y'.
 // The columns are stored component-major (SensIndex: every column's ∂p, then every column's ∂p', ...,
 // padded to whole packs), so that one branch-free loop runs over the columns in SIMD packs; the few
-// columns with a term of their own beyond φ (the mass, the piezo's b and c) are redone after it.
+// columns with a term of their own beyond φ (the mass, the piezo's b and c) take it from a column array.
 template <bool kSens, int kD>
 class RecordSystem {
  public:
@@ -653,8 +653,8 @@ class RecordSystem {
     stride_ = (end_ - first_ + kW - 1) / kW * kW;
     phi_main_.assign(first_ + stride_, 0.0);
     phi_res_.assign(first_ + stride_, 0.0);
-    for (int j : {mass_col_, piezo_col_ >= 0 ? piezo_col_ + 1 : -1, piezo_col_ >= 0 ? piezo_col_ + 2 : -1})
-      if (j >= first_ && j < end_) special_.push_back(j);
+    own_a_.assign(first_ + stride_, 0.0);
+    own_w_.assign(first_ + stride_, 0.0);
   }
   int dim() const { return kSens ? kD + kD * stride_ : kD; }
   int cols() const { return cols_; }
@@ -724,17 +724,13 @@ class RecordSystem {
     } else {
       dx[0] = x[1], dx[1] = a1, dx[2] = x[3], dx[3] = a3;
       if constexpr (kD == 5) dx[4] = wdot;
-      const Coefs k{Fq, Fv, Gq, Gv, pa, pb, pc, piezo_col_ >= 0};
-      const bool disp = in_ == InputKind::kBaseDisplacement;
-      if (disp) res_ ? Columns<true, true>(k, x, dx) : Columns<true, false>(k, x, dx);
-      else res_ ? Columns<false, true>(k, x, dx) : Columns<false, false>(k, x, dx);
       // The columns with a term beyond φ: ∂/∂m_main of (−F + G)/m is −inv/m; ∂w'/∂b = −w, ∂w'/∂c = −y'.
-      for (int j : special_) {
-        const double mass = j == mass_col_ ? inv / mm_ : 0.0;
-        const double wb = j == piezo_col_ + 1 ? w : 0.0, wc = j == piezo_col_ + 2 ? yd : 0.0;
-        if (disp) res_ ? Column<true, true>(k, x, dx, j, mass, wb, wc) : Column<true, false>(k, x, dx, j, mass, wb, wc);
-        else res_ ? Column<false, true>(k, x, dx, j, mass, wb, wc) : Column<false, false>(k, x, dx, j, mass, wb, wc);
-      }
+      if (Held(mass_col_)) own_a_[mass_col_] = inv / mm_;
+      if (piezo_col_ >= 0 && Held(piezo_col_ + 1)) own_w_[piezo_col_ + 1] = w;
+      if (piezo_col_ >= 0 && Held(piezo_col_ + 2)) own_w_[piezo_col_ + 2] = yd;
+      const Coefs k{Fq, Fv, Gq, Gv, pa, pb, pc, piezo_col_ >= 0};
+      if (in_ == InputKind::kBaseDisplacement) res_ ? Columns<true, true>(k, x, dx) : Columns<true, false>(k, x, dx);
+      else res_ ? Columns<false, true>(k, x, dx) : Columns<false, false>(k, x, dx);
     }
   }
 
@@ -744,31 +740,10 @@ class RecordSystem {
     double Fq, Fv, Gq, Gv, pa, pb, pc;
     bool piezo;
   };
-  // Column l's derivative (components D_c[l] from S_c[l]): `mass`, `wb`, `wc` are 0 except for the columns
-  // that carry the mass's or the circuit's own term (then the operations are those of the general case
-  // with that term subtracted, which for a 0 leaves every bit unchanged).
-  template <bool kDisp, bool kRes>
-  static BISTABLE_INLINE void ColumnAt(const Coefs& k, double mm, double mr, const double* phi_f, const double* phi_g,
-                                       const double* __restrict S, double* __restrict D, int N, int l, double mass,
-                                       double wb, double wc) {
-    const double dy = S[l], dyd = S[N + l];
-    const double dz = kDisp ? S[2 * N + l] - S[l] : S[2 * N + l];
-    const double dzd = kDisp ? S[3 * N + l] - S[N + l] : S[3 * N + l];
-    double dF = k.Fq * dy + k.Fv * dyd + phi_f[l];
-    const double dG = kRes ? k.Gq * dz + k.Gv * dzd + phi_g[l] : 0.0;
-    if constexpr (kD == 5) {
-      const double dw = S[4 * N + l];
-      dF += -k.pa * dw;
-      D[4 * N + l] = k.piezo ? -k.pb * dw - k.pc * dyd - wb - wc : 0.0;
-    }
-    const double dinv = (-dF + dG) / mm - mass;
-    double da3;
-    if constexpr (kDisp) da3 = kRes ? -dG / mr : dinv;
-    else da3 = kRes ? -dG / mr - dinv : 0.0;
-    D[l] = S[N + l], D[N + l] = dinv, D[2 * N + l] = S[3 * N + l], D[3 * N + l] = da3;
-  }
-  // Every held column in packs of kW (the stride is a multiple of kW; padding columns stay 0): the
-  // operations of ColumnAt lane by lane (-ffp-contract=off: the same bits as the scalar path).
+  bool Held(int j) const { return j >= first_ && j < end_; }
+  // Every held column in packs of kW (the stride is a multiple of kW; padding columns stay 0), lane by lane
+  // the operations of the scalar column loop this replaced (-ffp-contract=off: the same bits). A column's own
+  // term (own_a_, own_w_) is 0 but for the mass's and the piezo's b and c, and x − (+0) is x to the bit.
   template <bool kDisp, bool kRes>
   void Columns(const Coefs& k, const State& x, State& dx) const {
     using V = Vec<kW>;
@@ -784,6 +759,8 @@ class RecordSystem {
     const V mm = Splat<kW>(mm_), mr = Splat<kW>(mr_);
     const double* phi_f = phi_main_.data() + first_;
     const double* phi_g = phi_res_.data() + first_;
+    const double* own_a = own_a_.data() + first_;
+    const double* own_w = own_w_.data() + first_;
     const double* S = x.data() + kD;
     double* D = dx.data() + kD;
     for (int l = 0; l < N; l += kW) {
@@ -795,9 +772,9 @@ class RecordSystem {
       if constexpr (kD == 5) {
         const V dw = load(S + 4 * N + l);
         dF += -pa * dw;
-        store(D + 4 * N + l, k.piezo ? -pb * dw - pc * dyd : V{});
+        store(D + 4 * N + l, k.piezo ? -pb * dw - pc * dyd - load(own_w + l) : V{});
       }
-      const V dinv = (-dF + dG) / mm;
+      const V dinv = (-dF + dG) / mm - load(own_a + l);
       V da3;
       if constexpr (kDisp) da3 = kRes ? -dG / mr : dinv;
       else da3 = kRes ? -dG / mr - dinv : V{};
@@ -807,11 +784,7 @@ class RecordSystem {
       store(D + 3 * N + l, da3);
     }
   }
-  template <bool kDisp, bool kRes>
-  void Column(const Coefs& k, const State& x, State& dx, int j, double mass, double wb, double wc) const {
-    ColumnAt<kDisp, kRes>(k, mm_, mr_, phi_main_.data() + first_, phi_res_.data() + first_, x.data() + kD,
-                          dx.data() + kD, stride_, j - first_, mass, wb, wc);
-  }
+
 
   const PreparedRecord& r_;
   const InputKind in_;
@@ -824,8 +797,8 @@ class RecordSystem {
   int first_ = 0, end_ = 0;             // sensitivity columns held: [first_, end_) (state columns from cols_)
   static constexpr int kW = 4;          // columns per pack
   int stride_ = 0;                      // end_ − first_ rounded up to packs: the state's stride per component
-  std::vector<int> special_;            // held columns with a term beyond φ: the mass, the piezo's b and c
   mutable std::vector<double> phi_main_, phi_res_;  // basis value of every term column at the current stage
+  mutable std::vector<double> own_a_, own_w_;  // a column's own term in p'' and in w' (the mass; the piezo's b, c)
   mutable double input_t_ = NAN, input_u_ = 0, input_ud_ = 0;  // the input and its slope at time input_t_
 };
 
