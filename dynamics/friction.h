@@ -92,8 +92,8 @@ struct Stribeck {
 // The law as a basis linear in the two forces: F_f(v) = F_s φ[0] + F_c φ[1] with φ[0] = g(v) and
 // φ[1] = tanh(v/v_t) − tanh(v_sp/v_t) g(v); φ depends on v_sp, v_t only. Identification's simulator
 // evaluates it per RK4 stage and body, so tanh(v_sp/v_t) is computed once, and exp and tanh are the
-// project's lane math at W = 1 (dynamics/lane_math.h: within 1–2 ulp of glibc's at a fraction of glibc tanh's
-// cost). It divides by v_sp and v_t rather than multiplying by their reciprocals: the coupled rig's fit ends in
+// project's lane math at W = 1 (dynamics/lane_math.h: within 1–2 ulp of glibc's; glibc's tanh and expm1 were
+// 18 % of the coupled rig loop's profile). It divides by v_sp and v_t rather than multiplying by their reciprocals: the coupled rig's fit ends in
 // another of its near-truth minima (1.087 % against 1.080 %) when the law's last bits change that way
 // (docs/identification.md, "Session 15"). tanh_sp is glibc's and th the lane Tanh, so φ[1](v_sp) is within a
 // few ulp of 0 rather than exactly 0 (F_f(v_sp) = F_s to that).
