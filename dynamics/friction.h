@@ -99,15 +99,29 @@ struct Stribeck {
 // few ulp of 0 rather than exactly 0 (F_f(v_sp) = F_s to that).
 struct StribeckBasis {
   StribeckBasis(double v_sp, double v_t) : v_sp(v_sp), v_t(v_t), tanh_sp(std::tanh(v_sp / v_t)) {}
-  // φ and, when dphi is given, dφ/dv.
-  BISTABLE_INLINE void Eval(double v, double* phi, double* dphi) const {
-    // Sliding fast (|v| ≳ 39 v_sp) the hump's exponent is below −746, where Exp returns +0: skipped.
-    const double u = v / v_sp, x = 0.5 - 0.5 * u * u, e = x <= -746.0 ? 0.0 : Exp<1>(Vec<1>{x})[0], g = u * e;
-    const double th = Tanh<1>(Vec<1>{v / v_t})[0];
+  // φ and, when dphi is given, dφ/dv; T is double or a lane pack Vec<W> (the same bits per lane).
+  template <class T>
+  BISTABLE_INLINE void Eval(T v, T* phi, T* dphi) const {
+    constexpr int W = sizeof(T) / sizeof(double);
+    const T u = v / v_sp, x = 0.5 - 0.5 * u * u;
+    // Sliding fast (|v| ≳ 39 v_sp) the hump's exponent is below −746, where Exp returns +0: skipped when
+    // every lane is there.
+    T e{};
+    if constexpr (W == 1 && std::is_floating_point_v<T>) {
+      if (!(x <= -746.0)) e = Exp<1>(Vec<1>{x})[0];
+    } else {
+      bool all_below = true;
+      for (int l = 0; l < W; ++l) all_below = all_below && x[l] <= -746.0;
+      if (!all_below) e = Exp<W>(x);
+    }
+    const T g = u * e;
+    T th;
+    if constexpr (std::is_floating_point_v<T>) th = Tanh<1>(Vec<1>{v / v_t})[0];
+    else th = Tanh<W>(v / v_t);
     phi[0] = g;
     phi[1] = th - tanh_sp * g;
     if (dphi) {
-      const double gd = e * (1.0 - u * u) / v_sp;
+      const T gd = e * (1.0 - u * u) / v_sp;
       dphi[0] = gd;
       dphi[1] = (1.0 - th * th) / v_t - tanh_sp * gd;
     }

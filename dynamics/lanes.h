@@ -12,6 +12,7 @@
 #define BISTABLE_INLINE_LAMBDA __attribute__((always_inline))
 
 #include <cstring>
+#include <type_traits>
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
@@ -162,6 +163,12 @@ BISTABLE_INLINE Vec<W> SelectLess(Vec<W> a, Vec<W> b, Vec<W> x, Vec<W> y) {
 // Scalar overloads so that models written for T = Vec<W> also compile for T = double.
 inline double Max(double a, double b) { return a > b ? a : b; }
 inline double Min(double a, double b) { return a < b ? a : b; }
+// |a| for T = double or a lane pack (the lane width from the type).
+template <class T>
+BISTABLE_INLINE T AbsOf(T a) {
+  if constexpr (std::is_floating_point_v<T>) return __builtin_fabs(a);
+  else return Abs<static_cast<int>(sizeof(T) / sizeof(double))>(a);
+}
 
 }  // namespace bistable
 

@@ -102,7 +102,7 @@ StatusOr<std::vector<const TermDef*>> ParseTerms(const std::string& list) {
 }
 
 void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc, double* out) {
-  TermBasisSlopes(t, q, v, FrictionBasis(fc), out, nullptr, nullptr);
+  TermBasisSlopes<double>(t, q, v, FrictionBasis(fc), out, nullptr, nullptr);
 }
 
 void TermSlopes(const TermDef& t, const double* th, double q, double v, const FrictionConstants& fc, double* dfdq,

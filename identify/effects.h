@@ -96,30 +96,33 @@ void TermBasis(const TermDef& t, double q, double v, const FrictionConstants& fc
 // The basis values and, when phi_q and phi_v are given, their derivatives ∂φ/∂q and ∂φ/∂v — the one
 // switch over term kinds (simulation, sensitivities, regressions); `fb`: FrictionBasis(fc), constant per
 // model, so that a simulation computes it once rather than per step. Inline: the simulator's inner loop.
-BISTABLE_INLINE void TermBasisSlopes(const TermDef& t, double q, double v, const StribeckBasis& fb, double* phi, double* phi_q,
-                            double* phi_v) {
+// T is double or a lane pack Vec<W> (plain simulations of several parameter vectors side by side, with
+// every lane's operations those of the double: -ffp-contract=off, the same bits).
+template <class T>
+BISTABLE_INLINE void TermBasisSlopes(const TermDef& t, T q, T v, const StribeckBasis& fb, T* phi, T* phi_q, T* phi_v) {
   const bool d = phi_q != nullptr;  // derivatives wanted (both or neither)
-  double dq = 0, dv = 0;
+  const T zero{}, one = zero + 1.0;
+  T dq = zero, dv = zero;
   switch (t.kind) {
-    case TermKind::kLinear: phi[0] = q, dq = 1; break;
-    case TermKind::kStiffness2: phi[0] = q * q, dq = 2 * q; break;
-    case TermKind::kStiffness3: phi[0] = q * q * q, dq = 3 * q * q; break;
-    case TermKind::kStiffness5: phi[0] = q * q * q * q * q, dq = 5 * q * q * q * q; break;
-    case TermKind::kViscous: phi[0] = v, dv = 1; break;
-    case TermKind::kDamping2: phi[0] = q * q * v, dq = 2 * q * v, dv = q * q; break;
-    case TermKind::kDampingV3: phi[0] = v * v * v, dv = 3 * v * v; break;
-    case TermKind::kDrag: phi[0] = v * std::abs(v), dv = 2 * std::abs(v); break;
+    case TermKind::kLinear: phi[0] = q, dq = one; break;
+    case TermKind::kStiffness2: phi[0] = q * q, dq = 2.0 * q; break;
+    case TermKind::kStiffness3: phi[0] = q * q * q, dq = 3.0 * q * q; break;
+    case TermKind::kStiffness5: phi[0] = q * q * q * q * q, dq = 5.0 * q * q * q * q; break;
+    case TermKind::kViscous: phi[0] = v, dv = one; break;
+    case TermKind::kDamping2: phi[0] = q * q * v, dq = 2.0 * q * v, dv = q * q; break;
+    case TermKind::kDampingV3: phi[0] = v * v * v, dv = 3.0 * v * v; break;
+    case TermKind::kDrag: phi[0] = v * AbsOf(v), dv = 2.0 * AbsOf(v); break;
     case TermKind::kFriction:
       fb.Eval(v, phi, d ? phi_v : nullptr);
-      if (d) phi_q[0] = phi_q[1] = 0;
+      if (d) phi_q[0] = phi_q[1] = zero;
       return;
-    case TermKind::kBias: phi[0] = 1.0; break;
+    case TermKind::kBias: phi[0] = one; break;
     case TermKind::kPiezo:  // no force of (q, v): the back-force needs the voltage state (model.cc)
-      phi[0] = phi[1] = phi[2] = 0;
-      if (d) phi_q[0] = phi_q[1] = phi_q[2] = phi_v[0] = phi_v[1] = phi_v[2] = 0;
+      phi[0] = phi[1] = phi[2] = zero;
+      if (d) phi_q[0] = phi_q[1] = phi_q[2] = phi_v[0] = phi_v[1] = phi_v[2] = zero;
       return;
     case TermKind::kOutputOffset:
-    case TermKind::kOutputScale: phi[0] = 0; break;  // not a force
+    case TermKind::kOutputScale: phi[0] = zero; break;  // not a force
   }
   if (d) phi_q[0] = dq, phi_v[0] = dv;
 }

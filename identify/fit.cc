@@ -280,6 +280,34 @@ struct ShootCache {
   }
 };
 
+// one(i) for every record i < n, on up to `cpus` threads (records dealt round robin).
+template <class F>
+void ForEachRecord(size_t n, int cpus, const F& one) {
+  const size_t nt = std::min<size_t>(n, static_cast<size_t>(std::max(1, cpus)));
+  if (nt <= 1) {
+    for (size_t i = 0; i < n; ++i) one(i);
+    return;
+  }
+  std::vector<std::future<void>> fs;
+  for (size_t w = 0; w < nt; ++w)
+    fs.push_back(std::async(std::launch::async, [&, w] {
+      for (size_t i = w; i < n; i += nt) one(i);
+    }));
+  for (auto& f : fs) f.get();
+}
+
+// The substeps a simulation of record i at th runs: the held ones raised to what keeps RK4 stable (below),
+// or, with none held, SubstepsFor's.
+int SubstepsAt(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+               const std::vector<int>& substeps, size_t i) {
+  // Held substeps are raised to what keeps RK4 stable at th (StableSubsteps): below it the state chatters
+  // where friction sticks, bounded by the law's saturation, while its sensitivities grow without bound (on
+  // the coupled rig the third LM iteration ran 6 substeps where SubstepsFor asked 24: a gradient of 1e62, and which
+  // basin the fit reached depended on the last bits of tanh). The count is then a function of θ, constant
+  // between stiffness thresholds.
+  return substeps.empty() ? SubstepsFor(m, th, recs[i]) : std::max(substeps[i], StableSubsteps(m, th, recs[i]));
+}
+
 // `shoot`: the shooting objective's simulation (ShootRecord) with segments of horizon_s.
 Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                  const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0,
@@ -295,12 +323,7 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
   // Shooting: the CPUs left over by the records run a record's segments side by side.
   const int inner = std::max<int>(1, cpus / static_cast<int>(std::max<size_t>(1, recs.size())));
   auto one = [&](size_t i) {
-    // Held substeps are raised to what keeps RK4 stable at th (StableSubsteps): below it the state chatters
-    // where friction sticks, bounded by the law's saturation, while its sensitivities grow without bound (on
-    // the coupled rig the third LM iteration ran 6 substeps where SubstepsFor asked 24: a gradient of 1e62, and which
-    // basin the fit reached depended on the last bits of tanh). The count is then a function of θ, constant
-    // between stiffness thresholds.
-    const int sub = substeps.empty() ? 0 : std::max(substeps[i], StableSubsteps(m, th, recs[i]));
+    const int sub = substeps.empty() ? 0 : SubstepsAt(m, th, recs, substeps, i);
     const int restart = horizon_s > 0 ? ShootingSegment(horizon_s, recs[i].dt) : 0;
     if (shoot) {
       ok[i] = restart > 0 && ShootRecord(m, th, extra, recs[i], setup, sub, restart, &s.o[i],
@@ -311,17 +334,7 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
     ok[i] = SimulateOutputs(m, th, extra ? *extra : none, recs[i], setup, sub, restart, extra != nullptr, &s.o[i],
                             stops ? &(*stops)[i] : nullptr);
   };
-  const size_t nt = std::min<size_t>(recs.size(), static_cast<size_t>(cpus));
-  if (nt <= 1) {
-    for (size_t i = 0; i < recs.size(); ++i) one(i);
-  } else {
-    std::vector<std::future<void>> fs;
-    for (size_t w = 0; w < nt; ++w)
-      fs.push_back(std::async(std::launch::async, [&, w] {
-        for (size_t i = w; i < recs.size(); i += nt) one(i);
-      }));
-    for (auto& f : fs) f.get();
-  }
+  ForEachRecord(recs.size(), cpus, one);
   for (char c : ok) s.ok = s.ok && c;
   return s;
 }
@@ -369,6 +382,10 @@ size_t NumResiduals(const std::vector<PreparedRecord>& recs, Objective obj) {
 // Measured spectrum magnitudes per record and output slot (empty where not in the spectral objective).
 using Magnitudes = std::vector<std::array<std::vector<double>, kOutputSlots>>;
 
+bool ResidualsOf(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj,
+                 const Magnitudes& meas_mag, const Sims& s, double* res, Eigen::MatrixXd* jac,
+                 const std::vector<const TermDef*>& extra);
+
 // Residuals of the objective; false when a simulation diverged. With `jac` (and `extra`): the
 // residuals' derivatives by θ (N × P: the model's parameters, then the extra terms' at 0), from one
 // pass of SimulateSensitivities per record.
@@ -383,6 +400,13 @@ bool Residuals(const IdentModel& m, const std::vector<double>& th, const std::ve
                              cache ? &fitted : nullptr);
   if (cache && s.ok) cache->Remember(th, std::move(fitted));
   if (!s.ok) return false;
+  return ResidualsOf(m, recs, setup, obj, meas_mag, s, res, jac, extra);
+}
+
+// The residuals (and with `jac` their derivatives) of the objective from the records' simulations.
+bool ResidualsOf(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj,
+                 const Magnitudes& meas_mag, const Sims& s, double* res, Eigen::MatrixXd* jac,
+                 const std::vector<const TermDef*>& extra) {
   if (jac) {
     long P = m.NumParams();
     for (const TermDef* t : extra) P += static_cast<long>(t->params.size());
@@ -795,6 +819,40 @@ struct SimCost {
     return Residuals(*m, Theta(params[0]), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s, nullptr, {},
                      warm.get());
   }
+  // The residuals at several scaled points u side by side (rs[l] for us[l]), records on `threads`: each record's
+  // simulations in SIMD lanes (SimulateOutputsLanes) where they run the same substeps, one by one otherwise.
+  // Whole-record objectives only (no horizon, no segment states).
+  bool LaneResiduals(const std::vector<const double*>& us, std::vector<double>* rs, int threads) const {
+    assert(horizon_s == 0 && !warm && obj != Objective::kShooting);
+    const size_t L = us.size();
+    std::vector<std::vector<double>> ths;
+    for (const double* u : us) ths.push_back(Theta(u));
+    std::vector<Sims> sims(L);
+    for (Sims& sl : sims) sl.o.resize(recs->size());
+    std::vector<char> ok(recs->size(), 1);
+    ForEachRecord(recs->size(), threads, [&](size_t i) {
+      std::vector<int> sub(L);
+      for (size_t l = 0; l < L; ++l) sub[l] = SubstepsAt(*m, ths[l], *recs, substeps, i);
+      if (std::all_of(sub.begin(), sub.end(), [&](int v) { return v == sub[0]; })) {
+        std::vector<const std::vector<double>*> lanes;
+        for (const std::vector<double>& th : ths) lanes.push_back(&th);
+        std::vector<SimOutputs> outs;
+        ok[i] = SimulateOutputsLanes(*m, lanes, (*recs)[i], *setup, sub[0], &outs);
+        for (size_t l = 0; l < L; ++l) sims[l].o[i] = std::move(outs[l]);
+      } else {
+        for (size_t l = 0; l < L && ok[i]; ++l)
+          ok[i] = SimulateOutputs(*m, ths[l], {}, (*recs)[i], *setup, sub[l], 0, false, &sims[l].o[i]);
+      }
+    });
+    for (char c : ok)
+      if (!c) return false;
+    const size_t n = NumResiduals(*recs, obj);
+    for (size_t l = 0; l < L; ++l) {
+      rs[l].assign(n, 0.0);
+      if (!ResidualsOf(*m, *recs, *setup, obj, meas_mag, sims[l], rs[l].data(), nullptr, {})) return false;
+    }
+    return true;
+  }
   // Residuals and, when `jac` is given, their derivatives by the scaled parameters u (row-major,
   // Ceres' layout), from one sensitivity pass.
   bool Eval(const double* u, double* residuals, double* jac) const {
@@ -836,34 +894,38 @@ class ForwardDiffFunction : public ceres::DynamicCostFunction {
     assert(!c_.warm);  // segment states (shooting) are shared by copies: one evaluation at a time only
   }
   bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
-    if (!c_(params, residuals)) return false;
-    if (!jacobians || !jacobians[0]) return true;
+    if (!jacobians || !jacobians[0]) return c_(params, residuals);
     const int p = parameter_block_sizes()[0], n = num_residuals();
     const double* u = params[0];
     const double min_step = std::sqrt(std::numeric_limits<double>::epsilon());
-    const int threads = std::min(threads_, p);
+    // Simulation 0 at u (the residuals), simulation j + 1 at u + δ_j e_j (column j); each thread's share
+    // of them side by side in SIMD lanes (SimCost::LaneResiduals: every lane the bits of its own simulation).
+    const int sims = p + 1;
+    std::vector<std::vector<double>> us(static_cast<size_t>(sims), std::vector<double>(u, u + p));
+    std::vector<double> delta(static_cast<size_t>(p));
+    for (int j = 0; j < p; ++j) {
+      delta[j] = std::max(min_step, std::abs(u[j]) * 1e-6);
+      us[j + 1][j] = u[j] + delta[j];
+    }
+    const int threads = std::min(threads_, sims);
+    const int width = std::min(kMaxSimLanes, (sims + threads - 1) / threads), packs = (sims + width - 1) / width;
+    std::vector<std::vector<double>> r(static_cast<size_t>(sims));
     std::atomic<int> next{0};
     std::atomic<bool> ok{true};
     std::exception_ptr error;
     std::mutex error_mu;
-    auto columns = [&] {
+    auto work = [&] {
       try {
-        SimCost c = c_;
-        if (threads > 1) c.threads = 1;  // the columns are the parallelism (Residuals does not depend on it)
-        std::vector<double> up(u, u + p), r(static_cast<size_t>(n));
-        const double* pp[1] = {up.data()};
-        for (int j = next++; j < p && ok; j = next++) {
-          const double delta = std::max(min_step, std::abs(u[j]) * 1e-6);
-          up[j] = u[j] + delta;
-          if (!c(pp, r.data())) {
+        for (int k = next++; k < packs && ok; k = next++) {
+          std::vector<const double*> lanes;
+          for (int l = k * width; l < std::min(sims, (k + 1) * width); ++l) lanes.push_back(us[l].data());
+          // The packs are the parallelism when there are several (Residuals does not depend on threads).
+          if (!c_.LaneResiduals(lanes, &r[static_cast<size_t>(k * width)], threads > 1 ? 1 : c_.threads)) {
             ok = false;
             return;
           }
-          up[j] = u[j];
-          const double inv = 1.0 / delta;
-          for (int i = 0; i < n; ++i) jacobians[0][static_cast<size_t>(i) * p + j] = (r[i] - residuals[i]) * inv;
         }
-      } catch (...) {  // rethrown on the calling thread once every column thread has joined
+      } catch (...) {  // rethrown on the calling thread once every thread has joined
         std::lock_guard<std::mutex> lock(error_mu);
         if (!error) error = std::current_exception();
         ok = false;
@@ -871,13 +933,19 @@ class ForwardDiffFunction : public ceres::DynamicCostFunction {
     };
     std::vector<std::thread> pool;
     try {
-      for (int t = 1; t < threads; ++t) pool.emplace_back(columns);
-    } catch (...) {  // no thread to be had: the columns left run on this one
+      for (int t = 1; t < std::min(threads, packs); ++t) pool.emplace_back(work);
+    } catch (...) {  // no thread to be had: the packs left run on this one
     }
-    columns();
+    work();
     for (std::thread& t : pool) t.join();
     if (error) std::rethrow_exception(error);
-    return ok;
+    if (!ok) return false;
+    std::copy(r[0].begin(), r[0].end(), residuals);
+    for (int j = 0; j < p; ++j) {
+      const double inv = 1.0 / delta[j];
+      for (int i = 0; i < n; ++i) jacobians[0][static_cast<size_t>(i) * p + j] = (r[j + 1][i] - residuals[i]) * inv;
+    }
+    return true;
   }
 
  private:

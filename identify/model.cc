@@ -18,6 +18,8 @@ namespace bistable {
 UniformSpline::UniformSpline(double t0, double dt, std::vector<double> y) : t0_(t0), dt_(dt), y_(std::move(y)) {
   const size_t n = y_.size();
   m_.assign(n, 0.0);
+  dy_.assign(n, 0.0);
+  for (size_t i = 0; i + 1 < n; ++i) dy_[i] = (y_[i + 1] - y_[i]) / dt;
   if (n < 3) return;
   // Natural spline: M_0 = M_{n-1} = 0; M_{i-1} + 4 M_i + M_{i+1} = 6 (y_{i+1} − 2 y_i + y_{i-1}) / dt².
   std::vector<double> c(n, 0.0), d(n, 0.0);
@@ -31,27 +33,6 @@ UniformSpline::UniformSpline(double t0, double dt, std::vector<double> y) : t0_(
     m_[i] = d[i] - c[i] * m_[i + 1];
     if (i == 1) break;
   }
-}
-
-void UniformSpline::Eval(double t, double* value, double* slope) const {
-  const size_t n = y_.size();
-  if (n == 0) {
-    *value = *slope = 0;
-    return;
-  }
-  if (n == 1) {
-    *value = y_[0], *slope = 0;
-    return;
-  }
-  double s = (t - t0_) / dt_;
-  long i = static_cast<long>(std::floor(s));
-  i = std::clamp<long>(i, 0, static_cast<long>(n) - 2);
-  const double a = s - static_cast<double>(i);  // in [0, 1] inside the range
-  const double b = 1.0 - a;
-  const double h = dt_;
-  const double y0 = y_[i], y1 = y_[i + 1], m0 = m_[i], m1 = m_[i + 1];
-  *value = b * y0 + a * y1 + ((b * b * b - b) * m0 + (a * a * a - a) * m1) * h * h / 6.0;
-  *slope = (y1 - y0) / h + ((-3.0 * b * b + 1.0) * m0 + (3.0 * a * a - 1.0) * m1) * h / 6.0;
 }
 
 std::vector<double> SavitzkyGolay(const std::vector<double>& y, double dt, int half, int deriv) {
@@ -611,6 +592,38 @@ SpecialCols FindSpecialCols(const IdentModel& m, const std::vector<const TermDef
   return sc;
 }
 
+// The terms' coordinates from the state (p, p', r, r') and the input (u, u'): the main body's y, y' (relative
+// to the base under a base displacement) and the resonator's z, z' (0 without one). T: double or a lane pack.
+template <class T>
+BISTABLE_INLINE void BodyCoordinates(InputKind in, bool res, T p, T pd, T r, T rd, double u, double ud, T* y, T* yd, T* z,
+                                     T* zd) {
+  const bool disp = in == InputKind::kBaseDisplacement;
+  *y = disp ? p - u : p, *yd = disp ? pd - ud : pd;
+  *z = res ? (disp ? r - p : r) : T{}, *zd = res ? (disp ? rd - pd : rd) : T{};
+}
+
+// p'' and r'' (a₁, a₃) from the main body's force F and the resonator's G under the record's input u;
+// `inv`: the part divided by the main mass (its derivative by m_main is −inv/m). T: double or a lane pack.
+template <class T>
+BISTABLE_INLINE void Accelerations(InputKind in, bool res, T F, T G, double u, T mm, double mr, T* a1, T* a3, T* inv) {
+  switch (in) {
+    case InputKind::kBaseDisplacement:
+      *a1 = *inv = (-F + G) / mm;
+      *a3 = res ? -G / mr : *a1;
+      return;
+    case InputKind::kBaseAcceleration:
+      *inv = (-F + G) / mm;
+      *a1 = *inv - u;
+      *a3 = res ? -G / mr - *inv : T{};
+      return;
+    case InputKind::kForce:
+      *a1 = *inv = (u - F + G) / mm;
+      *a3 = res ? -G / mr - *a1 : T{};
+      return;
+  }
+  *a1 = *a3 = *inv = T{};
+}
+
 // A record's equations of motion (model.h) as a System for dynamics/rk4.h. The state is (p, p', r, r')
 // and, with a piezo (kD = 5), the voltage w. Without sensitivities it is of fixed size, so that stepping
 // allocates nothing (Simulate is the hot loop of identification). With them (kSens) it is that state
@@ -664,14 +677,8 @@ class RecordSystem {
     // RK4's second and third stages are at the same time: the input is evaluated once for both.
     if (t != input_t_) r_.in_spline.Eval(t, &input_u_, &input_ud_), input_t_ = t;
     const double u = input_u_, ud = input_ud_;
-    double y, yd, z = 0, zd = 0;
-    if (in_ == InputKind::kBaseDisplacement) {
-      y = x[0] - u, yd = x[1] - ud;
-      if (res_) z = x[2] - x[0], zd = x[3] - x[1];
-    } else {
-      y = x[0], yd = x[1];
-      if (res_) z = x[2], zd = x[3];
-    }
+    double y, yd, z, zd;
+    BodyCoordinates(in_, res_, x[0], x[1], x[2], x[3], u, ud, &y, &yd, &z, &zd);
     double F = 0, Fq = 0, Fv = 0, G = 0, Gq = 0, Gv = 0;
     double phi[kMaxTermParams], pq[kMaxTermParams], pv[kMaxTermParams];
     for (const SimTerm& st : terms_) {
@@ -699,23 +706,9 @@ class RecordSystem {
         if constexpr (kSens) phi_main_[piezo_col_] = -w;
       }
     }
-    // p'' and r'' (a₁, a₃); `inv`: the part divided by the main mass (its derivative by m_main is −inv/m).
-    double a1 = 0, a3 = 0, inv = 0;
-    switch (in_) {
-      case InputKind::kBaseDisplacement:
-        a1 = inv = (-F + G) / mm_;
-        a3 = res_ ? -G / mr_ : a1;
-        break;
-      case InputKind::kBaseAcceleration:
-        inv = (-F + G) / mm_;
-        a1 = inv - u;
-        a3 = res_ ? -G / mr_ - inv : 0.0;
-        break;
-      case InputKind::kForce:
-        a1 = inv = (u - F + G) / mm_;
-        a3 = res_ ? -G / mr_ - a1 : 0.0;
-        break;
-    }
+    // p'' and r''; `inv`: the part divided by the main mass.
+    double a1, a3, inv;
+    Accelerations(in_, res_, F, G, u, mm_, mr_, &a1, &a3, &inv);
     if constexpr (!kSens) {
       // dx written whole: one vector store, which the integrator's next vector load of dx can forward
       // (four scalar stores cannot be, and cost ~4 % of the simulation).
@@ -802,6 +795,25 @@ class RecordSystem {
   mutable double input_t_ = NAN, input_u_ = 0, input_ud_ = 0;  // the input and its slope at time input_t_
 };
 
+// The main output's value at sample i from its state component (`s_oc`, SimulateImpl's oc): relative to the
+// base, or with the base's velocity added, as the setup's frame asks.
+double MainOutputValue(const PreparedRecord& r, const Setup& setup, double s_oc, size_t i) {
+  double value = s_oc;
+  if (setup.input == InputKind::kBaseDisplacement) {
+    if (setup.frame == OutputFrame::kRelative) value -= r.base_x[i];
+  } else if (setup.output == OutputKind::kVelocity && setup.input == InputKind::kBaseAcceleration &&
+             setup.frame == OutputFrame::kAbsolute) {
+    value += r.base_v[i];
+  }
+  return value;
+}
+
+// Output slot k's effects on a model value: (1 + g) value + d (g, d: θ at the slot's scale and offset columns).
+double WithOutputEffects(const SpecialCols& sc, const std::vector<double>& thx, int k, double value) {
+  const double g = sc.scale[k] >= 0 ? thx[sc.scale[k]] : 0.0, d = sc.offset[k] >= 0 ? thx[sc.offset[k]] : 0.0;
+  return (1.0 + g) * value + d;
+}
+
 template <bool kSens, int kD>
 bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
                   const PreparedRecord& r, const Setup& setup, int substeps, int restart_every, SimOutputs* so,
@@ -883,7 +895,7 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   // Output effects of slot k on a model value (and its sensitivity row): (1 + g) value + d.
   auto output_effects = [&](int k, size_t i, double value) {
     if (!any_output_term) return value;
-    const double g = sc.scale[k] >= 0 ? thx[sc.scale[k]] : 0.0, d = sc.offset[k] >= 0 ? thx[sc.offset[k]] : 0.0;
+    const double g = sc.scale[k] >= 0 ? thx[sc.scale[k]] : 0.0;
     if constexpr (kSens) {
       if (sc.scale[k] >= 0) {
         for (int j = 0; j < P; ++j) so->d[k](static_cast<long>(i), j) *= 1.0 + g;
@@ -892,7 +904,7 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
       }
       if (sc.offset[k] >= 0 && P > 0) so->d[k](static_cast<long>(i), sc.offset[k]) = 1.0;
     }
-    return (1.0 + g) * value + d;
+    return WithOutputEffects(sc, thx, k, value);
   };
   // Row i of slot k's sensitivities: component c of every column, plus component c2 when c2 >= 0.
   auto sens_row = [&](int k, size_t i, int c, int c2) {
@@ -903,12 +915,7 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
     }
   };
   auto emit = [&](size_t i) {
-    double value = s[oc];
-    if (in == InputKind::kBaseDisplacement) {
-      if (setup.frame == OutputFrame::kRelative) value -= r.base_x[i];
-    } else if (vel && in == InputKind::kBaseAcceleration && setup.frame == OutputFrame::kAbsolute) {
-      value += r.base_v[i];
-    }
+    double value = MainOutputValue(r, setup, s[oc], i);
     sens_row(0, i, oc, -1);
     value = output_effects(0, i, value);
     so->out[0][i] = value;
@@ -958,6 +965,139 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   return true;
 }
 
+// Plain simulations of W parameter vectors of one model side by side, lane l with *ths[l] (forward-difference
+// columns of the spectral objective): SimulateImpl<false, kD>'s operations — RecordSystem's equations and
+// Rk4's step — lane by lane, so that every lane has the bits of its own scalar simulation (-ffp-contract=off;
+// Identify.LaneSimulationsEqualTheScalarOnes). The record's input is evaluated once for all lanes. Whole
+// records only (no segments, no early stop); `ns` substeps for every lane; false when any lane fails.
+template <int W, int kD>
+bool SimulateLanesImpl(const IdentModel& m, const std::vector<double>* const* ths, const PreparedRecord& r,
+                       const Setup& setup, int ns, SimOutputs* so) {
+  using V = Vec<W>;
+  const size_t n = r.n();
+  for (int l = 0; l < W; ++l)
+    for (int k = 0; k < kOutputSlots; ++k) {
+      so[l].out[k].clear(), so[l].d[k].resize(0, 0), so[l].ds[k].resize(0, 0);
+      if (r.Has(static_cast<OutputSlot>(k))) so[l].out[k].assign(n, NAN);
+    }
+  const bool res = m.HasResonator();
+  if ((res && !(m.m_res > 0)) || ns <= 0) return false;
+  const int P = m.NumParams();
+  std::vector<V> th(static_cast<size_t>(P));
+  V mm, offset, limit_p;
+  for (int l = 0; l < W; ++l) {
+    const std::vector<double>& t = *ths[l];
+    if (static_cast<int>(t.size()) < P) return false;
+    for (double v : t)
+      if (!std::isfinite(v)) return false;
+    mm[l] = m.Mass(t);
+    if (!(mm[l] > 0) || !std::isfinite(mm[l])) return false;
+    for (int j = 0; j < P; ++j) th[static_cast<size_t>(j)][l] = t[static_cast<size_t>(j)];
+    offset[l] = m.Offset(t, r.index);
+    limit_p[l] = 100.0 * (r.p_range + std::abs(r.ic_p[0]) + std::abs(offset[l])) + 1e-12;
+  }
+  std::vector<SimTerm> terms;
+  int col = 0;
+  for (const TermDef* t : m.terms) {
+    if (t->IsForce() && (t->body == Body::kMain || res)) terms.push_back({t, col});
+    col += static_cast<int>(t->params.size());
+  }
+  const SpecialCols sc = FindSpecialCols(m, {}, &setup);
+  const StribeckBasis fb = FrictionBasis(m.fc);
+  const InputKind in = setup.input;
+  const double mr = m.m_res, h = r.dt / ns;
+  double input_t = NAN, input_u = 0, input_ud = 0;
+  // RecordSystem::operator() without sensitivities.
+  auto f = [&](double t, const V* x, V* dx) BISTABLE_INLINE_LAMBDA {
+    if (t != input_t) r.in_spline.Eval(t, &input_u, &input_ud), input_t = t;
+    const double u = input_u, ud = input_ud;
+    V y, yd, z, zd;
+    BodyCoordinates(in, res, x[0], x[1], x[2], x[3], u, ud, &y, &yd, &z, &zd);
+    V F{}, G{};
+    for (const SimTerm& st : terms) {
+      const bool main = st.t->body == Body::kMain;
+      V phi[kMaxTermParams];
+      TermBasisSlopes<V>(*st.t, main ? y : z, main ? yd : zd, fb, phi, nullptr, nullptr);
+      V fs{};
+      for (size_t j = 0; j < st.t->params.size(); ++j) fs += th[static_cast<size_t>(st.col) + j] * phi[j];
+      if (main) F += fs;
+      else G += fs;
+    }
+    V wdot{};
+    if constexpr (kD == 5) {
+      if (sc.piezo >= 0) {
+        const V w = x[4], pa = th[static_cast<size_t>(sc.piezo)], pb = th[static_cast<size_t>(sc.piezo) + 1],
+                  pc = th[static_cast<size_t>(sc.piezo) + 2];
+        F += -pa * w;
+        wdot = -pb * w - pc * yd;
+      }
+    }
+    V a1, a3, inv;
+    Accelerations(in, res, F, G, u, mm, mr, &a1, &a3, &inv);
+    dx[0] = x[1], dx[1] = a1, dx[2] = x[3], dx[3] = a3;
+    if constexpr (kD == 5) dx[4] = wdot;
+  };
+  // Rk4::Step on Eigen vectors, component by component.
+  V s[kD], k1[kD], k2[kD], k3[kD], k4[kD], tmp[kD];
+  auto step = [&](double t) BISTABLE_INLINE_LAMBDA {
+    f(t, s, k1);
+    for (int c = 0; c < kD; ++c) tmp[c] = s[c] + (0.5 * h) * k1[c];
+    f(t + 0.5 * h, tmp, k2);
+    for (int c = 0; c < kD; ++c) tmp[c] = s[c] + (0.5 * h) * k2[c];
+    f(t + 0.5 * h, tmp, k3);
+    for (int c = 0; c < kD; ++c) tmp[c] = s[c] + h * k3[c];
+    f(t + h, tmp, k4);
+    for (int c = 0; c < kD; ++c) s[c] += (h / 6.0) * (k1[c] + 2.0 * k2[c] + 2.0 * k3[c] + k4[c]);
+  };
+  s[0] = r.ic_p[0] + offset;
+  s[1] = Splat<W>(r.ic_pd[0]);
+  s[2] = Splat<W>(res && !r.ic_r.empty() ? r.ic_r[0] : (in == InputKind::kBaseDisplacement ? r.ic_p[0] : 0.0));
+  s[3] = Splat<W>(res && !r.ic_rd.empty() ? r.ic_rd[0] : (in == InputKind::kBaseDisplacement ? r.ic_pd[0] : 0.0));
+  if constexpr (kD == 5) s[4] = Splat<W>(r.ic_w.empty() ? 0.0 : r.ic_w[0]);
+  const int oc = in != InputKind::kBaseDisplacement && setup.output == OutputKind::kVelocity ? 1 : 0;
+  const bool res_plus_p = in != InputKind::kBaseDisplacement;
+  bool any_output_term = false;
+  for (int k = 0; k < kOutputSlots; ++k) any_output_term = any_output_term || sc.offset[k] >= 0 || sc.scale[k] >= 0;
+  auto effects = [&](int l, int k, double value) {
+    return any_output_term ? WithOutputEffects(sc, *ths[l], k, value) : value;
+  };
+  auto emit = [&](size_t i) {
+    for (int l = 0; l < W; ++l) {
+      so[l].out[0][i] = effects(l, 0, MainOutputValue(r, setup, s[oc][l], i));
+      if (!so[l].out[1].empty() && res) so[l].out[1][i] = effects(l, 1, res_plus_p ? s[2][l] + s[0][l] : s[2][l]);
+      if (!so[l].out[2].empty()) {
+        double w = 0;
+        if constexpr (kD == 5) w = s[4][l];
+        so[l].out[2][i] = effects(l, 2, w);
+      }
+    }
+  };
+  emit(0);
+  for (size_t i = 1; i < n; ++i) {
+    if (CancelRequested()) [[unlikely]] return false;
+    for (int sub = 0; sub < ns; ++sub) step(r.t0 + static_cast<double>(i - 1) * r.dt + sub * h);
+    for (int l = 0; l < W; ++l) {
+      if (!std::isfinite(s[0][l]) || !std::isfinite(s[1][l]) || std::abs(s[0][l]) > limit_p[l]) return false;
+      if constexpr (kD == 5)
+        if (!std::isfinite(s[4][l])) return false;
+    }
+    emit(i);
+  }
+  return true;
+}
+
+template <int W>
+bool SimulateLanesOf(const IdentModel& m, const std::vector<const std::vector<double>*>& ths, const PreparedRecord& r,
+                     const Setup& setup, int substeps, std::vector<SimOutputs>* outs) {
+  const std::vector<double>* lanes[W];
+  for (int l = 0; l < W; ++l) lanes[l] = ths[std::min<size_t>(static_cast<size_t>(l), ths.size() - 1)];  // padding: the last
+  SimOutputs so[W];
+  const bool ok = m.PiezoIndex() >= 0 ? SimulateLanesImpl<W, 5>(m, lanes, r, setup, substeps, so)
+                                      : SimulateLanesImpl<W, 4>(m, lanes, r, setup, substeps, so);
+  for (size_t l = 0; l < ths.size(); ++l) (*outs)[l] = std::move(so[l]);
+  return ok;
+}
+
 }  // namespace
 
 std::array<double, kStateDim> MeasuredState(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r,
@@ -986,6 +1126,18 @@ bool SimulateOutputs(const IdentModel& m, const std::vector<double>& th, const s
   }
   return piezo ? SimulateImpl<false, 5>(m, th, {}, r, setup, substeps, restart_every, out, stop, segments)
                : SimulateImpl<false, 4>(m, th, {}, r, setup, substeps, restart_every, out, stop, segments);
+}
+
+bool SimulateOutputsLanes(const IdentModel& m, const std::vector<const std::vector<double>*>& ths, const PreparedRecord& r,
+                          const Setup& setup, int substeps, std::vector<SimOutputs>* outs) {
+  outs->assign(ths.size(), SimOutputs{});
+  if (ths.empty() || ths.size() > static_cast<size_t>(kMaxSimLanes)) return false;
+  for (const std::vector<double>* t : ths)
+    if (!t) return false;
+  if (ths.size() == 1) return SimulateOutputs(m, *ths[0], {}, r, setup, substeps, 0, false, &(*outs)[0]);
+  if (ths.size() == 2) return SimulateLanesOf<2>(m, ths, r, setup, substeps, outs);
+  if (ths.size() <= 4) return SimulateLanesOf<4>(m, ths, r, setup, substeps, outs);
+  return SimulateLanesOf<8>(m, ths, r, setup, substeps, outs);
 }
 
 bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
@@ -18,6 +19,7 @@
 #include "base/beside.h"
 #include "identify/loop.h"
 #include "identify/synthetic.h"
+#include "tests/identify_synthetic.h"
 #include "tests/process_util.h"
 
 namespace bistable {
@@ -260,6 +262,76 @@ TEST(Identify, ForwardDifferencesEqualCeresToTheBit) {
     ASSERT_TRUE(SpectralForwardJacobian(m, scale, u, {*p}, bistable::Setup{}, {2}, threads, false, &r, &j));
     EXPECT_EQ(r, r_ref) << threads;
     EXPECT_EQ(j, j_ref) << threads;
+  }
+}
+
+// The spectral objective's forward-difference columns run side by side in SIMD lanes: every lane must give
+// the bits of its own scalar simulation, at every pack width (2, 4, 8 lanes; padded packs), for every force
+// term kind, the piezo and output terms (the harvester's form), and a resonator under base displacement
+// with friction on both bodies (the coupled rig's form).
+void ExpectLanesEqualScalar(const IdentModel& m, const PreparedRecord& r, const bistable::Setup& s) {
+  const int sub = SubstepsFor(m, m.theta, r);
+  for (int lanes : {2, 3, 5, 8}) {
+    SCOPED_TRACE(std::to_string(lanes) + " lanes");
+    std::vector<std::vector<double>> ths(static_cast<size_t>(lanes), m.theta);
+    for (int l = 1; l < lanes; ++l) {  // lane l moves parameter l − 1 (a model's column), lane 0 at θ
+      const size_t j = static_cast<size_t>(l - 1) % ths[0].size();
+      ths[static_cast<size_t>(l)][j] += std::max(1e-8, std::abs(ths[0][j]) * 1e-3);
+    }
+    std::vector<const std::vector<double>*> ptrs;
+    for (const auto& th : ths) ptrs.push_back(&th);
+    std::vector<SimOutputs> outs;
+    ASSERT_TRUE(SimulateOutputsLanes(m, ptrs, r, s, sub, &outs));
+    ASSERT_EQ(outs.size(), ths.size());
+    for (int l = 0; l < lanes; ++l) {
+      SimOutputs one;
+      ASSERT_TRUE(SimulateOutputs(m, ths[static_cast<size_t>(l)], {}, r, s, sub, 0, false, &one));
+      for (int k = 0; k < kOutputSlots; ++k) {
+        ASSERT_EQ(outs[static_cast<size_t>(l)].out[k].size(), one.out[k].size()) << "lane " << l << " slot " << k;
+        for (size_t i = 0; i < one.out[k].size(); ++i)
+          ASSERT_EQ(std::memcmp(&outs[static_cast<size_t>(l)].out[k][i], &one.out[k][i], sizeof(double)), 0)
+              << "lane " << l << " slot " << k << " sample " << i << ": " << outs[static_cast<size_t>(l)].out[k][i]
+              << " vs " << one.out[k][i];
+      }
+      if (l > 0) EXPECT_NE(outs[static_cast<size_t>(l)].out[0], outs[0].out[0]) << "lane " << l << " did not move";
+    }
+  }
+  // A lane that diverges fails the pack.
+  std::vector<double> bad = m.theta;
+  bad[0] = NAN;
+  std::vector<SimOutputs> outs;
+  EXPECT_FALSE(SimulateOutputsLanes(m, {&m.theta, &bad}, r, s, sub, &outs));
+}
+
+TEST(Identify, LaneSimulationsEqualTheScalarOnes) {
+  {
+    SCOPED_TRACE("harvester form: every force term kind, piezo, output terms");
+    IdentModel m = bistable_test::Model(
+        "main.linear,main.stiffness_y2,main.stiffness_y3,main.stiffness_y5,main.viscous,main.damping_y2,main.damping_v3,"
+        "main.drag,main.friction,main.bias,main.piezo,out.velocity.scale,out.voltage.offset",
+        {900.0, 2e4, 1.3e8, 1e12, 0.6, 5e3, 10.0, 2.0, 0.05, 0.02, 0.01, -130.0, 7.0, -9.0, 0.02, 1e-3});
+    const PreparedRecord r = bistable_test::SyntheticRecord(bistable_test::Model("main.linear,main.stiffness_y3,main.viscous,main.piezo",
+                                                                                 {900.0, 1.3e8, 0.6, -130.0, 7.0, -9.0}),
+                                                            1.0, 640);
+    ExpectLanesEqualScalar(m, r, bistable_test::HarvesterSetup());
+  }
+  {
+    SCOPED_TRACE("coupled rig form: resonator, base displacement, friction on both bodies");
+    DimensionalParams p = DimensionalParams::LinearTable2();
+    p.has_resonator = true;
+    SyntheticOptions o;
+    o.a0_m = 0.010, o.duration_s = 2;
+    auto rec = MakeSyntheticRecord(p, o, "coupled");
+    ASSERT_TRUE(rec.ok()) << rec.status().ToString();
+    bistable::Setup s;
+    auto r = PrepareRecord(*rec, s, 0, rec->t.size(), 0.0, rec->name);
+    ASSERT_TRUE(r.ok()) << r.status().ToString();
+    ASSERT_TRUE(r->Has(OutputSlot::kResonator));
+    IdentModel m;
+    m.terms = *ParseTerms("main.linear,main.viscous,main.damping_y2,main.friction,res.linear,res.viscous,res.friction");
+    m.m_main = 0.282, m.m_res = 0.62;
+    m.theta = {484.9, 3.2, 8.9e3, 1.2, 0.65, 636.6, 1.0, 1.4, 0.59};
+    ExpectLanesEqualScalar(m, *r, s);
   }
 }
 
