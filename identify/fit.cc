@@ -1037,9 +1037,15 @@ struct FitStages {
       }
     return std::isfinite(sse) ? sse : 1e30;
   }
-  double SumOfSquares(const std::vector<double>& u, const std::vector<int>& sub) {
+  // Σ r² of the short-horizon simulation error (segments of opt.shooting_horizon_s) at u; 1e30 on divergence.
+  double ShortHorizonCost(const std::vector<double>& u) {
+    return SumOfSquares(u, FixedSubsteps(m, Theta(u), recs), opt.shooting_horizon_s);
+  }
+  // `horizon_s` ≥ 0: the simulation error with restarts every horizon_s instead of the cost's own.
+  double SumOfSquares(const std::vector<double>& u, const std::vector<int>& sub, double horizon_s = -1) {
     SimCost c = cost;
     c.substeps = sub;
+    if (horizon_s >= 0) c.horizon_s = horizon_s;
     const double* pp = u.data();
     if (!c(&pp, buf.data())) return 1e30;
     AddSimulations(&result.simulations, 1);
@@ -1300,20 +1306,43 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
     // smoothed sign). On the coupled rig (docs/identification.md) the declared law's short-horizon cost
     // stops this stage after a few iterations in a basin with the static peak below the Coulomb level
     // (full error 3.1 %), at v_t · 1.5 too; at v_t · 1.9 and · 2.5 it runs on to the truth's basin, from which
-    // the full-error stage with the declared law converges (1.08 %), while at v_t · 4 the law itself is too
-    // far from the declared one. The scaled parameters u are the same for both models (same start, same scale).
-    IdentModel smoothed = m;
+    // the full-error stage with the declared law converges (1.08 %). The scaled parameters u are the same for
+    // every law (same start, same scale).
     bool smooth = false;
     for (const TermDef* t : m.terms) smooth = smooth || t->kind == TermKind::kFriction;
-    smooth = smooth && opt.shooting_friction_smoothing > 1;
-    if (smooth) smoothed.fc.v_t *= opt.shooting_friction_smoothing;
+    auto smoothed = [&](double factor) {
+      IdentModel sm = m;
+      if (smooth && factor > 1) sm.fc.v_t *= factor;
+      return sm;
+    };
+    // Two smoothings: which basin the short-horizon stage reaches depends on the smoothing and on the noise
+    // realisation. On five records of the coupled rig with 0.01 mm more noise, × 2.5 alone reached the truth's
+    // basin on three; × 3.5 reached it on the record where × 2.5 ended in the wrong basin (full error 2.68 →
+    // 1.10 %; docs/identification.md, "Session 16"). Both stages run side by side; the first law's
+    // short-horizon cost at the two results picks the start of the full-error stage (there the wrong basin
+    // costs 1.8× the right one; the declared law's cost, 4 % apart, cannot tell them).
+    const double second = opt.shooting_friction_smoothing_second;
+    const bool two = smooth && opt.shooting_friction_smoothing > 1 && second > 1 && second != opt.shooting_friction_smoothing;
     auto shoot = [&](FitStages& st) {
       // This stage finds the basin; the next one converges in it. So it stops once an iteration gains
       // less than 1e-4 of the cost: with friction its tail crawls (on the synthetic c2 refit 47 of 53
       // iterations gained 0.6 % together, 8 of the fit's 18 s) and the full-error stage polishes anyway.
-      FitStages basin(smoothed, scale_in, recs, setup, opt);
-      stage(basin, "shooting", [&] { return basin.LocalStage(f, Objective::kTime, opt.shooting_horizon_s, 1e-4); });
-      AddSimulations(&st.result.simulations, basin.result.simulations);
+      const IdentModel law1 = smoothed(opt.shooting_friction_smoothing), law2 = smoothed(second);
+      FitStages basin1(law1, scale_in, recs, setup, opt), basin2(law2, scale_in, recs, setup, opt);
+      auto basin_stage = [&](FitStages& basin, std::vector<double>* x, const char* name) {
+        stage(basin, name, [&] { return basin.LocalStage(*x, Objective::kTime, opt.shooting_horizon_s, 1e-4); });
+      };
+      if (two) {
+        std::vector<double> f2 = f;
+        RunBeside([&] { basin_stage(basin2, &f2, "shooting-2nd"); }, [&] { basin_stage(basin1, &f, "shooting-1st"); });
+        const double c1 = basin1.ShortHorizonCost(f), c2 = basin1.ShortHorizonCost(f2);
+        if (debug) std::fprintf(stderr, "fit short-horizon Σr² under the first law: %.6g (1st) %.6g (2nd)\n", c1, c2);
+        if (c2 < c1) f = f2;
+        AddSimulations(&st.result.simulations, basin2.result.simulations);
+      } else {
+        basin_stage(basin1, &f, "shooting");
+      }
+      AddSimulations(&st.result.simulations, basin1.result.simulations);
       fc = stage(st, "lm-after-shoot", [&] { return st.LocalStage(f, Objective::kTime); });
     };
     // The two starts are independent. When the records leave a core idle (one record, whose simulation
