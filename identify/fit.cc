@@ -898,8 +898,11 @@ class ForwardDiffFunction : public ceres::DynamicCostFunction {
     const int p = parameter_block_sizes()[0], n = num_residuals();
     const double* u = params[0];
     const double min_step = std::sqrt(std::numeric_limits<double>::epsilon());
-    // Simulation 0 at u (the residuals), simulation j + 1 at u + δ_j e_j (column j); each thread's share
-    // of them side by side in SIMD lanes (SimCost::LaneResiduals: every lane the bits of its own simulation).
+    // Simulation 0 at u (the residuals), simulation j + 1 at u + δ_j e_j (column j), side by side in SIMD
+    // lanes (SimCost::LaneResiduals: every lane the bits of its own simulation), packs of up to kMaxSimLanes
+    // spread over the threads. A pack of 4 lanes costs about one scalar simulation, one of 8 about 1.3
+    // (build/bench/bench_identify_lanes), so up to 8 simulations take one pack on one thread and leave the
+    // other cores to the work beside (a refit's second start).
     const int sims = p + 1;
     std::vector<std::vector<double>> us(static_cast<size_t>(sims), std::vector<double>(u, u + p));
     std::vector<double> delta(static_cast<size_t>(p));
@@ -908,7 +911,7 @@ class ForwardDiffFunction : public ceres::DynamicCostFunction {
       us[j + 1][j] = u[j] + delta[j];
     }
     const int threads = std::min(threads_, sims);
-    const int width = std::min(kMaxSimLanes, (sims + threads - 1) / threads), packs = (sims + width - 1) / width;
+    const int width = std::min(kMaxSimLanes, sims), packs = (sims + width - 1) / width;
     std::vector<std::vector<double>> r(static_cast<size_t>(sims));
     std::atomic<int> next{0};
     std::atomic<bool> ok{true};
@@ -920,7 +923,7 @@ class ForwardDiffFunction : public ceres::DynamicCostFunction {
           std::vector<const double*> lanes;
           for (int l = k * width; l < std::min(sims, (k + 1) * width); ++l) lanes.push_back(us[l].data());
           // The packs are the parallelism when there are several (Residuals does not depend on threads).
-          if (!c_.LaneResiduals(lanes, &r[static_cast<size_t>(k * width)], threads > 1 ? 1 : c_.threads)) {
+          if (!c_.LaneResiduals(lanes, &r[static_cast<size_t>(k * width)], std::min(threads, packs) > 1 ? 1 : c_.threads)) {
             ok = false;
             return;
           }
@@ -933,7 +936,7 @@ class ForwardDiffFunction : public ceres::DynamicCostFunction {
     };
     std::vector<std::thread> pool;
     try {
-      for (int t = 1; t < std::min(threads, packs); ++t) pool.emplace_back(work);
+      for (int t = 1; t < std::min(threads, packs); ++t) pool.emplace_back(work);  // packs > 1: more than 8 simulations
     } catch (...) {  // no thread to be had: the packs left run on this one
     }
     work();
