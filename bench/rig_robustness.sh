@@ -6,7 +6,8 @@
 # friction forces against the truth (main F_s 1.2, F_c 0.44; resonator F_s 1.4, F_c 0.59). The noise floor
 # is ≈ 1.10 %; a fit above ≈ 1.15 % stopped in another minimum. Run it alone (2 cores: each fit uses both).
 #   bench/rig_robustness.sh BISTABLE [SEEDS] [--whole-loop]
-# --whole-loop: the whole loop (trace and refits) instead of the declared fit only.
+# --whole-loop: the whole loop (trace and refits) instead of the declared fit only. Needs /usr/bin/python3 with
+# numpy (Debian python3-numpy, installed by scripts/setup.sh) and /usr/bin/time.
 set -euo pipefail
 BIN=${1:?usage: bench/rig_robustness.sh BISTABLE [SEEDS] [--whole-loop]}
 SEEDS=${2:-5}
@@ -42,7 +43,9 @@ PYEOF
 import json, sys
 d = json.load(open(sys.argv[1]))
 p = d["params"]
-print("%-5s %9.4f %8s %8.4f %8.4f %8.4f %8.4f  %s" % (sys.argv[2], d["error_after"], sys.argv[3], p["main.friction.F_s"],
-      p["main.friction.F_c"], p["res.friction.F_s"], p["res.friction.F_c"], [e["term"] for e in d["effects_added"]]))
+g = lambda v: "null" if v is None else "%.4f" % v  # JSON null: not finite
+print("%-5s %9s %8s %8s %8s %8s %8s  %s" % (sys.argv[2], g(d["error_after"]), sys.argv[3], g(p.get("main.friction.F_s")),
+      g(p.get("main.friction.F_c")), g(p.get("res.friction.F_s")), g(p.get("res.friction.F_c")),
+      [e["term"] for e in d["effects_added"]]))
 PYEOF
 done

@@ -105,7 +105,7 @@ struct StribeckBasis {
     constexpr int W = sizeof(T) / sizeof(double);
     const T u = v / v_sp, x = 0.5 - 0.5 * u * u;
     // Sliding fast (|v| ≳ 39 v_sp) the hump's exponent is below −746, where Exp returns +0: skipped when
-    // every lane is there.
+    // every lane is there (lanes there in a mixed pack get that +0 from Exp: the same bits).
     T e{};
     if constexpr (W == 1 && std::is_floating_point_v<T>) {
       if (!(x <= -746.0)) e = Exp<1>(Vec<1>{x})[0];

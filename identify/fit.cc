@@ -282,8 +282,8 @@ struct ShootCache {
 
 // one(i) for every record i < n, on up to `cpus` threads (records dealt round robin).
 template <class F>
-void ForEachRecord(size_t n, int cpus, const F& one) {
-  const size_t nt = std::min<size_t>(n, static_cast<size_t>(std::max(1, cpus)));
+void ForEachRecord(size_t n, int cpus, const F& one) {  // cpus ≤ 0: all usable
+  const size_t nt = std::min<size_t>(n, static_cast<size_t>(cpus > 0 ? cpus : UsableCpus()));
   if (nt <= 1) {
     for (size_t i = 0; i < n; ++i) one(i);
     return;
@@ -821,10 +821,19 @@ struct SimCost {
   }
   // The residuals at several scaled points u side by side (rs[l] for us[l]), records on `threads`: each record's
   // simulations in SIMD lanes (SimulateOutputsLanes) where they run the same substeps, one by one otherwise.
-  // Whole-record objectives only (no horizon, no segment states).
+  // (Short horizons and segment states: one point after the other, through operator().)
   bool LaneResiduals(const std::vector<const double*>& us, std::vector<double>* rs, int threads) const {
-    assert(horizon_s == 0 && !warm && obj != Objective::kShooting);
     const size_t L = us.size();
+    if (horizon_s != 0 || warm || obj == Objective::kShooting) {  // segments: one evaluation at a time
+      SimCost c = *this;
+      c.threads = threads;
+      for (size_t l = 0; l < L; ++l) {
+        rs[l].assign(NumResiduals(*recs, obj), 0.0);
+        const double* pp[1] = {us[l]};
+        if (!c(pp, rs[l].data())) return false;
+      }
+      return true;
+    }
     std::vector<std::vector<double>> ths;
     for (const double* u : us) ths.push_back(Theta(u));
     std::vector<Sims> sims(L);
@@ -885,9 +894,9 @@ class SimCostFunction : public ceres::DynamicCostFunction {
 
 // The spectral objective's forward-difference Jacobian: the arithmetic of Ceres'
 // DynamicNumericDiffCostFunction<FORWARD> (step max(√ε, 1e-6 |u_j|), (r(u + δ e_j) − r(u)) · (1/δ)), so
-// the same bits (Identify.ForwardDifferencesEqualCeresToTheBit), with the columns' simulations spread over
-// the CPUs the records leave idle: with one record a simulation uses one core, and the p columns are
-// independent. The residuals at u are computed as before (records over the cost's threads).
+// the same bits (Identify.ForwardDifferencesEqualCeresToTheBit). The residuals at u and the p columns'
+// simulations run side by side in SIMD lanes, packs of up to kMaxSimLanes; more than one pack spread over
+// `column_threads` (the CPUs the records leave idle), one pack with the records over the cost's threads.
 class ForwardDiffFunction : public ceres::DynamicCostFunction {
  public:
   ForwardDiffFunction(SimCost c, int column_threads) : c_(std::move(c)), threads_(std::max(1, column_threads)) {
@@ -1135,7 +1144,7 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
     if (lc.warm) lc.warm = std::make_shared<ShootCache>();
     ceres::DynamicCostFunction* fn = nullptr;
     if (obj != Objective::kFft) fn = new SimCostFunction(lc);
-    else {  // the CPUs the records leave idle compute columns
+    else {  // the CPUs the records leave idle take packs of columns (more than 8 simulations)
       const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
       fn = new ForwardDiffFunction(lc, recs.size() < static_cast<size_t>(cpus) ? cpus : 1);
     }
@@ -1330,12 +1339,14 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
       // This stage finds the basin; the next one converges in it. So it stops once an iteration gains
       // less than 1e-4 of the cost: with friction its tail crawls (on the synthetic c2 refit 47 of 53
       // iterations gained 0.6 % together, 8 of the fit's 18 s) and the full-error stage polishes anyway.
-      const IdentModel law1 = smoothed(opt.shooting_friction_smoothing), law2 = smoothed(second);
-      FitStages basin1(law1, scale_in, recs, setup, opt), basin2(law2, scale_in, recs, setup, opt);
+      const IdentModel law1 = smoothed(opt.shooting_friction_smoothing);  // FitStages hold a reference
+      FitStages basin1(law1, scale_in, recs, setup, opt);
       auto basin_stage = [&](FitStages& basin, std::vector<double>* x, const char* name) {
         stage(basin, name, [&] { return basin.LocalStage(*x, Objective::kTime, opt.shooting_horizon_s, 1e-4); });
       };
       if (two) {
+        const IdentModel law2 = smoothed(second);
+        FitStages basin2(law2, scale_in, recs, setup, opt);
         std::vector<double> f2 = f;
         RunBeside([&] { basin_stage(basin2, &f2, "shooting-2nd"); }, [&] { basin_stage(basin1, &f, "shooting-1st"); });
         const double c1 = basin1.ShortHorizonCost(f), c2 = basin1.ShortHorizonCost(f2);

@@ -1134,6 +1134,7 @@ bool SimulateOutputsLanes(const IdentModel& m, const std::vector<const std::vect
   if (ths.empty() || ths.size() > static_cast<size_t>(kMaxSimLanes)) return false;
   for (const std::vector<double>* t : ths)
     if (!t) return false;
+  if (substeps <= 0) return false;
   if (ths.size() == 1) return SimulateOutputs(m, *ths[0], {}, r, setup, substeps, 0, false, &(*outs)[0]);
   if (ths.size() == 2) return SimulateLanesOf<2>(m, ths, r, setup, substeps, outs);
   if (ths.size() <= 4) return SimulateLanesOf<4>(m, ths, r, setup, substeps, outs);

@@ -246,9 +246,10 @@ TEST(RunBeside, BothFinishAndTheFirstErrorReachesTheCaller) {
 }
 
 TEST(Identify, ForwardDifferencesEqualCeresToTheBit) {
-  // The spectral objective's Jacobian as the fits compute it (columns on 1 or 3 threads) against Ceres' own
-  // DynamicNumericDiffCostFunction<FORWARD>: the same step and arithmetic, so the same bits — including a
-  // parameter at 0 (Ceres' √ε floor of the step).
+  // The spectral objective's Jacobian as the fits compute it (the point and its columns in lane packs) against
+  // Ceres' own DynamicNumericDiffCostFunction<FORWARD>: the same step and arithmetic, so the same bits —
+  // including a parameter at 0 (Ceres' √ε floor of the step). p + 1 ≤ 8: one pack; below, 10 simulations in two
+  // packs on 1 or 3 threads, with one record and with two (records over the threads).
   Record rec = Chirps(0.05e-3)[0];
   auto p = PrepareRecord(rec, bistable::Setup{}, 0, 2 * 120, 0.0, rec.name);  // the first 2 s
   ASSERT_TRUE(p.ok()) << p.status().ToString();
@@ -263,6 +264,24 @@ TEST(Identify, ForwardDifferencesEqualCeresToTheBit) {
     EXPECT_EQ(r, r_ref) << threads;
     EXPECT_EQ(j, j_ref) << threads;
   }
+  Record rec2 = Chirps(0.05e-3)[1];
+  auto p2 = PrepareRecord(rec2, bistable::Setup{}, 0, 2 * 120, 0.0, rec2.name);
+  ASSERT_TRUE(p2.ok()) << p2.status().ToString();
+  const IdentModel m9 = Declared("main.linear,main.stiffness_y2,main.stiffness_y3,main.viscous,main.damping_y2,"
+                                 "main.damping_v3,main.drag,main.friction");
+  const std::vector<double> scale9 = {400.0, 1e3, 1e5, 2.0, 1e4, 10.0, 5.0, 1.0, 0.5};
+  const std::vector<double> u9 = {1.1, 0.1, 0.2, 0.9, 0.7, 0.05, 0.1, 0.8, 0.3};
+  for (const std::vector<PreparedRecord>& recs : {std::vector<PreparedRecord>{*p}, std::vector<PreparedRecord>{*p, *p2}}) {
+    const std::vector<int> sub(recs.size(), 2);
+    ASSERT_TRUE(SpectralForwardJacobian(m9, scale9, u9, recs, bistable::Setup{}, sub, 1, true, &r_ref, &j_ref));
+    ASSERT_EQ(j_ref.size(), r_ref.size() * 9);
+    for (int threads : {1, 3}) {
+      SCOPED_TRACE(std::to_string(recs.size()) + " records, " + std::to_string(threads) + " threads");
+      ASSERT_TRUE(SpectralForwardJacobian(m9, scale9, u9, recs, bistable::Setup{}, sub, threads, false, &r, &j));
+      EXPECT_EQ(r, r_ref);
+      EXPECT_EQ(j, j_ref);
+    }
+  }
 }
 
 // The spectral objective's forward-difference columns run side by side in SIMD lanes: every lane must give
@@ -271,7 +290,7 @@ TEST(Identify, ForwardDifferencesEqualCeresToTheBit) {
 // with friction on both bodies (the coupled rig's form).
 void ExpectLanesEqualScalar(const IdentModel& m, const PreparedRecord& r, const bistable::Setup& s) {
   const int sub = SubstepsFor(m, m.theta, r);
-  for (int lanes : {2, 3, 5, 8}) {
+  for (int lanes : {2, 3, 4, 5, 7, 8}) {
     SCOPED_TRACE(std::to_string(lanes) + " lanes");
     std::vector<std::vector<double>> ths(static_cast<size_t>(lanes), m.theta);
     for (int l = 1; l < lanes; ++l) {  // lane l moves parameter l − 1 (a model's column), lane 0 at θ
@@ -293,14 +312,22 @@ void ExpectLanesEqualScalar(const IdentModel& m, const PreparedRecord& r, const 
               << "lane " << l << " slot " << k << " sample " << i << ": " << outs[static_cast<size_t>(l)].out[k][i]
               << " vs " << one.out[k][i];
       }
-      if (l > 0) EXPECT_NE(outs[static_cast<size_t>(l)].out[0], outs[0].out[0]) << "lane " << l << " did not move";
+      if (l > 0) {
+        EXPECT_NE(outs[static_cast<size_t>(l)].out[0], outs[0].out[0]) << "lane " << l << " did not move";
+      }
     }
   }
-  // A lane that diverges fails the pack.
-  std::vector<double> bad = m.theta;
+  // A lane whose parameters are not finite, or whose simulation diverges during the record (a strongly negative
+  // linear stiffness), fails the pack; so does a pack without substeps.
+  std::vector<double> bad = m.theta, runaway = m.theta;
   bad[0] = NAN;
+  runaway[0] = -1e3 * std::abs(m.theta[0]) - 1e6;
   std::vector<SimOutputs> outs;
   EXPECT_FALSE(SimulateOutputsLanes(m, {&m.theta, &bad}, r, s, sub, &outs));
+  SimOutputs alone;
+  EXPECT_FALSE(SimulateOutputs(m, runaway, {}, r, s, sub, 0, false, &alone));  // the scalar fails too
+  EXPECT_FALSE(SimulateOutputsLanes(m, {&m.theta, &runaway, &m.theta}, r, s, sub, &outs));
+  EXPECT_FALSE(SimulateOutputsLanes(m, {&m.theta, &m.theta}, r, s, 0, &outs));
 }
 
 TEST(Identify, LaneSimulationsEqualTheScalarOnes) {
@@ -332,6 +359,14 @@ TEST(Identify, LaneSimulationsEqualTheScalarOnes) {
     m.m_main = 0.282, m.m_res = 0.62;
     m.theta = {484.9, 3.2, 8.9e3, 1.2, 0.65, 636.6, 1.0, 1.4, 0.59};
     ExpectLanesEqualScalar(m, *r, s);
+    SCOPED_TRACE("relative frame");
+    s.frame = OutputFrame::kRelative;
+    ExpectLanesEqualScalar(m, *r, s);
+    SCOPED_TRACE("force input: the resonator's output is r + p");
+    s.input = InputKind::kForce, s.frame = OutputFrame::kAbsolute;
+    auto rf = PrepareRecord(*rec, s, 0, rec->t.size(), 0.0, rec->name);
+    ASSERT_TRUE(rf.ok()) << rf.status().ToString();
+    ExpectLanesEqualScalar(m, *rf, s);
   }
 }
 
