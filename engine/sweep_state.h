@@ -46,6 +46,8 @@ struct SweepInfo {
   double seconds = 0;      // since submission (or total, when done)
   std::string file;        // published map, relative to the data dir
   std::string error;       // last storage / publication failure ("" once a report is stored again)
+  double created = 0;      // unix seconds: first submitted
+  double finished = 0;     // unix seconds: published (0 until done)
 };
 
 // What a coordinator tells about a worker (`bistable workers`; the wire's WorkerStatus).

@@ -15,6 +15,8 @@ void ToProto(const SweepInfo& i, v1::SweepStatus* s) {
   s->set_model(i.model);
   s->set_error(i.error);
   s->set_owner(i.owner);
+  s->set_created(i.created);
+  s->set_finished(i.finished);
 }
 
 SweepInfo FromProto(const v1::SweepStatus& s) {
@@ -31,6 +33,8 @@ SweepInfo FromProto(const v1::SweepStatus& s) {
   i.model = s.model();
   i.error = s.error();
   i.owner = s.owner();
+  i.created = s.created();
+  i.finished = s.finished();
   return i;
 }
 

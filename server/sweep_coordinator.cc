@@ -918,7 +918,8 @@ namespace {
 
 // A sweep that is not active in this process, as its index row says.
 SweepInfo InfoOfRow(const SweepRow& r) {
-  return SweepInfo{r.id, r.name, r.model, r.owner, r.state, r.items_total, r.items_done, 0, 0, r.seconds, r.file, ""};
+  return SweepInfo{r.id, r.name, r.model, r.owner, r.state, r.items_total, r.items_done, 0, 0, r.seconds, r.file, "",
+                   r.created, r.finished};
 }
 
 }  // namespace
@@ -933,7 +934,8 @@ std::map<std::string, int> SweepCoordinator::LeaseHoldersLocked() const {
 
 SweepInfo SweepCoordinator::InfoLocked(const Sweep& s, const std::map<std::string, int>& holders) const {
   SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.owner, s.row.state, s.row.items_total, s.items_done, s.items_cached, 0,
-                 s.row.state == SweepState::kDone ? s.row.seconds : Clock() - s.started, s.row.file, ""};
+                 s.row.state == SweepState::kDone ? s.row.seconds : Clock() - s.started, s.row.file, "", s.row.created,
+                 s.row.state == SweepState::kDone ? s.row.finished : 0.0};
   if (info.state == SweepState::kRunning && !s.any_leased && s.items_done == s.items_cached) info.state = SweepState::kQueued;
   if (s.cancelled) info.state = SweepState::kCancelled;
   info.error = s.error;

@@ -5,6 +5,7 @@
 #include <sys/socket.h>
 
 #include <atomic>
+#include <ctime>
 #include <functional>
 #include <future>
 #include <mutex>
@@ -21,6 +22,7 @@
 #include "net/http_server.h"
 #include "proto/health.h"
 #include "tests/http_client.h"
+#include "tests/iso_time_parse.h"
 #include "tests/process_util.h"
 
 namespace {
@@ -150,13 +152,16 @@ struct Service {
   // Submits kSpec and waits for it; the submit reply.
   nlohmann::json RunSweep() const {
     std::ofstream(dir + "/spec.toml") << kSpec;
+    submitted_at = static_cast<double>(std::time(nullptr));
     const ExecResult sub = Cli({"submit", dir + "/spec.toml", "--json"});
     EXPECT_EQ(sub.exit_code, 0) << sub.err;
     const nlohmann::json j = nlohmann::json::parse(sub.out);
     const ExecResult w = Cli({"status", j["id"], "--watch", "--json"});
     EXPECT_EQ(w.exit_code, 0) << w.err;
+    done_at = static_cast<double>(std::time(nullptr));
     return j;
   }
+  mutable double submitted_at = 0, done_at = 0;  // unix seconds, whole (the CLI's times have whole seconds)
 };
 
 TEST(Observability, MetricsLogsAndHealthAgreeWithTheSweep) {
@@ -264,6 +269,14 @@ TEST(Observability, SweepsAndFetchOverTheWire) {
   EXPECT_EQ(sweeps[0]["status"], "done");
   EXPECT_EQ(sweeps[0]["owner"], "alice");
   EXPECT_EQ(sweeps[0]["items_done"], 400);
+  // Submission and publication times (ISO 8601 UTC), in `sweeps --json` and `status --json`.
+  for (const nlohmann::json& row : {sweeps[0], nlohmann::json::parse(s.Cli({"status", id, "--json"}).out)}) {
+    ASSERT_TRUE(row["created"].is_string() && row["finished"].is_string()) << row.dump();
+    const double created = bistable_test::ParseIsoTimeUtc(row["created"]), finished = bistable_test::ParseIsoTimeUtc(row["finished"]);
+    EXPECT_GE(created, s.submitted_at - 1) << row.dump();
+    EXPECT_LE(created, finished) << row.dump();
+    EXPECT_LE(finished, s.done_at + 1) << row.dump();
+  }
 
   // By prefix, default name <id>.h5, byte-identical to the coordinator's file, checksum reported.
   const ExecResult f = s.Cli({"fetch", id.substr(0, 6), "--json"});
