@@ -126,7 +126,8 @@ struct FitOptions {
   // velocity v_t times this factor (a smoothed law; 1: the declared one), the full-error stage after it the
   // declared law from there (fit.cc, "Smoothed friction"). With a second factor a second short-horizon stage
   // runs beside the first, and the full-error stage starts from the result with the lower short-horizon cost
-  // under the first factor's law. One stage when either factor is ≤ 1 or the two are equal.
+  // under the first factor's law (and the plain LM from the start is left out: fit.cc). One stage when either
+  // factor is ≤ 1 or the two are equal.
   double shooting_friction_smoothing = 2.5;
   double shooting_friction_smoothing_second = 3.5;
   int threads = 0;            // records simulated in parallel (0: all cores)
