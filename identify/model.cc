@@ -573,6 +573,11 @@ struct SimTerm {
 struct SpecialCols {
   int piezo = -1;
   int offset[kOutputSlots] = {-1, -1, -1}, scale[kOutputSlots] = {-1, -1, -1};
+  bool AnyOutputTerm() const {
+    for (int k = 0; k < kOutputSlots; ++k)
+      if (offset[k] >= 0 || scale[k] >= 0) return true;
+    return false;
+  }
 };
 
 SpecialCols FindSpecialCols(const IdentModel& m, const std::vector<const TermDef*>& extra, const Setup* setup) {
@@ -808,6 +813,17 @@ double MainOutputValue(const PreparedRecord& r, const Setup& setup, double s_oc,
   return value;
 }
 
+// The bound on |p| past which a simulation counts as diverged (100 × the record's range, offset included).
+double DivergenceLimit(const PreparedRecord& r, double offset) {
+  return 100.0 * (r.p_range + std::abs(r.ic_p[0]) + std::abs(offset)) + 1e-12;
+}
+
+// The state component the main output reads (before MainOutputValue): p' for a velocity output under an
+// acceleration or force input, else p.
+int MainStateComponent(const Setup& setup) {
+  return setup.input != InputKind::kBaseDisplacement && setup.output == OutputKind::kVelocity ? 1 : 0;
+}
+
 // Output slot k's effects on a model value: (1 + g) value + d (g, d: θ at the slot's scale and offset columns).
 double WithOutputEffects(const SpecialCols& sc, const std::vector<double>& thx, int k, double value) {
   const double g = sc.scale[k] >= 0 ? thx[sc.scale[k]] : 0.0, d = sc.offset[k] >= 0 ? thx[sc.offset[k]] : 0.0;
@@ -885,13 +901,11 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
     }
   };
   reset_sensitivities(false);
-  const double limit_p = 100.0 * (r.p_range + std::abs(r.ic_p[0]) + std::abs(offset)) + 1e-12;
-  const bool vel = setup.output == OutputKind::kVelocity;
+  const double limit_p = DivergenceLimit(r, offset);
   // The compared output is state component `oc` (plus a known signal); the resonator's is s[2] (+ s[0]).
-  const int oc = in != InputKind::kBaseDisplacement && vel ? 1 : 0;
+  const int oc = MainStateComponent(setup);
   const bool res_plus_p = in != InputKind::kBaseDisplacement;
-  bool any_output_term = false;
-  for (int k = 0; k < kOutputSlots; ++k) any_output_term = any_output_term || sc.offset[k] >= 0 || sc.scale[k] >= 0;
+  const bool any_output_term = sc.AnyOutputTerm();
   // Output effects of slot k on a model value (and its sensitivity row): (1 + g) value + d.
   auto output_effects = [&](int k, size_t i, double value) {
     if (!any_output_term) return value;
@@ -984,7 +998,8 @@ bool SimulateLanesImpl(const IdentModel& m, const std::vector<double>* const* th
   if ((res && !(m.m_res > 0)) || ns <= 0) return false;
   const int P = m.NumParams();
   std::vector<V> th(static_cast<size_t>(P));
-  V mm, offset, limit_p;
+  V mm, limit_p;
+  V s[kD];  // the state, from the measured one at sample 0
   for (int l = 0; l < W; ++l) {
     const std::vector<double>& t = *ths[l];
     if (static_cast<int>(t.size()) < P) return false;
@@ -993,8 +1008,9 @@ bool SimulateLanesImpl(const IdentModel& m, const std::vector<double>* const* th
     mm[l] = m.Mass(t);
     if (!(mm[l] > 0) || !std::isfinite(mm[l])) return false;
     for (int j = 0; j < P; ++j) th[static_cast<size_t>(j)][l] = t[static_cast<size_t>(j)];
-    offset[l] = m.Offset(t, r.index);
-    limit_p[l] = 100.0 * (r.p_range + std::abs(r.ic_p[0]) + std::abs(offset[l])) + 1e-12;
+    limit_p[l] = DivergenceLimit(r, m.Offset(t, r.index));
+    const std::array<double, kStateDim> x0 = MeasuredState(m, t, r, setup, 0);
+    for (int c = 0; c < kD; ++c) s[c][l] = x0[static_cast<size_t>(c)];
   }
   std::vector<SimTerm> terms;
   int col = 0;
@@ -1038,7 +1054,7 @@ bool SimulateLanesImpl(const IdentModel& m, const std::vector<double>* const* th
     if constexpr (kD == 5) dx[4] = wdot;
   };
   // Rk4::Step on Eigen vectors, component by component.
-  V s[kD], k1[kD], k2[kD], k3[kD], k4[kD], tmp[kD];
+  V k1[kD], k2[kD], k3[kD], k4[kD], tmp[kD];
   auto step = [&](double t) BISTABLE_INLINE_LAMBDA {
     f(t, s, k1);
     for (int c = 0; c < kD; ++c) tmp[c] = s[c] + (0.5 * h) * k1[c];
@@ -1049,15 +1065,9 @@ bool SimulateLanesImpl(const IdentModel& m, const std::vector<double>* const* th
     f(t + h, tmp, k4);
     for (int c = 0; c < kD; ++c) s[c] += (h / 6.0) * (k1[c] + 2.0 * k2[c] + 2.0 * k3[c] + k4[c]);
   };
-  s[0] = r.ic_p[0] + offset;
-  s[1] = Splat<W>(r.ic_pd[0]);
-  s[2] = Splat<W>(res && !r.ic_r.empty() ? r.ic_r[0] : (in == InputKind::kBaseDisplacement ? r.ic_p[0] : 0.0));
-  s[3] = Splat<W>(res && !r.ic_rd.empty() ? r.ic_rd[0] : (in == InputKind::kBaseDisplacement ? r.ic_pd[0] : 0.0));
-  if constexpr (kD == 5) s[4] = Splat<W>(r.ic_w.empty() ? 0.0 : r.ic_w[0]);
-  const int oc = in != InputKind::kBaseDisplacement && setup.output == OutputKind::kVelocity ? 1 : 0;
+  const int oc = MainStateComponent(setup);
   const bool res_plus_p = in != InputKind::kBaseDisplacement;
-  bool any_output_term = false;
-  for (int k = 0; k < kOutputSlots; ++k) any_output_term = any_output_term || sc.offset[k] >= 0 || sc.scale[k] >= 0;
+  const bool any_output_term = sc.AnyOutputTerm();
   auto effects = [&](int l, int k, double value) {
     return any_output_term ? WithOutputEffects(sc, *ths[l], k, value) : value;
   };
