@@ -1335,6 +1335,7 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
     // costs 1.8× the right one; the declared law's cost, 4 % apart, cannot tell them).
     const double second = opt.shooting_friction_smoothing_second;
     const bool two = smooth && opt.shooting_friction_smoothing > 1 && second > 1 && second != opt.shooting_friction_smoothing;
+    const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
     auto shoot = [&](FitStages& st) {
       // This stage finds the basin; the next one converges in it. So it stops once an iteration gains
       // less than 1e-4 of the cost: with friction its tail crawls (on the synthetic c2 refit 47 of 53
@@ -1348,7 +1349,10 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
         const IdentModel law2 = smoothed(second);
         FitStages basin2(law2, scale_in, recs, setup, opt);
         std::vector<double> f2 = f;
-        RunBeside([&] { basin_stage(basin2, &f2, "shooting-2nd"); }, [&] { basin_stage(basin1, &f, "shooting-1st"); });
+        auto first = [&] { basin_stage(basin1, &f, "shooting-1st"); };
+        auto second_stage = [&] { basin_stage(basin2, &f2, "shooting-2nd"); };
+        if (cpus >= 2) RunBeside(second_stage, first);  // independent: the same result either way
+        else first(), second_stage();
         const double c1 = basin1.ShortHorizonCost(f), c2 = basin1.ShortHorizonCost(f2);
         if (debug) std::fprintf(stderr, "fit short-horizon Σr² under the first law: %.6g (1st) %.6g (2nd)\n", c1, c2);
         if (c2 < c1) f = f2;
@@ -1363,7 +1367,6 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
     // uses one core; three records on two cores), run them side by side, each with its own stages' state,
     // so one start's simulations fill the other's gaps; the result is the sequential one (a fit does not
     // depend on its thread count: Identify.FitsOfSeveralRecordsDoNotDependOnThreads).
-    const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
     // With friction (two smoothed stages) the plain LM from the regression start is left out: that start
     // has no friction, and LM from it stops on the long simulation error's plateau (the coupled rig: cost
     // 0.00213 against 0.00026 after the short-horizon stages). Of the loops of docs/identification.md it

@@ -160,8 +160,9 @@ TEST(Identify, NothingIsAddedWhenNothingIsMissing) {
   EXPECT_NEAR(r.after.theta[4], p.fric_m.f_c, 0.05 * p.fric_m.f_c);
 }
 
-// With one record, Fit runs its two independent starts (LM; multiple shooting then LM) on two threads:
-// the result must be the sequential one to the bit, simulations counted alike.
+// With one record, Fit runs its independent stages side by side on two threads (with friction, as here: the two
+// smoothed short-horizon stages; without: LM from the start beside the short-horizon stage), and one after the
+// other on one: the result must be the same to the bit, simulations counted alike.
 // The friction model fitted to `recs` on one thread and on two: the same fit to the bit.
 FitResult ExpectTheSameFitOnOneAndTwoThreads(const std::vector<PreparedRecord>& recs) {
   IdentModel m = Declared("main.linear,main.viscous,main.friction");
@@ -181,7 +182,7 @@ FitResult ExpectTheSameFitOnOneAndTwoThreads(const std::vector<PreparedRecord>& 
 }
 
 TEST(Identify, OneRecordFitOnTwoThreadsEqualsTheSequentialFit) {
-  // One record: its fit's two starts run side by side on two threads.
+  // One record: its fit's independent stages run side by side on two threads.
   Record rec = Chirps(0.05e-3)[0];
   auto p = PrepareRecord(rec, bistable::Setup{}, 0, 6 * 120, 0.0, rec.name);  // the first 6 s
   ASSERT_TRUE(p.ok()) << p.status().ToString();
@@ -467,9 +468,8 @@ TEST(Identify, AGainByLeavingTheBasinIsNotCreditedToTheTerm) {
 }
 
 TEST(Identify, FitsOfSeveralRecordsDoNotDependOnThreads) {
-  // Several records: a fit spreads them over the CPUs, and three records on two threads also run the fit's
-  // two starts side by side (they leave a core idle); the loop runs a refit's two fits side by side, each
-  // on one thread. The same fit either way.
+  // Several records: a fit spreads them over the CPUs, and runs its independent stages side by side; the loop
+  // runs a refit's two fits side by side, each on one thread. The same fit either way.
   std::vector<PreparedRecord> recs;
   for (const Record& rec : Chirps(0.05e-3)) {
     auto p = PrepareRecord(rec, bistable::Setup{}, 0, 4 * 120, 0.0, rec.name);
