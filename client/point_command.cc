@@ -11,10 +11,10 @@
 
 #include "base/exit_codes.h"
 #include "base/limits.h"
-#include "base/validate.h"
 #include "client/cli_common.h"
 #include "client/json_out.h"
 #include "client/plot.h"
+#include "client/poincare_section.h"
 #include "dynamics/cancel.h"
 #include "dynamics/point.h"
 
@@ -61,52 +61,6 @@ Status WriteTrace(const std::string& path, const PointResult& r) {
   return WriteTextOut(path, out.str(), "trace");
 }
 
-// --poincare-periods N: the window [t_keep, t_end] is made N + 1 forcing periods long (rounded up to
-// whole steps), so it holds at least N strobes whatever the phase; the section keeps the first N.
-Status SetPoincareWindow(long n, PointSpec* spec) {
-  if (n < 1 || n > limits::kMaxPoincarePeriods)
-    return Violates("--poincare-periods", static_cast<double>(n), "in [1, " + std::to_string(limits::kMaxPoincarePeriods) + "]");
-  IntegrationSettings& in = spec->integration;
-  BISTABLE_RETURN_IF_ERROR(CheckPositive("omega", spec->omega));
-  BISTABLE_RETURN_IF_ERROR(CheckPositive("dt", in.dt));
-  BISTABLE_RETURN_IF_ERROR(CheckNonNegative("t_keep", in.t_keep));
-  const double period = 2 * M_PI / spec->omega;
-  const long n_keep = StepsFor(in.t_keep, in.dt);
-  const double window_steps = std::ceil(static_cast<double>(n + 1) * period / in.dt);
-  if (static_cast<double>(n_keep) + window_steps > limits::kMaxStepsPerPoint) {
-    const double most = std::floor((limits::kMaxStepsPerPoint - static_cast<double>(n_keep)) * in.dt / period) - 1;
-    return Violates("--poincare-periods", static_cast<double>(n),
-                    "<= " + FormatNumber(std::max(most, 0.0)) + " (the limit of " + FormatNumber(limits::kMaxStepsPerPoint) +
-                        " steps per point at dt = " + FormatNumber(in.dt) + ", Omega = " + FormatNumber(spec->omega) +
-                        ", t_keep = " + FormatNumber(in.t_keep) + ")");
-  }
-  in.t_end = static_cast<double>(n_keep + static_cast<long>(window_steps)) * in.dt;
-  return Status::Ok();
-}
-
-// The section's columns (strobe index k, its time, the state there) and their units: τ = ωn t,
-// lengths in δs, velocities d/dτ in δs ωn.
-std::vector<std::pair<std::string, std::string>> SectionColumns(const PointSpec& spec) {
-  std::vector<std::pair<std::string, std::string>> c = {
-      {"k", ""}, {"tau", "1/omega_n"}, {"y_m", "delta_s"}, {"dy_m", "delta_s/tau"}};
-  if (HasResonator(spec.model)) c.push_back({"y_r", "delta_s"}), c.push_back({"dy_r", "delta_s/tau"});
-  return c;
-}
-
-// Points of the section written (the first `limit` when > 0).
-size_t SectionCount(const PointResult& r, long limit) {
-  return limit > 0 ? std::min(r.section_y.size(), static_cast<size_t>(limit)) : r.section_y.size();
-}
-
-// Row i: k, τ_k = (φ + 2πk)/Ω as the recorder computes it, y_m, y_m' (, y_r, y_r').
-std::vector<double> SectionRow(const PointSpec& spec, const PointResult& r, size_t i) {
-  const long k = r.section_k0 + static_cast<long>(i);
-  const double tau = static_cast<double>(k) * (2.0 * M_PI / spec.omega) + spec.metrics.poincare_phase / spec.omega;
-  std::vector<double> row = {static_cast<double>(k), tau, r.section_y[i], r.section_v[i]};
-  if (HasResonator(spec.model)) row.push_back(r.section_yr[i]), row.push_back(r.section_vr[i]);
-  return row;
-}
-
 std::string SectionCsv(const PointSpec& spec, const PointResult& r, long limit) {
   std::ostringstream out;
   // One header line, units in brackets (as measured-data files write them): every CSV reader takes it.
@@ -148,23 +102,6 @@ Status PlotSection(const PointSpec& spec, const PointResult& r, long limit, cons
   panel("main mass at tau_k = (phase + 2 pi k)/Omega", "y_m [delta_s]", "dy_m/dtau [delta_s/tau]", r.section_y, r.section_v);
   if (res) panel("resonator at the same tau_k", "y_r [delta_s]", "dy_r/dtau [delta_s/tau]", r.section_yr, r.section_vr);
   return RenderPanels(d, path);
-}
-
-// What `--json` says about the section: its phase, size, columns and file; its points only when
-// they go nowhere else (--poincare -).
-nlohmann::json SectionJson(const PointSpec& spec, const PointResult& r, long limit, const std::string& file) {
-  const size_t n = SectionCount(r, limit);
-  nlohmann::json columns = nlohmann::json::array(), units = nlohmann::json::array();
-  for (const auto& [name, unit] : SectionColumns(spec)) columns.push_back(name), units.push_back(unit);
-  nlohmann::json j = {{"phase", spec.metrics.poincare_phase}, {"count", n}, {"k0", r.section_k0}, {"columns", columns}, {"units", units}};
-  if (file == "-") {
-    nlohmann::json pts = nlohmann::json::array();
-    for (size_t i = 0; i < n; ++i) pts.push_back(SectionRow(spec, r, i));
-    j["points"] = std::move(pts);
-  } else if (!file.empty()) {
-    j["file"] = file;
-  }
-  return j;
 }
 
 void PrintHuman(const PointSpec& spec, const PointResult& r) {
@@ -221,7 +158,7 @@ int RunPoint(PointArgs& a) {
   spec.metrics.rosenstein = !a.no_rosenstein;
   spec.metrics.keep_samples = !a.trace.empty();
   if (a.poincare_periods_given) {
-    Status st = SetPoincareWindow(a.poincare_periods, &spec);
+    Status st = SetPoincareWindow(a.poincare_periods, "--poincare-periods", &spec);
     if (!st.ok()) return Fail(st);
   }
   const long section_limit = a.poincare_periods_given ? a.poincare_periods : 0;
