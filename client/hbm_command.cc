@@ -11,6 +11,7 @@
 
 #include "client/cli_common.h"
 #include "client/hbm_command.h"
+#include "client/hbm_json.h"
 #include "client/map_slice.h"
 #include "client/map_source.h"
 #include "client/plot.h"
@@ -72,21 +73,6 @@ nlohmann::json BifurcationsJson(const HbmResult& r) {
   return out;
 }
 
-const char* WellName(double y_min, double y_max) { return y_min > 0 ? "+well" : y_max < 0 ? "-well" : "interwell"; }
-
-nlohmann::json FoldCurvesJson(const std::vector<FoldCurve>& curves, bool bistable) {
-  nlohmann::json out = nlohmann::json::array();
-  for (const FoldCurve& c : curves) {
-    nlohmann::json pts = nlohmann::json::array();
-    for (const FoldCurvePoint& p : c.points) {
-      pts.push_back({{"alpha", p.alpha}, {"omega", p.omega}, {"amplitude", Num(p.amplitude)}, {"mean", Num(p.mean)}, {"cusp", p.cusp}});
-      if (bistable) pts.back()["well"] = WellName(p.y_min, p.y_max);
-    }
-    out.push_back({{"start", c.start}, {"converged", c.converged}, {"points", pts}});
-  }
-  return out;
-}
-
 // The fold curves as a figure in (Ω, α) (x = Ω, y = α as in the maps), one colour per well, cusps marked.
 BranchPlot FoldCurvePlot(const std::vector<FoldCurve>& curves, const HbmArgs& a) {
   BranchPlot d;
@@ -100,7 +86,7 @@ BranchPlot FoldCurvePlot(const std::vector<FoldCurve>& curves, const HbmArgs& a)
   for (const FoldCurve& c : curves) {
     BranchPlot::Branch br;
     for (const FoldCurvePoint& p : c.points) {
-      const std::string name = IsBistable(a.o.model) ? std::string("fold curve, ") + WellName(p.y_min, p.y_max) : "fold curve";
+      const std::string name = IsBistable(a.o.model) ? std::string("fold curve, ") + FoldWellName(p) : "fold curve";
       if (!br.x.empty() && name != br.name) {  // the orbit at the fold changes well: a new piece from here
         br.x.push_back(p.omega), br.y.push_back(p.alpha), br.stable.push_back(true);
         d.branches.push_back(std::move(br));
