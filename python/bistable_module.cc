@@ -174,7 +174,10 @@ double Number(const py::handle& v, const std::string& name) {
 int Integer(const py::handle& v, const std::string& name) {
   if (py::isinstance<py::bool_>(v) || !py::isinstance<py::int_>(v))
     throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " an integer");
-  const long long x = v.cast<long long>();
+  int overflow = 0;  // beyond long long: out of range too (v.cast would raise a bare RuntimeError)
+  const long long x = PyLong_AsLongLongAndOverflow(v.ptr(), &overflow);
+  if (overflow != 0)
+    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates |" + name + "| <= 2^30");
   if (x < -(1LL << 30) || x > (1LL << 30)) throw py::value_error(name + " = " + std::to_string(x) + " violates |" + name + "| <= 2^30");
   return static_cast<int>(x);
 }

@@ -5,6 +5,7 @@ BISTABLE_WORKER, BISTABLE_SOURCE pointing at the built programs and the source t
 """
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -96,6 +97,14 @@ def test_trajectory_gives_the_window_and_the_same_metrics():
 def test_bad_point_arguments_raise_value_error_naming_the_field(kw, expect):
     with pytest.raises(ValueError, match=expect.replace("(", r"\(")):
         bistable.point(**kw)
+
+
+def test_an_integer_beyond_long_long_raises_value_error_naming_the_field():
+    for name in ("renorm_every", "sample_every"):
+        with pytest.raises(ValueError, match=re.escape("%s = %d violates |%s| <= 2^30" % (name, -(10**30), name))):
+            bistable.point(alpha=1.0, omega=1.0, **{name: -(10**30)})
+    with pytest.raises(ValueError, match=re.escape("harmonics = %d violates |harmonics| <= 2^30" % 10**30)):
+        bistable.hbm(harmonics=10**30)
 
 
 def test_run_gives_the_cli_map_and_open_finds_it(tmp_path):
