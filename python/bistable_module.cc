@@ -25,6 +25,7 @@
 #include <thread>
 
 #include "base/cpus.h"
+#include "base/limits.h"
 #include "base/names.h"
 #include "base/status.h"
 #include "base/version.h"
@@ -34,6 +35,7 @@
 #include "client/map_query.h"
 #include "client/map_source.h"
 #include "client/json_out.h"
+#include "client/poincare_section.h"
 #include "dynamics/cancel.h"
 #include "dynamics/hbm.h"
 #include "dynamics/point.h"
@@ -196,25 +198,44 @@ std::string Text(const py::handle& v, const std::string& name) {
   throw py::value_error(UnknownNameMessage("keyword", key, known));
 }
 
-// The point options by keyword — the flags of `bistable point` with '-' as '_'.
-PointSpec PointFromKeywords(const py::dict& kw) {
+// `poincare_periods`: an integer, however large (one beyond `long` is outside the bound SetPoincareWindow
+// checks: the same message, with the value as given).
+long Periods(const py::handle& v, const std::string& name) {
+  if (py::isinstance<py::bool_>(v) || !py::isinstance<py::int_>(v))
+    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " an integer");
+  int overflow = 0;
+  const long long x = PyLong_AsLongLongAndOverflow(v.ptr(), &overflow);
+  if (overflow != 0)
+    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " in [1, " +
+                          std::to_string(limits::kMaxPoincarePeriods) + "]");
+  return static_cast<long>(x);
+}
+
+// The point options by keyword — the flags of `bistable point` with '-' as '_'. `poincare_periods`
+// (> 0 when given) sets the window as `point --poincare-periods` does; *section_limit gets it (0 when
+// not given: the whole window's section).
+PointSpec PointFromKeywords(const py::dict& kw, long* section_limit = nullptr) {
   PointSpec s;
   std::string model = "coupled", integrator = "rk4";
-  bool alpha = false, omega = false;
+  bool alpha = false, omega = false, t_end = false;
+  std::optional<long> periods;
   std::map<std::string, double*> numbers = {
       {"alpha", &s.alpha}, {"omega", &s.omega}, {"eps", &s.params.eps}, {"eta", &s.params.eta},
       {"eta_r", &s.params.eta_r}, {"phi", &s.params.phi}, {"lambda", &s.params.lambda},
       {"t_end", &s.integration.t_end}, {"t_keep", &s.integration.t_keep}, {"dt", &s.integration.dt},
-      {"rtol", &s.integration.rtol}, {"atol", &s.integration.atol}, {"chaos_threshold", &s.metrics.chaos_threshold}};
+      {"rtol", &s.integration.rtol}, {"atol", &s.integration.atol}, {"chaos_threshold", &s.metrics.chaos_threshold},
+      {"poincare_phase", &s.metrics.poincare_phase}};
   std::map<std::string, int*> integers = {{"renorm_every", &s.metrics.renorm_every}, {"sample_every", &s.metrics.sample_every}};
-  std::vector<std::string> known = {"model", "integrator", "ic", "rosenstein"};
+  std::vector<std::string> known = {"model", "integrator", "ic", "rosenstein", "poincare_periods"};
   for (const auto& [k, _] : numbers) known.push_back(k);
   for (const auto& [k, _] : integers) known.push_back(k);
   for (const auto& [key, value] : kw) {
     const std::string k = py::str(key);
     if (auto it = numbers.find(k); it != numbers.end()) {
       *it->second = Number(value, k);
-      alpha |= k == "alpha", omega |= k == "omega";
+      alpha |= k == "alpha", omega |= k == "omega", t_end |= k == "t_end";
+    } else if (k == "poincare_periods") {
+      periods = Periods(value, k);
     } else if (auto jt = integers.find(k); jt != integers.end()) {
       *jt->second = Integer(value, k);
     } else if (k == "model") {
@@ -238,18 +259,48 @@ PointSpec PointFromKeywords(const py::dict& kw) {
   if (!omega) throw py::value_error("omega is required (base frequency omega0/omega_n, > 0)");
   s.model = Unwrap(ParseModel(model));
   s.integration.integrator = Unwrap(ParseIntegrator(integrator));
+  if (periods) {
+    if (t_end)
+      throw py::value_error("t_end excludes poincare_periods (the window is made poincare_periods + 1 forcing periods long): "
+                            "give one of them");
+    const Status st = SetPoincareWindow(*periods, "poincare_periods", &s);
+    if (!st.ok()) Raise(st);
+  }
+  if (section_limit) *section_limit = periods.value_or(0);
   return s;
+}
+
+// The section as `point --poincare - --json` gives it (phase, count, k0, columns, units), its points
+// as one numpy array per column instead of rows: "k" (int64), "tau", "y_m", "dy_m" (, "y_r", "dy_r").
+py::dict SectionDict(const PointSpec& spec, const PointResult& r, long limit) {
+  py::dict out = ToPython(SectionJson(spec, r, limit, ""));
+  const auto columns = SectionColumns(spec);
+  const size_t n = SectionCount(r, limit);
+  std::vector<py::array_t<double>> arrays;
+  for (size_t c = 0; c < columns.size(); ++c) arrays.emplace_back(n);
+  for (size_t i = 0; i < n; ++i) {
+    const std::vector<double> row = SectionRow(spec, r, i);
+    for (size_t c = 0; c < columns.size(); ++c) arrays[c].mutable_at(i) = row[c];
+  }
+  for (size_t c = 0; c < columns.size(); ++c)
+    out[py::str(columns[c].first)] = columns[c].first == "k" ? py::object(arrays[c].attr("astype")("int64")) : py::object(arrays[c]);
+  return out;
 }
 
 py::dict Point(const py::kwargs& kw) {
   py::dict rest = py::reinterpret_borrow<py::dict>(kw).attr("copy")();
-  bool spectrum = false;
+  bool spectrum = false, poincare = false;
   if (rest.contains("spectrum")) spectrum = Flag(rest["spectrum"], "spectrum"), PyDict_DelItemString(rest.ptr(), "spectrum");
-  const PointSpec spec = PointFromKeywords(rest);
-  auto r = Compute([&] { return EvaluatePoint(spec); });
-  nlohmann::json j = PointJson(spec, Unwrap(std::move(r)));
+  if (rest.contains("poincare")) poincare = Flag(rest["poincare"], "poincare"), PyDict_DelItemString(rest.ptr(), "poincare");
+  long section_limit = 0;
+  const PointSpec spec = PointFromKeywords(rest, &section_limit);
+  const PointResult r = Unwrap(Compute([&] { return EvaluatePoint(spec); }));
+  nlohmann::json j = PointJson(spec, r);
   if (spectrum) AddSpectrumJson(Unwrap(Compute([&] { return EvaluateLyapunovSpectrum(spec); })), &j);
-  return ToPython(j);
+  py::dict out = ToPython(j);
+  // As `point --json`: the section whenever it was asked for (poincare) or its window set (poincare_periods).
+  if (poincare || section_limit > 0) out["poincare"] = SectionDict(spec, r, section_limit);
+  return out;
 }
 
 // The sampled window: tau, y_m, dy_m, y_r, dy_r as numpy arrays, plus the metrics.

@@ -31,6 +31,15 @@ def point(**kw):
     renorm_every, sample_every, rosenstein (bool), spectrum (bool: also the Lyapunov spectrum,
     lyapunov_spectrum / lyapunov_sum / divergence / kaplan_yorke as `point --spectrum --json`).
     Results are bit-identical to the CLI's.
+
+    Poincare (stroboscopic) section, as `point --poincare - --json`: poincare_phase (radians of
+    Omega tau in [0, 2 pi), default 0: strobes at tau_k = (phase + 2 pi k)/Omega; the period test uses
+    them too), poincare_periods (int N in [1, 100000], instead of t_end: the window is made N + 1
+    forcing periods long and the section keeps its first N points), poincare (bool). With poincare=True
+    or poincare_periods, the dict has "poincare": {"phase", "count", "k0", "columns", "units", and one
+    numpy array per column: "k" (int64 strobe index), "tau" (1/omega_n), "y_m" (delta_s), "dy_m"
+    (delta_s/tau), and "y_r", "dy_r" for models with a resonator}; the CLI's "points" rows are
+    numpy.column_stack([sec[c] for c in sec["columns"]]).
     """
     return _core.point(**kw)
 
@@ -38,7 +47,7 @@ def point(**kw):
 def trajectory(**kw):
     """Integrates one point and returns the sampled steady-state window as numpy arrays.
 
-    Same keywords as point(). Returns {"tau", "y_m", "dy_m", "y_r", "dy_r": arrays over the window
+    Same keywords as point() but spectrum and poincare. Returns {"tau", "y_m", "dy_m", "y_r", "dy_r": arrays over the window
     tau in [t_keep, t_end], every sample_every steps; "metrics": point()'s dict}.
     """
     return _core.trajectory(**kw)

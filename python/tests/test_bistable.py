@@ -99,6 +99,83 @@ def test_bad_point_arguments_raise_value_error_naming_the_field(kw, expect):
         bistable.point(**kw)
 
 
+def cli_args(kw):
+    """point()'s keywords as `bistable point` flags (bools: flags; poincare=True: --poincare -)."""
+    args = []
+    for k, v in kw.items():
+        if k == "poincare":
+            args += ["--poincare", "-"] if v else []
+        elif k == "rosenstein":
+            args += [] if v else ["--no-rosenstein"]
+        else:
+            args += ["--" + k.replace("_", "-"), v if isinstance(v, str) else repr(v)]
+    return args
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        # The chaotic Duffing point of the CLI's section test, a window of N periods at a phase.
+        dict(model="standalone", alpha=0.3472222222222222, omega=1.2, eta=0.3, rosenstein=False, poincare=True,
+             poincare_periods=300, poincare_phase=0.5),
+        # Coupled: six columns (the resonator's too), the whole window's section.
+        dict(model="coupled", alpha=0.3, omega=0.8, rosenstein=False, poincare=True, poincare_phase=1.5),
+        dict(model="coupled", alpha=1.0, omega=1.2, rosenstein=False, poincare=True, poincare_periods=200, poincare_phase=4.0),
+    ],
+)
+def test_poincare_section_is_the_cli_section(kw):
+    mine = bistable.point(**kw)
+    theirs = cli_json("point", *cli_args(kw))
+    sec, cli_sec = mine.pop("poincare"), theirs.pop("poincare")
+    assert mine == theirs  # the metrics, computed over the same window
+    for k in ("phase", "count", "k0", "columns", "units"):
+        assert sec[k] == cli_sec[k], k
+    resonator = kw["model"] == "coupled"
+    assert sec["columns"] == ["k", "tau", "y_m", "dy_m"] + (["y_r", "dy_r"] if resonator else [])
+    assert sec["units"][:4] == ["", "1/omega_n", "delta_s", "delta_s/tau"]
+    n = sec["count"]
+    assert n > 20 and (n == kw["poincare_periods"] if "poincare_periods" in kw else True)
+    assert sec["k"].dtype == np.int64 and all(sec[c].shape == (n,) for c in sec["columns"])
+    rows = np.column_stack([sec[c] for c in sec["columns"]])
+    assert np.array_equal(rows, np.array(cli_sec["points"], dtype=float))  # bit for bit
+    assert np.array_equal(sec["k"], sec["k0"] + np.arange(n))
+    # The strobe times are at the phase: tau_k = (phase + 2 pi k)/Omega.
+    assert np.allclose(sec["tau"], (kw["poincare_phase"] + 2 * np.pi * sec["k"]) / kw["omega"], rtol=1e-12)
+
+
+def test_poincare_periods_without_poincare_still_gives_the_section():
+    r = bistable.point(model="standalone", alpha=0.3, omega=1.2, poincare_periods=40)
+    assert r["poincare"]["count"] == 40 and len(r["poincare"]["y_m"]) == 40
+    assert "poincare" not in bistable.point(model="standalone", alpha=0.3, omega=1.2, poincare_phase=1.0)
+    t = bistable.trajectory(model="standalone", alpha=0.3, omega=1.2, poincare_periods=40)
+    assert t["metrics"] == {k: v for k, v in r.items() if k != "poincare"}
+
+
+@pytest.mark.parametrize(
+    "kw,expect",
+    [
+        (dict(poincare_phase=6.3), "poincare_phase = 6.3 violates poincare_phase in [0, 2 pi)"),
+        (dict(poincare_phase=-1.0), "poincare_phase = -1 violates poincare_phase in [0, 2 pi)"),
+        (dict(poincare_phase=float("nan")), "poincare_phase = nan violates poincare_phase finite"),
+        (dict(poincare_phase="0"), "poincare_phase = '0' violates poincare_phase a number"),
+        (dict(poincare_periods=0), "poincare_periods = 0 violates poincare_periods in [1, 100000]"),
+        (dict(poincare_periods=-3), "poincare_periods = -3 violates poincare_periods in [1, 100000]"),
+        (dict(poincare_periods=100001), "poincare_periods = 100001 violates poincare_periods in [1, 100000]"),
+        (dict(poincare_periods=10**30), "poincare_periods = 10{30} violates poincare_periods in [1, 100000]"),
+        (dict(poincare_periods=2.5), "poincare_periods = 2.5 violates poincare_periods an integer"),
+        (dict(poincare_periods=True), "poincare_periods = True violates poincare_periods an integer"),
+        (dict(poincare_periods=10, t_end=600.0), "t_end excludes poincare_periods"),
+        (dict(omega=0.01, poincare_periods=100000), "poincare_periods = 100000 violates poincare_periods <= 1590"),
+        (dict(poincare="yes"), "poincare = 'yes' violates poincare True or False"),
+    ],
+)
+def test_bad_poincare_arguments_raise_value_error_naming_the_field(kw, expect):
+    args = dict(model="standalone", alpha=0.3, omega=1.2)
+    args.update(kw)
+    with pytest.raises(ValueError, match=re.escape(expect.replace("10{30}", "1" + "0" * 30))):
+        bistable.point(**args)
+
+
 def test_an_integer_beyond_long_long_raises_value_error_naming_the_field():
     for name in ("renorm_every", "sample_every"):
         with pytest.raises(ValueError, match=re.escape("%s = %d violates |%s| <= 2^30" % (name, -(10**30), name))):
