@@ -31,6 +31,7 @@
 #include "base/version.h"
 #include "client/cli_common.h"
 #include "client/embedded_run.h"
+#include "client/hbm_json.h"
 #include "client/identify_command.h"
 #include "client/map_query.h"
 #include "client/map_source.h"
@@ -345,13 +346,50 @@ py::dict Find(const std::string& id, const std::string& data) {
   return out;
 }
 
+// `alpha_range` / `omega_range` of the fold curves: (lo, hi), two numbers (their bounds are
+// ValidateFoldCurveOptions', as in `hbm --alpha-range`).
+void Range(const py::handle& v, const std::string& name, double* lo, double* hi) {
+  if (!py::isinstance<py::sequence>(v) || py::isinstance<py::str>(v) || py::len(v) != 2)
+    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " = (lo, hi), two numbers");
+  const auto seq = py::reinterpret_borrow<py::sequence>(v);
+  *lo = Number(seq[0], name + "[0]"), *hi = Number(seq[1], name + "[1]");
+}
+
+// Points given as a JSON list of objects (`shape`: one of them, for the keys and their types) as one
+// column per key: numbers a float64 array (null as NaN), booleans a bool array, strings a list.
+py::dict Columns(const nlohmann::json& points, const nlohmann::json& shape) {
+  py::dict d;
+  const size_t n = points.size();
+  for (const auto& [key, proto] : shape.items()) {
+    if (proto.is_boolean()) {
+      py::array_t<bool> a(n);
+      for (size_t i = 0; i < n; ++i) a.mutable_at(i) = points[i].at(key).get<bool>();
+      d[py::str(key)] = a;
+    } else if (proto.is_number()) {
+      py::array_t<double> a(n);
+      for (size_t i = 0; i < n; ++i) {
+        const nlohmann::json& v = points[i].at(key);
+        a.mutable_at(i) = v.is_null() ? NAN : v.get<double>();
+      }
+      d[py::str(key)] = a;
+    } else {
+      py::list l;
+      for (size_t i = 0; i < n; ++i) l.append(ToPython(points[i].at(key)));
+      d[py::str(key)] = l;
+    }
+  }
+  return d;
+}
+
 py::dict Hbm(const py::kwargs& kw) {
   HbmOptions o;
+  FoldCurveOptions f;
+  bool fold_curve = false;
   std::string model = "standalone", param = "omega";
   std::map<std::string, double*> numbers = {{"start", &o.from}, {"stop", &o.to}, {"alpha", &o.alpha}, {"omega", &o.omega},
                                            {"eps", &o.params.eps}, {"eta", &o.params.eta}, {"eta_r", &o.params.eta_r},
                                            {"phi", &o.params.phi}, {"lambda", &o.params.lambda}, {"ds", &o.ds}};
-  std::vector<std::string> known = {"model", "param", "harmonics", "zero_mean", "switch_pd"};
+  std::vector<std::string> known = {"model", "param", "harmonics", "zero_mean", "switch_pd", "fold_curve", "alpha_range", "omega_range"};
   for (const auto& [k, _] : numbers) known.push_back(k);
   for (const auto& [key, value] : kw) {
     const std::string k = py::str(key);
@@ -361,13 +399,25 @@ py::dict Hbm(const py::kwargs& kw) {
     else if (k == "harmonics") o.harmonics = Integer(value, k);
     else if (k == "switch_pd") o.switch_depth = Integer(value, k);
     else if (k == "zero_mean") o.zero_mean = Flag(value, k);
+    else if (k == "fold_curve") fold_curve = Flag(value, k);
+    else if (k == "alpha_range") Range(value, k, &f.alpha_lo, &f.alpha_hi);
+    else if (k == "omega_range") Range(value, k, &f.omega_lo, &f.omega_hi);
     else UnknownKeyword(k, known);
   }
   o.model = Unwrap(ParseModel(model));
   if (param == "omega") o.param = ContinuationParam::kOmega;
   else if (param == "alpha") o.param = ContinuationParam::kAlpha;
   else throw py::value_error("param = '" + param + "' violates param in {omega, alpha}");
-  HbmResult r = Unwrap(Compute([&] { return ContinueBranches(o); }));
+  if (const Status st = ValidateFoldCurveOptions(f); !st.ok()) Raise(st);  // as `hbm`: the ranges are checked always
+  // `hbm --fold-curve`'s two steps: the branches, then the fold curves through their folds.
+  auto [branches_or, curves_or] = Compute([&] {
+    StatusOr<HbmResult> branches = ContinueBranches(o);
+    StatusOr<std::vector<FoldCurve>> curves = std::vector<FoldCurve>{};
+    if (branches.ok() && fold_curve) curves = ContinueFoldCurves(o, f, *branches);
+    return std::make_pair(std::move(branches), std::move(curves));
+  });
+  HbmResult r = Unwrap(std::move(branches_or));
+  const std::vector<FoldCurve> curves = Unwrap(std::move(curves_or));
   py::list branches;
   for (const HbmBranch& b : r.branches) {
     const size_t n = b.points.size();
@@ -409,6 +459,20 @@ py::dict Hbm(const py::kwargs& kw) {
   out["truncation_change"] = r.truncation_change;
   out["notes"] = r.notes;
   settings["switch_pd"] = o.switch_depth;
+  if (fold_curve) {  // `hbm --fold-curve --json`'s fold_curves, each curve's points as columns
+    const bool bistable = IsBistable(o.model);
+    const nlohmann::json shape = FoldCurvePointJson(FoldCurvePoint{}, bistable);
+    py::list folds;
+    for (const nlohmann::json& c : FoldCurvesJson(curves, bistable)) {
+      py::dict d = Columns(c.at("points"), shape);
+      d["start"] = c.at("start").get<std::string>();
+      d["converged"] = c.at("converged").get<bool>();
+      folds.append(d);
+    }
+    out["fold_curves"] = folds;
+    settings["alpha_range"] = std::vector<double>{f.alpha_lo, f.alpha_hi};  // lists, as --json prints them
+    settings["omega_range"] = std::vector<double>{f.omega_lo, f.omega_hi};
+  }
   return out;
 }
 

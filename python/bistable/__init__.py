@@ -155,10 +155,15 @@ def hbm(**kw):
     Keywords: model ("standalone", "coupled", "linear", "linear-coupled"), param ("omega" or "alpha",
     the continued parameter), start, stop (its range), alpha / omega (the fixed one), harmonics,
     zero_mean, eps, eta, eta_r, phi, lambda, ds, switch_pd (branch switching at period doublings, 0-3
-    levels). Returns {"branches": [{"start", "period", "omega", "alpha", "amplitude", "mean", "y_min",
-    "y_max", "max_multiplier", "stable", "fold", "branch_point", "period_doubling", "neimark_sacker",
-    "converged": arrays, "well": names per point ("+well", "-well", "interwell"), "harmonics": array
-    [points, 2H+1]}], "settings", "truncation_change", "notes"}.
+    levels), fold_curve (bool: also continue every fold of the period-1 branches in (alpha, omega),
+    `hbm --fold-curve`), alpha_range / omega_range ((lo, hi), the box the fold curves stay in; default
+    (0.01, 3) and (0.05, 3)). Returns {"branches": [{"start", "period", "omega", "alpha", "amplitude",
+    "mean", "y_min", "y_max", "max_multiplier", "stable", "fold", "branch_point", "period_doubling",
+    "neimark_sacker", "converged": arrays, "well": names per point ("+well", "-well", "interwell"),
+    "harmonics": array [points, 2H+1]}], "settings", "truncation_change", "notes"}; with fold_curve also
+    "fold_curves": [{"start", "converged", "alpha", "omega" (arrays, A0/delta_s and omega0/omega_n),
+    "amplitude", "mean" (arrays, delta_s), "cusp" (bool array), "well" (names; bistable models)}], the
+    points of `hbm --fold-curve --json`'s curves as columns, and settings "alpha_range", "omega_range".
     """
     return _core.hbm(**kw)
 

@@ -242,6 +242,54 @@ def test_hbm_period_doubling_and_switching_are_the_cli_ones():
     assert h["notes"] == c["notes"]
 
 
+@pytest.mark.parametrize(
+    "kw,flags",
+    [
+        (dict(alpha=0.3), ["--alpha", "0.3"]),
+        (dict(model="coupled", alpha=0.3, alpha_range=(0.05, 1.0), omega_range=(0.3, 2.0)),
+         ["--model", "coupled", "--alpha", "0.3", "--alpha-range", "0.05,1", "--omega-range", "0.3,2"]),
+    ],
+)
+def test_hbm_fold_curves_are_the_cli_fold_curves(kw, flags):
+    h = bistable.hbm(fold_curve=True, **kw)
+    c = cli_json("hbm", *flags, "--fold-curve")
+    assert len(h["fold_curves"]) == len(c["fold_curves"]) >= 1
+    for mine, theirs in zip(h["fold_curves"], c["fold_curves"]):
+        assert mine["start"] == theirs["start"] and mine["converged"] == theirs["converged"]
+        keys = set(theirs["points"][0])
+        assert set(mine) == keys | {"start", "converged"}
+        for k in keys:
+            col = [p[k] for p in theirs["points"]]
+            if k == "well":
+                assert mine[k] == col
+            elif k == "cusp":
+                assert mine[k].dtype == bool and list(mine[k]) == col
+            else:
+                assert np.array_equal(mine[k], np.array([np.nan if x is None else x for x in col], dtype=float), equal_nan=True), k
+    assert h["settings"]["alpha_range"] == c["settings"]["alpha_range"]
+    assert h["settings"]["omega_range"] == c["settings"]["omega_range"]
+    assert sum(int(f["cusp"].sum()) for f in h["fold_curves"]) >= 1
+    assert "fold_curves" not in bistable.hbm(alpha=0.3, harmonics=3)
+
+
+@pytest.mark.parametrize(
+    "kw,expect",
+    [
+        (dict(fold_curve="yes"), "fold_curve = 'yes' violates fold_curve True or False"),
+        (dict(fold_curve=True, alpha_range=(2.0, 1.0)), "alpha_range = 1 violates alpha_range > its low end 2"),
+        (dict(fold_curve=True, omega_range=(0, 1)), "omega_range = 0 violates omega_range > 0"),
+        (dict(fold_curve=True, omega_range=(0.1, float("inf"))), "omega_range[1] = inf violates omega_range[1] finite"),
+        (dict(fold_curve=True, alpha_range="0.1,1"), "alpha_range = '0.1,1' violates alpha_range = (lo, hi)"),
+        (dict(fold_curve=True, alpha_range=(0.1, 0.5, 1.0)), "alpha_range = (0.1, 0.5, 1.0) violates alpha_range = (lo, hi)"),
+        (dict(fold_curve=True, alpha_range=(None, 1.0)), "alpha_range[0] = None violates alpha_range[0] a number"),
+        (dict(alpha_rang=(0.1, 1.0)), "did you mean 'alpha_range'"),
+    ],
+)
+def test_bad_fold_curve_arguments_raise_value_error_naming_the_field(kw, expect):
+    with pytest.raises(ValueError, match=re.escape(expect)):
+        bistable.hbm(alpha=0.3, harmonics=3, **kw)
+
+
 def test_the_gil_is_released_while_computing():
     ticks = []
     done = threading.Event()
