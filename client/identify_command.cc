@@ -40,7 +40,7 @@ struct IdentifyArgs {
   std::string range, objective = "time", report, synth, synth_kind = "linear";
   std::vector<std::string> test_ranges;
   double max_seconds = 0;
-  int decimate = 1, global_evals = 150, max_added = 3, threads = 0;
+  int decimate = 1, global_evals = 150, lm_iterations = 60, max_added = 3, threads = 0;
   double horizon = 0.5, deriv_cutoff = 0;
   bool json = false, list_terms = false, fit_offsets = false;
   std::string output_weights = "residual";
@@ -363,6 +363,7 @@ Status PlanLoop(const IdentifyArgs& a, IdentifyPlan* plan) {
   else if (a.objective == "shooting") opt.fit.objective = Objective::kShooting;
   else return Status::InvalidArgument("objective", "'" + a.objective + "' violates objective in {time, fft, shooting}");
   if (a.global_evals < 0 || a.global_evals > 100000) return Status::InvalidArgument("global-evals", "must be in [0, 100000]");
+  if (a.lm_iterations < 1 || a.lm_iterations > 10000) return Status::InvalidArgument("lm-iterations", "must be in [1, 10000]");
   if (a.max_added < 0 || a.max_added > 10) return Status::InvalidArgument("max-added", "must be in [0, 10]");
   if (!(a.deriv_cutoff >= 0)) return Status::InvalidArgument("deriv-cutoff", "deriv-cutoff = " + Fmt(a.deriv_cutoff) + " violates deriv-cutoff >= 0 Hz");
   if (a.decimate < 1 || a.decimate > 1000) return Status::InvalidArgument("decimate", "must be in [1, 1000]");
@@ -370,6 +371,7 @@ Status PlanLoop(const IdentifyArgs& a, IdentifyPlan* plan) {
   if (a.objective == "shooting" && !(a.horizon > 0))
     return Status::InvalidArgument("horizon", "horizon = 0 violates horizon > 0 s (--objective shooting cuts the records into segments of --horizon)");
   opt.fit.global_evals = a.global_evals;
+  opt.fit.lm_iterations = a.lm_iterations;
   opt.fit.threads = a.threads;
   opt.fit.shooting_horizon_s = a.horizon;
   opt.max_added = a.max_added;
@@ -592,7 +594,7 @@ nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const
   j["seconds"] = r.seconds;
   j["simulations"] = simulations;
   j["settings"] = {{"v_sp", plan.setup.fc.v_sp}, {"v_t", plan.setup.fc.v_t}, {"m_main", plan.model.m_main}, {"m_res", plan.model.m_res},
-                   {"deriv_cutoff_hz", recs.empty() ? 0.0 : recs[0].f_cut}, {"global_evals", a.global_evals}, {"shooting_horizon_s", a.horizon},
+                   {"deriv_cutoff_hz", recs.empty() ? 0.0 : recs[0].f_cut}, {"global_evals", a.global_evals}, {"lm_iterations", a.lm_iterations}, {"shooting_horizon_s", a.horizon},
                    {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"input_kind", a.input_kind},
                    {"output_kind", a.output_kind}, {"output_frame", a.frame},
                    {"fit_offsets", a.fit_offsets}, {"output_weights", a.output_weights}};
@@ -947,14 +949,15 @@ void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
                                            "also the default there)")
       ->capture_default_str()
       ->each([a](const std::string&) { a->frame_given = true; });
-  c->add_option("--range", a->range, "sample range A:B used for fitting (0-based, end exclusive)");
-  c->add_option("--test-range", a->test_ranges, "sample range A:B simulated for a test error (repeatable)");
+  c->add_option("--range", a->range, "sample range A:B used for fitting (0-based, end exclusive; samples after --decimate)");
+  c->add_option("--test-range", a->test_ranges, "sample range A:B simulated for a test error (repeatable; samples after --decimate)");
   c->add_option("--max-seconds", a->max_seconds, "use at most this many seconds of each record (0: all)");
   c->add_option("--decimate", a->decimate, "keep every k-th sample")->capture_default_str();
   c->add_option("--deriv-cutoff", a->deriv_cutoff, "low-pass cutoff of measured derivatives [Hz] (0: four times the 99.9 % power bandwidth)")->capture_default_str();
   c->add_option("--objective", a->objective, "time (simulation NRMSE) | fft (the paper's Eq. 20) | shooting (chaotic records: segments of "
                                              "--horizon from re-estimated states, scored on invariants)")->capture_default_str();
   c->add_option("--global-evals", a->global_evals, "evaluations of the global stage (NLopt CRS2; 0: none)")->capture_default_str();
+  c->add_option("--lm-iterations", a->lm_iterations, "iterations of each Levenberg-Marquardt stage, in [1, 10000] (a stage that reaches them stops unconverged)")->capture_default_str();
   c->add_option("--horizon", a->horizon, "time objective: short-horizon first stage [s] (0: none); shooting objective: the segment "
                                          "length [s] (a few forcing periods)")->capture_default_str();
   c->add_option("--max-added", a->max_added, "at most this many effects added")->capture_default_str();

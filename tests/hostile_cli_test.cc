@@ -399,6 +399,9 @@ std::vector<Row> Rows() {
   // -- 7. The output weights and a model file read by --predict: names and bounds in the errors, no shell.
   rows.push_back(data_row("identify_output_weights_shell", RecordCsv(200), "violates output-weights in {residual, noise}",
                           {"--output-weights", "$(touch pwned)`touch pwned`"}));
+  rows.push_back(data_row("identify_lm_iterations_zero", RecordCsv(200), "lm-iterations: must be in [1, 10000]", {"--lm-iterations", "0"}));
+  rows.push_back(data_row("identify_lm_iterations_beyond_bound", RecordCsv(200), "lm-iterations: must be in [1, 10000]",
+                          {"--lm-iterations", "10001"}));
   {
     const std::string model = R"({"final_terms": ["main.linear", "main.viscous"], "params": {"main.linear.k_lin": 100, "main.viscous.c0": 1},
                                   "settings": {"m_main": 1}, "errors_by_output": {"voltage": {"weight": WEIGHT}}})";

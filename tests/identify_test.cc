@@ -569,6 +569,30 @@ TEST(Identify, CliFitsADaqExportLikeThePlainCsv) {
   std::filesystem::remove_all(dir);
 }
 
+// --lm-iterations caps every Levenberg-Marquardt stage: one iteration from a far guess stops short of what the
+// default reaches, and the JSON settings say which cap ran.
+TEST(Identify, LmIterationsCapEveryStage) {
+  const std::string dir = FreshDir("identify", "lm_iterations");
+  std::string csv = "t,x0,x\n";
+  char line[96];
+  for (int i = 0; i < 400; ++i) {  // a linear oscillator's steady response: omega 2, x = 1.2 x0 with a lag
+    std::snprintf(line, sizeof line, "%.3f,%.9f,%.9f\n", i * 0.01, 0.001 * std::sin(i * 0.02), 0.0012 * std::sin(i * 0.02 - 0.2));
+    csv += line;
+  }
+  std::ofstream(dir + "/d.csv") << csv;
+  const std::string args = "identify --data " + dir + "/d.csv --terms main.linear,main.viscous --known m_main=1 --max-added 0 " +
+                           "--global-evals 0 --horizon 0 --guess main.linear.k_lin=40,main.viscous.c0=30 --json";
+  const auto full = Bistable(args), one = Bistable(args + " --lm-iterations 1");
+  ASSERT_EQ(full.exit_code, 0) << full.err;
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  const auto jf = nlohmann::json::parse(full.out), j1 = nlohmann::json::parse(one.out);
+  EXPECT_EQ(jf["settings"]["lm_iterations"].get<int>(), 60);
+  EXPECT_EQ(j1["settings"]["lm_iterations"].get<int>(), 1);
+  EXPECT_LT(j1["simulations"].get<long>(), jf["simulations"].get<long>());
+  EXPECT_GT(j1["error_after"].get<double>(), 1.5 * jf["error_after"].get<double>());
+  std::filesystem::remove_all(dir);
+}
+
 TEST(Identify, BadInputNamesTheFileRowOrTerm) {
   const std::string dir = FreshDir("identify", "bad");
   auto write = [&](const std::string& name, const std::string& text) {
