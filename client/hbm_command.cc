@@ -18,6 +18,7 @@
 #include "base/validate.h"
 #include "dynamics/cancel.h"
 #include "dynamics/hbm.h"
+#include "engine/json_shapes.h"
 #include "storage/map_file.h"
 #include "storage/metric_name.h"
 
@@ -32,45 +33,18 @@ struct HbmArgs {
   HbmOptions o;
 };
 
-nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
-
-nlohmann::json ComplexJson(std::complex<double> m) { return nlohmann::json::array({Num(m.real()), Num(m.imag())}); }
-
-nlohmann::json LocatedJson(const HbmLocated& l) {
-  return {{"omega", Num(l.omega)}, {"alpha", Num(l.alpha)}, {"amplitude", Num(l.amplitude)}, {"multiplier", ComplexJson(l.multiplier)}};
-}
-
 nlohmann::json PointJson(const HbmPoint& p) {
   nlohmann::json mu = nlohmann::json::array();
   for (const auto& m : p.multipliers) mu.push_back(ComplexJson(m));
-  nlohmann::json j = {{"omega", p.omega},       {"alpha", p.alpha},   {"amplitude", Num(p.amplitude)}, {"mean", Num(p.mean)},
-                      {"stable", p.stable},     {"max_multiplier", Num(p.max_multiplier)},  {"converged", p.converged},
+  nlohmann::json j = {{"omega", p.omega},       {"alpha", p.alpha},   {"amplitude", JsonNumber(p.amplitude)}, {"mean", JsonNumber(p.mean)},
+                      {"stable", p.stable},     {"max_multiplier", JsonNumber(p.max_multiplier)},  {"converged", p.converged},
                       {"fold", p.fold},         {"branch_point", p.branch_point},           {"harmonics", p.harmonics},
-                      {"y_min", Num(p.y_min)},  {"y_max", Num(p.y_max)},                    {"period", p.period},
+                      {"y_min", JsonNumber(p.y_min)},  {"y_max", JsonNumber(p.y_max)},                    {"period", p.period},
                       {"multipliers", mu},      {"period_doubling", p.period_doubling},     {"neimark_sacker", p.neimark_sacker}};
   if (p.fold && p.fold_at.valid()) j["fold_at"] = LocatedJson(p.fold_at);
   if (p.period_doubling && p.period_doubling_at.valid()) j["period_doubling_at"] = LocatedJson(p.period_doubling_at);
   if (p.neimark_sacker && p.neimark_sacker_at.valid()) j["neimark_sacker_at"] = LocatedJson(p.neimark_sacker_at);
   return j;
-}
-
-// Every flagged bifurcation of the branches, in branch order: kind, branch and point index, the
-// located (Ω, α) (null when the bisection's corrector failed), amplitude and critical multiplier.
-nlohmann::json BifurcationsJson(const HbmResult& r) {
-  nlohmann::json out = nlohmann::json::array();
-  for (size_t b = 0; b < r.branches.size(); ++b)
-    for (size_t i = 0; i < r.branches[b].points.size(); ++i) {
-      const HbmPoint& p = r.branches[b].points[i];
-      auto add = [&](const char* kind, const HbmLocated& l) {
-        nlohmann::json j = LocatedJson(l);
-        j.update({{"kind", kind}, {"branch", b}, {"point", i}, {"period", p.period}});
-        out.push_back(j);
-      };
-      if (p.fold) add("fold", p.fold_at);
-      if (p.period_doubling) add("period_doubling", p.period_doubling_at);
-      if (p.neimark_sacker) add("neimark_sacker", p.neimark_sacker_at);
-    }
-  return out;
 }
 
 // The fold curves as a figure in (Ω, α) (x = Ω, y = α as in the maps), one colour per well, cusps marked.

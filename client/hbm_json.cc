@@ -23,4 +23,28 @@ nlohmann::json FoldCurvesJson(const std::vector<FoldCurve>& curves, bool bistabl
   return out;
 }
 
+nlohmann::json ComplexJson(std::complex<double> m) { return nlohmann::json::array({JsonNumber(m.real()), JsonNumber(m.imag())}); }
+
+nlohmann::json LocatedJson(const HbmLocated& l) {
+  return {{"omega", JsonNumber(l.omega)}, {"alpha", JsonNumber(l.alpha)}, {"amplitude", JsonNumber(l.amplitude)},
+          {"multiplier", ComplexJson(l.multiplier)}};
+}
+
+nlohmann::json BifurcationsJson(const HbmResult& r) {
+  nlohmann::json out = nlohmann::json::array();
+  for (size_t b = 0; b < r.branches.size(); ++b)
+    for (size_t i = 0; i < r.branches[b].points.size(); ++i) {
+      const HbmPoint& p = r.branches[b].points[i];
+      auto add = [&](const char* kind, const HbmLocated& l) {
+        nlohmann::json j = LocatedJson(l);
+        j.update({{"kind", kind}, {"branch", b}, {"point", i}, {"period", p.period}});
+        out.push_back(j);
+      };
+      if (p.fold) add("fold", p.fold_at);
+      if (p.period_doubling) add("period_doubling", p.period_doubling_at);
+      if (p.neimark_sacker) add("neimark_sacker", p.neimark_sacker_at);
+    }
+  return out;
+}
+
 }  // namespace bistable

@@ -165,24 +165,51 @@ py::object ToPython(const nlohmann::json& j) {
   }
 }
 
-// A finite number from a Python object; ValueError naming the keyword otherwise.
+// A bool, Python's or numpy's (numpy.bool_ converts to float and, in old numpy, to an index): never a
+// number or an integer here.
+bool IsBool(const py::handle& v) {
+  if (py::isinstance<py::bool_>(v)) return true;
+  const py::handle type = reinterpret_cast<PyObject*>(Py_TYPE(v.ptr()));
+  return py::str(type.attr("__module__")).cast<std::string>() == "numpy" &&
+         py::str(type.attr("__name__")).cast<std::string>().rfind("bool", 0) == 0;
+}
+
+// A finite number from a Python object — any numbers.Real but a bool: int, float, numpy.float32, numpy.int64 ...;
+// ValueError naming the keyword otherwise.
 double Number(const py::handle& v, const std::string& name) {
-  if (py::isinstance<py::bool_>(v) || !(py::isinstance<py::float_>(v) || py::isinstance<py::int_>(v)))
+  static const py::object& real = *new py::object(py::module_::import("numbers").attr("Real"));  // never destroyed
+  if (IsBool(v) || !py::isinstance(v, real))
     throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " a number");
-  const double x = v.cast<double>();
-  if (!std::isfinite(x)) throw py::value_error(name + " = " + std::to_string(x) + " violates " + name + " finite");
+  double x = NAN;
+  try {
+    x = py::float_(py::reinterpret_borrow<py::object>(v)).cast<double>();
+  } catch (const py::error_already_set&) {  // an int beyond a double's range: OverflowError in float()
+    x = INFINITY;
+  }
+  if (!std::isfinite(x))
+    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " finite");
+  return x;
+}
+
+// An integer from a Python int or anything with __index__ (numpy.int64 ...), bools not; nullopt when it does
+// not fit a long long. ValueError naming the keyword when it is not an integer.
+std::optional<long long> IndexValue(const py::handle& v, const std::string& name) {
+  if (IsBool(v) || !PyIndex_Check(v.ptr()))
+    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " an integer");
+  const py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(v.ptr()));
+  if (!i) throw py::error_already_set();
+  int overflow = 0;  // beyond long long: out of range (v.cast would raise a bare RuntimeError)
+  const long long x = PyLong_AsLongLongAndOverflow(i.ptr(), &overflow);
+  if (overflow != 0) return std::nullopt;
   return x;
 }
 
 int Integer(const py::handle& v, const std::string& name) {
-  if (py::isinstance<py::bool_>(v) || !py::isinstance<py::int_>(v))
-    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " an integer");
-  int overflow = 0;  // beyond long long: out of range too (v.cast would raise a bare RuntimeError)
-  const long long x = PyLong_AsLongLongAndOverflow(v.ptr(), &overflow);
-  if (overflow != 0)
-    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates |" + name + "| <= 2^30");
-  if (x < -(1LL << 30) || x > (1LL << 30)) throw py::value_error(name + " = " + std::to_string(x) + " violates |" + name + "| <= 2^30");
-  return static_cast<int>(x);
+  const std::optional<long long> x = IndexValue(v, name);
+  if (!x || *x < -(1LL << 30) || *x > (1LL << 30))
+    throw py::value_error(name + " = " + std::string(py::str(x ? py::str(py::int_(*x)) : py::str(py::int_(py::reinterpret_borrow<py::object>(v))))) + " violates |" +
+                          name + "| <= 2^30");
+  return static_cast<int>(*x);
 }
 
 bool Flag(const py::handle& v, const std::string& name) {
@@ -202,14 +229,11 @@ std::string Text(const py::handle& v, const std::string& name) {
 // `poincare_periods`: an integer, however large (one beyond `long` is outside the bound SetPoincareWindow
 // checks: the same message, with the value as given).
 long Periods(const py::handle& v, const std::string& name) {
-  if (py::isinstance<py::bool_>(v) || !py::isinstance<py::int_>(v))
-    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " an integer");
-  int overflow = 0;
-  const long long x = PyLong_AsLongLongAndOverflow(v.ptr(), &overflow);
-  if (overflow != 0)
-    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " in [1, " +
+  const std::optional<long long> x = IndexValue(v, name);
+  if (!x)
+    throw py::value_error(name + " = " + std::string(py::str(py::int_(py::reinterpret_borrow<py::object>(v)))) + " violates " + name + " in [1, " +
                           std::to_string(limits::kMaxPoincarePeriods) + "]");
-  return static_cast<long>(x);
+  return static_cast<long>(*x);
 }
 
 // The point options by keyword — the flags of `bistable point` with '-' as '_'. `poincare_periods`
@@ -456,6 +480,7 @@ py::dict Hbm(const py::kwargs& kw) {
   py::dict out;
   out["branches"] = branches;
   out["settings"] = settings;
+  out["bifurcations"] = ToPython(BifurcationsJson(r));  // as `hbm --json`: one dict per flagged point
   out["truncation_change"] = r.truncation_change;
   out["notes"] = r.notes;
   settings["switch_pd"] = o.switch_depth;

@@ -184,6 +184,32 @@ def test_an_integer_beyond_long_long_raises_value_error_naming_the_field():
         bistable.hbm(harmonics=10**30)
 
 
+def test_numpy_scalars_are_numbers_and_integers_but_numpy_bools_are_not():
+    # numpy.float64 is a float; numpy.float32 and numpy.int64 are not, but users pass them (np.arange, np.linspace).
+    a = bistable.hbm(param="omega", start=0.4, stop=1.6, alpha=0.3, harmonics=5)
+    b = bistable.hbm(param="omega", start=np.float32(0.4), stop=np.int64(2) * 0.8, alpha=np.float64(0.3), harmonics=np.int64(5))
+    assert b["settings"]["start"] == float(np.float32(0.4)) and b["settings"]["harmonics"] == 5
+    assert np.array_equal(b["branches"][0]["amplitude"][:3], bistable.hbm(param="omega", start=float(np.float32(0.4)), stop=1.6,
+                                                                           alpha=0.3, harmonics=5)["branches"][0]["amplitude"][:3])
+    assert len(a["branches"]) == len(b["branches"])
+    p = bistable.point(model="standalone", alpha=np.float32(0.5), omega=1.0, renorm_every=np.int16(10), poincare=True,
+                       poincare_periods=np.uint8(4))
+    assert p["poincare"]["count"] == 4
+    with pytest.raises(ValueError, match=re.escape("harmonics = np.True_ violates harmonics an integer")
+                       if np.__version__ >= "2" else "harmonics = True violates harmonics an integer"):
+        bistable.hbm(alpha=0.3, harmonics=np.bool_(True))
+    with pytest.raises(ValueError, match="alpha = .* violates alpha a number"):
+        bistable.hbm(alpha=np.bool_(False))
+    with pytest.raises(ValueError, match="alpha = .* violates alpha a number"):
+        bistable.hbm(alpha=1 + 2j)
+    with pytest.raises(ValueError, match=re.escape("harmonics = %d violates |harmonics| <= 2^30" % 2**40)):
+        bistable.hbm(alpha=0.3, harmonics=np.int64(2**40))
+    with pytest.raises(ValueError, match=re.escape("alpha = %d violates alpha finite" % 10**400)):
+        bistable.hbm(alpha=10**400)
+    with pytest.raises(ValueError, match="harmonics = 5.0 violates harmonics an integer"):
+        bistable.hbm(alpha=0.3, harmonics=np.float64(5.0))
+
+
 def test_run_gives_the_cli_map_and_open_finds_it(tmp_path):
     ds = bistable.run(SMALL, data=tmp_path / "py")
     assert ds.frf_db.dims == ("alpha", "omega") and ds.frf_db.shape == (5, 4)
@@ -240,6 +266,9 @@ def test_hbm_period_doubling_and_switching_are_the_cli_ones():
     for mine, theirs in zip(h["branches"], c["branches"]):
         assert list(mine["period_doubling"]) == [bool(p.get("period_doubling", False)) for p in theirs["points"]]
     assert h["notes"] == c["notes"]
+    # `bifurcations` as `hbm --json` gives it: the same list, every number to the bit.
+    assert h["bifurcations"] == c["bifurcations"]
+    assert {b["kind"] for b in h["bifurcations"]} >= {"period_doubling"}
 
 
 @pytest.mark.parametrize(
