@@ -86,8 +86,7 @@ TEST(CliPoint, SettingsFromJsonReproduceTheResult) {
 }
 
 TEST(CliPoint, TraceWritesTheWindow) {
-  const std::string dir = ::testing::TempDir() + "/trace_" + std::to_string(::getpid());
-  std::filesystem::create_directories(dir);
+  const std::string dir = bistable_test::FreshDir("cli_point", "trace");
   const std::string path = dir + "/trace.csv";
   const ProcessResult r = Bistable("point --model coupled --alpha 0.3 --omega 0.8 --trace " + path);
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -143,8 +142,7 @@ TEST(CliPoint, BadInputNamesFieldAndExitsNonZero) {
 // --poincare: a CSV file (one header line, units in brackets), its count and file in --json; "-" with
 // --json puts the points into the JSON; the plot; bad values name the flag and the bound.
 TEST(CliPoint, PoincareSectionFileJsonAndPlot) {
-  const std::string dir = ::testing::TempDir() + "/poincare_" + std::to_string(::getpid());
-  std::filesystem::create_directories(dir);
+  const std::string dir = bistable_test::FreshDir("cli_point", "poincare");
   const std::string duffing = "point --model standalone --alpha 0.3472222222222222 --omega 1.2 --eta 0.3 --no-rosenstein ";
   const ProcessResult r = Bistable(duffing + "--poincare-periods 3000 --poincare " + dir + "/s.csv --poincare-plot " + dir +
                                    "/s.png --json");
@@ -315,7 +313,7 @@ TEST(CliHbm, BadInputNamesTheField) {
 namespace {
 
 TEST(CliChirp, WritesFrfSpectrogramAndSeries) {
-  const std::string out = ::testing::TempDir() + "/chirp_" + std::to_string(::getpid());
+  const std::string out = bistable_test::FreshDir("cli_point", "chirp") + "/chirp";
   const ProcessResult r = Bistable("chirp --model coupled --alpha 0.2 --from 0.3 --to 2 --duration 600 --direction both --json --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);

@@ -18,12 +18,7 @@
 namespace bistable {
 namespace {
 
-std::string TempDir(const std::string& name) {
-  const auto d = std::filesystem::temp_directory_path() / ("design-test-" + name + "-" + std::to_string(::getpid()));
-  std::filesystem::remove_all(d);
-  std::filesystem::create_directories(d);
-  return d.string();
-}
+std::string TempDir(const std::string& name) { return bistable_test::FreshDir("design-test", name); }
 
 // The linear tuned-mass-damper limit: linear-coupled model, whose FRF has a closed form.
 const char* kLinearTmd = R"(

@@ -477,6 +477,7 @@ class Hostile : public ::testing::TestWithParam<size_t> {
     g->dir = (fs::path(::testing::TempDir()) / ("hostile_wire_" + std::to_string(::getpid()))).string();
     fs::remove_all(g->dir);
     fs::create_directories(g->dir);
+    bistable_test::RemoveWhenAllPass(g->dir);
     g->data = g->dir + "/data";
     // A sweep the next coordinator will not hold: submitted and cancelled under an earlier one.
     {
@@ -550,6 +551,7 @@ INSTANTIATE_TEST_SUITE_P(Wire, Hostile, ::testing::Range<size_t>(0, Rows().size(
 // that survive a restart.
 TEST(HostileStartup, ListenOnANameThatStartsWith127IsNotLoopback) {
   const std::string dir = (fs::path(::testing::TempDir()) / ("hostile_listen_" + std::to_string(::getpid()))).string();
+  bistable_test::RemoveWhenAllPass(dir);
   fs::create_directories(dir);
   for (const char* addr : {"127.attacker.example:0", "0.0.0.0:0", "localhost.attacker.example:0", "[::]:0"}) {
     const pid_t pid = Spawn({BISTABLE_COORDINATOR, "--listen", addr, "--data", dir + "/data"}, dir + "/log");
@@ -564,6 +566,7 @@ TEST(HostileStartup, ListenOnANameThatStartsWith127IsNotLoopback) {
 TEST(HostileStartup, FullDiskIsReportedInStatusAndLoggedAndLosesNothing) {
   if (::geteuid() != 0) GTEST_SKIP() << "needs root to mount a small tmpfs";
   const std::string dir = (fs::path(::testing::TempDir()) / ("hostile_disk_" + std::to_string(::getpid()))).string();
+  bistable_test::RemoveWhenAllPass(dir);
   fs::remove_all(dir);
   fs::create_directories(dir + "/mnt");
   const pid_t m = Spawn({"/bin/mount", "-t", "tmpfs", "-o", "size=3m", "tmpfs", dir + "/mnt"}, dir + "/mount.log");
@@ -607,6 +610,7 @@ TEST(HostileStartup, FullDiskIsReportedInStatusAndLoggedAndLosesNothing) {
 
 TEST(HostileStartup, UnnamedTokensAreDistinctOwnersAcrossRestarts) {
   const std::string dir = (fs::path(::testing::TempDir()) / ("hostile_owner_" + std::to_string(::getpid()))).string();
+  bistable_test::RemoveWhenAllPass(dir);
   fs::remove_all(dir);
   fs::create_directories(dir);
   // Two unnamed client tokens.

@@ -179,7 +179,7 @@ TEST(IdentifyPredict, CliPredictsTheFittedRecordWithTheFitsErrors) {
   const auto f = nlohmann::json::parse(fit.out);
   ASSERT_EQ(f["final_terms"].size(), 4u);
   EXPECT_EQ(f["final_terms"][3], "main.piezo");
-  const std::string model = ::testing::TempDir() + "/predict_model_" + std::to_string(::getpid()) + ".json";
+  const std::string model = bistable_test::FreshDir("predict", "model") + "/model.json";
   WriteFile(model, fit.out);
   const auto pred = Bistable("identify --predict --model " + model + " --data " + inter + PiezoFlags() + slice + " --json");
   ASSERT_EQ(pred.exit_code, 0) << pred.err;

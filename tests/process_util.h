@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -92,12 +93,46 @@ inline ProcessResult Bistable(const std::string& args) {
 
 #endif  // BISTABLE_CLI
 
-// A fresh, empty directory under the test temp dir, unique to this process.
+namespace detail {
+struct TempDirs {
+  std::mutex mu;
+  std::vector<std::filesystem::path> dirs;
+  pid_t owner = ::getpid();
+};
+inline TempDirs& TempDirRegistry() {
+  static TempDirs* const t = [] {
+    auto* r = new TempDirs;  // never destroyed: the exit handler reads it
+    std::atexit([] {
+      TempDirs& d = TempDirRegistry();
+      // Only the process that made them, and only when every test of this program passed: a failure's files stay.
+      if (::getpid() != d.owner || ::testing::UnitTest::GetInstance()->Failed()) return;
+      std::lock_guard<std::mutex> lock(d.mu);
+      for (const auto& p : d.dirs) {
+        std::error_code ec;
+        std::filesystem::remove_all(p, ec);
+      }
+    });
+    return r;
+  }();
+  return *t;
+}
+}  // namespace detail
+
+// Removes `dir` (and what is in it) when this test program ends with every test passed; after a failure it stays
+// for a look. Forked children that reach exit() leave it alone.
+inline void RemoveWhenAllPass(const std::filesystem::path& dir) {
+  detail::TempDirs& d = detail::TempDirRegistry();
+  std::lock_guard<std::mutex> lock(d.mu);
+  d.dirs.push_back(dir);
+}
+
+// A fresh, empty directory under the test temp dir, unique to this process; removed at exit when every test passed.
 inline std::string FreshDir(const std::string& prefix, const std::string& name) {
   const std::filesystem::path d =
       std::filesystem::path(::testing::TempDir()) / (prefix + "_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::remove_all(d);
   std::filesystem::create_directories(d);
+  RemoveWhenAllPass(d);
   return d.string();
 }
 

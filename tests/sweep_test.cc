@@ -27,6 +27,7 @@
 #include "engine/evaluate.h"
 #include "engine/refine.h"
 #include "tests/map_compare.h"
+#include "tests/process_util.h"
 
 namespace bistable {
 namespace {
@@ -34,6 +35,7 @@ namespace {
 std::string TempDir(const std::string& name) {
   const auto dir = std::filesystem::path(::testing::TempDir()) / ("bistable_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
+  bistable_test::RemoveWhenAllPass(dir);
   return dir.string();
 }
 
