@@ -41,7 +41,7 @@ struct IdentifyArgs {
   std::vector<std::string> test_ranges;
   double max_seconds = 0;
   int decimate = 1, global_evals = 150, lm_iterations = 60, max_added = 3, threads = 0;
-  double horizon = 0.5, deriv_cutoff = 0;
+  double horizon = 0.5, deriv_cutoff = 0, drift_cutoff = 0;
   bool json = false, list_terms = false, fit_offsets = false;
   std::string output_weights = "residual";
   // --predict: simulate the --data records with the fitted model of --model (nothing fitted).
@@ -337,6 +337,7 @@ Status PlanModel(const IdentifyArgs& a, IdentifyPlan* plan) {
   else if (a.frame == "relative") setup.frame = OutputFrame::kRelative;
   else if (a.frame == "auto") plan->frame_auto = true;
   else return Status::InvalidArgument("output-frame", "'" + a.frame + "' violates output-frame in {absolute, relative, auto}");
+  setup.drift_cutoff_hz = a.drift_cutoff;
   if (plan->frame_auto && !(setup.output == OutputKind::kVelocity && setup.input == InputKind::kBaseAcceleration))
     return Status::InvalidArgument("output-frame", "--output-frame auto decides whether a velocity sensor reads absolute or base-relative "
                                                    "velocity: it needs --output-kind velocity and --input-kind base_acceleration");
@@ -596,7 +597,7 @@ nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const
   j["settings"] = {{"v_sp", plan.setup.fc.v_sp}, {"v_t", plan.setup.fc.v_t}, {"m_main", plan.model.m_main}, {"m_res", plan.model.m_res},
                    {"deriv_cutoff_hz", recs.empty() ? 0.0 : recs[0].f_cut}, {"global_evals", a.global_evals}, {"lm_iterations", a.lm_iterations}, {"shooting_horizon_s", a.horizon},
                    {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"input_kind", a.input_kind},
-                   {"output_kind", a.output_kind}, {"output_frame", a.frame},
+                   {"output_kind", a.output_kind}, {"output_frame", a.frame}, {"drift_cutoff_hz", a.drift_cutoff},
                    {"fit_offsets", a.fit_offsets}, {"output_weights", a.output_weights}};
   AddDiagnosticsJson(r, recs, &j);
   return j;
@@ -798,6 +799,7 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
     fm->notes.push_back("the fit read the velocity as " + fm->frame + "; predicted as " + frame + " (--output-frame)");
   plan.model = fm->model;
   setup.fc = plan.model.fc;
+  setup.drift_cutoff_hz = a.drift_cutoff;
   BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));
   BISTABLE_RETURN_IF_ERROR(CheckOutputTerms(plan.model.terms, plan.columns, setup, "model.final_terms"));
   BISTABLE_RETURN_IF_ERROR(PlanLoop(a, &plan));
@@ -954,6 +956,10 @@ void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
   c->add_option("--max-seconds", a->max_seconds, "use at most this many seconds of each record (0: all)");
   c->add_option("--decimate", a->decimate, "keep every k-th sample")->capture_default_str();
   c->add_option("--deriv-cutoff", a->deriv_cutoff, "low-pass cutoff of measured derivatives [Hz] (0: four times the 99.9 % power bandwidth)")->capture_default_str();
+  c->add_option("--drift-cutoff", a->drift_cutoff,
+                "velocity outputs: high-pass [Hz] of the displacement integrated from the velocity (0: mean removed only); "
+                "for records in one well, below the drive (e.g. 0.5 Hz at 6.5 Hz), where the integral's slow part is sensor drift; "
+                "keep 0 on records that change well")->capture_default_str();
   c->add_option("--objective", a->objective, "time (simulation NRMSE) | fft (the paper's Eq. 20) | shooting (chaotic records: segments of "
                                              "--horizon from re-estimated states, scored on invariants)")->capture_default_str();
   c->add_option("--global-evals", a->global_evals, "evaluations of the global stage (NLopt CRS2; 0: none)")->capture_default_str();

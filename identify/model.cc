@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <complex>
 #include <type_traits>
 
@@ -191,6 +192,13 @@ double NoiseLevel(const std::vector<double>& y, double dt) {
 Status ValidateSetup(const Setup& s) {
   if (!(s.fc.v_sp > 0) || !std::isfinite(s.fc.v_sp)) return Status::InvalidArgument("v_sp", "v_sp must be > 0 m/s");
   if (!(s.fc.v_t > 0) || !std::isfinite(s.fc.v_t)) return Status::InvalidArgument("v_t", "v_t must be > 0 m/s");
+  if (!(s.drift_cutoff_hz >= 0) || !(s.drift_cutoff_hz <= 1000)) {
+    char v[32];
+    std::snprintf(v, sizeof v, "%g", s.drift_cutoff_hz);
+    return Status::InvalidArgument("drift-cutoff", std::string("drift-cutoff = ") + v + " violates 0 <= drift-cutoff <= 1000 Hz");
+  }
+  if (s.drift_cutoff_hz > 0 && s.output != OutputKind::kVelocity)
+    return Status::InvalidArgument("drift-cutoff", "drift-cutoff acts on a displacement integrated from a velocity output: it needs --output-kind velocity");
   const bool disp = s.output != OutputKind::kVelocity;
   if (s.input == InputKind::kBaseAcceleration && disp && s.frame == OutputFrame::kAbsolute)
     return Status::InvalidArgument("output", "an absolute displacement output needs the base displacement as input; with a "
@@ -399,7 +407,8 @@ void MainBodySignals(PreparedRecord* r, const std::vector<double>& out, const Se
     const std::vector<double> v_rel = RelativeVelocity(out, *r, setup);
     r->pd = Derivative(*r, v_rel, 0);
     r->pdd = Derivative(*r, v_rel, 1);
-    r->p = IntegrateFft(v_rel, r->dt, 0.0);  // zero-mean: an offset (the well) is not observable from velocity
+    // Zero-mean: an offset (the well) is not observable from velocity; drift below --drift-cutoff removed.
+    r->p = IntegrateFft(v_rel, r->dt, setup.drift_cutoff_hz);
   }
   r->y = r->p;
   r->yd = r->pd;

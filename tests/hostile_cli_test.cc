@@ -402,6 +402,12 @@ std::vector<Row> Rows() {
   rows.push_back(data_row("identify_lm_iterations_zero", RecordCsv(200), "lm-iterations: must be in [1, 10000]", {"--lm-iterations", "0"}));
   rows.push_back(data_row("identify_lm_iterations_beyond_bound", RecordCsv(200), "lm-iterations: must be in [1, 10000]",
                           {"--lm-iterations", "10001"}));
+  rows.push_back(data_row("identify_drift_cutoff_negative", RecordCsv(200), "drift-cutoff = -0.5 violates 0 <= drift-cutoff <= 1000 Hz",
+                          {"--drift-cutoff", "-0.5"}));
+  rows.push_back(data_row("identify_drift_cutoff_nan", RecordCsv(200), "drift-cutoff = nan violates 0 <= drift-cutoff <= 1000 Hz",
+                          {"--drift-cutoff", "nan"}));
+  rows.push_back(data_row("identify_drift_cutoff_displacement_output", RecordCsv(200), "needs --output-kind velocity",
+                          {"--drift-cutoff", "0.5"}));
   {
     const std::string model = R"({"final_terms": ["main.linear", "main.viscous"], "params": {"main.linear.k_lin": 100, "main.viscous.c0": 1},
                                   "settings": {"m_main": 1}, "errors_by_output": {"voltage": {"weight": WEIGHT}}})";
