@@ -852,7 +852,8 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   const Errors joint = Evaluate(m, th, recs, setup);
   nlohmann::json settings = {{"data", a.data}, {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"range", a.range},
                              {"deriv_cutoff_hz", a.deriv_cutoff}, {"objective", a.objective}, {"input_kind", a.input_kind},
-                             {"output_kind", a.output_kind}, {"output_frame", frame}, {"start_well", *wells}};
+                             {"output_kind", a.output_kind}, {"output_frame", frame}, {"drift_cutoff_hz", a.drift_cutoff},
+                             {"start_well", *wells}};
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return PredictionJson(*fm, *statics, out, joint, setup, settings, seconds);
 }
