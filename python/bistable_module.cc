@@ -204,11 +204,13 @@ std::optional<long long> IndexValue(const py::handle& v, const std::string& name
   return x;
 }
 
+// An integer's value as Python prints it (numpy.int64(5) as 5).
+std::string IntegerText(const py::handle& v) { return py::str(py::int_(py::reinterpret_borrow<py::object>(v))); }
+
 int Integer(const py::handle& v, const std::string& name) {
   const std::optional<long long> x = IndexValue(v, name);
   if (!x || *x < -(1LL << 30) || *x > (1LL << 30))
-    throw py::value_error(name + " = " + std::string(py::str(x ? py::str(py::int_(*x)) : py::str(py::int_(py::reinterpret_borrow<py::object>(v))))) + " violates |" +
-                          name + "| <= 2^30");
+    throw py::value_error(name + " = " + IntegerText(v) + " violates |" + name + "| <= 2^30");
   return static_cast<int>(*x);
 }
 
@@ -231,7 +233,7 @@ std::string Text(const py::handle& v, const std::string& name) {
 long Periods(const py::handle& v, const std::string& name) {
   const std::optional<long long> x = IndexValue(v, name);
   if (!x)
-    throw py::value_error(name + " = " + std::string(py::str(py::int_(py::reinterpret_borrow<py::object>(v)))) + " violates " + name + " in [1, " +
+    throw py::value_error(name + " = " + IntegerText(v) + " violates " + name + " in [1, " +
                           std::to_string(limits::kMaxPoincarePeriods) + "]");
   return static_cast<long>(*x);
 }
