@@ -490,6 +490,12 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
   r.in_spline = UniformSpline(r.t0, r.dt, r.input);
   if (!(f_cut_hz >= 0)) return Status::InvalidArgument("deriv-cutoff", "the derivative cutoff must be >= 0 Hz");
   r.f_cut = f_cut_hz > 0 ? std::min(f_cut_hz, 0.5 / r.dt) : AutoCutoff(out, r.dt);
+  if (setup.drift_cutoff_hz > 0 && !(setup.drift_cutoff_hz < r.f_cut)) {  // it would remove the whole signal
+    char v[96];
+    std::snprintf(v, sizeof v, "drift-cutoff = %g violates drift-cutoff < %g Hz", setup.drift_cutoff_hz, r.f_cut);
+    return Status::InvalidArgument("drift-cutoff", std::string(v) + ", the derivative cutoff of record '" + name +
+                                                       "' (a high-pass of the displacement must keep the band the model sees)");
+  }
   MainBodySignals(&r, out, setup);
   if (!rec.resonator.empty()) {
     if (setup.input == InputKind::kBaseAcceleration)

@@ -141,6 +141,10 @@ TEST(Identify, DriftCutoffRemovesTheIntegratedSensorDrift) {
   };
   EXPECT_GT(rms_error(0.0), 1.0);   // the integrated drift is larger than the orbit
   EXPECT_LT(rms_error(0.5), 0.02);  // removed
+  s.drift_cutoff_hz = 300;  // above the derivative cutoff: nothing of the signal would be left
+  const auto above = PrepareRecord(r, s, 0, r.t.size(), 0.0, "drift");
+  ASSERT_FALSE(above.ok());
+  EXPECT_NE(above.status().ToString().find("drift-cutoff = 300 violates drift-cutoff <"), std::string::npos) << above.status().ToString();
   s.drift_cutoff_hz = -1;
   EXPECT_NE(ValidateSetup(s).ToString().find("drift-cutoff = -1 violates 0 <= drift-cutoff <= 1000 Hz"), std::string::npos);
   s.drift_cutoff_hz = 0.5, s.output = OutputKind::kDisplacement, s.frame = OutputFrame::kRelative;
