@@ -3,9 +3,11 @@
 // block gnuplot skipped has axes and a title but none of them). Small data, so the suite stays fast.
 // Also: discrete codes keep "none found" apart, legends name only what is drawn (SVG text), and
 // `bistable run` without gnuplot keeps the map, says what is missing and succeeds.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -25,10 +27,13 @@ struct PngStats {
   int width = 0, height = 0, distinct = 0;
   double non_background = 0;
   std::map<std::string, long> colours;  // pixels near each asked colour
+  std::map<std::string, std::pair<int, int>> rows;  // with rows: the 5th and 95th percentile rows of each colour's pixels
 };
 
-PngStats Stats(const std::string& png, const std::vector<std::string>& colours = {}) {
-  std::vector<std::string> argv = {"/usr/bin/python3", BISTABLE_TESTS_DIR "/png_stats.py", png};
+PngStats Stats(const std::string& png, const std::vector<std::string>& colours = {}, bool rows = false) {
+  std::vector<std::string> argv = {"/usr/bin/python3", BISTABLE_TESTS_DIR "/png_stats.py"};
+  if (rows) argv.push_back("--rows");
+  argv.push_back(png);
   argv.insert(argv.end(), colours.begin(), colours.end());
   const bistable_test::ExecResult r = RunArgv(argv);
   EXPECT_EQ(r.exit_code, 0) << r.err;
@@ -37,6 +42,9 @@ PngStats Stats(const std::string& png, const std::vector<std::string>& colours =
   const auto j = nlohmann::json::parse(r.out);
   s.width = j["width"], s.height = j["height"], s.distinct = j["distinct"], s.non_background = j["non_background"];
   for (const auto& [k, v] : j["colours"].items()) s.colours[k] = v.get<long>();
+  if (j.contains("rows"))
+    for (const auto& [k, v] : j["rows"].items())
+      if (!v.is_null()) s.rows[k] = {v[0].get<int>(), v[1].get<int>()};
   return s;
 }
 
@@ -281,22 +289,39 @@ TEST_F(Figures, Spectrogram) {
 }
 
 TEST_F(Figures, PanelsShareAYRange) {
-  bistable::PanelPlot d;
-  d.title = "panels";
-  d.cols = 2;
-  for (int p = 0; p < 2; ++p) {
-    bistable::PanelPlot::Panel panel;
-    panel.title = p ? "with" : "without";
-    panel.x_label = "time t [s]";
-    panel.y_label = "y [mm]";
-    panel.y_lo = -30, panel.y_hi = 40;
-    bistable::PanelPlot::Series s{"y", {}, {}, false, p ? "#2166ac" : "#555555"};
-    for (int i = 0; i < 500; ++i) s.x.push_back(0.05 * i), s.y.push_back((p ? 25 : 5) * std::sin(0.3 * i));
-    panel.series.push_back(s);
-    d.panels.push_back(panel);
-  }
-  const std::string out = File("panels.png");
-  ExpectDrawn(bistable::RenderPanels(d, out), out, 1040, 440, {"#2166ac", "#555555"}, 200);
+  // Two panels on one y range [-30, 40] mm: a 5 mm and a 25 mm sine. On the shared range the small one spans a
+  // fifth of the large one's height; had the range been ignored, each panel would autoscale to its own curve
+  // and both would fill their plots (checked below with the range off).
+  auto figure = [](bool shared) {
+    bistable::PanelPlot d;
+    d.title = "panels";
+    d.cols = 2;
+    for (int p = 0; p < 2; ++p) {
+      bistable::PanelPlot::Panel panel;
+      panel.title = p ? "with" : "without";
+      panel.x_label = "time t [s]";
+      panel.y_label = "y [mm]";
+      if (shared) panel.y_lo = -30, panel.y_hi = 40;
+      bistable::PanelPlot::Series s{"", {}, {}, false, p ? "#2166ac" : "#d95f02"};  // no key: its line sample would count
+      for (int i = 0; i < 500; ++i) s.x.push_back(0.05 * i), s.y.push_back((p ? 25 : 5) * std::sin(0.3 * i));
+      panel.series.push_back(s);
+      d.panels.push_back(panel);
+    }
+    return d;
+  };
+  auto span_ratio = [&](const std::string& png) {  // the small curve's height over the large one's
+    const PngStats st = Stats(png, {"#d95f02", "#2166ac"}, true);
+    if (st.rows.size() != 2) return -1.0;
+    const auto small = st.rows.at("#d95f02"), large = st.rows.at("#2166ac");
+    return static_cast<double>(small.second - small.first) / std::max(1, large.second - large.first);
+  };
+  const std::string out = File("panels.png"), own = File("panels_own.png");
+  ExpectDrawn(bistable::RenderPanels(figure(true), out), out, 1040, 440, {"#2166ac", "#d95f02"}, 200);
+  const double shared = span_ratio(out);
+  EXPECT_GT(shared, 0.1);
+  EXPECT_LT(shared, 0.35) << "10 mm of 70 against 50 of 70: about 0.2";
+  ASSERT_TRUE(bistable::RenderPanels(figure(false), own).ok());
+  EXPECT_GT(span_ratio(own), 0.6) << "each panel on its own range: both curves fill their plots";
 }
 
 // ---- without gnuplot: a real `bistable run` whose PATH has no gnuplot ------------------------------
