@@ -269,7 +269,12 @@ std::string AxisUnit(const std::string& name) {
       {"alpha", "A0/delta_s"}, {"omega", "omega0/omega_n"}, {"eta", "c/(m_m omega_n)"}, {"eta_r", "c_r/(m_r omega_n)"},
       {"lambda", "omega_r/omega_n"}, {"phi", "m_r/m_m"}, {"eps", "k3 delta_s^2/(m_m omega_n^2)"},
       {"a0_mm", "mm"}, {"f0_hz", "Hz"}, {"ym0", "delta_s"}, {"vm0", "delta_s/tau"}, {"yr0", "delta_s"},
-      {"vr0", "delta_s/tau"}};
+      {"vr0", "delta_s/tau"},
+      // The dimensional (Table 2) model's parameters.
+      {"m_m", "kg"}, {"k_lin", "N/m"}, {"k3", "N/m^3"}, {"c0_m", "N s/m"}, {"c2_m", "N s/m^3"},
+      {"fric_m_fs", "N"}, {"fric_m_fc", "N"}, {"fric_m_vsp", "m/s"}, {"fric_m_vt", "m/s"},
+      {"m_r", "kg"}, {"k_r", "N/m"}, {"c0_r", "N s/m"}, {"c2_r", "N s/m^3"},
+      {"fric_r_fs", "N"}, {"fric_r_fc", "N"}, {"fric_r_vsp", "m/s"}, {"fric_r_vt", "m/s"}};
   auto it = kUnits.find(name);
   return it == kUnits.end() ? "" : it->second;
 }
@@ -317,20 +322,20 @@ std::vector<FixedParameter> SweepSpec::FixedParameters() const {
       if (a.name == n) return true;
     return false;
   };
-  auto add = [&](const std::string& n, double v, std::string unit) {
-    if (!swept(n)) out.push_back({n, v, unit.empty() ? AxisUnit(n) : unit, AxisLongName(n)});
+  auto add = [&](const std::string& n, double v) {
+    if (!swept(n)) out.push_back({n, v, AxisUnit(n), AxisLongName(n)});
   };
   if (model == ModelKind::kDimensional) {
-    add("a0_mm", base.alpha, "");
-    add("f0_hz", base.omega, "");
+    add("a0_mm", base.alpha);
+    add("f0_hz", base.omega);
     const DimensionalParams& d = dimensional.params;
-    add("m_m", d.m_m, "kg"), add("k_lin", d.k_lin, "N/m"), add("k3", d.k3, "N/m^3"), add("c0_m", d.c0_m, "N s/m");
-    add("c2_m", d.c2_m, "N s/m^3"), add("fric_m_fs", d.fric_m.f_s, "N"), add("fric_m_fc", d.fric_m.f_c, "N");
-    add("fric_m_vsp", d.fric_m.v_sp, "m/s"), add("fric_m_vt", d.fric_m.v_t, "m/s");
+    add("m_m", d.m_m), add("k_lin", d.k_lin), add("k3", d.k3), add("c0_m", d.c0_m);
+    add("c2_m", d.c2_m), add("fric_m_fs", d.fric_m.f_s), add("fric_m_fc", d.fric_m.f_c);
+    add("fric_m_vsp", d.fric_m.v_sp), add("fric_m_vt", d.fric_m.v_t);
     if (d.has_resonator) {
-      add("m_r", d.m_r, "kg"), add("k_r", d.k_r, "N/m"), add("c0_r", d.c0_r, "N s/m"), add("c2_r", d.c2_r, "N s/m^3");
-      add("fric_r_fs", d.fric_r.f_s, "N"), add("fric_r_fc", d.fric_r.f_c, "N");
-      add("fric_r_vsp", d.fric_r.v_sp, "m/s"), add("fric_r_vt", d.fric_r.v_t, "m/s");
+      add("m_r", d.m_r), add("k_r", d.k_r), add("c0_r", d.c0_r), add("c2_r", d.c2_r);
+      add("fric_r_fs", d.fric_r.f_s), add("fric_r_fc", d.fric_r.f_c);
+      add("fric_r_vsp", d.fric_r.v_sp), add("fric_r_vt", d.fric_r.v_t);
     }
     return out;
   }
@@ -346,7 +351,7 @@ std::vector<FixedParameter> SweepSpec::FixedParameters() const {
     if ((n == "eta_r" || n == "lambda" || n == "phi") && !resonator) continue;
     if (n == "eps" && !bistable) continue;
     if (model == ModelKind::kSeries && overridden(n)) continue;
-    add(n, *ParamSlot(const_cast<PointSpec&>(base), n), "");
+    add(n, *ParamSlot(const_cast<PointSpec&>(base), n));
   }
   return out;
 }

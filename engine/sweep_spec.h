@@ -84,7 +84,8 @@ const std::vector<std::string>& CanonicalAxisNames();
 const std::vector<std::string>& InitialStateAxisNames();
 bool IsInitialStateAxis(const std::string& name);
 const std::vector<std::string>& DimensionalAxisNames();  // a0_mm, f0_hz
-// Unit and meaning of an axis ("alpha" → "A0/delta_s", ...).
+// The unit of a parameter or axis by name ("alpha" → "A0/delta_s", "k_lin" → "N/m"; "" for an unknown name):
+// the one table of parameter units, used by axes, fixed parameters, plots, the wire and the dashboard.
 std::string AxisUnit(const std::string& name);
 // What the quantity behind an axis or parameter name is, in words, for map metadata (CF long_name).
 std::string AxisLongName(const std::string& name);
