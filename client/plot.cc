@@ -18,6 +18,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "engine/metric_catalog.h"
+
 extern char** environ;
 
 namespace bistable {
@@ -303,7 +305,7 @@ std::pair<double, double> ColourRange(const std::string& metric, const std::vect
   for (double v : values)
     if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
   if (lo > hi) return {0.0, 1.0};  // nothing finite
-  if (metric == "frf_db" || metric == "lle") {
+  if (DivergesAboutZero(metric)) {
     const double m = std::max({std::fabs(lo), std::fabs(hi), 1e-12});
     return {-m, m};
   }
@@ -410,7 +412,7 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
     } else {
       std::pair<double, double> range = ColourRange(d.metric, d.values);
       if (std::isfinite(d.cb_lo) && std::isfinite(d.cb_hi) && d.cb_lo < d.cb_hi) range = {d.cb_lo, d.cb_hi};
-      if (d.metric == "frf_db" || d.metric == "lle")  // diverging about 0: blue below, red above
+      if (DivergesAboutZero(d.metric))  // blue below 0, red above
         s << "set palette defined (-1 '#2166ac', 0 'white', 1 '#b2182b')\n";
       else
         s << kViridis;

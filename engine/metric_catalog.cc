@@ -117,6 +117,8 @@ bool MotionCodeOfName(const std::string& name, int* code) {
 
 bool IsCategoryMetric(const std::string& metric) { return !MetricCategories(metric).empty(); }
 
+bool DivergesAboutZero(const std::string& metric) { return metric == "frf_db" || metric == "lle"; }
+
 const char* CategoryName(const std::string& metric, double code) {
   for (const Category& c : MetricCategories(metric))
     if (code == c.code) return c.name;

@@ -378,7 +378,7 @@ HttpResponse MapRoute(SweepCoordinator* c, DashboardCache* cache, const HttpRequ
                {"x", sl->x >= 0 ? AxisJson(a.axes[sl->x], sl->sx) : json(nullptr)},
                {"y", sl->y >= 0 ? AxisJson(a.axes[sl->y], sl->sy) : json(nullptr)}, {"stride", {{"x", sl->sx}, {"y", sl->sy}}},
                {"dims", dims}, {"categories", CategoriesJson(a.categories)}, {"min", JsonNumber(l->lo)},
-               {"max", JsonNumber(l->hi)}, {"values", values}});
+               {"max", JsonNumber(l->hi)}, {"diverging", DivergesAboutZero(a.metric)}, {"values", values}});
 }
 
 HttpResponse QueryRoute(SweepCoordinator* c, DashboardCache* cache, const HttpRequest& req) {

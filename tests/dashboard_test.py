@@ -44,7 +44,8 @@ FIGURES = sys.argv[3] if len(sys.argv) > 3 else None
 BISTABLE = os.path.join(BUILD, "client", "bistable")
 COORD = os.path.join(BUILD, "server", "bistable-coordinator")
 WORKER = os.path.join(BUILD, "worker", "bistable-worker")
-STOPS = [(68, 1, 84), (59, 82, 139), (33, 145, 140), (94, 201, 98), (253, 231, 37)]  # app.js's palette
+STOPS = [(68, 1, 84), (59, 82, 139), (33, 145, 140), (94, 201, 98), (253, 231, 37)]  # app.js's palettes
+DIVERGING = [(33, 102, 172), (255, 255, 255), (178, 24, 43)]  # frf_db and lle, as the CLI's figures
 
 SPEC = """name = "{name}"
 model = "coupled"
@@ -196,12 +197,16 @@ class Browser:
         self.ws.close()
 
 
-def palette(v, lo, hi):
+def palette(v, lo, hi, diverging=False):
+    stops = DIVERGING if diverging else STOPS
+    if diverging:  # symmetric about 0
+        hi = max(abs(lo), abs(hi), 1e-12)
+        lo = -hi
     t = (v - lo) / (hi - lo) if hi > lo else 0.5
-    t = min(1.0, max(0.0, t)) * (len(STOPS) - 1)
-    i = min(len(STOPS) - 2, int(t))
+    t = min(1.0, max(0.0, t)) * (len(stops) - 1)
+    i = min(len(stops) - 2, int(t))
     f = t - i
-    return tuple(round(a + f * (b - a)) for a, b in zip(STOPS[i], STOPS[i + 1]))
+    return tuple(round(a + f * (b - a)) for a, b in zip(stops[i], stops[i + 1]))
 
 
 def figure(name):
@@ -268,6 +273,7 @@ def browser_checks(tmp):
     check(b.wait("window.dashboard.state.map && window.dashboard.state.map.metric === 'frf_db'") is not None, "the frf_db map loads")
     time.sleep(0.3)
     m = b.eval("window.dashboard.state.map")
+    check(m.get("diverging") is True, "frf_db is coloured blue-white-red about 0 dB, as in the CLI's figures")
     m0_values = m["values"]
     rect = b.eval("(() => { const r = document.getElementById('map').getBoundingClientRect(); return [r.left, r.top]; })()")
     shot = b.screenshot(figure("map"))
@@ -280,7 +286,7 @@ def browser_checks(tmp):
         ix, iy = k % nx, k // nx
         cx, cy = b.eval(f"window.dashboard.cellCenter({ix}, {iy})")
         px = shot.getpixel((int(rect[0] + 1 + cx), int(rect[1] + 1 + cy)))
-        want = palette(v, m["min"], m["max"])
+        want = palette(v, m["min"], m["max"], m["diverging"])
         check(all(abs(a - c) <= 3 for a, c in zip(px, want)), f"{label} cell ({ix}, {iy}) = {v:.4g} dB is drawn {px}, palette {want}")
 
     # Hover, then click a cell: the page's numbers equal bistable point's with the page's command line.

@@ -6,8 +6,11 @@
 const $ = (id) => document.getElementById(id);
 const state = { sweep: null, info: null, map: null, mask: null, fixed: {}, timer: 0, lastWorkers: {}, lastPoll: 0 };
 
-// ---- colours: one palette for the page and the tests (viridis at five stops, linear between) ----
-const STOPS = [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]];
+// ---- colours: the CLI figures' palettes, for the page and the tests (stops, linear between) ----
+const STOPS = [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]];  // viridis
+// Metrics whose sign is their meaning (the map says "diverging": frf_db, lle): blue below 0, white at 0, red
+// above, on a range symmetric about 0.
+const DIVERGING = [[33, 102, 172], [255, 255, 255], [178, 24, 43]];
 const CATEGORY = [[27, 158, 119], [217, 95, 2], [117, 112, 179], [231, 41, 138], [102, 166, 30], [230, 171, 2], [166, 118, 29], [102, 102, 102]];
 const MISSING = [225, 225, 225];
 
@@ -17,11 +20,18 @@ function colorOf(v, map) {
     const k = map.categories.findIndex((c) => c[0] === v);
     return k < 0 ? MISSING : CATEGORY[k % CATEGORY.length];
   }
-  const lo = map.min, hi = map.max;
+  const [lo, hi] = colourRange(map), stops = map.diverging ? DIVERGING : STOPS;
   let t = hi > lo ? (v - lo) / (hi - lo) : 0.5;
-  t = Math.min(1, Math.max(0, t)) * (STOPS.length - 1);
-  const i = Math.min(STOPS.length - 2, Math.floor(t)), f = t - i;
-  return STOPS[i].map((a, c) => Math.round(a + f * (STOPS[i + 1][c] - a)));
+  t = Math.min(1, Math.max(0, t)) * (stops.length - 1);
+  const i = Math.min(stops.length - 2, Math.floor(t)), f = t - i;
+  return stops[i].map((a, c) => Math.round(a + f * (stops[i + 1][c] - a)));
+}
+
+// The values the colour scale spans: the map's range, or for a diverging metric ±the larger magnitude.
+function colourRange(map) {
+  if (!map.diverging) return [map.min, map.max];
+  const m = Math.max(Math.abs(map.min), Math.abs(map.max), 1e-12);
+  return [-m, m];
 }
 
 // ---- the API ----
@@ -245,14 +255,15 @@ function render() {
       ctx.fillText(cat[1], bx + 18, M.top + 18 * k + 11);
     });
   } else if (m.min !== null) {
+    const [lo, hi] = colourRange(m);
     for (let k = 0; k < g.h; ++k) {
-      const v = m.min + ((m.max - m.min) * (g.h - 1 - k)) / Math.max(1, g.h - 1);
+      const v = lo + ((hi - lo) * (g.h - 1 - k)) / Math.max(1, g.h - 1);
       ctx.fillStyle = 'rgb(' + colorOf(v, m).join(',') + ')';
       ctx.fillRect(bx, M.top + k, 14, 1);
     }
     ctx.fillStyle = '#222';
-    ctx.fillText(fmt(m.max, 3), bx + 18, M.top + 10);
-    ctx.fillText(fmt(m.min, 3), bx + 18, M.top + g.h);
+    ctx.fillText(fmt(hi, 3), bx + 18, M.top + 10);
+    ctx.fillText(fmt(lo, 3), bx + 18, M.top + g.h);
     ctx.fillText(m.unit, bx, M.top + g.h + 16);
   }
 }
