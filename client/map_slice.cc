@@ -124,15 +124,7 @@ std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::ve
   for (const auto& [value, name] : named) {
     const bool shown = metric == "period" || (metric == "motion" && value != kMotionUndefined) || present.count(value);
     if (!shown) continue;
-    // Fixed colours for the named codes: grey for "nothing" (undefined, none found), the motion
-    // kinds as in the paper's maps (blue intrawell, orange interwell, red chaotic), green for ok.
-    std::string colour;
-    if (name == "undefined" || name == "none found") colour = "#bdbdbd";
-    else if (name == "intrawell") colour = "#2c7bb6";
-    else if (name == "interwell") colour = "#fdae61";
-    else if (name == "chaotic") colour = "#d7191c";
-    else if (name == "ok") colour = "#1a9850";
-    codes.push_back({static_cast<double>(value), name, colour});
+    codes.push_back({static_cast<double>(value), name, CategoryColour(name)});  // the named codes' fixed colours
   }
   for (double v : present)
     if (std::none_of(codes.begin(), codes.end(), [&](const PlotData::Code& c) { return c.value == v; }))

@@ -117,6 +117,15 @@ bool MotionCodeOfName(const std::string& name, int* code) {
 
 bool IsCategoryMetric(const std::string& metric) { return !MetricCategories(metric).empty(); }
 
+const char* CategoryColour(const std::string& name) {
+  if (name == "undefined" || name == "none found") return "#bdbdbd";
+  if (name == "intrawell") return "#2c7bb6";
+  if (name == "interwell") return "#fdae61";
+  if (name == "chaotic") return "#d7191c";
+  if (name == "ok") return "#1a9850";
+  return "";
+}
+
 bool DivergesAboutZero(const std::string& metric) { return metric == "frf_db" || metric == "lle"; }
 
 const char* CategoryName(const std::string& metric, double code) {

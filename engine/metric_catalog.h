@@ -91,6 +91,10 @@ bool IsCategoryMetric(const std::string& metric);
 // The name of a stored category code; nullptr for any other metric, NaN, or a value that is not one
 // of the metric's codes.
 const char* CategoryName(const std::string& metric, double code);
+// The colour ("#rrggbb") figures and the dashboard give a named code: grey for nothing found (undefined, none
+// found), the paper's motion colours (blue intrawell, orange interwell, red chaotic), green for ok; "" for any other
+// name (the presenter picks one by position).
+const char* CategoryColour(const std::string& name);
 // Whether the metric's sign is its meaning (frf_db: amplified or attenuated; lle: chaotic or not): figures and
 // the dashboard colour it with a diverging palette on a range symmetric about 0 (blue below, white at 0, red above).
 bool DivergesAboutZero(const std::string& metric);

@@ -143,9 +143,10 @@ std::vector<std::string> MapMetrics(const SweepSpec& spec, bool published) {
   return out;
 }
 
+// [[code, name, colour]...]: colour is CategoryColour's (the CLI figures' for a named code), "" when the page picks.
 json CategoriesJson(const std::vector<std::pair<int, std::string>>& cats) {
   json out = json::array();
-  for (const auto& [code, name] : cats) out.push_back({code, name});
+  for (const auto& [code, name] : cats) out.push_back({code, name, CategoryColour(name)});
   return out;
 }
 

@@ -324,7 +324,22 @@ def browser_checks(tmp):
     legend = b.wait("window.dashboard.state.map && window.dashboard.state.map.metric === 'motion' && window.dashboard.state.map.categories.map(c => c[1]).join(',')")
     check(legend is not None and "chaotic" in legend, f"a category map names its categories: {legend}")
     time.sleep(0.3)
-    b.screenshot(figure("motion"))
+    shot = b.screenshot(figure("motion"))
+    # The motion codes in the CLI figures' colours (engine CategoryColour): each shown kind's cell in its colour.
+    m = b.eval("window.dashboard.state.map")
+    cli_colours = {"intrawell": (0x2c, 0x7b, 0xb6), "interwell": (0xfd, 0xae, 0x61), "chaotic": (0xd7, 0x19, 0x1c)}
+    nx = len(m["x"]["values"])
+    seen = 0
+    for code, name, colour in m["categories"]:
+        if name not in cli_colours or code not in m["values"]:
+            continue
+        check(colour.lower() == "#%02x%02x%02x" % cli_colours[name], f"{name} has the CLI's colour: {colour}")
+        k = m["values"].index(code)
+        cx, cy = b.eval(f"window.dashboard.cellCenter({k % nx}, {k // nx})")
+        px = shot.getpixel((int(rect[0] + 1 + cx), int(rect[1] + 1 + cy)))
+        check(all(abs(a - c) <= 3 for a, c in zip(px, cli_colours[name])), f"a {name} cell is drawn {px}, the CLI's {cli_colours[name]}")
+        seen += 1
+    check(seen >= 2, f"at least two motion kinds on the map to compare ({seen})")
 
     # A running sweep: its progress advances on the page and its map fills in.
     # (long enough to be seen running: the server caches a live map for 2 s)

@@ -18,13 +18,20 @@ function colorOf(v, map) {
   if (v === null || v === undefined) return MISSING;
   if (map.categories.length) {
     const k = map.categories.findIndex((c) => c[0] === v);
-    return k < 0 ? MISSING : CATEGORY[k % CATEGORY.length];
+    return k < 0 ? MISSING : categoryColour(map.categories[k], k);
   }
   const [lo, hi] = colourRange(map), stops = map.diverging ? DIVERGING : STOPS;
   let t = hi > lo ? (v - lo) / (hi - lo) : 0.5;
   t = Math.min(1, Math.max(0, t)) * (stops.length - 1);
   const i = Math.min(stops.length - 2, Math.floor(t)), f = t - i;
   return stops[i].map((a, c) => Math.round(a + f * (stops[i + 1][c] - a)));
+}
+
+// A category's colour: the server's (the CLI figures' for named codes, e.g. motion), else by position.
+function categoryColour(cat, k) {
+  const hex = cat[2];
+  if (typeof hex === 'string' && /^#[0-9a-f]{6}$/i.test(hex)) return [1, 3, 5].map((i) => parseInt(hex.slice(i, i + 2), 16));
+  return CATEGORY[k % CATEGORY.length];
 }
 
 // The values the colour scale spans: the map's range, or for a diverging metric ±the larger magnitude.
@@ -249,7 +256,7 @@ function render() {
   const bx = c.width - M.right + 16;
   if (m.categories.length) {
     m.categories.forEach((cat, k) => {
-      ctx.fillStyle = 'rgb(' + CATEGORY[k % CATEGORY.length].join(',') + ')';
+      ctx.fillStyle = 'rgb(' + categoryColour(cat, k).join(',') + ')';
       ctx.fillRect(bx, M.top + 18 * k, 14, 14);
       ctx.fillStyle = '#222';
       ctx.fillText(cat[1], bx + 18, M.top + 18 * k + 11);
