@@ -40,13 +40,18 @@ StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, 
   }
   n_items = std::max(n_items, n_points);
   const size_t per_point = n_items / n_points;
+  // The item dimension's name as the map file gives it: "ic" (initial conditions) or "direction" (a
+  // continuation sweep's up and down chains).
+  std::string item_dim = "ic";
+  for (const auto& [v, m] : loaded)
+    if (m.values.size() == n_items && m.dim_names.size() > axes.size()) item_dim = m.dim_names[axes.size()];
   nlohmann::json points = nlohmann::json::array();
   auto column = [&](int v) -> const std::vector<double>& { return loaded.at(v).values; };
   const QueryScan scan = ScanQuery(*q, axes, per_point, column, [&](size_t item, const std::vector<size_t>& idx) {
     if (points.size() >= max_points) return;
     nlohmann::json pt = nlohmann::json::object();
     for (size_t k = 0; k < axes.size(); ++k) pt[axes[k].name] = axes[k].values[idx[k]];
-    if (per_point > 1) pt["ic"] = item % per_point;
+    if (per_point > 1) pt[item_dim] = item % per_point;
     for (int v : q->used()) {
       if (v < static_cast<int>(n_axes_vars)) continue;
       const std::vector<double>& m = loaded.at(v).values;

@@ -174,6 +174,29 @@ TEST(CliSweep, JsonPrintsMotionByNameAndIntegersAsIntegers) {
   fs::remove_all(dir);
 }
 
+// A continuation sweep's query names its item dimension as the map file does: "direction" (0 up, 1 down), not "ic".
+TEST(CliSweep, QueryOfAContinuationSweepNamesTheDirection) {
+  const std::string dir = Dir("query_direction");
+  const std::string spec = WriteSpec(dir, "name = \"up and down\"\nmodel = \"standalone\"\n[axes]\nalpha = [0.1]\n"
+                                          "omega = { linspace = [0.5, 1.3, 9] }\n[continuation]\naxis = \"omega\"\n"
+                                          "direction = \"both\"\n[integration]\nt_end = 60\nt_keep = 30\n");
+  const std::string data = " --data " + dir + "/data";
+  const ProcessResult run = Bistable("run " + spec + " --no-plots --quiet --json" + data);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const std::string id = nlohmann::json::parse(run.out)["id"];
+  const ProcessResult q = Bistable("query " + id + " \"frf_db > -1000\" --json" + data);
+  ASSERT_EQ(q.exit_code, 0) << q.err;
+  const auto j = nlohmann::json::parse(q.out);
+  ASSERT_EQ(j["count"].get<long>(), 18) << "9 frequencies, up and down";
+  std::set<long> directions;
+  for (const auto& pt : j["points"]) {
+    EXPECT_FALSE(pt.contains("ic")) << pt;
+    ASSERT_TRUE(pt.contains("direction")) << pt;
+    directions.insert(pt["direction"].get<long>());
+  }
+  EXPECT_EQ(directions, (std::set<long>{0, 1}));
+}
+
 // `map --out -` is standard output, for every format: the bytes equal the file --out FILE writes.
 TEST(CliSweep, OutDashWritesTheFileBytesToStdout) {
   const std::string dir = Dir("dash");
