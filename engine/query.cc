@@ -142,14 +142,23 @@ class Parser {
       return e;
     }
     auto node = std::make_shared<Query::Node>(Query::Node{Query::Node::kCmp, nullptr, nullptr});
+    const size_t left = i_;
     Status st = Operand(&node->var_l, &node->c_l);
     if (!st.ok()) return st;
     if (Peek().kind != Token::kOp) return Error("expected a comparison (< <= > >= == !=) after '" + toks_[i_ - 1].text + "'");
     node->op = Next().text;
+    const size_t right = i_;
     st = Operand(&node->var_r, &node->c_r);
+    if (!st.ok()) return st;
+    // A word that is not a variable names a code of the other side's category metric: motion == chaotic,
+    // termination == diverged (the names JSON prints), either way round.
+    st = ResolveWord(left, &node->var_l, &node->c_l, node->var_r);
+    if (!st.ok()) return st;
+    st = ResolveWord(right, &node->var_r, &node->c_r, node->var_l);
     if (!st.ok()) return st;
     return std::shared_ptr<const Query::Node>(node);
   }
+  static constexpr int kWord = -2;  // an operand that is a word, resolved once both sides are known
   Status Operand(int* var, double* constant) {
     const Token t = Peek();
     if (t.kind == Token::kNumber) {
@@ -159,14 +168,31 @@ class Parser {
     }
     if (t.kind != Token::kName) return Error("expected a name or a number, got '" + t.text + "'");
     Next();
-    if (int code = 0; MotionCodeOfName(t.text, &code)) return *constant = code, Status::Ok();
     for (size_t k = 0; k < names_.size(); ++k)
       if (names_[k] == t.text) {
         *var = static_cast<int>(k);
         used_.insert(static_cast<int>(k));
         return Status::Ok();
       }
-    --i_;
+    *var = kWord;
+    return Status::Ok();
+  }
+  // Resolves the word at token `at` (when *var is kWord) against the other operand `other`.
+  Status ResolveWord(size_t at, int* var, double* constant, int other) {
+    if (*var != kWord) return Status::Ok();
+    const Token& t = toks_[at];
+    *var = -1;
+    const std::string metric = other >= 0 ? names_[other] : "";
+    const std::vector<bistable::Category>& cats = MetricCategories(metric);
+    for (const bistable::Category& c : cats)
+      if (t.text == c.name) return *constant = c.code, Status::Ok();
+    if (int code = 0; cats.empty() && MotionCodeOfName(t.text, &code)) return *constant = code, Status::Ok();
+    i_ = at;
+    if (!cats.empty()) {
+      std::vector<std::string> names;
+      for (const bistable::Category& c : cats) names.push_back(c.name);
+      return Error(UnknownNameMessage(metric + " value", t.text, names));
+    }
     return Error(UnknownNameMessage("name", t.text, names_));
   }
 

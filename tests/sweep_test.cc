@@ -167,6 +167,28 @@ TEST(Query, EvaluatesComparisonsConnectivesAndMotionNames) {
   EXPECT_EQ(q->used().size(), 4u);
 }
 
+TEST(Query, CategoryWordsNameTheOtherSidesCodes) {
+  // The names JSON prints are query words for both category metrics, either way round; a misspelt one is refused
+  // with the metric's own names as suggestions.
+  const std::vector<std::string> names = {"termination", "motion", "lle"};
+  auto at = [](double t, double m) { return [=](int v) { return std::vector<double>{t, m, 0.0}[v]; }; };
+  auto q = Query::Parse("termination == diverged or max_steps == termination", names);
+  ASSERT_TRUE(q.ok()) << q.status().ToString();
+  EXPECT_TRUE(q->Eval(at(1, 0)));
+  EXPECT_TRUE(q->Eval(at(3, 0)));
+  EXPECT_FALSE(q->Eval(at(0, 0)));
+  auto m = Query::Parse("chaotic == motion and termination != diverged", names);
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  EXPECT_TRUE(m->Eval(at(0, 2)));
+  EXPECT_FALSE(m->Eval(at(1, 2)));
+  auto bad = Query::Parse("termination == divreged", names);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("termination value"), std::string::npos) << bad.status().message();
+  EXPECT_NE(bad.status().message().find("did you mean 'diverged'"), std::string::npos) << bad.status().message();
+  EXPECT_NE(bad.status().message().find("at 16"), std::string::npos) << "the word's position: " << bad.status().message();
+  EXPECT_FALSE(Query::Parse("motion == diverged", names).ok()) << "a termination name is not a motion value";
+}
+
 TEST(Query, BadQueriesSayWhereAndSuggest) {
   const std::vector<std::string> names = {"frf_db", "lle"};
   auto a = Query::Parse("frf < 0", names);
