@@ -15,6 +15,7 @@
 #include "net/http_server.h"
 #include "net/prometheus_text.h"
 #include "proto/channel.h"
+#include "proto/grpc_log.h"
 #include "proto/health.h"
 #include "server/coordinator_service.h"
 #include "server/dashboard.h"
@@ -65,6 +66,7 @@ int main(int argc, char** argv) {
     auto format = bistable::log::ParseFormat(log_format);
     if (!format.ok()) return fail(format.status());
     bistable::log::Configure(*level, *format);
+    bistable::RouteGrpcLogsToTheLog();
   }
   if (tls_cert.empty() != tls_key.empty())
     return fail(bistable::Status::InvalidArgument("tls-cert", "--tls-cert and --tls-key go together"));

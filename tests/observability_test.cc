@@ -320,6 +320,40 @@ TEST(Observability, APortInUseIsAnErrorNotShared) {
   }
 }
 
+// gRPC's own messages (here a TLS handshake a plaintext client fails) are events of the structured log: with
+// --log-format json every line the coordinator writes on stderr is a JSON object, one of them "grpc.log".
+TEST(Observability, GrpcMessagesAreEventsOfTheLog) {
+  const std::string dir = Dir("grpc_log");
+  ASSERT_EQ(std::system((std::string(BISTABLE_TESTS_DIR) + "/make_test_certs.sh " + dir + "/tls 127.0.0.1 >/dev/null 2>&1").c_str()), 0);
+  auto [ct, cl] = MintToken("client", "alice");
+  std::ofstream(dir + "/tokens") << cl << "\n";
+  const pid_t coord = bistable_test::SpawnLogged({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data",
+                                                  "--tokens", dir + "/tokens", "--tls-cert", dir + "/tls/server.pem",
+                                                  "--tls-key", dir + "/tls/server.key", "--log-format", "json"},
+                                                 dir + "/coord.log");
+  const int port = AwaitPort(dir + "/coord.log", "listening");
+  ASSERT_GT(port, 0) << bistable_test::ReadText(dir + "/coord.log.err");
+  // A client without --tls-ca speaks plaintext to the TLS port: its call fails, the server's handshake too.
+  std::ofstream(dir + "/client.token") << ct << "\n";
+  const ExecResult r = RunArgv({BISTABLE_CLI, "sweeps", "--coordinator", "127.0.0.1:" + std::to_string(port), "--token-file",
+                                dir + "/client.token"}, "", {}, 20);
+  EXPECT_NE(r.exit_code, 0);
+  std::vector<nlohmann::json> grpc;
+  for (int i = 0; i < 200 && grpc.empty(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    grpc = Events(dir + "/coord.log.err", "grpc.log");
+  }
+  ::kill(coord, SIGTERM);
+  bistable_test::WaitExitFor(coord, 10);
+  const std::string err = bistable_test::ReadText(dir + "/coord.log.err");
+  ASSERT_FALSE(grpc.empty()) << "no grpc.log event: " << err;
+  EXPECT_EQ(grpc[0]["level"], "error") << grpc[0];
+  EXPECT_FALSE(grpc[0]["message"].get<std::string>().empty()) << grpc[0];
+  std::istringstream lines(err);
+  for (std::string line; std::getline(lines, line);)
+    EXPECT_FALSE(nlohmann::json::parse(line, nullptr, false).is_discarded()) << "not a JSON line: " << line;
+}
+
 // ---- the HTTP server itself ----
 
 TEST(HttpServer, RoutesMethodsAndBounds) {

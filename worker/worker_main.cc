@@ -27,6 +27,7 @@
 #include "net/http_server.h"
 #include "net/prometheus_text.h"
 #include "proto/coordinator_client.h"
+#include "proto/grpc_log.h"
 #include "proto/health.h"
 #include "worker/pull_loop.h"
 
@@ -168,6 +169,7 @@ int main(int argc, char** argv) {
     auto format = bistable::log::ParseFormat(log_format);
     if (!format.ok()) return Fail(format.status());
     bistable::log::Configure(*level, *format);
+    bistable::RouteGrpcLogsToTheLog();
   }
   if (threads < 0 || threads > 1024) {
     std::cerr << "error: invalid argument (threads: threads = " << threads << " violates threads in [0, 1024])\n";
