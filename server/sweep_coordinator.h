@@ -163,8 +163,8 @@ class SweepCoordinator {
     std::vector<long> points;       // refined sweeps ([refine]): the grid points planned so far, ascending
     long job_items = 0;             // items per job as submitted (replans and refinement rounds keep it)
     std::shared_ptr<RefinePlanner> refiner;  // refined sweeps: the walk so far (engine/refine.h)
-    int refine_round = 0;
-    long refine_queued = 0;         // refined sweeps: items this round queued (not found stored)           // refined sweeps: the round being computed (engine/refine.h)
+    int refine_round = 0;           // refined sweeps: the round being computed (engine/refine.h)
+    long refine_queued = 0;         // refined sweeps: items this round queued (not found stored)
     bool refine_complete = false;   // refined sweeps: every level stored, ready to publish
     std::vector<Job> jobs;
     std::vector<JobState> job_state;
