@@ -272,10 +272,12 @@ StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& sp
   const long first = c.progress(id).items_done;
   // A refined sweep ([refine]) computes round by round: publishing a stored round plans the next one
   // (one progress line per round); any other sweep goes round once.
-  for (int round = 0;; ++round) {
+  for (;;) {
     const SweepProgress p = c.progress(id);
     const long to_compute = p.items_total - p.items_done;
-    ProgressBar bar(to_compute, spec.refine.enabled() ? label + " (refine round " + std::to_string(round) + ")" : label, progress);
+    // The coordinator's round, so a resumed run names the round it resumes (0: the coarse grid).
+    const std::string round = p.refine_round >= 0 ? " (refine round " + std::to_string(p.refine_round) + ")" : "";
+    ProgressBar bar(to_compute, label + round, progress);
     const Status worker_error = ComputeEmbedded(c, spec, threads, to_compute > 0, nullptr, progress ? &bar : nullptr);
     const SweepProgress after = c.progress(id);
     if (stats) stats->computed = after.items_done - first, stats->items = after.items_total;

@@ -1072,7 +1072,8 @@ SweepProgress SweepCoordinator::progress(const std::string& sweep_id) const {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = sweeps_.find(sweep_id);
   if (it == sweeps_.end()) return {};
-  return {it->second.row.items_total, it->second.items_done, it->second.items_cached};
+  const Sweep& s = it->second;
+  return {s.row.items_total, s.items_done, s.items_cached, s.spec.refine.enabled() ? s.refine_round : -1};
 }
 
 }  // namespace bistable

@@ -51,6 +51,7 @@ struct SweepPlan {
 
 struct SweepProgress {
   long items_total = 0, items_done = 0, items_cached = 0;
+  int refine_round = -1;  // a refined sweep's round being computed (0: the coarse grid); -1 for any other sweep
 };
 
 // A granted lease: the job's items of one sweep, to be reported before `deadline`.

@@ -912,6 +912,7 @@ TEST(SweepEngine, RefinedSweepResumesFromItsStoredLevels) {
     ASSERT_TRUE(plan.ok());
     level0 = plan->items_total;
     EXPECT_EQ(level0, 9 * 9);  // the coarse grid: every 8th value of 65
+    EXPECT_EQ((*c)->progress(spec.Id()).refine_round, 0) << "round 0: the coarse grid";
     while (auto lease = (*c)->Lease("w")) ASSERT_TRUE((*c)->Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
     // "crash" here: the next level may or may not have been planned
   }
@@ -920,6 +921,7 @@ TEST(SweepEngine, RefinedSweepResumesFromItsStoredLevels) {
   auto info = (*c)->Info(spec.Id());
   ASSERT_TRUE(info.ok());
   EXPECT_GE(info->items_done, level0) << "the coarse level is not computed again";
+  EXPECT_GE((*c)->progress(spec.Id()).refine_round, 1) << "the resumed plan names the round it resumes, not 0";
   SweepPlan plan;
   int rounds = 0;
   const std::string resumed = RunRefined(**c, spec, &plan, &rounds);
