@@ -88,7 +88,7 @@ struct Setup {
   FrictionConstants fc;
   // Velocity outputs: the displacement integrated from the (relative) velocity loses its content below this
   // frequency [Hz] (0: only its mean). Below a record's slowest motion that content is the sensor's drift
-  // integrated (on 32 s intrawell records of the harvester it is twice the orbit); on records that change well it is
+  // integrated (on 32 s intrawell records of the harvester 1.6–2.2 times the orbit); on records that change well it is
   // the switching itself, so leave 0 there. Used by the regression start, the shooting position scan, the plots.
   double drift_cutoff_hz = 0;
 };

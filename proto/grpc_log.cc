@@ -12,7 +12,6 @@ void ToTheLog(gpr_log_func_args* a) {
   const log::Level level = a->severity == GPR_LOG_SEVERITY_ERROR  ? log::Level::kError
                            : a->severity == GPR_LOG_SEVERITY_INFO ? log::Level::kInfo
                                                                   : log::Level::kDebug;
-  if (!log::Enabled(level)) return;
   log::Event(level, "grpc.log",
              {{"file", a->file ? a->file : ""}, {"line", a->line}, {"message", a->message ? a->message : ""}});
 }
