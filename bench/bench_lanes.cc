@@ -88,11 +88,17 @@ double SeriesGenericSteps(int points) {
 
 // The rig (Table 2, bistable, friction at the paper's v_sp, v_t), 8 lanes from sticking to sliding:
 // A0 = 0.5 … 11 mm, f0 = 2 … 5.5 Hz, t 0–2 s, output step 1 ms.
+// kRigFree: the same rig with both bodies frictionless (F_s = F_c = 0: the law is skipped).
 const DimensionalParams kRig = DimensionalParams::BistableTable2();
+const DimensionalParams kRigFree = [] {
+  DimensionalParams p = DimensionalParams::BistableTable2();
+  p.fric_m = p.fric_r = Stribeck{0, 0};
+  return p;
+}();
 const KernelSettings kRigSettings = Settings(1e-3, 2.0);
-DimensionalLaneInput RigLane(int l) {
+DimensionalLaneInput RigLane(int l, const DimensionalParams& rig = kRig) {
   DimensionalLaneInput in;
-  in.params = kRig;
+  in.params = rig;
   in.base_amp = (0.5 + 1.5 * l) * 1e-3;
   in.omega = 2 * M_PI * (2.0 + 0.5 * l);
   in.amp = in.base_amp * in.omega * in.omega;
@@ -102,9 +108,9 @@ DimensionalLaneInput RigLane(int l) {
 
 // Returns lane-steps/s; *sim adds simulated seconds per wall second.
 template <int W>
-double RigLaneSteps(int reps, int substeps, double* sim) {
+double RigLaneSteps(int reps, int substeps, double* sim, const DimensionalParams& rig = kRig) {
   std::vector<DimensionalLaneInput> in;
-  for (int l = 0; l < W; ++l) in.push_back(RigLane(l));
+  for (int l = 0; l < W; ++l) in.push_back(RigLane(l, rig));
   std::vector<RawLane> out(W);
   const auto t0 = std::chrono::steady_clock::now();
   for (int r = 0; r < reps; ++r) RunDimensionalLanes<W>(in.data(), W, kRigSettings, substeps, out.data());
@@ -139,22 +145,24 @@ double RigGenericSim(int points, bool adaptive, int substeps) {
 int main(int argc, char** argv) {
   using namespace bistable;
   const int rounds = argc > 1 ? std::atoi(argv[1]) : 3;
-  const int substeps = Rk4Substeps(kRig, kRigSettings.h);
+  const int substeps = Rk4Substeps(kRig, kRigSettings.h), free_substeps = Rk4Substeps(kRigFree, kRigSettings.h);
   double coupled = 0, series8 = 0, series1 = 0, series_old = 0, rig8 = 0, rig1 = 0, sim8 = 0, sim1 = 0, rig_rk4_old = 0,
-         rig_dp5_old = 0;
+         rig_dp5_old = 0, free8 = 0, free_sim_same_h = 0, free_sim = 0;
   for (int r = 0; r < rounds; ++r) {
     coupled += CoupledLaneSteps(8);
     series8 += SeriesLaneSteps<8>(4);
     series1 += SeriesLaneSteps<1>(8);
     series_old += SeriesGenericSteps(8);
     rig8 += RigLaneSteps<8>(1, substeps, &sim8);
+    free8 += RigLaneSteps<8>(1, substeps, &free_sim_same_h, kRigFree);
+    RigLaneSteps<8>(4, free_substeps, &free_sim, kRigFree);
     rig1 += RigLaneSteps<1>(2, substeps, &sim1);
     rig_rk4_old += RigGenericSim(2, false, substeps);
     rig_dp5_old += RigGenericSim(2, true, substeps);
   }
   const double k = 1.0 / rounds, M = 1e-6;
   coupled *= k, series8 *= k, series1 *= k, series_old *= k, rig8 *= k, rig1 *= k, sim8 *= k, sim1 *= k;
-  rig_rk4_old *= k, rig_dp5_old *= k;
+  rig_rk4_old *= k, rig_dp5_old *= k, free8 *= k, free_sim_same_h *= k, free_sim *= k;
   std::printf("lane-steps/s per core, mean of %d interleaved rounds (RK4 steps x lanes, kernel + window recorder)\n", rounds);
   std::printf("  cell kernel, coupled + tangent (state 4+4), 8 lanes          %8.1f M/s   1\n", coupled * M);
   std::printf("  series N=2 + tangent (state 8+8), 8 lanes                    %8.1f M/s   %.2fx cell kernel\n",
@@ -168,9 +176,14 @@ int main(int argc, char** argv) {
               rig8 * M, rig8 / coupled, substeps, 1e-3 / substeps);
   std::printf("  rig, 1 lane (the one-point path)                             %8.1f M/s   %.2fx\n", rig1 * M,
               rig1 / coupled);
+  std::printf("  rig without friction (F_s = F_c = 0, law skipped), 8 lanes   %8.1f M/s   %.2fx cell kernel"
+              "   (same h)\n",
+              free8 * M, free8 / coupled);
   std::printf("simulated seconds per wall second, rig, per core:\n");
   std::printf("  8 lanes, RK4 at h = %.3g s                                   %8.1f\n", 1e-3 / substeps, sim8);
   std::printf("  1 lane                                                       %8.1f\n", sim1);
+  std::printf("  8 lanes without friction, same h / its own h = %.3g s         %8.1f / %.1f\n", 1e-3 / free_substeps,
+              free_sim_same_h, free_sim);
   std::printf("  old per-point path, rk4.h at the same h                      %8.1f   lanes %.1fx faster\n",
               rig_rk4_old, sim8 / rig_rk4_old);
   std::printf("  old per-point path, Dormand-Prince rtol 1e-6 (the default)   %8.1f   lanes %.1fx faster\n",

@@ -69,23 +69,47 @@ struct Stribeck {
   // (dynamics/lane_math.h) and fused multiply-adds, products with reciprocals instead of divisions —
   // the same operations at every width, W = 1 included, so a lane's bits do not depend on W; within
   // a few ulp of ForceSlope on doubles (glibc), not bit-equal to it.
+  //
+  // A body without friction (F_s = F_c = +0, a spec's choice, the same in every lane) skips the law: the
+  // law's own operations give exactly force = v·0 (±0 with v's sign, NaN for a non-finite v) and
+  // slope = 0·x + 0 (+0; NaN where the hump's exponent x is −∞ or NaN, i.e. |v| ≳ 10¹⁵¹ v_sp or v
+  // NaN) there, so the skip keeps the bits
+  // (DimensionalLanes.FrictionlessBodySkipsTheLawWithItsBits) and the branch is the same in every
+  // lane and step. The rig's step then costs what its springs and dampers cost (docs/numerics.md).
   struct Lanes {
     explicit Lanes(const Stribeck& f)
         : a(f.HumpScale()), f_c(f.f_c), f_c_vt(f.f_c / f.v_t), inv_vt(1.0 / f.v_t), a_vsp(a / f.v_sp),
-          two_a_vsp(2.0 * a_vsp), neg_half_inv_vsp2(-0.5 / (f.v_sp * f.v_sp)) {}
+          two_a_vsp(2.0 * a_vsp), neg_half_inv_vsp2(-0.5 / (f.v_sp * f.v_sp)),
+          off(f.f_s == 0 && f.f_c == 0 && !std::signbit(f.f_s) && !std::signbit(f.f_c)) {}
+    template <int W>
+    BISTABLE_INLINE void ForceSlope(Vec<W> v, Vec<W>* force, Vec<W>* slope) const {
+      if (off) {
+        const Vec<W> zero = Splat<W>(0.0);
+        *force = v * zero;
+        *slope = Fma(zero, HumpExponent<W>(v), zero);
+        return;
+      }
+      Law<W>(v, force, slope);
+    }
+    // The law itself, also for a body without friction (the skip's test compares the two).
     // The hump's exponent x = 1/2 − u²/2 (u = v/v_sp) as one fused multiply-add, its slope factor
     // 1 − u² = 2x: 10 multiplications and fused multiply-adds per call besides Exp and Tanh (the rig's
     // step is bound by the multiply-add units: docs/numerics.md).
     template <int W>
-    BISTABLE_INLINE void ForceSlope(Vec<W> v, Vec<W>* force, Vec<W>* slope) const {
+    BISTABLE_INLINE void Law(Vec<W> v, Vec<W>* force, Vec<W>* slope) const {
       const Vec<W> one = Splat<W>(1.0);
-      const Vec<W> x = Fma(v * neg_half_inv_vsp2, v, Splat<W>(0.5));
+      const Vec<W> x = HumpExponent<W>(v);
       const Vec<W> e = Exp<W>(x);
       const Vec<W> th = Tanh<W>(v * inv_vt);
       *force = Fma(Splat<W>(f_c), th, (v * a_vsp) * e);
       *slope = Fma(e * two_a_vsp, x, f_c_vt * Fma(-th, th, one));
     }
+    template <int W>
+    BISTABLE_INLINE Vec<W> HumpExponent(Vec<W> v) const {
+      return Fma(v * neg_half_inv_vsp2, v, Splat<W>(0.5));
+    }
     double a, f_c, f_c_vt, inv_vt, a_vsp, two_a_vsp, neg_half_inv_vsp2;
+    bool off;  // F_s = F_c = +0 (a −0 keeps the law, whose zeros then carry other signs)
   };
 };
 

@@ -104,10 +104,13 @@ t_keep = 15.0
 )"));
 }
 
-TEST(DimensionalLanes, SweepRecordsHaveTheBitsOfOnePointAtAnyLaneWidth) {
-  // Table 2 rig with friction: sticking (small A0) and sliding points side by side.
-  ExpectLanesEqualOnePointPath(Parse(R"(
+// A 3 × 3 rig sweep from sticking (small A0) to sliding, RK4 in lanes; `dimensional` is its
+// [dimensional] table's lines.
+SweepSpec RigSweep(const std::string& dimensional) {
+  return Parse(R"(
 model = "dimensional"
+[dimensional]
+)" + dimensional + R"(
 [axes]
 a0_mm = [0.5, 3.0, 10.0]
 f0_hz = [2.0, 3.5, 6.0]
@@ -116,7 +119,20 @@ integrator = "rk4"
 t_end = 1.0
 t_keep = 0.5
 dt = 0.001
-)"));
+)");
+}
+
+TEST(DimensionalLanes, SweepRecordsHaveTheBitsOfOnePointAtAnyLaneWidth) {
+  // Table 2 rig with friction: sticking and sliding points side by side.
+  ExpectLanesEqualOnePointPath(RigSweep(""));
+}
+
+// The same with a frictionless main mass (its law skipped) and the resonator's friction kept.
+TEST(DimensionalLanes, FrictionlessMainMassHasTheBitsOfOnePointAtAnyLaneWidth) {
+  const SweepSpec spec = RigSweep("fs_m = 0.0\nfc_m = 0.0");
+  EXPECT_TRUE(Stribeck::Lanes(spec.dimensional.params.fric_m).off);
+  EXPECT_FALSE(Stribeck::Lanes(spec.dimensional.params.fric_r).off);
+  ExpectLanesEqualOnePointPath(spec);
 }
 
 // The lane model of a chain against SeriesModel (Eigen, its own Jacobian) through the generic RK4
@@ -226,6 +242,44 @@ TEST(DimensionalLanes, FrictionForceAndSlopeInLanesHaveTheBitsOfWidthOne) {
       EXPECT_NEAR(lane_slope, f.Slope(v[l]), 1e-12 * (1 + std::fabs(f.Slope(v[l])))) << v[l];
     }
   }
+}
+
+// A body without friction (F_s = F_c = +0) skips the law (no exp, no tanh) and keeps its bits: force
+// and slope equal the law's own operations at every velocity, signed zeros and subnormals included;
+// a non-finite velocity gives NaN both ways. A −0 force keeps the law.
+TEST(DimensionalLanes, FrictionlessBodySkipsTheLawWithItsBits) {
+  std::vector<double> vs = {0.0, -0.0, 4.9e-324, -4.9e-324, 2.2e-308, -2.2e-308, 1e-300, -1e-300, 1e150, -1e150, 1e152, -1e152, 1e300, -1e300, 1e307, -1e307, 1.7e308};
+  for (double v = -0.3; v <= 0.3; v += 0.000617) vs.push_back(v);
+  for (const Stribeck f : {Stribeck{0, 0}, Stribeck{0, 0, 0.01, 0.0003}, Stribeck{-0.0, 0}, Stribeck{0, -0.0}}) {
+    const Stribeck::Lanes fl(f);
+    EXPECT_EQ(fl.off, !std::signbit(f.f_s) && !std::signbit(f.f_c));
+    for (double v0 : vs) {
+      Vec<8> v, force, slope, law_force, law_slope;
+      for (int l = 0; l < 8; ++l) v[l] = l % 2 ? -v0 : v0 * (1.0 + 0.37 * l);
+      fl.ForceSlope<8>(v, &force, &slope);
+      fl.Law<8>(v, &law_force, &law_slope);
+      for (int l = 0; l < 8; ++l) {
+        const double a[2] = {force[l], slope[l]}, b[2] = {law_force[l], law_slope[l]};
+        if (std::isnan(b[1])) {  // |v| past the hump exponent's overflow: NaN both ways
+          EXPECT_TRUE(std::isnan(a[1])) << "v = " << v[l];
+          EXPECT_EQ(std::memcmp(a, b, sizeof a[0]), 0) << "v = " << v[l];
+          continue;
+        }
+        EXPECT_EQ(std::memcmp(a, b, sizeof a), 0) << "v = " << v[l] << ": " << a[0] << " " << a[1];
+      }
+    }
+    Vec<4> v, force, slope, law_force, law_slope;
+    v[0] = INFINITY, v[1] = -INFINITY, v[2] = NAN, v[3] = -NAN;
+    fl.ForceSlope<4>(v, &force, &slope);
+    fl.Law<4>(v, &law_force, &law_slope);
+    for (int l = 0; l < 4; ++l) {
+      EXPECT_TRUE(std::isnan(force[l]) && std::isnan(slope[l])) << v[l];
+      EXPECT_TRUE(std::isnan(law_force[l]) && std::isnan(law_slope[l])) << v[l];
+    }
+  }
+  // The skip is taken only without friction.
+  EXPECT_FALSE(Stribeck::Lanes(Stribeck{1e-300, 0}).off);
+  EXPECT_FALSE(Stribeck::Lanes(Stribeck{0, 0.44}).off);
 }
 
 // The hump's exp skips libm below its underflow: the same bits as std::exp everywhere, also across
