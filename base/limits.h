@@ -25,6 +25,8 @@ inline constexpr int kMaxSeriesCells = 1000;                 // series.cells
 inline constexpr double kMaxStepsPerPoint = 1e8;             // t_end / dt
 inline constexpr double kMaxWindowSamples = 4'194'304;       // (t_end - t_keep) / dt / sample_every
 inline constexpr std::size_t kMaxTurningPointsKept = 65'536; // turning points held per point (the last ones)
+inline constexpr int kMaxPeriod = 64;                        // [metrics] max_period: longest stroboscopic period sought
+inline constexpr long kMaxEvery = 1'000'000'000;             // [metrics] renorm_every, sample_every (steps)
 // `bistable point --poincare-periods N`: forcing periods of the section (the window is made N + 1
 // periods long). 4 doubles per period: 3.2 MB at the bound; the step and window-sample limits apply too.
 inline constexpr long kMaxPoincarePeriods = 100'000;
@@ -51,6 +53,7 @@ inline constexpr double kMinDesignDamping = 0;               // design.bounds.et
 inline constexpr double kMaxDesignDamping = 100;
 
 // --- Harmonic balance (`bistable hbm`) -------------------------------------------------------------
+inline constexpr int kMaxHbmHarmonics = 50;                  // harmonics of a branch (a switched period-2ν branch too)
 inline constexpr int kMaxHbmSwitchedBranches = 64;           // branches switched onto at period doublings
 inline constexpr int kMaxHbmFoldCurves = 64;                 // fold curves continued in (alpha, Omega)
 

@@ -544,7 +544,7 @@ void AddReproduceCommand(CLI::App& app, int* exit_code) {
   CLI::App* cmd = app.add_subcommand("reproduce", "Regenerate the paper's figures and check its claims against our numbers");
   cmd->add_option("what", a->what, "paper")->required();
   cmd->add_option("--out", a->out, "output directory (figures, data, README.md)")->capture_default_str();
-  cmd->add_flag("--quick", a->quick, "coarse grids and fast sweeps (about a minute; the CI mode)");
+  cmd->add_flag("--quick", a->quick, "coarse grids and fast sweeps (about 6 s on 2 cores; the CI mode)");
   cmd->add_option("--threads", a->threads, "worker threads (0 = the CPUs this process may use: affinity and cgroup quota)");
   cmd->add_flag("--json", a->json, "print {report, seconds, agree, claims: [...]}");
   cmd->callback([a, exit_code]() { *exit_code = Reproduce(a->what, a->out, a->quick, a->threads, a->json); });

@@ -34,7 +34,7 @@ double ParamOf(const HbmOptions& o, double omega, double alpha) { return o.param
 HbmOptions ForPeriod(const HbmOptions& o, int nu) {
   HbmOptions ob = o;
   ob.subharmonic = nu;
-  for (int d = 1; d < nu; d *= 2) ob.harmonics = std::min(50, 2 * ob.harmonics);
+  for (int d = 1; d < nu; d *= 2) ob.harmonics = std::min(limits::kMaxHbmHarmonics, 2 * ob.harmonics);
   return ob;
 }
 
@@ -44,7 +44,8 @@ Status ValidateHbmOptions(const HbmOptions& o) {
   if (!IsCellModel(o.model))
     return Status::InvalidArgument("model", std::string("model = '") + ModelName(o.model) +
                                                 "' violates model in {standalone, coupled, linear, linear-coupled} (harmonic balance)");
-  if (o.harmonics < 1 || o.harmonics > 50) return Violates("harmonics", o.harmonics, "in [1, 50]");
+  if (o.harmonics < 1 || o.harmonics > limits::kMaxHbmHarmonics)
+    return Violates("harmonics", o.harmonics, "in [1, " + std::to_string(limits::kMaxHbmHarmonics) + "]");
   BISTABLE_RETURN_IF_ERROR(CheckPositive("alpha", o.alpha));
   BISTABLE_RETURN_IF_ERROR(CheckPositive("omega", o.omega));
   BISTABLE_RETURN_IF_ERROR(CheckPositive("from", o.from));
@@ -559,7 +560,7 @@ HbmBranch Continue(const HarmonicBalance& hb, const HbmOptions& o, Eigen::Vector
 bool SwitchAtPeriodDoubling(const HarmonicBalance& hb, const HbmOptions& o, const HbmLocated& pd, HbmBranch* out) {
   HbmOptions o2 = o;  // o: the period-ν branch's options
   o2.subharmonic = 2 * hb.subharmonic();
-  o2.harmonics = std::min(50, 2 * hb.harmonics());
+  o2.harmonics = std::min(limits::kMaxHbmHarmonics, 2 * hb.harmonics());
   const HarmonicBalance hb2(o2);
   const Arclength al2(hb2, o2);
   const int n2 = hb2.size();
@@ -715,7 +716,7 @@ StatusOr<HbmResult> ContinueBranchesOrUnwind(const HbmOptions& o) {
     if (nu >= (1 << o.switch_depth)) continue;
     const HbmOptions ob = ForPeriod(o, nu);
     const HarmonicBalance hbb(ob);
-    const int h2 = std::min(50, 2 * ob.harmonics);
+    const int h2 = std::min(limits::kMaxHbmHarmonics, 2 * ob.harmonics);
     for (size_t pi = 0; pi < result.branches[bi].points.size(); ++pi) {
       const HbmPoint pt = result.branches[bi].points[pi];  // a copy: branches grows below
       if (!pt.period_doubling || !pt.period_doubling_at.valid()) continue;

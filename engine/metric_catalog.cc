@@ -29,7 +29,7 @@ const std::vector<MetricInfo>& MetricCatalog() {
        -1e6, 1e6, true, "largest Lyapunov exponent (Rosenstein, from sampled y_m)"},
       {"motion", "code", "0 intrawell, 1 interwell, 2 chaotic (lle > chaos_threshold), -1 undefined (diverged)", true, -1, 2,
        false, "type of steady-state motion"},
-      {"period", "forcing periods", "stroboscopic period n of (y_m, y_m'); 0 when none in the window", true, 0, 64, false, "stroboscopic period in forcing periods (0: none found)"},
+      {"period", "forcing periods", "stroboscopic period n of (y_m, y_m'); 0 when none in the window", true, 0, limits::kMaxPeriod, false, "stroboscopic period in forcing periods (0: none found)"},
       {"hd_index", "fraction", "fraction of y_m spectral power farther than 3 bins from every multiple of Omega", false, 0, 1,
        true, "harmonic diffusion index (fraction of spectral power off the forcing harmonics)"},
       {"edr_b", "%", "100 W_m / W_in, W_in = integral of max(P, 0) over the window (gross injected energy)", false, 0, 1e12,

@@ -753,9 +753,9 @@ Status ReadMetrics(const toml::table& root, SweepSpec& spec) {
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "chaos_threshold", "metrics.chaos_threshold", &m.chaos_threshold));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "period_tol", "metrics.period_tol", &m.period_tol));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "hd_level", "metrics.hd_level", &m.hd_level));
-    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "renorm_every", "metrics.renorm_every", &m.renorm_every, 1, 1'000'000'000));
-    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "sample_every", "metrics.sample_every", &m.sample_every, 1, 1'000'000'000));
-    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "max_period", "metrics.max_period", &m.max_period, 1, 64));
+    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "renorm_every", "metrics.renorm_every", &m.renorm_every, 1, limits::kMaxEvery));
+    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "sample_every", "metrics.sample_every", &m.sample_every, 1, limits::kMaxEvery));
+    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "max_period", "metrics.max_period", &m.max_period, 1, limits::kMaxPeriod));
     if (const toml::node* r = t->get("rosenstein")) {
       if (!r->is_boolean()) return Status::InvalidArgument("metrics.rosenstein", "metrics.rosenstein must be true or false");
       m.rosenstein = *r->value<bool>();
