@@ -90,6 +90,9 @@ inline constexpr double kMaxDataMagnitude = 1e12;
 // resonator then hold 128 MB; the Silverbox file has 131,072 rows).
 inline constexpr std::size_t kMaxDataLineBytes = 65'536;
 inline constexpr long kMaxDataRows = 4'194'304;
+// Records in one data file (a group column's changes, or time restarts): bounds the per-record overhead a
+// file of tiny records would otherwise multiply (2 rows each: 2 M records).
+inline constexpr long kMaxDataRecords = 4096;
 // A fitted model read back by `identify --predict --model FILE` (an `identify --json` output or a
 // report.json: a few hundred KB with every step's scores), its JSON nesting (the format nests 5 deep)
 // and the size of a parameter value (k5 per unit mass reaches 1e13 on the harvester).

@@ -12,6 +12,7 @@
 #include "client/plot.h"
 #include "dynamics/cancel.h"
 #include "dynamics/chirp.h"
+#include "engine/json_shapes.h"
 
 namespace bistable {
 namespace {
@@ -125,7 +126,7 @@ int RunChirpCommand(ChirpArgs& a) {
   }
   summary["unit"] = unit;
   if (a.json) {
-    std::cout << summary.dump(1) << "\n";
+    std::cout << DumpJson(summary, 1) << "\n";
   } else {
     for (const auto& sw : summary["sweeps"])
       std::printf("%-4s sweep: H1 FRF from %.1f to %.1f dB over [%g, %g] %s (mean coherence %.2f; raw FFT ratio %.1f to %.1f dB)\n",

@@ -16,6 +16,7 @@
 #include "client/design_command.h"
 #include "client/plot.h"
 #include "dynamics/cancel.h"
+#include "engine/json_shapes.h"
 
 namespace bistable {
 namespace {
@@ -80,7 +81,7 @@ int Design(DesignArgs& a) {
     return Fail(j.status());
   }
   if (a.json) {
-    std::cout << j->dump(2) << "\n";
+    std::cout << DumpJson(*j, 2) << "\n";
     return kExitOk;
   }
   const auto& s = (*j)["search"];

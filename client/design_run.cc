@@ -18,6 +18,7 @@
 #include "client/progress.h"
 #include "dynamics/cancel.h"
 #include "engine/evaluate.h"
+#include "engine/json_shapes.h"
 #include "proto/channel.h"
 #include "proto/coordinator_client.h"
 #include "server/sweep_coordinator.h"
@@ -315,7 +316,7 @@ StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOption
   }
   files.push_back((std::filesystem::path(out) / "report.json").string());
   j["files"] = files;
-  if (Status st = WriteTextOut(files.back(), j.dump(2) + "\n", "out"); !st.ok()) return st;
+  if (Status st = WriteTextOut(files.back(), DumpJson(j, 2) + "\n", "out"); !st.ok()) return st;
   return j;
 }
 

@@ -212,7 +212,7 @@ int RunHbm(HbmArgs& a) {
       out["fold_curves"] = FoldCurvesJson(*curves, IsBistable(a.o.model));
       out["settings"].update({{"alpha_range", a.alpha_range}, {"omega_range", a.omega_range}});
     }
-    std::cout << out.dump(1) << "\n";
+    std::cout << DumpJson(out, 1) << "\n";
   }
   const std::string ext = a.format.empty() ? "png" : a.format;
   if (!a.format.empty() || !a.out.empty()) {

@@ -12,17 +12,21 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <charconv>
+#include <string_view>
 #include <sstream>
 #include <tuple>
 
 #include <nlohmann/json.hpp>
 
+#include "base/limits.h"
 #include "base/names.h"
 #include "client/cli_common.h"
 #include "client/identify_diagnostics.h"
 #include "client/identify_predict.h"
 #include "client/json_out.h"
 #include "client/plot.h"
+#include "engine/json_shapes.h"
 #include "engine/sweep_spec.h"
 #include "dynamics/cancel.h"
 #include "identify/loop.h"
@@ -50,18 +54,26 @@ struct IdentifyArgs {
   bool frame_given = false;  // --output-frame given (else --predict takes the fit's frame)
 };
 
-// "A:B" sample range (0-based, end exclusive; either side may be empty).
+// "A:B" sample range (0-based, end exclusive; either side may be empty): decimal digits only, each side
+// at most limits::kMaxDataRows (a record's row limit), the end past the start.
 StatusOr<std::pair<size_t, size_t>> ParseRange(const std::string& s, const std::string& flag) {
+  const std::string bad = flag + " = '" + Printable(s, 64) + "' violates " + flag +
+                          " = A:B (sample indices, 0-based, end exclusive; decimal digits, each <= " +
+                          std::to_string(limits::kMaxDataRows) + ")";
   const size_t c = s.find(':');
-  if (c == std::string::npos) return Status::InvalidArgument(flag, "'" + s + "' is not a sample range A:B");
+  if (c == std::string::npos || s.size() > 32) return Status::InvalidArgument(flag, bad);
+  auto side = [&](std::string_view t, size_t none, size_t* v) {
+    if (t.empty()) return *v = none, true;
+    if (t.find_first_not_of("0123456789") != std::string_view::npos) return false;
+    unsigned long long x = 0;
+    const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), x);
+    if (ec != std::errc() || end != t.data() + t.size() || x > static_cast<unsigned long long>(limits::kMaxDataRows)) return false;
+    return *v = static_cast<size_t>(x), true;
+  };
   size_t a = 0, b = SIZE_MAX;
-  try {
-    if (c > 0) a = std::stoul(s.substr(0, c));
-    if (c + 1 < s.size()) b = std::stoul(s.substr(c + 1));
-  } catch (...) {
-    return Status::InvalidArgument(flag, "'" + s + "' is not a sample range A:B of non-negative integers");
-  }
-  if (b <= a) return Status::InvalidArgument(flag, "range " + s + " is empty (end must exceed start)");
+  const std::string_view sv(s);
+  if (!side(sv.substr(0, c), 0, &a) || !side(sv.substr(c + 1), SIZE_MAX, &b)) return Status::InvalidArgument(flag, bad);
+  if (b <= a) return Status::InvalidArgument(flag, flag + " = '" + Printable(s, 64) + "' is empty (the end must exceed the start)");
   return std::make_pair(a, b);
 }
 
@@ -197,7 +209,7 @@ nlohmann::json TermsJson() {
 
 int ListTerms(bool json) {
   if (json) {
-    std::cout << TermsJson().dump(2) << "\n";
+    std::cout << DumpJson(TermsJson(), 2) << "\n";
     return 0;
   }
   for (const TermDef& t : EffectLibrary()) {
@@ -251,7 +263,7 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const std::string
 int MakeSynthetic(const std::string& dir, const std::string& kind, bool json) {
   auto j = SyntheticJson(dir, kind);
   if (!j.ok()) return Fail(j.status());
-  if (json) std::cout << j->dump(2) << "\n";
+  if (json) std::cout << DumpJson(*j, 2) << "\n";
   else
     for (const auto& f : (*j)["files"]) std::printf("wrote %s\n", f.get<std::string>().c_str());
   return 0;
@@ -369,6 +381,10 @@ Status PlanLoop(const IdentifyArgs& a, IdentifyPlan* plan) {
   if (!(a.deriv_cutoff >= 0)) return Status::InvalidArgument("deriv-cutoff", "deriv-cutoff = " + Fmt(a.deriv_cutoff) + " violates deriv-cutoff >= 0 Hz");
   if (a.decimate < 1 || a.decimate > 1000) return Status::InvalidArgument("decimate", "must be in [1, 1000]");
   if (!(a.horizon >= 0) || !(a.horizon <= 3600)) return Status::InvalidArgument("horizon", "horizon = " + Fmt(a.horizon) + " violates 0 <= horizon <= 3600 s");
+  if (!(a.max_seconds >= 0) || !(a.max_seconds <= 1e6))
+    return Status::InvalidArgument("max-seconds", "max-seconds = " + Fmt(a.max_seconds) + " violates 0 <= max-seconds <= 1e6 s (0: all)");
+  if (a.threads < 0 || a.threads > 1024)
+    return Status::InvalidArgument("threads", "threads = " + std::to_string(a.threads) + " violates threads in [0, 1024] (0: the usable CPUs)");
   if (a.objective == "shooting" && !(a.horizon > 0))
     return Status::InvalidArgument("horizon", "horizon = 0 violates horizon > 0 s (--objective shooting cuts the records into segments of --horizon)");
   opt.fit.global_evals = a.global_evals;
@@ -426,7 +442,7 @@ StatusOr<std::vector<Record>> LoadAll(const IdentifyArgs& a, const ColumnMap& co
   for (const std::string& path : a.data) {
     auto recs = LoadRecords(path, columns);
     if (!recs.ok()) return recs.status();
-    for (const Record& r : recs.value()) loaded.push_back(a.decimate > 1 ? Decimated(r, a.decimate) : r);
+    for (Record& r : recs.value()) loaded.push_back(a.decimate > 1 ? Decimated(r, a.decimate) : std::move(r));
   }
   return loaded;
 }
@@ -437,7 +453,10 @@ StatusOr<std::vector<PreparedRecord>> PrepareFitted(const std::vector<Record>& l
   for (const Record& r : loaded) {
     const size_t n = r.t.size();
     size_t b = std::min(plan.fit_range.first, n), e = std::min(plan.fit_range.second, n);
-    if (a.max_seconds > 0) e = std::min(e, b + static_cast<size_t>(a.max_seconds / r.dt));
+    if (a.max_seconds > 0) e = std::min<double>(e, static_cast<double>(b) + std::floor(a.max_seconds / r.dt));
+    if (a.objective == "shooting" && a.horizon < 4 * r.dt)
+      return Status::InvalidArgument("horizon", "horizon = " + Fmt(a.horizon) + " s violates horizon >= 4 samples of " + Printable(r.name, 64) +
+                                                    " (4 x dt = " + Fmt(4 * r.dt) + " s)");
     auto p = PrepareRecord(r, plan.setup, b, e, a.deriv_cutoff, r.name);
     if (!p.ok()) return p.status();
     recs.push_back(std::move(p).value());
@@ -670,7 +689,7 @@ Status WriteReport(const IdentifyArgs& a, const Setup& setup, const IdentifyResu
   if (ec) return Status::IoError("report", "cannot create '" + a.report + "': " + ec.message());
   std::vector<std::string> figs;
   BISTABLE_RETURN_IF_ERROR(WritePlots(r, recs, setup, a.report, &figs));
-  std::ofstream md((std::filesystem::path(a.report) / "report.md").string());
+  std::ostringstream md;  // written whole or not at all, like report.json (AtomicFile)
   md << "# Identification report\n\n";
   md << "Declared terms: `" << a.terms << "`; records: ";
   for (size_t i = 0; i < recs.size(); ++i) md << (i ? ", " : "") << "`" << recs[i].name << "` (" << recs[i].n() << " samples)";
@@ -686,10 +705,9 @@ Status WriteReport(const IdentifyArgs& a, const Setup& setup, const IdentifyResu
      << " m/s, v_t = " << setup.fc.v_t << " m/s. Wall time " << Fmt(r.seconds, 3) << " s, " << simulations
      << " simulations.\n\n## Figures\n\n";
   for (const std::string& f : figs) md << "![" << f << "](" << f << ")\n\n";
-  std::ofstream js((std::filesystem::path(a.report) / "report.json").string());
-  js << j.dump(2) << "\n";
-  if (!md || !js) return Status::IoError("report", "writing the report in '" + a.report + "' failed");
-  return Status::Ok();
+  const std::filesystem::path dir(a.report);
+  BISTABLE_RETURN_IF_ERROR(WriteTextOut((dir / "report.json").string(), DumpJson(j, 2) + "\n", "report"));
+  return WriteTextOut((dir / "report.md").string(), md.str(), "report");
 }
 
 // The human-readable result on stdout.
@@ -813,7 +831,7 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   for (size_t f = 0; f < a.data.size(); ++f) {
     auto recs = LoadRecords(a.data[f], plan.columns);
     if (!recs.ok()) return recs.status();
-    for (const Record& r : recs.value()) loaded.push_back(a.decimate > 1 ? Decimated(r, a.decimate) : r), file_of.push_back(f);
+    for (Record& r : recs.value()) loaded.push_back(a.decimate > 1 ? Decimated(r, a.decimate) : std::move(r)), file_of.push_back(f);
   }
   auto prepared = PrepareFitted(loaded, a, plan);
   if (!prepared.ok()) return prepared.status();
@@ -930,7 +948,7 @@ int RunIdentify(const IdentifyArgs& a) {
     return CancelExitStatus();
   }
   if (!j.ok()) return Fail(j.status());
-  if (a.json) std::cout << j->dump(2) << "\n";
+  if (a.json) std::cout << DumpJson(*j, 2) << "\n";
   else if (a.predict) std::cout << PredictionText(*j);
   return 0;
 }

@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "base/names.h"
 #include "base/exit_codes.h"
 #include "client/chirp_command.h"
 #include "client/design_command.h"
@@ -47,7 +48,7 @@ int main(int argc, char** argv) {
   if (argc > 1 && argv[1][0] != '-' && !is_known(argv[1])) {
     std::string known;
     for (const CLI::App* sub : subs) known += (known.empty() ? "" : ", ") + sub->get_name();
-    std::cerr << "error: invalid argument (command: '" << argv[1] << "' is not one of {" << known << "})\n";
+    std::cerr << "error: invalid argument (command: '" << bistable::Printable(argv[1], 64) << "' is not one of {" << known << "})\n";
     return bistable::kExitError;
   }
   try {
@@ -61,6 +62,9 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     std::cerr << "error: " << e.what() << "\n";
     std::cerr << "run with --help for usage\n";
+    return bistable::kExitError;
+  } catch (const std::exception& e) {  // a defect or exhausted memory: said, not an abort (files are atomic)
+    std::cerr << "error: internal (" << bistable::Printable(e.what(), 200) << ")\n";
     return bistable::kExitError;
   }
   return exit_code;

@@ -24,6 +24,7 @@
 #include "client/sweep_commands.h"
 #include "base/file.h"
 #include "base/names.h"
+#include "engine/json_shapes.h"
 #include "engine/metric_catalog.h"
 #include "engine/query.h"
 #include "proto/coordinator_client.h"
@@ -51,7 +52,7 @@ int ListRemoteSweeps(const SweepsArgs& a) {
   if (a.json) {
     nlohmann::json arr = nlohmann::json::array();
     for (const SweepInfo& s : *sweeps) arr.push_back(RemoteSweepJson(s));
-    std::cout << arr.dump(2) << "\n";
+    std::cout << DumpJson(arr, 2) << "\n";
     return 0;
   }
   std::printf("%-12s  %-11s  %-14s  %13s  %8s  %-12s  %s\n", "id", "status", "model", "done/total", "seconds", "owner", "name");
@@ -77,7 +78,7 @@ int ListSweeps(const SweepsArgs& a) {
   auto rows = (*db)->ListSweeps();
   if (!rows.ok()) return Fail(rows.status());
   if (a.json) {
-    std::cout << LocalSweepsJson(**db, *rows, a.data).dump(2) << "\n";
+    std::cout << DumpJson(LocalSweepsJson(**db, *rows, a.data), 2) << "\n";
     return 0;
   }
   std::printf("%-12s  %-11s  %-14s  %13s  %8s  %s\n", "id", "status", "model", "done/total", "seconds", "name");
@@ -238,7 +239,7 @@ int ShowMap(const MapArgs& a) {
                         {"fixed", fixed},        {"values", NestedValues(*s)},
                         {"sweep", ref.id}};
     for (const Axis& ax : s->free) j["axis_order"].push_back(ax.name);
-    const Status st = WriteOut(a.out, j.dump(1) + "\n");
+    const Status st = WriteOut(a.out, DumpJson(j, 1) + "\n");
     return st.ok() ? 0 : Fail(st);
   }
   if (a.format == "csv") {
@@ -276,13 +277,13 @@ int RunQuery(const QueryArgs& a) {
   auto j = QueryJson(a.src, a.id, a.expr, a.json ? SIZE_MAX : static_cast<size_t>(std::max(a.limit, 0)));
   if (!j.ok()) return Fail(j.status());
   if (a.json) {
-    std::cout << j->dump(1) << "\n";
+    std::cout << DumpJson(*j, 1) << "\n";
     return 0;
   }
   const long count = (*j)["count"].get<long>();
   std::printf("%ld of %zu points match (%.2f%% of points, %.2f%% of the grid's area): %s\n", count, (*j)["total"].get<size_t>(),
               100 * (*j)["fraction"].get<double>(), 100 * (*j)["area_fraction"].get<double>(), a.expr.c_str());
-  for (const auto& pt : (*j)["points"]) std::cout << "  " << pt.dump() << "\n";
+  for (const auto& pt : (*j)["points"]) std::cout << "  " << DumpJson(pt) << "\n";
   if (count > static_cast<long>((*j)["points"].size()))
     std::printf("  ... (%ld more; --json lists all)\n", count - static_cast<long>((*j)["points"].size()));
   return 0;

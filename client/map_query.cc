@@ -44,7 +44,8 @@ StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, 
   // continuation sweep's up and down chains).
   std::string item_dim = "ic";
   for (const auto& [v, m] : loaded)
-    if (m.values.size() == n_items && m.dim_names.size() > axes.size()) item_dim = m.dim_names[axes.size()];
+    if (m.values.size() == n_items && m.dim_names.size() > axes.size() && m.dim_names[axes.size()] == "direction")
+      item_dim = "direction";  // only the two names the project writes: a file's label never renames a key
   nlohmann::json points = nlohmann::json::array();
   auto column = [&](int v) -> const std::vector<double>& { return loaded.at(v).values; };
   const QueryScan scan = ScanQuery(*q, axes, per_point, column, [&](size_t item, const std::vector<size_t>& idx) {

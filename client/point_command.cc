@@ -17,6 +17,7 @@
 #include "client/poincare_section.h"
 #include "dynamics/cancel.h"
 #include "dynamics/point.h"
+#include "engine/json_shapes.h"
 
 namespace bistable {
 namespace {
@@ -203,7 +204,7 @@ int RunPoint(PointArgs& a) {
     if (spectrum) AddSpectrumJson(**spectrum, &j);
     if (!a.poincare.empty() || !a.poincare_plot.empty() || a.poincare_periods_given)
       j["poincare"] = SectionJson(spec, *result, section_limit, a.poincare);
-    std::cout << j.dump(2) << "\n";
+    std::cout << DumpJson(j, 2) << "\n";
   } else if (!section_to_stdout && !trace_to_stdout) {  // "-" without --json: standard output is the CSV alone
     PrintHuman(spec, *result);
     if (spectrum) PrintSpectrum(**spectrum);

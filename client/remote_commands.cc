@@ -15,6 +15,7 @@
 #include "client/progress.h"
 #include "client/remote_commands.h"
 #include "dynamics/cancel.h"
+#include "engine/json_shapes.h"
 #include "proto/coordinator_client.h"
 #include "proto/health.h"
 #include "server/auth.h"
@@ -40,7 +41,7 @@ int Submit(CoordinatorClient& c, const RemoteArgs& a) {
   auto rep = c.Submit(*text, a.target);
   if (!rep.ok()) return Fail(rep.status());
   if (a.json) {
-    std::cout << SubmittedJson(*rep).dump() << "\n";
+    std::cout << DumpJson(SubmittedJson(*rep)) << "\n";
   } else {
     std::cout << rep->id << "\n";
   }
@@ -51,7 +52,7 @@ int StatusCmd(CoordinatorClient& c, const RemoteArgs& a) {
   if (!a.watch) {
     auto st = c.GetStatus(a.target);
     if (!st.ok()) return Fail(st.status());
-    if (a.json) std::cout << SweepStatusJson(*st).dump() << "\n";
+    if (a.json) std::cout << DumpJson(SweepStatusJson(*st)) << "\n";
     else
       std::printf("%s  %s  %ld/%ld points (%ld reused)  %d workers  %.1f s  %s\n", st->id.c_str(), SweepStateName(st->state),
                   st->items_done, st->items_total, st->items_cached, st->workers, st->seconds, st->file.c_str());
@@ -62,7 +63,7 @@ int StatusCmd(CoordinatorClient& c, const RemoteArgs& a) {
   long base = 0;
   auto last = c.Watch(a.target, [&](const SweepInfo& st) {
     if (a.json) {
-      std::cout << SweepStatusJson(st).dump() << std::endl;
+      std::cout << DumpJson(SweepStatusJson(st)) << std::endl;
       return true;
     }
     if (!bar) {
@@ -82,7 +83,7 @@ int StatusCmd(CoordinatorClient& c, const RemoteArgs& a) {
 
 int CancelCmd(CoordinatorClient& c, const RemoteArgs& a) {
   if (Status st = c.Cancel(a.target); !st.ok()) return Fail(st);
-  if (a.json) std::cout << nlohmann::json({{"id", a.target}, {"state", "cancelled"}}).dump() << "\n";
+  if (a.json) std::cout << DumpJson(nlohmann::json({{"id", a.target}, {"state", "cancelled"}})) << "\n";
   else std::cout << "cancelled " << a.target << "\n";
   return kExitOk;
 }
@@ -94,7 +95,7 @@ int WorkersCmd(CoordinatorClient& c, const RemoteArgs& a) {
   if (a.json) {
     nlohmann::json arr = nlohmann::json::array();
     for (const WorkerInfo& w : *ws) arr.push_back(WorkerJson(w));
-    std::cout << arr.dump(1) << "\n";
+    std::cout << DumpJson(arr, 1) << "\n";
     return kExitOk;
   }
   std::printf("%-32s %8s %10s %12s\n", "worker", "leases", "items", "last seen");
@@ -115,7 +116,7 @@ int FetchCmd(CoordinatorClient& c, const FetchArgs& a) {
   RestoreDefaultSignalHandlers();
   if (!fetched.ok()) return Fail(fetched.status());
   if (a.r.json)
-    std::cout << fetched->dump() << "\n";
+    std::cout << DumpJson(*fetched) << "\n";
   else
     std::printf("fetched sweep %s: %s (%llu bytes, sha256 %s)\n", (*fetched)["id"].get<std::string>().c_str(), a.out.c_str(),
                 static_cast<unsigned long long>((*fetched)["bytes"].get<uint64_t>()), (*fetched)["sha256"].get<std::string>().c_str());
@@ -134,7 +135,7 @@ int HealthCmd(const HealthArgs& a) {
   if (!token.ok()) return Fail(token.status());
   auto st = CheckHealth({a.r.coordinator, a.r.tls_ca, *token}, a.service, a.timeout);
   if (!st.ok()) return Fail(st.status());
-  if (a.r.json) std::cout << nlohmann::json({{"address", a.r.coordinator}, {"service", a.service}, {"status", *st}}).dump() << "\n";
+  if (a.r.json) std::cout << DumpJson(nlohmann::json({{"address", a.r.coordinator}, {"service", a.service}, {"status", *st}})) << "\n";
   else std::cout << *st << "\n";
   return *st == "SERVING" ? kExitOk : kExitNotDone;
 }

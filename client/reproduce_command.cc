@@ -25,6 +25,7 @@
 #include "dynamics/chirp.h"
 #include "dynamics/hbm.h"
 #include "base/validate.h"
+#include "engine/json_shapes.h"
 #include "storage/map_file.h"
 
 namespace bistable {
@@ -525,7 +526,7 @@ int Reproduce(const std::string& what, const std::string& out, bool quick, int t
   if (json) {
     nlohmann::json rows = nlohmann::json::array();
     for (const Row& r : c.rows) rows.push_back({{"figure", r.figure}, {"claim", r.claim}, {"ours", r.ours}, {"agree", r.agree}, {"files", r.files}});
-    std::cout << nlohmann::json({{"report", md_path}, {"seconds", seconds}, {"agree", agree}, {"claims", rows}}).dump(1) << "\n";
+    std::cout << DumpJson(nlohmann::json({{"report", md_path}, {"seconds", seconds}, {"agree", agree}, {"claims", rows}}), 1) << "\n";
   } else {
     std::cout << md.str() << "\nreport: " << md_path << "\n";
   }

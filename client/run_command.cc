@@ -22,6 +22,7 @@
 #include "client/progress.h"
 #include "client/sweep_commands.h"
 #include "dynamics/cancel.h"
+#include "engine/json_shapes.h"
 #include "net/http_server.h"
 #include "server/dashboard.h"
 #include "server/sweep_coordinator.h"
@@ -120,7 +121,7 @@ int RunSweep(const RunArgs& a) {
                         {"timing", {{"plan", secs(t0, t_planned)}, {"compute", secs(t_planned, t_computed)},
                                     {"publish", secs(t_computed, t_published)}}}};
     if (!warnings.empty()) j["warnings"] = warnings;
-    std::cout << j.dump(2) << "\n";
+    std::cout << DumpJson(j, 2) << "\n";
   } else {
     std::printf("sweep %s done: %ld points x %d = %ld items (%ld computed, %ld reused) in %.1f s, %.0f computed items/s\n",
                 plan->id.c_str(), spec->points(), spec->ic_count(), items, computed, items - computed, seconds,

@@ -19,6 +19,11 @@ namespace bistable {
 // (motion, termination) as its name; an integer metric (period, the codes) as an integer; a time as
 // ISO 8601 UTC ("2026-11-22T21:04:05.123Z").
 
+// JSON text of `j` (indent -1: one line). Strings that are not valid UTF-8 (a file name, a label read from
+// a file) are written with U+FFFD in place of the bad bytes instead of throwing: every JSON the
+// programs print or write goes through this.
+std::string DumpJson(const nlohmann::json& j, int indent = -1);
+
 // `v`, or null when it is not finite.
 nlohmann::json JsonNumber(double v);
 // A Unix time as ISO 8601 UTC (IsoTimeUtc); null for 0 (not set, e.g. an unfinished sweep's end) or a

@@ -1,5 +1,6 @@
 #include "identify/fit.h"
 
+#include "base/limits.h"
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -492,7 +493,12 @@ bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, cons
   return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data(), obj == Objective::kShooting ? horizon_s : 0.0);
 }
 
-int ShootingSegment(double horizon_s, double dt) { return std::max(2, static_cast<int>(std::lround(horizon_s / dt))); }
+// Samples per shooting segment: horizon_s / dt rounded, at least 2; clamped in double first, so a horizon of
+// more samples than an int holds (a record has at most limits::kMaxDataRows) is the whole record, not a wrap.
+int ShootingSegment(double horizon_s, double dt) {
+  const double n = std::clamp(std::round(horizon_s / dt), 2.0, static_cast<double>(limits::kMaxDataRows));
+  return std::isfinite(n) ? static_cast<int>(n) : 2;
+}
 
 bool SimulateShooting(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
                       double horizon_s, SimOutputs* out) {

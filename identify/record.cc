@@ -400,6 +400,10 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     const bool restart = records.empty() || back || gv != records.back().group_values;
     if (restart) {
       if (!records.empty() && records.back().t.size() < 2) return Status::InvalidArgument("data", at() + ": a record of a single row");
+      if (static_cast<long>(records.size()) >= limits::kMaxDataRecords)
+        return Status::InvalidArgument("data", at() + ": more than " + std::to_string(limits::kMaxDataRecords) +
+                                                   " records in one file (violates records <= " + std::to_string(limits::kMaxDataRecords) +
+                                                   "; a record starts where the group columns change or time restarts)");
       Record r;
       r.name = name + "#" + std::to_string(records.size());
       r.group_values = gv;

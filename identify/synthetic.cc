@@ -1,5 +1,7 @@
 #include "identify/synthetic.h"
 
+#include "base/file.h"
+
 #include <cstdio>
 #include <fstream>
 #include <random>
@@ -52,18 +54,17 @@ StatusOr<Record> MakeSyntheticRecord(const DimensionalParams& p, const Synthetic
 }
 
 Status WriteRecordCsv(const Record& r, const std::string& path) {
-  std::ofstream f(path);
-  if (!f) return Status::IoError("csv", "cannot write '" + path + "'");
-  f << (r.resonator.empty() ? "t,x0,x\n" : "t,x0,x,xr\n");
+  std::string text = r.resonator.empty() ? "t,x0,x\n" : "t,x0,x,xr\n";
   char buf[160];
   for (size_t i = 0; i < r.t.size(); ++i) {
     if (r.resonator.empty()) std::snprintf(buf, sizeof buf, "%.10g,%.10g,%.10g\n", r.t[i], r.input[i], r.output[i]);
     else std::snprintf(buf, sizeof buf, "%.10g,%.10g,%.10g,%.10g\n", r.t[i], r.input[i], r.output[i], r.resonator[i]);
-    f << buf;
+    text += buf;
   }
-  f.close();
-  if (!f) return Status::IoError("csv", "write failed for '" + path + "'");
-  return Status::Ok();
+  auto f = AtomicFile::Create(path, "csv");  // whole or not at all
+  if (!f.ok()) return f.status();
+  BISTABLE_RETURN_IF_ERROR((*f)->Write(text));
+  return (*f)->Commit();
 }
 
 }  // namespace bistable

@@ -39,7 +39,7 @@ constexpr size_t kMaxParamBytes = 64;          // id, metric, axis names, number
 constexpr int kSessionSeconds = 12 * 3600;     // the token cookie's lifetime
 
 HttpResponse Json(const json& j, int status = 200) {
-  return {status, "application/json", j.dump(-1, ' ', false, json::error_handler_t::replace), {}};
+  return {status, "application/json", DumpJson(j), {}};
 }
 
 HttpResponse Error(const Status& st) {

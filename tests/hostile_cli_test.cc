@@ -408,6 +408,37 @@ std::vector<Row> Rows() {
                           {"--drift-cutoff", "nan"}));
   rows.push_back(data_row("identify_drift_cutoff_displacement_output", RecordCsv(200), "needs --output-kind velocity",
                           {"--drift-cutoff", "0.5"}));
+  // -- 8. Ranges, budgets and threads (session 19 review): strict numbers, named bounds.
+  for (const auto& [name, range] : std::vector<std::pair<std::string, std::string>>{
+           {"identify_range_scientific", "1e3:2500"}, {"identify_range_hex", "0x10:2000"}, {"identify_range_negative_end", "0:-1"},
+           {"identify_range_trailing_garbage", "500:2500garbage"}, {"identify_range_beyond_rows", "0:99999999999"}})
+    rows.push_back(data_row(name, RecordCsv(200), "violates range = A:B", {"--range", range}));
+  rows.push_back(data_row("identify_test_range_plus_sign", RecordCsv(200), "violates test-range = A:B", {"--test-range", "+5:100"}));
+  for (const std::string v : {"nan", "inf", "-5", "1e300"})
+    rows.push_back(data_row("identify_max_seconds_" + std::string(v == "-5" ? "negative" : v == "1e300" ? "huge" : v), RecordCsv(200),
+                            "violates 0 <= max-seconds <= 1e6 s", {"--max-seconds", v}));
+  rows.push_back(data_row("identify_threads_negative", RecordCsv(200), "threads = -1 violates threads in [0, 1024]", {"--threads", "-1"}));
+  rows.push_back(data_row("identify_threads_huge", RecordCsv(200), "threads = 100000 violates threads in [0, 1024]", {"--threads", "100000"}));
+  rows.push_back(Case("identify_shooting_horizon_below_four_samples",
+                      {{"identify", "--data", "{dir}/d.csv", "--terms", "main.linear,main.viscous", "--known", "m_main=1", "--max-added", "0",
+                        "--global-evals", "0", "--objective", "shooting", "--horizon", "1e-300"}})
+                     .Error("violates horizon >= 4 samples")
+                     .Files({{"{dir}/d.csv", RecordCsv(200)}}));
+  {
+    std::string grouped = "t,x0,x,g\n";
+    for (int i = 0; i < 2 * 4100; ++i)
+      grouped += std::to_string(i * 0.01) + "," + std::to_string(0.001 * std::sin(i * 0.3)) + "," + std::to_string(0.0012 * std::sin(i * 0.3)) +
+                 "," + std::to_string(i / 2) + "\n";
+    rows.push_back(data_row("identify_4100_records_in_one_file", grouped, "more than 4096 records in one file", {"--columns", "group=g"}));
+  }
+  // A file name that is not UTF-8 reaches the JSON (records are named by their files): printed with U+FFFD, and
+  // the report's files are written whole.
+  rows.push_back(Case("identify_non_utf8_file_name_json", {Identify("{dir}/bad\xff\xfe.csv", {"--json"})})
+                     .Files({{"{dir}/bad\xff\xfe.csv", RecordCsv(200)}})
+                     .Json(JsonCheck::kIdentifyFinite));
+  rows.push_back(Case("identify_non_utf8_file_name_report", {Identify("{dir}/bad\xff\xfe.csv", {"--report", "{dir}/rep"})})
+                     .Files({{"{dir}/bad\xff\xfe.csv", RecordCsv(200)}})
+                     .OkFiles({"{dir}/rep/report.json", "{dir}/rep/report.md"}));
   {
     const std::string model = R"({"final_terms": ["main.linear", "main.viscous"], "params": {"main.linear.k_lin": 100, "main.viscous.c0": 1},
                                   "settings": {"m_main": 1}, "errors_by_output": {"voltage": {"weight": WEIGHT}}})";
