@@ -16,6 +16,9 @@ Status SetPoincareWindow(long n, const std::string& field, PointSpec* spec) {
   BISTABLE_RETURN_IF_ERROR(CheckPositive("dt", in.dt));
   BISTABLE_RETURN_IF_ERROR(CheckNonNegative("t_keep", in.t_keep));
   const double period = 2 * M_PI / spec->omega;
+  if (!(in.t_keep / in.dt <= limits::kMaxStepsPerPoint))  // before StepsFor: lround of a huge ratio is unspecified
+    return Violates("t_keep", in.t_keep, "<= " + FormatNumber(limits::kMaxStepsPerPoint * in.dt) + " (the limit of " +
+                                             FormatNumber(limits::kMaxStepsPerPoint) + " steps per point at dt = " + FormatNumber(in.dt) + ")");
   const long n_keep = StepsFor(in.t_keep, in.dt);
   const double window_steps = std::ceil(static_cast<double>(n + 1) * period / in.dt);
   if (static_cast<double>(n_keep) + window_steps > limits::kMaxStepsPerPoint) {

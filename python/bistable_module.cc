@@ -58,17 +58,27 @@ bool OnPythonMainThread() {
 
 // Status → the Python exception a user expects: bad input is ValueError, a missing sweep LookupError
 // (KeyError would quote the message), files and connections OSError, credentials PermissionError.
+// Text as a Python str; bytes that are not UTF-8 (a file name, a label read from a file) become U+FFFD,
+// as in the CLI's --json (engine/json_shapes.h: DumpJson).
+py::str Utf8(const std::string& s) {
+  PyObject* o = PyUnicode_DecodeUTF8(s.data(), static_cast<Py_ssize_t>(s.size()), "replace");
+  if (!o) throw py::error_already_set();
+  return py::reinterpret_steal<py::str>(o);
+}
+
 [[noreturn]] void Raise(const Status& st) {
-  const std::string msg = st.ToString();
+  const py::str msg = Utf8(st.ToString());
+  PyObject* type = PyExc_RuntimeError;
   switch (st.code()) {
     case Status::Code::kInvalidArgument:
-    case Status::Code::kFailedPrecondition: throw py::value_error(msg);
-    case Status::Code::kNotFound: PyErr_SetString(PyExc_LookupError, msg.c_str()); break;
-    case Status::Code::kIoError: PyErr_SetString(PyExc_OSError, msg.c_str()); break;
+    case Status::Code::kFailedPrecondition: type = PyExc_ValueError; break;
+    case Status::Code::kNotFound: type = PyExc_LookupError; break;
+    case Status::Code::kIoError: type = PyExc_OSError; break;
     case Status::Code::kUnauthenticated:
-    case Status::Code::kPermissionDenied: PyErr_SetString(PyExc_PermissionError, msg.c_str()); break;
-    default: PyErr_SetString(PyExc_RuntimeError, msg.c_str()); break;
+    case Status::Code::kPermissionDenied: type = PyExc_PermissionError; break;
+    default: break;
   }
+  PyErr_SetObject(type, msg.ptr());
   throw py::error_already_set();
 }
 
@@ -150,7 +160,7 @@ py::object ToPython(const nlohmann::json& j) {
       const double v = j.get<double>();
       return std::isfinite(v) ? py::object(py::float_(v)) : py::object(py::none());
     }
-    case nlohmann::json::value_t::string: return py::str(j.get<std::string>());
+    case nlohmann::json::value_t::string: return Utf8(j.get_ref<const std::string&>());
     case nlohmann::json::value_t::array: {
       py::list l;
       for (const auto& v : j) l.append(ToPython(v));
@@ -158,7 +168,7 @@ py::object ToPython(const nlohmann::json& j) {
     }
     case nlohmann::json::value_t::object: {
       py::dict d;
-      for (const auto& [k, v] : j.items()) d[py::str(k)] = ToPython(v);
+      for (const auto& [k, v] : j.items()) d[Utf8(k)] = ToPython(v);
       return d;
     }
     default: return py::none();
@@ -174,12 +184,51 @@ bool IsBool(const py::handle& v) {
          py::str(type.attr("__name__")).cast<std::string>().rfind("bool", 0) == 0;
 }
 
+// A value as an error message shows it, bounded: strings cut to 64 characters, integers up to about 1000
+// digits (beyond, their digit count: str() of a huge int raises past 4300), numbers as repr() prints them (cut to 64
+// characters), anything else by its type's name (no user __repr__ runs for it).
+std::string Shown(const py::handle& v) {
+  try {
+    if (py::isinstance<py::str>(v)) {
+      const py::str sv = py::reinterpret_borrow<py::str>(v);
+      const size_t n = py::len(sv);
+      const py::object head = sv[py::slice(0, 64, 1)];
+      return std::string(py::str(py::repr(head))) + (n > 64 ? "... (" + std::to_string(n) + " characters)" : "");
+    }
+    if (!IsBool(v) && PyIndex_Check(v.ptr())) {
+      const py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(v.ptr()));
+      if (!i) throw py::error_already_set();
+      const long long bits = py::int_(i.attr("bit_length")()).cast<long long>();
+      if (bits > 3300) return "an integer of about " + std::to_string(static_cast<long long>(bits * 0.30103) + 1) + " digits";
+      return py::str(i);
+    }
+    static const py::object& real = *new py::object(py::module_::import("numbers").attr("Real"));  // never destroyed
+    if (py::isinstance<py::float_>(v) || py::isinstance(v, real) || IsBool(v)) {
+      const std::string r = py::str(py::repr(v));
+      return r.size() > 64 ? r.substr(0, 64) + "..." : r;
+    }
+    if (v.is_none()) return "None";
+    const bool tuple = py::isinstance<py::tuple>(v);
+    if (tuple || py::isinstance<py::list>(v)) {  // a few elements, each shown this way
+      const py::sequence seq = py::reinterpret_borrow<py::sequence>(v);
+      const size_t n = py::len(seq);
+      std::string out = tuple ? "(" : "[";
+      for (size_t i = 0; i < std::min<size_t>(n, 8); ++i) out += (i ? ", " : "") + Shown(seq[i]);
+      if (n > 8) out += ", ... (" + std::to_string(n) + " elements)";
+      return out + (tuple ? (n == 1 ? ",)" : ")") : "]");
+    }
+  } catch (const py::error_already_set&) {
+  }
+  std::string type = Py_TYPE(v.ptr())->tp_name;
+  return "<" + type.substr(0, 64) + ">";
+}
+
 // A finite number from a Python object — any numbers.Real but a bool: int, float, numpy.float32, numpy.int64 ...;
 // ValueError naming the keyword otherwise.
 double Number(const py::handle& v, const std::string& name) {
   static const py::object& real = *new py::object(py::module_::import("numbers").attr("Real"));  // never destroyed
   if (IsBool(v) || !py::isinstance(v, real))
-    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " a number");
+    throw py::value_error(name + " = " + Shown(v) + " violates " + name + " a number");
   double x = NAN;
   try {
     x = py::float_(py::reinterpret_borrow<py::object>(v)).cast<double>();
@@ -187,7 +236,7 @@ double Number(const py::handle& v, const std::string& name) {
     x = INFINITY;
   }
   if (!std::isfinite(x))
-    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " finite");
+    throw py::value_error(name + " = " + Shown(v) + " violates " + name + " finite");
   return x;
 }
 
@@ -195,7 +244,7 @@ double Number(const py::handle& v, const std::string& name) {
 // not fit a long long. ValueError naming the keyword when it is not an integer.
 std::optional<long long> IndexValue(const py::handle& v, const std::string& name) {
   if (IsBool(v) || !PyIndex_Check(v.ptr()))
-    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " an integer");
+    throw py::value_error(name + " = " + Shown(v) + " violates " + name + " an integer");
   const py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(v.ptr()));
   if (!i) throw py::error_already_set();
   int overflow = 0;  // beyond long long: out of range (v.cast would raise a bare RuntimeError)
@@ -204,8 +253,8 @@ std::optional<long long> IndexValue(const py::handle& v, const std::string& name
   return x;
 }
 
-// An integer's value as Python prints it (numpy.int64(5) as 5).
-std::string IntegerText(const py::handle& v) { return py::str(py::int_(py::reinterpret_borrow<py::object>(v))); }
+// An integer's value as Python prints it (numpy.int64(5) as 5), bounded (Shown).
+std::string IntegerText(const py::handle& v) { return Shown(v); }
 
 int Integer(const py::handle& v, const std::string& name) {
   const std::optional<long long> x = IndexValue(v, name);
@@ -215,12 +264,12 @@ int Integer(const py::handle& v, const std::string& name) {
 }
 
 bool Flag(const py::handle& v, const std::string& name) {
-  if (!py::isinstance<py::bool_>(v)) throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " True or False");
+  if (!py::isinstance<py::bool_>(v)) throw py::value_error(name + " = " + Shown(v) + " violates " + name + " True or False");
   return v.cast<bool>();
 }
 
 std::string Text(const py::handle& v, const std::string& name) {
-  if (!py::isinstance<py::str>(v)) throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " a string");
+  if (!py::isinstance<py::str>(v)) throw py::value_error(name + " = " + Shown(v) + " violates " + name + " a string");
   return v.cast<std::string>();
 }
 
@@ -273,7 +322,7 @@ PointSpec PointFromKeywords(const py::dict& kw, long* section_limit = nullptr) {
       s.metrics.rosenstein = Flag(value, k);
     } else if (k == "ic") {
       if (!py::isinstance<py::sequence>(value) || py::isinstance<py::str>(value))
-        throw py::value_error("ic = " + std::string(py::str(py::repr(value))) + " violates ic = (ym, vm) or (ym, vm, yr, vr)");
+        throw py::value_error("ic = " + Shown(value) + " violates ic = (ym, vm) or (ym, vm, yr, vr)");
       const auto seq = py::reinterpret_borrow<py::sequence>(value);
       if (seq.size() != 2 && seq.size() != 4) throw py::value_error("ic has " + std::to_string(seq.size()) + " numbers; violates ic = (ym, vm) or (ym, vm, yr, vr)");
       for (size_t i = 0; i < seq.size(); ++i) s.ic[i] = Number(seq[i], "ic[" + std::to_string(i) + "]");
@@ -376,7 +425,7 @@ py::dict Find(const std::string& id, const std::string& data) {
 // ValidateFoldCurveOptions', as in `hbm --alpha-range`).
 void Range(const py::handle& v, const std::string& name, double* lo, double* hi) {
   if (!py::isinstance<py::sequence>(v) || py::isinstance<py::str>(v) || py::len(v) != 2)
-    throw py::value_error(name + " = " + std::string(py::str(py::repr(v))) + " violates " + name + " = (lo, hi), two numbers");
+    throw py::value_error(name + " = " + Shown(v) + " violates " + name + " = (lo, hi), two numbers");
   const auto seq = py::reinterpret_borrow<py::sequence>(v);
   *lo = Number(seq[0], name + "[0]"), *hi = Number(seq[1], name + "[1]");
 }

@@ -176,8 +176,11 @@ def identify(data, **kw):
     0.282}). Dict values become "name=value,..." lists, lists become comma lists, True adds the flag.
     """
     args = []
-    for path in [data] if isinstance(data, (str, _os.PathLike)) else list(data):
-        args += ["--data", _os.fspath(path)]
+    paths = [data] if isinstance(data, (str, bytes, _os.PathLike)) else list(data)
+    for path in paths:
+        if not isinstance(path, (str, bytes, _os.PathLike)):
+            raise ValueError("data = %.80r violates data a path (str, bytes, os.PathLike) or a list of them" % (path,))
+        args += ["--data", _os.fsencode(path)]  # bytes: any file name the system allows, UTF-8 or not
     for k, v in kw.items():
         flag = "--" + k.replace("_", "-")
         if isinstance(v, bool):

@@ -184,6 +184,28 @@ def test_an_integer_beyond_long_long_raises_value_error_naming_the_field():
         bistable.hbm(harmonics=10**30)
 
 
+def test_error_messages_show_hostile_values_bounded():
+    with pytest.raises(ValueError, match=re.escape("poincare_periods = an integer of about 5001 digits violates poincare_periods in [1, 100000]")):
+        bistable.point(model="standalone", alpha=0.3, omega=1.2, poincare_periods=10**5000)
+    with pytest.raises(ValueError, match=re.escape("harmonics = an integer of about 5001 digits violates |harmonics| <= 2^30")):
+        bistable.hbm(harmonics=10**5000)
+    with pytest.raises(ValueError) as e:
+        bistable.point(alpha="x" * 10**7, omega=1.0)
+    assert len(str(e.value)) < 400 and "(10000000 characters)" in str(e.value) and "alpha = 'xxx" in str(e.value)
+    with pytest.raises(ValueError, match=re.escape("t_keep = 9.3e+18 violates t_keep <=")):
+        bistable.point(model="standalone", alpha=0.3, omega=1.2, t_keep=9.3e18, dt=1.0, poincare_periods=10)
+
+
+def test_identify_takes_any_file_name_and_refuses_what_is_not_a_path(tmp_path):
+    with pytest.raises(ValueError, match=re.escape("violates data a path")):
+        bistable.identify([3], terms="main.linear")
+    name = os.path.join(os.fsencode(str(tmp_path)), b"bad\xff.csv")
+    with open(name, "w") as f:
+        f.write("t,x0,x\n" + "".join("%g,%g,%g\n" % (i * 0.01, 0.001 * np.sin(i * 0.3), 0.0012 * np.sin(i * 0.3 - 0.2)) for i in range(200)))
+    r = bistable.identify(name, terms="main.linear,main.viscous", known={"m_main": 1}, max_added=0, global_evals=0, horizon=0)
+    assert r["records"][0]["name"].startswith("bad") and "\ufffd" in r["records"][0]["name"]
+
+
 def test_numpy_scalars_are_numbers_and_integers_but_numpy_bools_are_not():
     # numpy.float64 is a float; numpy.float32 and numpy.int64 are not, but users pass them (np.arange, np.linspace).
     a = bistable.hbm(param="omega", start=0.4, stop=1.6, alpha=0.3, harmonics=5)
