@@ -20,6 +20,7 @@
 #include "engine/query.h"
 #include "engine/refine.h"
 #include "server/embedded_files.h"
+#include "server/single_flight.h"
 #include "storage/map_file.h"
 
 namespace bistable {
@@ -175,33 +176,10 @@ struct Loaded {
   double lo = NAN, hi = NAN;  // over every finite value (one colour range for every slice)
 };
 
-// Loaded metrics, shared by every request for the same (sweep, metric, source) for kCacheSeconds: any
-// number of open tabs on a running sweep cost one lookup in the point cache per kCacheSeconds.
-class DashboardCache {
- public:
-  std::optional<Loaded> Get(const std::string& key) {
-    std::lock_guard<std::mutex> lock(mu_);
-    auto it = entries_.find(key);
-    if (it == entries_.end() || Now() - it->second.first > kCacheSeconds) return std::nullopt;
-    return it->second.second;
-  }
-  void Put(const std::string& key, const Loaded& l) {
-    std::lock_guard<std::mutex> lock(mu_);
-    entries_.erase(key);
-    while (entries_.size() >= kCacheEntries) {
-      auto oldest = entries_.begin();
-      for (auto it = entries_.begin(); it != entries_.end(); ++it)
-        if (it->second.first < oldest->second.first) oldest = it;
-      entries_.erase(oldest);
-    }
-    entries_.emplace(key, std::make_pair(Now(), l));
-  }
-
- private:
-  static double Now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
-  std::mutex mu_;
-  std::map<std::string, std::pair<double, Loaded>> entries_;
-};
+// Loaded metrics, shared by every request for the same (sweep, metric, source) for kCacheSeconds, and loaded
+// once however many requests miss together (server/single_flight.h): any number of open tabs on a running
+// sweep cost one lookup in the point cache per kCacheSeconds.
+using DashboardCache = SingleFlightCache<Loaded>;
 
 // A metric over the sweep's items: the published map file, or what is stored so far of a planned sweep
 // (looked up only when the sweep has at most kMaxLiveItems items: the size comes from the spec's axis
@@ -215,37 +193,37 @@ StatusOr<Loaded> LoadMetric(SweepCoordinator* c, DashboardCache* cache, const Sw
                                                       ? " yet (written when the refined map is published)"
                                                       : ""));
   const std::string key = s.id + "\n" + metric + "\n" + (published ? s.info.file : std::string("live"));
-  if (auto hit = cache->Get(key)) return *hit;
-  Loaded l;
-  if (published) {
-    auto a = ReadMapMetric((std::filesystem::path(c->data_dir()) / s.info.file).string(), metric);
-    if (!a.ok()) return a.status();
-    if (a->dims.size() != a->axes.size() && a->dims.size() != a->axes.size() + 1)
-      return Status::FailedPrecondition("metric '" + metric + "' is not one value per item");
-    l.array = std::make_shared<const MapArray>(std::move(*a));
-  } else {
-    const MetricInfo* info = FindMetric(metric);
-    MapArray a = ShapeOf(s.spec);
-    a.metric = metric;
-    a.unit = info->unit;
-    a.definition = info->definition;
-    for (const Category& k : MetricCategories(metric)) a.categories.push_back({k.code, k.name});
-    const long items = s.spec.points() * s.spec.ic_count();
-    if (items > kMaxLiveItems) {
-      l.note = "partial map not shown above " + std::to_string(kMaxLiveItems) + " items (this sweep has " + std::to_string(items) +
-               "); the published map will be";
+  return cache->GetOrLoad(key, [&]() -> StatusOr<Loaded> {
+    Loaded l;
+    if (published) {
+      auto a = ReadMapMetric((std::filesystem::path(c->data_dir()) / s.info.file).string(), metric);
+      if (!a.ok()) return a.status();
+      if (a->dims.size() != a->axes.size() && a->dims.size() != a->axes.size() + 1)
+        return Status::FailedPrecondition("metric '" + metric + "' is not one value per item");
+      l.array = std::make_shared<const MapArray>(std::move(*a));
     } else {
-      auto values = c->StoredValues(s.id, metric);
-      if (!values.ok()) return Status::NotFound("sweep " + s.id + " has no map yet (state " + SweepStateName(s.info.state) + ")");
-      a.values = std::move(*values);
+      const MetricInfo* info = FindMetric(metric);
+      MapArray a = ShapeOf(s.spec);
+      a.metric = metric;
+      a.unit = info->unit;
+      a.definition = info->definition;
+      for (const Category& k : MetricCategories(metric)) a.categories.push_back({k.code, k.name});
+      const long items = s.spec.points() * s.spec.ic_count();
+      if (items > kMaxLiveItems) {
+        l.note = "partial map not shown above " + std::to_string(kMaxLiveItems) + " items (this sweep has " + std::to_string(items) +
+                 "); the published map will be";
+      } else {
+        auto values = c->StoredValues(s.id, metric);
+        if (!values.ok()) return Status::NotFound("sweep " + s.id + " has no map yet (state " + SweepStateName(s.info.state) + ")");
+        a.values = std::move(*values);
+      }
+      l.array = std::make_shared<const MapArray>(std::move(a));
+      l.partial = true;
     }
-    l.array = std::make_shared<const MapArray>(std::move(a));
-    l.partial = true;
-  }
-  for (double v : l.array->values)
-    if (std::isfinite(v)) l.lo = std::isnan(l.lo) ? v : std::min(l.lo, v), l.hi = std::isnan(l.hi) ? v : std::max(l.hi, v);
-  cache->Put(key, l);
-  return l;
+    for (double v : l.array->values)
+      if (std::isfinite(v)) l.lo = std::isnan(l.lo) ? v : std::min(l.lo, v), l.hi = std::isnan(l.hi) ? v : std::max(l.hi, v);
+    return l;
+  });
 }
 
 // Which cells a slice shows: x (and y) axis, every other dimension fixed by "at" = "name:index,...".
@@ -548,7 +526,7 @@ std::set<std::string> DashboardSlowRoutes() { return {"/api/map", "/api/query", 
 
 std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens) {
   std::map<std::string, HttpHandler> routes;
-  auto cache = std::make_shared<DashboardCache>();
+  auto cache = std::make_shared<DashboardCache>(kCacheSeconds, kCacheEntries);
   for (const EmbeddedFile& f : DashboardAssets()) {
     HttpResponse r{200, std::string(f.content_type), std::string(f.bytes), {}};
     r.headers.push_back({"Content-Security-Policy", "default-src 'self'; img-src 'self' data:; frame-ancestors 'none'"});
