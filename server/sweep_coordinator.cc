@@ -25,6 +25,10 @@ double Now() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
+double SteadyNow() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
 
 }  // namespace
 
@@ -33,6 +37,10 @@ void SweepCoordinator::Log(log::Level level, std::string_view event, std::initia
 }
 
 double SweepCoordinator::Clock() const { return opt_.clock ? opt_.clock() : Now(); }
+
+double SweepCoordinator::Monotonic() const {
+  return opt_.monotonic ? opt_.monotonic() : opt_.clock ? opt_.clock() : SteadyNow();
+}
 
 StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::string& data_dir, Options opt) {
   std::error_code ec;
@@ -441,9 +449,9 @@ void SweepCoordinator::TouchWorkerLocked(const std::string& worker, double now) 
   it->second.last_seen = now;
 }
 
-void SweepCoordinator::RequeueExpiredLocked(double now) {
+void SweepCoordinator::RequeueExpiredLocked(double mono) {
   for (auto it = leases_.begin(); it != leases_.end();) {
-    if (it->second.deadline >= now) {
+    if (it->second.deadline >= mono) {
       ++it;
       continue;
     }
@@ -451,10 +459,10 @@ void SweepCoordinator::RequeueExpiredLocked(double now) {
     const LeaseState& l = it->second;
     Log(log::Level::kWarn, "lease.expired",
         {{"sweep", l.sweep_id}, {"job", l.job_ids.front()}, {"jobs", l.job_ids.size()}, {"worker", l.worker},
-         {"overdue_s", now - l.deadline}, {"action", "requeue"}});
+         {"overdue_s", mono - l.deadline}, {"action", "requeue"}});
     RequeueLocked(l);
     if (auto w = workers_.find(l.worker); w != workers_.end() && w->second.leases == 0)
-      Log(log::Level::kWarn, "worker.lost", {{"worker", l.worker}, {"last_seen_s", now - w->second.last_seen}});
+      Log(log::Level::kWarn, "worker.lost", {{"worker", l.worker}, {"last_seen_s", Clock() - w->second.last_seen}});
     it = leases_.erase(it);
   }
 }
@@ -472,10 +480,10 @@ void SweepCoordinator::RequeueLocked(const LeaseState& l) {
 
 std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep, int max_jobs) {
   std::lock_guard<std::mutex> lock(mu_);
-  const double now = Clock();
+  const double now = Clock(), mono = Monotonic();
   TouchWorkerLocked(worker, now);
   if (stopped_) return std::nullopt;
-  RequeueExpiredLocked(now);
+  RequeueExpiredLocked(mono);
   Sweep* best = nullptr;
   for (auto& [id, s] : sweeps_)
     if (!s.cancelled && !s.queue.empty() && (!best || s.seq < best->seq) && (only_sweep.empty() || id == only_sweep)) best = &s;
@@ -497,7 +505,7 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
   LeaseGrant g{id, best->row.id, jobs[0], static_cast<int>(jobs.size()), {}, now + opt_.lease_seconds};
   g.items.reserve(items);
   for (long j : jobs) g.items.insert(g.items.end(), best->jobs[j].items.begin(), best->jobs[j].items.end());
-  leases_[g.lease_id] = {g.sweep_id, worker, jobs, best->generation, g.deadline};
+  leases_[g.lease_id] = {g.sweep_id, worker, jobs, best->generation, mono + opt_.lease_seconds};  // g.deadline: the wire's wall time
   if (auto w = workers_.find(worker); w != workers_.end()) ++w->second.leases;
   ++stats_.leases_granted;
   Log(log::Level::kDebug, "lease.granted",
@@ -507,13 +515,13 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
 
 Status SweepCoordinator::Extend(const std::string& lease_id) {
   std::lock_guard<std::mutex> lock(mu_);
-  const double now = Clock();
+  const double mono = Monotonic();
   auto it = leases_.find(lease_id);
   if (it == leases_.end())
     return finished_leases_.count(lease_id) ? Status::Ok() : Status::NotFound("lease '" + lease_id + "' is unknown");
-  if (it->second.deadline < now) return Status::FailedPrecondition("lease '" + lease_id + "' expired; its job was requeued");
-  it->second.deadline = now + opt_.lease_seconds;
-  TouchWorkerLocked(it->second.worker, now);
+  if (it->second.deadline < mono) return Status::FailedPrecondition("lease '" + lease_id + "' expired; its job was requeued");
+  it->second.deadline = mono + opt_.lease_seconds;
+  TouchWorkerLocked(it->second.worker, Clock());
   return Status::Ok();
 }
 
@@ -580,7 +588,7 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
   LeaseState lease;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    const double now = Clock();
+    const double mono = Monotonic();
     if (committing_.count(lease_id))  // a retry racing its own first attempt: answer once it is stored
       return Status::IoError("coordinator", "the report of lease '" + lease_id + "' is being stored; retry");
     auto it = leases_.find(lease_id);
@@ -592,8 +600,8 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
       return Status::NotFound("lease is unknown (never granted, revoked by a cancel or a new plan, or granted before a "
                               "coordinator restart)");
     }
-    if (it->second.deadline < now) {
-      RequeueExpiredLocked(now);
+    if (it->second.deadline < mono) {
+      RequeueExpiredLocked(mono);
       return Status::FailedPrecondition("lease '" + lease_id + "' expired before its report; its job was requeued");
     }
     auto sit = sweeps_.find(it->second.sweep_id);
@@ -625,7 +633,7 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
     if (all_done) {  // other leases of these jobs were stored first
       ++stats_.reports_duplicate;
       if (auto w = workers_.find(lease.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
-      TouchWorkerLocked(lease.worker, now);
+      TouchWorkerLocked(lease.worker, Clock());
       RememberFinishedLocked(lease_id, s.row.id);
       return Status::Ok();
     }

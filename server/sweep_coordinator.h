@@ -61,7 +61,7 @@ struct LeaseGrant {
   long job_id = 0;          // the first job of the lease
   int jobs = 1;             // jobs merged into this lease
   std::vector<WorkItem> items;
-  double deadline = 0;     // unix seconds
+  double deadline = 0;     // unix seconds (the wire's; the coordinator keeps its own on the monotonic clock)
 };
 
 // Counters since this process started and gauges now, for metrics (server/metrics.h).
@@ -92,7 +92,11 @@ class SweepCoordinator {
                                 // the embedded `bistable run` handles only the sweep it submits
     bool log = true;            // events (storage failures, corrupt results, replans) to stderr; the
                                 // embedded run turns it off and reports through its Status instead
-    std::function<double()> clock = nullptr;  // unix seconds for deadlines; empty: the system clock (tests step it)
+    // Seconds: unix time for timestamps and, when set, also the clock of lease deadlines (tests step it);
+    // empty: the system clock for timestamps and the monotonic clock for deadlines, so a stepped wall clock
+    // (NTP, a resumed VM) neither expires every lease at once nor keeps a dead worker's job.
+    std::function<double()> clock = nullptr;
+    std::function<double()> monotonic = nullptr;  // the deadlines' clock when set (tests: a wall clock that jumps)
   };
 
   // Opens <data>/index.sqlite and <data>/sweeps/ (creating them) and resumes unfinished sweeps.
@@ -180,7 +184,7 @@ class SweepCoordinator {
     std::string sweep_id, worker;
     std::vector<long> job_ids;        // one job, or several merged (Lease's max_jobs)
     unsigned long long generation = 0;  // the plan the job belongs to
-    double deadline = 0;
+    double deadline = 0;  // Monotonic() seconds
   };
   // A plan built outside mu_: the sweep's keys, its jobs against the point cache.
   struct Planned {
@@ -209,8 +213,9 @@ class SweepCoordinator {
   Status BuildRefinedPlan(const SweepSpec& spec, long job_items, RefineCarry carry, Sweep& s, SweepPlan& plan);
   void RememberFinishedLocked(const std::string& lease_id, const std::string& sweep_id);
   void TouchWorkerLocked(const std::string& worker, double now);
-  void RequeueExpiredLocked(double now);
-  double Clock() const;
+  void RequeueExpiredLocked(double mono);  // mono: Monotonic()
+  double Clock() const;      // unix seconds (timestamps)
+  double Monotonic() const;  // seconds of the monotonic clock (lease deadlines)
   // A structured event (base/log.h), unless Options::log is off.
   void Log(log::Level level, std::string_view event, std::initializer_list<log::Field> fields) const;
   // Gives a lease's job back to its queue (if the lease's plan is still current). Under mu_.

@@ -1,5 +1,7 @@
 #include "storage/map_file.h"
 
+#include <atomic>
+
 #include <fcntl.h>
 #include <hdf5.h>
 #include <hdf5_hl.h>
@@ -522,7 +524,10 @@ Status WriteMapFileImpl(const std::string& path, const SweepSpec& spec, const st
                         const RefinedGrid* refined) {
   if (records.size() != static_cast<size_t>(spec.points()) * spec.ic_count())
     return Status::Internal("map file: record count does not match the grid");
-  const std::string tmp = path + ".tmp";
+  // A temporary of this writer's own (process id and a counter): two processes publishing the same sweep
+  // into one data directory each rename a whole file, never one the other is still writing.
+  static std::atomic<unsigned long> serial{0};
+  const std::string tmp = path + "." + std::to_string(static_cast<long>(getpid())) + "-" + std::to_string(++serial) + ".tmp";
   Status st;
   {
     std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());

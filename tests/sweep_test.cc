@@ -415,6 +415,40 @@ TEST(SweepEngine, ExpiredLeasesAreRequeuedAndRejected) {
   std::filesystem::remove_all(dir);
 }
 
+// Lease deadlines follow the monotonic clock: the wall clock stepping an hour forward (NTP, a resumed VM)
+// expires nothing — the report is stored and the job is not leased twice — while the monotonic clock passing
+// the deadline does. The lease's deadline on the wire stays wall time.
+TEST(SweepEngine, LeasesExpireByTheMonotonicClockNotTheWallClock) {
+  const std::string dir = TempDir("clockjump");
+  double wall = 1e9, mono = 100;
+  auto c = SweepCoordinator::Open(
+      dir, {.lease_seconds = 10, .resume = true, .clock = [&wall] { return wall; }, .monotonic = [&mono] { return mono; }});
+  ASSERT_TRUE(c.ok());
+  const SweepSpec spec = Parse(kSmall);  // 15 items
+  auto plan = (*c)->Submit(spec, 8);     // jobs of 8 and 7
+  ASSERT_TRUE(plan.ok());
+  auto first = (*c)->Lease("w1");
+  ASSERT_TRUE(first.has_value());
+  EXPECT_DOUBLE_EQ(first->deadline, wall + 10);
+  wall += 3600;  // the wall clock jumps; no time passes
+  auto second = (*c)->Lease("w2");
+  ASSERT_TRUE(second.has_value());
+  EXPECT_NE(second->job_id, first->job_id);  // the first lease was not expired and requeued
+  EXPECT_TRUE((*c)->Extend(first->lease_id).ok());
+  ASSERT_TRUE((*c)->Report(first->lease_id, ComputeItems(spec, first->items)).ok());
+  mono += 11;  // now the second lease's deadline passes
+  EXPECT_EQ((*c)->Report(second->lease_id, ComputeItems(spec, second->items)).code(), Status::Code::kFailedPrecondition);
+  auto again = (*c)->Lease("w3");
+  ASSERT_TRUE(again.has_value());
+  EXPECT_EQ(again->job_id, second->job_id);
+  ASSERT_TRUE((*c)->Report(again->lease_id, ComputeItems(spec, again->items)).ok());
+  auto info = AwaitFinalState(**c, plan->id);
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->state, SweepState::kDone);
+  EXPECT_EQ(info->items_done, 15);
+  std::filesystem::remove_all(dir);
+}
+
 // --jobs-per-lease: queued jobs of one sweep merged into one lease (at most 4096 items), reported
 // as one, requeued together in their order when the lease expires, and the map is the same.
 TEST(SweepEngine, MergedLeasesCoverSeveralJobsAndRequeueTogether) {
