@@ -29,6 +29,12 @@ void ConfigureServerBuilder(grpc::ServerBuilder& builder) {
   // a port in use would start "fine" and take half of the connections.
   builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_STREAM_LOOKAHEAD_BYTES, 1 << 20);
+  // Keepalive: clients ping every 20 s during a call (proto/channel.cc), which the server accepts; the
+  // server pings idle-looking connections every 60 s, so a watcher whose host died gives its thread back
+  // within ~80 s rather than at the TCP retransmission timeout.
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 10000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 60000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 20000);
   // Threads and transport memory of the whole server are bounded: calls beyond them are answered
   // RESOURCE_EXHAUSTED instead of growing the process (one thread per open watch, for instance).
   grpc::ResourceQuota quota("bistable-coordinator");
@@ -174,9 +180,11 @@ grpc::Status CoordinatorService::WatchStatus(grpc::ServerContext* ctx, const v1:
     last = std::chrono::steady_clock::now();
     v1::SweepStatus s;
     ToProto(*info, &s);
-    if (!writer->Write(s)) break;
-    if (final_state) break;
+    if (!writer->Write(s) || final_state) return grpc::Status::OK;
   }
+  // Ended by a shutdown, not by the sweep: the watcher must not take the last status for the end.
+  if (shutting_down_ && !ctx->IsCancelled())
+    return grpc::Status(grpc::StatusCode::UNAVAILABLE, "the coordinator is shutting down; the sweep goes on when it restarts");
   return grpc::Status::OK;
 }
 

@@ -354,6 +354,30 @@ TEST(Observability, GrpcMessagesAreEventsOfTheLog) {
     EXPECT_FALSE(nlohmann::json::parse(line, nullptr, false).is_discarded()) << "not a JSON line: " << line;
 }
 
+// A status watch that the coordinator's shutdown ends is an error (UNAVAILABLE, "shutting down"), not a
+// last status taken for the end: the sweep is still running (it has no workers here).
+TEST(Observability, AWatchEndedByShutdownIsAnError) {
+  const std::string dir = Dir("watch_shutdown");
+  const pid_t coord = bistable_test::SpawnLogged({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data"},
+                                                 dir + "/coord.log");
+  const int port = AwaitPort(dir + "/coord.log", "listening");
+  ASSERT_GT(port, 0) << bistable_test::ReadText(dir + "/coord.log.err");
+  const std::string addr = "127.0.0.1:" + std::to_string(port);
+  std::ofstream(dir + "/spec.toml") << kSpec;
+  const ExecResult sub = RunArgv({BISTABLE_CLI, "submit", dir + "/spec.toml", "--coordinator", addr, "--json"});
+  ASSERT_EQ(sub.exit_code, 0) << sub.err;
+  const std::string id = nlohmann::json::parse(sub.out)["id"];
+  const pid_t watch = bistable_test::SpawnLogged({BISTABLE_CLI, "status", id, "--watch", "--coordinator", addr}, dir + "/watch.log");
+  std::this_thread::sleep_for(std::chrono::milliseconds(800));  // the stream is open and has sent a status
+  ::kill(coord, SIGTERM);
+  const int code = bistable_test::WaitExitFor(watch, 20);
+  bistable_test::WaitExitFor(coord, 10);
+  const std::string err = bistable_test::ReadText(dir + "/watch.log.err");
+  EXPECT_NE(code, 0) << "the watch ended as if the sweep had: " << bistable_test::ReadText(dir + "/watch.log");
+  EXPECT_NE(code, -2) << "the watch hung";
+  EXPECT_NE(err.find("shutting down"), std::string::npos) << err;
+}
+
 // ---- the HTTP server itself ----
 
 TEST(HttpServer, RoutesMethodsAndBounds) {
