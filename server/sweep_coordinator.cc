@@ -747,6 +747,8 @@ Status SweepCoordinator::Cancel(const std::string& sweep_id) {
   auto it = sweeps_.find(sweep_id);
   if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
   if (it->second.row.state == SweepState::kDone) return Status::FailedPrecondition("sweep '" + sweep_id + "' is already done");
+  if (it->second.publishing)  // its index row would say done after the cancel said cancelled
+    return Status::FailedPrecondition("sweep '" + sweep_id + "' is complete and its map is being published; it cannot be cancelled");
   it->second.cancelled = true;
   Log(log::Level::kInfo, "sweep.cancelled", {{"sweep", sweep_id}, {"items_done", it->second.items_done}});
   RevokeLeasesLocked(sweep_id);  // a report of this plan is refused from now on
@@ -789,6 +791,7 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
       points = s.points;
       row = s.row;
       started = s.started;
+      if (!advance && !needs_plan && s.items_done >= s.row.items_total) it->second.publishing = true;  // a cancel is refused now
     }
     if (!advance) break;
     BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));
@@ -802,6 +805,7 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
   auto published = WriteAndIndexMap(spec, keys, points, row, started, path, &incomplete);
   std::unique_lock<std::mutex> lock(mu_);
   Sweep& s = sweeps_.at(sweep_id);
+  s.publishing = false;
   if (!published.ok()) {
     Log(log::Level::kError, "sweep.publish_failed", {{"sweep", sweep_id}, {"reason", published.status().ToString()}});
     s.error = "publication failed: " + published.status().ToString();
@@ -896,6 +900,7 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
     maps.push_back({done.id, catalog[mi].name, done.file, shape, lo, hi});
   }
   if (folder.joinable()) folder.join();
+  if (opt_.before_index_row) opt_.before_index_row();
   if (!folded.ok())  // the records stay staged and are folded by a later lookup; the map is complete
     Log(log::Level::kWarn, "sweep.fold_failed", {{"sweep", row.id}, {"reason", folded.ToString()}});
   BISTABLE_RETURN_IF_ERROR(Db()->PublishSweep(done, maps));

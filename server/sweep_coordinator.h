@@ -97,6 +97,7 @@ class SweepCoordinator {
     // (NTP, a resumed VM) neither expires every lease at once nor keeps a dead worker's job.
     std::function<double()> clock = nullptr;
     std::function<double()> monotonic = nullptr;  // the deadlines' clock when set (tests: a wall clock that jumps)
+    std::function<void()> before_index_row = nullptr;  // tests: runs when a map file is written, before its index row
   };
 
   // Opens <data>/index.sqlite and <data>/sweeps/ (creating them) and resumes unfinished sweeps.
@@ -177,6 +178,7 @@ class SweepCoordinator {
     long items_done = 0, items_cached = 0;
     long seq = 0;                   // submission order
     bool cancelled = false, any_leased = false;
+    bool publishing = false;  // its map is being written and indexed: a cancel now is refused
     std::string error;              // last storage / publication failure, for status
     double started = 0;
   };

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <thread>
 
+#include <future>
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
@@ -446,6 +447,36 @@ TEST(SweepEngine, LeasesExpireByTheMonotonicClockNotTheWallClock) {
   ASSERT_TRUE(info.ok());
   EXPECT_EQ(info->state, SweepState::kDone);
   EXPECT_EQ(info->items_done, 15);
+  std::filesystem::remove_all(dir);
+}
+
+// A cancel that arrives while the complete sweep's map is being published is refused: before, it was
+// acknowledged and then the index row said "done" (the publication wrote it after the cancel).
+TEST(SweepEngine, CancelDuringPublicationIsRefused) {
+  const std::string dir = TempDir("cancel_publish");
+  std::promise<void> reached, release;
+  std::shared_future<void> go = release.get_future().share();
+  std::atomic<bool> first{true};
+  auto c = SweepCoordinator::Open(dir, {.before_index_row = [&] {
+                                          if (first.exchange(false)) reached.set_value(), go.wait();
+                                        }});
+  ASSERT_TRUE(c.ok());
+  const SweepSpec spec = Parse(kSmall);
+  auto plan = (*c)->Submit(spec, 16);  // one job
+  ASSERT_TRUE(plan.ok());
+  auto lease = (*c)->Lease("w");
+  ASSERT_TRUE(lease.has_value());
+  ASSERT_TRUE((*c)->Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());  // queues the publication
+  reached.get_future().wait();  // the map file is written; its index row is not
+  const Status cancel = (*c)->Cancel(plan->id);
+  EXPECT_EQ(cancel.code(), Status::Code::kFailedPrecondition) << cancel.ToString();
+  EXPECT_NE(cancel.ToString().find("being published"), std::string::npos) << cancel.ToString();
+  release.set_value();
+  auto info = AwaitFinalState(**c, plan->id);
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->state, SweepState::kDone);
+  EXPECT_TRUE(std::filesystem::exists((*c)->MapPath(plan->id)));
+  EXPECT_EQ((*c)->Cancel(plan->id).code(), Status::Code::kFailedPrecondition);  // done now
   std::filesystem::remove_all(dir);
 }
 
