@@ -22,7 +22,7 @@ nlohmann::json WhitenessObject(const Whiteness& w) {
   return {{"statistic", JsonNumber(w.statistic)},  {"test", "Ljung-Box"},  {"dof", w.dof},  {"diverged", w.diverged},
           {"p_value", JsonNumber(w.p_value)},      {"alpha", w.alpha},     {"n_eff", JsonNumber(w.n_eff)},
           {"flatness", JsonNumber(w.flatness)},    {"predictable_share", JsonNumber(1 - w.flatness)},
-          {"predictable_threshold", kPredictableShare}, {"white", w.white},     {"dominant_frequencies_hz", w.dominant_hz},
+          {"predictable_threshold", kPredictableShare}, {"twin_predictable_share", JsonNumber(w.twin_predictable_share)}, {"white", w.white},     {"dominant_frequencies_hz", w.dominant_hz},
           {"residual", w.residual}};
 }
 

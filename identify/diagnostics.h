@@ -69,6 +69,10 @@ struct Whiteness {
   std::vector<double> dominant_hz;  // strongest lines of the residual below the band edge, strongest first (≤ 3)
   std::string residual;             // which residual was tested
   bool diverged = false;            // a record's simulation diverged: its residual tested up to there
+  // Records fitted on short horizons: the largest predictable share (1 − flatness) of the same test on the
+  // final model's twin records (TwinRecords: nothing missing), NaN when not calibrated. Then far from white
+  // means also beyond it: 1 − flatness ≥ twin_predictable_share + kPredictableShare.
+  double twin_predictable_share = NAN;
 };
 
 // Whiteness of residual series (one per record, sampled every dt[i]), each band-limited to

@@ -314,7 +314,7 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
                  const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0,
                  const std::vector<const TermDef*>* extra = nullptr, std::vector<EarlyStop>* stops = nullptr,
                  bool shoot = false, const std::vector<std::vector<double>>* start = nullptr,
-                 std::vector<std::vector<double>>* fitted = nullptr) {
+                 std::vector<std::vector<double>>* fitted = nullptr, bool whole = false) {
   Sims s;
   s.o.resize(recs.size());
   if (fitted) fitted->assign(recs.size(), {});
@@ -325,7 +325,9 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
   const int inner = std::max<int>(1, cpus / static_cast<int>(std::max<size_t>(1, recs.size())));
   auto one = [&](size_t i) {
     const int sub = substeps.empty() ? 0 : SubstepsAt(m, th, recs, substeps, i);
-    const int restart = horizon_s > 0 ? ShootingSegment(horizon_s, recs[i].dt) : 0;
+    // A stage's horizon, else the record's own (PreparedRecord::horizon_s) unless the whole simulation is asked for.
+    const double h = horizon_s > 0 ? horizon_s : whole ? 0.0 : recs[i].horizon_s;
+    const int restart = h > 0 ? ShootingSegment(h, recs[i].dt) : 0;
     if (shoot) {
       ok[i] = restart > 0 && ShootRecord(m, th, extra, recs[i], setup, sub, restart, &s.o[i],
                                          start && i < start->size() ? &(*start)[i] : nullptr, fitted ? &(*fitted)[i] : nullptr,
@@ -528,17 +530,23 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
   const Sims s = SimulateAll(m, th, recs, setup, {}, 0);
   const bool disp = setup.output != OutputKind::kVelocity;
   double se = 0, sm = 0, fft_sum = 0, eq20 = 0;
-  for (size_t i = 0; i < recs.size(); ++i) {
+  // Σ (sim − meas)² and Σ (meas − mean)² of record i's main output in the simulations `sims`.
+  auto squares = [&](const Sims& sims, size_t i, double* ei, double* mi) {
     const PreparedRecord& r = recs[i];
     double mean = 0;
     for (double v : r.meas) mean += v;
     mean /= static_cast<double>(r.n());
-    double ei = 0, mi = 0;
+    *ei = 0, *mi = 0;
     for (size_t j = 0; j < r.n(); ++j) {
-      const double d = s.o[i].out[0][j] - r.meas[j];
-      ei += std::isfinite(d) ? d * d : INFINITY;
-      mi += (r.meas[j] - mean) * (r.meas[j] - mean);
+      const double d = sims.o[i].out[0][j] - r.meas[j];
+      *ei += std::isfinite(d) ? d * d : INFINITY;
+      *mi += (r.meas[j] - mean) * (r.meas[j] - mean);
     }
+  };
+  for (size_t i = 0; i < recs.size(); ++i) {
+    const PreparedRecord& r = recs[i];
+    double ei, mi;
+    squares(s, i, &ei, &mi);
     se += ei, sm += mi;
     e.record_nrmse.push_back(100.0 * std::sqrt(ei / mi));
     e.record_rms.push_back(std::sqrt(ei / static_cast<double>(r.n())));
@@ -555,6 +563,19 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
   }
   e.diverged = !s.ok;
   e.nrmse = 100.0 * std::sqrt(se / sm);
+  e.long_nrmse = e.nrmse, e.record_long_nrmse = e.record_nrmse;
+  if (std::any_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.horizon_s > 0; })) {
+    const Sims w = SimulateAll(m, th, recs, setup, {}, 0, 0, nullptr, nullptr, false, nullptr, nullptr, /*whole=*/true);
+    double lse = 0, lsm = 0;
+    e.record_long_nrmse.clear();
+    for (size_t i = 0; i < recs.size(); ++i) {
+      double ei, mi;
+      squares(w, i, &ei, &mi);
+      lse += ei, lsm += mi;
+      e.record_long_nrmse.push_back(100.0 * std::sqrt(ei / mi));
+    }
+    e.long_nrmse = 100.0 * std::sqrt(lse / lsm);
+  }
   e.fft = fft_sum / static_cast<double>(recs.size());
   e.eq20 = eq20 / static_cast<double>(recs.size());
   // Per output (every record has the same outputs): NRMSE pooled over records, spectral error averaged.

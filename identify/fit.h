@@ -44,7 +44,8 @@ struct OutputErrors {
 
 struct Errors {
   // % over all records: 100 sqrt(Σ e² / Σ (meas − mean)²) of the main output; with several outputs the
-  // weighted mean over outputs, sqrt(Σ λ_o NRMSE_o² / Σ λ_o) (the loop's decision error).
+  // weighted mean over outputs, sqrt(Σ λ_o NRMSE_o² / Σ λ_o) (the loop's decision error). A record with its
+  // own horizon (PreparedRecord::horizon_s > 0, a chaotic record) counts with its short-horizon error.
   double nrmse = NAN;
   double fft = NAN;                   // % mean over records of 100 ‖|V_sim| − |V_meas|‖ / ‖V_meas‖
   double eq20 = NAN;                  // the paper's Eq. 20 value, in the output's velocity unit (m/s)
@@ -55,6 +56,10 @@ struct Errors {
   std::vector<double> record_nrmse;   // % per record (main output)
   std::vector<double> record_fft;     // % per record
   std::vector<double> record_rms;     // RMS of sim − meas per record, output unit
+  // % NRMSE of the whole simulation of every record (main output), whatever the records' own horizons
+  // (PreparedRecord::horizon_s): equal to nrmse's main-output part when no record has one. Pooled and per record.
+  double long_nrmse = NAN;
+  std::vector<double> record_long_nrmse;
   bool diverged = false;
 };
 

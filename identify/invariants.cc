@@ -233,17 +233,18 @@ ChaosCheck CheckChaos(const std::vector<PreparedRecord>& recs, const Setup& setu
       in_bb = HarmonicDiffusionIndex(AmplitudeSpectrum(r.input, r.dt), 2.0 * M_PI * f);
       out_bb = HarmonicDiffusionIndex(AmplitudeSpectrum(yd, r.dt), 2.0 * M_PI * f);
     }
-    const bool marked = objective != Objective::kTime || (in_bb <= kPeriodicInput && out_bb >= kBroadbandChaotic);
+    const bool marked = objective != Objective::kTime || r.horizon_s > 0 || r.chaotic || (in_bb <= kPeriodicInput && out_bb >= kBroadbandChaotic);
     c.forcing_hz.push_back(f);
     c.input_broadband.push_back(in_bb);
     c.output_broadband.push_back(out_bb);
     c.record_chaotic.push_back(marked);
     c.chaotic = c.chaotic || marked;
   }
-  char buf[240];
+  char buf[400];
   std::snprintf(buf, sizeof buf,
                 "%s a record is chaotic when its input is periodic (broadband share <= %.2g) and its output velocity is not "
-                "(broadband share >= %.2g: power farther than 3 bins from every harmonic of the forcing)",
+                "(broadband share >= %.2g: power farther than 3 bins from every harmonic of the forcing), or when --objective auto "
+                "fitted it on short horizons (its long simulation is chaos: objective_choice)",
                 objective == Objective::kFft        ? "spectral objective: every record;"
                 : objective == Objective::kShooting ? "shooting objective: every record;"
                                                     : "time objective:",

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <optional>
+#include <random>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -379,8 +380,30 @@ CandidateScore ScoreAtBase(const IdentModel& m, const std::vector<double>& th, c
 
 }  // namespace
 
+namespace {
+
+// The trace proper (TraceResidual): every candidate scored; `twins` — the fitted model's twin records, whose
+// scores calibrate the choice (CandidateScore::twin_explained), or empty.
+LoopStep TraceScores(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                     const Setup& setup, const IdentifyOptions& opt, const std::vector<std::string>& passed_over,
+                     const std::vector<std::vector<PreparedRecord>>& twins);
+
+}  // namespace
+
 LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                        const Setup& setup, const IdentifyOptions& opt, const std::vector<std::string>& passed_over) {
+  // Records fitted on short horizons: the trace's null from the fitted model's twins.
+  const bool chaotic = std::any_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.chaotic || r.horizon_s > 0; });
+  const std::vector<std::vector<PreparedRecord>> twins =
+      chaotic ? TwinRecords(m, th, recs, setup, kTwins) : std::vector<std::vector<PreparedRecord>>{};
+  return TraceScores(m, th, recs, setup, opt, passed_over, twins);
+}
+
+namespace {
+
+LoopStep TraceScores(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                     const Setup& setup, const IdentifyOptions& opt, const std::vector<std::string>& passed_over,
+                     const std::vector<std::vector<PreparedRecord>>& twins) {
   LoopStep step;
   const std::vector<const TermDef*> fresh = FreshCandidates(m, recs, setup, opt);
   const int p = m.NumParams();
@@ -416,16 +439,26 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
     step.scores.push_back(s);
     col += k;
   }
+  for (const std::vector<PreparedRecord>& twin : twins) {
+    const LoopStep null = TraceScores(m, th, twin, setup, opt, passed_over, {});
+    for (CandidateScore& s : step.scores)
+      for (const CandidateScore& n : null.scores)
+        if (n.term == s.term && std::isfinite(n.explained))
+          s.twin_explained = std::isfinite(s.twin_explained) ? std::max(s.twin_explained, n.explained) : n.explained;
+  }
   std::sort(step.scores.begin(), step.scores.end(),
             [](const CandidateScore& a, const CandidateScore& b) { return a.delta_bic < b.delta_bic; });
   for (const CandidateScore& s : step.scores) {
     if (!s.sign_ok || !(s.delta_bic < -opt.bic_threshold) || !(s.explained >= opt.min_explained)) continue;
+    if (std::isfinite(s.twin_explained) && !(s.explained > kTwinFactor * s.twin_explained)) continue;  // as much as in noise
     if (std::find(passed_over.begin(), passed_over.end(), s.term) != passed_over.end()) continue;
     step.chosen = s.term;
     break;
   }
   return step;
 }
+
+}  // namespace
 
 IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, const Setup& setup,
                                const IdentifyOptions& opt);
@@ -618,14 +651,64 @@ AddedEffect Added(const TermDef* t, const IdentModel& m, const FitResult& fit, d
 
 }  // namespace
 
-// `recs` by value: their output weights may be re-estimated below.
-IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, const Setup& setup,
+ObjectiveChoice ChooseHorizons(const IdentModel& m, std::vector<PreparedRecord>* recs, const Setup& setup,
                                const IdentifyOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
+  ObjectiveChoice c;
+  c.made = true;
+  const double horizon = opt.fit.shooting_horizon_s > 0 ? opt.fit.shooting_horizon_s : 0.5;
+  c.model = "regression start";
+  bool refine = false;
+  for (PreparedRecord& r : *recs) {
+    r.horizon_s = 0;
+    Predictability p = TestPredictability(m, m.theta, r, setup, horizon);
+    refine = refine || !p.long_meaningful || p.well_changes >= 2;
+    c.records.push_back(std::move(p));
+  }
+  if (refine && !CancelRequested()) {
+    // A model near the vector field: the declared model fitted on short horizons only (a tenth of a second
+    // from band-limited states, where the true model of a snap-through record stays at its noise floor).
+    const double pre = std::min(horizon, kPrefitHorizon);
+    std::vector<PreparedRecord> shortened = *recs;
+    for (PreparedRecord& r : shortened) r.horizon_s = pre, BandLimitedRestarts(&r);
+    FitOptions fo = opt.fit;
+    fo.global_evals = 0;
+    fo.shooting_horizon_s = pre;
+    std::vector<double> sigma0(m.theta.size(), NAN);
+    const FitResult f = Fit(m, ScaleOf(m, m.theta, sigma0, shortened, setup), shortened, setup, fo);
+    if (std::all_of(f.theta.begin(), f.theta.end(), [](double v) { return std::isfinite(v); })) {
+      c.model = "short-horizon fit";
+      c.records.clear();
+      for (const PreparedRecord& r : *recs) c.records.push_back(TestPredictability(m, f.theta, r, setup, horizon));
+    }
+  }
+  for (size_t i = 0; i < recs->size(); ++i) {
+    PreparedRecord& r = (*recs)[i];
+    r.horizon_s = 0;
+    r.chaotic = c.records[i].fit_horizon_s > 0;
+    if (!r.chaotic) continue;
+    BandLimitedRestarts(&r);
+    c.objective = Objective::kShooting;
+    c.horizon_s = c.horizon_s > 0 ? std::min(c.horizon_s, c.records[i].fit_horizon_s) : c.records[i].fit_horizon_s;
+  }
+  c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return c;
+}
+
+// `recs` by value: their output weights may be re-estimated below.
+IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, const Setup& setup,
+                               const IdentifyOptions& opt_in) {
+  const auto t0 = std::chrono::steady_clock::now();
+  IdentifyOptions opt = opt_in;  // --objective auto may choose multiple shooting below
   const bool reweight = opt.output_weights == IdentifyOptions::OutputWeights::kResidual;
   IdentifyResult out;
   std::vector<double> sigma0;
   StartDeclared(&m, recs, setup, &sigma0);
+  if (opt.choose_objective && opt.fit.objective == Objective::kTime) {
+    out.objective_choice = ChooseHorizons(m, &recs, setup, opt);
+    if (out.objective_choice.objective == Objective::kShooting)
+      opt.fit.objective = Objective::kShooting, opt.fit.shooting_horizon_s = out.objective_choice.horizon_s;
+  }
   out.declared = m;
   FitResult fit = Fit(m, ScaleOf(m, m.theta, sigma0, recs, setup), recs, setup, opt.fit);
   // The reweighted declared fit starts from the first one (σ as scale): the same basin, new weights.

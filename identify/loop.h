@@ -25,6 +25,7 @@
 
 #include "identify/diagnostics.h"
 #include "identify/fit.h"
+#include "identify/predictability.h"
 
 namespace bistable {
 
@@ -36,7 +37,14 @@ struct CandidateScore {
   std::vector<double> estimate, sigma;  // the candidate's parameters from the linearised fit
   double force_delta_bic = NAN;      // restoring-force residual (supporting)
   double force_explained = NAN;
+  // Records fitted on short horizons (chaotic, --objective auto): the largest share this candidate explains
+  // of the residual of the fitted model's own twin records (TwinRecords), where nothing is missing; NaN when
+  // not calibrated. The candidate qualifies only above kTwinFactor times it.
+  double twin_explained = NAN;
 };
+
+// A candidate must explain this many times what it explains on the fitted model's twins (the null).
+inline constexpr double kTwinFactor = 2.0;
 
 struct LoopStep {
   std::vector<CandidateScore> scores;  // sorted, best first
@@ -73,7 +81,31 @@ struct IdentifyOptions {
   // added effect (ReweightOutputs in loop.cc), floored at the noise — the noise weights once the model
   // matches to the noise, and no output dominating because it is clean while the model misses it.
   enum class OutputWeights { kNoise, kResidual } output_weights = OutputWeights::kResidual;
+  // --objective auto (with fit.objective kTime): each record's horizon chosen from the records before the
+  // declared fit (ChooseHorizons): its whole simulation where that is meaningful, short horizons from the
+  // measured state where it is chaos. False: every record's whole simulation (--objective time).
+  bool choose_objective = false;
 };
+
+// The objective's choice (IdentifyOptions::choose_objective), per record. The twin experiment
+// (predictability.h) runs at the regression start; when a record changes well (≥ 2 changes measured) or is
+// unpredictable there, the declared model is first fitted on short horizons only (fit.shooting_horizon_s,
+// no global stage: a model near the vector field, which the regression start with its noisy second
+// derivatives is not) and the experiment repeated with it: that decides. Sets each record's horizon_s.
+inline constexpr double kPrefitHorizon = 0.1;  // s, the short-horizon fit that decides
+struct ObjectiveChoice {
+  bool made = false;
+  // The objective the loop runs: kTime when every record's long simulation is meaningful, else kShooting
+  // (segments of `horizon_s` from re-estimated states: the states are unknowns, so noise in them does not
+  // bias θ as restarts from the measured states do) with the shortest horizon of the chaotic records.
+  Objective objective = Objective::kTime;
+  double horizon_s = 0;
+  std::vector<Predictability> records;  // the deciding experiment per record
+  std::string model;                     // "regression start" or "short-horizon fit"
+  double seconds = 0;
+};
+ObjectiveChoice ChooseHorizons(const IdentModel& m, std::vector<PreparedRecord>* recs, const Setup& setup,
+                               const IdentifyOptions& opt);
 
 struct IdentifyResult {
   IdentModel declared, final_model;
@@ -83,6 +115,7 @@ struct IdentifyResult {
   ResidualCloud residual_before, residual_after;
   std::vector<FitSnapshot> fits;   // the declared fit, then every refit with a candidate (kept or not)
   LoopDiagnostics diagnostics;     // whiteness / unexplained, correlations, drift, invariants (diagnostics.h)
+  ObjectiveChoice objective_choice;  // --objective auto: which records are fitted on short horizons, and why
   double seconds = 0;
 };
 

@@ -472,6 +472,16 @@ Status SetScales(PreparedRecord* r) {
 
 }  // namespace
 
+void BandLimitedRestarts(PreparedRecord* r) {
+  const size_t n = r->ic_p.size(), edge = std::min<size_t>(16, n / 4);
+  auto take = [&](std::vector<double>* ic, const std::vector<double>& from) {
+    if (ic->size() != n || from.size() != n) return;
+    for (size_t i = edge; i + edge < n; ++i) (*ic)[i] = from[i];
+  };
+  take(&r->ic_p, r->p), take(&r->ic_pd, r->pd);
+  if (!r->ic_r.empty()) take(&r->ic_r, r->r), take(&r->ic_rd, r->rd);
+}
+
 StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, size_t begin, size_t end, double f_cut_hz,
                                        const std::string& name) {
   BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));

@@ -1,16 +1,25 @@
 // Synthetic measured records made by the project's own simulator (dynamics/dimensional_model.h,
 // Rosenbrock 2(3) at tight tolerance — a different integrator and formulation from the one the
 // identification simulates with): the paper's rig under a chirp of the table, sampled like the
-// paper's camera, with Gaussian measurement noise on the measured positions.
+// paper's camera, with Gaussian measurement noise on the measured positions (and, when asked, on the
+// recorded input), optionally with extra force terms of the effect library in the truth.
 #ifndef BISTABLE_IDENTIFY_SYNTHETIC_H_
 #define BISTABLE_IDENTIFY_SYNTHETIC_H_
 
 #include <string>
+#include <vector>
 
 #include "dynamics/dimensional_model.h"
+#include "identify/effects.h"
 #include "identify/record.h"
 
 namespace bistable {
+
+// A force term of the effect library and its parameter values (the library's order and units).
+struct TermValues {
+  const TermDef* term = nullptr;
+  std::vector<double> values;
+};
 
 struct SyntheticOptions {
   double a0_m = 0.002;            // chirp amplitude of the table [m]
@@ -19,10 +28,29 @@ struct SyntheticOptions {
   double noise_m = 0.05e-3;       // standard deviation of the noise on x and x_r [m]
   unsigned seed = 1;
   double y0_m = 0;                // initial relative displacement (a well, for bistable beams)
+  double input_noise_m = 0;       // standard deviation of the noise on the recorded input x0 [m]
+  // Force terms of the effect library added to the rig's truth (the effect a declared model may lack).
+  std::vector<TermValues> extra;
 };
 
-// Columns as ColumnMap's defaults: t, x0 (noise-free table motion, as commanded), x, and xr when
-// the model has a resonator. Records of a failed integration come back as an error.
+// "main.drag=5", "main.stiffness_y2=2e4", "res.stiffness_z3=1e6": a force term of the library (not friction,
+// which the rig has on both bodies already, nor the piezo or an output term) with one value per parameter,
+// ':'-separated; dissipative terms' values >= 0. Errors name the flag and the bound.
+StatusOr<TermValues> ParseSyntheticExtra(const std::string& spec);
+
+// The truth as identify terms: the rig's own (main.linear, [main.stiffness_y3,] main.viscous, main.damping_y2,
+// main.friction; with the resonator res.linear, res.viscous, res.damping_z2, res.friction) and the extras,
+// each with its values — what a model file for `identify --predict` holds.
+std::vector<TermValues> TruthTerms(const DimensionalParams& p, const std::vector<TermValues>& extra);
+
+// The main body's static equilibrium nearest `y_guess` [m] of the rig plus the extras (the restoring force at
+// rest, k_lin y + k3 y³ + the extras' force at v = 0, is zero there): a well of the truth, where a record can
+// start at rest without a transient. Newton's method from y_guess; y_guess itself when it does not converge.
+double SyntheticWell(const DimensionalParams& p, const std::vector<TermValues>& extra, double y_guess);
+
+// Columns as ColumnMap's defaults: t, x0 (the table motion, with input_noise_m of noise), x, and xr when
+// the model has a resonator. The truth is the rig (DimensionalModel) plus o.extra's forces, integrated as one
+// system by Rosenbrock 2(3) (the extras' slopes join its Jacobian). Records of a failed integration come back as an error.
 StatusOr<Record> MakeSyntheticRecord(const DimensionalParams& p, const SyntheticOptions& o, const std::string& name);
 
 // Writes a record as CSV (t,x0,x[,xr]) with 10 significant digits.

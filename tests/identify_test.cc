@@ -657,7 +657,7 @@ TEST(Identify, BadInputNamesTheFileRowOrTerm) {
       {"--data " + ok + " --terms main.linear", "known.m_main"},
       {"--data " + ok + " --terms main.linear --known m_main=-1", "m_main = -1 violates m_main > 0"},
       {"--data " + ok + " --terms main.linear,res.linear --known m_main=1", "give its mass"},
-      {"--data " + ok + " --terms main.linear --known m_main=1 --objective phase", "objective in {time, fft, shooting}"},
+      {"--data " + ok + " --terms main.linear --known m_main=1 --objective phase", "objective in {auto, time, fft, shooting}"},
       {"--data " + ok + " --terms main.linear --known m_main=1 --objective shooting --horizon 0", "violates horizon > 0 s"},
       {"--data " + ok + " --terms main.linear --known m_main=1 --horizon 1e9", "violates 0 <= horizon <= 3600 s"},
       {"--data " + ok + " --terms main.linear --known m_main=1 --output-weights equal", "violates output-weights in {residual, noise}"},
