@@ -119,21 +119,28 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
     // One planning per sweep at a time: a concurrent submit of the same spec waits for it.
     plan_cv_.wait(lock, [&] { return !planning_.count(id); });
     if (auto active = ActivePlanLocked(id)) return *active;
+    // Sweeps installed and sweeps being planned (outside the lock) both count: the slot is reserved
+    // here, under mu_, before planning starts, and given back if the plan fails (issue 39: ten
+    // concurrent submits of one token were all accepted while the first ones were still planning).
     int mine = 0, all = 0;
     for (const auto& [sid, s] : sweeps_) {
       if (s.cancelled || s.row.state == SweepState::kDone || s.row.state == SweepState::kFailed) continue;
       ++all;
       if (s.row.owner == owner) ++mine;
     }
-    all += static_cast<int>(planning_.size());
+    for (const auto& [pid, p] : planning_) {
+      if (!p.reserves_slot) continue;  // a replan: its sweep is counted above
+      ++all;
+      if (p.owner == owner) ++mine;
+    }
     if (mine >= limits::kMaxActiveSweepsPerOwner)
       return Status::FailedPrecondition("'" + owner + "' has " + std::to_string(mine) +
-                                        " sweeps queued or running, the limit per owner is " +
+                                        " sweeps queued, running or being planned, the limit per owner is " +
                                         std::to_string(limits::kMaxActiveSweepsPerOwner) + "; wait for one or cancel one");
     if (all >= limits::kMaxActiveSweeps)
       return Status::FailedPrecondition("the coordinator holds " + std::to_string(all) +
-                                        " sweeps queued or running, its limit is " + std::to_string(limits::kMaxActiveSweeps));
-    planning_[id] = 1;
+                                        " sweeps queued, running or being planned, its limit is " + std::to_string(limits::kMaxActiveSweeps));
+    planning_[id] = Planning{owner, true};
   }
   const auto plan_start = std::chrono::steady_clock::now();
   auto built = BuildPlan(spec, items);  // outside mu_: leases, reports and status calls go on
@@ -372,7 +379,7 @@ Status SweepCoordinator::Replan(const std::string& id) {
     generation = it->second.generation = ++generation_counter_;  // reports of the old plan store, but count nowhere
     it->second.queue.clear();                       // and nothing is leased while the new one is built
     RevokeLeasesLocked(id);
-    planning_[id] = 1;
+    planning_[id] = Planning{owner, false};
   }
   auto built = BuildPlan(spec, job_items > 0 ? job_items : JobItems(spec, 2.0, 64), std::move(carry));
   std::unique_lock<std::mutex> lock(mu_);

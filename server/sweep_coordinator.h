@@ -264,7 +264,11 @@ class SweepCoordinator {
   std::map<std::string, LeaseState> leases_;
   std::map<std::string, std::string> finished_leases_;  // lease id → sweep id, for duplicate reports
   std::deque<std::string> finished_order_;               // oldest first: bounded memory
-  std::map<std::string, int> planning_;                  // sweep ids being planned (outside mu_)
+  struct Planning {
+    std::string owner;
+    bool reserves_slot = false;  // a submit's reservation of an active-sweep slot (a replan's sweep is counted already)
+  };
+  std::map<std::string, Planning> planning_;             // sweep ids being planned (outside mu_)
   std::condition_variable plan_cv_;                      // with mu_: a planning finished
   unsigned long long generation_counter_ = 0;
   std::map<std::string, WorkerInfo> workers_;

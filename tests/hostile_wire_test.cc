@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -19,6 +20,7 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include "base/limits.h"
 #include "bistable.grpc.pb.h"
 #include "engine/sweep_spec.h"
 #include "storage/map_file.h"
@@ -656,5 +658,91 @@ TEST(HostileStartup, UnnamedTokensAreDistinctOwnersAcrossRestarts) {
   });
   fs::remove_all(dir);
 }
+
+// ---- Issue 39 (hostile input, second round): their own ctest entries (HostileWire.<name>) -------------
+
+std::string Round2Dir(const std::string& what) {
+  const std::string dir = (fs::path(::testing::TempDir()) / ("hostile2_" + what + "_" + std::to_string(::getpid()))).string();
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  bistable_test::RemoveWhenAllPass(dir);
+  return dir;
+}
+
+std::string Sha256Of(const std::string& dir, const std::string& text) {
+  std::ofstream(dir + "/sha.in", std::ios::trunc) << text;
+  const pid_t p = Spawn({"/usr/bin/sha256sum", dir + "/sha.in"}, dir + "/sha.out");
+  Wait(p, 10);
+  return ReadFile(dir + "/sha.out").substr(0, 64);
+}
+
+// Fail 1: the per-owner limit counts sweeps being planned. `n` different specs submitted at once by one
+// identity (a client token, or no token at all): at most kMaxActiveSweepsPerOwner accepted, the rest
+// refused naming the limit. Each plan is big enough (65,536 items) that they overlap; before the fix,
+// every one passed the check because none was installed yet.
+void ConcurrentSubmitsStopAtTheLimit(bool with_token, int n) {
+  const std::string dir = Round2Dir(with_token ? "limit_token" : "limit_anon");
+  const std::string token(64, 'c');
+  std::vector<std::string> extra;
+  if (with_token) {
+    std::ofstream(dir + "/tokens") << "client " << Sha256Of(dir, token) << " alice\n";
+    extra = {"--tokens", dir + "/tokens"};
+  }
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log", extra);
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  auto stub = v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  std::vector<grpc::Status> got(n);
+  std::vector<std::string> ids(n);
+  std::atomic<int> ready{0};
+  std::vector<std::thread> threads;
+  for (int i = 0; i < n; ++i)
+    threads.emplace_back([&, i] {
+      v1::SubmitRequest req;
+      req.set_spec_toml(Spec("alpha = { linspace = [0.1, 3.0, 256] }\nomega = { linspace = [0.1, " + std::to_string(3.0 + 0.01 * i) +
+                             ", 256] }\n"));
+      auto ctx = Ctx(120);
+      if (with_token) ctx->AddMetadata("authorization", "Bearer " + token);
+      ++ready;
+      while (ready.load() < n) std::this_thread::yield();  // all at once
+      v1::SubmitReply rep;
+      got[i] = stub->Submit(ctx.get(), req, &rep);
+      ids[i] = rep.id();
+    });
+  for (auto& t : threads) t.join();
+  int accepted = 0, refused = 0;
+  for (int i = 0; i < n; ++i) {
+    if (got[i].ok()) ++accepted;
+    else if (got[i].error_code() == grpc::StatusCode::FAILED_PRECONDITION &&
+             got[i].error_message().find("limit per owner is 8") != std::string::npos)
+      ++refused;
+    else
+      ADD_FAILURE() << "submit " << i << ": " << got[i].error_code() << " " << got[i].error_message();
+  }
+  std::printf("  %d concurrent submits (%s): %d accepted, %d refused\n", n, with_token ? "one client token" : "no tokens", accepted, refused);
+  EXPECT_EQ(accepted, bistable::limits::kMaxActiveSweepsPerOwner) << "the per-owner limit did not hold under concurrency";
+  EXPECT_EQ(refused, n - bistable::limits::kMaxActiveSweepsPerOwner);
+  // The slots are real: one more submit, now sequential, is refused too; a cancel frees one.
+  v1::SubmitRequest more;
+  more.set_spec_toml(Spec("alpha = [0.77]\n"));
+  auto ctx = Ctx();
+  if (with_token) ctx->AddMetadata("authorization", "Bearer " + token);
+  v1::SubmitReply rep;
+  EXPECT_EQ(stub->Submit(ctx.get(), more, &rep).error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  for (int i = 0; i < n; ++i)
+    if (got[i].ok()) {
+      v1::CancelRequest c;
+      c.set_id(ids[i]);
+      v1::CancelReply cr;
+      auto cctx = Ctx();
+      if (with_token) cctx->AddMetadata("authorization", "Bearer " + token);
+      EXPECT_TRUE(stub->Cancel(cctx.get(), c, &cr).ok());
+    }
+  EXPECT_TRUE(Alive(pid));
+  ::kill(pid, SIGTERM);
+  Wait(pid, 20);
+}
+
+TEST(HostileRound2, ConcurrentSubmitsOfOneTokenStopAtThePerOwnerLimit) { ConcurrentSubmitsStopAtTheLimit(true, 12); }
+TEST(HostileRound2, ConcurrentSubmitsWithoutTokensStopAtThePerOwnerLimit) { ConcurrentSubmitsStopAtTheLimit(false, 20); }
 
 }  // namespace
