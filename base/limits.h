@@ -73,6 +73,9 @@ inline constexpr double kMinWatchInterval = 0.25;            // seconds between 
 inline constexpr int kMaxServerThreads = 128;                // gRPC threads (each open watch holds one)
 inline constexpr std::size_t kMaxServerMemoryBytes = 512u << 20;  // gRPC transport buffers in all
 inline constexpr std::size_t kMaxTokenFileBytes = 1 << 16;   // a client's --token-file (one bearer token)
+// A bearer token as sent (after trailing white space is dropped from a token file): visible ASCII only
+// (0x21-0x7e: what an HTTP/2 header value carries; a newline or NUL would make gRPC abort the process).
+inline constexpr std::size_t kMaxTokenBytes = 4096;
 inline constexpr std::size_t kMaxPemFileBytes = 1 << 20;     // TLS CA, certificate and key files
 inline constexpr std::size_t kMaxTokensFileBytes = 16 << 20; // the coordinator's tokens file (one hash per line)
 

@@ -18,8 +18,14 @@ struct ConnectOptions {
   std::string token;       // bearer token ("" = none)
 };
 
-// Reads the token from `token_file`, else from $BISTABLE_TOKEN; "" when neither is set.
+// Whether `token` may be sent as a bearer token: "" (none) or 1 to limits::kMaxTokenBytes visible ASCII
+// characters. A newline, NUL or other control byte would make gRPC log the whole metadata and abort the
+// process; InvalidArgument(`field`) names the offending byte's position and kind, never the token.
+Status CheckBearerToken(const std::string& token, const std::string& field);
+// Reads the token from `token_file`, else from $BISTABLE_TOKEN; "" when neither is set. Trailing white
+// space is dropped; the rest must pass CheckBearerToken (field "token-file" or "BISTABLE_TOKEN").
 StatusOr<std::string> LoadToken(const std::string& token_file);
+// Checks o.token (CheckBearerToken, field "token") before anything else.
 StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ConnectOptions& o);
 // A context with a deadline (seconds ≤ 0: none) and the bearer token.
 std::unique_ptr<grpc::ClientContext> CallContext(const ConnectOptions& o, double seconds);

@@ -119,6 +119,7 @@ struct Row {
   std::vector<std::vector<std::string>> steps;             // bistable arguments, one process each
   Outcome outcome = Outcome::kOk;
   std::string err_has;                                     // error outcomes: in the failing step's stderr
+  std::string err_lacks;                                   // never in any step's stderr or stdout (a secret)
   std::vector<std::string> ok_files;                       // outcome ok: exist, not empty
   std::vector<std::string> absent;                         // never exist afterwards
   std::string svg;                                         // outcome ok: an SVG whose text is checked
@@ -455,6 +456,23 @@ std::vector<Row> Rows() {
                        .Error("model")
                        .Files({{"{dir}/d.csv", RecordCsv(200)}}));
   }
+  // -- 9. Tokens (issue 39): a control byte in a token (file or $BISTABLE_TOKEN) used to reach gRPC, which
+  // logs the metadata (the whole token) and aborts; refused before any call, the token never shown.
+  for (const auto& [name, token] : std::vector<std::pair<std::string, std::string>>{
+           {"token_file_with_newline", "SECRETA\nSECRETB\n"}, {"token_file_with_nul", std::string("SECRETA\0SECRETB", 15)},
+           {"token_file_with_escape", "SECRETA\x1b[2JSECRETB"}, {"token_file_with_space", "SECRETA SECRETB"}}) {
+    Row r = Case(name, {{"status", "abc", "--coordinator", "127.0.0.1:1", "--token-file", "{dir}/t"}})
+                .Error("token-file: the token holds")
+                .Files({{"{dir}/t", token}});
+    r.err_lacks = "SECRET";
+    rows.push_back(r);
+  }
+  {
+    Row r = Case("token_env_with_control_byte", {{"sweeps", "--coordinator", "127.0.0.1:1"}}).Error("BISTABLE_TOKEN: the token holds a control byte (0x01)");
+    r.env = {{"BISTABLE_TOKEN", "SECRETA\x01SECRETB"}};
+    r.err_lacks = "SECRET";
+    rows.push_back(r);
+  }
   return rows;
 }
 
@@ -507,6 +525,10 @@ TEST_P(HostileCli, Row) {
     SCOPED_TRACE("step " + std::to_string(i) + ": " + row.steps[i][0] + "\nstderr: " + r.err);
     ASSERT_FALSE(r.timed_out) << "timed out";
     ASSERT_EQ(r.signal, 0) << "died of signal " << r.signal << " (" << strsignal(r.signal) << ")";
+    if (!row.err_lacks.empty()) {
+      EXPECT_EQ(r.err.find(row.err_lacks), std::string::npos) << "stderr shows '" << row.err_lacks << "'";
+      EXPECT_EQ(r.out.find(row.err_lacks), std::string::npos) << "stdout shows '" << row.err_lacks << "'";
+    }
     if (i == 0) {
       first_out = r.out;
       if (row.steps[0][0] == "run" && r.exit_code == 0) {

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <mutex>
 #include <sstream>
 #include <thread>
 
@@ -744,5 +745,34 @@ void ConcurrentSubmitsStopAtTheLimit(bool with_token, int n) {
 
 TEST(HostileRound2, ConcurrentSubmitsOfOneTokenStopAtThePerOwnerLimit) { ConcurrentSubmitsStopAtTheLimit(true, 12); }
 TEST(HostileRound2, ConcurrentSubmitsWithoutTokensStopAtThePerOwnerLimit) { ConcurrentSubmitsStopAtTheLimit(false, 20); }
+
+// Fail 2: a token with a newline, a control byte or a NUL is refused before it reaches gRPC (which logs
+// the whole metadata and aborts), by every process that sends one, and never printed.
+TEST(HostileRound2, ATokenWithAControlByteIsRefusedAndNeverPrinted) {
+  const std::string dir = Round2Dir("token");
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log");
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  const std::string secret_a = "SECRETA1b2c3", secret_b = "SECRETB4d5e6";
+  for (const std::string& token : {secret_a + "\n" + secret_b, secret_a + std::string(1, '\0') + secret_b,
+                                   secret_a + "\x01" + secret_b, secret_a + " " + secret_b, secret_a + "\x7f"}) {
+    SCOPED_TRACE(std::to_string(token.size()) + " bytes, byte 13 = " + std::to_string(static_cast<unsigned char>(token[12])));
+    std::ofstream(dir + "/t", std::ios::binary | std::ios::trunc) << token;
+    for (const std::vector<std::string>& argv :
+         {std::vector<std::string>{BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--token-file", dir + "/t"},
+          std::vector<std::string>{BISTABLE_CLI, "status", "abc", "--coordinator", addr, "--token-file", dir + "/t"},
+          std::vector<std::string>{BISTABLE_CLI, "sweeps", "--coordinator", addr, "--token-file", dir + "/t"}}) {
+      const pid_t p = Spawn(argv, dir + "/out");
+      const int code = Wait(p, 20);
+      const std::string err = ReadFile(dir + "/out.err") + ReadFile(dir + "/out");
+      EXPECT_EQ(code, 2) << argv[0] << " " << argv[1] << " (-1: killed by a signal, SIGABRT before the fix)\n" << err;
+      EXPECT_NE(err.find("token-file"), std::string::npos) << err;
+      EXPECT_NE(err.find("the token is not shown"), std::string::npos) << err;
+      EXPECT_EQ(err.find("SECRET"), std::string::npos) << "the token was printed:\n" << err;
+    }
+  }
+  EXPECT_TRUE(Alive(pid));
+  ::kill(pid, SIGTERM);
+  Wait(pid, 10);
+}
 
 }  // namespace

@@ -440,6 +440,36 @@ def start(cmd, log):
     return subprocess.Popen(cmd, stdout=open(log, "w"), stderr=subprocess.STDOUT)
 
 
+def test_client_refuses_a_token_with_a_control_byte_and_never_shows_it(tmp_path):
+    """Issue 39: a newline, NUL or control byte in a token used to abort the interpreter (gRPC aborts on
+    invalid metadata, logging the token). Each case runs in a child interpreter, so an abort fails the
+    case instead of killing pytest."""
+    log = tmp_path / "coordinator.log"
+    coord = start([os.environ["BISTABLE_COORDINATOR"], "--listen", "127.0.0.1:0", "--data", str(tmp_path / "server")], log)
+    try:
+        address = None
+        for _ in range(400):
+            lines = [x for x in open(log).read().splitlines() if x.startswith("listening on ")]
+            if lines:
+                address = lines[0].split()[-1]
+                break
+            time.sleep(0.025)
+        assert address, open(log).read()
+        for token in ("SECRETA\nSECRETB", "SECRETA\0SECRETB", "SECRETA\x01SECRETB", "SECRETA SECRETB"):
+            code = ("import bistable\n"
+                    "try:\n"
+                    f"    bistable.Client({address!r}, token={token!r}).status('abc')\n"
+                    "except ValueError as e:\n"
+                    "    print('ValueError:', e)\n")
+            r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+            assert r.returncode == 0, (repr(token), r.returncode, r.stderr[-2000:])
+            assert "ValueError:" in r.stdout and "token" in r.stdout, (repr(token), r.stdout)
+            assert "SECRET" not in r.stdout + r.stderr, (repr(token), r.stdout, r.stderr[-2000:])
+    finally:
+        coord.terminate()
+        coord.wait(timeout=20)
+
+
 def test_client_submits_watches_and_fetches_through_a_real_coordinator(tmp_path):
     log = tmp_path / "coordinator.log"
     coord = start([os.environ["BISTABLE_COORDINATOR"], "--listen", "127.0.0.1:0", "--data", str(tmp_path / "server"),
