@@ -103,6 +103,26 @@ std::optional<std::vector<PointResult>> ItemsInLanes(const SweepSpec& spec, cons
 }  // namespace
 
 
+Status CheckItems(const SweepSpec& spec, const std::vector<WorkItem>& items, const std::string& field) {
+  const long n = static_cast<long>(items.size());
+  if (n < 1 || n > limits::kMaxLeaseItems)
+    return Status::InvalidArgument(field, field + " of " + std::to_string(n) + " items violates items in [1, " +
+                                              std::to_string(limits::kMaxLeaseItems) + "]");
+  const long points = spec.points();
+  const int slots = spec.ic_count();
+  for (long i = 0; i < n; ++i) {
+    const WorkItem& w = items[i];
+    const std::string at = field + ".items[" + std::to_string(i) + "]";
+    if (w.point < 0 || w.point >= points)
+      return Status::InvalidArgument(field, at + ": point = " + std::to_string(w.point) + " violates point in [0, " +
+                                                std::to_string(points - 1) + "] (the sweep's grid points)");
+    if (w.ic < 0 || w.ic >= slots)
+      return Status::InvalidArgument(field, at + ": ic = " + std::to_string(w.ic) + " violates ic in [0, " +
+                                                std::to_string(slots - 1) + "] (the sweep's initial-condition slots)");
+  }
+  return Status::Ok();
+}
+
 std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepSpec& spec,
                                                                     const std::vector<WorkItem>& items) {
   std::vector<PointRecord> out(items.size());

@@ -775,4 +775,152 @@ TEST(HostileRound2, ATokenWithAControlByteIsRefusedAndNeverPrinted) {
   Wait(pid, 10);
 }
 
+// Fail 3: a coordinator the worker cannot trust. A fake one (the Coordinator service, in this test) hands
+// the real bistable-worker one lease with hostile values, then nothing; the worker must refuse it (a
+// log line naming the field and the bound, the lease released, nothing reported) and stop cleanly on
+// SIGTERM — before the fix an ic slot of 10^6 or -10^8 segfaulted it, point -1 hung it and point 2^40 was
+// computed and reported.
+class FakeCoordinator final : public v1::Coordinator::Service {
+ public:
+  FakeCoordinator(v1::LeaseReply first, double lease_seconds) : first_(std::move(first)), lease_seconds_(lease_seconds) {}
+  grpc::Status RegisterWorker(grpc::ServerContext*, const v1::RegisterRequest*, v1::RegisterReply* rep) override {
+    rep->set_lease_seconds(lease_seconds_);
+    return grpc::Status::OK;
+  }
+  grpc::Status Lease(grpc::ServerContext*, const v1::LeaseRequest*, v1::LeaseReply* rep) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (leases_++ == 0) *rep = first_;
+    return grpc::Status::OK;
+  }
+  grpc::Status Heartbeat(grpc::ServerContext*, const v1::HeartbeatRequest*, v1::HeartbeatReply* rep) override {
+    rep->set_deadline(1e10);
+    return grpc::Status::OK;
+  }
+  grpc::Status Report(grpc::ServerContext*, const v1::ReportRequest* req, v1::ReportReply*) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    ++reports_;
+    report_values_ = req->values_size();
+    return grpc::Status::OK;
+  }
+  grpc::Status Release(grpc::ServerContext*, const v1::ReleaseRequest* req, v1::ReleaseReply*) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    released_.push_back(req->lease_id());
+    return grpc::Status::OK;
+  }
+  int leases() { std::lock_guard<std::mutex> l(mu_); return leases_; }
+  int reports() { std::lock_guard<std::mutex> l(mu_); return reports_; }
+  int report_values() { std::lock_guard<std::mutex> l(mu_); return report_values_; }
+  std::vector<std::string> released() { std::lock_guard<std::mutex> l(mu_); return released_; }
+
+ private:
+  std::mutex mu_;
+  v1::LeaseReply first_;
+  double lease_seconds_;
+  int leases_ = 0, reports_ = 0, report_values_ = 0;
+  std::vector<std::string> released_;
+};
+
+struct FakeRun {
+  int exit_code = -3;
+  std::string log;
+  int leases = 0, reports = 0, report_values = 0;
+  std::vector<std::string> released;
+};
+
+// Runs the real worker against a fake coordinator serving `first` until `done(log)` or 15 s, then SIGTERM.
+FakeRun RunWorkerAgainst(const std::string& dir, const v1::LeaseReply& first, double lease_seconds,
+                         const std::function<bool(const std::string&, FakeCoordinator&)>& done) {
+  FakeCoordinator fake(first, lease_seconds);
+  grpc::ServerBuilder b;
+  int port = 0;
+  b.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+  b.RegisterService(&fake);
+  auto server = b.BuildAndStart();
+  FakeRun r;
+  if (!server || port <= 0) return r;
+  static int run = 0;
+  const std::string log = dir + "/worker" + std::to_string(++run) + ".log";
+  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", "127.0.0.1:" + std::to_string(port), "--threads", "1", "--name", "victim"}, log);
+  bool exited = false;
+  for (int i = 0; i < 300; ++i) {
+    int st = 0;
+    if (::waitpid(w, &st, WNOHANG) == w) {
+      r.exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+      exited = true;
+      break;
+    }
+    if (done(ReadFile(log + ".err"), fake)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  if (!exited) {
+    ::kill(w, SIGTERM);
+    r.exit_code = Wait(w, 20);
+  }
+  r.log = ReadFile(log + ".err");
+  r.leases = fake.leases(), r.reports = fake.reports(), r.report_values = fake.report_values(), r.released = fake.released();
+  server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
+  return r;
+}
+
+v1::LeaseReply HostileLease(const std::vector<int64_t>& points, const std::vector<int32_t>& ics) {
+  v1::LeaseReply l;
+  l.set_has_job(true);
+  l.set_lease_id("fake-lease-1");
+  l.set_sweep_id("0123456789ab");
+  l.set_job_id(0);
+  // 2 x 2 grid points, two initial states: points in [0, 3], ic slots in [0, 1].
+  l.set_spec_toml(Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n", "[initial_conditions]\nstates = [[1, 0, 1, 0], [-1, 0, -1, 0]]\n"));
+  for (int64_t p : points) l.add_points(p);
+  for (int32_t i : ics) l.add_ics(i);
+  l.set_deadline(1e10);
+  return l;
+}
+
+TEST(HostileRound2, WorkerRefusesAHostileLeaseFromAFakeCoordinator) {
+  const std::string dir = Round2Dir("fake_coordinator");
+  // The control: an honest lease of the fake is computed and reported (the harness works).
+  {
+    const FakeRun r = RunWorkerAgainst(dir, HostileLease({3, 0}, {0, 1}), 60,
+                                       [](const std::string&, FakeCoordinator& f) { return f.reports() > 0; });
+    EXPECT_EQ(r.exit_code, 0) << r.log;
+    EXPECT_EQ(r.reports, 1) << r.log;
+    EXPECT_EQ(r.report_values, static_cast<int>(2 * kWidth)) << r.log;
+  }
+  struct Case {
+    const char* name;
+    v1::LeaseReply lease;
+    std::string says;  // in the worker's log
+    bool released;     // given back (an item refused after the lease was read); else refused at the wire edge
+  };
+  std::vector<int64_t> million(1'000'000, 0);
+  std::vector<int32_t> million_ics(1'000'000, 0);
+  const std::vector<Case> cases = {
+      {"ic 10^6", HostileLease({0}, {1'000'000}), "ic = 1000000 violates ic in [0, 1]", true},
+      {"ic -10^8", HostileLease({1, 2}, {0, -100'000'000}), "lease.items[1]: ic = -100000000 violates ic in [0, 1]", true},
+      {"point -1", HostileLease({-1}, {0}), "point = -1 violates point in [0, 3]", true},
+      {"point 2^40", HostileLease({int64_t{1} << 40}, {0}), "point = 1099511627776 violates point in [0, 3]", true},
+      {"point one past the grid", HostileLease({0, 4}, {0, 0}), "lease.items[1]: point = 4 violates point in [0, 3]", true},
+      {"points and ics of different lengths", HostileLease({0, 1, 2}, {0, 0}), "3 points and 2 initial-condition slots", false},
+      {"a million items", HostileLease(million, million_ics), "a lease of 1000000 items violates items <= 8192", false},
+      {"no items", HostileLease({}, {}), "lease of 0 items violates items in [1, 8192]", true},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const FakeRun r = RunWorkerAgainst(dir, c.lease, 60, [&](const std::string& log, FakeCoordinator&) {
+      return log.find("lease.refused") != std::string::npos;
+    });
+    EXPECT_EQ(r.exit_code, 0) << "the worker did not stop cleanly (-1: killed by a signal)\n" << r.log;
+    EXPECT_NE(r.log.find(c.says), std::string::npos) << r.log;
+    EXPECT_EQ(r.reports, 0) << "a hostile lease was computed and reported";
+    if (c.released) EXPECT_EQ(r.released, std::vector<std::string>{"fake-lease-1"}) << r.log;
+  }
+  // A lease period the worker cannot heartbeat by: refused at registration, exit 2, not slept on.
+  for (double bad : {std::nan(""), -1.0, 0.0, 1e300}) {
+    const FakeRun r = RunWorkerAgainst(dir, HostileLease({0}, {0}), bad, [](const std::string&, FakeCoordinator&) { return false; });
+    EXPECT_EQ(r.exit_code, 2) << bad << "\n" << r.log;
+    EXPECT_NE(r.log.find("lease_seconds"), std::string::npos) << bad << "\n" << r.log;
+    EXPECT_EQ(r.leases, 0);
+  }
+}
+
 }  // namespace
