@@ -591,6 +591,40 @@ TEST_P(HostileCli, Row) {
 INSTANTIATE_TEST_SUITE_P(Table, HostileCli, ::testing::ValuesIn(Rows()),
                          [](const ::testing::TestParamInfo<Row>& info) { return info.param.name; });
 
+// ---- A full disk (issue 39) ----------------------------------------------------------------------
+
+// `bistable run` on a 2 MB tmpfs, ten times, each on a fresh mount: the 60 x 60 sweep's point cache
+// (mostly) fits and its map does not, so the map write meets the full disk. Every run must end with
+// exit 2 and the disk-full message (or, when the WAL happened to leave room, succeed) — never a
+// signal. Before the fix, HDF5 1.10 kept a map file whose close had failed registered half torn
+// down and its exit handler crashed on it: SIGSEGV (139) after the right message, in about half the runs.
+TEST(HostileDisk, RunOnATwoMegabyteTmpfsExitsTwoWithTheDiskFullMessageTenTimes) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs root to mount a small tmpfs";
+  const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "disk_full"));
+  const std::string mnt = (dir / "mnt").string();
+  fs::create_directories(mnt);
+  std::ofstream(dir / "g60.toml") << "model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 60] }\n"
+                                     "omega = { linspace = [0.1, 3, 60] }\n[integration]\nt_end = 20.0\nt_keep = 10.0\n";
+  int disk_full = 0, map_full = 0;
+  for (int run = 0; run < 10; ++run) {
+    SCOPED_TRACE("run " + std::to_string(run));
+    if (RunArgv({"/bin/mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", mnt}).exit_code != 0) GTEST_SKIP() << "cannot mount a tmpfs here";
+    const ExecResult r = RunArgv({BISTABLE_CLI, "run", (dir / "g60.toml").string(), "--data", mnt, "--no-plots", "--quiet"}, dir.string());
+    RunArgv({"/bin/umount", mnt});
+    ASSERT_FALSE(r.timed_out);
+    ASSERT_EQ(r.signal, 0) << "died of signal " << r.signal << " (" << strsignal(r.signal) << ")\n" << r.err;
+    if (r.exit_code == 0) continue;
+    ASSERT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_EQ(r.err.rfind("error: ", 0), 0u) << r.err;
+    EXPECT_NE(r.err.find("disk full"), std::string::npos) << r.err;
+    ++disk_full;
+    if (r.err.find("(map: ") != std::string::npos) ++map_full;
+  }
+  std::printf("  10 runs on a 2 MB tmpfs: %d ended disk full, %d of them writing the map\n", disk_full, map_full);
+  EXPECT_GE(map_full, 1) << "no run met the full disk while writing its map: the case was not exercised";
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
 // ---- GnuplotString --------------------------------------------------------------------------------
 
 TEST(GnuplotString, SafeTextIsKeptAndEverythingElseIsAFourDigitOctalEscape) {
