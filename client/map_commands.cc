@@ -45,7 +45,7 @@ struct SweepsArgs {
 int ListRemoteSweeps(const SweepsArgs& a) {
   auto token = LoadToken(a.src.token_file);
   if (!token.ok()) return Fail(token.status());
-  auto client = CoordinatorClient::Connect({a.src.coordinator, a.src.tls_ca, *token});
+  auto client = CoordinatorClient::Connect({a.src.coordinator, a.src.tls_ca, *token, a.src.insecure_remote});
   if (!client.ok()) return Fail(client.status());
   auto sweeps = (*client)->ListSweeps();
   if (!sweeps.ok()) return Fail(sweeps.status());
@@ -298,6 +298,7 @@ void AddSweepsCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--coordinator", a->src.coordinator, "list a coordinator's sweeps instead of --data");
   cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");
   cmd->add_option("--tls-ca", a->src.tls_ca, "PEM CA of a TLS coordinator");
+  cmd->add_flag("--insecure-remote", a->src.insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
   cmd->add_flag("--json", a->json, "print a JSON array");
   cmd->callback([a, exit_code]() { *exit_code = ListSweeps(*a); });
 }
@@ -314,6 +315,7 @@ void AddMapCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--coordinator", a->src.coordinator, "read from a coordinator instead of --data");
   cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");
   cmd->add_option("--tls-ca", a->src.tls_ca, "PEM CA of a TLS coordinator");
+  cmd->add_flag("--insecure-remote", a->src.insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
   cmd->callback([a, exit_code]() {
     a->src.data_dir = a->data;
     *exit_code = ShowMap(*a);
@@ -331,6 +333,7 @@ void AddQueryCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--coordinator", a->src.coordinator, "read from a coordinator instead of --data");
   cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");
   cmd->add_option("--tls-ca", a->src.tls_ca, "PEM CA of a TLS coordinator");
+  cmd->add_flag("--insecure-remote", a->src.insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
   cmd->callback([a, exit_code]() {
     a->src.data_dir = a->data;
     *exit_code = RunQuery(*a);

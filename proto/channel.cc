@@ -6,8 +6,10 @@
 #include <fstream>
 #include <sstream>
 
+#include "base/address.h"
 #include "base/file.h"
 #include "base/limits.h"
+#include "base/names.h"
 
 namespace bistable {
 
@@ -49,6 +51,10 @@ StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ConnectOptions& o) {
   // Every connection (CLI, worker, Python, health checks) goes through here: a token gRPC would abort
   // on (and log) is refused before any call is made.
   if (Status st = CheckBearerToken(o.token, "token"); !st.ok()) return st;
+  if (!o.token.empty() && o.tls_ca.empty() && !o.insecure_remote && !IsLoopbackAddress(o.address))
+    return Status::InvalidArgument("insecure-remote", "refusing to send the bearer token in plaintext to " + Printable(o.address, 128) +
+                                                          ", which is not a loopback address: anyone on the path could read it and "
+                                                          "use it; give --tls-ca (the coordinator's CA), or --insecure-remote to send it anyway");
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(256 << 20);
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);

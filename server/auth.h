@@ -15,6 +15,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "base/address.h"  // IsLoopbackAddress (callers of auth decide exposure by it)
 #include "base/sha256.h"
 #include "base/status.h"
 
@@ -50,10 +51,6 @@ class TokenStore {
 
 const char* RoleName(Role r);
 
-// Whether a listen address ("host:port", "[v6]:port", "unix:path") serves this machine only. Decided
-// on the address, not the text: the host must be an IP literal in 127.0.0.0/8 or ::1 (v4-mapped
-// included), the name "localhost", or a unix socket; any other name counts as not loopback.
-bool IsLoopbackAddress(const std::string& listen);
 
 }  // namespace bistable
 

@@ -467,6 +467,21 @@ std::vector<Row> Rows() {
     r.err_lacks = "SECRET";
     rows.push_back(r);
   }
+  // A good token in plaintext to an address that is not loopback: refused, unless --insecure-remote (then the
+  // call is made: 0.0.0.0 is this host, nothing listens on port 1, so it cannot reach it).
+  {
+    Row r = Case("token_plaintext_to_a_remote_address", {{"status", "abc", "--coordinator", "0.0.0.0:1", "--token-file", "{dir}/t"}})
+                .Error("refusing to send the bearer token in plaintext to 0.0.0.0:1")
+                .Files({{"{dir}/t", "SECRETAgoodtoken\n"}});
+    r.err_lacks = "SECRET";
+    rows.push_back(r);
+    Row ok = Case("token_plaintext_to_a_remote_address_with_insecure_remote",
+                  {{"status", "abc", "--coordinator", "0.0.0.0:1", "--token-file", "{dir}/t", "--insecure-remote"}})
+                 .Error("cannot reach 0.0.0.0:1")
+                 .Files({{"{dir}/t", "SECRETAgoodtoken\n"}});
+    ok.err_lacks = "SECRET";
+    rows.push_back(ok);
+  }
   {
     Row r = Case("token_env_with_control_byte", {{"sweeps", "--coordinator", "127.0.0.1:1"}}).Error("BISTABLE_TOKEN: the token holds a control byte (0x01)");
     r.env = {{"BISTABLE_TOKEN", "SECRETA\x01SECRETB"}};

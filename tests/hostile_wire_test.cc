@@ -770,6 +770,11 @@ TEST(HostileRound2, ATokenWithAControlByteIsRefusedAndNeverPrinted) {
       EXPECT_EQ(err.find("SECRET"), std::string::npos) << "the token was printed:\n" << err;
     }
   }
+  // A good token in plaintext to an address that is not loopback: the worker refuses to start (exit 2).
+  std::ofstream(dir + "/t", std::ios::trunc) << secret_a << "\n";
+  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", "0.0.0.0:1", "--threads", "1", "--token-file", dir + "/t"}, dir + "/plain");
+  EXPECT_EQ(Wait(w, 20), 2) << ReadFile(dir + "/plain.err");
+  EXPECT_NE(ReadFile(dir + "/plain.err").find("--insecure-remote"), std::string::npos) << ReadFile(dir + "/plain.err");
   EXPECT_TRUE(Alive(pid));
   ::kill(pid, SIGTERM);
   Wait(pid, 10);

@@ -198,13 +198,16 @@ def identify(data, **kw):
 class Client:
     """A coordinator over gRPC, through the CLI's own client (TLS with tls_ca, bearer token).
 
-        c = bistable.Client("coordinator:50051", token=open("token").read().strip())
+        c = bistable.Client("coordinator:50051", token=open("token").read().strip(), tls_ca="ca.pem")
         id = c.submit("spec.toml")
         c.wait(id); ds = c.map(id)
     """
 
-    def __init__(self, address, token=None, tls_ca=None):
-        self._c = _core.Client(str(address), "" if token is None else str(token), "" if tls_ca is None else _os.fspath(tls_ca))
+    def __init__(self, address, token=None, tls_ca=None, insecure_remote=False):
+        """A token is refused in plaintext (no tls_ca) to an address that is not loopback unless
+        insecure_remote=True: anyone on the path could read it (ValueError otherwise)."""
+        self._c = _core.Client(str(address), "" if token is None else str(token), "" if tls_ca is None else _os.fspath(tls_ca),
+                               bool(insecure_remote))
 
     def submit(self, spec):
         """Submits a spec (path, TOML text or dict); {"id", "items_total", "items_cached", "jobs"}."""

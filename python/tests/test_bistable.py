@@ -470,6 +470,17 @@ def test_client_refuses_a_token_with_a_control_byte_and_never_shows_it(tmp_path)
         coord.wait(timeout=20)
 
 
+def test_client_refuses_a_token_in_plaintext_to_an_address_that_is_not_loopback():
+    with pytest.raises(ValueError, match="insecure-remote"):
+        bistable.Client("0.0.0.0:1", token="goodtoken")
+    with pytest.raises(ValueError, match="insecure-remote"):
+        bistable.Client("coordinator.example:50051", token="goodtoken")
+    bistable.Client("127.0.0.1:1", token="goodtoken")  # loopback: plaintext is this host only
+    bistable.Client("0.0.0.0:1")  # no token: nothing to leak
+    with pytest.raises(OSError, match="cannot reach"):  # allowed explicitly: the call is made
+        bistable.Client("0.0.0.0:1", token="goodtoken", insecure_remote=True).status("abc")
+
+
 def test_client_submits_watches_and_fetches_through_a_real_coordinator(tmp_path):
     log = tmp_path / "coordinator.log"
     coord = start([os.environ["BISTABLE_COORDINATOR"], "--listen", "127.0.0.1:0", "--data", str(tmp_path / "server"),
