@@ -485,7 +485,8 @@ void SweepCoordinator::RequeueLocked(const LeaseState& l) {
   if (auto w = workers_.find(l.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
 }
 
-std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep, int max_jobs) {
+std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep, int max_jobs,
+                                                  const std::string& identity) {
   std::lock_guard<std::mutex> lock(mu_);
   const double now = Clock(), mono = Monotonic();
   TouchWorkerLocked(worker, now);
@@ -506,13 +507,21 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
   }
   for (long j : jobs) best->job_state[j] = JobState::kLeased;
   best->any_leased = true;
-  char id[48];
-  std::snprintf(id, sizeof id, "%s-%llu-%08x", best->row.id.c_str(), ++lease_counter_,
-                static_cast<unsigned>(lease_salt_()));
+  // 128 bits from the kernel's CSPRNG: a worker that saw any number of lease ids cannot name another's
+  // (the old counter and Mersenne Twister salt were predictable after 624 leases, issue 39).
+  std::string id;
+  do {
+    id = best->row.id + "-";
+    for (int i = 0; i < 4; ++i) {
+      char b[9];
+      std::snprintf(b, sizeof b, "%08x", static_cast<unsigned>(lease_random_()));
+      id += b;
+    }
+  } while (leases_.count(id) || committing_.count(id) || finished_leases_.count(id));
   LeaseGrant g{id, best->row.id, jobs[0], static_cast<int>(jobs.size()), {}, now + opt_.lease_seconds};
   g.items.reserve(items);
   for (long j : jobs) g.items.insert(g.items.end(), best->jobs[j].items.begin(), best->jobs[j].items.end());
-  leases_[g.lease_id] = {g.sweep_id, worker, jobs, best->generation, mono + opt_.lease_seconds};  // g.deadline: the wire's wall time
+  leases_[g.lease_id] = {g.sweep_id, worker, identity, jobs, best->generation, mono + opt_.lease_seconds};  // g.deadline: the wire's wall time
   if (auto w = workers_.find(worker); w != workers_.end()) ++w->second.leases;
   ++stats_.leases_granted;
   Log(log::Level::kDebug, "lease.granted",
@@ -520,12 +529,19 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
   return g;
 }
 
-Status SweepCoordinator::Extend(const std::string& lease_id) {
+namespace {
+Status NotTheLeaseHolder() {
+  return Status::PermissionDenied("the lease was granted to another identity (token): only its holder may extend, report or release it");
+}
+}  // namespace
+
+Status SweepCoordinator::Extend(const std::string& lease_id, const std::string& identity) {
   std::lock_guard<std::mutex> lock(mu_);
   const double mono = Monotonic();
   auto it = leases_.find(lease_id);
   if (it == leases_.end())
     return finished_leases_.count(lease_id) ? Status::Ok() : Status::NotFound("lease '" + lease_id + "' is unknown");
+  if (it->second.identity != identity) return NotTheLeaseHolder();
   if (it->second.deadline < mono) return Status::FailedPrecondition("lease '" + lease_id + "' expired; its job was requeued");
   it->second.deadline = mono + opt_.lease_seconds;
   TouchWorkerLocked(it->second.worker, Clock());
@@ -562,7 +578,7 @@ Status SweepCoordinator::AwaitCommit(unsigned long long ticket) {
   return st;
 }
 
-Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<PointRecord>& records) {
+Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<PointRecord>& records, const std::string& identity) {
   const size_t width = records.empty() ? 0 : records[0].v.size();
   std::vector<double> flat;
   flat.reserve(records.size() * width);
@@ -572,10 +588,11 @@ Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<P
                                                     std::to_string(width) + ")");
     flat.insert(flat.end(), r.v.begin(), r.v.end());
   }
-  return Report(lease_id, width, flat.data(), flat.size());
+  return Report(lease_id, width, flat.data(), flat.size(), identity);
 }
 
-Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const double* values, size_t n_values) {
+Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const double* values, size_t n_values,
+                               const std::string& identity) {
   // The record layout is checked first, without the lock: the width must be that of some layout
   // and every value in its metric's domain (forged or corrupt numbers never reach the cache). The
   // sweep's exact layout (turning points, section points) is compared under the lock below.
@@ -607,6 +624,9 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
       return Status::NotFound("lease is unknown (never granted, revoked by a cancel or a new plan, or granted before a "
                               "coordinator restart)");
     }
+    // One worker token cannot report (in-range, forged) values for another's job: they would serve every
+    // later sweep through the content cache (issue 39).
+    if (it->second.identity != identity) return NotTheLeaseHolder();
     if (it->second.deadline < mono) {
       RequeueExpiredLocked(mono);
       return Status::FailedPrecondition("lease '" + lease_id + "' expired before its report; its job was requeued");
@@ -736,10 +756,11 @@ SweepCoordinator::~SweepCoordinator() {
   if (publisher_.joinable()) publisher_.join();  // finishes queued publications first
 }
 
-Status SweepCoordinator::Release(const std::string& lease_id) {
+Status SweepCoordinator::Release(const std::string& lease_id, const std::string& identity) {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = leases_.find(lease_id);
   if (it == leases_.end()) return Status::NotFound("lease is unknown");
+  if (it->second.identity != identity) return NotTheLeaseHolder();
   ++stats_.leases_released;
   Log(log::Level::kInfo, "lease.released",
       {{"sweep", it->second.sweep_id}, {"job", it->second.job_ids.front()}, {"jobs", it->second.job_ids.size()},

@@ -56,7 +56,7 @@ struct SweepProgress {
 
 // A granted lease: the job's items of one sweep, to be reported before `deadline`.
 struct LeaseGrant {
-  std::string lease_id;    // opaque, unique
+  std::string lease_id;    // opaque, unique, unguessable: the sweep id and 128 random bits
   std::string sweep_id;
   long job_id = 0;          // the first job of the lease
   int jobs = 1;             // jobs merged into this lease
@@ -117,18 +117,22 @@ class SweepCoordinator {
   // `max_jobs` > 1 merges up to that many queued jobs of the sweep into one lease (a larger job for a
   // worker far away or with many cores: one round trip and one stored report for all of them) while
   // their items total at most limits::kMaxJobItems; the lease stands or falls as a whole.
-  std::optional<LeaseGrant> Lease(const std::string& worker, const std::string& only_sweep = "", int max_jobs = 1);
+  // `identity` is the caller's authenticated identity (a token's; "" in the embedded run): the lease is
+  // bound to it, and Extend, Report and Release of it by any other identity are PermissionDenied.
+  std::optional<LeaseGrant> Lease(const std::string& worker, const std::string& only_sweep = "", int max_jobs = 1,
+                                  const std::string& identity = "");
   // Pushes a lease's deadline back by lease_seconds. NotFound for an unknown lease, FailedPrecondition
   // for an expired one.
-  Status Extend(const std::string& lease_id);
+  Status Extend(const std::string& lease_id, const std::string& identity = "");
   // Stores a lease's records (one transaction) and acknowledges; publishes the sweep when complete.
   // A lease reported again after success is acknowledged without storing anything twice. `values`
   // holds the job's items × `width` doubles in the lease's item order; the lease, its plan, the
   // count, the width and every value's domain are checked before anything is stored.
-  Status Report(const std::string& lease_id, size_t width, const double* values, size_t n_values);
-  Status Report(const std::string& lease_id, const std::vector<PointRecord>& records);
+  Status Report(const std::string& lease_id, size_t width, const double* values, size_t n_values,
+                const std::string& identity = "");
+  Status Report(const std::string& lease_id, const std::vector<PointRecord>& records, const std::string& identity = "");
   // Gives a lease's job back to the queue (a worker shutting down).
-  Status Release(const std::string& lease_id);
+  Status Release(const std::string& lease_id, const std::string& identity = "");
   Status Cancel(const std::string& sweep_id);
   // Gathers a sweep's records from the cache, writes its map atomically, marks it done (idempotent;
   // waits for a publication of the sweep in progress). Failure marks the sweep failed. The last
@@ -184,6 +188,7 @@ class SweepCoordinator {
   };
   struct LeaseState {
     std::string sweep_id, worker;
+    std::string identity;             // who leased it (Lease's identity): only they may extend, report, release
     std::vector<long> job_ids;        // one job, or several merged (Lease's max_jobs)
     unsigned long long generation = 0;  // the plan the job belongs to
     double deadline = 0;  // Monotonic() seconds
@@ -274,8 +279,7 @@ class SweepCoordinator {
   std::map<std::string, WorkerInfo> workers_;
   CoordinatorStats stats_;                                // counters, under mu_
   long next_seq_ = 0;
-  unsigned long long lease_counter_ = 0;
-  std::mt19937 lease_salt_{std::random_device{}()};  // makes lease ids unguessable across restarts
+  std::random_device lease_random_;  // the kernel's CSPRNG (getrandom): lease ids cannot be predicted from earlier ones
   bool stopped_ = false;
   // Publications: one at a time (publish_mu_, taken before mu_); complete sweeps are queued for the
   // publisher thread so that the report completing a sweep is not held up by the map writing.

@@ -15,6 +15,7 @@
 #include <fstream>
 #include <functional>
 #include <mutex>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -778,6 +779,70 @@ TEST(HostileRound2, ATokenWithAControlByteIsRefusedAndNeverPrinted) {
   EXPECT_TRUE(Alive(pid));
   ::kill(pid, SIGTERM);
   Wait(pid, 10);
+}
+
+// Minor: a lease is bound to the token that leased it, and its id cannot be guessed. Worker token B holds
+// the id of A's lease (a leaked log line, a guess): its report of in-range values for A's job, its
+// heartbeat and its release are refused; A's own report is stored. Lease ids carry 128 random bits.
+TEST(HostileRound2, LeasesAreBoundToTheLeasingTokenAndTheirIdsAreUnguessable) {
+  const std::string dir = Round2Dir("lease_identity");
+  const std::string client(64, 'c'), worker_a(64, 'a'), worker_b(64, 'b');
+  std::ofstream(dir + "/tokens") << "client " << Sha256Of(dir, client) << " alice\nworker " << Sha256Of(dir, worker_a)
+                                 << " wa\nworker " << Sha256Of(dir, worker_b) << " wb\n";
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log", {"--tokens", dir + "/tokens"});
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  World w;
+  World* saved = g;
+  g = &w;
+  w.coord = pid;
+  w.stub = v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  auto as = [](const std::string& token) {
+    auto c = Ctx();
+    c->AddMetadata("authorization", "Bearer " + token);
+    return c;
+  };
+  v1::SubmitRequest sreq;
+  sreq.set_spec_toml(Spec("alpha = { linspace = [0.2, 2.0, 20] }\nomega = [0.8, 1.2]\n"));  // several jobs
+  v1::SubmitReply sub;
+  ASSERT_TRUE(w.stub->Submit(as(client).get(), sreq, &sub).ok());
+  v1::LeaseRequest lreq;
+  lreq.set_worker("wa");
+  v1::LeaseReply lease;
+  ASSERT_TRUE(w.stub->Lease(as(worker_a).get(), lreq, &lease).ok());
+  ASSERT_TRUE(lease.has_job());
+  const std::vector<double> honest = Honest(lease);
+  v1::ReportRequest rreq;
+  rreq.set_lease_id(lease.lease_id());
+  rreq.set_record_width(kWidth);
+  rreq.set_catalog_hash(bistable::CatalogHash());
+  rreq.mutable_values()->Add(honest.begin(), honest.end());
+  v1::ReportReply rrep;
+  EXPECT_EQ(w.stub->Report(as(worker_b).get(), rreq, &rrep).error_code(), grpc::StatusCode::PERMISSION_DENIED)
+      << "worker B reported worker A's job";
+  v1::HeartbeatRequest hreq;
+  hreq.set_lease_id(lease.lease_id());
+  v1::HeartbeatReply hrep;
+  EXPECT_EQ(w.stub->Heartbeat(as(worker_b).get(), hreq, &hrep).error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  v1::ReleaseRequest relreq;
+  relreq.set_lease_id(lease.lease_id());
+  v1::ReleaseReply relrep;
+  EXPECT_EQ(w.stub->Release(as(worker_b).get(), relreq, &relrep).error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  EXPECT_TRUE(w.stub->Heartbeat(as(worker_a).get(), hreq, &hrep).ok());
+  EXPECT_TRUE(w.stub->Report(as(worker_a).get(), rreq, &rrep).ok()) << "the holder's own report";
+  // Ids: the sweep id, '-', then 32 hex digits (128 bits from the kernel's CSPRNG), all different.
+  std::set<std::string> ids = {lease.lease_id()};
+  for (v1::LeaseReply l; w.stub->Lease(as(worker_a).get(), lreq, &l).ok() && l.has_job(); l.Clear()) ids.insert(l.lease_id());
+  EXPECT_GE(ids.size(), 2u);
+  for (const std::string& id : ids) {
+    const std::string rand = id.substr(id.find('-') + 1);
+    EXPECT_EQ(id.substr(0, id.find('-')), sub.id()) << id;
+    EXPECT_EQ(rand.size(), 32u) << id;
+    EXPECT_EQ(rand.find_first_not_of("0123456789abcdef"), std::string::npos) << id;
+  }
+  EXPECT_TRUE(Alive(pid));
+  ::kill(pid, SIGTERM);
+  Wait(pid, 10);
+  g = saved;
 }
 
 // Fail 3: a coordinator the worker cannot trust. A fake one (the Coordinator service, in this test) hands
