@@ -131,6 +131,8 @@ struct HealthArgs {
 };
 
 int HealthCmd(const HealthArgs& a) {
+  if (!(a.timeout > 0 && a.timeout <= 3600))  // NaN fails too
+    return Fail(Status::InvalidArgument("timeout", "timeout = " + std::to_string(a.timeout) + " violates timeout in (0, 3600] s"));
   auto token = LoadToken(a.r.token_file);
   if (!token.ok()) return Fail(token.status());
   auto st = CheckHealth({a.r.coordinator, a.r.tls_ca, *token, a.r.insecure_remote}, a.service, a.timeout);
@@ -223,6 +225,11 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
   tok->callback([role, name, exit_code]() {
     if (*role != "viewer" && *role != "client" && *role != "worker" && *role != "admin") {
       *exit_code = Fail(Status::InvalidArgument("role", "role = '" + *role + "' violates role in {viewer, client, worker, admin}"));
+      return;
+    }
+    // The coordinator would refuse the line at start: say so now.
+    if (Status st = CheckTokenName(*name, "name"); !st.ok()) {
+      *exit_code = Fail(st);
       return;
     }
     const std::string t = NewToken();

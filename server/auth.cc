@@ -20,6 +20,14 @@ std::string NewToken() {
   return t;
 }
 
+Status CheckTokenName(const std::string& name, const std::string& field) {
+  // The name is an owner in the index and in log lines: visible ASCII only (never echoed as given).
+  if (name.size() > 64 || name.find(':') != std::string::npos ||
+      std::any_of(name.begin(), name.end(), [](char c) { return static_cast<unsigned char>(c) < 0x21 || static_cast<unsigned char>(c) > 0x7e; }))
+    return Status::InvalidArgument(field, "name '" + Printable(name, 64) + "' violates name: at most 64 visible ASCII characters (0x21-0x7e) without ':'");
+  return Status::Ok();
+}
+
 const char* RoleName(Role r) {
   switch (r) {
     case Role::kViewer: return "viewer";
@@ -55,11 +63,7 @@ StatusOr<TokenStore> TokenStore::Load(const std::string& path) {
     if (digest.size() != 64 || digest.find_first_not_of("0123456789abcdef") != std::string::npos)
       return Status::InvalidArgument("tokens", where + ": expected the token's SHA-256 as 64 lowercase hex digits "
                                                "(`bistable token --role " + role + "` prints such a line)");
-    // The name is an owner in the index and in log lines: visible ASCII only (never echoed as given).
-    if (name.size() > 64 || name.find_first_of(":") != std::string::npos ||
-        std::any_of(name.begin(), name.end(), [](char c) { return static_cast<unsigned char>(c) < 0x21 || static_cast<unsigned char>(c) > 0x7e; }))
-      return Status::InvalidArgument("tokens", where + ": name '" + Printable(name, 64) +
-                                                   "' violates name: at most 64 visible ASCII characters (0x21-0x7e) without ':'");
+    if (Status st = CheckTokenName(name, "tokens"); !st.ok()) return Status::InvalidArgument("tokens", where + ": " + st.message());
     store.by_hash_[digest] = {r, name.empty() ? "token:" + digest.substr(0, 12) : name};
   }
   if (store.by_hash_.empty()) return Status::InvalidArgument("tokens", "tokens file '" + path + "' holds no tokens");

@@ -51,6 +51,10 @@ class TokenStore {
 
 const char* RoleName(Role r);
 
+// A token's name in the tokens file (and `bistable token --name`): "" or at most 64 visible ASCII
+// characters without ':' — it is an owner in the index and in log lines. InvalidArgument(`field`).
+Status CheckTokenName(const std::string& name, const std::string& field);
+
 
 }  // namespace bistable
 

@@ -482,6 +482,14 @@ std::vector<Row> Rows() {
     ok.err_lacks = "SECRET";
     rows.push_back(ok);
   }
+  // -- 10. Numbers and names of service commands (issue 39): refused naming the flag and the bound.
+  for (const std::string v : {"nan", "-1", "0", "1e300"})
+    rows.push_back(Case("health_timeout_" + std::string(v == "-1" ? "negative" : v == "1e300" ? "huge" : v),
+                        {{"health", "--coordinator", "127.0.0.1:1", "--timeout", v}})
+                       .Error("violates timeout in (0, 3600] s"));
+  rows.push_back(Case("token_name_with_colon", {{"token", "--name", "a:b"}}).Error("name: name 'a:b' violates name"));
+  rows.push_back(Case("token_name_with_newline", {{"token", "--name", "a\nb"}}).Error("name 'a\\x0ab' violates name"));
+  rows.push_back(Case("token_name_of_65_characters", {{"token", "--name", std::string(65, 'n')}}).Error("at most 64 visible ASCII"));
   {
     Row r = Case("token_env_with_control_byte", {{"sweeps", "--coordinator", "127.0.0.1:1"}}).Error("BISTABLE_TOKEN: the token holds a control byte (0x01)");
     r.env = {{"BISTABLE_TOKEN", "SECRETA\x01SECRETB"}};

@@ -845,6 +845,21 @@ TEST(HostileRound2, LeasesAreBoundToTheLeasingTokenAndTheirIdsAreUnguessable) {
   g = saved;
 }
 
+// Minor: numeric flags of the coordinator are bounded (NaN, negative and absurd values used to be accepted).
+TEST(HostileRound2, CoordinatorRefusesBadNumericFlags) {
+  const std::string dir = Round2Dir("flags");
+  for (const auto& [flag, value] : std::vector<std::pair<std::string, std::string>>{
+           {"--job-seconds", "-1"}, {"--job-seconds", "nan"}, {"--job-seconds", "0"}, {"--job-seconds", "1e300"},
+           {"--lease-seconds", "1e300"}, {"--lease-seconds", "nan"}, {"--lease-seconds", "-1"}}) {
+    const pid_t p = Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", flag, value}, dir + "/log");
+    const int code = Wait(p, 10);
+    const std::string err = ReadFile(dir + "/log.err");
+    EXPECT_EQ(code, 2) << flag << " " << value << "\n" << err;
+    EXPECT_NE(err.find(flag.substr(2) + " = "), std::string::npos) << err;
+    EXPECT_NE(err.find("violates " + flag.substr(2) + " in (0, "), std::string::npos) << err;
+  }
+}
+
 // Fail 3: a coordinator the worker cannot trust. A fake one (the Coordinator service, in this test) hands
 // the real bistable-worker one lease with hostile values, then nothing; the worker must refuse it (a
 // log line naming the field and the bound, the lease released, nothing reported) and stop cleanly on
