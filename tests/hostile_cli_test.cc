@@ -120,6 +120,7 @@ struct Row {
   Outcome outcome = Outcome::kOk;
   std::string err_has;                                     // error outcomes: in the failing step's stderr
   std::string err_lacks;                                   // never in any step's stderr or stdout (a secret)
+  size_t err_max_bytes = 0;                                // > 0: the failing step's stderr is at most this long
   std::vector<std::string> ok_files;                       // outcome ok: exist, not empty
   std::vector<std::string> absent;                         // never exist afterwards
   std::string svg;                                         // outcome ok: an SVG whose text is checked
@@ -482,6 +483,14 @@ std::vector<Row> Rows() {
     ok.err_lacks = "SECRET";
     rows.push_back(ok);
   }
+  // -- 11. Messages stay short (issue 39): a 1 MB unknown key is cut, not echoed whole.
+  {
+    Row r = Case("spec_key_of_one_megabyte", {{"run", "{dir}/big_key.toml", "--data", "{data}", "--no-plots"}})
+                .Error("unknown key 'kkkk")
+                .Files({{"{dir}/big_key.toml", "model = \"coupled\"\n" + std::string(1000000, 'k') + " = 1\n"}});
+    r.err_max_bytes = 4096;
+    rows.push_back(r);
+  }
   // -- 10. Numbers and names of service commands (issue 39): refused naming the flag and the bound.
   for (const std::string v : {"nan", "-1", "0", "1e300"})
     rows.push_back(Case("health_timeout_" + std::string(v == "-1" ? "negative" : v == "1e300" ? "huge" : v),
@@ -565,6 +574,7 @@ TEST_P(HostileCli, Row) {
       EXPECT_EQ(r.exit_code, 2) << "an error must be exit 2 (bad input)";
       EXPECT_NE(r.err.find("error: "), std::string::npos) << "no 'error: ' line";
       EXPECT_NE(r.err.find(row.err_has), std::string::npos) << "stderr lacks '" << row.err_has << "'";
+      if (row.err_max_bytes > 0) EXPECT_LE(r.err.size(), row.err_max_bytes) << "stderr of " << r.err.size() << " bytes";
       failed_step = true;
       break;
     }
