@@ -84,7 +84,8 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
       c->Db()->UpsertSweep(failed);
       continue;
     }
-    auto plan = c->Submit(*spec, JobItems(*spec, 2.0, 64), r.owner.empty() ? "local" : r.owner);
+    // Accepted before the restart: resumed beyond the active-sweep limits (which only stop new submits).
+    auto plan = c->SubmitImpl(*spec, JobItems(*spec, 2.0, 64), r.owner.empty() ? "local" : r.owner, /*limits=*/false);
     if (!plan.ok()) {
       c->Log(log::Level::kError, "sweep.resume_failed", {{"sweep", r.id}, {"reason", plan.status().ToString()}});
       SweepRow failed = r;
@@ -111,7 +112,7 @@ std::optional<SweepPlan> SweepCoordinator::ActivePlanLocked(const std::string& i
   return plan;
 }
 
-StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_items, const std::string& owner) {
+StatusOr<SweepPlan> SweepCoordinator::SubmitImpl(const SweepSpec& spec, long job_items, const std::string& owner, bool enforce_limits) {
   const std::string id = spec.Id();
   const long items = std::clamp<long>(job_items, 1, limits::kMaxJobItems);
   {
@@ -133,11 +134,11 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
       ++all;
       if (p.owner == owner) ++mine;
     }
-    if (mine >= limits::kMaxActiveSweepsPerOwner)
+    if (enforce_limits && mine >= limits::kMaxActiveSweepsPerOwner)
       return Status::FailedPrecondition("'" + owner + "' has " + std::to_string(mine) +
                                         " sweeps queued, running or being planned, the limit per owner is " +
                                         std::to_string(limits::kMaxActiveSweepsPerOwner) + "; wait for one or cancel one");
-    if (all >= limits::kMaxActiveSweeps)
+    if (enforce_limits && all >= limits::kMaxActiveSweeps)
       return Status::FailedPrecondition("the coordinator holds " + std::to_string(all) +
                                         " sweeps queued, running or being planned, its limit is " + std::to_string(limits::kMaxActiveSweeps));
     planning_[id] = Planning{owner, true};

@@ -110,7 +110,9 @@ class SweepCoordinator {
   // queues the missing ones as jobs of about `job_items` items. Submitting a running sweep again is
   // harmless (its plan is returned). `owner` is the submitter's identity; each owner may have
   // limits::kMaxActiveSweepsPerOwner sweeps queued or running (limits::kMaxActiveSweeps in all).
-  StatusOr<SweepPlan> Submit(const SweepSpec& spec, long job_items, const std::string& owner = "local");
+  StatusOr<SweepPlan> Submit(const SweepSpec& spec, long job_items, const std::string& owner = "local") {
+    return SubmitImpl(spec, job_items, owner, true);
+  }
   // The next queued job of the oldest running sweep, after requeueing expired leases; nullopt when
   // there is none (or after Stop()).
   // `only_sweep` restricts the lease to one sweep (the embedded run).
@@ -201,6 +203,9 @@ class SweepCoordinator {
 
   SweepCoordinator(std::string dir, std::unique_ptr<IndexDb> db, Options opt)
       : data_dir_(std::move(dir)), db_(std::move(db)), opt_(opt), publisher_([this] { PublisherLoop(); }) {}
+  // Submit; `limits` false when Open resumes sweeps the index already holds (accepted before: a restart
+  // must not fail the ninth interrupted sweep of an owner).
+  StatusOr<SweepPlan> SubmitImpl(const SweepSpec& spec, long job_items, const std::string& owner, bool limits);
   // Plans a sweep against the point cache (keys, lookups in bounded batches, jobs). Without mu_.
   StatusOr<Planned> BuildPlan(const SweepSpec& spec, long job_items, RefineCarry carry = {});
   // Makes a built plan the sweep's current one (a new generation) and persists its row. Under mu_.

@@ -25,6 +25,7 @@
 #include "base/limits.h"
 #include "bistable.grpc.pb.h"
 #include "engine/sweep_spec.h"
+#include "storage/index_db.h"
 #include "storage/map_file.h"
 #include "tests/map_compare.h"
 #include "tests/http_client.h"
@@ -858,6 +859,49 @@ TEST(HostileRound2, CoordinatorRefusesBadNumericFlags) {
     EXPECT_NE(err.find(flag.substr(2) + " = "), std::string::npos) << err;
     EXPECT_NE(err.find("violates " + flag.substr(2) + " in (0, "), std::string::npos) << err;
   }
+}
+
+// Minor: a restart resumes every unfinished sweep of the index, also beyond the per-owner limit (ten
+// interrupted embedded runs of one data directory: two used to be marked failed at start).
+TEST(HostileRound2, ARestartResumesEveryInterruptedSweepBeyondThePerOwnerLimit) {
+  const std::string dir = Round2Dir("resume");
+  fs::create_directories(dir + "/data");
+  std::vector<std::string> ids;
+  {
+    auto db = bistable::IndexDb::Open(dir + "/data/index.sqlite");
+    ASSERT_TRUE(db.ok()) << db.status().ToString();
+    for (int i = 0; i < 10; ++i) {
+      const std::string toml = Spec("alpha = [" + std::to_string(0.41 + 0.01 * i) + "]\n");
+      auto spec = bistable::ParseSweepSpec(toml, "resume");
+      ASSERT_TRUE(spec.ok());
+      bistable::SweepRow row;
+      row.id = spec->Id();
+      row.name = "interrupted " + std::to_string(i);
+      row.model = "coupled";
+      row.spec = toml;
+      row.state = bistable::SweepState::kInterrupted;
+      row.items_total = 1;
+      row.owner = "local";
+      ASSERT_TRUE((*db)->UpsertSweep(row).ok());
+      ids.push_back(row.id);
+    }
+  }
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log");
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  auto stub = v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  int failed = 0;
+  for (const std::string& id : ids) {
+    v1::StatusRequest req;
+    req.set_id(id);
+    v1::SweepStatus st;
+    ASSERT_TRUE(stub->GetStatus(Ctx().get(), req, &st).ok());
+    if (st.state() == "failed") ++failed;
+    EXPECT_NE(st.state(), "failed") << id << ": " << st.error();
+  }
+  std::printf("  10 interrupted sweeps of one owner at start: %d failed\n", failed);
+  EXPECT_EQ(ReadFile(dir + "/coord.log.err").find("sweep.resume_failed"), std::string::npos) << ReadFile(dir + "/coord.log.err");
+  ::kill(pid, SIGTERM);
+  Wait(pid, 10);
 }
 
 // Fail 3: a coordinator the worker cannot trust. A fake one (the Coordinator service, in this test) hands
