@@ -20,7 +20,7 @@ PointResult Unevaluated(const SweepSpec& spec, long index, int ic, const Status&
   if (!CancelRequested())
     std::fprintf(stderr, "evaluate: sweep %s point %ld ic %d could not be evaluated (%s); stored as diverged\n",
                  spec.Id().c_str(), index, ic, why.ToString().c_str());
-  return PointResult{Termination::kDiverged};
+  return DivergedResult();
 }
 
 // The metrics' view of a series or dimensional item: its window and metric settings, the cell kind
@@ -199,7 +199,7 @@ PointResult EvaluateItem(const SweepSpec& spec, long index, int ic) {
   }
   if (spec.UsesGenericLanes()) {  // the lane kernel at width 1: the bits of the same item in a sweep
     auto r = EvaluateItemsInLanes(spec, {WorkItem{index, ic}}, 1);
-    return r ? (*r)[0] : PointResult{Termination::kDiverged};  // cancelled: the caller discards the job
+    return r ? (*r)[0] : DivergedResult();  // cancelled: the caller discards the job
   }
   GenericWindow w;  // adaptive (Dormand–Prince), one point at a time
   w.t_end = p.integration.t_end;

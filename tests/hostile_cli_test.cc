@@ -121,6 +121,7 @@ struct Row {
   std::string err_has;                                     // error outcomes: in the failing step's stderr
   std::string err_lacks;                                   // never in any step's stderr or stdout (a secret)
   size_t err_max_bytes = 0;                                // > 0: the failing step's stderr is at most this long
+  std::vector<std::string> out_has;                        // outcome ok: in the last step's stdout
   std::vector<std::string> ok_files;                       // outcome ok: exist, not empty
   std::vector<std::string> absent;                         // never exist afterwards
   std::string svg;                                         // outcome ok: an SVG whose text is checked
@@ -483,6 +484,13 @@ std::vector<Row> Rows() {
     ok.err_lacks = "SECRET";
     rows.push_back(ok);
   }
+  // -- 12. A diverged point (issue 39): its extremes and energies are undefined (null), not 0.0.
+  {
+    Row r = Case("point_diverged_extremes_and_energy_are_null",
+                 {{"point", "--model", "standalone", "--alpha", "3", "--omega", "3", "--dt", "1", "--t-end", "500", "--t-keep", "250", "--json"}});
+    r.out_has = {"\"termination\": \"diverged\"", "\"y_min\": null", "\"y_max\": null", "\"w_in\": null", "\"delta_e\": null"};
+    rows.push_back(r);
+  }
   // -- 11. Messages stay short (issue 39): a 1 MB unknown key is cut, not echoed whole.
   {
     Row r = Case("spec_key_of_one_megabyte", {{"run", "{dir}/big_key.toml", "--data", "{data}", "--no-plots"}})
@@ -580,6 +588,7 @@ TEST_P(HostileCli, Row) {
     }
     if (i + 1 == row.steps.size()) {
       ASSERT_NE(row.outcome, Outcome::kError) << "succeeded; expected an error with '" << row.err_has << "'\nstdout: " << r.out.substr(0, 400);
+      for (const std::string& want : row.out_has) EXPECT_NE(r.out.find(want), std::string::npos) << "stdout lacks '" << want << "':\n" << r.out;
       if (row.json == JsonCheck::kIdentifyFinite) {
         const auto j = nlohmann::json::parse(r.out, nullptr, false);
         ASSERT_TRUE(j.is_object()) << r.out;
