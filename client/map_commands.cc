@@ -274,7 +274,9 @@ struct QueryArgs {
 };
 
 int RunQuery(const QueryArgs& a) {
-  auto j = QueryJson(a.src, a.id, a.expr, a.json ? SIZE_MAX : static_cast<size_t>(std::max(a.limit, 0)));
+  if (a.limit < 0)  // it used to print no point at all
+    return Fail(Status::InvalidArgument("limit", "limit = " + std::to_string(a.limit) + " violates limit >= 0"));
+  auto j = QueryJson(a.src, a.id, a.expr, a.json ? SIZE_MAX : static_cast<size_t>(a.limit));
   if (!j.ok()) return Fail(j.status());
   if (a.json) {
     std::cout << DumpJson(*j, 1) << "\n";

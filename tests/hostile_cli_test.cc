@@ -340,6 +340,8 @@ std::vector<Row> Rows() {
   // -- 5. Queries: bounded length and nesting (the parser recursed into a segfault).
   rows.push_back(OnSweep("query_10k_nested_parens", Query(Repeat("(", 10000) + "lle < 0" + Repeat(")", 10000)), Outcome::kError,
                          "violates length <= 4096"));
+  rows.push_back(OnSweep("query_limit_negative", {"query", "{id}", "lle < 1e9", "--data", "{data}", "--limit", "-1"}, Outcome::kError,
+                         "limit = -1 violates limit >= 0"));  // issue 39: it printed no point at all
   rows.push_back(OnSweep("query_10k_open_parens", Query(Repeat("(", 10000)), Outcome::kError, "violates length <= 4096"));
   rows.push_back(OnSweep("query_65_nested_parens", Query(Repeat("(", 65) + "lle < 0" + Repeat(")", 65)), Outcome::kError,
                          "violates depth <= 64"));

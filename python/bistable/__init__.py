@@ -146,7 +146,12 @@ def sweeps(data=DEFAULT_DATA):
 def query(id, expr, data=DEFAULT_DATA, limit=None):
     """Points of a map where `expr` holds ("frf_db < -3 and lle < 0.01", "motion == chaotic"): the object
     `bistable query --json` prints ({"sweep", "query", "count", "total", "points": [...]})."""
-    return _core.query(str(id), str(expr), _os.fspath(data), -1 if limit is None else int(limit))
+    if limit is not None:
+        limit = int(limit)
+        if limit < 0:  # -5 used to return every point
+            raise ValueError(f"limit = {limit} violates limit >= 0 (None: every point)")
+        limit = min(limit, 2**62)
+    return _core.query(str(id), str(expr), _os.fspath(data), -1 if limit is None else limit)
 
 
 def hbm(**kw):

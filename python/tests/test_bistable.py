@@ -407,6 +407,9 @@ def test_sweeps_and_query_are_the_cli_json(tmp_path):
     assert q["count"] == int(chaotic.sum())
     assert all(isinstance(p["motion"], str) for p in q["points"])
     assert len(bistable.query(sid, expr, data=data, limit=1)["points"]) == min(1, q["count"])
+    with pytest.raises(ValueError, match="limit = -5 violates limit >= 0"):  # issue 39: it returned every point
+        bistable.query(sid, expr, data=data, limit=-5)
+    assert bistable.query(sid, expr, data=data, limit=2**70)["count"] == q["count"]
     with pytest.raises(ValueError, match="query"):
         bistable.query(sid, "frf_dbb < 0", data=data)
     assert bistable.sweeps(data=tmp_path / "none") == []
