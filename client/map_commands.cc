@@ -67,6 +67,7 @@ int ListRemoteSweeps(const SweepsArgs& a) {
 
 int ListSweeps(const SweepsArgs& a) {
   if (!a.src.coordinator.empty()) return ListRemoteSweeps(a);
+  if (Status st = CheckDataDirOrAbsent(a.data); !st.ok()) return Fail(st);
   const auto index = std::filesystem::path(a.data) / "index.sqlite";
   if (!std::filesystem::exists(index)) {
     if (a.json) std::cout << "[]\n";

@@ -486,6 +486,7 @@ std::vector<Row> Rows() {
     ok.err_lacks = "SECRET";
     rows.push_back(ok);
   }
+  rows.push_back(Case("sweeps_data_is_a_file", {{"sweeps", "--data", "/etc/passwd", "--json"}}).Error("data: '/etc/passwd' is not a directory"));
   // -- 12. A diverged point (issue 39): its extremes and energies are undefined (null), not 0.0.
   {
     Row r = Case("point_diverged_extremes_and_energy_are_null",

@@ -413,6 +413,8 @@ def test_sweeps_and_query_are_the_cli_json(tmp_path):
     with pytest.raises(ValueError, match="query"):
         bistable.query(sid, "frf_dbb < 0", data=data)
     assert bistable.sweeps(data=tmp_path / "none") == []
+    with pytest.raises(ValueError, match="is not a directory"):  # issue 39: a file was "no sweeps", []
+        bistable.sweeps(data="/etc/passwd")
 
 
 def test_identify_is_the_cli_identify(tmp_path):
