@@ -120,8 +120,11 @@ def run(spec, data=DEFAULT_DATA, threads=0, progress=False, path_only=False):
     progress bar on stderr. Points already in the data directory's cache are not recomputed.
     Returns an xarray.Dataset (path_only=True: the map file's path).
     """
+    threads = int(threads)
+    if not 0 <= threads <= 1024:  # before the C++ int: 2**63 raised TypeError (issue 39)
+        raise ValueError(f"threads = {threads} violates threads in [0, 1024]")
     text, origin = _spec_text(spec)
-    r = _core.run(text, origin, _os.fspath(data), int(threads), bool(progress))
+    r = _core.run(text, origin, _os.fspath(data), threads, bool(progress))
     return r["file"] if path_only else open_file(r["file"])
 
 

@@ -251,6 +251,13 @@ def test_run_gives_the_cli_map_and_open_finds_it(tmp_path):
         bistable.open("ffffffffffff", data=tmp_path / "py")
 
 
+def test_run_threads_out_of_range_raise_value_error_naming_the_bound(tmp_path):
+    # issue 39: 2**63 raised TypeError (the C++ int overflowed before the range check)
+    for threads in (2**63, -1, 1025):
+        with pytest.raises(ValueError, match=f"threads = {threads} violates threads in \\[0, 1024\\]"):
+            bistable.run(SMALL, data=tmp_path / "d", threads=threads)
+
+
 def test_run_takes_paths_and_toml_text_and_refuses_bad_specs(tmp_path):
     spec = tmp_path / "s.toml"
     spec.write_text(bistable._toml_dump(SMALL))
