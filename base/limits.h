@@ -60,6 +60,7 @@ inline constexpr int kMaxHbmFoldCurves = 64;                 // fold curves cont
 // --- The service -----------------------------------------------------------------------------------
 inline constexpr std::size_t kMaxMessageBytes = 8 << 20;     // any request to the coordinator
 inline constexpr std::size_t kMaxJobsPerLease = 16;          // jobs one Lease call may ask for
+inline constexpr double kMaxLeaseSeconds = 86'400;           // a lease period (--lease-seconds; a worker refuses more)
 inline constexpr std::size_t kFetchChunkBytes = 1 << 20;     // map files are streamed in chunks of this
 inline constexpr std::uint64_t kMaxFetchBytes = std::uint64_t{1} << 36;  // a fetched map file (64 GiB)
 inline constexpr std::size_t kMaxIdBytes = 64;               // sweep ids / prefixes, lease ids in requests
@@ -69,10 +70,16 @@ inline constexpr std::size_t kMaxMetricNameBytes = 64;       // metric names in 
 inline constexpr int kMaxActiveSweepsPerOwner = 8;           // queued or running sweeps of one token
 inline constexpr int kMaxActiveSweeps = 64;                  // queued or running sweeps in all
 inline constexpr long kMaxJobItems = 4096;                   // items in one job (and so in one report)
+// Items a worker accepts in one lease: a job closes once it holds its size, and a continuation chain
+// (at most kMaxJobItems points) is never split, so a job holds fewer than 2 · kMaxJobItems items.
+inline constexpr long kMaxLeaseItems = 2 * kMaxJobItems;
 inline constexpr double kMinWatchInterval = 0.25;            // seconds between two status messages
 inline constexpr int kMaxServerThreads = 128;                // gRPC threads (each open watch holds one)
 inline constexpr std::size_t kMaxServerMemoryBytes = 512u << 20;  // gRPC transport buffers in all
 inline constexpr std::size_t kMaxTokenFileBytes = 1 << 16;   // a client's --token-file (one bearer token)
+// A bearer token as sent (after trailing white space is dropped from a token file): visible ASCII only
+// (0x21-0x7e: what an HTTP/2 header value carries; a newline or NUL would make gRPC abort the process).
+inline constexpr std::size_t kMaxTokenBytes = 4096;
 inline constexpr std::size_t kMaxPemFileBytes = 1 << 20;     // TLS CA, certificate and key files
 inline constexpr std::size_t kMaxTokensFileBytes = 16 << 20; // the coordinator's tokens file (one hash per line)
 

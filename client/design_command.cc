@@ -122,6 +122,7 @@ void AddDesignCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--coordinator", a->run.coordinator, "run every candidate on this coordinator instead of embedded");
   cmd->add_option("--token-file", a->run.token_file, "file holding a bearer token (else $BISTABLE_TOKEN)");
   cmd->add_option("--tls-ca", a->run.tls_ca, "PEM CA certificate to verify a TLS coordinator");
+  cmd->add_flag("--insecure-remote", a->run.insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
   cmd->add_option("--budget", a->budget, "candidates (overrides design.budget)");
   cmd->add_option("--seed", a->seed, "seed (overrides design.seed; crs2 only)");
   cmd->add_option("--maps", a->maps, "maps of the best designs, 0-3 (overrides design.maps)");

@@ -196,10 +196,10 @@ StatusOr<std::unique_ptr<DesignSweeps>> OpenEmbeddedSweeps(const std::string& da
 }
 
 StatusOr<std::unique_ptr<DesignSweeps>> OpenRemoteSweeps(const std::string& address, const std::string& token_file,
-                                                         const std::string& tls_ca) {
+                                                         const std::string& tls_ca, bool insecure_remote) {
   auto token = LoadToken(token_file);
   if (!token.ok()) return token.status();
-  auto c = CoordinatorClient::Connect({address, tls_ca, *token});
+  auto c = CoordinatorClient::Connect({address, tls_ca, *token, insecure_remote});
   if (!c.ok()) return c.status();
   return std::unique_ptr<DesignSweeps>(new RemoteSweeps(std::move(c.value())));
 }
@@ -213,7 +213,7 @@ StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOption
   std::error_code ec;
   std::filesystem::create_directories(out, ec);
   if (ec) return Status::IoError(out, "cannot create the report directory: " + ec.message());
-  auto sweeps = remote ? OpenRemoteSweeps(o.coordinator, o.token_file, o.tls_ca) : OpenEmbeddedSweeps(o.data, o.threads);
+  auto sweeps = remote ? OpenRemoteSweeps(o.coordinator, o.token_file, o.tls_ca, o.insecure_remote) : OpenEmbeddedSweeps(o.data, o.threads);
   if (!sweeps.ok()) return sweeps.status();
 
   // The search, with a progress line over candidates (ETA from the candidates' pace).
@@ -279,7 +279,7 @@ StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOption
   if (o.brute_force > 0) {
     const std::string bf_dir = (std::filesystem::path(out) / "brute-force-data").string();
     std::filesystem::remove_all(bf_dir, ec);
-    auto bf = remote ? OpenRemoteSweeps(o.coordinator, o.token_file, o.tls_ca) : OpenEmbeddedSweeps(bf_dir, o.threads);
+    auto bf = remote ? OpenRemoteSweeps(o.coordinator, o.token_file, o.tls_ca, o.insecure_remote) : OpenEmbeddedSweeps(bf_dir, o.threads);
     if (!bf.ok()) return bf.status();
     if (o.progress) std::cerr << "brute force: " << o.brute_force << " values per free parameter\n";
     const auto t0 = Clock::now();

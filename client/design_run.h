@@ -19,6 +19,7 @@ struct DesignRunOptions {
   std::string data = "bistable-data";  // embedded: the data directory (cache, maps); the report goes under it
   std::string out;                     // report directory ("" = <data>/designs/<design id>)
   std::string coordinator, token_file, tls_ca;  // coordinator non-empty: candidates run there
+  bool insecure_remote = false;        // the token may go in plaintext to an address that is not loopback
   int threads = 0;
   int brute_force = 0;                 // N > 0: also an N per free parameter grid, timed in the same run
   bool progress = true, plots = true;
@@ -34,7 +35,7 @@ class DesignSweeps {
 };
 StatusOr<std::unique_ptr<DesignSweeps>> OpenEmbeddedSweeps(const std::string& data_dir, int threads);
 StatusOr<std::unique_ptr<DesignSweeps>> OpenRemoteSweeps(const std::string& address, const std::string& token_file,
-                                                         const std::string& tls_ca);
+                                                         const std::string& tls_ca, bool insecure_remote = false);
 
 // The whole `bistable design` run; returns the report (the --json document, also written to
 // <out>/report.json). Cancellation: CancelledStatus() after the candidates already run are cached.

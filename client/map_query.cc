@@ -1,5 +1,7 @@
 #include "client/map_query.h"
 
+#include "base/names.h"
+
 #include <algorithm>
 #include <filesystem>
 #include <map>
@@ -80,7 +82,16 @@ nlohmann::json LocalSweepsJson(IndexDb& db, const std::vector<SweepRow>& rows, c
   return arr;
 }
 
+Status CheckDataDirOrAbsent(const std::string& data_dir) {
+  std::error_code ec;
+  const auto st = std::filesystem::status(data_dir, ec);
+  if (std::filesystem::exists(st) && !std::filesystem::is_directory(st))
+    return Status::InvalidArgument("data", "'" + Printable(data_dir, 200) + "' is not a directory (a data directory holds index.sqlite and sweeps/)");
+  return Status::Ok();
+}
+
 StatusOr<nlohmann::json> LocalSweepsJson(const std::string& data_dir) {
+  BISTABLE_RETURN_IF_ERROR(CheckDataDirOrAbsent(data_dir));
   const auto index = std::filesystem::path(data_dir) / "index.sqlite";
   if (!std::filesystem::exists(index)) return nlohmann::json::array();
   auto db = IndexDb::Open(index.string());

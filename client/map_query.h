@@ -23,8 +23,11 @@ StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, 
 
 // The sweeps of a data directory: [{"id", "name", "model", "status", "items_total", "items_done",
 // "file", "created", "finished", "seconds", "maps": [{"metric", "shape", "min", "max"}]}]; [] when the
-// directory has no index.
+// directory has no index (or does not exist yet); InvalidArgument("data") when the path is not a directory.
 StatusOr<nlohmann::json> LocalSweepsJson(const std::string& data_dir);
+// InvalidArgument("data") when `data_dir` exists and is not a directory (a missing one is a data directory
+// without sweeps yet).
+Status CheckDataDirOrAbsent(const std::string& data_dir);
 nlohmann::json LocalSweepsJson(IndexDb& db, const std::vector<SweepRow>& rows, const std::string& data_dir);
 
 }  // namespace bistable

@@ -16,7 +16,7 @@ namespace {
 StatusOr<std::unique_ptr<CoordinatorClient>> Client(const MapSource& s) {
   auto token = LoadToken(s.token_file);
   if (!token.ok()) return token.status();
-  return CoordinatorClient::Connect({s.coordinator, s.tls_ca, *token});
+  return CoordinatorClient::Connect({s.coordinator, s.tls_ca, *token, s.insecure_remote});
 }
 
 // A metric name is a plain dataset name: never sent or opened when it could be an HDF5 path. (Which

@@ -19,6 +19,7 @@ struct MapSource {
   std::string data_dir;      // used when coordinator is empty
   std::string coordinator;   // address; non-empty selects the remote source
   std::string token_file, tls_ca;
+  bool insecure_remote = false;  // the token may go in plaintext to an address that is not loopback
 
   // Resolves a sweep id or prefix; sets *id and *name.
   StatusOr<std::vector<std::string>> Metrics(const std::string& id_or_prefix, std::string* id, std::string* name) const;

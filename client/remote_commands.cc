@@ -25,14 +25,14 @@ namespace {
 
 struct RemoteArgs {
   std::string coordinator = "127.0.0.1:50051", target, token_file, tls_ca;
-  bool json = false, watch = false;
+  bool json = false, watch = false, insecure_remote = false;
 };
 
 // The client for one command: the token and CA resolved once; errors name the flag.
 StatusOr<std::unique_ptr<CoordinatorClient>> Connect(const RemoteArgs& a) {
   auto token = LoadToken(a.token_file);
   if (!token.ok()) return token.status();
-  return CoordinatorClient::Connect({a.coordinator, a.tls_ca, *token});
+  return CoordinatorClient::Connect({a.coordinator, a.tls_ca, *token, a.insecure_remote});
 }
 
 int Submit(CoordinatorClient& c, const RemoteArgs& a) {
@@ -131,9 +131,11 @@ struct HealthArgs {
 };
 
 int HealthCmd(const HealthArgs& a) {
+  if (!(a.timeout > 0 && a.timeout <= 3600))  // NaN fails too
+    return Fail(Status::InvalidArgument("timeout", "timeout = " + std::to_string(a.timeout) + " violates timeout in (0, 3600] s"));
   auto token = LoadToken(a.r.token_file);
   if (!token.ok()) return Fail(token.status());
-  auto st = CheckHealth({a.r.coordinator, a.r.tls_ca, *token}, a.service, a.timeout);
+  auto st = CheckHealth({a.r.coordinator, a.r.tls_ca, *token, a.r.insecure_remote}, a.service, a.timeout);
   if (!st.ok()) return Fail(st.status());
   if (a.r.json) std::cout << DumpJson(nlohmann::json({{"address", a.r.coordinator}, {"service", a.service}, {"status", *st}})) << "\n";
   else std::cout << *st << "\n";
@@ -151,6 +153,7 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
     cmd->add_option("--coordinator", a->coordinator, "coordinator address")->capture_default_str();
     cmd->add_option("--token-file", a->token_file, "file holding a bearer token (else $BISTABLE_TOKEN)");
     cmd->add_option("--tls-ca", a->tls_ca, "PEM CA certificate to verify a TLS coordinator");
+    cmd->add_flag("--insecure-remote", a->insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
     cmd->add_flag("--json", a->json, "print JSON");
     if (watch) cmd->add_flag("--watch", a->watch, "stream progress until the sweep ends");
     cmd->callback([a, exit_code, fn]() {
@@ -173,6 +176,7 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
     cmd->add_option("--coordinator", a->r.coordinator, "coordinator address")->capture_default_str();
     cmd->add_option("--token-file", a->r.token_file, "file holding a bearer token (else $BISTABLE_TOKEN)");
     cmd->add_option("--tls-ca", a->r.tls_ca, "PEM CA certificate to verify a TLS coordinator");
+    cmd->add_flag("--insecure-remote", a->r.insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
     cmd->add_flag("--json", a->r.json, "print JSON");
     cmd->callback([a, exit_code]() {
       if (Status st = CheckFetchOut(a->out); !st.ok()) {  // before connecting
@@ -208,6 +212,7 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
     cmd->add_option("--timeout", a->timeout, "seconds")->capture_default_str();
     cmd->add_option("--token-file", a->r.token_file, "file holding a bearer token (else $BISTABLE_TOKEN)");
     cmd->add_option("--tls-ca", a->r.tls_ca, "PEM CA certificate to verify a TLS coordinator");
+    cmd->add_flag("--insecure-remote", a->r.insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
     cmd->add_flag("--json", a->r.json, "print JSON");
     cmd->callback([a, exit_code]() { *exit_code = HealthCmd(*a); });
   }
@@ -220,6 +225,11 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
   tok->callback([role, name, exit_code]() {
     if (*role != "viewer" && *role != "client" && *role != "worker" && *role != "admin") {
       *exit_code = Fail(Status::InvalidArgument("role", "role = '" + *role + "' violates role in {viewer, client, worker, admin}"));
+      return;
+    }
+    // The coordinator would refuse the line at start: say so now.
+    if (Status st = CheckTokenName(*name, "name"); !st.ok()) {
+      *exit_code = Fail(st);
       return;
     }
     const std::string t = NewToken();

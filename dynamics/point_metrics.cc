@@ -67,10 +67,11 @@ PointResult MetricsWithSpectrum(RawLane raw, const PointSpec& spec, const Spectr
   r.turning_points = std::move(raw.turning_points);
   const double nan = std::numeric_limits<double>::quiet_NaN();
   if (raw.diverged) {
-    r.termination = Termination::kDiverged;
-    r.frf_db = r.lle = r.lle_rosenstein = r.hd_index = r.strobe_y = r.strobe_v = nan;
-    r.edr_b = r.edr_r = r.edr_t = r.energy_balance_residual = nan;
-    return r;
+    PointResult d = DivergedResult(r.final_state);
+    d.steps = r.steps;
+    d.rhs_evals = r.rhs_evals;
+    d.turning_points = std::move(r.turning_points);
+    return d;
   }
   const IntegrationSettings& in = spec.integration;
   const MetricSettings& ms = spec.metrics;

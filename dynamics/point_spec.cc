@@ -1,6 +1,7 @@
 #include "dynamics/point_spec.h"
 
 #include <cmath>
+#include <limits>
 
 #include "base/limits.h"
 #include "base/validate.h"
@@ -64,6 +65,18 @@ const char* MotionName(Motion m) {
     case Motion::kUndefined: return "undefined";
   }
   return "?";
+}
+
+PointResult DivergedResult(const std::array<double, 4>& final_state) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  PointResult r;
+  r.termination = Termination::kDiverged;
+  r.frf_db = r.lle = r.lle_rosenstein = r.hd_index = r.strobe_y = r.strobe_v = nan;
+  r.y_min = r.y_max = nan;
+  r.w_in = r.w_net = r.w_m = r.w_r = r.delta_e = nan;
+  r.edr_b = r.edr_r = r.edr_t = r.energy_balance_residual = nan;
+  r.final_state = final_state;
+  return r;
 }
 
 const char* TerminationName(Termination t) {

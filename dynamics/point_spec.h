@@ -13,7 +13,7 @@
 namespace bistable {
 
 // Bumped whenever a change can alter any stored number; part of every result's provenance and content key.
-inline constexpr const char* kNumericsVersion = "1.3.0";
+inline constexpr const char* kNumericsVersion = "1.3.1";  // 1.3.1: diverged points' extremes and energies NaN, not 0
 
 // The models of the project (docs/model.md). The first four are the non-dimensional cells that a point,
 // HBM, a chirp and the SIMD kernel run; series chains and the dimensional rig run in sweeps only, through
@@ -138,6 +138,11 @@ struct PointResult {
   // Sampled window rows (τ, y_m, y_m', y_r, y_r') every sample_every steps, when keep_samples.
   std::vector<std::array<double, 5>> samples;
 };
+
+// The result of a point whose integration diverged (or that could not be evaluated): termination
+// kDiverged and every real-valued metric NaN — extremes and energies included, which read 0.0 before
+// (a value a real run can have). Codes stay codes (motion and period 0); final_state as given.
+PointResult DivergedResult(const std::array<double, 4>& final_state = {0, 0, 0, 0});
 
 }  // namespace bistable
 

@@ -20,7 +20,7 @@ PointResult Unevaluated(const SweepSpec& spec, long index, int ic, const Status&
   if (!CancelRequested())
     std::fprintf(stderr, "evaluate: sweep %s point %ld ic %d could not be evaluated (%s); stored as diverged\n",
                  spec.Id().c_str(), index, ic, why.ToString().c_str());
-  return PointResult{Termination::kDiverged};
+  return DivergedResult();
 }
 
 // The metrics' view of a series or dimensional item: its window and metric settings, the cell kind
@@ -103,6 +103,26 @@ std::optional<std::vector<PointResult>> ItemsInLanes(const SweepSpec& spec, cons
 }  // namespace
 
 
+Status CheckItems(const SweepSpec& spec, const std::vector<WorkItem>& items, const std::string& field) {
+  const long n = static_cast<long>(items.size());
+  if (n < 1 || n > limits::kMaxLeaseItems)
+    return Status::InvalidArgument(field, field + " of " + std::to_string(n) + " items violates items in [1, " +
+                                              std::to_string(limits::kMaxLeaseItems) + "]");
+  const long points = spec.points();
+  const int slots = spec.ic_count();
+  for (long i = 0; i < n; ++i) {
+    const WorkItem& w = items[i];
+    const std::string at = field + ".items[" + std::to_string(i) + "]";
+    if (w.point < 0 || w.point >= points)
+      return Status::InvalidArgument(field, at + ": point = " + std::to_string(w.point) + " violates point in [0, " +
+                                                std::to_string(points - 1) + "] (the sweep's grid points)");
+    if (w.ic < 0 || w.ic >= slots)
+      return Status::InvalidArgument(field, at + ": ic = " + std::to_string(w.ic) + " violates ic in [0, " +
+                                                std::to_string(slots - 1) + "] (the sweep's initial-condition slots)");
+  }
+  return Status::Ok();
+}
+
 std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepSpec& spec,
                                                                     const std::vector<WorkItem>& items) {
   std::vector<PointRecord> out(items.size());
@@ -179,7 +199,7 @@ PointResult EvaluateItem(const SweepSpec& spec, long index, int ic) {
   }
   if (spec.UsesGenericLanes()) {  // the lane kernel at width 1: the bits of the same item in a sweep
     auto r = EvaluateItemsInLanes(spec, {WorkItem{index, ic}}, 1);
-    return r ? (*r)[0] : PointResult{Termination::kDiverged};  // cancelled: the caller discards the job
+    return r ? (*r)[0] : DivergedResult();  // cancelled: the caller discards the job
   }
   GenericWindow w;  // adaptive (Dormand–Prince), one point at a time
   w.t_end = p.integration.t_end;

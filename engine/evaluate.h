@@ -25,6 +25,12 @@ inline constexpr int kSweepLanes = 8;
 inline constexpr int kSweepLanes = 4;
 #endif
 
+// Checks a job's items against its spec before anything is computed — a lease may come from a
+// coordinator the worker does not control: 1 to limits::kMaxLeaseItems items, every point in
+// [0, spec.points()), every slot in [0, spec.ic_count()). InvalidArgument naming the item, the value and
+// the bound (`field` prefixes it, e.g. "lease").
+Status CheckItems(const SweepSpec& spec, const std::vector<WorkItem>& items, const std::string& field);
+
 // The job's records, or nullopt when cancellation (dynamics/cancel.h) was requested before the job
 // finished: an integration may have stopped early, so no record of the job may be reported or stored
 // — give the lease back instead. Records returned are complete (the flag was still clear at the end).

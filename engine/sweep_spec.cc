@@ -48,7 +48,9 @@ const std::vector<std::string> kIcKeys = {"states"};
 const std::vector<std::string> kOutputKeys = {"plots"};
 
 Status Unknown(const std::string& field, const std::string& key, const std::vector<std::string>& allowed) {
-  return Status::InvalidArgument(field.empty() ? key : field + "." + key, UnknownNameMessage("key", key, allowed));
+  // The key as it appears in the field name is cut and escaped like the message's (a 1 MB key was echoed whole).
+  const std::string shown = Printable(key, 80);
+  return Status::InvalidArgument(field.empty() ? shown : field + "." + shown, UnknownNameMessage("key", key, allowed));
 }
 
 // A value outside its vocabulary (a metric name in a list, ...).

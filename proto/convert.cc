@@ -1,5 +1,7 @@
 #include "proto/convert.h"
 
+#include "base/limits.h"
+
 namespace bistable {
 
 void ToProto(const SweepInfo& i, v1::SweepStatus* s) {
@@ -79,6 +81,9 @@ void ToProto(const std::vector<WorkItem>& items, v1::LeaseReply* rep) {
 }
 
 StatusOr<std::vector<WorkItem>> ItemsFromProto(const v1::LeaseReply& rep) {
+  if (rep.points_size() > limits::kMaxLeaseItems)  // before anything is allocated for them
+    return Status::InvalidArgument("lease", "a lease of " + std::to_string(rep.points_size()) + " items violates items <= " +
+                                                std::to_string(limits::kMaxLeaseItems));
   if (rep.points_size() != rep.ics_size())
     return Status::InvalidArgument("lease", "a lease with " + std::to_string(rep.points_size()) + " points and " +
                                                 std::to_string(rep.ics_size()) + " initial-condition slots");

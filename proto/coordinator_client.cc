@@ -1,5 +1,7 @@
 #include "proto/coordinator_client.h"
 
+#include <algorithm>
+
 #include "bistable.grpc.pb.h"
 #include "base/limits.h"
 #include "base/names.h"
@@ -175,11 +177,23 @@ StatusOr<double> CoordinatorClient::Register(const std::string& name, int thread
   req.set_threads(threads);
   v1::RegisterReply rep;
   BISTABLE_RPC(RegisterWorker, 5, req, &rep);
+  // The worker heartbeats at a third of it: a NaN, negative or absurd period from a broken or hostile
+  // coordinator is refused, not slept on.
+  if (!(rep.lease_seconds() > 0 && rep.lease_seconds() <= limits::kMaxLeaseSeconds))
+    return Status::InvalidArgument("lease_seconds", "the coordinator's lease_seconds = " + std::to_string(rep.lease_seconds()) +
+                                                        " violates lease_seconds in (0, " + std::to_string(static_cast<long>(limits::kMaxLeaseSeconds)) + "]");
   return rep.lease_seconds();
 }
 
 StatusOr<std::optional<CoordinatorClient::Lease>> CoordinatorClient::FromReply(const v1::LeaseReply& rep) const {
   if (!rep.has_job()) return std::optional<Lease>();
+  // Ids go into requests, log lines and the spec cache: bounded and plain, as the coordinator makes them.
+  if (rep.lease_id().empty() || rep.lease_id().size() > limits::kMaxIdBytes ||
+      std::any_of(rep.lease_id().begin(), rep.lease_id().end(), [](char c) { return c < 0x21 || c > 0x7e; }))
+    return Status::InvalidArgument("lease", "lease_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " visible ASCII characters");
+  if (rep.sweep_id().empty() || rep.sweep_id().size() > limits::kMaxIdBytes ||
+      rep.sweep_id().find_first_not_of("0123456789abcdef") != std::string::npos)
+    return Status::InvalidArgument("lease", "sweep_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
   auto items = ItemsFromProto(rep);
   if (!items.ok()) return items.status();
   return std::optional<Lease>(Lease{rep.lease_id(), rep.sweep_id(), rep.spec_toml(), std::move(*items)});

@@ -568,8 +568,8 @@ py::object IdentifyArgs(const std::vector<std::string>& args) {
 // A coordinator, through the CLI's CoordinatorClient (one channel; the token on every call).
 class PyClient {
  public:
-  PyClient(const std::string& address, const std::string& token, const std::string& tls_ca)
-      : c_(Unwrap(CoordinatorClient::Connect({address, tls_ca, token}))) {}
+  PyClient(const std::string& address, const std::string& token, const std::string& tls_ca, bool insecure_remote)
+      : c_(Unwrap(CoordinatorClient::Connect({address, tls_ca, token, insecure_remote}))) {}
 
   py::object Submit(const std::string& toml, const std::string& origin) {
     return ToPython(SubmittedJson(Unwrap(Compute([&] { return c_->Submit(toml, origin); }, false))));
@@ -627,8 +627,8 @@ PYBIND11_MODULE(_core, m) {
   m.def("query", &QueryMap, py::arg("id"), py::arg("expr"), py::arg("data"), py::arg("limit"));
   m.def("identify", &IdentifyArgs, py::arg("args"));
   py::class_<PyClient>(m, "Client")
-      .def(py::init<const std::string&, const std::string&, const std::string&>(), py::arg("address"), py::arg("token"),
-           py::arg("tls_ca"))
+      .def(py::init<const std::string&, const std::string&, const std::string&, bool>(), py::arg("address"), py::arg("token"),
+           py::arg("tls_ca"), py::arg("insecure_remote"))
       .def("submit", &PyClient::Submit)
       .def("status", &PyClient::Status)
       .def("wait", &PyClient::Wait)

@@ -1,7 +1,5 @@
 #include "server/auth.h"
 
-#include <arpa/inet.h>
-
 #include <algorithm>
 #include <cstdio>
 #include <random>
@@ -9,6 +7,7 @@
 
 #include "base/file.h"
 #include "base/limits.h"
+#include "base/names.h"
 
 namespace bistable {
 
@@ -19,6 +18,14 @@ std::string NewToken() {
   char b[9];
   for (int i = 0; i < 8; ++i) std::snprintf(b, sizeof b, "%08x", rd()), t += b;
   return t;
+}
+
+Status CheckTokenName(const std::string& name, const std::string& field) {
+  // The name is an owner in the index and in log lines: visible ASCII only (never echoed as given).
+  if (name.size() > 64 || name.find(':') != std::string::npos ||
+      std::any_of(name.begin(), name.end(), [](char c) { return static_cast<unsigned char>(c) < 0x21 || static_cast<unsigned char>(c) > 0x7e; }))
+    return Status::InvalidArgument(field, "name '" + Printable(name, 64) + "' violates name: at most 64 visible ASCII characters (0x21-0x7e) without ':'");
+  return Status::Ok();
 }
 
 const char* RoleName(Role r) {
@@ -56,8 +63,7 @@ StatusOr<TokenStore> TokenStore::Load(const std::string& path) {
     if (digest.size() != 64 || digest.find_first_not_of("0123456789abcdef") != std::string::npos)
       return Status::InvalidArgument("tokens", where + ": expected the token's SHA-256 as 64 lowercase hex digits "
                                                "(`bistable token --role " + role + "` prints such a line)");
-    if (name.size() > 64 || name.find_first_of(":") != std::string::npos)
-      return Status::InvalidArgument("tokens", where + ": name '" + name.substr(0, 64) + "' must be at most 64 characters without ':'");
+    if (Status st = CheckTokenName(name, "tokens"); !st.ok()) return Status::InvalidArgument("tokens", where + ": " + st.message());
     store.by_hash_[digest] = {r, name.empty() ? "token:" + digest.substr(0, 12) : name};
   }
   if (store.by_hash_.empty()) return Status::InvalidArgument("tokens", "tokens file '" + path + "' holds no tokens");
@@ -94,31 +100,5 @@ Status TokenStore::CheckToken(const std::string& token, Op op, std::string* who,
   return Status::Ok();
 }
 
-bool IsLoopbackAddress(const std::string& listen) {
-  if (listen.rfind("unix:", 0) == 0) return true;
-  std::string host;
-  if (!listen.empty() && listen[0] == '[') {
-    const size_t close = listen.find(']');
-    if (close == std::string::npos || close + 1 >= listen.size() || listen[close + 1] != ':') return false;
-    host = listen.substr(1, close - 1);
-  } else {
-    const size_t colon = listen.rfind(':');
-    if (colon == std::string::npos) return false;
-    host = listen.substr(0, colon);
-    if (host.find(':') != std::string::npos) return false;  // an unbracketed v6 literal: refuse to guess
-  }
-  if (host == "localhost") return true;
-  in_addr v4{};
-  if (::inet_pton(AF_INET, host.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
-  in6_addr v6{};
-  if (::inet_pton(AF_INET6, host.c_str(), &v6) == 1) {
-    static const unsigned char kLoop[16] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1};
-    if (std::equal(v6.s6_addr, v6.s6_addr + 16, kLoop)) return true;
-    const bool mapped = std::all_of(v6.s6_addr, v6.s6_addr + 10, [](unsigned char b) { return b == 0; }) &&
-                        v6.s6_addr[10] == 0xff && v6.s6_addr[11] == 0xff;
-    return mapped && v6.s6_addr[12] == 127;
-  }
-  return false;
-}
 
 }  // namespace bistable

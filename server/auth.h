@@ -15,6 +15,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "base/address.h"  // IsLoopbackAddress (callers of auth decide exposure by it)
 #include "base/sha256.h"
 #include "base/status.h"
 
@@ -50,10 +51,10 @@ class TokenStore {
 
 const char* RoleName(Role r);
 
-// Whether a listen address ("host:port", "[v6]:port", "unix:path") serves this machine only. Decided
-// on the address, not the text: the host must be an IP literal in 127.0.0.0/8 or ::1 (v4-mapped
-// included), the name "localhost", or a unix socket; any other name counts as not loopback.
-bool IsLoopbackAddress(const std::string& listen);
+// A token's name in the tokens file (and `bistable token --name`): "" or at most 64 visible ASCII
+// characters without ':' — it is an owner in the index and in log lines. InvalidArgument(`field`).
+Status CheckTokenName(const std::string& name, const std::string& field);
+
 
 }  // namespace bistable
 

@@ -94,8 +94,13 @@ int main(int argc, char** argv) {
     creds = grpc::SslServerCredentials(ssl);
     http_tls = {*cert, *key};
   }
-  if (!(lease_seconds > 0)) {
-    std::cerr << "error: invalid argument (lease-seconds: lease-seconds = " << lease_seconds << " violates lease-seconds > 0)\n";
+  if (!(lease_seconds > 0 && lease_seconds <= bistable::limits::kMaxLeaseSeconds)) {  // NaN fails too; workers refuse more
+    std::cerr << "error: invalid argument (lease-seconds: lease-seconds = " << lease_seconds << " violates lease-seconds in (0, "
+              << static_cast<long>(bistable::limits::kMaxLeaseSeconds) << "])\n";
+    return bistable::kExitError;
+  }
+  if (!(job_seconds > 0 && job_seconds <= 3600)) {  // NaN fails too
+    std::cerr << "error: invalid argument (job-seconds: job-seconds = " << job_seconds << " violates job-seconds in (0, 3600])\n";
     return bistable::kExitError;
   }
   auto coord = bistable::SweepCoordinator::Open(data, {.lease_seconds = lease_seconds, .resume = true});

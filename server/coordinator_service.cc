@@ -251,16 +251,16 @@ grpc::Status CoordinatorService::RegisterWorker(grpc::ServerContext* ctx, const 
 grpc::Status CoordinatorService::Lease(grpc::ServerContext* ctx, const v1::LeaseRequest* req, v1::LeaseReply* rep) {
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kLease, &who); !st.ok()) return Answer(ctx, "Lease", st);
-  return Answer(ctx, "Lease", LeaseInto(req->worker(), rep, req->max_jobs()));
+  return Answer(ctx, "Lease", LeaseInto(req->worker(), who, rep, req->max_jobs()));
 }
 
-Status CoordinatorService::LeaseInto(const std::string& worker, v1::LeaseReply* rep, int max_jobs) {
+Status CoordinatorService::LeaseInto(const std::string& worker, const std::string& who, v1::LeaseReply* rep, int max_jobs) {
   BISTABLE_RETURN_IF_ERROR(CheckWorkerName(worker));
   if (max_jobs < 0 || max_jobs > static_cast<int>(limits::kMaxJobsPerLease))
     return Status::InvalidArgument("max_jobs", "max_jobs = " + std::to_string(max_jobs) + " violates max_jobs in [0, " +
                                                    std::to_string(limits::kMaxJobsPerLease) + "]");
   if (shutting_down_) return Status::IoError("coordinator", "shutting down");
-  auto g = c_->Lease(worker, "", std::max(1, max_jobs));
+  auto g = c_->Lease(worker, "", std::max(1, max_jobs), who);
   if (!g) {
     rep->set_has_job(false);
     return Status::Ok();
@@ -281,7 +281,7 @@ grpc::Status CoordinatorService::Heartbeat(grpc::ServerContext* ctx, const v1::H
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kHeartbeat, &who); !st.ok()) return Answer(ctx, "Heartbeat", st);
   if (Status st = CheckLeaseId(req->lease_id()); !st.ok()) return Answer(ctx, "Heartbeat", st);
-  return Answer(ctx, "Heartbeat", c_->Extend(req->lease_id()));
+  return Answer(ctx, "Heartbeat", c_->Extend(req->lease_id(), who));
 }
 
 grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::ReportRequest* req, v1::ReportReply* rep) {
@@ -304,12 +304,12 @@ grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::Repo
         "be stored under the wrong names; run workers of the coordinator's version"));
   // The coordinator checks the lease, its job's size and layout and every value's domain before it
   // copies anything out of the request.
-  if (Status st = c_->Report(req->lease_id(), req->record_width(), req->values().data(), static_cast<size_t>(req->values_size()));
+  if (Status st = c_->Report(req->lease_id(), req->record_width(), req->values().data(), static_cast<size_t>(req->values_size()), who);
       !st.ok())
     return Answer(ctx, "Report", st);
   if (req->lease_next_for().empty()) return grpc::Status::OK;
   // The report is stored; a failure to lease now is not the report's failure (the worker polls).
-  if (Status st = LeaseInto(req->lease_next_for(), rep->mutable_next(), req->next_max_jobs()); !st.ok()) {
+  if (Status st = LeaseInto(req->lease_next_for(), who, rep->mutable_next(), req->next_max_jobs()); !st.ok()) {
     rep->mutable_next()->Clear();
     rep->mutable_next()->set_has_job(false);
   }
@@ -320,7 +320,7 @@ grpc::Status CoordinatorService::Release(grpc::ServerContext* ctx, const v1::Rel
   std::string who;
   if (Status st = tokens_.Check(ctx, Op::kRelease, &who); !st.ok()) return Answer(ctx, "Release", st);
   if (Status st = CheckLeaseId(req->lease_id()); !st.ok()) return Answer(ctx, "Release", st);
-  return Answer(ctx, "Release", c_->Release(req->lease_id()));
+  return Answer(ctx, "Release", c_->Release(req->lease_id(), who));
 }
 
 grpc::Status CoordinatorService::ListWorkers(grpc::ServerContext* ctx, const v1::ListWorkersRequest*, v1::ListWorkersReply* rep) {

@@ -48,7 +48,7 @@ class CoordinatorService final : public v1::Coordinator::Service {
   grpc::Status Answer(const grpc::ServerContext* ctx, const char* method, const Status& st);
   // Leases the next job for `worker` into `rep` (has_job false when there is none), up to max_jobs
   // (0: 1) queued jobs merged into it.
-  Status LeaseInto(const std::string& worker, v1::LeaseReply* rep, int max_jobs);
+  Status LeaseInto(const std::string& worker, const std::string& who, v1::LeaseReply* rep, int max_jobs);  // bound to who
   StatusOr<std::pair<std::string, std::string>> PublishedMap(const std::string& id_or_prefix) const;
   SweepCoordinator* c_;
   double lease_seconds_, job_seconds_;

@@ -84,7 +84,8 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
       c->Db()->UpsertSweep(failed);
       continue;
     }
-    auto plan = c->Submit(*spec, JobItems(*spec, 2.0, 64), r.owner.empty() ? "local" : r.owner);
+    // Accepted before the restart: resumed beyond the active-sweep limits (which only stop new submits).
+    auto plan = c->SubmitImpl(*spec, JobItems(*spec, 2.0, 64), r.owner.empty() ? "local" : r.owner, /*limits=*/false);
     if (!plan.ok()) {
       c->Log(log::Level::kError, "sweep.resume_failed", {{"sweep", r.id}, {"reason", plan.status().ToString()}});
       SweepRow failed = r;
@@ -111,7 +112,7 @@ std::optional<SweepPlan> SweepCoordinator::ActivePlanLocked(const std::string& i
   return plan;
 }
 
-StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_items, const std::string& owner) {
+StatusOr<SweepPlan> SweepCoordinator::SubmitImpl(const SweepSpec& spec, long job_items, const std::string& owner, bool enforce_limits) {
   const std::string id = spec.Id();
   const long items = std::clamp<long>(job_items, 1, limits::kMaxJobItems);
   {
@@ -119,21 +120,28 @@ StatusOr<SweepPlan> SweepCoordinator::Submit(const SweepSpec& spec, long job_ite
     // One planning per sweep at a time: a concurrent submit of the same spec waits for it.
     plan_cv_.wait(lock, [&] { return !planning_.count(id); });
     if (auto active = ActivePlanLocked(id)) return *active;
+    // Sweeps installed and sweeps being planned (outside the lock) both count: the slot is reserved
+    // here, under mu_, before planning starts, and given back if the plan fails (issue 39: ten
+    // concurrent submits of one token were all accepted while the first ones were still planning).
     int mine = 0, all = 0;
     for (const auto& [sid, s] : sweeps_) {
       if (s.cancelled || s.row.state == SweepState::kDone || s.row.state == SweepState::kFailed) continue;
       ++all;
       if (s.row.owner == owner) ++mine;
     }
-    all += static_cast<int>(planning_.size());
-    if (mine >= limits::kMaxActiveSweepsPerOwner)
+    for (const auto& [pid, p] : planning_) {
+      if (!p.reserves_slot) continue;  // a replan: its sweep is counted above
+      ++all;
+      if (p.owner == owner) ++mine;
+    }
+    if (enforce_limits && mine >= limits::kMaxActiveSweepsPerOwner)
       return Status::FailedPrecondition("'" + owner + "' has " + std::to_string(mine) +
-                                        " sweeps queued or running, the limit per owner is " +
+                                        " sweeps queued, running or being planned, the limit per owner is " +
                                         std::to_string(limits::kMaxActiveSweepsPerOwner) + "; wait for one or cancel one");
-    if (all >= limits::kMaxActiveSweeps)
+    if (enforce_limits && all >= limits::kMaxActiveSweeps)
       return Status::FailedPrecondition("the coordinator holds " + std::to_string(all) +
-                                        " sweeps queued or running, its limit is " + std::to_string(limits::kMaxActiveSweeps));
-    planning_[id] = 1;
+                                        " sweeps queued, running or being planned, its limit is " + std::to_string(limits::kMaxActiveSweeps));
+    planning_[id] = Planning{owner, true};
   }
   const auto plan_start = std::chrono::steady_clock::now();
   auto built = BuildPlan(spec, items);  // outside mu_: leases, reports and status calls go on
@@ -372,7 +380,7 @@ Status SweepCoordinator::Replan(const std::string& id) {
     generation = it->second.generation = ++generation_counter_;  // reports of the old plan store, but count nowhere
     it->second.queue.clear();                       // and nothing is leased while the new one is built
     RevokeLeasesLocked(id);
-    planning_[id] = 1;
+    planning_[id] = Planning{owner, false};
   }
   auto built = BuildPlan(spec, job_items > 0 ? job_items : JobItems(spec, 2.0, 64), std::move(carry));
   std::unique_lock<std::mutex> lock(mu_);
@@ -478,7 +486,8 @@ void SweepCoordinator::RequeueLocked(const LeaseState& l) {
   if (auto w = workers_.find(l.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
 }
 
-std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep, int max_jobs) {
+std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep, int max_jobs,
+                                                  const std::string& identity) {
   std::lock_guard<std::mutex> lock(mu_);
   const double now = Clock(), mono = Monotonic();
   TouchWorkerLocked(worker, now);
@@ -499,13 +508,21 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
   }
   for (long j : jobs) best->job_state[j] = JobState::kLeased;
   best->any_leased = true;
-  char id[48];
-  std::snprintf(id, sizeof id, "%s-%llu-%08x", best->row.id.c_str(), ++lease_counter_,
-                static_cast<unsigned>(lease_salt_()));
+  // 128 bits from the kernel's CSPRNG: a worker that saw any number of lease ids cannot name another's
+  // (the old counter and Mersenne Twister salt were predictable after 624 leases, issue 39).
+  std::string id;
+  do {
+    id = best->row.id + "-";
+    for (int i = 0; i < 4; ++i) {
+      char b[9];
+      std::snprintf(b, sizeof b, "%08x", static_cast<unsigned>(lease_random_()));
+      id += b;
+    }
+  } while (leases_.count(id) || committing_.count(id) || finished_leases_.count(id));
   LeaseGrant g{id, best->row.id, jobs[0], static_cast<int>(jobs.size()), {}, now + opt_.lease_seconds};
   g.items.reserve(items);
   for (long j : jobs) g.items.insert(g.items.end(), best->jobs[j].items.begin(), best->jobs[j].items.end());
-  leases_[g.lease_id] = {g.sweep_id, worker, jobs, best->generation, mono + opt_.lease_seconds};  // g.deadline: the wire's wall time
+  leases_[g.lease_id] = {g.sweep_id, worker, identity, jobs, best->generation, mono + opt_.lease_seconds};  // g.deadline: the wire's wall time
   if (auto w = workers_.find(worker); w != workers_.end()) ++w->second.leases;
   ++stats_.leases_granted;
   Log(log::Level::kDebug, "lease.granted",
@@ -513,12 +530,19 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
   return g;
 }
 
-Status SweepCoordinator::Extend(const std::string& lease_id) {
+namespace {
+Status NotTheLeaseHolder() {
+  return Status::PermissionDenied("the lease was granted to another identity (token): only its holder may extend, report or release it");
+}
+}  // namespace
+
+Status SweepCoordinator::Extend(const std::string& lease_id, const std::string& identity) {
   std::lock_guard<std::mutex> lock(mu_);
   const double mono = Monotonic();
   auto it = leases_.find(lease_id);
   if (it == leases_.end())
     return finished_leases_.count(lease_id) ? Status::Ok() : Status::NotFound("lease '" + lease_id + "' is unknown");
+  if (it->second.identity != identity) return NotTheLeaseHolder();
   if (it->second.deadline < mono) return Status::FailedPrecondition("lease '" + lease_id + "' expired; its job was requeued");
   it->second.deadline = mono + opt_.lease_seconds;
   TouchWorkerLocked(it->second.worker, Clock());
@@ -555,7 +579,7 @@ Status SweepCoordinator::AwaitCommit(unsigned long long ticket) {
   return st;
 }
 
-Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<PointRecord>& records) {
+Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<PointRecord>& records, const std::string& identity) {
   const size_t width = records.empty() ? 0 : records[0].v.size();
   std::vector<double> flat;
   flat.reserve(records.size() * width);
@@ -565,10 +589,11 @@ Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<P
                                                     std::to_string(width) + ")");
     flat.insert(flat.end(), r.v.begin(), r.v.end());
   }
-  return Report(lease_id, width, flat.data(), flat.size());
+  return Report(lease_id, width, flat.data(), flat.size(), identity);
 }
 
-Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const double* values, size_t n_values) {
+Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const double* values, size_t n_values,
+                               const std::string& identity) {
   // The record layout is checked first, without the lock: the width must be that of some layout
   // and every value in its metric's domain (forged or corrupt numbers never reach the cache). The
   // sweep's exact layout (turning points, section points) is compared under the lock below.
@@ -600,6 +625,9 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
       return Status::NotFound("lease is unknown (never granted, revoked by a cancel or a new plan, or granted before a "
                               "coordinator restart)");
     }
+    // One worker token cannot report (in-range, forged) values for another's job: they would serve every
+    // later sweep through the content cache (issue 39).
+    if (it->second.identity != identity) return NotTheLeaseHolder();
     if (it->second.deadline < mono) {
       RequeueExpiredLocked(mono);
       return Status::FailedPrecondition("lease '" + lease_id + "' expired before its report; its job was requeued");
@@ -729,10 +757,11 @@ SweepCoordinator::~SweepCoordinator() {
   if (publisher_.joinable()) publisher_.join();  // finishes queued publications first
 }
 
-Status SweepCoordinator::Release(const std::string& lease_id) {
+Status SweepCoordinator::Release(const std::string& lease_id, const std::string& identity) {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = leases_.find(lease_id);
   if (it == leases_.end()) return Status::NotFound("lease is unknown");
+  if (it->second.identity != identity) return NotTheLeaseHolder();
   ++stats_.leases_released;
   Log(log::Level::kInfo, "lease.released",
       {{"sweep", it->second.sweep_id}, {"job", it->second.job_ids.front()}, {"jobs", it->second.job_ids.size()},

@@ -56,7 +56,7 @@ struct SweepProgress {
 
 // A granted lease: the job's items of one sweep, to be reported before `deadline`.
 struct LeaseGrant {
-  std::string lease_id;    // opaque, unique
+  std::string lease_id;    // opaque, unique, unguessable: the sweep id and 128 random bits
   std::string sweep_id;
   long job_id = 0;          // the first job of the lease
   int jobs = 1;             // jobs merged into this lease
@@ -110,25 +110,31 @@ class SweepCoordinator {
   // queues the missing ones as jobs of about `job_items` items. Submitting a running sweep again is
   // harmless (its plan is returned). `owner` is the submitter's identity; each owner may have
   // limits::kMaxActiveSweepsPerOwner sweeps queued or running (limits::kMaxActiveSweeps in all).
-  StatusOr<SweepPlan> Submit(const SweepSpec& spec, long job_items, const std::string& owner = "local");
+  StatusOr<SweepPlan> Submit(const SweepSpec& spec, long job_items, const std::string& owner = "local") {
+    return SubmitImpl(spec, job_items, owner, true);
+  }
   // The next queued job of the oldest running sweep, after requeueing expired leases; nullopt when
   // there is none (or after Stop()).
   // `only_sweep` restricts the lease to one sweep (the embedded run).
   // `max_jobs` > 1 merges up to that many queued jobs of the sweep into one lease (a larger job for a
   // worker far away or with many cores: one round trip and one stored report for all of them) while
   // their items total at most limits::kMaxJobItems; the lease stands or falls as a whole.
-  std::optional<LeaseGrant> Lease(const std::string& worker, const std::string& only_sweep = "", int max_jobs = 1);
+  // `identity` is the caller's authenticated identity (a token's; "" in the embedded run): the lease is
+  // bound to it, and Extend, Report and Release of it by any other identity are PermissionDenied.
+  std::optional<LeaseGrant> Lease(const std::string& worker, const std::string& only_sweep = "", int max_jobs = 1,
+                                  const std::string& identity = "");
   // Pushes a lease's deadline back by lease_seconds. NotFound for an unknown lease, FailedPrecondition
   // for an expired one.
-  Status Extend(const std::string& lease_id);
+  Status Extend(const std::string& lease_id, const std::string& identity = "");
   // Stores a lease's records (one transaction) and acknowledges; publishes the sweep when complete.
   // A lease reported again after success is acknowledged without storing anything twice. `values`
   // holds the job's items × `width` doubles in the lease's item order; the lease, its plan, the
   // count, the width and every value's domain are checked before anything is stored.
-  Status Report(const std::string& lease_id, size_t width, const double* values, size_t n_values);
-  Status Report(const std::string& lease_id, const std::vector<PointRecord>& records);
+  Status Report(const std::string& lease_id, size_t width, const double* values, size_t n_values,
+                const std::string& identity = "");
+  Status Report(const std::string& lease_id, const std::vector<PointRecord>& records, const std::string& identity = "");
   // Gives a lease's job back to the queue (a worker shutting down).
-  Status Release(const std::string& lease_id);
+  Status Release(const std::string& lease_id, const std::string& identity = "");
   Status Cancel(const std::string& sweep_id);
   // Gathers a sweep's records from the cache, writes its map atomically, marks it done (idempotent;
   // waits for a publication of the sweep in progress). Failure marks the sweep failed. The last
@@ -184,6 +190,7 @@ class SweepCoordinator {
   };
   struct LeaseState {
     std::string sweep_id, worker;
+    std::string identity;             // who leased it (Lease's identity): only they may extend, report, release
     std::vector<long> job_ids;        // one job, or several merged (Lease's max_jobs)
     unsigned long long generation = 0;  // the plan the job belongs to
     double deadline = 0;  // Monotonic() seconds
@@ -196,6 +203,9 @@ class SweepCoordinator {
 
   SweepCoordinator(std::string dir, std::unique_ptr<IndexDb> db, Options opt)
       : data_dir_(std::move(dir)), db_(std::move(db)), opt_(opt), publisher_([this] { PublisherLoop(); }) {}
+  // Submit; `limits` false when Open resumes sweeps the index already holds (accepted before: a restart
+  // must not fail the ninth interrupted sweep of an owner).
+  StatusOr<SweepPlan> SubmitImpl(const SweepSpec& spec, long job_items, const std::string& owner, bool limits);
   // Plans a sweep against the point cache (keys, lookups in bounded batches, jobs). Without mu_.
   StatusOr<Planned> BuildPlan(const SweepSpec& spec, long job_items, RefineCarry carry = {});
   // Makes a built plan the sweep's current one (a new generation) and persists its row. Under mu_.
@@ -264,14 +274,17 @@ class SweepCoordinator {
   std::map<std::string, LeaseState> leases_;
   std::map<std::string, std::string> finished_leases_;  // lease id → sweep id, for duplicate reports
   std::deque<std::string> finished_order_;               // oldest first: bounded memory
-  std::map<std::string, int> planning_;                  // sweep ids being planned (outside mu_)
+  struct Planning {
+    std::string owner;
+    bool reserves_slot = false;  // a submit's reservation of an active-sweep slot (a replan's sweep is counted already)
+  };
+  std::map<std::string, Planning> planning_;             // sweep ids being planned (outside mu_)
   std::condition_variable plan_cv_;                      // with mu_: a planning finished
   unsigned long long generation_counter_ = 0;
   std::map<std::string, WorkerInfo> workers_;
   CoordinatorStats stats_;                                // counters, under mu_
   long next_seq_ = 0;
-  unsigned long long lease_counter_ = 0;
-  std::mt19937 lease_salt_{std::random_device{}()};  // makes lease ids unguessable across restarts
+  std::random_device lease_random_;  // the kernel's CSPRNG (getrandom): lease ids cannot be predicted from earlier ones
   bool stopped_ = false;
   // Publications: one at a time (publish_mu_, taken before mu_); complete sweeps are queued for the
   // publisher thread so that the report completing a sweep is not held up by the map writing.

@@ -8,8 +8,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <ctime>
 #include <limits>
@@ -330,10 +332,8 @@ Status WriteRefinement(hid_t file, const SweepSpec& spec, const RefinedGrid& ref
   return WriteStringAttr(file, "refine_criterion", RefineCriterionName(spec.refine.criterion));
 }
 
-Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records,
-                const RefinedGrid* refined) {
-  Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-  if (!file.ok()) return H5Fail(tmp, "create");
+Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records,
+                 const RefinedGrid* refined) {
   const long np = spec.points();
   const int nic = spec.ic_count();
   std::vector<hsize_t> axis_dims;
@@ -515,6 +515,61 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
       "EDR ratios use the gross injected energy W_in = integral of max(P, 0)."));
   if (H5Fflush(f, H5F_SCOPE_GLOBAL) < 0) return H5Fail(tmp, "flush");
   return Status::Ok();
+}
+
+// Writes `bytes` to a new file `path` (mode 0644); a full disk is said as such.
+Status WriteFileBytes(const std::string& path, const std::vector<char>& bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Status::IoError("map", "create '" + path + "': " + std::strerror(errno));
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int err = n < 0 ? errno : EIO;
+      ::close(fd);
+      return Status::IoError("map", "write '" + path + "': " + (err == ENOSPC || err == EDQUOT ? "disk full (" : "(") +
+                                        std::strerror(err) + ")");
+    }
+    done += static_cast<size_t>(n);
+  }
+  if (::close(fd) != 0) {
+    const int err = errno;
+    return Status::IoError("map", "close '" + path + "': " + (err == ENOSPC || err == EDQUOT ? "disk full (" : "(") +
+                                      std::strerror(err) + ")");
+  }
+  return Status::Ok();
+}
+
+// Builds the map file in memory (HDF5's core driver, no backing store) and writes its image to `tmp`
+// with plain write(2). HDF5 itself never touches the disk: with its own file driver a full disk made
+// a create or a close fail, and HDF5 1.10 keeps a file whose close failed registered half torn down, so
+// its exit handler (H5_term_library) crashed closing it again — SIGSEGV after the disk-full error had
+// been printed (issue 39). The image is the compressed file (smaller than the records it holds).
+Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records,
+                const RefinedGrid* refined) {
+  Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  if (!fapl.ok() || H5Pset_fapl_core(fapl.get(), size_t{8} << 20, /*backing_store=*/0) < 0) return H5Fail(tmp, "core driver");
+  const hid_t id = H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
+  if (id < 0) return H5Fail(tmp, "create");
+  Status st;
+  {
+    const Handle file(id, [](hid_t) -> herr_t { return 0; });  // closed below, checked
+    st = WriteInto(file, tmp, spec, records, refined);  // every other handle is closed when it returns
+  }
+  std::vector<char> image;
+  if (st.ok()) {
+    const ssize_t size = H5Fget_file_image(id, nullptr, 0);
+    if (size < 0) {
+      st = H5Fail(tmp, "file image");
+    } else {
+      image.resize(static_cast<size_t>(size));
+      if (H5Fget_file_image(id, image.data(), image.size()) != size) st = H5Fail(tmp, "file image");
+    }
+  }
+  if (H5Fclose(id) < 0 && st.ok()) st = H5Fail(tmp, "close");  // in memory: nothing left to write
+  if (!st.ok()) return st;
+  return WriteFileBytes(tmp, image);
 }
 
 }  // namespace

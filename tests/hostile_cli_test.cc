@@ -119,6 +119,9 @@ struct Row {
   std::vector<std::vector<std::string>> steps;             // bistable arguments, one process each
   Outcome outcome = Outcome::kOk;
   std::string err_has;                                     // error outcomes: in the failing step's stderr
+  std::string err_lacks;                                   // never in any step's stderr or stdout (a secret)
+  size_t err_max_bytes = 0;                                // > 0: the failing step's stderr is at most this long
+  std::vector<std::string> out_has;                        // outcome ok: in the last step's stdout
   std::vector<std::string> ok_files;                       // outcome ok: exist, not empty
   std::vector<std::string> absent;                         // never exist afterwards
   std::string svg;                                         // outcome ok: an SVG whose text is checked
@@ -337,6 +340,8 @@ std::vector<Row> Rows() {
   // -- 5. Queries: bounded length and nesting (the parser recursed into a segfault).
   rows.push_back(OnSweep("query_10k_nested_parens", Query(Repeat("(", 10000) + "lle < 0" + Repeat(")", 10000)), Outcome::kError,
                          "violates length <= 4096"));
+  rows.push_back(OnSweep("query_limit_negative", {"query", "{id}", "lle < 1e9", "--data", "{data}", "--limit", "-1"}, Outcome::kError,
+                         "limit = -1 violates limit >= 0"));  // issue 39: it printed no point at all
   rows.push_back(OnSweep("query_10k_open_parens", Query(Repeat("(", 10000)), Outcome::kError, "violates length <= 4096"));
   rows.push_back(OnSweep("query_65_nested_parens", Query(Repeat("(", 65) + "lle < 0" + Repeat(")", 65)), Outcome::kError,
                          "violates depth <= 64"));
@@ -455,6 +460,62 @@ std::vector<Row> Rows() {
                        .Error("model")
                        .Files({{"{dir}/d.csv", RecordCsv(200)}}));
   }
+  // -- 9. Tokens (issue 39): a control byte in a token (file or $BISTABLE_TOKEN) used to reach gRPC, which
+  // logs the metadata (the whole token) and aborts; refused before any call, the token never shown.
+  for (const auto& [name, token] : std::vector<std::pair<std::string, std::string>>{
+           {"token_file_with_newline", "SECRETA\nSECRETB\n"}, {"token_file_with_nul", std::string("SECRETA\0SECRETB", 15)},
+           {"token_file_with_escape", "SECRETA\x1b[2JSECRETB"}, {"token_file_with_space", "SECRETA SECRETB"}}) {
+    Row r = Case(name, {{"status", "abc", "--coordinator", "127.0.0.1:1", "--token-file", "{dir}/t"}})
+                .Error("token-file: the token holds")
+                .Files({{"{dir}/t", token}});
+    r.err_lacks = "SECRET";
+    rows.push_back(r);
+  }
+  // A good token in plaintext to an address that is not loopback: refused, unless --insecure-remote (then the
+  // call is made: 0.0.0.0 is this host, nothing listens on port 1, so it cannot reach it).
+  {
+    Row r = Case("token_plaintext_to_a_remote_address", {{"status", "abc", "--coordinator", "0.0.0.0:1", "--token-file", "{dir}/t"}})
+                .Error("refusing to send the bearer token in plaintext to 0.0.0.0:1")
+                .Files({{"{dir}/t", "SECRETAgoodtoken\n"}});
+    r.err_lacks = "SECRET";
+    rows.push_back(r);
+    Row ok = Case("token_plaintext_to_a_remote_address_with_insecure_remote",
+                  {{"status", "abc", "--coordinator", "0.0.0.0:1", "--token-file", "{dir}/t", "--insecure-remote"}})
+                 .Error("cannot reach 0.0.0.0:1")
+                 .Files({{"{dir}/t", "SECRETAgoodtoken\n"}});
+    ok.err_lacks = "SECRET";
+    rows.push_back(ok);
+  }
+  rows.push_back(Case("sweeps_data_is_a_file", {{"sweeps", "--data", "/etc/passwd", "--json"}}).Error("data: '/etc/passwd' is not a directory"));
+  // -- 12. A diverged point (issue 39): its extremes and energies are undefined (null), not 0.0.
+  {
+    Row r = Case("point_diverged_extremes_and_energy_are_null",
+                 {{"point", "--model", "standalone", "--alpha", "3", "--omega", "3", "--dt", "1", "--t-end", "500", "--t-keep", "250", "--json"}});
+    r.out_has = {"\"termination\": \"diverged\"", "\"y_min\": null", "\"y_max\": null", "\"w_in\": null", "\"delta_e\": null"};
+    rows.push_back(r);
+  }
+  // -- 11. Messages stay short (issue 39): a 1 MB unknown key is cut, not echoed whole.
+  {
+    Row r = Case("spec_key_of_one_megabyte", {{"run", "{dir}/big_key.toml", "--data", "{data}", "--no-plots"}})
+                .Error("unknown key 'kkkk")
+                .Files({{"{dir}/big_key.toml", "model = \"coupled\"\n" + std::string(1000000, 'k') + " = 1\n"}});
+    r.err_max_bytes = 4096;
+    rows.push_back(r);
+  }
+  // -- 10. Numbers and names of service commands (issue 39): refused naming the flag and the bound.
+  for (const std::string v : {"nan", "-1", "0", "1e300"})
+    rows.push_back(Case("health_timeout_" + std::string(v == "-1" ? "negative" : v == "1e300" ? "huge" : v),
+                        {{"health", "--coordinator", "127.0.0.1:1", "--timeout", v}})
+                       .Error("violates timeout in (0, 3600] s"));
+  rows.push_back(Case("token_name_with_colon", {{"token", "--name", "a:b"}}).Error("name: name 'a:b' violates name"));
+  rows.push_back(Case("token_name_with_newline", {{"token", "--name", "a\nb"}}).Error("name 'a\\x0ab' violates name"));
+  rows.push_back(Case("token_name_of_65_characters", {{"token", "--name", std::string(65, 'n')}}).Error("at most 64 visible ASCII"));
+  {
+    Row r = Case("token_env_with_control_byte", {{"sweeps", "--coordinator", "127.0.0.1:1"}}).Error("BISTABLE_TOKEN: the token holds a control byte (0x01)");
+    r.env = {{"BISTABLE_TOKEN", "SECRETA\x01SECRETB"}};
+    r.err_lacks = "SECRET";
+    rows.push_back(r);
+  }
   return rows;
 }
 
@@ -507,6 +568,10 @@ TEST_P(HostileCli, Row) {
     SCOPED_TRACE("step " + std::to_string(i) + ": " + row.steps[i][0] + "\nstderr: " + r.err);
     ASSERT_FALSE(r.timed_out) << "timed out";
     ASSERT_EQ(r.signal, 0) << "died of signal " << r.signal << " (" << strsignal(r.signal) << ")";
+    if (!row.err_lacks.empty()) {
+      EXPECT_EQ(r.err.find(row.err_lacks), std::string::npos) << "stderr shows '" << row.err_lacks << "'";
+      EXPECT_EQ(r.out.find(row.err_lacks), std::string::npos) << "stdout shows '" << row.err_lacks << "'";
+    }
     if (i == 0) {
       first_out = r.out;
       if (row.steps[0][0] == "run" && r.exit_code == 0) {
@@ -520,11 +585,13 @@ TEST_P(HostileCli, Row) {
       EXPECT_EQ(r.exit_code, 2) << "an error must be exit 2 (bad input)";
       EXPECT_NE(r.err.find("error: "), std::string::npos) << "no 'error: ' line";
       EXPECT_NE(r.err.find(row.err_has), std::string::npos) << "stderr lacks '" << row.err_has << "'";
+      if (row.err_max_bytes > 0) EXPECT_LE(r.err.size(), row.err_max_bytes) << "stderr of " << r.err.size() << " bytes";
       failed_step = true;
       break;
     }
     if (i + 1 == row.steps.size()) {
       ASSERT_NE(row.outcome, Outcome::kError) << "succeeded; expected an error with '" << row.err_has << "'\nstdout: " << r.out.substr(0, 400);
+      for (const std::string& want : row.out_has) EXPECT_NE(r.out.find(want), std::string::npos) << "stdout lacks '" << want << "':\n" << r.out;
       if (row.json == JsonCheck::kIdentifyFinite) {
         const auto j = nlohmann::json::parse(r.out, nullptr, false);
         ASSERT_TRUE(j.is_object()) << r.out;
@@ -568,6 +635,40 @@ TEST_P(HostileCli, Row) {
 
 INSTANTIATE_TEST_SUITE_P(Table, HostileCli, ::testing::ValuesIn(Rows()),
                          [](const ::testing::TestParamInfo<Row>& info) { return info.param.name; });
+
+// ---- A full disk (issue 39) ----------------------------------------------------------------------
+
+// `bistable run` on a 2 MB tmpfs, ten times, each on a fresh mount: the 60 x 60 sweep's point cache
+// (mostly) fits and its map does not, so the map write meets the full disk. Every run must end with
+// exit 2 and the disk-full message (or, when the WAL happened to leave room, succeed) — never a
+// signal. Before the fix, HDF5 1.10 kept a map file whose close had failed registered half torn
+// down and its exit handler crashed on it: SIGSEGV (139) after the right message, in about half the runs.
+TEST(HostileDisk, RunOnATwoMegabyteTmpfsExitsTwoWithTheDiskFullMessageTenTimes) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs root to mount a small tmpfs";
+  const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "disk_full"));
+  const std::string mnt = (dir / "mnt").string();
+  fs::create_directories(mnt);
+  std::ofstream(dir / "g60.toml") << "model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 60] }\n"
+                                     "omega = { linspace = [0.1, 3, 60] }\n[integration]\nt_end = 20.0\nt_keep = 10.0\n";
+  int disk_full = 0, map_full = 0;
+  for (int run = 0; run < 10; ++run) {
+    SCOPED_TRACE("run " + std::to_string(run));
+    if (RunArgv({"/bin/mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", mnt}).exit_code != 0) GTEST_SKIP() << "cannot mount a tmpfs here";
+    const ExecResult r = RunArgv({BISTABLE_CLI, "run", (dir / "g60.toml").string(), "--data", mnt, "--no-plots", "--quiet"}, dir.string());
+    RunArgv({"/bin/umount", mnt});
+    ASSERT_FALSE(r.timed_out);
+    ASSERT_EQ(r.signal, 0) << "died of signal " << r.signal << " (" << strsignal(r.signal) << ")\n" << r.err;
+    if (r.exit_code == 0) continue;
+    ASSERT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_EQ(r.err.rfind("error: ", 0), 0u) << r.err;
+    EXPECT_NE(r.err.find("disk full"), std::string::npos) << r.err;
+    ++disk_full;
+    if (r.err.find("(map: ") != std::string::npos) ++map_full;
+  }
+  std::printf("  10 runs on a 2 MB tmpfs: %d ended disk full, %d of them writing the map\n", disk_full, map_full);
+  EXPECT_GE(map_full, 1) << "no run met the full disk while writing its map: the case was not exercised";
+  if (!HasFailure()) fs::remove_all(dir);
+}
 
 // ---- GnuplotString --------------------------------------------------------------------------------
 

@@ -8,19 +8,24 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <mutex>
+#include <set>
 #include <sstream>
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include "base/limits.h"
 #include "bistable.grpc.pb.h"
 #include "engine/sweep_spec.h"
+#include "storage/index_db.h"
 #include "storage/map_file.h"
 #include "tests/map_compare.h"
 #include "tests/http_client.h"
@@ -655,6 +660,396 @@ TEST(HostileStartup, UnnamedTokensAreDistinctOwnersAcrossRestarts) {
     EXPECT_TRUE(stub.Cancel(with(ta).get(), c, &cr).ok()) << "A cannot cancel its own sweep after a restart";
   });
   fs::remove_all(dir);
+}
+
+// ---- Issue 39 (hostile input, second round): their own ctest entries (HostileWire.<name>) -------------
+
+std::string Round2Dir(const std::string& what) {
+  const std::string dir = (fs::path(::testing::TempDir()) / ("hostile2_" + what + "_" + std::to_string(::getpid()))).string();
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  bistable_test::RemoveWhenAllPass(dir);
+  return dir;
+}
+
+std::string Sha256Of(const std::string& dir, const std::string& text) {
+  std::ofstream(dir + "/sha.in", std::ios::trunc) << text;
+  const pid_t p = Spawn({"/usr/bin/sha256sum", dir + "/sha.in"}, dir + "/sha.out");
+  Wait(p, 10);
+  return ReadFile(dir + "/sha.out").substr(0, 64);
+}
+
+// Fail 1: the per-owner limit counts sweeps being planned. `n` different specs submitted at once by one
+// identity (a client token, or no token at all): at most kMaxActiveSweepsPerOwner accepted, the rest
+// refused naming the limit. Each plan is big enough (65,536 items) that they overlap; before the fix,
+// every one passed the check because none was installed yet.
+void ConcurrentSubmitsStopAtTheLimit(bool with_token, int n) {
+  const std::string dir = Round2Dir(with_token ? "limit_token" : "limit_anon");
+  const std::string token(64, 'c');
+  std::vector<std::string> extra;
+  if (with_token) {
+    std::ofstream(dir + "/tokens") << "client " << Sha256Of(dir, token) << " alice\n";
+    extra = {"--tokens", dir + "/tokens"};
+  }
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log", extra);
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  auto stub = v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  std::vector<grpc::Status> got(n);
+  std::vector<std::string> ids(n);
+  std::atomic<int> ready{0};
+  std::vector<std::thread> threads;
+  for (int i = 0; i < n; ++i)
+    threads.emplace_back([&, i] {
+      v1::SubmitRequest req;
+      req.set_spec_toml(Spec("alpha = { linspace = [0.1, 3.0, 256] }\nomega = { linspace = [0.1, " + std::to_string(3.0 + 0.01 * i) +
+                             ", 256] }\n"));
+      auto ctx = Ctx(120);
+      if (with_token) ctx->AddMetadata("authorization", "Bearer " + token);
+      ++ready;
+      while (ready.load() < n) std::this_thread::yield();  // all at once
+      v1::SubmitReply rep;
+      got[i] = stub->Submit(ctx.get(), req, &rep);
+      ids[i] = rep.id();
+    });
+  for (auto& t : threads) t.join();
+  int accepted = 0, refused = 0;
+  for (int i = 0; i < n; ++i) {
+    if (got[i].ok()) ++accepted;
+    else if (got[i].error_code() == grpc::StatusCode::FAILED_PRECONDITION &&
+             got[i].error_message().find("limit per owner is 8") != std::string::npos)
+      ++refused;
+    else
+      ADD_FAILURE() << "submit " << i << ": " << got[i].error_code() << " " << got[i].error_message();
+  }
+  std::printf("  %d concurrent submits (%s): %d accepted, %d refused\n", n, with_token ? "one client token" : "no tokens", accepted, refused);
+  EXPECT_EQ(accepted, bistable::limits::kMaxActiveSweepsPerOwner) << "the per-owner limit did not hold under concurrency";
+  EXPECT_EQ(refused, n - bistable::limits::kMaxActiveSweepsPerOwner);
+  // The slots are real: one more submit, now sequential, is refused too; a cancel frees one.
+  v1::SubmitRequest more;
+  more.set_spec_toml(Spec("alpha = [0.77]\n"));
+  auto ctx = Ctx();
+  if (with_token) ctx->AddMetadata("authorization", "Bearer " + token);
+  v1::SubmitReply rep;
+  EXPECT_EQ(stub->Submit(ctx.get(), more, &rep).error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  for (int i = 0; i < n; ++i)
+    if (got[i].ok()) {
+      v1::CancelRequest c;
+      c.set_id(ids[i]);
+      v1::CancelReply cr;
+      auto cctx = Ctx();
+      if (with_token) cctx->AddMetadata("authorization", "Bearer " + token);
+      EXPECT_TRUE(stub->Cancel(cctx.get(), c, &cr).ok());
+    }
+  EXPECT_TRUE(Alive(pid));
+  ::kill(pid, SIGTERM);
+  Wait(pid, 20);
+}
+
+TEST(HostileRound2, ConcurrentSubmitsOfOneTokenStopAtThePerOwnerLimit) { ConcurrentSubmitsStopAtTheLimit(true, 12); }
+TEST(HostileRound2, ConcurrentSubmitsWithoutTokensStopAtThePerOwnerLimit) { ConcurrentSubmitsStopAtTheLimit(false, 20); }
+
+// Fail 2: a token with a newline, a control byte or a NUL is refused before it reaches gRPC (which logs
+// the whole metadata and aborts), by every process that sends one, and never printed.
+TEST(HostileRound2, ATokenWithAControlByteIsRefusedAndNeverPrinted) {
+  const std::string dir = Round2Dir("token");
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log");
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  const std::string secret_a = "SECRETA1b2c3", secret_b = "SECRETB4d5e6";
+  for (const std::string& token : {secret_a + "\n" + secret_b, secret_a + std::string(1, '\0') + secret_b,
+                                   secret_a + "\x01" + secret_b, secret_a + " " + secret_b, secret_a + "\x7f"}) {
+    SCOPED_TRACE(std::to_string(token.size()) + " bytes, byte 13 = " + std::to_string(static_cast<unsigned char>(token[12])));
+    std::ofstream(dir + "/t", std::ios::binary | std::ios::trunc) << token;
+    for (const std::vector<std::string>& argv :
+         {std::vector<std::string>{BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--token-file", dir + "/t"},
+          std::vector<std::string>{BISTABLE_CLI, "status", "abc", "--coordinator", addr, "--token-file", dir + "/t"},
+          std::vector<std::string>{BISTABLE_CLI, "sweeps", "--coordinator", addr, "--token-file", dir + "/t"}}) {
+      const pid_t p = Spawn(argv, dir + "/out");
+      const int code = Wait(p, 20);
+      const std::string err = ReadFile(dir + "/out.err") + ReadFile(dir + "/out");
+      EXPECT_EQ(code, 2) << argv[0] << " " << argv[1] << " (-1: killed by a signal, SIGABRT before the fix)\n" << err;
+      EXPECT_NE(err.find("token-file"), std::string::npos) << err;
+      EXPECT_NE(err.find("the token is not shown"), std::string::npos) << err;
+      EXPECT_EQ(err.find("SECRET"), std::string::npos) << "the token was printed:\n" << err;
+    }
+  }
+  // A good token in plaintext to an address that is not loopback: the worker refuses to start (exit 2).
+  std::ofstream(dir + "/t", std::ios::trunc) << secret_a << "\n";
+  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", "0.0.0.0:1", "--threads", "1", "--token-file", dir + "/t"}, dir + "/plain");
+  EXPECT_EQ(Wait(w, 20), 2) << ReadFile(dir + "/plain.err");
+  EXPECT_NE(ReadFile(dir + "/plain.err").find("--insecure-remote"), std::string::npos) << ReadFile(dir + "/plain.err");
+  EXPECT_TRUE(Alive(pid));
+  ::kill(pid, SIGTERM);
+  Wait(pid, 10);
+}
+
+// Minor: a lease is bound to the token that leased it, and its id cannot be guessed. Worker token B holds
+// the id of A's lease (a leaked log line, a guess): its report of in-range values for A's job, its
+// heartbeat and its release are refused; A's own report is stored. Lease ids carry 128 random bits.
+TEST(HostileRound2, LeasesAreBoundToTheLeasingTokenAndTheirIdsAreUnguessable) {
+  const std::string dir = Round2Dir("lease_identity");
+  const std::string client(64, 'c'), worker_a(64, 'a'), worker_b(64, 'b');
+  std::ofstream(dir + "/tokens") << "client " << Sha256Of(dir, client) << " alice\nworker " << Sha256Of(dir, worker_a)
+                                 << " wa\nworker " << Sha256Of(dir, worker_b) << " wb\n";
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log", {"--tokens", dir + "/tokens"});
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  World w;
+  World* saved = g;
+  g = &w;
+  w.coord = pid;
+  w.stub = v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  auto as = [](const std::string& token) {
+    auto c = Ctx();
+    c->AddMetadata("authorization", "Bearer " + token);
+    return c;
+  };
+  v1::SubmitRequest sreq;
+  sreq.set_spec_toml(Spec("alpha = { linspace = [0.2, 2.0, 20] }\nomega = [0.8, 1.2]\n"));  // several jobs
+  v1::SubmitReply sub;
+  ASSERT_TRUE(w.stub->Submit(as(client).get(), sreq, &sub).ok());
+  v1::LeaseRequest lreq;
+  lreq.set_worker("wa");
+  v1::LeaseReply lease;
+  ASSERT_TRUE(w.stub->Lease(as(worker_a).get(), lreq, &lease).ok());
+  ASSERT_TRUE(lease.has_job());
+  const std::vector<double> honest = Honest(lease);
+  v1::ReportRequest rreq;
+  rreq.set_lease_id(lease.lease_id());
+  rreq.set_record_width(kWidth);
+  rreq.set_catalog_hash(bistable::CatalogHash());
+  rreq.mutable_values()->Add(honest.begin(), honest.end());
+  v1::ReportReply rrep;
+  EXPECT_EQ(w.stub->Report(as(worker_b).get(), rreq, &rrep).error_code(), grpc::StatusCode::PERMISSION_DENIED)
+      << "worker B reported worker A's job";
+  v1::HeartbeatRequest hreq;
+  hreq.set_lease_id(lease.lease_id());
+  v1::HeartbeatReply hrep;
+  EXPECT_EQ(w.stub->Heartbeat(as(worker_b).get(), hreq, &hrep).error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  v1::ReleaseRequest relreq;
+  relreq.set_lease_id(lease.lease_id());
+  v1::ReleaseReply relrep;
+  EXPECT_EQ(w.stub->Release(as(worker_b).get(), relreq, &relrep).error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  EXPECT_TRUE(w.stub->Heartbeat(as(worker_a).get(), hreq, &hrep).ok());
+  EXPECT_TRUE(w.stub->Report(as(worker_a).get(), rreq, &rrep).ok()) << "the holder's own report";
+  // Ids: the sweep id, '-', then 32 hex digits (128 bits from the kernel's CSPRNG), all different.
+  std::set<std::string> ids = {lease.lease_id()};
+  for (v1::LeaseReply l; w.stub->Lease(as(worker_a).get(), lreq, &l).ok() && l.has_job(); l.Clear()) ids.insert(l.lease_id());
+  EXPECT_GE(ids.size(), 2u);
+  for (const std::string& id : ids) {
+    const std::string rand = id.substr(id.find('-') + 1);
+    EXPECT_EQ(id.substr(0, id.find('-')), sub.id()) << id;
+    EXPECT_EQ(rand.size(), 32u) << id;
+    EXPECT_EQ(rand.find_first_not_of("0123456789abcdef"), std::string::npos) << id;
+  }
+  EXPECT_TRUE(Alive(pid));
+  ::kill(pid, SIGTERM);
+  Wait(pid, 10);
+  g = saved;
+}
+
+// Minor: numeric flags of the coordinator are bounded (NaN, negative and absurd values used to be accepted).
+TEST(HostileRound2, CoordinatorRefusesBadNumericFlags) {
+  const std::string dir = Round2Dir("flags");
+  for (const auto& [flag, value] : std::vector<std::pair<std::string, std::string>>{
+           {"--job-seconds", "-1"}, {"--job-seconds", "nan"}, {"--job-seconds", "0"}, {"--job-seconds", "1e300"},
+           {"--lease-seconds", "1e300"}, {"--lease-seconds", "nan"}, {"--lease-seconds", "-1"}}) {
+    const pid_t p = Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", flag, value}, dir + "/log");
+    const int code = Wait(p, 10);
+    const std::string err = ReadFile(dir + "/log.err");
+    EXPECT_EQ(code, 2) << flag << " " << value << "\n" << err;
+    EXPECT_NE(err.find(flag.substr(2) + " = "), std::string::npos) << err;
+    EXPECT_NE(err.find("violates " + flag.substr(2) + " in (0, "), std::string::npos) << err;
+  }
+}
+
+// Minor: a restart resumes every unfinished sweep of the index, also beyond the per-owner limit (ten
+// interrupted embedded runs of one data directory: two used to be marked failed at start).
+TEST(HostileRound2, ARestartResumesEveryInterruptedSweepBeyondThePerOwnerLimit) {
+  const std::string dir = Round2Dir("resume");
+  fs::create_directories(dir + "/data");
+  std::vector<std::string> ids;
+  {
+    auto db = bistable::IndexDb::Open(dir + "/data/index.sqlite");
+    ASSERT_TRUE(db.ok()) << db.status().ToString();
+    for (int i = 0; i < 10; ++i) {
+      const std::string toml = Spec("alpha = [" + std::to_string(0.41 + 0.01 * i) + "]\n");
+      auto spec = bistable::ParseSweepSpec(toml, "resume");
+      ASSERT_TRUE(spec.ok());
+      bistable::SweepRow row;
+      row.id = spec->Id();
+      row.name = "interrupted " + std::to_string(i);
+      row.model = "coupled";
+      row.spec = toml;
+      row.state = bistable::SweepState::kInterrupted;
+      row.items_total = 1;
+      row.owner = "local";
+      ASSERT_TRUE((*db)->UpsertSweep(row).ok());
+      ids.push_back(row.id);
+    }
+  }
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log");
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  auto stub = v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  int failed = 0;
+  for (const std::string& id : ids) {
+    v1::StatusRequest req;
+    req.set_id(id);
+    v1::SweepStatus st;
+    ASSERT_TRUE(stub->GetStatus(Ctx().get(), req, &st).ok());
+    if (st.state() == "failed") ++failed;
+    EXPECT_NE(st.state(), "failed") << id << ": " << st.error();
+  }
+  std::printf("  10 interrupted sweeps of one owner at start: %d failed\n", failed);
+  EXPECT_EQ(ReadFile(dir + "/coord.log.err").find("sweep.resume_failed"), std::string::npos) << ReadFile(dir + "/coord.log.err");
+  ::kill(pid, SIGTERM);
+  Wait(pid, 10);
+}
+
+// Fail 3: a coordinator the worker cannot trust. A fake one (the Coordinator service, in this test) hands
+// the real bistable-worker one lease with hostile values, then nothing; the worker must refuse it (a
+// log line naming the field and the bound, the lease released, nothing reported) and stop cleanly on
+// SIGTERM — before the fix an ic slot of 10^6 or -10^8 segfaulted it, point -1 hung it and point 2^40 was
+// computed and reported.
+class FakeCoordinator final : public v1::Coordinator::Service {
+ public:
+  FakeCoordinator(v1::LeaseReply first, double lease_seconds) : first_(std::move(first)), lease_seconds_(lease_seconds) {}
+  grpc::Status RegisterWorker(grpc::ServerContext*, const v1::RegisterRequest*, v1::RegisterReply* rep) override {
+    rep->set_lease_seconds(lease_seconds_);
+    return grpc::Status::OK;
+  }
+  grpc::Status Lease(grpc::ServerContext*, const v1::LeaseRequest*, v1::LeaseReply* rep) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (leases_++ == 0) *rep = first_;
+    return grpc::Status::OK;
+  }
+  grpc::Status Heartbeat(grpc::ServerContext*, const v1::HeartbeatRequest*, v1::HeartbeatReply* rep) override {
+    rep->set_deadline(1e10);
+    return grpc::Status::OK;
+  }
+  grpc::Status Report(grpc::ServerContext*, const v1::ReportRequest* req, v1::ReportReply*) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    ++reports_;
+    report_values_ = req->values_size();
+    return grpc::Status::OK;
+  }
+  grpc::Status Release(grpc::ServerContext*, const v1::ReleaseRequest* req, v1::ReleaseReply*) override {
+    std::lock_guard<std::mutex> lock(mu_);
+    released_.push_back(req->lease_id());
+    return grpc::Status::OK;
+  }
+  int leases() { std::lock_guard<std::mutex> l(mu_); return leases_; }
+  int reports() { std::lock_guard<std::mutex> l(mu_); return reports_; }
+  int report_values() { std::lock_guard<std::mutex> l(mu_); return report_values_; }
+  std::vector<std::string> released() { std::lock_guard<std::mutex> l(mu_); return released_; }
+
+ private:
+  std::mutex mu_;
+  v1::LeaseReply first_;
+  double lease_seconds_;
+  int leases_ = 0, reports_ = 0, report_values_ = 0;
+  std::vector<std::string> released_;
+};
+
+struct FakeRun {
+  int exit_code = -3;
+  std::string log;
+  int leases = 0, reports = 0, report_values = 0;
+  std::vector<std::string> released;
+};
+
+// Runs the real worker against a fake coordinator serving `first` until `done(log)` or 15 s, then SIGTERM.
+FakeRun RunWorkerAgainst(const std::string& dir, const v1::LeaseReply& first, double lease_seconds,
+                         const std::function<bool(const std::string&, FakeCoordinator&)>& done) {
+  FakeCoordinator fake(first, lease_seconds);
+  grpc::ServerBuilder b;
+  int port = 0;
+  b.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
+  b.RegisterService(&fake);
+  auto server = b.BuildAndStart();
+  FakeRun r;
+  if (!server || port <= 0) return r;
+  static int run = 0;
+  const std::string log = dir + "/worker" + std::to_string(++run) + ".log";
+  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", "127.0.0.1:" + std::to_string(port), "--threads", "1", "--name", "victim"}, log);
+  bool exited = false;
+  for (int i = 0; i < 300; ++i) {
+    int st = 0;
+    if (::waitpid(w, &st, WNOHANG) == w) {
+      r.exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+      exited = true;
+      break;
+    }
+    if (done(ReadFile(log + ".err"), fake)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  if (!exited) {
+    ::kill(w, SIGTERM);
+    r.exit_code = Wait(w, 20);
+  }
+  r.log = ReadFile(log + ".err");
+  r.leases = fake.leases(), r.reports = fake.reports(), r.report_values = fake.report_values(), r.released = fake.released();
+  server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
+  return r;
+}
+
+v1::LeaseReply HostileLease(const std::vector<int64_t>& points, const std::vector<int32_t>& ics) {
+  v1::LeaseReply l;
+  l.set_has_job(true);
+  l.set_lease_id("fake-lease-1");
+  l.set_sweep_id("0123456789ab");
+  l.set_job_id(0);
+  // 2 x 2 grid points, two initial states: points in [0, 3], ic slots in [0, 1].
+  l.set_spec_toml(Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n", "[initial_conditions]\nstates = [[1, 0, 1, 0], [-1, 0, -1, 0]]\n"));
+  for (int64_t p : points) l.add_points(p);
+  for (int32_t i : ics) l.add_ics(i);
+  l.set_deadline(1e10);
+  return l;
+}
+
+TEST(HostileRound2, WorkerRefusesAHostileLeaseFromAFakeCoordinator) {
+  const std::string dir = Round2Dir("fake_coordinator");
+  // The control: an honest lease of the fake is computed and reported (the harness works).
+  {
+    const FakeRun r = RunWorkerAgainst(dir, HostileLease({3, 0}, {0, 1}), 60,
+                                       [](const std::string&, FakeCoordinator& f) { return f.reports() > 0; });
+    EXPECT_EQ(r.exit_code, 0) << r.log;
+    EXPECT_EQ(r.reports, 1) << r.log;
+    EXPECT_EQ(r.report_values, static_cast<int>(2 * kWidth)) << r.log;
+  }
+  struct Case {
+    const char* name;
+    v1::LeaseReply lease;
+    std::string says;  // in the worker's log
+    bool released;     // given back (an item refused after the lease was read); else refused at the wire edge
+  };
+  std::vector<int64_t> million(1'000'000, 0);
+  std::vector<int32_t> million_ics(1'000'000, 0);
+  const std::vector<Case> cases = {
+      {"ic 10^6", HostileLease({0}, {1'000'000}), "ic = 1000000 violates ic in [0, 1]", true},
+      {"ic -10^8", HostileLease({1, 2}, {0, -100'000'000}), "lease.items[1]: ic = -100000000 violates ic in [0, 1]", true},
+      {"point -1", HostileLease({-1}, {0}), "point = -1 violates point in [0, 3]", true},
+      {"point 2^40", HostileLease({int64_t{1} << 40}, {0}), "point = 1099511627776 violates point in [0, 3]", true},
+      {"point one past the grid", HostileLease({0, 4}, {0, 0}), "lease.items[1]: point = 4 violates point in [0, 3]", true},
+      {"points and ics of different lengths", HostileLease({0, 1, 2}, {0, 0}), "3 points and 2 initial-condition slots", false},
+      {"a million items", HostileLease(million, million_ics), "a lease of 1000000 items violates items <= 8192", false},
+      {"no items", HostileLease({}, {}), "lease of 0 items violates items in [1, 8192]", true},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const FakeRun r = RunWorkerAgainst(dir, c.lease, 60, [&](const std::string& log, FakeCoordinator&) {
+      return log.find("lease.refused") != std::string::npos;
+    });
+    EXPECT_EQ(r.exit_code, 0) << "the worker did not stop cleanly (-1: killed by a signal)\n" << r.log;
+    EXPECT_NE(r.log.find(c.says), std::string::npos) << r.log;
+    EXPECT_EQ(r.reports, 0) << "a hostile lease was computed and reported";
+    if (c.released) EXPECT_EQ(r.released, std::vector<std::string>{"fake-lease-1"}) << r.log;
+  }
+  // A lease period the worker cannot heartbeat by: refused at registration, exit 2, not slept on.
+  for (double bad : {std::nan(""), -1.0, 0.0, 1e300}) {
+    const FakeRun r = RunWorkerAgainst(dir, HostileLease({0}, {0}), bad, [](const std::string&, FakeCoordinator&) { return false; });
+    EXPECT_EQ(r.exit_code, 2) << bad << "\n" << r.log;
+    EXPECT_NE(r.log.find("lease_seconds"), std::string::npos) << bad << "\n" << r.log;
+    EXPECT_EQ(r.leases, 0);
+  }
 }
 
 }  // namespace

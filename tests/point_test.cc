@@ -234,6 +234,10 @@ TEST(PointResult, DivergingIntegrationIsAResultNotACrash) {
   EXPECT_EQ(r->termination, Termination::kDiverged);
   EXPECT_TRUE(std::isnan(r->frf_db));
   EXPECT_TRUE(std::isnan(r->lle));
+  // Issue 39: extremes and energies are undefined too, not 0.0 (a value a real run can have).
+  for (double v : {r->y_min, r->y_max, r->w_in, r->w_net, r->w_m, r->w_r, r->delta_e, r->edr_b, r->edr_t,
+                   r->energy_balance_residual})
+    EXPECT_TRUE(std::isnan(v)) << v;
 }
 
 TEST(PointResult, DefaultInitialStateIsRestInThePositiveWell) {

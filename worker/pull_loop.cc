@@ -71,6 +71,19 @@ PullLoopResult RunPullLoop(JobSource& source, const PullLoopOptions& opt) {
     }
     const LeasedJob job = std::move(*next);
     next.reset();
+    // The lease is checked against its spec before anything runs: a hostile or broken coordinator's
+    // out-of-range point or slot would otherwise index past the grid (issue 39). Given back, refused.
+    if (Status bad = CheckItems(*job.spec, job.items, "lease"); !bad.ok()) {
+      const Status rs = source.Release(job);
+      if (opt.log)
+        log::Event(log::Level::kError, "lease.refused",
+                   {{"worker", opt.name}, {"lease", job.lease_id}, {"reason", bad.ToString()},
+                    {"action", rs.ok() ? "released, not computed" : "not computed; release failed"}});
+      fail(bad);
+      if (opt.stop_on_error) break;
+      backoff.Wait();
+      continue;
+    }
     const auto t0 = std::chrono::steady_clock::now();
     const std::optional<std::vector<PointRecord>> records = Compute(source, job, opt.heartbeat_seconds);
     if (!records) {  // cancelled mid-job: report nothing of it, give the job back now

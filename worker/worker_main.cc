@@ -154,6 +154,8 @@ int main(int argc, char** argv) {
   app.add_option("--name", name, "worker name (default host:pid)");
   app.add_option("--token-file", token_file, "file holding this worker's bearer token (else $BISTABLE_TOKEN)");
   app.add_option("--tls-ca", tls_ca, "PEM CA certificate to verify a TLS coordinator");
+  bool insecure_remote = false;
+  app.add_flag("--insecure-remote", insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
   app.add_option("--jobs-per-lease", jobs_per_lease,
                  "merge up to this many queued jobs into one lease (at most 4096 items): fewer, larger round trips "
                  "for a worker far from the coordinator, or to lift a busy coordinator's ceiling (docs/scaling.md)")
@@ -187,7 +189,7 @@ int main(int argc, char** argv) {
   }
   auto token = bistable::LoadToken(token_file);
   if (!token.ok()) return Fail(token.status());
-  auto client = CoordinatorClient::Connect({coordinator, tls_ca, *token});
+  auto client = CoordinatorClient::Connect({coordinator, tls_ca, *token, insecure_remote});
   if (!client.ok()) return Fail(client.status());
   WorkerMetrics metrics;
   metrics.threads.Set(threads);

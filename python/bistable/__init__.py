@@ -120,8 +120,11 @@ def run(spec, data=DEFAULT_DATA, threads=0, progress=False, path_only=False):
     progress bar on stderr. Points already in the data directory's cache are not recomputed.
     Returns an xarray.Dataset (path_only=True: the map file's path).
     """
+    threads = int(threads)
+    if not 0 <= threads <= 1024:  # before the C++ int: 2**63 raised TypeError (issue 39)
+        raise ValueError(f"threads = {threads} violates threads in [0, 1024]")
     text, origin = _spec_text(spec)
-    r = _core.run(text, origin, _os.fspath(data), int(threads), bool(progress))
+    r = _core.run(text, origin, _os.fspath(data), threads, bool(progress))
     return r["file"] if path_only else open_file(r["file"])
 
 
@@ -146,7 +149,12 @@ def sweeps(data=DEFAULT_DATA):
 def query(id, expr, data=DEFAULT_DATA, limit=None):
     """Points of a map where `expr` holds ("frf_db < -3 and lle < 0.01", "motion == chaotic"): the object
     `bistable query --json` prints ({"sweep", "query", "count", "total", "points": [...]})."""
-    return _core.query(str(id), str(expr), _os.fspath(data), -1 if limit is None else int(limit))
+    if limit is not None:
+        limit = int(limit)
+        if limit < 0:  # -5 used to return every point
+            raise ValueError(f"limit = {limit} violates limit >= 0 (None: every point)")
+        limit = min(limit, 2**62)
+    return _core.query(str(id), str(expr), _os.fspath(data), -1 if limit is None else limit)
 
 
 def hbm(**kw):
@@ -198,13 +206,16 @@ def identify(data, **kw):
 class Client:
     """A coordinator over gRPC, through the CLI's own client (TLS with tls_ca, bearer token).
 
-        c = bistable.Client("coordinator:50051", token=open("token").read().strip())
+        c = bistable.Client("coordinator:50051", token=open("token").read().strip(), tls_ca="ca.pem")
         id = c.submit("spec.toml")
         c.wait(id); ds = c.map(id)
     """
 
-    def __init__(self, address, token=None, tls_ca=None):
-        self._c = _core.Client(str(address), "" if token is None else str(token), "" if tls_ca is None else _os.fspath(tls_ca))
+    def __init__(self, address, token=None, tls_ca=None, insecure_remote=False):
+        """A token is refused in plaintext (no tls_ca) to an address that is not loopback unless
+        insecure_remote=True: anyone on the path could read it (ValueError otherwise)."""
+        self._c = _core.Client(str(address), "" if token is None else str(token), "" if tls_ca is None else _os.fspath(tls_ca),
+                               bool(insecure_remote))
 
     def submit(self, spec):
         """Submits a spec (path, TOML text or dict); {"id", "items_total", "items_cached", "jobs"}."""

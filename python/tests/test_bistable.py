@@ -251,6 +251,13 @@ def test_run_gives_the_cli_map_and_open_finds_it(tmp_path):
         bistable.open("ffffffffffff", data=tmp_path / "py")
 
 
+def test_run_threads_out_of_range_raise_value_error_naming_the_bound(tmp_path):
+    # issue 39: 2**63 raised TypeError (the C++ int overflowed before the range check)
+    for threads in (2**63, -1, 1025):
+        with pytest.raises(ValueError, match=f"threads = {threads} violates threads in \\[0, 1024\\]"):
+            bistable.run(SMALL, data=tmp_path / "d", threads=threads)
+
+
 def test_run_takes_paths_and_toml_text_and_refuses_bad_specs(tmp_path):
     spec = tmp_path / "s.toml"
     spec.write_text(bistable._toml_dump(SMALL))
@@ -407,9 +414,14 @@ def test_sweeps_and_query_are_the_cli_json(tmp_path):
     assert q["count"] == int(chaotic.sum())
     assert all(isinstance(p["motion"], str) for p in q["points"])
     assert len(bistable.query(sid, expr, data=data, limit=1)["points"]) == min(1, q["count"])
+    with pytest.raises(ValueError, match="limit = -5 violates limit >= 0"):  # issue 39: it returned every point
+        bistable.query(sid, expr, data=data, limit=-5)
+    assert bistable.query(sid, expr, data=data, limit=2**70)["count"] == q["count"]
     with pytest.raises(ValueError, match="query"):
         bistable.query(sid, "frf_dbb < 0", data=data)
     assert bistable.sweeps(data=tmp_path / "none") == []
+    with pytest.raises(ValueError, match="is not a directory"):  # issue 39: a file was "no sweeps", []
+        bistable.sweeps(data="/etc/passwd")
 
 
 def test_identify_is_the_cli_identify(tmp_path):
@@ -438,6 +450,47 @@ def test_identify_is_the_cli_identify(tmp_path):
 
 def start(cmd, log):
     return subprocess.Popen(cmd, stdout=open(log, "w"), stderr=subprocess.STDOUT)
+
+
+def test_client_refuses_a_token_with_a_control_byte_and_never_shows_it(tmp_path):
+    """Issue 39: a newline, NUL or control byte in a token used to abort the interpreter (gRPC aborts on
+    invalid metadata, logging the token). Each case runs in a child interpreter, so an abort fails the
+    case instead of killing pytest."""
+    log = tmp_path / "coordinator.log"
+    coord = start([os.environ["BISTABLE_COORDINATOR"], "--listen", "127.0.0.1:0", "--data", str(tmp_path / "server")], log)
+    try:
+        address = None
+        for _ in range(400):
+            lines = [x for x in open(log).read().splitlines() if x.startswith("listening on ")]
+            if lines:
+                address = lines[0].split()[-1]
+                break
+            time.sleep(0.025)
+        assert address, open(log).read()
+        for token in ("SECRETA\nSECRETB", "SECRETA\0SECRETB", "SECRETA\x01SECRETB", "SECRETA SECRETB"):
+            code = ("import bistable\n"
+                    "try:\n"
+                    f"    bistable.Client({address!r}, token={token!r}).status('abc')\n"
+                    "except ValueError as e:\n"
+                    "    print('ValueError:', e)\n")
+            r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+            assert r.returncode == 0, (repr(token), r.returncode, r.stderr[-2000:])
+            assert "ValueError:" in r.stdout and "token" in r.stdout, (repr(token), r.stdout)
+            assert "SECRET" not in r.stdout + r.stderr, (repr(token), r.stdout, r.stderr[-2000:])
+    finally:
+        coord.terminate()
+        coord.wait(timeout=20)
+
+
+def test_client_refuses_a_token_in_plaintext_to_an_address_that_is_not_loopback():
+    with pytest.raises(ValueError, match="insecure-remote"):
+        bistable.Client("0.0.0.0:1", token="goodtoken")
+    with pytest.raises(ValueError, match="insecure-remote"):
+        bistable.Client("coordinator.example:50051", token="goodtoken")
+    bistable.Client("127.0.0.1:1", token="goodtoken")  # loopback: plaintext is this host only
+    bistable.Client("0.0.0.0:1")  # no token: nothing to leak
+    with pytest.raises(OSError, match="cannot reach"):  # allowed explicitly: the call is made
+        bistable.Client("0.0.0.0:1", token="goodtoken", insecure_remote=True).status("abc")
 
 
 def test_client_submits_watches_and_fetches_through_a_real_coordinator(tmp_path):
