@@ -5,14 +5,14 @@
 #   fig8_indices.txt, fig7_indices.txt   the samples (grid point indices, row-major alpha x omega)
 #   fig8_truth.csv, fig7_truth.csv       the labels (bench/truth_labels.cc)
 # Usage: bench/labels/make_truth.sh [BUILD_DIR] [GRID]   (GRID fig8 or fig7, default both; one thread, nice 10;
-# 2-4 min per grid on this machine). Sizes: 2,000 points on Fig. 8 (309 chaotic), 3,500 on Fig. 7 (chaos is rarer
+# 2-4 min per grid on this machine). Sizes: 2,000 points on Fig. 8 (309 chaotic), 3,800 on Fig. 7 (chaos is rarer
 # stand-alone: ≥ 300 chaotic points).
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
 build=${1:-$root/build}
 only=${2:-}
-for g in fig8:paper_fig8_frf.toml:38008:2000 fig7:paper_fig7_8_standalone.toml:38007:3500; do
+for g in fig8:paper_fig8_frf.toml:38008:2000 fig7:paper_fig7_8_standalone.toml:38007:3800; do
   IFS=: read -r name spec seed n <<<"$g"
   [[ -n "$only" && "$only" != "$name" ]] && continue
   /usr/bin/python3 - "$n" "$seed" >"$here/${name}_indices.txt" <<'PY'
