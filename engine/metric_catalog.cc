@@ -130,6 +130,8 @@ const char* CategoryColour(const std::string& name) {
   if (name == "intrawell") return "#2c7bb6";
   if (name == "interwell") return "#fdae61";
   if (name == "chaotic") return "#d7191c";
+  if (name == "quasi-periodic") return "#7b3294";  // settled labels: a torus or marginal orbit, purple
+  if (name == "unresolved") return "#636363";      // settled labels: no label within the cap, a darker grey than undefined
   if (name == "ok") return "#1a9850";
   return "";
 }
