@@ -252,6 +252,9 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--settle-confirm", s.integration.settle_confirm,
                   "settled labels: tau after t_keep before a chaotic or quasi-periodic label")
       ->capture_default_str();
+  cmd->add_option("--chaos-01-min", s.metrics.chaos_01_min,
+                  "settled labels: chaos also needs the 0-1 test's K above this (-1: K stored, no veto)")
+      ->capture_default_str();
   cmd->add_option("--settle-cap", s.integration.settle_cap, "settled labels: tau after t_keep, then unresolved")
       ->capture_default_str();
   cmd->add_option("--renorm-every", s.metrics.renorm_every, "Benettin renormalisation interval, steps")->capture_default_str();

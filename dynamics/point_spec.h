@@ -74,6 +74,9 @@ struct MetricSettings {
   int renorm_every = 50;           // Benettin: renormalise the tangent every this many steps
   double chaos_threshold = 0.01;   // LLE (per unit τ) above which motion is called chaotic
   double quasi_lle = 0.003;        // settled labels: |λ| at most this with no period: quasi-periodic/marginal
+  // Settled labels: chaos also needs the 0-1 test's K above this (settle.h); −1 (the default) stores K
+  // without a veto — as a veto at 0.5 it cost recall and removed no transient chaos (docs/numerics.md).
+  double chaos_01_min = -1.0;
   int sample_every = 5;            // window samples for spectrum / Rosenstein / trace: every k-th step
   double period_tol = 1e-3;        // stroboscopic samples closer than this (in y and y') repeat
   int max_period = 16;             // largest period n looked for
@@ -132,6 +135,7 @@ struct PointResult {
   double settle_time = std::numeric_limits<double>::quiet_NaN();
   double lle_sigma = std::numeric_limits<double>::quiet_NaN();
   double label_confidence = std::numeric_limits<double>::quiet_NaN();
+  double chaos_01 = std::numeric_limits<double>::quiet_NaN();  // settled: the 0-1 test's K on the strobes of [T/2, T]
   double lle_rosenstein = 0;      // Rosenstein on sampled y_m; NaN when not computed
   Motion motion = Motion::kUndefined;
   int period = 0;                 // stroboscopic period n (1, 2, ...), 0 when none found

@@ -29,6 +29,8 @@ struct ChainLane {
     double spread = 0;     // rms distance of its strobes from their mean in (y_m, y_m')
   };
   std::vector<Window> windows;
+  std::vector<double> strobes;      // y_m at every strobe since t_keep (the 0-1 test)
+  std::vector<double> strobe_tau;   // their τ − t_keep
   bool done = false;
 };
 
@@ -69,6 +71,93 @@ void LambdaSigma(const ChainLane& c, double from, double* lambda, double* sigma)
     ss += d * d;
   }
   *sigma = std::sqrt(ss / (static_cast<double>(groups) * static_cast<double>(groups - 1)));
+}
+
+// The strobe recurrence of DetectPeriod (point_metrics.cc) without its spectrum: the smallest n whose
+// strobes repeat, 0 when none; −1 when that n ≥ 2 (its sub-harmonic checks need the window's spectrum,
+// so the full metrics decide). Equal to DetectPeriod whenever it returns 0 or 1.
+int RecurrencePeriod(const std::vector<double>& y, const std::vector<double>& v, int max_period, double tol) {
+  const int m = static_cast<int>(y.size());
+  for (int n = 1; n <= max_period; ++n) {
+    const int pairs = std::max(4, (m - n) / 2);
+    if (m - n < pairs) break;
+    bool repeats = true;
+    for (int k = m - n - pairs; k < m - n && repeats; ++k)
+      repeats = std::fabs(y[k] - y[k + n]) <= tol && std::fabs(v[k] - v[k + n]) <= tol;
+    if (repeats) return n == 1 ? 1 : -1;
+  }
+  return 0;
+}
+
+}  // namespace
+
+// The 0-1 test for chaos (Gottwald & Melbourne 2004; the correlation form with the oscillatory term
+// removed, Gottwald & Melbourne 2009, SIAM J. Appl. Dyn. Syst. 8, 129): for the series φ_j (here the
+// strobes y_m, one per forcing period), p_c(n) = Σ_{j≤n} φ_j cos jc, q_c(n) = Σ φ_j sin jc, the mean square
+// displacement M_c(n) over n ≤ N/10, D_c(n) = M_c(n) − (Eφ)² (1 − cos nc)/(1 − cos c), and K_c the
+// correlation of D_c(n) with n; K is the median of K_c over 16 fixed c in (π/5, 4π/5). K ≈ 1 for chaos
+// (the (p, q) walk diffuses), ≈ 0 for regular motion (it stays bounded). NaN for fewer than 64 values.
+double ZeroOneTestK(const double* phi, size_t n_all) {
+  constexpr size_t kMin = 64, kMax = 400;
+  constexpr int kC = 16;
+  if (n_all < kMin) return std::numeric_limits<double>::quiet_NaN();
+  const size_t N = std::min(n_all, kMax);
+  phi += n_all - N;  // the latest
+  double mean = 0;
+  for (size_t j = 0; j < N; ++j) mean += phi[j];
+  mean /= static_cast<double>(N);
+  const size_t ncut = N / 10;
+  std::vector<double> p(N + 1), q(N + 1), d(ncut + 1);
+  std::array<double, kC> ks;
+  for (int ci = 0; ci < kC; ++ci) {
+    // Fixed, irrationally spaced c (golden-ratio offsets) avoid the resonances 2πk/n of periodic data.
+    const double frac = std::fmod(0.5 + 0.6180339887498949 * ci, 1.0);
+    const double c = M_PI / 5 + frac * (3 * M_PI / 5);
+    p[0] = q[0] = 0;
+    const double cc = std::cos(c), sc = std::sin(c);
+    double cj = 1, sj = 0;  // cos jc, sin jc by rotation (re-anchored every 64 terms)
+    for (size_t j = 1; j <= N; ++j) {
+      if (j % 64 == 0) {
+        cj = std::cos(static_cast<double>(j) * c), sj = std::sin(static_cast<double>(j) * c);
+      } else {
+        const double cn = cj * cc - sj * sc;
+        sj = sj * cc + cj * sc, cj = cn;
+      }
+      p[j] = p[j - 1] + phi[j - 1] * cj;
+      q[j] = q[j - 1] + phi[j - 1] * sj;
+    }
+    for (size_t k = 1; k <= ncut; ++k) {
+      double msd = 0;
+      for (size_t j = 0; j + k <= N; ++j) {
+        const double dp = p[j + k] - p[j], dq = q[j + k] - q[j];
+        msd += dp * dp + dq * dq;
+      }
+      msd /= static_cast<double>(N - k + 1);
+      d[k] = msd - mean * mean * (1 - std::cos(static_cast<double>(k) * c)) / (1 - std::cos(c));
+    }
+    double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+    for (size_t k = 1; k <= ncut; ++k) {
+      const double x = static_cast<double>(k), y = d[k];
+      sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y;
+    }
+    const double m = static_cast<double>(ncut);
+    const double vx = sxx - sx * sx / m, vy = syy - sy * sy / m, cxy = sxy - sx * sy / m;
+    ks[ci] = vx > 0 && vy > 0 ? std::clamp(cxy / std::sqrt(vx * vy), -1.0, 1.0) : 0.0;
+  }
+  std::sort(ks.begin(), ks.end());
+  return 0.5 * (ks[kC / 2 - 1] + ks[kC / 2]);
+}
+
+namespace {
+
+// The 0-1 test on a lane's strobes: those of [T/2, T] since t_keep, or the latest 64 when that half holds
+// fewer (low Ω), at most the latest 400.
+double LaneK(const ChainLane& c, double half) {
+  size_t first = 0;
+  while (first < c.strobe_tau.size() && c.strobe_tau[first] < half) ++first;
+  size_t n = c.strobes.size() - first;
+  if (n < 64) n = std::min<size_t>(64, c.strobes.size());
+  return ZeroOneTestK(c.strobes.data() + (c.strobes.size() - n), n);
 }
 
 // The next kernel window (chunk) appended to the label window being assembled.
@@ -149,47 +238,113 @@ class Sink {
         eval_lane[m++] = l;
       }
     }
+    if (m == 0) return;
+    // Per window only what the label needs — λ, the well, the strobes' period and spread — from the raw
+    // record; the window's spectrum only when the strobes recur with n ≥ 2 (the period's sub-harmonic
+    // checks), and every other metric once, from the window the label settles in.
+    std::array<Light, W> light;
     std::array<PointResult, W> got;
-    if (m > 0) ComputeBlockMetrics<W>(eval_raw.data(), eval_spec.data(), m, got.data());
+    std::array<bool, W> have_full{};
+    std::array<int, W> need;
+    int nn = 0;
+    for (int i = 0; i < m; ++i) {
+      const RawLane& r = eval_raw[i];
+      const PointSpec& ps = eval_spec[i];
+      Light& g = light[i];
+      g.diverged = r.diverged;
+      g.lle = r.log_growth / (ps.integration.t_end - ps.integration.t_keep);
+      g.y_min = r.y_min, g.y_max = r.y_max;
+      g.spread = Spread(r.strobe_y, r.strobe_v);
+      g.period = r.diverged ? 0 : RecurrencePeriod(r.strobe_y, r.strobe_v, ps.metrics.max_period, ps.metrics.period_tol);
+      ChainLane& c = *lanes_[eval_lane[i]];
+      const double om = ps.omega, phase = ps.metrics.poincare_phase;
+      for (size_t k = 0; k < r.strobe_y.size(); ++k) {
+        c.strobes.push_back(r.strobe_y[k]);
+        c.strobe_tau.push_back((phase + 2 * M_PI * static_cast<double>(r.strobe_k0 + static_cast<long>(k))) / om - t0);
+      }
+      if (g.period < 0) need[nn++] = i;
+    }
+    FullMetrics(eval_raw.data(), eval_spec.data(), need.data(), nn, got.data(), have_full.data());
+    for (int k = 0; k < nn; ++k) light[need[k]].period = got[need[k]].period;
+    std::array<Label, W> labels;
+    nn = 0;
+    for (int i = 0; i < m; ++i) {
+      labels[i] = Decide(*lanes_[eval_lane[i]], light[i], step);
+      if (labels[i].done && !have_full[i]) need[nn++] = i;
+    }
+    FullMetrics(eval_raw.data(), eval_spec.data(), need.data(), nn, got.data(), have_full.data());
     for (int i = 0; i < m; ++i) {
       const int l = eval_lane[i];
-      Decide(*lanes_[l], std::move(got[i]), step);
+      if (labels[i].done) Finish(*lanes_[l], std::move(got[i]), labels[i], step);
       done[l] = lanes_[l]->done;
     }
   }
 
  private:
-  void Finish(ChainLane& c, PointResult&& r, Motion motion, int period, double lambda, double sigma, double t,
-              double confidence, long step) {
-    r.motion = motion;
-    r.period = period;
-    r.lle = lambda;
-    r.lle_sigma = sigma;
-    r.settle_time = t;
-    r.label_confidence = confidence;
+  struct Light {
+    bool diverged = false;
+    double lle = 0, y_min = 0, y_max = 0, spread = 0;
+    int period = 0;
+  };
+  struct Label {
+    bool done = false;
+    Motion motion = Motion::kUndefined;
+    int period = 0;
+    double lambda = 0, sigma = 0, t = 0, confidence = 0, k01 = 0;
+  };
+
+  // The full metrics (ComputeBlockMetrics, spectrum included) of the windows which[0..n) of raw, into got.
+  void FullMetrics(RawLane* raw, const PointSpec* spec, const int* which, int n, PointResult* got, bool* have) {
+    if (n == 0) return;
+    std::array<RawLane, W> r;
+    std::array<PointSpec, W> sp;
+    std::array<PointResult, W> out;
+    for (int k = 0; k < n; ++k) r[k] = std::move(raw[which[k]]), sp[k] = spec[which[k]];
+    ComputeBlockMetrics<W>(r.data(), sp.data(), n, out.data());
+    for (int k = 0; k < n; ++k) got[which[k]] = std::move(out[k]), have[which[k]] = true;
+  }
+
+  void Finish(ChainLane& c, PointResult&& r, const Label& lb, long step) {
+    r.motion = lb.motion;
+    r.period = lb.period;
+    r.lle = lb.lambda;
+    r.lle_sigma = lb.sigma;
+    r.settle_time = lb.t;
+    r.label_confidence = lb.confidence;
+    r.chaos_01 = lb.k01;
     r.steps = step;
     r.rhs_evals = 4 * step;
     out_[c.item] = std::move(r);
     c.done = true;
   }
 
-  void Decide(ChainLane& c, PointResult&& cur, long step) {
+  Label Decide(ChainLane& c, const Light& cur, long step) {
     const PointSpec& spec = specs_[c.item];
     const double t = static_cast<double>(step) * h_;
     const double since = t - spec.integration.t_keep;
-    if (cur.termination != Termination::kOk) {
-      Finish(c, std::move(cur), Motion::kUndefined, 0, cur.lle, std::numeric_limits<double>::quiet_NaN(), t, 0, step);
-      return;
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    Label lb;
+    lb.t = t;
+    lb.k01 = nan;
+    if (cur.diverged) {
+      lb.done = true, lb.motion = Motion::kUndefined, lb.lambda = nan, lb.sigma = nan;
+      return lb;
     }
     const double thr = spec.metrics.chaos_threshold;
     ChainLane::Window w;
     w.period = cur.period;
     w.well = (!IsBistable(spec.model) || cur.y_min > 0 || cur.y_max < 0) ? 0 : 1;
     w.chaotic = cur.lle > thr;
-    w.spread = Spread(cur.section_y, cur.section_v);
+    w.spread = cur.spread;
     c.windows.push_back(w);
     const Motion well = w.well == 0 ? Motion::kIntrawell : Motion::kInterwell;
     double lambda = cur.lle, sigma = std::numeric_limits<double>::infinity();
+    auto label = [&](Motion m, int period, double conf) {
+      lb.done = true, lb.motion = m, lb.period = period, lb.lambda = lambda, lb.sigma = sigma, lb.confidence = conf;
+      // The 0-1 test where the period does not already tell the motion (K of a periodic label: NaN).
+      if (m == Motion::kChaotic || m == Motion::kQuasiPeriodic || m == Motion::kUnresolved) lb.k01 = LaneK(c, 0.5 * since);
+      return lb;
+    };
     if (c.windows.size() >= 2) {
       LambdaSigma(c, 0.5 * since, &lambda, &sigma);
       const ChainLane::Window& p = c.windows[c.windows.size() - 2];
@@ -199,24 +354,24 @@ class Sink {
       // near −1) alternates from strobe to strobe and passes the recurrence test while it shrinks.
       const double ratio = p.spread > 0 ? w.spread / p.spread : 0.0;
       const bool cloud_kept = w.period == 1 || (ratio >= 0.97 && ratio <= 1.03);
-      if (w.period >= 1 && p.period == w.period && p.well == w.well && cloud_kept && lambda + 2 * sigma < 0) {
-        Finish(c, std::move(cur), well, w.period, lambda, sigma, t, conf, step);
-        return;
-      }
+      if (w.period >= 1 && p.period == w.period && p.well == w.well && cloud_kept && lambda + 2 * sigma < 0)
+        return label(well, w.period, conf);
       if (confirmed && w.period == 0 && p.period == 0 && w.chaotic && p.chaotic && lambda - 2 * sigma > thr) {
-        Finish(c, std::move(cur), Motion::kChaotic, 0, lambda, sigma, t, conf, step);
-        return;
+        // The second, independent indicator: the 0-1 test on the strobes must agree (K > 1/2); where it
+        // cannot run (fewer than 64 strobes since t_keep, Ω ≲ 0.2 at the defaults) λ − 2σ decides alone.
+        const double k = LaneK(c, 0.5 * since);
+        if (!(k <= spec.metrics.chaos_01_min)) {
+          lb.done = true, lb.motion = Motion::kChaotic, lb.lambda = lambda, lb.sigma = sigma, lb.confidence = conf;
+          lb.k01 = k;
+          return lb;
+        }
       }
       if (confirmed && w.period == 0 && p.period == 0 && p.well == w.well &&
-          std::fabs(lambda) <= spec.metrics.quasi_lle && lambda + 2 * sigma < thr && ratio >= 0.8 && ratio <= 1.25) {
-        Finish(c, std::move(cur), Motion::kQuasiPeriodic, 0, lambda, sigma, t, conf, step);
-        return;
-      }
+          std::fabs(lambda) <= spec.metrics.quasi_lle && lambda + 2 * sigma < thr && ratio >= 0.8 && ratio <= 1.25)
+        return label(Motion::kQuasiPeriodic, 0, conf);
     }
-    if (step >= c.cap_step) {
-      const int period = cur.period;
-      Finish(c, std::move(cur), Motion::kUnresolved, period, lambda, sigma, t, 0.0, step);
-    }
+    if (step >= c.cap_step) return label(Motion::kUnresolved, cur.period, 0.0);
+    return lb;
   }
 
   const PointSpec* specs_;
@@ -262,9 +417,10 @@ bool EvaluateSettled(const PointSpec* specs, size_t n, PointResult* out) {
     pending.push_back(c.get());
     all[i] = std::move(c);
   }
-  // Rounds: fresh lanes from step 0 to the first tier, then the lanes not yet settled, side by side,
-  // from each tier to the next (t_keep + 4 windows · 2^k), until none is left.
-  long from = 0, tier = n_keep + 4 * win;
+  // Rounds: fresh lanes from step 0 to the first tier — the earliest label, t_keep + 2 windows — then the
+  // lanes not yet settled, packed side by side, one window at a time, until none is left. A lane that is
+  // done keeps stepping unseen only to the end of its round, so every round's blocks are full but the last.
+  long from = 0, tier = n_keep + 2 * win;
   while (!pending.empty()) {
     const long to = std::min(tier, max_cap);
     std::vector<ChainLane*> next;
@@ -289,7 +445,7 @@ bool EvaluateSettled(const PointSpec* specs, size_t n, PointResult* out) {
     }
     pending.swap(next);
     from = to;
-    tier = n_keep + 2 * (tier - n_keep);
+    tier += win;
   }
   return true;
 }

@@ -63,6 +63,7 @@ nlohmann::json SettingsJson(const PointSpec& s) {
     j["settle_confirm"] = s.integration.settle_confirm;
     j["settle_cap"] = s.integration.settle_cap;
     j["quasi_lle"] = s.metrics.quasi_lle;
+    j["chaos_01_min"] = s.metrics.chaos_01_min;
   }
   if (HasResonator(s.model)) {
     j["eta_r"] = s.params.eta_r;
@@ -99,6 +100,7 @@ nlohmann::json PointJson(const PointSpec& spec, const PointResult& r) {
       {"settle_time", r.settle_time},
       {"lle_sigma", r.lle_sigma},
       {"label_confidence", r.label_confidence},
+      {"chaos_01", r.chaos_01},
       {"steps", r.steps},
       {"rhs_evals", r.rhs_evals},
       {"settings", SettingsJson(spec)},

@@ -45,6 +45,7 @@ const std::vector<MetricInfo>& MetricCatalog() {
       {"settle_time", "tau", "settled labels: tau at which the label settled (the run's end); NaN in the paper's mode", false, 0, 1e12, true, "time at which the label settled"},
       {"lle_sigma", "1/tau", "settled labels: block-average standard error of lle; NaN in the paper's mode", false, 0, 1e12, true, "standard error of the largest Lyapunov exponent"},
       {"label_confidence", "fraction", "settled labels: Phi(|lle - chaos_threshold| / lle_sigma), 0 when unresolved; NaN in the paper's mode", false, 0, 1, true, "confidence of the motion label"},
+      {"chaos_01", "", "settled labels: K of the 0-1 test for chaos (Gottwald-Melbourne, median over 16 c) on the strobes y_m of [T/2, T] (at least the latest 64), for chaotic, quasi-periodic and unresolved labels; near 1 chaotic, near 0 regular; NaN for a periodic label, with fewer than 64 strobes, or in the paper's mode", false, -1, 1, true, "0-1 test for chaos, K"},
   };
   return kCatalog;
 }
@@ -182,7 +183,8 @@ PointRecord PointRecord::From(const PointResult& r, bool turning_points, int poi
          r.strobe_v,
          r.settle_time,
          r.lle_sigma,
-         r.label_confidence};
+         r.label_confidence,
+         r.chaos_01};
   const double nan = std::numeric_limits<double>::quiet_NaN();
   // A float outside its metric's domain is not a measurement (an overflow in a degenerate run): NaN.
   const auto& catalog = MetricCatalog();

@@ -42,7 +42,7 @@ const std::vector<std::string> kIntegrationKeys = {"integrator",    "dt",       
                                                    "t_keep",        "rtol",         "atol",
                                                    "labels",        "settle_window", "settle_min_strobes",
                                                    "settle_confirm", "settle_cap"};
-const std::vector<std::string> kMetricKeys = {"store",     "chaos_threshold", "rosenstein", "renorm_every",
+const std::vector<std::string> kMetricKeys = {"store",     "chaos_threshold", "chaos_01_min", "rosenstein", "renorm_every",
                                               "sample_every", "period_tol",  "max_period", "hd_level",
                                               "poincare_points", "poincare_phase"};
 // Section points stored per point when "poincare" is stored and poincare_points is not given.
@@ -461,7 +461,7 @@ std::string SweepSpec::CanonicalText() const {
   if (in.labels == LabelMode::kSettled)
     os << "labels=settled\nsettle_window=" << G17(in.settle_window) << "\nsettle_min_strobes=" << in.settle_min_strobes
        << "\nsettle_confirm=" << G17(in.settle_confirm) << "\nsettle_cap=" << G17(in.settle_cap)
-       << "\nquasi_lle=" << G17(base.metrics.quasi_lle) << "\n";
+       << "\nquasi_lle=" << G17(base.metrics.quasi_lle) << "\nchaos_01_min=" << G17(base.metrics.chaos_01_min) << "\n";
   const MetricSettings& m = base.metrics;
   os << "renorm_every=" << m.renorm_every << "\nchaos_threshold=" << G17(m.chaos_threshold)
      << "\nsample_every=" << m.sample_every << "\nperiod_tol=" << G17(m.period_tol) << "\nmax_period=" << m.max_period
@@ -771,6 +771,7 @@ Status ReadMetrics(const toml::table& root, SweepSpec& spec) {
         spec.metrics.push_back("termination");  // always stored: a map must say which points failed
     }
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "chaos_threshold", "metrics.chaos_threshold", &m.chaos_threshold));
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "chaos_01_min", "metrics.chaos_01_min", &m.chaos_01_min));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "period_tol", "metrics.period_tol", &m.period_tol));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "hd_level", "metrics.hd_level", &m.hd_level));
     BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "renorm_every", "metrics.renorm_every", &m.renorm_every, 1, limits::kMaxEvery));

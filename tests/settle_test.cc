@@ -148,3 +148,48 @@ TEST(Settle, SpecReadsTheLabelMode) {
 
 }  // namespace
 }  // namespace bistable
+
+namespace bistable {
+namespace {
+
+// The 0-1 test (Gottwald & Melbourne): K ≈ 1 on a chaotic series (the logistic map at r = 4), ≈ 0 on a
+// regular one (a quasi-periodic sum of two incommensurate tones, a period-3 cycle); NaN when too short.
+TEST(Settle, ZeroOneTestTellsChaosFromRegularSeries) {
+  std::vector<double> chaos(400), torus(400), cycle(400);
+  double x = 0.3;
+  for (size_t j = 0; j < chaos.size(); ++j) {
+    x = 4 * x * (1 - x);
+    chaos[j] = x;
+    torus[j] = std::sin(0.7 * j) + 0.5 * std::sin(0.7 * std::sqrt(2.0) * j);
+    cycle[j] = j % 3 == 0 ? 0.2 : j % 3 == 1 ? 0.9 : 0.5;
+  }
+  EXPECT_GT(ZeroOneTestK(chaos.data(), chaos.size()), 0.9);
+  EXPECT_LT(std::fabs(ZeroOneTestK(torus.data(), torus.size())), 0.2);
+  EXPECT_LT(std::fabs(ZeroOneTestK(cycle.data(), cycle.size())), 0.2);
+  EXPECT_TRUE(std::isnan(ZeroOneTestK(chaos.data(), 63)));
+}
+
+// A chaotic point carries its 0-1 K; a periodic one NaN; a veto above every K turns chaos into an
+// extended run that ends unresolved at the cap.
+TEST(Settle, ChaoticLabelsCarryTheirZeroOneTestAndTheVetoHolds) {
+  PointSpec s = Settled(ModelKind::kStandalone, 0.3472222222222222, 1.2);  // Ueda/Holmes Duffing attractor
+  s.params.eta = 0.3;
+  auto r = EvaluatePoint(s);
+  ASSERT_TRUE(r.ok());
+  ASSERT_EQ(r->motion, Motion::kChaotic);
+  EXPECT_GT(r->chaos_01, 0.5);  // 0.78 from the ~190 strobes of [T/2, T]
+  PointSpec p = Settled(ModelKind::kCoupled, 1.0, 2.5);
+  auto q = EvaluatePoint(p);
+  ASSERT_TRUE(q.ok());
+  EXPECT_NE(q->motion, Motion::kChaotic);
+  if (q->period >= 1) EXPECT_TRUE(std::isnan(q->chaos_01));
+  s.metrics.chaos_01_min = 1.0;
+  s.integration.settle_cap = 3000;
+  auto v = EvaluatePoint(s);
+  ASSERT_TRUE(v.ok());
+  EXPECT_EQ(v->motion, Motion::kUnresolved);
+  EXPECT_DOUBLE_EQ(v->settle_time, 3250.0);
+}
+
+}  // namespace
+}  // namespace bistable
