@@ -122,7 +122,9 @@ std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::ve
   for (const Category& c : MetricCategories(metric)) named.emplace_back(c.code, c.name);
   if (metric == "period") named.emplace_back(0, "none found");  // a count whose 0 means "no period"
   for (const auto& [value, name] : named) {
-    const bool shown = metric == "period" || (metric == "motion" && value != kMotionUndefined) || present.count(value);
+    // Motion: the paper's three kinds always (their colours stay put when one is absent); undefined and the settled
+    // labels' quasi-periodic (3) and unresolved (4) when present.
+    const bool shown = metric == "period" || (metric == "motion" && value >= 0 && value <= 2) || present.count(value);
     if (!shown) continue;
     codes.push_back({static_cast<double>(value), name, CategoryColour(name)});  // the named codes' fixed colours
   }

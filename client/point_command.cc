@@ -25,6 +25,7 @@ namespace {
 struct PointArgs {
   std::string model = "coupled";
   std::string integrator = "rk4";
+  std::string labels = "paper";
   std::string ic;
   std::string trace;
   std::string poincare, poincare_plot;  // section CSV ("-": standard output) and figure
@@ -151,6 +152,9 @@ int RunPoint(PointArgs& a) {
   PointSpec spec = a.spec;
   spec.model = *model;
   spec.integration.integrator = *integ;
+  auto labels = ParseLabelMode(a.labels);
+  if (!labels.ok()) return Fail(labels.status());
+  spec.integration.labels = *labels;
   if (!a.ic.empty()) {
     spec.ic_given = true;
     Status st = ParseIc(a.ic, &spec.ic);
@@ -240,6 +244,19 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--atol", s.integration.atol, "adaptive: absolute tolerance")->capture_default_str();
   cmd->add_option("--ic", args->ic, "initial state ym,vm[,yr,vr] (default: at rest in the positive well; linear: origin)");
   cmd->add_option("--chaos-threshold", s.metrics.chaos_threshold, "LLE above which motion is chaotic")->capture_default_str();
+  cmd->add_option("--labels", args->labels,
+                  "paper (one window [t_keep, t_end]) | settled (windows of --settle-window from t_keep until the "
+                  "label settles, up to --settle-cap; t_end unused; docs/numerics.md)")
+      ->capture_default_str();
+  cmd->add_option("--settle-window", s.integration.settle_window, "settled labels: window, tau")->capture_default_str();
+  cmd->add_option("--settle-confirm", s.integration.settle_confirm,
+                  "settled labels: tau after t_keep before a chaotic or quasi-periodic label")
+      ->capture_default_str();
+  cmd->add_option("--chaos-01-min", s.metrics.chaos_01_min,
+                  "settled labels: chaos also needs the 0-1 test's K above this (-1: K stored, no veto)")
+      ->capture_default_str();
+  cmd->add_option("--settle-cap", s.integration.settle_cap, "settled labels: tau after t_keep, then unresolved")
+      ->capture_default_str();
   cmd->add_option("--renorm-every", s.metrics.renorm_every, "Benettin renormalisation interval, steps")->capture_default_str();
   cmd->add_option("--sample-every", s.metrics.sample_every, "window sampling for spectrum/Rosenstein/trace, steps")
       ->capture_default_str();

@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 
 #include "dynamics/cancel.h"
 #include "dynamics/lane_run.h"
@@ -32,6 +33,10 @@ struct LaneInput {
   CellCoeffs<double> coeffs;
   double alpha = 0, omega = 0;      // α, Ω
   std::array<double, 4> x0 = {};    // initial (y_m, y_m', y_r, y_r')
+  // A chain resumed at KernelSettings::step0 > 0 (RunChain): the tangent and forcing phase a window's
+  // raw record gave (final_tangent, final_sin, final_cos), x0 its final_state.
+  std::array<double, 4> resume_tangent = {};
+  double resume_sin = 0, resume_cos = 1;
 };
 
 struct KernelSettings {
@@ -43,6 +48,10 @@ struct KernelSettings {
   bool keep_samples = false;  // y_m samples (spectrum, Rosenstein)
   bool keep_rows = false;     // full rows (trace)
   double strobe_phase = 0;    // φ of the strobes τ_k = (φ + 2πk)/Ω (Poincaré section, period)
+  // RunChain only: windows of this many steps from n_keep, and the step the lanes start from (0, or
+  // where they resume; n_keep ≥ step0).
+  long window_steps = 0;
+  long step0 = 0;
 };
 
 template <class Model, int W>
@@ -57,13 +66,48 @@ class EnsembleRk4 {
   // false when cancellation was requested before the end: the run stopped early and out[0..n) hold
   // no result (marked diverged, steps short of n_total) — callers must discard them.
   static bool Run(const LaneInput* lanes, int n, const KernelSettings& s, RawLane* out) {
+    return RunImpl(lanes, n, s, out, static_cast<WindowSink*>(nullptr));
+  }
+
+  // A chain of windows (settled labels, dynamics/settle.h): from s.step0 (0, or the step where every
+  // lane resumes from LaneInput::resume) the lanes integrate to s.n_total, and every s.window_steps
+  // steps from s.n_keep the window so far is handed to sink.OnWindow(raw, n, step, done) — the raw
+  // records hold final_state/final_tangent/final_sin/final_cos, from which a later RunChain resumes
+  // bit for bit — and a fresh window starts. The sink sets done[l] for lanes that need no more
+  // windows; the run ends when every lane is done or at n_total. A lane's arithmetic, and so every
+  // window's bits, is its own: done lanes keep stepping, unseen. False when cancelled.
+  template <class Sink>
+  static bool RunChain(const LaneInput* lanes, int n, const KernelSettings& s, Sink& sink) {
+    return RunImpl(lanes, n, s, static_cast<RawLane*>(nullptr), &sink);
+  }
+
+  struct WindowSink {
+    void OnWindow(RawLane*, int, long, bool*) {}
+  };
+
+ private:
+  template <class Sink>
+  static bool RunImpl(const LaneInput* lanes, int n, const KernelSettings& s, RawLane* out, Sink* sink) {
     double alpha[W], omega[W];
     CellCoeffs<V> c;
     V amp, x[D], w[D], rot_c, rot_s;
     LoadLanes(lanes, n, s.h, alpha, omega, &c, &amp, x, w, &rot_c, &rot_s);
-    WindowRecorder<D, W> rec(alpha, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows, s.strobe_phase);
+    // The current window [win.n_keep, win.n_total]: the whole [n_keep, n_total] for Run, a link of
+    // the chain for RunChain.
+    KernelSettings win = s;
+    if (sink) win.n_total = std::min(s.n_keep + s.window_steps, s.n_total);
+    std::optional<WindowRecorder<D, W>> rec_holder;
+    rec_holder.emplace(alpha, omega, s.h, win.n_keep, s.sample_every, s.keep_samples, s.keep_rows, s.strobe_phase);
     V sn, cs;
-    AnchorPhase<W>(omega, 0, s.h, &sn, &cs);
+    if (s.step0 > 0) {
+      for (int l = 0; l < W; ++l) {
+        const LaneInput& in = lanes[l < n ? l : 0];
+        sn[l] = in.resume_sin, cs[l] = in.resume_cos;
+        for (int d = 0; d < D; ++d) w[d][l] = in.resume_tangent[d];
+      }
+    } else {
+      AnchorPhase<W>(omega, 0, s.h, &sn, &cs);
+    }
     V k1[D];
     Model::Rhs(c, x, amp * sn, k1);
     // ∫P, ∫max(P,0), W_m, W_r over the window: the composite trapezoid rule on the step ends with the
@@ -75,6 +119,7 @@ class EnsembleRk4 {
     for (int l = 0; l < W; ++l) om[l] = omega[l];
     V e_start = Splat<W>(0.0);
     bool diverged[W] = {};
+    bool done[W] = {};
     V growth = Splat<W>(1.0);  // product of the tangent's norms since the last FlushGrowth
     int growth_batch = 0;
 
@@ -82,19 +127,20 @@ class EnsembleRk4 {
     // whose loop holds no call; the loop below does the others one at a time. A trace (keep_rows)
     // takes the general path throughout.
     const Consts k{c, amp, rot_c, rot_s, s.h};
-    for (long step = 1; step <= s.n_total; ++step) {
+    for (long step = s.step0 + 1; step <= s.n_total; ++step) {
+      WindowRecorder<D, W>& rec = *rec_holder;
       if (!s.keep_rows) {
-        const long stop = NextSpecialStep(step, s, rec.next_due(), growth_batch);
+        const long stop = NextSpecialStep(step, win, rec.next_due(), growth_batch);
         while (step < stop) {
           TangentState tg{&growth, &growth_batch, diverged, s.renorm_every};
-          step = step > s.n_keep ? RunFast<true>(k, step, stop, x, k1, w, q, &sn, &cs, &rec, tg)
-                                 : RunFast<false>(k, step, stop, x, k1, w, q, &sn, &cs, &rec, tg);
+          step = step > win.n_keep ? RunFast<true>(k, step, stop, x, k1, w, q, &sn, &cs, &rec, tg)
+                                   : RunFast<false>(k, step, stop, x, k1, w, q, &sn, &cs, &rec, tg);
           if (rec.TurningPointBufferFull()) rec.FlushTurningPoints();
         }
       }
-      if (step == s.n_keep + 1) {
+      if (step == win.n_keep + 1) {
         e_start = Model::Energy(c, x);
-        rec.OnStep(s.n_keep, x, k1, x, k1, cs);
+        rec.OnStep(win.n_keep, x, k1, x, k1, cs);
         Quad(c, x, amp * sn, g0);
         QuadRate(c, x, k1, amp * sn, amp * om * cs, g0, gd0);
       }
@@ -102,32 +148,61 @@ class EnsembleRk4 {
       V xp[D], kp[D];
       for (int d = 0; d < D; ++d) xp[d] = x[d], kp[d] = k1[d];
       Step(c, amp, rot_c, rot_s, s.h, x, k1, w, &sn, &cs);
-      if (step > s.n_keep) {
+      if (step > win.n_keep) {
         Quad(c, x, amp * sn, g_last);
         for (int i = 0; i < 4; ++i) q[i] = q[i] + g_last[i];
       }
       if (step % kReanchor == 0) {
-        if (CancelRequested()) [[unlikely]] return MarkCancelled(n, step, out);
+        if (CancelRequested()) [[unlikely]] {
+          if (out) MarkCancelled(n, step, out);
+          return false;
+        }
         AnchorPhase<W>(omega, step, s.h, &sn, &cs);
         Model::Rhs(c, x, amp * sn, k1);  // derivative consistent with the re-anchored phase
       }
-      if (step > s.n_keep) rec.OnStep(step, xp, kp, x, k1, cs);
-      if (step % s.renorm_every == 0 || step == s.n_keep || step == s.n_total) {
-        if (step > s.n_keep) {
+      if (step > win.n_keep) rec.OnStep(step, xp, kp, x, k1, cs);
+      if (step % s.renorm_every == 0 || step == win.n_keep || step == win.n_total) {
+        if (step > win.n_keep) {
           Renormalise(w, &growth, diverged, x);
-          const bool batch_done = ++growth_batch == kGrowthBatch || step == s.n_total;
+          const bool batch_done = ++growth_batch == kGrowthBatch || step == win.n_total;
           if (batch_done) growth_batch = 0;
           FlushGrowth(&growth, batch_done, &rec);
+          if (batch_done) rec.EndGrowthBatch(step);
         } else {
           Renormalise(w, nullptr, diverged, x);  // growth before the window is not used
         }
       }
+      if (sink && step == win.n_total) {
+        // The window ends: its records to the sink, then a fresh window (or the end).
+        RawLane raw[W];
+        FinishWindow(c, amp, om, x, k1, w, sn, cs, q, g0, gd0, g_last, e_start, diverged, n, step, rec, raw);
+        sink->OnWindow(raw, n, step, done);
+        bool all = true;
+        for (int l = 0; l < n; ++l) all = all && done[l];
+        if (all || step == s.n_total) return true;
+        win.n_keep = step;
+        win.n_total = std::min(step + s.window_steps, s.n_total);
+        rec_holder.reset();
+        rec_holder.emplace(alpha, omega, s.h, win.n_keep, s.sample_every, s.keep_samples, s.keep_rows, s.strobe_phase);
+        for (int i = 0; i < 4; ++i) q[i] = g0[i] = gd0[i] = g_last[i] = Splat<W>(0.0);
+        growth = Splat<W>(1.0);
+        growth_batch = 0;
+      }
     }
+    if (sink) return true;
+    FinishWindow(c, amp, om, x, k1, w, sn, cs, q, g0, gd0, g_last, e_start, diverged, n, s.n_total, *rec_holder, out);
+    return true;
+  }
+
+  // The window's quadratures closed with the end correction, and its records moved into out[0..n).
+  static void FinishWindow(const CellCoeffs<V>& c, V amp, V om, const V* x, const V* k1, const V* w, V sn, V cs,
+                           const V* q_in, const V* g0, const V* gd0, const V* g_last, V e_start,
+                           const bool* diverged, int n, long step, WindowRecorder<D, W>& rec, RawLane* out) {
     const V e_end = Model::Energy(c, x);
-    V gd_last[4];
+    V gd_last[4], q[4];
     QuadRate(c, x, k1, amp * sn, amp * om * cs, g_last, gd_last);
-    const double h = s.h, em = s.h * s.h / 12.0;
-    for (int i = 0; i < 4; ++i) q[i] = h * (q[i] + 0.5 * (g0[i] - g_last[i])) - em * (gd_last[i] - gd0[i]);
+    const double h = rec.h(), em = h * h / 12.0;
+    for (int i = 0; i < 4; ++i) q[i] = h * (q_in[i] + 0.5 * (g0[i] - g_last[i])) - em * (gd_last[i] - gd0[i]);
     for (int l = 0; l < n; ++l) {
       RawLane& r = rec.Lane(l);
       r.q_p = q[0][l];
@@ -137,14 +212,16 @@ class EnsembleRk4 {
       r.e_start = e_start[l];
       r.e_end = e_end[l];
       r.diverged = diverged[l] || !std::isfinite(x[0][l]);
-      r.steps = s.n_total;
-      r.rhs_evals = 4 * s.n_total;
-      for (int d = 0; d < D; ++d) r.final_state[d] = x[d][l];
+      r.steps = step;
+      r.rhs_evals = 4 * step;
+      for (int d = 0; d < D; ++d) r.final_state[d] = x[d][l], r.final_tangent[d] = w[d][l];
+      r.final_sin = sn[l];
+      r.final_cos = cs[l];
       out[l] = std::move(r);
     }
-    return true;
   }
 
+ public:
   // Lyapunov spectrum (Benettin et al. 1980; Shimada & Nagashima 1979) of one point: D tangent
   // vectors through the same RK4 stages, re-orthonormalised by modified Gram–Schmidt (the QR
   // factorisation W = QR) at every renormalisation step of Run; log R_ii summed over the window,

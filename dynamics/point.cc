@@ -1,4 +1,5 @@
 #include "dynamics/point.h"
+#include "dynamics/settle.h"
 
 #include <algorithm>
 #include <cmath>
@@ -171,6 +172,11 @@ StatusOr<LyapunovSpectrum> EvaluateLyapunovSpectrum(const PointSpec& spec) {
 
 StatusOr<PointResult> EvaluatePoint(const PointSpec& spec) {
   BISTABLE_RETURN_IF_ERROR(ValidatePointSpec(spec));
+  if (spec.integration.labels == LabelMode::kSettled) {  // one lane of the chain sweeps run (settle.h)
+    PointResult r;
+    if (!EvaluateSettled<1>(&spec, 1, &r)) return CancelledStatus();
+    return r;
+  }
   RawLane raw;
   bool cancelled = false;
   if (spec.integration.integrator == IntegratorKind::kRk4) {

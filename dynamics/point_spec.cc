@@ -63,6 +63,8 @@ const char* MotionName(Motion m) {
     case Motion::kInterwell: return "interwell";
     case Motion::kChaotic: return "chaotic";
     case Motion::kUndefined: return "undefined";
+    case Motion::kQuasiPeriodic: return "quasi-periodic";
+    case Motion::kUnresolved: return "unresolved";
   }
   return "?";
 }
@@ -77,6 +79,14 @@ PointResult DivergedResult(const std::array<double, 4>& final_state) {
   r.edr_b = r.edr_r = r.edr_t = r.energy_balance_residual = nan;
   r.final_state = final_state;
   return r;
+}
+
+const char* LabelModeName(LabelMode m) { return m == LabelMode::kPaper ? "paper" : "settled"; }
+
+StatusOr<LabelMode> ParseLabelMode(const std::string& name) {
+  if (name == "paper") return LabelMode::kPaper;
+  if (name == "settled") return LabelMode::kSettled;
+  return Status::InvalidArgument("labels", "labels = '" + name + "' violates labels in {paper, settled}");
 }
 
 const char* TerminationName(Termination t) {
@@ -130,7 +140,23 @@ Status ValidatePointSpec(const PointSpec& s) {
     if (in.rtol < 1e-14) return Violates("rtol", in.rtol, ">= 1e-14");
   }
 
+  if (in.labels == LabelMode::kSettled) {
+    if (in.integrator != IntegratorKind::kRk4) return Status::InvalidArgument("labels", "labels = 'settled' needs integrator = 'rk4'");
+    BISTABLE_RETURN_IF_ERROR(CheckPositive("settle_window", in.settle_window));
+    if (!IsWholeSteps(in.settle_window, in.dt))
+      return Violates("settle_window", in.settle_window, "a whole multiple of dt = " + FormatNumber(in.dt));
+    if (in.dt > in.settle_window / 16) return Violates("settle_window", in.settle_window, ">= 16 dt");
+    if (in.settle_min_strobes < 1 || in.settle_min_strobes > 64)
+      return Violates("settle_min_strobes", in.settle_min_strobes, "in [1, 64]");
+    BISTABLE_RETURN_IF_ERROR(CheckNonNegative("settle_confirm", in.settle_confirm));
+    BISTABLE_RETURN_IF_ERROR(CheckPositive("settle_cap", in.settle_cap));
+    if ((in.t_keep + in.settle_cap) / in.dt > limits::kMaxStepsPerPoint)
+      return Violates("settle_cap", in.settle_cap, "<= " + FormatNumber(limits::kMaxStepsPerPoint) + " dt - t_keep (steps per point limit)");
+    if (in.settle_window * s.omega / (2 * M_PI) > limits::kMaxWindowSamples)
+      return Violates("omega", s.omega, "<= 2 pi " + FormatNumber(limits::kMaxWindowSamples) + " / settle_window");
+  }
   const MetricSettings& m = s.metrics;
+  if (!(m.quasi_lle >= 0 && m.quasi_lle < 1)) return Violates("quasi_lle", m.quasi_lle, "in [0, 1)");
   if (m.renorm_every < 1) return Violates("renorm_every", m.renorm_every, ">= 1");
   if (m.sample_every < 1) return Violates("sample_every", m.sample_every, ">= 1");
   // Stroboscopic samples: one per forcing period in the window.

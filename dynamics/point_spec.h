@@ -5,6 +5,7 @@
 #define BISTABLE_DYNAMICS_POINT_SPEC_H_
 
 #include <array>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -13,7 +14,7 @@
 namespace bistable {
 
 // Bumped whenever a change can alter any stored number; part of every result's provenance and content key.
-inline constexpr const char* kNumericsVersion = "1.3.1";  // 1.3.1: diverged points' extremes and energies NaN, not 0
+inline constexpr const char* kNumericsVersion = "1.4.0";  // 1.3.1: diverged points' extremes and energies NaN, not 0; 1.4.0: settled labels (a mode; metrics settle_time, lle_sigma, label_confidence, chaos_01)
 
 // The models of the project (docs/model.md). The first four are the non-dimensional cells that a point,
 // HBM, a chirp and the SIMD kernel run; series chains and the dimensional rig run in sweeps only, through
@@ -47,6 +48,14 @@ struct NondimParams {
   double lambda = 0.8;   // λ = ω_r/ωn, resonator tuning, > 0
 };
 
+// How a point's labels are read (docs/numerics.md, "Settled labels"): kPaper from the one window
+// [t_keep, t_end] (the paper's method, `reproduce paper`); kSettled from a chain of windows of
+// `settle_window` τ from t_keep, extended until two consecutive windows agree (and, for chaos, λ − 2σ_λ
+// exceeds the threshold), up to a cap; t_end is then unused.
+enum class LabelMode { kPaper, kSettled };
+const char* LabelModeName(LabelMode m);
+StatusOr<LabelMode> ParseLabelMode(const std::string& name);
+
 struct IntegrationSettings {
   IntegratorKind integrator = IntegratorKind::kRk4;
   double t_end = 500.0;   // τ at the end of the run; the run starts at τ = 0
@@ -54,11 +63,20 @@ struct IntegrationSettings {
   double dt = 0.01;       // RK4 step; for the adaptive pair, the output sampling step
   double rtol = 1e-9;     // adaptive pair only: relative tolerance
   double atol = 1e-11;    // adaptive pair only: absolute tolerance
+  LabelMode labels = LabelMode::kPaper;
+  double settle_window = 125.0;   // kSettled: window length τ (a whole number of steps)
+  int settle_min_strobes = 8;     // kSettled: a window spans at least this many forcing periods (whole windows)
+  double settle_confirm = 2000.0; // kSettled: τ after t_keep before a chaotic or quasi-periodic label is given
+  double settle_cap = 6000.0;     // kSettled: τ after t_keep (at least two windows): unresolved beyond
 };
 
 struct MetricSettings {
   int renorm_every = 50;           // Benettin: renormalise the tangent every this many steps
   double chaos_threshold = 0.01;   // LLE (per unit τ) above which motion is called chaotic
+  double quasi_lle = 0.003;        // settled labels: |λ| at most this with no period: quasi-periodic/marginal
+  // Settled labels: chaos also needs the 0-1 test's K above this (settle.h); −1 (the default) stores K
+  // without a veto — as a veto at 0.5 it cost recall and removed no transient chaos (docs/numerics.md).
+  double chaos_01_min = -1.0;
   int sample_every = 5;            // window samples for spectrum / Rosenstein / trace: every k-th step
   double period_tol = 1e-3;        // stroboscopic samples closer than this (in y and y') repeat
   int max_period = 16;             // largest period n looked for
@@ -93,7 +111,9 @@ std::array<double, 4> InitialState(const PointSpec& spec);
 // Number of steps of size dt in [0, t] (t is validated to be a whole number of steps).
 long StepsFor(double t, double dt);
 
-enum class Motion { kIntrawell, kInterwell, kChaotic, kUndefined };
+// kQuasiPeriodic (no period, |λ| ≈ 0, a strobe cloud that neither shrinks nor grows) and kUnresolved (no
+// label settled within the cap) come from settled labels only.
+enum class Motion { kIntrawell, kInterwell, kChaotic, kUndefined, kQuasiPeriodic, kUnresolved };
 const char* MotionName(Motion m);
 
 // How an integration ended. Anything but kOk leaves metrics NaN; it is a result, not an error.
@@ -108,7 +128,14 @@ struct HdPeak {
 struct PointResult {
   Termination termination = Termination::kOk;
   double frf_db = 0;              // 20 log10(max|x̂_m'| / (αΩ)), absolute velocity, over the window
-  double lle = 0;                 // Benettin, per unit τ, over the window
+  double lle = 0;                 // Benettin, per unit τ, over the window (settled: over [T/2, T] since t_keep)
+  // Settled labels (NaN in the paper's mode): τ at which the label settled (the run's end), the
+  // block-average standard error of lle, and the label's confidence in [0.5, 1] (Φ(|λ − threshold|/σ);
+  // 0 when unresolved).
+  double settle_time = std::numeric_limits<double>::quiet_NaN();
+  double lle_sigma = std::numeric_limits<double>::quiet_NaN();
+  double label_confidence = std::numeric_limits<double>::quiet_NaN();
+  double chaos_01 = std::numeric_limits<double>::quiet_NaN();  // settled: the 0-1 test's K on the strobes of [T/2, T]
   double lle_rosenstein = 0;      // Rosenstein on sampled y_m; NaN when not computed
   Motion motion = Motion::kUndefined;
   int period = 0;                 // stroboscopic period n (1, 2, ...), 0 when none found

@@ -24,6 +24,10 @@ struct RawLane {
   double vabs_max = 0;                 // max |y_m' + αΩ cos Ωτ| over window steps
   double y_min = 0, y_max = 0;
   double log_growth = 0;               // Σ log(|w| before renormalisation) over the window
+  // The same sum by batches of renormalisations (the kernel's growth batches, 16 renormalisations or
+  // the rest of the window): block_logs[i] over block_steps[i] steps (the settled labels' σ_λ).
+  std::vector<double> block_logs;
+  std::vector<long> block_steps;
   std::vector<double> strobe_y, strobe_v;  // y_m, y_m' at τ_k = (φ + 2πk)/Ω in the window (φ: strobe phase)
   std::vector<double> strobe_yr, strobe_vr;  // y_r, y_r' at the same τ_k (models with a resonator, D = 4)
   long strobe_k0 = 0;                  // k of the first strobe (τ_k ≥ t_keep)
@@ -31,6 +35,10 @@ struct RawLane {
   std::vector<std::array<double, 5>> rows;  // (τ, y_m, y_m', y_r, y_r') when keep_rows
   std::vector<double> turning_points;  // y_m where y_m' changes sign in the window (bifurcation diagrams)
   std::array<double, 4> final_state = {0, 0, 0, 0};  // state at t_end (continuation of the next point)
+  // Where a chain of windows (settled labels) resumes exactly: the tangent (normalised) and the
+  // forcing phase (sin, cos)(Ωτ) as the kernel carries them at t_end.
+  std::array<double, 4> final_tangent = {0, 0, 0, 0};
+  double final_sin = 0, final_cos = 1;
   double q_p = 0, q_in = 0, q_m = 0, q_r = 0;  // ∫P, ∫max(P,0), W_m, W_r over the window
   double e_start = 0, e_end = 0;       // E at t_keep and t_end
   bool diverged = false;
@@ -168,7 +176,20 @@ class WindowRecorder {
     }
   }
 
-  void AddLogGrowth(V lg) { log_growth_ += lg; }
+  double h() const { return h_; }
+  void AddLogGrowth(V lg) {
+    log_growth_ += lg;
+    block_acc_ += lg;
+  }
+  // A growth batch ended at step n: its per-lane sum becomes one block.
+  void EndGrowthBatch(long n) {
+    for (int l = 0; l < W; ++l) {
+      lanes_[l].block_logs.push_back(block_acc_[l]);
+      lanes_[l].block_steps.push_back(n - block_start_);
+    }
+    block_acc_ = Splat<W>(0.0);
+    block_start_ = n;
+  }
   // The first step index in which some lane's next strobe falls (callers keep the step's start
   // state only for such steps).
   long next_due() const { return next_due_; }
@@ -247,6 +268,8 @@ class WindowRecorder {
   std::vector<V> rows_;   // D lane vectors per row
   std::vector<double> row_times_;
   V log_growth_ = Splat<W>(0.0);
+  V block_acc_ = Splat<W>(0.0);
+  long block_start_ = n_keep_;
   std::array<RawLane, W> lanes_;
 };
 

@@ -10,6 +10,7 @@
 #include "dynamics/ensemble_generic.h"
 #include "dynamics/generic_point.h"
 #include "dynamics/point.h"
+#include "dynamics/settle.h"
 
 namespace bistable {
 namespace {
@@ -162,6 +163,12 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
       // A cancelled evaluation comes back as a diverged record; the check below discards the job.
       out[i] = PointRecord::From(EvaluateItem(spec, items[i].point, items[i].ic), turning, section);
     }
+  } else if (spec.base.integration.labels == LabelMode::kSettled) {  // chains of windows (settle.h)
+    std::vector<PointSpec> specs(items.size());
+    for (size_t i = 0; i < items.size(); ++i) specs[i] = spec.PointAt(items[i].point, items[i].ic);
+    std::vector<PointResult> results(items.size());
+    if (!EvaluateSettled<kSweepLanes>(specs.data(), specs.size(), results.data())) return std::nullopt;
+    for (size_t i = 0; i < items.size(); ++i) out[i] = PointRecord::From(std::move(results[i]), turning, section);
   } else {
     const PointSpec first = spec.PointAt(0, 0);
     const KernelSettings ks = KernelSettingsFor(first);

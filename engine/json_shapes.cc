@@ -55,7 +55,16 @@ nlohmann::json SettingsJson(const PointSpec& s) {
       {"hd_top_k", s.metrics.hd_top_k},
       {"poincare_phase", s.metrics.poincare_phase},
       {"numerics_version", kNumericsVersion},
+      {"labels", LabelModeName(s.integration.labels)},
   };
+  if (s.integration.labels == LabelMode::kSettled) {
+    j["settle_window"] = s.integration.settle_window;
+    j["settle_min_strobes"] = s.integration.settle_min_strobes;
+    j["settle_confirm"] = s.integration.settle_confirm;
+    j["settle_cap"] = s.integration.settle_cap;
+    j["quasi_lle"] = s.metrics.quasi_lle;
+    j["chaos_01_min"] = s.metrics.chaos_01_min;
+  }
   if (HasResonator(s.model)) {
     j["eta_r"] = s.params.eta_r;
     j["phi"] = s.params.phi;
@@ -88,6 +97,10 @@ nlohmann::json PointJson(const PointSpec& spec, const PointResult& r) {
       {"energy", {{"w_in", r.w_in}, {"w_net", r.w_net}, {"w_m", r.w_m}, {"w_r", r.w_r}, {"delta_e", r.delta_e}}},
       {"energy_balance_residual", r.energy_balance_residual},
       {"termination", TerminationName(r.termination)},
+      {"settle_time", r.settle_time},
+      {"lle_sigma", r.lle_sigma},
+      {"label_confidence", r.label_confidence},
+      {"chaos_01", r.chaos_01},
       {"steps", r.steps},
       {"rhs_evals", r.rhs_evals},
       {"settings", SettingsJson(spec)},

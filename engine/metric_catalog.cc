@@ -27,7 +27,7 @@ const std::vector<MetricInfo>& MetricCatalog() {
       {"lle", "1/tau", "largest Lyapunov exponent, Benettin tangent-linear method over the window", false, -1e6, 1e6, true, "largest Lyapunov exponent (Benettin)"},
       {"lle_rosenstein", "1/tau", "largest Lyapunov exponent, Rosenstein (1993) on sampled y_m; NaN unless requested", false,
        -1e6, 1e6, true, "largest Lyapunov exponent (Rosenstein, from sampled y_m)"},
-      {"motion", "code", "0 intrawell, 1 interwell, 2 chaotic (lle > chaos_threshold), -1 undefined (diverged)", true, -1, 2,
+      {"motion", "code", "0 intrawell, 1 interwell, 2 chaotic (lle > chaos_threshold), 3 quasi-periodic/marginal, 4 unresolved (settled labels), -1 undefined (diverged)", true, -1, 4,
        false, "type of steady-state motion"},
       {"period", "forcing periods", "stroboscopic period n of (y_m, y_m'); 0 when none in the window", true, 0, limits::kMaxPeriod, false, "stroboscopic period in forcing periods (0: none found)"},
       {"hd_index", "fraction", "fraction of y_m spectral power farther than 3 bins from every multiple of Omega", false, 0, 1,
@@ -42,6 +42,10 @@ const std::vector<MetricInfo>& MetricCatalog() {
       {"termination", "code", "0 ok, 1 diverged, 2 step size underflow, 3 max steps", true, 0, 3, false, "how the integration ended"},
       {"strobe_y", "delta_s", "y_m at a stroboscopic sample (Omega tau a multiple of 2 pi) of the window: of the last `period` samples the one with the smallest y_m; the last sample when no period was found", false, -1e150, 1e150, true, "displacement of the main mass at a point of the attractor's Poincare section"},
       {"strobe_v", "delta_s/tau", "y_m' at the same stroboscopic sample as strobe_y", false, -1e150, 1e150, true, "velocity of the main mass at a point of the attractor's Poincare section"},
+      {"settle_time", "tau", "settled labels: tau at which the label settled (the run's end); NaN in the paper's mode", false, 0, 1e12, true, "time at which the label settled"},
+      {"lle_sigma", "1/tau", "settled labels: block-average standard error of lle; NaN in the paper's mode", false, 0, 1e12, true, "standard error of the largest Lyapunov exponent"},
+      {"label_confidence", "fraction", "settled labels: Phi(|lle - chaos_threshold| / lle_sigma), 0 when unresolved; NaN in the paper's mode", false, 0, 1, true, "confidence of the motion label"},
+      {"chaos_01", "", "settled labels: K of the 0-1 test for chaos (Gottwald-Melbourne, median over 16 c) on the strobes y_m of [T/2, T] (at least the latest 64), for chaotic, quasi-periodic and unresolved labels; near 1 chaotic, near 0 regular; NaN for a periodic label, with fewer than 64 strobes, or in the paper's mode", false, -1, 1, true, "0-1 test for chaos, K"},
   };
   return kCatalog;
 }
@@ -86,6 +90,8 @@ int MotionCode(Motion m) {
     case Motion::kInterwell: return 1;
     case Motion::kChaotic: return 2;
     case Motion::kUndefined: return kMotionUndefined;
+    case Motion::kQuasiPeriodic: return 3;
+    case Motion::kUnresolved: return 4;
   }
   return kMotionUndefined;
 }
@@ -93,7 +99,8 @@ int MotionCode(Motion m) {
 const std::vector<Category>& MetricCategories(const std::string& metric) {
   static const std::vector<Category> kMotion = [] {
     std::vector<Category> c;
-    for (Motion m : {Motion::kUndefined, Motion::kIntrawell, Motion::kInterwell, Motion::kChaotic})
+    for (Motion m : {Motion::kUndefined, Motion::kIntrawell, Motion::kInterwell, Motion::kChaotic, Motion::kQuasiPeriodic,
+                     Motion::kUnresolved})
       c.push_back({MotionCode(m), MotionName(m)});
     return c;
   }();
@@ -107,7 +114,9 @@ const std::vector<Category>& MetricCategories(const std::string& metric) {
   return metric == "motion" ? kMotion : metric == "termination" ? kTermination : kNone;
 }
 
-const char* MotionCodesText() { return "0 intrawell, 1 interwell, 2 chaotic, -1 undefined (diverged)"; }
+const char* MotionCodesText() {
+  return "0 intrawell, 1 interwell, 2 chaotic, 3 quasi-periodic, 4 unresolved, -1 undefined (diverged)";
+}
 
 bool MotionCodeOfName(const std::string& name, int* code) {
   for (const Category& c : MetricCategories("motion"))
@@ -122,6 +131,8 @@ const char* CategoryColour(const std::string& name) {
   if (name == "intrawell") return "#2c7bb6";
   if (name == "interwell") return "#fdae61";
   if (name == "chaotic") return "#d7191c";
+  if (name == "quasi-periodic") return "#7b3294";  // settled labels: a torus or marginal orbit, purple
+  if (name == "unresolved") return "#636363";      // settled labels: no label within the cap, a darker grey than undefined
   if (name == "ok") return "#1a9850";
   return "";
 }
@@ -169,7 +180,11 @@ PointRecord PointRecord::From(const PointResult& r, bool turning_points, int poi
          r.y_max,
          static_cast<double>(static_cast<int>(r.termination)),
          r.strobe_y,
-         r.strobe_v};
+         r.strobe_v,
+         r.settle_time,
+         r.lle_sigma,
+         r.label_confidence,
+         r.chaos_01};
   const double nan = std::numeric_limits<double>::quiet_NaN();
   // A float outside its metric's domain is not a measurement (an overflow in a degenerate run): NaN.
   const auto& catalog = MetricCatalog();

@@ -38,8 +38,11 @@ const std::vector<std::string> kDimensionalKeys = {"preset", "resonator", "m_m",
 const std::vector<std::string> kDimensionalParamKeys = {"a0_mm", "f0_hz"};
 const std::vector<std::string> kParamKeys = {"eps", "eta", "eta_r", "phi", "lambda", "alpha", "omega"};
 const std::vector<std::string> kAxisForms = {"list", "linspace", "logspace"};
-const std::vector<std::string> kIntegrationKeys = {"integrator", "dt", "t_end", "t_keep", "rtol", "atol"};
-const std::vector<std::string> kMetricKeys = {"store",     "chaos_threshold", "rosenstein", "renorm_every",
+const std::vector<std::string> kIntegrationKeys = {"integrator",    "dt",           "t_end",
+                                                   "t_keep",        "rtol",         "atol",
+                                                   "labels",        "settle_window", "settle_min_strobes",
+                                                   "settle_confirm", "settle_cap"};
+const std::vector<std::string> kMetricKeys = {"store",     "chaos_threshold", "chaos_01_min", "rosenstein", "renorm_every",
                                               "sample_every", "period_tol",  "max_period", "hd_level",
                                               "poincare_points", "poincare_phase"};
 // Section points stored per point when "poincare" is stored and poincare_points is not given.
@@ -456,6 +459,11 @@ std::string SweepSpec::CanonicalText() const {
   const IntegrationSettings& in = base.integration;
   os << "integrator=" << IntegratorName(in.integrator) << "\ndt=" << G17(in.dt) << "\nt_end=" << G17(in.t_end)
      << "\nt_keep=" << G17(in.t_keep) << "\nrtol=" << G17(in.rtol) << "\natol=" << G17(in.atol) << "\n";
+  // Only when settled, so the ids of the paper's mode stay what they were.
+  if (in.labels == LabelMode::kSettled)
+    os << "labels=settled\nsettle_window=" << G17(in.settle_window) << "\nsettle_min_strobes=" << in.settle_min_strobes
+       << "\nsettle_confirm=" << G17(in.settle_confirm) << "\nsettle_cap=" << G17(in.settle_cap)
+       << "\nquasi_lle=" << G17(base.metrics.quasi_lle) << "\nchaos_01_min=" << G17(base.metrics.chaos_01_min) << "\n";
   const MetricSettings& m = base.metrics;
   os << "renorm_every=" << m.renorm_every << "\nchaos_threshold=" << G17(m.chaos_threshold)
      << "\nsample_every=" << m.sample_every << "\nperiod_tol=" << G17(m.period_tol) << "\nmax_period=" << m.max_period
@@ -726,6 +734,18 @@ Status ReadIntegration(const toml::table& root, SweepSpec& spec) {
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "t_keep", "integration.t_keep", &in.t_keep));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "rtol", "integration.rtol", &in.rtol));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "atol", "integration.atol", &in.atol));
+    if (const toml::node* l = t->get("labels")) {
+      auto s = String(*l, "integration.labels");
+      if (!s.ok()) return s.status();
+      auto k = ParseLabelMode(*s);
+      if (!k.ok()) return Status::InvalidArgument("integration.labels", k.status().message());
+      in.labels = *k;
+    }
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "settle_window", "integration.settle_window", &in.settle_window));
+    BISTABLE_RETURN_IF_ERROR(
+        ReadInt(*t, "settle_min_strobes", "integration.settle_min_strobes", &in.settle_min_strobes, 1, 64));
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "settle_confirm", "integration.settle_confirm", &in.settle_confirm));
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "settle_cap", "integration.settle_cap", &in.settle_cap));
   }
   return Status::Ok();
 }
@@ -753,6 +773,7 @@ Status ReadMetrics(const toml::table& root, SweepSpec& spec) {
         spec.metrics.push_back("termination");  // always stored: a map must say which points failed
     }
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "chaos_threshold", "metrics.chaos_threshold", &m.chaos_threshold));
+    BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "chaos_01_min", "metrics.chaos_01_min", &m.chaos_01_min));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "period_tol", "metrics.period_tol", &m.period_tol));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "hd_level", "metrics.hd_level", &m.hd_level));
     BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "renorm_every", "metrics.renorm_every", &m.renorm_every, 1, limits::kMaxEvery));
@@ -975,6 +996,9 @@ Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
       if ((a.name == "yr0" || a.name == "vr0") && !HasResonator(spec.model))
         return Status::InvalidArgument("axes." + a.name, "axes." + a.name + " needs a model with a resonator (coupled, linear-coupled)");
   }
+  if (spec.base.integration.labels == LabelMode::kSettled && !IsCellModel(spec.model))
+    return Status::InvalidArgument("integration.labels", "labels = 'settled' is for the cell models (standalone, coupled, "
+                                                         "linear, linear-coupled); series and rig maps use 'paper'");
   for (const Axis& a : spec.axes) {
     for (size_t i = 0; i < a.values.size(); ++i) {
       PointSpec p = probe;

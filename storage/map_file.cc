@@ -118,6 +118,7 @@ CfUnits CfUnitsFor(const std::string& label) {
       {"", {"1", ""}},
       {"forcing periods", {"1", "counted in forcing periods 2 pi/Omega"}},
       {"1/tau", {"1", "per unit of non-dimensional time tau = omega_n t"}},
+      {"tau", {"1", "non-dimensional time tau = omega_n t"}},
       {"rad/tau", {"1", "angular frequency in units of omega_n (rad per unit of tau)"}},
       {"delta_s", {"1", "in units of delta_s, the static position of a well"}},
       {"delta_s/tau", {"1", "velocity in units of delta_s omega_n (delta_s per unit of non-dimensional time tau)"}},

@@ -265,7 +265,9 @@ TEST(JsonOut, CategoryCodesNameTheirMotionAndTermination) {
   EXPECT_STREQ(CategoryName("motion", 1), "interwell");
   EXPECT_STREQ(CategoryName("motion", 2), "chaotic");
   EXPECT_STREQ(CategoryName("motion", -1), "undefined");
-  EXPECT_EQ(CategoryName("motion", 3), nullptr);
+  EXPECT_STREQ(CategoryName("motion", 3), "quasi-periodic");  // settled labels (issue 38)
+  EXPECT_STREQ(CategoryName("motion", 4), "unresolved");
+  EXPECT_EQ(CategoryName("motion", 5), nullptr);
   EXPECT_EQ(CategoryName("motion", 0.5), nullptr);
   EXPECT_EQ(CategoryName("motion", NAN), nullptr);
   EXPECT_STREQ(CategoryName("termination", 0), "ok");
@@ -275,7 +277,7 @@ TEST(JsonOut, CategoryCodesNameTheirMotionAndTermination) {
   EXPECT_FALSE(bistable::IsCategoryMetric("period"));
   // Every name the map files' motion_codes attribute lists is a name JSON prints, with its code.
   const std::string text = bistable::MotionCodesText();
-  for (int code : {0, 1, 2, -1})
+  for (int code : {0, 1, 2, 3, 4, -1})
     EXPECT_NE(text.find(std::to_string(code) + " " + CategoryName("motion", code)), std::string::npos) << code;
 }
 
@@ -529,6 +531,7 @@ TEST(CliReproduce, QuickModeRegeneratesEveryFigureAndTheClaimsPage) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_GE(j["claims"].size(), 18u);
+  EXPECT_EQ(j["labels"], "paper") << "the claims are checked in the paper's window whatever the default label mode";
   std::set<std::string> figures;
   for (const auto& c : j["claims"]) {
     figures.insert(c["figure"].get<std::string>().substr(0, 2));
@@ -540,6 +543,8 @@ TEST(CliReproduce, QuickModeRegeneratesEveryFigureAndTheClaimsPage) {
   std::ifstream page(j["report"].get<std::string>());
   const std::string text((std::istreambuf_iterator<char>(page)), {});
   EXPECT_NE(text.find("| Fig. | the paper's claim | our number | verdict |"), std::string::npos);
+  EXPECT_NE(text.find("labels paper"), std::string::npos);
+  EXPECT_NE(Bistable("reproduce paper --quick --labels window --out " + dir).exit_code, 0);
   fs::remove_all(dir);
 }
 

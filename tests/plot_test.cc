@@ -124,6 +124,20 @@ TEST_F(Figures, MotionCodesKeepTheirColoursEvenWhenOneKindIsAbsent) {
   ASSERT_EQ(codes.size(), 3u) << "intrawell, interwell, chaotic always (undefined only when present)";
   EXPECT_EQ(codes[2].name, "chaotic");
   EXPECT_EQ(bistable::MetricCodes("motion", {-1, 0}).size(), 4u);
+  // Settled labels: quasi-periodic (3) and unresolved (4) named in their own colours when present, unresolved grey.
+  const auto settled = bistable::MetricCodes("motion", {0, 3, 4});
+  ASSERT_EQ(settled.size(), 5u);
+  EXPECT_EQ(settled[3].name, "quasi-periodic");
+  EXPECT_EQ(settled[3].colour, "#7b3294");
+  EXPECT_EQ(settled[4].name, "unresolved");
+  EXPECT_EQ(settled[4].colour, "#636363");
+  {
+    bistable::PlotData q = Map("motion", 10);
+    for (int i = 0; i < 100; ++i) q.values.push_back(i < 40 ? 0.0 : i < 70 ? 3.0 : 4.0);
+    q.codes = bistable::MetricCodes("motion", q.values);
+    const std::string qout = File("motion_settled.png");
+    ExpectDrawn(bistable::RenderPlot(q, qout), qout, 900, 700, {"#2c7bb6", "#7b3294", "#636363"}, 5000);
+  }
   EXPECT_TRUE(bistable::MetricCodes("frf_db", {1, 2}).empty());
   bistable::PlotData d = Map("motion", 10);
   for (int i = 0; i < 100; ++i) d.values.push_back(i < 50 ? 0.0 : 1.0);
