@@ -1026,7 +1026,10 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
     rj["horizon_errors"] = h;
     rj["long_simulation_nrmse"] = JsonNumber(HorizonError(m, th, recs[i], setup, 0));
     // Multiple shooting at --horizon (segments from re-estimated states): the shooting objective's error.
-    rj["shooting_nrmse"] = JsonNumber(a.horizon > 0 ? Evaluate(m, th, {recs[i]}, setup, a.horizon).shooting : NAN);
+    // Its segment states start from the band-limited ones, as a fit of a chaotic record's do (BandLimitedRestarts).
+    PreparedRecord banded = recs[i];
+    BandLimitedRestarts(&banded);
+    rj["shooting_nrmse"] = JsonNumber(a.horizon > 0 ? Evaluate(m, th, {banded}, setup, a.horizon).shooting : NAN);
     rj["predictability"] = {{"chaos_floor_percent", JsonNumber(pr.chaos_floor)}, {"prediction_horizon_s", JsonNumber(pr.horizon_s)},
                             {"well_changes", pr.well_changes}, {"long_meaningful", pr.long_meaningful},
                             {"fit_horizon_s", pr.fit_horizon_s}, {"reason", pr.reason}};
@@ -1044,6 +1047,13 @@ StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
   const auto planned = PlanFromFlags(a);
   if (!planned.ok()) return planned.status();
   IdentifyPlan plan = *planned;
+  // Resonator terms without a resonator column: the resonator is then a hidden state, started where the main body
+  // is, and its parameters rest on the main body's motion alone (on the coupled snap-through records they
+  // collapsed to 0). Said, not refused: a hidden resonator is a model a user may mean.
+  if (plan.model.HasResonator() && plan.columns.resonator.empty())
+    std::fprintf(stderr, "identify: warning: the model has res.* terms but no resonator column; the resonator is fitted as a hidden "
+                         "state (add --columns resonator=NAME for its absolute displacement, e.g. resonator=xr for --make-synthetic "
+                         "records)\n");
   const auto loaded = LoadAll(a, plan.columns);
   if (!loaded.ok()) return loaded.status();
   FrameDecision frame;
