@@ -251,6 +251,24 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
   }
   if (!family && (!extra.empty() || !a.synth_amplitudes_mm.empty()))
     return Status::InvalidArgument("synthetic", "--synthetic-extra and --synthetic-amplitude are options of --synthetic bistable|bistable-coupled");
+  auto check = [](const char* flag, double v, double lo, double hi) -> Status {
+    if (!(v >= lo && v <= hi))
+      return Status::InvalidArgument(flag, std::string("--") + flag + " = " + Fmt(v, 6) + " violates " + Fmt(lo, 6) + " <= value <= " + Fmt(hi, 6));
+    return Status::Ok();
+  };
+  if (family) {  // every flag checked before anything is written
+    for (const TermValues& e : extra)
+      if (e.term->body == Body::kResonator && kind != "bistable-coupled")
+        return Status::InvalidArgument("synthetic-extra", "--synthetic-extra " + e.term->id + " needs --synthetic bistable-coupled (a resonator)");
+    BISTABLE_RETURN_IF_ERROR(check("synthetic-f-start", a.synth_f_start, 0.01, 50));
+    BISTABLE_RETURN_IF_ERROR(check("synthetic-f-end", a.synth_f_end, 0.01, 50));
+    BISTABLE_RETURN_IF_ERROR(check("synthetic-duration", a.synth_duration, 1, 600));
+    BISTABLE_RETURN_IF_ERROR(check("synthetic-noise", a.synth_noise_mm, 0, 10));
+    if (a.synth_start != "left" && a.synth_start != "right")
+      return Status::InvalidArgument("synthetic-start", "--synthetic-start '" + a.synth_start + "' is not left or right");
+    if (a.synth_amplitudes_mm.size() > 16) return Status::InvalidArgument("synthetic-amplitude", "at most 16 --synthetic-amplitude values");
+    for (double mm : a.synth_amplitudes_mm) BISTABLE_RETURN_IF_ERROR(check("synthetic-amplitude", mm, 0.01, 100));
+  }
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return Status::IoError("make-synthetic", "cannot create '" + dir + "': " + ec.message());
@@ -266,27 +284,11 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
   if (family) {
     DimensionalParams p = DimensionalParams::BistableTable2();
     p.has_resonator = kind == "bistable-coupled";
-    for (const TermValues& e : extra)
-      if (e.term->body == Body::kResonator && !p.has_resonator)
-        return Status::InvalidArgument("synthetic-extra", "--synthetic-extra " + e.term->id + " needs --synthetic bistable-coupled (a resonator)");
-    auto check = [](const char* flag, double v, double lo, double hi) -> Status {
-      if (!(v >= lo && v <= hi))
-        return Status::InvalidArgument(flag, std::string("--") + flag + " = " + Fmt(v, 6) + " violates " + Fmt(lo, 6) + " <= value <= " + Fmt(hi, 6));
-      return Status::Ok();
-    };
-    BISTABLE_RETURN_IF_ERROR(check("synthetic-f-start", a.synth_f_start, 0.01, 50));
-    BISTABLE_RETURN_IF_ERROR(check("synthetic-f-end", a.synth_f_end, 0.01, 50));
-    BISTABLE_RETURN_IF_ERROR(check("synthetic-duration", a.synth_duration, 1, 600));
-    BISTABLE_RETURN_IF_ERROR(check("synthetic-noise", a.synth_noise_mm, 0, 10));
-    if (a.synth_start != "left" && a.synth_start != "right")
-      return Status::InvalidArgument("synthetic-start", "--synthetic-start '" + a.synth_start + "' is not left or right");
     std::vector<double> amps = a.synth_amplitudes_mm.empty() ? std::vector<double>{10.0} : a.synth_amplitudes_mm;
-    if (amps.size() > 16) return Status::InvalidArgument("synthetic-amplitude", "at most 16 --synthetic-amplitude values");
     const double well = std::sqrt(-p.k_lin / p.k3);
     unsigned seed = a.synth_seed;
     nlohmann::json records = nlohmann::json::array();
     for (double mm : amps) {
-      BISTABLE_RETURN_IF_ERROR(check("synthetic-amplitude", mm, 0.01, 100));
       SyntheticOptions o;
       o.a0_m = mm * 1e-3, o.f_start_hz = a.synth_f_start, o.f_end_hz = a.synth_f_end, o.duration_s = a.synth_duration;
       o.noise_m = o.input_noise_m = a.synth_noise_mm * 1e-3;

@@ -455,6 +455,19 @@ std::vector<Row> Rows() {
     rows.push_back(Case("identify_predict_weight_not_a_number", {predict})
                        .Error("model.errors_by_output.voltage.weight")
                        .Files({{"{dir}/d.csv", RecordCsv(200)}, {"{dir}/m.json", with_weight("\"$(touch pwned)\"")}}));
+    // The snap-through family's flags (issue 37): refused by name before anything is written.
+    rows.push_back(Case("identify_synthetic_amplitude_out_of_range",
+                        {{"identify", "--make-synthetic", "{dir}/syn", "--synthetic", "bistable", "--synthetic-amplitude", "200"}})
+                       .Error("synthetic-amplitude = 200 violates 0.01 <= value <= 100")
+                       .Absent({"{dir}/syn"}));
+    rows.push_back(Case("identify_synthetic_extra_friction_or_hostile",
+                        {{"identify", "--make-synthetic", "{dir}/syn", "--synthetic", "bistable", "--synthetic-extra", "main.friction=1:$(touch pwned)"}})
+                       .Error("synthetic-extra")
+                       .Absent({"{dir}/syn"}));
+    rows.push_back(Case("identify_synthetic_resonator_extra_without_resonator",
+                        {{"identify", "--make-synthetic", "{dir}/syn", "--synthetic", "bistable", "--synthetic-extra", "res.stiffness_z3=1e5"}})
+                       .Error("needs --synthetic bistable-coupled")
+                       .Absent({"{dir}/syn"}));
     rows.push_back(Case("identify_predict_model_path_hostile",
                         {{"identify", "--predict", "--model", "{dir}/m`touch pwned`$(touch pwned).json", "--data", "{dir}/d.csv"}})
                        .Error("model")
