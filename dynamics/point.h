@@ -17,6 +17,11 @@ namespace bistable {
 // run is a result (termination != kOk, metrics NaN).
 StatusOr<PointResult> EvaluatePoint(const PointSpec& spec);
 
+// The strobe recurrence of a window: the smallest n ≤ max_period for which the last max(4, (m − n)/2) strobes
+// (y, v) repeat after n within tol; 0 when none (or too few strobes). The period metric checks n ≥ 2 further
+// against the spectrum (point_metrics.cc); settled labels read it per window (settle.cc).
+int StrobeRecurrence(const std::vector<double>& y, const std::vector<double>& v, int max_period, double tol);
+
 // Kernel inputs/settings for a validated spec (sweeps build lanes from these too).
 LaneInput LaneFor(const PointSpec& spec);
 KernelSettings KernelSettingsFor(const PointSpec& spec);

@@ -35,6 +35,15 @@ bool SubharmonicPersists(const std::vector<double>& ys, double dts, double omega
 
 int DetectPeriod(const std::vector<double>& y, const std::vector<double>& v, int max_period, double tol,
                  const Spectrum& sp, const std::vector<double>& ys, double dts, double omega) {
+  const int n = StrobeRecurrence(y, v, max_period, tol);
+  if (n <= 1) return n;
+  const bool genuine = SubharmonicFraction(sp, omega, n) >= kMinSubharmonicFraction && SubharmonicPersists(ys, dts, omega, n);
+  return genuine ? n : 0;
+}
+
+}  // namespace
+
+int StrobeRecurrence(const std::vector<double>& y, const std::vector<double>& v, int max_period, double tol) {
   const int m = static_cast<int>(y.size());
   for (int n = 1; n <= max_period; ++n) {
     const int pairs = std::max(4, (m - n) / 2);
@@ -42,16 +51,10 @@ int DetectPeriod(const std::vector<double>& y, const std::vector<double>& v, int
     bool repeats = true;
     for (int k = m - n - pairs; k < m - n && repeats; ++k)
       repeats = std::fabs(y[k] - y[k + n]) <= tol && std::fabs(v[k] - v[k + n]) <= tol;
-    if (!repeats) continue;
-    if (n == 1) return 1;
-    const bool genuine = SubharmonicFraction(sp, omega, n) >= kMinSubharmonicFraction &&
-                         SubharmonicPersists(ys, dts, omega, n);
-    return genuine ? n : 0;
+    if (repeats) return n;
   }
   return 0;
 }
-
-}  // namespace
 
 double SampleStep(const PointSpec& spec) { return spec.integration.dt * spec.metrics.sample_every; }
 

@@ -73,20 +73,12 @@ void LambdaSigma(const ChainLane& c, double from, double* lambda, double* sigma)
   *sigma = std::sqrt(ss / (static_cast<double>(groups) * static_cast<double>(groups - 1)));
 }
 
-// The strobe recurrence of DetectPeriod (point_metrics.cc) without its spectrum: the smallest n whose
-// strobes repeat, 0 when none; −1 when that n ≥ 2 (its sub-harmonic checks need the window's spectrum,
-// so the full metrics decide). Equal to DetectPeriod whenever it returns 0 or 1.
+// The strobe recurrence without the period metric's spectrum checks: 1, 0 when none, −1 for n ≥ 2 (its
+// sub-harmonic checks need the window's spectrum, so the full metrics decide). Equal to the period metric
+// whenever that is 0 or 1.
 int RecurrencePeriod(const std::vector<double>& y, const std::vector<double>& v, int max_period, double tol) {
-  const int m = static_cast<int>(y.size());
-  for (int n = 1; n <= max_period; ++n) {
-    const int pairs = std::max(4, (m - n) / 2);
-    if (m - n < pairs) break;
-    bool repeats = true;
-    for (int k = m - n - pairs; k < m - n && repeats; ++k)
-      repeats = std::fabs(y[k] - y[k + n]) <= tol && std::fabs(v[k] - v[k + n]) <= tol;
-    if (repeats) return n == 1 ? 1 : -1;
-  }
-  return 0;
+  const int n = StrobeRecurrence(y, v, max_period, tol);
+  return n <= 1 ? n : -1;
 }
 
 }  // namespace

@@ -452,6 +452,16 @@ def start(cmd, log):
     return subprocess.Popen(cmd, stdout=open(log, "w"), stderr=subprocess.STDOUT)
 
 
+def listening_address(log):
+    """The address a coordinator started with --listen 127.0.0.1:0 prints in its log (waits up to 10 s)."""
+    for _ in range(400):
+        lines = [x for x in open(log).read().splitlines() if x.startswith("listening on ")]
+        if lines:
+            return lines[0].split()[-1]
+        time.sleep(0.025)
+    raise AssertionError(open(log).read())
+
+
 def test_client_refuses_a_token_with_a_control_byte_and_never_shows_it(tmp_path):
     """Issue 39: a newline, NUL or control byte in a token used to abort the interpreter (gRPC aborts on
     invalid metadata, logging the token). Each case runs in a child interpreter, so an abort fails the
@@ -459,14 +469,7 @@ def test_client_refuses_a_token_with_a_control_byte_and_never_shows_it(tmp_path)
     log = tmp_path / "coordinator.log"
     coord = start([os.environ["BISTABLE_COORDINATOR"], "--listen", "127.0.0.1:0", "--data", str(tmp_path / "server")], log)
     try:
-        address = None
-        for _ in range(400):
-            lines = [x for x in open(log).read().splitlines() if x.startswith("listening on ")]
-            if lines:
-                address = lines[0].split()[-1]
-                break
-            time.sleep(0.025)
-        assert address, open(log).read()
+        address = listening_address(log)
         for token in ("SECRETA\nSECRETB", "SECRETA\0SECRETB", "SECRETA\x01SECRETB", "SECRETA SECRETB"):
             code = ("import bistable\n"
                     "try:\n"
@@ -499,14 +502,7 @@ def test_client_submits_watches_and_fetches_through_a_real_coordinator(tmp_path)
                    "--lease-seconds", "2", "--job-seconds", "0.01"], log)
     worker = None
     try:
-        address = None
-        for _ in range(400):
-            lines = [x for x in open(log).read().splitlines() if x.startswith("listening on ")]
-            if lines:
-                address = lines[0].split()[-1]
-                break
-            time.sleep(0.025)
-        assert address, open(log).read()
+        address = listening_address(log)
         c = bistable.Client(address)
         sub = c.submit(SMALL)
         assert sub["items_total"] == 20
