@@ -667,14 +667,24 @@ nlohmann::json DrivePeriodErrors(const PreparedRecord& r, const Setup& setup, co
 // --objective auto: per record the twin experiment that chose its horizon (null for the other objectives).
 nlohmann::json ObjectiveChoiceJson(const ObjectiveChoice& c) {
   if (!c.made) return nullptr;
-  nlohmann::json recs = nlohmann::json::array();
-  for (const Predictability& p : c.records)
-    recs.push_back({{"record", p.record}, {"objective", p.long_meaningful ? "long simulation" : "short horizon"},
-                    {"fit_horizon_s", p.fit_horizon_s}, {"chaos_floor_percent", JsonNumber(p.chaos_floor)},
-                    {"prediction_horizon_s", JsonNumber(p.horizon_s)}, {"duration_s", p.duration_s},
-                    {"well_changes", p.well_changes}, {"reason", p.reason}});
+  auto records = [](const std::vector<Predictability>& ps) {
+    nlohmann::json recs = nlohmann::json::array();
+    for (const Predictability& p : ps)
+      recs.push_back({{"record", p.record}, {"objective", p.long_meaningful ? "long simulation" : "short horizon"},
+                      {"fit_horizon_s", p.fit_horizon_s}, {"chaos_floor_percent", JsonNumber(p.chaos_floor)},
+                      {"model_long_error_percent", JsonNumber(p.long_error)}, {"followed", p.followed},
+                      {"prediction_horizon_s", JsonNumber(p.horizon_s)}, {"duration_s", p.duration_s},
+                      {"well_changes", p.well_changes}, {"reason", p.reason}});
+    return recs;
+  };
+  const ObjectiveChoice::Continuation& k = c.continuation;
+  nlohmann::json cont = nullptr;
+  if (k.tried)
+    cont = {{"ran", k.ran}, {"long_error_before_percent", JsonNumber(k.long_before)}, {"long_error_after_percent", JsonNumber(k.long_after)},
+            {"reason", k.reason}, {"records", records(k.records)}};
   return {{"decided_with", c.model}, {"meaningful_below_percent", kMeaningfulFloor}, {"seconds", c.seconds},
-          {"objective", c.objective == Objective::kShooting ? "shooting" : "time"}, {"horizon_s", c.horizon_s}, {"records", recs}};
+          {"objective", c.objective == Objective::kShooting ? "shooting" : "time"}, {"horizon_s", c.horizon_s},
+          {"records", records(c.records)}, {"continuation", cont}};
 }
 
 // The loop's evidence: per step the verdict and every candidate's scores.
@@ -749,6 +759,7 @@ nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const
     const double f = DriveFrequency(recs[i]);
     nlohmann::json h = DrivePeriodErrors(recs[i], plan.setup, {{"before", &r.declared, &r.before.theta}, {"after", &r.final_model, &r.after.theta}});
     j["records"][i]["drive_hz"] = JsonNumber(f);
+    j["records"][i]["drive_band_hz"] = recs[i].f_drive;  // the simulation's drive: the input low-passed there (0: as measured)
     j["records"][i]["horizon_errors"] = h;
   }
   j["tests"] = tests;
@@ -1025,6 +1036,7 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
     const Predictability pr = TestPredictability(m, th, recs[i], setup, a.horizon > 0 ? a.horizon : 0.5);
     nlohmann::json& rj = pj["prediction"]["records"][i];
     rj["drive_hz"] = JsonNumber(f);
+    rj["drive_band_hz"] = recs[i].f_drive;  // the simulation's drive: the input low-passed there (0: as measured)
     rj["horizon_errors"] = h;
     rj["long_simulation_nrmse"] = JsonNumber(HorizonError(m, th, recs[i], setup, 0));
     // Multiple shooting at --horizon (segments from re-estimated states): the shooting objective's error.

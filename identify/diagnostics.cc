@@ -361,7 +361,7 @@ LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector
   // Records fitted on short horizons (--objective auto): their residual is far from white even for the true
   // model (noise in the restart states and the input acts through an unstable flow), so it is compared
   // with the same test on the final model's twins, where nothing is missing.
-  const bool calibrate = std::any_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.chaotic || r.horizon_s > 0; });
+  const bool calibrate = std::any_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.chaotic || r.snaps || r.horizon_s > 0; });
   const std::vector<std::vector<PreparedRecord>> twins =
       calibrate ? TwinRecords(fin.model, fin.fit.theta, recs, setup, kTwins) : std::vector<std::vector<PreparedRecord>>{};
   for (int k = 0; k < kOutputSlots; ++k) {

@@ -392,8 +392,8 @@ LoopStep TraceScores(const IdentModel& m, const std::vector<double>& th, const s
 
 LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                        const Setup& setup, const IdentifyOptions& opt, const std::vector<std::string>& passed_over) {
-  // Records fitted on short horizons: the trace's null from the fitted model's twins.
-  const bool chaotic = std::any_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.chaotic || r.horizon_s > 0; });
+  // Records fitted on short horizons, or that snap between wells: the trace's null from the fitted model's twins.
+  const bool chaotic = std::any_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.chaotic || r.snaps || r.horizon_s > 0; });
   const std::vector<std::vector<PreparedRecord>> twins =
       chaotic ? TwinRecords(m, th, recs, setup, kTwins) : std::vector<std::vector<PreparedRecord>>{};
   return TraceScores(m, th, recs, setup, opt, passed_over, twins);
@@ -663,6 +663,7 @@ ObjectiveChoice ChooseHorizons(const IdentModel& m, std::vector<PreparedRecord>*
     r.horizon_s = 0;
     Predictability p = TestPredictability(m, m.theta, r, setup, horizon);
     refine = refine || !p.long_meaningful || p.well_changes >= 2;
+    r.snaps = p.well_changes >= 2;
     c.records.push_back(std::move(p));
   }
   if (refine && !CancelRequested()) {
@@ -678,8 +679,12 @@ ObjectiveChoice ChooseHorizons(const IdentModel& m, std::vector<PreparedRecord>*
     const FitResult f = Fit(m, ScaleOf(m, m.theta, sigma0, shortened, setup), shortened, setup, fo);
     if (std::all_of(f.theta.begin(), f.theta.end(), [](double v) { return std::isfinite(v); })) {
       c.model = "short-horizon fit";
+      c.theta = f.theta;
       c.records.clear();
-      for (const PreparedRecord& r : *recs) c.records.push_back(TestPredictability(m, f.theta, r, setup, horizon));
+      for (PreparedRecord& r : *recs) {
+        c.records.push_back(TestPredictability(m, f.theta, r, setup, horizon, /*require_followed=*/true));
+        r.snaps = r.snaps || c.records.back().well_changes >= 2;
+      }
     }
   }
   for (size_t i = 0; i < recs->size(); ++i) {
@@ -695,6 +700,55 @@ ObjectiveChoice ChooseHorizons(const IdentModel& m, std::vector<PreparedRecord>*
   return c;
 }
 
+// Horizon continuation (ObjectiveChoice::Continuation): the final model m (fitted as *fit by multiple
+// shooting) is tested again;
+// where it follows every record and its twins stay together, m's long simulation is fitted from *fit (local
+// stage: the start is in the valley) and replaces *fit when its long simulation error is lower. The errors
+// keep the shooting error too (the objective the loop ran).
+void ContinueToLongSimulation(const IdentModel& m, FitResult* fit, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                              const IdentifyOptions& opt, ObjectiveChoice::Continuation* c) {
+  const ObjectiveChoice::Continuation none;
+  *c = none;
+  const double horizon = opt.fit.shooting_horizon_s;
+  std::vector<PreparedRecord> whole = recs;  // the records as the time objective sees them
+  for (PreparedRecord& r : whole) r.horizon_s = 0, r.chaotic = false;
+  c->tried = true;
+  bool all = true;
+  for (const PreparedRecord& r : whole) {
+    c->records.push_back(TestPredictability(m, fit->theta, r, setup, horizon, /*require_followed=*/true));
+    all = all && c->records.back().long_meaningful;
+  }
+  c->long_before = fit->errors.long_nrmse;
+  if (!all) {
+    c->reason = "the final model does not follow every record within " + std::to_string(static_cast<int>(kMeaningfulFloor)) +
+                " % with predictable twins: the shooting fit stands";
+    return;
+  }
+  FitOptions fo = opt.fit;
+  fo.objective = Objective::kTime;
+  fo.shooting_horizon_s = 0;  // from the shooting fit: no short-horizon stages, no global stage
+  fo.global_evals = 0;
+  IdentModel start = m;
+  start.theta = fit->theta;
+  FitResult t = Fit(start, ScaleOf(start, start.theta, fit->sigma, whole, setup), whole, setup, fo);
+  t.errors = Evaluate(m, t.theta, recs, setup, horizon);
+  c->long_after = t.errors.long_nrmse;
+  const bool finite = std::all_of(t.theta.begin(), t.theta.end(), [](double v) { return std::isfinite(v); });
+  if (!finite || !Physical(m, t.theta) || !(t.errors.long_nrmse < fit->errors.long_nrmse)) {
+    c->reason = "the final model follows every record, but its long simulation's fit did not lower the long simulation error: the shooting fit stands";
+    return;
+  }
+  c->ran = true;
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "the final model follows every record with predictable twins: its long simulation was fitted from the shooting fit "
+                "(long simulation error %.3g %% -> %.3g %%; short-horizon error %.3g %% -> %.3g %%)",
+                fit->errors.long_nrmse, t.errors.long_nrmse, fit->errors.shooting, t.errors.shooting);
+  c->reason = buf;
+  t.simulations += fit->simulations;
+  *fit = std::move(t);
+}
+
 // `recs` by value: their output weights may be re-estimated below.
 IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, const Setup& setup,
                                const IdentifyOptions& opt_in) {
@@ -708,6 +762,7 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
     out.objective_choice = ChooseHorizons(m, &recs, setup, opt);
     if (out.objective_choice.objective == Objective::kShooting)
       opt.fit.objective = Objective::kShooting, opt.fit.shooting_horizon_s = out.objective_choice.horizon_s;
+    if (out.objective_choice.theta.size() == m.theta.size()) m.theta = out.objective_choice.theta;
   }
   out.declared = m;
   FitResult fit = Fit(m, ScaleOf(m, m.theta, sigma0, recs, setup), recs, setup, opt.fit);
@@ -805,6 +860,8 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
     out.added.push_back(Added(t, next, refit, before, after));
     go_on(next, refit);
   }
+  if (out.objective_choice.made && opt.fit.objective == Objective::kShooting && !CancelRequested())
+    ContinueToLongSimulation(m, &fit, recs, setup, opt, &out.objective_choice.continuation);
   out.final_model = m;
   out.after = fit;
   for (AddedEffect& a : out.added) TakeValues(&a, m, fit);  // the final values (later additions refit everything)

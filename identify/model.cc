@@ -162,31 +162,94 @@ std::vector<double> IntegrateFft(const std::vector<double>& y, double dt, double
   return out;
 }
 
-double NoiseLevel(const std::vector<double>& y, double dt) {
+namespace {
+
+// Hann-windowed periodogram of y about its mean: power per bin k = 0 … len/2 (bin spacing 1/(len dt)), and
+// Σ w² of the window (a white noise of variance σ² has mean bin power σ² Σ w²).
+struct Periodogram {
+  std::vector<double> power;
+  double w2 = 0, df = 0;
+};
+Periodogram HannPeriodogram(const std::vector<double>& y, double dt) {
   const size_t n = y.size();
-  if (n < 64) return NAN;
   double mean = 0;
   for (double v : y) mean += v;
   mean /= static_cast<double>(n);
   const size_t len = NextFastFftLength(n);
   std::vector<double> x(len, 0.0);
-  double w2 = 0;
+  Periodogram p;
   for (size_t i = 0; i < n; ++i) {
     const double w = 0.5 - 0.5 * std::cos(2.0 * M_PI * static_cast<double>(i) / static_cast<double>(n - 1));
     x[i] = (y[i] - mean) * w;
-    w2 += w * w;
+    p.w2 += w * w;
   }
   std::vector<std::complex<double>> X;
   RealFftFull(x, &X);
-  const double nyq = 0.5 / dt, df = 1.0 / (static_cast<double>(len) * dt);
+  p.power.resize(len / 2 + 1);
+  for (size_t k = 0; k < p.power.size(); ++k) p.power[k] = std::norm(X[k]);
+  p.df = 1.0 / (static_cast<double>(len) * dt);
+  return p;
+}
+
+}  // namespace
+
+double NoiseLevel(const std::vector<double>& y, double dt) {
+  if (y.size() < 64) return NAN;
+  const Periodogram pg = HannPeriodogram(y, dt);
+  const double nyq = 0.5 / dt;
   const double f_lo = std::min(AutoCutoff(y, dt), 0.6 * nyq);
   std::vector<double> pw;
-  for (size_t k = 1; k <= len / 2; ++k)
-    if (static_cast<double>(k) * df >= f_lo) pw.push_back(std::norm(X[k]));
+  for (size_t k = 1; k < pg.power.size(); ++k)
+    if (static_cast<double>(k) * pg.df >= f_lo) pw.push_back(pg.power[k]);
   if (pw.size() < 8) return NAN;
   std::nth_element(pw.begin(), pw.begin() + static_cast<long>(pw.size() / 2), pw.end());
   const double median = pw[pw.size() / 2];
-  return std::sqrt(median / std::log(2.0) / w2);
+  return std::sqrt(median / std::log(2.0) / pg.w2);
+}
+
+double DriveCutoff(const std::vector<double>& input, double dt) {
+  const size_t n = input.size();
+  const double sigma = NoiseLevel(input, dt);
+  if (n < 64 || !(sigma > 0) || !std::isfinite(sigma)) return 0.0;
+  double mean = 0, ms = 0;
+  for (double v : input) mean += v;
+  mean /= static_cast<double>(n);
+  for (double v : input) ms += (v - mean) * (v - mean);
+  // A floor 120 dB below the input is roundoff, not noise (a computed input; no converter is that clean):
+  // nothing to take away, and a chaotic model's orbit would notice the low-pass's own rounding.
+  if (!(sigma > 1e-6 * std::sqrt(ms / static_cast<double>(n)))) return 0.0;
+  const Periodogram pg = HannPeriodogram(input, dt);
+  const std::vector<double>& pw = pg.power;
+  const size_t bins = pw.size();
+  double total = 0;
+  for (size_t k = 1; k < bins; ++k) total += pw[k];
+  const double w2 = pg.w2;
+  const double floor = sigma * sigma * w2;  // a white noise bin's mean power (NoiseLevel's scale)
+  constexpr int kHalf = 3;
+  size_t top = 0;
+  for (size_t k = 1; k < bins; ++k) {
+    double s = 0;
+    int c = 0;
+    for (long j = static_cast<long>(k) - kHalf; j <= static_cast<long>(k) + kHalf; ++j)
+      if (j >= 1 && j < static_cast<long>(bins)) s += pw[static_cast<size_t>(j)], ++c;
+    if (s / c > 10.0 * floor) top = k;
+  }
+  const double nyq = 0.5 / dt, df = pg.df;
+  // Flat to twice the band's top (a shaker's second harmonic, and the edge's leakage), then the taper. On a
+  // chaotic coupled record (1–10 Hz, noise 0.05 mm) the true model's 0.5 s shooting error: 0.75 % driven by
+  // the raw input; flat to 1×, 1.25×, 1.5×, 2×, 4× the top: 0.97, 0.49, 0.41, 0.45, 0.65 %; on a standalone
+  // one 2.09, 1.04, 0.65 % at 1.25×, 1.5×, 2× (the narrow bands cut the drive's own edge).
+  const double f_cut = 2.0 * static_cast<double>(top + kHalf + 1) * df / 0.8;
+  if (top == 0 || !(f_cut < 0.9 * nyq)) return 0.0;
+  double above = 0;
+  for (size_t k = 1; k < bins; ++k)
+    if (static_cast<double>(k) * df > 0.8 * f_cut) above += pw[k];
+  return above <= 0.01 * total ? f_cut : 0.0;
+}
+
+UniformSpline DriveSpline(const PreparedRecord& r, const std::vector<double>& input) {
+  if (!(r.f_drive > 0)) return UniformSpline(r.t0, r.dt, input);
+  return UniformSpline(r.t0, r.dt, SpectralDerivative(input, r.dt, 0, r.f_drive));
 }
 
 Status ValidateSetup(const Setup& s) {
@@ -497,7 +560,8 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
   auto slice = [&](const std::vector<double>& v) { return std::vector<double>(v.begin() + begin, v.begin() + end); };
   r.input = slice(rec.input);
   const std::vector<double> out = slice(rec.output);
-  r.in_spline = UniformSpline(r.t0, r.dt, r.input);
+  r.f_drive = DriveCutoff(r.input, r.dt);
+  r.in_spline = DriveSpline(r, r.input);
   if (!(f_cut_hz >= 0)) return Status::InvalidArgument("deriv-cutoff", "the derivative cutoff must be >= 0 Hz");
   r.f_cut = f_cut_hz > 0 ? std::min(f_cut_hz, 0.5 / r.dt) : AutoCutoff(out, r.dt);
   if (setup.drift_cutoff_hz > 0 && !(setup.drift_cutoff_hz < r.f_cut)) {  // it would remove the whole signal

@@ -69,6 +69,13 @@ std::vector<double> SpectralDerivative(const std::vector<double>& y, double dt, 
 // A cutoff for SpectralDerivative: four times the frequency below which 99.9 % of the signal's power lies
 // (harmonics of the response carry the nonlinear terms), at most 0.45 of the sampling rate.
 double AutoCutoff(const std::vector<double>& y, double dt);
+// The drive's band edge [Hz] for an input record (PreparedRecord::f_drive): the SpectralDerivative cutoff
+// (order 0) whose flat part ends at twice the highest frequency where the input's power spectrum (Hann
+// periodogram, 7-bin moving average) stands 10× above its own white noise floor (NoiseLevel's: the median
+// above AutoCutoff). 0 — no band limit — when the cut would take away more than 1 % of the input's power
+// (then what lies above it is not noise, or no floor was found), the band reaches 0.9 of Nyquist, or the
+// floor is more than 120 dB below the input (roundoff of a computed input).
+double DriveCutoff(const std::vector<double>& input, double dt);
 // Zero-mean integral of a sampled signal by FFT (1/(iω) per bin, DC and bins below f_min dropped):
 // base velocity from base acceleration, displacement from velocity.
 std::vector<double> IntegrateFft(const std::vector<double>& y, double dt, double f_min_hz);
@@ -167,7 +174,14 @@ struct PreparedRecord {
   std::vector<double> ic_p, ic_pd, ic_r, ic_rd;
   // Relative coordinates along the measured trajectory: y, y', z, z' (z empty without resonator data).
   std::vector<double> y, yd, z, zd;
+  // The simulation's drive: the measured input low-passed at f_drive (DriveSpline). Noise on the input
+  // outside its band acts on the model through the input's derivative — the base velocity of a displacement
+  // input gains 2πf, at 120 Hz sampling 0.05 mm of noise is ≈ 9 mm/s — and through friction's narrow
+  // transition (v_t 1 mm/s) it kept the simulated bodies from sticking: the fits raised the static friction
+  // (1.47 and 1.85 N for 1.2 on two snap-through records) to hold them. The raw samples stay in `input`
+  // (noise levels, twins).
   UniformSpline in_spline;
+  double f_drive = 0;              // the drive's band edge [Hz] (DriveCutoff), 0: the input as measured
   double meas_scale = 1;           // RMS of meas about its mean (NRMSE denominator)
   double p_range = 1, v_range = 1; // max |y|, max |y'| along the record
   double f_cut = 0;                // derivative cutoff used [Hz]
@@ -179,8 +193,16 @@ struct PreparedRecord {
   // --objective auto found the record's long simulation to be chaos (identify/predictability.h): it is fitted
   // under multiple shooting, and the trace and the whiteness test are calibrated on the model's twins.
   bool chaotic = false;
+  // The measured record changes well at least twice (identify/predictability.h): even where its long
+  // simulation is meaningful, the residual of a snap-through record is not white for the true model (the
+  // input's noise acts through the hump), so the trace and the whiteness test are calibrated on twins.
+  bool snaps = false;
   size_t n() const { return meas.size(); }
 };
+
+// The spline of an input series of record r (its own samples, or a twin's) for the simulation: band-limited
+// at r.f_drive when that is set.
+UniformSpline DriveSpline(const PreparedRecord& r, const std::vector<double>& input);
 
 // Prepares a record (or its sample range [begin, end)) for a setup. `f_cut_hz`: low-pass cutoff of
 // the measured derivatives (0: AutoCutoff of the output). Errors: unsupported input/output
