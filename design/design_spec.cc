@@ -39,6 +39,9 @@ std::string Toml(const toml::node& n) {
 }
 
 StatusOr<double> Num(const toml::node& n, const std::string& field) {
+  // An integer beyond double's exact range (seed = 99999999999999999) is still a number: its range check
+  // names the bound (toml++ gives no double for it, and it was called "not a number").
+  if (n.is_integer()) return static_cast<double>(n.as_integer()->get());
   if (auto v = n.value<double>(); v && n.is_number()) return *v;
   return Status::InvalidArgument(field, field + " must be a number");
 }
@@ -287,7 +290,9 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
   if (auto hi = ParseSweepSpec(d.CandidateToml(d.hi), origin); !hi.ok()) return Renamed(hi.status(), kCandidateFields);
   if (d.maps > 0) {
     auto m = ParseSweepSpec(d.MapToml(d.lo, "map"), origin);
-    if (!m.ok()) return Renamed(m.status(), {{"axes.alpha", "design.map_alpha"}, {"axes.omega", "design.omega"}});
+    // design.omega passed with the candidates: what fails at the map's omega axis is the grid that
+    // design.map_alpha spans with it (an oversized map_alpha was reported as design.omega).
+    if (!m.ok()) return Renamed(m.status(), {{"axes.alpha", "design.map_alpha"}, {"axes.omega", "design.map_alpha"}});
   }
   return d;
 }

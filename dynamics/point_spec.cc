@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "base/limits.h"
+#include "base/names.h"
 #include "base/validate.h"
 
 namespace bistable {
@@ -32,7 +33,7 @@ StatusOr<ModelKind> ParseModel(const std::string& name) {
   for (ModelKind m : {ModelKind::kStandalone, ModelKind::kCoupled, ModelKind::kLinear, ModelKind::kLinearCoupled})
     if (name == ModelName(m)) return m;
   return Status::InvalidArgument(
-      "model", "model = '" + name + "' violates model in {standalone, coupled, linear, linear-coupled}");
+      "model", "model = '" + Printable(name) + "' violates model in {standalone, coupled, linear, linear-coupled}");
 }
 
 StatusOr<ModelKind> ParseAnyModel(const std::string& name) {
@@ -41,7 +42,7 @@ StatusOr<ModelKind> ParseAnyModel(const std::string& name) {
   auto m = ParseModel(name);
   if (m.ok()) return m;
   return Status::InvalidArgument(
-      "model", "model = '" + name + "' violates model in {standalone, coupled, linear, linear-coupled, series, dimensional}");
+      "model", "model = '" + Printable(name) + "' violates model in {standalone, coupled, linear, linear-coupled, series, dimensional}");
 }
 
 bool IsCellModel(ModelKind m) { return m != ModelKind::kSeries && m != ModelKind::kDimensional; }

@@ -1011,7 +1011,10 @@ Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
     const std::string f = field_of(st.field());
     const bool is_axis = swept.count(f) > 0;
     const bool is_param = std::find(param_keys.begin(), param_keys.end(), f) != param_keys.end();
-    const std::string section = is_axis ? "axes." : is_param ? "params." : "integration.";
+    // The metric settings ValidatePointSpec checks (hd_level, max_period, ...) live in [metrics]: the message
+    // named integration.hd_level for a bad [metrics] hd_level.
+    const bool is_metric = std::find(kMetricKeys.begin(), kMetricKeys.end(), f) != kMetricKeys.end();
+    const std::string section = is_axis ? "axes." : is_param ? "params." : is_metric ? "metrics." : "integration.";
     return Status::InvalidArgument(section + f, st.message());
   }
   if (spec.model == ModelKind::kSeries) {

@@ -65,6 +65,10 @@ TEST(DesignSpec, EveryFieldIsCheckedByName) {
       {"optimizer = \"nelder\"", "design.optimizer", "direct-l"},
       {"omega = { linspace = [0.2, 3.0, 1] }", "design.omega", "count >= 2"},
       {"omega = { linspace = [3.0, 0.2, 9] }", "design.omega", "strictly increasing"},
+      // An integer beyond double's exact range is a number out of range (was "must be a number").
+      {"seed = 99999999999999999", "design.seed", "a whole number in [0, 2147483647]"},
+      // The map grid that map_alpha spans with omega is map_alpha's (was reported as design.omega).
+      {"maps = 1\nmap_alpha = { linspace = [0.1, 3.0, 1000000] }", "design.map_alpha", "more than 4194304 points"},
   };
   for (const Row& r : rows) {
     const std::string key = r.edit.substr(0, r.edit.find(' '));

@@ -146,6 +146,11 @@ TEST(SweepSpec, BadInputNamesTheFieldAndTheBound) {
       {"model = \"coupled\"\n[integration]\nt_keep = 600", "integration.t_keep", "< t_end"},
       {"model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3] }", "axes.alpha.linspace", "3 numbers"},
       {"model = \"coupled\"\n[initial_conditions]\nstates = [[1, 0, 1]]", "initial_conditions.states[0]", "[ym, vm"},
+      // Settings [metrics] holds are named there (hd_level was reported as integration.hd_level).
+      {"model = \"coupled\"\n[metrics]\nhd_level = 2.0", "metrics.hd_level", "in (0, 1)"},
+      {"model = \"coupled\"\n[metrics]\nmax_period = 100", "metrics.max_period", "in [1, 64]"},
+      // A long model name is cut in the message, not echoed whole.
+      {"model = \"duffingduffingduffingduffingduffingduffingduffingduffingduffingduffingduffingduffingduffing\"", "model", "..."},
   };
   for (const Case& c : cases) {
     auto s = ParseSweepSpec(c.toml, "test.toml");

@@ -192,6 +192,9 @@ def test_error_messages_show_hostile_values_bounded():
     with pytest.raises(ValueError) as e:
         bistable.point(alpha="x" * 10**7, omega=1.0)
     assert len(str(e.value)) < 400 and "(10000000 characters)" in str(e.value) and "alpha = 'xxx" in str(e.value)
+    with pytest.raises(ValueError) as e:  # a model name is cut in the message (it was echoed whole: 10 MB)
+        bistable.point(model="m" * 10**7, alpha=0.3, omega=1.2)
+    assert len(str(e.value)) < 400 and "violates model in {standalone" in str(e.value)
     with pytest.raises(ValueError, match=re.escape("t_keep = 9.3e+18 violates t_keep <=")):
         bistable.point(model="standalone", alpha=0.3, omega=1.2, t_keep=9.3e18, dt=1.0, poincare_periods=10)
 
