@@ -687,12 +687,35 @@ ObjectiveChoice ChooseHorizons(const IdentModel& m, std::vector<PreparedRecord>*
       }
     }
   }
+  const std::vector<double>& decider = c.theta.empty() ? m.theta : c.theta;
   for (size_t i = 0; i < recs->size(); ++i) {
     PreparedRecord& r = (*recs)[i];
     r.horizon_s = 0;
     r.chaotic = c.records[i].fit_horizon_s > 0;
     if (!r.chaotic) continue;
     BandLimitedRestarts(&r);
+    // Segments the state fit can follow (kFollowableGrowth): halve the twins' horizon until the decision
+    // model's shooting error on it is within kFollowableGrowth of its error on kPrefitHorizon segments.
+    Predictability& p = c.records[i];
+    const double h0 = std::min(kPrefitHorizon, p.fit_horizon_s);
+    if (p.fit_horizon_s > h0 && !CancelRequested()) {
+      const double e0 = Evaluate(m, decider, {r}, setup, h0).shooting;
+      double h = p.fit_horizon_s, e = Evaluate(m, decider, {r}, setup, h).shooting;
+      const double twins_h = h, twins_e = e;
+      while (h > h0 && !(e <= kFollowableGrowth * e0) && !CancelRequested()) {
+        h = std::max(h0, 0.5 * h);
+        e = h > h0 ? Evaluate(m, decider, {r}, setup, h).shooting : e0;
+      }
+      if (h < twins_h) {
+        char buf[240];
+        std::snprintf(buf, sizeof buf,
+                      "; shortened to %.3g s: from fitted states the model's error on %.3g s segments is %.3g %%, %.3g× its %.3g %% on "
+                      "%.3g s segments (at most %.3g×: the segment's state fit no longer finds the orbit)",
+                      h, twins_h, twins_e, twins_e / e0, e0, h0, kFollowableGrowth);
+        p.reason += buf;
+        p.fit_horizon_s = h;
+      }
+    }
     c.objective = Objective::kShooting;
     c.horizon_s = c.horizon_s > 0 ? std::min(c.horizon_s, c.records[i].fit_horizon_s) : c.records[i].fit_horizon_s;
   }
