@@ -37,7 +37,25 @@ CASES = {
     "c_resfric_15": ("bistable-coupled", 15, 8, 22, "", "right", MAIN + ",res.linear,res.viscous,res.damping_z2"),
     "s_drag_15": ("bistable", 15, 10, 23, "main.drag=5", "left", None),
     "s_null_15": ("bistable", 15, 10, 24, "", "left", None),
+    # Held out: made after the loop's rules were fixed (session 21), other seeds, amplitudes and effects.
+    "h_s_drag_13": ("bistable", 13, 10, 41, "main.drag=3", "left", None),
+    "h_s_null_14": ("bistable", 14, 10, 42, "", "right", None),
+    "h_s_v3_14": ("bistable", 14, 10, 43, "main.damping_v3=6", "right", None),
+    "h_c_y2_13": ("bistable-coupled", 13, 8, 44, "main.stiffness_y2=8e3", "left", None),
+    "h_c_null_14": ("bistable-coupled", 14, 8, 45, "", "right", None),
+    "h_c_drag_12": ("bistable-coupled", 12, 10, 46, "main.drag=4", "right", None),
 }
+HELD_OUT = [k for k in CASES if k.startswith("h_")]
+
+
+def long_rule(fit, pred):
+    """The issue's rule: where the true model's long-simulation error is below 10 %, the final fit's is within 1.5x of it."""
+    truth, after = pred.get("long_simulation_nrmse"), fit.get("long_simulation_error_after")
+    if truth is None or after is None:
+        return "-"
+    if truth >= 10:
+        return "n/a"
+    return "ok" if after <= 1.5 * truth else "FAIL"
 
 
 def run(cmd, timeout=3600):
@@ -52,14 +70,16 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("bistable")
     ap.add_argument("out")
-    ap.add_argument("--cases", default=",".join(CASES))
+    ap.add_argument("--cases", default=",".join(k for k in CASES if k not in HELD_OUT),
+                    help="comma-separated case names (default: the 14 of the table; 'held-out' for the h_* cases)")
     ap.add_argument("--threads", default="2")
     ap.add_argument("--duration", default="30")
     ap.add_argument("--extra-args", default="", help="more identify flags, space-separated")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     rows = []
-    for name in a.cases.split(","):
+    names = HELD_OUT if a.cases == "held-out" else a.cases.split(",")
+    for name in names:
         model, amp, f_end, seed, extra, start, declared = CASES[name]
         d = os.path.join(a.out, name)
         cmd = [a.bistable, "identify", "--make-synthetic", d, "--synthetic", model, "--synthetic-amplitude", str(amp),
@@ -125,10 +145,11 @@ def main():
                      f(h1[0]["before"] if h1 else None) + " → " + f(h1[0]["after"] if h1 else None) + " (" + f(th1[0]["nrmse"] if th1 else None) + ")",
                      f(h4[0]["before"] if h4 else None) + " → " + f(h4[0]["after"] if h4 else None) + " (" + f(th4[0]["nrmse"] if th4 else None) + ")",
                      f(fit.get("long_simulation_error_before")) + " → " + f(fit.get("long_simulation_error_after")) + " (" + f(pred.get("long_simulation_nrmse")) + ")",
-                     verdict, value, "yes" if fit.get("unexplained") else "no", f"{secs:.0f}"])
+                     verdict, value, "yes" if fit.get("unexplained") else "no", long_rule(fit, pred), f"{secs:.0f}"])
         print("|" + "|".join(rows[-1]) + "|", file=sys.stderr, flush=True)
     hdr = ["case", "model", "A0 mm", "band Hz", "seed", "undeclared (truth)", "well changes", "objective chosen", "its error % before → after (truth)",
-           "1 drive period % (truth)", "4 drive periods % (truth)", "long simulation % (truth)", "verdict", "value ± σ (truth)", "unexplained", "s"]
+           "1 drive period % (truth)", "4 drive periods % (truth)", "long simulation % (truth)", "verdict", "value ± σ (truth)", "unexplained",
+           "long ≤ 1.5× truth's", "s"]
     print("| " + " | ".join(hdr) + " |")
     print("|" + "---|" * len(hdr))
     for r in rows:
