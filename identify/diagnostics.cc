@@ -363,7 +363,8 @@ LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector
   // with the same test on the final model's twins, where nothing is missing.
   const bool calibrate = std::any_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.chaotic || r.snaps || r.horizon_s > 0; });
   const std::vector<std::vector<PreparedRecord>> twins =
-      calibrate ? TwinRecords(fin.model, fin.fit.theta, recs, setup, kTwins) : std::vector<std::vector<PreparedRecord>>{};
+      calibrate ? TwinRecords(fin.model, fin.fit.theta, recs, setup, kTwins, fo.objective == Objective::kShooting ? horizon : 0.0)
+                : std::vector<std::vector<PreparedRecord>>{};
   for (int k = 0; k < kOutputSlots; ++k) {
     const OutputSlot slot = static_cast<OutputSlot>(k);
     if (!std::any_of(recs.begin(), recs.end(), [&](const PreparedRecord& r) { return r.Has(slot); })) continue;

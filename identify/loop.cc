@@ -395,7 +395,8 @@ LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const
   // Records fitted on short horizons, or that snap between wells: the trace's null from the fitted model's twins.
   const bool chaotic = std::any_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.chaotic || r.snaps || r.horizon_s > 0; });
   const std::vector<std::vector<PreparedRecord>> twins =
-      chaotic ? TwinRecords(m, th, recs, setup, kTwins) : std::vector<std::vector<PreparedRecord>>{};
+      chaotic ? TwinRecords(m, th, recs, setup, kTwins, opt.fit.objective == Objective::kShooting ? opt.fit.shooting_horizon_s : 0.0)
+              : std::vector<std::vector<PreparedRecord>>{};
   return TraceScores(m, th, recs, setup, opt, passed_over, twins);
 }
 

@@ -1,12 +1,14 @@
 #include "identify/predictability.h"
 
 #include <algorithm>
+#include <array>
 #include <complex>
 #include <cstdio>
 #include <cstdlib>
 #include <random>
 
 #include "dynamics/spectrum.h"
+#include "identify/fit.h"
 
 namespace bistable {
 
@@ -223,7 +225,8 @@ Predictability TestPredictability(const IdentModel& m, const std::vector<double>
 }
 
 std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const std::vector<double>& th,
-                                                     const std::vector<PreparedRecord>& recs, const Setup& setup, int twins) {
+                                                     const std::vector<PreparedRecord>& recs, const Setup& setup, int twins,
+                                                     double shooting_horizon_s) {
   std::vector<std::vector<PreparedRecord>> out;
   if (setup.input == InputKind::kForce || (setup.output == OutputKind::kVelocity && setup.frame == OutputFrame::kRelative)) return out;
   // The twins' true input: the measured one low-passed at its own band (AutoCutoff), so that, as for the record,
@@ -241,6 +244,29 @@ std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const 
     if (!r.base_v.empty()) r.base_v = IntegrateFft(r.input, r.dt, 0.0);
     if (!SimulateOutputs(m, th, {}, r, setup, 2 * SubstepsFor(m, th, r), 0, false, &sims[i])) return out;
   }
+  // Per record and output slot: the noise put on the twin's output (see the header).
+  std::vector<std::array<double, kOutputSlots>> noise(recs.size());
+  for (size_t i = 0; i < recs.size(); ++i) {
+    const PreparedRecord& r = recs[i];
+    SimOutputs shot;
+    const bool shooting = shooting_horizon_s > 0 && (r.chaotic || r.horizon_s > 0);
+    if (shooting) {
+      PreparedRecord b = r;
+      BandLimitedRestarts(&b);
+      if (!SimulateShooting(m, th, b, setup, shooting_horizon_s, &shot)) shot = SimOutputs{};
+    }
+    const SimOutputs& model = shooting ? shot : sims[i];
+    for (int k = 0; k < kOutputSlots; ++k) {
+      const OutputSlot slot = static_cast<OutputSlot>(k);
+      noise[i][static_cast<size_t>(k)] = r.Has(slot) ? r.noise[k] : 0.0;
+      if (!r.Has(slot) || model.out[k].size() != r.n()) continue;
+      const std::vector<double>& meas = r.Measured(slot);
+      std::vector<double> res(r.n());
+      for (size_t j = 0; j < r.n(); ++j) res[j] = meas[j] - model.out[k][j];
+      const double s_res = NoiseLevel(res, r.dt);
+      if (std::isfinite(s_res) && s_res > 0 && !(s_res >= noise[i][static_cast<size_t>(k)])) noise[i][static_cast<size_t>(k)] = s_res;
+    }
+  }
   for (int k = 0; k < twins; ++k) {
     std::mt19937_64 rng(0x7e57 + 7919 * static_cast<unsigned>(k));
     std::normal_distribution<double> unit(0.0, 1.0);
@@ -250,8 +276,7 @@ std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const 
       Record rec;
       rec.name = r.name + " (twin " + std::to_string(k + 1) + ")";
       rec.dt = r.dt;
-      const double s_in = NoiseLevel(r.input, r.dt), s_out = r.noise[0];
-      const double s_res = r.Has(OutputSlot::kResonator) ? r.noise[1] : 0.0, s_v = r.Has(OutputSlot::kVoltage) ? r.noise[2] : 0.0;
+      const double s_in = NoiseLevel(r.input, r.dt), s_out = noise[i][0], s_res = noise[i][1], s_v = noise[i][2];
       for (size_t j = 0; j < r.n(); ++j) {
         rec.t.push_back(r.t0 + r.dt * static_cast<double>(j));
         rec.input.push_back(clean[i][j] + (std::isfinite(s_in) ? s_in : 0.0) * unit(rng));

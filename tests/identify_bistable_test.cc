@@ -220,6 +220,26 @@ TEST(ObjectiveChoice, TheDriveIsTheInputBandLimitedAboveItsNoiseFloor) {
   EXPECT_LT(banded, 0.3 * as_measured) << banded << " m/s against " << as_measured;
 }
 
+// The twins of a chaotic record carry the record's noise, not its broadband chaos: the level put on them is
+// the model's short-horizon residual's where that is below the output's own (which reads the chaotic response
+// above the derivative cutoff as noise).
+TEST(ObjectiveChoice, TwinsOfAChaoticRecordCarryItsNoiseLevel) {
+  const IdentModel m = Truth(Beam(), {});
+  auto rec = MakeSyntheticRecord(Beam(), Chirp(15, 10, 24, 0.05), "snap");
+  ASSERT_TRUE(rec.ok());
+  PreparedRecord r = Prepared(*rec);
+  r.chaotic = true;
+  constexpr double kHorizon = 0.25;
+  EXPECT_GT(r.noise[0], 1.1 * 0.05e-3) << "the output's own level is high on this record (else the test shows nothing)";
+  const auto twins = TwinRecords(m, m.theta, {r}, bistable::Setup{}, 2, kHorizon);
+  ASSERT_EQ(twins.size(), 2u);
+  // Two twins share their truth and differ by two independent draws of the noise: RMS √2 σ.
+  double ss = 0;
+  for (size_t i = 0; i < r.n(); ++i) ss += (twins[0][0].meas[i] - twins[1][0].meas[i]) * (twins[0][0].meas[i] - twins[1][0].meas[i]);
+  const double level = std::sqrt(ss / static_cast<double>(r.n()) / 2.0);
+  EXPECT_NEAR(level, 0.05e-3, 0.1 * 0.05e-3) << "the twin's noise; the output's own level " << r.noise[0];
+}
+
 TEST(ObjectiveChoice, WellChangesCountCrossingsWithHysteresis) {
   EXPECT_EQ(CountWellChanges({1, 1, -1, -1, 1}, 1.0), 2);
   EXPECT_EQ(CountWellChanges({1, 0.4, -0.4, 0.6, 0.4}, 1.0), 0);  // never past the other well's half depth
