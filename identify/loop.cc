@@ -731,8 +731,7 @@ ObjectiveChoice ChooseHorizons(const IdentModel& m, std::vector<PreparedRecord>*
 // keep the shooting error too (the objective the loop ran).
 void ContinueToLongSimulation(const IdentModel& m, FitResult* fit, const std::vector<PreparedRecord>& recs, const Setup& setup,
                               const IdentifyOptions& opt, ObjectiveChoice::Continuation* c) {
-  const ObjectiveChoice::Continuation none;
-  *c = none;
+  *c = ObjectiveChoice::Continuation{};
   const double horizon = opt.fit.shooting_horizon_s;
   std::vector<PreparedRecord> whole = recs;  // the records as the time objective sees them
   for (PreparedRecord& r : whole) r.horizon_s = 0, r.chaotic = false;

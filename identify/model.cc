@@ -191,11 +191,8 @@ Periodogram HannPeriodogram(const std::vector<double>& y, double dt) {
   return p;
 }
 
-}  // namespace
-
-double NoiseLevel(const std::vector<double>& y, double dt) {
-  if (y.size() < 64) return NAN;
-  const Periodogram pg = HannPeriodogram(y, dt);
+// NoiseLevel from y's periodogram pg.
+double NoiseOf(const Periodogram& pg, const std::vector<double>& y, double dt) {
   const double nyq = 0.5 / dt;
   const double f_lo = std::min(AutoCutoff(y, dt), 0.6 * nyq);
   std::vector<double> pw;
@@ -207,10 +204,19 @@ double NoiseLevel(const std::vector<double>& y, double dt) {
   return std::sqrt(median / std::log(2.0) / pg.w2);
 }
 
+}  // namespace
+
+double NoiseLevel(const std::vector<double>& y, double dt) {
+  if (y.size() < 64) return NAN;
+  return NoiseOf(HannPeriodogram(y, dt), y, dt);
+}
+
 double DriveCutoff(const std::vector<double>& input, double dt) {
   const size_t n = input.size();
-  const double sigma = NoiseLevel(input, dt);
-  if (n < 64 || !(sigma > 0) || !std::isfinite(sigma)) return 0.0;
+  if (n < 64) return 0.0;
+  const Periodogram pg = HannPeriodogram(input, dt);
+  const double sigma = NoiseOf(pg, input, dt);
+  if (!(sigma > 0) || !std::isfinite(sigma)) return 0.0;
   double mean = 0, ms = 0;
   for (double v : input) mean += v;
   mean /= static_cast<double>(n);
@@ -218,13 +224,11 @@ double DriveCutoff(const std::vector<double>& input, double dt) {
   // A floor 120 dB below the input is roundoff, not noise (a computed input; no converter is that clean):
   // nothing to take away, and a chaotic model's orbit would notice the low-pass's own rounding.
   if (!(sigma > 1e-6 * std::sqrt(ms / static_cast<double>(n)))) return 0.0;
-  const Periodogram pg = HannPeriodogram(input, dt);
   const std::vector<double>& pw = pg.power;
   const size_t bins = pw.size();
   double total = 0;
   for (size_t k = 1; k < bins; ++k) total += pw[k];
-  const double w2 = pg.w2;
-  const double floor = sigma * sigma * w2;  // a white noise bin's mean power (NoiseLevel's scale)
+  const double floor = sigma * sigma * pg.w2;  // a white noise bin's mean power (NoiseLevel's scale)
   constexpr int kHalf = 3;
   size_t top = 0;
   for (size_t k = 1; k < bins; ++k) {
