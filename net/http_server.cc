@@ -1,5 +1,6 @@
 #include "net/http_server.h"
 
+#include <algorithm>
 #include <atomic>
 #include <optional>
 #include <thread>
@@ -13,6 +14,8 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/ssl.hpp>
+
+#include "base/names.h"
 
 namespace bistable {
 
@@ -331,27 +334,69 @@ StatusOr<std::map<std::string, std::string>> ParseQueryString(const std::string&
   return out;
 }
 
-bool IsLoopbackHost(const std::string& host) {
-  std::string name = host;
-  size_t port_start = std::string::npos;
-  if (!name.empty() && name.front() == '[') {  // [v6] or [v6]:port
+namespace {
+
+std::string Lower(std::string s) {
+  for (char& ch : s) ch = static_cast<char>(ch >= 'A' && ch <= 'Z' ? ch - 'A' + 'a' : ch);
+  return s;
+}
+
+}  // namespace
+
+bool HostAllowed(const std::string& host, const std::vector<std::string>& allowed_names) {
+  // Split "name[:port]" / "[v6][:port]"; the port, when given, is 1-5 digits.
+  std::string name = host, port;
+  bool bracketed = false;
+  if (!name.empty() && name.front() == '[') {
     const size_t close = name.find(']');
     if (close == std::string::npos) return false;
     if (close + 1 < name.size()) {
       if (name[close + 1] != ':') return false;
-      port_start = close + 2;
+      port = name.substr(close + 2);
+      if (port.empty()) return false;
     }
-    name = name.substr(0, close + 1);
+    name = name.substr(1, close - 1);
+    bracketed = true;
   } else if (const size_t colon = name.find(':'); colon != std::string::npos) {
-    port_start = colon + 1;
-    name = name.substr(0, colon);
+    port = name.substr(colon + 1);
+    name.resize(colon);
+    if (port.empty()) return false;
   }
-  if (port_start != std::string::npos) {
-    const std::string port = host.substr(port_start);
-    if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos) return false;
+  if (port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos || name.empty()) return false;
+  beast::error_code ec;
+  if (bracketed) {  // an IPv6 literal: no attacker's name
+    (void)asio::ip::make_address_v6(name, ec);
+    return !ec;
   }
-  for (char& ch : name) ch = static_cast<char>(ch >= 'A' && ch <= 'Z' ? ch - 'A' + 'a' : ch);
-  return name == "localhost" || name == "127.0.0.1" || name == "[::1]";
+  (void)asio::ip::make_address_v4(name, ec);  // dotted quad only (inet_pton): "127.0.0.1.nip.io" is a name
+  if (!ec) return true;
+  const std::string lower = Lower(name);
+  if (lower == "localhost") return true;
+  return std::any_of(allowed_names.begin(), allowed_names.end(), [&](const std::string& a) { return Lower(a) == lower; });
+}
+
+std::map<std::string, HttpHandler> HostChecked(std::map<std::string, HttpHandler> routes, std::vector<std::string> allowed_names) {
+  auto allowed = std::make_shared<const std::vector<std::string>>(std::move(allowed_names));
+  for (auto& [path, handler] : routes) {
+    if (path == "/healthz") continue;  // no data: probes may name the host as they like
+    handler = [allowed, handler = std::move(handler)](const HttpRequest& req) {
+      if (HostAllowed(req.host, *allowed)) return handler(req);
+      // The header is not echoed.
+      return HttpResponse{421, "application/json",
+                          "{\"error\": \"misdirected request: this server answers a Host that is an IP address, localhost or a name "
+                          "given with --http-allowed-host\"}",
+                          {}};
+    };
+  }
+  return routes;
+}
+
+Status CheckAllowedHostName(const std::string& name, const std::string& field) {
+  if (name.empty() || name.size() > 253 ||
+      name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-.") != std::string::npos)
+    return Status::InvalidArgument(field, field + " '" + Printable(name, 64) +
+                                              "' violates a host name of 1-253 letters, digits, '-' and '.' (no port, no wildcard)");
+  return Status::Ok();
 }
 
 std::string CookieValue(const std::string& header, const std::string& name) {

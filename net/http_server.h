@@ -24,7 +24,7 @@ struct HttpRequest {
   std::string path, query;
   std::string authorization;  // the Authorization header, "" when absent
   std::string cookie;         // the Cookie header, "" when absent
-  std::string host;           // the Host header, "" when absent (HTTP/1.0); see IsLoopbackHost
+  std::string host;           // the Host header, "" when absent (HTTP/1.0); see HostAllowed
   bool tls = false;           // the connection is TLS (cookies are then marked Secure)
 };
 
@@ -71,10 +71,22 @@ class HttpServer {
 // repeated or empty name, a byte below 0x20 after decoding, or more than `max_params` parameters.
 StatusOr<std::map<std::string, std::string>> ParseQueryString(const std::string& query, size_t max_params = 16);
 
-// Whether a Host header names this machine's loopback: localhost (any case), 127.0.0.1 or [::1], with or
-// without ":port". A server without tokens answers only such requests, so that a web page elsewhere cannot
-// read it through DNS rebinding (its requests carry the attacker's host name).
-bool IsLoopbackHost(const std::string& host);
+// The Host rule of every listener that serves data without a token: --metrics of the coordinator and the
+// worker always, the coordinator's --http and `bistable run --serve` when no tokens are configured. A web
+// page elsewhere can point a host name it controls at this machine (DNS rebinding) and then read it as its
+// own origin, but its requests carry that name: so a Host that is an IP literal (IPv4, or IPv6 in brackets)
+// or "localhost" (any case), each with or without ":port", is answered, and so is one of `allowed_names`
+// (any case, any port: --http-allowed-host, e.g. a Kubernetes Service name a scraper uses); any other name,
+// a malformed header or none at all is not.
+bool HostAllowed(const std::string& host, const std::vector<std::string>& allowed_names);
+
+// `routes` under that rule: every route but /healthz (which carries no data) answers a request whose Host
+// fails HostAllowed with 421 and a fixed JSON error that does not echo the header.
+std::map<std::string, HttpHandler> HostChecked(std::map<std::string, HttpHandler> routes, std::vector<std::string> allowed_names);
+
+// A name for --http-allowed-host: 1-253 letters, digits, '-' and '.' (a DNS name, no port, no wildcard);
+// InvalidArgument naming `field` otherwise.
+Status CheckAllowedHostName(const std::string& name, const std::string& field);
 
 // The value of cookie `name` in a Cookie header ("" when absent).
 std::string CookieValue(const std::string& cookie_header, const std::string& name);

@@ -514,17 +514,9 @@ HttpResponse SessionRoute(const TokenStore* tokens, const HttpRequest& req) {
 
 }  // namespace
 
-HttpHandler LoopbackHostOnly(HttpHandler handler) {
-  return [handler = std::move(handler)](const HttpRequest& req) {
-    if (!IsLoopbackHost(req.host))  // the header is not echoed
-      return Json({{"error", "misdirected request: without tokens this server answers only Host localhost, 127.0.0.1 or [::1]"}}, 421);
-    return handler(req);
-  };
-}
-
 std::set<std::string> DashboardSlowRoutes() { return {"/api/map", "/api/query", "/api/cell"}; }
 
-std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens) {
+std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens, std::vector<std::string> allowed_hosts) {
   std::map<std::string, HttpHandler> routes;
   auto cache = std::make_shared<DashboardCache>(kCacheSeconds, kCacheEntries);
   for (const EmbeddedFile& f : DashboardAssets()) {
@@ -552,9 +544,8 @@ std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const To
   routes["/api/map"] = guarded([c, cache](const HttpRequest& req) { return MapRoute(c, cache.get(), req); });
   routes["/api/query"] = guarded([c, cache](const HttpRequest& req) { return QueryRoute(c, cache.get(), req); });
   routes["/api/cell"] = guarded([c, cache](const HttpRequest& req) { return CellRoute(c, cache.get(), req); });
-  // Without tokens, only requests that name the loopback (DNS rebinding: a page elsewhere names its own host).
-  if (!tokens->enabled())
-    for (auto& [path, handler] : routes) handler = LoopbackHostOnly(std::move(handler));
+  // Without tokens, the Host rule of every tokenless listener (DNS rebinding: a page elsewhere names its own host).
+  if (!tokens->enabled()) return HostChecked(std::move(routes), std::move(allowed_hosts));
   return routes;
 }
 

@@ -904,6 +904,109 @@ TEST(HostileRound2, ARestartResumesEveryInterruptedSweepBeyondThePerOwnerLimit) 
   Wait(pid, 10);
 }
 
+// The "<what> on ...:PORT" line a process printed on stdout (`log`), waited for; 0 when it never came.
+int AwaitPrintedPort(const std::string& log, const std::string& what) {
+  for (int i = 0; i < 400; ++i) {
+    std::istringstream in(ReadFile(log));
+    for (std::string line; std::getline(in, line);)
+      if (line.rfind(what + " on ", 0) == 0) return std::stoi(line.substr(line.rfind(':') + 1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  return 0;
+}
+
+// Minor: --metrics had no Host check, so a web page that points a name of its own at the machine (DNS
+// rebinding) read worker names off the coordinator's and the worker's metrics. One rule now for every
+// listener without tokens (--metrics; --http without tokens): an IP literal, localhost or a name given with
+// --http-allowed-host is answered, any other name gets 421 and nothing; /healthz answers anyone.
+TEST(HostileRound2, MetricsListenersAnswerNoForeignHostName) {
+  const std::string dir = Round2Dir("metrics_host");
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log",
+                                      {"--metrics", "127.0.0.1:0", "--http", "127.0.0.1:0", "--http-allowed-host", "bistable-coordinator"});
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  const int coord_metrics = AwaitPrintedPort(dir + "/coord.log", "metrics"), dashboard = AwaitPrintedPort(dir + "/coord.log", "dashboard");
+  ASSERT_GT(coord_metrics, 0);
+  ASSERT_GT(dashboard, 0);
+  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--name", "victim-worker", "--metrics", "127.0.0.1:0",
+                         "--http-allowed-host", "Metrics.Internal"},
+                        dir + "/worker.log");
+  int worker_metrics = 0;
+  for (int i = 0; i < 400 && !worker_metrics; ++i) {  // the worker says its port in its worker.started line
+    const std::string log = ReadFile(dir + "/worker.log.err");
+    if (const size_t at = log.find("metrics="); at != std::string::npos && std::isdigit(static_cast<unsigned char>(log[at + 8])))
+      worker_metrics = std::stoi(log.substr(at + 8));
+    else
+      std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ASSERT_GT(worker_metrics, 0) << ReadFile(dir + "/worker.log.err");
+  // A sweep computed by the worker: its name is in the coordinator's metrics.
+  std::ofstream(dir + "/spec.toml") << Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n");
+  ASSERT_EQ(Wait(Spawn({BISTABLE_CLI, "submit", dir + "/spec.toml", "--coordinator", addr}, dir + "/submit"), 30), 0);
+  bool named = false;
+  for (int i = 0; i < 400 && !named; ++i) {
+    named = bistable_test::HttpRequest(coord_metrics, "/metrics").body.find("victim-worker") != std::string::npos;
+    if (!named) std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ASSERT_TRUE(named) << "the worker's name never reached the metrics";
+  const auto get = [](int port, const std::string& target, const std::string& host) {
+    return bistable_test::HttpRequest(port, target, boost::beast::http::verb::get, "", host);
+  };
+  const std::string cp = std::to_string(coord_metrics);
+  struct Listener {
+    const char* what;
+    int port;
+    std::string target, data;  // a route and what only its answer holds
+    std::vector<std::string> answered, refused;
+  };
+  const std::vector<std::string> foreign = {"evil.example", "evil.example:" + cp, "localhost.evil.example", "127.0.0.1.nip.io:" + cp,
+                                            "bistable-coordinator.evil.example", "[::1", "localhost:80x", ""};
+  auto with = [](std::vector<std::string> v, std::initializer_list<std::string> more) {
+    v.insert(v.end(), more);
+    return v;
+  };
+  const std::vector<Listener> listeners = {
+      {"coordinator --metrics", coord_metrics, "/metrics", "victim-worker",
+       {"127.0.0.1:" + cp, "10.0.0.5:9090", "[::1]:" + cp, "[2001:db8::7]", "localhost", "LOCALHOST:" + cp, "bistable-coordinator:9090",
+        "Bistable-Coordinator"},
+       with(foreign, {"metrics.internal"})},
+      {"worker --metrics", worker_metrics, "/metrics", "bistable_worker_threads",
+       {"127.0.0.1", "10.0.0.6:9090", "[::1]", "localhost:9090", "metrics.internal:9090"}, with(foreign, {"bistable-coordinator"})},
+      {"coordinator --http (no tokens)", dashboard, "/api/sweeps", "victim-worker",
+       {"127.0.0.1", "192.168.1.20:8080", "localhost", "bistable-coordinator"}, foreign},
+      {"coordinator --http /metrics (no tokens)", dashboard, "/metrics", "victim-worker", {"127.0.0.1", "bistable-coordinator"}, foreign},
+  };
+  for (const Listener& l : listeners) {
+    SCOPED_TRACE(l.what);
+    for (const std::string& host : l.answered) {
+      const auto r = get(l.port, l.target, host);
+      EXPECT_EQ(r.status, 200) << "Host '" << host << "': " << r.body.substr(0, 200);
+      EXPECT_NE(r.body.find(l.data), std::string::npos) << "Host '" << host << "'";
+    }
+    for (const std::string& host : l.refused) {
+      const auto r = get(l.port, l.target, host);
+      EXPECT_EQ(r.status, 421) << "Host '" << host << "' was answered (DNS rebinding reads it):\n" << r.body.substr(0, 300);
+      EXPECT_EQ(r.body.find(l.data), std::string::npos) << "Host '" << host << "'";
+      EXPECT_EQ(r.body.find("bistable_"), std::string::npos) << "Host '" << host << "'";
+      EXPECT_NE(r.body.find("--http-allowed-host"), std::string::npos) << r.body;
+      if (host.size() > 4) EXPECT_EQ(r.body.find(host), std::string::npos) << "the Host header was echoed";
+    }
+    EXPECT_EQ(get(l.port, "/healthz", "evil.example").status, 200);  // no data: open to any Host
+  }
+  // A bad --http-allowed-host is refused at start, by both programs.
+  for (const std::vector<std::string>& argv : {std::vector<std::string>{BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/d2",
+                                                                        "--http-allowed-host", "host:80"},
+                                               std::vector<std::string>{BISTABLE_WORKER, "--coordinator", addr, "--http-allowed-host", "*.example"}}) {
+    const int code = Wait(Spawn(argv, dir + "/bad"), 10);
+    EXPECT_EQ(code, 2) << argv[0] << "\n" << ReadFile(dir + "/bad.err");
+    EXPECT_NE(ReadFile(dir + "/bad.err").find("http-allowed-host"), std::string::npos) << ReadFile(dir + "/bad.err");
+  }
+  ::kill(w, SIGTERM);
+  Wait(w, 20);
+  EXPECT_TRUE(Alive(pid));
+  ::kill(pid, SIGTERM);
+  Wait(pid, 10);
+}
+
 // Fail 3: a coordinator the worker cannot trust. A fake one (the Coordinator service, in this test) hands
 // the real bistable-worker one lease with hostile values, then nothing; the worker must refuse it (a
 // log line naming the field and the bound, the lease released, nothing reported) and stop cleanly on

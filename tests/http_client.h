@@ -19,10 +19,11 @@ struct HttpReply {
   std::string body, content_type;
 };
 
-// One request over a fresh connection to 127.0.0.1:port; status −1 and the error in body on failure.
+// One request over a fresh connection to 127.0.0.1:port, with the Host header `host`; status −1 and the
+// error in body on failure.
 inline HttpReply HttpRequest(int port, const std::string& target,
                              boost::beast::http::verb verb = boost::beast::http::verb::get,
-                             const std::string& extra_header = "") {
+                             const std::string& extra_header = "", const std::string& host = "127.0.0.1") {
   namespace beast = boost::beast;
   namespace http = beast::http;
   namespace asio = boost::asio;
@@ -32,7 +33,7 @@ inline HttpReply HttpRequest(int port, const std::string& target,
   sock.connect(asio::ip::tcp::endpoint(asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)), ec);
   if (ec) return {-1, ec.message(), ""};
   http::request<http::empty_body> req{verb, target, 11};
-  req.set(http::field::host, "127.0.0.1");
+  req.set(http::field::host, host);
   if (!extra_header.empty()) req.set("X-Padding", extra_header);
   http::write(sock, req, ec);
   if (ec) return {-1, ec.message(), ""};

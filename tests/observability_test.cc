@@ -528,14 +528,23 @@ TEST(HttpServer, QueryStringsAndCookies) {
   EXPECT_EQ(bistable::CookieValue("", "bistable_token"), "");
 }
 
-// The Host names a tokenless dashboard answers (DNS rebinding: a page elsewhere sends its own host name).
-TEST(HttpServer, LoopbackHostsOnly) {
-  for (const char* ok : {"localhost", "LocalHost:8080", "127.0.0.1", "127.0.0.1:65535", "[::1]", "[::1]:80"})
-    EXPECT_TRUE(bistable::IsLoopbackHost(ok)) << ok;
-  for (const char* bad : {"", "evil.example", "evil.example:8080", "localhost.evil.example", "127.0.0.1.nip.io", "127.0.0.2",
-                          "localhost:", "localhost:80x", "localhost:123456", "[::1", "[::1]x", "[::2]:80", "::1", "0.0.0.0",
-                          "localhost.", " localhost", "127.0.0.1:80:80"})
-    EXPECT_FALSE(bistable::IsLoopbackHost(bad)) << bad;
+// The Host rule of every listener that serves data without a token (DNS rebinding: a page elsewhere sends
+// its own host name; an IP literal is no name an attacker controls).
+TEST(HttpServer, HostRuleAnswersIpLiteralsLocalhostAndAllowedNamesOnly) {
+  const std::vector<std::string> allowed = {"bistable-coordinator", "Metrics.Internal"};
+  for (const char* ok : {"localhost", "LocalHost:8080", "127.0.0.1", "127.0.0.1:65535", "[::1]", "[::1]:80", "127.0.0.2", "0.0.0.0",
+                         "10.1.2.3:9090", "[::2]:80", "[2001:db8::7]", "bistable-coordinator", "BISTABLE-COORDINATOR:9090",
+                         "metrics.internal"})
+    EXPECT_TRUE(bistable::HostAllowed(ok, allowed)) << ok;
+  for (const char* bad : {"", "evil.example", "evil.example:8080", "localhost.evil.example", "127.0.0.1.nip.io", "localhost:",
+                          "localhost:80x", "localhost:123456", "[::1", "[::1]x", "[::1]:", "::1", "[evil.example]", "[127.0.0.1]",
+                          "localhost.", " localhost", "127.0.0.1:80:80", "127.1", "0x7f000001", "bistable-coordinator.evil.example",
+                          "metrics"})
+    EXPECT_FALSE(bistable::HostAllowed(bad, allowed)) << bad;
+  EXPECT_FALSE(bistable::HostAllowed("bistable-coordinator", {}));  // only when allowed
+  EXPECT_TRUE(bistable::CheckAllowedHostName("bistable-coordinator.bistable.svc", "http-allowed-host").ok());
+  for (const std::string& bad : std::vector<std::string>{"", "a:80", "*.example", "a b", std::string(254, 'a'), "a\nb"})
+    EXPECT_FALSE(bistable::CheckAllowedHostName(bad, "http-allowed-host").ok()) << bad;
 }
 
 // ---- structured logs ----
