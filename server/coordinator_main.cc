@@ -86,6 +86,10 @@ int main(int argc, char** argv) {
   if (!tokens_file.empty()) {
     auto t = bistable::TokenStore::Load(tokens_file);
     if (!t.ok()) return fail(t.status());
+    if (!t->lax_mode().empty())
+      bistable::log::Event(bistable::log::Level::kWarn, "tokens.mode",
+                           {{"file", tokens_file}, {"mode", t->lax_mode()},
+                            {"reason", t->lax_reason()}});
     tokens = std::move(*t);
   }
   std::shared_ptr<grpc::ServerCredentials> creds = grpc::InsecureServerCredentials();

@@ -14,8 +14,10 @@
 
 #include "base/limits.h"
 #include "engine/refine.h"
+#include "base/file.h"
 #include "base/log.h"
 #include "engine/evaluate.h"
+#include "storage/data_dir.h"
 #include "storage/map_file.h"
 
 namespace bistable {
@@ -43,9 +45,10 @@ double SweepCoordinator::Monotonic() const {
 }
 
 StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::string& data_dir, Options opt) {
-  std::error_code ec;
-  std::filesystem::create_directories(std::filesystem::path(data_dir) / "sweeps", ec);
-  if (ec) return Status::IoError("data", "cannot create data directory '" + data_dir + "': " + ec.message());
+  // Results are the owner's (and a group's): the directory and sweeps/ are created 0750, the index and the
+  // maps 0640 (docs/operations.md, "One data directory"); a directory that exists keeps its mode.
+  BISTABLE_RETURN_IF_ERROR(MakeDirectory(data_dir, kDataDirectoryMode, "data"));
+  BISTABLE_RETURN_IF_ERROR(MakeDirectory((std::filesystem::path(data_dir) / "sweeps").string(), kDataDirectoryMode, "data"));
   if (::access(data_dir.c_str(), W_OK) != 0)
     return Status::IoError("data", "data directory '" + data_dir + "' is not writable");
   auto db = IndexDb::Open((std::filesystem::path(data_dir) / "index.sqlite").string());

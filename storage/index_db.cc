@@ -1,12 +1,16 @@
 #include "storage/index_db.h"
 
+#include <fcntl.h>
 #include <sqlite3.h>
+#include <unistd.h>
 
 #define XXH_INLINE_ALL
 #include <xxhash.h>
 
 #include <algorithm>
 #include <cstring>
+
+#include "storage/data_dir.h"
 
 namespace bistable {
 namespace {
@@ -135,6 +139,10 @@ Status IndexDb::Exec(const std::string& sql) {
 }
 
 StatusOr<std::unique_ptr<IndexDb>> IndexDb::Open(const std::string& path) {
+  // A new index is created here with kDataFileMode (SQLite would take 0644; its WAL and shared-memory
+  // files take the index's mode); SQLite reads an empty file as an empty database.
+  if (const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, static_cast<mode_t>(kDataFileMode)); fd >= 0)
+    ::close(fd);
   sqlite3* db = nullptr;
   if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr) !=
       SQLITE_OK) {

@@ -683,6 +683,42 @@ TEST(HostileDisk, RunOnATwoMegabyteTmpfsExitsTwoWithTheDiskFullMessageTenTimes) 
   if (!HasFailure()) fs::remove_all(dir);
 }
 
+// ---- Modes of what a run creates (issue 39) -----------------------------------------------------
+
+// The data directory was created 0755 and its index and maps 0644: every user of the machine could read
+// every result. Created now: the directory and sweeps/ 0750, index.sqlite (and its WAL) and the maps 0640
+// (less the umask); a directory that exists keeps its mode.
+TEST(HostileFiles, TheDataDirectoryIsCreated0750AndItsIndexAndMaps0640) {
+  const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "modes"));
+  std::ofstream(dir / "spec.toml") << TinySpec("modes");
+  const mode_t saved = ::umask(022);  // the common default; the children inherit it
+  const ExecResult r = RunArgv({BISTABLE_CLI, "run", (dir / "spec.toml").string(), "--data", (dir / "new" / "data").string(),
+                                "--no-plots", "--json"}, dir.string());
+  fs::create_directories(dir / "old");
+  fs::permissions(dir / "old", fs::perms(0755), fs::perm_options::replace);
+  const ExecResult r2 = RunArgv({BISTABLE_CLI, "run", (dir / "spec.toml").string(), "--data", (dir / "old").string(), "--no-plots", "--json"},
+                                dir.string());
+  ::umask(saved);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_EQ(r2.exit_code, 0) << r2.err;
+  const auto mode = [](const fs::path& p) {
+    struct stat st {};
+    return ::stat(p.c_str(), &st) == 0 ? static_cast<int>(st.st_mode & 07777) : -1;
+  };
+  const std::string id = nlohmann::json::parse(r.out)["id"];
+  const fs::path data = dir / "new" / "data";
+  EXPECT_EQ(mode(data), 0750) << std::oct << mode(data);
+  EXPECT_EQ(mode(data / "sweeps"), 0750) << std::oct << mode(data / "sweeps");
+  EXPECT_EQ(mode(data / "index.sqlite"), 0640) << std::oct << mode(data / "index.sqlite");
+  EXPECT_EQ(mode(data / "sweeps" / (id + ".h5")), 0640) << std::oct << mode(data / "sweeps" / (id + ".h5"));
+  for (const char* side : {"index.sqlite-wal", "index.sqlite-shm"})
+    if (fs::exists(data / side)) EXPECT_EQ(mode(data / side), 0640) << side << " " << std::oct << mode(data / side);
+  EXPECT_EQ(mode(dir / "old"), 0755) << "an existing data directory keeps its mode";
+  EXPECT_EQ(mode(dir / "old" / "sweeps"), 0750);
+  EXPECT_EQ(mode(dir / "old" / "sweeps" / (id + ".h5")), 0640);
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
 // ---- GnuplotString --------------------------------------------------------------------------------
 
 TEST(GnuplotString, SafeTextIsKeptAndEverythingElseIsAFourDigitOctalEscape) {

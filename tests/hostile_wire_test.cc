@@ -1007,6 +1007,49 @@ TEST(HostileRound2, MetricsListenersAnswerNoForeignHostName) {
   Wait(pid, 10);
 }
 
+// Minor: a tokens file of mode 0666 was used without a word. Anyone who may write it may add an admin
+// token: a file every user may write is refused at start (exit 2, the file, its mode and the fix named);
+// one the group may write or every user may read (it holds hashes and names) is used with a warning naming
+// the file and its mode; 0600 and 0640 start quietly.
+TEST(HostileRound2, ATokensFileEveryoneMayWriteIsRefusedAndALaxOneIsWarnedOf) {
+  const std::string dir = Round2Dir("tokens_mode");
+  const std::string tokens = dir + "/tokens";
+  std::ofstream(tokens) << "client " << Sha256Of(dir, std::string(64, 'c')) << " alice\n";
+  const auto start = [&](mode_t mode) {
+    fs::permissions(tokens, static_cast<fs::perms>(mode), fs::perm_options::replace);
+    return StartCoordinator(dir + "/data", dir + "/coord.log", {"--tokens", tokens});
+  };
+  for (const auto& [mode, text] : std::vector<std::pair<mode_t, std::string>>{{0666, "0666"}, {0602, "0602"}, {0646, "0646"}}) {
+    SCOPED_TRACE(text);
+    fs::permissions(tokens, static_cast<fs::perms>(mode), fs::perm_options::replace);
+    const int code = Wait(Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", "--tokens", tokens},
+                                dir + "/coord.log"),
+                          10);
+    const std::string err = ReadFile(dir + "/coord.log.err");
+    EXPECT_EQ(code, 2) << "a tokens file every user may write was used (-2: still running)\n" << err;
+    for (const std::string& want : std::vector<std::string>{"tokens", "'" + tokens + "'", "mode " + text, "every user may write it", "chmod 600"})
+      EXPECT_NE(err.find(want), std::string::npos) << "lacks '" << want << "':\n" << err;
+  }
+  for (const auto& [mode, text] : std::vector<std::pair<mode_t, std::string>>{{0664, "0664"}, {0660, "0660"}, {0644, "0644"}, {0604, "0604"}}) {
+    SCOPED_TRACE(text);
+    auto [pid, addr] = start(mode);
+    EXPECT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+    const std::string err = ReadFile(dir + "/coord.log.err");
+    for (const std::string& want : std::vector<std::string>{"warning tokens.mode", tokens, "mode=" + text, "may "})
+      EXPECT_NE(err.find(want), std::string::npos) << "lacks '" << want << "':\n" << err;
+    ::kill(pid, SIGTERM);
+    Wait(pid, 10);
+  }
+  for (mode_t mode : {0600, 0640, 0400}) {
+    auto [pid, addr] = start(mode);
+    EXPECT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+    EXPECT_EQ(ReadFile(dir + "/coord.log.err").find("tokens.mode"), std::string::npos) << std::oct << mode << "\n"
+                                                                                        << ReadFile(dir + "/coord.log.err");
+    ::kill(pid, SIGTERM);
+    Wait(pid, 10);
+  }
+}
+
 // Fail 3: a coordinator the worker cannot trust. A fake one (the Coordinator service, in this test) hands
 // the real bistable-worker one lease with hostile values, then nothing; the worker must refuse it (a
 // log line naming the field and the bound, the lease released, nothing reported) and stop cleanly on
