@@ -45,7 +45,7 @@ int RunSweep(const RunArgs& a) {
   auto spec = LoadSweepSpec(a.spec_path);
   if (!spec.ok()) return Fail(spec.status());
   if (a.threads < 0 || a.threads > 1024) return Fail(Status::InvalidArgument("threads", "threads = " + std::to_string(a.threads) + " violates threads in [0, 1024]"));
-  auto coord = SweepCoordinator::Open(a.data, {.lease_seconds = 3600, .resume = false, .log = false});
+  auto coord = SweepCoordinator::Open(a.data, EmbeddedCoordinatorOptions());
   if (!coord.ok()) return Fail(coord.status());
   SweepCoordinator& c = **coord;
   // --serve: the dashboard over this process's coordinator (no tokens: loopback only).

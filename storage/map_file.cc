@@ -611,6 +611,13 @@ Status WriteMapFile(const std::string& path, const SweepSpec& spec, const Refine
   return WriteMapFileImpl(path, spec, refined.records, &refined);
 }
 
+std::string MapShape(const SweepSpec& spec) {
+  std::string shape;
+  for (const Axis& a : spec.axes) shape += (shape.empty() ? "" : "x") + std::to_string(a.values.size());
+  if (spec.ic_count() > 1) shape += "x" + std::to_string(spec.ic_count());
+  return shape;
+}
+
 StatusOr<std::vector<std::string>> ListMapMetrics(const std::string& path) {
   std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);

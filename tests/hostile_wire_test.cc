@@ -1050,6 +1050,47 @@ TEST(HostileRound2, ATokensFileEveryoneMayWriteIsRefusedAndALaxOneIsWarnedOf) {
   }
 }
 
+// Minor: a zero-length index.sqlite orphaned every published map in silence. A coordinator started on
+// such a directory indexes the map files again (a data.repaired warning naming the index and the maps) and
+// serves their sweeps as published; the same map truncated is moved aside by a resubmit and written again.
+TEST(HostileRound2, ACoordinatorStartingOnAnEmptyIndexServesItsMapsAgain) {
+  const std::string dir = Round2Dir("empty_index");
+  std::ofstream(dir + "/spec.toml") << Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n");
+  ASSERT_EQ(Wait(Spawn({BISTABLE_CLI, "run", dir + "/spec.toml", "--data", dir + "/data", "--no-plots", "--quiet"}, dir + "/run"), 60), 0)
+      << ReadFile(dir + "/run.err");
+  const std::string id = bistable::ParseSweepSpec(Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n"), "x")->Id();
+  fs::resize_file(dir + "/data/index.sqlite", 0);
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log");
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  const std::string log = ReadFile(dir + "/coord.log.err");
+  EXPECT_NE(log.find("data.repaired"), std::string::npos) << log;
+  EXPECT_NE(log.find("held no row for 1 map file(s)"), std::string::npos) << log;
+  auto stub = v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  v1::StatusRequest req;
+  req.set_id(id);
+  v1::SweepStatus st;
+  ASSERT_TRUE(stub->GetStatus(Ctx().get(), req, &st).ok());
+  EXPECT_EQ(st.state(), "done") << "the published sweep was orphaned";
+  // Its map truncated: a resubmit moves it aside (map.corrupt) and plans the sweep again (the emptied index
+  // lost the stored points: a worker computes them) until its map is written anew.
+  fs::resize_file(dir + "/data/sweeps/" + id + ".h5", 1000);
+  v1::SubmitRequest sub;
+  sub.set_spec_toml(ReadFile(dir + "/spec.toml"));
+  v1::SubmitReply rep;
+  ASSERT_TRUE(stub->Submit(Ctx().get(), sub, &rep).ok());
+  EXPECT_GE(rep.jobs(), 1) << "a truncated map was served as published";
+  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", addr, "--threads", "1"}, dir + "/worker.log");
+  for (int i = 0; i < 400 && !(stub->GetStatus(Ctx().get(), req, &st).ok() && st.state() == "done"); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  ::kill(w, SIGTERM);
+  Wait(w, 20);
+  EXPECT_EQ(st.state(), "done");
+  EXPECT_NE(ReadFile(dir + "/coord.log.err").find("map.corrupt"), std::string::npos) << ReadFile(dir + "/coord.log.err");
+  EXPECT_TRUE(bistable::ReadMapMetric(dir + "/data/sweeps/" + id + ".h5", "frf_db").ok()) << "the map was not written again";
+  ::kill(pid, SIGTERM);
+  Wait(pid, 10);
+}
+
 // Fail 3: a coordinator the worker cannot trust. A fake one (the Coordinator service, in this test) hands
 // the real bistable-worker one lease with hostile values, then nothing; the worker must refuse it (a
 // log line naming the field and the bound, the lease released, nothing reported) and stop cleanly on
