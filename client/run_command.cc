@@ -55,7 +55,7 @@ int RunSweep(const RunArgs& a) {
     if (!IsLoopbackAddress(a.serve))
       return Fail(Status::InvalidArgument("serve", a.serve + " is not a loopback address (the embedded dashboard has no tokens; "
                                                              "use bistable-coordinator --http with TLS and tokens to serve others)"));
-    auto h = HttpServer::Start(a.serve, DashboardRoutes(&c, &open_tokens), {.slow_routes = DashboardSlowRoutes()});
+    auto h = HttpServer::Start(a.serve, DashboardRoutes(&c, &open_tokens), DashboardHttpOptions());
     if (!h.ok()) return Fail(h.status());
     dashboard = std::move(h).value();
     std::cerr << "dashboard on http://" << a.serve.substr(0, a.serve.rfind(':')) << ":" << dashboard->port() << "/" << std::endl;

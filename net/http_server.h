@@ -25,6 +25,7 @@ struct HttpRequest {
   std::string authorization;  // the Authorization header, "" when absent
   std::string cookie;         // the Cookie header, "" when absent
   std::string host;           // the Host header, "" when absent (HTTP/1.0); see HostAllowed
+  std::string peer;           // the peer's IP address
   bool tls = false;           // the connection is TLS (cookies are then marked Secure)
 };
 
@@ -40,12 +41,21 @@ class HttpServer {
  public:
   struct Options {
     std::string tls_cert_pem, tls_key_pem;  // both set: serve HTTPS only
-    // Routes whose handlers may take long (a dashboard cell integrates a point): they run on a pool of
+    // Routes whose handlers may take long (a dashboard map reads a file): they run on a pool of
     // kSlowThreads threads, so that the others (/healthz, /metrics) keep answering meanwhile. At most
     // 4 · kSlowThreads wait or run at once; more get 503 with Retry-After: 1.
     std::set<std::string> slow_routes;
+    // Slow routes whose handlers are heavy (a dashboard cell integrates a point): at most kSlowThreads − 1
+    // run at once, so the other slow routes always have a thread; those waiting are served in turn by
+    // client (the peer's address with its Authorization header and Cookie), not in arrival order, so one
+    // client's flood delays another's request by at most one heavy handler per waiting client. At most
+    // kMaxHeavyPerClient of one client wait or run (more: 503 at once, to that client only) and
+    // kMaxHeavyPending in all. Each must also be in slow_routes.
+    std::set<std::string> heavy_routes;
   };
   static constexpr int kSlowThreads = 2;
+  static constexpr int kMaxHeavyPerClient = 2;
+  static constexpr int kMaxHeavyPending = 16;
   // Listens on "host:port" (an IP literal, "localhost" or "[v6]"; port 0 picks a free one) and serves
   // `routes` (path → handler, e.g. "/metrics") on one thread of its own. Handlers run on that thread, but
   // those of Options::slow_routes (which must be safe to call from several threads at once).

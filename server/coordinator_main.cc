@@ -145,8 +145,8 @@ int main(int argc, char** argv) {
           return bistable::HttpResponse{401, "text/plain; charset=utf-8", "unauthenticated\n", {{"WWW-Authenticate", "Bearer"}}};
         return bistable::PrometheusText(metrics.Sources());
       };
-    bistable::HttpServer::Options options = http_tls;
-    options.slow_routes = bistable::DashboardSlowRoutes();
+    bistable::HttpServer::Options options = bistable::DashboardHttpOptions();
+    options.tls_cert_pem = http_tls.tls_cert_pem, options.tls_key_pem = http_tls.tls_key_pem;
     auto h = bistable::HttpServer::Start(http_addr, std::move(routes), options);
     if (!h.ok()) return fail(h.status());
     dashboard = std::move(h).value();

@@ -30,9 +30,11 @@ namespace bistable {
 std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens,
                                                    std::vector<std::string> allowed_hosts = {});
 
-// The routes of DashboardRoutes that may take long (a cell integrates a point; a map or query reads a map
-// file): HttpServer::Options::slow_routes, so that /healthz and /metrics on the same listener keep answering.
-std::set<std::string> DashboardSlowRoutes();
+// The server options DashboardRoutes want: the routes that may take long (a cell integrates a point; a map
+// or query reads a map file) are slow routes, so that /healthz and /metrics on the same listener keep
+// answering, and cells are heavy routes (HttpServer::Options::heavy_routes: at most one computes at a time,
+// taken in turn by client), so that maps and queries always have a thread.
+HttpServer::Options DashboardHttpOptions();
 
 // The cookie /api/session sets (HttpOnly, SameSite=Strict, Secure over TLS).
 inline constexpr const char* kDashboardCookie = "bistable_token";

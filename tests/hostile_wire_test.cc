@@ -1091,6 +1091,91 @@ TEST(HostileRound2, ACoordinatorStartingOnAnEmptyIndexServesItsMapsAgain) {
   Wait(pid, 10);
 }
 
+// Minor: a viewer's /api/cell on a sweep of 10^8 steps per point took seconds and hundreds of MB on the
+// coordinator, and twelve at once answered 503 to everyone's maps. A cell is bounded now (10^7 steps, 2^20
+// window samples: a larger one is refused, 422, with the bound and the `bistable point` command), at most
+// one computes at a time (maps and queries keep the other thread), a client holds at most two (more: 503
+// to that client only, the others are served in turn), and a cell's memory is given back.
+TEST(HostileRound2, DashboardCellsAreBoundedAndTakenInTurnByClient) {
+  const std::string dir = Round2Dir("cells");
+  const std::string client(64, 'c'), alice(64, 'a'), bob(64, 'b');
+  std::ofstream(dir + "/tokens") << "client " << Sha256Of(dir, client) << " carol\nviewer " << Sha256Of(dir, alice)
+                                 << " alice\nviewer " << Sha256Of(dir, bob) << " bob\n";
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log", {"--tokens", dir + "/tokens", "--http", "127.0.0.1:0"});
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  const int http = AwaitPrintedPort(dir + "/coord.log", "dashboard");
+  ASSERT_GT(http, 0);
+  auto stub = v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  const auto submit = [&](const std::string& axes, const std::string& integration) {
+    v1::SubmitRequest req;
+    req.set_spec_toml("model = \"coupled\"\n[axes]\n" + axes + "\n[integration]\ndt = 0.01\n" + integration);
+    auto ctx = Ctx();
+    ctx->AddMetadata("authorization", "Bearer " + client);
+    v1::SubmitReply rep;
+    EXPECT_TRUE(stub->Submit(ctx.get(), req, &rep).ok());
+    return rep.id();
+  };
+  // No worker: the sweeps stay queued; cells are computed on demand all the same.
+  const std::string huge = submit("alpha = [0.5]\nomega = [1.0]", "t_end = 1000000.0\nt_keep = 500000.0\n[metrics]\nsample_every = 16\n");
+  const std::string some = submit("alpha = [0.5, 0.6]\nomega = [0.9, 1.0]", "t_end = 30000.0\nt_keep = 25000.0\n");
+  const std::string near = submit("alpha = [0.5, 0.6]\nomega = [1.0]", "t_end = 99000.0\nt_keep = 89000.0\n");
+  const auto get = [&](const std::string& target, const std::string& token) {
+    return bistable_test::HttpExchange(http, target, boost::beast::http::verb::get,
+                                       {{"Host", "127.0.0.1"}, {"Authorization", "Bearer " + token}});
+  };
+  const auto cell = [&](const std::string& id, int point) { return "/api/cell?id=" + id + "&point=" + std::to_string(point) + "&ic=0"; };
+  ASSERT_EQ(get(cell(some, 0), alice).status, 200);  // warm: the code paths and the caches are in
+  // The heap in use (malloc's own count, on /metrics: a viewer token reads it) and the RSS.
+  const auto heap = [&] {
+    const auto m = bistable_test::ParseMetrics(get("/metrics", alice).body);
+    const auto it = m.find("bistable_heap_in_use_bytes");
+    return it == m.end() ? -1.0 : it->second;
+  };
+  const double heap0 = heap();
+  const long rss0 = RssKb(pid);
+  // Cells near the bound: their memory (the window's rows, the transform's tables) is freed and given
+  // back once they are answered.
+  for (int p = 0; p < 2; ++p) EXPECT_EQ(get(cell(near, p), alice).status, 200);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const double heap1 = heap();
+  const long rss1 = RssKb(pid);
+  std::printf("  heap in use: %.1f MB, %.1f MB after two cells of 10^6 samples\n", heap0 / 1e6, heap1 / 1e6);
+  EXPECT_LT(heap1 - heap0, 8e6) << "bytes still held after two cells near the bound";
+  EXPECT_LT(rss1 - rss0, 32 * 1024) << "kB kept after two cells near the bound";
+  // A cell of 10^8 steps: refused at once, naming the bound and the command that runs it.
+  const auto t0 = Clock::now();
+  const auto refused = get(cell(huge, 0), alice);
+  const double took = std::chrono::duration<double>(Clock::now() - t0).count();
+  EXPECT_EQ(refused.status, 422) << refused.body.substr(0, 300);
+  EXPECT_LT(took, 2.0) << "the cell was computed";
+  EXPECT_NE(refused.body.find("at most 10000000 steps"), std::string::npos) << refused.body.substr(0, 300);
+  EXPECT_NE(refused.body.find("bistable point"), std::string::npos) << refused.body.substr(0, 300);
+  EXPECT_LT(RssKb(pid) - rss1, 16 * 1024) << "kB grown for a refused cell";
+  // Twelve cells of alice at once, then bob's cell and four maps: bob is answered, alice gets two.
+  std::vector<bistable_test::HttpReply> storm(12), bobs(5);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < 12; ++i) threads.emplace_back([&, i] { storm[i] = get(cell(some, i % 4), alice); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  threads.emplace_back([&] { bobs[0] = get(cell(some, 3), bob); });
+  for (int i = 1; i < 5; ++i) threads.emplace_back([&, i] { bobs[i] = get("/api/map?id=" + some + "&metric=frf_db", bob); });
+  for (auto& t : threads) t.join();
+  int accepted = 0, busy = 0;
+  for (const auto& r : storm) {
+    if (r.status == 200) ++accepted;
+    else if (r.status == 503 && r.body.find("at most 2 per client") != std::string::npos) ++busy;
+    else ADD_FAILURE() << "alice: " << r.status << " " << r.body.substr(0, 200);
+  }
+  std::printf("  12 cells of one client at once: %d computed, %d refused to it\n", accepted, busy);
+  EXPECT_GE(accepted, 1);
+  EXPECT_LE(accepted, 4) << "one client held more than its share";
+  for (size_t i = 0; i < bobs.size(); ++i)
+    EXPECT_EQ(bobs[i].status, 200) << (i == 0 ? "bob's cell" : "bob's map") << ": " << bobs[i].body.substr(0, 200);
+  std::printf("  RSS: %ld kB at first, %ld kB after two cells of 10^6 samples, %ld kB after the storm\n", rss0, rss1, RssKb(pid));
+  EXPECT_TRUE(Alive(pid));
+  ::kill(pid, SIGTERM);
+  Wait(pid, 20);
+}
+
 // Fail 3: a coordinator the worker cannot trust. A fake one (the Coordinator service, in this test) hands
 // the real bistable-worker one lease with hostile values, then nothing; the worker must refuse it (a
 // log line naming the field and the bound, the lease released, nothing reported) and stop cleanly on
