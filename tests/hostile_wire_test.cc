@@ -904,6 +904,14 @@ TEST(HostileRound2, ARestartResumesEveryInterruptedSweepBeyondThePerOwnerLimit) 
   Wait(pid, 10);
 }
 
+// Stops a process the test started (SIGTERM, then a wait) on every way out of it, a failed ASSERT included.
+struct Stopped {
+  pid_t pid;
+  ~Stopped() {
+    if (pid > 0 && Alive(pid)) ::kill(pid, SIGTERM), Wait(pid, 20);
+  }
+};
+
 // The "<what> on ...:PORT" line a process printed on stdout (`log`), waited for; 0 when it never came.
 int AwaitPrintedPort(const std::string& log, const std::string& what) {
   for (int i = 0; i < 400; ++i) {
@@ -923,6 +931,7 @@ TEST(HostileRound2, MetricsListenersAnswerNoForeignHostName) {
   const std::string dir = Round2Dir("metrics_host");
   auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log",
                                       {"--metrics", "127.0.0.1:0", "--http", "127.0.0.1:0", "--http-allowed-host", "bistable-coordinator"});
+  const Stopped stop_coordinator{pid};
   ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
   const int coord_metrics = AwaitPrintedPort(dir + "/coord.log", "metrics"), dashboard = AwaitPrintedPort(dir + "/coord.log", "dashboard");
   ASSERT_GT(coord_metrics, 0);
@@ -930,6 +939,7 @@ TEST(HostileRound2, MetricsListenersAnswerNoForeignHostName) {
   const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--name", "victim-worker", "--metrics", "127.0.0.1:0",
                          "--http-allowed-host", "Metrics.Internal"},
                         dir + "/worker.log");
+  const Stopped stop_worker{w};
   int worker_metrics = 0;
   for (int i = 0; i < 400 && !worker_metrics; ++i) {  // the worker says its port in its worker.started line
     const std::string log = ReadFile(dir + "/worker.log.err");
@@ -1061,6 +1071,7 @@ TEST(HostileRound2, ACoordinatorStartingOnAnEmptyIndexServesItsMapsAgain) {
   const std::string id = bistable::ParseSweepSpec(Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n"), "x")->Id();
   fs::resize_file(dir + "/data/index.sqlite", 0);
   auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log");
+  const Stopped stop_coordinator{pid};
   ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
   const std::string log = ReadFile(dir + "/coord.log.err");
   EXPECT_NE(log.find("data.repaired"), std::string::npos) << log;
@@ -1080,6 +1091,7 @@ TEST(HostileRound2, ACoordinatorStartingOnAnEmptyIndexServesItsMapsAgain) {
   ASSERT_TRUE(stub->Submit(Ctx().get(), sub, &rep).ok());
   EXPECT_GE(rep.jobs(), 1) << "a truncated map was served as published";
   const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", addr, "--threads", "1"}, dir + "/worker.log");
+  const Stopped stop_worker{w};
   for (int i = 0; i < 400 && !(stub->GetStatus(Ctx().get(), req, &st).ok() && st.state() == "done"); ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(25));
   ::kill(w, SIGTERM);
@@ -1102,6 +1114,7 @@ TEST(HostileRound2, DashboardCellsAreBoundedAndTakenInTurnByClient) {
   std::ofstream(dir + "/tokens") << "client " << Sha256Of(dir, client) << " carol\nviewer " << Sha256Of(dir, alice)
                                  << " alice\nviewer " << Sha256Of(dir, bob) << " bob\n";
   auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log", {"--tokens", dir + "/tokens", "--http", "127.0.0.1:0"});
+  const Stopped stop_coordinator{pid};
   ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
   const int http = AwaitPrintedPort(dir + "/coord.log", "dashboard");
   ASSERT_GT(http, 0);
