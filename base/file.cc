@@ -94,6 +94,20 @@ StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& f
   return text;
 }
 
+Status MakeDirectory(const std::string& path, unsigned mode, const std::string& field) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path p = fs::path(path).lexically_normal();
+  const fs::path dir = p.has_filename() ? p : p.parent_path();  // "data/" names "data"
+  if (dir.has_parent_path()) fs::create_directories(dir.parent_path(), ec);
+  if (!ec && ::mkdir(dir.c_str(), static_cast<mode_t>(mode)) != 0) {
+    const int err = errno;
+    if (!(err == EEXIST && fs::is_directory(dir, ec))) ec = std::error_code(err == EEXIST ? ENOTDIR : err, std::generic_category());
+  }
+  if (ec) return Status::IoError(field, "cannot create directory '" + path + "': " + ec.message());
+  return Status::Ok();
+}
+
 StatusOr<std::unique_ptr<AtomicFile>> AtomicFile::Create(const std::string& path, const std::string& field) {
   namespace fs = std::filesystem;
   const fs::path p(path);

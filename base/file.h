@@ -49,6 +49,10 @@ class LineReader {
 // IoError naming `field` when the write fails (e.g. EPIPE: the reader went away).
 Status WriteStdout(std::string_view data, const std::string& field);
 
+// Creates directory `path` with permission bits `mode` (less the umask), and its missing parents as
+// create_directories does; a directory that exists keeps its mode. IoError naming `field`.
+Status MakeDirectory(const std::string& path, unsigned mode, const std::string& field);
+
 // A file written whole or not at all: a new temporary beside `path` (O_EXCL, never someone else's;
 // mode 0666 less the umask) that Commit() syncs and renames over `path`. Destroyed uncommitted, the
 // temporary is removed (an error, a cancelled transfer). Errors name `field`.

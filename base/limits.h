@@ -25,6 +25,11 @@ inline constexpr int kMaxSeriesCells = 1000;                 // series.cells
 inline constexpr double kMaxStepsPerPoint = 1e8;             // t_end / dt
 inline constexpr double kMaxWindowSamples = 4'194'304;       // (t_end - t_keep) / dt / sample_every
 inline constexpr std::size_t kMaxTurningPointsKept = 65'536; // turning points held per point (the last ones)
+// A dashboard cell (/api/cell) is integrated on the coordinator while others wait: at most 10^7 steps
+// (about 0.4 s; 200 times the paper's 5·10^4) and 2^20 window samples (its rows are held for the orbit, the
+// series and the spectrum). Larger cells are refused (422) with the `bistable point` command that runs them.
+inline constexpr double kMaxCellSteps = 1e7;
+inline constexpr double kMaxCellSamples = 1'048'576;
 inline constexpr int kMaxPeriod = 64;                        // [metrics] max_period: longest stroboscopic period sought
 inline constexpr long kMaxEvery = 1'000'000'000;             // [metrics] renorm_every, sample_every (steps)
 // `bistable point --poincare-periods N`: forcing periods of the section (the window is made N + 1

@@ -190,7 +190,7 @@ Status RenderFront(const DesignSpec& spec, const SearchResult& r, const Candidat
 }  // namespace
 
 StatusOr<std::unique_ptr<DesignSweeps>> OpenEmbeddedSweeps(const std::string& data_dir, int threads) {
-  auto c = SweepCoordinator::Open(data_dir, {.lease_seconds = 3600, .resume = false, .log = false});
+  auto c = SweepCoordinator::Open(data_dir, EmbeddedCoordinatorOptions());
   if (!c.ok()) return c.status();
   return std::unique_ptr<DesignSweeps>(new EmbeddedSweeps(std::move(c.value()), threads > 0 ? threads : UsableCpus()));
 }

@@ -297,9 +297,14 @@ StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& sp
   }
 }
 
+SweepCoordinator::Options EmbeddedCoordinatorOptions() {
+  return {.lease_seconds = 3600, .resume = false, .log = false,
+          .warn = [](const std::string& message) { std::cerr << "warning: " << message << std::endl; }};
+}
+
 StatusOr<std::string> RunEmbeddedSweep(const SweepSpec& spec, const std::string& data_dir, int threads, bool progress) {
   if (CancelRequested()) return CancelledStatus();  // not even the planning of a new sweep
-  auto coord = SweepCoordinator::Open(data_dir, {.lease_seconds = 3600, .resume = false, .log = false});
+  auto coord = SweepCoordinator::Open(data_dir, EmbeddedCoordinatorOptions());
   if (!coord.ok()) return coord.status();
   auto plan = (*coord)->Submit(spec, JobItems(spec, 0.25));
   if (!plan.ok()) return plan.status();

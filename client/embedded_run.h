@@ -12,6 +12,10 @@
 
 namespace bistable {
 
+// The coordinator of an embedded run (`run`, `reproduce`, `design`, Python's run): no resumes, no log
+// events, a long lease; repairs of the data directory (storage/data_dir.h) said on stderr as warnings.
+SweepCoordinator::Options EmbeddedCoordinatorOptions();
+
 // Runs `threads` worker threads until the coordinator's queue is empty, *stop is set, cancellation is
 // requested (dynamics/cancel.h), or a report fails (that status is returned). A job cut short by
 // cancellation is released, never reported: every stored job is whole. Returns within about the

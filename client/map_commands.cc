@@ -28,6 +28,7 @@
 #include "engine/metric_catalog.h"
 #include "engine/query.h"
 #include "proto/coordinator_client.h"
+#include "storage/data_dir.h"
 #include "storage/map_file.h"
 #include "storage/metric_name.h"
 
@@ -65,11 +66,22 @@ int ListRemoteSweeps(const SweepsArgs& a) {
   return 0;
 }
 
+// Map files of the data directory that its index lacks (an empty, missing or damaged index): said, not
+// repaired here (a reader does not write; a run or a coordinator's start indexes them again).
+void WarnOfUnindexedMaps(IndexDb* db, const std::string& data) {
+  auto orphans = UnindexedMapFiles(db, data);
+  if (!orphans.ok() || orphans->empty()) return;
+  std::cerr << "warning: " << orphans->size() << " map file(s) of '" << (std::filesystem::path(data) / "sweeps").string()
+            << "' have no row in '" << (std::filesystem::path(data) / "index.sqlite").string()
+            << "' (an empty, missing or damaged index): a `bistable run` or a coordinator started on this directory indexes them again\n";
+}
+
 int ListSweeps(const SweepsArgs& a) {
   if (!a.src.coordinator.empty()) return ListRemoteSweeps(a);
   if (Status st = CheckDataDirOrAbsent(a.data); !st.ok()) return Fail(st);
   const auto index = std::filesystem::path(a.data) / "index.sqlite";
   if (!std::filesystem::exists(index)) {
+    WarnOfUnindexedMaps(nullptr, a.data);
     if (a.json) std::cout << "[]\n";
     else std::cout << "no sweeps in " << a.data << "\n";
     return 0;
@@ -78,6 +90,7 @@ int ListSweeps(const SweepsArgs& a) {
   if (!db.ok()) return Fail(db.status());
   auto rows = (*db)->ListSweeps();
   if (!rows.ok()) return Fail(rows.status());
+  WarnOfUnindexedMaps(db->get(), a.data);
   if (a.json) {
     std::cout << DumpJson(LocalSweepsJson(**db, *rows, a.data), 2) << "\n";
     return 0;

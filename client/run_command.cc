@@ -45,7 +45,7 @@ int RunSweep(const RunArgs& a) {
   auto spec = LoadSweepSpec(a.spec_path);
   if (!spec.ok()) return Fail(spec.status());
   if (a.threads < 0 || a.threads > 1024) return Fail(Status::InvalidArgument("threads", "threads = " + std::to_string(a.threads) + " violates threads in [0, 1024]"));
-  auto coord = SweepCoordinator::Open(a.data, {.lease_seconds = 3600, .resume = false, .log = false});
+  auto coord = SweepCoordinator::Open(a.data, EmbeddedCoordinatorOptions());
   if (!coord.ok()) return Fail(coord.status());
   SweepCoordinator& c = **coord;
   // --serve: the dashboard over this process's coordinator (no tokens: loopback only).
@@ -55,7 +55,7 @@ int RunSweep(const RunArgs& a) {
     if (!IsLoopbackAddress(a.serve))
       return Fail(Status::InvalidArgument("serve", a.serve + " is not a loopback address (the embedded dashboard has no tokens; "
                                                              "use bistable-coordinator --http with TLS and tokens to serve others)"));
-    auto h = HttpServer::Start(a.serve, DashboardRoutes(&c, &open_tokens), {.slow_routes = DashboardSlowRoutes()});
+    auto h = HttpServer::Start(a.serve, DashboardRoutes(&c, &open_tokens), DashboardHttpOptions());
     if (!h.ok()) return Fail(h.status());
     dashboard = std::move(h).value();
     std::cerr << "dashboard on http://" << a.serve.substr(0, a.serve.rfind(':')) << ":" << dashboard->port() << "/" << std::endl;

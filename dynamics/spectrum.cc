@@ -141,6 +141,13 @@ void RealFftHalf(const std::vector<double>& x, std::vector<std::complex<double>>
 void RealFftFull(const std::vector<double>& x, std::vector<std::complex<double>>* X) { FullFft().fwd(*X, x); }
 void InverseFftReal(const std::vector<std::complex<double>>& X, std::vector<double>* x) { FullFft().inv(*x, X); }
 
+void ReleaseThreadSpectrumCaches() {
+  Cache<1>() = {}, Cache<2>() = {}, Cache<4>() = {}, Cache<8>() = {}, Cache<16>() = {};
+  HalfFft() = Eigen::FFT<double>();
+  HalfFft().SetFlag(Eigen::FFT<double>::HalfSpectrum);
+  FullFft() = Eigen::FFT<double>();
+}
+
 size_t NextFastFftLength(size_t n) {
   size_t best = SIZE_MAX;
   for (size_t a = 1; a < 2 * n + 2; a *= 2)

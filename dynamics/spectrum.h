@@ -37,6 +37,11 @@ void RealFftFull(const std::vector<double>& x, std::vector<std::complex<double>>
 // Real series from a full (Hermitian) spectrum of n bins.
 void InverseFftReal(const std::vector<std::complex<double>>& X, std::vector<double>* x);
 
+// Frees the calling thread's transform caches (the last length's FFT tables, Hann window and buffers at
+// every lane width; Eigen's plans), which a thread that transformed one long series keeps otherwise (a
+// dashboard cell: up to 2^20 samples, about 25 MB). The next transform builds them again.
+void ReleaseThreadSpectrumCaches();
+
 // Largest n' ≤ n of the form 2^a 3^b 5^c (n ≥ 1).
 size_t FastFftLength(size_t n);
 // Smallest n' ≥ n of that form (for zero padding).

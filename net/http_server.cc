@@ -1,6 +1,10 @@
 #include "net/http_server.h"
 
+#include <algorithm>
 #include <atomic>
+#include <deque>
+#include <functional>
+#include <mutex>
 #include <optional>
 #include <thread>
 #include <type_traits>
@@ -13,6 +17,8 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/ssl.hpp>
+
+#include "base/names.h"
 
 namespace bistable {
 
@@ -27,6 +33,9 @@ constexpr size_t kMaxHeaderBytes = 8 * 1024;
 constexpr int kMaxConnections = 64;
 constexpr auto kRequestTimeout = std::chrono::seconds(10);
 constexpr int kMaxSlowPending = 4 * HttpServer::kSlowThreads;  // slow requests queued or running at once
+
+// A slow request's work on the pool: its handler, then `finished` (counts down the bounds), then its answer.
+using SlowWork = std::function<void(const std::function<void()>& finished)>;
 
 }  // namespace
 
@@ -43,9 +52,63 @@ struct HttpServer::Impl {
   // Declared after io: destroyed (joined) first, so no slow handler posts its answer to a destroyed io.
   asio::thread_pool slow{HttpServer::kSlowThreads};
   int port = 0;
+  // Heavy slow requests (Options::heavy_routes), declared after the pool: what waits is destroyed first.
+  std::set<std::string> heavy_routes;
+  std::mutex heavy_mu;
+  std::map<std::string, std::deque<SlowWork>> heavy_waiting;  // by client, in arrival order
+  std::deque<std::string> heavy_turns;                                     // clients with waiting requests, in turn
+  std::map<std::string, int> heavy_held;                                   // by client: waiting or running
+  int heavy_running = 0, heavy_pending = 0;
 
   void Accept();
+  // Queues `work` (a heavy request of `client`) to run in its turn; false, with why, when the client's or
+  // the server's bound is reached.
+  bool QueueHeavy(const std::string& client, SlowWork work, std::string* why);
+  void StartHeavyLocked();  // under heavy_mu: starts waiting requests, one client after another, while a thread is free to them
 };
+
+bool HttpServer::Impl::QueueHeavy(const std::string& client, SlowWork work, std::string* why) {
+  std::lock_guard<std::mutex> lock(heavy_mu);
+  const auto held = heavy_held.find(client);
+  if (held != heavy_held.end() && held->second >= HttpServer::kMaxHeavyPerClient) {
+    *why = "busy: " + std::to_string(held->second) + " requests of this client to slow routes are running or waiting (at most " +
+           std::to_string(HttpServer::kMaxHeavyPerClient) + " per client); retry when one has answered\n";
+    return false;
+  }
+  if (heavy_pending >= HttpServer::kMaxHeavyPending) {
+    *why = "busy: " + std::to_string(heavy_pending) + " heavy requests are running or waiting, the most this server holds; retry\n";
+    return false;
+  }
+  ++heavy_held[client];
+  ++heavy_pending;
+  auto& waiting = heavy_waiting[client];
+  if (waiting.empty()) heavy_turns.push_back(client);
+  waiting.push_back(std::move(work));
+  StartHeavyLocked();
+  return true;
+}
+
+void HttpServer::Impl::StartHeavyLocked() {
+  while (heavy_running < HttpServer::kSlowThreads - 1 && !heavy_turns.empty()) {
+    const std::string client = std::move(heavy_turns.front());
+    heavy_turns.pop_front();
+    const auto it = heavy_waiting.find(client);
+    SlowWork work = std::move(it->second.front());
+    it->second.pop_front();
+    if (it->second.empty()) heavy_waiting.erase(it);
+    else heavy_turns.push_back(client);  // its next request waits for the other clients' turns
+    ++heavy_running;
+    asio::post(slow, [this, client, work = std::move(work)]() mutable {
+      work([&] {
+        std::lock_guard<std::mutex> lock(heavy_mu);
+        --heavy_running;
+        --heavy_pending;
+        if (--heavy_held[client] <= 0) heavy_held.erase(client);
+        StartHeavyLocked();
+      });
+    });
+  }
+}
 
 namespace {
 
@@ -115,6 +178,9 @@ class Session : public std::enable_shared_from_this<Session<Stream>> {
     request.cookie = std::string(req[http::field::cookie]);
     request.host = std::string(req[http::field::host]);
     request.tls = kTls;
+    beast::error_code peer_ec;
+    const auto peer = beast::get_lowest_layer(stream_).socket().remote_endpoint(peer_ec);
+    if (!peer_ec) request.peer = peer.address().to_string();
     auto it = server_->routes.find(request.path);
     if (it == server_->routes.end()) {
       Send(Make(404, "not found\n", req.method(), req.version(), req.keep_alive()));
@@ -125,25 +191,37 @@ class Session : public std::enable_shared_from_this<Session<Stream>> {
       Respond(Call(*handler, request), req.method(), req.version(), req.keep_alive());
       return;
     }
-    // A slow route: computed on the pool, answered on this connection's strand. At most kMaxSlowPending wait
-    // or run; more are answered 503 at once here, so that a flood of them cannot hold every connection slot
-    // (and with them /healthz) for as long as the pool needs to work through it.
-    if (server_->slow_pending.fetch_add(1) >= kMaxSlowPending) {
-      --server_->slow_pending;
-      HttpResponse busy{503, "text/plain; charset=utf-8", "busy: too many slow requests at once, retry\n", {{"Retry-After", "1"}}};
-      Respond(std::move(busy), req.method(), req.version(), req.keep_alive());
-      return;
-    }
-    asio::post(server_->slow, [self = this->shared_from_this(), handler, request = std::move(request), method = req.method(),
-                               version = req.version(), keep_alive = req.keep_alive()]() mutable {
+    // A slow route: computed on the pool, answered on this connection's strand.
+    const std::string client = request.peer + "\n" + request.authorization + "\n" + request.cookie;  // in memory only
+    const bool heavy = server_->heavy_routes.count(request.path) > 0;
+    // Runs the handler, then `finished` (the bounds count down), then posts the answer.
+    SlowWork work = [self = this->shared_from_this(), handler, request = std::move(request), method = req.method(),
+                     version = req.version(), keep_alive = req.keep_alive()](const std::function<void()>& finished) mutable {
       HttpResponse r = Call(*handler, request);
-      --self->server_->slow_pending;
+      finished();
       // The session's last reference goes with the answer onto its strand (it is destroyed there).
       auto& strand = self->stream_;
       asio::post(strand.get_executor(), [self = std::move(self), r = std::move(r), method, version, keep_alive]() mutable {
         self->Respond(std::move(r), method, version, keep_alive);
       });
-    });
+    };
+    auto busy = [&](std::string why) {
+      Respond(HttpResponse{503, "text/plain; charset=utf-8", std::move(why), {{"Retry-After", "1"}}}, req.method(), req.version(),
+              req.keep_alive());
+    };
+    if (heavy) {  // in turn by client, at most kSlowThreads - 1 at once
+      std::string why;
+      if (!server_->QueueHeavy(client, std::move(work), &why)) busy(std::move(why));
+      return;
+    }
+    // At most kMaxSlowPending wait or run; more are answered 503 at once here, so that a flood of them cannot
+    // hold every connection slot (and with them /healthz) for as long as the pool needs to work through it.
+    if (server_->slow_pending.fetch_add(1) >= kMaxSlowPending) {
+      --server_->slow_pending;
+      busy("busy: too many slow requests at once, retry\n");
+      return;
+    }
+    asio::post(server_->slow, [server = server_, work = std::move(work)]() mutable { work([server] { --server->slow_pending; }); });
   }
 
   static HttpResponse Call(const HttpHandler& handler, const HttpRequest& request) {
@@ -244,6 +322,8 @@ HttpServer::~HttpServer() {
   if (impl_->thread.joinable()) impl_->thread.join();
   impl_->slow.stop();  // queued slow requests are dropped; the running ones finish (their answers go nowhere)
   impl_->slow.join();
+  std::lock_guard<std::mutex> lock(impl_->heavy_mu);
+  impl_->heavy_waiting.clear();  // waiting heavy requests are dropped too (their connections close unanswered)
 }
 
 int HttpServer::port() const { return impl_->port; }
@@ -255,6 +335,7 @@ StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(const std::string& addre
   auto impl = std::make_unique<Impl>();
   impl->routes = std::move(routes);
   impl->slow_routes = options.slow_routes;
+  impl->heavy_routes = options.heavy_routes;
   beast::error_code ec;
   if (options.tls_cert_pem.empty() != options.tls_key_pem.empty())
     return Status::InvalidArgument("tls", "a TLS certificate and its key go together");
@@ -331,27 +412,69 @@ StatusOr<std::map<std::string, std::string>> ParseQueryString(const std::string&
   return out;
 }
 
-bool IsLoopbackHost(const std::string& host) {
-  std::string name = host;
-  size_t port_start = std::string::npos;
-  if (!name.empty() && name.front() == '[') {  // [v6] or [v6]:port
+namespace {
+
+std::string Lower(std::string s) {
+  for (char& ch : s) ch = static_cast<char>(ch >= 'A' && ch <= 'Z' ? ch - 'A' + 'a' : ch);
+  return s;
+}
+
+}  // namespace
+
+bool HostAllowed(const std::string& host, const std::vector<std::string>& allowed_names) {
+  // Split "name[:port]" / "[v6][:port]"; the port, when given, is 1-5 digits.
+  std::string name = host, port;
+  bool bracketed = false;
+  if (!name.empty() && name.front() == '[') {
     const size_t close = name.find(']');
     if (close == std::string::npos) return false;
     if (close + 1 < name.size()) {
       if (name[close + 1] != ':') return false;
-      port_start = close + 2;
+      port = name.substr(close + 2);
+      if (port.empty()) return false;
     }
-    name = name.substr(0, close + 1);
+    name = name.substr(1, close - 1);
+    bracketed = true;
   } else if (const size_t colon = name.find(':'); colon != std::string::npos) {
-    port_start = colon + 1;
-    name = name.substr(0, colon);
+    port = name.substr(colon + 1);
+    name.resize(colon);
+    if (port.empty()) return false;
   }
-  if (port_start != std::string::npos) {
-    const std::string port = host.substr(port_start);
-    if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos) return false;
+  if (port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos || name.empty()) return false;
+  beast::error_code ec;
+  if (bracketed) {  // an IPv6 literal: no attacker's name
+    (void)asio::ip::make_address_v6(name, ec);
+    return !ec;
   }
-  for (char& ch : name) ch = static_cast<char>(ch >= 'A' && ch <= 'Z' ? ch - 'A' + 'a' : ch);
-  return name == "localhost" || name == "127.0.0.1" || name == "[::1]";
+  (void)asio::ip::make_address_v4(name, ec);  // dotted quad only (inet_pton): "127.0.0.1.nip.io" is a name
+  if (!ec) return true;
+  const std::string lower = Lower(name);
+  if (lower == "localhost") return true;
+  return std::any_of(allowed_names.begin(), allowed_names.end(), [&](const std::string& a) { return Lower(a) == lower; });
+}
+
+std::map<std::string, HttpHandler> HostChecked(std::map<std::string, HttpHandler> routes, std::vector<std::string> allowed_names) {
+  auto allowed = std::make_shared<const std::vector<std::string>>(std::move(allowed_names));
+  for (auto& [path, handler] : routes) {
+    if (path == "/healthz") continue;  // no data: probes may name the host as they like
+    handler = [allowed, handler = std::move(handler)](const HttpRequest& req) {
+      if (HostAllowed(req.host, *allowed)) return handler(req);
+      // The header is not echoed.
+      return HttpResponse{421, "application/json",
+                          "{\"error\": \"misdirected request: this server answers a Host that is an IP address, localhost or a name "
+                          "given with --http-allowed-host\"}",
+                          {}};
+    };
+  }
+  return routes;
+}
+
+Status CheckAllowedHostName(const std::string& name, const std::string& field) {
+  if (name.empty() || name.size() > 253 ||
+      name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-.") != std::string::npos)
+    return Status::InvalidArgument(field, field + " '" + Printable(name, 64) +
+                                              "' violates a host name of 1-253 letters, digits, '-' and '.' (no port, no wildcard)");
+  return Status::Ok();
 }
 
 std::string CookieValue(const std::string& header, const std::string& name) {

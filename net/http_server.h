@@ -24,7 +24,8 @@ struct HttpRequest {
   std::string path, query;
   std::string authorization;  // the Authorization header, "" when absent
   std::string cookie;         // the Cookie header, "" when absent
-  std::string host;           // the Host header, "" when absent (HTTP/1.0); see IsLoopbackHost
+  std::string host;           // the Host header, "" when absent (HTTP/1.0); see HostAllowed
+  std::string peer;           // the peer's IP address
   bool tls = false;           // the connection is TLS (cookies are then marked Secure)
 };
 
@@ -40,12 +41,21 @@ class HttpServer {
  public:
   struct Options {
     std::string tls_cert_pem, tls_key_pem;  // both set: serve HTTPS only
-    // Routes whose handlers may take long (a dashboard cell integrates a point): they run on a pool of
+    // Routes whose handlers may take long (a dashboard map reads a file): they run on a pool of
     // kSlowThreads threads, so that the others (/healthz, /metrics) keep answering meanwhile. At most
     // 4 · kSlowThreads wait or run at once; more get 503 with Retry-After: 1.
     std::set<std::string> slow_routes;
+    // Slow routes whose handlers are heavy (a dashboard cell integrates a point): at most kSlowThreads − 1
+    // run at once, so the other slow routes always have a thread; those waiting are served in turn by
+    // client (the peer's address with its Authorization header and Cookie), not in arrival order, so one
+    // client's flood delays another's request by at most one heavy handler per waiting client. At most
+    // kMaxHeavyPerClient of one client wait or run (more: 503 at once, to that client only) and
+    // kMaxHeavyPending in all. Each must also be in slow_routes.
+    std::set<std::string> heavy_routes;
   };
   static constexpr int kSlowThreads = 2;
+  static constexpr int kMaxHeavyPerClient = 2;
+  static constexpr int kMaxHeavyPending = 16;
   // Listens on "host:port" (an IP literal, "localhost" or "[v6]"; port 0 picks a free one) and serves
   // `routes` (path → handler, e.g. "/metrics") on one thread of its own. Handlers run on that thread, but
   // those of Options::slow_routes (which must be safe to call from several threads at once).
@@ -71,10 +81,22 @@ class HttpServer {
 // repeated or empty name, a byte below 0x20 after decoding, or more than `max_params` parameters.
 StatusOr<std::map<std::string, std::string>> ParseQueryString(const std::string& query, size_t max_params = 16);
 
-// Whether a Host header names this machine's loopback: localhost (any case), 127.0.0.1 or [::1], with or
-// without ":port". A server without tokens answers only such requests, so that a web page elsewhere cannot
-// read it through DNS rebinding (its requests carry the attacker's host name).
-bool IsLoopbackHost(const std::string& host);
+// The Host rule of every listener that serves data without a token: --metrics of the coordinator and the
+// worker always, the coordinator's --http and `bistable run --serve` when no tokens are configured. A web
+// page elsewhere can point a host name it controls at this machine (DNS rebinding) and then read it as its
+// own origin, but its requests carry that name: so a Host that is an IP literal (IPv4, or IPv6 in brackets)
+// or "localhost" (any case), each with or without ":port", is answered, and so is one of `allowed_names`
+// (any case, any port: --http-allowed-host, e.g. a Kubernetes Service name a scraper uses); any other name,
+// a malformed header or none at all is not.
+bool HostAllowed(const std::string& host, const std::vector<std::string>& allowed_names);
+
+// `routes` under that rule: every route but /healthz (which carries no data) answers a request whose Host
+// fails HostAllowed with 421 and a fixed JSON error that does not echo the header.
+std::map<std::string, HttpHandler> HostChecked(std::map<std::string, HttpHandler> routes, std::vector<std::string> allowed_names);
+
+// A name for --http-allowed-host: 1-253 letters, digits, '-' and '.' (a DNS name, no port, no wildcard);
+// InvalidArgument naming `field` otherwise.
+Status CheckAllowedHostName(const std::string& name, const std::string& field);
 
 // The value of cookie `name` in a Cookie header ("" when absent).
 std::string CookieValue(const std::string& cookie_header, const std::string& name);

@@ -1,5 +1,7 @@
 #include "server/auth.h"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <random>
@@ -67,6 +69,22 @@ StatusOr<TokenStore> TokenStore::Load(const std::string& path) {
     store.by_hash_[digest] = {r, name.empty() ? "token:" + digest.substr(0, 12) : name};
   }
   if (store.by_hash_.empty()) return Status::InvalidArgument("tokens", "tokens file '" + path + "' holds no tokens");
+  // Who else may change or read it (stat follows a link: a Kubernetes Secret's file is one).
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0) {
+    char mode[8];
+    std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
+    if (st.st_mode & S_IWOTH)
+      return Status::InvalidArgument("tokens", "tokens file '" + path + "' has mode " + mode +
+                                                   ": every user may write it (and add an admin token); chmod 600 '" + path +
+                                                   "' (640 for a group that reads it)");
+    if (st.st_mode & (S_IWGRP | S_IROTH)) {
+      store.lax_mode_ = mode;
+      store.lax_reason_ = std::string(st.st_mode & S_IWGRP ? "the group may write it" : "") +
+                          (st.st_mode & S_IWGRP && st.st_mode & S_IROTH ? " and " : "") +
+                          (st.st_mode & S_IROTH ? "every user may read it" : "") + "; chmod 600 (640 for a group that reads it)";
+    }
+  }
   return store;
 }
 

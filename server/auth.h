@@ -31,8 +31,16 @@ class TokenStore {
  public:
   // Empty store: auth off.
   TokenStore() = default;
+  // Reads a tokens file ('<role> <sha256-of-token> [name]' per line). Refused (InvalidArgument naming
+  // the file and its mode) when every user may write it: anyone could add an admin token. Used, with
+  // lax_mode() set, when the group may write it or every user may read it (hashes and names only).
   static StatusOr<TokenStore> Load(const std::string& path);
   bool enabled() const { return !by_hash_.empty(); }
+  // The loaded file's permission bits ("0664") when the group may write it or every user may read it, the
+  // caller's to warn of with lax_reason() ("the group may write it; chmod 600 ..."); "" otherwise (0600,
+  // 0640, 0400, ...).
+  const std::string& lax_mode() const { return lax_mode_; }
+  const std::string& lax_reason() const { return lax_reason_; }
   // Checks the call's "authorization: Bearer <token>" metadata for `op`; on success *who is the
   // token's identity — its name, or "token:<first 12 hex digits of its hash>" when unnamed, so two
   // unnamed tokens are two owners — and *role its role (admin when auth is off, identity "local").
@@ -47,6 +55,7 @@ class TokenStore {
     std::string name;
   };
   std::map<std::string, Entry> by_hash_;
+  std::string lax_mode_, lax_reason_;
 };
 
 const char* RoleName(Role r);

@@ -52,6 +52,10 @@ int main(int argc, char** argv) {
                  "--tls-cert/--tls-key, behind --tokens (viewer, client or admin tokens); loopback unless both are given");
   app.add_option("--health", health_addr,
                  "also serve grpc.health.v1 alone, plaintext, on HOST:PORT (Kubernetes gRPC probes); the main port serves it too");
+  std::vector<std::string> allowed_hosts;
+  app.add_option("--http-allowed-host", allowed_hosts,
+                 "a host name (e.g. a Service name) under which --metrics and a tokenless --http answer; repeatable. Without it "
+                 "they answer only a Host that is an IP address or localhost (DNS rebinding)");
   CLI11_PARSE(app, argc, argv);
   // Two malloc arenas: gRPC serves calls on a pool of threads, and one arena per thread would keep
   // each thread's high-water mark of (possibly hostile, oversized) requests resident for good.
@@ -70,6 +74,8 @@ int main(int argc, char** argv) {
   }
   if (tls_cert.empty() != tls_key.empty())
     return fail(bistable::Status::InvalidArgument("tls-cert", "--tls-cert and --tls-key go together"));
+  for (const std::string& h : allowed_hosts)
+    if (auto st = bistable::CheckAllowedHostName(h, "http-allowed-host"); !st.ok()) return fail(st);
   if (!bistable::IsLoopbackAddress(listen) && (tls_cert.empty() || tokens_file.empty()))
     return fail(bistable::Status::InvalidArgument(
         "listen", listen + " is not a loopback address: serving other hosts requires --tls-cert/--tls-key and --tokens"));
@@ -80,6 +86,10 @@ int main(int argc, char** argv) {
   if (!tokens_file.empty()) {
     auto t = bistable::TokenStore::Load(tokens_file);
     if (!t.ok()) return fail(t.status());
+    if (!t->lax_mode().empty())
+      bistable::log::Event(bistable::log::Level::kWarn, "tokens.mode",
+                           {{"file", tokens_file}, {"mode", t->lax_mode()},
+                            {"reason", t->lax_reason()}});
     tokens = std::move(*t);
   }
   std::shared_ptr<grpc::ServerCredentials> creds = grpc::InsecureServerCredentials();
@@ -112,9 +122,11 @@ int main(int argc, char** argv) {
   bistable::CoordinatorService service(coord->get(), lease_seconds, job_seconds, std::move(tokens));
   bistable::CoordinatorMetrics metrics(coord->get());
   service.SetMetrics(&metrics);
-  std::map<std::string, bistable::HttpHandler> metric_routes = {
-      {"/metrics", [&metrics](const bistable::HttpRequest&) { return bistable::PrometheusText(metrics.Sources()); }},
-      {"/healthz", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n", {}}; }}};
+  // /metrics and /healthz; the metrics only for a Host that names this server (net/http_server.h: HostChecked).
+  const std::map<std::string, bistable::HttpHandler> metric_routes = bistable::HostChecked(
+      {{"/metrics", [&metrics](const bistable::HttpRequest&) { return bistable::PrometheusText(metrics.Sources()); }},
+       {"/healthz", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n", {}}; }}},
+      allowed_hosts);
   std::unique_ptr<bistable::HttpServer> http, dashboard;
   if (!metrics_addr.empty()) {
     auto h = bistable::HttpServer::Start(metrics_addr, metric_routes);
@@ -124,7 +136,7 @@ int main(int argc, char** argv) {
   // --http: a second listener of the same server class (TLS when the gRPC side has it): the dashboard,
   // and /metrics and /healthz so that one port can serve everything.
   if (!http_addr.empty()) {
-    auto routes = bistable::DashboardRoutes(coord->get(), &dashboard_tokens);
+    auto routes = bistable::DashboardRoutes(coord->get(), &dashboard_tokens, allowed_hosts);
     routes.insert(metric_routes.begin(), metric_routes.end());
     if (dashboard_tokens.enabled())  // behind tokens, the metrics are data too (Prometheus sends a bearer token)
       routes["/metrics"] = [&metrics, &dashboard_tokens](const bistable::HttpRequest& req) {
@@ -133,10 +145,8 @@ int main(int argc, char** argv) {
           return bistable::HttpResponse{401, "text/plain; charset=utf-8", "unauthenticated\n", {{"WWW-Authenticate", "Bearer"}}};
         return bistable::PrometheusText(metrics.Sources());
       };
-    else  // without tokens, the loopback's Host names only (DNS rebinding); /healthz carries no data
-      routes["/metrics"] = bistable::LoopbackHostOnly(routes["/metrics"]);
-    bistable::HttpServer::Options options = http_tls;
-    options.slow_routes = bistable::DashboardSlowRoutes();
+    bistable::HttpServer::Options options = bistable::DashboardHttpOptions();
+    options.tls_cert_pem = http_tls.tls_cert_pem, options.tls_key_pem = http_tls.tls_key_pem;
     auto h = bistable::HttpServer::Start(http_addr, std::move(routes), options);
     if (!h.ok()) return fail(h.status());
     dashboard = std::move(h).value();

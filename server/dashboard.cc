@@ -1,5 +1,7 @@
 #include "server/dashboard.h"
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "base/limits.h"
+#include "base/validate.h"
 #include "dynamics/point.h"
 #include "dynamics/spectrum.h"
 #include "engine/json_shapes.h"
@@ -441,6 +444,18 @@ HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, const HttpReq
   if (!ic.ok()) return Error(ic.status());
   PointSpec spec = s->spec.PointAt(*point, static_cast<int>(*ic));
   spec.metrics.keep_samples = true;  // the window's rows for the orbit and the series (recorded only)
+  // Bounded work and memory: a cell runs on the coordinator while other cells wait (limits.h).
+  const IntegrationSettings& in = spec.integration;
+  const double steps = std::max(in.t_end, in.labels == LabelMode::kSettled ? in.t_keep + in.settle_cap : 0.0) / in.dt;
+  const double samples = (in.t_end - in.t_keep) / in.dt / static_cast<double>(spec.metrics.sample_every);
+  if (steps > limits::kMaxCellSteps || samples > limits::kMaxCellSamples) {
+    std::string note;
+    return Json({{"error", "this cell needs " + FormatNumber(steps) + " steps and " + FormatNumber(samples) +
+                               " window samples; the dashboard computes cells of at most " + FormatNumber(limits::kMaxCellSteps) +
+                               " steps and " + FormatNumber(limits::kMaxCellSamples) + " samples: run it with the command given"},
+                 {"command", PointCommand(spec, &note)}},
+                422);
+  }
   auto r = EvaluatePoint(spec);
   if (!r.ok()) return Error(r.status());
   std::string note;
@@ -514,17 +529,14 @@ HttpResponse SessionRoute(const TokenStore* tokens, const HttpRequest& req) {
 
 }  // namespace
 
-HttpHandler LoopbackHostOnly(HttpHandler handler) {
-  return [handler = std::move(handler)](const HttpRequest& req) {
-    if (!IsLoopbackHost(req.host))  // the header is not echoed
-      return Json({{"error", "misdirected request: without tokens this server answers only Host localhost, 127.0.0.1 or [::1]"}}, 421);
-    return handler(req);
-  };
+HttpServer::Options DashboardHttpOptions() {
+  HttpServer::Options o;
+  o.slow_routes = {"/api/map", "/api/query", "/api/cell"};
+  o.heavy_routes = {"/api/cell"};
+  return o;
 }
 
-std::set<std::string> DashboardSlowRoutes() { return {"/api/map", "/api/query", "/api/cell"}; }
-
-std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens) {
+std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens, std::vector<std::string> allowed_hosts) {
   std::map<std::string, HttpHandler> routes;
   auto cache = std::make_shared<DashboardCache>(kCacheSeconds, kCacheEntries);
   for (const EmbeddedFile& f : DashboardAssets()) {
@@ -551,10 +563,16 @@ std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const To
   routes["/api/sweep"] = guarded([c](const HttpRequest& req) { return SweepRoute(c, req); });
   routes["/api/map"] = guarded([c, cache](const HttpRequest& req) { return MapRoute(c, cache.get(), req); });
   routes["/api/query"] = guarded([c, cache](const HttpRequest& req) { return QueryRoute(c, cache.get(), req); });
-  routes["/api/cell"] = guarded([c, cache](const HttpRequest& req) { return CellRoute(c, cache.get(), req); });
-  // Without tokens, only requests that name the loopback (DNS rebinding: a page elsewhere names its own host).
-  if (!tokens->enabled())
-    for (auto& [path, handler] : routes) handler = LoopbackHostOnly(std::move(handler));
+  routes["/api/cell"] = guarded([c, cache](const HttpRequest& req) {
+    HttpResponse r = CellRoute(c, cache.get(), req);
+    // The window's rows and the spectrum are freed, and so are this pool thread's transform tables for the
+    // cell's length: their pages go back to the system (a cell holds up to 2^20 samples).
+    ReleaseThreadSpectrumCaches();
+    ::malloc_trim(0);
+    return r;
+  });
+  // Without tokens, the Host rule of every tokenless listener (DNS rebinding: a page elsewhere names its own host).
+  if (!tokens->enabled()) return HostChecked(std::move(routes), std::move(allowed_hosts));
   return routes;
 }
 

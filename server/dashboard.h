@@ -16,6 +16,7 @@
 #include <map>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "net/http_server.h"
 #include "server/auth.h"
@@ -24,17 +25,16 @@
 namespace bistable {
 
 // The dashboard's routes over `c` (both must outlive the server). `tokens` disabled: open (loopback),
-// and every route answers only requests whose Host names the loopback (LoopbackHostOnly).
-std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens);
+// and every route answers only requests whose Host passes HostAllowed (net/http_server.h: an IP literal,
+// localhost or one of `allowed_hosts`), the rule of the --metrics listener too.
+std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens,
+                                                   std::vector<std::string> allowed_hosts = {});
 
-// The routes of DashboardRoutes that may take long (a cell integrates a point; a map or query reads a map
-// file): HttpServer::Options::slow_routes, so that /healthz and /metrics on the same listener keep answering.
-std::set<std::string> DashboardSlowRoutes();
-
-// `handler` for requests whose Host header is localhost, 127.0.0.1 or [::1] (any port); others get 421
-// and a JSON error that does not echo the header. A server without tokens serves data through this, so
-// that a web page elsewhere cannot read it by DNS rebinding (net/http_server.h: IsLoopbackHost).
-HttpHandler LoopbackHostOnly(HttpHandler handler);
+// The server options DashboardRoutes want: the routes that may take long (a cell integrates a point; a map
+// or query reads a map file) are slow routes, so that /healthz and /metrics on the same listener keep
+// answering, and cells are heavy routes (HttpServer::Options::heavy_routes: at most one computes at a time,
+// taken in turn by client), so that maps and queries always have a thread.
+HttpServer::Options DashboardHttpOptions();
 
 // The cookie /api/session sets (HttpOnly, SameSite=Strict, Secure over TLS).
 inline constexpr const char* kDashboardCookie = "bistable_token";

@@ -14,8 +14,10 @@
 
 #include "base/limits.h"
 #include "engine/refine.h"
+#include "base/file.h"
 #include "base/log.h"
 #include "engine/evaluate.h"
+#include "storage/data_dir.h"
 #include "storage/map_file.h"
 
 namespace bistable {
@@ -36,6 +38,18 @@ void SweepCoordinator::Log(log::Level level, std::string_view event, std::initia
   if (opt_.log) log::Event(level, event, fields);
 }
 
+void SweepCoordinator::Repaired(std::string_view event, const std::string& message) const {
+  Log(log::Level::kWarn, event, {{"message", message}});
+  if (opt_.warn) opt_.warn(message);
+}
+
+void SweepCoordinator::ChecksumFailed(const std::string& sweep, long items, const char* action) const {
+  Log(log::Level::kWarn, "sweep.checksum_failed", {{"sweep", sweep}, {"items", items}, {"action", action}});
+  if (opt_.warn)
+    opt_.warn(std::to_string(items) + " stored results of sweep " + sweep + " failed their checksum in '" +
+              (std::filesystem::path(data_dir_) / "index.sqlite").string() + "': computed again");
+}
+
 double SweepCoordinator::Clock() const { return opt_.clock ? opt_.clock() : Now(); }
 
 double SweepCoordinator::Monotonic() const {
@@ -43,14 +57,17 @@ double SweepCoordinator::Monotonic() const {
 }
 
 StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::string& data_dir, Options opt) {
-  std::error_code ec;
-  std::filesystem::create_directories(std::filesystem::path(data_dir) / "sweeps", ec);
-  if (ec) return Status::IoError("data", "cannot create data directory '" + data_dir + "': " + ec.message());
+  // Results are the owner's (and a group's): the directory and sweeps/ are created 0750, the index and the
+  // maps 0640 (docs/operations.md, "One data directory"); a directory that exists keeps its mode.
+  BISTABLE_RETURN_IF_ERROR(MakeDirectory(data_dir, kDataDirectoryMode, "data"));
+  BISTABLE_RETURN_IF_ERROR(MakeDirectory((std::filesystem::path(data_dir) / "sweeps").string(), kDataDirectoryMode, "data"));
   if (::access(data_dir.c_str(), W_OK) != 0)
     return Status::IoError("data", "data directory '" + data_dir + "' is not writable");
-  auto db = IndexDb::Open((std::filesystem::path(data_dir) / "index.sqlite").string());
+  std::vector<std::string> repairs;
+  auto db = OpenDataIndex(data_dir, &repairs);
   if (!db.ok()) return db.status();
   std::unique_ptr<SweepCoordinator> c(new SweepCoordinator(data_dir, std::move(db.value()), opt));
+  for (const std::string& r : repairs) c->Repaired("data.repaired", r);
   // Checkpoints off the report path (measured: docs/scaling.md): a second connection checkpoints in the
   // background; the writer's own automatic checkpoint stays as a safety net at ~400 MB of WAL.
   if (auto ck = IndexDb::Open((std::filesystem::path(data_dir) / "index.sqlite").string()); ck.ok()) {
@@ -202,10 +219,21 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
   s.spec = spec;
   s.row = existing.value() && existing.value()->id == plan.id ? *existing.value() : SweepRow{};
   if (s.row.state == SweepState::kDone && !s.row.file.empty() && std::filesystem::exists(std::filesystem::path(data_dir_) / s.row.file)) {
-    plan.already_published = true;
-    plan.items_cached = plan.items_total;
-    s.items_done = s.items_cached = plan.items_total;
-    return out;
+    // Published: served as it is if the file is whole. A damaged one (truncated, overwritten) is moved aside
+    // and the sweep planned again: its stored points go into a new map, the rest are computed.
+    const std::string file = (std::filesystem::path(data_dir_) / s.row.file).string();
+    Status whole = CheckMapFile(file, plan.id);
+    if (whole.ok()) {
+      plan.already_published = true;
+      plan.items_cached = plan.items_total;
+      s.items_done = s.items_cached = plan.items_total;
+      return out;
+    }
+    auto aside = MoveAside(file);
+    if (!aside.ok()) return aside.status();
+    Repaired("map.corrupt", whole.message() + ": moved aside to '" + *aside + "'; sweep " + plan.id + " is planned again and its map written anew");
+    s.row.state = SweepState::kQueued;
+    s.row.file.clear();
   }
   if (spec.refine.enabled()) {
     BISTABLE_RETURN_IF_ERROR(BuildRefinedPlan(spec, job_items, std::move(carry), s, plan));
@@ -230,7 +258,7 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
       if (cached->count(batch[i])) is_missing[b + i] = false;
   }
   if (corrupt_total > 0)
-    Log(log::Level::kWarn, "sweep.checksum_failed", {{"sweep", plan.id}, {"items", corrupt_total}, {"action", "recompute"}});
+    ChecksumFailed(plan.id, corrupt_total, "recompute");
   if (spec.continuation.enabled()) {
     // Chains run whole and in order (each point starts where the previous ended): a chain with any
     // missing item is recomputed entirely; jobs hold whole chains.
@@ -288,7 +316,7 @@ Status SweepCoordinator::BuildRefinedPlan(const SweepSpec& spec, long job_items,
   }
   s.refiner = carry.planner;
   if (corrupt_total > 0)
-    Log(log::Level::kWarn, "sweep.checksum_failed", {{"sweep", plan.id}, {"items", corrupt_total}, {"action", "recompute"}});
+    ChecksumFailed(plan.id, corrupt_total, "recompute");
   // Every planned point's key: looked up now, or carried from the last plan (both ascending).
   s.points = step->points;
   s.keys.clear();
@@ -881,7 +909,7 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
     }
   } join{folder};
   if (corrupt > 0)
-    Log(log::Level::kWarn, "sweep.checksum_failed", {{"sweep", row.id}, {"items", corrupt}, {"action", "replan"}});
+    ChecksumFailed(row.id, corrupt, "replan");
   std::vector<PointRecord> records;
   records.reserve(keys.size());
   for (const std::string& k : keys) {
@@ -912,9 +940,7 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
   done.finished = Clock();
   done.seconds = done.finished - started;
   // Map rows: shape and range of every stored metric, for listings that need not open HDF5.
-  std::string shape;
-  for (const Axis& a : spec.axes) shape += (shape.empty() ? "" : "x") + std::to_string(a.values.size());
-  if (spec.ic_count() > 1) shape += "x" + std::to_string(spec.ic_count());
+  const std::string shape = MapShape(spec);
   std::vector<MapRow> maps;
   const auto& catalog = MetricCatalog();
   for (size_t mi = 0; mi < catalog.size(); ++mi) {

@@ -98,9 +98,14 @@ class SweepCoordinator {
     std::function<double()> clock = nullptr;
     std::function<double()> monotonic = nullptr;  // the deadlines' clock when set (tests: a wall clock that jumps)
     std::function<void()> before_index_row = nullptr;  // tests: runs when a map file is written, before its index row
+    // Repairs of the data directory, one sentence each naming the files (a damaged index or map moved aside
+    // and made again, map files indexed again, stored points that failed their checksum): also logged as
+    // warn events when `log` is on; the embedded run prints them as warnings (its log is off).
+    std::function<void(const std::string&)> warn = nullptr;
   };
 
-  // Opens <data>/index.sqlite and <data>/sweeps/ (creating them) and resumes unfinished sweeps.
+  // Opens <data>/index.sqlite and <data>/sweeps/ (creating them; repairing a damaged index and indexing
+  // map files it has no row for: storage/data_dir.h, OpenDataIndex) and resumes unfinished sweeps.
   static StatusOr<std::unique_ptr<SweepCoordinator>> Open(const std::string& data_dir, Options opt);
   static StatusOr<std::unique_ptr<SweepCoordinator>> Open(const std::string& data_dir) { return Open(data_dir, Options{}); }
   // Finishes queued publications, then stops the publisher thread.
@@ -230,6 +235,11 @@ class SweepCoordinator {
   double Monotonic() const;  // seconds of the monotonic clock (lease deadlines)
   // A structured event (base/log.h), unless Options::log is off.
   void Log(log::Level level, std::string_view event, std::initializer_list<log::Field> fields) const;
+  // A repair of the data directory: a warn event with the sentence (unless Options::log is off), and the
+  // sentence to Options::warn.
+  void Repaired(std::string_view event, const std::string& message) const;
+  // `items` stored results of `sweep` failed their checksum: recomputed (`action`); logged and said.
+  void ChecksumFailed(const std::string& sweep, long items, const char* action) const;
   // Gives a lease's job back to its queue (if the lease's plan is still current). Under mu_.
   void RequeueLocked(const LeaseState& l);
   // Gathers the records, writes the map file, indexes it; returns the sweep's row as published.

@@ -1,12 +1,18 @@
 #include "storage/index_db.h"
 
+#include <fcntl.h>
 #include <sqlite3.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #define XXH_INLINE_ALL
 #include <xxhash.h>
 
 #include <algorithm>
 #include <cstring>
+#include <functional>
+
+#include "storage/data_dir.h"
 
 namespace bistable {
 namespace {
@@ -135,6 +141,10 @@ Status IndexDb::Exec(const std::string& sql) {
 }
 
 StatusOr<std::unique_ptr<IndexDb>> IndexDb::Open(const std::string& path) {
+  // A new index is created here with kDataFileMode (SQLite would take 0644; its WAL and shared-memory
+  // files take the index's mode); SQLite reads an empty file as an empty database.
+  if (const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, static_cast<mode_t>(kDataFileMode)); fd >= 0)
+    ::close(fd);
   sqlite3* db = nullptr;
   if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr) !=
       SQLITE_OK) {
@@ -166,6 +176,73 @@ StatusOr<std::unique_ptr<IndexDb>> IndexDb::Open(const std::string& path) {
     return Status::IoError("data", "index '" + path + "' has schema '" + schema + "', this program reads schema 2 (newer program?)");
   }
   return idx;
+}
+
+StatusOr<std::string> IndexDb::QuickCheck(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0 || st.st_size == 0) return std::string();  // a new index
+  sqlite3* db = nullptr;
+  const int rc = sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX, nullptr);
+  struct Close {
+    sqlite3* db;
+    ~Close() { sqlite3_close(db); }
+  } close{db};
+  if (rc != SQLITE_OK) return Status::IoError("data", "cannot open index '" + path + "': " + (db ? sqlite3_errmsg(db) : "out of memory"));
+  sqlite3_db_config(db, SQLITE_DBCONFIG_NO_CKPT_ON_CLOSE, 1, nullptr);  // the file stays as it was found
+  sqlite3_busy_timeout(db, 10000);
+  std::string problem;
+  Stmt s(db, "PRAGMA quick_check(1)");
+  const int step = s.ok() ? sqlite3_step(s.get()) : sqlite3_errcode(db);
+  if (step == SQLITE_ROW) {
+    problem = s.ColText(0);
+    if (problem == "ok") problem.clear();
+  } else {
+    const int code = sqlite3_errcode(db) & 0xff;
+    if (code != SQLITE_CORRUPT && code != SQLITE_NOTADB)  // busy, out of memory, I/O: not the file's damage
+      return Status::IoError("data", "index '" + path + "': " + sqlite3_errmsg(db));
+    problem = sqlite3_errmsg(db);
+  }
+  for (char& c : problem) c = c == '\n' ? ' ' : c;  // one line
+  return problem;
+}
+
+StatusOr<IndexDb::Salvaged> IndexDb::SalvageFrom(const std::string& old_path) {
+  Salvaged n;
+  sqlite3* old = nullptr;
+  if (sqlite3_open_v2(old_path.c_str(), &old, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK) {
+    sqlite3_close(old);
+    return n;  // nothing can be read
+  }
+  struct Close {
+    sqlite3* db;
+    ~Close() { sqlite3_close(db); }
+  } close{old};
+  Transaction tx(db_, "BEGIN IMMEDIATE");
+  if (!tx.ok()) return Error("begin salvage");
+  // Each table row by row, until the end or its first unreadable page.
+  const auto copy = [&](const char* select, const char* insert, int columns, long* count, const std::function<bool(Stmt&)>& keep) -> Status {
+    Stmt from(old, select);
+    Stmt to(db_, insert);
+    if (!from.ok()) return Status::Ok();  // the table cannot be read at all
+    if (!to.ok()) return Error("prepare salvage");
+    while (sqlite3_step(from.get()) == SQLITE_ROW) {
+      if (keep && !keep(from)) continue;
+      sqlite3_reset(to.get());
+      for (int c = 0; c < columns; ++c) sqlite3_bind_value(to.get(), c + 1, sqlite3_column_value(from.get(), c));
+      if (sqlite3_step(to.get()) != SQLITE_DONE) return Error("salvage a row");
+      ++*count;
+    }
+    return Status::Ok();
+  };
+  BISTABLE_RETURN_IF_ERROR(copy("SELECT " SWEEP_COLUMNS " FROM sweeps",
+                                "INSERT OR IGNORE INTO sweeps(" SWEEP_COLUMNS ") VALUES(?,?,?,?,?,?,?,?,?,?,?,?)", 12, &n.sweeps,
+                                [](Stmt& r) { return r.ColText(4) != SweepStateName(SweepState::kDone); }));
+  BISTABLE_RETURN_IF_ERROR(copy("SELECT key, record, created FROM points", "INSERT OR IGNORE INTO points(key, record, created) VALUES(?,?,?)", 3,
+                                &n.points, nullptr));
+  BISTABLE_RETURN_IF_ERROR(copy("SELECT sweep_id, width, keys, records, sum FROM results ORDER BY seq",
+                                "INSERT INTO results(sweep_id, width, keys, records, sum) VALUES(?,?,?,?,?)", 5, &n.staged, nullptr));
+  if (!tx.Commit()) return Error("commit salvage");
+  return n;
 }
 
 Status IndexDb::SetAutoCheckpoint(int pages) { return Exec("PRAGMA wal_autocheckpoint=" + std::to_string(pages)); }

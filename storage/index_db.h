@@ -49,6 +49,19 @@ class IndexDb {
   ~IndexDb();
   // Opens or creates <path>; the message names the path on failure (unwritable dir, corrupt file).
   static StatusOr<std::unique_ptr<IndexDb>> Open(const std::string& path);
+  // SQLite's quick_check of the index file at `path` (every page and B-tree, not the records themselves:
+  // their checksums are checked where they are read), on a connection of its own that writes nothing (no
+  // checkpoint on close either), before the index is opened for use. "" when sound (or no file, or an empty
+  // one: a new index), else the first problem (a file that is not a database at all included). Reads the
+  // whole file (measured: 0.3 s for an index of 437 MB, 10^6 points, in the page cache).
+  static StatusOr<std::string> QuickCheck(const std::string& path);
+  // What could be read of a damaged index at `old_path` (opened read-only, each table read until its first
+  // error), copied into this one: sweeps not published (to resume; published ones come back from their map
+  // files), the point cache and staged reports (checksums come along and are verified where they are read).
+  struct Salvaged {
+    long sweeps = 0, points = 0, staged = 0;
+  };
+  StatusOr<Salvaged> SalvageFrom(const std::string& old_path);
 
   Status UpsertSweep(const SweepRow& row);
   // Marks a sweep published: its row (status done, file) and its map rows, in one transaction.

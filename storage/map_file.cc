@@ -24,6 +24,7 @@
 #include "base/names.h"
 #include "engine/basins.h"
 #include "base/validate.h"
+#include "storage/data_dir.h"
 #include "storage/metric_name.h"
 
 namespace bistable {
@@ -518,9 +519,9 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
   return Status::Ok();
 }
 
-// Writes `bytes` to a new file `path` (mode 0644); a full disk is said as such.
+// Writes `bytes` to a new file `path` (mode kDataFileMode, 0640); a full disk is said as such.
 Status WriteFileBytes(const std::string& path, const std::vector<char>& bytes) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, static_cast<mode_t>(kDataFileMode));
   if (fd < 0) return Status::IoError("map", "create '" + path + "': " + std::strerror(errno));
   size_t done = 0;
   while (done < bytes.size()) {
@@ -608,6 +609,13 @@ Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::v
 
 Status WriteMapFile(const std::string& path, const SweepSpec& spec, const RefinedGrid& refined) {
   return WriteMapFileImpl(path, spec, refined.records, &refined);
+}
+
+std::string MapShape(const SweepSpec& spec) {
+  std::string shape;
+  for (const Axis& a : spec.axes) shape += (shape.empty() ? "" : "x") + std::to_string(a.values.size());
+  if (spec.ic_count() > 1) shape += "x" + std::to_string(spec.ic_count());
+  return shape;
 }
 
 StatusOr<std::vector<std::string>> ListMapMetrics(const std::string& path) {

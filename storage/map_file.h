@@ -26,6 +26,10 @@ Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::v
 // A refined map ([refine]): the finest grid's records plus refine_level and refine_fill.
 Status WriteMapFile(const std::string& path, const SweepSpec& spec, const RefinedGrid& refined);
 
+// The shape an index's map rows give a sweep's metrics: the axis lengths, then the initial conditions
+// when there are several ("201x201", "64x64x2").
+std::string MapShape(const SweepSpec& spec);
+
 // A metric read back: values in row-major order over dims.
 struct MapArray {
   std::string metric;

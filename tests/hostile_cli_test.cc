@@ -23,6 +23,7 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <sqlite3.h>
 
 #include "client/plot.h"
 #include "storage/map_file.h"
@@ -681,6 +682,214 @@ TEST(HostileDisk, RunOnATwoMegabyteTmpfsExitsTwoWithTheDiskFullMessageTenTimes) 
   std::printf("  10 runs on a 2 MB tmpfs: %d ended disk full, %d of them writing the map\n", disk_full, map_full);
   EXPECT_GE(map_full, 1) << "no run met the full disk while writing its map: the case was not exercised";
   if (!HasFailure()) fs::remove_all(dir);
+}
+
+// ---- Modes of what a run creates (issue 39) -----------------------------------------------------
+
+// The data directory was created 0755 and its index and maps 0644: every user of the machine could read
+// every result. Created now: the directory and sweeps/ 0750, index.sqlite (and its WAL) and the maps 0640
+// (less the umask); a directory that exists keeps its mode.
+TEST(HostileFiles, TheDataDirectoryIsCreated0750AndItsIndexAndMaps0640) {
+  const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "modes"));
+  std::ofstream(dir / "spec.toml") << TinySpec("modes");
+  const mode_t saved = ::umask(022);  // the common default; the children inherit it
+  const ExecResult r = RunArgv({BISTABLE_CLI, "run", (dir / "spec.toml").string(), "--data", (dir / "new" / "data").string(),
+                                "--no-plots", "--json"}, dir.string());
+  fs::create_directories(dir / "old");
+  fs::permissions(dir / "old", fs::perms(0755), fs::perm_options::replace);
+  const ExecResult r2 = RunArgv({BISTABLE_CLI, "run", (dir / "spec.toml").string(), "--data", (dir / "old").string(), "--no-plots", "--json"},
+                                dir.string());
+  ::umask(saved);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_EQ(r2.exit_code, 0) << r2.err;
+  const auto mode = [](const fs::path& p) {
+    struct stat st {};
+    return ::stat(p.c_str(), &st) == 0 ? static_cast<int>(st.st_mode & 07777) : -1;
+  };
+  const std::string id = nlohmann::json::parse(r.out)["id"];
+  const fs::path data = dir / "new" / "data";
+  EXPECT_EQ(mode(data), 0750) << std::oct << mode(data);
+  EXPECT_EQ(mode(data / "sweeps"), 0750) << std::oct << mode(data / "sweeps");
+  EXPECT_EQ(mode(data / "index.sqlite"), 0640) << std::oct << mode(data / "index.sqlite");
+  EXPECT_EQ(mode(data / "sweeps" / (id + ".h5")), 0640) << std::oct << mode(data / "sweeps" / (id + ".h5"));
+  for (const char* side : {"index.sqlite-wal", "index.sqlite-shm"})
+    if (fs::exists(data / side)) EXPECT_EQ(mode(data / side), 0640) << side << " " << std::oct << mode(data / side);
+  EXPECT_EQ(mode(dir / "old"), 0755) << "an existing data directory keeps its mode";
+  EXPECT_EQ(mode(dir / "old" / "sweeps"), 0750);
+  EXPECT_EQ(mode(dir / "old" / "sweeps" / (id + ".h5")), 0640);
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+// ---- Damaged data at start (issue 39) -----------------------------------------------------------
+// Each a real `bistable` process on a real data directory whose files the test damages as a crash, a full
+// disk or a stray tool would: detected at start (or on a rerun), said naming the file, repaired where it
+// can be, and nothing deleted (a damaged file is moved aside to NAME.corrupt-<UTC time>).
+
+struct DataDir {
+  fs::path dir, data;
+  explicit DataDir(const std::string& name) : dir(bistable_test::FreshDir("hostile", name)), data(dir / "data") {}
+  // `bistable run` of TinySpec(name) with one more alpha value: its JSON (exit 0 asserted by the caller).
+  ExecResult Run(const std::string& name, const std::string& alpha = "1.0") const {
+    std::ofstream(dir / (name + ".toml")) << ReplaceAll(TinySpec(name), "alpha = [0.5, 1.0]", "alpha = [0.5, " + alpha + "]");
+    return RunArgv({BISTABLE_CLI, "run", (dir / (name + ".toml")).string(), "--data", data.string(), "--no-plots", "--json"}, dir.string());
+  }
+  // Two published sweeps, "first" and "second"; false (with the failure added) when a run failed.
+  bool TwoPublished(ExecResult* a, ExecResult* b) const {
+    *a = Run("first"), *b = Run("second", "1.5");
+    EXPECT_EQ(a->exit_code, 0) << a->err;
+    EXPECT_EQ(b->exit_code, 0) << b->err;
+    return a->exit_code == 0 && b->exit_code == 0;
+  }
+  ExecResult Cli(std::vector<std::string> args) const {
+    args.insert(args.begin(), BISTABLE_CLI);
+    args.insert(args.end(), {"--data", data.string()});
+    return RunArgv(args, dir.string());
+  }
+  std::string MapOf(const std::string& run_json) const {
+    return (data / "sweeps" / (nlohmann::json::parse(run_json)["id"].get<std::string>() + ".h5")).string();
+  }
+  // Files of `folder` named `prefix`.corrupt-<time> (not SQLite's -wal and -shm beside them).
+  std::vector<fs::path> Aside(const fs::path& folder, const std::string& prefix) const {
+    std::vector<fs::path> out;
+    for (const auto& e : fs::directory_iterator(folder)) {
+      const std::string n = e.path().filename().string();
+      if (n.rfind(prefix + ".corrupt-", 0) == 0 && n.find("-wal") == std::string::npos && n.find("-shm") == std::string::npos)
+        out.push_back(e.path());
+    }
+    return out;
+  }
+};
+
+std::vector<double> Frf(const std::string& map) {
+  auto a = bistable::ReadMapMetric(map, "frf_db");
+  return a.ok() ? a->values : std::vector<double>{};
+}
+
+// A truncated map file followed by a rerun of its sweep: the rerun reported success and served the corrupt
+// map. Now the rerun finds it (HDF5's end-of-file check), moves it aside and writes the map again from the
+// stored points (nothing computed), saying so.
+TEST(HostileFiles, ATruncatedMapIsMovedAsideAndWrittenAgainByARerun) {
+  DataDir d("truncated_map");
+  const ExecResult first = d.Run("truncated");
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  const std::string map = d.MapOf(first.out);
+  const std::vector<double> good = Frf(map);
+  ASSERT_EQ(good.size(), 4u);
+  const auto size = fs::file_size(map);
+  fs::resize_file(map, size / 2);
+  const ExecResult again = d.Run("truncated");
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  for (const std::string& want : std::vector<std::string>{"warning: ", "map file '" + map + "' does not open", "moved aside to '" + map + ".corrupt-", "planned again"})
+    EXPECT_NE(again.err.find(want), std::string::npos) << "stderr lacks '" << want << "':\n" << again.err;
+  EXPECT_EQ(Frf(map), good) << "the map was not written again";
+  EXPECT_EQ(nlohmann::json::parse(again.out)["computed"], 0) << "the stored points were computed again";
+  const auto aside = d.Aside(d.data / "sweeps", fs::path(map).filename().string());
+  ASSERT_EQ(aside.size(), 1u);
+  EXPECT_EQ(fs::file_size(aside[0]), size / 2) << "the damaged file was not kept as it was";
+  const ExecResult third = d.Run("truncated");  // a whole map is served as it is, quietly
+  EXPECT_EQ(third.exit_code, 0);
+  EXPECT_EQ(third.err.find("warning"), std::string::npos) << third.err;
+  if (!HasFailure()) fs::remove_all(d.dir);
+}
+
+// A zero-length index.sqlite (SQLite reads it as an empty database) orphaned every published map in
+// silence: `sweeps` listed nothing. Now `sweeps` says which map files the index lacks, and the next run (or
+// coordinator start) indexes them again from the files' own attributes.
+TEST(HostileFiles, AZeroLengthIndexIsRebuiltFromTheMapFiles) {
+  DataDir d("empty_index");
+  ExecResult a, b;
+  ASSERT_TRUE(d.TwoPublished(&a, &b));
+  const ExecResult before = d.Cli({"sweeps", "--json"});
+  fs::resize_file(d.data / "index.sqlite", 0);
+  for (const char* side : {"index.sqlite-wal", "index.sqlite-shm"}) fs::remove(d.data / side);
+  const ExecResult listed = d.Cli({"sweeps", "--json"});
+  EXPECT_EQ(listed.exit_code, 0) << listed.err;
+  const std::string want = "warning: 2 map file(s) of '" + (d.data / "sweeps").string() + "' have no row in '" +
+                           (d.data / "index.sqlite").string() + "'";
+  EXPECT_NE(listed.err.find(want), std::string::npos) << "stderr lacks '" << want << "':\n" << listed.err;
+  const ExecResult rerun = d.Run("first");
+  ASSERT_EQ(rerun.exit_code, 0) << rerun.err;
+  EXPECT_NE(rerun.err.find("warning: index '" + (d.data / "index.sqlite").string() + "' held no row for 2 map file(s)"), std::string::npos)
+      << rerun.err;
+  EXPECT_EQ(nlohmann::json::parse(rerun.out)["computed"], 0) << "the published sweep was computed again";
+  const ExecResult after = d.Cli({"sweeps", "--json"});
+  ASSERT_EQ(after.exit_code, 0) << after.err;
+  EXPECT_EQ(after.err, "") << "still unindexed maps";
+  const auto was = nlohmann::json::parse(before.out), now = nlohmann::json::parse(after.out);
+  ASSERT_EQ(now.size(), 2u) << after.out;
+  for (size_t i = 0; i < 2; ++i) {
+    const auto& w = was[i];
+    const auto it = std::find_if(now.begin(), now.end(), [&](const auto& n) { return n["id"] == w["id"]; });
+    ASSERT_NE(it, now.end()) << w["id"];
+    for (const char* k : {"name", "model", "status", "items_total", "items_done", "file", "maps"}) EXPECT_EQ((*it)[k], w[k]) << k;
+  }
+  const ExecResult map = d.Cli({"map", nlohmann::json::parse(b.out)["id"], "--metric", "frf_db"});
+  EXPECT_EQ(map.exit_code, 0) << map.err;
+  if (!HasFailure()) fs::remove_all(d.dir);
+}
+
+// A damaged point cache was used at start without a word. Pages of index.sqlite overwritten (the point
+// cache's B-tree root): the next run finds it by SQLite's quick_check, moves the index aside, and makes a new
+// one holding what can be read and every published map. Records damaged inside an intact file (checksums
+// fail): computed again, and now said.
+TEST(HostileFiles, ADamagedIndexIsMovedAsideAndRebuiltAtStart) {
+  DataDir d("damaged_index");
+  ExecResult a, b;
+  ASSERT_TRUE(d.TwoPublished(&a, &b));
+  const std::string index = (d.data / "index.sqlite").string(), map_a = d.MapOf(a.out);
+  const std::vector<double> good = Frf(map_a);
+  // Records damaged in an intact file: their checksums fail.
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(index.c_str(), &db), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(db, "UPDATE points SET record = zeroblob(length(record))", nullptr, nullptr, nullptr), SQLITE_OK);
+    sqlite3_close(db);
+  }
+  fs::remove(map_a);
+  const ExecResult recomputed = d.Run("first");
+  ASSERT_EQ(recomputed.exit_code, 0) << recomputed.err;
+  EXPECT_NE(recomputed.err.find("warning: 4 stored results of sweep " + nlohmann::json::parse(a.out)["id"].get<std::string>() +
+                                " failed their checksum in '" + index + "': computed again"),
+            std::string::npos)
+      << recomputed.err;
+  EXPECT_EQ(Frf(map_a), good);
+  // Pages overwritten: page 4 is the point cache's root (tables are created in the schema's order).
+  {
+    std::fstream f(index, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(3 * 4096);
+    const std::string junk(4096, '\xab');
+    f.write(junk.data(), static_cast<std::streamsize>(junk.size()));
+  }
+  const auto damaged_size = fs::file_size(index);
+  const ExecResult rerun = d.Run("first");
+  ASSERT_EQ(rerun.exit_code, 0) << rerun.err;
+  for (const std::string& want : std::vector<std::string>{"warning: index '" + index + "' is damaged", "moved aside to '" + index + ".corrupt-",
+                                  "published maps of sweeps/"})
+    EXPECT_NE(rerun.err.find(want), std::string::npos) << "stderr lacks '" << want << "':\n" << rerun.err;
+  const auto aside = d.Aside(d.data, "index.sqlite");
+  ASSERT_EQ(aside.size(), 1u);
+  EXPECT_EQ(fs::file_size(aside[0]), damaged_size) << "the damaged index was not kept as it was";
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(index.c_str(), &db), SQLITE_OK);
+    std::string check;
+    sqlite3_exec(db, "PRAGMA quick_check", [](void* out, int, char** v, char**) {
+      *static_cast<std::string*>(out) += v[0] ? v[0] : "";
+      return 0;
+    }, &check, nullptr);
+    sqlite3_close(db);
+    EXPECT_EQ(check, "ok");
+  }
+  const ExecResult listed = d.Cli({"sweeps", "--json"});
+  ASSERT_EQ(listed.exit_code, 0) << listed.err;
+  const auto rows = nlohmann::json::parse(listed.out);
+  EXPECT_EQ(rows.size(), 2u) << listed.out;
+  for (const auto& r : rows) EXPECT_EQ(r["status"], "done") << r;
+  EXPECT_EQ(Frf(map_a), good);
+  const ExecResult quiet = d.Run("first");
+  EXPECT_EQ(quiet.exit_code, 0);
+  EXPECT_EQ(quiet.err.find("warning"), std::string::npos) << quiet.err;
+  if (!HasFailure()) fs::remove_all(d.dir);
 }
 
 // ---- GnuplotString --------------------------------------------------------------------------------

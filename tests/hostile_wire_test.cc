@@ -904,6 +904,291 @@ TEST(HostileRound2, ARestartResumesEveryInterruptedSweepBeyondThePerOwnerLimit) 
   Wait(pid, 10);
 }
 
+// Stops a process the test started (SIGTERM, then a wait) on every way out of it, a failed ASSERT included.
+struct Stopped {
+  pid_t pid;
+  ~Stopped() {
+    if (pid > 0 && Alive(pid)) ::kill(pid, SIGTERM), Wait(pid, 20);
+  }
+};
+
+// The "<what> on ...:PORT" line a process printed on stdout (`log`), waited for; 0 when it never came.
+int AwaitPrintedPort(const std::string& log, const std::string& what) {
+  for (int i = 0; i < 400; ++i) {
+    std::istringstream in(ReadFile(log));
+    for (std::string line; std::getline(in, line);)
+      if (line.rfind(what + " on ", 0) == 0) return std::stoi(line.substr(line.rfind(':') + 1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  return 0;
+}
+
+// Minor: --metrics had no Host check, so a web page that points a name of its own at the machine (DNS
+// rebinding) read worker names off the coordinator's and the worker's metrics. One rule now for every
+// listener without tokens (--metrics; --http without tokens): an IP literal, localhost or a name given with
+// --http-allowed-host is answered, any other name gets 421 and nothing; /healthz answers anyone.
+TEST(HostileRound2, MetricsListenersAnswerNoForeignHostName) {
+  const std::string dir = Round2Dir("metrics_host");
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log",
+                                      {"--metrics", "127.0.0.1:0", "--http", "127.0.0.1:0", "--http-allowed-host", "bistable-coordinator"});
+  const Stopped stop_coordinator{pid};
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  const int coord_metrics = AwaitPrintedPort(dir + "/coord.log", "metrics"), dashboard = AwaitPrintedPort(dir + "/coord.log", "dashboard");
+  ASSERT_GT(coord_metrics, 0);
+  ASSERT_GT(dashboard, 0);
+  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--name", "victim-worker", "--metrics", "127.0.0.1:0",
+                         "--http-allowed-host", "Metrics.Internal"},
+                        dir + "/worker.log");
+  const Stopped stop_worker{w};
+  int worker_metrics = 0;
+  for (int i = 0; i < 400 && !worker_metrics; ++i) {  // the worker says its port in its worker.started line
+    const std::string log = ReadFile(dir + "/worker.log.err");
+    if (const size_t at = log.find("metrics="); at != std::string::npos && std::isdigit(static_cast<unsigned char>(log[at + 8])))
+      worker_metrics = std::stoi(log.substr(at + 8));
+    else
+      std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ASSERT_GT(worker_metrics, 0) << ReadFile(dir + "/worker.log.err");
+  // A sweep computed by the worker: its name is in the coordinator's metrics.
+  std::ofstream(dir + "/spec.toml") << Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n");
+  ASSERT_EQ(Wait(Spawn({BISTABLE_CLI, "submit", dir + "/spec.toml", "--coordinator", addr}, dir + "/submit"), 30), 0);
+  bool named = false;
+  for (int i = 0; i < 400 && !named; ++i) {
+    named = bistable_test::HttpRequest(coord_metrics, "/metrics").body.find("victim-worker") != std::string::npos;
+    if (!named) std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  ASSERT_TRUE(named) << "the worker's name never reached the metrics";
+  const auto get = [](int port, const std::string& target, const std::string& host) {
+    return bistable_test::HttpRequest(port, target, boost::beast::http::verb::get, "", host);
+  };
+  const std::string cp = std::to_string(coord_metrics);
+  struct Listener {
+    const char* what;
+    int port;
+    std::string target, data;  // a route and what only its answer holds
+    std::vector<std::string> answered, refused;
+  };
+  const std::vector<std::string> foreign = {"evil.example", "evil.example:" + cp, "localhost.evil.example", "127.0.0.1.nip.io:" + cp,
+                                            "bistable-coordinator.evil.example", "[::1", "localhost:80x", ""};
+  auto with = [](std::vector<std::string> v, std::initializer_list<std::string> more) {
+    v.insert(v.end(), more);
+    return v;
+  };
+  const std::vector<Listener> listeners = {
+      {"coordinator --metrics", coord_metrics, "/metrics", "victim-worker",
+       {"127.0.0.1:" + cp, "10.0.0.5:9090", "[::1]:" + cp, "[2001:db8::7]", "localhost", "LOCALHOST:" + cp, "bistable-coordinator:9090",
+        "Bistable-Coordinator"},
+       with(foreign, {"metrics.internal"})},
+      {"worker --metrics", worker_metrics, "/metrics", "bistable_worker_threads",
+       {"127.0.0.1", "10.0.0.6:9090", "[::1]", "localhost:9090", "metrics.internal:9090"}, with(foreign, {"bistable-coordinator"})},
+      {"coordinator --http (no tokens)", dashboard, "/api/sweeps", "victim-worker",
+       {"127.0.0.1", "192.168.1.20:8080", "localhost", "bistable-coordinator"}, foreign},
+      {"coordinator --http /metrics (no tokens)", dashboard, "/metrics", "victim-worker", {"127.0.0.1", "bistable-coordinator"}, foreign},
+  };
+  for (const Listener& l : listeners) {
+    SCOPED_TRACE(l.what);
+    for (const std::string& host : l.answered) {
+      const auto r = get(l.port, l.target, host);
+      EXPECT_EQ(r.status, 200) << "Host '" << host << "': " << r.body.substr(0, 200);
+      EXPECT_NE(r.body.find(l.data), std::string::npos) << "Host '" << host << "'";
+    }
+    for (const std::string& host : l.refused) {
+      const auto r = get(l.port, l.target, host);
+      EXPECT_EQ(r.status, 421) << "Host '" << host << "' was answered (DNS rebinding reads it):\n" << r.body.substr(0, 300);
+      EXPECT_EQ(r.body.find(l.data), std::string::npos) << "Host '" << host << "'";
+      EXPECT_EQ(r.body.find("bistable_"), std::string::npos) << "Host '" << host << "'";
+      EXPECT_NE(r.body.find("--http-allowed-host"), std::string::npos) << r.body;
+      if (host.size() > 4) EXPECT_EQ(r.body.find(host), std::string::npos) << "the Host header was echoed";
+    }
+    EXPECT_EQ(get(l.port, "/healthz", "evil.example").status, 200);  // no data: open to any Host
+  }
+  // A bad --http-allowed-host is refused at start, by both programs.
+  for (const std::vector<std::string>& argv : {std::vector<std::string>{BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/d2",
+                                                                        "--http-allowed-host", "host:80"},
+                                               std::vector<std::string>{BISTABLE_WORKER, "--coordinator", addr, "--http-allowed-host", "*.example"}}) {
+    const int code = Wait(Spawn(argv, dir + "/bad"), 10);
+    EXPECT_EQ(code, 2) << argv[0] << "\n" << ReadFile(dir + "/bad.err");
+    EXPECT_NE(ReadFile(dir + "/bad.err").find("http-allowed-host"), std::string::npos) << ReadFile(dir + "/bad.err");
+  }
+  ::kill(w, SIGTERM);
+  Wait(w, 20);
+  EXPECT_TRUE(Alive(pid));
+  ::kill(pid, SIGTERM);
+  Wait(pid, 10);
+}
+
+// Minor: a tokens file of mode 0666 was used without a word. Anyone who may write it may add an admin
+// token: a file every user may write is refused at start (exit 2, the file, its mode and the fix named);
+// one the group may write or every user may read (it holds hashes and names) is used with a warning naming
+// the file and its mode; 0600 and 0640 start quietly.
+TEST(HostileRound2, ATokensFileEveryoneMayWriteIsRefusedAndALaxOneIsWarnedOf) {
+  const std::string dir = Round2Dir("tokens_mode");
+  const std::string tokens = dir + "/tokens";
+  std::ofstream(tokens) << "client " << Sha256Of(dir, std::string(64, 'c')) << " alice\n";
+  const auto start = [&](mode_t mode) {
+    fs::permissions(tokens, static_cast<fs::perms>(mode), fs::perm_options::replace);
+    return StartCoordinator(dir + "/data", dir + "/coord.log", {"--tokens", tokens});
+  };
+  for (const auto& [mode, text] : std::vector<std::pair<mode_t, std::string>>{{0666, "0666"}, {0602, "0602"}, {0646, "0646"}}) {
+    SCOPED_TRACE(text);
+    fs::permissions(tokens, static_cast<fs::perms>(mode), fs::perm_options::replace);
+    const int code = Wait(Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", "--tokens", tokens},
+                                dir + "/coord.log"),
+                          10);
+    const std::string err = ReadFile(dir + "/coord.log.err");
+    EXPECT_EQ(code, 2) << "a tokens file every user may write was used (-2: still running)\n" << err;
+    for (const std::string& want : std::vector<std::string>{"tokens", "'" + tokens + "'", "mode " + text, "every user may write it", "chmod 600"})
+      EXPECT_NE(err.find(want), std::string::npos) << "lacks '" << want << "':\n" << err;
+  }
+  for (const auto& [mode, text] : std::vector<std::pair<mode_t, std::string>>{{0664, "0664"}, {0660, "0660"}, {0644, "0644"}, {0604, "0604"}}) {
+    SCOPED_TRACE(text);
+    auto [pid, addr] = start(mode);
+    EXPECT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+    const std::string err = ReadFile(dir + "/coord.log.err");
+    for (const std::string& want : std::vector<std::string>{"warning tokens.mode", tokens, "mode=" + text, "may "})
+      EXPECT_NE(err.find(want), std::string::npos) << "lacks '" << want << "':\n" << err;
+    ::kill(pid, SIGTERM);
+    Wait(pid, 10);
+  }
+  for (mode_t mode : {0600, 0640, 0400}) {
+    auto [pid, addr] = start(mode);
+    EXPECT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+    EXPECT_EQ(ReadFile(dir + "/coord.log.err").find("tokens.mode"), std::string::npos) << std::oct << mode << "\n"
+                                                                                        << ReadFile(dir + "/coord.log.err");
+    ::kill(pid, SIGTERM);
+    Wait(pid, 10);
+  }
+}
+
+// Minor: a zero-length index.sqlite orphaned every published map in silence. A coordinator started on
+// such a directory indexes the map files again (a data.repaired warning naming the index and the maps) and
+// serves their sweeps as published; the same map truncated is moved aside by a resubmit and written again.
+TEST(HostileRound2, ACoordinatorStartingOnAnEmptyIndexServesItsMapsAgain) {
+  const std::string dir = Round2Dir("empty_index");
+  std::ofstream(dir + "/spec.toml") << Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n");
+  ASSERT_EQ(Wait(Spawn({BISTABLE_CLI, "run", dir + "/spec.toml", "--data", dir + "/data", "--no-plots", "--quiet"}, dir + "/run"), 60), 0)
+      << ReadFile(dir + "/run.err");
+  const std::string id = bistable::ParseSweepSpec(Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n"), "x")->Id();
+  fs::resize_file(dir + "/data/index.sqlite", 0);
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log");
+  const Stopped stop_coordinator{pid};
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  const std::string log = ReadFile(dir + "/coord.log.err");
+  EXPECT_NE(log.find("data.repaired"), std::string::npos) << log;
+  EXPECT_NE(log.find("held no row for 1 map file(s)"), std::string::npos) << log;
+  auto stub = v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  v1::StatusRequest req;
+  req.set_id(id);
+  v1::SweepStatus st;
+  ASSERT_TRUE(stub->GetStatus(Ctx().get(), req, &st).ok());
+  EXPECT_EQ(st.state(), "done") << "the published sweep was orphaned";
+  // Its map truncated: a resubmit moves it aside (map.corrupt) and plans the sweep again (the emptied index
+  // lost the stored points: a worker computes them) until its map is written anew.
+  fs::resize_file(dir + "/data/sweeps/" + id + ".h5", 1000);
+  v1::SubmitRequest sub;
+  sub.set_spec_toml(ReadFile(dir + "/spec.toml"));
+  v1::SubmitReply rep;
+  ASSERT_TRUE(stub->Submit(Ctx().get(), sub, &rep).ok());
+  EXPECT_GE(rep.jobs(), 1) << "a truncated map was served as published";
+  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", addr, "--threads", "1"}, dir + "/worker.log");
+  const Stopped stop_worker{w};
+  for (int i = 0; i < 400 && !(stub->GetStatus(Ctx().get(), req, &st).ok() && st.state() == "done"); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  ::kill(w, SIGTERM);
+  Wait(w, 20);
+  EXPECT_EQ(st.state(), "done");
+  EXPECT_NE(ReadFile(dir + "/coord.log.err").find("map.corrupt"), std::string::npos) << ReadFile(dir + "/coord.log.err");
+  EXPECT_TRUE(bistable::ReadMapMetric(dir + "/data/sweeps/" + id + ".h5", "frf_db").ok()) << "the map was not written again";
+  ::kill(pid, SIGTERM);
+  Wait(pid, 10);
+}
+
+// Minor: a viewer's /api/cell on a sweep of 10^8 steps per point took seconds and hundreds of MB on the
+// coordinator, and twelve at once answered 503 to everyone's maps. A cell is bounded now (10^7 steps, 2^20
+// window samples: a larger one is refused, 422, with the bound and the `bistable point` command), at most
+// one computes at a time (maps and queries keep the other thread), a client holds at most two (more: 503
+// to that client only, the others are served in turn), and a cell's memory is given back.
+TEST(HostileRound2, DashboardCellsAreBoundedAndTakenInTurnByClient) {
+  const std::string dir = Round2Dir("cells");
+  const std::string client(64, 'c'), alice(64, 'a'), bob(64, 'b');
+  std::ofstream(dir + "/tokens") << "client " << Sha256Of(dir, client) << " carol\nviewer " << Sha256Of(dir, alice)
+                                 << " alice\nviewer " << Sha256Of(dir, bob) << " bob\n";
+  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log", {"--tokens", dir + "/tokens", "--http", "127.0.0.1:0"});
+  const Stopped stop_coordinator{pid};
+  ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
+  const int http = AwaitPrintedPort(dir + "/coord.log", "dashboard");
+  ASSERT_GT(http, 0);
+  auto stub = v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
+  const auto submit = [&](const std::string& axes, const std::string& integration) {
+    v1::SubmitRequest req;
+    req.set_spec_toml("model = \"coupled\"\n[axes]\n" + axes + "\n[integration]\ndt = 0.01\n" + integration);
+    auto ctx = Ctx();
+    ctx->AddMetadata("authorization", "Bearer " + client);
+    v1::SubmitReply rep;
+    EXPECT_TRUE(stub->Submit(ctx.get(), req, &rep).ok());
+    return rep.id();
+  };
+  // No worker: the sweeps stay queued; cells are computed on demand all the same.
+  const std::string huge = submit("alpha = [0.5]\nomega = [1.0]", "t_end = 1000000.0\nt_keep = 500000.0\n[metrics]\nsample_every = 16\n");
+  const std::string some = submit("alpha = [0.5, 0.6]\nomega = [0.9, 1.0]", "t_end = 30000.0\nt_keep = 25000.0\n");
+  const std::string near = submit("alpha = [0.5, 0.6]\nomega = [1.0]", "t_end = 99000.0\nt_keep = 89000.0\n");
+  const auto get = [&](const std::string& target, const std::string& token) {
+    return bistable_test::HttpExchange(http, target, boost::beast::http::verb::get,
+                                       {{"Host", "127.0.0.1"}, {"Authorization", "Bearer " + token}});
+  };
+  const auto cell = [&](const std::string& id, int point) { return "/api/cell?id=" + id + "&point=" + std::to_string(point) + "&ic=0"; };
+  ASSERT_EQ(get(cell(some, 0), alice).status, 200);  // warm: the code paths and the caches are in
+  // The heap in use (malloc's own count, on /metrics: a viewer token reads it) and the RSS.
+  const auto heap = [&] {
+    const auto m = bistable_test::ParseMetrics(get("/metrics", alice).body);
+    const auto it = m.find("bistable_heap_in_use_bytes");
+    return it == m.end() ? -1.0 : it->second;
+  };
+  const double heap0 = heap();
+  const long rss0 = RssKb(pid);
+  // Cells near the bound: their memory (the window's rows, the transform's tables) is freed and given
+  // back once they are answered.
+  for (int p = 0; p < 2; ++p) EXPECT_EQ(get(cell(near, p), alice).status, 200);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const double heap1 = heap();
+  const long rss1 = RssKb(pid);
+  std::printf("  heap in use: %.1f MB, %.1f MB after two cells of 10^6 samples\n", heap0 / 1e6, heap1 / 1e6);
+  EXPECT_LT(heap1 - heap0, 8e6) << "bytes still held after two cells near the bound";
+  EXPECT_LT(rss1 - rss0, 32 * 1024) << "kB kept after two cells near the bound";
+  // A cell of 10^8 steps: refused at once, naming the bound and the command that runs it.
+  const auto t0 = Clock::now();
+  const auto refused = get(cell(huge, 0), alice);
+  const double took = std::chrono::duration<double>(Clock::now() - t0).count();
+  EXPECT_EQ(refused.status, 422) << refused.body.substr(0, 300);
+  EXPECT_LT(took, 2.0) << "the cell was computed";
+  EXPECT_NE(refused.body.find("at most 10000000 steps"), std::string::npos) << refused.body.substr(0, 300);
+  EXPECT_NE(refused.body.find("bistable point"), std::string::npos) << refused.body.substr(0, 300);
+  EXPECT_LT(RssKb(pid) - rss1, 16 * 1024) << "kB grown for a refused cell";
+  // Twelve cells of alice at once, then bob's cell and four maps: bob is answered, alice gets two.
+  std::vector<bistable_test::HttpReply> storm(12), bobs(5);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < 12; ++i) threads.emplace_back([&, i] { storm[i] = get(cell(some, i % 4), alice); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  threads.emplace_back([&] { bobs[0] = get(cell(some, 3), bob); });
+  for (int i = 1; i < 5; ++i) threads.emplace_back([&, i] { bobs[i] = get("/api/map?id=" + some + "&metric=frf_db", bob); });
+  for (auto& t : threads) t.join();
+  int accepted = 0, busy = 0;
+  for (const auto& r : storm) {
+    if (r.status == 200) ++accepted;
+    else if (r.status == 503 && r.body.find("at most 2 per client") != std::string::npos) ++busy;
+    else ADD_FAILURE() << "alice: " << r.status << " " << r.body.substr(0, 200);
+  }
+  std::printf("  12 cells of one client at once: %d computed, %d refused to it\n", accepted, busy);
+  EXPECT_GE(accepted, 1);
+  EXPECT_LE(accepted, 4) << "one client held more than its share";
+  for (size_t i = 0; i < bobs.size(); ++i)
+    EXPECT_EQ(bobs[i].status, 200) << (i == 0 ? "bob's cell" : "bob's map") << ": " << bobs[i].body.substr(0, 200);
+  std::printf("  RSS: %ld kB at first, %ld kB after two cells of 10^6 samples, %ld kB after the storm\n", rss0, rss1, RssKb(pid));
+  EXPECT_TRUE(Alive(pid));
+  ::kill(pid, SIGTERM);
+  Wait(pid, 20);
+}
+
 // Fail 3: a coordinator the worker cannot trust. A fake one (the Coordinator service, in this test) hands
 // the real bistable-worker one lease with hostile values, then nothing; the worker must refuse it (a
 // log line naming the field and the bound, the lease released, nothing reported) and stop cleanly on

@@ -6,6 +6,8 @@
 #include <map>
 #include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <boost/asio/connect.hpp>
 #include <boost/asio/ip/tcp.hpp>
@@ -19,10 +21,10 @@ struct HttpReply {
   std::string body, content_type;
 };
 
-// One request over a fresh connection to 127.0.0.1:port; status −1 and the error in body on failure.
-inline HttpReply HttpRequest(int port, const std::string& target,
-                             boost::beast::http::verb verb = boost::beast::http::verb::get,
-                             const std::string& extra_header = "") {
+// One request over a fresh connection to 127.0.0.1:port with these headers (Host among them); status −1 and
+// the error in body on failure.
+inline HttpReply HttpExchange(int port, const std::string& target, boost::beast::http::verb verb,
+                              const std::vector<std::pair<std::string, std::string>>& headers) {
   namespace beast = boost::beast;
   namespace http = beast::http;
   namespace asio = boost::asio;
@@ -32,8 +34,7 @@ inline HttpReply HttpRequest(int port, const std::string& target,
   sock.connect(asio::ip::tcp::endpoint(asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)), ec);
   if (ec) return {-1, ec.message(), ""};
   http::request<http::empty_body> req{verb, target, 11};
-  req.set(http::field::host, "127.0.0.1");
-  if (!extra_header.empty()) req.set("X-Padding", extra_header);
+  for (const auto& [name, value] : headers) req.set(name, value);
   http::write(sock, req, ec);
   if (ec) return {-1, ec.message(), ""};
   beast::flat_buffer buf;
@@ -44,6 +45,15 @@ inline HttpReply HttpRequest(int port, const std::string& target,
   if (ec) return {-1, ec.message(), ""};
   const auto& res = parser.get();
   return {static_cast<int>(res.result_int()), res.body(), std::string(res[http::field::content_type])};
+}
+
+// One request with the Host header `host` (and an X-Padding header when `extra_header` is given).
+inline HttpReply HttpRequest(int port, const std::string& target,
+                             boost::beast::http::verb verb = boost::beast::http::verb::get,
+                             const std::string& extra_header = "", const std::string& host = "127.0.0.1") {
+  std::vector<std::pair<std::string, std::string>> headers = {{"Host", host}};
+  if (!extra_header.empty()) headers.push_back({"X-Padding", extra_header});
+  return HttpExchange(port, target, verb, headers);
 }
 
 // Prometheus text → {"name{labels}": value}.

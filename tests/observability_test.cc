@@ -509,6 +509,65 @@ TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
   for (auto& f : more) EXPECT_EQ(f.get().status, -1);  // closed without an answer
 }
 
+// Heavy routes (a dashboard cell): at most kSlowThreads - 1 run at once, so a light slow route (a map) still
+// has a thread; a client holds at most kMaxHeavyPerClient (more: 503 at once, to it alone), another client's
+// request waits its turn instead of being refused.
+TEST(HttpServer, HeavyRoutesLeaveAThreadAndBoundEachClient) {
+  std::mutex mu;
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  bool done = false;
+  auto let_go = [&] {
+    std::lock_guard<std::mutex> lock(mu);
+    if (!done) release.set_value(), done = true;
+  };
+  std::atomic<int> running{0}, most{0}, started{0};
+  bistable::HttpServer::Options options;
+  options.slow_routes = {"/heavy", "/light"};
+  options.heavy_routes = {"/heavy"};
+  auto server = bistable::HttpServer::Start(
+      "127.0.0.1:0",
+      {{"/heavy", [&](const bistable::HttpRequest&) {
+          ++started;
+          const int now = ++running;
+          for (int m = most.load(); now > m && !most.compare_exchange_weak(m, now);) {}
+          released.wait();
+          --running;
+          return bistable::HttpResponse{200, "text/plain", "cell\n", {}};
+        }},
+       {"/light", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain", "map\n", {}}; }}},
+      options);
+  ASSERT_TRUE(server.ok()) << server.status().ToString();
+  std::unique_ptr<bistable::HttpServer> srv = std::move(server).value();
+  struct Guard {
+    std::function<void()> f;
+    ~Guard() { f(); }
+  } guard{let_go};  // destroyed before srv: the handlers are released on every way out
+  const int port = srv->port();
+  const auto as = [port](const std::string& who, const std::string& target) {
+    return bistable_test::HttpExchange(port, target, http::verb::get, {{"Host", "127.0.0.1"}, {"Authorization", "Bearer " + who}});
+  };
+  std::vector<std::future<HttpReply>> a;
+  for (int i = 0; i < 2; ++i) a.push_back(std::async(std::launch::async, [&] { return as("alice", "/heavy"); }));
+  for (int i = 0; i < 500 && started.load() < 1; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // both of alice's are in: one runs, one waits
+  const HttpReply third = as("alice", "/heavy");
+  EXPECT_EQ(third.status, 503) << third.body;
+  EXPECT_NE(third.body.find("at most 2 per client"), std::string::npos) << third.body;
+  auto b = std::async(std::launch::async, [&] { return as("bob", "/heavy"); });
+  auto map = std::async(std::launch::async, [&] { return as("bob", "/light"); });
+  const bool map_answered = map.wait_for(std::chrono::seconds(5)) == std::future_status::ready;
+  EXPECT_TRUE(map_answered) << "a light slow route waited for the heavy ones";
+  if (map_answered) EXPECT_EQ(map.get().status, 200);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_EQ(started.load(), 1) << "a second heavy handler took the other thread";
+  let_go();
+  for (auto& f : a) EXPECT_EQ(f.get().status, 200);
+  EXPECT_EQ(b.get().status, 200) << "another client's request was refused";
+  EXPECT_EQ(most.load(), 1);
+  EXPECT_EQ(as("alice", "/heavy").status, 200);  // the counts went back down
+}
+
 // Query strings and cookies as the dashboard reads them: decoded, bounded, hostile forms refused.
 TEST(HttpServer, QueryStringsAndCookies) {
   auto q = bistable::ParseQueryString("id=ab12&q=frf_db%20%3C%20-3+and+lle%3E0&x=");
@@ -528,14 +587,23 @@ TEST(HttpServer, QueryStringsAndCookies) {
   EXPECT_EQ(bistable::CookieValue("", "bistable_token"), "");
 }
 
-// The Host names a tokenless dashboard answers (DNS rebinding: a page elsewhere sends its own host name).
-TEST(HttpServer, LoopbackHostsOnly) {
-  for (const char* ok : {"localhost", "LocalHost:8080", "127.0.0.1", "127.0.0.1:65535", "[::1]", "[::1]:80"})
-    EXPECT_TRUE(bistable::IsLoopbackHost(ok)) << ok;
-  for (const char* bad : {"", "evil.example", "evil.example:8080", "localhost.evil.example", "127.0.0.1.nip.io", "127.0.0.2",
-                          "localhost:", "localhost:80x", "localhost:123456", "[::1", "[::1]x", "[::2]:80", "::1", "0.0.0.0",
-                          "localhost.", " localhost", "127.0.0.1:80:80"})
-    EXPECT_FALSE(bistable::IsLoopbackHost(bad)) << bad;
+// The Host rule of every listener that serves data without a token (DNS rebinding: a page elsewhere sends
+// its own host name; an IP literal is no name an attacker controls).
+TEST(HttpServer, HostRuleAnswersIpLiteralsLocalhostAndAllowedNamesOnly) {
+  const std::vector<std::string> allowed = {"bistable-coordinator", "Metrics.Internal"};
+  for (const char* ok : {"localhost", "LocalHost:8080", "127.0.0.1", "127.0.0.1:65535", "[::1]", "[::1]:80", "127.0.0.2", "0.0.0.0",
+                         "10.1.2.3:9090", "[::2]:80", "[2001:db8::7]", "bistable-coordinator", "BISTABLE-COORDINATOR:9090",
+                         "metrics.internal"})
+    EXPECT_TRUE(bistable::HostAllowed(ok, allowed)) << ok;
+  for (const char* bad : {"", "evil.example", "evil.example:8080", "localhost.evil.example", "127.0.0.1.nip.io", "localhost:",
+                          "localhost:80x", "localhost:123456", "[::1", "[::1]x", "[::1]:", "::1", "[evil.example]", "[127.0.0.1]",
+                          "localhost.", " localhost", "127.0.0.1:80:80", "127.1", "0x7f000001", "bistable-coordinator.evil.example",
+                          "metrics"})
+    EXPECT_FALSE(bistable::HostAllowed(bad, allowed)) << bad;
+  EXPECT_FALSE(bistable::HostAllowed("bistable-coordinator", {}));  // only when allowed
+  EXPECT_TRUE(bistable::CheckAllowedHostName("bistable-coordinator.bistable.svc", "http-allowed-host").ok());
+  for (const std::string& bad : std::vector<std::string>{"", "a:80", "*.example", "a b", std::string(254, 'a'), "a\nb"})
+    EXPECT_FALSE(bistable::CheckAllowedHostName(bad, "http-allowed-host").ok()) << bad;
 }
 
 // ---- structured logs ----

@@ -164,7 +164,13 @@ int main(int argc, char** argv) {
   app.add_option("--log-format", log_format, "text or json (one object per line), on stderr")->capture_default_str();
   app.add_option("--metrics", metrics_addr, "serve Prometheus metrics (/metrics) and /healthz over HTTP on HOST:PORT");
   app.add_option("--health", health_addr, "serve grpc.health.v1 (plaintext) on HOST:PORT, for liveness probes");
+  std::vector<std::string> allowed_hosts;
+  app.add_option("--http-allowed-host", allowed_hosts,
+                 "a host name under which --metrics answers; repeatable. Without it, only a Host that is an IP address or "
+                 "localhost (DNS rebinding)");
   CLI11_PARSE(app, argc, argv);
+  for (const std::string& h : allowed_hosts)
+    if (auto st = bistable::CheckAllowedHostName(h, "http-allowed-host"); !st.ok()) return Fail(st);
   {
     auto level = bistable::log::ParseLevel(log_level);
     if (!level.ok()) return Fail(level.status());
@@ -196,8 +202,11 @@ int main(int argc, char** argv) {
   std::unique_ptr<bistable::HttpServer> http;
   if (!metrics_addr.empty()) {
     auto h = bistable::HttpServer::Start(
-        metrics_addr, {{"/metrics", [&metrics](const bistable::HttpRequest&) { return bistable::PrometheusText({metrics.registry}); }},
-                       {"/healthz", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n"}; }}});
+        metrics_addr,
+        bistable::HostChecked(  // the metrics only for a Host that names this worker (DNS rebinding)
+            {{"/metrics", [&metrics](const bistable::HttpRequest&) { return bistable::PrometheusText({metrics.registry}); }},
+             {"/healthz", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n"}; }}},
+            allowed_hosts));
     if (!h.ok()) return Fail(h.status());
     http = std::move(h).value();
   }

@@ -45,9 +45,12 @@ function colourRange(map) {
 async function api(path, params) {
   const q = params ? '?' + new URLSearchParams(params).toString() : '';
   const r = await fetch('/api/' + path + q, { credentials: 'same-origin' });
-  const body = await r.json().catch(() => ({ error: 'bad answer' }));
+  const text = await r.text();
+  let body;
+  try { body = JSON.parse(text); } catch (e) { body = { error: text.trim() || 'bad answer' }; }  // a 503 "busy" is text
   if (r.status === 401) { showLogin(); throw new Error('sign in'); }
-  if (!r.ok) throw new Error(body.error || r.statusText);
+  // A cell over the dashboard's bound (422) comes with the `bistable point` command that computes it.
+  if (!r.ok) throw new Error((body.error || r.statusText) + (body.command ? ': ' + body.command : ''));
   return body;
 }
 
