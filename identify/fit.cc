@@ -47,11 +47,13 @@ struct Sims {
 // the data constrain are fitted: p, p' (main body), r, r' with a resonator, w with a piezo and a
 // measured voltage. `start` (optional): states fitted at an earlier θ of the same fit (ShootCache) — the
 // start instead of the scan below (multiple shooting proper carries its states from iteration to
-// iteration); empty or of another size: a cold start. `fitted` (optional) receives the states fitted.
+// iteration); empty or of another size: a cold start. `start_is_fitted`: `start` holds the states fitted at
+// this θ already (ShootCache::At), so no pass runs. `fitted` (optional) receives the states fitted.
 // False when the simulation at the start diverges.
 bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>* extra,
                  const PreparedRecord& r, const Setup& setup, int substeps, int every, SimOutputs* out,
-                 const std::vector<double>* start = nullptr, std::vector<double>* fitted = nullptr, int threads = 1) {
+                 const std::vector<double>* start = nullptr, std::vector<double>* fitted = nullptr, int threads = 1,
+                 bool start_is_fitted = false) {
   const size_t n = r.n(), nseg = NumSegments(n, every);
   std::vector<int> live = {0, 1};
   if (m.HasResonator()) live.push_back(2), live.push_back(3);
@@ -175,6 +177,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
     }
   }
   if (!simulate(states, true, false, nullptr, &best)) return false;
+  if (warm_start && start_is_fitted) std::fill(active.begin(), active.end(), 0);  // fitted at this θ already (ShootCache::At)
   measure(best, &acc);
   // Levenberg–Marquardt steps per segment; a pass simulates every moving segment's trial state at once. A
   // segment stops when a step gains less than 1e-9 of its error, or after its damping reached 1e6 (its
@@ -282,18 +285,33 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
 // evaluations at almost the same θ, and Ceres refused every step (seen on the harvester).
 struct ShootCache {
   std::vector<std::vector<double>> anchor;  // per record; empty: cold starts
-  std::vector<std::pair<std::vector<double>, std::vector<std::vector<double>>>> recent;
-  void Remember(const std::vector<double>& th, std::vector<std::vector<double>> states) {
-    if (anchor.empty()) anchor = states;  // the fit's first evaluation (its start) anchors the first steps
+  int version = 0;                          // changes with the anchor
+  struct Fitted {
+    std::vector<double> th;
+    int version;  // the anchor they were fitted from
+    std::vector<std::vector<double>> states;
+  };
+  std::vector<Fitted> recent;
+  void Remember(const std::vector<double>& th, int from_version, std::vector<std::vector<double>> states) {
     if (recent.size() >= 8) recent.erase(recent.begin());
-    recent.emplace_back(th, std::move(states));
+    recent.push_back({th, from_version, states});
+    if (anchor.empty()) anchor = std::move(states), ++version;  // the fit's first evaluation (its start) anchors the first steps
   }
   void Promote(const std::vector<double>& th) {
     for (auto it = recent.rbegin(); it != recent.rend(); ++it)
-      if (it->first == th) {
-        anchor = it->second;
+      if (it->th == th) {
+        anchor = it->states;
+        ++version;
         return;
       }
+  }
+  // The states fitted at th from today's anchor, if they are at hand. Ceres evaluates an accepted point
+  // again for its Jacobian, and the state fit from the same anchor is deterministic: it would give the
+  // same states (on a coupled record with 240 segments each evaluation ran 60 passes, three times per θ).
+  const std::vector<std::vector<double>>* At(const std::vector<double>& th) const {
+    for (auto it = recent.rbegin(); it != recent.rend(); ++it)
+      if (it->version == version && it->th == th) return &it->states;
+    return nullptr;
   }
 };
 
@@ -330,7 +348,7 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
                  const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0,
                  const std::vector<const TermDef*>* extra = nullptr, std::vector<EarlyStop>* stops = nullptr,
                  bool shoot = false, const std::vector<std::vector<double>>* start = nullptr,
-                 std::vector<std::vector<double>>* fitted = nullptr, bool whole = false) {
+                 std::vector<std::vector<double>>* fitted = nullptr, bool whole = false, bool start_is_fitted = false) {
   Sims s;
   s.o.resize(recs.size());
   if (fitted) fitted->assign(recs.size(), {});
@@ -347,7 +365,7 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
     if (shoot) {
       ok[i] = restart > 0 && ShootRecord(m, th, extra, recs[i], setup, sub, restart, &s.o[i],
                                          start && i < start->size() ? &(*start)[i] : nullptr, fitted ? &(*fitted)[i] : nullptr,
-                                         inner);
+                                         inner, start_is_fitted);
       return;
     }
     ok[i] = SimulateOutputs(m, th, extra ? *extra : none, recs[i], setup, sub, restart, extra != nullptr, &s.o[i],
@@ -414,10 +432,11 @@ bool Residuals(const IdentModel& m, const std::vector<double>& th, const std::ve
                Eigen::MatrixXd* jac = nullptr, const std::vector<const TermDef*>& extra = {},
                ShootCache* cache = nullptr) {
   std::vector<std::vector<double>> fitted;
+  const std::vector<std::vector<double>>* done = cache ? cache->At(th) : nullptr;
   const Sims s = SimulateAll(m, th, recs, setup, substeps, threads, horizon_s, jac ? &extra : nullptr, nullptr,
-                             obj == Objective::kShooting, cache && !cache->anchor.empty() ? &cache->anchor : nullptr,
-                             cache ? &fitted : nullptr);
-  if (cache && s.ok) cache->Remember(th, std::move(fitted));
+                             obj == Objective::kShooting, done ? done : cache && !cache->anchor.empty() ? &cache->anchor : nullptr,
+                             cache && !done ? &fitted : nullptr, false, done != nullptr);
+  if (cache && !done && s.ok) cache->Remember(th, cache->version, std::move(fitted));
   if (!s.ok) return false;
   return ResidualsOf(m, recs, setup, obj, meas_mag, s, res, jac, extra);
 }
@@ -1119,6 +1138,10 @@ struct FitStages {
 constexpr int kPlateauIterations = 5;
 constexpr double kPlateauChi2 = 0.25;
 
+bool HasFriction(const IdentModel& m) {
+  return std::any_of(m.terms.begin(), m.terms.end(), [](const TermDef* t) { return t->kind == TermKind::kFriction; });
+}
+
 // Global stage (automatic substeps: the box may reach much stiffer parameters than the start): CRS2
 // in a box around `centre`; returns its best point when clearly better than the centre, else {}.
 std::vector<double> FitStages::GlobalStage(const std::vector<double>& centre) {
@@ -1378,8 +1401,7 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
     // (full error 3.1 %), at v_t · 1.5 too; at v_t · 1.9 and · 2.5 it runs on to the truth's basin, from which
     // the full-error stage with the declared law converges (1.08 %). The scaled parameters u are the same for
     // every law (same start, same scale).
-    bool smooth = false;
-    for (const TermDef* t : m.terms) smooth = smooth || t->kind == TermKind::kFriction;
+    const bool smooth = HasFriction(m);
     auto smoothed = [&](double factor) {
       IdentModel sm = m;
       if (smooth && factor > 1) sm.fc.v_t *= factor;
@@ -1443,6 +1465,37 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
       shoot(fs);
     }
     if (fc < best_cost) u = f, best_cost = fc;
+  } else if (opt.objective == Objective::kShooting && opt.shooting_from_other_objective && HasFriction(m) &&
+             opt.shooting_friction_smoothing > 1) {
+    // Multiple shooting with friction (records that snap between wells) from another objective's optimum
+    // (the declared fit starts from the 0.1 s short-horizon fit): whether a segment sticks changes with the
+    // parameters, so the cost is smooth only piecewise and has neighbouring basins, as the short-horizon
+    // stages' cost has (above), and which one Levenberg–Marquardt reaches from the start depends on the path.
+    // On a null standalone record (s_null_15, docs/identification.md) the declared law from the short-horizon
+    // fit went from F_s 1.30 N to 1.14 N (truth 1.2; cost 1.395e-5), where the residual held a stick event the
+    // truth does not make and the whiteness test called it a missing effect; the law smoothed first
+    // (v_t · shooting_friction_smoothing, its stage stopping at a gain below 1e-4 of the cost) and the declared
+    // law from there reached 1.197 N (cost 1.175e-5). On a coupled record (c_v3_12) the same continuation
+    // ended higher (1.01 % against 0.43 %). So both run, side by side, and the lower declared-law cost is kept
+    // (a fit does not depend on its thread count: each is the same on one thread). Refits start from a
+    // shooting optimum of the same objective and run the plain stage only.
+    std::vector<double> v = u;
+    FitStages cont = fs;
+    cont.result = FitResult{};
+    double cc = INFINITY;
+    IdentModel law = m;  // FitStages hold a reference
+    law.fc.v_t *= opt.shooting_friction_smoothing;
+    auto continued = [&] {
+      FitStages basin(law, scale_in, recs, setup, opt);
+      stage(basin, "shoot-smoothed", [&] { return basin.LocalStage(v, opt.objective, 0, 1e-4); });
+      AddSimulations(&cont.result.simulations, basin.result.simulations);
+      cc = stage(cont, "lm-from-smoothed", [&] { return cont.LocalStage(v, opt.objective); });
+    };
+    const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
+    if (cpus >= 2) RunBeside(continued, lm);
+    else lm(), continued();
+    AddSimulations(&fs.result.simulations, cont.result.simulations);
+    if (cc < best_cost) u = v, best_cost = cc, fs.result.message = cont.result.message;
   } else {
     lm();
   }
