@@ -1465,37 +1465,6 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
       shoot(fs);
     }
     if (fc < best_cost) u = f, best_cost = fc;
-  } else if (opt.objective == Objective::kShooting && opt.shooting_from_other_objective && HasFriction(m) &&
-             opt.shooting_friction_smoothing > 1) {
-    // Multiple shooting with friction (records that snap between wells) from another objective's optimum
-    // (the declared fit starts from the 0.1 s short-horizon fit): whether a segment sticks changes with the
-    // parameters, so the cost is smooth only piecewise and has neighbouring basins, as the short-horizon
-    // stages' cost has (above), and which one Levenberg–Marquardt reaches from the start depends on the path.
-    // On a null standalone record (s_null_15, docs/identification.md) the declared law from the short-horizon
-    // fit went from F_s 1.30 N to 1.14 N (truth 1.2; cost 1.395e-5), where the residual held a stick event the
-    // truth does not make and the whiteness test called it a missing effect; the law smoothed first
-    // (v_t · shooting_friction_smoothing, its stage stopping at a gain below 1e-4 of the cost) and the declared
-    // law from there reached 1.197 N (cost 1.175e-5). On a coupled record (c_v3_12) the same continuation
-    // ended higher (1.01 % against 0.43 %). So both run, side by side, and the lower declared-law cost is kept
-    // (a fit does not depend on its thread count: each is the same on one thread). Refits start from a
-    // shooting optimum of the same objective and run the plain stage only.
-    std::vector<double> v = u;
-    FitStages cont = fs;
-    cont.result = FitResult{};
-    double cc = INFINITY;
-    IdentModel law = m;  // FitStages hold a reference
-    law.fc.v_t *= opt.shooting_friction_smoothing;
-    auto continued = [&] {
-      FitStages basin(law, scale_in, recs, setup, opt);
-      stage(basin, "shoot-smoothed", [&] { return basin.LocalStage(v, opt.objective, 0, 1e-4); });
-      AddSimulations(&cont.result.simulations, basin.result.simulations);
-      cc = stage(cont, "lm-from-smoothed", [&] { return cont.LocalStage(v, opt.objective); });
-    };
-    const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
-    if (cpus >= 2) RunBeside(continued, lm);
-    else lm(), continued();
-    AddSimulations(&fs.result.simulations, cont.result.simulations);
-    if (cc < best_cost) u = v, best_cost = cc, fs.result.message = cont.result.message;
   } else {
     lm();
   }

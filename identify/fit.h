@@ -135,9 +135,6 @@ struct FitOptions {
   // factor is ≤ 1 or the two are equal.
   double shooting_friction_smoothing = 2.5;
   double shooting_friction_smoothing_second = 3.5;
-  // Multiple shooting from another objective's optimum (the declared fit from the short-horizon fit, loop.cc):
-  // with friction, a first stage with the law smoothed (Fit).
-  bool shooting_from_other_objective = false;
   int threads = 0;            // records simulated in parallel (0: all cores)
 };
 

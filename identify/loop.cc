@@ -794,7 +794,6 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
   // ended at 25.3 % where its start and the truth give 2.9 %.
   FitOptions declared_fo = opt.fit;
   if (opt.fit.objective == Objective::kTime && out.objective_choice.theta.size() == m.theta.size()) declared_fo.shooting_horizon_s = 0;
-  if (opt.fit.objective == Objective::kShooting && out.objective_choice.theta.size() == m.theta.size()) declared_fo.shooting_from_other_objective = true;
   FitResult fit = Fit(m, ScaleOf(m, m.theta, sigma0, recs, setup), recs, setup, declared_fo);
   // The reweighted declared fit starts from the first one (σ as scale): the same basin, new weights.
   if (reweight && ReweightOutputs(fit.errors, opt.fit.objective, setup, &recs)) {
