@@ -98,9 +98,12 @@ inline constexpr double kPrefitHorizon = 0.1;  // s, the short-horizon fit that 
 // kPrefitHorizon segments (ChooseHorizons halves the twins' horizon until it is). The twins bound the
 // segment by the input's noise only; the segment's state fit must also find the orbit from the measured
 // start, and over a long chaotic segment it does not: the true model's 0.5 s shooting error was 17.6 % and
-// 6.7 % on two standalone records (0.34 and 0.41 % at 0.1 s, 0.43 and 0.60 % at 0.3 s); on the coupled
-// records 0.5 s stays within 1.35× of 0.1 s.
-inline constexpr double kFollowableGrowth = 2.0;
+// 6.7 % on two standalone records (0.34 and 0.41 % at 0.1 s, 0.43 and 0.60 % at 0.3 s). At 2× the bound let
+// the shooting cost fall below the truth's on a chaotic coupled record (h_c_drag_12 at 0.5 s: a fit with the
+// drag absorbed in c0 and F_c, 0.340 % against the truth's 0.365 %; the truth wins at 0.25 s), and a null
+// standalone record's fit stopped in a neighbouring friction basin (s_null_15 at 0.38 s). At 1.25× both are
+// right and the other cases keep their verdicts (docs/identification.md).
+inline constexpr double kFollowableGrowth = 1.25;
 struct ObjectiveChoice {
   bool made = false;
   // The objective the loop runs: kTime when every record's long simulation is meaningful, else kShooting
