@@ -11,7 +11,8 @@
 //    equation-error rows (smoothed second derivatives: noisy, reported as supporting evidence and
 //    drawn against displacement and velocity).
 // A candidate is taken when, on the simulation residual,
-//   ΔBIC = n_eff ln(RSS_c / RSS_0) + k_c ln(n_eff) < −bic_threshold   (n_eff: samples / correlation time)
+//   ΔBIC = n_eff ln(RSS_c / RSS_0) + k_c ln(n_eff) < −bic_threshold   (n_eff: samples / correlation time
+//   of the residual's part the declared columns leave; with twins, of the twins' — the null's — residual)
 //   it explains at least `min_explained` of the residual's sum of squares,
 //   its physically signed parameters come out with their sign (damping, drag, friction ≥ 0),
 // and the best such candidate is kept only if the refit by simulation lowers the error by at least
