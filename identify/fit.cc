@@ -180,9 +180,14 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
       }
     }
   }
-  if (!simulate(states, true, false, nullptr, &best)) return false;
-  if (warm_start && start_is_fitted) std::fill(active.begin(), active.end(), 0);  // fitted at this θ already (ShootCache::At)
-  measure(best, &acc);
+  // States fitted at this θ already (ShootCache::At): no pass runs, and when the Jacobian is asked for its
+  // sensitivity pass below gives the outputs too, so the plain pass here is skipped.
+  const bool fitted_here = warm_start && start_is_fitted;
+  if (fitted_here) std::fill(active.begin(), active.end(), 0);
+  if (!(fitted_here && extra)) {
+    if (!simulate(states, true, false, nullptr, &best)) return false;
+    measure(best, &acc);
+  }
   // Levenberg–Marquardt steps per segment; a pass simulates every moving segment's trial state at once. A
   // segment stops when a step gains less than 1e-9 of its error, or after its damping reached 1e6 (its
   // steps keep failing). The inner fit must converge: an objective left on a slow crawl is noisy in θ,
