@@ -209,9 +209,11 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
     }
   };
   // From the anchor (warm) 20 passes: the anchor carries a crawling segment's progress from one accepted
-  // point to the next, so a segment left moving goes on at the next evaluation. With 60 the coupled c_y2_14
-  // record's declared fit (100 of its 240 stick–slip segments at the cap) took 712 s; with 20, 159 s, and its
-  // loop added the same term (k2 9,997 ± 5.7 for 10,000; the reported errors come from cold fits, Evaluate).
+  // point to the next, so a segment left moving goes on at the next evaluation. On the coupled c_y2_14 record
+  // (100 of its 240 stick–slip segments at the cap) the declared fit's stage took 712 s with 60 passes and the
+  // old damping update; with Nielsen's update and 60 passes its first round still ran 58 iterations (about
+  // 10 minutes, other builds beside it); with 20 passes the stage took 159 s, and the loop added the same term
+  // (k2 9,997 ± 5.7 for 10,000). The reported errors come from cold fits (Evaluate), without this cap.
   const int kPasses = warm_start ? 20 : 60;
   int pass = 0;
   // BISTABLE_IDENTIFY_DEBUG=3: per evaluation the passes and the moving segments every 5 passes (on the
@@ -1321,10 +1323,10 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
     // right, and each of its evaluations fits every segment's state (the coupled rig's declared fit: 41
     // iterations, 151 s). Its residuals are not independent: within a segment they share the state fitted to
     // them, and a model that lacks a term leaves them smooth. So N counts independent residuals, N / τ with τ
-    // the start residual's correlation time (as the σ below do). Counted one by one, the c_y2_14 record's
-    // declared fit (the quadratic stiffness missing; its cost 300× the refit's) ran 60 iterations and then
-    // 15 more, its last 30 at steps in θ that shrank to 1e-3 of the first, each gaining 4e-5 of the cost: the
-    // segment states' own fits crawling on from one accepted anchor to the next.
+    // the start residual's correlation time (as the σ below do). On its own this did little where it was
+    // measured: the c_y2_14 record's declared fit (τ 4.4) stopped after 58 iterations instead of 61, its last
+    // ones gaining about 4e-5 of the cost each at steps in θ shrunk to 1e-3 of the first — the segment states'
+    // own fits crawling on from one anchor to the next, which the 20-pass cap in ShootRecord addresses.
     if (obj == Objective::kShooting) plateau.tau = &start_tau;
     const bool plateau_stop = (obj == Objective::kTime && lc.horizon_s == 0) || obj == Objective::kShooting;
     if (plateau_stop && tolerance < plateau.gain) so.callbacks.push_back(&plateau);

@@ -124,6 +124,11 @@ ResidualCloud ResidualForce(const IdentModel& m, const std::vector<double>& th, 
 
 namespace {
 
+// ΔBIC of k more columns that leave RSS_c of RSS_0 (ratio RSS_c / RSS_0), with n_eff independent residuals.
+double DeltaBic(double rss_ratio, size_t k, double n_eff) {
+  return n_eff * std::log(std::max(rss_ratio, 1e-300)) + static_cast<double>(k) * std::log(n_eff);
+}
+
 // ΔBIC, explained fraction and the candidate's coefficients for target ≈ [A, C] x against target ≈ A x.
 CandidateScore ScoreColumns(const Eigen::MatrixXd& A, const Eigen::MatrixXd& C, const Eigen::VectorXd& target,
                             double rss0, double n_eff) {
@@ -133,7 +138,7 @@ CandidateScore ScoreColumns(const Eigen::MatrixXd& A, const Eigen::MatrixXd& C, 
   const LinearFit f = SolveRegression(X, target, std::vector<Sign>(p + k, Sign::kEither));
   CandidateScore s;
   s.explained = rss0 > 0 ? (rss0 - f.rss) / rss0 : 0.0;
-  s.delta_bic = n_eff * std::log(std::max(f.rss, 1e-300) / std::max(rss0, 1e-300)) + static_cast<double>(k) * std::log(n_eff);
+  s.delta_bic = DeltaBic(std::max(f.rss, 1e-300) / std::max(rss0, 1e-300), static_cast<size_t>(k), n_eff);
   for (long j = 0; j < k; ++j) s.estimate.push_back(f.theta[p + j]), s.sigma.push_back(f.sigma[p + j]);
   return s;
 }
@@ -458,8 +463,7 @@ LoopStep TraceScores(const IdentModel& m, const std::vector<double>& th, const s
   if (twin_n_eff > 1 && std::isfinite(twin_n_eff)) {
     step.n_eff = twin_n_eff;
     for (CandidateScore& s : step.scores)
-      if (std::isfinite(s.delta_bic) && s.explained < 1)
-        s.delta_bic = twin_n_eff * std::log1p(-s.explained) + static_cast<double>(s.estimate.size()) * std::log(twin_n_eff);
+      if (std::isfinite(s.delta_bic)) s.delta_bic = DeltaBic(1.0 - s.explained, s.estimate.size(), twin_n_eff);
   }
   std::sort(step.scores.begin(), step.scores.end(),
             [](const CandidateScore& a, const CandidateScore& b) { return a.delta_bic < b.delta_bic; });
