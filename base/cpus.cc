@@ -2,6 +2,7 @@
 
 #include <sched.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -94,6 +95,37 @@ std::optional<double> CgroupCpuQuota(const std::string& proc_self_cgroup, const 
     }
   }
   return best;
+}
+
+std::string CpuModelFromCpuinfo(const std::string& cpuinfo) {
+  std::istringstream lines(cpuinfo);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("model name", 0) != 0) continue;
+    const size_t colon = line.find(':');
+    if (colon == std::string::npos) continue;
+    const size_t b = line.find_first_not_of(" \t", colon + 1);
+    if (b == std::string::npos) continue;
+    const size_t e = line.find_last_not_of(" \t\r");
+    return line.substr(b, std::min<size_t>(e + 1 - b, 200));
+  }
+  return "";
+}
+
+std::string CpuModelName() {
+  std::ifstream f("/proc/cpuinfo");  // procfs: size 0, read as a stream; the first CPU's block suffices
+  std::string text, line;
+  for (int n = 0; n < 64 && std::getline(f, line); ++n) text += line + "\n";
+  const std::string name = CpuModelFromCpuinfo(text);
+  return name.empty() ? "unknown CPU" : name;
+}
+
+const char* CpuVectorIsa() {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx512f")) return "AVX-512";
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) return "AVX2+FMA";
+#endif
+  return "scalar";
 }
 
 int UsableCpus() {

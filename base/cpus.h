@@ -21,6 +21,15 @@ std::optional<double> CpuQuotaFromCfs(const std::string& quota_us, const std::st
 // cgroup mount root ("/sys/fs/cgroup"). The tightest quota from the cgroup up to the root.
 std::optional<double> CgroupCpuQuota(const std::string& proc_self_cgroup, const std::string& root);
 
+// The CPU's model as /proc/cpuinfo names it (its first "model name" line, e.g. "AMD EPYC 7R13 Processor"),
+// or "unknown CPU" where there is none (a CPU or kernel that does not give one). The piece for tests:
+// the name from cpuinfo text, empty when absent.
+std::string CpuModelName();
+std::string CpuModelFromCpuinfo(const std::string& cpuinfo);
+// The widest vector unit of doubles the CPU has, asked at run time (cpuid), whatever the build targets:
+// "AVX-512" (AVX512F), "AVX2+FMA", or "scalar" (neither, or not x86).
+const char* CpuVectorIsa();
+
 }  // namespace bistable
 
 #endif  // BISTABLE_BASE_CPUS_H_

@@ -3,6 +3,7 @@
 // concurrent workers, against direct in-process calls in the same run. Prints a table and ratios.
 // The rate counts until the last report is acknowledged; the sweep's publication (fold into the
 // point cache, HDF5 map, index rows: a background thread) is timed separately.
+// The first line says the CPU and the build's lanes (dynamics/host_lanes.h); no job computes here.
 //   build/bench/bench_coordinator [JOBS=4000]
 #include <atomic>
 #include <chrono>
@@ -13,6 +14,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "bistable.grpc.pb.h"
+#include "dynamics/host_lanes.h"
 #include "server/coordinator_service.h"
 
 namespace {
@@ -136,6 +138,8 @@ double OverGrpc(const std::string& dir, long jobs, int clients, int salt, bool c
 
 int main(int argc, char** argv) {
   const long jobs = argc > 1 ? std::atol(argv[1]) : 4000;
+  std::printf("%s\n", HostLanesLine().c_str());
+  std::fflush(stdout);
   const std::string dir = (fs::temp_directory_path() / ("bench_coord_" + std::to_string(::getpid()))).string();
   fs::remove_all(dir);
   const double direct = Direct(dir, jobs);

@@ -3,6 +3,7 @@
 # `bistable run --threads 2` against a coordinator with 2 single-thread workers, then 1, 2, 4, 8
 # worker processes. Times are compute-phase wall times; ratios are what to compare.
 #   bench/bench_distributed.sh [GRID=100] [BUILD_DIR=build]
+# The first line says the CPU, the ISA and the lane width of the build measured (`bistable info`).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 GRID=${1:-100}
@@ -10,6 +11,7 @@ BUILD=${2:-build}
 CLI="$BUILD/client/bistable"
 DIR=$(mktemp -d)
 trap 'pkill -P $$ 2>/dev/null || true; rm -rf "$DIR"' EXIT
+"$CLI" info
 cat > "$DIR/spec.toml" <<TOML
 model = "coupled"
 [axes]

@@ -3,6 +3,9 @@
 // of L scalar simulations over the time of one pack of L, alternating in one run (min of the repetitions), on
 // a 20 s synthetic record of the paper's rig (120 Hz) with a Duffing model and with the rig's friction model.
 // Prints ratios (> 1: the lanes are faster); the machine's absolute speed drifts, the ratio less.
+// The widths are identification's pack sizes (2, 4, 8: it packs up to kMaxSimLanes columns whatever the
+// CPU), so all three run; the first line says the CPU and the engine's lane width W (dynamics/host_lanes.h),
+// and a row wider than W is marked: its packs span several registers.
 //   build/bench/bench_identify_lanes [REPETITIONS]
 #include <algorithm>
 #include <chrono>
@@ -12,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "dynamics/host_lanes.h"
+#include "dynamics/lanes.h"
 #include "identify/model.h"
 #include "identify/synthetic.h"
 
@@ -29,6 +34,7 @@ double Seconds(const std::function<void()>& f) {
 
 int main(int argc, char** argv) {
   const int reps = argc > 1 ? std::max(1, std::atoi(argv[1])) : 5;
+  std::printf("%s\n", HostLanesLine().c_str());
   DimensionalParams p = DimensionalParams::LinearTable2();
   p.has_resonator = false;
   SyntheticOptions o;
@@ -71,7 +77,8 @@ int main(int argc, char** argv) {
                               }));
       }
       if (!ok) return std::fprintf(stderr, "error: a simulation failed\n"), 1;
-      std::printf("%-9s %5d %9d %12.4f %12.4f %8.2f\n", c.name, lanes, sub, best_scalar, best_lanes, best_scalar / best_lanes);
+      std::printf("%-9s %5d %9d %12.4f %12.4f %8.2f%s\n", c.name, lanes, sub, best_scalar, best_lanes, best_scalar / best_lanes,
+                  lanes > kSweepLanes ? "   (wider than the CPU's lanes)" : "");
     }
   }
   return 0;

@@ -2,14 +2,21 @@
 // (the paper's map settings: h = 0.01, window from τ = 250). Reports RK4 steps/s per core as
 // counters, and — after the Google Benchmark table — the ensemble/one-lane ratio measured in the
 // same process (these machines are shared and noisy; compare ratios, not absolute times).
-//   build/bench/bench_kernel [--benchmark_min_time=2]
+// The ensemble runs the engine's lane width W = kSweepLanes (8 on AVX-512, 4 on AVX2; fixed at compile
+// time) and 2W (two registers per lane vector); the first line of the output says W, the ISA and the CPU
+// (dynamics/host_lanes.h). --header prints only that line.
+//   build/bench/bench_kernel [--benchmark_min_time=2] | [--header]
 #include <benchmark/benchmark.h>
 
 #include <chrono>
 #include <cstdio>
+#include <cstring>
+#include <string>
 #include <vector>
 
 #include "dynamics/benettin.h"
+#include "dynamics/host_lanes.h"
+#include "dynamics/lanes.h"
 #include "dynamics/nondim_system.h"
 #include "dynamics/point.h"
 
@@ -76,12 +83,20 @@ void BM_KernelNoWindow(benchmark::State& state) {
   state.counters["rk4_steps_per_s"] =
       benchmark::Counter(static_cast<double>(state.iterations()) * W * b.ks.n_total, benchmark::Counter::kIsRate);
 }
-BENCHMARK_TEMPLATE(BM_KernelNoWindow, 8)->Unit(benchmark::kMillisecond);
+constexpr int kW = kSweepLanes;  // the engine's width (dynamics/lanes.h)
 
-BENCHMARK_TEMPLATE(BM_KernelCoupledTangent, 1)->Unit(benchmark::kMillisecond);
-BENCHMARK_TEMPLATE(BM_KernelCoupledTangent, 4)->Unit(benchmark::kMillisecond);
-BENCHMARK_TEMPLATE(BM_KernelCoupledTangent, 8)->Unit(benchmark::kMillisecond);
-BENCHMARK_TEMPLATE(BM_KernelCoupledTangent, 16)->Unit(benchmark::kMillisecond);
+// Registered under the width's number ("BM_KernelNoWindow<8>"), which bench/kernel_ratio.sh reads.
+template <int W>
+void Register(const char* name, void (*fn)(benchmark::State&)) {
+  benchmark::RegisterBenchmark((std::string(name) + "<" + std::to_string(W) + ">").c_str(), fn)->Unit(benchmark::kMillisecond);
+}
+void RegisterKernels() {
+  Register<kW>("BM_KernelNoWindow", BM_KernelNoWindow<kW>);
+  Register<1>("BM_KernelCoupledTangent", BM_KernelCoupledTangent<1>);
+  if constexpr (kW > 4) Register<4>("BM_KernelCoupledTangent", BM_KernelCoupledTangent<4>);
+  Register<kW>("BM_KernelCoupledTangent", BM_KernelCoupledTangent<kW>);
+  Register<2 * kW>("BM_KernelCoupledTangent", BM_KernelCoupledTangent<2 * kW>);
+}
 
 // One trajectory at a time through the generic path: Eigen state, RK4 on (x, J(x)w), no lanes.
 double GenericStepsPerSecond() {
@@ -114,26 +129,31 @@ BENCHMARK(BM_EvaluatePointCoupled)->Arg(0)->Arg(1)->ArgNames({"rosenstein"})->Un
 }  // namespace bistable
 
 int main(int argc, char** argv) {
+  using bistable::kW;
+  if (argc == 2 && std::strcmp(argv[1], "--header") == 0) return std::printf("%s\n", bistable::HostLanesLine().c_str()), 0;
+  std::printf("%s\n", bistable::HostLanesLine().c_str());
+  std::fflush(stdout);
+  bistable::RegisterKernels();
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   // Same-process ratios, interleaved so all share whatever load the machine has.
-  double generic = 0, one = 0, eight = 0, sixteen = 0;
+  double generic = 0, one = 0, w = 0, w2 = 0;
   const int rounds = 3;
   for (int round = 0; round < rounds; ++round) {
     generic += bistable::GenericStepsPerSecond();
     one += bistable::LaneStepsPerSecond<1>(4);
-    eight += bistable::LaneStepsPerSecond<8>(1);
-    sixteen += bistable::LaneStepsPerSecond<16>(1);
+    w += bistable::LaneStepsPerSecond<kW>(8 / kW);
+    w2 += bistable::LaneStepsPerSecond<2 * kW>(1);
   }
   std::printf(
       "\nratio  coupled + tangent RK4, lane-steps/s per core (mean of %d interleaved rounds):\n"
       "  generic one-trajectory path (Eigen, rk4.h + benettin.h)  %7.1f M/s\n"
       "  kernel, 1 lane                                           %7.1f M/s\n"
-      "  kernel, 8 lanes                                          %7.1f M/s   %.1fx generic, %.1fx 1-lane\n"
-      "  kernel, 16 lanes                                         %7.1f M/s   %.1fx generic, %.1fx 1-lane\n",
-      rounds, generic / rounds / 1e6, one / rounds / 1e6, eight / rounds / 1e6, eight / generic, eight / one,
-      sixteen / rounds / 1e6, sixteen / generic, sixteen / one);
+      "  kernel, %2d lanes (the engine's width)                    %7.1f M/s   %.1fx generic, %.1fx 1-lane\n"
+      "  kernel, %2d lanes (two registers per vector)              %7.1f M/s   %.1fx generic, %.1fx 1-lane\n",
+      rounds, generic / rounds / 1e6, one / rounds / 1e6, kW, w / rounds / 1e6, w / generic, w / one, 2 * kW,
+      w2 / rounds / 1e6, w2 / generic, w2 / one);
   return 0;
 }

@@ -8,7 +8,8 @@
 // --external BIN: the real coordinator process, pinned to one CPU, the fake workers to the others.
 // --lease-batch K: leases merge up to K queued jobs (one round trip and one stored report for all: the
 // first step that lifts the ceiling, docs/scaling.md) and the same ladder runs again, so both ceilings
-// come from one run. Ratios are within the run.
+// come from one run. Ratios are within the run. The first line says the CPU and the build's lanes
+// (dynamics/host_lanes.h): the payload job is computed, and sized, at that width (JobItems).
 #include <sched.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -28,6 +29,7 @@
 #include "base/file.h"
 #include "base/limits.h"
 #include "bistable.grpc.pb.h"
+#include "dynamics/host_lanes.h"
 #include "engine/evaluate.h"
 #include "server/coordinator_service.h"
 
@@ -239,6 +241,8 @@ Result Run(const std::string& dir, const std::string& tag, long job_items, bool 
 
 int main(int argc, char** argv) {
   std::string spec_path = "examples/paper_fig8_frf.toml";
+  std::printf("%s\n", HostLanesLine().c_str());
+  std::fflush(stdout);
   double compute_ms = 50, seconds = 3;
   int max_workers = 256, min_workers = 1, lease_batch = 0;
   long job_items_override = 0;

@@ -3,6 +3,8 @@
 // f0 = 3 Hz: Dormand–Prince 5(4) (explicit, adaptive) against Rosenbrock 2(3) (linearly implicit,
 // L-stable), same tolerances, same process. Prints RHS evaluations, steps and wall time per
 // simulated second, their ratio, and the difference between the two solutions at the end.
+// Both are one point at a time (no lanes); the first line says the CPU and the build's lanes all the same
+// (dynamics/host_lanes.h).
 //   build/bench/bench_stiff [--benchmark_min_time=1]
 #include <benchmark/benchmark.h>
 
@@ -11,6 +13,7 @@
 
 #include "dynamics/dimensional_model.h"
 #include "dynamics/dopri5.h"
+#include "dynamics/host_lanes.h"
 #include "dynamics/rosenbrock23.h"
 
 namespace bistable {
@@ -80,6 +83,8 @@ double WallPerSimSecond(const DimensionalModel& m, AdaptiveOptions tol, Dimensio
 
 int main(int argc, char** argv) {
   using namespace bistable;
+  std::printf("%s\n", HostLanesLine().c_str());
+  std::fflush(stdout);
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

@@ -2,6 +2,7 @@
 # End-to-end sweep throughput and the reference comparison, all in one script so the ratios share the
 # machine's load (absolute times on these shared machines drift by ±30 % between runs).
 #   bench/bench_sweep.sh [BUILD_DIR]     (default: build)
+# The first line says the CPU, the ISA and the lane width of the build measured (`bistable info`).
 # 1. The paper's map settings: coupled, alpha x Omega = 201 x 201, tau 0-500, h 0.01, FRF + LLE + motion + HD + EDR,
 #    all cores, including writing the HDF5 file (plots excluded).
 # 2. The same 12 sample points through `bistable run --threads 1` and through scipy solve_ivp (single core both).
@@ -12,6 +13,7 @@ BIN="$BUILD/client/bistable"
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 
+"$BIN" info
 echo "== 1. paper map settings (examples/paper_fig8_frf.toml), $(nproc) cores"
 "$BIN" run examples/paper_fig8_frf.toml --data "$TMP/map" --json --quiet --no-plots > "$TMP/map.json"
 /usr/bin/python3 - "$TMP/map.json" <<'PY'

@@ -35,4 +35,5 @@ TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 g++ -O3 -march=native -fopenmp-simd -mprefer-vector-width=512 -o "$TMP/ref" "$REF"
 cd "$REPO"
+"$BUILD/client/bistable" info  # the CPU, the ISA and the lane width of the build measured
 /usr/bin/python3 bench/cost_curve.py --ref-bin "$TMP/ref" --build "$BUILD" "${ARGS[@]}"

@@ -26,6 +26,7 @@ NSYM=${3:-10}
 NASYM=${4:-5}
 SHIFT=${5:-0}
 [ -x "$BIN" ] || { echo "error: '$BIN' is not an executable bistable binary" >&2; exit 2; }
+"$BIN" info  # the CPU, the ISA and the lane width of the build measured
 HV="$DATA/bistable-harvester"
 [ -d "$HV" ] || { echo "error: '$HV' is not a folder (give DATA, the folder holding bistable-harvester/)" >&2; exit 2; }
 for n in "$NSYM" "$NASYM" "$SHIFT"; do

@@ -19,6 +19,9 @@ cd "$(dirname "$0")/.."
 DATA=${3:-../shared/data/measured}
 LOOPS=${4:-syn_c2,syn_friction,syn_null,silverbox,harvester_inter,harvester_intra}
 for b in "$OLD" "$NEW"; do [ -x "$b" ] || { echo "error: '$b' is not an executable bistable binary" >&2; exit 2; }; done
+for b in "$OLD" "$NEW"; do  # the CPU, the ISA and the lane width of each build (older builds lack `info`)
+  echo "$b: $("$b" info 2>/dev/null || echo "(no \`bistable info\` in this build)")"
+done
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 "$NEW" identify --make-synthetic "$TMP/syn" > /dev/null

@@ -6,7 +6,8 @@
 #   e.g. bench/kernel_ratio.sh ../shared/bench/reference_kernel.cc build 5 --map examples/paper_fig8_frf.toml
 # The reference is compiled as its header says (g++ -O3 -march=native -fopenmp-simd
 # -mprefer-vector-width=512; GCC's default -ffp-contract=fast lets it use FMA) and once more with
-# -ffp-contract=off, so the FMA share is visible.
+# -ffp-contract=off, so the FMA share is visible; -march is the build's own (native, or x86-64-v3 for a
+# portable build, read from bench_kernel's header), so both sides use the same vector unit.
 # Kernel rows (bench_kernel, the coupled model at the paper's settings, τ 0–500, window from 250):
 #   - "same work as the reference": τ 0–500 with no window (bench_kernel's BM_KernelNoWindow), i.e.
 #     state + tangent + renormalisation, what the reference does;
@@ -17,6 +18,8 @@
 # kernel bound = T × the kernel-with-window rate of the same round (issue 14's "whole map ≥ 0.8×"); for
 # T = 2 also against the kernel measured on both cores at once (two bench_kernel processes), since two
 # vCPUs of this VM do not deliver twice one.
+# The kernel rows run the engine's lane width W (bench_kernel: 8 on AVX-512, 4 on AVX2, fixed at compile
+# time) and 2W; the first line printed is bench_kernel's header (CPU, ISA, W).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 REF=${1:?usage: bench/kernel_ratio.sh REFERENCE_KERNEL.cc [BUILD_DIR] [ROUNDS] [--map SPEC.toml]}
@@ -26,9 +29,15 @@ MAP=""
 if [ "${4:-}" = "--map" ]; then MAP=${5:?--map needs a spec}; fi
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
-g++ -O3 -march=native -fopenmp-simd -mprefer-vector-width=512 -o "$TMP/ref" "$REF"
-g++ -O3 -march=native -fopenmp-simd -mprefer-vector-width=512 -ffp-contract=off -o "$TMP/ref_nofma" "$REF"
 [ -x "$BUILD/bench/bench_kernel" ] || { echo "build $BUILD/bench/bench_kernel first (cmake --build $BUILD --target bench_kernel)" >&2; exit 2; }
+HEADER=$("$BUILD/bench/bench_kernel" --header)
+W=$(echo "$HEADER" | sed -n 's/.*| lanes: \([0-9]*\) .*/\1/p')
+MARCH=$(echo "$HEADER" | sed -n 's/.*-march=\([A-Za-z0-9_.-]*\).*/\1/p')
+[ -n "$W" ] && [ -n "$MARCH" ] || { echo "no lane width or -march in bench_kernel's header: $HEADER" >&2; exit 2; }
+echo "$HEADER"
+echo "reference kernel compiled with -march=$MARCH (the build's target)"
+g++ -O3 -march="$MARCH" -fopenmp-simd -mprefer-vector-width=512 -o "$TMP/ref" "$REF"
+g++ -O3 -march="$MARCH" -fopenmp-simd -mprefer-vector-width=512 -ffp-contract=off -o "$TMP/ref_nofma" "$REF"
 STEPS=0
 if [ -n "$MAP" ]; then
   [ -x "$BUILD/client/bistable" ] || { echo "build $BUILD/client/bistable first" >&2; exit 2; }
@@ -41,14 +50,14 @@ map_rate() {  # threads → M lane-steps/s of the whole map
 }
 
 pair_kernel() {  # M lane-steps/s of one kernel-with-window process
-  "$BUILD/bench/bench_kernel" --benchmark_filter='BM_KernelCoupledTangent<8>' --benchmark_min_time=0.5 2>/dev/null |
-    sed -n 's/^BM_KernelCoupledTangent<8>.*rk4_steps_per_s=\([0-9.]*\)M\/s.*/\1/p'
+  "$BUILD/bench/bench_kernel" --benchmark_filter="BM_KernelCoupledTangent<$W>" --benchmark_min_time=0.5 2>/dev/null |
+    sed -n "s/^BM_KernelCoupledTangent<$W>.*rk4_steps_per_s=\([0-9.]*\)M\/s.*/\1/p"
 }
 
 for r in $(seq "$ROUNDS"); do
   ref=$("$TMP/ref" 1024 | sed -n 's/.* \([0-9.]*\) Msteps\/s.*/\1/p')
   nofma=$("$TMP/ref_nofma" 1024 | sed -n 's/.* \([0-9.]*\) Msteps\/s.*/\1/p')
-  ours=$("$BUILD/bench/bench_kernel" --benchmark_filter='BM_Kernel(NoWindow|CoupledTangent)<(8|16)>' --benchmark_min_time=0.5 2>/dev/null |
+  ours=$("$BUILD/bench/bench_kernel" --benchmark_filter="BM_Kernel(NoWindow|CoupledTangent)<($W|$((2 * W)))>" --benchmark_min_time=0.5 2>/dev/null |
          sed -n 's/^BM_Kernel\(NoWindow\|CoupledTangent\)<\([0-9]*\)>.*rk4_steps_per_s=\([0-9.]*\)M\/s.*/\1_\2 \3/p' | tr '\n' ' ')
   maps=""
   if [ -n "$MAP" ]; then
@@ -60,9 +69,10 @@ for r in $(seq "$ROUNDS"); do
   echo "round $r: reference $ref M/s, without FMA $nofma M/s, kernel (M lane-steps/s) $ours $maps"
   echo "$ref $nofma $ours $maps" >> "$TMP/rounds"
 done
-/usr/bin/python3 - "$TMP/rounds" <<'PY'
+/usr/bin/python3 - "$TMP/rounds" "$W" <<'PY'
 import statistics, sys
 rows = [line.split() for line in open(sys.argv[1])]
+W = int(sys.argv[2])
 ref = [float(r[0]) for r in rows]
 med = statistics.median
 cols = {}
@@ -78,7 +88,7 @@ for key in sorted(k for k in cols if "_" in k):
     v = cols[key]
     print("  %-40s %2s lanes %7.1f   %.2f" % (names[kind], w, med(v), med([x / a for a, x in zip(ref, v)])))
 if "map1" in cols:
-    kern = cols.get("CoupledTangent_8")
+    kern = cols.get("CoupledTangent_%d" % W)
     for t in (1, 2):
         v = cols["map%d" % t]
         print("  whole map, %d thread(s)                                  %7.1f   %.2f of the reference x %d, %.2f of the kernel bound (%d x kernel with window)"

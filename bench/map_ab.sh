@@ -13,6 +13,9 @@ THREADS=${4:-2}
 SPEC=${5:-$(dirname "$0")/../examples/paper_fig8_frf.toml}
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
+for b in "$OLD" "$NEW"; do  # the CPU, the ISA and the lane width of each build (older builds lack `info`)
+  echo "$b: $("$b" info 2>/dev/null || echo "(no \`bistable info\` in this build)")"
+done
 for r in $(seq "$ROUNDS"); do
   for which in old new; do
     bin=$OLD

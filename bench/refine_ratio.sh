@@ -18,6 +18,7 @@ SPEC=examples/paper_fig8_refined.toml
 PY=/usr/bin/python3  # h5py
 WORK=$(mktemp -d /tmp/refine_ratio.XXXXXX)
 trap 'rm -rf "$WORK"' EXIT
+"$BIN" info  # the CPU, the ISA and the lane width of the build measured
 A0=0 O0=400 N=401  # the window: alpha indices A0..A0+400, omega indices O0..O0+400 of the 1601 grid
 
 run() {  # run SPEC DATA -> prints "computed seconds" (JSON from bistable run)

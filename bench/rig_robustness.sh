@@ -14,6 +14,7 @@ SEEDS=${2:-5}
 MAXADD="--max-added 0"
 [ "${3:-}" = "--whole-loop" ] && MAXADD=""
 [ -x "$BIN" ] || { echo "error: '$BIN' is not an executable bistable binary" >&2; exit 2; }
+"$BIN" info  # the CPU, the ISA and the lane width of the build measured
 PY=/usr/bin/python3
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT

@@ -39,6 +39,7 @@ int main(int argc, char** argv) {
   bistable::AddSweepsCommand(app, &exit_code);
   bistable::AddMapCommand(app, &exit_code);
   bistable::AddQueryCommand(app, &exit_code);
+  bistable::AddInfoCommand(app, &exit_code);
   const auto subs = app.get_subcommands([](CLI::App*) { return true; });
   auto is_known = [&](const std::string& name) {
     for (const CLI::App* sub : subs)

@@ -1,4 +1,4 @@
-// `bistable sweeps`, `bistable map`, `bistable query`: reading what sweeps stored.
+// `bistable sweeps`, `bistable map`, `bistable query`, `bistable info`: reading what sweeps stored.
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -24,6 +24,7 @@
 #include "client/sweep_commands.h"
 #include "base/file.h"
 #include "base/names.h"
+#include "dynamics/host_lanes.h"
 #include "engine/json_shapes.h"
 #include "engine/metric_catalog.h"
 #include "engine/query.h"
@@ -305,7 +306,75 @@ int RunQuery(const QueryArgs& a) {
   return 0;
 }
 
+// ---- info ----
+struct InfoArgs {
+  std::string id, data = kDefaultDataDir;
+  bool json = false;
+};
+
+// The provenance `bistable info ID` prints, in this order (docs/map-files.md).
+constexpr const char* kProvenance[] = {"sweep_id",         "name",           "model",         "software_version",
+                                       "numerics_version", "history",        "host_cpu_model", "host_simd_isa",
+                                       "host_lane_width"};
+
+int ShowInfo(const InfoArgs& a) {
+  if (a.id.empty()) {  // this build on this CPU
+    const HostLanes h = ThisHostLanes();
+    if (a.json)
+      std::cout << DumpJson({{"cpu_model", h.cpu_model}, {"simd_isa", h.isa}, {"cpu_simd_isa", h.cpu_isa},
+                             {"march", h.march}, {"lane_width", h.lanes}},
+                            2)
+                << "\n";
+    else
+      std::cout << HostLanesLine(h) << "\n";
+    return 0;
+  }
+  std::string path;
+  std::error_code ec;
+  if (a.id.size() > 3 && a.id.compare(a.id.size() - 3, 3, ".h5") == 0 && std::filesystem::is_regular_file(a.id, ec)) {
+    path = a.id;
+  } else {
+    auto ref = FindSweep(a.data, a.id);
+    if (!ref.ok()) return Fail(ref.status());
+    if (ref->map_path.empty())
+      return Fail(Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (state " +
+                                             SweepStateName(ref->row.state) + ")"));
+    path = ref->map_path;
+  }
+  nlohmann::json j = {{"file", path}};
+  for (const char* name : kProvenance) {
+    auto v = ReadMapAttribute(path, name);
+    if (!v.ok()) return Fail(v.status());
+    // Absent in maps written before the attribute was: null, and "(not recorded)" in the text.
+    if (v->empty()) j[name] = nullptr;
+    else if (std::string(name) == "host_lane_width") j[name] = std::atoi(v->c_str());
+    else j[name] = *v;
+  }
+  if (a.json) {
+    std::cout << DumpJson(j, 2) << "\n";
+    return 0;
+  }
+  std::printf("%-17s %s\n", "file", Printable(path, 400).c_str());
+  for (const char* name : kProvenance) {
+    const nlohmann::json& v = j[name];
+    std::printf("%-17s %s\n", name,
+                v.is_null() ? "(not recorded)" : v.is_string() ? Printable(v.get<std::string>(), 400).c_str() : v.dump().c_str());
+  }
+  return 0;
+}
+
 }  // namespace
+
+void AddInfoCommand(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<InfoArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "info", "Where a map was made (versions, time, the writing host's CPU, ISA and lane width); without an id, this "
+              "build's lanes on this CPU");
+  cmd->add_option("id", a->id, "sweep id (or a unique prefix) of --data, or a map file (.h5); none: this build and CPU");
+  cmd->add_option("--data", a->data, "data directory")->capture_default_str();
+  cmd->add_flag("--json", a->json, "print a JSON object");
+  cmd->callback([a, exit_code]() { *exit_code = ShowInfo(*a); });
+}
 
 void AddSweepsCommand(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<SweepsArgs>();

@@ -1,4 +1,4 @@
-// `bistable run | sweeps | map | query`: the sweep engine embedded in one process, and reading maps.
+// `bistable run | sweeps | map | query | info`: the sweep engine embedded in one process, and reading maps.
 #ifndef BISTABLE_CLIENT_SWEEP_COMMANDS_H_
 #define BISTABLE_CLIENT_SWEEP_COMMANDS_H_
 
@@ -10,6 +10,7 @@ void AddRunCommand(CLI::App& app, int* exit_code);
 void AddSweepsCommand(CLI::App& app, int* exit_code);
 void AddMapCommand(CLI::App& app, int* exit_code);
 void AddQueryCommand(CLI::App& app, int* exit_code);
+void AddInfoCommand(CLI::App& app, int* exit_code);
 
 }  // namespace bistable
 

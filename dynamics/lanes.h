@@ -76,6 +76,27 @@ BISTABLE_INLINE T LaneOp(Op512 op512, Op256 op256, Op1 op1, const T& a, const Ts
 #error "AVX without FMA: build for x86-64-v3 or newer (the kernel's fused multiply-adds need FMA)"
 #endif
 
+// Lanes per kernel call in sweeps: one vector register per lane vector — 8 on AVX-512, 4 on AVX2
+// (x86-64-v3, the portable build: 8 lanes there run at an eighth of 4; bench/kernel_ratio.sh,
+// docs/numerics.md), 4 emulated lane by lane where the build has no vector unit. A property of the
+// build (its -march), not asked of the CPU at run time. Results do not depend on it: a lane's bits are
+// the same at every width. The engine (engine/evaluate.h) and every benchmark run this width;
+// dynamics/host_lanes.h says it, with the CPU, for benchmark headers and map provenance.
+// kLaneIsa: the vector unit the lanes use, by the same test as LaneOp.
+#if defined(__AVX512F__)
+inline constexpr int kSweepLanes = 8;
+inline constexpr const char* kLaneIsa = "AVX-512";
+#elif defined(__AVX2__)
+inline constexpr int kSweepLanes = 4;
+inline constexpr const char* kLaneIsa = "AVX2+FMA";
+#elif defined(__AVX__)
+inline constexpr int kSweepLanes = 4;
+inline constexpr const char* kLaneIsa = "AVX+FMA";
+#else
+inline constexpr int kSweepLanes = 4;
+inline constexpr const char* kLaneIsa = "scalar";
+#endif
+
 // a·b + c rounded once (IEEE 754 fusedMultiplyAdd), lane by lane. Exact and deterministic, so a lane
 // gets the same bits at every width and in the one-point path (W = 1). The kernel's arithmetic is
 // written with it explicitly; the compiler never contracts on its own (-ffp-contract=off). (GCC does

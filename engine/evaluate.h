@@ -11,19 +11,14 @@
 #include <optional>
 #include <vector>
 
+#include "dynamics/lanes.h"
 #include "engine/metric_catalog.h"
 #include "engine/sweep_spec.h"
 
 namespace bistable {
 
-// Lanes per kernel call in sweeps: one vector register per lane vector — 8 on AVX-512, 4 on AVX2
-// (x86-64-v3, the portable build: 8 lanes there run at an eighth of 4; bench/kernel_ratio.sh,
-// docs/numerics.md). Results do not depend on it: a lane's bits are the same at every width.
-#if defined(__AVX512F__)
-inline constexpr int kSweepLanes = 8;
-#else
-inline constexpr int kSweepLanes = 4;
-#endif
+// Lanes per kernel call in sweeps: kSweepLanes (dynamics/lanes.h) — 8 on AVX-512, 4 on AVX2, fixed
+// by the build's -march. Results do not depend on it: a lane's bits are the same at every width.
 
 // Checks a job's items against its spec before anything is computed — a lease may come from a
 // coordinator the worker does not control: 1 to limits::kMaxLeaseItems items, every point in

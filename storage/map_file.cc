@@ -22,6 +22,7 @@
 #include "base/limits.h"
 #include "base/version.h"
 #include "base/names.h"
+#include "dynamics/host_lanes.h"
 #include "engine/basins.h"
 #include "base/validate.h"
 #include "storage/data_dir.h"
@@ -511,6 +512,20 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "name", spec.name));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "axes", axes_attr));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "motion_codes", MotionCodesText()));
+  // Where it was written: the CPU and the lanes the engine ran there (dynamics/host_lanes.h). host_*: names
+  // that say where a file was made, which compare-maps.py skips (a map computed elsewhere is the same map).
+  const HostLanes host = ThisHostLanes();
+  const int32_t lanes = host.lanes;
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "host_cpu_model", host.cpu_model));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "host_simd_isa", host.isa));
+  BISTABLE_RETURN_IF_ERROR(WriteNumberAttr(f, "host_lane_width", H5T_NATIVE_INT32, &lanes, 1));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(
+      f, "host_note",
+      "host_cpu_model, host_simd_isa and host_lane_width describe the process that wrote this file (" +
+          HostLanesLine(host) +
+          "). `bistable run` computed its records there; through a coordinator its workers did, possibly on other "
+          "CPUs, and records may come from the point cache. No stored number depends on them: a lane's bits are the "
+          "same at every lane width."));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(
       f, "definitions",
       "See docs/numerics.md. Non-dimensional: tau = omega_n t, lengths in delta_s. Window tau in [t_keep, t_end]. "
@@ -642,6 +657,15 @@ StatusOr<std::string> ReadMapAttribute(const std::string& path, const std::strin
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   Handle file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!file.ok()) return Status::IoError("map", "cannot open map file '" + path + "'");
+  if (H5Aexists(file.get(), name.c_str()) > 0) {  // a scalar integer (host_lane_width, refine_points_*) as its digits
+    Handle attr(H5Aopen(file.get(), name.c_str(), H5P_DEFAULT), H5Aclose);
+    Handle type(H5Aget_type(attr.get()), H5Tclose);
+    Handle space(H5Aget_space(attr.get()), H5Sclose);
+    long long v = 0;
+    if (H5Tget_class(type.get()) == H5T_INTEGER && H5Sget_simple_extent_npoints(space.get()) == 1 &&
+        H5Aread(attr.get(), H5T_NATIVE_LLONG, &v) >= 0)
+      return std::to_string(v);
+  }
   return ReadStringAttr(file.get(), name.c_str());
 }
 

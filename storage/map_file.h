@@ -4,9 +4,9 @@
 // fractions of motion types over the initial conditions. Every dimension has a coordinate variable
 // (dimension scale); fixed parameters are scalar coordinates; variables carry long_name, UDUNITS units
 // (or flag_values/flag_meanings for codes), unit_label (the plots' label) and definition; global
-// attributes carry provenance (Conventions, source, history, spec, versions). Chunked, shuffled and
-// deflated. Written to a temporary file, fsynced and renamed into place: a reader never sees a
-// partial file.
+// attributes carry provenance (Conventions, source, history, spec, versions, and the writing host's CPU
+// and lanes: host_cpu_model, host_simd_isa, host_lane_width). Chunked, shuffled and deflated. Written to
+// a temporary file, fsynced and renamed into place: a reader never sees a partial file.
 #ifndef BISTABLE_STORAGE_MAP_FILE_H_
 #define BISTABLE_STORAGE_MAP_FILE_H_
 
@@ -44,7 +44,8 @@ struct MapArray {
 StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& metric);
 // Names of the datasets holding metrics (not the axis scales).
 StatusOr<std::vector<std::string>> ListMapMetrics(const std::string& path);
-// Root attributes: "spec", "numerics_version", "model", "sweep_id", "name".
+// A root attribute's text ("spec", "numerics_version", "model", "sweep_id", "name", "host_cpu_model", ...);
+// a scalar integer one ("host_lane_width") as its decimal digits; "" when absent or of another type.
 StatusOr<std::string> ReadMapAttribute(const std::string& path, const std::string& name);
 
 }  // namespace bistable

@@ -112,6 +112,62 @@ TEST(CliSweep, RunMapQueryAndSweepsHaveTheirJsonShapes) {
   fs::remove_all(dir);
 }
 
+// A map records where it was written: the CPU (/proc/cpuinfo's model name), the build's vector unit and
+// the engine's lane width, as HDF5 attributes of a real file, and `bistable info` prints them (and,
+// without an id, the same for this build on this CPU).
+TEST(Provenance, MapFileCarriesTheHostCpuIsaAndLaneWidth) {
+  const std::string dir = Dir("provenance");
+  const std::string spec = WriteSpec(dir, kGrid);
+  const ProcessResult run = Bistable("run " + spec + " --data " + dir + "/data --json --no-plots");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const auto j = nlohmann::json::parse(run.out);
+  const std::string id = j["id"], h5 = j["files"][0];
+  auto attr = [&](const char* name) {
+    auto v = bistable::ReadMapAttribute(h5, name);
+    EXPECT_TRUE(v.ok()) << name;
+    return v.ok() ? *v : std::string();
+  };
+  // The oracle: /proc/cpuinfo as the kernel lists it (first CPU).
+  std::ifstream f("/proc/cpuinfo");
+  std::string line, model, flags;
+  while (std::getline(f, line)) {
+    const size_t colon = line.find(':');
+    if (colon == std::string::npos) continue;
+    std::string value = line.substr(colon + 1);
+    value.erase(0, value.find_first_not_of(" \t"));
+    value.erase(value.find_last_not_of(" \t") + 1);
+    if (model.empty() && line.rfind("model name", 0) == 0) model = value;
+    if (flags.empty() && line.rfind("flags", 0) == 0) flags = " " + value + " ";
+  }
+  const std::string cpu = attr("host_cpu_model"), isa = attr("host_simd_isa"), width = attr("host_lane_width");
+  EXPECT_EQ(cpu, model.empty() ? "unknown CPU" : model);
+  EXPECT_TRUE(isa == "AVX-512" || isa == "AVX2+FMA" || isa == "AVX+FMA" || isa == "scalar") << isa;
+  EXPECT_EQ(width, isa == "AVX-512" ? "8" : "4");
+  if (!flags.empty() && flags.find(" avx512f ") == std::string::npos) {
+    EXPECT_NE(isa, "AVX-512") << flags;
+  }
+  const std::string note = attr("host_note");
+  EXPECT_NE(note.find("| lanes: " + width + " (fixed at compile time: -march="), std::string::npos) << note;
+
+  const ProcessResult info = Bistable("info " + id + " --json --data " + dir + "/data");
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  const auto ij = nlohmann::json::parse(info.out);
+  EXPECT_EQ(ij["sweep_id"], id);
+  EXPECT_EQ(ij["host_cpu_model"], cpu);
+  EXPECT_EQ(ij["host_simd_isa"], isa);
+  EXPECT_EQ(ij["host_lane_width"], std::stoi(width));
+  const ProcessResult text = Bistable("info " + h5);
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("host_lane_width   " + width + "\n"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("host_cpu_model    " + cpu + "\n"), std::string::npos) << text.out;
+  const ProcessResult here = Bistable("info");
+  ASSERT_EQ(here.exit_code, 0) << here.err;
+  ASSERT_FALSE(here.out.empty());
+  EXPECT_NE(note.find("(" + here.out.substr(0, here.out.size() - 1) + ")"), std::string::npos)
+      << "the map's line and this build's on this CPU: " << here.out << note;
+  fs::remove_all(dir);
+}
+
 // JSON prints a category by its name (the map files' motion_codes) and an integer metric as an
 // integer, in `map --format json` and `query --json`; CSV keeps the codes.
 TEST(CliSweep, JsonPrintsMotionByNameAndIntegersAsIntegers) {

@@ -4,6 +4,9 @@
 // implementations (SeriesModel with its Jacobian, Dormand–Prince on DimensionalModel).
 #include <cmath>
 #include <cstring>
+#include <fstream>
+#include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -13,6 +16,8 @@
 #include "dynamics/ensemble_generic.h"
 #include "dynamics/friction.h"
 #include "dynamics/generic_point.h"
+#include "dynamics/host_lanes.h"
+#include "base/cpus.h"
 #include "dynamics/point.h"
 #include "engine/evaluate.h"
 #include "engine/sweep_spec.h"
@@ -365,6 +370,57 @@ t_keep = 0.5
   RequestCancel();
   EXPECT_FALSE(EvaluateItemsInLanes(spec, ShuffledItems(spec), 8).has_value());
   EXPECT_FALSE(ComputeItemsUnlessCancelled(spec, ShuffledItems(spec)).has_value());
+}
+
+// The lanes every benchmark says and every map records (dynamics/host_lanes.h) are the engine's own, and
+// the CPU's unit (cpuid) agrees with the flags the kernel lists in /proc/cpuinfo.
+TEST(HostLanes, SayTheEnginesWidthAndTheCpusUnit) {
+  const HostLanes h = ThisHostLanes();
+  EXPECT_EQ(h.lanes, kSweepLanes);
+  EXPECT_EQ(h.isa, kLaneIsa);
+  EXPECT_EQ(h.lanes, h.isa == std::string("AVX-512") ? 8 : 4);
+  EXPECT_FALSE(h.cpu_model.empty());
+  std::ifstream f("/proc/cpuinfo");
+  std::stringstream text;
+  text << f.rdbuf();
+  const std::string info = text.str();
+  std::set<std::string> flags;  // the first CPU's "flags" line, word by word
+  if (const size_t at = info.find("\nflags"); at != std::string::npos) {
+    std::istringstream words(info.substr(at + 1, info.find('\n', at + 1) - at - 1));
+    for (std::string w; words >> w;) flags.insert(w);
+  }
+  if (!flags.empty()) {
+    const bool avx512 = flags.count("avx512f") > 0;
+    const bool avx2_fma = flags.count("avx2") > 0 && flags.count("fma") > 0;
+    EXPECT_EQ(h.cpu_isa, avx512 ? "AVX-512" : avx2_fma ? "AVX2+FMA" : "scalar");
+    if (!avx512) {
+      EXPECT_NE(h.lanes, 8) << "an AVX-512 build runs only on a CPU with AVX-512";
+    }
+  }
+  const std::string model = CpuModelFromCpuinfo(info);
+  if (!model.empty()) {
+    EXPECT_EQ(h.cpu_model, model);
+  }
+  const std::string line = HostLanesLine(h);
+  EXPECT_NE(line.find("cpu: " + h.cpu_model + " | isa: " + h.isa), std::string::npos) << line;
+  EXPECT_NE(line.find("| lanes: " + std::to_string(kSweepLanes) + " (fixed at compile time: -march="), std::string::npos) << line;
+}
+
+TEST(HostLanes, LineSaysAWiderCpuAndTheCpuinfoNameIsTrimmed) {
+  HostLanes h;
+  h.cpu_model = "AMD EPYC 7R13 Processor";
+  h.isa = "AVX2+FMA";
+  h.cpu_isa = "AVX-512";
+  h.march = "x86-64-v3";
+  h.lanes = 4;
+  EXPECT_EQ(HostLanesLine(h),
+            "cpu: AMD EPYC 7R13 Processor | isa: AVX2+FMA (the CPU has AVX-512) | lanes: 4 (fixed at compile time: "
+            "-march=x86-64-v3)");
+  h.isa = h.cpu_isa = "AVX-512", h.march = "native", h.lanes = 8;
+  EXPECT_EQ(HostLanesLine(h), "cpu: AMD EPYC 7R13 Processor | isa: AVX-512 | lanes: 8 (fixed at compile time: -march=native)");
+  EXPECT_EQ(CpuModelFromCpuinfo("processor\t: 0\nvendor_id\t: AuthenticAMD\nmodel name\t: AMD EPYC 9R14 \r\nflags\t: fpu\n"),
+            "AMD EPYC 9R14");
+  EXPECT_EQ(CpuModelFromCpuinfo("processor\t: 0\nBogoMIPS\t: 50.00\n"), "");
 }
 
 }  // namespace
