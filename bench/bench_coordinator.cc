@@ -108,17 +108,18 @@ double OverGrpc(const std::string& dir, long jobs, int clients, int salt, bool c
   for (int k = 0; k < clients; ++k)
     pool.emplace_back([&, k] {
       auto stub = v1::Coordinator::NewStub(channel);
+      const std::string worker = std::string("w").append(std::to_string(k));  // not "w" + ...: a GCC 12 -Wrestrict false positive
       v1::ReportRequest rep;
       rep.set_record_width(static_cast<unsigned>(PointRecord::Size()));
       rep.set_catalog_hash(CatalogHash());
       for (size_t i = 0; i < 8 * PointRecord::Size(); ++i) rep.add_values(0.0);
-      if (combined) rep.set_lease_next_for("w" + std::to_string(k));
+      if (combined) rep.set_lease_next_for(worker);
       v1::LeaseReply lease;
       while (true) {
         if (!lease.has_job()) {  // the worker's loop: lease only when the last report brought nothing
           grpc::ClientContext lc;
           v1::LeaseRequest lr;
-          lr.set_worker("w" + std::to_string(k));
+          lr.set_worker(worker);
           if (!stub->Lease(&lc, lr, &lease).ok() || !lease.has_job()) break;
         }
         grpc::ClientContext rc;

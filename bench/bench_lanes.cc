@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <vector>
 
+#include "dynamics/eigen_bounds.h"
 #include "dynamics/ensemble_generic.h"
 #include "dynamics/generic_point.h"
 #include "dynamics/host_lanes.h"
@@ -147,7 +148,9 @@ double RigGenericSim(int points, bool adaptive, int substeps) {
     w.renorm_every = 50 * (adaptive ? 1 : substeps);
     w.position = [](const Eigen::VectorXd& x) { return x[0]; };
     w.velocity = [](const Eigen::VectorXd& x) { return x[1]; };
+    BISTABLE_EIGEN_BOUNDS_BEGIN
     RunGenericWindow(m, Eigen::Map<const Eigen::Vector4d>(in.x0.data()), w);
+    BISTABLE_EIGEN_BOUNDS_END
   }
   return points * 2.0 / Seconds(t0);
 }

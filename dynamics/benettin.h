@@ -8,9 +8,12 @@
 #include <cmath>
 #include <vector>
 
+#include "dynamics/eigen_bounds.h"
 #include "dynamics/rk4.h"
 
 namespace bistable {
+
+BISTABLE_EIGEN_BOUNDS_BEGIN  // blocks of run-time size n over the systems' fixed-size states
 
 // The system (x, w) ↦ (f(t, x), J(t, x) w) of size 2n.
 template <class System>
@@ -76,6 +79,8 @@ BenettinResult BenettinLle(const System& sys, const typename System::State& x0, 
   res.lle = sum / (static_cast<double>(n_av) * opt.h);
   return res;
 }
+
+BISTABLE_EIGEN_BOUNDS_END
 
 }  // namespace bistable
 

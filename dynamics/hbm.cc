@@ -656,9 +656,6 @@ bool SeedFromTime(const HarmonicBalance& hb, const HbmOptions& o, double omega, 
 StatusOr<HbmResult> ContinueBranchesOrUnwind(const HbmOptions& o) {
   HarmonicBalance hb(o);
   HbmResult result;
-  const double p0 = o.from;
-  const double omega0 = o.param == ContinuationParam::kOmega ? p0 : o.omega;
-  const double alpha0 = o.param == ContinuationParam::kAlpha ? p0 : o.alpha;
   const bool bistable = IsBistable(o.model);
   const double well = bistable ? 1.0 / std::sqrt(o.params.eps) : 0.0;
   struct Start {

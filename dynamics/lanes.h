@@ -57,9 +57,10 @@ BISTABLE_INLINE T MapChunks(Op op, const T& a, const Ts&... more) {
 }
 
 // op512 / op256 take and return __m512d / __m256d (generic lambdas: instantiated only where the target
-// has the unit), op1 doubles; all three must compute exactly the same thing.
+// has the unit), op1 doubles; all three must compute exactly the same thing. A target without the unit
+// leaves op512 (or op256) unused.
 template <class Op512, class Op256, class Op1, class T, class... Ts>
-BISTABLE_INLINE T LaneOp(Op512 op512, Op256 op256, Op1 op1, const T& a, const Ts&... more) {
+BISTABLE_INLINE T LaneOp([[maybe_unused]] Op512 op512, [[maybe_unused]] Op256 op256, Op1 op1, const T& a, const Ts&... more) {
   constexpr int n = static_cast<int>(sizeof(T) / sizeof(double));
 #if defined(__AVX512F__)
   if constexpr (n % 8 == 0) return MapChunks<__m512d>(op512, a, more...);

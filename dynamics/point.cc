@@ -8,6 +8,7 @@
 
 #include "dynamics/cancel.h"
 #include "dynamics/dopri5.h"
+#include "dynamics/eigen_bounds.h"
 #include "dynamics/nondim_system.h"
 
 namespace bistable {
@@ -81,7 +82,9 @@ RawLane RunAdaptive(const PointSpec& spec, bool* cancelled) {
         break;
       }
       const double nrm = z.segment(D, D).norm();
+      BISTABLE_EIGEN_BOUNDS_BEGIN
       z.segment(D, D) /= nrm;
+      BISTABLE_EIGEN_BOUNDS_END
       if (in_window) rec.AddLogGrowth(Vec<1>{std::log(nrm)});
       seg_start = seg_end;
     }

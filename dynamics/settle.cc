@@ -237,7 +237,7 @@ class Sink {
     std::array<Light, W> light;
     std::array<PointResult, W> got;
     std::array<bool, W> have_full{};
-    std::array<int, W> need;
+    std::array<int, W> need{};  // zeroed: GCC 12 cannot see that FullMetrics reads only need[0 .. nn)
     int nn = 0;
     for (int i = 0; i < m; ++i) {
       const RawLane& r = eval_raw[i];

@@ -17,7 +17,7 @@ struct Query::Node {
   // kCmp: operands are variables (var ≥ 0) or constants.
   int var_l = -1, var_r = -1;
   double c_l = 0, c_r = 0;
-  std::string op;
+  std::string op{};
 };
 
 namespace {

@@ -352,7 +352,7 @@ std::vector<FixedParameter> SweepSpec::FixedParameters() const {
         if (k == n) return true;
     return false;
   };
-  for (const std::string& n : {"alpha", "omega", "eta", "eta_r", "lambda", "phi", "eps"}) {
+  for (const std::string n : {"alpha", "omega", "eta", "eta_r", "lambda", "phi", "eps"}) {
     if ((n == "eta_r" || n == "lambda" || n == "phi") && !resonator) continue;
     if (n == "eps" && !bistable) continue;
     if (model == ModelKind::kSeries && overridden(n)) continue;

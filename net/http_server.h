@@ -33,7 +33,7 @@ struct HttpResponse {
   int status = 200;
   std::string content_type = "text/plain; charset=utf-8";
   std::string body;
-  std::vector<std::pair<std::string, std::string>> headers;  // extra headers (e.g. Set-Cookie)
+  std::vector<std::pair<std::string, std::string>> headers{};  // extra headers (e.g. Set-Cookie)
 };
 using HttpHandler = std::function<HttpResponse(const HttpRequest&)>;
 
@@ -44,14 +44,14 @@ class HttpServer {
     // Routes whose handlers may take long (a dashboard map reads a file): they run on a pool of
     // kSlowThreads threads, so that the others (/healthz, /metrics) keep answering meanwhile. At most
     // 4 · kSlowThreads wait or run at once; more get 503 with Retry-After: 1.
-    std::set<std::string> slow_routes;
+    std::set<std::string> slow_routes{};
     // Slow routes whose handlers are heavy (a dashboard cell integrates a point): at most kSlowThreads − 1
     // run at once, so the other slow routes always have a thread; those waiting are served in turn by
     // client (the peer's address with its Authorization header and Cookie), not in arrival order, so one
     // client's flood delays another's request by at most one heavy handler per waiting client. At most
     // kMaxHeavyPerClient of one client wait or run (more: 503 at once, to that client only) and
     // kMaxHeavyPending in all. Each must also be in slow_routes.
-    std::set<std::string> heavy_routes;
+    std::set<std::string> heavy_routes{};
   };
   static constexpr int kSlowThreads = 2;
   static constexpr int kMaxHeavyPerClient = 2;

@@ -7,10 +7,10 @@
 
 #include "base/status.h"
 #include "bistable.pb.h"
+#include "engine/map_array.h"
 #include "engine/metric_catalog.h"
 #include "engine/sweep_spec.h"
 #include "engine/sweep_state.h"
-#include "storage/map_file.h"
 
 namespace bistable {
 

@@ -12,11 +12,11 @@
 #include <vector>
 
 #include "base/status.h"
+#include "engine/map_array.h"
 #include "engine/metric_catalog.h"
 #include "engine/sweep_spec.h"
 #include "engine/sweep_state.h"
 #include "proto/channel.h"
-#include "storage/map_file.h"
 
 namespace bistable {
 

@@ -148,7 +148,8 @@ Status WriteCfAttrs(hid_t obj, const CfQuantity& q, const std::string& coordinat
     std::string meanings;
     for (const Category& c : *q.categories) {
       values.push_back(c.code);
-      meanings += (meanings.empty() ? "" : " ") + std::string(c.name);
+      if (!meanings.empty()) meanings += ' ';
+      meanings += c.name;
     }
     BISTABLE_RETURN_IF_ERROR(WriteNumberAttr(obj, "flag_values", H5T_NATIVE_INT32, values.data(), values.size()));
     BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "flag_meanings", meanings));
@@ -628,8 +629,11 @@ Status WriteMapFile(const std::string& path, const SweepSpec& spec, const Refine
 
 std::string MapShape(const SweepSpec& spec) {
   std::string shape;
-  for (const Axis& a : spec.axes) shape += (shape.empty() ? "" : "x") + std::to_string(a.values.size());
-  if (spec.ic_count() > 1) shape += "x" + std::to_string(spec.ic_count());
+  for (const Axis& a : spec.axes) {
+    if (!shape.empty()) shape += 'x';
+    shape += std::to_string(a.values.size());
+  }
+  if (spec.ic_count() > 1) shape += 'x', shape += std::to_string(spec.ic_count());
   return shape;
 }
 

@@ -11,10 +11,10 @@
 #define BISTABLE_STORAGE_MAP_FILE_H_
 
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "base/status.h"
+#include "engine/map_array.h"
 #include "engine/metric_catalog.h"
 #include "engine/refine.h"
 #include "engine/sweep_spec.h"
@@ -30,17 +30,7 @@ Status WriteMapFile(const std::string& path, const SweepSpec& spec, const Refine
 // when there are several ("201x201", "64x64x2").
 std::string MapShape(const SweepSpec& spec);
 
-// A metric read back: values in row-major order over dims.
-struct MapArray {
-  std::string metric;
-  std::vector<Axis> axes;            // the sweep axes (dims 0..axes-1)
-  std::vector<size_t> dims;          // full shape, including ic / peak dims
-  std::vector<std::string> dim_names;
-  std::vector<double> values;        // integers widened to double
-  std::string unit, definition;
-  std::vector<std::pair<int, std::string>> categories;  // code datasets: flag_values and flag_meanings
-};
-
+// A metric read back (engine/map_array.h).
 StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& metric);
 // Names of the datasets holding metrics (not the axis scales).
 StatusOr<std::vector<std::string>> ListMapMetrics(const std::string& path);

@@ -107,8 +107,9 @@ TEST(CliSweep, RunMapQueryAndSweepsHaveTheirJsonShapes) {
   EXPECT_LE(finished, now + 1) << lj[0].dump();
   // Map ranges of integer metrics are integers.
   for (const auto& mm : lj[0]["maps"])
-    if (mm["metric"] == "motion" || mm["metric"] == "period" || mm["metric"] == "termination")
+    if (mm["metric"] == "motion" || mm["metric"] == "period" || mm["metric"] == "termination") {
       EXPECT_TRUE(mm["min"].is_number_integer() && mm["max"].is_number_integer()) << mm.dump();
+    }
   fs::remove_all(dir);
 }
 
@@ -280,10 +281,11 @@ TEST(CliSweep, OutDashWritesTheFileBytesToStdout) {
     ASSERT_GT(bytes.size(), 10u);
     EXPECT_EQ(to_stdout.out.size(), bytes.size());
     EXPECT_TRUE(to_stdout.out == bytes) << "stdout differs from the file";
-    if (format == "png") EXPECT_EQ(to_stdout.out.substr(1, 3), "PNG");
+    if (format == "png") { EXPECT_EQ(to_stdout.out.substr(1, 3), "PNG"); }
     EXPECT_FALSE(fs::exists(dir + "/-")) << "a file named '-' was written";
-    if (format == "csv" || format == "json")
+    if (format == "csv" || format == "json") {
       EXPECT_EQ(map({"--metric", "lle", "--format", format}, dir + "/tmp").out, bytes) << "no --out prints the same";
+    }
   }
   // The Fig. 6 scatter too.
   const auto hd = map({"--metric", "hd_scatter", "--at", "alpha=0.5", "--out", "-"}, dir + "/tmp");

@@ -119,7 +119,7 @@ TEST(CoordinatorProperty, RandomInterleavingsEndInTheSequentialMap) {
     };
     for (int op = 0; op < kOps; ++op) {
       const int w = static_cast<int>(rng() % kWorkers);
-      const std::string name = "w" + std::to_string(w);
+      const std::string name = std::string("w").append(std::to_string(w));  // not "w" + ...: GCC 12 -Wrestrict false positive
       switch (rng() % 12) {
         case 0: case 1: case 2:
           // One job, or up to three merged into one lease (a worker's --jobs-per-lease).

@@ -127,8 +127,8 @@ TEST(Hbm, ContinuationPassesFoldsAndFindsIntrawellBranchesAboutPlusMinusOne) {
     if (mean0 < -0.9) ++intrawell_minus;
     if (b.points.front().amplitude > 2.0 || std::fabs(mean0) < 0.1) ++interwell;
     // The plots name branches by well (WellOf): the ±1 intrawell branches start in their well.
-    if (mean0 > 0.9) EXPECT_EQ(WellOf(b.points.front()), OrbitWell::kPlus) << b.start;
-    if (mean0 < -0.9) EXPECT_EQ(WellOf(b.points.front()), OrbitWell::kMinus) << b.start;
+    if (mean0 > 0.9) { EXPECT_EQ(WellOf(b.points.front()), OrbitWell::kPlus) << b.start; }
+    if (mean0 < -0.9) { EXPECT_EQ(WellOf(b.points.front()), OrbitWell::kMinus) << b.start; }
     for (const HbmPoint& p : b.points) {
       EXPECT_LE(p.y_min, p.mean + 1e-12);
       EXPECT_GE(p.y_max, p.mean - 1e-12);
@@ -519,7 +519,7 @@ TEST(HbmNeimarkSacker, LocatedWhereAComplexPairCrossesTheUnitCircle) {
       const double lo = std::min(b.points[i - 1].omega, p.omega), hi = std::max(b.points[i - 1].omega, p.omega);
       EXPECT_GE(p.neimark_sacker_at.omega, lo);
       EXPECT_LE(p.neimark_sacker_at.omega, hi);
-      if (!p.period_doubling && !p.fold) EXPECT_NE(p.stable, b.points[i - 1].stable);
+      if (!p.period_doubling && !p.fold) { EXPECT_NE(p.stable, b.points[i - 1].stable); }
       ++located;
     }
   EXPECT_GE(located, 2);

@@ -599,7 +599,7 @@ TEST_P(HostileCli, Row) {
       EXPECT_EQ(r.exit_code, 2) << "an error must be exit 2 (bad input)";
       EXPECT_NE(r.err.find("error: "), std::string::npos) << "no 'error: ' line";
       EXPECT_NE(r.err.find(row.err_has), std::string::npos) << "stderr lacks '" << row.err_has << "'";
-      if (row.err_max_bytes > 0) EXPECT_LE(r.err.size(), row.err_max_bytes) << "stderr of " << r.err.size() << " bytes";
+      if (row.err_max_bytes > 0) { EXPECT_LE(r.err.size(), row.err_max_bytes) << "stderr of " << r.err.size() << " bytes"; }
       failed_step = true;
       break;
     }
@@ -712,8 +712,9 @@ TEST(HostileFiles, TheDataDirectoryIsCreated0750AndItsIndexAndMaps0640) {
   EXPECT_EQ(mode(data / "sweeps"), 0750) << std::oct << mode(data / "sweeps");
   EXPECT_EQ(mode(data / "index.sqlite"), 0640) << std::oct << mode(data / "index.sqlite");
   EXPECT_EQ(mode(data / "sweeps" / (id + ".h5")), 0640) << std::oct << mode(data / "sweeps" / (id + ".h5"));
-  for (const char* side : {"index.sqlite-wal", "index.sqlite-shm"})
-    if (fs::exists(data / side)) EXPECT_EQ(mode(data / side), 0640) << side << " " << std::oct << mode(data / side);
+  for (const char* side : {"index.sqlite-wal", "index.sqlite-shm"}) {
+    if (fs::exists(data / side)) { EXPECT_EQ(mode(data / side), 0640) << side << " " << std::oct << mode(data / side); }
+  }
   EXPECT_EQ(mode(dir / "old"), 0755) << "an existing data directory keeps its mode";
   EXPECT_EQ(mode(dir / "old" / "sweeps"), 0750);
   EXPECT_EQ(mode(dir / "old" / "sweeps" / (id + ".h5")), 0640);

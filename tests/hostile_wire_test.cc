@@ -998,7 +998,7 @@ TEST(HostileRound2, MetricsListenersAnswerNoForeignHostName) {
       EXPECT_EQ(r.body.find(l.data), std::string::npos) << "Host '" << host << "'";
       EXPECT_EQ(r.body.find("bistable_"), std::string::npos) << "Host '" << host << "'";
       EXPECT_NE(r.body.find("--http-allowed-host"), std::string::npos) << r.body;
-      if (host.size() > 4) EXPECT_EQ(r.body.find(host), std::string::npos) << "the Host header was echoed";
+      if (host.size() > 4) { EXPECT_EQ(r.body.find(host), std::string::npos) << "the Host header was echoed"; }
     }
     EXPECT_EQ(get(l.port, "/healthz", "evil.example").status, 200);  // no data: open to any Host
   }
@@ -1326,7 +1326,7 @@ TEST(HostileRound2, WorkerRefusesAHostileLeaseFromAFakeCoordinator) {
     EXPECT_EQ(r.exit_code, 0) << "the worker did not stop cleanly (-1: killed by a signal)\n" << r.log;
     EXPECT_NE(r.log.find(c.says), std::string::npos) << r.log;
     EXPECT_EQ(r.reports, 0) << "a hostile lease was computed and reported";
-    if (c.released) EXPECT_EQ(r.released, std::vector<std::string>{"fake-lease-1"}) << r.log;
+    if (c.released) { EXPECT_EQ(r.released, std::vector<std::string>{"fake-lease-1"}) << r.log; }
   }
   // A lease period the worker cannot heartbeat by: refused at registration, exit 2, not slept on.
   for (double bad : {std::nan(""), -1.0, 0.0, 1e300}) {

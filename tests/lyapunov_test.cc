@@ -9,6 +9,7 @@
 
 #include "dynamics/benettin.h"
 #include "dynamics/dopri5.h"
+#include "dynamics/eigen_bounds.h"
 #include "dynamics/nondim_system.h"
 #include "dynamics/point.h"
 #include "dynamics/reference_systems.h"
@@ -201,7 +202,9 @@ TEST(LyapunovSpectrum, PeriodicOrbitMatchesFloquetExponents) {
   Eigen::Matrix4d mono;
   for (int j = 0; j < 4; ++j) {
     Eigen::VectorXd z(8);
+    BISTABLE_EIGEN_BOUNDS_BEGIN
     z.head(4) = x;
+    BISTABLE_EIGEN_BOUNDS_END
     z.tail(4) = Eigen::Vector4d::Unit(j);
     Dopri5<TangentSystem<NondimSystem<CoupledModel>>>(ts, ao).Integrate(t0, z, t0 + period);
     mono.col(j) = z.tail(4);

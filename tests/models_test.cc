@@ -7,6 +7,7 @@
 
 #include "dynamics/dimensional_model.h"
 #include "dynamics/dopri5.h"
+#include "dynamics/eigen_bounds.h"
 #include "dynamics/nondim_system.h"
 #include "dynamics/point.h"
 #include "dynamics/series_model.h"
@@ -87,7 +88,9 @@ TEST(SeriesModel, OneCellEqualsTheCoupledModel) {
   std::uniform_real_distribution<double> u(-2, 2);
   for (int trial = 0; trial < 10; ++trial) {
     Eigen::Vector4d x(u(rng), u(rng), u(rng), u(rng)), a;
+    BISTABLE_EIGEN_BOUNDS_BEGIN
     Eigen::VectorXd xs = x, b(4);
+    BISTABLE_EIGEN_BOUNDS_END
     const double t = u(rng);
     coupled(t, x, a);
     series(t, xs, b);
@@ -101,7 +104,9 @@ TEST(SeriesModel, OneCellWithoutResonatorEqualsTheStandaloneModel) {
   ASSERT_EQ(series.dim(), 2);
   NondimSystem<SingleModel> single_eps1(LaneFor([] { PointSpec s; s.model = ModelKind::kStandalone; return s; }()).coeffs, 0.5, 0.9);
   Eigen::Vector2d x(0.3, -0.7), a;
+  BISTABLE_EIGEN_BOUNDS_BEGIN
   Eigen::VectorXd xs = x, b(2);
+  BISTABLE_EIGEN_BOUNDS_END
   single_eps1(0.9, x, a);
   series(0.9, xs, b);
   EXPECT_DOUBLE_EQ(a[0], b[0]);

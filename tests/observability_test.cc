@@ -558,7 +558,7 @@ TEST(HttpServer, HeavyRoutesLeaveAThreadAndBoundEachClient) {
   auto map = std::async(std::launch::async, [&] { return as("bob", "/light"); });
   const bool map_answered = map.wait_for(std::chrono::seconds(5)) == std::future_status::ready;
   EXPECT_TRUE(map_answered) << "a light slow route waited for the heavy ones";
-  if (map_answered) EXPECT_EQ(map.get().status, 200);
+  if (map_answered) { EXPECT_EQ(map.get().status, 200); }
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   EXPECT_EQ(started.load(), 1) << "a second heavy handler took the other thread";
   let_go();

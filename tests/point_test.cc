@@ -198,7 +198,7 @@ TEST(PointMotion, ClassifiesIntrawellInterwellChaoticAndPeriod) {
       EXPECT_GT(r.lle, 3 * PointSpec{}.metrics.chaos_threshold);
       EXPECT_GT(r.hd_index, 0.3);
     }
-    if (c.period == 1) EXPECT_LT(r.hd_index, 1e-3);
+    if (c.period == 1) { EXPECT_LT(r.hd_index, 1e-3); }
   }
 }
 

@@ -182,7 +182,7 @@ TEST(Settle, ChaoticLabelsCarryTheirZeroOneTestAndTheVetoHolds) {
   auto q = EvaluatePoint(p);
   ASSERT_TRUE(q.ok());
   EXPECT_NE(q->motion, Motion::kChaotic);
-  if (q->period >= 1) EXPECT_TRUE(std::isnan(q->chaos_01));
+  if (q->period >= 1) { EXPECT_TRUE(std::isnan(q->chaos_01)); }
   s.metrics.chaos_01_min = 1.0;
   s.integration.settle_cap = 3000;
   auto v = EvaluatePoint(s);

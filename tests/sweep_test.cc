@@ -613,7 +613,7 @@ TEST(SweepEngine, StagedRecordsOverrideTheCacheAndTheLaterReportWins) {
     ASSERT_TRUE((*db)->PutPoints({job({"a", "b"}, 1.0)}).ok());
     ASSERT_EQ((*db)->CachedPointCount(), 2);  // folded: a and b are in the point cache with 1
     std::vector<IndexDb::JobResults> staged;
-    for (int i = 0; i < 5000; ++i) staged.push_back(job({"k" + std::to_string(i)}, i));  // more rows than one page of reads
+    for (int i = 0; i < 5000; ++i) staged.push_back(job({std::string("k").append(std::to_string(i))}, i));  // more rows than one page of reads
     staged.push_back(job({"a"}, 2.0));
     staged.push_back(job({"a"}, 3.0));  // the later report of a
     ASSERT_TRUE((*db)->PutPoints(staged).ok());
