@@ -697,6 +697,7 @@ nlohmann::json StepsJson(const IdentifyResult& r) {
                     {"force_delta_bic", JsonNumber(c.force_delta_bic)}, {"force_explained", JsonNumber(c.force_explained)},
                     {"twin_explained", JsonNumber(c.twin_explained)}});
     steps.push_back({{"verdict", s.verdict}, {"chosen", s.chosen}, {"n_eff", JsonNumber(s.n_eff)},
+                     {"record_n_eff", JsonNumber(s.record_n_eff)},
                      {"residual_force_rms", JsonNumber(s.residual_rms)}, {"scores", sc}});
   }
   return steps;

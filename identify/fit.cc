@@ -27,6 +27,7 @@
 
 #include "base/beside.h"
 #include "base/cpus.h"
+#include "dynamics/eigen_bounds.h"
 #include "dynamics/spectrum.h"
 
 namespace bistable {
@@ -50,6 +51,8 @@ struct Sims {
 // iteration); empty or of another size: a cold start. `start_is_fitted`: `start` holds the states fitted at
 // this θ already (ShootCache::At), so no pass runs. `fitted` (optional) receives the states fitted.
 // False when the simulation at the start diverges.
+// Eigen's packet loop over the small `Row J(nl)` (dynamics/eigen_bounds.h).
+BISTABLE_EIGEN_BOUNDS_BEGIN
 bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>* extra,
                  const PreparedRecord& r, const Setup& setup, int substeps, int every, SimOutputs* out,
                  const std::vector<double>* start = nullptr, std::vector<double>* fitted = nullptr, int threads = 1,
@@ -226,7 +229,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
   }();
   std::string trail;
   for (; pass < kPasses && std::find(active.begin(), active.end(), 1) != active.end(); ++pass) {
-    if (debug_passes && pass % 5 == 0) trail += " " + std::to_string(std::count(active.begin(), active.end(), 1));
+    if (debug_passes && pass % 5 == 0) trail += ' ', trail += std::to_string(std::count(active.begin(), active.end(), 1));
     propose();
     const bool ok = simulate(trial, true, false, &active, &so);
     if (ok) measure(so, &now);
@@ -259,7 +262,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
   }
   if (debug_passes) {
     std::string mus;
-    for (size_t k = 0; k < nseg; ++k) if (active[k]) mus += " " + std::to_string(acc[k].mu);
+    for (size_t k = 0; k < nseg; ++k) if (active[k]) mus += ' ', mus += std::to_string(acc[k].mu);
     std::fprintf(stderr, "shoot: %zu segments, %d passes, warm %d, active every 5:%s; mu of active:%s\n", nseg, pass, warm_start ? 1 : 0, trail.c_str(), mus.c_str());
   }
   if (fitted) *fitted = states;
@@ -297,6 +300,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
   }
   return true;
 }
+BISTABLE_EIGEN_BOUNDS_END
 
 // Every record simulated (in parallel over records); with `extra` given, with sensitivities to the
 // model's parameters and those terms'.

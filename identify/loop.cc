@@ -122,12 +122,11 @@ ResidualCloud ResidualForce(const IdentModel& m, const std::vector<double>& th, 
   return c;
 }
 
-namespace {
-
-// ΔBIC of k more columns that leave RSS_c of RSS_0 (ratio RSS_c / RSS_0), with n_eff independent residuals.
 double DeltaBic(double rss_ratio, size_t k, double n_eff) {
   return n_eff * std::log(std::max(rss_ratio, 1e-300)) + static_cast<double>(k) * std::log(n_eff);
 }
+
+namespace {
 
 // ΔBIC, explained fraction and the candidate's coefficients for target ≈ [A, C] x against target ≈ A x.
 CandidateScore ScoreColumns(const Eigen::MatrixXd& A, const Eigen::MatrixXd& C, const Eigen::VectorXd& target,
@@ -420,7 +419,7 @@ LoopStep TraceScores(const IdentModel& m, const std::vector<double>& th, const s
     step.verdict = "the fitted model diverges on a record; nothing traced";
     return step;
   }
-  step.n_eff = sim.n_eff;
+  step.n_eff = step.record_n_eff = sim.n_eff;
   int col = p;
   for (const TermDef* c : fresh) {
     const int k = static_cast<int>(c->params.size());

@@ -47,11 +47,17 @@ struct CandidateScore {
 // A candidate must explain this many times what it explains on the fitted model's twins (the null).
 inline constexpr double kTwinFactor = 2.0;
 
+// ΔBIC of k more columns that leave RSS_c of RSS_0 (rss_ratio = RSS_c / RSS_0), with n_eff independent residuals.
+double DeltaBic(double rss_ratio, size_t k, double n_eff);
+
 struct LoopStep {
   std::vector<CandidateScore> scores;  // sorted, best first
   std::string chosen;                  // "" when nothing qualified
   std::string verdict;                 // why it stopped or what was added
-  double n_eff = 0, residual_rms = 0;  // rows / correlation time; RMS residual force [N]
+  // The effective sample size ΔBIC counts (rows / correlation time): the twins' mean where they calibrate the
+  // trace, else the record's own (record_n_eff, which a missing term's smooth signature shortens). RMS
+  // residual force [N].
+  double n_eff = 0, record_n_eff = 0, residual_rms = 0;
 };
 
 struct AddedEffect {
