@@ -1,5 +1,7 @@
-// `bistable identify`: the measured-data loop (identify/loop.h) — fit the declared model to measured
-// records, trace the residual to the effect the model lacks, add it, refit, report before/after.
+// `bistable identify`: its flags mapped onto the library's options (identify/options.h) and the fit run by the
+// library's entry point, Identify(options, records) (identify/identify.h), which the Python module calls too;
+// here the flags, the JSON of a fit, --predict, --make-synthetic and --list-terms (report.md and the figures:
+// identify_report.cc).
 #include "client/identify_command.h"
 
 #include <algorithm>
@@ -12,10 +14,7 @@
 #include <limits>
 #include <map>
 #include <set>
-#include <charconv>
-#include <string_view>
 #include <sstream>
-#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -25,12 +24,12 @@
 #include "client/cli_common.h"
 #include "client/identify_diagnostics.h"
 #include "client/identify_predict.h"
+#include "client/identify_report.h"
 #include "client/json_out.h"
-#include "client/plot.h"
 #include "engine/json_shapes.h"
 #include "engine/sweep_spec.h"
 #include "dynamics/cancel.h"
-#include "identify/loop.h"
+#include "identify/identify.h"
 #include "identify/synthetic.h"
 
 namespace bistable {
@@ -61,138 +60,10 @@ struct IdentifyArgs {
   std::string synth_start = "right";
 };
 
-// "A:B" sample range (0-based, end exclusive; either side may be empty): decimal digits only, each side
-// at most limits::kMaxDataRows (a record's row limit), the end past the start.
-StatusOr<std::pair<size_t, size_t>> ParseRange(const std::string& s, const std::string& flag) {
-  const std::string bad = flag + " = '" + Printable(s, 64) + "' violates " + flag +
-                          " = A:B (sample indices, 0-based, end exclusive; decimal digits, each <= " +
-                          std::to_string(limits::kMaxDataRows) + ")";
-  const size_t c = s.find(':');
-  if (c == std::string::npos || s.size() > 32) return Status::InvalidArgument(flag, bad);
-  auto side = [&](std::string_view t, size_t none, size_t* v) {
-    if (t.empty()) return *v = none, true;
-    if (t.find_first_not_of("0123456789") != std::string_view::npos) return false;
-    unsigned long long x = 0;
-    const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), x);
-    if (ec != std::errc() || end != t.data() + t.size() || x > static_cast<unsigned long long>(limits::kMaxDataRows)) return false;
-    return *v = static_cast<size_t>(x), true;
-  };
-  size_t a = 0, b = SIZE_MAX;
-  const std::string_view sv(s);
-  if (!side(sv.substr(0, c), 0, &a) || !side(sv.substr(c + 1), SIZE_MAX, &b)) return Status::InvalidArgument(flag, bad);
-  if (b <= a) return Status::InvalidArgument(flag, flag + " = '" + Printable(s, 64) + "' is empty (the end must exceed the start)");
-  return std::make_pair(a, b);
-}
-
-StatusOr<ColumnMap> BuildColumns(const IdentifyArgs& a) {
-  ColumnMap c;
-  if (a.input_kind == "base_displacement") c.input_kind = InputKind::kBaseDisplacement, c.input = "x0";
-  else if (a.input_kind == "base_acceleration") c.input_kind = InputKind::kBaseAcceleration, c.input = "a0";
-  else if (a.input_kind == "force") c.input_kind = InputKind::kForce, c.input = "u";
-  else return Status::InvalidArgument("input-kind", "'" + a.input_kind + "' violates input-kind in {base_displacement, base_acceleration, force}");
-  if (a.output_kind == "displacement") c.output_kind = OutputKind::kDisplacement, c.output = "x";
-  else if (a.output_kind == "velocity") c.output_kind = OutputKind::kVelocity, c.output = "v";
-  else if (a.output_kind == "analogue") c.output_kind = OutputKind::kAnalogue, c.output = "y";
-  else return Status::InvalidArgument("output-kind", "'" + a.output_kind + "' violates output-kind in {displacement, velocity, analogue}");
-  if (!(a.input_scale != 0) || !std::isfinite(a.input_scale)) return Status::InvalidArgument("input-scale", "must be a finite non-zero factor");
-  if (!(a.output_scale != 0) || !std::isfinite(a.output_scale)) return Status::InvalidArgument("output-scale", "must be a finite non-zero factor");
-  if (!(a.output2_scale != 0) || !std::isfinite(a.output2_scale)) return Status::InvalidArgument("output2-scale", "must be a finite non-zero factor");
-  if (a.output2_kind != "voltage")
-    return Status::InvalidArgument("output2-kind", "'" + a.output2_kind + "' violates output2-kind in {voltage} (a second output is the "
-                                                   "piezo voltage, compared with main.piezo's state; a resonator is --columns resonator=...)");
-  c.voltage_scale = a.output2_scale;
-  c.input_scale = a.input_scale;
-  c.output_scale = a.output_scale;
-  auto pairs = ParseNameValues(a.columns, "columns");
-  if (!pairs.ok()) return pairs.status();
-  for (const auto& [k, v] : *pairs) {
-    if (k == "t") c.time = v;
-    else if (k == "input") c.input = v;
-    else if (k == "output") c.output = v;
-    else if (k == "resonator") c.resonator = v;
-    else if (k == "output2") c.voltage = v;
-    else if (k == "group") {
-      std::stringstream ss(v);
-      std::string g;
-      while (std::getline(ss, g, ';')) c.group.push_back(g);
-    } else {
-      return Status::InvalidArgument("columns", UnknownNameMessage("role", k, {"t", "input", "output", "output2", "resonator", "group"}));
-    }
-  }
-  return c;
-}
-
 std::string Fmt(double v, int digits = 4) {
   char b[48];
   std::snprintf(b, sizeof b, "%.*g", digits, v);
   return b;
-}
-
-// Plots: residual force against y and y' before/after; measured vs simulated for each record.
-Status WritePlots(const IdentifyResult& r, const std::vector<PreparedRecord>& recs, const Setup& setup, const std::string& dir,
-                  std::vector<std::string>* files) {
-  PanelPlot res;
-  res.title = "restoring-force residual of the main body (force the model lacks), before and after";
-  res.rows = 2, res.cols = 2;
-  auto cloud = [](const ResidualCloud& c, bool vel, const std::string& colour) {
-    PanelPlot::Series s;
-    s.points = true, s.colour = colour;
-    for (size_t i = 0; i < c.r.size(); ++i) s.x.push_back(vel ? c.v[i] : c.q[i] * 1e3), s.y.push_back(c.r[i]);
-    return s;
-  };
-  const std::string yl = setup.input == InputKind::kBaseDisplacement ? "y = x - x0 [mm]" : "y [mm]";
-  for (int row = 0; row < 2; ++row) {
-    const ResidualCloud& c = row == 0 ? r.residual_before : r.residual_after;
-    const std::string when = row == 0 ? "declared model" : "final model";
-    for (int col = 0; col < 2; ++col) {
-      PanelPlot::Panel p;
-      p.title = when + (col == 0 ? ": against displacement" : ": against velocity");
-      p.x_label = col == 0 ? yl : "y' [m/s]";
-      p.y_label = "residual force [N]";
-      p.series.push_back(cloud(c, col == 1, row == 0 ? "#b2182b" : "#2166ac"));
-      p.series.back().label = when;
-      res.panels.push_back(p);
-    }
-  }
-  const std::string f1 = (std::filesystem::path(dir) / "residual_force.png").string();
-  BISTABLE_RETURN_IF_ERROR(RenderPanels(res, f1));
-  files->push_back("residual_force.png");
-  for (size_t i = 0; i < recs.size(); ++i) {
-    SimOutputs before, after;
-    SimulateOutputs(r.declared, r.before.theta, {}, recs[i], setup, 0, 0, false, &before);
-    SimulateOutputs(r.final_model, r.after.theta, {}, recs[i], setup, 0, 0, false, &after);
-    const bool volt = recs[i].Has(OutputSlot::kVoltage);
-    PanelPlot tp;
-    tp.title = "record " + recs[i].name + ": measured and simulated output" + (volt ? "s" : "");
-    tp.rows = volt ? 4 : 2, tp.cols = 1;
-    for (int row = 0; row < tp.rows; ++row) {
-      const int slot = row < 2 ? 0 : 2;
-      const bool declared = row % 2 == 0;
-      PanelPlot::Panel p;
-      p.title = std::string(declared ? "declared model" : "final model") + (volt ? ": " + OutputName(setup, static_cast<OutputSlot>(slot)) : "");
-      p.x_label = "t [s]";
-      p.y_label = slot == 2 ? "voltage [V]" : "output (SI)";
-      PanelPlot::Series m, s, e;
-      m.label = "measured", m.colour = "#444444";
-      s.label = "simulated", s.colour = declared ? "#b2182b" : "#2166ac";
-      e.label = "error", e.colour = "#1a9850";
-      const std::vector<double>& sim = (declared ? before : after).out[slot];
-      const std::vector<double>& meas = recs[i].Measured(static_cast<OutputSlot>(slot));
-      const size_t stride = std::max<size_t>(1, recs[i].n() / 6000);
-      for (size_t k = 0; k < recs[i].n() && k < sim.size(); k += stride) {
-        const double t = recs[i].t0 + k * recs[i].dt;
-        m.x.push_back(t), m.y.push_back(meas[k]);
-        s.x.push_back(t), s.y.push_back(sim[k]);
-        e.x.push_back(t), e.y.push_back(sim[k] - meas[k]);
-      }
-      p.series = {m, s, e};
-      tp.panels.push_back(p);
-    }
-    const std::string name = "record_" + std::to_string(i + 1) + ".png";
-    BISTABLE_RETURN_IF_ERROR(RenderPanels(tp, (std::filesystem::path(dir) / name).string()));
-    files->push_back(name);
-  }
-  return Status::Ok();
 }
 
 nlohmann::json ParamsJson(const IdentModel& m, const FitResult& f) {
@@ -357,267 +228,81 @@ int MakeSynthetic(const std::string& dir, const IdentifyArgs& a) {
   return 0;
 }
 
-// What the flags ask for, checked: columns, setup, the declared model (with its constants and
-// guesses), the loop's options and the sample ranges.
-struct IdentifyPlan {
-  ColumnMap columns;
-  Setup setup;
-  IdentModel model;
-  IdentifyOptions opt;
-  bool frame_auto = false;  // --output-frame auto: fit both frames, keep the better (velocity outputs)
-  std::pair<size_t, size_t> fit_range{0, SIZE_MAX};
-  std::vector<std::pair<size_t, size_t>> tests;
-};
-
-// --known: the masses and friction constants, each > 0.
-Status ApplyKnown(const std::string& known, IdentModel* model, Setup* setup) {
+// --known: the masses and friction constants, each > 0 (checked on the text given, which the message quotes).
+Status ApplyKnown(const std::string& known, identify::Options* o) {
   auto kv = ParseNameValues(known, "known");
   if (!kv.ok()) return kv.status();
   for (const auto& [k, v] : *kv) {
     auto x = ParseFiniteNumber(v, "known." + k);
     if (!x.ok()) return x.status();
-    if (k == "m_main") model->m_main = *x;
-    else if (k == "m_res") model->m_res = *x;
-    else if (k == "v_sp") setup->fc.v_sp = *x;
-    else if (k == "v_t") setup->fc.v_t = *x;
-    else {
-      return Status::InvalidArgument("known", UnknownNameMessage("constant", k, {"m_main", "m_res", "v_sp", "v_t"}) +
-                                                  "; units: m_main, m_res [kg], v_sp, v_t [m/s]");
-    }
+    BISTABLE_RETURN_IF_ERROR(identify::SetKnown(k, *x, o));
     if (!(*x > 0)) return Status::InvalidArgument("known." + k, k + " = " + v + " violates " + k + " > 0");
   }
   return Status::Ok();
 }
 
-// --guess term.param=value: initial values of the declared model's parameters (the others NaN: from
-// the regression).
-Status ApplyGuesses(const std::string& guesses, IdentModel* model) {
-  if (guesses.empty()) return Status::Ok();
-  auto g = ParseNameValues(guesses, "guess");
-  if (!g.ok()) return g.status();
-  const auto names = model->ParamNames();
-  model->theta.assign(names.size(), NAN);
-  for (const auto& [k, v] : *g) {
-    auto it = std::find(names.begin(), names.end(), k);
-    if (it == names.end()) return Status::InvalidArgument("guess", UnknownNameMessage("parameter of the declared model", k, names));
+// The flags onto the library's options (identify/options.h). What only text can get wrong is checked here,
+// named by its flag: the names of kinds, frames, objectives and weights, --columns, --known, --guess and the
+// ranges; every bound is identify::Validate's (MakePlan), checked next.
+StatusOr<identify::Options> OptionsFromFlags(const IdentifyArgs& a) {
+  identify::Options o;
+  o.terms = identify::SplitTerms(a.terms);
+  auto in = identify::ParseInputKind(a.input_kind);
+  if (!in.ok()) return in.status();
+  auto out = identify::ParseOutputKind(a.output_kind);
+  if (!out.ok()) return out.status();
+  o.input_kind = *in, o.output_kind = *out;
+  o.input_scale = a.input_scale, o.output_scale = a.output_scale, o.output2_scale = a.output2_scale;
+  BISTABLE_RETURN_IF_ERROR(identify::CheckOutput2Kind(a.output2_kind));
+  auto pairs = ParseNameValues(a.columns, "columns");
+  if (!pairs.ok()) return pairs.status();
+  for (const auto& [k, v] : *pairs) BISTABLE_RETURN_IF_ERROR(identify::SetColumn(k, v, &o));
+  auto frame = identify::ParseFrameMode(a.frame);
+  if (!frame.ok()) return frame.status();
+  o.output_frame = *frame;
+  o.drift_cutoff = a.drift_cutoff;
+  BISTABLE_RETURN_IF_ERROR(ApplyKnown(a.known, &o));
+  auto guesses = ParseNameValues(a.guesses, "guess");
+  if (!guesses.ok()) return guesses.status();
+  for (const auto& [k, v] : *guesses) {
     auto x = ParseFiniteNumber(v, "guess." + k);
     if (!x.ok()) return x.status();
-    model->theta[it - names.begin()] = *x;
+    o.guesses[k] = *x;
   }
-  return Status::Ok();
-}
-
-// Output terms (out.<output>.offset / .scale) name a measured output of this run.
-Status CheckOutputTerms(const std::vector<const TermDef*>& terms, const ColumnMap& columns, const Setup& setup, const std::string& flag) {
-  std::vector<std::string> outputs = {OutputName(setup, OutputSlot::kMain)};
-  if (!columns.resonator.empty()) outputs.push_back("resonator");
-  if (!columns.voltage.empty()) outputs.push_back("voltage");
-  for (const TermDef* t : terms) {
-    if (t->body != Body::kOutput || std::find(outputs.begin(), outputs.end(), t->output) != outputs.end()) continue;
-    std::string list;
-    for (const std::string& o : outputs) list += (list.empty() ? "" : ", ") + o;
-    return Status::InvalidArgument(flag, "term '" + t->id + "' acts on a " + t->output + " output; this run's outputs are " + list);
-  }
-  return Status::Ok();
-}
-
-// Columns, setup and the declared model: --terms, --input-kind/--output-kind/--output-frame, the
-// scales, --columns, --known, --guess.
-Status PlanModel(const IdentifyArgs& a, IdentifyPlan* plan) {
-  if (a.terms.empty()) return Status::InvalidArgument("terms", "declare the model: --terms main.linear,main.viscous,... (--list-terms)");
-  auto terms = ParseTerms(a.terms);
-  if (!terms.ok()) return terms.status();
-  auto columns = BuildColumns(a);
-  if (!columns.ok()) return columns.status();
-  plan->columns = *columns;
-  Setup& setup = plan->setup;
-  setup.input = columns->input_kind;
-  setup.output = columns->output_kind;
-  if (a.frame == "absolute") setup.frame = OutputFrame::kAbsolute;
-  else if (a.frame == "relative") setup.frame = OutputFrame::kRelative;
-  else if (a.frame == "auto") plan->frame_auto = true;
-  else return Status::InvalidArgument("output-frame", "'" + a.frame + "' violates output-frame in {absolute, relative, auto}");
-  setup.drift_cutoff_hz = a.drift_cutoff;
-  if (plan->frame_auto && !(setup.output == OutputKind::kVelocity && setup.input == InputKind::kBaseAcceleration))
-    return Status::InvalidArgument("output-frame", "--output-frame auto decides whether a velocity sensor reads absolute or base-relative "
-                                                   "velocity: it needs --output-kind velocity and --input-kind base_acceleration");
-  IdentModel& model = plan->model;
-  model.terms = *terms;
-  BISTABLE_RETURN_IF_ERROR(ApplyKnown(a.known, &model, &setup));
-  model.fc = setup.fc;
-  if (model.m_main <= 0 && setup.input != InputKind::kForce)
-    return Status::InvalidArgument("known.m_main", "the main mass is needed with a base input (--known m_main=0.282; "
-                                                   "m_main=1 gives parameters per unit mass); only a force input can identify it");
-  if (model.HasResonator() && !(model.m_res > 0))
-    return Status::InvalidArgument("known.m_res", "resonator terms are declared: give its mass (--known m_res=0.62)");
-  BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));
-  BISTABLE_RETURN_IF_ERROR(CheckOutputTerms(model.terms, plan->columns, setup, "terms"));
-  return ApplyGuesses(a.guesses, &model);
-}
-
-// The loop's options and the sample ranges: --objective, the budgets, --deriv-cutoff, --decimate,
-// --horizon, --fit-offsets, --candidates, --range, --test-range.
-Status PlanLoop(const IdentifyArgs& a, IdentifyPlan* plan) {
-  IdentifyOptions& opt = plan->opt;
-  if (a.objective == "auto") opt.fit.objective = Objective::kTime, opt.choose_objective = true;
-  else if (a.objective == "time") opt.fit.objective = Objective::kTime;
-  else if (a.objective == "fft") opt.fit.objective = Objective::kFft;
-  else if (a.objective == "shooting") opt.fit.objective = Objective::kShooting;
-  else return Status::InvalidArgument("objective", "'" + a.objective + "' violates objective in {auto, time, fft, shooting}");
-  if (a.global_evals < 0 || a.global_evals > 100000) return Status::InvalidArgument("global-evals", "must be in [0, 100000]");
-  if (a.lm_iterations < 1 || a.lm_iterations > 10000) return Status::InvalidArgument("lm-iterations", "must be in [1, 10000]");
-  if (a.max_added < 0 || a.max_added > 10) return Status::InvalidArgument("max-added", "must be in [0, 10]");
-  if (!(a.deriv_cutoff >= 0)) return Status::InvalidArgument("deriv-cutoff", "deriv-cutoff = " + Fmt(a.deriv_cutoff) + " violates deriv-cutoff >= 0 Hz");
-  if (a.decimate < 1 || a.decimate > 1000) return Status::InvalidArgument("decimate", "must be in [1, 1000]");
-  if (!(a.horizon >= 0) || !(a.horizon <= 3600)) return Status::InvalidArgument("horizon", "horizon = " + Fmt(a.horizon) + " violates 0 <= horizon <= 3600 s");
-  if (!(a.max_seconds >= 0) || !(a.max_seconds <= 1e6))
-    return Status::InvalidArgument("max-seconds", "max-seconds = " + Fmt(a.max_seconds) + " violates 0 <= max-seconds <= 1e6 s (0: all)");
-  if (a.threads < 0 || a.threads > 1024)
-    return Status::InvalidArgument("threads", "threads = " + std::to_string(a.threads) + " violates threads in [0, 1024] (0: the usable CPUs)");
-  if (a.objective == "shooting" && !(a.horizon > 0))
-    return Status::InvalidArgument("horizon", "horizon = 0 violates horizon > 0 s (--objective shooting cuts the records into segments of --horizon)");
-  opt.fit.global_evals = a.global_evals;
-  opt.fit.lm_iterations = a.lm_iterations;
-  opt.fit.threads = a.threads;
-  opt.fit.shooting_horizon_s = a.horizon;
-  opt.max_added = a.max_added;
-  opt.fit_offsets = a.fit_offsets;
-  if (a.output_weights == "residual") opt.output_weights = IdentifyOptions::OutputWeights::kResidual;
-  else if (a.output_weights == "noise") opt.output_weights = IdentifyOptions::OutputWeights::kNoise;
-  else return Status::InvalidArgument("output-weights", "'" + a.output_weights + "' violates output-weights in {residual, noise}");
-  if (!a.candidates.empty()) {
-    auto c = ParseTerms(a.candidates);
-    if (!c.ok()) return Status::InvalidArgument("candidates", c.status().message());
-    BISTABLE_RETURN_IF_ERROR(CheckOutputTerms(*c, plan->columns, plan->setup, "candidates"));
-    opt.candidates = *c;
-  }
+  auto objective = identify::ParseObjectiveMode(a.objective);
+  if (!objective.ok()) return objective.status();
+  o.objective = *objective;
+  o.global_evals = a.global_evals, o.lm_iterations = a.lm_iterations, o.max_added = a.max_added, o.threads = a.threads;
+  o.deriv_cutoff = a.deriv_cutoff, o.decimate = a.decimate, o.horizon = a.horizon, o.max_seconds = a.max_seconds;
+  o.fit_offsets = a.fit_offsets;
+  auto weights = identify::ParseOutputWeights(a.output_weights);
+  if (!weights.ok()) return weights.status();
+  o.output_weights = *weights;
+  o.candidates = identify::SplitTerms(a.candidates);
   if (!a.range.empty()) {
-    auto r = ParseRange(a.range, "range");
+    auto r = identify::ParseRange(a.range, "range");
     if (!r.ok()) return r.status();
-    plan->fit_range = *r;
+    o.range = *r;
   }
   for (const std::string& t : a.test_ranges) {
-    auto r = ParseRange(t, "test-range");
+    auto r = identify::ParseRange(t, "test-range");
     if (!r.ok()) return r.status();
-    plan->tests.push_back(*r);
+    o.test_ranges.push_back(*r);
   }
-  return Status::Ok();
+  return o;
 }
 
-StatusOr<IdentifyPlan> PlanFromFlags(const IdentifyArgs& a) {
-  if (a.data.empty()) return Status::InvalidArgument("data", "give at least one --data FILE.csv");
-  IdentifyPlan plan;
-  BISTABLE_RETURN_IF_ERROR(PlanModel(a, &plan));
-  BISTABLE_RETURN_IF_ERROR(PlanLoop(a, &plan));
-  return plan;
-}
-
-// Every k-th sample of a record.
-Record Decimated(const Record& r, int k) {
-  Record d = r;
-  d.t.clear(), d.input.clear(), d.output.clear(), d.resonator.clear(), d.voltage.clear();
-  for (size_t i = 0; i < r.t.size(); i += k) {
-    d.t.push_back(r.t[i]), d.input.push_back(r.input[i]), d.output.push_back(r.output[i]);
-    if (!r.resonator.empty()) d.resonator.push_back(r.resonator[i]);
-    if (!r.voltage.empty()) d.voltage.push_back(r.voltage[i]);
-  }
-  d.dt = r.dt * k;
-  return d;
-}
-
-// Every record of every --data file, decimated.
-StatusOr<std::vector<Record>> LoadAll(const IdentifyArgs& a, const ColumnMap& columns) {
-  std::vector<Record> loaded;
-  for (const std::string& path : a.data) {
-    auto recs = LoadRecords(path, columns);
-    if (!recs.ok()) return recs.status();
-    for (Record& r : recs.value()) loaded.push_back(a.decimate > 1 ? Decimated(r, a.decimate) : std::move(r));
-  }
-  return loaded;
-}
-
-// The fitted part of each record (--range, --max-seconds), prepared for the setup.
-StatusOr<std::vector<PreparedRecord>> PrepareFitted(const std::vector<Record>& loaded, const IdentifyArgs& a, const IdentifyPlan& plan) {
-  std::vector<PreparedRecord> recs;
-  for (const Record& r : loaded) {
-    const size_t n = r.t.size();
-    size_t b = std::min(plan.fit_range.first, n), e = std::min(plan.fit_range.second, n);
-    if (a.max_seconds > 0) e = std::min<double>(e, static_cast<double>(b) + std::floor(a.max_seconds / r.dt));
-    if (a.objective == "shooting" && a.horizon < 4 * r.dt)
-      return Status::InvalidArgument("horizon", "horizon = " + Fmt(a.horizon) + " s violates horizon >= 4 samples of " + Printable(r.name, 64) +
-                                                    " (4 x dt = " + Fmt(4 * r.dt) + " s)");
-    auto p = PrepareRecord(r, plan.setup, b, e, a.deriv_cutoff, r.name);
-    if (!p.ok()) return p.status();
-    recs.push_back(std::move(p).value());
-  }
-  return recs;
-}
-
-// A fit that returns no numbers is a failure, not a result: report which parameters and stop.
-Status CheckFitted(const IdentifyResult& r, const std::string& objective) {
-  for (const auto& [fm, fr, what] : {std::tuple{&r.declared, &r.before, "declared model"}, std::tuple{&r.final_model, &r.after, "final model"}}) {
-    const auto names = fm->ParamNames();
-    std::string bad;
-    for (size_t i = 0; i < fr->theta.size(); ++i)
-      if (!std::isfinite(fr->theta[i])) bad += (bad.empty() ? "" : ", ") + (i < names.size() ? names[i] : std::to_string(i));
-    if (!bad.empty() || fr->theta.size() != names.size())
-      return Status::FailedPrecondition(std::string("identify: the fit of the ") + what + " gave non-finite parameters (" + bad +
-                                        "); check the data's units and the scales (--input-scale, --output-scale)");
-    const double err = objective == "fft" ? fr->errors.fft : objective == "shooting" ? fr->errors.shooting : fr->errors.nrmse;
-    if (!std::isfinite(err))
-      return Status::FailedPrecondition(std::string("identify: the ") + what + " as fitted cannot be simulated on the records (" +
-                                        objective + " error " + Fmt(err) + "); check the data's units, the scales and --guess");
-  }
-  return Status::Ok();
-}
-
-// --test-range splits of every record, simulated with the declared and the final model.
-StatusOr<nlohmann::json> TestSplits(const IdentifyResult& r, const std::vector<Record>& loaded, const IdentifyPlan& plan, double deriv_cutoff,
-                                    const double* weights) {
+// --test-range splits: JSON.
+nlohmann::json TestsJson(const std::vector<identify::TestSplit>& tests) {
   nlohmann::json out = nlohmann::json::array();
-  for (const auto& [tb, te] : plan.tests)
-    for (const Record& rec : loaded) {
-      auto prepared = PrepareRecord(rec, plan.setup, tb, te, deriv_cutoff, rec.name);
-      if (!prepared.ok()) return Status::InvalidArgument("test-range", prepared.status().message());
-      PreparedRecord p = *prepared;
-      std::copy(weights, weights + kOutputSlots, p.weight);  // the fit's output weights
-      const Errors eb = Evaluate(r.declared, r.before.theta, {p}, plan.setup);
-      const Errors ea = Evaluate(r.final_model, r.after.theta, {p}, plan.setup);
-      out.push_back({{"record", rec.name},
-                     {"range", std::to_string(tb) + ":" + std::to_string(std::min(te, rec.t.size()))},
-                     {"rms_before", JsonNumber(eb.record_rms[0])},
-                     {"rms_after", JsonNumber(ea.record_rms[0])},
-                     {"nrmse_before", JsonNumber(eb.nrmse)},
-                     {"nrmse_after", JsonNumber(ea.nrmse)}});
-    }
+  for (const identify::TestSplit& t : tests)
+    out.push_back({{"record", t.record},
+                   {"range", std::to_string(t.begin) + ":" + std::to_string(t.end)},
+                   {"rms_before", JsonNumber(t.before.record_rms[0])},
+                   {"rms_after", JsonNumber(t.after.record_rms[0])},
+                   {"nrmse_before", JsonNumber(t.before.nrmse)},
+                   {"nrmse_after", JsonNumber(t.after.nrmse)}});
   return out;
-}
-
-// A test split's RMS as formatted in the report and the summary (NaN when it diverged: null in JSON).
-std::string TestRms(const nlohmann::json& t, const char* key) { return Fmt(t[key].is_null() ? NAN : t[key].get<double>()); }
-
-// Simulations of both fits; checked: a saturated count stays a count.
-long long TotalSimulations(const IdentifyResult& r) {
-  long long simulations = 0;
-  if (__builtin_add_overflow(static_cast<long long>(std::max(r.before.simulations, 0)),
-                             static_cast<long long>(std::max(r.after.simulations, 0)), &simulations))
-    simulations = std::numeric_limits<long long>::max();
-  return simulations;
-}
-
-// --output-frame auto: the loop run in both frames; the one with the lower final error over all outputs
-// (each output's NRMSE counting the same) kept.
-struct FrameDecision {
-  bool made = false;
-  std::string chosen;
-  std::string metric = "nrmse";   // errors compared: nrmse, spectral (--objective fft) or shooting
-  double error[2] = {NAN, NAN};   // absolute, relative: the final error of each frame's loop
-  Errors errors[2];
-};
-
-// An output's error by the loop's metric: "nrmse", "spectral" or "shooting".
-double OutputError(const OutputErrors& e, const std::string& metric) {
-  return metric == "spectral" ? e.fft : metric == "shooting" ? e.shooting : e.nrmse;
 }
 
 nlohmann::json ErrorsByOutputJson(const Errors& before, const Errors& after) {
@@ -633,12 +318,12 @@ nlohmann::json ErrorsByOutputJson(const Errors& before, const Errors& after) {
   return j;
 }
 
-nlohmann::json FrameJson(const FrameDecision& f) {
+nlohmann::json FrameJson(const identify::FrameDecision& f) {
   if (!f.made) return nullptr;
   nlohmann::json by = nlohmann::json::object();
   for (int k = 0; k < 2; ++k) {
     nlohmann::json o = nlohmann::json::object();
-    for (const OutputErrors& e : f.errors[k].outputs) o[e.name] = JsonNumber(OutputError(e, f.metric));
+    for (const OutputErrors& e : f.errors[k].outputs) o[e.name] = JsonNumber(identify::OutputError(e, f.metric));
     by[k == 0 ? "absolute" : "relative"] = o;
   }
   return {{"chosen", f.chosen}, {"metric", f.metric}, {"error_absolute", JsonNumber(f.error[0])}, {"error_relative", JsonNumber(f.error[1])},
@@ -704,8 +389,10 @@ nlohmann::json StepsJson(const IdentifyResult& r) {
 }
 
 // The result as printed by --json and written to report.json.
-nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const IdentifyResult& r, const std::vector<PreparedRecord>& recs,
-                          const nlohmann::json& tests, long long simulations) {
+nlohmann::json ResultJson(const identify::Options& o, const identify::Summary& s) {
+  const IdentifyResult& r = s.result;
+  const std::vector<PreparedRecord>& recs = s.records;
+  const identify::Plan& plan = s.plan;
   nlohmann::json j;
   j["error_before"] = JsonNumber(r.before.errors.nrmse);
   j["error_after"] = JsonNumber(r.after.errors.nrmse);
@@ -715,17 +402,17 @@ nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const
   j["eq20_after"] = JsonNumber(r.after.errors.eq20);
   j["shooting_error_before"] = JsonNumber(r.before.errors.shooting);  // null unless --objective shooting
   j["shooting_error_after"] = JsonNumber(r.after.errors.shooting);
-  j["objective"] = a.objective;
+  j["objective"] = identify::Name(o.objective);
   j["objective_choice"] = ObjectiveChoiceJson(r.objective_choice);
   // The objective the loop ran and its error before and after (auto: what objective_choice chose).
-  const Objective ran = r.objective_choice.made ? r.objective_choice.objective : plan.opt.fit.objective;
+  const Objective ran = r.objective_choice.made ? r.objective_choice.objective : plan.loop.fit.objective;
   auto objective_error = [&](const Errors& e) { return ran == Objective::kShooting ? e.shooting : ran == Objective::kFft ? e.fft : e.nrmse; };
   j["objective_ran"] = ran == Objective::kShooting ? "shooting" : ran == Objective::kFft ? "fft" : "time";
   j["objective_error_before"] = JsonNumber(objective_error(r.before.errors));
   j["objective_error_after"] = JsonNumber(objective_error(r.after.errors));
   j["long_simulation_error_before"] = JsonNumber(r.before.errors.long_nrmse);
   j["long_simulation_error_after"] = JsonNumber(r.after.errors.long_nrmse);
-  j["declared"] = a.terms;
+  j["declared"] = identify::JoinTerms(o.terms);
   j["final_terms"] = nlohmann::json::array();  // the final model's terms in order (--predict rebuilds it from them)
   for (const TermDef* t : r.final_model.terms) j["final_terms"].push_back(t->id);
   j["effects_added"] = nlohmann::json::array();
@@ -763,125 +450,18 @@ nlohmann::json ResultJson(const IdentifyArgs& a, const IdentifyPlan& plan, const
     j["records"][i]["drive_band_hz"] = recs[i].f_drive;  // the simulation's drive: the input low-passed there (0: as measured)
     j["records"][i]["horizon_errors"] = h;
   }
-  j["tests"] = tests;
+  j["tests"] = TestsJson(s.tests);
   j["steps"] = StepsJson(r);
   j["seconds"] = r.seconds;
-  j["simulations"] = simulations;
+  j["simulations"] = s.simulations;
   j["settings"] = {{"v_sp", plan.setup.fc.v_sp}, {"v_t", plan.setup.fc.v_t}, {"m_main", plan.model.m_main}, {"m_res", plan.model.m_res},
-                   {"deriv_cutoff_hz", recs.empty() ? 0.0 : recs[0].f_cut}, {"global_evals", a.global_evals}, {"lm_iterations", a.lm_iterations}, {"shooting_horizon_s", a.horizon},
-                   {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"input_kind", a.input_kind},
-                   {"output_kind", a.output_kind}, {"output_frame", a.frame}, {"drift_cutoff_hz", a.drift_cutoff},
-                   {"fit_offsets", a.fit_offsets}, {"output_weights", a.output_weights}};
+                   {"deriv_cutoff_hz", recs.empty() ? 0.0 : recs[0].f_cut}, {"global_evals", o.global_evals}, {"lm_iterations", o.lm_iterations}, {"shooting_horizon_s", o.horizon},
+                   {"decimate", o.decimate}, {"max_seconds", o.max_seconds}, {"input_kind", identify::Name(o.input_kind)},
+                   {"output_kind", identify::Name(o.output_kind)}, {"output_frame", plan.setup.frame == OutputFrame::kRelative ? "relative" : "absolute"},
+                   {"drift_cutoff_hz", o.drift_cutoff}, {"fit_offsets", o.fit_offsets}, {"output_weights", identify::Name(o.output_weights)}};
   AddDiagnosticsJson(r, recs, &j);
+  j["velocity_frame"] = FrameJson(s.frame);
   return j;
-}
-
-// report.md's sections from the errors to the evidence: error before/after (records, tests), the
-// effects added, and every step's candidate table.
-std::string JsonFmt(const nlohmann::json& v) { return Fmt(v.is_number() ? v.get<double>() : NAN); }
-
-void WriteReportEvidence(std::ostream& md, const IdentifyResult& r, const std::vector<PreparedRecord>& recs, const nlohmann::json& j) {
-  const nlohmann::json& tests = j["tests"];
-  md << "## Error before and after\n\n| | declared model | final model |\n|---|---|---|\n";
-  md << "| NRMSE of the output, all records | " << Fmt(r.before.errors.nrmse) << " % | " << Fmt(r.after.errors.nrmse) << " % |\n";
-  md << "| spectral error (Eq. 20, normalised) | " << Fmt(r.before.errors.fft) << " % | " << Fmt(r.after.errors.fft) << " % |\n";
-  if (std::isfinite(r.after.errors.shooting))
-    md << "| short-horizon (shooting) NRMSE | " << Fmt(r.before.errors.shooting) << " % | " << Fmt(r.after.errors.shooting) << " % |\n";
-  for (size_t i = 0; i < recs.size(); ++i)
-    md << "| `" << recs[i].name << "` NRMSE / RMS | " << Fmt(r.before.errors.record_nrmse[i]) << " % / " << Fmt(r.before.errors.record_rms[i])
-       << " | " << Fmt(r.after.errors.record_nrmse[i]) << " % / " << Fmt(r.after.errors.record_rms[i]) << " |\n";
-  for (const auto& t : tests)
-    md << "| test `" << t["record"].get<std::string>() << "` [" << t["range"].get<std::string>() << ") RMS | " << TestRms(t, "rms_before")
-       << " | " << TestRms(t, "rms_after") << " |\n";
-  if (!j["errors_by_output"].empty()) {
-    md << "\n## Outputs\n\nFitted jointly; each output's NRMSE² weighs λ = (ν_main/ν)² in the objective, ν = noise σ / RMS "
-          "(σ from the spectral floor above the signal's band).\n\n| output | NRMSE declared | NRMSE final | spectral declared | "
-          "spectral final | noise σ | weight λ |\n|---|---|---|---|---|---|---|\n";
-    for (const auto& [name, o] : j["errors_by_output"].items())
-      md << "| " << name << " | " << JsonFmt(o["before"]) << " % | " << JsonFmt(o["after"]) << " % | " << JsonFmt(o["fft_before"]) << " % | "
-         << JsonFmt(o["fft_after"]) << " % | " << JsonFmt(o["noise"]) << " | " << JsonFmt(o["weight"]) << " |\n";
-  }
-  if (!j["velocity_frame"].is_null()) {
-    const auto& f = j["velocity_frame"];
-    md << "\n## Velocity frame\n\nThe loop was run with the sensor read as absolute and as base-relative velocity; final error "
-          "(RMS over the outputs of each one's " << (f["metric"] == "spectral" ? "spectral error" : "NRMSE") << ") "
-       << JsonFmt(f["error_absolute"]) << " % (absolute) and " << JsonFmt(f["error_relative"]) << " % (relative): **"
-       << f["chosen"].get<std::string>() << "** kept.\n\n| frame | final error per output |\n|---|---|\n";
-    for (const char* fr : {"absolute", "relative"}) {
-      md << "| " << fr << " |";
-      for (const auto& [name, v] : f["errors_by_output"][fr].items()) md << " " << name << " " << JsonFmt(v) << " %;";
-      md << " |\n";
-    }
-  }
-  md << "\n## Effects added\n\n";
-  if (r.added.empty()) md << "None: nothing in the residual beat the noise.\n";
-  for (const AddedEffect& e : r.added) {
-    const TermDef* t = *FindTerm(e.term);
-    md << "- **" << e.term << "** (" << t->meaning << "; `" << t->formula << "`): ";
-    for (size_t i = 0; i < e.names.size(); ++i) md << (i ? ", " : "") << e.names[i] << " = " << Fmt(e.params[i]) << " ± " << Fmt(e.sigma[i], 2) << " " << e.units[i];
-    md << "; error " << Fmt(e.error_before) << " % → " << Fmt(e.error_after) << " % when added.\n";
-  }
-  md << "\n## Evidence\n\n";
-  for (size_t k = 0; k < r.steps.size(); ++k) {
-    const LoopStep& s = r.steps[k];
-    md << "Step " << k + 1 << ": " << s.verdict << " (n_eff " << Fmt(s.n_eff, 4) << ", residual force RMS " << Fmt(s.residual_rms, 3) << " N).\n\n";
-    md << "| candidate | ΔBIC (simulation residual) | explained | signed | ΔBIC (force residual) | explained |\n|---|---|---|---|---|---|\n";
-    for (size_t i = 0; i < std::min<size_t>(s.scores.size(), 8); ++i) {
-      const CandidateScore& c = s.scores[i];
-      md << "| " << c.term << " | " << Fmt(c.delta_bic) << " | " << Fmt(100 * c.explained, 3) << " % | " << (c.sign_ok ? "yes" : "no") << " | "
-         << Fmt(c.force_delta_bic) << " | " << Fmt(100 * c.force_explained, 3) << " % |\n";
-    }
-    md << "\n";
-  }
-}
-
-// --report DIR: the figures, report.md and report.json (the result `j`).
-Status WriteReport(const IdentifyArgs& a, const Setup& setup, const IdentifyResult& r, const std::vector<PreparedRecord>& recs,
-                   const nlohmann::json& j, long long simulations) {
-  std::error_code ec;
-  std::filesystem::create_directories(a.report, ec);
-  if (ec) return Status::IoError("report", "cannot create '" + a.report + "': " + ec.message());
-  std::vector<std::string> figs;
-  BISTABLE_RETURN_IF_ERROR(WritePlots(r, recs, setup, a.report, &figs));
-  std::ostringstream md;  // written whole or not at all, like report.json (AtomicFile)
-  md << "# Identification report\n\n";
-  md << "Declared terms: `" << a.terms << "`; records: ";
-  for (size_t i = 0; i < recs.size(); ++i) md << (i ? ", " : "") << "`" << recs[i].name << "` (" << recs[i].n() << " samples)";
-  md << ".\n\n";
-  WriteReportEvidence(md, r, recs, j);
-  WriteDiagnosticsReport(md, r);
-  md << "## Final model\n\n| parameter | value | ± σ | unit |\n|---|---|---|---|\n";
-  const auto names = r.final_model.ParamNames();
-  const auto units = r.final_model.ParamUnits();
-  for (size_t i = 0; i < names.size(); ++i)
-    md << "| " << names[i] << " | " << Fmt(r.after.theta[i], 6) << " | " << Fmt(r.after.sigma[i], 2) << " | " << units[i] << " |\n";
-  md << "\nσ: Gauss–Newton covariance scaled by the residual's correlation time. Friction constants v_sp = " << setup.fc.v_sp
-     << " m/s, v_t = " << setup.fc.v_t << " m/s. Wall time " << Fmt(r.seconds, 3) << " s, " << simulations
-     << " simulations.\n\n## Figures\n\n";
-  for (const std::string& f : figs) md << "![" << f << "](" << f << ")\n\n";
-  const std::filesystem::path dir(a.report);
-  BISTABLE_RETURN_IF_ERROR(WriteTextOut((dir / "report.json").string(), DumpJson(j, 2) + "\n", "report"));
-  return WriteTextOut((dir / "report.md").string(), md.str(), "report");
-}
-
-// The human-readable result on stdout.
-void PrintSummary(const IdentifyArgs& a, const IdentifyResult& r, const nlohmann::json& tests, long long simulations) {
-  std::printf("error (NRMSE of the output): %s %% before, %s %% after   (spectral: %s %% -> %s %%)\n", Fmt(r.before.errors.nrmse).c_str(),
-              Fmt(r.after.errors.nrmse).c_str(), Fmt(r.before.errors.fft).c_str(), Fmt(r.after.errors.fft).c_str());
-  if (std::isfinite(r.after.errors.shooting))
-    std::printf("short-horizon error (--objective shooting, %s s segments): %s %% before, %s %% after\n", Fmt(a.horizon).c_str(),
-                Fmt(r.before.errors.shooting).c_str(), Fmt(r.after.errors.shooting).c_str());
-  for (const LoopStep& s : r.steps) std::printf("  %s\n", s.verdict.c_str());
-  const auto names = r.final_model.ParamNames();
-  const auto units = r.final_model.ParamUnits();
-  std::printf("final model:\n");
-  for (size_t i = 0; i < names.size(); ++i)
-    std::printf("  %-28s %12s ± %-9s %s\n", names[i].c_str(), Fmt(r.after.theta[i], 6).c_str(), Fmt(r.after.sigma[i], 2).c_str(), units[i].c_str());
-  for (const auto& t : tests)
-    std::printf("test %s [%s): RMS %s before, %s after\n", t["record"].get<std::string>().c_str(), t["range"].get<std::string>().c_str(),
-                TestRms(t, "rms_before").c_str(), TestRms(t, "rms_after").c_str());
-  std::printf("%s", DiagnosticsSummary(r).c_str());
-  std::printf("%.1f s, %lld simulations%s\n", r.seconds, simulations, a.report.empty() ? "" : ("; report in " + a.report).c_str());
 }
 
 // --predict: --terms and --known are not needed (the model file has them); given, they must agree.
@@ -906,11 +486,10 @@ Status CheckPredictFlagsAgree(const IdentifyArgs& a, const FittedModel& fm) {
   }
   auto kv = ParseNameValues(a.known, "known");
   if (!kv.ok()) return kv.status();
-  IdentModel scratch;
-  Setup scratch_setup;
-  BISTABLE_RETURN_IF_ERROR(ApplyKnown(a.known, &scratch, &scratch_setup));
+  identify::Options scratch;
+  BISTABLE_RETURN_IF_ERROR(ApplyKnown(a.known, &scratch));
   for (const auto& [k, v] : *kv) {
-    const double given = k == "m_main" ? scratch.m_main : k == "m_res" ? scratch.m_res : k == "v_sp" ? scratch_setup.fc.v_sp : scratch_setup.fc.v_t;
+    const double given = k == "m_main" ? scratch.m_main : k == "m_res" ? scratch.m_res : k == "v_sp" ? scratch.v_sp : scratch.v_t;
     const double model = k == "m_main" ? fm.model.m_main : k == "m_res" ? fm.model.m_res : k == "v_sp" ? fm.model.fc.v_sp : fm.model.fc.v_t;
     if (given != model)
       return Status::InvalidArgument("known." + k, "--known " + k + "=" + v + " differs from the model's " + k + " = " + Fmt(model, 17) + " (" +
@@ -953,13 +532,13 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   FittedModel fitted = std::move(read).value();
   FittedModel* fm = &fitted;
   BISTABLE_RETURN_IF_ERROR(CheckPredictFlagsAgree(a, *fm));
-  IdentifyPlan plan;
-  auto columns = BuildColumns(a);
-  if (!columns.ok()) return columns.status();
-  plan.columns = *columns;
-  Setup& setup = plan.setup;
-  setup.input = columns->input_kind;
-  setup.output = columns->output_kind;
+  const auto options = OptionsFromFlags(a);
+  if (!options.ok()) return options.status();
+  const identify::Options& o = *options;
+  const ColumnMap columns = identify::Columns(o);
+  Setup setup;
+  setup.input = o.input_kind;
+  setup.output = o.output_kind;
   if (!fm->input_kind.empty() && fm->input_kind != a.input_kind)
     return Status::InvalidArgument("input-kind", "the model was fitted with --input-kind " + fm->input_kind + " (" + fm->path +
                                                      "); its parameters do not describe a " + a.input_kind + " input");
@@ -969,13 +548,14 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   else return Status::InvalidArgument("output-frame", "'" + a.frame + "' violates output-frame in {absolute, relative, auto}");
   if (a.frame_given && a.frame != "auto" && !fm->frame.empty() && frame != fm->frame)
     fm->notes.push_back("the fit read the velocity as " + fm->frame + "; predicted as " + frame + " (--output-frame)");
-  plan.model = fm->model;
-  setup.fc = plan.model.fc;
+  const IdentModel& model = fm->model;
+  setup.fc = model.fc;
   setup.drift_cutoff_hz = a.drift_cutoff;
   BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));
-  BISTABLE_RETURN_IF_ERROR(CheckOutputTerms(plan.model.terms, plan.columns, setup, "model.final_terms"));
-  BISTABLE_RETURN_IF_ERROR(PlanLoop(a, &plan));
-  auto statics = AnalyseStatics(plan.model, plan.model.theta);
+  BISTABLE_RETURN_IF_ERROR(identify::CheckOutputTerms(model.terms, columns, setup, "model.final_terms"));
+  const auto loop = identify::LoopOptions(o, columns, setup);
+  if (!loop.ok()) return loop.status();
+  auto statics = AnalyseStatics(model, model.theta);
   if (!statics.ok()) return statics.status();
   auto wells = ParseStartWells(a);
   if (!wells.ok()) return wells.status();
@@ -983,16 +563,16 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   std::vector<Record> loaded;
   std::vector<size_t> file_of;
   for (size_t f = 0; f < a.data.size(); ++f) {
-    auto recs = LoadRecords(a.data[f], plan.columns);
+    auto recs = LoadRecords(a.data[f], columns);
     if (!recs.ok()) return recs.status();
-    for (Record& r : recs.value()) loaded.push_back(a.decimate > 1 ? Decimated(r, a.decimate) : std::move(r)), file_of.push_back(f);
+    for (Record& r : recs.value()) loaded.push_back(a.decimate > 1 ? identify::Decimated(r, a.decimate) : std::move(r)), file_of.push_back(f);
   }
-  auto prepared = PrepareFitted(loaded, a, plan);
+  auto prepared = identify::PrepareFitted(loaded, o, setup);
   if (!prepared.ok()) return prepared.status();
   std::vector<PreparedRecord> recs = std::move(prepared).value();
   // The start: the record's integrated (zero-mean) displacement as in a fit, plus the chosen well's
   // centre — the model's offset parameters, one per record.
-  IdentModel m = plan.model;
+  IdentModel m = model;
   std::vector<double> th = m.theta;
   const bool any_well = std::any_of(wells->begin(), wells->end(), [](const std::string& w) { return w != "none"; });
   if (any_well) {
@@ -1015,9 +595,9 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   std::vector<PredictedRecord> out;
   for (size_t i = 0; i < recs.size(); ++i) {
     PredictedRecord pr;
-    pr.p = PredictRecord(m, th, recs[i], setup, *statics, plan.opt.fit.objective);
-    for (size_t g = 0; g < plan.columns.group.size() && g < loaded[i].group_values.size(); ++g)
-      pr.group.emplace_back(plan.columns.group[g], loaded[i].group_values[g]);
+    pr.p = PredictRecord(m, th, recs[i], setup, *statics, loop->fit.objective);
+    for (size_t g = 0; g < columns.group.size() && g < loaded[i].group_values.size(); ++g)
+      pr.group.emplace_back(columns.group[g], loaded[i].group_values[g]);
     pr.start_well = (*wells)[file_of[i]];
     out.push_back(std::move(pr));
   }
@@ -1052,71 +632,40 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   return pj;
 }
 
-// The fit: what --json prints (and report.json holds); the report directory is written when asked.
+// The fit of the records of `data` (identify/identify.h) as --json prints it; the report directory is
+// written when asked, the text summary printed when `text`.
+StatusOr<nlohmann::json> FitJson(const identify::Options& o, const std::vector<std::string>& data, const std::string& report, bool text) {
+  auto plan = identify::MakePlan(o);  // the options' errors before any file is read
+  if (!plan.ok()) return plan.status();
+  // Resonator terms without a resonator column: the resonator is then a hidden state, started where the main body
+  // is, and its parameters rest on the main body's motion alone (on the coupled snap-through records they
+  // collapsed to 0). Said, not refused: a hidden resonator is a model a user may mean.
+  if (plan->model.HasResonator() && plan->columns.resonator.empty())
+    std::fprintf(stderr, "identify: warning: the model has res.* terms but no resonator column; the resonator is fitted as a hidden "
+                         "state (add --columns resonator=NAME for its absolute displacement, e.g. resonator=xr for --make-synthetic "
+                         "records)\n");
+  const auto loaded = identify::LoadRecords(o, data);
+  if (!loaded.ok()) return loaded.status();
+  const auto s = Identify(o, *loaded, text ? +[](const std::string& line) { std::fputs(line.c_str(), stderr); } : nullptr);
+  if (!s.ok()) return s.status();
+  const nlohmann::json j = ResultJson(o, *s);
+  if (!report.empty()) BISTABLE_RETURN_IF_ERROR(WriteReport(report, identify::JoinTerms(o.terms), *s, j));
+  if (text) PrintSummary(o, report, *s, j["tests"]);
+  return j;
+}
+
+// What the command prints: the library (--list-terms), synthetic records (--make-synthetic), a prediction
+// (--predict) or the fit.
 StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
   if (a.list_terms) return TermsJson();
   if (!a.synth.empty()) return SyntheticJson(a.synth, a);
   if (a.predict) return PredictJson(a);
   if (!a.model_file.empty()) return Status::InvalidArgument("model", "--model is read by --predict (add --predict, or drop --model to fit)");
   if (!a.start_well.empty()) return Status::InvalidArgument("start-well", "--start-well is a --predict option");
-  const auto planned = PlanFromFlags(a);
-  if (!planned.ok()) return planned.status();
-  IdentifyPlan plan = *planned;
-  // Resonator terms without a resonator column: the resonator is then a hidden state, started where the main body
-  // is, and its parameters rest on the main body's motion alone (on the coupled snap-through records they
-  // collapsed to 0). Said, not refused: a hidden resonator is a model a user may mean.
-  if (plan.model.HasResonator() && plan.columns.resonator.empty())
-    std::fprintf(stderr, "identify: warning: the model has res.* terms but no resonator column; the resonator is fitted as a hidden "
-                         "state (add --columns resonator=NAME for its absolute displacement, e.g. resonator=xr for --make-synthetic "
-                         "records)\n");
-  const auto loaded = LoadAll(a, plan.columns);
-  if (!loaded.ok()) return loaded.status();
-  FrameDecision frame;
-  std::vector<PreparedRecord> recs;
-  IdentifyResult r;
-  for (int f = 0; f < (plan.frame_auto ? 2 : 1); ++f) {
-    if (plan.frame_auto) plan.setup.frame = f == 0 ? OutputFrame::kAbsolute : OutputFrame::kRelative;
-    auto prepared = PrepareFitted(*loaded, a, plan);
-    if (!prepared.ok()) return prepared.status();
-    if (!a.json)
-      std::fprintf(stderr, "identify: %zu record(s), %zu parameters declared%s; fitting...\n", prepared->size(),
-                   static_cast<size_t>(plan.model.NumParams()), plan.frame_auto ? (f == 0 ? " (absolute frame)" : " (relative frame)") : "");
-    IdentifyResult rf = Identify(plan.model, *prepared, plan.setup, plan.opt);
-    if (CancelRequested()) return CancelledStatus();  // cut short: nothing of it is reported or written
-    BISTABLE_RETURN_IF_ERROR(CheckFitted(rf, a.objective));
-    if (plan.frame_auto) {
-      // Every output counts the same here (the fit's noise weights would let the cleanest output decide
-      // alone): the RMS over outputs of the final NRMSE (spectral error for --objective fft).
-      frame.made = true;
-      frame.metric = a.objective == "fft" ? "spectral" : a.objective == "shooting" ? "shooting" : "nrmse";
-      frame.errors[f] = rf.after.errors;
-      double ss = 0;
-      for (const OutputErrors& o : rf.after.errors.outputs) ss += std::pow(OutputError(o, frame.metric), 2);
-      frame.error[f] = std::sqrt(ss / static_cast<double>(std::max<size_t>(1, rf.after.errors.outputs.size())));
-      if (f == 1 && !(frame.error[1] < frame.error[0])) continue;  // keep the absolute frame's
-    }
-    r = std::move(rf);
-    recs = std::move(prepared).value();
-  }
-  if (frame.made) {
-    frame.chosen = frame.error[1] < frame.error[0] ? "relative" : "absolute";
-    plan.setup.frame = frame.chosen == "relative" ? OutputFrame::kRelative : OutputFrame::kAbsolute;
-  }
-  // The test splits are scored under the fit's final output weights (which the loop may have re-estimated).
-  double weights[kOutputSlots] = {1, 1, 1};
-  for (int k = 1; k < kOutputSlots; ++k)
-    for (const OutputErrors& o : r.after.errors.outputs)
-      if (o.name == OutputName(plan.setup, static_cast<OutputSlot>(k))) weights[k] = o.weight;
-  const auto tests = TestSplits(r, *loaded, plan, a.deriv_cutoff, weights);
-  if (!tests.ok()) return tests.status();
-  const long long simulations = TotalSimulations(r);
-  nlohmann::json j = ResultJson(a, plan, r, recs, *tests, simulations);
-  j["velocity_frame"] = FrameJson(frame);
-  j["settings"]["output_frame"] = plan.setup.frame == OutputFrame::kRelative ? "relative" : "absolute";
-  if (CancelRequested()) return CancelledStatus();  // the test splits may have been cut short
-  if (!a.report.empty()) BISTABLE_RETURN_IF_ERROR(WriteReport(a, plan.setup, r, recs, j, simulations));
-  if (!a.json) PrintSummary(a, r, *tests, simulations);
-  return j;
+  if (a.data.empty()) return Status::InvalidArgument("data", "give at least one --data FILE.csv");
+  const auto o = OptionsFromFlags(a);
+  if (!o.ok()) return o.status();
+  return FitJson(*o, a.data, a.report, !a.json);
 }
 
 int RunIdentify(const IdentifyArgs& a) {
@@ -1228,5 +777,12 @@ StatusOr<nlohmann::json> IdentifyFromArgs(const std::vector<std::string>& args) 
   a.json = true;  // nothing printed: the caller gets the object
   return IdentifyJson(a);
 }
+
+StatusOr<nlohmann::json> IdentifyFitJson(const identify::Options& options, const std::vector<std::string>& data, const std::string& report) {
+  if (data.empty()) return Status::InvalidArgument("data", "give at least one data file (CSV)");
+  return FitJson(options, data, report, false);
+}
+
+nlohmann::json IdentifyTermsJson() { return TermsJson(); }
 
 }  // namespace bistable

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "base/status.h"
+#include "identify/options.h"
 
 namespace bistable {
 void AddIdentifyCommand(CLI::App& app, int* exit_code);
@@ -17,6 +18,14 @@ void AddIdentifyCommand(CLI::App& app, int* exit_code);
 // line (without "identify"), parsed by the same options; returns what --json prints (--list-terms: the
 // library; --make-synthetic DIR: {"files"}). A bad flag is InvalidArgument with CLI11's message.
 StatusOr<nlohmann::json> IdentifyFromArgs(const std::vector<std::string>& args);
+
+// The fit for a program (the Python module), with no command-line text: `options` as the library takes them
+// (identify/options.h), the records of the files `data`, Identify (identify/identify.h); returns what
+// `identify --json` prints. `report`: a directory for report.md, report.json and the figures ("": none).
+StatusOr<nlohmann::json> IdentifyFitJson(const identify::Options& options, const std::vector<std::string>& data,
+                                         const std::string& report = "");
+// The effect library as `identify --list-terms --json` prints it.
+nlohmann::json IdentifyTermsJson();
 }  // namespace bistable
 
 #endif  // BISTABLE_CLIENT_IDENTIFY_COMMAND_H_

@@ -179,16 +179,32 @@ def hbm(**kw):
 def identify(data, **kw):
     """Fits the model to measured records (`bistable identify`); the dict `--json` prints.
 
-    data: a CSV path or a list of them. Keywords are the CLI's flags with '_' for '-' (terms, known,
-    columns, input_kind, ...): identify(["a.csv"], terms="main.linear,main.viscous", known={"m_main":
-    0.282}). Dict values become "name=value,..." lists, lists become comma lists, True adds the flag.
+    data: a CSV path or a list of them. Keywords are the fields of the library's options
+    (identify/options.h: identify::Options), named as the CLI's flags with '_' for '-', typed, SI units:
+
+        identify(["a.csv"], terms=["main.linear", "main.viscous"], known={"m_main": 0.282},
+                 columns={"input": "base_acc_g", "output": "laser_V"}, input_kind="base_acceleration",
+                 max_seconds=8, decimate=4, range=(0, 2000), test_range=[(2000, 4000)])
+
+    terms, candidates: a list of term ids (or "a,b"); known, guess: dicts of numbers; columns: a dict of
+    role -> column name (group: a list); range, test_range: (A, B) or "A:B"; report: a directory for
+    report.md, report.json and the figures. Invalid options raise ValueError naming the option and its bound.
+
+    list_terms=True returns the effect library; make_synthetic=DIR (with the synthetic_* keywords) and
+    predict=True (with model=FILE) still pass their flags as the CLI takes them.
     """
-    args = []
     paths = [data] if isinstance(data, (str, bytes, _os.PathLike)) else list(data)
     for path in paths:
         if not isinstance(path, (str, bytes, _os.PathLike)):
             raise ValueError("data = %.80r violates data a path (str, bytes, os.PathLike) or a list of them" % (path,))
-        args += ["--data", _os.fsencode(path)]  # bytes: any file name the system allows, UTF-8 or not
+    paths = [_os.fsencode(p) for p in paths]  # bytes: any file name the system allows, UTF-8 or not
+    if kw.get("list_terms"):
+        return _core.identify_terms()
+    if "make_synthetic" not in kw and not kw.get("predict"):
+        return _core.identify(paths, kw)
+    args = []
+    for path in paths:
+        args += ["--data", path]
     for k, v in kw.items():
         flag = "--" + k.replace("_", "-")
         if isinstance(v, bool):
@@ -200,7 +216,7 @@ def identify(data, **kw):
         elif isinstance(v, (list, tuple)):
             v = ",".join(str(x) for x in v)
         args += [flag, str(v)]
-    return _core.identify(args)
+    return _core.identify_args(args)
 
 
 class Client:

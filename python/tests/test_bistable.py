@@ -447,8 +447,47 @@ def test_identify_is_the_cli_identify(tmp_path):
     assert any(t["term"] == "main.friction" for t in terms)
     with pytest.raises(ValueError, match="terms"):
         bistable.identify(record, terms="main.nonsense")
-    with pytest.raises(ValueError, match="--no-such-flag"):
+    with pytest.raises(ValueError, match="unknown keyword 'no_such_flag'"):
         bistable.identify(record, no_such_flag=1)
+
+
+def without_seconds(j):
+    """A result without its timing fields ("seconds" anywhere)."""
+    if isinstance(j, dict):
+        return {k: without_seconds(v) for k, v in j.items() if k != "seconds"}
+    if isinstance(j, list):
+        return [without_seconds(v) for v in j]
+    return j
+
+
+def test_identify_takes_typed_options_and_names_the_bad_one(tmp_path):
+    # Keyword arguments onto the library's options (identify/options.h), no command-line text: lists, dicts,
+    # (A, B) ranges. The result is the CLI's --json but for the timing fields.
+    record = bistable.identify([], make_synthetic=str(tmp_path / "syn"))["files"][0]
+    mine = bistable.identify(record, terms=["main.linear", "main.viscous"], known={"m_main": 0.282}, max_seconds=6,
+                             global_evals=0, max_added=0, objective="time", test_range=[(720, 960), "960:1200"])
+    theirs = cli_json("identify", "--data", record, "--terms", "main.linear,main.viscous", "--known", "m_main=0.282",
+                      "--max-seconds", "6", "--global-evals", "0", "--max-added", "0", "--objective", "time",
+                      "--test-range", "720:960", "--test-range", "960:1200")
+    assert without_seconds(mine) == without_seconds(theirs)
+    assert [t["range"] for t in mine["tests"]] == ["720:960", "960:1200"]
+    ok = dict(terms="main.linear,main.viscous", known={"m_main": 0.282}, max_added=0, global_evals=0)
+    for bad, message in [
+        (dict(lm_iterations=0), "lm-iterations: must be in [1, 10000]"),
+        (dict(range=(5, 5)), "range: range = 5:5 is empty"),
+        (dict(range="1e3:2000"), "violates range = A:B"),
+        (dict(known={"m_main": -1}), "known.m_main: m_main = -1 violates m_main > 0"),
+        (dict(known={"m_mian": 1}), "did you mean 'm_main'"),
+        (dict(objective="phase"), "violates objective in {auto, time, fft, shooting}"),
+        (dict(columns={"outptu": "x"}), "did you mean 'output'"),
+        (dict(horizon=4000), "horizon = 4000 violates 0 <= horizon <= 3600 s"),
+        (dict(horizon=float("nan")), "horizon = nan violates horizon finite"),
+        (dict(max_added="3"), "max_added = '3' violates max_added an integer"),
+        (dict(guess={"main.linear.k": 1.0}), "did you mean 'main.linear.k_lin'"),
+        (dict(terms=["main.linear", "main.stifness_y3"]), "did you mean 'main.stiffness_y3'"),
+    ]:
+        with pytest.raises(ValueError, match=re.escape(message)):
+            bistable.identify(record, **{**ok, **bad})
 
 
 def start(cmd, log):
