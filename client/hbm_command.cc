@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "client/cli_common.h"
+#include "client/model_flags.h"
 #include "client/hbm_command.h"
 #include "client/hbm_json.h"
 #include "client/map_slice.h"
@@ -350,18 +351,13 @@ void AddHbmCommand(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<HbmArgs>();
   HbmOptions& o = a->o;
   CLI::App* cmd = app.add_subcommand("hbm", "Harmonic balance with continuation and stability (periodic orbits)");
-  cmd->add_option("--model", a->model, "standalone | coupled | linear | linear-coupled")->capture_default_str();
+  AddNondimModelOptions(cmd, &a->model, &o.params);
   cmd->add_option("--continue", a->param, "parameter to continue: omega | alpha")->capture_default_str();
   cmd->add_option("--from", o.from, "start of the parameter range")->capture_default_str();
   cmd->add_option("--to", o.to, "end of the parameter range")->capture_default_str();
   cmd->add_option("--alpha", o.alpha, "alpha when continuing in omega")->capture_default_str();
   cmd->add_option("--omega", o.omega, "Omega when continuing in alpha")->capture_default_str();
   cmd->add_option("--harmonics", o.harmonics, "harmonics H per degree of freedom (plus the constant term)")->capture_default_str();
-  cmd->add_option("--eps", o.params.eps, "cubic stiffness epsilon")->capture_default_str();
-  cmd->add_option("--eta", o.params.eta, "main damping eta")->capture_default_str();
-  cmd->add_option("--eta-r", o.params.eta_r, "resonator damping eta_r")->capture_default_str();
-  cmd->add_option("--phi", o.params.phi, "mass ratio phi")->capture_default_str();
-  cmd->add_option("--lambda", o.params.lambda, "tuning lambda")->capture_default_str();
   cmd->add_option("--ds", o.ds, "initial arclength step")->capture_default_str();
   cmd->add_flag("--zero-mean", o.zero_mean, "drop the constant terms (the paper's Eq. 9 ansatz; misses intrawell orbits)");
   cmd->add_option("--switch-pd", o.switch_depth,

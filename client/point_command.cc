@@ -12,6 +12,7 @@
 #include "base/exit_codes.h"
 #include "base/limits.h"
 #include "client/cli_common.h"
+#include "client/model_flags.h"
 #include "client/json_out.h"
 #include "client/plot.h"
 #include "client/poincare_section.h"
@@ -227,14 +228,9 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
   auto args = std::make_shared<PointArgs>();
   PointSpec& s = args->spec;
   CLI::App* cmd = app.add_subcommand("point", "Integrate one (alpha, Omega) point and print every metric");
-  cmd->add_option("--model", args->model, "standalone | coupled | linear | linear-coupled")->capture_default_str();
+  AddNondimModelOptions(cmd, &args->model, &s.params);
   cmd->add_option("--alpha", s.alpha, "base amplitude alpha = A0/delta_s (> 0)")->required();
   cmd->add_option("--omega", s.omega, "base frequency Omega = omega0/omega_n (> 0)")->required();
-  cmd->add_option("--eps", s.params.eps, "cubic stiffness epsilon (> 0)")->capture_default_str();
-  cmd->add_option("--eta", s.params.eta, "main damping eta = c/(m_m omega_n) (>= 0)")->capture_default_str();
-  cmd->add_option("--eta-r", s.params.eta_r, "resonator damping eta_r = c_r/(m_r omega_n) (>= 0)")->capture_default_str();
-  cmd->add_option("--phi", s.params.phi, "mass ratio phi = m_r/m_m (> 0)")->capture_default_str();
-  cmd->add_option("--lambda", s.params.lambda, "tuning lambda = omega_r/omega_n (> 0)")->capture_default_str();
   cmd->add_option("--t-end", s.integration.t_end, "end of the run, tau")->capture_default_str();
   cmd->add_option("--t-keep", s.integration.t_keep, "start of the steady-state window, tau")->capture_default_str();
   cmd->add_option("--integrator", args->integrator, "rk4 (fixed step, the paper's) | adaptive (Dormand-Prince 5(4))")

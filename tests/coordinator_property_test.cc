@@ -19,6 +19,7 @@
 #include "tests/map_compare.h"
 #include "tests/process_util.h"
 #include "engine/evaluate.h"
+#include "tests/spec_fixture.h"
 
 namespace bistable {
 namespace {
@@ -36,11 +37,7 @@ t_keep = 30.0
 
 std::string FreshDir(const std::string& name) { return bistable_test::FreshDir("prop", name); }
 
-SweepSpec Spec() {
-  auto s = ParseSweepSpec(kSpec, "property.toml");
-  EXPECT_TRUE(s.ok()) << s.status().ToString();
-  return *s;
-}
+SweepSpec Spec() { return bistable_test::ParsedSpec(kSpec, "property.toml"); }
 
 // Every item's true record, computed once (the fake workers look them up).
 const std::map<std::pair<long, int>, PointRecord>& Truth() {

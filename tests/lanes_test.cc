@@ -21,15 +21,12 @@
 #include "dynamics/point.h"
 #include "engine/evaluate.h"
 #include "engine/sweep_spec.h"
+#include "tests/spec_fixture.h"
 
 namespace bistable {
 namespace {
 
-SweepSpec Parse(const std::string& toml) {
-  auto s = ParseSweepSpec(toml, "lanes_test.toml");
-  EXPECT_TRUE(s.ok()) << s.status().ToString();
-  return s.ok() ? *s : SweepSpec{};
-}
+SweepSpec Parse(const std::string& toml) { return bistable_test::ParsedSpec(toml, "lanes_test.toml"); }
 
 bool SameBits(const PointRecord& a, const PointRecord& b) {
   return a.v.size() == b.v.size() && std::memcmp(a.v.data(), b.v.data(), a.v.size() * sizeof(double)) == 0;

@@ -29,6 +29,7 @@
 #include "engine/refine.h"
 #include "tests/map_compare.h"
 #include "tests/process_util.h"
+#include "tests/spec_fixture.h"
 
 namespace bistable {
 namespace {
@@ -40,11 +41,7 @@ std::string TempDir(const std::string& name) {
   return dir.string();
 }
 
-SweepSpec Parse(const std::string& toml) {
-  auto s = ParseSweepSpec(toml, "test.toml");
-  EXPECT_TRUE(s.ok()) << s.status().ToString();
-  return s.ok() ? *s : SweepSpec{};
-}
+SweepSpec Parse(const std::string& toml) { return bistable_test::ParsedSpec(toml); }
 
 // Runs a sweep like `bistable run` does, with `threads` worker threads; returns the map path.
 std::string RunSweep(SweepCoordinator& c, const SweepSpec& spec, int threads, SweepPlan* plan) {
