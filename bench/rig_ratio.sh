@@ -1,21 +1,24 @@
 #!/usr/bin/env bash
 # The rig's map paths against a converged reference and against each other, in one run (issue 41):
-#   bench/rig_ratio.sh [BUILD_DIR] [--detail] [--n N] [--paths "default rosenbrock rk4"] [--ref-data DIR] [--grids "example intrawell chaotic"]
-# For each grid (N × N points of examples/dimensional_table2.toml's rig, Table 2 with friction on both
-# bodies, t 0–20 s, window 10–20 s):
-#   example    A0 1–20 mm    × f0 1–12 Hz   (the example's range)
-#   intrawell  A0 0.2–3 mm   × f0 1–12 Hz   (low amplitude: intrawell, sticking and creeping)
+#   bench/rig_ratio.sh [BUILD_DIR] [--rounds R] [--detail] [--n N] [--paths "default rosenbrock rk4"]
+#                      [--ref-data DIR] [--grids "example intrawell chaotic"]
+# Grids (N × N points, default 10 × 10, of examples/dimensional_table2.toml's rig: Table 2 with Stribeck
+# friction on both bodies, t 0–20 s, window 10–20 s, dt 1 ms):
+#   example    A0 1–20 mm    × f0 1–12 Hz    (the example's range)
+#   intrawell  A0 0.2–3 mm   × f0 1–12 Hz    (low amplitude: intrawell, sticking and creeping)
 #   chaotic    A0 9–16 mm    × f0 1.5–4.5 Hz (the band where the rig's chaotic points lie)
-# it runs `bistable run SPEC --threads 1 --no-plots` for every path on a fresh data directory (nothing
-# cached; time = the run's plan + compute + publish) and the reference, Dormand–Prince at rtol 1e-10,
-# atol 1e-13 (cached in --ref-data, default /tmp/bistable-rig-reference: computed once, ~10 min per
-# grid at N = 10). Paths: default = the rig's default integrator (Dormand–Prince, rtol 1e-6,
-# atol 1e-9, one point at a time); dopri5 = the same, said explicitly; rosenbrock = the
-# ROS34PW2 lane path (integrator = "rosenbrock", the spec's tolerances); rk4 = fixed-step RK4 lanes.
-# A path may carry its tolerances: rosenbrock@RTOL[@ATOL] (e.g. rosenbrock@1e-4@1e-7).
-# Prints, per grid and path: motion equal %, period equal %, FRF within 0.05 dB %, LLE within
-# 0.05 /s % (and within 0.1 /s), time, and the time ratio against the dopri5/default path.
-# --detail lists every point that differs from the reference (all four metrics, both values).
+# Reference: Dormand–Prince at rtol 1e-10, atol 1e-13, computed once and kept in --ref-data (default
+# /tmp/bistable-rig-reference; 20–40 s per grid on this machine). Paths: default = the spec as the example
+# gives it (Dormand–Prince, rtol 1e-6, atol 1e-9, one point at a time); dopri5 = the same, said
+# explicitly; rosenbrock = ROS34PW2 in lanes (integrator = "rosenbrock", its default rtol 5e-6);
+# rk4 = fixed-step RK4 in lanes; a path may carry tolerances: rosenbrock@RTOL[@ATOL].
+# Each path runs `bistable run SPEC --threads 1 --no-plots` on a fresh data directory (nothing cached), R
+# rounds (default 3) with the paths alternating; times are medians: CPU (user + sys of the process: what
+# the run costs, robust against the machine's other load) and wall (the run's plan + compute + publish).
+# Prints, per grid and path: times, the ratio to the default (dopri5) path, motion equal %, period
+# equal %, FRF within 0.05 dB %, LLE within 0.05 /s % (and 0.1 /s), and LLE within 0.05 /s over the
+# points the reference calls regular (not chaotic: a chaotic point's finite-time LLE differs between
+# any two integrations). --detail lists every point that differs from the reference, with both values.
 # The first line is `bistable info` (CPU, vector unit, lane width: dynamics/host_lanes.h).
 set -euo pipefail
 cd "$(dirname "$0")/.."

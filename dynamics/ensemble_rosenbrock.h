@@ -343,6 +343,8 @@ class EnsembleRosenbrock {
       // The trial step: the lane's proposal, or what is left of the chunk when the proposal reaches
       // within 1 % of its end (then it lands exactly); 0 in finished lanes. (sn, cs) is the forcing's
       // phase at the lane's time; the stages' phases are rotated from it by Ω c_i h.
+      V a[4], b[4];
+      m.JacRows(st.j, a, b);
       const V rest = st.len - st.tau;
       const V last = SelectLess<W>(Fma(Splat<W>(1.01), st.h, st.tau), st.len, zero, one);
       const V h = Blend(st.active, Blend(last, rest, st.h), zero);
@@ -354,8 +356,6 @@ class EnsembleRosenbrock {
       // f_t h² γ_i: the forcing's time derivative amp·Ω·cos(Ω t) at the step's start (row 1 only).
       const V ft = st.amp_omega * st.cs;
       const V h2ft = (h * h) * ft;
-      V a[4], b[4];
-      m.JacRows(st.j, a, b);
       const Solver sol(h * R::gamma, a, b);
       V kx[4][kD], kw[4][kD], r[kD], tmp[kD], xs[kD], ws[kD], fs[kD], gs[kD];
       Jac js(m);
