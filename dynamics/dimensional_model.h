@@ -107,27 +107,54 @@ struct DimensionalLaneModel {
       V fy, fyd, gz, gzd;
     };
 
+    // d²F_f/dv² of both bodies at the evaluated state (EvalCurvature).
+    struct Curv {
+      V m, r;
+    };
+
     explicit Lanes(const Input& in)
         : p_(in.params), fric_m_(p_.fric_m), fric_r_(p_.fric_r), inv_m_m_(1.0 / p_.m_m), inv_m_r_(1.0 / p_.m_r) {}
     int dim() const { return kDim; }
     void Load(int, const Input&) {}
 
-    BISTABLE_INLINE void Eval(const V* x, V f, V* dx, Jac* j) const {
+    BISTABLE_INLINE void Eval(const V* x, V f, V* dx, Jac* j) const { EvalWith<false>(x, f, dx, j, nullptr); }
+    // Eval, and the friction laws' curvatures (the same bits of dx and j as Eval).
+    BISTABLE_INLINE void EvalCurvature(const V* x, V f, V* dx, Jac* j, Curv* c) const { EvalWith<true>(x, f, dx, j, c); }
+    // The derivative of the Jacobian entries along k at the state x (c: EvalCurvature's there): with
+    // Apply(dj, w, ·) it is ∂(J(x) w)/∂x · k, the tangent's coupling block of the augmented Jacobian.
+    BISTABLE_INLINE void JacDirection(const V* x, const Curv& c, const V* k, Jac* dj) const {
+      const V y = x[0], yd = x[1];
+      const V two_c2y = (2.0 * p_.c2_m) * y;
+      dj->fy = Fma(Fma(Splat<W>(-6.0 * p_.k3), y, (-2.0 * p_.c2_m) * yd), k[0], -(two_c2y * k[1]));
+      dj->fyd = -Fma(two_c2y, k[0], c.m * k[1]);
+      if (p_.has_resonator) {
+        const V z = x[2], zd = x[3];
+        dj->gz = (2.0 * p_.c2_r) * Fma(zd, k[2], z * k[3]);
+        dj->gzd = Fma((2.0 * p_.c2_r) * z, k[2], c.r * k[3]);
+      } else {
+        dj->gz = dj->gzd = Splat<W>(0.0);
+      }
+    }
+    template <bool kCurv>
+    BISTABLE_INLINE void EvalWith(const V* x, V f, V* dx, Jac* j, Curv* c) const {
       const V y = x[0], yd = x[1], z = x[2], zd = x[3];
       V ff_m, sl_m, g = Splat<W>(0.0);
-      fric_m_.ForceSlope<W>(yd, &ff_m, &sl_m);
+      if constexpr (kCurv) fric_m_.ForceSlopeCurvature<W>(yd, &ff_m, &sl_m, &c->m);
+      else fric_m_.ForceSlope<W>(yd, &ff_m, &sl_m);
       const V y2 = y * y, damp_m = Fma(Splat<W>(p_.c2_m), y2, Splat<W>(p_.c0_m));
       j->fy = Fma(Splat<W>(-3.0 * p_.k3), y2, Splat<W>(-p_.k_lin)) - (2.0 * p_.c2_m) * (y * yd);
       j->fyd = -damp_m - sl_m;
       if (p_.has_resonator) {
         V ff_r, sl_r;
-        fric_r_.ForceSlope<W>(zd, &ff_r, &sl_r);
+        if constexpr (kCurv) fric_r_.ForceSlopeCurvature<W>(zd, &ff_r, &sl_r, &c->r);
+        else fric_r_.ForceSlope<W>(zd, &ff_r, &sl_r);
         const V z2 = z * z, damp_r = Fma(Splat<W>(p_.c2_r), z2, Splat<W>(p_.c0_r));
         g = Fma(Splat<W>(p_.k_r), z, Fma(damp_r, zd, ff_r));
         j->gz = Fma(Splat<W>(2.0 * p_.c2_r), z * zd, Splat<W>(p_.k_r));
         j->gzd = damp_r + sl_r;
       } else {
         j->gz = j->gzd = g;
+        if constexpr (kCurv) c->r = g;
       }
       const V spring = Fma(Splat<W>(p_.k3), y2 * y, p_.k_lin * y);
       const V fm = (g - Fma(damp_m, yd, spring + ff_m)) * inv_m_m_;
@@ -152,6 +179,20 @@ struct DimensionalLaneModel {
         dw[2] = dw[3] = Splat<W>(0.0);
       }
     }
+    // The Jacobian's two dense rows, J[1][0..3] (the main mass's acceleration) and J[3][0..3] (the
+    // resonator's), in the operations of Apply (rows 0 and 2 are (0 1 0 0) and (0 0 0 1)); without a
+    // resonator row 3 is 0. For the linearly implicit integrators (ensemble_rosenbrock.h).
+    BISTABLE_INLINE void JacRows(const Jac& j, V* a, V* b) const {
+      a[0] = j.fy * inv_m_m_, a[1] = j.fyd * inv_m_m_, a[2] = j.gz * inv_m_m_, a[3] = j.gzd * inv_m_m_;
+      if (p_.has_resonator) {
+        const V im_r = Splat<W>(inv_m_r_);
+        b[0] = -a[0], b[1] = -a[1];
+        b[2] = Fma(-j.gz, im_r, -a[2]), b[3] = Fma(-j.gzd, im_r, -a[3]);
+      } else {
+        b[0] = b[1] = b[2] = b[3] = Splat<W>(0.0);
+      }
+    }
+    bool has_resonator() const { return p_.has_resonator; }
     BISTABLE_INLINE void Output(const V* x, const V* dx, V* out, V* dout) const {
       out[0] = x[0], out[1] = x[1], dout[0] = dx[0], dout[1] = dx[1];
     }

@@ -1,4 +1,5 @@
 #include "dynamics/ensemble_generic.h"
+#include "dynamics/ensemble_rosenbrock.h"
 
 namespace bistable {
 namespace {
@@ -27,11 +28,23 @@ bool RunDimensionalLanes(const DimensionalLaneInput* in, int n, const KernelSett
   return EnsembleGeneric<DimensionalLaneModel, W>::Run(in, n, s, substeps, out);
 }
 
+template <int W>
+bool RunDimensionalRosenbrock(const DimensionalLaneInput* in, int n, const KernelSettings& s,
+                              const RosenbrockTolerances& tol, RawLane* out) {
+  return EnsembleRosenbrock<W>::Run(in, n, s, tol, out);
+}
+
 template bool RunSeriesLanes<1>(const SeriesLaneInput*, int, const KernelSettings&, RawLane*);
 template bool RunSeriesLanes<4>(const SeriesLaneInput*, int, const KernelSettings&, RawLane*);
 template bool RunSeriesLanes<8>(const SeriesLaneInput*, int, const KernelSettings&, RawLane*);
 template bool RunDimensionalLanes<1>(const DimensionalLaneInput*, int, const KernelSettings&, int, RawLane*);
 template bool RunDimensionalLanes<4>(const DimensionalLaneInput*, int, const KernelSettings&, int, RawLane*);
 template bool RunDimensionalLanes<8>(const DimensionalLaneInput*, int, const KernelSettings&, int, RawLane*);
+template bool RunDimensionalRosenbrock<1>(const DimensionalLaneInput*, int, const KernelSettings&,
+                                          const RosenbrockTolerances&, RawLane*);
+template bool RunDimensionalRosenbrock<4>(const DimensionalLaneInput*, int, const KernelSettings&,
+                                          const RosenbrockTolerances&, RawLane*);
+template bool RunDimensionalRosenbrock<8>(const DimensionalLaneInput*, int, const KernelSettings&,
+                                          const RosenbrockTolerances&, RawLane*);
 
 }  // namespace bistable

@@ -80,6 +80,7 @@ struct Stribeck {
     explicit Lanes(const Stribeck& f)
         : a(f.HumpScale()), f_c(f.f_c), f_c_vt(f.f_c / f.v_t), inv_vt(1.0 / f.v_t), a_vsp(a / f.v_sp),
           two_a_vsp(2.0 * a_vsp), neg_half_inv_vsp2(-0.5 / (f.v_sp * f.v_sp)),
+          neg_two_a_vsp3(-2.0 * a_vsp / (f.v_sp * f.v_sp)), neg_two_fc_vt2(-2.0 * f_c_vt / f.v_t),
           off(f.f_s == 0 && f.f_c == 0 && !std::signbit(f.f_s) && !std::signbit(f.f_c)) {}
     template <int W>
     BISTABLE_INLINE void ForceSlope(Vec<W> v, Vec<W>* force, Vec<W>* slope) const {
@@ -108,7 +109,26 @@ struct Stribeck {
     BISTABLE_INLINE Vec<W> HumpExponent(Vec<W> v) const {
       return Fma(v * neg_half_inv_vsp2, v, Splat<W>(0.5));
     }
-    double a, f_c, f_c_vt, inv_vt, a_vsp, two_a_vsp, neg_half_inv_vsp2;
+    // F_f and dF_f/dv as ForceSlope (the same operations, so the same bits), and d²F_f/dv² =
+    // −2 a v e (1 + x)/v_sp³ − 2 F_c th (1 − th²)/v_t² (x the hump's exponent, e = exp x, th = tanh(v/v_t)):
+    // the curvature a linearly implicit integrator's tangent needs (ensemble_rosenbrock.h). 0 without friction.
+    template <int W>
+    BISTABLE_INLINE void ForceSlopeCurvature(Vec<W> v, Vec<W>* force, Vec<W>* slope, Vec<W>* curv) const {
+      if (off) {
+        ForceSlope<W>(v, force, slope);
+        *curv = Splat<W>(0.0);
+        return;
+      }
+      const Vec<W> one = Splat<W>(1.0);
+      const Vec<W> x = HumpExponent<W>(v);
+      const Vec<W> e = Exp<W>(x);
+      const Vec<W> th = Tanh<W>(v * inv_vt);
+      const Vec<W> sech2 = Fma(-th, th, one);
+      *force = Fma(Splat<W>(f_c), th, (v * a_vsp) * e);
+      *slope = Fma(e * two_a_vsp, x, f_c_vt * sech2);
+      *curv = Fma((v * neg_two_a_vsp3) * e, x + one, (th * neg_two_fc_vt2) * sech2);
+    }
+    double a, f_c, f_c_vt, inv_vt, a_vsp, two_a_vsp, neg_half_inv_vsp2, neg_two_a_vsp3, neg_two_fc_vt2;
     bool off;  // F_s = F_c = +0 (a −0 keeps the law, whose zeros then carry other signs)
   };
 };

@@ -180,6 +180,9 @@ StatusOr<PointResult> EvaluatePoint(const PointSpec& spec) {
     if (!EvaluateSettled<1>(&spec, 1, &r)) return CancelledStatus();
     return r;
   }
+  if (spec.integration.integrator == IntegratorKind::kRosenbrock)
+    return Status::InvalidArgument("integrator", "integrator = 'rosenbrock' is for the rig's maps (model = 'dimensional'); "
+                                                 "points of the cell models use 'rk4' or 'adaptive'");
   RawLane raw;
   bool cancelled = false;
   if (spec.integration.integrator == IntegratorKind::kRk4) {

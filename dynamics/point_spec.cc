@@ -50,12 +50,19 @@ bool IsCellModel(ModelKind m) { return m != ModelKind::kSeries && m != ModelKind
 bool HasResonator(ModelKind m) { return m == ModelKind::kCoupled || m == ModelKind::kLinearCoupled; }
 bool IsBistable(ModelKind m) { return m == ModelKind::kStandalone || m == ModelKind::kCoupled; }
 
-const char* IntegratorName(IntegratorKind k) { return k == IntegratorKind::kRk4 ? "rk4" : "adaptive"; }
+const char* IntegratorName(IntegratorKind k) {
+  switch (k) {
+    case IntegratorKind::kRk4: return "rk4";
+    case IntegratorKind::kRosenbrock: return "rosenbrock";
+    default: return "adaptive";
+  }
+}
 
 StatusOr<IntegratorKind> ParseIntegrator(const std::string& name) {
   if (name == "rk4") return IntegratorKind::kRk4;
   if (name == "adaptive" || name == "dopri5") return IntegratorKind::kAdaptive;
-  return Status::InvalidArgument("integrator", "integrator = '" + name + "' violates integrator in {rk4, adaptive}");
+  if (name == "rosenbrock") return IntegratorKind::kRosenbrock;
+  return Status::InvalidArgument("integrator", "integrator = '" + name + "' violates integrator in {rk4, adaptive, rosenbrock}");
 }
 
 const char* MotionName(Motion m) {
@@ -135,7 +142,7 @@ Status ValidatePointSpec(const PointSpec& s) {
   if (in.t_end / in.dt > limits::kMaxStepsPerPoint)
     return Violates("t_end", in.t_end, "<= " + FormatNumber(limits::kMaxStepsPerPoint) + " dt = " +
                                            FormatNumber(limits::kMaxStepsPerPoint * in.dt) + " (steps per point limit)");
-  if (in.integrator == IntegratorKind::kAdaptive) {
+  if (in.integrator != IntegratorKind::kRk4) {
     BISTABLE_RETURN_IF_ERROR(CheckPositive("rtol", in.rtol));
     BISTABLE_RETURN_IF_ERROR(CheckPositive("atol", in.atol));
     if (in.rtol < 1e-14) return Violates("rtol", in.rtol, ">= 1e-14");

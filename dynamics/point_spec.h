@@ -36,7 +36,12 @@ bool IsCellModel(ModelKind m);
 bool HasResonator(ModelKind m);
 bool IsBistable(ModelKind m);
 
-enum class IntegratorKind { kRk4, kAdaptive };
+// kRosenbrock: ROS34PW2 in lanes with adaptive steps per lane (dynamics/ensemble_rosenbrock.h), for
+// model = "dimensional" sweeps only (the rig's stiff friction); rtol and atol are its tolerances.
+enum class IntegratorKind { kRk4, kAdaptive, kRosenbrock };
+// The largest forcing phase per output step kRosenbrock covers (Ω dt ≤ 0.8 rad: at least 7.9 output
+// steps per forcing period; its stage polynomials of sin and cos, ensemble_rosenbrock.h).
+inline constexpr double kMaxPhasePerStep = 0.8;
 const char* IntegratorName(IntegratorKind k);
 StatusOr<IntegratorKind> ParseIntegrator(const std::string& name);
 

@@ -8,6 +8,7 @@
 #include "base/limits.h"
 #include "dynamics/cancel.h"
 #include "dynamics/ensemble_generic.h"
+#include "dynamics/ensemble_rosenbrock.h"
 #include "dynamics/generic_point.h"
 #include "dynamics/point.h"
 #include "dynamics/settle.h"
@@ -78,8 +79,29 @@ std::optional<std::vector<PointResult>> ItemsInLanes(const SweepSpec& spec, cons
   const PointSpec first = spec.PointAt(0, 0);
   KernelSettings ks = KernelSettingsFor(first);
   ks.keep_rows = false;
-  const int substeps =
-      spec.model == ModelKind::kDimensional ? Rk4Substeps(spec.dimensional.params, first.integration.dt) : 1;
+  const bool rosenbrock = first.integration.integrator == IntegratorKind::kRosenbrock;
+  const int substeps = spec.model == ModelKind::kDimensional && !rosenbrock
+                           ? Rk4Substeps(spec.dimensional.params, first.integration.dt) : 1;
+  RosenbrockTolerances tol;
+  tol.rtol = first.integration.rtol;
+  tol.atol = first.integration.atol;
+  if (rosenbrock) {  // the whole job through W lanes at once: a lane takes the next item when its own is done
+    std::vector<DimensionalLaneInput> in(items.size());
+    std::vector<RawLane> raws(items.size());
+    std::vector<PointSpec> all(items.size());
+    for (size_t i = 0; i < items.size(); ++i) {
+      all[i] = spec.PointAt(items[i].point, items[i].ic);
+      in[i] = DimensionalInputFor(spec, all[i]);
+    }
+    if (!RunDimensionalRosenbrock<W>(in.data(), static_cast<int>(in.size()), ks, tol, raws.data())) return std::nullopt;
+    for (size_t start = 0; start < items.size(); start += W) {
+      const int n = static_cast<int>(std::min<size_t>(W, items.size() - start));
+      std::array<PointSpec, W> proxies;
+      for (int l = 0; l < n; ++l) proxies[l] = MetricProxy(spec, all[start + l]);
+      ComputeBlockMetrics<W>(&raws[start], proxies.data(), n, &out[start]);
+    }
+    return out;
+  }
   for (size_t start = 0; start < items.size(); start += W) {
     const int n = static_cast<int>(std::min<size_t>(W, items.size() - start));
     for (int l = 0; l < n; ++l) specs[l] = spec.PointAt(items[start + l].point, items[start + l].ic);

@@ -70,7 +70,7 @@ nlohmann::json SettingsJson(const PointSpec& s) {
     j["phi"] = s.params.phi;
     j["lambda"] = s.params.lambda;
   }
-  if (s.integration.integrator == IntegratorKind::kAdaptive) {
+  if (s.integration.integrator != IntegratorKind::kRk4) {
     j["rtol"] = s.integration.rtol;
     j["atol"] = s.integration.atol;
   }

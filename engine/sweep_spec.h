@@ -149,8 +149,12 @@ struct SweepSpec {
 
   // True when items run through the SIMD ensemble kernel (cell models with RK4).
   bool UsesKernel() const { return IsCellModel(model) && base.integration.integrator == IntegratorKind::kRk4; }
-  // True when items run through the lane kernel of series chains and the rig (ensemble_generic.h): RK4.
-  bool UsesGenericLanes() const { return !IsCellModel(model) && base.integration.integrator == IntegratorKind::kRk4; }
+  // True when items run through the lane kernels of series chains and the rig: RK4 (ensemble_generic.h)
+  // or, for the rig, ROS34PW2 (ensemble_rosenbrock.h).
+  bool UsesGenericLanes() const {
+    return !IsCellModel(model) && (base.integration.integrator == IntegratorKind::kRk4 ||
+                                   base.integration.integrator == IntegratorKind::kRosenbrock);
+  }
   // Content key of an item: model configuration, parameters, settings, initial state, numerics version.
   std::string ItemKey(long index, int ic) const;
   // The cells of a series chain at a point: [params] and the axis values for all, then each cell's overrides.

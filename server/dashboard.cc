@@ -419,7 +419,7 @@ std::string PointCommand(const PointSpec& s, std::string* note) {
     cmd += " --eta-r " + Num(s.params.eta_r) + " --phi " + Num(s.params.phi) + " --lambda " + Num(s.params.lambda);
   cmd += " --integrator " + std::string(IntegratorName(s.integration.integrator)) + " --dt " + Num(s.integration.dt) +
          " --t-end " + Num(s.integration.t_end) + " --t-keep " + Num(s.integration.t_keep);
-  if (s.integration.integrator == IntegratorKind::kAdaptive)
+  if (s.integration.integrator != IntegratorKind::kRk4)
     cmd += " --rtol " + Num(s.integration.rtol) + " --atol " + Num(s.integration.atol);
   if (s.ic_given) cmd += " --ic " + Num(s.ic[0]) + "," + Num(s.ic[1]) + "," + Num(s.ic[2]) + "," + Num(s.ic[3]);
   cmd += " --chaos-threshold " + Num(s.metrics.chaos_threshold) + " --renorm-every " + std::to_string(s.metrics.renorm_every) +

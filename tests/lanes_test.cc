@@ -2,18 +2,24 @@
 // point has the bits of the same point evaluated alone (EvaluateItem, the lane kernel at width 1) at
 // every lane width and lane position, and the lane models agree with the independent per-point
 // implementations (SeriesModel with its Jacobian, Dormand–Prince on DimensionalModel).
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <set>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "dynamics/cancel.h"
+#include "dynamics/dopri5.h"
 #include "dynamics/ensemble_generic.h"
+#include "dynamics/ensemble_rosenbrock.h"
 #include "dynamics/friction.h"
 #include "dynamics/generic_point.h"
 #include "dynamics/host_lanes.h"
@@ -363,6 +369,224 @@ integrator = "rk4"
 t_end = 1.0
 t_keep = 0.5
 )");
+  ScopedCancelReset reset;
+  RequestCancel();
+  EXPECT_FALSE(EvaluateItemsInLanes(spec, ShuffledItems(spec), 8).has_value());
+  EXPECT_FALSE(ComputeItemsUnlessCancelled(spec, ShuffledItems(spec)).has_value());
+}
+
+// ---- The rig with ROS34PW2 in lanes (integrator = "rosenbrock", dynamics/ensemble_rosenbrock.h) ----
+
+// A 3 × 3 rig map from sticking (small A0) to sliding with the linearly implicit lanes: 9 items, so at
+// widths 4 and 8 lanes take further items as theirs finish.
+SweepSpec RosenbrockRigSweep(const std::string& dimensional) {
+  return Parse(R"(
+model = "dimensional"
+[dimensional]
+)" + dimensional + R"(
+[axes]
+a0_mm = [0.5, 3.0, 10.0]
+f0_hz = [2.0, 3.5, 6.0]
+[integration]
+integrator = "rosenbrock"
+t_end = 1.0
+t_keep = 0.5
+dt = 0.001
+)");
+}
+
+// map == point at every width and lane position, for the Table 2 rig, a frictionless main mass (its
+// law and curvature skipped) and the rig without a resonator.
+TEST(RosenbrockLanes, MapRecordsHaveTheBitsOfOnePointAtAnyLaneWidth) {
+  ExpectLanesEqualOnePointPath(RosenbrockRigSweep(""));
+  ExpectLanesEqualOnePointPath(RosenbrockRigSweep("fs_m = 0\nfc_m = 0"));
+  ExpectLanesEqualOnePointPath(RosenbrockRigSweep("resonator = false"));
+}
+
+// The spec: "rosenbrock" is the rig's, with its own default rtol (5e-6) unless one is given, its own
+// content key, and f0 within the stage polynomials' range (2π f0 dt ≤ 0.8).
+TEST(RosenbrockLanes, SpecDefaultsKeysAndLimits) {
+  const SweepSpec ros = RosenbrockRigSweep("");
+  EXPECT_TRUE(ros.UsesGenericLanes());
+  EXPECT_EQ(ros.base.integration.integrator, IntegratorKind::kRosenbrock);
+  EXPECT_EQ(ros.base.integration.rtol, 5e-6);
+  const SweepSpec rk4 = RigSweep("");
+  EXPECT_NE(ros.ItemKey(0, 0), rk4.ItemKey(0, 0));
+  auto given = ParseSweepSpec(R"(
+model = "dimensional"
+[axes]
+a0_mm = [1.0]
+[integration]
+integrator = "rosenbrock"
+rtol = 1e-7
+)", "t.toml");
+  ASSERT_TRUE(given.ok()) << given.status().ToString();
+  EXPECT_EQ(given->base.integration.rtol, 1e-7);
+  auto cell = ParseSweepSpec("model = \"coupled\"\n[axes]\nomega = [1.0]\n[integration]\nintegrator = \"rosenbrock\"\n", "t.toml");
+  ASSERT_FALSE(cell.ok());
+  EXPECT_EQ(cell.status().field(), "integration.integrator") << cell.status().ToString();
+  auto fast = ParseSweepSpec(R"(
+model = "dimensional"
+[axes]
+f0_hz = [10.0, 150.0]
+[integration]
+integrator = "rosenbrock"
+)", "t.toml");
+  ASSERT_FALSE(fast.ok());
+  EXPECT_EQ(fast.status().field(), "axes.f0_hz[1]") << fast.status().ToString();
+  PointSpec point;
+  point.integration.integrator = IntegratorKind::kRosenbrock;
+  EXPECT_FALSE(EvaluatePoint(point).ok());  // the cell models' points: rk4 or adaptive
+}
+
+// Fixed steps on a smooth problem (the rig without friction: cubic spring, c2 dampers, resonator):
+// the state and the tangent converge at order 3 (Richardson: successive differences shrink by 2³).
+TEST(RosenbrockLanes, ConvergesAtOrderThreeOnASmoothProblem) {
+  DimensionalLaneInput in;
+  in.params = DimensionalParams::BistableTable2();
+  in.params.fric_m = in.params.fric_r = Stribeck{0, 0};
+  in.base_amp = 5e-3;
+  in.omega = 2 * M_PI * 6.0;
+  in.amp = in.base_amp * in.omega * in.omega;
+  in.x0 = {std::sqrt(-in.params.k_lin / in.params.k3), 0, 0, 0};
+  KernelSettings ks;
+  ks.h = 1e-3;
+  ks.n_total = 400;
+  ks.n_keep = 200;
+  ks.renorm_every = 50;
+  ks.sample_every = 5;
+  std::vector<std::array<double, 8>> ends;
+  for (int k : {1, 2, 4, 8, 16}) {
+    RosenbrockTolerances tol;
+    tol.fixed_step = ks.h / k;
+    RawLane out;
+    ASSERT_TRUE(RunDimensionalRosenbrock<1>(&in, 1, ks, tol, &out));
+    ASSERT_FALSE(out.diverged);
+    EXPECT_EQ(out.steps, 400L * k);
+    std::array<double, 8> e;
+    for (int d = 0; d < 4; ++d) e[d] = out.final_state[d], e[4 + d] = out.final_tangent[d];
+    ends.push_back(e);
+  }
+  auto diff = [&](size_t i, int from, int to) {
+    double m = 0;
+    for (int d = from; d < to; ++d) m = std::max(m, std::fabs(ends[i][d] - ends[i + 1][d]) / (d % 2 ? 1.0 : 0.02));
+    return m;  // positions over 20 mm, velocities (m/s) as they are
+  };
+  for (size_t i = 0; i + 2 < ends.size(); ++i) {
+    const double order_x = std::log2(diff(i, 0, 4) / diff(i + 1, 0, 4));
+    const double order_w = std::log2(diff(i, 4, 8) / diff(i + 1, 4, 8));
+    std::printf("h = dt/%d: observed order %.3f (state), %.3f (tangent)\n", 1 << i, order_x, order_w);
+    EXPECT_NEAR(order_x, 3.0, 0.3) << "h = dt/" << (1 << i);
+    EXPECT_NEAR(order_w, 3.0, 0.3) << "h = dt/" << (1 << i);
+  }
+}
+
+// Stick–slip (A0 1 mm at 10 Hz: both bodies stick and slip every period) against Dormand–Prince at
+// rtol 1e-10 on DimensionalModel (the per-point model, glibc's exp and tanh): the state at 2 s.
+TEST(RosenbrockLanes, StickSlipAgreesWithDormandPrince) {
+  const DimensionalParams p = DimensionalParams::BistableTable2();
+  DimensionalLaneInput in;
+  in.params = p;
+  in.base_amp = 1e-3;
+  in.omega = 2 * M_PI * 10.0;
+  in.amp = in.base_amp * in.omega * in.omega;
+  in.x0 = {std::sqrt(-p.k_lin / p.k3), 0, 0, 0};
+  KernelSettings ks;
+  ks.h = 1e-3;
+  ks.n_total = 2000;
+  ks.n_keep = 1000;
+  ks.renorm_every = 50;
+  ks.sample_every = 5;
+  AdaptiveOptions o;
+  o.rtol = 1e-10;
+  o.atol = 1e-13;
+  const DimensionalModel model(p, SineBase(in.base_amp, 10.0));
+  Dopri5<DimensionalModel> dp(model, o);
+  DimensionalModel::State x;
+  x << in.x0[0], 0, 0, 0;
+  double slow_m = 0, slow_r = 0;  // time with |y'| and |z'| below v_t (1 mm/s) in the second second: sticking
+  double t_prev = 0;
+  ASSERT_EQ(dp.Integrate(0.0, x, 2.0, [&](const Dopri5<DimensionalModel>& st) {
+              const double t = st.t(), dt = t - t_prev;
+              t_prev = t;
+              if (t < 1.0) return;
+              DimensionalModel::State xi;
+              st.Interpolate(t, xi);
+              if (std::fabs(xi[1]) < p.fric_m.v_t) slow_m += dt;
+              if (std::fabs(xi[3]) < p.fric_r.v_t) slow_r += dt;
+            }),
+            OdeTermination::kOk);
+  std::printf("time below v_t in [1, 2] s: main mass %.3f s, resonator %.3f s\n", slow_m, slow_r);
+  EXPECT_GT(slow_m + slow_r, 0.02);
+  // Measured: rtol 5e-6 |Δy| 6e-10 m, |Δy'| 2.4e-7 m/s; rtol 1e-8 |Δy| 1.1e-12 m, |Δy'| 1.8e-9 m/s.
+  for (const auto& [rtol, tol_y, tol_v] : {std::tuple{5e-6, 1e-8, 3e-6}, std::tuple{1e-8, 5e-11, 2e-8}}) {
+    RosenbrockTolerances tol;
+    tol.rtol = rtol;
+    RawLane out;
+    ASSERT_TRUE(RunDimensionalRosenbrock<1>(&in, 1, ks, tol, &out));
+    EXPECT_NEAR(out.final_state[0], x[0], tol_y) << rtol;
+    EXPECT_NEAR(out.final_state[1], x[1], tol_v) << rtol;
+    EXPECT_NEAR(out.final_state[2], x[2], tol_y) << rtol;
+    EXPECT_NEAR(out.final_state[3], x[3], tol_v) << rtol;
+    std::printf("rtol %g: |dy| %.2e m |dy'| %.2e m/s |dz| %.2e m |dz'| %.2e m/s, %ld steps\n", rtol,
+                std::fabs(out.final_state[0] - x[0]), std::fabs(out.final_state[1] - x[1]),
+                std::fabs(out.final_state[2] - x[2]), std::fabs(out.final_state[3] - x[3]), out.steps);
+  }
+}
+
+// A point's metrics against the Dormand–Prince path at rtol 1e-10 (the issue's converged reference):
+// sticking, stick–slip and sliding, intrawell and interwell.
+TEST(RosenbrockLanes, MetricsAgreeWithTheConvergedReference) {
+  const std::string grid = R"(
+model = "dimensional"
+[axes]
+a0_mm = [1.0, 5.0, 15.0]
+f0_hz = [3.0, 8.0]
+[integration]
+t_end = 4.0
+t_keep = 2.0
+dt = 0.001
+)";
+  const SweepSpec ros = Parse(grid + "integrator = \"rosenbrock\"\n");
+  const SweepSpec ref = Parse(grid + "rtol = 1e-10\natol = 1e-13\n");
+  for (long p = 0; p < ros.points(); ++p) {
+    const PointResult a = EvaluateItem(ros, p, 0), b = EvaluateItem(ref, p, 0);
+    ASSERT_EQ(a.termination, Termination::kOk);
+    ASSERT_EQ(b.termination, Termination::kOk);
+    EXPECT_NEAR(a.frf_db, b.frf_db, 0.01) << p;
+    EXPECT_NEAR(a.y_max, b.y_max, 1e-5) << p;  // m
+    EXPECT_NEAR(a.y_min, b.y_min, 1e-5) << p;
+    EXPECT_NEAR(a.lle, b.lle, 0.05) << p;      // 1/s
+    EXPECT_EQ(a.motion, b.motion) << p;
+    EXPECT_EQ(a.period, b.period) << p;
+  }
+}
+
+// The law's curvature (for the tangent's coupling block): force and slope with the bits of the law
+// itself, and d²F/dv² against central differences of the slope.
+TEST(RosenbrockLanes, FrictionCurvatureMatchesTheSlopesDifferences) {
+  const Stribeck f{1.2, 0.44};
+  const Stribeck::Lanes fl(f);
+  for (double v0 = -0.02; v0 <= 0.02; v0 += 0.0000731) {
+    Vec<4> v, force, slope, curv, lf, ls;
+    for (int l = 0; l < 4; ++l) v[l] = v0 * (1.0 + 0.5 * l);
+    fl.ForceSlopeCurvature<4>(v, &force, &slope, &curv);
+    fl.Law<4>(v, &lf, &ls);
+    for (int l = 0; l < 4; ++l) {
+      const double a[2] = {force[l], slope[l]}, b[2] = {lf[l], ls[l]};
+      EXPECT_EQ(std::memcmp(a, b, sizeof a), 0) << v[l];
+      const double dv = 1e-7;
+      const double fd = (f.Slope(v[l] + dv) - f.Slope(v[l] - dv)) / (2 * dv);
+      EXPECT_NEAR(curv[l], fd, 1e-5 * (std::fabs(fd) + 1e3)) << v[l];
+    }
+  }
+  Vec<1> v{0.01}, force, slope, curv;
+  Stribeck::Lanes(Stribeck{0, 0}).ForceSlopeCurvature<1>(v, &force, &slope, &curv);
+  EXPECT_EQ(curv[0], 0.0);
+}
+
+TEST(RosenbrockLanes, CancelledRunHasNoResult) {
+  const SweepSpec spec = RosenbrockRigSweep("");
   ScopedCancelReset reset;
   RequestCancel();
   EXPECT_FALSE(EvaluateItemsInLanes(spec, ShuffledItems(spec), 8).has_value());
