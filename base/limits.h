@@ -65,6 +65,9 @@ inline constexpr int kMaxHbmFoldCurves = 64;                 // fold curves cont
 // --- The service -----------------------------------------------------------------------------------
 inline constexpr std::size_t kMaxMessageBytes = 8 << 20;     // any request to the coordinator
 inline constexpr std::size_t kMaxJobsPerLease = 16;          // jobs one Lease call may ask for
+inline constexpr int kMaxKnownSpecs = 16;                    // spec keys one Lease call may name (and a worker keeps)
+inline constexpr std::size_t kMaxMapCacheEntries = 16;       // published metrics and metric lists kept read (server)
+inline constexpr std::size_t kMaxMapCacheBytes = 256u << 20; // their values in all; a larger one is read, not kept
 inline constexpr double kMaxLeaseSeconds = 86'400;           // a lease period (--lease-seconds; a worker refuses more)
 inline constexpr std::size_t kFetchChunkBytes = 1 << 20;     // map files are streamed in chunks of this
 inline constexpr std::uint64_t kMaxFetchBytes = std::uint64_t{1} << 36;  // a fetched map file (64 GiB)

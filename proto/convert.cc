@@ -1,6 +1,9 @@
 #include "proto/convert.h"
 
+#include <algorithm>
+
 #include "base/limits.h"
+#include "base/sha256.h"
 
 namespace bistable {
 
@@ -90,6 +93,108 @@ StatusOr<std::vector<WorkItem>> ItemsFromProto(const v1::LeaseReply& rep) {
   std::vector<WorkItem> items(rep.points_size());
   for (int i = 0; i < rep.points_size(); ++i) items[i] = {rep.points(i), rep.ics(i)};
   return items;
+}
+
+void ToProto(const SubmitResult& in, v1::SubmitReply* out) {
+  out->set_id(in.id);
+  out->set_items_total(in.items_total);
+  out->set_items_cached(in.items_cached);
+  out->set_jobs(in.jobs);
+}
+
+SubmitResult FromProto(const v1::SubmitReply& in) { return {in.id(), in.items_total(), in.items_cached(), in.jobs()}; }
+
+void ToProto(const MetricList& in, v1::MetricsReply* out) {
+  out->set_id(in.id);
+  out->set_name(in.name);
+  for (const auto& m : in.metrics) out->add_metrics(m);
+}
+
+MetricList FromProto(const v1::MetricsReply& in) {
+  return {in.id(), in.name(), std::vector<std::string>(in.metrics().begin(), in.metrics().end())};
+}
+
+std::string SpecKey(std::string_view spec_toml) { return Sha256Hex(spec_toml); }
+
+bool IsSpecKey(std::string_view key) {
+  return key.size() == 64 && key.find_first_not_of("0123456789abcdef") == std::string_view::npos;
+}
+
+StatusOr<std::vector<std::string>> KnownSpecsFromProto(const google::protobuf::RepeatedPtrField<std::string>& in,
+                                                       const std::string& field) {
+  if (in.size() > limits::kMaxKnownSpecs)  // before anything is copied
+    return Status::InvalidArgument(field, field + " names " + std::to_string(in.size()) + " spec keys, over the limit of " +
+                                              std::to_string(limits::kMaxKnownSpecs));
+  std::vector<std::string> keys;
+  for (int i = 0; i < in.size(); ++i) {
+    if (!IsSpecKey(in.Get(i)))
+      return Status::InvalidArgument(field, field + "[" + std::to_string(i) + "] is not a spec key (64 lowercase hex digits)");
+    keys.push_back(in.Get(i));
+  }
+  return keys;
+}
+
+namespace {
+
+bool IsSweepId(std::string_view id) {
+  return !id.empty() && id.size() <= limits::kMaxIdBytes && id.find_first_not_of("0123456789abcdef") == std::string_view::npos;
+}
+
+}  // namespace
+
+void ToProto(const LeasedWork& in, v1::LeaseReply* out) {
+  out->set_has_job(true);
+  out->set_lease_id(in.lease_id);
+  out->set_sweep_id(in.sweep_id);
+  out->set_job_id(in.job_id);
+  out->set_spec_toml(in.spec_toml);
+  out->set_spec_key(in.spec_key);
+  ToProto(in.items, out);
+  out->set_deadline(in.deadline);
+}
+
+StatusOr<std::optional<LeasedWork>> FromProto(const v1::LeaseReply& in) {
+  if (!in.has_job()) return std::optional<LeasedWork>();
+  // Ids go into requests, log lines and the spec cache: bounded and plain, as the coordinator makes them.
+  if (in.lease_id().empty() || in.lease_id().size() > limits::kMaxIdBytes ||
+      std::any_of(in.lease_id().begin(), in.lease_id().end(), [](char c) { return c < 0x21 || c > 0x7e; }))
+    return Status::InvalidArgument("lease", "lease_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " visible ASCII characters");
+  if (!IsSweepId(in.sweep_id()))
+    return Status::InvalidArgument("lease", "sweep_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
+  if (!in.spec_key().empty() && !IsSpecKey(in.spec_key()))
+    return Status::InvalidArgument("lease", "spec_key is not a spec key (64 lowercase hex digits)");
+  if (in.spec_toml().size() > limits::kMaxSpecBytes)
+    return Status::InvalidArgument("lease", "spec_toml is " + std::to_string(in.spec_toml().size()) + " bytes, over the limit of " +
+                                                std::to_string(limits::kMaxSpecBytes));
+  auto items = ItemsFromProto(in);
+  if (!items.ok()) return items.status();
+  return std::optional<LeasedWork>(
+      LeasedWork{in.lease_id(), in.sweep_id(), static_cast<long>(in.job_id()), in.spec_toml(), in.spec_key(), std::move(*items), in.deadline()});
+}
+
+void ToProto(const SpecText& in, v1::SpecReply* out) {
+  out->set_sweep_id(in.sweep_id);
+  out->set_spec_toml(in.spec_toml);
+  out->set_spec_key(in.spec_key);
+}
+
+StatusOr<SpecText> FromProto(const v1::SpecReply& in) {
+  if (!IsSweepId(in.sweep_id()))
+    return Status::InvalidArgument("spec", "sweep_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
+  if (in.spec_toml().size() > limits::kMaxSpecBytes)
+    return Status::InvalidArgument("spec", "spec_toml is " + std::to_string(in.spec_toml().size()) + " bytes, over the limit of " +
+                                               std::to_string(limits::kMaxSpecBytes));
+  if (in.spec_key() != SpecKey(in.spec_toml()))
+    return Status::InvalidArgument("spec", "spec_key is not the SHA-256 of spec_toml");
+  return SpecText{in.sweep_id(), in.spec_toml(), in.spec_key()};
+}
+
+void ToProto(const MapChunk& in, v1::FileChunk* out) {
+  out->set_id(std::string(in.id));
+  out->set_offset(in.offset);
+  out->set_total_bytes(in.total_bytes);
+  out->set_data(in.data.data(), in.data.size());
+  if (!in.sha256.empty()) out->set_sha256(std::string(in.sha256));
 }
 
 void ToProto(const std::vector<PointRecord>& records, v1::ReportRequest* req) {

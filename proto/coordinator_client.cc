@@ -49,7 +49,7 @@ StatusOr<CoordinatorClient::Submitted> CoordinatorClient::Submit(const std::stri
   req.set_origin(origin);
   v1::SubmitReply rep;
   BISTABLE_RPC(Submit, 30, req, &rep);
-  return Submitted{rep.id(), rep.items_total(), rep.items_cached(), rep.jobs()};
+  return FromProto(rep);
 }
 
 StatusOr<SweepInfo> CoordinatorClient::GetStatus(const std::string& id) {
@@ -101,7 +101,7 @@ StatusOr<CoordinatorClient::MetricList> CoordinatorClient::ListMetrics(const std
   req.set_id(id);
   v1::MetricsReply rep;
   BISTABLE_RPC(ListMetrics, 60, req, &rep);
-  return MetricList{rep.id(), rep.name(), std::vector<std::string>(rep.metrics().begin(), rep.metrics().end())};
+  return FromProto(rep);
 }
 
 StatusOr<MapArray> CoordinatorClient::GetMap(const std::string& id, const std::string& metric) {
@@ -185,27 +185,26 @@ StatusOr<double> CoordinatorClient::Register(const std::string& name, int thread
   return rep.lease_seconds();
 }
 
-StatusOr<std::optional<CoordinatorClient::Lease>> CoordinatorClient::FromReply(const v1::LeaseReply& rep) const {
-  if (!rep.has_job()) return std::optional<Lease>();
-  // Ids go into requests, log lines and the spec cache: bounded and plain, as the coordinator makes them.
-  if (rep.lease_id().empty() || rep.lease_id().size() > limits::kMaxIdBytes ||
-      std::any_of(rep.lease_id().begin(), rep.lease_id().end(), [](char c) { return c < 0x21 || c > 0x7e; }))
-    return Status::InvalidArgument("lease", "lease_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " visible ASCII characters");
-  if (rep.sweep_id().empty() || rep.sweep_id().size() > limits::kMaxIdBytes ||
-      rep.sweep_id().find_first_not_of("0123456789abcdef") != std::string::npos)
-    return Status::InvalidArgument("lease", "sweep_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
-  auto items = ItemsFromProto(rep);
-  if (!items.ok()) return items.status();
-  return std::optional<Lease>(Lease{rep.lease_id(), rep.sweep_id(), rep.spec_toml(), std::move(*items)});
-}
-
-StatusOr<std::optional<CoordinatorClient::Lease>> CoordinatorClient::LeaseJob(const std::string& worker, int max_jobs) {
+StatusOr<std::optional<CoordinatorClient::Lease>> CoordinatorClient::LeaseJob(const std::string& worker, int max_jobs,
+                                                                               const std::vector<std::string>& known_specs) {
   v1::LeaseRequest req;
   req.set_worker(worker);
   req.set_max_jobs(max_jobs);
+  for (const auto& k : known_specs) req.add_known_specs(k);
   v1::LeaseReply rep;
   BISTABLE_RPC(Lease, 10, req, &rep);
-  return FromReply(rep);
+  return FromProto(rep);
+}
+
+StatusOr<SpecText> CoordinatorClient::GetSpec(const std::string& sweep_id) {
+  v1::SpecRequest req;
+  req.set_sweep_id(sweep_id);
+  v1::SpecReply rep;
+  BISTABLE_RPC(GetSpec, 30, req, &rep);
+  auto spec = FromProto(rep);
+  if (spec.ok() && spec->sweep_id != sweep_id)
+    return Status::InvalidArgument("spec", "the coordinator answered with the spec of sweep " + spec->sweep_id + " for " + sweep_id);
+  return spec;
 }
 
 Status CoordinatorClient::Heartbeat(const std::string& lease_id) {
@@ -217,16 +216,18 @@ Status CoordinatorClient::Heartbeat(const std::string& lease_id) {
 }
 
 Status CoordinatorClient::Report(const std::string& lease_id, const std::vector<PointRecord>& records,
-                                 const std::string& lease_next_for, std::optional<Lease>* next, int next_max_jobs) {
+                                 const std::string& lease_next_for, std::optional<Lease>* next, int next_max_jobs,
+                                 const std::vector<std::string>& next_known_specs) {
   v1::ReportRequest req;
   req.set_lease_id(lease_id);
   ToProto(records, &req);
   req.set_lease_next_for(lease_next_for);
   req.set_next_max_jobs(next_max_jobs);
+  for (const auto& k : next_known_specs) req.add_next_known_specs(k);
   v1::ReportReply rep;
   BISTABLE_RPC(Report, 30, req, &rep);
   if (next && rep.has_next()) {
-    auto n = FromReply(rep.next());
+    auto n = FromProto(rep.next());
     if (n.ok()) *next = std::move(*n);
   }
   return Status::Ok();

@@ -17,12 +17,9 @@
 #include "engine/sweep_spec.h"
 #include "engine/sweep_state.h"
 #include "proto/channel.h"
+#include "proto/convert.h"
 
 namespace bistable {
-
-namespace v1 {
-class LeaseReply;
-}
 
 class CoordinatorClient {
  public:
@@ -31,20 +28,14 @@ class CoordinatorClient {
   ~CoordinatorClient();
 
   // --- clients ---
-  struct Submitted {
-    std::string id;
-    long items_total = 0, items_cached = 0, jobs = 0;
-  };
+  using Submitted = SubmitResult;  // proto/convert.h, like every reply
   StatusOr<Submitted> Submit(const std::string& spec_toml, const std::string& origin);
   StatusOr<SweepInfo> GetStatus(const std::string& id);
   // Streams the sweep's status until it is final (or `on_status` returns false); the last one seen.
   StatusOr<SweepInfo> Watch(const std::string& id, const std::function<bool(const SweepInfo&)>& on_status);
   Status Cancel(const std::string& id);
   StatusOr<std::vector<WorkerInfo>> Workers();
-  struct MetricList {
-    std::string id, name;
-    std::vector<std::string> metrics;
-  };
+  using MetricList = ::bistable::MetricList;
   StatusOr<MetricList> ListMetrics(const std::string& id);
   StatusOr<MapArray> GetMap(const std::string& id, const std::string& metric);
   StatusOr<std::vector<SweepInfo>> ListSweeps();
@@ -61,16 +52,18 @@ class CoordinatorClient {
   // --- workers ---
   // Registers; the lease period in seconds.
   StatusOr<double> Register(const std::string& name, int threads);
-  struct Lease {
-    std::string lease_id, sweep_id, spec_toml;
-    std::vector<WorkItem> items;
-  };
+  // A lease; its spec_toml is "" when `known_specs` named its spec_key (the caller holds that spec).
+  using Lease = LeasedWork;
   // max_jobs > 1: up to that many queued jobs merged into one lease (SweepCoordinator::Lease).
-  StatusOr<std::optional<Lease>> LeaseJob(const std::string& worker, int max_jobs = 1);
+  // known_specs: the spec keys (SpecKey) whose text the caller holds, at most limits::kMaxKnownSpecs.
+  StatusOr<std::optional<Lease>> LeaseJob(const std::string& worker, int max_jobs = 1,
+                                          const std::vector<std::string>& known_specs = {});
   Status Heartbeat(const std::string& lease_id);
   // Reports; with `lease_next_for` non-empty the reply may carry the worker's next job (into *next).
   Status Report(const std::string& lease_id, const std::vector<PointRecord>& records, const std::string& lease_next_for,
-                std::optional<Lease>* next, int next_max_jobs = 1);
+                std::optional<Lease>* next, int next_max_jobs = 1, const std::vector<std::string>& next_known_specs = {});
+  // A sweep's spec text and key (a lease that came without it); the key is checked to be the text's.
+  StatusOr<SpecText> GetSpec(const std::string& sweep_id);
   Status Release(const std::string& lease_id);
 
   const std::string& address() const { return o_.address; }
@@ -78,7 +71,6 @@ class CoordinatorClient {
  private:
   struct Impl;
   CoordinatorClient(ConnectOptions o, std::unique_ptr<Impl> impl);
-  StatusOr<std::optional<Lease>> FromReply(const v1::LeaseReply& rep) const;
   ConnectOptions o_;
   std::unique_ptr<Impl> impl_;
 };

@@ -11,6 +11,8 @@ namespace bistable {
 
 grpc::Status ToGrpcStatus(const Status& s);
 Status FromGrpcStatus(const grpc::Status& s);
+// The code's name as gRPC spells it ("PERMISSION_DENIED"): metrics labels and log lines.
+const char* GrpcCodeName(grpc::StatusCode c);
 
 }  // namespace bistable
 

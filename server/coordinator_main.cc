@@ -19,6 +19,7 @@
 #include "proto/health.h"
 #include "server/coordinator_service.h"
 #include "server/dashboard.h"
+#include "server/map_cache.h"
 #include "server/metrics.h"
 
 namespace {
@@ -119,7 +120,9 @@ int main(int argc, char** argv) {
     return bistable::kExitError;
   }
   const bistable::TokenStore dashboard_tokens = tokens;
-  bistable::CoordinatorService service(coord->get(), lease_seconds, job_seconds, std::move(tokens));
+  // One cache of published maps for GetMap/ListMetrics and the dashboard (server/map_cache.h).
+  auto maps = std::make_shared<bistable::MapCache>();
+  bistable::CoordinatorService service(coord->get(), lease_seconds, job_seconds, std::move(tokens), maps);
   bistable::CoordinatorMetrics metrics(coord->get());
   service.SetMetrics(&metrics);
   // /metrics and /healthz; the metrics only for a Host that names this server (net/http_server.h: HostChecked).
@@ -136,7 +139,7 @@ int main(int argc, char** argv) {
   // --http: a second listener of the same server class (TLS when the gRPC side has it): the dashboard,
   // and /metrics and /healthz so that one port can serve everything.
   if (!http_addr.empty()) {
-    auto routes = bistable::DashboardRoutes(coord->get(), &dashboard_tokens, allowed_hosts);
+    auto routes = bistable::DashboardRoutes(coord->get(), &dashboard_tokens, allowed_hosts, maps);
     routes.insert(metric_routes.begin(), metric_routes.end());
     if (dashboard_tokens.enabled())  // behind tokens, the metrics are data too (Prometheus sends a bearer token)
       routes["/metrics"] = [&metrics, &dashboard_tokens](const bistable::HttpRequest& req) {

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <type_traits>
 
 #include "base/limits.h"
 #include "base/log.h"
@@ -14,7 +15,6 @@
 #include "engine/evaluate.h"
 #include "proto/convert.h"
 #include "proto/status_convert.h"
-#include "storage/map_file.h"
 
 namespace bistable {
 
@@ -50,28 +50,6 @@ namespace {
 // At most this many refusals a second are logged (a hostile client cannot flood the log); the rest
 // are counted in the metrics and summed up in the next logged line.
 constexpr int kRefusalLogsPerSecond = 20;
-
-const char* GrpcCodeName(grpc::StatusCode c) {
-  switch (c) {
-    case grpc::StatusCode::OK: return "OK";
-    case grpc::StatusCode::CANCELLED: return "CANCELLED";
-    case grpc::StatusCode::INVALID_ARGUMENT: return "INVALID_ARGUMENT";
-    case grpc::StatusCode::DEADLINE_EXCEEDED: return "DEADLINE_EXCEEDED";
-    case grpc::StatusCode::NOT_FOUND: return "NOT_FOUND";
-    case grpc::StatusCode::ALREADY_EXISTS: return "ALREADY_EXISTS";
-    case grpc::StatusCode::PERMISSION_DENIED: return "PERMISSION_DENIED";
-    case grpc::StatusCode::RESOURCE_EXHAUSTED: return "RESOURCE_EXHAUSTED";
-    case grpc::StatusCode::FAILED_PRECONDITION: return "FAILED_PRECONDITION";
-    case grpc::StatusCode::ABORTED: return "ABORTED";
-    case grpc::StatusCode::OUT_OF_RANGE: return "OUT_OF_RANGE";
-    case grpc::StatusCode::UNIMPLEMENTED: return "UNIMPLEMENTED";
-    case grpc::StatusCode::INTERNAL: return "INTERNAL";
-    case grpc::StatusCode::UNAVAILABLE: return "UNAVAILABLE";
-    case grpc::StatusCode::DATA_LOSS: return "DATA_LOSS";
-    case grpc::StatusCode::UNAUTHENTICATED: return "UNAUTHENTICATED";
-    default: return "UNKNOWN";
-  }
-}
 
 // A worker's name: printable ASCII, bounded (it is shown to every client by `bistable workers`).
 Status CheckWorkerName(const std::string& name) {
@@ -130,131 +108,154 @@ StatusOr<std::pair<std::string, std::string>> CoordinatorService::PublishedMap(c
   return std::make_pair(*id, (std::filesystem::path(c_->data_dir()) / info->file).string());
 }
 
+template <class Body>
+grpc::Status CoordinatorService::Serve(grpc::ServerContext* ctx, const char* method, Op op, Body&& body) {
+  Caller caller;
+  if (Status st = tokens_.Check(ctx, op, &caller.who, &caller.role); !st.ok()) return Answer(ctx, method, st);
+  if constexpr (std::is_same_v<std::invoke_result_t<Body, const Caller&>, grpc::Status>) {
+    return body(static_cast<const Caller&>(caller));
+  } else {
+    return Answer(ctx, method, body(static_cast<const Caller&>(caller)));
+  }
+}
+
+StatusOr<SpecText> CoordinatorService::KeyedSpec(const std::string& sweep_id) {
+  auto text = c_->SpecText(sweep_id);
+  if (!text.ok()) return text.status();
+  std::lock_guard<std::mutex> lock(spec_keys_mu_);
+  auto it = spec_keys_.find(sweep_id);
+  if (it == spec_keys_.end() || it->second.spec_toml != *text) {
+    // At most kMaxKnownSpecs texts kept (an active sweep's key is computed again when it was pushed out).
+    if (it == spec_keys_.end() && spec_keys_.size() >= static_cast<size_t>(limits::kMaxKnownSpecs)) spec_keys_.erase(spec_keys_.begin());
+    SpecText keyed{sweep_id, std::move(*text), ""};
+    keyed.spec_key = SpecKey(keyed.spec_toml);
+    it = spec_keys_.insert_or_assign(sweep_id, std::move(keyed)).first;
+  }
+  return it->second;
+}
+
 grpc::Status CoordinatorService::Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitReply* rep) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kSubmit, &who); !st.ok()) return Answer(ctx, "Submit", st);
-  if (req->spec_toml().size() > limits::kMaxSpecBytes)
-    return Answer(ctx, "Submit", Status::InvalidArgument("spec", "spec is " + std::to_string(req->spec_toml().size()) +
-                                                            " bytes, over the limit of " + std::to_string(limits::kMaxSpecBytes)));
-  // The origin only names the spec in messages: bounded, printable, never a path that is opened.
-  const std::string origin = req->origin().empty() ? "submitted spec" : Printable(req->origin(), limits::kMaxNameBytes);
-  auto spec = ParseSweepSpec(req->spec_toml(), origin);
-  if (!spec.ok()) return Answer(ctx, "Submit", spec.status());
-  // Jobs of about job_seconds of work on one core, at least 64 per sweep (the last jobs balance).
-  const long items = JobItems(*spec, job_seconds_, 64);
-  auto plan = c_->Submit(*spec, items, who);
-  if (!plan.ok()) return Answer(ctx, "Submit", plan.status());
-  rep->set_id(plan->id);
-  rep->set_items_total(plan->items_total);
-  rep->set_items_cached(plan->items_cached);
-  rep->set_jobs(plan->jobs);
-  return grpc::Status::OK;
+  return Serve(ctx, "Submit", Op::kSubmit, [&](const Caller& caller) -> Status {
+    if (req->spec_toml().size() > limits::kMaxSpecBytes)
+      return Status::InvalidArgument("spec", "spec is " + std::to_string(req->spec_toml().size()) + " bytes, over the limit of " +
+                                                 std::to_string(limits::kMaxSpecBytes));
+    // The origin only names the spec in messages: bounded, printable, never a path that is opened.
+    const std::string origin = req->origin().empty() ? "submitted spec" : Printable(req->origin(), limits::kMaxNameBytes);
+    auto spec = ParseSweepSpec(req->spec_toml(), origin);
+    if (!spec.ok()) return spec.status();
+    // Jobs of about job_seconds of work on one core, at least 64 per sweep (the last jobs balance).
+    const long items = JobItems(*spec, job_seconds_, 64);
+    auto plan = c_->Submit(*spec, items, caller.who);
+    if (!plan.ok()) return plan.status();
+    ToProto(SubmitResult{plan->id, plan->items_total, plan->items_cached, plan->jobs}, rep);
+    return Status::Ok();
+  });
 }
 
 grpc::Status CoordinatorService::GetStatus(grpc::ServerContext* ctx, const v1::StatusRequest* req, v1::SweepStatus* rep) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kStatus, &who); !st.ok()) return Answer(ctx, "GetStatus", st);
-  auto id = c_->ResolveId(req->id());
-  if (!id.ok()) return Answer(ctx, "GetStatus", id.status());
-  auto info = c_->Info(*id);
-  if (!info.ok()) return Answer(ctx, "GetStatus", info.status());
-  ToProto(*info, rep);
-  return grpc::Status::OK;
+  return Serve(ctx, "GetStatus", Op::kStatus, [&](const Caller&) -> Status {
+    auto id = c_->ResolveId(req->id());
+    if (!id.ok()) return id.status();
+    auto info = c_->Info(*id);
+    if (!info.ok()) return info.status();
+    ToProto(*info, rep);
+    return Status::Ok();
+  });
 }
 
 grpc::Status CoordinatorService::WatchStatus(grpc::ServerContext* ctx, const v1::StatusRequest* req,
                                              grpc::ServerWriter<v1::SweepStatus>* writer) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kStatus, &who); !st.ok()) return Answer(ctx, "WatchStatus", st);
-  auto id = c_->ResolveId(req->id());
-  if (!id.ok()) return Answer(ctx, "WatchStatus", id.status());
-  auto last = std::chrono::steady_clock::now() - std::chrono::seconds(1);
-  for (bool first = true; !ctx->IsCancelled() && !shutting_down_; first = false) {
-    auto info = first ? c_->Info(*id) : c_->AwaitFinal(*id, 0.5);  // progress every 0.5 s, the end at once
-    if (!info.ok()) return Answer(ctx, "WatchStatus", info.status());
-    // Never faster than limits::kMinWatchInterval, whatever the sweep's state.
-    const auto due = last + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                std::chrono::duration<double>(limits::kMinWatchInterval));
-    const bool final_state = IsFinal(info->state);
-    if (!final_state && std::chrono::steady_clock::now() < due) std::this_thread::sleep_until(due);
-    last = std::chrono::steady_clock::now();
-    v1::SweepStatus s;
-    ToProto(*info, &s);
-    if (!writer->Write(s) || final_state) return grpc::Status::OK;
-  }
-  // Ended by a shutdown, not by the sweep: the watcher must not take the last status for the end.
-  if (shutting_down_ && !ctx->IsCancelled())
-    return grpc::Status(grpc::StatusCode::UNAVAILABLE, "the coordinator is shutting down; the sweep goes on when it restarts");
-  return grpc::Status::OK;
+  return Serve(ctx, "WatchStatus", Op::kStatus, [&](const Caller&) -> grpc::Status {
+    auto id = c_->ResolveId(req->id());
+    if (!id.ok()) return Answer(ctx, "WatchStatus", id.status());
+    auto last = std::chrono::steady_clock::now() - std::chrono::seconds(1);
+    for (bool first = true; !ctx->IsCancelled() && !shutting_down_; first = false) {
+      auto info = first ? c_->Info(*id) : c_->AwaitFinal(*id, 0.5);  // progress every 0.5 s, the end at once
+      if (!info.ok()) return Answer(ctx, "WatchStatus", info.status());
+      // Never faster than limits::kMinWatchInterval, whatever the sweep's state.
+      const auto due = last + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                  std::chrono::duration<double>(limits::kMinWatchInterval));
+      const bool final_state = IsFinal(info->state);
+      if (!final_state && std::chrono::steady_clock::now() < due) std::this_thread::sleep_until(due);
+      last = std::chrono::steady_clock::now();
+      v1::SweepStatus s;
+      ToProto(*info, &s);
+      if (!writer->Write(s) || final_state) return grpc::Status::OK;
+    }
+    // Ended by a shutdown, not by the sweep: the watcher must not take the last status for the end.
+    if (shutting_down_ && !ctx->IsCancelled())
+      return grpc::Status(grpc::StatusCode::UNAVAILABLE, "the coordinator is shutting down; the sweep goes on when it restarts");
+    return grpc::Status::OK;
+  });
 }
 
 grpc::Status CoordinatorService::Cancel(grpc::ServerContext* ctx, const v1::CancelRequest* req, v1::CancelReply*) {
-  std::string who;
-  Role role = Role::kClient;
-  if (Status st = tokens_.Check(ctx, Op::kCancel, &who, &role); !st.ok()) return Answer(ctx, "Cancel", st);
-  auto id = c_->ResolveId(req->id());
-  if (!id.ok()) return Answer(ctx, "Cancel", id.status());
-  // Clients cancel their own sweeps (the owner is stored with the sweep and survives restarts);
-  // admins any.
-  auto info = c_->Info(*id);
-  if (!info.ok()) return Answer(ctx, "Cancel", info.status());
-  if (role != Role::kAdmin && info->owner != who)
-    return Answer(ctx, "Cancel", Status::PermissionDenied("only the token that submitted sweep " + *id + " (or an admin) may cancel it"));
-  return Answer(ctx, "Cancel", c_->Cancel(*id));
+  return Serve(ctx, "Cancel", Op::kCancel, [&](const Caller& caller) -> Status {
+    auto id = c_->ResolveId(req->id());
+    if (!id.ok()) return id.status();
+    // Clients cancel their own sweeps (the owner is stored with the sweep and survives restarts);
+    // admins any.
+    auto info = c_->Info(*id);
+    if (!info.ok()) return info.status();
+    if (caller.role != Role::kAdmin && info->owner != caller.who)
+      return Status::PermissionDenied("only the token that submitted sweep " + *id + " (or an admin) may cancel it");
+    return c_->Cancel(*id);
+  });
 }
 
 grpc::Status CoordinatorService::ListSweeps(grpc::ServerContext* ctx, const v1::ListSweepsRequest*, v1::ListSweepsReply* rep) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kList, &who); !st.ok()) return Answer(ctx, "ListSweeps", st);
-  auto infos = c_->ListSweeps();
-  if (!infos.ok()) return Answer(ctx, "ListSweeps", infos.status());
-  for (const SweepInfo& info : *infos) ToProto(info, rep->add_sweeps());
-  return grpc::Status::OK;
+  return Serve(ctx, "ListSweeps", Op::kList, [&](const Caller&) -> Status {
+    auto infos = c_->ListSweeps();
+    if (!infos.ok()) return infos.status();
+    for (const SweepInfo& info : *infos) ToProto(info, rep->add_sweeps());
+    return Status::Ok();
+  });
 }
 
 grpc::Status CoordinatorService::GetMap(grpc::ServerContext* ctx, const v1::MapRequest* req, v1::MapReply* rep) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kMap, &who); !st.ok()) return Answer(ctx, "GetMap", st);
-  auto map = PublishedMap(req->id());
-  if (!map.ok()) return Answer(ctx, "GetMap", map.status());
-  // ReadMapMetric opens only a metric the map lists (never an arbitrary HDF5 path from the request).
-  auto m = ReadMapMetric(map->second, req->metric());
-  if (!m.ok()) return Answer(ctx, "GetMap", m.status());
-  ToProto(*m, rep);
-  return grpc::Status::OK;
+  return Serve(ctx, "GetMap", Op::kMap, [&](const Caller&) -> Status {
+    auto map = PublishedMap(req->id());
+    if (!map.ok()) return map.status();
+    // Only a metric the map lists is read (never an arbitrary HDF5 path from the request), once per file.
+    auto m = maps_->Metric(map->second, req->metric());
+    if (!m.ok()) return m.status();
+    ToProto(**m, rep);
+    return Status::Ok();
+  });
 }
 
 grpc::Status CoordinatorService::ListMetrics(grpc::ServerContext* ctx, const v1::MapRequest* req, v1::MetricsReply* rep) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kMap, &who); !st.ok()) return Answer(ctx, "ListMetrics", st);
-  auto map = PublishedMap(req->id());
-  if (!map.ok()) return Answer(ctx, "ListMetrics", map.status());
-  auto names = ListMapMetrics(map->second);
-  if (!names.ok()) return Answer(ctx, "ListMetrics", names.status());
-  auto info = c_->Info(map->first);
-  rep->set_id(map->first);
-  rep->set_name(info.ok() ? info->name : "");
-  for (const auto& n : *names) rep->add_metrics(n);
-  return grpc::Status::OK;
+  return Serve(ctx, "ListMetrics", Op::kMap, [&](const Caller&) -> Status {
+    auto map = PublishedMap(req->id());
+    if (!map.ok()) return map.status();
+    auto names = maps_->Metrics(map->second);
+    if (!names.ok()) return names.status();
+    auto info = c_->Info(map->first);
+    ToProto(MetricList{map->first, info.ok() ? info->name : "", **names}, rep);
+    return Status::Ok();
+  });
 }
 
 grpc::Status CoordinatorService::RegisterWorker(grpc::ServerContext* ctx, const v1::RegisterRequest* req, v1::RegisterReply* rep) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kRegister, &who); !st.ok()) return Answer(ctx, "RegisterWorker", st);
-  if (Status st = CheckWorkerName(req->name()); !st.ok()) return Answer(ctx, "RegisterWorker", st);
-  log::Event(log::Level::kInfo, "worker.registered",
-             {{"worker", req->name()}, {"threads", static_cast<long long>(req->threads())}, {"peer", ctx->peer()}, {"identity", who}});
-  rep->set_lease_seconds(lease_seconds_);
-  return grpc::Status::OK;
+  return Serve(ctx, "RegisterWorker", Op::kRegister, [&](const Caller& caller) -> Status {
+    BISTABLE_RETURN_IF_ERROR(CheckWorkerName(req->name()));
+    log::Event(log::Level::kInfo, "worker.registered",
+               {{"worker", req->name()}, {"threads", static_cast<long long>(req->threads())}, {"peer", ctx->peer()}, {"identity", caller.who}});
+    rep->set_lease_seconds(lease_seconds_);
+    return Status::Ok();
+  });
 }
 
 grpc::Status CoordinatorService::Lease(grpc::ServerContext* ctx, const v1::LeaseRequest* req, v1::LeaseReply* rep) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kLease, &who); !st.ok()) return Answer(ctx, "Lease", st);
-  return Answer(ctx, "Lease", LeaseInto(req->worker(), who, rep, req->max_jobs()));
+  return Serve(ctx, "Lease", Op::kLease, [&](const Caller& caller) -> Status {
+    auto known = KnownSpecsFromProto(req->known_specs(), "known_specs");
+    if (!known.ok()) return known.status();
+    return LeaseInto(req->worker(), caller.who, rep, req->max_jobs(), *known);
+  });
 }
 
-Status CoordinatorService::LeaseInto(const std::string& worker, const std::string& who, v1::LeaseReply* rep, int max_jobs) {
+Status CoordinatorService::LeaseInto(const std::string& worker, const std::string& who, v1::LeaseReply* rep, int max_jobs,
+                                     const std::vector<std::string>& known_specs) {
   BISTABLE_RETURN_IF_ERROR(CheckWorkerName(worker));
   if (max_jobs < 0 || max_jobs > static_cast<int>(limits::kMaxJobsPerLease))
     return Status::InvalidArgument("max_jobs", "max_jobs = " + std::to_string(max_jobs) + " violates max_jobs in [0, " +
@@ -265,23 +266,34 @@ Status CoordinatorService::LeaseInto(const std::string& worker, const std::strin
     rep->set_has_job(false);
     return Status::Ok();
   }
-  auto spec = c_->SpecText(g->sweep_id);
+  auto spec = KeyedSpec(g->sweep_id);
   if (!spec.ok()) return spec.status();
-  rep->set_has_job(true);
-  rep->set_lease_id(g->lease_id);
-  rep->set_sweep_id(g->sweep_id);
-  rep->set_job_id(g->job_id);
-  rep->set_spec_toml(*spec);
-  ToProto(g->items, rep);
-  rep->set_deadline(g->deadline);
+  // The text travels only to a worker that does not name its key (an old worker names none).
+  const bool held = std::find(known_specs.begin(), known_specs.end(), spec->spec_key) != known_specs.end();
+  ToProto(LeasedWork{g->lease_id, g->sweep_id, g->job_id, held ? std::string() : std::move(spec->spec_toml), spec->spec_key,
+                     std::move(g->items), g->deadline},
+          rep);
   return Status::Ok();
 }
 
+grpc::Status CoordinatorService::GetSpec(grpc::ServerContext* ctx, const v1::SpecRequest* req, v1::SpecReply* rep) {
+  return Serve(ctx, "GetSpec", Op::kLease, [&](const Caller&) -> Status {
+    // A whole sweep id, as a lease names it (no prefixes: a worker never guesses).
+    if (req->sweep_id().empty() || req->sweep_id().size() > limits::kMaxIdBytes ||
+        req->sweep_id().find_first_not_of("0123456789abcdef") != std::string::npos)
+      return Status::InvalidArgument("sweep_id", "sweep_id must be 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
+    auto spec = KeyedSpec(req->sweep_id());
+    if (!spec.ok()) return spec.status();
+    ToProto(*spec, rep);
+    return Status::Ok();
+  });
+}
+
 grpc::Status CoordinatorService::Heartbeat(grpc::ServerContext* ctx, const v1::HeartbeatRequest* req, v1::HeartbeatReply*) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kHeartbeat, &who); !st.ok()) return Answer(ctx, "Heartbeat", st);
-  if (Status st = CheckLeaseId(req->lease_id()); !st.ok()) return Answer(ctx, "Heartbeat", st);
-  return Answer(ctx, "Heartbeat", c_->Extend(req->lease_id(), who));
+  return Serve(ctx, "Heartbeat", Op::kHeartbeat, [&](const Caller& caller) -> Status {
+    BISTABLE_RETURN_IF_ERROR(CheckLeaseId(req->lease_id()));
+    return c_->Extend(req->lease_id(), caller.who);
+  });
 }
 
 grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::ReportRequest* req, v1::ReportReply* rep) {
@@ -293,83 +305,82 @@ grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::Repo
       if (m) m->ObserveReport(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     }
   } timer{metrics_, start};
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kReport, &who); !st.ok()) return Answer(ctx, "Report", st);
-  if (!req->lease_next_for().empty())
-    if (Status st = tokens_.Check(ctx, Op::kLease, &who); !st.ok()) return Answer(ctx, "Report", st);
-  if (Status st = CheckLeaseId(req->lease_id()); !st.ok()) return Answer(ctx, "Report", st);
-  if (req->catalog_hash() != CatalogHash())
-    return Answer(ctx, "Report", Status::FailedPrecondition(
-        "the report's metric catalog differs from this coordinator's (a worker of another build?): its records would "
-        "be stored under the wrong names; run workers of the coordinator's version"));
-  // The coordinator checks the lease, its job's size and layout and every value's domain before it
-  // copies anything out of the request.
-  if (Status st = c_->Report(req->lease_id(), req->record_width(), req->values().data(), static_cast<size_t>(req->values_size()), who);
-      !st.ok())
-    return Answer(ctx, "Report", st);
-  if (req->lease_next_for().empty()) return grpc::Status::OK;
-  // The report is stored; a failure to lease now is not the report's failure (the worker polls).
-  if (Status st = LeaseInto(req->lease_next_for(), who, rep->mutable_next(), req->next_max_jobs()); !st.ok()) {
-    rep->mutable_next()->Clear();
-    rep->mutable_next()->set_has_job(false);
-  }
-  return grpc::Status::OK;
+  return Serve(ctx, "Report", Op::kReport, [&](const Caller& caller) -> Status {
+    std::string who = caller.who;
+    if (!req->lease_next_for().empty()) BISTABLE_RETURN_IF_ERROR(tokens_.Check(ctx, Op::kLease, &who));
+    BISTABLE_RETURN_IF_ERROR(CheckLeaseId(req->lease_id()));
+    if (req->catalog_hash() != CatalogHash())
+      return Status::FailedPrecondition(
+          "the report's metric catalog differs from this coordinator's (a worker of another build?): its records would "
+          "be stored under the wrong names; run workers of the coordinator's version");
+    auto known = KnownSpecsFromProto(req->next_known_specs(), "next_known_specs");  // refused before anything is stored
+    if (!known.ok()) return known.status();
+    // The coordinator checks the lease, its job's size and layout and every value's domain before it
+    // copies anything out of the request.
+    BISTABLE_RETURN_IF_ERROR(
+        c_->Report(req->lease_id(), req->record_width(), req->values().data(), static_cast<size_t>(req->values_size()), who));
+    if (req->lease_next_for().empty()) return Status::Ok();
+    // The report is stored; a failure to lease now is not the report's failure (the worker polls).
+    if (Status st = LeaseInto(req->lease_next_for(), who, rep->mutable_next(), req->next_max_jobs(), *known); !st.ok()) {
+      rep->mutable_next()->Clear();
+      rep->mutable_next()->set_has_job(false);
+    }
+    return Status::Ok();
+  });
 }
 
 grpc::Status CoordinatorService::Release(grpc::ServerContext* ctx, const v1::ReleaseRequest* req, v1::ReleaseReply*) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kRelease, &who); !st.ok()) return Answer(ctx, "Release", st);
-  if (Status st = CheckLeaseId(req->lease_id()); !st.ok()) return Answer(ctx, "Release", st);
-  return Answer(ctx, "Release", c_->Release(req->lease_id(), who));
+  return Serve(ctx, "Release", Op::kRelease, [&](const Caller& caller) -> Status {
+    BISTABLE_RETURN_IF_ERROR(CheckLeaseId(req->lease_id()));
+    return c_->Release(req->lease_id(), caller.who);
+  });
 }
 
 grpc::Status CoordinatorService::ListWorkers(grpc::ServerContext* ctx, const v1::ListWorkersRequest*, v1::ListWorkersReply* rep) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kWorkers, &who); !st.ok()) return Answer(ctx, "ListWorkers", st);
-  for (const WorkerInfo& w : c_->Workers()) ToProto(w, rep->add_workers());
-  return grpc::Status::OK;
+  return Serve(ctx, "ListWorkers", Op::kWorkers, [&](const Caller&) -> Status {
+    for (const WorkerInfo& w : c_->Workers()) ToProto(w, rep->add_workers());
+    return Status::Ok();
+  });
 }
 
 grpc::Status CoordinatorService::FetchMap(grpc::ServerContext* ctx, const v1::FetchMapRequest* req,
                                           grpc::ServerWriter<v1::FileChunk>* writer) {
-  std::string who;
-  if (Status st = tokens_.Check(ctx, Op::kMap, &who); !st.ok()) return Answer(ctx, "FetchMap", st);
-  auto map = PublishedMap(req->id());
-  if (!map.ok()) return Answer(ctx, "FetchMap", map.status());
-  // The open descriptor keeps this version of the file: a republication (rename) meanwhile does not
-  // mix two files into one stream.
-  std::ifstream f(map->second, std::ios::binary);
-  std::error_code ec;
-  const auto total = std::filesystem::file_size(map->second, ec);
-  if (!f || ec) return Answer(ctx, "FetchMap", Status::IoError("map", "cannot open the map of sweep " + map->first));
-  Sha256 sha;
-  std::string buf(limits::kFetchChunkBytes, '\0');
-  uint64_t offset = 0;
-  const auto start = std::chrono::steady_clock::now();
-  while (true) {
-    if (ctx->IsCancelled() || shutting_down_) return grpc::Status(grpc::StatusCode::CANCELLED, "fetch cancelled");
-    f.read(buf.data(), static_cast<std::streamsize>(buf.size()));
-    const size_t n = static_cast<size_t>(f.gcount());
-    v1::FileChunk chunk;
-    chunk.set_id(map->first);
-    chunk.set_offset(offset);
-    chunk.set_total_bytes(total);
-    chunk.set_data(buf.data(), n);
-    sha.Update(std::string_view(buf.data(), n));
-    offset += n;
-    const bool last = n < buf.size() || offset >= total;
-    if (last) {
-      if (offset != total)
-        return Answer(ctx, "FetchMap", Status::IoError("map", "the map of sweep " + map->first + " changed size while read"));
-      chunk.set_sha256(sha.HexDigest());
+  return Serve(ctx, "FetchMap", Op::kMap, [&](const Caller& caller) -> grpc::Status {
+    auto map = PublishedMap(req->id());
+    if (!map.ok()) return Answer(ctx, "FetchMap", map.status());
+    // The open descriptor keeps this version of the file: a republication (rename) meanwhile does not
+    // mix two files into one stream. (The file's bytes are streamed as they are: no HDF5 is opened.)
+    std::ifstream f(map->second, std::ios::binary);
+    std::error_code ec;
+    const auto total = std::filesystem::file_size(map->second, ec);
+    if (!f || ec) return Answer(ctx, "FetchMap", Status::IoError("map", "cannot open the map of sweep " + map->first));
+    Sha256 sha;
+    std::string buf(limits::kFetchChunkBytes, '\0');
+    uint64_t offset = 0;
+    const auto start = std::chrono::steady_clock::now();
+    while (true) {
+      if (ctx->IsCancelled() || shutting_down_) return grpc::Status(grpc::StatusCode::CANCELLED, "fetch cancelled");
+      f.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+      const size_t n = static_cast<size_t>(f.gcount());
+      sha.Update(std::string_view(buf.data(), n));
+      offset += n;
+      const bool last = n < buf.size() || offset >= total;
+      std::string digest;
+      if (last) {
+        if (offset != total)
+          return Answer(ctx, "FetchMap", Status::IoError("map", "the map of sweep " + map->first + " changed size while read"));
+        digest = sha.HexDigest();
+      }
+      v1::FileChunk chunk;
+      ToProto(MapChunk{map->first, offset - n, total, std::string_view(buf.data(), n), digest}, &chunk);
+      if (!writer->Write(chunk)) return grpc::Status(grpc::StatusCode::CANCELLED, "client went away");
+      if (last) break;
     }
-    if (!writer->Write(chunk)) return grpc::Status(grpc::StatusCode::CANCELLED, "client went away");
-    if (last) break;
-  }
-  log::Event(log::Level::kInfo, "map.fetched",
-             {{"sweep", map->first}, {"bytes", static_cast<long long>(total)}, {"identity", who}, {"peer", ctx->peer()},
-              {"ms", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count()}});
-  return grpc::Status::OK;
+    log::Event(log::Level::kInfo, "map.fetched",
+               {{"sweep", map->first}, {"bytes", static_cast<long long>(total)}, {"identity", caller.who}, {"peer", ctx->peer()},
+                {"ms", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count()}});
+    return grpc::Status::OK;
+  });
 }
 
 }  // namespace bistable

@@ -179,15 +179,22 @@ struct Loaded {
   double lo = NAN, hi = NAN;  // over every finite value (one colour range for every slice)
 };
 
-// Loaded metrics, shared by every request for the same (sweep, metric, source) for kCacheSeconds, and loaded
-// once however many requests miss together (server/single_flight.h): any number of open tabs on a running
-// sweep cost one lookup in the point cache per kCacheSeconds.
+// Live metrics (what is stored so far of a running sweep), shared by every request for the same sweep and
+// metric for kCacheSeconds, and loaded once however many requests miss together (server/single_flight.h): any
+// number of open tabs on a running sweep cost one lookup in the point cache per kCacheSeconds. Published maps
+// are read through the MapCache the gRPC service shares (server/map_cache.h): once per map file.
 using DashboardCache = SingleFlightCache<Loaded>;
+
+// The range of every finite value (one colour range for every slice).
+void SetRange(Loaded* l) {
+  for (double v : l->array->values)
+    if (std::isfinite(v)) l->lo = std::isnan(l->lo) ? v : std::min(l->lo, v), l->hi = std::isnan(l->hi) ? v : std::max(l->hi, v);
+}
 
 // A metric over the sweep's items: the published map file, or what is stored so far of a planned sweep
 // (looked up only when the sweep has at most kMaxLiveItems items: the size comes from the spec's axis
-// lengths, before anything is loaded). Cached for kCacheSeconds.
-StatusOr<Loaded> LoadMetric(SweepCoordinator* c, DashboardCache* cache, const SweepView& s, const std::string& metric) {
+// lengths, before anything is loaded; cached for kCacheSeconds).
+StatusOr<Loaded> LoadMetric(SweepCoordinator* c, DashboardCache* cache, MapCache* maps, const SweepView& s, const std::string& metric) {
   const bool published = Published(s.info);
   const auto offered = MapMetrics(s.spec, published);
   if (std::find(offered.begin(), offered.end(), metric) == offered.end())
@@ -195,36 +202,36 @@ StatusOr<Loaded> LoadMetric(SweepCoordinator* c, DashboardCache* cache, const Sw
                                                  (s.spec.refine.enabled() && (metric == kRefineLevel || metric == kRefineFill)
                                                       ? " yet (written when the refined map is published)"
                                                       : ""));
-  const std::string key = s.id + "\n" + metric + "\n" + (published ? s.info.file : std::string("live"));
-  return cache->GetOrLoad(key, [&]() -> StatusOr<Loaded> {
+  if (published) {
+    auto a = maps->Metric((std::filesystem::path(c->data_dir()) / s.info.file).string(), metric);
+    if (!a.ok()) return a.status();
+    if ((*a)->dims.size() != (*a)->axes.size() && (*a)->dims.size() != (*a)->axes.size() + 1)
+      return Status::FailedPrecondition("metric '" + metric + "' is not one value per item");
     Loaded l;
-    if (published) {
-      auto a = ReadMapMetric((std::filesystem::path(c->data_dir()) / s.info.file).string(), metric);
-      if (!a.ok()) return a.status();
-      if (a->dims.size() != a->axes.size() && a->dims.size() != a->axes.size() + 1)
-        return Status::FailedPrecondition("metric '" + metric + "' is not one value per item");
-      l.array = std::make_shared<const MapArray>(std::move(*a));
+    l.array = *a;
+    SetRange(&l);
+    return l;
+  }
+  return cache->GetOrLoad(s.id + "\n" + metric + "\nlive", [&]() -> StatusOr<Loaded> {
+    Loaded l;
+    const MetricInfo* info = FindMetric(metric);
+    MapArray a = ShapeOf(s.spec);
+    a.metric = metric;
+    a.unit = info->unit;
+    a.definition = info->definition;
+    for (const Category& k : MetricCategories(metric)) a.categories.push_back({k.code, k.name});
+    const long items = s.spec.points() * s.spec.ic_count();
+    if (items > kMaxLiveItems) {
+      l.note = "partial map not shown above " + std::to_string(kMaxLiveItems) + " items (this sweep has " + std::to_string(items) +
+               "); the published map will be";
     } else {
-      const MetricInfo* info = FindMetric(metric);
-      MapArray a = ShapeOf(s.spec);
-      a.metric = metric;
-      a.unit = info->unit;
-      a.definition = info->definition;
-      for (const Category& k : MetricCategories(metric)) a.categories.push_back({k.code, k.name});
-      const long items = s.spec.points() * s.spec.ic_count();
-      if (items > kMaxLiveItems) {
-        l.note = "partial map not shown above " + std::to_string(kMaxLiveItems) + " items (this sweep has " + std::to_string(items) +
-                 "); the published map will be";
-      } else {
-        auto values = c->StoredValues(s.id, metric);
-        if (!values.ok()) return Status::NotFound("sweep " + s.id + " has no map yet (state " + SweepStateName(s.info.state) + ")");
-        a.values = std::move(*values);
-      }
-      l.array = std::make_shared<const MapArray>(std::move(a));
-      l.partial = true;
+      auto values = c->StoredValues(s.id, metric);
+      if (!values.ok()) return Status::NotFound("sweep " + s.id + " has no map yet (state " + SweepStateName(s.info.state) + ")");
+      a.values = std::move(*values);
     }
-    for (double v : l.array->values)
-      if (std::isfinite(v)) l.lo = std::isnan(l.lo) ? v : std::min(l.lo, v), l.hi = std::isnan(l.hi) ? v : std::max(l.hi, v);
+    l.array = std::make_shared<const MapArray>(std::move(a));
+    l.partial = true;
+    SetRange(&l);
     return l;
   });
 }
@@ -340,12 +347,12 @@ HttpResponse SweepRoute(SweepCoordinator* c, const HttpRequest& req) {
                {"metrics", metrics}, {"cells", cell_note.empty()}, {"cell_note", cell_note}});
 }
 
-HttpResponse MapRoute(SweepCoordinator* c, DashboardCache* cache, const HttpRequest& req) {
+HttpResponse MapRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* maps, const HttpRequest& req) {
   auto p = Params(req);
   if (!p.ok()) return Error(p.status());
   auto s = ResolveSweep(c, *p);
   if (!s.ok()) return Error(s.status());
-  auto l = LoadMetric(c, cache, *s, Get(*p, "metric"));
+  auto l = LoadMetric(c, cache, maps, *s, Get(*p, "metric"));
   if (!l.ok()) return Error(l.status());
   const MapArray& a = *l->array;
   auto sl = ParseSlice(*p, a);
@@ -363,7 +370,7 @@ HttpResponse MapRoute(SweepCoordinator* c, DashboardCache* cache, const HttpRequ
                {"max", JsonNumber(l->hi)}, {"diverging", DivergesAboutZero(a.metric)}, {"values", values}});
 }
 
-HttpResponse QueryRoute(SweepCoordinator* c, DashboardCache* cache, const HttpRequest& req) {
+HttpResponse QueryRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* maps, const HttpRequest& req) {
   auto p = Params(req);
   if (!p.ok()) return Error(p.status());
   auto s = ResolveSweep(c, *p);
@@ -382,7 +389,7 @@ HttpResponse QueryRoute(SweepCoordinator* c, DashboardCache* cache, const HttpRe
   bool partial = false;
   for (int v : q->used()) {
     if (v < static_cast<int>(s->spec.axes.size())) continue;
-    auto l = LoadMetric(c, cache, *s, names[v]);
+    auto l = LoadMetric(c, cache, maps, *s, names[v]);
     if (!l.ok()) return Error(l.status());
     if (l->array->values.empty()) return Error(Status::FailedPrecondition(l->note));
     partial = partial || l->partial;
@@ -431,7 +438,7 @@ std::string PointCommand(const PointSpec& s, std::string* note) {
   return cmd;
 }
 
-HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, const HttpRequest& req) {
+HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* maps, const HttpRequest& req) {
   auto p = Params(req);
   if (!p.ok()) return Error(p.status());
   auto s = ResolveSweep(c, *p);
@@ -468,7 +475,7 @@ HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, const HttpReq
     json fill = nullptr;
     std::string refine_note;
     if (Published(s->info)) {
-      auto l = LoadMetric(c, cache, *s, kRefineFill);
+      auto l = LoadMetric(c, cache, maps, *s, kRefineFill);
       const size_t item = static_cast<size_t>(*point) * static_cast<size_t>(s->spec.ic_count()) + static_cast<size_t>(*ic);
       if (l.ok() && item < l->array->values.size()) {
         const double code = l->array->values[item];
@@ -536,9 +543,11 @@ HttpServer::Options DashboardHttpOptions() {
   return o;
 }
 
-std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens, std::vector<std::string> allowed_hosts) {
+std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens, std::vector<std::string> allowed_hosts,
+                                                   std::shared_ptr<MapCache> maps) {
   std::map<std::string, HttpHandler> routes;
   auto cache = std::make_shared<DashboardCache>(kCacheSeconds, kCacheEntries);
+  if (!maps) maps = std::make_shared<MapCache>();
   for (const EmbeddedFile& f : DashboardAssets()) {
     HttpResponse r{200, std::string(f.content_type), std::string(f.bytes), {}};
     r.headers.push_back({"Content-Security-Policy", "default-src 'self'; img-src 'self' data:; frame-ancestors 'none'"});
@@ -561,10 +570,10 @@ std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const To
   };
   routes["/api/sweeps"] = guarded([c](const HttpRequest&) { return SweepsRoute(c); });
   routes["/api/sweep"] = guarded([c](const HttpRequest& req) { return SweepRoute(c, req); });
-  routes["/api/map"] = guarded([c, cache](const HttpRequest& req) { return MapRoute(c, cache.get(), req); });
-  routes["/api/query"] = guarded([c, cache](const HttpRequest& req) { return QueryRoute(c, cache.get(), req); });
-  routes["/api/cell"] = guarded([c, cache](const HttpRequest& req) {
-    HttpResponse r = CellRoute(c, cache.get(), req);
+  routes["/api/map"] = guarded([c, cache, maps](const HttpRequest& req) { return MapRoute(c, cache.get(), maps.get(), req); });
+  routes["/api/query"] = guarded([c, cache, maps](const HttpRequest& req) { return QueryRoute(c, cache.get(), maps.get(), req); });
+  routes["/api/cell"] = guarded([c, cache, maps](const HttpRequest& req) {
+    HttpResponse r = CellRoute(c, cache.get(), maps.get(), req);
     // The window's rows and the spectrum are freed, and so are this pool thread's transform tables for the
     // cell's length: their pages go back to the system (a cell holds up to 2^20 samples).
     ReleaseThreadSpectrumCaches();

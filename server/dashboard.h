@@ -14,21 +14,25 @@
 #define BISTABLE_SERVER_DASHBOARD_H_
 
 #include <map>
+#include <memory>
 #include <set>
 #include <string>
 #include <vector>
 
 #include "net/http_server.h"
 #include "server/auth.h"
+#include "server/map_cache.h"
 #include "server/sweep_coordinator.h"
 
 namespace bistable {
 
 // The dashboard's routes over `c` (both must outlive the server). `tokens` disabled: open (loopback),
 // and every route answers only requests whose Host passes HostAllowed (net/http_server.h: an IP literal,
-// localhost or one of `allowed_hosts`), the rule of the --metrics listener too.
+// localhost or one of `allowed_hosts`), the rule of the --metrics listener too. `maps`: the published maps'
+// cache to share with the gRPC service (CoordinatorService); none: one of the routes' own.
 std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens,
-                                                   std::vector<std::string> allowed_hosts = {});
+                                                   std::vector<std::string> allowed_hosts = {},
+                                                   std::shared_ptr<MapCache> maps = nullptr);
 
 // The server options DashboardRoutes want: the routes that may take long (a cell integrates a point; a map
 // or query reads a map file) are slow routes, so that /healthz and /metrics on the same listener keep

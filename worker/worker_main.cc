@@ -29,28 +29,13 @@
 #include "proto/coordinator_client.h"
 #include "proto/grpc_log.h"
 #include "proto/health.h"
+#include "worker/grpc_job_source.h"
 #include "worker/pull_loop.h"
 
 namespace {
 
 using bistable::CancelRequested;
 using bistable::CoordinatorClient;
-
-// Parsed specs by sweep id, shared by the pull loops of this process.
-struct SpecCache {
-  std::mutex mu;
-  std::map<std::string, std::shared_ptr<const bistable::SweepSpec>> by_id;
-  bistable::StatusOr<std::shared_ptr<const bistable::SweepSpec>> Get(const std::string& id, const std::string& toml) {
-    std::lock_guard<std::mutex> lock(mu);
-    auto it = by_id.find(id);
-    if (it != by_id.end()) return it->second;
-    auto spec = bistable::ParseSweepSpec(toml, "sweep " + id);
-    if (!spec.ok()) return spec.status();
-    auto p = std::make_shared<const bistable::SweepSpec>(std::move(spec).value());
-    by_id[id] = p;
-    return p;
-  }
-};
 
 // The worker's Prometheus metrics (--metrics ADDR).
 struct WorkerMetrics {
@@ -83,58 +68,6 @@ struct WorkerMetrics {
     rpcs.Add({{"method", method}, {"outcome", st.ok() ? "ok" : st.code() == bistable::Status::Code::kIoError ? "unavailable" : "refused"}})
         .Increment();
   }
-};
-
-// Jobs from a coordinator over gRPC: the worker's side of worker/pull_loop.h.
-class GrpcJobSource : public bistable::JobSource {
- public:
-  GrpcJobSource(CoordinatorClient* c, std::string name, SpecCache* cache, WorkerMetrics* m, int jobs_per_lease)
-      : c_(c), name_(std::move(name)), cache_(cache), m_(m), jobs_per_lease_(jobs_per_lease) {}
-
-  bistable::StatusOr<std::optional<bistable::LeasedJob>> Lease() override {
-    auto lease = c_->LeaseJob(name_, jobs_per_lease_);
-    m_->Rpc("Lease", lease.status());
-    if (!lease.ok()) return lease.status();
-    return ToJob(std::move(*lease));
-  }
-  void Heartbeat(const bistable::LeasedJob& job) override { m_->Rpc("Heartbeat", c_->Heartbeat(job.lease_id)); }
-  bistable::Status Report(const bistable::LeasedJob& job, const std::vector<bistable::PointRecord>& records,
-                          std::optional<bistable::LeasedJob>* next) override {
-    std::optional<CoordinatorClient::Lease> following;
-    const bistable::Status st =
-        c_->Report(job.lease_id, records, next ? name_ : "", next ? &following : nullptr, jobs_per_lease_);
-    m_->Rpc("Report", st);
-    BISTABLE_RETURN_IF_ERROR(st);
-    if (next && following) {
-      auto j = ToJob(std::move(following));
-      if (j.ok()) *next = std::move(*j);
-    }
-    return bistable::Status::Ok();
-  }
-  bistable::Status Release(const bistable::LeasedJob& job) override {
-    const bistable::Status st = c_->Release(job.lease_id);
-    m_->Rpc("Release", st);
-    return st;
-  }
-
- private:
-  // A lease as a job; a spec this build cannot parse is released and refused.
-  bistable::StatusOr<std::optional<bistable::LeasedJob>> ToJob(std::optional<CoordinatorClient::Lease> lease) {
-    if (!lease) return std::optional<bistable::LeasedJob>();
-    auto spec = cache_->Get(lease->sweep_id, lease->spec_toml);
-    if (!spec.ok()) {
-      (void)c_->Release(lease->lease_id);
-      return bistable::Status::FailedPrecondition("cannot parse the spec of sweep " + lease->sweep_id + " (released): " +
-                                                  spec.status().ToString());
-    }
-    return std::optional<bistable::LeasedJob>(bistable::LeasedJob{lease->lease_id, *spec, std::move(lease->items)});
-  }
-
-  CoordinatorClient* c_;
-  std::string name_;
-  SpecCache* cache_;
-  WorkerMetrics* m_;
-  int jobs_per_lease_;
 };
 
 int Fail(const bistable::Status& st) {
@@ -242,12 +175,13 @@ int main(int argc, char** argv) {
                          {{"worker", name}, {"coordinator", coordinator}, {"reason", reg.status().ToString()}});
     backoff.Wait();
   }
-  SpecCache cache;
+  bistable::SpecCache cache;  // parsed specs by key, shared by the pull loops (worker/grpc_job_source.h)
   std::atomic<long> done{0};
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t)
     pool.emplace_back([&] {
-      GrpcJobSource source(&c, name, &cache, &metrics, jobs_per_lease);
+      bistable::GrpcJobSource source(&c, name, &cache, jobs_per_lease,
+                                     [&metrics](const char* method, const bistable::Status& st) { metrics.Rpc(method, st); });
       bistable::PullLoopOptions opt;
       opt.name = name;
       opt.heartbeat_seconds = lease_seconds / 3;
