@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The rig's map paths against a converged reference and against each other, in one run (issue 41):
-#   bench/rig_ratio.sh [BUILD_DIR] [--rounds R] [--detail] [--n N] [--paths "default rosenbrock rk4"]
+#   bench/rig_ratio.sh [BUILD_DIR] [--rounds R] [--detail] [--n N] [--paths "dopri5 default rk4"]
 #                      [--ref-data DIR] [--grids "example intrawell chaotic"]
 # Grids (N × N points, default 10 × 10, of examples/dimensional_table2.toml's rig: Table 2 with Stribeck
 # friction on both bodies, t 0–20 s, window 10–20 s, dt 1 ms):
@@ -8,23 +8,23 @@
 #   intrawell  A0 0.2–3 mm   × f0 1–12 Hz    (low amplitude: intrawell, sticking and creeping)
 #   chaotic    A0 9–16 mm    × f0 1.5–4.5 Hz (the band where the rig's chaotic points lie)
 # Reference: Dormand–Prince at rtol 1e-10, atol 1e-13, computed once and kept in --ref-data (default
-# /tmp/bistable-rig-reference; 20–40 s per grid on this machine). Paths: default = the spec as the example
-# gives it (Dormand–Prince, rtol 1e-6, atol 1e-9, one point at a time); dopri5 = the same, said
-# explicitly; rosenbrock = ROS34PW2 in lanes (integrator = "rosenbrock", its default rtol 5e-6);
-# rk4 = fixed-step RK4 in lanes; a path may carry tolerances: rosenbrock@RTOL[@ATOL].
+# /tmp/bistable-rig-reference; 20–40 s per grid on this machine). Paths: dopri5 = Dormand–Prince, rtol 1e-6,
+# atol 1e-9, one point at a time (the rig's default before numerics 1.5.0: the baseline of every ratio);
+# default = the spec as the example gives it (since 1.5.0 ROS34PW2 in lanes, rtol 5e-6); rosenbrock = the
+# same, said explicitly; rk4 = fixed-step RK4 in lanes; a path may carry tolerances: rosenbrock@RTOL[@ATOL].
 # Each path runs `bistable run SPEC --threads 1 --no-plots` on a fresh data directory (nothing cached), R
 # rounds (default 3) with the paths alternating; times are medians: CPU (user + sys of the process: what
 # the run costs, robust against the machine's other load) and wall (the run's plan + compute + publish).
 # Prints, per grid and path: times, the ratio to the default (dopri5) path, motion equal %, period
 # equal %, FRF within 0.05 dB %, LLE within 0.05 /s % (and 0.1 /s), and LLE within 0.05 /s over the
 # points the reference calls regular (not chaotic: a chaotic point's finite-time LLE differs between
-# any two integrations). --detail lists every point that differs from the reference, with both values.
+# any two integrations), and FRF within 0.05 dB over the same points (a chaotic window's maximum differs too). --detail lists every point that differs from the reference, with both values.
 # The first line is `bistable info` (CPU, vector unit, lane width: dynamics/host_lanes.h).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=build
 N=10
-PATHS="default rosenbrock rk4"
+PATHS="dopri5 default rk4"
 REFDATA=/tmp/bistable-rig-reference
 GRIDS="example intrawell chaotic"
 DETAIL=0
@@ -56,7 +56,7 @@ example = open("examples/dimensional_table2.toml").read()
 ranges = {"example": ((1.0, 20.0), (1.0, 12.0)), "intrawell": ((0.2, 3.0), (1.0, 12.0)), "chaotic": ((9.0, 16.0), (1.5, 4.5))}
 integration = {
     "reference": 'rtol = 1e-10\natol = 1e-13\nintegrator = "dopri5"',
-    "default": "",  # the spec's own (the example sets rtol = 1e-6; atol stays the rig's default)
+    "default": "",  # the spec's own (since numerics 1.5.0 ROS34PW2 in lanes at its rtol 5e-6)
     "dopri5": 'rtol = 1e-6\nintegrator = "dopri5"',
     "rosenbrock": 'integrator = "rosenbrock"',
     "rk4": 'integrator = "rk4"',
@@ -100,10 +100,10 @@ def close(a, b, tol):
 print()
 print("Times: median of %d rounds (paths alternating within a round, fresh data directory each run); "
       "CPU = user + sys seconds of the `bistable run` process, wall = the run's own plan + compute + publish. "
-      "x = dopri5 rtol 1e-6 (default) time / this path's, by CPU (by wall)." % rounds)
+      "x = dopri5 rtol 1e-6 (the default before numerics 1.5.0) time / this path's, by CPU (by wall)." % rounds)
 print()
-print("| grid | path | CPU s | wall s | x faster (CPU) | x faster (wall) | motion equal | period equal | FRF within 0.05 dB | LLE within 0.05 /s | LLE within 0.1 /s | LLE within 0.05 /s, non-chaotic ref |")
-print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+print("| grid | path | CPU s | wall s | x faster (CPU) | x faster (wall) | motion equal | period equal | FRF within 0.05 dB | LLE within 0.05 /s | LLE within 0.1 /s | LLE within 0.05 /s, non-chaotic ref | FRF within 0.05 dB, non-chaotic ref |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 sys.stdout.flush()
 for grid in grids:
     _, _, ref = run(grid, "reference", refdata)
@@ -120,7 +120,7 @@ for grid in grids:
             subprocess.run(["rm", "-rf", data], check=True)
     base = None
     for path in paths:
-        if path.split("@")[0] in ("default", "dopri5"):
+        if path.split("@")[0] == "dopri5":
             base = (statistics.median(times[path][0]), statistics.median(times[path][1]))
             break
     for path in paths:
@@ -135,9 +135,10 @@ for grid in grids:
         l10 = pct([close(v["lle"][k], ref["lle"][k], 0.1) for k in keys])
         regular = [k for k in keys if ref["motion"][k] != 2]
         lr = pct([close(v["lle"][k], ref["lle"][k], 0.05) for k in regular]) if regular else float("nan")
+        fr_reg = pct([close(v["frf_db"][k], ref["frf_db"][k], 0.05) for k in regular]) if regular else float("nan")
         ratio = ("%.1f" % (base[0] / cpu), "%.1f" % (base[1] / wall)) if base else ("-", "-")
-        print("| %s | %s | %.2f | %.2f | %s | %s | %.0f %% | %.0f %% | %.0f %% | %.0f %% | %.0f %% | %.0f %% of %d |" %
-              (grid, path, cpu, wall, ratio[0], ratio[1], mo, pe, fr, l5, l10, lr, len(regular)))
+        print("| %s | %s | %.2f | %.2f | %s | %s | %.0f %% | %.0f %% | %.0f %% | %.0f %% | %.0f %% | %.0f %% of %d | %.0f %% of %d |" %
+              (grid, path, cpu, wall, ratio[0], ratio[1], mo, pe, fr, l5, l10, lr, len(regular), fr_reg, len(regular)))
         if detail:  # the points that differ from the reference, with both values
             for key in keys:
                 bad = [m for m in metrics if not (v[m][key] == ref[m][key] if m in ("motion", "period") else

@@ -200,7 +200,7 @@ rtol = 1e-8
 atol = 1e-11
 )";
   const SweepSpec rk4 = Parse(grid + "integrator = \"rk4\"\n");
-  const SweepSpec dp5 = Parse(grid);
+  const SweepSpec dp5 = Parse(grid + "integrator = \"adaptive\"\n");
   ASSERT_TRUE(rk4.UsesGenericLanes());
   ASSERT_FALSE(dp5.UsesGenericLanes());
   EXPECT_NE(rk4.ItemKey(0, 0), dp5.ItemKey(0, 0));
@@ -437,6 +437,23 @@ integrator = "rosenbrock"
   PointSpec point;
   point.integration.integrator = IntegratorKind::kRosenbrock;
   EXPECT_FALSE(EvaluatePoint(point).ok());  // the cell models' points: rk4 or adaptive
+  // Numerics 1.5.0: the rig's default is ROS34PW2 at rtol 5e-6 (with or without an [integration] table);
+  // Dormand–Prince, asked for, keeps its rtol 1e-6; the f0 bound names the way out.
+  const std::string rig = "model = \"dimensional\"\n[axes]\na0_mm = [1.0]\n[integration]\nt_end = 20.0\n";
+  const SweepSpec named = Parse(rig + "integrator = \"rosenbrock\"\n");
+  for (const std::string& text : {std::string("model = \"dimensional\"\n[axes]\na0_mm = [1.0]\n"), rig}) {
+    const SweepSpec d = Parse(text);
+    EXPECT_EQ(d.base.integration.integrator, IntegratorKind::kRosenbrock) << text;
+    EXPECT_EQ(d.base.integration.rtol, 5e-6) << text;
+    EXPECT_TRUE(d.UsesGenericLanes()) << text;
+    EXPECT_EQ(d.ItemKey(0, 0), named.ItemKey(0, 0)) << "the default is the rosenbrock path, keys and all";
+  }
+  const SweepSpec dp5 = Parse("model = \"dimensional\"\n[axes]\na0_mm = [1.0]\n[integration]\nintegrator = \"adaptive\"\n");
+  EXPECT_EQ(dp5.base.integration.rtol, 1e-6);
+  EXPECT_FALSE(dp5.UsesGenericLanes());
+  auto fast_default = ParseSweepSpec("model = \"dimensional\"\n[axes]\nf0_hz = [150.0]\n", "t.toml");
+  ASSERT_FALSE(fast_default.ok());
+  EXPECT_NE(fast_default.status().message().find("integrator = 'adaptive'"), std::string::npos) << fast_default.status().ToString();
 }
 
 // Fixed steps on a smooth problem (the rig without friction: cubic spring, c2 dampers, resonator):
