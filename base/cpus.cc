@@ -86,11 +86,12 @@ std::optional<double> CgroupCpuQuota(const std::string& proc_self_cgroup, const 
     for (std::string c; std::getline(cs, c, ',');) {
       if (c != "cpu") continue;
       for (const char* mount : {"cpu,cpuacct", "cpu", "cpuacct,cpu"}) {
-        Tighten(best, WalkUp(std::filesystem::path(root) / mount, path, [](const std::filesystem::path& d) -> std::optional<double> {
-                  auto q = ReadSmall(d / "cpu.cfs_quota_us");
-                  auto p = ReadSmall(d / "cpu.cfs_period_us");
-                  return q && p ? CpuQuotaFromCfs(*q, *p) : std::nullopt;
-                }));
+        Tighten(best, WalkUp(std::filesystem::path(root) / mount, path,
+                             [](const std::filesystem::path& d) -> std::optional<double> {
+                               auto q = ReadSmall(d / "cpu.cfs_quota_us");
+                               auto p = ReadSmall(d / "cpu.cfs_period_us");
+                               return q && p ? CpuQuotaFromCfs(*q, *p) : std::nullopt;
+                             }));
       }
     }
   }

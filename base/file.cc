@@ -17,7 +17,9 @@ namespace {
 // FIFO or a device swapped in between the check by name and the open would otherwise block the open, or never
 // end. The open is non-blocking (a FIFO without a writer opens at once), the descriptor blocking again after.
 StatusOr<int> OpenRegularFile(const std::string& path, const std::string& field, off_t* size) {
-  const auto not_regular = [&] { return Status::InvalidArgument(field, field + " file '" + path + "' is not a regular file"); };
+  const auto not_regular = [&] {
+    return Status::InvalidArgument(field, field + " file '" + path + "' is not a regular file");
+  };
   // By name first: a device or FIFO is refused without being opened (opening one can have effects: a FIFO's
   // writer is released, some devices act on open); the descriptor's check below closes the race.
   std::error_code ec;
@@ -26,8 +28,9 @@ StatusOr<int> OpenRegularFile(const std::string& path, const std::string& field,
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
   if (fd < 0) {
     const int e = errno;
-    return Status::InvalidArgument(field, "cannot read " + field + " file '" + path + "': " +
-                                              (e == ENOENT ? std::string("no such file") : std::string(std::strerror(e))));
+    return Status::InvalidArgument(
+        field, "cannot read " + field + " file '" + path +
+                   "': " + (e == ENOENT ? std::string("no such file") : std::string(std::strerror(e))));
   }
   struct stat st;
   if (::fstat(fd, &st) != 0) {
@@ -70,8 +73,8 @@ StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& f
   const int fd = *opened;
   if (static_cast<unsigned long long>(size) > max_bytes) {
     ::close(fd);
-    return Status::InvalidArgument(field, field + " file '" + path + "' is " + std::to_string(size) + " bytes, over the limit of " +
-                                              std::to_string(max_bytes));
+    return Status::InvalidArgument(field, field + " file '" + path + "' is " + std::to_string(size) +
+                                              " bytes, over the limit of " + std::to_string(max_bytes));
   }
   std::string text;
   char buf[1 << 16];
@@ -87,7 +90,8 @@ StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& f
     text.append(buf, static_cast<size_t>(n));
     if (text.size() > max_bytes) {
       ::close(fd);
-      return Status::InvalidArgument(field, field + " file '" + path + "' is over the limit of " + std::to_string(max_bytes) + " bytes");
+      return Status::InvalidArgument(
+          field, field + " file '" + path + "' is over the limit of " + std::to_string(max_bytes) + " bytes");
     }
   }
   ::close(fd);
@@ -102,7 +106,8 @@ Status MakeDirectory(const std::string& path, unsigned mode, const std::string& 
   if (dir.has_parent_path()) fs::create_directories(dir.parent_path(), ec);
   if (!ec && ::mkdir(dir.c_str(), static_cast<mode_t>(mode)) != 0) {
     const int err = errno;
-    if (!(err == EEXIST && fs::is_directory(dir, ec))) ec = std::error_code(err == EEXIST ? ENOTDIR : err, std::generic_category());
+    if (!(err == EEXIST && fs::is_directory(dir, ec)))
+      ec = std::error_code(err == EEXIST ? ENOTDIR : err, std::generic_category());
   }
   if (ec) return Status::IoError(field, "cannot create directory '" + path + "': " + ec.message());
   return Status::Ok();
@@ -111,7 +116,8 @@ Status MakeDirectory(const std::string& path, unsigned mode, const std::string& 
 StatusOr<std::unique_ptr<AtomicFile>> AtomicFile::Create(const std::string& path, const std::string& field) {
   namespace fs = std::filesystem;
   const fs::path p(path);
-  if (path.empty() || !p.has_filename()) return Status::InvalidArgument(field, "output '" + path + "' does not name a file");
+  if (path.empty() || !p.has_filename())
+    return Status::InvalidArgument(field, "output '" + path + "' does not name a file");
   const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
   std::error_code ec;
   if (!fs::is_directory(dir, ec))
@@ -144,7 +150,8 @@ Status WriteStdout(std::string_view data, const std::string& field) {
   return WriteAll(STDOUT_FILENO, data, field, "to standard output");
 }
 
-StatusOr<std::unique_ptr<LineReader>> LineReader::Open(const std::string& path, const std::string& field, size_t max_line_bytes) {
+StatusOr<std::unique_ptr<LineReader>> LineReader::Open(const std::string& path, const std::string& field,
+                                                       size_t max_line_bytes) {
   auto fd = OpenRegularFile(path, field, nullptr);
   if (!fd.ok()) return fd.status();
   return std::unique_ptr<LineReader>(new LineReader(path, field, *fd, max_line_bytes));
@@ -173,7 +180,8 @@ StatusOr<LineReader::Result> LineReader::Next(std::string* line) {
     ssize_t n;
     do n = ::read(fd_, buf_.data(), buf_.size());
     while (n < 0 && errno == EINTR);
-    if (n < 0) return Status::IoError(field_, "reading " + field_ + " file '" + path_ + "' failed: " + std::strerror(errno));
+    if (n < 0)
+      return Status::IoError(field_, "reading " + field_ + " file '" + path_ + "' failed: " + std::strerror(errno));
     buf_.resize(static_cast<size_t>(n));
     eof_ = n == 0;
   }
@@ -184,7 +192,8 @@ Status AtomicFile::Commit() {
   const int synced = ::fsync(fd_) == 0 ? 0 : errno;
   const int closed = ::close(fd_) == 0 ? 0 : errno;
   fd_ = -1;
-  if (synced || closed) return Status::IoError(field_, "writing '" + path_ + "' failed: " + std::strerror(synced ? synced : closed));
+  if (synced || closed)
+    return Status::IoError(field_, "writing '" + path_ + "' failed: " + std::strerror(synced ? synced : closed));
   if (::rename(tmp_.c_str(), path_.c_str()) != 0)
     return Status::IoError(field_, "renaming onto '" + path_ + "' failed: " + std::strerror(errno));
   committed_ = true;

@@ -16,7 +16,8 @@ namespace bistable {
 // The file's bytes; InvalidArgument naming `field` when it is missing, cannot be opened, is not a regular
 // file (checked by name and again on the opened descriptor, so a FIFO swapped in never blocks), or holds
 // more than `max_bytes`; IoError when reading it fails.
-StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& field, size_t max_bytes = size_t{1} << 30);
+StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& field,
+                                   size_t max_bytes = size_t{1} << 30);
 
 // A text file read one line at a time, each line at most `max_line_bytes` long (its "\n" not counted),
 // so a file without line ends never fills memory. Open fails as ReadTextFile does (missing, not a
@@ -24,7 +25,8 @@ StatusOr<std::string> ReadTextFile(const std::string& path, const std::string& f
 class LineReader {
  public:
   enum class Result { kLine, kEnd, kTooLong };
-  static StatusOr<std::unique_ptr<LineReader>> Open(const std::string& path, const std::string& field, size_t max_line_bytes);
+  static StatusOr<std::unique_ptr<LineReader>> Open(const std::string& path, const std::string& field,
+                                                    size_t max_line_bytes);
   ~LineReader();
   // kLine: *line is the next line without its "\n" (a "\r" before it is kept); kEnd: no more lines;
   // kTooLong: line line_number() holds more than max_line_bytes bytes (reading stops). A read error is
@@ -35,7 +37,8 @@ class LineReader {
   LineReader& operator=(const LineReader&) = delete;
 
  private:
-  LineReader(std::string path, std::string field, int fd, size_t max) : path_(std::move(path)), field_(std::move(field)), fd_(fd), max_(max) {}
+  LineReader(std::string path, std::string field, int fd, size_t max)
+      : path_(std::move(path)), field_(std::move(field)), fd_(fd), max_(max) {}
   std::string path_, field_;
   int fd_ = -1;
   size_t max_ = 0;

@@ -15,8 +15,8 @@ std::string IsoTimeUtc(double unix_seconds) {
   std::tm tm{};
   if (!::gmtime_r(&secs, &tm)) return "";
   char b[96];  // room for any int in each field (7 × 11 characters): the year is < 10000, which GCC cannot see
-  std::snprintf(b, sizeof b, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", tm.tm_year + 1900, tm.tm_mon + 1, tm.tm_mday, tm.tm_hour,
-                tm.tm_min, tm.tm_sec, static_cast<int>(ms % 1000));
+  std::snprintf(b, sizeof b, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", tm.tm_year + 1900, tm.tm_mon + 1, tm.tm_mday,
+                tm.tm_hour, tm.tm_min, tm.tm_sec, static_cast<int>(ms % 1000));
   return b;
 }
 

@@ -24,7 +24,8 @@ std::string NearestName(const std::string& word, const std::vector<std::string>&
         cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (word[i - 1] == c[j - 1] ? 0 : 1)});
       std::swap(prev, cur);
     }
-    if (prev[c.size()] < best_d && prev[c.size()] <= std::max(word.size(), c.size()) / 3 + 1) best_d = prev[c.size()], best = c;
+    if (prev[c.size()] < best_d && prev[c.size()] <= std::max(word.size(), c.size()) / 3 + 1)
+      best_d = prev[c.size()], best = c;
   }
   return best;
 }
@@ -45,12 +46,14 @@ std::string Printable(const std::string& s, size_t max_bytes) {
   return out;
 }
 
-std::string UnknownNameMessage(const std::string& what, const std::string& word, const std::vector<std::string>& allowed) {
+std::string UnknownNameMessage(const std::string& what, const std::string& word,
+                               const std::vector<std::string>& allowed) {
   std::string msg = "unknown " + what + " '" + Printable(word) + "'";
   const std::string near = NearestName(word, allowed);
   if (!near.empty()) msg += "; did you mean '" + Printable(near) + "'?";
   std::string list;
-  for (size_t i = 0; i < allowed.size() && i < kMaxNamesListed; ++i) list += (list.empty() ? "" : ", ") + Printable(allowed[i]);
+  for (size_t i = 0; i < allowed.size() && i < kMaxNamesListed; ++i)
+    list += (list.empty() ? "" : ", ") + Printable(allowed[i]);
   if (allowed.size() > kMaxNamesListed) list += ", ... (" + std::to_string(allowed.size() - kMaxNamesListed) + " more)";
   return msg + " (allowed: " + list + ")";
 }

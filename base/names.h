@@ -17,7 +17,8 @@ std::string NearestName(const std::string& word, const std::vector<std::string>&
 // control bytes as \xNN and cut at 80 bytes (the word, and a vocabulary read from a file, may come from
 // anyone); at most kMaxNamesListed names are listed ("..., ... (N more)").
 inline constexpr size_t kMaxNamesListed = 64;
-std::string UnknownNameMessage(const std::string& what, const std::string& word, const std::vector<std::string>& allowed);
+std::string UnknownNameMessage(const std::string& what, const std::string& word,
+                               const std::vector<std::string>& allowed);
 
 // `s` for a message: control bytes, DEL and backslash as \xNN, at most `max_bytes` (then "...").
 std::string Printable(const std::string& s, size_t max_bytes = 80);

@@ -32,7 +32,9 @@ class Status {
   static Status NotFound(std::string what) { return Status(Code::kNotFound, "", std::move(what)); }
   static Status FailedPrecondition(std::string why) { return Status(Code::kFailedPrecondition, "", std::move(why)); }
   static Status Internal(std::string why) { return Status(Code::kInternal, "", std::move(why)); }
-  static Status IoError(std::string what, std::string why) { return Status(Code::kIoError, std::move(what), std::move(why)); }
+  static Status IoError(std::string what, std::string why) {
+    return Status(Code::kIoError, std::move(what), std::move(why));
+  }
   static Status Unauthenticated(std::string why) { return Status(Code::kUnauthenticated, "", std::move(why)); }
   static Status PermissionDenied(std::string why) { return Status(Code::kPermissionDenied, "", std::move(why)); }
 
@@ -55,7 +57,7 @@ class Status {
 template <class T>
 class StatusOr {
  public:
-  StatusOr(T value) : value_(std::move(value)) {}  // NOLINT: implicit by design
+  StatusOr(T value) : value_(std::move(value)) {}          // NOLINT: implicit by design
   StatusOr(Status status) : status_(std::move(status)) {}  // NOLINT: must not be OK
   bool ok() const { return status_.ok(); }
   const Status& status() const { return status_; }
@@ -70,10 +72,10 @@ class StatusOr {
   std::optional<T> value_;
 };
 
-#define BISTABLE_RETURN_IF_ERROR(expr)       \
-  do {                                       \
-    ::bistable::Status _st = (expr);         \
-    if (!_st.ok()) return _st;               \
+#define BISTABLE_RETURN_IF_ERROR(expr) \
+  do {                                 \
+    ::bistable::Status _st = (expr);   \
+    if (!_st.ok()) return _st;         \
   } while (0)
 
 }  // namespace bistable

@@ -24,7 +24,8 @@ namespace fs = std::filesystem;
 
 // A sweep of `jobs` jobs of 8 items (a 1-D grid along alpha).
 SweepSpec NoOpSpec(long jobs, int salt) {
-  const std::string toml = "name = \"noop " + std::to_string(salt) + "\"\nmodel = \"coupled\"\n[axes]\nalpha = { linspace = [0.01, " +
+  const std::string toml = "name = \"noop " + std::to_string(salt) +
+                           "\"\nmodel = \"coupled\"\n[axes]\nalpha = { linspace = [0.01, " +
                            std::to_string(1.0 + salt * 0.001) + ", " + std::to_string(jobs * 8) +
                            "] }\n[integration]\nt_end = 20.0\nt_keep = 10.0\n";
   return *ParseSweepSpec(toml, "noop");
@@ -108,7 +109,8 @@ double OverGrpc(const std::string& dir, long jobs, int clients, int salt, bool c
   for (int k = 0; k < clients; ++k)
     pool.emplace_back([&, k] {
       auto stub = v1::Coordinator::NewStub(channel);
-      const std::string worker = std::string("w").append(std::to_string(k));  // not "w" + ...: a GCC 12 -Wrestrict false positive
+      const std::string worker =
+          std::string("w").append(std::to_string(k));  // not "w" + ...: a GCC 12 -Wrestrict false positive
       v1::ReportRequest rep;
       rep.set_record_width(static_cast<unsigned>(PointRecord::Size()));
       rep.set_catalog_hash(CatalogHash());
@@ -144,7 +146,8 @@ int main(int argc, char** argv) {
   const std::string dir = (fs::temp_directory_path() / ("bench_coord_" + std::to_string(::getpid()))).string();
   fs::remove_all(dir);
   const double direct = Direct(dir, jobs);
-  std::printf("coordinator overhead, no-op jobs of 8 items (%ld jobs per run), lease + durable report round trips/s\n", jobs);
+  std::printf("coordinator overhead, no-op jobs of 8 items (%ld jobs per run), lease + durable report round trips/s\n",
+              jobs);
   std::printf("  direct in-process calls           %8.0f /s   (then %.2f s to publish the %ld-item map)\n", direct,
               g_publish_seconds, jobs * 8);
   if (argc > 2 && std::string(argv[2]) == "--direct-only") return fs::remove_all(dir), 0;
@@ -155,7 +158,8 @@ int main(int argc, char** argv) {
     for (int clients : {1, 2, 4, 8}) {
       const double r = OverGrpc(dir, jobs, clients, salt++, combined);
       std::printf("  gRPC loopback, %-22s %d worker(s) in flight %8.0f /s   (%.2f of direct; publication %.2f s)\n",
-                  combined ? "report+lease in 1 call," : "lease, report: 2 calls,", clients, r, r / direct, g_publish_seconds);
+                  combined ? "report+lease in 1 call," : "lease, report: 2 calls,", clients, r, r / direct,
+                  g_publish_seconds);
     }
   fs::remove_all(dir);
   return 0;

@@ -59,7 +59,8 @@ int main(int argc, char** argv) {
     const int sub = SubstepsFor(m, m.theta, *r);
     for (int lanes : {2, 4, 8}) {
       std::vector<std::vector<double>> ths(static_cast<size_t>(lanes), m.theta);
-      for (int l = 0; l < lanes; ++l) ths[static_cast<size_t>(l)][static_cast<size_t>(l) % m.theta.size()] *= 1.0 + 1e-6 * l;
+      for (int l = 0; l < lanes; ++l)
+        ths[static_cast<size_t>(l)][static_cast<size_t>(l) % m.theta.size()] *= 1.0 + 1e-6 * l;
       std::vector<const std::vector<double>*> ptrs;
       for (const auto& th : ths) ptrs.push_back(&th);
       double best_scalar = 1e300, best_lanes = 1e300;
@@ -77,8 +78,8 @@ int main(int argc, char** argv) {
                               }));
       }
       if (!ok) return std::fprintf(stderr, "error: a simulation failed\n"), 1;
-      std::printf("%-9s %5d %9d %12.4f %12.4f %8.2f%s\n", c.name, lanes, sub, best_scalar, best_lanes, best_scalar / best_lanes,
-                  lanes > kSweepLanes ? "   (wider than the CPU's lanes)" : "");
+      std::printf("%-9s %5d %9d %12.4f %12.4f %8.2f%s\n", c.name, lanes, sub, best_scalar, best_lanes,
+                  best_scalar / best_lanes, lanes > kSweepLanes ? "   (wider than the CPU's lanes)" : "");
     }
   }
   return 0;

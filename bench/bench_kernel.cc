@@ -88,7 +88,8 @@ constexpr int kW = kSweepLanes;  // the engine's width (dynamics/lanes.h)
 // Registered under the width's number ("BM_KernelNoWindow<8>"), which bench/kernel_ratio.sh reads.
 template <int W>
 void Register(const char* name, void (*fn)(benchmark::State&)) {
-  benchmark::RegisterBenchmark((std::string(name) + "<" + std::to_string(W) + ">").c_str(), fn)->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark((std::string(name) + "<" + std::to_string(W) + ">").c_str(), fn)
+      ->Unit(benchmark::kMillisecond);
 }
 void RegisterKernels() {
   Register<kW>("BM_KernelNoWindow", BM_KernelNoWindow<kW>);
@@ -130,7 +131,8 @@ BENCHMARK(BM_EvaluatePointCoupled)->Arg(0)->Arg(1)->ArgNames({"rosenstein"})->Un
 
 int main(int argc, char** argv) {
   using bistable::kW;
-  if (argc == 2 && std::strcmp(argv[1], "--header") == 0) return std::printf("%s\n", bistable::HostLanesLine().c_str()), 0;
+  if (argc == 2 && std::strcmp(argv[1], "--header") == 0)
+    return std::printf("%s\n", bistable::HostLanesLine().c_str()), 0;
   std::printf("%s\n", bistable::HostLanesLine().c_str());
   std::fflush(stdout);
   bistable::RegisterKernels();

@@ -127,7 +127,8 @@ double RigLaneSteps(int points, int reps, int substeps, double* sim, const Dimen
   std::vector<RawLane> out(points);
   const auto t0 = std::chrono::steady_clock::now();
   for (int r = 0; r < reps; ++r)
-    for (int b = 0; b < points; b += W) RunDimensionalLanes<W>(in.data() + b, W, kRigSettings, substeps, out.data() + b);
+    for (int b = 0; b < points; b += W)
+      RunDimensionalLanes<W>(in.data() + b, W, kRigSettings, substeps, out.data() + b);
   const double sec = Seconds(t0);
   *sim += reps * points * 2.0 / sec;
   return static_cast<double>(reps) * points * kRigSettings.n_total * substeps / sec;
@@ -164,8 +165,8 @@ int main(int argc, char** argv) {
   std::printf("%s\n", HostLanesLine().c_str());
   std::fflush(stdout);
   const int substeps = Rk4Substeps(kRig, kRigSettings.h), free_substeps = Rk4Substeps(kRigFree, kRigSettings.h);
-  double coupled = 0, series_w = 0, series1 = 0, series_old = 0, rig_w = 0, rig1 = 0, sim_w = 0, sim1 = 0, rig_rk4_old = 0,
-         rig_dp5_old = 0, free_w = 0, free_sim_same_h = 0, free_sim = 0;
+  double coupled = 0, series_w = 0, series1 = 0, series_old = 0, rig_w = 0, rig1 = 0, sim_w = 0, sim1 = 0,
+         rig_rk4_old = 0, rig_dp5_old = 0, free_w = 0, free_sim_same_h = 0, free_sim = 0;
   for (int r = 0; r < rounds; ++r) {
     coupled += CoupledLaneSteps(8);
     series_w += SeriesLaneSteps<kW>(kPoints, 4);
@@ -181,7 +182,8 @@ int main(int argc, char** argv) {
   const double k = 1.0 / rounds, M = 1e-6;
   coupled *= k, series_w *= k, series1 *= k, series_old *= k, rig_w *= k, rig1 *= k, sim_w *= k, sim1 *= k;
   rig_rk4_old *= k, rig_dp5_old *= k, free_w *= k, free_sim_same_h *= k, free_sim *= k;
-  std::printf("lane-steps/s per core, mean of %d interleaved rounds (RK4 steps x lanes, kernel + window recorder)\n", rounds);
+  std::printf("lane-steps/s per core, mean of %d interleaved rounds (RK4 steps x lanes, kernel + window recorder)\n",
+              rounds);
   std::printf("  cell kernel, coupled + tangent (state 4+4), %d lanes          %8.1f M/s   1\n", kW, coupled * M);
   std::printf("  series N=2 + tangent (state 8+8), %d lanes                    %8.1f M/s   %.2fx cell kernel\n", kW,
               series_w * M, series_w / coupled);
@@ -189,19 +191,21 @@ int main(int argc, char** argv) {
               series1 / coupled);
   std::printf("  series N=2, old per-point path (Eigen, rk4.h, generic_point)  %8.1f M/s   lanes %.1fx faster\n",
               series_old * M, series_w / series_old);
-  std::printf("  rig (Table 2, friction) + tangent (state 4+4), %d lanes       %8.1f M/s   %.2fx cell kernel"
-              "   (%d substeps per 1 ms: h = %.3g s)\n",
-              kW, rig_w * M, rig_w / coupled, substeps, 1e-3 / substeps);
+  std::printf(
+      "  rig (Table 2, friction) + tangent (state 4+4), %d lanes       %8.1f M/s   %.2fx cell kernel"
+      "   (%d substeps per 1 ms: h = %.3g s)\n",
+      kW, rig_w * M, rig_w / coupled, substeps, 1e-3 / substeps);
   std::printf("  rig, 1 lane (the one-point path)                             %8.1f M/s   %.2fx\n", rig1 * M,
               rig1 / coupled);
-  std::printf("  rig without friction (F_s = F_c = 0, law skipped), %d lanes   %8.1f M/s   %.2fx cell kernel"
-              "   (same h)\n",
-              kW, free_w * M, free_w / coupled);
+  std::printf(
+      "  rig without friction (F_s = F_c = 0, law skipped), %d lanes   %8.1f M/s   %.2fx cell kernel"
+      "   (same h)\n",
+      kW, free_w * M, free_w / coupled);
   std::printf("simulated seconds per wall second, rig, per core:\n");
   std::printf("  %d lanes, RK4 at h = %.3g s                                   %8.1f\n", kW, 1e-3 / substeps, sim_w);
   std::printf("  1 lane                                                       %8.1f\n", sim1);
-  std::printf("  %d lanes without friction, same h / its own h = %.3g s         %8.1f / %.1f\n", kW, 1e-3 / free_substeps,
-              free_sim_same_h, free_sim);
+  std::printf("  %d lanes without friction, same h / its own h = %.3g s         %8.1f / %.1f\n", kW,
+              1e-3 / free_substeps, free_sim_same_h, free_sim);
   std::printf("  old per-point path, rk4.h at the same h                      %8.1f   lanes %.1fx faster\n",
               rig_rk4_old, sim_w / rig_rk4_old);
   std::printf("  old per-point path, Dormand-Prince rtol 1e-6 (the default)   %8.1f   lanes %.1fx faster\n",

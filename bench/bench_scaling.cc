@@ -1,8 +1,8 @@
 // How far one coordinator goes (issue 12): many fake workers on loopback against one coordinator
 // served over gRPC, each a pull loop that leases a job of the paper map's size, "computes" it by
 // sleeping (no CPU), and reports records of that job's real size (one real job's records of the spec,
-// computed once, stored durably like real ones), leasing its next job in the same call. The demand is N x job items / compute
-// time items per second; the table shows what the coordinator delivers as N grows, and where it saturates.
+// computed once, stored durably like real ones), leasing its next job in the same call. The demand is N x job items /
+// compute time items per second; the table shows what the coordinator delivers as N grows, and where it saturates.
 //   build/bench/bench_scaling [SPEC=examples/paper_fig8_frf.toml] [--compute-ms 50] [--seconds 3]
 //                             [--max-workers 256] [--lease-batch K] [--external build/server/bistable-coordinator]
 // --external BIN: the real coordinator process, pinned to one CPU, the fake workers to the others.
@@ -65,22 +65,24 @@ struct Loopback {
         sched_setaffinity(0, sizeof g_coordinator_cpus, &g_coordinator_cpus);
         if (!std::freopen(log.c_str(), "w", stdout) || !std::freopen((log + ".err").c_str(), "w", stderr)) ::_exit(126);
         const std::string d = data + "/data";
-        ::execl(g_external.c_str(), g_external.c_str(), "--listen", "127.0.0.1:0", "--data", d.c_str(), "--lease-seconds", "600",
-                "--log-level", "warn", static_cast<char*>(nullptr));
+        ::execl(g_external.c_str(), g_external.c_str(), "--listen", "127.0.0.1:0", "--data", d.c_str(),
+                "--lease-seconds", "600", "--log-level", "warn", static_cast<char*>(nullptr));
         ::_exit(127);
       }
       for (int i = 0; i < 400 && port == 0; ++i) {
         std::this_thread::sleep_for(std::chrono::milliseconds(25));
         std::ifstream in(log);
         std::string line;
-        if (std::getline(in, line) && line.rfind("listening on ", 0) == 0) port = std::atoi(line.substr(line.rfind(':') + 1).c_str());
+        if (std::getline(in, line) && line.rfind("listening on ", 0) == 0)
+          port = std::atoi(line.substr(line.rfind(':') + 1).c_str());
       }
       if (port == 0) {
         std::fprintf(stderr, "error: %s did not start\n", g_external.c_str());
         std::exit(3);
       }
     } else {
-      coordinator = std::move(SweepCoordinator::Open(data, {.lease_seconds = 600, .resume = false, .log = false}).value());
+      coordinator =
+          std::move(SweepCoordinator::Open(data, {.lease_seconds = 600, .resume = false, .log = false}).value());
       service = std::make_unique<CoordinatorService>(coordinator.get(), 600);
       grpc::ServerBuilder b;
       b.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port);
@@ -92,7 +94,8 @@ struct Loopback {
       grpc::ChannelArguments args;
       args.SetInt("bistable.channel", i);  // distinct args: distinct subchannels
       args.SetMaxReceiveMessageSize(64 << 20);
-      channels.push_back(grpc::CreateCustomChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials(), args));
+      channels.push_back(
+          grpc::CreateCustomChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials(), args));
     }
   }
   // Submits the sweep: in-process with `job_items` per job; external with the coordinator's own sizing.
@@ -138,13 +141,14 @@ Result Run(const std::string& dir, const std::string& tag, long job_items, bool 
   // Sized to the demand (planning costs ~5 us per item): enough for `seconds` at full demand, at most
   // the sweep limit; a run that drains it says so.
   const double demand_items = workers * job_items / compute_s * seconds * 1.2;
-  const long jobs = std::clamp<long>(static_cast<long>(demand_items / job_items) + 1, 64, limits::kMaxSweepItems / job_items);
+  const long jobs =
+      std::clamp<long>(static_cast<long>(demand_items / job_items) + 1, 64, limits::kMaxSweepItems / job_items);
   // External: the paper spec's own settings (the coordinator sizes its jobs from them) on a grid of
   // job_items x `jobs` points; in-process: a cheap spec with `job_items` given.
   std::string toml = "name = \"scaling " + tag + "\"\nmodel = \"coupled\"\n[axes]\nalpha = { linspace = [0.01, 2.0, " +
-                           std::to_string(job_items) + "] }\nomega = { linspace = [0.1, 3.0, " + std::to_string(jobs) +
-                           "] }\n[integration]\nt_end = 20.0\nt_keep = 10.0\n" +
-                           (turning_points ? "[metrics]\nturning_points = true\n" : "");
+                     std::to_string(job_items) + "] }\nomega = { linspace = [0.1, 3.0, " + std::to_string(jobs) +
+                     "] }\n[integration]\nt_end = 20.0\nt_keep = 10.0\n" +
+                     (turning_points ? "[metrics]\nturning_points = true\n" : "");
   if (!g_external.empty()) {
     toml = g_spec_text;
     const size_t a = toml.find("\nalpha"), o = toml.find("\nomega");
@@ -233,7 +237,9 @@ Result Run(const std::string& dir, const std::string& tag, long job_items, bool 
   r.reports_per_s = reports / seconds;
   r.items_per_s = items / seconds;
   r.mean_report_ms = reports ? report_ms / reports : 0;
-  if (dry) std::fprintf(stderr, "warning: %d workers drained the sweep before %.1f s: the rate is a lower bound\n", workers, seconds);
+  if (dry)
+    std::fprintf(stderr, "warning: %d workers drained the sweep before %.1f s: the rate is a lower bound\n", workers,
+                 seconds);
   return r;
 }
 
@@ -248,14 +254,22 @@ int main(int argc, char** argv) {
   long job_items_override = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--compute-ms" && i + 1 < argc) compute_ms = std::atof(argv[++i]);
-    else if (a == "--seconds" && i + 1 < argc) seconds = std::atof(argv[++i]);
-    else if (a == "--max-workers" && i + 1 < argc) max_workers = std::atoi(argv[++i]);
-    else if (a == "--lease-batch" && i + 1 < argc) lease_batch = std::atoi(argv[++i]);
-    else if (a == "--min-workers" && i + 1 < argc) min_workers = std::atoi(argv[++i]);
-    else if (a == "--job-items" && i + 1 < argc) job_items_override = std::atol(argv[++i]);
-    else if (a == "--external" && i + 1 < argc) g_external = argv[++i];
-    else spec_path = a;
+    if (a == "--compute-ms" && i + 1 < argc)
+      compute_ms = std::atof(argv[++i]);
+    else if (a == "--seconds" && i + 1 < argc)
+      seconds = std::atof(argv[++i]);
+    else if (a == "--max-workers" && i + 1 < argc)
+      max_workers = std::atoi(argv[++i]);
+    else if (a == "--lease-batch" && i + 1 < argc)
+      lease_batch = std::atoi(argv[++i]);
+    else if (a == "--min-workers" && i + 1 < argc)
+      min_workers = std::atoi(argv[++i]);
+    else if (a == "--job-items" && i + 1 < argc)
+      job_items_override = std::atol(argv[++i]);
+    else if (a == "--external" && i + 1 < argc)
+      g_external = argv[++i];
+    else
+      spec_path = a;
   }
   auto text = ReadTextFile(spec_path, "spec");
   auto spec = text.ok() ? ParseSweepSpec(*text, spec_path) : StatusOr<SweepSpec>(text.status());
@@ -276,7 +290,8 @@ int main(int argc, char** argv) {
       return 1;
     }
     sched_setaffinity(0, sizeof g_worker_cpus, &g_worker_cpus);
-    std::printf("coordinator process (%s) on 1 CPU, fake workers on %d\n", g_external.c_str(), CPU_COUNT(&g_worker_cpus));
+    std::printf("coordinator process (%s) on 1 CPU, fake workers on %d\n", g_external.c_str(),
+                CPU_COUNT(&g_worker_cpus));
   }
   if (!spec.ok()) {
     std::fprintf(stderr, "error: %s\n", spec.status().ToString().c_str());
@@ -294,8 +309,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "computed the payload (%zu real records) in %.1f s\n", items.size(),
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }
-  std::printf("one coordinator, fake workers on loopback: jobs of %s (%ld items, reports of %.0f kB), compute %.0f ms per job\n",
-              spec_path.c_str(), job_items, job_items * width * 8 / 1024.0, compute_ms);
+  std::printf(
+      "one coordinator, fake workers on loopback: jobs of %s (%ld items, reports of %.0f kB), compute %.0f ms per "
+      "job\n",
+      spec_path.c_str(), job_items, job_items * width * 8 / 1024.0, compute_ms);
   const std::string dir = (fs::temp_directory_path() / ("bench_scaling_" + std::to_string(::getpid()))).string();
   fs::remove_all(dir);
   std::vector<int> batches = {1};
@@ -304,12 +321,15 @@ int main(int argc, char** argv) {
   int saturated_at[2] = {0, 0};
   for (size_t b = 0; b < batches.size(); ++b) {
     std::printf("\nleases of up to %d merged job(s)\n", batches[b]);
-    std::printf("| fake workers | demand items/s | delivered items/s | delivered/demand | reports/s | mean report ms |\n|---|---|---|---|---|---|\n");
+    std::printf(
+        "| fake workers | demand items/s | delivered items/s | delivered/demand | reports/s | mean report ms "
+        "|\n|---|---|---|---|---|---|\n");
     for (int w = min_workers; w <= max_workers; w *= 2) {
-      const Result r = Run(dir, std::to_string(b) + "-" + std::to_string(w), job_items, tp, w, compute_ms / 1000, seconds, batches[b]);
+      const Result r = Run(dir, std::to_string(b) + "-" + std::to_string(w), job_items, tp, w, compute_ms / 1000,
+                           seconds, batches[b]);
       const double demand = w * job_items / (compute_ms / 1000);
-      std::printf("| %d | %.0f | %.0f | %.2f | %.0f | %.1f |\n", w, demand, r.items_per_s, r.items_per_s / demand, r.reports_per_s,
-                  r.mean_report_ms);
+      std::printf("| %d | %.0f | %.0f | %.2f | %.0f | %.1f |\n", w, demand, r.items_per_s, r.items_per_s / demand,
+                  r.reports_per_s, r.mean_report_ms);
       std::fflush(stdout);
       ceiling[b] = std::max(ceiling[b], r.reports_per_s);
       ceiling_items[b] = std::max(ceiling_items[b], r.items_per_s);
@@ -317,8 +337,8 @@ int main(int argc, char** argv) {
     }
     std::printf("ceiling %.0f reports/s, %.0f items/s; saturated (< 0.8 of demand) at %d fake workers\n", ceiling[b],
                 ceiling_items[b], saturated_at[b]);
-    std::printf("at %.0f s of compute per %ld-item job, one coordinator feeds about %.0f pull loops (cores)\n", kJobSeconds,
-                job_items, ceiling_items[b] / job_items * kJobSeconds);
+    std::printf("at %.0f s of compute per %ld-item job, one coordinator feeds about %.0f pull loops (cores)\n",
+                kJobSeconds, job_items, ceiling_items[b] / job_items * kJobSeconds);
   }
   if (batches.size() == 2)
     std::printf("\nitems/s ceiling with leases of up to %d merged jobs / single-job leases: %.2f\n", batches[1],

@@ -90,10 +90,13 @@ int main(int argc, char** argv) {
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   std::printf(
-      "\nratio  per simulated second, paper Stribeck velocities (v_sp 2 mm/s, v_t 1 mm/s), Table 2 bistable + resonator\n"
-      "%-22s %-6s | %-28s | %-28s | %-8s %s\n", "base motion", "rtol", "dopri5 rhs / steps / ms", "rosenbrock23 rhs / steps / ms",
-      "wall", "|dy_end| mm");
-  struct Scenario { double a0_mm, f0_hz, rtol; };
+      "\nratio  per simulated second, paper Stribeck velocities (v_sp 2 mm/s, v_t 1 mm/s), Table 2 bistable + "
+      "resonator\n"
+      "%-22s %-6s | %-28s | %-28s | %-8s %s\n",
+      "base motion", "rtol", "dopri5 rhs / steps / ms", "rosenbrock23 rhs / steps / ms", "wall", "|dy_end| mm");
+  struct Scenario {
+    double a0_mm, f0_hz, rtol;
+  };
   for (const Scenario sc : {Scenario{10, 3, 1e-5}, Scenario{10, 3, 1e-3}, Scenario{1, 3, 1e-5}, Scenario{1, 3, 1e-3},
                             Scenario{0.3, 5, 1e-5}, Scenario{0.3, 5, 1e-3}}) {
     DimensionalParams p = DimensionalParams::BistableTable2();

@@ -74,8 +74,10 @@ int main(int argc, char** argv) {
   int threads = 1;
   for (int i = 3; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
-    if (a == "--t-long") t_long = std::atof(argv[i + 1]);
-    else if (a == "--threads") threads = std::atoi(argv[i + 1]);
+    if (a == "--t-long")
+      t_long = std::atof(argv[i + 1]);
+    else if (a == "--threads")
+      threads = std::atoi(argv[i + 1]);
   }
   std::ifstream f(argv[1]);
   std::stringstream ss;
@@ -106,8 +108,9 @@ int main(int argc, char** argv) {
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t) pool.emplace_back(work);
   for (auto& t : pool) t.join();
-  std::printf("index,alpha,omega,motion_a,period_a,lle_a,hd_a,frf_a,ymin_a,ymax_a,"
-              "motion_b,period_b,lle_b,hd_b,frf_b,ymin_b,ymax_b\n");
+  std::printf(
+      "index,alpha,omega,motion_a,period_a,lle_a,hd_a,frf_a,ymin_a,ymax_a,"
+      "motion_b,period_b,lle_b,hd_b,frf_b,ymin_b,ymax_b\n");
   for (size_t i = 0; i < m; ++i) {
     const PointSpec p = spec->PointAt(idx[i], 0);
     std::printf("%ld,%.17g,%.17g", idx[i], p.alpha, p.omega);

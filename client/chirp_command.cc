@@ -45,17 +45,23 @@ int RunChirpCommand(ChirpArgs& a) {
     a.o.a0_m = a.a0_mm * 1e-3;
   } else {
     auto m = ParseModel(a.model);
-    if (!m.ok()) return Fail(Status::InvalidArgument("model", m.status().message().substr(0, m.status().message().size() - 1) + ", dimensional, dimensional-linear}"));
+    if (!m.ok())
+      return Fail(Status::InvalidArgument("model", m.status().message().substr(0, m.status().message().size() - 1) +
+                                                       ", dimensional, dimensional-linear}"));
     a.o.model = *m;
   }
   if (a.direction != "up" && a.direction != "down" && a.direction != "both")
-    return Fail(Status::InvalidArgument("direction", "direction = '" + a.direction + "' violates direction in {up, down, both}"));
+    return Fail(Status::InvalidArgument("direction",
+                                        "direction = '" + a.direction + "' violates direction in {up, down, both}"));
   std::error_code ec;
   std::filesystem::create_directories(a.out, ec);
   if (ec) return Fail(Status::IoError("out", "cannot create '" + a.out + "': " + ec.message()));
   const double lo = std::min(a.o.from, a.o.to), hi = std::max(a.o.from, a.o.to);
   const std::string unit = dim ? "Hz" : "rad/tau";
-  ChirpFrfPlot frf_plot = ChirpFigure("frequency sweep, " + a.model + (dim ? ", A0 = " + PlotNumber(a.a0_mm) + " mm" : ", alpha = " + PlotNumber(a.o.alpha)), dim);
+  ChirpFrfPlot frf_plot =
+      ChirpFigure("frequency sweep, " + a.model +
+                      (dim ? ", A0 = " + PlotNumber(a.a0_mm) + " mm" : ", alpha = " + PlotNumber(a.o.alpha)),
+                  dim);
   // The CSV files are the product; without gnuplot the figures are skipped with one warning.
   const Status gnuplot = CheckGnuplot();
   if (!gnuplot.ok()) std::cerr << "warning: no plots: " << gnuplot.message() << "; the CSV files are written\n";
@@ -78,8 +84,9 @@ int RunChirpCommand(ChirpArgs& a) {
     if (!rec.ok()) return Fail(rec.status());
     if (rec->diverged) std::cerr << "warning: the " << dir << " sweep diverged; the record is cut short\n";
     const std::string base = (std::filesystem::path(a.out) / ("sweep_" + dir)).string();
-    Status st = WriteCsv(base + ".csv", dim ? "t_s,x0_m,v0_m_s,y_m,v_abs_m_s,f_inst_hz" : "tau,x0,v0,y_m,v_abs,omega_inst",
-                         {rec->t, rec->x0, rec->v0, rec->y, rec->v_abs, rec->inst_freq});
+    Status st =
+        WriteCsv(base + ".csv", dim ? "t_s,x0_m,v0_m_s,y_m,v_abs_m_s,f_inst_hz" : "tau,x0,v0,y_m,v_abs,omega_inst",
+                 {rec->t, rec->x0, rec->v0, rec->y, rec->v_abs, rec->inst_freq});
     if (!st.ok()) return Fail(st);
     const FrfEstimate e = FftFrf(rec->v0, rec->v_abs, rec->dt, lo, hi, dim);
     st = WriteCsv(base + "_frf.csv", std::string("freq_") + (dim ? "hz" : "rad_per_tau") + ",in_mag,out_mag,frf_db",
@@ -87,15 +94,22 @@ int RunChirpCommand(ChirpArgs& a) {
     if (!st.ok()) return Fail(st);
     frf_plot.curves.push_back(ChirpCurve("sweep " + dir, *rec, lo, hi, dim));
     const ChirpFrfPlot::Curve& h1 = frf_plot.curves.back();
-    st = WriteCsv(base + "_h1.csv", std::string("freq_") + (dim ? "hz" : "rad_per_tau") + ",in_mag,out_mag,h1_db,coherence",
+    st = WriteCsv(base + "_h1.csv",
+                  std::string("freq_") + (dim ? "hz" : "rad_per_tau") + ",in_mag,out_mag,h1_db,coherence",
                   {h1.freq, h1.in_mag, h1.out_mag, h1.db, h1.coherence});
     if (!st.ok()) return Fail(st);
-    const int window = a.window > 0 ? a.window : std::max(64, static_cast<int>(std::pow(2, std::round(std::log2(rec->t.size() / 60.0)))));
+    const int window = a.window > 0
+                           ? a.window
+                           : std::max(64, static_cast<int>(std::pow(2, std::round(std::log2(rec->t.size() / 60.0)))));
     const Spectrogram sg = ComputeSpectrogram(rec->y, rec->dt, window, 4 * hi, dim);
     // y: the frequency content of the response y_m (harmonics of the forcing show as multiples of
     // the forcing ridge), not the forcing frequency itself.
-    SpectrogramPlot sp{frf_plot.title + ", sweep " + dir + ": spectrogram of y_m", dim ? "time t [s]" : "time {/Symbol t}",
-                       dim ? "frequency of y_m [Hz]" : "frequency of y_m, {/Symbol w} [rad/{/Symbol t}]", sg.time, sg.freq, sg.db};
+    SpectrogramPlot sp{frf_plot.title + ", sweep " + dir + ": spectrogram of y_m",
+                       dim ? "time t [s]" : "time {/Symbol t}",
+                       dim ? "frequency of y_m [Hz]" : "frequency of y_m, {/Symbol w} [rad/{/Symbol t}]",
+                       sg.time,
+                       sg.freq,
+                       sg.db};
     if (gnuplot.ok()) {
       st = RenderSpectrogram(sp, base + "_spectrogram.png");
       if (CancelRequested()) return interrupted();  // gnuplot got the terminal's SIGINT too
@@ -111,9 +125,15 @@ int RunChirpCommand(ChirpArgs& a) {
       if (std::isfinite(h1.coherence[i])) coherence += h1.coherence[i], ++coherent_bins;
     }
     coherence = coherent_bins ? coherence / static_cast<double>(coherent_bins) : 0.0;  // over the bins that have one
-    summary["sweeps"].push_back({{"direction", dir}, {"frf_max_db", peak}, {"frf_min_db", low}, {"h1_max_db", h1_peak},
-                                 {"h1_min_db", h1_low}, {"coherence_mean", coherence}, {"samples", rec->t.size()},
-                                 {"dt", rec->dt}, {"diverged", rec->diverged}});
+    summary["sweeps"].push_back({{"direction", dir},
+                                 {"frf_max_db", peak},
+                                 {"frf_min_db", low},
+                                 {"h1_max_db", h1_peak},
+                                 {"h1_min_db", h1_low},
+                                 {"coherence_mean", coherence},
+                                 {"samples", rec->t.size()},
+                                 {"dt", rec->dt},
+                                 {"diverged", rec->diverged}});
     for (const char* f : {".csv", "_frf.csv", "_h1.csv"}) summary["files"].push_back(base + f);
     if (gnuplot.ok()) summary["files"].push_back(base + "_spectrogram.png");
   }
@@ -129,9 +149,12 @@ int RunChirpCommand(ChirpArgs& a) {
     std::cout << DumpJson(summary, 1) << "\n";
   } else {
     for (const auto& sw : summary["sweeps"])
-      std::printf("%-4s sweep: H1 FRF from %.1f to %.1f dB over [%g, %g] %s (mean coherence %.2f; raw FFT ratio %.1f to %.1f dB)\n",
-                  sw["direction"].get<std::string>().c_str(), sw["h1_min_db"].get<double>(), sw["h1_max_db"].get<double>(), lo, hi,
-                  unit.c_str(), sw["coherence_mean"].get<double>(), sw["frf_min_db"].get<double>(), sw["frf_max_db"].get<double>());
+      std::printf(
+          "%-4s sweep: H1 FRF from %.1f to %.1f dB over [%g, %g] %s (mean coherence %.2f; raw FFT ratio %.1f to %.1f "
+          "dB)\n",
+          sw["direction"].get<std::string>().c_str(), sw["h1_min_db"].get<double>(), sw["h1_max_db"].get<double>(), lo,
+          hi, unit.c_str(), sw["coherence_mean"].get<double>(), sw["frf_min_db"].get<double>(),
+          sw["frf_max_db"].get<double>());
     for (const auto& f : summary["files"]) std::printf("wrote %s\n", f.get<std::string>().c_str());
   }
   return 0;
@@ -158,11 +181,15 @@ ChirpFrfPlot ChirpFigure(const std::string& title, bool hz) {
 void AddChirpCommand(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<ChirpArgs>();
   ChirpOptions& o = a->o;
-  CLI::App* cmd = app.add_subcommand("chirp", "Frequency-sweep simulation: FFT-based FRF and spectrograms (paper Figs. 22-24)");
-  cmd->add_option("--model", a->model, "standalone | coupled | linear | linear-coupled | dimensional | dimensional-linear")->capture_default_str();
+  CLI::App* cmd =
+      app.add_subcommand("chirp", "Frequency-sweep simulation: FFT-based FRF and spectrograms (paper Figs. 22-24)");
+  cmd->add_option("--model", a->model,
+                  "standalone | coupled | linear | linear-coupled | dimensional | dimensional-linear")
+      ->capture_default_str();
   cmd->add_option("--alpha", o.alpha, "non-dimensional base amplitude alpha")->capture_default_str();
   cmd->add_option("--a0-mm", a->a0_mm, "dimensional base amplitude A0 [mm]")->capture_default_str();
-  cmd->add_option("--from", o.from, "start frequency: Omega [rad/tau], or Hz for dimensional models")->capture_default_str();
+  cmd->add_option("--from", o.from, "start frequency: Omega [rad/tau], or Hz for dimensional models")
+      ->capture_default_str();
   cmd->add_option("--to", o.to, "end frequency")->capture_default_str();
   cmd->add_option("--duration", o.duration, "sweep duration: tau, or s for dimensional models")->capture_default_str();
   cmd->add_option("--dt", o.dt, "RK4 step (non-dimensional) or output step in s (dimensional)")->capture_default_str();

@@ -3,8 +3,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
-#include <sstream>
 #include <iostream>
+#include <sstream>
 
 #include "base/file.h"
 
@@ -42,7 +42,8 @@ Status WriteTextOut(const std::string& path, const std::string& text, const std:
 
 Status NotStdout(const std::string& path, const std::string& field, const std::string& flag, const std::string& why) {
   if (path != "-") return Status::Ok();
-  return Status::InvalidArgument(field, flag + " - (standard output) is not supported: " + why + "; give a file name (./- for a file named '-')");
+  return Status::InvalidArgument(
+      field, flag + " - (standard output) is not supported: " + why + "; give a file name (./- for a file named '-')");
 }
 
 int Fail(const Status& st) {
@@ -53,12 +54,14 @@ int Fail(const Status& st) {
 StatusOr<SweepRef> FindSweep(const std::string& data_dir, const std::string& id) {
   const auto index = std::filesystem::path(data_dir) / "index.sqlite";
   if (!std::filesystem::exists(index))
-    return Status::InvalidArgument("data", "no index at '" + index.string() + "' (run a sweep first, or pass --data DIR)");
+    return Status::InvalidArgument("data",
+                                   "no index at '" + index.string() + "' (run a sweep first, or pass --data DIR)");
   auto db = IndexDb::Open(index.string());
   if (!db.ok()) return db.status();
   auto row = (*db)->GetSweep(id);
   if (!row.ok()) return row.status();
-  if (!row.value()) return Status::InvalidArgument("id", "no sweep '" + id + "' in " + data_dir + " (see `bistable sweeps`)");
+  if (!row.value())
+    return Status::InvalidArgument("id", "no sweep '" + id + "' in " + data_dir + " (see `bistable sweeps`)");
   SweepRef ref{*row.value(), ""};
   if (!ref.row.file.empty()) ref.map_path = (std::filesystem::path(data_dir) / ref.row.file).string();
   return ref;

@@ -120,9 +120,7 @@ class RemoteSweeps : public DesignSweeps {
   std::unique_ptr<CoordinatorClient> c_;
 };
 
-nlohmann::json PointJson(const DesignPoint& x) {
-  return {{"lambda", x[0]}, {"phi", x[1]}, {"eta_r", x[2]}};
-}
+nlohmann::json PointJson(const DesignPoint& x) { return {{"lambda", x[0]}, {"phi", x[1]}, {"eta_r", x[2]}}; }
 
 nlohmann::json Num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
@@ -148,13 +146,14 @@ nlohmann::json CandidateJson(const Candidate& c) {
 std::string Csv(const std::vector<Candidate>& cs, const std::vector<int>& front) {
   std::ostringstream os;
   os.precision(10);
-  os << "index,lambda,phi,eta_r,cost,band_width,safe_band_width,chaotic_share_band,unsafe_share_band,chaotic_share,feasible,on_front,sweep_id,items,computed,seconds\n";
+  os << "index,lambda,phi,eta_r,cost,band_width,safe_band_width,chaotic_share_band,unsafe_share_band,chaotic_share,"
+        "feasible,on_front,sweep_id,items,computed,seconds\n";
   for (const Candidate& c : cs)
-    os << c.index << "," << c.x[0] << "," << c.x[1] << "," << c.x[2] << "," << c.cost << "," << c.score.band_width << ","
-       << c.score.safe_band_width << "," << c.score.chaotic_share_band << "," << c.score.unsafe_share_band << ","
-       << c.score.chaotic_share << ","
-       << (c.score.feasible() ? 1 : 0) << "," << (std::find(front.begin(), front.end(), c.index) != front.end() ? 1 : 0) << ","
-       << c.sweep_id << "," << c.items << "," << c.computed << "," << c.seconds << "\n";
+    os << c.index << "," << c.x[0] << "," << c.x[1] << "," << c.x[2] << "," << c.cost << "," << c.score.band_width
+       << "," << c.score.safe_band_width << "," << c.score.chaotic_share_band << "," << c.score.unsafe_share_band << ","
+       << c.score.chaotic_share << "," << (c.score.feasible() ? 1 : 0) << ","
+       << (std::find(front.begin(), front.end(), c.index) != front.end() ? 1 : 0) << "," << c.sweep_id << "," << c.items
+       << "," << c.computed << "," << c.seconds << "\n";
   return os.str();
 }
 
@@ -163,8 +162,8 @@ std::string Csv(const std::vector<Candidate>& cs, const std::vector<int>& front)
 // every candidate in grey, the front in colour, the best design marked (and the brute-force grid's best).
 Status RenderFront(const DesignSpec& spec, const SearchResult& r, const Candidate* grid_best, const std::string& out) {
   PanelPlot p;
-  p.title = (spec.name.empty() ? "design " + spec.id : spec.name) + ": Pareto front of " + std::to_string(r.candidates.size()) +
-            " candidates";
+  p.title = (spec.name.empty() ? "design " + spec.id : spec.name) + ": Pareto front of " +
+            std::to_string(r.candidates.size()) + " candidates";
   p.rows = 1, p.cols = 2;
   const std::string cost_label = spec.cost == "phi" ? "cost: phi = m_r/m_m" : "cost: lambda = omega_r/omega_n";
   for (int panel = 0; panel < 2; ++panel) {
@@ -173,7 +172,8 @@ Status RenderFront(const DesignSpec& spec, const SearchResult& r, const Candidat
     pa.x_label = panel == 0 ? cost_label : "unsafe (chaotic or diverged) share of the band's Omega points";
     pa.y_label = "band width (measure of Omega with FRF < 0 dB)";
     auto xof = [&](const Candidate& c) { return panel == 0 ? c.cost : c.score.unsafe_share_band; };
-    PanelPlot::Series all{"candidates", {}, {}, true, "#999999", 0.6}, front{"Pareto front", {}, {}, true, "#1f77b4", 1.0};
+    PanelPlot::Series all{"candidates", {}, {}, true, "#999999", 0.6},
+        front{"Pareto front", {}, {}, true, "#1f77b4", 1.0};
     for (const Candidate& c : r.candidates) all.x.push_back(xof(c)), all.y.push_back(c.score.band_width);
     for (int i : r.front) front.x.push_back(xof(r.candidates[i])), front.y.push_back(r.candidates[i].score.band_width);
     pa.series = {all, front};
@@ -181,7 +181,9 @@ Status RenderFront(const DesignSpec& spec, const SearchResult& r, const Candidat
       const Candidate& b = r.candidates[r.best];
       pa.series.push_back({"best (no chaos in the band)", {xof(b)}, {b.score.band_width}, true, "#d62728", 2.0});
     }
-    if (grid_best) pa.series.push_back({"brute-force grid best", {xof(*grid_best)}, {grid_best->score.band_width}, true, "#2ca02c", 1.6});
+    if (grid_best)
+      pa.series.push_back(
+          {"brute-force grid best", {xof(*grid_best)}, {grid_best->score.band_width}, true, "#2ca02c", 1.6});
     p.panels.push_back(pa);
   }
   return RenderPanels(p, out);
@@ -206,26 +208,30 @@ StatusOr<std::unique_ptr<DesignSweeps>> OpenRemoteSweeps(const std::string& addr
 
 StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOptions& o) {
   if (o.brute_force != 0 && (o.brute_force < 2 || o.brute_force > limits::kMaxBruteForceSide))
-    return Violates("brute-force", o.brute_force, "in [2, " + std::to_string(limits::kMaxBruteForceSide) + "] (values per free parameter)");
+    return Violates("brute-force", o.brute_force,
+                    "in [2, " + std::to_string(limits::kMaxBruteForceSide) + "] (values per free parameter)");
   if (o.threads < 0 || o.threads > 1024) return Violates("threads", o.threads, "in [0, 1024]");
   const bool remote = !o.coordinator.empty();
   const std::string out = o.out.empty() ? (std::filesystem::path(o.data) / "designs" / spec.id).string() : o.out;
   std::error_code ec;
   std::filesystem::create_directories(out, ec);
   if (ec) return Status::IoError(out, "cannot create the report directory: " + ec.message());
-  auto sweeps = remote ? OpenRemoteSweeps(o.coordinator, o.token_file, o.tls_ca, o.insecure_remote) : OpenEmbeddedSweeps(o.data, o.threads);
+  auto sweeps = remote ? OpenRemoteSweeps(o.coordinator, o.token_file, o.tls_ca, o.insecure_remote)
+                       : OpenEmbeddedSweeps(o.data, o.threads);
   if (!sweeps.ok()) return sweeps.status();
 
   // The search, with a progress line over candidates (ETA from the candidates' pace).
   ProgressBar bar(spec.budget, "design " + spec.id, o.progress, "candidates");
   double best_w = NAN;
   long done = 0;
-  auto search = RunDesignSearch(spec, [&](const std::string& t) { return sweeps.value()->Run(t); }, [&](const Candidate& c) {
-    ++done;
-    if (c.score.feasible() && !(c.score.band_width <= best_w)) best_w = c.score.band_width;
-    bar.Update(done, "best band " + (std::isnan(best_w) ? std::string("-") : PlotNumber(best_w)) + ", " +
-                         std::to_string(c.computed) + " items computed");
-  });
+  auto search = RunDesignSearch(
+      spec, [&](const std::string& t) { return sweeps.value()->Run(t); },
+      [&](const Candidate& c) {
+        ++done;
+        if (c.score.feasible() && !(c.score.band_width <= best_w)) best_w = c.score.band_width;
+        bar.Update(done, "best band " + (std::isnan(best_w) ? std::string("-") : PlotNumber(best_w)) + ", " +
+                             std::to_string(c.computed) + " items computed");
+      });
   if (!search.ok()) return search.status();
   bar.Finish(done, search->interrupted ? "interrupted" : "");
   if (search->interrupted) return CancelledStatus();
@@ -235,21 +241,27 @@ StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOption
   j["design_id"] = spec.id;
   j["name"] = spec.name;
   j["report_dir"] = std::filesystem::absolute(out).string();
-  if (remote) j["coordinator"] = o.coordinator;
-  else j["data"] = std::filesystem::absolute(o.data).string();
+  if (remote)
+    j["coordinator"] = o.coordinator;
+  else
+    j["data"] = std::filesystem::absolute(o.data).string();
   j["optimizer"] = spec.optimizer;
   j["objective"] = "maximise safe_band_width (band_width without cells at unsafe band points)";
   j["cost_parameter"] = spec.cost;
   j["alpha"] = spec.alphas;
   j["omega"] = {{"min", spec.omega.front()}, {"max", spec.omega.back()}, {"count", spec.omega.size()}};
-  j["bounds"] = {{"lambda", {spec.lo[0], spec.hi[0]}}, {"phi", {spec.lo[1], spec.hi[1]}}, {"eta_r", {spec.lo[2], spec.hi[2]}}};
+  j["bounds"] = {
+      {"lambda", {spec.lo[0], spec.hi[0]}}, {"phi", {spec.lo[1], spec.hi[1]}}, {"eta_r", {spec.lo[2], spec.hi[2]}}};
   j["candidates"] = nlohmann::json::array();
   for (const Candidate& c : r.candidates) j["candidates"].push_back(CandidateJson(c));
   j["front"] = nlohmann::json::array();
   for (int i : r.front) j["front"].push_back(CandidateJson(r.candidates[i]));
   j["best"] = r.best >= 0 ? CandidateJson(r.candidates[r.best]) : nlohmann::json(nullptr);
-  j["search"] = {{"candidates", r.candidates.size()}, {"points", r.items}, {"computed", r.computed},
-                 {"cached", r.items - r.computed}, {"seconds", r.seconds}};
+  j["search"] = {{"candidates", r.candidates.size()},
+                 {"points", r.items},
+                 {"computed", r.computed},
+                 {"cached", r.items - r.computed},
+                 {"seconds", r.seconds}};
 
   // Maps of the best designs: ordinary sweeps over map_alpha x omega (bistable map / query work on them).
   j["maps"] = nlohmann::json::array();
@@ -260,8 +272,9 @@ StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOption
     const std::string toml = spec.MapToml(c.x, title);
     auto m = sweeps.value()->Run(toml);
     if (!m.ok()) return m.status();
-    nlohmann::json mj = {{"rank", k + 1}, {"candidate", c.index}, {"design", PointJson(c.x)}, {"sweep_id", m->sweep_id},
-                         {"points", m->items}, {"computed", m->items - m->cached}, {"seconds", m->seconds}};
+    nlohmann::json mj = {{"rank", k + 1},           {"candidate", c.index}, {"design", PointJson(c.x)},
+                         {"sweep_id", m->sweep_id}, {"points", m->items},   {"computed", m->items - m->cached},
+                         {"seconds", m->seconds}};
     if (o.plots && CheckGnuplot().ok()) {
       const std::string dir = (std::filesystem::path(out) / ("best-" + std::to_string(k + 1))).string();
       std::filesystem::create_directories(dir, ec);
@@ -279,7 +292,8 @@ StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOption
   if (o.brute_force > 0) {
     const std::string bf_dir = (std::filesystem::path(out) / "brute-force-data").string();
     std::filesystem::remove_all(bf_dir, ec);
-    auto bf = remote ? OpenRemoteSweeps(o.coordinator, o.token_file, o.tls_ca, o.insecure_remote) : OpenEmbeddedSweeps(bf_dir, o.threads);
+    auto bf = remote ? OpenRemoteSweeps(o.coordinator, o.token_file, o.tls_ca, o.insecure_remote)
+                     : OpenEmbeddedSweeps(bf_dir, o.threads);
     if (!bf.ok()) return bf.status();
     if (o.progress) std::cerr << "brute force: " << o.brute_force << " values per free parameter\n";
     const auto t0 = Clock::now();
@@ -292,8 +306,12 @@ StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOption
     grid_best = BestCandidate(grid);
     const double sw = r.best >= 0 ? r.candidates[r.best].score.band_width : -1;
     const double gw = grid_best >= 0 ? grid[grid_best].score.band_width : -1;
-    j["brute_force"] = {{"n", o.brute_force}, {"designs", grid.size()}, {"sweep_id", g->sweep_id}, {"points", g->items},
-                        {"computed", g->items - g->cached}, {"seconds", secs},
+    j["brute_force"] = {{"n", o.brute_force},
+                        {"designs", grid.size()},
+                        {"sweep_id", g->sweep_id},
+                        {"points", g->items},
+                        {"computed", g->items - g->cached},
+                        {"seconds", secs},
                         {"best", grid_best >= 0 ? CandidateJson(grid[grid_best]) : nlohmann::json(nullptr)},
                         {"points_ratio", g->items ? static_cast<double>(r.items) / static_cast<double>(g->items) : 0.0},
                         {"time_ratio", secs > 0 ? r.seconds / secs : 0.0},
@@ -301,7 +319,9 @@ StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOption
   }
 
   std::vector<std::string> files;
-  if (Status st = WriteTextOut((std::filesystem::path(out) / "candidates.csv").string(), Csv(r.candidates, r.front), "out"); !st.ok())
+  if (Status st =
+          WriteTextOut((std::filesystem::path(out) / "candidates.csv").string(), Csv(r.candidates, r.front), "out");
+      !st.ok())
     return st;
   files.push_back((std::filesystem::path(out) / "candidates.csv").string());
   if (o.plots) {
@@ -310,8 +330,10 @@ StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOption
     } else {
       const std::string png = (std::filesystem::path(out) / "pareto.png").string();
       Status st = RenderFront(spec, r, grid_best >= 0 ? &grid[grid_best] : nullptr, png);
-      if (st.ok()) files.push_back(png);
-      else j["warnings"] = {"pareto plot: " + st.ToString()};
+      if (st.ok())
+        files.push_back(png);
+      else
+        j["warnings"] = {"pareto plot: " + st.ToString()};
     }
   }
   files.push_back((std::filesystem::path(out) / "report.json").string());

@@ -16,12 +16,12 @@
 namespace bistable {
 
 struct DesignRunOptions {
-  std::string data = "bistable-data";  // embedded: the data directory (cache, maps); the report goes under it
-  std::string out;                     // report directory ("" = <data>/designs/<design id>)
+  std::string data = "bistable-data";           // embedded: the data directory (cache, maps); the report goes under it
+  std::string out;                              // report directory ("" = <data>/designs/<design id>)
   std::string coordinator, token_file, tls_ca;  // coordinator non-empty: candidates run there
-  bool insecure_remote = false;        // the token may go in plaintext to an address that is not loopback
+  bool insecure_remote = false;                 // the token may go in plaintext to an address that is not loopback
   int threads = 0;
-  int brute_force = 0;                 // N > 0: also an N per free parameter grid, timed in the same run
+  int brute_force = 0;  // N > 0: also an N per free parameter grid, timed in the same run
   bool progress = true, plots = true;
 };
 

@@ -8,16 +8,15 @@
 #include <mutex>
 #include <thread>
 
+#include "base/validate.h"
 #include "client/map_slice.h"
 #include "client/plot.h"
 #include "dynamics/cancel.h"
-#include "base/validate.h"
-#include "storage/map_file.h"
 #include "engine/evaluate.h"
+#include "storage/map_file.h"
 #include "worker/pull_loop.h"
 
 namespace bistable {
-
 
 // Default figures: each plotted metric over the two longest axes, one figure per value of the others
 // (at most 12); a single-axis sweep gives curves, and with hd_peaks over Ω the Fig. 6 scatter.
@@ -54,13 +53,15 @@ AxisCombo Combo(const SweepSpec& spec, const std::vector<size_t>& free, long c) 
 
 long PointIndex(const SweepSpec& spec, const std::vector<size_t>& idx) {
   long point = 0;
-  for (size_t k = 0; k < spec.axes.size(); ++k) point = point * static_cast<long>(spec.axes[k].values.size()) + static_cast<long>(idx[k]);
+  for (size_t k = 0; k < spec.axes.size(); ++k)
+    point = point * static_cast<long>(spec.axes[k].values.size()) + static_cast<long>(idx[k]);
   return point;
 }
 
 }  // namespace
 
-std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir) {
+std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path,
+                                            const std::string& dir) {
   std::vector<std::string> files;
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -93,7 +94,8 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
       std::cerr << "warning: plot " << metric << ": " << m.status().ToString() << "\n";
       continue;
     }
-    const bool has_direction_dim = std::find(m->dim_names.begin(), m->dim_names.end(), "direction") != m->dim_names.end();
+    const bool has_direction_dim =
+        std::find(m->dim_names.begin(), m->dim_names.end(), "direction") != m->dim_names.end();
     const int per_combo = free.size() == 2 && has_direction_dim ? directions : 1;
     std::vector<std::pair<PlotData, std::string>> figures;  // the figures of this metric and their files
     for (long c = 0; c < combos; ++c) {
@@ -101,7 +103,8 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
       for (int item = 0; item < per_combo; ++item) {
         std::map<std::string, double> at;
         for (size_t k = 0; k < spec.axes.size(); ++k)
-          if (std::find(free.begin(), free.end(), k) == free.end()) at[spec.axes[k].name] = spec.axes[k].values[combo.fixed[k]];
+          if (std::find(free.begin(), free.end(), k) == free.end())
+            at[spec.axes[k].name] = spec.axes[k].values[combo.fixed[k]];
         std::string suffix = combo.suffix;
         if (per_combo == 2) at["direction"] = item, suffix += spec.ChainGoesDown(item) ? "_down" : "_up";
         auto d = MapFigure(*m, at, prefix);
@@ -114,7 +117,8 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
     size_t heatmaps = 0;
     std::vector<double> all;
     for (const auto& [d, out] : figures)
-      if (d.axis_names.size() == 2 && d.codes.empty()) ++heatmaps, all.insert(all.end(), d.values.begin(), d.values.end());
+      if (d.axis_names.size() == 2 && d.codes.empty())
+        ++heatmaps, all.insert(all.end(), d.values.begin(), d.values.end());
     if (heatmaps > 1) {
       const auto [lo, hi] = ColourRange(metric, all);
       for (auto& [d, out] : figures) {
@@ -151,7 +155,8 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
           for (size_t j = 0; j < k_peaks; ++j) {
             const size_t off = static_cast<size_t>(point) * k_peaks + j;
             if (std::isfinite(f->values[off]))
-              sd.x.push_back(spec.axes[omega_axis].values[i]), sd.y.push_back(f->values[off]), sd.amp.push_back(a->values[off]);
+              sd.x.push_back(spec.axes[omega_axis].values[i]), sd.y.push_back(f->values[off]),
+                  sd.amp.push_back(a->values[off]);
           }
         }
         const std::string out = (std::filesystem::path(dir) / ("hd_scatter" + suffix + ".png")).string();
@@ -196,13 +201,13 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
   return files;
 }
 
-
 namespace {
 
 // Jobs of one sweep from the coordinator in this process (the embedded side of worker/pull_loop.h).
 class EmbeddedJobSource : public JobSource {
  public:
-  EmbeddedJobSource(SweepCoordinator& c, std::shared_ptr<const SweepSpec> spec) : c_(c), spec_(std::move(spec)), id_(spec_->Id()) {}
+  EmbeddedJobSource(SweepCoordinator& c, std::shared_ptr<const SweepSpec> spec)
+      : c_(c), spec_(std::move(spec)), id_(spec_->Id()) {}
   StatusOr<std::optional<LeasedJob>> Lease() override {
     auto g = c_.Lease("embedded", id_);
     if (!g) return std::optional<LeasedJob>();
@@ -298,8 +303,9 @@ StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& sp
 }
 
 SweepCoordinator::Options EmbeddedCoordinatorOptions() {
-  return {.lease_seconds = 3600, .resume = false, .log = false,
-          .warn = [](const std::string& message) { std::cerr << "warning: " << message << std::endl; }};
+  return {.lease_seconds = 3600, .resume = false, .log = false, .warn = [](const std::string& message) {
+            std::cerr << "warning: " << message << std::endl;
+          }};
 }
 
 StatusOr<std::string> RunEmbeddedSweep(const SweepSpec& spec, const std::string& data_dir, int threads, bool progress) {
@@ -308,7 +314,8 @@ StatusOr<std::string> RunEmbeddedSweep(const SweepSpec& spec, const std::string&
   if (!coord.ok()) return coord.status();
   auto plan = (*coord)->Submit(spec, JobItems(spec, 0.25));
   if (!plan.ok()) return plan.status();
-  return ComputeAndPublish(**coord, spec, threads, progress, "  " + (spec.name.empty() ? plan->id : spec.name), nullptr);
+  return ComputeAndPublish(**coord, spec, threads, progress, "  " + (spec.name.empty() ? plan->id : spec.name),
+                           nullptr);
 }
 
 }  // namespace bistable

@@ -9,14 +9,14 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/validate.h"
 #include "client/cli_common.h"
-#include "client/model_flags.h"
 #include "client/hbm_command.h"
 #include "client/hbm_json.h"
 #include "client/map_slice.h"
 #include "client/map_source.h"
+#include "client/model_flags.h"
 #include "client/plot.h"
-#include "base/validate.h"
 #include "dynamics/cancel.h"
 #include "dynamics/hbm.h"
 #include "engine/json_shapes.h"
@@ -37,11 +37,22 @@ struct HbmArgs {
 nlohmann::json PointJson(const HbmPoint& p) {
   nlohmann::json mu = nlohmann::json::array();
   for (const auto& m : p.multipliers) mu.push_back(ComplexJson(m));
-  nlohmann::json j = {{"omega", p.omega},       {"alpha", p.alpha},   {"amplitude", JsonNumber(p.amplitude)}, {"mean", JsonNumber(p.mean)},
-                      {"stable", p.stable},     {"max_multiplier", JsonNumber(p.max_multiplier)},  {"converged", p.converged},
-                      {"fold", p.fold},         {"branch_point", p.branch_point},           {"harmonics", p.harmonics},
-                      {"y_min", JsonNumber(p.y_min)},  {"y_max", JsonNumber(p.y_max)},                    {"period", p.period},
-                      {"multipliers", mu},      {"period_doubling", p.period_doubling},     {"neimark_sacker", p.neimark_sacker}};
+  nlohmann::json j = {{"omega", p.omega},
+                      {"alpha", p.alpha},
+                      {"amplitude", JsonNumber(p.amplitude)},
+                      {"mean", JsonNumber(p.mean)},
+                      {"stable", p.stable},
+                      {"max_multiplier", JsonNumber(p.max_multiplier)},
+                      {"converged", p.converged},
+                      {"fold", p.fold},
+                      {"branch_point", p.branch_point},
+                      {"harmonics", p.harmonics},
+                      {"y_min", JsonNumber(p.y_min)},
+                      {"y_max", JsonNumber(p.y_max)},
+                      {"period", p.period},
+                      {"multipliers", mu},
+                      {"period_doubling", p.period_doubling},
+                      {"neimark_sacker", p.neimark_sacker}};
   if (p.fold && p.fold_at.valid()) j["fold_at"] = LocatedJson(p.fold_at);
   if (p.period_doubling && p.period_doubling_at.valid()) j["period_doubling_at"] = LocatedJson(p.period_doubling_at);
   if (p.neimark_sacker && p.neimark_sacker_at.valid()) j["neimark_sacker_at"] = LocatedJson(p.neimark_sacker_at);
@@ -51,8 +62,9 @@ nlohmann::json PointJson(const HbmPoint& p) {
 // The fold curves as a figure in (Ω, α) (x = Ω, y = α as in the maps), one colour per well, cusps marked.
 BranchPlot FoldCurvePlot(const std::vector<FoldCurve>& curves, const HbmArgs& a) {
   BranchPlot d;
-  d.title = std::string("fold curves of harmonic balance, ") + ModelName(a.o.model) + " (H = " + std::to_string(a.o.harmonics) +
-            ", eta = " + PlotNumber(a.o.params.eta) + ")\ninside a cusp-shaped region bounded by a curve, its branch has three orbits: hysteresis";
+  d.title = std::string("fold curves of harmonic balance, ") + ModelName(a.o.model) +
+            " (H = " + std::to_string(a.o.harmonics) + ", eta = " + PlotNumber(a.o.params.eta) +
+            ")\ninside a cusp-shaped region bounded by a curve, its branch has three orbits: hysteresis";
   d.x_name = "omega";
   d.x_unit = "omega0/omega_n";
   d.y_label = "{/Symbol a} = A_0/{/Symbol d}_s";
@@ -79,8 +91,8 @@ BranchPlot FoldCurvePlot(const std::vector<FoldCurve>& curves, const HbmArgs& a)
 
 // The map parameter `key` (from --at when it is an axis fixed there, else the spec's value) against
 // the harmonic balance's: an overlay on a map of other parameters would mislead.
-Status CheckMapParam(const std::map<std::string, double>& at, const std::string& canonical, const std::string& key, double mine,
-                     const std::string& flag) {
+Status CheckMapParam(const std::map<std::string, double>& at, const std::string& canonical, const std::string& key,
+                     double mine, const std::string& flag) {
   double theirs = NAN;
   if (auto it = at.find(key); it != at.end()) {
     theirs = it->second;
@@ -91,8 +103,9 @@ Status CheckMapParam(const std::map<std::string, double>& at, const std::string&
       if (line.rfind(key + "=", 0) == 0) theirs = std::strtod(line.c_str() + key.size() + 1, nullptr);
   }
   if (std::isfinite(theirs) && std::fabs(theirs - mine) > 1e-12 * std::max(1.0, std::fabs(mine)))
-    return Status::InvalidArgument("over_map", "the map has " + key + " = " + FormatNumber(theirs) + ", the harmonic balance " + key +
-                                                   " = " + FormatNumber(mine) + ": pass " + flag + " " + FormatNumber(theirs) +
+    return Status::InvalidArgument("over_map", "the map has " + key + " = " + FormatNumber(theirs) +
+                                                   ", the harmonic balance " + key + " = " + FormatNumber(mine) +
+                                                   ": pass " + flag + " " + FormatNumber(theirs) +
                                                    " (or fix the map's axis with --at)");
   return Status::Ok();
 }
@@ -108,8 +121,8 @@ StatusOr<PlotData> FoldsOverMap(const HbmArgs& a, const std::vector<FoldCurve>& 
   } else {
     auto ref = FindSweep(a.data, a.over_map);
     if (!ref.ok())
-      return Status::InvalidArgument("over_map", "'" + a.over_map + "' is neither a map file nor a sweep in " + a.data + ": " +
-                                                     ref.status().message());
+      return Status::InvalidArgument("over_map", "'" + a.over_map + "' is neither a map file nor a sweep in " + a.data +
+                                                     ": " + ref.status().message());
     if (ref->map_path.empty()) return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet");
     path = ref->map_path;
     prefix = ref->row.name.empty() ? ref->row.id : ref->row.name;
@@ -141,9 +154,10 @@ StatusOr<PlotData> FoldsOverMap(const HbmArgs& a, const std::vector<FoldCurve>& 
   PlotData d = std::move(fig).value();
   const auto& ax = d.axis_names;
   if (ax.size() != 2 || !((ax[0] == "alpha" && ax[1] == "omega") || (ax[0] == "omega" && ax[1] == "alpha")))
-    return Status::InvalidArgument("over_map", "fold curves lie in (alpha, omega), the map's slice has free axes " +
-                                                   (ax.empty() ? std::string("none") : ax[0] + (ax.size() > 1 ? ", " + ax[1] : "")) +
-                                                   ": fix the others with --at");
+    return Status::InvalidArgument(
+        "over_map", "fold curves lie in (alpha, omega), the map's slice has free axes " +
+                        (ax.empty() ? std::string("none") : ax[0] + (ax.size() > 1 ? ", " + ax[1] : "")) +
+                        ": fix the others with --at");
   const bool x_omega = ax[1] == "omega";
   bool first = true;
   PlotData::Overlay cusps{"cusp", {}, {}, true, "#000000"};
@@ -166,9 +180,13 @@ int RunHbm(HbmArgs& a) {
   auto m = ParseModel(a.model);
   if (!m.ok()) return Fail(m.status());
   a.o.model = *m;
-  if (a.param == "omega") a.o.param = ContinuationParam::kOmega;
-  else if (a.param == "alpha") a.o.param = ContinuationParam::kAlpha;
-  else return Fail(Status::InvalidArgument("continue", "continue = '" + a.param + "' violates continue in {omega, alpha}"));
+  if (a.param == "omega")
+    a.o.param = ContinuationParam::kOmega;
+  else if (a.param == "alpha")
+    a.o.param = ContinuationParam::kAlpha;
+  else
+    return Fail(
+        Status::InvalidArgument("continue", "continue = '" + a.param + "' violates continue in {omega, alpha}"));
   if (!a.format.empty() && a.format != "png" && a.format != "svg")
     return Fail(Status::InvalidArgument("format", "format = '" + a.format + "' violates format in {png, svg}"));
   FoldCurveOptions f;
@@ -176,7 +194,8 @@ int RunHbm(HbmArgs& a) {
   f.omega_lo = a.omega_range[0], f.omega_hi = a.omega_range[1];
   if (Status st = ValidateFoldCurveOptions(f); !st.ok()) return Fail(st);
   if (!a.fold_curve && (!a.over_map.empty() || !a.fold_out.empty()))
-    return Fail(Status::InvalidArgument(a.over_map.empty() ? "fold_out" : "over_map", "draws fold curves: add --fold-curve"));
+    return Fail(
+        Status::InvalidArgument(a.over_map.empty() ? "fold_out" : "over_map", "draws fold curves: add --fold-curve"));
   const std::string why = "hbm's summary and --json use standard output";
   if (Status st = NotStdout(a.out, "out", "--out", why); !st.ok()) return Fail(st);
   if (Status st = NotStdout(a.fold_out, "fold_out", "--fold-out", why); !st.ok()) return Fail(st);
@@ -202,13 +221,25 @@ int RunHbm(HbmArgs& a) {
       }
       branches.push_back({{"start", b.start}, {"period", b.period}, {"points", pts}});
     }
-    nlohmann::json settings = {{"model", ModelName(a.o.model)}, {"continue", a.param}, {"from", a.o.from}, {"to", a.o.to},
-                               {"alpha", a.o.alpha}, {"omega", a.o.omega}, {"harmonics", a.o.harmonics},
-                               {"zero_mean", a.o.zero_mean}, {"eps", a.o.params.eps}, {"eta", a.o.params.eta},
-                               {"switch_pd", a.o.switch_depth}, {"numerics_version", kNumericsVersion}};
-    if (HasResonator(a.o.model)) settings.update({{"eta_r", a.o.params.eta_r}, {"phi", a.o.params.phi}, {"lambda", a.o.params.lambda}});
-    nlohmann::json out = {{"branches", branches}, {"bifurcations", BifurcationsJson(*r)}, {"settings", settings},
-                          {"truncation_change", r->truncation_change}, {"notes", r->notes}};
+    nlohmann::json settings = {{"model", ModelName(a.o.model)},
+                               {"continue", a.param},
+                               {"from", a.o.from},
+                               {"to", a.o.to},
+                               {"alpha", a.o.alpha},
+                               {"omega", a.o.omega},
+                               {"harmonics", a.o.harmonics},
+                               {"zero_mean", a.o.zero_mean},
+                               {"eps", a.o.params.eps},
+                               {"eta", a.o.params.eta},
+                               {"switch_pd", a.o.switch_depth},
+                               {"numerics_version", kNumericsVersion}};
+    if (HasResonator(a.o.model))
+      settings.update({{"eta_r", a.o.params.eta_r}, {"phi", a.o.params.phi}, {"lambda", a.o.params.lambda}});
+    nlohmann::json out = {{"branches", branches},
+                          {"bifurcations", BifurcationsJson(*r)},
+                          {"settings", settings},
+                          {"truncation_change", r->truncation_change},
+                          {"notes", r->notes}};
     if (a.fold_curve) {
       out["fold_curves"] = FoldCurvesJson(*curves, IsBistable(a.o.model));
       out["settings"].update({{"alpha_range", a.alpha_range}, {"omega_range", a.omega_range}});
@@ -218,8 +249,9 @@ int RunHbm(HbmArgs& a) {
   const std::string ext = a.format.empty() ? "png" : a.format;
   if (!a.format.empty() || !a.out.empty()) {
     BranchPlot d = HbmBranchPlot(*r, a.o.model, a.o.param,
-                                 std::string("harmonic balance, ") + ModelName(a.o.model) + " (H = " + std::to_string(a.o.harmonics) +
-                                     "), " + (omega ? "alpha = " + PlotNumber(a.o.alpha) : "Omega = " + PlotNumber(a.o.omega)));
+                                 std::string("harmonic balance, ") + ModelName(a.o.model) +
+                                     " (H = " + std::to_string(a.o.harmonics) + "), " +
+                                     (omega ? "alpha = " + PlotNumber(a.o.alpha) : "Omega = " + PlotNumber(a.o.omega)));
     if (a.eq9) {
       d.extra_label = "one harmonic, zero mean (corrected Eq. 9)";
       for (int k = 0; k <= 600; ++k) {
@@ -237,8 +269,9 @@ int RunHbm(HbmArgs& a) {
     const std::string out = a.fold_out.empty() ? "hbm_" + a.model + "_folds." + ext : a.fold_out;
     Status st;
     if (a.over_map.empty()) {
-      st = curves->empty() ? Status::InvalidArgument("fold_curve", "no fold was found to continue: no fold curve to draw")
-                           : RenderBranches(FoldCurvePlot(*curves, a), out);
+      st = curves->empty()
+               ? Status::InvalidArgument("fold_curve", "no fold was found to continue: no fold curve to draw")
+               : RenderBranches(FoldCurvePlot(*curves, a), out);
     } else {
       auto d = FoldsOverMap(a, *curves);
       st = d.ok() ? RenderPlot(*d, out) : d.status();
@@ -255,26 +288,29 @@ int RunHbm(HbmArgs& a) {
       int stable = 0, folds = 0, pds = 0, nss = 0;
       double lo = INFINITY, hi = 0;
       for (const HbmPoint& p : b.points)
-        stable += p.stable, folds += p.fold, pds += p.period_doubling, nss += p.neimark_sacker, lo = std::min(lo, p.amplitude),
-            hi = std::max(hi, p.amplitude);
-      std::printf("  %-50s %4zu points, period %d, amplitude %.3f..%.3f, mean %+.3f, %d stable, %d folds, %d PD, %d NS\n",
-                  b.start.c_str(), b.points.size(), b.period, lo, hi, b.points.front().mean, stable, folds, pds, nss);
+        stable += p.stable, folds += p.fold, pds += p.period_doubling, nss += p.neimark_sacker,
+            lo = std::min(lo, p.amplitude), hi = std::max(hi, p.amplitude);
+      std::printf(
+          "  %-50s %4zu points, period %d, amplitude %.3f..%.3f, mean %+.3f, %d stable, %d folds, %d PD, %d NS\n",
+          b.start.c_str(), b.points.size(), b.period, lo, hi, b.points.front().mean, stable, folds, pds, nss);
     }
     const char* pname = omega ? "Omega" : "alpha";
     for (const auto& j : BifurcationsJson(*r)) {
       if (j["kind"] == "fold") continue;
       const double v = j[omega ? "omega" : "alpha"].is_null() ? NAN : j[omega ? "omega" : "alpha"].get<double>();
       std::printf("  %s on branch %d (period %d) at %s = %.10g, amplitude %.5g\n",
-                  j["kind"] == "period_doubling" ? "period doubling" : "Neimark-Sacker", j["branch"].get<int>(), j["period"].get<int>(),
-                  pname, v, j["amplitude"].is_null() ? NAN : j["amplitude"].get<double>());
+                  j["kind"] == "period_doubling" ? "period doubling" : "Neimark-Sacker", j["branch"].get<int>(),
+                  j["period"].get<int>(), pname, v, j["amplitude"].is_null() ? NAN : j["amplitude"].get<double>());
     }
     if (a.fold_curve)
       for (const FoldCurve& c : *curves) {
         int cusps = 0;
         double alo = INFINITY, ahi = 0;
-        for (const FoldCurvePoint& p : c.points) cusps += p.cusp, alo = std::min(alo, p.alpha), ahi = std::max(ahi, p.alpha);
-        std::printf("  fold curve from %s: %zu points, alpha %.4g..%.4g, %d cusps%s\n", c.start.c_str(), c.points.size(), alo, ahi,
-                    cusps, c.converged ? "" : " (the corrector failed before it left the box)");
+        for (const FoldCurvePoint& p : c.points)
+          cusps += p.cusp, alo = std::min(alo, p.alpha), ahi = std::max(ahi, p.alpha);
+        std::printf("  fold curve from %s: %zu points, alpha %.4g..%.4g, %d cusps%s\n", c.start.c_str(),
+                    c.points.size(), alo, ahi, cusps,
+                    c.converged ? "" : " (the corrector failed before it left the box)");
         for (const FoldCurvePoint& p : c.points)
           if (p.cusp) std::printf("    cusp near alpha = %.5g, Omega = %.5g\n", p.alpha, p.omega);
       }
@@ -318,8 +354,10 @@ BranchPlot HbmBranchPlot(const HbmResult& r, ModelKind model, ContinuationParam 
         const double x = omega ? l.omega : l.alpha;
         if (!br.x.empty()) br.x.push_back(x), br.y.push_back(l.amplitude), br.stable.push_back(br.stable.back());
         br.x.push_back(x), br.y.push_back(l.amplitude), br.stable.push_back(p.stable);
-        if (mk) mk->x.push_back(x), mk->y.push_back(l.amplitude);
-        else br.fold_x.push_back(x), br.fold_y.push_back(l.amplitude);
+        if (mk)
+          mk->x.push_back(x), mk->y.push_back(l.amplitude);
+        else
+          br.fold_x.push_back(x), br.fold_y.push_back(l.amplitude);
       };
       if (p.fold && p.fold_at.valid()) located(p.fold_at, nullptr);
       if (p.period_doubling && p.period_doubling_at.valid()) located(p.period_doubling_at, &pd);
@@ -335,15 +373,19 @@ BranchPlot HbmBranchPlot(const HbmResult& r, ModelKind model, ContinuationParam 
   d.markers.push_back(std::move(ns));
   // +well and -well orbits are mirror images (y -> -y) with the same max |y_m|: their curves coincide.
   // The +well ones are drawn first and wider, so both stay visible.
-  auto ends = [](const std::string& s, const std::string& e) { return s.size() >= e.size() && s.compare(s.size() - e.size(), e.size(), e) == 0; };
+  auto ends = [](const std::string& s, const std::string& e) {
+    return s.size() >= e.size() && s.compare(s.size() - e.size(), e.size(), e) == 0;
+  };
   auto rank = [&](const BranchPlot::Branch& b) { return ends(b.name, "+well") ? 0 : ends(b.name, "-well") ? 2 : 1; };
-  std::stable_sort(d.branches.begin(), d.branches.end(), [&](const auto& x, const auto& y) { return rank(x) < rank(y); });
+  std::stable_sort(d.branches.begin(), d.branches.end(),
+                   [&](const auto& x, const auto& y) { return rank(x) < rank(y); });
   bool plus = false, minus = false;
   for (auto& b : d.branches) {
     if (ends(b.name, "+well")) b.width = 5, plus = true;
     minus |= ends(b.name, "-well");
   }
-  if (plus && minus) d.title += "\n(+well, -well: mirror images with equal max |y_m|; the wider +well curves lie beneath)";
+  if (plus && minus)
+    d.title += "\n(+well, -well: mirror images with equal max |y_m|; the wider +well curves lie beneath)";
   return d;
 }
 
@@ -357,28 +399,40 @@ void AddHbmCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--to", o.to, "end of the parameter range")->capture_default_str();
   cmd->add_option("--alpha", o.alpha, "alpha when continuing in omega")->capture_default_str();
   cmd->add_option("--omega", o.omega, "Omega when continuing in alpha")->capture_default_str();
-  cmd->add_option("--harmonics", o.harmonics, "harmonics H per degree of freedom (plus the constant term)")->capture_default_str();
+  cmd->add_option("--harmonics", o.harmonics, "harmonics H per degree of freedom (plus the constant term)")
+      ->capture_default_str();
   cmd->add_option("--ds", o.ds, "initial arclength step")->capture_default_str();
-  cmd->add_flag("--zero-mean", o.zero_mean, "drop the constant terms (the paper's Eq. 9 ansatz; misses intrawell orbits)");
-  cmd->add_option("--switch-pd", o.switch_depth,
-                  "at period doublings switch onto the doubled branch (harmonics of Omega/2, 2H of them) and continue it, "
-                  "this many times (1: period 2; 2: also period 4; at most 3)")
+  cmd->add_flag("--zero-mean", o.zero_mean,
+                "drop the constant terms (the paper's Eq. 9 ansatz; misses intrawell orbits)");
+  cmd->add_option(
+         "--switch-pd", o.switch_depth,
+         "at period doublings switch onto the doubled branch (harmonics of Omega/2, 2H of them) and continue it, "
+         "this many times (1: period 2; 2: also period 4; at most 3)")
       ->capture_default_str();
   cmd->add_flag("--fold-curve", a->fold_curve,
                 "continue every fold of the period-1 branches in (alpha, Omega): the boundary of the bistable region");
-  cmd->add_option("--alpha-range", a->alpha_range, "LO,HI: alpha range of the fold curves")->delimiter(',')->expected(2)->capture_default_str();
-  cmd->add_option("--omega-range", a->omega_range, "LO,HI: Omega range of the fold curves")->delimiter(',')->expected(2)->capture_default_str();
+  cmd->add_option("--alpha-range", a->alpha_range, "LO,HI: alpha range of the fold curves")
+      ->delimiter(',')
+      ->expected(2)
+      ->capture_default_str();
+  cmd->add_option("--omega-range", a->omega_range, "LO,HI: Omega range of the fold curves")
+      ->delimiter(',')
+      ->expected(2)
+      ->capture_default_str();
   cmd->add_option("--fold-out", a->fold_out, "fold-curve figure (default hbm_<model>_folds.<format>)");
-  cmd->add_option("--over-map", a->over_map,
-                  "draw the fold curves over a map: a map file of `bistable run` (<data>/sweeps/<id>.h5) or a sweep id in --data");
+  cmd->add_option(
+      "--over-map", a->over_map,
+      "draw the fold curves over a map: a map file of `bistable run` (<data>/sweeps/<id>.h5) or a sweep id in --data");
   cmd->add_option("--map-metric", a->map_metric, "the map's metric under the fold curves")->capture_default_str();
   cmd->add_option("--at", a->at, "fix the map's other axes: eta=0.1,... (its free axes must be alpha and omega)");
   cmd->add_option("--data", a->data, "data directory for --over-map <sweep id>")->capture_default_str();
   cmd->add_flag("--eq9", a->eq9, "overlay the closed-form one-harmonic zero-mean balance on the plot");
-  cmd->add_flag("--json", a->json,
-                "print {branches: [{start, period, points: [...]}], bifurcations: [...], settings, truncation_change, notes"
-                "[, fold_curves: [...]]}");
-  cmd->add_option("--format", a->format, "png | svg: plot amplitude vs the parameter (and the fold curves with --fold-curve)");
+  cmd->add_flag(
+      "--json", a->json,
+      "print {branches: [{start, period, points: [...]}], bifurcations: [...], settings, truncation_change, notes"
+      "[, fold_curves: [...]]}");
+  cmd->add_option("--format", a->format,
+                  "png | svg: plot amplitude vs the parameter (and the fold curves with --fold-curve)");
   cmd->add_option("--out", a->out, "plot file (default hbm_<model>.<format>)");
   cmd->footer(
       "Branches are seeded from time integrations (both wells and a large-amplitude start) at five parameter\n"
@@ -386,7 +440,8 @@ void AddHbmCommand(CLI::App& app, int* exit_code) {
       "Folds (a multiplier through +1), period doublings (through -1) and Neimark-Sacker points (a complex pair\n"
       "through |mu| = 1) are flagged and located by bisection on the arclength step. Fold curves pass through\n"
       "cusps, so one curve gives both edges of a hysteresis region. Example:\n"
-      "  bistable hbm --continue alpha --omega 1.2 --eta 0.3 --from 0.1 --to 0.25 --harmonics 10 --switch-pd 1 --format png\n"
+      "  bistable hbm --continue alpha --omega 1.2 --eta 0.3 --from 0.1 --to 0.25 --harmonics 10 --switch-pd 1 "
+      "--format png\n"
       "  bistable hbm --alpha 0.3 --fold-curve --over-map bistable-data/sweeps/<id>.h5 --fold-out folds.png");
   cmd->callback([a, exit_code]() { *exit_code = RunHbm(*a); });
 }

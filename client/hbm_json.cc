@@ -4,10 +4,15 @@
 
 namespace bistable {
 
-const char* FoldWellName(const FoldCurvePoint& p) { return p.y_min > 0 ? "+well" : p.y_max < 0 ? "-well" : "interwell"; }
+const char* FoldWellName(const FoldCurvePoint& p) {
+  return p.y_min > 0 ? "+well" : p.y_max < 0 ? "-well" : "interwell";
+}
 
 nlohmann::json FoldCurvePointJson(const FoldCurvePoint& p, bool bistable) {
-  nlohmann::json j = {{"alpha", p.alpha}, {"omega", p.omega}, {"amplitude", JsonNumber(p.amplitude)}, {"mean", JsonNumber(p.mean)},
+  nlohmann::json j = {{"alpha", p.alpha},
+                      {"omega", p.omega},
+                      {"amplitude", JsonNumber(p.amplitude)},
+                      {"mean", JsonNumber(p.mean)},
                       {"cusp", p.cusp}};
   if (bistable) j["well"] = FoldWellName(p);
   return j;
@@ -23,10 +28,14 @@ nlohmann::json FoldCurvesJson(const std::vector<FoldCurve>& curves, bool bistabl
   return out;
 }
 
-nlohmann::json ComplexJson(std::complex<double> m) { return nlohmann::json::array({JsonNumber(m.real()), JsonNumber(m.imag())}); }
+nlohmann::json ComplexJson(std::complex<double> m) {
+  return nlohmann::json::array({JsonNumber(m.real()), JsonNumber(m.imag())});
+}
 
 nlohmann::json LocatedJson(const HbmLocated& l) {
-  return {{"omega", JsonNumber(l.omega)}, {"alpha", JsonNumber(l.alpha)}, {"amplitude", JsonNumber(l.amplitude)},
+  return {{"omega", JsonNumber(l.omega)},
+          {"alpha", JsonNumber(l.alpha)},
+          {"amplitude", JsonNumber(l.amplitude)},
           {"multiplier", ComplexJson(l.multiplier)}};
 }
 

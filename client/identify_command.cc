@@ -26,9 +26,9 @@
 #include "client/identify_predict.h"
 #include "client/identify_report.h"
 #include "client/json_out.h"
+#include "dynamics/cancel.h"
 #include "engine/json_shapes.h"
 #include "engine/sweep_spec.h"
-#include "dynamics/cancel.h"
 #include "identify/identify.h"
 #include "identify/synthetic.h"
 
@@ -92,8 +92,10 @@ int ListTerms(bool json) {
   }
   for (const TermDef& t : EffectLibrary()) {
     std::string pn;
-    for (const TermParam& p : t.params) pn += (pn.empty() ? "" : ", ") + p.name + " [" + p.unit + "]" + (p.sign == Sign::kNonNegative ? " >= 0" : "");
-    std::printf("%-20s %-44s %s\n", t.id.c_str(), t.formula.size() > 44 ? (t.formula.substr(0, 41) + "...").c_str() : t.formula.c_str(), pn.c_str());
+    for (const TermParam& p : t.params)
+      pn += (pn.empty() ? "" : ", ") + p.name + " [" + p.unit + "]" + (p.sign == Sign::kNonNegative ? " >= 0" : "");
+    std::printf("%-20s %-44s %s\n", t.id.c_str(),
+                t.formula.size() > 44 ? (t.formula.substr(0, 41) + "...").c_str() : t.formula.c_str(), pn.c_str());
   }
   return 0;
 }
@@ -121,23 +123,29 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
     extra.push_back(*x);
   }
   if (!family && (!extra.empty() || !a.synth_amplitudes_mm.empty()))
-    return Status::InvalidArgument("synthetic", "--synthetic-extra and --synthetic-amplitude are options of --synthetic bistable|bistable-coupled");
+    return Status::InvalidArgument(
+        "synthetic",
+        "--synthetic-extra and --synthetic-amplitude are options of --synthetic bistable|bistable-coupled");
   auto check = [](const char* flag, double v, double lo, double hi) -> Status {
     if (!(v >= lo && v <= hi))
-      return Status::InvalidArgument(flag, std::string("--") + flag + " = " + Fmt(v, 6) + " violates " + Fmt(lo, 6) + " <= value <= " + Fmt(hi, 6));
+      return Status::InvalidArgument(flag, std::string("--") + flag + " = " + Fmt(v, 6) + " violates " + Fmt(lo, 6) +
+                                               " <= value <= " + Fmt(hi, 6));
     return Status::Ok();
   };
   if (family) {  // every flag checked before anything is written
     for (const TermValues& e : extra)
       if (e.term->body == Body::kResonator && kind != "bistable-coupled")
-        return Status::InvalidArgument("synthetic-extra", "--synthetic-extra " + e.term->id + " needs --synthetic bistable-coupled (a resonator)");
+        return Status::InvalidArgument(
+            "synthetic-extra", "--synthetic-extra " + e.term->id + " needs --synthetic bistable-coupled (a resonator)");
     BISTABLE_RETURN_IF_ERROR(check("synthetic-f-start", a.synth_f_start, 0.01, 50));
     BISTABLE_RETURN_IF_ERROR(check("synthetic-f-end", a.synth_f_end, 0.01, 50));
     BISTABLE_RETURN_IF_ERROR(check("synthetic-duration", a.synth_duration, 1, 600));
     BISTABLE_RETURN_IF_ERROR(check("synthetic-noise", a.synth_noise_mm, 0, 10));
     if (a.synth_start != "left" && a.synth_start != "right")
-      return Status::InvalidArgument("synthetic-start", "--synthetic-start '" + a.synth_start + "' is not left or right");
-    if (a.synth_amplitudes_mm.size() > 16) return Status::InvalidArgument("synthetic-amplitude", "at most 16 --synthetic-amplitude values");
+      return Status::InvalidArgument("synthetic-start",
+                                     "--synthetic-start '" + a.synth_start + "' is not left or right");
+    if (a.synth_amplitudes_mm.size() > 16)
+      return Status::InvalidArgument("synthetic-amplitude", "at most 16 --synthetic-amplitude values");
     for (double mm : a.synth_amplitudes_mm) BISTABLE_RETURN_IF_ERROR(check("synthetic-amplitude", mm, 0.01, 100));
   }
   std::error_code ec;
@@ -166,13 +174,15 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
       o.seed = seed;
       o.y0_m = SyntheticWell(p, extra, a.synth_start == "left" ? -well : well);  // at rest in the truth's well
       o.extra = extra;
-      const std::string file = std::string(p.has_resonator ? "coupled" : "standalone") + "_" + Fmt(mm, 4) + "mm_s" + std::to_string(seed) + ".csv";
+      const std::string file = std::string(p.has_resonator ? "coupled" : "standalone") + "_" + Fmt(mm, 4) + "mm_s" +
+                               std::to_string(seed) + ".csv";
       BISTABLE_RETURN_IF_ERROR(write(p, o, file));
       records.push_back({{"file", file}, {"amplitude_mm", mm}, {"seed", seed}});
       ++seed;
     }
     // The truth as a model file for `identify --predict --model` (and the tests' reference values).
-    nlohmann::json params = nlohmann::json::object(), final_terms = nlohmann::json::array(), extras = nlohmann::json::array();
+    nlohmann::json params = nlohmann::json::object(), final_terms = nlohmann::json::array(),
+                   extras = nlohmann::json::array();
     for (const TermValues& t : TruthTerms(p, extra)) {
       final_terms.push_back(t.term->id);
       for (size_t k = 0; k < t.values.size(); ++k) params[t.term->id + "." + t.term->params[k].name] = t.values[k];
@@ -182,14 +192,28 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
       for (size_t k = 0; k < e.values.size(); ++k) v[e.term->params[k].name] = e.values[k];
       extras.push_back({{"term", e.term->id}, {"values", v}});
     }
-    nlohmann::json settings = {{"m_main", p.m_m}, {"v_sp", p.fric_m.v_sp}, {"v_t", p.fric_m.v_t}, {"input_kind", "base_displacement"},
-                               {"output_kind", "displacement"}, {"output_frame", "absolute"}};
+    nlohmann::json settings = {{"m_main", p.m_m},
+                               {"v_sp", p.fric_m.v_sp},
+                               {"v_t", p.fric_m.v_t},
+                               {"input_kind", "base_displacement"},
+                               {"output_kind", "displacement"},
+                               {"output_frame", "absolute"}};
     if (p.has_resonator) settings["m_res"] = p.m_r;
-    nlohmann::json truth = {{"final_terms", final_terms}, {"params", params}, {"settings", settings},
-                            {"synthetic", {{"kind", kind}, {"f_start_hz", a.synth_f_start}, {"f_end_hz", a.synth_f_end},
-                                           {"duration_s", a.synth_duration}, {"fs_hz", 120}, {"noise_mm", a.synth_noise_mm},
-                                           {"noise_on", p.has_resonator ? nlohmann::json{"x0", "x", "xr"} : nlohmann::json{"x0", "x"}},
-                                           {"start_well", a.synth_start}, {"extra", extras}, {"records", records}}}};
+    nlohmann::json truth = {
+        {"final_terms", final_terms},
+        {"params", params},
+        {"settings", settings},
+        {"synthetic",
+         {{"kind", kind},
+          {"f_start_hz", a.synth_f_start},
+          {"f_end_hz", a.synth_f_end},
+          {"duration_s", a.synth_duration},
+          {"fs_hz", 120},
+          {"noise_mm", a.synth_noise_mm},
+          {"noise_on", p.has_resonator ? nlohmann::json{"x0", "x", "xr"} : nlohmann::json{"x0", "x"}},
+          {"start_well", a.synth_start},
+          {"extra", extras},
+          {"records", records}}}};
     const std::string path = (std::filesystem::path(dir) / "truth.json").string();
     auto f = AtomicFile::Create(path, "json");
     if (!f.ok()) return f.status();
@@ -220,10 +244,13 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
 int MakeSynthetic(const std::string& dir, const IdentifyArgs& a) {
   auto j = SyntheticJson(dir, a);
   if (!j.ok()) return Fail(j.status());
-  if (a.json) std::cout << DumpJson(*j, 2) << "\n";
+  if (a.json)
+    std::cout << DumpJson(*j, 2) << "\n";
   else {
     for (const auto& f : (*j)["files"]) std::printf("wrote %s\n", f.get<std::string>().c_str());
-    if (j->contains("truth")) std::printf("wrote %s (the true model: identify --predict --model it)\n", (*j)["truth"].get<std::string>().c_str());
+    if (j->contains("truth"))
+      std::printf("wrote %s (the true model: identify --predict --model it)\n",
+                  (*j)["truth"].get<std::string>().c_str());
   }
   return 0;
 }
@@ -310,10 +337,14 @@ nlohmann::json ErrorsByOutputJson(const Errors& before, const Errors& after) {
   for (size_t k = 0; k < after.outputs.size(); ++k) {
     const OutputErrors& a = after.outputs[k];
     const OutputErrors* b = k < before.outputs.size() ? &before.outputs[k] : nullptr;
-    j[a.name] = {{"before", JsonNumber(b ? b->nrmse : NAN)}, {"after", JsonNumber(a.nrmse)},
-                 {"fft_before", JsonNumber(b ? b->fft : NAN)}, {"fft_after", JsonNumber(a.fft)},
-                 {"shooting_before", JsonNumber(b ? b->shooting : NAN)}, {"shooting_after", JsonNumber(a.shooting)},
-                 {"noise", JsonNumber(a.noise)}, {"weight", JsonNumber(a.weight)}};
+    j[a.name] = {{"before", JsonNumber(b ? b->nrmse : NAN)},
+                 {"after", JsonNumber(a.nrmse)},
+                 {"fft_before", JsonNumber(b ? b->fft : NAN)},
+                 {"fft_after", JsonNumber(a.fft)},
+                 {"shooting_before", JsonNumber(b ? b->shooting : NAN)},
+                 {"shooting_after", JsonNumber(a.shooting)},
+                 {"noise", JsonNumber(a.noise)},
+                 {"weight", JsonNumber(a.weight)}};
   }
   return j;
 }
@@ -326,7 +357,10 @@ nlohmann::json FrameJson(const identify::FrameDecision& f) {
     for (const OutputErrors& e : f.errors[k].outputs) o[e.name] = JsonNumber(identify::OutputError(e, f.metric));
     by[k == 0 ? "absolute" : "relative"] = o;
   }
-  return {{"chosen", f.chosen}, {"metric", f.metric}, {"error_absolute", JsonNumber(f.error[0])}, {"error_relative", JsonNumber(f.error[1])},
+  return {{"chosen", f.chosen},
+          {"metric", f.metric},
+          {"error_absolute", JsonNumber(f.error[0])},
+          {"error_relative", JsonNumber(f.error[1])},
           {"errors_by_output", by}};
 }
 
@@ -343,7 +377,8 @@ nlohmann::json DrivePeriodErrors(const PreparedRecord& r, const Setup& setup, co
   for (double periods : {1.0, 4.0}) {
     const double hs = std::isfinite(f) && f > 0 ? periods / f : NAN;
     nlohmann::json e = {{"drive_periods", periods}, {"horizon_s", JsonNumber(hs)}};
-    for (const KeyedModel& km : models) e[km.key] = JsonNumber(std::isfinite(hs) ? HorizonError(*km.m, *km.th, r, setup, hs) : NAN);
+    for (const KeyedModel& km : models)
+      e[km.key] = JsonNumber(std::isfinite(hs) ? HorizonError(*km.m, *km.th, r, setup, hs) : NAN);
     h.push_back(e);
   }
   return h;
@@ -355,21 +390,30 @@ nlohmann::json ObjectiveChoiceJson(const ObjectiveChoice& c) {
   auto records = [](const std::vector<Predictability>& ps) {
     nlohmann::json recs = nlohmann::json::array();
     for (const Predictability& p : ps)
-      recs.push_back({{"record", p.record}, {"objective", p.long_meaningful ? "long simulation" : "short horizon"},
-                      {"fit_horizon_s", p.fit_horizon_s}, {"chaos_floor_percent", JsonNumber(p.chaos_floor)},
-                      {"model_long_error_percent", JsonNumber(p.long_error)}, {"followed", p.followed},
-                      {"prediction_horizon_s", JsonNumber(p.horizon_s)}, {"duration_s", p.duration_s},
-                      {"well_changes", p.well_changes}, {"reason", p.reason}});
+      recs.push_back({{"record", p.record},
+                      {"objective", p.long_meaningful ? "long simulation" : "short horizon"},
+                      {"fit_horizon_s", p.fit_horizon_s},
+                      {"chaos_floor_percent", JsonNumber(p.chaos_floor)},
+                      {"model_long_error_percent", JsonNumber(p.long_error)},
+                      {"followed", p.followed},
+                      {"prediction_horizon_s", JsonNumber(p.horizon_s)},
+                      {"duration_s", p.duration_s},
+                      {"well_changes", p.well_changes},
+                      {"reason", p.reason}});
     return recs;
   };
   const ObjectiveChoice::Continuation& k = c.continuation;
   nlohmann::json cont = nullptr;
   if (k.tried)
-    cont = {{"ran", k.ran}, {"long_error_before_percent", JsonNumber(k.long_before)}, {"long_error_after_percent", JsonNumber(k.long_after)},
-            {"reason", k.reason}, {"records", records(k.records)}};
-  return {{"decided_with", c.model}, {"meaningful_below_percent", kMeaningfulFloor}, {"seconds", c.seconds},
-          {"objective", c.objective == Objective::kShooting ? "shooting" : "time"}, {"horizon_s", c.horizon_s},
-          {"records", records(c.records)}, {"continuation", cont}};
+    cont = {{"ran", k.ran},
+            {"long_error_before_percent", JsonNumber(k.long_before)},
+            {"long_error_after_percent", JsonNumber(k.long_after)},
+            {"reason", k.reason},
+            {"records", records(k.records)}};
+  return {{"decided_with", c.model},  {"meaningful_below_percent", kMeaningfulFloor},
+          {"seconds", c.seconds},     {"objective", c.objective == Objective::kShooting ? "shooting" : "time"},
+          {"horizon_s", c.horizon_s}, {"records", records(c.records)},
+          {"continuation", cont}};
 }
 
 // The loop's evidence: per step the verdict and every candidate's scores.
@@ -378,12 +422,19 @@ nlohmann::json StepsJson(const IdentifyResult& r) {
   for (const LoopStep& s : r.steps) {
     nlohmann::json sc = nlohmann::json::array();
     for (const CandidateScore& c : s.scores)
-      sc.push_back({{"term", c.term}, {"delta_bic", JsonNumber(c.delta_bic)}, {"explained", JsonNumber(c.explained)}, {"sign_ok", c.sign_ok},
-                    {"force_delta_bic", JsonNumber(c.force_delta_bic)}, {"force_explained", JsonNumber(c.force_explained)},
+      sc.push_back({{"term", c.term},
+                    {"delta_bic", JsonNumber(c.delta_bic)},
+                    {"explained", JsonNumber(c.explained)},
+                    {"sign_ok", c.sign_ok},
+                    {"force_delta_bic", JsonNumber(c.force_delta_bic)},
+                    {"force_explained", JsonNumber(c.force_explained)},
                     {"twin_explained", JsonNumber(c.twin_explained)}});
-    steps.push_back({{"verdict", s.verdict}, {"chosen", s.chosen}, {"n_eff", JsonNumber(s.n_eff)},
+    steps.push_back({{"verdict", s.verdict},
+                     {"chosen", s.chosen},
+                     {"n_eff", JsonNumber(s.n_eff)},
                      {"record_n_eff", JsonNumber(s.record_n_eff)},
-                     {"residual_force_rms", JsonNumber(s.residual_rms)}, {"scores", sc}});
+                     {"residual_force_rms", JsonNumber(s.residual_rms)},
+                     {"scores", sc}});
   }
   return steps;
 }
@@ -406,7 +457,9 @@ nlohmann::json ResultJson(const identify::Options& o, const identify::Summary& s
   j["objective_choice"] = ObjectiveChoiceJson(r.objective_choice);
   // The objective the loop ran and its error before and after (auto: what objective_choice chose).
   const Objective ran = r.objective_choice.made ? r.objective_choice.objective : plan.loop.fit.objective;
-  auto objective_error = [&](const Errors& e) { return ran == Objective::kShooting ? e.shooting : ran == Objective::kFft ? e.fft : e.nrmse; };
+  auto objective_error = [&](const Errors& e) {
+    return ran == Objective::kShooting ? e.shooting : ran == Objective::kFft ? e.fft : e.nrmse;
+  };
   j["objective_ran"] = ran == Objective::kShooting ? "shooting" : ran == Objective::kFft ? "fft" : "time";
   j["objective_error_before"] = JsonNumber(objective_error(r.before.errors));
   j["objective_error_after"] = JsonNumber(objective_error(r.after.errors));
@@ -418,9 +471,13 @@ nlohmann::json ResultJson(const identify::Options& o, const identify::Summary& s
   j["effects_added"] = nlohmann::json::array();
   for (const AddedEffect& e : r.added) {
     nlohmann::json p = nlohmann::json::object(), u = nlohmann::json::object();
-    for (size_t i = 0; i < e.names.size(); ++i) p[e.names[i]] = JsonNumber(e.params[i]), u[e.names[i]] = JsonNumber(e.sigma[i]);
-    j["effects_added"].push_back({{"term", e.term}, {"params", p}, {"uncertainty", u},
-                                  {"error_before", JsonNumber(e.error_before)}, {"error_after", JsonNumber(e.error_after)}});
+    for (size_t i = 0; i < e.names.size(); ++i)
+      p[e.names[i]] = JsonNumber(e.params[i]), u[e.names[i]] = JsonNumber(e.sigma[i]);
+    j["effects_added"].push_back({{"term", e.term},
+                                  {"params", p},
+                                  {"uncertainty", u},
+                                  {"error_before", JsonNumber(e.error_before)},
+                                  {"error_after", JsonNumber(e.error_after)}});
   }
   j["params"] = ParamsJson(r.final_model, r.after);
   j["uncertainty"] = nlohmann::json::object();
@@ -430,35 +487,51 @@ nlohmann::json ResultJson(const identify::Options& o, const identify::Summary& s
   j["errors_by_output"] = ErrorsByOutputJson(r.before.errors, r.after.errors);
   j["records"] = nlohmann::json::array();
   for (size_t i = 0; i < recs.size(); ++i)
-    j["records"].push_back({{"name", recs[i].name},
-                            {"samples", recs[i].n()},
-                            {"nrmse_before", JsonNumber(r.before.errors.record_nrmse[i])},
-                            {"nrmse_after", JsonNumber(r.after.errors.record_nrmse[i])},
-                            {"fft_before", JsonNumber(r.before.errors.record_fft[i])},
-                            {"fft_after", JsonNumber(r.after.errors.record_fft[i])},
-                            {"long_nrmse_before", JsonNumber(i < r.before.errors.record_long_nrmse.size() ? r.before.errors.record_long_nrmse[i] : NAN)},
-                            {"long_nrmse_after", JsonNumber(i < r.after.errors.record_long_nrmse.size() ? r.after.errors.record_long_nrmse[i] : NAN)},
-                            {"horizon_s", recs[i].horizon_s},
-                            {"rms_before", JsonNumber(r.before.errors.record_rms[i])},
-                            {"rms_after", JsonNumber(r.after.errors.record_rms[i])}});
+    j["records"].push_back(
+        {{"name", recs[i].name},
+         {"samples", recs[i].n()},
+         {"nrmse_before", JsonNumber(r.before.errors.record_nrmse[i])},
+         {"nrmse_after", JsonNumber(r.after.errors.record_nrmse[i])},
+         {"fft_before", JsonNumber(r.before.errors.record_fft[i])},
+         {"fft_after", JsonNumber(r.after.errors.record_fft[i])},
+         {"long_nrmse_before",
+          JsonNumber(i < r.before.errors.record_long_nrmse.size() ? r.before.errors.record_long_nrmse[i] : NAN)},
+         {"long_nrmse_after",
+          JsonNumber(i < r.after.errors.record_long_nrmse.size() ? r.after.errors.record_long_nrmse[i] : NAN)},
+         {"horizon_s", recs[i].horizon_s},
+         {"rms_before", JsonNumber(r.before.errors.record_rms[i])},
+         {"rms_after", JsonNumber(r.after.errors.record_rms[i])}});
   // Errors a reader can compare, per record: over one and four drive periods from the measured state, and the
   // whole simulation (long_nrmse_*), before and after.
   for (size_t i = 0; i < recs.size(); ++i) {
     const double f = DriveFrequency(recs[i]);
-    nlohmann::json h = DrivePeriodErrors(recs[i], plan.setup, {{"before", &r.declared, &r.before.theta}, {"after", &r.final_model, &r.after.theta}});
+    nlohmann::json h = DrivePeriodErrors(
+        recs[i], plan.setup, {{"before", &r.declared, &r.before.theta}, {"after", &r.final_model, &r.after.theta}});
     j["records"][i]["drive_hz"] = JsonNumber(f);
-    j["records"][i]["drive_band_hz"] = recs[i].f_drive;  // the simulation's drive: the input low-passed there (0: as measured)
+    j["records"][i]["drive_band_hz"] =
+        recs[i].f_drive;  // the simulation's drive: the input low-passed there (0: as measured)
     j["records"][i]["horizon_errors"] = h;
   }
   j["tests"] = TestsJson(s.tests);
   j["steps"] = StepsJson(r);
   j["seconds"] = r.seconds;
   j["simulations"] = s.simulations;
-  j["settings"] = {{"v_sp", plan.setup.fc.v_sp}, {"v_t", plan.setup.fc.v_t}, {"m_main", plan.model.m_main}, {"m_res", plan.model.m_res},
-                   {"deriv_cutoff_hz", recs.empty() ? 0.0 : recs[0].f_cut}, {"global_evals", o.global_evals}, {"lm_iterations", o.lm_iterations}, {"shooting_horizon_s", o.horizon},
-                   {"decimate", o.decimate}, {"max_seconds", o.max_seconds}, {"input_kind", identify::Name(o.input_kind)},
-                   {"output_kind", identify::Name(o.output_kind)}, {"output_frame", plan.setup.frame == OutputFrame::kRelative ? "relative" : "absolute"},
-                   {"drift_cutoff_hz", o.drift_cutoff}, {"fit_offsets", o.fit_offsets}, {"output_weights", identify::Name(o.output_weights)}};
+  j["settings"] = {{"v_sp", plan.setup.fc.v_sp},
+                   {"v_t", plan.setup.fc.v_t},
+                   {"m_main", plan.model.m_main},
+                   {"m_res", plan.model.m_res},
+                   {"deriv_cutoff_hz", recs.empty() ? 0.0 : recs[0].f_cut},
+                   {"global_evals", o.global_evals},
+                   {"lm_iterations", o.lm_iterations},
+                   {"shooting_horizon_s", o.horizon},
+                   {"decimate", o.decimate},
+                   {"max_seconds", o.max_seconds},
+                   {"input_kind", identify::Name(o.input_kind)},
+                   {"output_kind", identify::Name(o.output_kind)},
+                   {"output_frame", plan.setup.frame == OutputFrame::kRelative ? "relative" : "absolute"},
+                   {"drift_cutoff_hz", o.drift_cutoff},
+                   {"fit_offsets", o.fit_offsets},
+                   {"output_weights", identify::Name(o.output_weights)}};
   AddDiagnosticsJson(r, recs, &j);
   j["velocity_frame"] = FrameJson(s.frame);
   return j;
@@ -478,22 +551,31 @@ Status CheckPredictFlagsAgree(const IdentifyArgs& a, const FittedModel& fm) {
     }
     std::set<std::string> final_terms;
     std::string final_list;
-    for (const TermDef* t : fm.model.terms) final_terms.insert(t->id), final_list += (final_list.empty() ? "" : ",") + t->id;
+    for (const TermDef* t : fm.model.terms)
+      final_terms.insert(t->id), final_list += (final_list.empty() ? "" : ",") + t->id;
     if (g != d && g != final_terms)
       return Status::InvalidArgument("terms", "--terms " + a.terms + " is neither the model's declared terms (" +
-                                                  (fm.declared.empty() ? std::string("not recorded") : fm.declared) + ") nor its final terms (" +
-                                                  final_list + ") in " + fm.path + "; --predict takes the terms from the model file");
+                                                  (fm.declared.empty() ? std::string("not recorded") : fm.declared) +
+                                                  ") nor its final terms (" + final_list + ") in " + fm.path +
+                                                  "; --predict takes the terms from the model file");
   }
   auto kv = ParseNameValues(a.known, "known");
   if (!kv.ok()) return kv.status();
   identify::Options scratch;
   BISTABLE_RETURN_IF_ERROR(ApplyKnown(a.known, &scratch));
   for (const auto& [k, v] : *kv) {
-    const double given = k == "m_main" ? scratch.m_main : k == "m_res" ? scratch.m_res : k == "v_sp" ? scratch.v_sp : scratch.v_t;
-    const double model = k == "m_main" ? fm.model.m_main : k == "m_res" ? fm.model.m_res : k == "v_sp" ? fm.model.fc.v_sp : fm.model.fc.v_t;
+    const double given = k == "m_main"  ? scratch.m_main
+                         : k == "m_res" ? scratch.m_res
+                         : k == "v_sp"  ? scratch.v_sp
+                                        : scratch.v_t;
+    const double model = k == "m_main"  ? fm.model.m_main
+                         : k == "m_res" ? fm.model.m_res
+                         : k == "v_sp"  ? fm.model.fc.v_sp
+                                        : fm.model.fc.v_t;
     if (given != model)
-      return Status::InvalidArgument("known." + k, "--known " + k + "=" + v + " differs from the model's " + k + " = " + Fmt(model, 17) + " (" +
-                                                       fm.path + (k == "m_main" && model == 0 ? ": the mass was fitted" : "") + ")");
+      return Status::InvalidArgument(
+          "known." + k, "--known " + k + "=" + v + " differs from the model's " + k + " = " + Fmt(model, 17) + " (" +
+                            fm.path + (k == "m_main" && model == 0 ? ": the mass was fitted" : "") + ")");
   }
   return Status::Ok();
 }
@@ -510,7 +592,8 @@ StatusOr<std::vector<std::string>> ParseStartWells(const IdentifyArgs& a) {
   }
   if (w.size() == 1) w.assign(a.data.size(), w[0]);
   if (w.size() != a.data.size())
-    return Status::InvalidArgument("start-well", "give one value for all --data files or one per file (" + std::to_string(a.data.size()) + "), not " +
+    return Status::InvalidArgument("start-well", "give one value for all --data files or one per file (" +
+                                                     std::to_string(a.data.size()) + "), not " +
                                                      std::to_string(w.size()));
   return w;
 }
@@ -520,13 +603,19 @@ StatusOr<std::vector<std::string>> ParseStartWells(const IdentifyArgs& a) {
 StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   if (a.model_file.empty())
-    return Status::InvalidArgument("model", "--predict needs --model FILE: a `bistable identify --json` output or a report directory (its report.json)");
+    return Status::InvalidArgument(
+        "model",
+        "--predict needs --model FILE: a `bistable identify --json` output or a report directory (its report.json)");
   if (a.data.empty()) return Status::InvalidArgument("data", "give at least one --data FILE.csv to predict");
-  if (!a.guesses.empty()) return Status::InvalidArgument("guess", "--predict fits nothing: the parameter values are the model file's");
-  if (a.fit_offsets) return Status::InvalidArgument("fit-offsets", "--predict fits nothing; --start-well sets where each record starts");
+  if (!a.guesses.empty())
+    return Status::InvalidArgument("guess", "--predict fits nothing: the parameter values are the model file's");
+  if (a.fit_offsets)
+    return Status::InvalidArgument("fit-offsets", "--predict fits nothing; --start-well sets where each record starts");
   if (!a.report.empty()) return Status::InvalidArgument("report", "--predict writes no report directory (use --json)");
   if (!a.test_ranges.empty())
-    return Status::InvalidArgument("test-range", "--predict simulates the --data records themselves (--range and --max-seconds select the samples)");
+    return Status::InvalidArgument(
+        "test-range",
+        "--predict simulates the --data records themselves (--range and --max-seconds select the samples)");
   auto read = ReadFittedModel(a.model_file);
   if (!read.ok()) return read.status();
   FittedModel fitted = std::move(read).value();
@@ -540,12 +629,18 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   setup.input = o.input_kind;
   setup.output = o.output_kind;
   if (!fm->input_kind.empty() && fm->input_kind != a.input_kind)
-    return Status::InvalidArgument("input-kind", "the model was fitted with --input-kind " + fm->input_kind + " (" + fm->path +
-                                                     "); its parameters do not describe a " + a.input_kind + " input");
-  const std::string frame = a.frame == "auto" || !a.frame_given ? (fm->frame.empty() ? "absolute" : fm->frame) : a.frame;
-  if (frame == "absolute") setup.frame = OutputFrame::kAbsolute;
-  else if (frame == "relative") setup.frame = OutputFrame::kRelative;
-  else return Status::InvalidArgument("output-frame", "'" + a.frame + "' violates output-frame in {absolute, relative, auto}");
+    return Status::InvalidArgument("input-kind", "the model was fitted with --input-kind " + fm->input_kind + " (" +
+                                                     fm->path + "); its parameters do not describe a " + a.input_kind +
+                                                     " input");
+  const std::string frame =
+      a.frame == "auto" || !a.frame_given ? (fm->frame.empty() ? "absolute" : fm->frame) : a.frame;
+  if (frame == "absolute")
+    setup.frame = OutputFrame::kAbsolute;
+  else if (frame == "relative")
+    setup.frame = OutputFrame::kRelative;
+  else
+    return Status::InvalidArgument("output-frame",
+                                   "'" + a.frame + "' violates output-frame in {absolute, relative, auto}");
   if (a.frame_given && a.frame != "auto" && !fm->frame.empty() && frame != fm->frame)
     fm->notes.push_back("the fit read the velocity as " + fm->frame + "; predicted as " + frame + " (--output-frame)");
   const IdentModel& model = fm->model;
@@ -565,7 +660,8 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   for (size_t f = 0; f < a.data.size(); ++f) {
     auto recs = LoadRecords(a.data[f], columns);
     if (!recs.ok()) return recs.status();
-    for (Record& r : recs.value()) loaded.push_back(a.decimate > 1 ? identify::Decimated(r, a.decimate) : std::move(r)), file_of.push_back(f);
+    for (Record& r : recs.value())
+      loaded.push_back(a.decimate > 1 ? identify::Decimated(r, a.decimate) : std::move(r)), file_of.push_back(f);
   }
   auto prepared = identify::PrepareFitted(loaded, o, setup);
   if (!prepared.ok()) return prepared.status();
@@ -577,8 +673,11 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   const bool any_well = std::any_of(wells->begin(), wells->end(), [](const std::string& w) { return w != "none"; });
   if (any_well) {
     if (setup.output != OutputKind::kVelocity)
-      return Status::InvalidArgument("start-well", "--start-well is for velocity outputs (a displacement output gives the start itself)");
-    if (!statics->bistable) return Status::InvalidArgument("start-well", "the model has one well (no barrier): start left or right has no meaning");
+      return Status::InvalidArgument(
+          "start-well", "--start-well is for velocity outputs (a displacement output gives the start itself)");
+    if (!statics->bistable)
+      return Status::InvalidArgument("start-well",
+                                     "the model has one well (no barrier): start left or right has no meaning");
     m.offsets = static_cast<int>(recs.size());
     for (size_t i = 0; i < recs.size(); ++i) {
       const std::string& w = (*wells)[file_of[i]];
@@ -602,9 +701,16 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
     out.push_back(std::move(pr));
   }
   const Errors joint = Evaluate(m, th, recs, setup);
-  nlohmann::json settings = {{"data", a.data}, {"decimate", a.decimate}, {"max_seconds", a.max_seconds}, {"range", a.range},
-                             {"deriv_cutoff_hz", a.deriv_cutoff}, {"objective", a.objective}, {"input_kind", a.input_kind},
-                             {"output_kind", a.output_kind}, {"output_frame", frame}, {"drift_cutoff_hz", a.drift_cutoff},
+  nlohmann::json settings = {{"data", a.data},
+                             {"decimate", a.decimate},
+                             {"max_seconds", a.max_seconds},
+                             {"range", a.range},
+                             {"deriv_cutoff_hz", a.deriv_cutoff},
+                             {"objective", a.objective},
+                             {"input_kind", a.input_kind},
+                             {"output_kind", a.output_kind},
+                             {"output_frame", frame},
+                             {"drift_cutoff_hz", a.drift_cutoff},
                              {"start_well", *wells}};
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   nlohmann::json pj = PredictionJson(*fm, *statics, out, joint, setup, settings, seconds);
@@ -613,7 +719,8 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
   for (size_t i = 0; i < recs.size(); ++i) {
     const double f = DriveFrequency(recs[i]);
     nlohmann::json h = DrivePeriodErrors(recs[i], setup, {{"nrmse", &m, &th}});
-    h.push_back({{"horizon_s", a.horizon}, {"nrmse", JsonNumber(a.horizon > 0 ? HorizonError(m, th, recs[i], setup, a.horizon) : NAN)}});
+    h.push_back({{"horizon_s", a.horizon},
+                 {"nrmse", JsonNumber(a.horizon > 0 ? HorizonError(m, th, recs[i], setup, a.horizon) : NAN)}});
     const Predictability pr = TestPredictability(m, th, recs[i], setup, a.horizon > 0 ? a.horizon : 0.5);
     nlohmann::json& rj = pj["prediction"]["records"][i];
     rj["drive_hz"] = JsonNumber(f);
@@ -625,28 +732,35 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
     PreparedRecord banded = recs[i];
     BandLimitedRestarts(&banded);
     rj["shooting_nrmse"] = JsonNumber(a.horizon > 0 ? Evaluate(m, th, {banded}, setup, a.horizon).shooting : NAN);
-    rj["predictability"] = {{"chaos_floor_percent", JsonNumber(pr.chaos_floor)}, {"prediction_horizon_s", JsonNumber(pr.horizon_s)},
-                            {"well_changes", pr.well_changes}, {"long_meaningful", pr.long_meaningful},
-                            {"fit_horizon_s", pr.fit_horizon_s}, {"reason", pr.reason}};
+    rj["predictability"] = {{"chaos_floor_percent", JsonNumber(pr.chaos_floor)},
+                            {"prediction_horizon_s", JsonNumber(pr.horizon_s)},
+                            {"well_changes", pr.well_changes},
+                            {"long_meaningful", pr.long_meaningful},
+                            {"fit_horizon_s", pr.fit_horizon_s},
+                            {"reason", pr.reason}};
   }
   return pj;
 }
 
 // The fit of the records of `data` (identify/identify.h) as --json prints it; the report directory is
 // written when asked, the text summary printed when `text`.
-StatusOr<nlohmann::json> FitJson(const identify::Options& o, const std::vector<std::string>& data, const std::string& report, bool text) {
+StatusOr<nlohmann::json> FitJson(const identify::Options& o, const std::vector<std::string>& data,
+                                 const std::string& report, bool text) {
   auto plan = identify::MakePlan(o);  // the options' errors before any file is read
   if (!plan.ok()) return plan.status();
   // Resonator terms without a resonator column: the resonator is then a hidden state, started where the main body
   // is, and its parameters rest on the main body's motion alone (on the coupled snap-through records they
   // collapsed to 0). Said, not refused: a hidden resonator is a model a user may mean.
   if (plan->model.HasResonator() && plan->columns.resonator.empty())
-    std::fprintf(stderr, "identify: warning: the model has res.* terms but no resonator column; the resonator is fitted as a hidden "
-                         "state (add --columns resonator=NAME for its absolute displacement, e.g. resonator=xr for --make-synthetic "
-                         "records)\n");
+    std::fprintf(
+        stderr,
+        "identify: warning: the model has res.* terms but no resonator column; the resonator is fitted as a hidden "
+        "state (add --columns resonator=NAME for its absolute displacement, e.g. resonator=xr for --make-synthetic "
+        "records)\n");
   const auto loaded = identify::LoadRecords(o, data);
   if (!loaded.ok()) return loaded.status();
-  const auto s = Identify(o, *loaded, text ? +[](const std::string& line) { std::fputs(line.c_str(), stderr); } : nullptr);
+  const auto s =
+      Identify(o, *loaded, text ? +[](const std::string& line) { std::fputs(line.c_str(), stderr); } : nullptr);
   if (!s.ok()) return s.status();
   const nlohmann::json j = ResultJson(o, *s);
   if (!report.empty()) BISTABLE_RETURN_IF_ERROR(WriteReport(report, identify::JoinTerms(o.terms), *s, j));
@@ -660,7 +774,8 @@ StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
   if (a.list_terms) return TermsJson();
   if (!a.synth.empty()) return SyntheticJson(a.synth, a);
   if (a.predict) return PredictJson(a);
-  if (!a.model_file.empty()) return Status::InvalidArgument("model", "--model is read by --predict (add --predict, or drop --model to fit)");
+  if (!a.model_file.empty())
+    return Status::InvalidArgument("model", "--model is read by --predict (add --predict, or drop --model to fit)");
   if (!a.start_well.empty()) return Status::InvalidArgument("start-well", "--start-well is a --predict option");
   if (a.data.empty()) return Status::InvalidArgument("data", "give at least one --data FILE.csv");
   const auto o = OptionsFromFlags(a);
@@ -680,86 +795,139 @@ int RunIdentify(const IdentifyArgs& a) {
     return CancelExitStatus();
   }
   if (!j.ok()) return Fail(j.status());
-  if (a.json) std::cout << DumpJson(*j, 2) << "\n";
-  else if (a.predict) std::cout << PredictionText(*j);
+  if (a.json)
+    std::cout << DumpJson(*j, 2) << "\n";
+  else if (a.predict)
+    std::cout << PredictionText(*j);
   return 0;
 }
 
 void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
-  c->add_option("--data", a->data, "CSV record(s) with a header: , tab or ; separated, # comments, units in names (docs/identification.md); repeat for several, fitted jointly");
-  c->add_option("--terms", a->terms, "declared terms, comma-separated (see --list-terms), e.g. main.linear,main.stiffness_y3,main.viscous");
-  c->add_option("--known", a->known, "known constants: m_main, m_res [kg], v_sp, v_t [m/s] (defaults 0.002, 0.001), e.g. m_main=0.282");
-  c->add_option("--columns", a->columns, "column roles: t=..,input=..,output=..,output2=..,resonator=..,group=a;b (defaults t, x0|a0|u, x|v|y; "
-                                        "output2: a second output, the piezo voltage, fitted jointly with the first)");
-  c->add_option("--input-kind", a->input_kind, "base_displacement [m] | base_acceleration [m/s^2] | force [N]")->capture_default_str();
-  c->add_option("--input-scale", a->input_scale, "factor to SI for the input column (9.81 for g)")->capture_default_str();
-  c->add_option("--output-kind", a->output_kind, "displacement [m] | velocity [m/s] | analogue (a displacement-like signal)")->capture_default_str();
+  c->add_option("--data", a->data,
+                "CSV record(s) with a header: , tab or ; separated, # comments, units in names "
+                "(docs/identification.md); repeat for several, fitted jointly");
+  c->add_option("--terms", a->terms,
+                "declared terms, comma-separated (see --list-terms), e.g. main.linear,main.stiffness_y3,main.viscous");
+  c->add_option("--known", a->known,
+                "known constants: m_main, m_res [kg], v_sp, v_t [m/s] (defaults 0.002, 0.001), e.g. m_main=0.282");
+  c->add_option("--columns", a->columns,
+                "column roles: t=..,input=..,output=..,output2=..,resonator=..,group=a;b (defaults t, x0|a0|u, x|v|y; "
+                "output2: a second output, the piezo voltage, fitted jointly with the first)");
+  c->add_option("--input-kind", a->input_kind, "base_displacement [m] | base_acceleration [m/s^2] | force [N]")
+      ->capture_default_str();
+  c->add_option("--input-scale", a->input_scale, "factor to SI for the input column (9.81 for g)")
+      ->capture_default_str();
+  c->add_option("--output-kind", a->output_kind,
+                "displacement [m] | velocity [m/s] | analogue (a displacement-like signal)")
+      ->capture_default_str();
   c->add_option("--output-scale", a->output_scale, "factor to SI for the output column")->capture_default_str();
-  c->add_option("--output2-kind", a->output2_kind, "kind of the output2 column: voltage [V] (compared with main.piezo's voltage state)")->capture_default_str();
-  c->add_option("--output2-scale", a->output2_scale, "factor to SI (volts) for the output2 column")->capture_default_str();
-  c->add_option("--output-frame", a->frame, "absolute | relative (to the base) | auto (velocity output, base acceleration input: run the loop "
-                                           "in both frames, keep the lower final error, report both; with --predict: the fit's frame, "
-                                           "also the default there)")
+  c->add_option("--output2-kind", a->output2_kind,
+                "kind of the output2 column: voltage [V] (compared with main.piezo's voltage state)")
+      ->capture_default_str();
+  c->add_option("--output2-scale", a->output2_scale, "factor to SI (volts) for the output2 column")
+      ->capture_default_str();
+  c->add_option("--output-frame", a->frame,
+                "absolute | relative (to the base) | auto (velocity output, base acceleration input: run the loop "
+                "in both frames, keep the lower final error, report both; with --predict: the fit's frame, "
+                "also the default there)")
       ->capture_default_str()
       ->each([a](const std::string&) { a->frame_given = true; });
-  c->add_option("--range", a->range, "sample range A:B used for fitting (0-based, end exclusive; samples after --decimate)");
-  c->add_option("--test-range", a->test_ranges, "sample range A:B simulated for a test error (repeatable; samples after --decimate)");
+  c->add_option("--range", a->range,
+                "sample range A:B used for fitting (0-based, end exclusive; samples after --decimate)");
+  c->add_option("--test-range", a->test_ranges,
+                "sample range A:B simulated for a test error (repeatable; samples after --decimate)");
   c->add_option("--max-seconds", a->max_seconds, "use at most this many seconds of each record (0: all)");
   c->add_option("--decimate", a->decimate, "keep every k-th sample")->capture_default_str();
-  c->add_option("--deriv-cutoff", a->deriv_cutoff, "low-pass cutoff of measured derivatives [Hz] (0: four times the 99.9 % power bandwidth)")->capture_default_str();
-  c->add_option("--drift-cutoff", a->drift_cutoff,
-                "velocity outputs: high-pass [Hz] of the displacement integrated from the velocity (0: mean removed only); "
-                "for records in one well, below the drive (e.g. 0.5 Hz at 6.5 Hz), where the integral's slow part is sensor drift; "
-                "keep 0 on records that change well")->capture_default_str();
-  c->add_option("--objective", a->objective, "auto (per record: the whole simulation where twins started at the noise level stay within 5 %, "
-                                             "else short horizons from the measured state; the JSON's objective_choice says why) | time (every "
-                                             "record's whole simulation, NRMSE) | fft (the paper's Eq. 20) | shooting (chaotic records: segments of "
-                                             "--horizon from re-estimated states, scored on invariants)")->capture_default_str();
-  c->add_option("--global-evals", a->global_evals, "evaluations of the global stage (NLopt CRS2; 0: none)")->capture_default_str();
-  c->add_option("--lm-iterations", a->lm_iterations, "iterations of each Levenberg-Marquardt stage, in [1, 10000] (a stage that reaches them stops unconverged)")->capture_default_str();
-  c->add_option("--horizon", a->horizon, "time objective: short-horizon first stage [s] (0: none); shooting objective: the segment "
-                                         "length [s] (a few forcing periods)")->capture_default_str();
+  c->add_option("--deriv-cutoff", a->deriv_cutoff,
+                "low-pass cutoff of measured derivatives [Hz] (0: four times the 99.9 % power bandwidth)")
+      ->capture_default_str();
+  c->add_option(
+       "--drift-cutoff", a->drift_cutoff,
+       "velocity outputs: high-pass [Hz] of the displacement integrated from the velocity (0: mean removed only); "
+       "for records in one well, below the drive (e.g. 0.5 Hz at 6.5 Hz), where the integral's slow part is sensor "
+       "drift; "
+       "keep 0 on records that change well")
+      ->capture_default_str();
+  c->add_option("--objective", a->objective,
+                "auto (per record: the whole simulation where twins started at the noise level stay within 5 %, "
+                "else short horizons from the measured state; the JSON's objective_choice says why) | time (every "
+                "record's whole simulation, NRMSE) | fft (the paper's Eq. 20) | shooting (chaotic records: segments of "
+                "--horizon from re-estimated states, scored on invariants)")
+      ->capture_default_str();
+  c->add_option("--global-evals", a->global_evals, "evaluations of the global stage (NLopt CRS2; 0: none)")
+      ->capture_default_str();
+  c->add_option(
+       "--lm-iterations", a->lm_iterations,
+       "iterations of each Levenberg-Marquardt stage, in [1, 10000] (a stage that reaches them stops unconverged)")
+      ->capture_default_str();
+  c->add_option("--horizon", a->horizon,
+                "time objective: short-horizon first stage [s] (0: none); shooting objective: the segment "
+                "length [s] (a few forcing periods)")
+      ->capture_default_str();
   c->add_option("--max-added", a->max_added, "at most this many effects added")->capture_default_str();
-  c->add_option("--candidates", a->candidates, "terms the trace may add (default: the force terms of the bodies measured; with an output2 "
-                                              "voltage also main.piezo and out.<output>.offset/.scale of every output)");
+  c->add_option("--candidates", a->candidates,
+                "terms the trace may add (default: the force terms of the bodies measured; with an output2 "
+                "voltage also main.piezo and out.<output>.offset/.scale of every output)");
   c->add_option("--guess", a->guesses, "initial values, e.g. main.linear.k_lin=480 (others from the regression)");
-  c->add_option("--threads", a->threads, "records simulated in parallel (0: the CPUs this process may use: affinity and cgroup quota)")->capture_default_str();
+  c->add_option("--threads", a->threads,
+                "records simulated in parallel (0: the CPUs this process may use: affinity and cgroup quota)")
+      ->capture_default_str();
   c->add_option("--report", a->report, "directory for report.md, report.json and PNG figures");
   c->add_option("--make-synthetic", a->synth, "write synthetic chirp records into DIR and exit (see --synthetic)");
-  c->add_option("--synthetic", a->synth_kind, "linear: Table 2 linear rig, 1-8 Hz chirps of 6/10/14 mm, 20 s each | coupled: Table 2 bistable beam + resonator, friction on both, 1-6 Hz chirp of 4 mm, 70 s (120 Hz, 0.05 mm noise) | "
-                "bistable, bistable-coupled: the snap-through family (beam alone or with the resonator; the --synthetic-* options; noise on every "
-                "column; truth.json)")->capture_default_str();
-  c->add_option("--synthetic-amplitude", a->synth_amplitudes_mm, "bistable family: base chirp amplitude [mm], repeatable (one record each; default 10)");
-  c->add_option("--synthetic-f-start", a->synth_f_start, "bistable family: chirp start frequency [Hz]")->capture_default_str();
-  c->add_option("--synthetic-f-end", a->synth_f_end, "bistable family: chirp end frequency [Hz]")->capture_default_str();
+  c->add_option("--synthetic", a->synth_kind,
+                "linear: Table 2 linear rig, 1-8 Hz chirps of 6/10/14 mm, 20 s each | coupled: Table 2 bistable beam + "
+                "resonator, friction on both, 1-6 Hz chirp of 4 mm, 70 s (120 Hz, 0.05 mm noise) | "
+                "bistable, bistable-coupled: the snap-through family (beam alone or with the resonator; the "
+                "--synthetic-* options; noise on every "
+                "column; truth.json)")
+      ->capture_default_str();
+  c->add_option("--synthetic-amplitude", a->synth_amplitudes_mm,
+                "bistable family: base chirp amplitude [mm], repeatable (one record each; default 10)");
+  c->add_option("--synthetic-f-start", a->synth_f_start, "bistable family: chirp start frequency [Hz]")
+      ->capture_default_str();
+  c->add_option("--synthetic-f-end", a->synth_f_end, "bistable family: chirp end frequency [Hz]")
+      ->capture_default_str();
   c->add_option("--synthetic-duration", a->synth_duration, "bistable family: record length [s]")->capture_default_str();
-  c->add_option("--synthetic-noise", a->synth_noise_mm, "bistable family: noise standard deviation on every column, the input too [mm]")->capture_default_str();
-  c->add_option("--synthetic-seed", a->synth_seed, "bistable family: noise seed of the first record (the next records +1, +2, ...)")->capture_default_str();
-  c->add_option("--synthetic-extra", a->synth_extra, "bistable family: a force term added to the truth, TERM=VALUE[:VALUE] in the library's units "
-                                                    "(e.g. main.drag=5, main.stiffness_y5=2e9, res.stiffness_z3=1e6); repeatable");
-  c->add_option("--synthetic-start", a->synth_start, "bistable family: the well the beam starts in, left | right")->capture_default_str();
+  c->add_option("--synthetic-noise", a->synth_noise_mm,
+                "bistable family: noise standard deviation on every column, the input too [mm]")
+      ->capture_default_str();
+  c->add_option("--synthetic-seed", a->synth_seed,
+                "bistable family: noise seed of the first record (the next records +1, +2, ...)")
+      ->capture_default_str();
+  c->add_option("--synthetic-extra", a->synth_extra,
+                "bistable family: a force term added to the truth, TERM=VALUE[:VALUE] in the library's units "
+                "(e.g. main.drag=5, main.stiffness_y5=2e9, res.stiffness_z3=1e6); repeatable");
+  c->add_option("--synthetic-start", a->synth_start, "bistable family: the well the beam starts in, left | right")
+      ->capture_default_str();
   c->add_flag("--fit-offsets", a->fit_offsets, "velocity outputs: fit each record's displacement offset (which well)");
-  c->add_option("--output-weights", a->output_weights,
-                "several outputs: weight of each output's error in the joint fit — residual: from each output's error in the "
-                "declared fit and after every added effect, floored at its noise (maximum likelihood with per-output error "
-                "levels) | noise: from the noise levels alone")
+  c->add_option(
+       "--output-weights", a->output_weights,
+       "several outputs: weight of each output's error in the joint fit — residual: from each output's error in the "
+       "declared fit and after every added effect, floored at its noise (maximum likelihood with per-output error "
+       "levels) | noise: from the noise levels alone")
       ->capture_default_str();
   c->add_flag("--list-terms", a->list_terms, "list the effect library (ids, formulas, units) and exit");
   c->add_flag("--json", a->json, "print the result as JSON");
-  c->add_flag("--predict", a->predict, "fit nothing: simulate every --data record with the fitted model of --model and report errors, the "
-                                       "amplitudes at the drive frequency (measured, predicted), well switching, invariants of chaotic "
-                                       "records, and the model's wells and small-orbit frequencies");
-  c->add_option("--model", a->model_file, "with --predict: a previous `bistable identify --json` output, or a --report directory (its report.json)");
-  c->add_option("--start-well", a->start_well, "with --predict, velocity outputs: where the model starts, none | left | right, one for all "
-                                              "--data files or one per file, comma-separated (none: the integrated velocity, zero-mean, as "
-                                              "in a fit; left/right: plus that well's centre)");
+  c->add_flag("--predict", a->predict,
+              "fit nothing: simulate every --data record with the fitted model of --model and report errors, the "
+              "amplitudes at the drive frequency (measured, predicted), well switching, invariants of chaotic "
+              "records, and the model's wells and small-orbit frequencies");
+  c->add_option(
+      "--model", a->model_file,
+      "with --predict: a previous `bistable identify --json` output, or a --report directory (its report.json)");
+  c->add_option("--start-well", a->start_well,
+                "with --predict, velocity outputs: where the model starts, none | left | right, one for all "
+                "--data files or one per file, comma-separated (none: the integrated velocity, zero-mean, as "
+                "in a fit; left/right: plus that well's centre)");
 }
 
 }  // namespace
 
 void AddIdentifyCommand(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<IdentifyArgs>();
-  CLI::App* c = app.add_subcommand("identify", "Fit the model to measured records, trace the residual to missing effects, add them, report before/after");
+  CLI::App* c = app.add_subcommand(
+      "identify",
+      "Fit the model to measured records, trace the residual to missing effects, add them, report before/after");
   AddIdentifyOptions(c, a.get());
   c->callback([a, exit_code] { *exit_code = RunIdentify(*a); });
 }
@@ -778,7 +946,8 @@ StatusOr<nlohmann::json> IdentifyFromArgs(const std::vector<std::string>& args) 
   return IdentifyJson(a);
 }
 
-StatusOr<nlohmann::json> IdentifyFitJson(const identify::Options& options, const std::vector<std::string>& data, const std::string& report) {
+StatusOr<nlohmann::json> IdentifyFitJson(const identify::Options& options, const std::vector<std::string>& data,
+                                         const std::string& report) {
   if (data.empty()) return Status::InvalidArgument("data", "give at least one data file (CSV)");
   return FitJson(options, data, report, false);
 }

@@ -39,7 +39,7 @@ StatusOr<FittedModel> ReadFittedModel(const std::string& path);
 struct PredictedRecord {
   RecordPrediction p;
   std::vector<std::pair<std::string, double>> group;  // column name, value
-  std::string start_well;                               // "none", "left", "right"
+  std::string start_well;                             // "none", "left", "right"
 };
 
 // {"prediction": {model, records, error, observability, settings, seconds}}.

@@ -23,8 +23,8 @@ std::string Fmt(double v, int digits = 4) {
 }
 
 // Plots: residual force against y and y' before/after; measured vs simulated for each record.
-Status WritePlots(const IdentifyResult& r, const std::vector<PreparedRecord>& recs, const Setup& setup, const std::string& dir,
-                  std::vector<std::string>* files) {
+Status WritePlots(const IdentifyResult& r, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                  const std::string& dir, std::vector<std::string>* files) {
   PanelPlot res;
   res.title = "restoring-force residual of the main body (force the model lacks), before and after";
   res.rows = 2, res.cols = 2;
@@ -63,7 +63,8 @@ Status WritePlots(const IdentifyResult& r, const std::vector<PreparedRecord>& re
       const int slot = row < 2 ? 0 : 2;
       const bool declared = row % 2 == 0;
       PanelPlot::Panel p;
-      p.title = std::string(declared ? "declared model" : "final model") + (volt ? ": " + OutputName(setup, static_cast<OutputSlot>(slot)) : "");
+      p.title = std::string(declared ? "declared model" : "final model") +
+                (volt ? ": " + OutputName(setup, static_cast<OutputSlot>(slot)) : "");
       p.x_label = "t [s]";
       p.y_label = slot == 2 ? "voltage [V]" : "output (SI)";
       PanelPlot::Series m, s, e;
@@ -90,39 +91,51 @@ Status WritePlots(const IdentifyResult& r, const std::vector<PreparedRecord>& re
 }
 
 // A test split's RMS as formatted in the report and the summary (NaN when it diverged: null in JSON).
-std::string TestRms(const nlohmann::json& t, const char* key) { return Fmt(t[key].is_null() ? NAN : t[key].get<double>()); }
+std::string TestRms(const nlohmann::json& t, const char* key) {
+  return Fmt(t[key].is_null() ? NAN : t[key].get<double>());
+}
 
 // report.md's sections from the errors to the evidence: error before/after (records, tests), the
 // effects added, and every step's candidate table.
 std::string JsonFmt(const nlohmann::json& v) { return Fmt(v.is_number() ? v.get<double>() : NAN); }
 
-void WriteReportEvidence(std::ostream& md, const IdentifyResult& r, const std::vector<PreparedRecord>& recs, const nlohmann::json& j) {
+void WriteReportEvidence(std::ostream& md, const IdentifyResult& r, const std::vector<PreparedRecord>& recs,
+                         const nlohmann::json& j) {
   const nlohmann::json& tests = j["tests"];
   md << "## Error before and after\n\n| | declared model | final model |\n|---|---|---|\n";
-  md << "| NRMSE of the output, all records | " << Fmt(r.before.errors.nrmse) << " % | " << Fmt(r.after.errors.nrmse) << " % |\n";
-  md << "| spectral error (Eq. 20, normalised) | " << Fmt(r.before.errors.fft) << " % | " << Fmt(r.after.errors.fft) << " % |\n";
+  md << "| NRMSE of the output, all records | " << Fmt(r.before.errors.nrmse) << " % | " << Fmt(r.after.errors.nrmse)
+     << " % |\n";
+  md << "| spectral error (Eq. 20, normalised) | " << Fmt(r.before.errors.fft) << " % | " << Fmt(r.after.errors.fft)
+     << " % |\n";
   if (std::isfinite(r.after.errors.shooting))
-    md << "| short-horizon (shooting) NRMSE | " << Fmt(r.before.errors.shooting) << " % | " << Fmt(r.after.errors.shooting) << " % |\n";
+    md << "| short-horizon (shooting) NRMSE | " << Fmt(r.before.errors.shooting) << " % | "
+       << Fmt(r.after.errors.shooting) << " % |\n";
   for (size_t i = 0; i < recs.size(); ++i)
-    md << "| `" << recs[i].name << "` NRMSE / RMS | " << Fmt(r.before.errors.record_nrmse[i]) << " % / " << Fmt(r.before.errors.record_rms[i])
-       << " | " << Fmt(r.after.errors.record_nrmse[i]) << " % / " << Fmt(r.after.errors.record_rms[i]) << " |\n";
+    md << "| `" << recs[i].name << "` NRMSE / RMS | " << Fmt(r.before.errors.record_nrmse[i]) << " % / "
+       << Fmt(r.before.errors.record_rms[i]) << " | " << Fmt(r.after.errors.record_nrmse[i]) << " % / "
+       << Fmt(r.after.errors.record_rms[i]) << " |\n";
   for (const auto& t : tests)
-    md << "| test `" << t["record"].get<std::string>() << "` [" << t["range"].get<std::string>() << ") RMS | " << TestRms(t, "rms_before")
-       << " | " << TestRms(t, "rms_after") << " |\n";
+    md << "| test `" << t["record"].get<std::string>() << "` [" << t["range"].get<std::string>() << ") RMS | "
+       << TestRms(t, "rms_before") << " | " << TestRms(t, "rms_after") << " |\n";
   if (!j["errors_by_output"].empty()) {
-    md << "\n## Outputs\n\nFitted jointly; each output's NRMSE² weighs λ = (ν_main/ν)² in the objective, ν = noise σ / RMS "
-          "(σ from the spectral floor above the signal's band).\n\n| output | NRMSE declared | NRMSE final | spectral declared | "
+    md << "\n## Outputs\n\nFitted jointly; each output's NRMSE² weighs λ = (ν_main/ν)² in the objective, ν = noise σ / "
+          "RMS "
+          "(σ from the spectral floor above the signal's band).\n\n| output | NRMSE declared | NRMSE final | spectral "
+          "declared | "
           "spectral final | noise σ | weight λ |\n|---|---|---|---|---|---|---|\n";
     for (const auto& [name, o] : j["errors_by_output"].items())
-      md << "| " << name << " | " << JsonFmt(o["before"]) << " % | " << JsonFmt(o["after"]) << " % | " << JsonFmt(o["fft_before"]) << " % | "
-         << JsonFmt(o["fft_after"]) << " % | " << JsonFmt(o["noise"]) << " | " << JsonFmt(o["weight"]) << " |\n";
+      md << "| " << name << " | " << JsonFmt(o["before"]) << " % | " << JsonFmt(o["after"]) << " % | "
+         << JsonFmt(o["fft_before"]) << " % | " << JsonFmt(o["fft_after"]) << " % | " << JsonFmt(o["noise"]) << " | "
+         << JsonFmt(o["weight"]) << " |\n";
   }
   if (!j["velocity_frame"].is_null()) {
     const auto& f = j["velocity_frame"];
-    md << "\n## Velocity frame\n\nThe loop was run with the sensor read as absolute and as base-relative velocity; final error "
-          "(RMS over the outputs of each one's " << (f["metric"] == "spectral" ? "spectral error" : "NRMSE") << ") "
-       << JsonFmt(f["error_absolute"]) << " % (absolute) and " << JsonFmt(f["error_relative"]) << " % (relative): **"
-       << f["chosen"].get<std::string>() << "** kept.\n\n| frame | final error per output |\n|---|---|\n";
+    md << "\n## Velocity frame\n\nThe loop was run with the sensor read as absolute and as base-relative velocity; "
+          "final error "
+          "(RMS over the outputs of each one's "
+       << (f["metric"] == "spectral" ? "spectral error" : "NRMSE") << ") " << JsonFmt(f["error_absolute"])
+       << " % (absolute) and " << JsonFmt(f["error_relative"]) << " % (relative): **" << f["chosen"].get<std::string>()
+       << "** kept.\n\n| frame | final error per output |\n|---|---|\n";
     for (const char* fr : {"absolute", "relative"}) {
       md << "| " << fr << " |";
       for (const auto& [name, v] : f["errors_by_output"][fr].items()) md << " " << name << " " << JsonFmt(v) << " %;";
@@ -134,18 +147,23 @@ void WriteReportEvidence(std::ostream& md, const IdentifyResult& r, const std::v
   for (const AddedEffect& e : r.added) {
     const TermDef* t = *FindTerm(e.term);
     md << "- **" << e.term << "** (" << t->meaning << "; `" << t->formula << "`): ";
-    for (size_t i = 0; i < e.names.size(); ++i) md << (i ? ", " : "") << e.names[i] << " = " << Fmt(e.params[i]) << " ± " << Fmt(e.sigma[i], 2) << " " << e.units[i];
+    for (size_t i = 0; i < e.names.size(); ++i)
+      md << (i ? ", " : "") << e.names[i] << " = " << Fmt(e.params[i]) << " ± " << Fmt(e.sigma[i], 2) << " "
+         << e.units[i];
     md << "; error " << Fmt(e.error_before) << " % → " << Fmt(e.error_after) << " % when added.\n";
   }
   md << "\n## Evidence\n\n";
   for (size_t k = 0; k < r.steps.size(); ++k) {
     const LoopStep& s = r.steps[k];
-    md << "Step " << k + 1 << ": " << s.verdict << " (n_eff " << Fmt(s.n_eff, 4) << ", residual force RMS " << Fmt(s.residual_rms, 3) << " N).\n\n";
-    md << "| candidate | ΔBIC (simulation residual) | explained | signed | ΔBIC (force residual) | explained |\n|---|---|---|---|---|---|\n";
+    md << "Step " << k + 1 << ": " << s.verdict << " (n_eff " << Fmt(s.n_eff, 4) << ", residual force RMS "
+       << Fmt(s.residual_rms, 3) << " N).\n\n";
+    md << "| candidate | ΔBIC (simulation residual) | explained | signed | ΔBIC (force residual) | explained "
+          "|\n|---|---|---|---|---|---|\n";
     for (size_t i = 0; i < std::min<size_t>(s.scores.size(), 8); ++i) {
       const CandidateScore& c = s.scores[i];
-      md << "| " << c.term << " | " << Fmt(c.delta_bic) << " | " << Fmt(100 * c.explained, 3) << " % | " << (c.sign_ok ? "yes" : "no") << " | "
-         << Fmt(c.force_delta_bic) << " | " << Fmt(100 * c.force_explained, 3) << " % |\n";
+      md << "| " << c.term << " | " << Fmt(c.delta_bic) << " | " << Fmt(100 * c.explained, 3) << " % | "
+         << (c.sign_ok ? "yes" : "no") << " | " << Fmt(c.force_delta_bic) << " | " << Fmt(100 * c.force_explained, 3)
+         << " % |\n";
     }
     md << "\n";
   }
@@ -154,7 +172,8 @@ void WriteReportEvidence(std::ostream& md, const IdentifyResult& r, const std::v
 }  // namespace
 
 // --report DIR: the figures, report.md and report.json (the result `j`).
-Status WriteReport(const std::string& report, const std::string& declared, const identify::Summary& s, const nlohmann::json& j) {
+Status WriteReport(const std::string& report, const std::string& declared, const identify::Summary& s,
+                   const nlohmann::json& j) {
   const IdentifyResult& r = s.result;
   const std::vector<PreparedRecord>& recs = s.records;
   const Setup& setup = s.plan.setup;
@@ -166,7 +185,8 @@ Status WriteReport(const std::string& report, const std::string& declared, const
   std::ostringstream md;  // written whole or not at all, like report.json (AtomicFile)
   md << "# Identification report\n\n";
   md << "Declared terms: `" << declared << "`; records: ";
-  for (size_t i = 0; i < recs.size(); ++i) md << (i ? ", " : "") << "`" << recs[i].name << "` (" << recs[i].n() << " samples)";
+  for (size_t i = 0; i < recs.size(); ++i)
+    md << (i ? ", " : "") << "`" << recs[i].name << "` (" << recs[i].n() << " samples)";
   md << ".\n\n";
   WriteReportEvidence(md, r, recs, j);
   WriteDiagnosticsReport(md, r);
@@ -174,10 +194,11 @@ Status WriteReport(const std::string& report, const std::string& declared, const
   const auto names = r.final_model.ParamNames();
   const auto units = r.final_model.ParamUnits();
   for (size_t i = 0; i < names.size(); ++i)
-    md << "| " << names[i] << " | " << Fmt(r.after.theta[i], 6) << " | " << Fmt(r.after.sigma[i], 2) << " | " << units[i] << " |\n";
-  md << "\nσ: Gauss–Newton covariance scaled by the residual's correlation time. Friction constants v_sp = " << setup.fc.v_sp
-     << " m/s, v_t = " << setup.fc.v_t << " m/s. Wall time " << Fmt(r.seconds, 3) << " s, " << s.simulations
-     << " simulations.\n\n## Figures\n\n";
+    md << "| " << names[i] << " | " << Fmt(r.after.theta[i], 6) << " | " << Fmt(r.after.sigma[i], 2) << " | "
+       << units[i] << " |\n";
+  md << "\nσ: Gauss–Newton covariance scaled by the residual's correlation time. Friction constants v_sp = "
+     << setup.fc.v_sp << " m/s, v_t = " << setup.fc.v_t << " m/s. Wall time " << Fmt(r.seconds, 3) << " s, "
+     << s.simulations << " simulations.\n\n## Figures\n\n";
   for (const std::string& f : figs) md << "![" << f << "](" << f << ")\n\n";
   const std::filesystem::path dir(report);
   BISTABLE_RETURN_IF_ERROR(WriteTextOut((dir / "report.json").string(), DumpJson(j, 2) + "\n", "report"));
@@ -185,25 +206,29 @@ Status WriteReport(const std::string& report, const std::string& declared, const
 }
 
 // The human-readable result on stdout.
-void PrintSummary(const identify::Options& o, const std::string& report, const identify::Summary& s, const nlohmann::json& tests) {
+void PrintSummary(const identify::Options& o, const std::string& report, const identify::Summary& s,
+                  const nlohmann::json& tests) {
   const IdentifyResult& r = s.result;
-  std::printf("error (NRMSE of the output): %s %% before, %s %% after   (spectral: %s %% -> %s %%)\n", Fmt(r.before.errors.nrmse).c_str(),
-              Fmt(r.after.errors.nrmse).c_str(), Fmt(r.before.errors.fft).c_str(), Fmt(r.after.errors.fft).c_str());
+  std::printf("error (NRMSE of the output): %s %% before, %s %% after   (spectral: %s %% -> %s %%)\n",
+              Fmt(r.before.errors.nrmse).c_str(), Fmt(r.after.errors.nrmse).c_str(), Fmt(r.before.errors.fft).c_str(),
+              Fmt(r.after.errors.fft).c_str());
   if (std::isfinite(r.after.errors.shooting))
-    std::printf("short-horizon error (--objective shooting, %s s segments): %s %% before, %s %% after\n", Fmt(o.horizon).c_str(),
-                Fmt(r.before.errors.shooting).c_str(), Fmt(r.after.errors.shooting).c_str());
+    std::printf("short-horizon error (--objective shooting, %s s segments): %s %% before, %s %% after\n",
+                Fmt(o.horizon).c_str(), Fmt(r.before.errors.shooting).c_str(), Fmt(r.after.errors.shooting).c_str());
   for (const LoopStep& s : r.steps) std::printf("  %s\n", s.verdict.c_str());
   const auto names = r.final_model.ParamNames();
   const auto units = r.final_model.ParamUnits();
   std::printf("final model:\n");
   for (size_t i = 0; i < names.size(); ++i)
-    std::printf("  %-28s %12s ± %-9s %s\n", names[i].c_str(), Fmt(r.after.theta[i], 6).c_str(), Fmt(r.after.sigma[i], 2).c_str(), units[i].c_str());
+    std::printf("  %-28s %12s ± %-9s %s\n", names[i].c_str(), Fmt(r.after.theta[i], 6).c_str(),
+                Fmt(r.after.sigma[i], 2).c_str(), units[i].c_str());
   for (const auto& t : tests)
-    std::printf("test %s [%s): RMS %s before, %s after\n", t["record"].get<std::string>().c_str(), t["range"].get<std::string>().c_str(),
-                TestRms(t, "rms_before").c_str(), TestRms(t, "rms_after").c_str());
+    std::printf("test %s [%s): RMS %s before, %s after\n", t["record"].get<std::string>().c_str(),
+                t["range"].get<std::string>().c_str(), TestRms(t, "rms_before").c_str(),
+                TestRms(t, "rms_after").c_str());
   std::printf("%s", DiagnosticsSummary(r).c_str());
-  std::printf("%.1f s, %lld simulations%s\n", r.seconds, s.simulations, report.empty() ? "" : ("; report in " + report).c_str());
+  std::printf("%.1f s, %lld simulations%s\n", r.seconds, s.simulations,
+              report.empty() ? "" : ("; report in " + report).c_str());
 }
-
 
 }  // namespace bistable

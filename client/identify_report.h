@@ -14,10 +14,12 @@ namespace bistable {
 
 // --report DIR: the figures, report.md and report.json (the result `j`, as --json prints it); `declared`:
 // the declared terms as given.
-Status WriteReport(const std::string& report, const std::string& declared, const identify::Summary& s, const nlohmann::json& j);
+Status WriteReport(const std::string& report, const std::string& declared, const identify::Summary& s,
+                   const nlohmann::json& j);
 
 // The human-readable result on stdout; `tests`: j["tests"]; `report`: the report directory ("" none).
-void PrintSummary(const identify::Options& o, const std::string& report, const identify::Summary& s, const nlohmann::json& tests);
+void PrintSummary(const identify::Options& o, const std::string& report, const identify::Summary& s,
+                  const nlohmann::json& tests);
 
 }  // namespace bistable
 

@@ -5,8 +5,8 @@
 
 #include <CLI/CLI.hpp>
 
-#include "base/names.h"
 #include "base/exit_codes.h"
+#include "base/names.h"
 #include "client/chirp_command.h"
 #include "client/design_command.h"
 #include "client/hbm_command.h"
@@ -49,7 +49,8 @@ int main(int argc, char** argv) {
   if (argc > 1 && argv[1][0] != '-' && !is_known(argv[1])) {
     std::string known;
     for (const CLI::App* sub : subs) known += (known.empty() ? "" : ", ") + sub->get_name();
-    std::cerr << "error: invalid argument (command: '" << bistable::Printable(argv[1], 64) << "' is not one of {" << known << "})\n";
+    std::cerr << "error: invalid argument (command: '" << bistable::Printable(argv[1], 64) << "' is not one of {"
+              << known << "})\n";
     return bistable::kExitError;
   }
   try {

@@ -15,6 +15,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "base/file.h"
+#include "base/names.h"
 #include "client/cli_common.h"
 #include "client/json_out.h"
 #include "client/map_query.h"
@@ -22,8 +24,6 @@
 #include "client/map_source.h"
 #include "client/plot.h"
 #include "client/sweep_commands.h"
-#include "base/file.h"
-#include "base/names.h"
 #include "dynamics/host_lanes.h"
 #include "engine/json_shapes.h"
 #include "engine/metric_catalog.h"
@@ -57,12 +57,14 @@ int ListRemoteSweeps(const SweepsArgs& a) {
     std::cout << DumpJson(arr, 2) << "\n";
     return 0;
   }
-  std::printf("%-12s  %-11s  %-14s  %13s  %8s  %-12s  %s\n", "id", "status", "model", "done/total", "seconds", "owner", "name");
+  std::printf("%-12s  %-11s  %-14s  %13s  %8s  %-12s  %s\n", "id", "status", "model", "done/total", "seconds", "owner",
+              "name");
   for (const SweepInfo& s : *sweeps) {
     char prog[48];
     std::snprintf(prog, sizeof prog, "%ld/%ld", s.items_done, s.items_total);
     std::printf("%-12.12s  %-11s  %-14s  %13s  %8.1f  %-12s  %s\n", s.id.c_str(), SweepStateName(s.state),
-                Printable(s.model, 14).c_str(), prog, s.seconds, Printable(s.owner, 12).c_str(), Printable(s.name, 80).c_str());
+                Printable(s.model, 14).c_str(), prog, s.seconds, Printable(s.owner, 12).c_str(),
+                Printable(s.name, 80).c_str());
   }
   return 0;
 }
@@ -72,9 +74,11 @@ int ListRemoteSweeps(const SweepsArgs& a) {
 void WarnOfUnindexedMaps(IndexDb* db, const std::string& data) {
   auto orphans = UnindexedMapFiles(db, data);
   if (!orphans.ok() || orphans->empty()) return;
-  std::cerr << "warning: " << orphans->size() << " map file(s) of '" << (std::filesystem::path(data) / "sweeps").string()
-            << "' have no row in '" << (std::filesystem::path(data) / "index.sqlite").string()
-            << "' (an empty, missing or damaged index): a `bistable run` or a coordinator started on this directory indexes them again\n";
+  std::cerr << "warning: " << orphans->size() << " map file(s) of '"
+            << (std::filesystem::path(data) / "sweeps").string() << "' have no row in '"
+            << (std::filesystem::path(data) / "index.sqlite").string()
+            << "' (an empty, missing or damaged index): a `bistable run` or a coordinator started on this directory "
+               "indexes them again\n";
 }
 
 int ListSweeps(const SweepsArgs& a) {
@@ -83,8 +87,10 @@ int ListSweeps(const SweepsArgs& a) {
   const auto index = std::filesystem::path(a.data) / "index.sqlite";
   if (!std::filesystem::exists(index)) {
     WarnOfUnindexedMaps(nullptr, a.data);
-    if (a.json) std::cout << "[]\n";
-    else std::cout << "no sweeps in " << a.data << "\n";
+    if (a.json)
+      std::cout << "[]\n";
+    else
+      std::cout << "no sweeps in " << a.data << "\n";
     return 0;
   }
   auto db = IndexDb::Open(index.string());
@@ -100,8 +106,8 @@ int ListSweeps(const SweepsArgs& a) {
   for (const SweepRow& r : *rows) {
     char prog[48];
     std::snprintf(prog, sizeof prog, "%ld/%ld", r.items_done, r.items_total);
-    std::printf("%-12s  %-11s  %-14s  %13s  %8.1f  %s\n", r.id.c_str(), SweepStateName(r.state), r.model.c_str(), prog, r.seconds,
-                r.name.c_str());
+    std::printf("%-12s  %-11s  %-14s  %13s  %8.1f  %s\n", r.id.c_str(), SweepStateName(r.state), r.model.c_str(), prog,
+                r.seconds, r.name.c_str());
   }
   return 0;
 }
@@ -136,21 +142,23 @@ Status WriteOut(const std::string& path, const std::string& text) { return Write
 // A plot for --out -: `render` draws it into a private temporary directory, whose file's bytes then go
 // to standard output (never PNG bytes onto a terminal). Otherwise `render` writes `out` and its path
 // is printed.
-Status PlotOut(const std::string& out, const std::string& format, const std::function<Status(const std::string&)>& render) {
+Status PlotOut(const std::string& out, const std::string& format,
+               const std::function<Status(const std::string&)>& render) {
   if (!IsStdout(out)) {
     BISTABLE_RETURN_IF_ERROR(render(out));
     std::cout << out << "\n";
     return Status::Ok();
   }
   if (format == "png" && ::isatty(STDOUT_FILENO))
-    return Status::InvalidArgument("out", "--out - would write PNG bytes to a terminal; redirect standard output (> map.png) "
-                                          "or give a file name");
+    return Status::InvalidArgument("out",
+                                   "--out - would write PNG bytes to a terminal; redirect standard output (> map.png) "
+                                   "or give a file name");
   const char* tmpdir = std::getenv("TMPDIR");
   const std::string parent = tmpdir && *tmpdir ? tmpdir : "/tmp";
   std::string dir = parent + "/bistable-plot-XXXXXX";
   if (!::mkdtemp(dir.data()))
-    return Status::IoError("out", "cannot create a temporary directory for the plot in '" + Printable(parent) + "': " +
-                                      std::strerror(errno));
+    return Status::IoError("out", "cannot create a temporary directory for the plot in '" + Printable(parent) +
+                                      "': " + std::strerror(errno));
   struct RemoveDir {
     std::string dir;
     ~RemoveDir() {
@@ -225,7 +233,8 @@ int HdScatter(const MapArgs& a) {
     for (size_t j = 0; j < f->dims.back(); ++j) {
       const size_t off = base + i * stride[omega_dim] + j;
       if (std::isfinite(f->values[off]))
-        sd.x.push_back(f->axes[omega_dim].values[i]), sd.y.push_back(f->values[off]), sd.amp.push_back(amp->values[off]);
+        sd.x.push_back(f->axes[omega_dim].values[i]), sd.y.push_back(f->values[off]),
+            sd.amp.push_back(amp->values[off]);
     }
   const std::string out = a.out.empty() ? ref.id + "_hd_scatter.png" : a.out;
   Status st = PlotOut(out, "png", [&](const std::string& path) { return RenderHdScatter(sd, path); });
@@ -234,7 +243,8 @@ int HdScatter(const MapArgs& a) {
 
 int ShowMap(const MapArgs& a) {
   if (a.format != "json" && a.format != "csv" && a.format != "png" && a.format != "svg")
-    return Fail(Status::InvalidArgument("format", "format = '" + a.format + "' violates format in {csv, json, png, svg}"));
+    return Fail(
+        Status::InvalidArgument("format", "format = '" + a.format + "' violates format in {csv, json, png, svg}"));
   if (a.metric == "hd_scatter") return HdScatter(a);
   SweepRefLite ref;
   auto m = LoadMetric(a.src, a.id, a.metric, &ref, {"hd_scatter"});
@@ -249,9 +259,9 @@ int ShowMap(const MapArgs& a) {
     for (const auto& [k, v] : s->fixed) fixed[k] = v;
     // A category's values print as names (MetricValueJson), which have no unit.
     const bool named = IsCategoryMetric(s->metric);
-    nlohmann::json j = {{"metric", s->metric},   {"unit", named ? nlohmann::json(nullptr) : nlohmann::json(s->unit)},
-                        {"axes", axes},          {"axis_order", nlohmann::json::array()},
-                        {"fixed", fixed},        {"values", NestedValues(*s)},
+    nlohmann::json j = {{"metric", s->metric}, {"unit", named ? nlohmann::json(nullptr) : nlohmann::json(s->unit)},
+                        {"axes", axes},        {"axis_order", nlohmann::json::array()},
+                        {"fixed", fixed},      {"values", NestedValues(*s)},
                         {"sweep", ref.id}};
     for (const Axis& ax : s->free) j["axis_order"].push_back(ax.name);
     const Status st = WriteOut(a.out, DumpJson(j, 1) + "\n");
@@ -298,8 +308,9 @@ int RunQuery(const QueryArgs& a) {
     return 0;
   }
   const long count = (*j)["count"].get<long>();
-  std::printf("%ld of %zu points match (%.2f%% of points, %.2f%% of the grid's area): %s\n", count, (*j)["total"].get<size_t>(),
-              100 * (*j)["fraction"].get<double>(), 100 * (*j)["area_fraction"].get<double>(), a.expr.c_str());
+  std::printf("%ld of %zu points match (%.2f%% of points, %.2f%% of the grid's area): %s\n", count,
+              (*j)["total"].get<size_t>(), 100 * (*j)["fraction"].get<double>(),
+              100 * (*j)["area_fraction"].get<double>(), a.expr.c_str());
   for (const auto& pt : (*j)["points"]) std::cout << "  " << DumpJson(pt) << "\n";
   if (count > static_cast<long>((*j)["points"].size()))
     std::printf("  ... (%ld more; --json lists all)\n", count - static_cast<long>((*j)["points"].size()));
@@ -313,16 +324,19 @@ struct InfoArgs {
 };
 
 // The provenance `bistable info ID` prints, in this order (docs/map-files.md).
-constexpr const char* kProvenance[] = {"sweep_id",         "name",           "model",         "software_version",
-                                       "numerics_version", "history",        "host_cpu_model", "host_simd_isa",
+constexpr const char* kProvenance[] = {"sweep_id",         "name",    "model",          "software_version",
+                                       "numerics_version", "history", "host_cpu_model", "host_simd_isa",
                                        "host_lane_width"};
 
 int ShowInfo(const InfoArgs& a) {
   if (a.id.empty()) {  // this build on this CPU
     const HostLanes h = ThisHostLanes();
     if (a.json)
-      std::cout << DumpJson({{"cpu_model", h.cpu_model}, {"simd_isa", h.isa}, {"cpu_simd_isa", h.cpu_isa},
-                             {"march", h.march}, {"lane_width", h.lanes}},
+      std::cout << DumpJson({{"cpu_model", h.cpu_model},
+                             {"simd_isa", h.isa},
+                             {"cpu_simd_isa", h.cpu_isa},
+                             {"march", h.march},
+                             {"lane_width", h.lanes}},
                             2)
                 << "\n";
     else
@@ -346,9 +360,12 @@ int ShowInfo(const InfoArgs& a) {
     auto v = ReadMapAttribute(path, name);
     if (!v.ok()) return Fail(v.status());
     // Absent in maps written before the attribute was: null, and "(not recorded)" in the text.
-    if (v->empty()) j[name] = nullptr;
-    else if (std::string(name) == "host_lane_width") j[name] = std::atoi(v->c_str());
-    else j[name] = *v;
+    if (v->empty())
+      j[name] = nullptr;
+    else if (std::string(name) == "host_lane_width")
+      j[name] = std::atoi(v->c_str());
+    else
+      j[name] = *v;
   }
   if (a.json) {
     std::cout << DumpJson(j, 2) << "\n";
@@ -358,7 +375,9 @@ int ShowInfo(const InfoArgs& a) {
   for (const char* name : kProvenance) {
     const nlohmann::json& v = j[name];
     std::printf("%-17s %s\n", name,
-                v.is_null() ? "(not recorded)" : v.is_string() ? Printable(v.get<std::string>(), 400).c_str() : v.dump().c_str());
+                v.is_null()     ? "(not recorded)"
+                : v.is_string() ? Printable(v.get<std::string>(), 400).c_str()
+                                : v.dump().c_str());
   }
   return 0;
 }
@@ -368,9 +387,11 @@ int ShowInfo(const InfoArgs& a) {
 void AddInfoCommand(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<InfoArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "info", "Where a map was made (versions, time, the writing host's CPU, ISA and lane width); without an id, this "
-              "build's lanes on this CPU");
-  cmd->add_option("id", a->id, "sweep id (or a unique prefix) of --data, or a map file (.h5); none: this build and CPU");
+      "info",
+      "Where a map was made (versions, time, the writing host's CPU, ISA and lane width); without an id, this "
+      "build's lanes on this CPU");
+  cmd->add_option("id", a->id,
+                  "sweep id (or a unique prefix) of --data, or a map file (.h5); none: this build and CPU");
   cmd->add_option("--data", a->data, "data directory")->capture_default_str();
   cmd->add_flag("--json", a->json, "print a JSON object");
   cmd->callback([a, exit_code]() { *exit_code = ShowInfo(*a); });
@@ -383,7 +404,8 @@ void AddSweepsCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--coordinator", a->src.coordinator, "list a coordinator's sweeps instead of --data");
   cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");
   cmd->add_option("--tls-ca", a->src.tls_ca, "PEM CA of a TLS coordinator");
-  cmd->add_flag("--insecure-remote", a->src.insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
+  cmd->add_flag("--insecure-remote", a->src.insecure_remote,
+                "send the token in plaintext to an address that is not loopback (refused otherwise)");
   cmd->add_flag("--json", a->json, "print a JSON array");
   cmd->callback([a, exit_code]() { *exit_code = ListSweeps(*a); });
 }
@@ -395,12 +417,15 @@ void AddMapCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--metric", a->metric, "metric (frf_db, lle, motion, edr_t, ...; hd_scatter for Fig. 6)")->required();
   cmd->add_option("--at", a->at, "fix axes: eta=0.1,lambda=0.8 (ic=K for a multi-IC sweep; default ic=0)");
   cmd->add_option("--format", a->format, "csv | json | png | svg")->capture_default_str();
-  cmd->add_option("--out", a->out, "output file; - is stdout, for plots too (default: stdout for csv/json, <id>_<metric>.<fmt> for plots)");
+  cmd->add_option(
+      "--out", a->out,
+      "output file; - is stdout, for plots too (default: stdout for csv/json, <id>_<metric>.<fmt> for plots)");
   cmd->add_option("--data", a->data, "data directory")->capture_default_str();
   cmd->add_option("--coordinator", a->src.coordinator, "read from a coordinator instead of --data");
   cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");
   cmd->add_option("--tls-ca", a->src.tls_ca, "PEM CA of a TLS coordinator");
-  cmd->add_flag("--insecure-remote", a->src.insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
+  cmd->add_flag("--insecure-remote", a->src.insecure_remote,
+                "send the token in plaintext to an address that is not loopback (refused otherwise)");
   cmd->callback([a, exit_code]() {
     a->src.data_dir = a->data;
     *exit_code = ShowMap(*a);
@@ -418,7 +443,8 @@ void AddQueryCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--coordinator", a->src.coordinator, "read from a coordinator instead of --data");
   cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");
   cmd->add_option("--tls-ca", a->src.tls_ca, "PEM CA of a TLS coordinator");
-  cmd->add_flag("--insecure-remote", a->src.insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
+  cmd->add_flag("--insecure-remote", a->src.insecure_remote,
+                "send the token in plaintext to an address that is not loopback (refused otherwise)");
   cmd->callback([a, exit_code]() {
     a->src.data_dir = a->data;
     *exit_code = RunQuery(*a);

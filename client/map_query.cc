@@ -12,7 +12,8 @@
 
 namespace bistable {
 
-StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, const std::string& expr, size_t max_points) {
+StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, const std::string& expr,
+                                   size_t max_points) {
   std::string sweep_id, sweep_name;
   auto metrics = src.Metrics(id, &sweep_id, &sweep_name);
   if (!metrics.ok()) return metrics.status();
@@ -62,8 +63,10 @@ StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, 
     }
     points.push_back(pt);
   });
-  return nlohmann::json{{"sweep", sweep_id}, {"query", expr}, {"count", scan.count}, {"total", scan.total},
-                        {"fraction", scan.fraction}, {"area_fraction", scan.area_fraction}, {"points", points}};
+  return nlohmann::json{{"sweep", sweep_id},         {"query", expr},
+                        {"count", scan.count},       {"total", scan.total},
+                        {"fraction", scan.fraction}, {"area_fraction", scan.area_fraction},
+                        {"points", points}};
 }
 
 nlohmann::json LocalSweepsJson(IndexDb& db, const std::vector<SweepRow>& rows, const std::string& data_dir) {
@@ -72,12 +75,22 @@ nlohmann::json LocalSweepsJson(IndexDb& db, const std::vector<SweepRow>& rows, c
     nlohmann::json maps = nlohmann::json::array();
     if (auto ms = db.ListMaps(r.id); ms.ok())
       for (const MapRow& m : *ms)
-        maps.push_back({{"metric", m.metric}, {"shape", m.shape}, {"min", MetricNumberJson(m.metric, m.min)},
+        maps.push_back({{"metric", m.metric},
+                        {"shape", m.shape},
+                        {"min", MetricNumberJson(m.metric, m.min)},
                         {"max", MetricNumberJson(m.metric, m.max)}});
-    arr.push_back({{"id", r.id}, {"name", r.name}, {"model", r.model}, {"status", SweepStateName(r.state)},
-                   {"items_total", r.items_total}, {"items_done", r.items_done},
-                   {"file", r.file.empty() ? nlohmann::json(nullptr) : nlohmann::json((std::filesystem::path(data_dir) / r.file).string())},
-                   {"created", JsonTime(r.created)}, {"finished", JsonTime(r.finished)}, {"seconds", r.seconds}, {"maps", maps}});
+    arr.push_back({{"id", r.id},
+                   {"name", r.name},
+                   {"model", r.model},
+                   {"status", SweepStateName(r.state)},
+                   {"items_total", r.items_total},
+                   {"items_done", r.items_done},
+                   {"file", r.file.empty() ? nlohmann::json(nullptr)
+                                           : nlohmann::json((std::filesystem::path(data_dir) / r.file).string())},
+                   {"created", JsonTime(r.created)},
+                   {"finished", JsonTime(r.finished)},
+                   {"seconds", r.seconds},
+                   {"maps", maps}});
   }
   return arr;
 }
@@ -86,7 +99,9 @@ Status CheckDataDirOrAbsent(const std::string& data_dir) {
   std::error_code ec;
   const auto st = std::filesystem::status(data_dir, ec);
   if (std::filesystem::exists(st) && !std::filesystem::is_directory(st))
-    return Status::InvalidArgument("data", "'" + Printable(data_dir, 200) + "' is not a directory (a data directory holds index.sqlite and sweeps/)");
+    return Status::InvalidArgument(
+        "data",
+        "'" + Printable(data_dir, 200) + "' is not a directory (a data directory holds index.sqlite and sweeps/)");
   return Status::Ok();
 }
 

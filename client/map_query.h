@@ -19,7 +19,8 @@ namespace bistable {
 // stores (not the spectral peaks): {"sweep", "query", "count", "total", "fraction", "area_fraction",
 // "points": [at most max_points of {axis values..., ["ic"], each metric the query reads}]}. Categories
 // print by name (json_out.h). Errors: an unknown sweep, a bad query (position and nearest name).
-StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, const std::string& expr, size_t max_points);
+StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, const std::string& expr,
+                                   size_t max_points);
 
 // The sweeps of a data directory: [{"id", "name", "model", "status", "items_total", "items_done",
 // "file", "created", "finished", "seconds", "maps": [{"metric", "shape", "min", "max"}]}]; [] when the

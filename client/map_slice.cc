@@ -37,7 +37,8 @@ StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>&
     if (k == rank) {
       std::string dims;
       for (const auto& d : m.dim_names) dims += (dims.empty() ? "" : ", ") + d;
-      return Status::InvalidArgument("at", "--at " + name + ": not a dimension of " + m.metric + " (dimensions: " + dims + ")");
+      return Status::InvalidArgument(
+          "at", "--at " + name + ": not a dimension of " + m.metric + " (dimensions: " + dims + ")");
     }
     if (k < m.axes.size()) {
       const auto& vals = m.axes[k].values;
@@ -49,8 +50,9 @@ StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>&
         double bd = INFINITY;
         for (double v : vals)
           if (std::fabs(v - value) < bd) bd = std::fabs(v - value), near = FormatNumber(v);
-        return Status::InvalidArgument("at", "--at " + name + " = " + FormatNumber(value) + " is not on the axis (nearest " +
-                                                 near + "; " + std::to_string(vals.size()) + " values from " +
+        return Status::InvalidArgument("at", "--at " + name + " = " + FormatNumber(value) +
+                                                 " is not on the axis (nearest " + near + "; " +
+                                                 std::to_string(vals.size()) + " values from " +
                                                  FormatNumber(vals.front()) + " to " + FormatNumber(vals.back()) + ")");
       }
       fixed_index[k] = best;
@@ -66,7 +68,8 @@ StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>&
     if (fixed_index[k] >= 0) continue;
     if (k >= m.axes.size()) {
       if (m.dim_names[k] == "peak")
-        return Status::InvalidArgument("metric", m.metric + " has a peak dimension; use `bistable map ID --metric hd_scatter`");
+        return Status::InvalidArgument("metric",
+                                       m.metric + " has a peak dimension; use `bistable map ID --metric hd_scatter`");
       fixed_index[k] = 0;  // ic defaults to the first initial condition
       s.fixed[m.dim_names[k]] = 0;
     } else if (m.dims[k] == 1) {
@@ -81,7 +84,8 @@ StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>&
     std::string names;
     for (size_t k : free_dims) names += (names.empty() ? "" : ", ") + m.dim_names[k];
     return Status::InvalidArgument("at", "a map needs 1 to " + std::to_string(max_free) + " free axes, this leaves " +
-                                             std::to_string(free_dims.size()) + (names.empty() ? "" : " (" + names + ")") +
+                                             std::to_string(free_dims.size()) +
+                                             (names.empty() ? "" : " (" + names + ")") +
                                              "; fix the others with --at name=value");
   }
   // Gather.
@@ -101,7 +105,7 @@ StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>&
 }
 
 std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::vector<double>& values,
-                                       const std::vector<std::pair<int, std::string>>& file_categories) {
+                                        const std::vector<std::pair<int, std::string>>& file_categories) {
   const MetricInfo* info = FindMetric(metric);
   if ((!info || !info->integer) && !file_categories.empty()) {  // codes named by the file (a basin map's attractors)
     std::vector<PlotData::Code> codes;
@@ -132,20 +136,23 @@ std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::ve
     if (std::none_of(codes.begin(), codes.end(), [&](const PlotData::Code& c) { return c.value == v; }))
       codes.push_back({v, FormatNumber(v), ""});
   if (codes.size() > 16) return {};
-  std::sort(codes.begin(), codes.end(), [](const PlotData::Code& a, const PlotData::Code& b) { return a.value < b.value; });
+  std::sort(codes.begin(), codes.end(),
+            [](const PlotData::Code& a, const PlotData::Code& b) { return a.value < b.value; });
   return codes;
 }
 
 StatusOr<PlotData> MapFigure(const MapArray& m, std::map<std::string, double> at, const std::string& title_prefix) {
   const auto dir_dim = std::find(m.dim_names.begin(), m.dim_names.end(), "direction");
-  const bool both_directions = dir_dim != m.dim_names.end() && m.dims[dir_dim - m.dim_names.begin()] == 2 && !at.count("direction");
+  const bool both_directions =
+      dir_dim != m.dim_names.end() && m.dims[dir_dim - m.dim_names.begin()] == 2 && !at.count("direction");
   if (both_directions) at["direction"] = 0;
   auto s = SliceMap(m, at, 2);
   if (!s.ok()) return s.status();
   PlotData d;
   d.metric = s->metric;
   d.unit = s->unit;
-  for (const Axis& a : s->free) d.axis_names.push_back(a.name), d.axis_units.push_back(AxisUnit(a.name)), d.axis_values.push_back(a.values);
+  for (const Axis& a : s->free)
+    d.axis_names.push_back(a.name), d.axis_units.push_back(AxisUnit(a.name)), d.axis_values.push_back(a.values);
   d.values = s->values;
   std::map<std::string, double> fixed = s->fixed;
   if (both_directions && s->free.size() == 1) {
@@ -161,8 +168,10 @@ StatusOr<PlotData> MapFigure(const MapArray& m, std::map<std::string, double> at
   for (const auto& [name, value] : fixed) {
     const size_t k = std::find(m.dim_names.begin(), m.dim_names.end(), name) - m.dim_names.begin();
     if (k >= m.dims.size() || m.dims[k] < 2) continue;  // no choice: nothing to say
-    if (name == "direction") d.title += value == 0 ? ", sweep up" : ", sweep down";
-    else d.title += ", " + name + " = " + PlotNumber(value);
+    if (name == "direction")
+      d.title += value == 0 ? ", sweep up" : ", sweep down";
+    else
+      d.title += ", " + name + " = " + PlotNumber(value);
   }
   return d;
 }

@@ -13,9 +13,9 @@ namespace bistable {
 
 struct Slice {
   std::string metric, unit;
-  std::vector<Axis> free;                 // in axis order
-  std::map<std::string, double> fixed;    // dimension name → value (ic as an index)
-  std::vector<double> values;             // row-major over `free`
+  std::vector<Axis> free;               // in axis order
+  std::map<std::string, double> fixed;  // dimension name → value (ic as an index)
+  std::vector<double> values;           // row-major over `free`
 };
 
 // Parses "alpha=1,eta=0.1".
@@ -26,13 +26,12 @@ StatusOr<std::map<std::string, double>> ParseAt(const std::string& text);
 StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>& at, int max_free);
 
 // The discrete legend of an integer metric (engine/metric_catalog.h's FindMetric(metric)->integer):
-// its named codes (MetricCategories, and period's 0 "none found"; motion's three kinds always, so colours mean the same in every
-// figure) and every other whole value present, by number. Empty (a continuous scale) for other
-// metrics, or when more than 16 distinct values are present.
-// Named codes of a code metric (colours and legend); file_categories name the codes of a dataset the
-// catalog does not know (a basin map's attractor ids, from its flag_meanings).
+// its named codes (MetricCategories, and period's 0 "none found"; motion's three kinds always, so colours mean the same
+// in every figure) and every other whole value present, by number. Empty (a continuous scale) for other metrics, or
+// when more than 16 distinct values are present. Named codes of a code metric (colours and legend); file_categories
+// name the codes of a dataset the catalog does not know (a basin map's attractor ids, from its flag_meanings).
 std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::vector<double>& values,
-                                       const std::vector<std::pair<int, std::string>>& file_categories = {});
+                                        const std::vector<std::pair<int, std::string>>& file_categories = {});
 
 // A figure of a slice of `m` (SliceMap with `at`): axes with units, codes for integer metrics, and,
 // for a curve of a continuation map whose `direction` dimension `at` leaves free, the up and down

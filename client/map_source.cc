@@ -28,17 +28,18 @@ Status CheckPlainMetricName(const std::string& metric) {
                                                "'.', '..', NUL or newline, at most 64 bytes)");
 }
 
-
 }  // namespace
 
-StatusOr<std::vector<std::string>> MapSource::Metrics(const std::string& id_or_prefix, std::string* id, std::string* name) const {
+StatusOr<std::vector<std::string>> MapSource::Metrics(const std::string& id_or_prefix, std::string* id,
+                                                      std::string* name) const {
   if (coordinator.empty()) {
     auto ref = FindSweep(data_dir, id_or_prefix);
     if (!ref.ok()) return ref.status();
     *id = ref->row.id;
     *name = ref->row.name;
     if (ref->map_path.empty())
-      return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (state " + SweepStateName(ref->row.state) + ")");
+      return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (state " +
+                                        SweepStateName(ref->row.state) + ")");
     return ListMapMetrics(ref->map_path);
   }
   auto client = Client(*this);
@@ -56,9 +57,9 @@ StatusOr<MapArray> MapSource::Metric(const std::string& id, const std::string& m
     auto ref = FindSweep(data_dir, id);
     if (!ref.ok()) return ref.status();
     if (ref->map_path.empty())
-      return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (state " + SweepStateName(ref->row.state) +
-                                        ", " + std::to_string(ref->row.items_done) + "/" + std::to_string(ref->row.items_total) +
-                                        " stored); rerun it to finish");
+      return Status::FailedPrecondition("sweep " + ref->row.id + " has no published map yet (state " +
+                                        SweepStateName(ref->row.state) + ", " + std::to_string(ref->row.items_done) +
+                                        "/" + std::to_string(ref->row.items_total) + " stored); rerun it to finish");
     return ReadMapMetric(ref->map_path, metric);
   }
   auto client = Client(*this);
@@ -67,7 +68,8 @@ StatusOr<MapArray> MapSource::Metric(const std::string& id, const std::string& m
 }
 
 Status CheckFetchOut(const std::string& out) {
-  return NotStdout(out, "out", "--out", "a fetched map is written to a file and checked (SHA-256) before it is renamed into place");
+  return NotStdout(out, "out", "--out",
+                   "a fetched map is written to a file and checked (SHA-256) before it is renamed into place");
 }
 
 StatusOr<nlohmann::json> FetchMapFile(CoordinatorClient& c, const std::string& id, const std::string& out) {

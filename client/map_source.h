@@ -16,8 +16,8 @@
 namespace bistable {
 
 struct MapSource {
-  std::string data_dir;      // used when coordinator is empty
-  std::string coordinator;   // address; non-empty selects the remote source
+  std::string data_dir;     // used when coordinator is empty
+  std::string coordinator;  // address; non-empty selects the remote source
   std::string token_file, tls_ca;
   bool insecure_remote = false;  // the token may go in plaintext to an address that is not loopback
 

@@ -10,12 +10,12 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
-#include <functional>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #include "engine/metric_catalog.h"
@@ -42,8 +42,12 @@ std::string GnuplotString(std::string_view text) {
     if (safe) {
       out += static_cast<char>(c);
     } else {
-      const char esc[6] = {'\\', '0', static_cast<char>('0' + (c >> 6)), static_cast<char>('0' + ((c >> 3) & 7)),
-                           static_cast<char>('0' + (c & 7)), '\0'};
+      const char esc[6] = {'\\',
+                           '0',
+                           static_cast<char>('0' + (c >> 6)),
+                           static_cast<char>('0' + ((c >> 3) & 7)),
+                           static_cast<char>('0' + (c & 7)),
+                           '\0'};
       out += esc;
     }
   }
@@ -167,7 +171,8 @@ Status RunGnuplot(const std::string& script, const std::string& out_path) {
     log = "/tmp/bistable-gnuplot-XXXXXX";
     err.reset(::mkostemp(log.data(), O_CLOEXEC));
   }
-  if (err.fd < 0) return Status::IoError("plot", "cannot create a temporary file for gnuplot's messages: " + Errno(errno));
+  if (err.fd < 0)
+    return Status::IoError("plot", "cannot create a temporary file for gnuplot's messages: " + Errno(errno));
   ::unlink(log.c_str());
 
   int fds[2];
@@ -227,17 +232,18 @@ Status RunGnuplot(const std::string& script, const std::string& out_path) {
   if (::lseek(err.fd, 0, SEEK_SET) == 0) {
     char buf[4096];
     ssize_t n;
-    while (messages.size() < 65536 && (n = ::read(err.fd, buf, sizeof buf)) > 0) messages.append(buf, static_cast<size_t>(n));
+    while (messages.size() < 65536 && (n = ::read(err.fd, buf, sizeof buf)) > 0)
+      messages.append(buf, static_cast<size_t>(n));
   }
   const bool exited_ok = status != -1 && WIFEXITED(status) && WEXITSTATUS(status) == 0;
-  struct stat st{};
+  struct stat st {};
   const bool written = ::stat(tmp.c_str(), &st) == 0 && st.st_size > 0;
   if (!exited_ok || write_errno != 0 || !written) {
-    std::string how = status == -1            ? "could not be waited for"
-                      : WIFSIGNALED(status)   ? "killed by signal " + std::to_string(WTERMSIG(status))
+    std::string how = status == -1               ? "could not be waited for"
+                      : WIFSIGNALED(status)      ? "killed by signal " + std::to_string(WTERMSIG(status))
                       : WEXITSTATUS(status) != 0 ? "exit " + std::to_string(WEXITSTATUS(status))
-                      : write_errno != 0      ? "stopped reading its script: " + Errno(write_errno)
-                                              : "wrote an empty file";
+                      : write_errno != 0         ? "stopped reading its script: " + Errno(write_errno)
+                                                 : "wrote an empty file";
     while (!messages.empty() && (messages.back() == '\n' || messages.back() == ' ')) messages.pop_back();
     return Status::IoError("plot", "gnuplot failed writing '" + out_path + "' (" + how + ")" +
                                        (messages.empty() ? "" : ": " + messages.substr(0, 400)));
@@ -328,7 +334,7 @@ Status CheckGnuplot() {
     const size_t end = std::min(dirs.find(':', start), dirs.size());
     const std::string dir = end > start ? dirs.substr(start, end - start) : ".";
     const std::string file = dir + "/gnuplot";
-    struct stat st{};
+    struct stat st {};
     if (::stat(file.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::access(file.c_str(), X_OK) == 0) return Status::Ok();
     start = end + 1;
   }
@@ -340,11 +346,17 @@ std::string AxisLabel(const std::string& name, const std::string& unit) {
   if (name == "f0_hz") return "base frequency f_0 [Hz]";
   // Units as stored (plain text) → gnuplot enhanced text with symbols.
   std::string u = unit;
-  const std::pair<const char*, const char*> kSubs[] = {
-      {"delta_s", "{/Symbol d}_s"}, {"omega_n", "{/Symbol w}_n"}, {"omega0", "{/Symbol w}_0"}, {"omega_r", "{/Symbol w}_r"},
-      {"A0", "A_0"},        {"m_m", "m_m"},         {"m_r", "m_r"},          {"c_r", "c_r"}};
+  const std::pair<const char*, const char*> kSubs[] = {{"delta_s", "{/Symbol d}_s"},
+                                                       {"omega_n", "{/Symbol w}_n"},
+                                                       {"omega0", "{/Symbol w}_0"},
+                                                       {"omega_r", "{/Symbol w}_r"},
+                                                       {"A0", "A_0"},
+                                                       {"m_m", "m_m"},
+                                                       {"m_r", "m_r"},
+                                                       {"c_r", "c_r"}};
   for (auto [from, to] : kSubs)
-    for (size_t p = u.find(from); p != std::string::npos; p = u.find(from, p + std::strlen(to))) u.replace(p, std::strlen(from), to);
+    for (size_t p = u.find(from); p != std::string::npos; p = u.find(from, p + std::strlen(to)))
+      u.replace(p, std::strlen(from), to);
   return Greek(name) + (u.empty() ? "" : " = " + u);
 }
 
@@ -372,7 +384,8 @@ static void WriteCells(std::ostream& s, const std::vector<double>& xs, const std
   s << "set view map\nset pm3d map corners2color c1\nset pm3d interpolate 1,1\n$data << EOD\n";
   for (size_t j = 0; j < ye.size(); ++j) {
     for (size_t i = 0; i < xe.size(); ++i)
-      s << Num(xe[i]) << " " << Num(ye[j]) << " " << Num(value(std::min(i, xs.size() - 1), std::min(j, ys.size() - 1))) << "\n";
+      s << Num(xe[i]) << " " << Num(ye[j]) << " " << Num(value(std::min(i, xs.size() - 1), std::min(j, ys.size() - 1)))
+        << "\n";
     s << "\n";
   }
   s << "EOD\nsplot $data using 1:2:3 with pm3d notitle" << more_plots << "\n";
@@ -425,15 +438,19 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
       s << "$o" << k << " << EOD\n";
       for (size_t i = 0; i < ov.x.size() && i < ov.y.size(); ++i) s << Num(ov.x[i]) << " " << Num(ov.y[i]) << "\n";
       s << "EOD\n";
-      more += ", $o" + std::to_string(k) + " using 1:2:(0) with " + (ov.points ? "points pt 6 ps 2 lw 2" : "lines lw 2.5") + " lc rgb " +
+      more += ", $o" + std::to_string(k) + " using 1:2:(0) with " +
+              (ov.points ? "points pt 6 ps 2 lw 2" : "lines lw 2.5") + " lc rgb " +
               GnuplotString(ov.colour.empty() ? "#000000" : ov.colour) + " " +
               (ov.label.empty() ? std::string("notitle") : "title " + GnuplotString(ov.label));
     }
     if (!d.overlays.empty()) s << "set bmargin 5\nset key at screen 0.5, 0.07 center bottom horizontal noenhanced\n";
-    WriteCells(s, xs, ys, [&](size_t j, size_t i) {
-      const double v = d.values[i * xs.size() + j];
-      return codes.empty() ? v : coded(v) + 0.5;
-    }, more);
+    WriteCells(
+        s, xs, ys,
+        [&](size_t j, size_t i) {
+          const double v = d.values[i * xs.size() + j];
+          return codes.empty() ? v : coded(v) + 0.5;
+        },
+        more);
   } else {
     const auto& xs = d.axis_values[0];
     const size_t n_series = std::max<size_t>(1, d.series.size());
@@ -442,33 +459,38 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
     s << "set grid\n" << (d.series.empty() ? "set key off\n" : "set key outside right top\n");
     for (size_t k = 0; k < n_series; ++k) {
       // Codes: series side by side within the code's row, so up and down stay visible where they agree.
-      const double offset = codes.empty() || n_series == 1 ? 0.0 : 0.24 * (static_cast<double>(k) - 0.5 * (n_series - 1));
+      const double offset =
+          codes.empty() || n_series == 1 ? 0.0 : 0.24 * (static_cast<double>(k) - 0.5 * (n_series - 1));
       s << "$s" << k << " << EOD\n";
       for (size_t j = 0; j < xs.size(); ++j) {
         const double v = d.values[k * xs.size() + j];
-        s << Num(xs[j]) << " " << Num(codes.empty() ? v : coded(v) + offset) << " " << Num(codes.empty() ? 0.0 : coded(v) + 0.5) << "\n";
+        s << Num(xs[j]) << " " << Num(codes.empty() ? v : coded(v) + offset) << " "
+          << Num(codes.empty() ? 0.0 : coded(v) + 0.5) << "\n";
       }
       s << "EOD\n";
     }
     const char* series_colours[] = {"#2166ac", "#b2182b", "#1b9e77", "#7570b3"};
     std::string plot = "plot ";
     if (!codes.empty()) {
-      s << "set ylabel " << GnuplotString(label) << " noenhanced\nset yrange [-0.6:" << codes.size() - 0.4 << "]\nset ytics (";
+      s << "set ylabel " << GnuplotString(label) << " noenhanced\nset yrange [-0.6:" << codes.size() - 0.4
+        << "]\nset ytics (";
       for (size_t i = 0; i < codes.size(); ++i) s << (i ? ", " : "") << GnuplotString(codes[i].name) << " " << i;
       s << ")\nset grid noytics\nset lmargin 16\n";
       // Each point coloured by its code; a series' marker tells the sweep direction.
       s << CodePalette(codes) << "unset colorbox\n";
       const char* markers[] = {"7", "5", "9", "13"};
       for (size_t k = 0; k < n_series; ++k)
-        plot += "$s" + std::to_string(k) + " using 1:2:3 with points pt " + markers[k % 4] + " ps 0.8 lc palette notitle, ";
+        plot +=
+            "$s" + std::to_string(k) + " using 1:2:3 with points pt " + markers[k % 4] + " ps 0.8 lc palette notitle, ";
       // The legend tells series apart by marker (the colour is the code's): black samples.
       for (size_t k = 0; k < d.series.size(); ++k)
-        plot += "NaN with points pt " + std::string(markers[k % 4]) + " ps 0.8 lc rgb 'black' title " + GnuplotString(d.series[k]) + ", ";
+        plot += "NaN with points pt " + std::string(markers[k % 4]) + " ps 0.8 lc rgb 'black' title " +
+                GnuplotString(d.series[k]) + ", ";
     } else {
       s << "set ylabel " << GnuplotString(label) << " noenhanced\n";
       for (size_t k = 0; k < n_series; ++k)
-        plot += "$s" + std::to_string(k) + " using 1:2 with linespoints pt 7 ps 0.5 lw 1.5 lc rgb '" + series_colours[k % 4] +
-                "' title " + GnuplotString(d.series.empty() ? "" : d.series[k]) + ", ";
+        plot += "$s" + std::to_string(k) + " using 1:2 with linespoints pt 7 ps 0.5 lw 1.5 lc rgb '" +
+                series_colours[k % 4] + "' title " + GnuplotString(d.series.empty() ? "" : d.series[k]) + ", ";
     }
     plot.resize(plot.size() - 2);
     s << plot << "\n";
@@ -499,7 +521,8 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
       bool any = false;
       for (size_t i = 0; i < br.x.size() && i < br.y.size() && i < br.stable.size(); ++i) {
         const bool in = !d.stability || br.stable[i] == static_cast<bool>(stable);
-        const bool next_in = i + 1 < br.x.size() && i + 1 < br.stable.size() && (!d.stability || br.stable[i + 1] == static_cast<bool>(stable));
+        const bool next_in = i + 1 < br.x.size() && i + 1 < br.stable.size() &&
+                             (!d.stability || br.stable[i + 1] == static_cast<bool>(stable));
         if (in && next_in) any = true;  // a segment, not a lone point
         if (in || next_in) block << Num(br.x[i]) << " " << Num(br.y[i]) << "\n";
         if (in && !next_in) block << "\n";
@@ -509,7 +532,7 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
       s << name << " << EOD\n" << block.str() << "EOD\n";
       const bool first = std::find(titled.begin(), titled.end(), std::make_pair(br.name, stable)) == titled.end();
       if (first) titled.emplace_back(br.name, stable);
-      const std::string title = !d.stability ? br.name
+      const std::string title = !d.stability      ? br.name
                                 : br.name.empty() ? (stable ? "stable" : "unstable")
                                                   : br.name + (stable ? ", stable" : ", unstable");
       plot += name + " using 1:2 with lines lw " + Num(br.width) + " dt " + (stable ? "1" : "2") + " lc rgb " +
@@ -519,7 +542,8 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
   // Folds of every branch: one block, one legend entry.
   std::ostringstream folds;
   for (const auto& br : d.branches)
-    for (size_t i = 0; i < br.fold_x.size() && i < br.fold_y.size(); ++i) folds << Num(br.fold_x[i]) << " " << Num(br.fold_y[i]) << "\n";
+    for (size_t i = 0; i < br.fold_x.size() && i < br.fold_y.size(); ++i)
+      folds << Num(br.fold_x[i]) << " " << Num(br.fold_y[i]) << "\n";
   if (!folds.str().empty()) {
     s << "$folds << EOD\n" << folds.str() << "EOD\n";
     plot += "$folds using 1:2 with points pt 9 ps 1.4 lc rgb 'black' title 'fold', ";
@@ -535,7 +559,8 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
   }
   if (!d.extra_x.empty()) {
     s << "$extra << EOD\n";
-    for (size_t i = 0; i < d.extra_x.size() && i < d.extra_y.size(); ++i) s << Num(d.extra_x[i]) << " " << Num(d.extra_y[i]) << "\n";
+    for (size_t i = 0; i < d.extra_x.size() && i < d.extra_y.size(); ++i)
+      s << Num(d.extra_x[i]) << " " << Num(d.extra_y[i]) << "\n";
     s << "EOD\n";
     plot += "$extra using 1:2 with points pt 7 ps 0.3 lc rgb '#999999' title " + GnuplotString(d.extra_label) + ", ";
   }
@@ -550,13 +575,16 @@ Status RenderPanels(const PanelPlot& d, const std::string& out_path) {
   std::ostringstream s;
   const int w = std::clamp(d.panel_width, 100, 4000) * d.cols, h = std::clamp(d.panel_height, 100, 4000) * d.rows + 40;
   s << (std::filesystem::path(out_path).extension() == ".svg"
-            ? "set terminal svg size " + std::to_string(w) + "," + std::to_string(h) + " dynamic noenhanced font 'Helvetica,13' background 'white'\n"
-            : "set terminal pngcairo size " + std::to_string(w) + "," + std::to_string(h) + " noenhanced font 'Helvetica,11'\n");
+            ? "set terminal svg size " + std::to_string(w) + "," + std::to_string(h) +
+                  " dynamic noenhanced font 'Helvetica,13' background 'white'\n"
+            : "set terminal pngcairo size " + std::to_string(w) + "," + std::to_string(h) +
+                  " noenhanced font 'Helvetica,11'\n");
   s << "set multiplot layout " << d.rows << "," << d.cols << " title " << GnuplotString(d.title) << "\n";
   s << "set grid\nset key top left\nset datafile missing 'NaN'\n";
   int block = 0;
   for (const PanelPlot::Panel& p : d.panels) {
-    s << "set title " << GnuplotString(p.title) << "\nset xlabel " << GnuplotString(p.x_label) << "\nset ylabel " << GnuplotString(p.y_label) << "\n";
+    s << "set title " << GnuplotString(p.title) << "\nset xlabel " << GnuplotString(p.x_label) << "\nset ylabel "
+      << GnuplotString(p.y_label) << "\n";
     if (std::isfinite(p.y_lo) && std::isfinite(p.y_hi) && p.y_lo < p.y_hi)
       s << "set yrange [" << Num(p.y_lo) << ":" << Num(p.y_hi) << "]\n";
     else
@@ -567,8 +595,10 @@ Status RenderPanels(const PanelPlot& d, const std::string& out_path) {
       s << name << " << EOD\n";
       for (size_t i = 0; i < se.x.size() && i < se.y.size(); ++i) s << Num(se.x[i]) << " " << Num(se.y[i]) << "\n";
       s << "EOD\n";
-      plot += name + " using 1:2 with " + (se.points ? "points pt 7 ps " + Num(std::clamp(se.point_size, 0.01, 10.0)) : "lines lw 1.2") +
-              (se.colour.empty() ? "" : " lc rgb " + GnuplotString(se.colour)) + " title " + GnuplotString(se.label) + ", ";
+      plot += name + " using 1:2 with " +
+              (se.points ? "points pt 7 ps " + Num(std::clamp(se.point_size, 0.01, 10.0)) : "lines lw 1.2") +
+              (se.colour.empty() ? "" : " lc rgb " + GnuplotString(se.colour)) + " title " + GnuplotString(se.label) +
+              ", ";
     }
     if (p.series.empty()) plot += "NaN notitle, ";
     plot.resize(plot.size() - 2);
@@ -620,17 +650,20 @@ Status RenderChirpFrf(const ChirpFrfPlot& d, const std::string& out_path) {
         << Num(i < cu.out_mag.size() ? cu.out_mag[i] : NAN) << " " << Num(i < cu.db.size() ? cu.db[i] : NAN) << " "
         << Num(i < cu.coherence.size() ? cu.coherence[i] : NAN) << "\n";
     s << "EOD\n$r" << c << " << EOD\n";
-    for (size_t i = 0; i < cu.raw_freq.size() && i < cu.raw_db.size(); ++i) s << Num(cu.raw_freq[i]) << " " << Num(cu.raw_db[i]) << "\n";
+    for (size_t i = 0; i < cu.raw_freq.size() && i < cu.raw_db.size(); ++i)
+      s << Num(cu.raw_freq[i]) << " " << Num(cu.raw_db[i]) << "\n";
     s << "EOD\n";
   }
-  s << "set multiplot layout 3,1 title " << GnuplotString(d.title) << " noenhanced\nset grid\nset key outside right top noenhanced\n";
+  s << "set multiplot layout 3,1 title " << GnuplotString(d.title)
+    << " noenhanced\nset grid\nset key outside right top noenhanced\n";
   s << "set lmargin 12\nset rmargin 40\n";  // the same plot width in every row, the legends beside
   // 1. Averaged Fourier amplitudes of input and output.
   s << "set ylabel " << GnuplotString(d.mag_label) << "\nset logscale y\nset format y '10^{%L}'\nunset xlabel\nplot ";
   for (size_t c = 0; c < d.curves.size(); ++c)
     s << (c ? ", " : "") << "$c" << c << " using 1:2 with lines lw 1 dt 2 lc rgb " << GnuplotString(colours[c % 4])
-      << " title " << GnuplotString("input, " + d.curves[c].label) << ", $c" << c << " using 1:3 with lines lw 1.5 lc rgb "
-      << GnuplotString(colours[c % 4]) << " title " << GnuplotString("output, " + d.curves[c].label);
+      << " title " << GnuplotString("input, " + d.curves[c].label) << ", $c" << c
+      << " using 1:3 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4]) << " title "
+      << GnuplotString("output, " + d.curves[c].label);
   // 2. FRF: H1 (Welch) over the raw ratio.
   s << "\nunset logscale y\nset format y '% g'\nset ylabel 'FRF |H_1| [dB re 1]'\n";
   s << "plot 0 with lines dt 3 lc rgb 'black' notitle";
@@ -642,21 +675,23 @@ Status RenderChirpFrf(const ChirpFrfPlot& d, const std::string& out_path) {
     s << ", $c" << c << " using 1:4 with lines lw 2 lc rgb " << GnuplotString(colours[c % 4]) << " title "
       << GnuplotString("Welch H1, " + d.curves[c].label);
   // 3. Coherence.
-  s << "\nset xlabel " << GnuplotString(d.freq_label) << "\nset ylabel 'coherence {/Symbol g}^2'\nset yrange [0:1.05]\nplot ";
+  s << "\nset xlabel " << GnuplotString(d.freq_label)
+    << "\nset ylabel 'coherence {/Symbol g}^2'\nset yrange [0:1.05]\nplot ";
   for (size_t c = 0; c < d.curves.size(); ++c)
-    s << (c ? ", " : "") << "$c" << c << " using 1:5 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4]) << " title "
-      << GnuplotString(d.curves[c].label);
+    s << (c ? ", " : "") << "$c" << c << " using 1:5 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4])
+      << " title " << GnuplotString(d.curves[c].label);
   s << "\nunset multiplot\n";
   return RunGnuplot(s.str(), out_path);
 }
 
 Status RenderSpectrogram(const SpectrogramPlot& d, const std::string& out_path) {
-  if (d.time.empty() || d.freq.empty()) return Status::InvalidArgument("spectrogram", "the record is shorter than one window");
+  if (d.time.empty() || d.freq.empty())
+    return Status::InvalidArgument("spectrogram", "the record is shorter than one window");
   std::ostringstream s;
   s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");
-  s << "set title " << GnuplotString(d.title) << " noenhanced\nset xlabel " << GnuplotString(d.time_label) << "\nset ylabel "
-    << GnuplotString(d.freq_label) << "\nset cblabel 'magnitude [dB re max]'\nset cbrange [-80:0]\n" << kViridis
-    << kColourBoxMargins;
+  s << "set title " << GnuplotString(d.title) << " noenhanced\nset xlabel " << GnuplotString(d.time_label)
+    << "\nset ylabel " << GnuplotString(d.freq_label) << "\nset cblabel 'magnitude [dB re max]'\nset cbrange [-80:0]\n"
+    << kViridis << kColourBoxMargins;
   s << "set key off\n";
   WriteCells(s, d.time, d.freq, [&](size_t i, size_t k) { return std::max(-80.0, d.db[i][k]); });
   return RunGnuplot(s.str(), out_path);
@@ -677,7 +712,8 @@ Status RenderHdScatter(const ScatterData& d, const std::string& out_path) {
   for (size_t i = 0; i < d.x.size(); ++i) s << Num(d.x[i]) << " " << Num(d.y[i]) << " " << Num(d.amp[i]) << "\n";
   s << "EOD\n";
   // Integer multiples nΩ of the forcing (the paper's dashed lines).
-  s << "plot for [n=1:8] n*x with lines dt 2 lc rgb '#999999' lw 1, $data using 1:2:3 with points pt 7 ps 0.6 lc palette\n";
+  s << "plot for [n=1:8] n*x with lines dt 2 lc rgb '#999999' lw 1, $data using 1:2:3 with points pt 7 ps 0.6 lc "
+       "palette\n";
   return RunGnuplot(s.str(), out_path);
 }
 

@@ -30,8 +30,8 @@ struct PlotData {
   std::string metric, unit;
   std::vector<std::string> axis_names, axis_units;  // 1 (curve) or 2 (heatmap: x = axis 1, y = axis 0)
   std::vector<std::vector<double>> axis_values;
-  std::vector<double> values;                       // row-major over the axes; curves: one block per series
-  std::vector<std::string> series;                  // curves: a legend label per block (e.g. "up", "down")
+  std::vector<double> values;       // row-major over the axes; curves: one block per series
+  std::vector<std::string> series;  // curves: a legend label per block (e.g. "up", "down")
   // Integer codes (motion, period, termination): one colour and one labelled colour-bar tick per
   // code (heatmaps), points on the code's row with the names on the y axis (curves). Values not
   // among the codes are drawn as missing. Empty: a continuous metric.
@@ -91,9 +91,9 @@ struct BranchPlot {
   };
   std::vector<Branch> branches;
   struct Marker {
-    std::string label;       // legend entry (one per marker set that has points)
-    int point_type = 7;      // gnuplot pt
-    std::string colour;      // "#rrggbb"
+    std::string label;   // legend entry (one per marker set that has points)
+    int point_type = 7;  // gnuplot pt
+    std::string colour;  // "#rrggbb"
     std::vector<double> x, y;
   };
   std::vector<Marker> markers;
@@ -143,8 +143,8 @@ struct PanelPlot {
   struct Series {
     std::string label;
     std::vector<double> x, y;
-    bool points = false;   // point cloud (else a line)
-    std::string colour;    // "#rrggbb"; empty: automatic
+    bool points = false;       // point cloud (else a line)
+    std::string colour;        // "#rrggbb"; empty: automatic
     double point_size = 0.25;  // points: gnuplot's pointsize of pt 7 (filled circle)
   };
   struct Panel {

@@ -17,16 +17,18 @@ Status SetPoincareWindow(long n, const std::string& field, PointSpec* spec) {
   BISTABLE_RETURN_IF_ERROR(CheckNonNegative("t_keep", in.t_keep));
   const double period = 2 * M_PI / spec->omega;
   if (!(in.t_keep / in.dt <= limits::kMaxStepsPerPoint))  // before StepsFor: lround of a huge ratio is unspecified
-    return Violates("t_keep", in.t_keep, "<= " + FormatNumber(limits::kMaxStepsPerPoint * in.dt) + " (the limit of " +
-                                             FormatNumber(limits::kMaxStepsPerPoint) + " steps per point at dt = " + FormatNumber(in.dt) + ")");
+    return Violates("t_keep", in.t_keep,
+                    "<= " + FormatNumber(limits::kMaxStepsPerPoint * in.dt) + " (the limit of " +
+                        FormatNumber(limits::kMaxStepsPerPoint) + " steps per point at dt = " + FormatNumber(in.dt) +
+                        ")");
   const long n_keep = StepsFor(in.t_keep, in.dt);
   const double window_steps = std::ceil(static_cast<double>(n + 1) * period / in.dt);
   if (static_cast<double>(n_keep) + window_steps > limits::kMaxStepsPerPoint) {
     const double most = std::floor((limits::kMaxStepsPerPoint - static_cast<double>(n_keep)) * in.dt / period) - 1;
     return Violates(field, static_cast<double>(n),
-                    "<= " + FormatNumber(std::max(most, 0.0)) + " (the limit of " + FormatNumber(limits::kMaxStepsPerPoint) +
-                        " steps per point at dt = " + FormatNumber(in.dt) + ", Omega = " + FormatNumber(spec->omega) +
-                        ", t_keep = " + FormatNumber(in.t_keep) + ")");
+                    "<= " + FormatNumber(std::max(most, 0.0)) + " (the limit of " +
+                        FormatNumber(limits::kMaxStepsPerPoint) + " steps per point at dt = " + FormatNumber(in.dt) +
+                        ", Omega = " + FormatNumber(spec->omega) + ", t_keep = " + FormatNumber(in.t_keep) + ")");
   }
   in.t_end = static_cast<double>(n_keep + static_cast<long>(window_steps)) * in.dt;
   return Status::Ok();
@@ -55,7 +57,11 @@ nlohmann::json SectionJson(const PointSpec& spec, const PointResult& r, long lim
   const size_t n = SectionCount(r, limit);
   nlohmann::json columns = nlohmann::json::array(), units = nlohmann::json::array();
   for (const auto& [name, unit] : SectionColumns(spec)) columns.push_back(name), units.push_back(unit);
-  nlohmann::json j = {{"phase", spec.metrics.poincare_phase}, {"count", n}, {"k0", r.section_k0}, {"columns", columns}, {"units", units}};
+  nlohmann::json j = {{"phase", spec.metrics.poincare_phase},
+                      {"count", n},
+                      {"k0", r.section_k0},
+                      {"columns", columns},
+                      {"units", units}};
   if (file == "-") {
     nlohmann::json pts = nlohmann::json::array();
     for (size_t i = 0; i < n; ++i) pts.push_back(SectionRow(spec, r, i));

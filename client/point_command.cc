@@ -12,8 +12,8 @@
 #include "base/exit_codes.h"
 #include "base/limits.h"
 #include "client/cli_common.h"
-#include "client/model_flags.h"
 #include "client/json_out.h"
+#include "client/model_flags.h"
 #include "client/plot.h"
 #include "client/poincare_section.h"
 #include "dynamics/cancel.h"
@@ -43,7 +43,8 @@ Status ParseIc(const std::string& text, std::array<double, 4>* ic) {
   std::string item;
   int i = 0;
   while (std::getline(ss, item, ',')) {
-    if (i >= 4) return Status::InvalidArgument("ic", "ic = '" + text + "' violates ic = ym,vm[,yr,vr] (at most 4 numbers)");
+    if (i >= 4)
+      return Status::InvalidArgument("ic", "ic = '" + text + "' violates ic = ym,vm[,yr,vr] (at most 4 numbers)");
     char* end = nullptr;
     const double v = std::strtod(item.c_str(), &end);
     if (end == item.c_str() || *end != '\0')
@@ -60,7 +61,8 @@ Status WriteTrace(const std::string& path, const PointResult& r) {
   std::ostringstream out;
   out << "tau,y_m,dy_m,y_r,dy_r\n";
   out.precision(17);
-  for (const auto& row : r.samples) out << row[0] << ',' << row[1] << ',' << row[2] << ',' << row[3] << ',' << row[4] << '\n';
+  for (const auto& row : r.samples)
+    out << row[0] << ',' << row[1] << ',' << row[2] << ',' << row[3] << ',' << row[4] << '\n';
   return WriteTextOut(path, out.str(), "trace");
 }
 
@@ -68,7 +70,8 @@ std::string SectionCsv(const PointSpec& spec, const PointResult& r, long limit) 
   std::ostringstream out;
   // One header line, units in brackets (as measured-data files write them): every CSV reader takes it.
   const auto cols = SectionColumns(spec);
-  for (size_t c = 0; c < cols.size(); ++c) out << (c ? "," : "") << cols[c].first << (cols[c].second.empty() ? "" : " [" + cols[c].second + "]");
+  for (size_t c = 0; c < cols.size(); ++c)
+    out << (c ? "," : "") << cols[c].first << (cols[c].second.empty() ? "" : " [" + cols[c].second + "]");
   out << "\n";
   char b[32];
   for (size_t i = 0; i < SectionCount(r, limit); ++i) {
@@ -86,23 +89,30 @@ std::string SectionCsv(const PointSpec& spec, const PointResult& r, long limit) 
 Status PlotSection(const PointSpec& spec, const PointResult& r, long limit, const std::string& path) {
   const size_t n = SectionCount(r, limit);
   if (n == 0)
-    return Status::InvalidArgument("poincare_plot", "the section has no points to plot (the run diverged, termination " +
-                                                        std::string(TerminationName(r.termination)) + ")");
+    return Status::InvalidArgument("poincare_plot",
+                                   "the section has no points to plot (the run diverged, termination " +
+                                       std::string(TerminationName(r.termination)) + ")");
   PanelPlot d;
-  d.title = "Poincare section: " + std::string(ModelName(spec.model)) + ", alpha " + PlotNumber(spec.alpha) + ", Omega " +
-            PlotNumber(spec.omega) + ", eta " + PlotNumber(spec.params.eta) + ", phase " + PlotNumber(spec.metrics.poincare_phase) +
-            " rad, " + std::to_string(n) + " points";
+  d.title = "Poincare section: " + std::string(ModelName(spec.model)) + ", alpha " + PlotNumber(spec.alpha) +
+            ", Omega " + PlotNumber(spec.omega) + ", eta " + PlotNumber(spec.params.eta) + ", phase " +
+            PlotNumber(spec.metrics.poincare_phase) + " rad, " + std::to_string(n) + " points";
   const bool res = HasResonator(spec.model);
   d.cols = res ? 2 : 1;
   d.panel_width = res ? 640 : 900;
   d.panel_height = res ? 600 : 760;
   const double ps = n > 2000 ? 0.12 : n > 200 ? 0.3 : 0.8;
-  auto panel = [&](const char* title, const char* x, const char* y, const std::vector<double>& xs, const std::vector<double>& ys) {
-    PanelPlot::Series se{"", std::vector<double>(xs.begin(), xs.begin() + n), std::vector<double>(ys.begin(), ys.begin() + n),
-                         true, "#2166ac", ps};
+  auto panel = [&](const char* title, const char* x, const char* y, const std::vector<double>& xs,
+                   const std::vector<double>& ys) {
+    PanelPlot::Series se{"",
+                         std::vector<double>(xs.begin(), xs.begin() + n),
+                         std::vector<double>(ys.begin(), ys.begin() + n),
+                         true,
+                         "#2166ac",
+                         ps};
     d.panels.push_back({title, x, y, {se}});
   };
-  panel("main mass at tau_k = (phase + 2 pi k)/Omega", "y_m [delta_s]", "dy_m/dtau [delta_s/tau]", r.section_y, r.section_v);
+  panel("main mass at tau_k = (phase + 2 pi k)/Omega", "y_m [delta_s]", "dy_m/dtau [delta_s/tau]", r.section_y,
+        r.section_v);
   if (res) panel("resonator at the same tau_k", "y_r [delta_s]", "dy_r/dtau [delta_s/tau]", r.section_yr, r.section_vr);
   return RenderPanels(d, path);
 }
@@ -171,13 +181,17 @@ int RunPoint(PointArgs& a) {
   const bool section_to_stdout = a.poincare == "-";
   const bool trace_to_stdout = a.trace == "-";  // without --json: standard output is the trace CSV alone
   if (trace_to_stdout && (a.json || section_to_stdout || a.spectrum))
-    return Fail(Status::InvalidArgument("trace", std::string("--trace - writes the trace CSV to standard output, which ") +
-                                                     (a.json ? "--json" : section_to_stdout ? "--poincare -" : "--spectrum") +
-                                                     " uses too: give --trace a file name"));
+    return Fail(
+        Status::InvalidArgument("trace", std::string("--trace - writes the trace CSV to standard output, which ") +
+                                             (a.json              ? "--json"
+                                              : section_to_stdout ? "--poincare -"
+                                                                  : "--spectrum") +
+                                             " uses too: give --trace a file name"));
   if (!a.poincare_plot.empty()) {
     const std::string ext = std::filesystem::path(a.poincare_plot).extension().string();
     if (ext != ".png" && ext != ".svg")
-      return Fail(Status::InvalidArgument("poincare_plot", "--poincare-plot '" + a.poincare_plot + "' violates --poincare-plot ends in .png or .svg"));
+      return Fail(Status::InvalidArgument(
+          "poincare_plot", "--poincare-plot '" + a.poincare_plot + "' violates --poincare-plot ends in .png or .svg"));
   }
   // Ctrl-C / SIGTERM stop the integration within ~1024 steps; nothing is printed or written then.
   InstallCancelSignalHandlers();
@@ -238,8 +252,10 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("--dt", s.integration.dt, "RK4 step / output sampling step, tau")->capture_default_str();
   cmd->add_option("--rtol", s.integration.rtol, "adaptive: relative tolerance")->capture_default_str();
   cmd->add_option("--atol", s.integration.atol, "adaptive: absolute tolerance")->capture_default_str();
-  cmd->add_option("--ic", args->ic, "initial state ym,vm[,yr,vr] (default: at rest in the positive well; linear: origin)");
-  cmd->add_option("--chaos-threshold", s.metrics.chaos_threshold, "LLE above which motion is chaotic")->capture_default_str();
+  cmd->add_option("--ic", args->ic,
+                  "initial state ym,vm[,yr,vr] (default: at rest in the positive well; linear: origin)");
+  cmd->add_option("--chaos-threshold", s.metrics.chaos_threshold, "LLE above which motion is chaotic")
+      ->capture_default_str();
   cmd->add_option("--labels", args->labels,
                   "paper (one window [t_keep, t_end]) | settled (windows of --settle-window from t_keep until the "
                   "label settles, up to --settle-cap; t_end unused; docs/numerics.md)")
@@ -253,7 +269,8 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
       ->capture_default_str();
   cmd->add_option("--settle-cap", s.integration.settle_cap, "settled labels: tau after t_keep, then unresolved")
       ->capture_default_str();
-  cmd->add_option("--renorm-every", s.metrics.renorm_every, "Benettin renormalisation interval, steps")->capture_default_str();
+  cmd->add_option("--renorm-every", s.metrics.renorm_every, "Benettin renormalisation interval, steps")
+      ->capture_default_str();
   cmd->add_option("--sample-every", s.metrics.sample_every, "window sampling for spectrum/Rosenstein/trace, steps")
       ->capture_default_str();
   cmd->add_flag("--no-rosenstein", args->no_rosenstein, "skip the Rosenstein estimate");
@@ -261,9 +278,11 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
                 "also the Lyapunov spectrum by QR (all exponents, their sum against the exact divergence, the "
                 "Kaplan-Yorke dimension; rk4 only; about D+1 times the point's cost)");
   cmd->add_flag("--json", args->json, "print one JSON object");
-  cmd->add_option("--trace", args->trace, "write tau,y_m,dy_m,y_r,dy_r over the window to this CSV (-: standard output, alone)");
-  cmd->add_option("--poincare", args->poincare,
-                  "write the Poincare (stroboscopic) section to this CSV ('-': standard output; with --json, into the JSON)");
+  cmd->add_option("--trace", args->trace,
+                  "write tau,y_m,dy_m,y_r,dy_r over the window to this CSV (-: standard output, alone)");
+  cmd->add_option(
+      "--poincare", args->poincare,
+      "write the Poincare (stroboscopic) section to this CSV ('-': standard output; with --json, into the JSON)");
   cmd->add_option("--poincare-phase", s.metrics.poincare_phase,
                   "section phase in [0, 2 pi), radians of Omega tau: strobes at tau_k = (phase + 2 pi k)/Omega "
                   "(the period test uses the same strobes)")
@@ -271,15 +290,18 @@ void AddPointCommand(CLI::App& app, int* exit_code) {
   CLI::Option* periods =
       cmd->add_option("--poincare-periods", args->poincare_periods,
                       "make the window N + 1 forcing periods long and keep the first N section points, N in [1, " +
-                          std::to_string(limits::kMaxPoincarePeriods) + "] (instead of --t-end; very long windows need a "
+                          std::to_string(limits::kMaxPoincarePeriods) +
+                          "] (instead of --t-end; very long windows need a "
                           "larger --sample-every, see docs/limits.md)");
-  cmd->add_option("--poincare-plot", args->poincare_plot, "plot the section (y_m, y_m'; and y_r, y_r') into this .png or .svg");
+  cmd->add_option("--poincare-plot", args->poincare_plot,
+                  "plot the section (y_m, y_m'; and y_r, y_r') into this .png or .svg");
   periods->excludes(cmd->get_option("--t-end"));
   cmd->footer(
       "Units are non-dimensional (model.md): tau = omega_n t, lengths in delta_s. FRF is the absolute-velocity\n"
       "transmissibility 20 log10(max|x_m'| / (alpha Omega)) over the window; LLE per unit tau.\n"
       "Poincare section: the state at tau_k = (phase + 2 pi k)/Omega for every k with tau_k in the window,\n"
-      "y in delta_s and y' = dy/dtau in delta_s/tau (delta_s omega_n in physical units); CSV columns k,tau,y_m,dy_m[,y_r,dy_r], units in the header.");
+      "y in delta_s and y' = dy/dtau in delta_s/tau (delta_s omega_n in physical units); CSV columns "
+      "k,tau,y_m,dy_m[,y_r,dy_r], units in the header.");
   cmd->callback([args, exit_code, periods]() {
     args->poincare_periods_given = periods->count() > 0;
     *exit_code = RunPoint(*args);

@@ -7,8 +7,13 @@
 namespace bistable {
 
 ProgressBar::ProgressBar(long total, std::string label, bool enabled, std::string unit)
-    : total_(total), label_(std::move(label)), unit_(std::move(unit)), enabled_(enabled), tty_(::isatty(STDERR_FILENO) == 1),
-      start_(std::chrono::steady_clock::now()), last_(start_) {}
+    : total_(total),
+      label_(std::move(label)),
+      unit_(std::move(unit)),
+      enabled_(enabled),
+      tty_(::isatty(STDERR_FILENO) == 1),
+      start_(std::chrono::steady_clock::now()),
+      last_(start_) {}
 
 std::string ProgressBar::Line(long done, const std::string& extra) const {
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();

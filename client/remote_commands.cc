@@ -52,10 +52,12 @@ int StatusCmd(CoordinatorClient& c, const RemoteArgs& a) {
   if (!a.watch) {
     auto st = c.GetStatus(a.target);
     if (!st.ok()) return Fail(st.status());
-    if (a.json) std::cout << DumpJson(SweepStatusJson(*st)) << "\n";
+    if (a.json)
+      std::cout << DumpJson(SweepStatusJson(*st)) << "\n";
     else
-      std::printf("%s  %s  %ld/%ld points (%ld reused)  %d workers  %.1f s  %s\n", st->id.c_str(), SweepStateName(st->state),
-                  st->items_done, st->items_total, st->items_cached, st->workers, st->seconds, st->file.c_str());
+      std::printf("%s  %s  %ld/%ld points (%ld reused)  %d workers  %.1f s  %s\n", st->id.c_str(),
+                  SweepStateName(st->state), st->items_done, st->items_total, st->items_cached, st->workers,
+                  st->seconds, st->file.c_str());
     if (!a.json && !st->error.empty()) std::printf("  error: %s\n", Printable(st->error, 400).c_str());
     return st->state == SweepState::kFailed ? kExitNotDone : kExitOk;
   }
@@ -76,15 +78,18 @@ int StatusCmd(CoordinatorClient& c, const RemoteArgs& a) {
   if (!last.ok()) return Fail(last.status());
   const SweepInfo& st = *last;
   if (bar) bar->Finish(st.items_done - base, SweepStateName(st.state));
-  if (!a.json) std::printf("%s %s (%d workers at the end)%s%s\n", st.id.c_str(), SweepStateName(st.state), st.workers,
-                           st.file.empty() ? "" : ", map: ", st.file.c_str());
+  if (!a.json)
+    std::printf("%s %s (%d workers at the end)%s%s\n", st.id.c_str(), SweepStateName(st.state), st.workers,
+                st.file.empty() ? "" : ", map: ", st.file.c_str());
   return st.state == SweepState::kDone ? kExitOk : kExitNotDone;
 }
 
 int CancelCmd(CoordinatorClient& c, const RemoteArgs& a) {
   if (Status st = c.Cancel(a.target); !st.ok()) return Fail(st);
-  if (a.json) std::cout << DumpJson(nlohmann::json({{"id", a.target}, {"state", "cancelled"}})) << "\n";
-  else std::cout << "cancelled " << a.target << "\n";
+  if (a.json)
+    std::cout << DumpJson(nlohmann::json({{"id", a.target}, {"state", "cancelled"}})) << "\n";
+  else
+    std::cout << "cancelled " << a.target << "\n";
   return kExitOk;
 }
 
@@ -100,7 +105,8 @@ int WorkersCmd(CoordinatorClient& c, const RemoteArgs& a) {
   }
   std::printf("%-32s %8s %10s %12s\n", "worker", "leases", "items", "last seen");
   for (const WorkerInfo& w : *ws)
-    std::printf("%-32s %8d %10ld %10.1fs ago\n", Printable(w.name, 128).c_str(), w.leases, w.items_done, now - w.last_seen);
+    std::printf("%-32s %8d %10ld %10.1fs ago\n", Printable(w.name, 128).c_str(), w.leases, w.items_done,
+                now - w.last_seen);
   return kExitOk;
 }
 
@@ -118,8 +124,9 @@ int FetchCmd(CoordinatorClient& c, const FetchArgs& a) {
   if (a.r.json)
     std::cout << DumpJson(*fetched) << "\n";
   else
-    std::printf("fetched sweep %s: %s (%llu bytes, sha256 %s)\n", (*fetched)["id"].get<std::string>().c_str(), a.out.c_str(),
-                static_cast<unsigned long long>((*fetched)["bytes"].get<uint64_t>()), (*fetched)["sha256"].get<std::string>().c_str());
+    std::printf("fetched sweep %s: %s (%llu bytes, sha256 %s)\n", (*fetched)["id"].get<std::string>().c_str(),
+                a.out.c_str(), static_cast<unsigned long long>((*fetched)["bytes"].get<uint64_t>()),
+                (*fetched)["sha256"].get<std::string>().c_str());
   return kExitOk;
 }
 
@@ -132,28 +139,33 @@ struct HealthArgs {
 
 int HealthCmd(const HealthArgs& a) {
   if (!(a.timeout > 0 && a.timeout <= 3600))  // NaN fails too
-    return Fail(Status::InvalidArgument("timeout", "timeout = " + std::to_string(a.timeout) + " violates timeout in (0, 3600] s"));
+    return Fail(Status::InvalidArgument("timeout",
+                                        "timeout = " + std::to_string(a.timeout) + " violates timeout in (0, 3600] s"));
   auto token = LoadToken(a.r.token_file);
   if (!token.ok()) return Fail(token.status());
   auto st = CheckHealth({a.r.coordinator, a.r.tls_ca, *token, a.r.insecure_remote}, a.service, a.timeout);
   if (!st.ok()) return Fail(st.status());
-  if (a.r.json) std::cout << DumpJson(nlohmann::json({{"address", a.r.coordinator}, {"service", a.service}, {"status", *st}})) << "\n";
-  else std::cout << *st << "\n";
+  if (a.r.json)
+    std::cout << DumpJson(nlohmann::json({{"address", a.r.coordinator}, {"service", a.service}, {"status", *st}}))
+              << "\n";
+  else
+    std::cout << *st << "\n";
   return *st == "SERVING" ? kExitOk : kExitNotDone;
 }
 
 }  // namespace
 
 void AddRemoteCommands(CLI::App& app, int* exit_code) {
-  auto add = [&](const char* name, const char* help, const char* target_help, int (*fn)(CoordinatorClient&, const RemoteArgs&),
-                 bool watch) {
+  auto add = [&](const char* name, const char* help, const char* target_help,
+                 int (*fn)(CoordinatorClient&, const RemoteArgs&), bool watch) {
     auto a = std::make_shared<RemoteArgs>();
     CLI::App* cmd = app.add_subcommand(name, help);
     if (target_help) cmd->add_option(std::string(name) == "submit" ? "spec" : "id", a->target, target_help)->required();
     cmd->add_option("--coordinator", a->coordinator, "coordinator address")->capture_default_str();
     cmd->add_option("--token-file", a->token_file, "file holding a bearer token (else $BISTABLE_TOKEN)");
     cmd->add_option("--tls-ca", a->tls_ca, "PEM CA certificate to verify a TLS coordinator");
-    cmd->add_flag("--insecure-remote", a->insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
+    cmd->add_flag("--insecure-remote", a->insecure_remote,
+                  "send the token in plaintext to an address that is not loopback (refused otherwise)");
     cmd->add_flag("--json", a->json, "print JSON");
     if (watch) cmd->add_flag("--watch", a->watch, "stream progress until the sweep ends");
     cmd->callback([a, exit_code, fn]() {
@@ -168,15 +180,18 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
 
   {
     auto a = std::make_shared<FetchArgs>();
-    CLI::App* cmd = app.add_subcommand("fetch", "Download a published map file from a coordinator (streamed, SHA-256 checked, written atomically)");
+    CLI::App* cmd = app.add_subcommand(
+        "fetch", "Download a published map file from a coordinator (streamed, SHA-256 checked, written atomically)");
     cmd->add_option("id", a->r.target, "sweep id (or unique prefix)")->required();
     cmd->add_option("--out", a->out,
-                    "output file (default: <id>.h5 in the current directory; not '-': the file is checked before it is renamed into "
+                    "output file (default: <id>.h5 in the current directory; not '-': the file is checked before it is "
+                    "renamed into "
                     "place, which standard output cannot be — ./- names a file '-')");
     cmd->add_option("--coordinator", a->r.coordinator, "coordinator address")->capture_default_str();
     cmd->add_option("--token-file", a->r.token_file, "file holding a bearer token (else $BISTABLE_TOKEN)");
     cmd->add_option("--tls-ca", a->r.tls_ca, "PEM CA certificate to verify a TLS coordinator");
-    cmd->add_flag("--insecure-remote", a->r.insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
+    cmd->add_flag("--insecure-remote", a->r.insecure_remote,
+                  "send the token in plaintext to an address that is not loopback (refused otherwise)");
     cmd->add_flag("--json", a->r.json, "print JSON");
     cmd->callback([a, exit_code]() {
       if (Status st = CheckFetchOut(a->out); !st.ok()) {  // before connecting
@@ -206,25 +221,31 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
   }
   {
     auto a = std::make_shared<HealthArgs>();
-    CLI::App* cmd = app.add_subcommand("health", "grpc.health.v1 check of a coordinator or a worker's --health port (exit 0 when SERVING)");
+    CLI::App* cmd = app.add_subcommand(
+        "health", "grpc.health.v1 check of a coordinator or a worker's --health port (exit 0 when SERVING)");
     cmd->add_option("--coordinator", a->r.coordinator, "address to check")->capture_default_str();
-    cmd->add_option("--service", a->service, "service name ('' = the server; bistable.v1.Coordinator, bistable.v1.Worker)");
+    cmd->add_option("--service", a->service,
+                    "service name ('' = the server; bistable.v1.Coordinator, bistable.v1.Worker)");
     cmd->add_option("--timeout", a->timeout, "seconds")->capture_default_str();
     cmd->add_option("--token-file", a->r.token_file, "file holding a bearer token (else $BISTABLE_TOKEN)");
     cmd->add_option("--tls-ca", a->r.tls_ca, "PEM CA certificate to verify a TLS coordinator");
-    cmd->add_flag("--insecure-remote", a->r.insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
+    cmd->add_flag("--insecure-remote", a->r.insecure_remote,
+                  "send the token in plaintext to an address that is not loopback (refused otherwise)");
     cmd->add_flag("--json", a->r.json, "print JSON");
     cmd->callback([a, exit_code]() { *exit_code = HealthCmd(*a); });
   }
 
   auto role = std::make_shared<std::string>("client");
   auto name = std::make_shared<std::string>();
-  CLI::App* tok = app.add_subcommand("token", "Mint a bearer token: prints the token and its line for the coordinator's tokens file");
-  tok->add_option("--role", *role, "viewer (read only: status, maps, the dashboard) | client | worker | admin")->capture_default_str();
+  CLI::App* tok = app.add_subcommand(
+      "token", "Mint a bearer token: prints the token and its line for the coordinator's tokens file");
+  tok->add_option("--role", *role, "viewer (read only: status, maps, the dashboard) | client | worker | admin")
+      ->capture_default_str();
   tok->add_option("--name", *name, "a name for the token (shown as the submitter, never the token)");
   tok->callback([role, name, exit_code]() {
     if (*role != "viewer" && *role != "client" && *role != "worker" && *role != "admin") {
-      *exit_code = Fail(Status::InvalidArgument("role", "role = '" + *role + "' violates role in {viewer, client, worker, admin}"));
+      *exit_code = Fail(
+          Status::InvalidArgument("role", "role = '" + *role + "' violates role in {viewer, client, worker, admin}"));
       return;
     }
     // The coordinator would refuse the line at start: say so now.
@@ -233,7 +254,8 @@ void AddRemoteCommands(CLI::App& app, int* exit_code) {
       return;
     }
     const std::string t = NewToken();
-    std::cout << "token: " << t << "\n" << "tokens-file line: " << *role << " " << Sha256Hex(t) << (name->empty() ? "" : " " + *name) << "\n";
+    std::cout << "token: " << t << "\n"
+              << "tokens-file line: " << *role << " " << Sha256Hex(t) << (name->empty() ? "" : " " + *name) << "\n";
     *exit_code = 0;
   });
 }

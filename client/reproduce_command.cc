@@ -14,9 +14,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "client/cli_common.h"
 #include "base/cpus.h"
+#include "base/validate.h"
 #include "client/chirp_command.h"
+#include "client/cli_common.h"
 #include "client/embedded_run.h"
 #include "client/hbm_command.h"
 #include "client/plot.h"
@@ -24,7 +25,6 @@
 #include "dynamics/cancel.h"
 #include "dynamics/chirp.h"
 #include "dynamics/hbm.h"
-#include "base/validate.h"
 #include "engine/json_shapes.h"
 #include "storage/map_file.h"
 
@@ -60,10 +60,10 @@ StatusOr<std::pair<SweepSpec, std::string>> Sweep(Ctx& c, const std::string& tag
                                                   std::vector<std::string>* files) {
   // The label mode is set explicitly (a spec's own [integration] labels would be ambiguous here); continuation
   // sweeps (Fig. 4) carry each point's state to the next and read the paper's window in either mode.
-  auto spec = ParseSweepSpec(toml + "\n[integration]\nlabels = \"" +
-                                 (toml.find("[continuation]") == std::string::npos ? LabelModeName(c.labels) : "paper") +
-                                 "\"\n",
-                             tag);
+  auto spec = ParseSweepSpec(
+      toml + "\n[integration]\nlabels = \"" +
+          (toml.find("[continuation]") == std::string::npos ? LabelModeName(c.labels) : "paper") + "\"\n",
+      tag);
   if (!spec.ok()) return spec.status();
   std::cerr << "  sweep " << tag << ": " << spec->points() * spec->ic_count() << " items\n";
   auto path = RunEmbeddedSweep(*spec, c.data, c.threads, false);
@@ -107,9 +107,11 @@ Status Fig3(Ctx& c) {
       o.harmonics = c.quick ? 3 : 7;
       auto r = ContinueBranches(o);
       if (!r.ok()) return r.status();
-      BranchPlot d = HbmBranchPlot(*r, m, ContinuationParam::kOmega,
-                                   std::string("Fig. 3") + (m == ModelKind::kStandalone ? "a" : "b") + ": harmonic balance, alpha = " +
-                                       PlotNumber(a) + (m == ModelKind::kStandalone ? ", no resonator" : ", with resonator (eta_r = 1.5)"));
+      BranchPlot d =
+          HbmBranchPlot(*r, m, ContinuationParam::kOmega,
+                        std::string("Fig. 3") + (m == ModelKind::kStandalone ? "a" : "b") +
+                            ": harmonic balance, alpha = " + PlotNumber(a) +
+                            (m == ModelKind::kStandalone ? ", no resonator" : ", with resonator (eta_r = 1.5)"));
       d.extra_label = "one harmonic, zero mean (corrected Eq. 9)";
       for (int k = 0; k <= 300; ++k) {
         const double w = 0.05 + 2.95 * k / 300.0;
@@ -124,11 +126,13 @@ Status Fig3(Ctx& c) {
           const HbmPoint& p = b.points[i];
           if (!p.converged) continue;
           if (i > 0 && p.stable && b.points[i - 1].stable) {
-            auto seg = std::make_pair(std::min(p.omega, b.points[i - 1].omega), std::max(p.omega, b.points[i - 1].omega));
+            auto seg =
+                std::make_pair(std::min(p.omega, b.points[i - 1].omega), std::max(p.omega, b.points[i - 1].omega));
             const bool interwell = std::fabs(p.mean) < 0.5 && p.amplitude > 1.0;
             if (std::fabs(p.mean) > 0.5) intra.push_back(seg);
             if (interwell) inter.push_back(seg);
-            if (interwell && m == ModelKind::kCoupled && a == 0.2) coupled_interwell_max = std::max(coupled_interwell_max, p.omega);
+            if (interwell && m == ModelKind::kCoupled && a == 0.2)
+              coupled_interwell_max = std::max(coupled_interwell_max, p.omega);
           }
         }
       }
@@ -140,23 +144,34 @@ Status Fig3(Ctx& c) {
           coexist_len += (i1 && i2) ? 0.01 : 0.0;
         }
       }
-      const std::string f = (fs::path(c.out) / "fig3" / ("fig3" + std::string(m == ModelKind::kStandalone ? "a" : "b") +
-                                                        "_alpha=" + c.Fmt(a) + ".png")).string();
+      const std::string f =
+          (fs::path(c.out) / "fig3" /
+           ("fig3" + std::string(m == ModelKind::kStandalone ? "a" : "b") + "_alpha=" + c.Fmt(a) + ".png"))
+              .string();
       fs::create_directories(fs::path(f).parent_path());
       BISTABLE_RETURN_IF_ERROR(RenderBranches(d, f));
       files.push_back(f);
     }
   }
-  c.rows.push_back({"3", "Eq. 9 (one harmonic, zero mean) describes orbits symmetric about y = 0 only; intrawell orbits about ±1 need the constant term",
-                    std::to_string(intrawell_branches) + " stable-at-low-Omega intrawell branches (mean ±1) from the general HBM at alpha 0.2; none exist in Eq. 9's ansatz",
+  c.rows.push_back({"3",
+                    "Eq. 9 (one harmonic, zero mean) describes orbits symmetric about y = 0 only; intrawell orbits "
+                    "about ±1 need the constant term",
+                    std::to_string(intrawell_branches) + " stable-at-low-Omega intrawell branches (mean ±1) from the "
+                                                         "general HBM at alpha 0.2; none exist in Eq. 9's ansatz",
                     intrawell_branches >= 2, files});
-  c.rows.push_back({"3a", "without resonator, intrawell and interwell periodic motions coexist above Omega = 0.5",
-                    "stable intrawell and interwell HBM orbits coexist over " + c.Fmt(coexist_len) + " of Omega in (0.5, 3] at alpha 0.2",
-                    coexist_len > 0.05, {}});
-  c.rows.push_back({"3b", "with the resonator (eta_r 1.5), at alpha = 0.2 periodic interwell responses occur only up to Omega = 0.5",
-                    "largest Omega with a stable interwell HBM orbit at alpha 0.2: " +
-                        (coupled_interwell_max > 0 ? c.Fmt(coupled_interwell_max) : std::string("none found on any branch")),
-                    coupled_interwell_max > 0 && coupled_interwell_max <= 0.6, {}});
+  c.rows.push_back({"3a",
+                    "without resonator, intrawell and interwell periodic motions coexist above Omega = 0.5",
+                    "stable intrawell and interwell HBM orbits coexist over " + c.Fmt(coexist_len) +
+                        " of Omega in (0.5, 3] at alpha 0.2",
+                    coexist_len > 0.05,
+                    {}});
+  c.rows.push_back(
+      {"3b",
+       "with the resonator (eta_r 1.5), at alpha = 0.2 periodic interwell responses occur only up to Omega = 0.5",
+       "largest Omega with a stable interwell HBM orbit at alpha 0.2: " +
+           (coupled_interwell_max > 0 ? c.Fmt(coupled_interwell_max) : std::string("none found on any branch")),
+       coupled_interwell_max > 0 && coupled_interwell_max <= 0.6,
+       {}});
   return Status::Ok();
 }
 
@@ -166,10 +181,11 @@ Status Fig4(Ctx& c) {
   std::vector<std::string> files;
   int idx = 0;
   for (const char* model : {"standalone", "coupled"}) {
-    const std::string toml = std::string("name = \"Fig. 4 ") + model + "\"\nmodel = \"" + model +
-                             "\"\n[axes]\nalpha = { linspace = [0.01, 3.0, " + std::to_string(n) +
-                             "] }\nomega = [1.0, 1.2]\n[continuation]\naxis = \"alpha\"\ndirection = \"both\"\n[metrics]\n"
-                             "store = [\"turning_points\", \"motion\", \"lle\"]\n[output]\nplots = []\n";
+    const std::string toml =
+        std::string("name = \"Fig. 4 ") + model + "\"\nmodel = \"" + model +
+        "\"\n[axes]\nalpha = { linspace = [0.01, 3.0, " + std::to_string(n) +
+        "] }\nomega = [1.0, 1.2]\n[continuation]\naxis = \"alpha\"\ndirection = \"both\"\n[metrics]\n"
+        "store = [\"turning_points\", \"motion\", \"lle\"]\n[output]\nplots = []\n";
     auto r = Sweep(c, std::string("fig4_") + model, toml, &files);
     if (!r.ok()) return r.status();
     auto tp = ReadMapMetric(r->second, "turning_points");
@@ -191,12 +207,17 @@ Status Fig4(Ctx& c) {
     chaotic_hi[idx] = total ? static_cast<double>(chaotic) / total : 0;
     ++idx;
   }
-  c.rows.push_back({"4", "at Omega = 1 the resonator anticipates the interwell regime (interwell motion at lower alpha)",
-                    "first interwell alpha in the upward sweep: without resonator " + c.Fmt(first_interwell[0]) + ", with " + c.Fmt(first_interwell[1]),
+  c.rows.push_back({"4",
+                    "at Omega = 1 the resonator anticipates the interwell regime (interwell motion at lower alpha)",
+                    "first interwell alpha in the upward sweep: without resonator " + c.Fmt(first_interwell[0]) +
+                        ", with " + c.Fmt(first_interwell[1]),
                     first_interwell[1] < first_interwell[0], files});
-  c.rows.push_back({"4", "the resonator increases bifurcations and aperiodic responses at high amplitude inputs",
-                    "fraction chaotic for alpha > 1.5 at Omega = 1 (upward): without " + c.Fmt(chaotic_hi[0]) + ", with " + c.Fmt(chaotic_hi[1]),
-                    chaotic_hi[1] > chaotic_hi[0], {}});
+  c.rows.push_back({"4",
+                    "the resonator increases bifurcations and aperiodic responses at high amplitude inputs",
+                    "fraction chaotic for alpha > 1.5 at Omega = 1 (upward): without " + c.Fmt(chaotic_hi[0]) +
+                        ", with " + c.Fmt(chaotic_hi[1]),
+                    chaotic_hi[1] > chaotic_hi[0],
+                    {}});
   return Status::Ok();
 }
 
@@ -206,9 +227,10 @@ Status Fig6(Ctx& c) {
   std::vector<std::string> files;
   int idx = 0;
   for (const char* model : {"standalone", "coupled"}) {
-    const std::string toml = std::string("name = \"Fig. 6 ") + model + "\"\nmodel = \"" + model +
-                             "\"\n[axes]\nalpha = [0.3333333333333333, 3.0]\nomega = { linspace = [0.01, 3.0, " +
-                             std::to_string(n) + "] }\n[metrics]\nstore = [\"hd_peaks\", \"hd_index\", \"motion\", \"period\"]\n[output]\nplots = []\n";
+    const std::string toml =
+        std::string("name = \"Fig. 6 ") + model + "\"\nmodel = \"" + model +
+        "\"\n[axes]\nalpha = [0.3333333333333333, 3.0]\nomega = { linspace = [0.01, 3.0, " + std::to_string(n) +
+        "] }\n[metrics]\nstore = [\"hd_peaks\", \"hd_index\", \"motion\", \"period\"]\n[output]\nplots = []\n";
     auto r = Sweep(c, std::string("fig6_") + model, toml, &files);
     if (!r.ok()) return r.status();
     auto g = Load(r->second, "hd_index");
@@ -225,10 +247,15 @@ Status Fig6(Ctx& c) {
     ++idx;
   }
   c.rows.push_back({"6", "without resonator, at low input frequency the response is at the input frequency",
-                    "mean harmonic-diffusion index for Omega < 0.5 at alpha 1/3: " + c.Fmt(hd_low), hd_low < 0.05, files});
-  c.rows.push_back({"6", "with the resonator, above Omega = 1.7 (alpha 3) harmonic diffusion concentrates on the 1st-3rd harmonics (periodic)",
-                    "mean hd_index for Omega > 1.7 at alpha 3: without " + c.Fmt(hd_high[0]) + ", with " + c.Fmt(hd_high[1]),
-                    hd_high[1] < hd_high[0], {}});
+                    "mean harmonic-diffusion index for Omega < 0.5 at alpha 1/3: " + c.Fmt(hd_low), hd_low < 0.05,
+                    files});
+  c.rows.push_back(
+      {"6",
+       "with the resonator, above Omega = 1.7 (alpha 3) harmonic diffusion concentrates on the 1st-3rd harmonics "
+       "(periodic)",
+       "mean hd_index for Omega > 1.7 at alpha 3: without " + c.Fmt(hd_high[0]) + ", with " + c.Fmt(hd_high[1]),
+       hd_high[1] < hd_high[0],
+       {}});
   return Status::Ok();
 }
 
@@ -237,8 +264,9 @@ Status Figs7to13(Ctx& c) {
   std::map<std::string, std::string> maps;
   std::vector<std::string> files;
   for (const char* model : {"standalone", "coupled"}) {
-    const std::string toml = std::string("name = \"Figs. 7/8/13 ") + model + "\"\nmodel = \"" + model + "\"\n[axes]\nalpha = " +
-                             Grid2(n) + "\nomega = " + Grid2(n) + "\n[output]\nplots = [\"frf_db\", \"lle\", \"motion\", \"" +
+    const std::string toml = std::string("name = \"Figs. 7/8/13 ") + model + "\"\nmodel = \"" + model +
+                             "\"\n[axes]\nalpha = " + Grid2(n) + "\nomega = " + Grid2(n) +
+                             "\n[output]\nplots = [\"frf_db\", \"lle\", \"motion\", \"" +
                              (std::string(model) == "coupled" ? "edr_t" : "edr_b") + "\"]\n";
     auto r = Sweep(c, std::string("fig7_8_13_") + model, toml, &files);
     if (!r.ok()) return r.status();
@@ -258,25 +286,31 @@ Status Figs7to13(Ctx& c) {
     for (size_t i = 0; i < al.size(); ++i)
       for (size_t j = 0; j < om.size(); ++j)
         if (mo->At(i, j) == 0) ++intra, intra_neg += lle->At(i, j) < 0;
-  c.rows.push_back({"7", "within the intrawell regime LLE values are negative (periodic)",
-                    c.Fmt(100.0 * intra_neg / std::max(1L, intra)) + " % of intrawell points have LLE < 0 (both models)",
-                    intra_neg >= 0.95 * intra, files});
+  c.rows.push_back(
+      {"7", "within the intrawell regime LLE values are negative (periodic)",
+       c.Fmt(100.0 * intra_neg / std::max(1L, intra)) + " % of intrawell points have LLE < 0 (both models)",
+       intra_neg >= 0.95 * intra, files});
   // 8a: stand-alone attenuation only at high Ω, low α.
   long att = 0, att_hf = 0;
   for (size_t i = 0; i < al.size(); ++i)
     for (size_t j = 0; j < om.size(); ++j)
       if (s_frf->At(i, j) < 0) ++att, att_hf += om[j] > 1.5 && al[i] < 1.0;
-  c.rows.push_back({"8a", "the stand-alone oscillator attenuates only at high frequency and low amplitude",
+  c.rows.push_back({"8a",
+                    "the stand-alone oscillator attenuates only at high frequency and low amplitude",
                     c.Fmt(100.0 * att_hf / std::max(1L, att)) + " % of its attenuating points (" + std::to_string(att) +
                         ") lie at Omega > 1.5 and alpha < 1",
-                    att > 0 && att_hf >= 0.9 * att, {}});
+                    att > 0 && att_hf >= 0.9 * att,
+                    {}});
   // 8b: resonator attenuation near λ = 0.8 up to α ≈ 1.5.
   double top_alpha = 0;
   for (size_t i = 0; i < al.size(); ++i)
     for (size_t j = 0; j < om.size(); ++j)
       if (om[j] >= 0.7 && om[j] <= 1.0 && c_frf->At(i, j) < 0) top_alpha = std::max(top_alpha, al[i]);
-  c.rows.push_back({"8b", "the resonator adds attenuation at its tuned frequency (lambda 0.8) up to alpha = 1.5",
-                    "largest alpha with FRF < 0 at Omega in [0.7, 1.0]: " + c.Fmt(top_alpha), top_alpha > 1.2 && top_alpha < 1.9, {}});
+  c.rows.push_back({"8b",
+                    "the resonator adds attenuation at its tuned frequency (lambda 0.8) up to alpha = 1.5",
+                    "largest alpha with FRF < 0 at Omega in [0.7, 1.0]: " + c.Fmt(top_alpha),
+                    top_alpha > 1.2 && top_alpha < 1.9,
+                    {}});
   // 13: low dissipation at low α; dissipation starts at lower Ω with the resonator.
   auto mean_edr = [&](const Grid& g, double a_lo, double a_hi) {
     double s = 0;
@@ -287,8 +321,12 @@ Status Figs7to13(Ctx& c) {
     return k ? s / k : NAN;
   };
   const double low = mean_edr(*c_edr, 0, 0.3), high = mean_edr(*c_edr, 1.5, 3);
-  c.rows.push_back({"13", "low dissipation ratios at low input amplitudes",
-                    "mean EDR_T (coupled) for alpha < 0.3: " + c.Fmt(low) + " %, for alpha > 1.5: " + c.Fmt(high) + " %", low < high, {}});
+  c.rows.push_back(
+      {"13",
+       "low dissipation ratios at low input amplitudes",
+       "mean EDR_T (coupled) for alpha < 0.3: " + c.Fmt(low) + " %, for alpha > 1.5: " + c.Fmt(high) + " %",
+       low < high,
+       {}});
   // Onset: the first Ω where the α-averaged ratio reaches half of its own maximum over Ω (each model
   // on its own scale: the stand-alone ratio never reaches the coupled one's levels).
   auto onset = [&](const Grid& g) {
@@ -303,10 +341,12 @@ Status Figs7to13(Ctx& c) {
     return std::nan("");
   };
   const double on_s = onset(*s_edr), on_c = onset(*c_edr);
-  c.rows.push_back({"13", "with the resonator, energy dissipation begins at a lower frequency",
-                    "first Omega where the alpha-averaged ratio reaches half its maximum: stand-alone (EDR_B) " + c.Fmt(on_s) +
-                        ", coupled (EDR_T) " + c.Fmt(on_c),
-                    on_c < on_s, {}});
+  c.rows.push_back({"13",
+                    "with the resonator, energy dissipation begins at a lower frequency",
+                    "first Omega where the alpha-averaged ratio reaches half its maximum: stand-alone (EDR_B) " +
+                        c.Fmt(on_s) + ", coupled (EDR_T) " + c.Fmt(on_c),
+                    on_c < on_s,
+                    {}});
   return Status::Ok();
 }
 
@@ -320,16 +360,22 @@ Status Figs9to12(Ctx& c) {
     const char* claim;
   };
   const Param params[] = {
-      {"9", "standalone", "eta", "[0.1, 0.2, 0.3]", "increased damping eta gives more attenuation zones and more stable (non-chaotic) regions"},
-      {"10", "coupled", "eta_r", "[0.075, 0.5, 1.5]", "increased resonator damping eta_r gives more attenuation (a new attenuation branch, high-frequency attenuation)"},
-      {"11", "coupled", "lambda", "[0.6, 0.8, 1.0]", "higher resonator stiffness lambda gives less chaotic response at high amplitudes"},
-      {"12", "coupled", "phi", "[1.0, 2.0, 4.0]", "a larger mass ratio phi increases the attenuation zone and the stable zones"},
+      {"9", "standalone", "eta", "[0.1, 0.2, 0.3]",
+       "increased damping eta gives more attenuation zones and more stable (non-chaotic) regions"},
+      {"10", "coupled", "eta_r", "[0.075, 0.5, 1.5]",
+       "increased resonator damping eta_r gives more attenuation (a new attenuation branch, high-frequency "
+       "attenuation)"},
+      {"11", "coupled", "lambda", "[0.6, 0.8, 1.0]",
+       "higher resonator stiffness lambda gives less chaotic response at high amplitudes"},
+      {"12", "coupled", "phi", "[1.0, 2.0, 4.0]",
+       "a larger mass ratio phi increases the attenuation zone and the stable zones"},
   };
   for (const Param& p : params) {
     std::vector<std::string> files;
-    const std::string toml = std::string("name = \"Fig. ") + p.fig + "\"\nmodel = \"" + p.model + "\"\n[axes]\nalpha = " + Grid2(n) +
-                             "\nomega = " + Grid2(n) + "\n" + p.axis + " = " + p.values +
-                             "\n[metrics]\nstore = [\"frf_db\", \"lle\", \"motion\"]\n[output]\nplots = [\"frf_db\", \"lle\"]\n";
+    const std::string toml =
+        std::string("name = \"Fig. ") + p.fig + "\"\nmodel = \"" + p.model + "\"\n[axes]\nalpha = " + Grid2(n) +
+        "\nomega = " + Grid2(n) + "\n" + p.axis + " = " + p.values +
+        "\n[metrics]\nstore = [\"frf_db\", \"lle\", \"motion\"]\n[output]\nplots = [\"frf_db\", \"lle\"]\n";
     auto r = Sweep(c, std::string("fig") + p.fig + "_" + p.axis, toml, &files);
     if (!r.ok()) return r.status();
     auto frf = Load(r->second, "frf_db"), mo = Load(r->second, "motion");
@@ -379,8 +425,8 @@ Status Figs9to12(Ctx& c) {
 struct SweepFrf {
   std::vector<double> f, db;
 };
-SweepFrf DimChirp(Ctx& c, const std::string& tag, DimensionalParams p, double a0_mm, double f0, double f1, ChirpFrfPlot* plot,
-                  ChirpRecord* keep) {
+SweepFrf DimChirp(Ctx& c, const std::string& tag, DimensionalParams p, double a0_mm, double f0, double f1,
+                  ChirpFrfPlot* plot, ChirpRecord* keep) {
   ChirpOptions o;
   o.model = ModelKind::kDimensional;
   o.dim = p;
@@ -425,7 +471,8 @@ Status Figs22to24(Ctx& c) {
   // Two panels side by side on one y range (headroom for the legend), against time; the moment the
   // input passes f_res marked.
   PanelPlot th;
-  th.title = "Fig. 22: response to a 1-8 Hz sweep at " + PlotNumber(c.quick ? 0.3 : 0.06) + " Hz/s, A0 = 10 mm (bistable, Table 2)";
+  th.title = "Fig. 22: response to a 1-8 Hz sweep at " + PlotNumber(c.quick ? 0.3 : 0.06) +
+             " Hz/s, A0 = 10 mm (bistable, Table 2)";
   th.cols = 2;
   double y_abs = 0;
   for (const ChirpRecord* r : {&a, &b})
@@ -448,12 +495,18 @@ Status Figs22to24(Ctx& c) {
   }
   const std::string f22 = (fs::path(c.out) / "fig22_24" / "fig22_time_histories.png").string();
   BISTABLE_RETURN_IF_ERROR(RenderPanels(th, f22));
-  c.rows.push_back({"22", "with the resonator the response amplitude decreases as the input approaches f_res = 5.1 Hz",
-                    "RMS absolute velocity within ±0.3 Hz of f_res, with / without resonator: " + c.Fmt(ratio), ratio < 1, {f22}});
+  c.rows.push_back({"22",
+                    "with the resonator the response amplitude decreases as the input approaches f_res = 5.1 Hz",
+                    "RMS absolute velocity within ±0.3 Hz of f_res, with / without resonator: " + c.Fmt(ratio),
+                    ratio < 1,
+                    {f22}});
   // Fig. 23: FRF of linear + resonator vs bistable + resonator.
-  ChirpFrfPlot p23 = ChirpFigure("Fig. 23: FRF of frequency sweeps, A0 = 10 mm, 1-8 Hz (with resonator, f_res = " + PlotNumber(f_res) + " Hz)", true);
+  ChirpFrfPlot p23 = ChirpFigure(
+      "Fig. 23: FRF of frequency sweeps, A0 = 10 mm, 1-8 Hz (with resonator, f_res = " + PlotNumber(f_res) + " Hz)",
+      true);
   const SweepFrf lin = DimChirp(c, "linear + resonator", DimensionalParams::LinearTable2(), 10, 1, 8, &p23, nullptr);
-  const SweepFrf bis = DimChirp(c, "bistable + resonator", DimensionalParams::BistableTable2(), 10, 1, 8, &p23, nullptr);
+  const SweepFrf bis =
+      DimChirp(c, "bistable + resonator", DimensionalParams::BistableTable2(), 10, 1, 8, &p23, nullptr);
   const std::string f23 = (fs::path(c.out) / "fig22_24" / "fig23_frf.png").string();
   BISTABLE_RETURN_IF_ERROR(RenderChirpFrf(p23, f23));
   auto min_near = [&](const SweepFrf& s) {
@@ -463,11 +516,18 @@ Status Figs22to24(Ctx& c) {
     return m;
   };
   auto peak = [](const SweepFrf& s) { return s.db.empty() ? NAN : *std::max_element(s.db.begin(), s.db.end()); };
-  c.rows.push_back({"23", "linear oscillator with resonator: about -12 dB attenuation at f_res and a +9 dB peak",
-                    "FFT-ratio FRF (the paper's Eq. 10; the figure also shows Welch H1) in 0.25 Hz bands: minimum near f_res " + c.Fmt(min_near(lin)) + " dB, peak " + c.Fmt(peak(lin)) + " dB",
-                    min_near(lin) < -6 && peak(lin) > 5, {f23}});
-  c.rows.push_back({"23", "bistable oscillator with resonator: FRF peak stays below 5 dB",
-                    "FFT-ratio FRF in 0.25 Hz bands: peak " + c.Fmt(peak(bis)) + " dB", peak(bis) < 5, {}});
+  c.rows.push_back(
+      {"23",
+       "linear oscillator with resonator: about -12 dB attenuation at f_res and a +9 dB peak",
+       "FFT-ratio FRF (the paper's Eq. 10; the figure also shows Welch H1) in 0.25 Hz bands: minimum near f_res " +
+           c.Fmt(min_near(lin)) + " dB, peak " + c.Fmt(peak(lin)) + " dB",
+       min_near(lin) < -6 && peak(lin) > 5,
+       {f23}});
+  c.rows.push_back({"23",
+                    "bistable oscillator with resonator: FRF peak stays below 5 dB",
+                    "FFT-ratio FRF in 0.25 Hz bands: peak " + c.Fmt(peak(bis)) + " dB",
+                    peak(bis) < 5,
+                    {}});
   // Fig. 24: attenuation onset at low and high amplitude (bistable + resonator).
   ChirpFrfPlot p24 = ChirpFigure("Fig. 24: bistable + resonator, A0 = 5 mm (1-12 Hz) and 15 mm (1-5 Hz)", true);
   const SweepFrf lo = DimChirp(c, "A0 5 mm", DimensionalParams::BistableTable2(), 5, 1, 12, &p24, nullptr);
@@ -480,9 +540,13 @@ Status Figs22to24(Ctx& c) {
     return std::nan("");
   };
   const double on_lo = onset(lo), on_hi = onset(hi);
-  c.rows.push_back({"24", "attenuation starts at 0.85 f_res for A0 = 5 mm and at 0.6 f_res for A0 = 15 mm (earlier at high amplitude)",
-                    "attenuation onset / f_res (FFT-ratio FRF in 0.25 Hz bands): A0 5 mm " + c.Fmt(on_lo) + ", A0 15 mm " + c.Fmt(on_hi),
-                    on_hi < on_lo, {f24}});
+  c.rows.push_back(
+      {"24",
+       "attenuation starts at 0.85 f_res for A0 = 5 mm and at 0.6 f_res for A0 = 15 mm (earlier at high amplitude)",
+       "attenuation onset / f_res (FFT-ratio FRF in 0.25 Hz bands): A0 5 mm " + c.Fmt(on_lo) + ", A0 15 mm " +
+           c.Fmt(on_hi),
+       on_hi < on_lo,
+       {f24}});
   return Status::Ok();
 }
 
@@ -491,19 +555,19 @@ int Reproduce(const std::string& what, const std::string& out, bool quick, int t
   if (what != "paper") return Fail(Status::InvalidArgument("what", "what = '" + what + "' violates what in {paper}"));
   auto mode = ParseLabelMode(labels);
   if (!mode.ok()) return Fail(Status::InvalidArgument("labels", mode.status().message()));
-  Ctx c{out, (fs::path(out) / "data").string(), quick,
-        threads > 0 ? threads : UsableCpus(), {}};
+  Ctx c{out, (fs::path(out) / "data").string(), quick, threads > 0 ? threads : UsableCpus(), {}};
   c.labels = *mode;
   // The figures are this command's product: without gnuplot, say so before computing anything.
-  if (Status g = CheckGnuplot(); !g.ok()) return Fail(Status::FailedPrecondition("reproduce draws the paper's figures: " + g.message()));
+  if (Status g = CheckGnuplot(); !g.ok())
+    return Fail(Status::FailedPrecondition("reproduce draws the paper's figures: " + g.message()));
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) return Fail(Status::IoError("out", "cannot create '" + out + "': " + ec.message()));
   const auto t0 = std::chrono::steady_clock::now();
   const std::pair<const char*, std::function<Status(Ctx&)>> steps[] = {
-      {"Fig. 3 (harmonic balance)", Fig3},       {"Fig. 4 (bifurcation diagrams)", Fig4},
-      {"Fig. 6 (harmonic diffusion)", Fig6},     {"Figs. 7, 8, 13 (maps)", Figs7to13},
-      {"Figs. 9-12 (parameters)", Figs9to12},   {"Figs. 22-24 (frequency sweeps)", Figs22to24}};
+      {"Fig. 3 (harmonic balance)", Fig3},    {"Fig. 4 (bifurcation diagrams)", Fig4},
+      {"Fig. 6 (harmonic diffusion)", Fig6},  {"Figs. 7, 8, 13 (maps)", Figs7to13},
+      {"Figs. 9-12 (parameters)", Figs9to12}, {"Figs. 22-24 (frequency sweeps)", Figs22to24}};
   // Ctrl-C / SIGTERM: every computation polls the cancel flag; the sweeps keep their finished jobs
   // (a rerun resumes them from the data directory); no README is written for a partial run.
   InstallCancelSignalHandlers("\nstopping: finished sweep jobs are kept (press Ctrl-C again to quit at once)\n");
@@ -512,7 +576,8 @@ int Reproduce(const std::string& what, const std::string& out, bool quick, int t
     Status st = fn(c);
     if (CancelRequested()) {
       RestoreDefaultSignalHandlers();
-      std::cerr << "interrupted during " << name << ": no report written; rerun the same command to resume the sweeps\n";
+      std::cerr << "interrupted during " << name
+                << ": no report written; rerun the same command to resume the sweeps\n";
       return CancelExitStatus();
     }
     if (!st.ok()) return Fail(st);
@@ -523,25 +588,38 @@ int Reproduce(const std::string& what, const std::string& out, bool quick, int t
   int agree = 0;
   for (const Row& r : c.rows) agree += r.agree;
   md << "# The paper's figures, regenerated\n\nGenerated by `bistable reproduce paper" << (quick ? " --quick" : "")
-     << (c.labels == LabelMode::kPaper ? "" : " --labels settled") << "` in "
-     << c.Fmt(seconds) << " s (" << (quick ? "coarse grids, fast sweeps" : "the paper's grids and sweep rates") << "), numerics "
+     << (c.labels == LabelMode::kPaper ? "" : " --labels settled") << "` in " << c.Fmt(seconds) << " s ("
+     << (quick ? "coarse grids, fast sweeps" : "the paper's grids and sweep rates") << "), numerics "
      << kNumericsVersion << ", labels " << LabelModeName(c.labels)
-     << (c.labels == LabelMode::kPaper ? " (the paper's window, τ 250–500)" : " (settled; Fig. 4's continuation in the paper's window)")
+     << (c.labels == LabelMode::kPaper ? " (the paper's window, τ 250–500)"
+                                       : " (settled; Fig. 4's continuation in the paper's window)")
      << ". " << agree << " of " << c.rows.size()
-     << " claims agree. Each claim is the paper's (paraphrased); the number is ours, computed from the maps, branches and "
-        "sweeps in this directory. Figures 22-24 are simulations of the dimensional model (Table 2) with nominal chirps, "
-        "where the paper shows measurements.\n\n| Fig. | the paper's claim | our number | verdict | files |\n|---|---|---|---|---|\n";
+     << " claims agree. Each claim is the paper's (paraphrased); the number is ours, computed from the maps, branches "
+        "and "
+        "sweeps in this directory. Figures 22-24 are simulations of the dimensional model (Table 2) with nominal "
+        "chirps, "
+        "where the paper shows measurements.\n\n| Fig. | the paper's claim | our number | verdict | files "
+        "|\n|---|---|---|---|---|\n";
   for (const Row& r : c.rows) {
     std::string f;
     for (const std::string& file : r.files) f += (f.empty() ? "" : "<br>") + fs::relative(file, out).string();
-    md << "| " << r.figure << " | " << r.claim << " | " << r.ours << " | " << (r.agree ? "agree" : "**differ**") << " | " << f << " |\n";
+    md << "| " << r.figure << " | " << r.claim << " | " << r.ours << " | " << (r.agree ? "agree" : "**differ**")
+       << " | " << f << " |\n";
   }
   const std::string md_path = (fs::path(out) / "README.md").string();
   std::ofstream(md_path) << md.str();
   if (json) {
     nlohmann::json rows = nlohmann::json::array();
-    for (const Row& r : c.rows) rows.push_back({{"figure", r.figure}, {"claim", r.claim}, {"ours", r.ours}, {"agree", r.agree}, {"files", r.files}});
-    std::cout << DumpJson(nlohmann::json({{"report", md_path}, {"labels", LabelModeName(c.labels)}, {"seconds", seconds}, {"agree", agree}, {"claims", rows}}), 1) << "\n";
+    for (const Row& r : c.rows)
+      rows.push_back(
+          {{"figure", r.figure}, {"claim", r.claim}, {"ours", r.ours}, {"agree", r.agree}, {"files", r.files}});
+    std::cout << DumpJson(nlohmann::json({{"report", md_path},
+                                          {"labels", LabelModeName(c.labels)},
+                                          {"seconds", seconds},
+                                          {"agree", agree},
+                                          {"claims", rows}}),
+                          1)
+              << "\n";
   } else {
     std::cout << md.str() << "\nreport: " << md_path << "\n";
   }
@@ -558,16 +636,19 @@ void AddReproduceCommand(CLI::App& app, int* exit_code) {
     std::string labels = "paper";
   };
   auto a = std::make_shared<Args>();
-  CLI::App* cmd = app.add_subcommand("reproduce", "Regenerate the paper's figures and check its claims against our numbers");
+  CLI::App* cmd =
+      app.add_subcommand("reproduce", "Regenerate the paper's figures and check its claims against our numbers");
   cmd->add_option("what", a->what, "paper")->required();
   cmd->add_option("--out", a->out, "output directory (figures, data, README.md)")->capture_default_str();
   cmd->add_flag("--quick", a->quick, "coarse grids and fast sweeps (about 6 s on 2 cores; the CI mode)");
-  cmd->add_option("--threads", a->threads, "worker threads (0 = the CPUs this process may use: affinity and cgroup quota)");
+  cmd->add_option("--threads", a->threads,
+                  "worker threads (0 = the CPUs this process may use: affinity and cgroup quota)");
   cmd->add_option("--labels", a->labels,
                   "label mode of the maps: paper (the paper's window, what the claims were checked in) or settled")
       ->capture_default_str();
   cmd->add_flag("--json", a->json, "print {report, seconds, agree, claims: [...]}");
-  cmd->callback([a, exit_code]() { *exit_code = Reproduce(a->what, a->out, a->quick, a->threads, a->json, a->labels); });
+  cmd->callback(
+      [a, exit_code]() { *exit_code = Reproduce(a->what, a->out, a->quick, a->threads, a->json, a->labels); });
 }
 
 }  // namespace bistable

@@ -13,21 +13,21 @@
 
 #include <nlohmann/json.hpp>
 
-#include "client/cli_common.h"
 #include "base/cpus.h"
 #include "base/validate.h"
+#include "client/cli_common.h"
+#include "client/embedded_run.h"
 #include "client/map_slice.h"
 #include "client/plot.h"
-#include "client/embedded_run.h"
 #include "client/progress.h"
 #include "client/sweep_commands.h"
 #include "dynamics/cancel.h"
+#include "engine/evaluate.h"
 #include "engine/json_shapes.h"
 #include "net/http_server.h"
 #include "server/dashboard.h"
 #include "server/sweep_coordinator.h"
 #include "storage/map_file.h"
-#include "engine/evaluate.h"
 
 namespace bistable {
 namespace {
@@ -44,7 +44,9 @@ struct RunArgs {
 int RunSweep(const RunArgs& a) {
   auto spec = LoadSweepSpec(a.spec_path);
   if (!spec.ok()) return Fail(spec.status());
-  if (a.threads < 0 || a.threads > 1024) return Fail(Status::InvalidArgument("threads", "threads = " + std::to_string(a.threads) + " violates threads in [0, 1024]"));
+  if (a.threads < 0 || a.threads > 1024)
+    return Fail(Status::InvalidArgument("threads",
+                                        "threads = " + std::to_string(a.threads) + " violates threads in [0, 1024]"));
   auto coord = SweepCoordinator::Open(a.data, EmbeddedCoordinatorOptions());
   if (!coord.ok()) return Fail(coord.status());
   SweepCoordinator& c = **coord;
@@ -53,12 +55,14 @@ int RunSweep(const RunArgs& a) {
   std::unique_ptr<HttpServer> dashboard;
   if (!a.serve.empty()) {
     if (!IsLoopbackAddress(a.serve))
-      return Fail(Status::InvalidArgument("serve", a.serve + " is not a loopback address (the embedded dashboard has no tokens; "
-                                                             "use bistable-coordinator --http with TLS and tokens to serve others)"));
+      return Fail(Status::InvalidArgument(
+          "serve", a.serve + " is not a loopback address (the embedded dashboard has no tokens; "
+                             "use bistable-coordinator --http with TLS and tokens to serve others)"));
     auto h = HttpServer::Start(a.serve, DashboardRoutes(&c, &open_tokens), DashboardHttpOptions());
     if (!h.ok()) return Fail(h.status());
     dashboard = std::move(h).value();
-    std::cerr << "dashboard on http://" << a.serve.substr(0, a.serve.rfind(':')) << ":" << dashboard->port() << "/" << std::endl;
+    std::cerr << "dashboard on http://" << a.serve.substr(0, a.serve.rfind(':')) << ":" << dashboard->port() << "/"
+              << std::endl;
   }
   const auto t0 = std::chrono::steady_clock::now();
   auto plan = c.Submit(*spec, a.job_items > 0 ? a.job_items : JobItems(*spec, 0.25));
@@ -67,8 +71,8 @@ int RunSweep(const RunArgs& a) {
   const int threads = a.threads > 0 ? a.threads : UsableCpus();
   const long to_compute = plan->items_total - plan->items_cached;
   if (!a.quiet && !a.json) {
-    std::cerr << "sweep " << plan->id << (spec->name.empty() ? "" : " (" + spec->name + ")") << ": "
-              << spec->points() << " points x " << spec->ic_count() << " initial condition(s); " << plan->items_cached
+    std::cerr << "sweep " << plan->id << (spec->name.empty() ? "" : " (" + spec->name + ")") << ": " << spec->points()
+              << " points x " << spec->ic_count() << " initial condition(s); " << plan->items_cached
               << " reused from the cache, " << to_compute << " to compute on " << threads << " thread(s)\n";
   }
 
@@ -80,7 +84,8 @@ int RunSweep(const RunArgs& a) {
   RestoreDefaultSignalHandlers();
   if (!path.ok() && CancelRequested()) {
     const SweepProgress p = c.progress(plan->id);
-    std::cerr << "interrupted: " << p.items_done << "/" << p.items_total << " items stored; rerun the same command to resume\n";
+    std::cerr << "interrupted: " << p.items_done << "/" << p.items_total
+              << " items stored; rerun the same command to resume\n";
     return CancelExitStatus();
   }
   if (!path.ok()) {
@@ -118,17 +123,20 @@ int RunSweep(const RunArgs& a) {
                         {"seconds", seconds},
                         {"points_per_second", seconds > 0 ? static_cast<double>(computed) / seconds : 0.0},
                         {"threads", threads},
-                        {"timing", {{"plan", secs(t0, t_planned)}, {"compute", secs(t_planned, t_computed)},
-                                    {"publish", secs(t_computed, t_published)}}}};
+                        {"timing",
+                         {{"plan", secs(t0, t_planned)},
+                          {"compute", secs(t_planned, t_computed)},
+                          {"publish", secs(t_computed, t_published)}}}};
     if (!warnings.empty()) j["warnings"] = warnings;
     std::cout << DumpJson(j, 2) << "\n";
   } else {
-    std::printf("sweep %s done: %ld points x %d = %ld items (%ld computed, %ld reused) in %.1f s, %.0f computed items/s\n",
-                plan->id.c_str(), spec->points(), spec->ic_count(), items, computed, items - computed, seconds,
-                seconds > 0 ? static_cast<double>(computed) / seconds : 0.0);
+    std::printf(
+        "sweep %s done: %ld points x %d = %ld items (%ld computed, %ld reused) in %.1f s, %.0f computed items/s\n",
+        plan->id.c_str(), spec->points(), spec->ic_count(), items, computed, items - computed, seconds,
+        seconds > 0 ? static_cast<double>(computed) / seconds : 0.0);
     if (spec->refine.enabled())
-      std::printf("refined map: %ld of %ld grid points integrated (%.1f %% of the uniform grid), the rest filled\n", items,
-                  spec->points(), 100.0 * static_cast<double>(items) / static_cast<double>(spec->points()));
+      std::printf("refined map: %ld of %ld grid points integrated (%.1f %% of the uniform grid), the rest filled\n",
+                  items, spec->points(), 100.0 * static_cast<double>(items) / static_cast<double>(spec->points()));
     std::printf("map: %s\n", path->c_str());
     for (size_t i = 1; i < files.size(); ++i) std::printf("plot: %s\n", files[i].c_str());
   }
@@ -149,10 +157,13 @@ void AddRunCommand(CLI::App& app, int* exit_code) {
   CLI::App* cmd = app.add_subcommand("run", "Run a sweep embedded in this process (all cores) and write its maps");
   cmd->add_option("spec", a->spec_path, "sweep spec (TOML), e.g. examples/paper_fig8_frf.toml")->required();
   cmd->add_option("--data", a->data, "data directory (index.sqlite, sweeps/*.h5, plots)")->capture_default_str();
-  cmd->add_option("--threads", a->threads, "worker threads (0 = the CPUs this process may use: affinity and cgroup quota)")->capture_default_str();
+  cmd->add_option("--threads", a->threads,
+                  "worker threads (0 = the CPUs this process may use: affinity and cgroup quota)")
+      ->capture_default_str();
   cmd->add_option("--job-items", a->job_items, "items per job (0 = about 0.25 s of work)");
   cmd->add_flag("--json", a->json, "print {id, data, files, points, seconds, ...} as JSON");
-  cmd->add_flag("--no-plots", a->no_plots, "do not render the default plots (without gnuplot they are skipped with a warning)");
+  cmd->add_flag("--no-plots", a->no_plots,
+                "do not render the default plots (without gnuplot they are skipped with a warning)");
   cmd->add_flag("--quiet", a->quiet, "no progress output");
   cmd->add_option("--serve", a->serve,
                   "serve the live dashboard on HOST:PORT (loopback; docs/dashboard.md) while the sweep runs and, "
@@ -163,7 +174,8 @@ void AddRunCommand(CLI::App& app, int* exit_code) {
       "a second and keeps every finished job (exit status 130, 143 for SIGTERM); a second Ctrl-C quits at once.\n\n"
       "Integrators ([integration] integrator in the spec; docs/sweep-spec.md): rk4, the paper's, the default of\n"
       "the non-dimensional models; adaptive (Dormand-Prince, one point at a time); rosenbrock, the rig's default\n"
-      "(model = \"dimensional\": ROS34PW2 in lanes, 10.8-16.6x faster than Dormand-Prince at its accuracy). The rig with\n"
+      "(model = \"dimensional\": ROS34PW2 in lanes, 10.8-16.6x faster than Dormand-Prince at its accuracy). The rig "
+      "with\n"
       "rk4 is 2x faster again but off a converged reference: periods equal on 72 % of the example's points, LLEs\n"
       "within 0.05 /s on 58 % (measured: docs/numerics.md, bench/rig_ratio.sh).");
   cmd->callback([a, exit_code]() { *exit_code = RunSweep(*a); });

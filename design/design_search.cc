@@ -65,7 +65,8 @@ DesignScore ScoreDesign(const std::vector<double>& omega, size_t n_alpha, const 
     s.band_hi = std::isnan(s.band_hi) ? hi : std::max(s.band_hi, hi);
   }
   if (n == 1 && g[0] < 0) s.band_lo = s.band_hi = omega[0];
-  s.chaotic_share_band = s.band_points ? static_cast<double>(s.chaotic_in_band) / static_cast<double>(s.band_points) : 0;
+  s.chaotic_share_band =
+      s.band_points ? static_cast<double>(s.chaotic_in_band) / static_cast<double>(s.band_points) : 0;
   s.unsafe_share_band = s.band_points ? static_cast<double>(s.unsafe_in_band) / static_cast<double>(s.band_points) : 0;
   s.chaotic_share = n ? static_cast<double>(chaotic_points) / static_cast<double>(n) : 0;
   return s;
@@ -87,7 +88,8 @@ std::vector<int> ParetoFront(const std::vector<Candidate>& c) {
     const bool repeat = std::any_of(front.begin(), front.end(), [&](int f) { return c[f].x == c[i].x; });
     if (!dominated && !repeat) front.push_back(static_cast<int>(i));
   }
-  std::stable_sort(front.begin(), front.end(), [&](int a, int b) { return c[a].score.band_width > c[b].score.band_width; });
+  std::stable_sort(front.begin(), front.end(),
+                   [&](int a, int b) { return c[a].score.band_width > c[b].score.band_width; });
   return front;
 }
 
@@ -130,8 +132,10 @@ StatusOr<SearchResult> RunDesignSearch(const DesignSpec& spec, const SweepRunner
     for (size_t i = 0; i < free.size(); ++i) x[free[i]] = std::clamp(u[i], spec.lo[free[i]], spec.hi[free[i]]);
     auto out = run(spec.CandidateToml(x));
     if (!out.ok()) {
-      if (CancelRequested()) r.interrupted = true;
-      else error = out.status();
+      if (CancelRequested())
+        r.interrupted = true;
+      else
+        error = out.status();
       throw nlopt::forced_stop();
     }
     Candidate c;
@@ -169,7 +173,8 @@ StatusOr<SearchResult> RunDesignSearch(const DesignSpec& spec, const SweepRunner
     } catch (const nlopt::forced_stop&) {
     } catch (const std::exception& e) {
       // NLopt's own stop (roundoff) ends the stage with what was evaluated; anything else is an error.
-      if (error.ok() && !r.interrupted && r.candidates.empty()) error = Status::Internal(std::string("optimiser: ") + e.what());
+      if (error.ok() && !r.interrupted && r.candidates.empty())
+        error = Status::Internal(std::string("optimiser: ") + e.what());
     }
   };
   run_stage(opt, u);
@@ -230,7 +235,8 @@ std::vector<Candidate> ScoreBruteForce(const DesignSpec& spec, const std::vector
           if (d_par[k] >= 0) base += idx[k] * stride[d_par[k]], c.x[k] = axis_values[d_par[k]][idx[k]];
         for (size_t a = 0; a < n_alpha; ++a)
           for (size_t w = 0; w < n_omega; ++w) {
-            const size_t at = base + (d_alpha >= 0 ? a * stride[d_alpha] : 0) + (d_omega >= 0 ? w * stride[d_omega] : 0);
+            const size_t at =
+                base + (d_alpha >= 0 ? a * stride[d_alpha] : 0) + (d_omega >= 0 ? w * stride[d_omega] : 0);
             f[a * n_omega + w] = frf_db[at], m[a * n_omega + w] = motion[at], l[a * n_omega + w] = lle[at];
           }
         c.cost = c.x[spec.CostIndex()];

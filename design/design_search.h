@@ -46,7 +46,7 @@ struct SweepOutcome {
   long items = 0, cached = 0;      // items of the sweep, of which reused from the cache
   double seconds = 0;
   std::vector<double> frf_db, motion, lle;  // row-major over dims ([alpha][omega] for a candidate)
-  std::vector<std::string> dim_names;        // the map's dimensions and their coordinates
+  std::vector<std::string> dim_names;       // the map's dimensions and their coordinates
   std::vector<size_t> dims;
   std::vector<std::vector<double>> axis_values;
 };

@@ -16,8 +16,8 @@
 namespace bistable {
 namespace {
 
-const std::vector<std::string> kDesignKeys = {"bounds", "alpha", "omega", "budget", "seed",
-                                              "optimizer", "cost", "maps", "map_alpha"};
+const std::vector<std::string> kDesignKeys = {"bounds",    "alpha", "omega", "budget",   "seed",
+                                              "optimizer", "cost",  "maps",  "map_alpha"};
 const std::vector<std::string> kBoundKeys(kDesignParameters.begin(), kDesignParameters.end());
 const std::vector<std::string> kOptimizers = {"direct-l", "crs2"};
 const std::vector<std::string> kCosts = {"phi", "lambda"};
@@ -53,10 +53,12 @@ Status Renamed(Status st, const std::vector<std::pair<std::string, std::string>>
   std::string field = st.field(), msg = st.message();
   for (const auto& [from, to] : renames)
     for (std::string* s : {&field, &msg})
-      for (size_t p = s->find(from); p != std::string::npos; p = s->find(from, p + to.size())) s->replace(p, from.size(), to);
+      for (size_t p = s->find(from); p != std::string::npos; p = s->find(from, p + to.size()))
+        s->replace(p, from.size(), to);
   return Status::InvalidArgument(field, msg);
 }
-const std::vector<std::pair<std::string, std::string>> kCandidateFields = {{"axes.omega", "design.omega"}, {"axes.alpha", "design.alpha"}};
+const std::vector<std::pair<std::string, std::string>> kCandidateFields = {{"axes.omega", "design.omega"},
+                                                                           {"axes.alpha", "design.alpha"}};
 
 toml::table ParseTable(const std::string& text) { return toml::parse(text, std::string("design")); }
 
@@ -68,8 +70,10 @@ std::string SpecWith(const std::string& base_toml, const DesignPoint& x, const s
   if (!t.contains("params")) t.insert("params", toml::table{});
   toml::table& p = *t["params"].as_table();
   for (int k = 0; k < 3; ++k) p.insert_or_assign(kDesignParameters[k], x[k]);
-  if (std::isfinite(alpha)) p.insert_or_assign("alpha", alpha);
-  else p.erase("alpha");
+  if (std::isfinite(alpha))
+    p.insert_or_assign("alpha", alpha);
+  else
+    p.erase("alpha");
   p.erase("omega");
   t.insert_or_assign("axes", ParseTable(axes_toml));
   toml::table out;
@@ -86,14 +90,15 @@ std::string DesignSpec::CandidateToml(const DesignPoint& x) const {
   std::string axes = "omega = " + omega_toml + "\n";
   if (alphas.size() > 1) axes += "alpha = " + alpha_toml + "\n";
   std::ostringstream nm;
-  nm << (name.empty() ? "design " + id : name) << ": lambda = " << FormatNumber(x[0]) << ", phi = " << FormatNumber(x[1])
-     << ", eta_r = " << FormatNumber(x[2]);
+  nm << (name.empty() ? "design " + id : name) << ": lambda = " << FormatNumber(x[0])
+     << ", phi = " << FormatNumber(x[1]) << ", eta_r = " << FormatNumber(x[2]);
   return SpecWith(base_toml, x, nm.str(), axes, {}, alphas.size() > 1 ? NAN : alphas[0]);
 }
 
 std::string DesignSpec::MapToml(const DesignPoint& x, const std::string& title) const {
   if (map_alpha_toml.empty()) return "";
-  return SpecWith(base_toml, x, title, "omega = " + omega_toml + "\nalpha = " + map_alpha_toml + "\n", {"frf_db", "motion"}, NAN);
+  return SpecWith(base_toml, x, title, "omega = " + omega_toml + "\nalpha = " + map_alpha_toml + "\n",
+                  {"frf_db", "motion"}, NAN);
 }
 
 std::string DesignSpec::BruteForceToml(int n) const {
@@ -101,11 +106,13 @@ std::string DesignSpec::BruteForceToml(int n) const {
   if (alphas.size() > 1) axes += "alpha = " + alpha_toml + "\n";
   DesignPoint x = lo;
   for (int k = 0; k < 3; ++k)
-    if (Free(k)) axes += kDesignParameters[k] + " = { linspace = [" + FormatNumber(lo[k]) + ", " + FormatNumber(hi[k]) + ", " +
-                         std::to_string(n) + "] }\n";
+    if (Free(k))
+      axes += kDesignParameters[k] + " = { linspace = [" + FormatNumber(lo[k]) + ", " + FormatNumber(hi[k]) + ", " +
+              std::to_string(n) + "] }\n";
   // linspace ends are written with 10 digits: the grid spans the bounds to that precision.
-  std::string s = SpecWith(base_toml, x, (name.empty() ? "design " + id : name) + ": brute force " + std::to_string(n) + "^" +
-                                             std::to_string((Free(0) ? 1 : 0) + (Free(1) ? 1 : 0) + (Free(2) ? 1 : 0)),
+  std::string s = SpecWith(base_toml, x,
+                           (name.empty() ? "design " + id : name) + ": brute force " + std::to_string(n) + "^" +
+                               std::to_string((Free(0) ? 1 : 0) + (Free(1) ? 1 : 0) + (Free(2) ? 1 : 0)),
                            axes, {}, alphas.size() > 1 ? NAN : alphas[0]);
   // Swept parameters must not also be fixed in [params].
   toml::table t = ParseTable(s);
@@ -118,14 +125,17 @@ std::string DesignSpec::CanonicalText() const {
   // One field a line, each named, every text length-prefixed: no two different searches share a text
   // (a joined "0.1" "12" and "0.11" "2" would). The base spec carries [metrics] (chaos_threshold) and the name.
   std::string out = "bistable-design-v2\n";
-  auto text = [&](const char* key, const std::string& v) { out += std::string(key) + " " + std::to_string(v.size()) + ":" + v + "\n"; };
+  auto text = [&](const char* key, const std::string& v) {
+    out += std::string(key) + " " + std::to_string(v.size()) + ":" + v + "\n";
+  };
   text("base", base_toml);
   text("omega", omega_toml);
   text("alpha", alpha_toml);
   text("map_alpha", map_alpha_toml);
   text("optimizer", optimizer);
   text("cost", cost);
-  out += "budget " + std::to_string(budget) + "\nseed " + std::to_string(seed) + "\nmaps " + std::to_string(maps) + "\n";
+  out +=
+      "budget " + std::to_string(budget) + "\nseed " + std::to_string(seed) + "\nmaps " + std::to_string(maps) + "\n";
   auto exact = [](double v) {  // 17 significant digits: every double its own text
     char b[32];
     std::snprintf(b, sizeof b, "%.17g", v);
@@ -144,7 +154,8 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
   d.origin = origin;
   d.source = text;
   const toml::table* design = root["design"].as_table();
-  if (!design) return Status::InvalidArgument("design", "a design spec needs a [design] table (bounds, alpha, omega, budget)");
+  if (!design)
+    return Status::InvalidArgument("design", "a design spec needs a [design] table (bounds, alpha, omega, budget)");
   for (auto&& [k, v] : *design) {
     (void)v;
     const std::string key(k.str());
@@ -153,8 +164,10 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
   }
   for (const std::string& s : kRefusedSections)
     if (root.contains(s))
-      return Status::InvalidArgument(s, "[" + s + "] is not part of a design spec: candidates sweep design.omega (and design.alpha) "
-                                        "with the parameters the optimiser picks within design.bounds");
+      return Status::InvalidArgument(
+          s, "[" + s +
+                 "] is not part of a design spec: candidates sweep design.omega (and design.alpha) "
+                 "with the parameters the optimiser picks within design.bounds");
   toml::table base = root;
   base.erase("design");
 
@@ -165,10 +178,12 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
     auto spec = ParseSweepSpec(Toml(probe), origin);
     if (!spec.ok()) return spec.status();
     if (spec->model != ModelKind::kCoupled && spec->model != ModelKind::kLinearCoupled)
-      return Status::InvalidArgument("model", "model = " + std::string(ModelName(spec->model)) +
-                                                  " violates model in {coupled, linear-coupled} (a design search tunes the resonator)");
+      return Status::InvalidArgument(
+          "model", "model = " + std::string(ModelName(spec->model)) +
+                       " violates model in {coupled, linear-coupled} (a design search tunes the resonator)");
     if (spec->ic_count() != 1)
-      return Violates("initial_conditions.states", spec->ic_count(), "count <= 1 (a design search runs one start per point)");
+      return Violates("initial_conditions.states", spec->ic_count(),
+                      "count <= 1 (a design search runs one start per point)");
     d.name = spec->name;
     d.chaos_threshold = spec->base.metrics.chaos_threshold;
     const NondimParams& p = spec->base.params;
@@ -192,7 +207,9 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
   // bounds = { lambda = [lo, hi], phi = [lo, hi], eta_r = [lo, hi] }; an omitted one stays at [params].
   if (const toml::node* b = design->get("bounds")) {
     const toml::table* bt = b->as_table();
-    if (!bt) return Status::InvalidArgument("design.bounds", "design.bounds must be a table: { lambda = [lo, hi], phi = [lo, hi], eta_r = [lo, hi] }");
+    if (!bt)
+      return Status::InvalidArgument(
+          "design.bounds", "design.bounds must be a table: { lambda = [lo, hi], phi = [lo, hi], eta_r = [lo, hi] }");
     for (auto&& [k, v] : *bt) {
       const std::string key(k.str());
       const std::string field = "design.bounds." + key;
@@ -215,12 +232,16 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
     }
   }
   if (!d.Free(0) && !d.Free(1) && !d.Free(2))
-    return Status::InvalidArgument("design.bounds", "design.bounds: no parameter is free (give at least one of lambda, phi, eta_r as [lo, hi] with lo < hi)");
+    return Status::InvalidArgument(
+        "design.bounds",
+        "design.bounds: no parameter is free (give at least one of lambda, phi, eta_r as [lo, hi] with lo < hi)");
 
   // alpha = 1.0 or [0.5, 1.0]: the forcing amplitude(s) the band must hold at.
   {
     const toml::node* a = design->get("alpha");
-    if (!a) return Status::InvalidArgument("design.alpha", "design.alpha is required: the forcing amplitude (a number or a list)");
+    if (!a)
+      return Status::InvalidArgument("design.alpha",
+                                     "design.alpha is required: the forcing amplitude (a number or a list)");
     if (a->is_array()) {
       for (size_t i = 0; i < a->as_array()->size(); ++i) {
         auto v = Num(*a->as_array()->get(i), "design.alpha[" + std::to_string(i) + "]");
@@ -233,7 +254,8 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
       d.alphas.push_back(*v);
     }
     if (d.alphas.empty() || static_cast<int>(d.alphas.size()) > limits::kMaxDesignAlphas)
-      return Violates("design.alpha", static_cast<double>(d.alphas.size()), "count in [1, " + std::to_string(limits::kMaxDesignAlphas) + "]");
+      return Violates("design.alpha", static_cast<double>(d.alphas.size()),
+                      "count in [1, " + std::to_string(limits::kMaxDesignAlphas) + "]");
     for (size_t i = 0; i < d.alphas.size(); ++i) {
       const std::string f = d.alphas.size() == 1 ? "design.alpha" : "design.alpha[" + std::to_string(i) + "]";
       BISTABLE_RETURN_IF_ERROR(CheckPositive(f, d.alphas[i]));
@@ -243,11 +265,15 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
   // omega: any axis form; the engine computes its values.
   {
     const toml::node* o = design->get("omega");
-    if (!o) return Status::InvalidArgument("design.omega", "design.omega is required: the Omega line, e.g. { linspace = [0.2, 3.0, 57] }");
+    if (!o)
+      return Status::InvalidArgument("design.omega",
+                                     "design.omega is required: the Omega line, e.g. { linspace = [0.2, 3.0, 57] }");
     d.omega_toml = Toml(*o);
   }
-  if (const toml::node* m = design->get("map_alpha")) d.map_alpha_toml = Toml(*m);
-  else d.map_alpha_toml = "{ linspace = [0.1, 3.0, 30] }";
+  if (const toml::node* m = design->get("map_alpha"))
+    d.map_alpha_toml = Toml(*m);
+  else
+    d.map_alpha_toml = "{ linspace = [0.1, 3.0, 30] }";
 
   auto integer = [&](const char* key, long lo, long hi, long* out) -> Status {
     const toml::node* n = design->get(key);
@@ -286,7 +312,8 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
   for (const Axis& a : cand->axes)
     if (a.name == "omega") d.omega = a.values;
   if (d.omega.size() < 2)
-    return Violates("design.omega", static_cast<double>(d.omega.size()), "count >= 2 (a band is measured between Omega values)");
+    return Violates("design.omega", static_cast<double>(d.omega.size()),
+                    "count >= 2 (a band is measured between Omega values)");
   if (auto hi = ParseSweepSpec(d.CandidateToml(d.hi), origin); !hi.ok()) return Renamed(hi.status(), kCandidateFields);
   if (d.maps > 0) {
     auto m = ParseSweepSpec(d.MapToml(d.lo, "map"), origin);

@@ -23,18 +23,18 @@ using DesignPoint = std::array<double, 3>;  // lambda, phi, eta_r
 
 struct DesignSpec {
   std::string name;
-  std::string origin;                 // file name, for messages
-  std::string source;                 // the TOML as given
-  DesignPoint lo{}, hi{};             // bounds; lo == hi fixes the parameter (at the [params] value when not bounded)
-  std::vector<double> alphas;         // forcing amplitude(s): several → each candidate is an alpha × omega sweep
-  std::vector<double> omega;          // the Ω line (as the engine computes it from design.omega)
-  int budget = 60;                    // candidates the optimiser may evaluate
-  uint64_t seed = 1;                  // crs2 only (direct-l is deterministic)
-  std::string optimizer = "direct-l"; // direct-l (NLopt GN_DIRECT_L) | crs2 (NLopt GN_CRS2_LM)
-  std::string cost = "phi";           // the device's cost on the Pareto front: phi (resonator mass) | lambda (stiffness)
-  int maps = 2;                       // alpha x omega maps of the best designs (0 .. limits::kMaxDesignMaps)
-  double chaos_threshold = 0.01;      // from [metrics]: lle above it is chaotic
-  std::string id;                     // 12 hex digits of the hash of CanonicalText(): the report directory DATA/designs/<id>
+  std::string origin;                  // file name, for messages
+  std::string source;                  // the TOML as given
+  DesignPoint lo{}, hi{};              // bounds; lo == hi fixes the parameter (at the [params] value when not bounded)
+  std::vector<double> alphas;          // forcing amplitude(s): several → each candidate is an alpha × omega sweep
+  std::vector<double> omega;           // the Ω line (as the engine computes it from design.omega)
+  int budget = 60;                     // candidates the optimiser may evaluate
+  uint64_t seed = 1;                   // crs2 only (direct-l is deterministic)
+  std::string optimizer = "direct-l";  // direct-l (NLopt GN_DIRECT_L) | crs2 (NLopt GN_CRS2_LM)
+  std::string cost = "phi";       // the device's cost on the Pareto front: phi (resonator mass) | lambda (stiffness)
+  int maps = 2;                   // alpha x omega maps of the best designs (0 .. limits::kMaxDesignMaps)
+  double chaos_threshold = 0.01;  // from [metrics]: lle above it is chaotic
+  std::string id;  // 12 hex digits of the hash of CanonicalText(): the report directory DATA/designs/<id>
 
   bool Free(int k) const { return hi[k] > lo[k]; }
   int CostIndex() const { return cost == "lambda" ? 0 : 1; }

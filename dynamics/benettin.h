@@ -15,9 +15,9 @@ namespace bistable {
 
 BISTABLE_EIGEN_BOUNDS_BEGIN  // blocks of run-time size n over the systems' fixed-size states
 
-// The system (x, w) ↦ (f(t, x), J(t, x) w) of size 2n.
-template <class System>
-class TangentSystem {
+    // The system (x, w) ↦ (f(t, x), J(t, x) w) of size 2n.
+    template <class System>
+    class TangentSystem {
  public:
   using State = Eigen::VectorXd;
   explicit TangentSystem(const System& sys) : sys_(sys), n_(sys.dim()) {
@@ -41,20 +41,19 @@ class TangentSystem {
 };
 
 struct BenettinOptions {
-  double h = 0.01;            // RK4 step
-  double t_transient = 100;   // discarded before averaging
-  double t_average = 1000;    // averaging length
-  int renorm_every = 10;      // steps between renormalisations
+  double h = 0.01;           // RK4 step
+  double t_transient = 100;  // discarded before averaging
+  double t_average = 1000;   // averaging length
+  int renorm_every = 10;     // steps between renormalisations
 };
 
 struct BenettinResult {
-  double lle = 0;                 // per unit time
-  std::vector<double> running;    // running estimate after each renormalisation in the average
+  double lle = 0;               // per unit time
+  std::vector<double> running;  // running estimate after each renormalisation in the average
 };
 
 template <class System>
-BenettinResult BenettinLle(const System& sys, const typename System::State& x0, double t0,
-                           const BenettinOptions& opt) {
+BenettinResult BenettinLle(const System& sys, const typename System::State& x0, double t0, const BenettinOptions& opt) {
   const int n = sys.dim();
   TangentSystem<System> tan(sys);
   Eigen::VectorXd z(2 * n);

@@ -32,7 +32,8 @@ inline bool CancelRequested() noexcept { return cancel_internal::g_requested.loa
 // out). Thrown and caught within one function's call tree in dynamics/; never crosses a module.
 struct CancelUnwind {};
 inline void ThrowIfCancelled() {
-  if (CancelRequested()) [[unlikely]] throw CancelUnwind{};
+  if (CancelRequested()) [[unlikely]]
+    throw CancelUnwind{};
 }
 
 // The Status of an operation stopped by cancellation (nothing partial is returned with it).

@@ -5,14 +5,13 @@
 #include <complex>
 #include <optional>
 
-
+#include "base/validate.h"
 #include "dynamics/cancel.h"
 #include "dynamics/dopri5.h"
 #include "dynamics/nondim_models.h"
 #include "dynamics/point.h"
 #include "dynamics/rk4.h"
 #include "dynamics/spectrum.h"
-#include "base/validate.h"
 
 namespace bistable {
 namespace {
@@ -41,8 +40,12 @@ std::optional<ChirpRecord> RunNondim(const ChirpOptions& o) {
   s.model = o.model;
   s.params = o.params;
   const LaneInput lane = LaneFor(s);
-  ForcedSystem<Model> sys{{{lane.coeffs.k_lin}, {lane.coeffs.eps}, {lane.coeffs.eta}, {lane.coeffs.eta_r},
-                           {lane.coeffs.phi}, {lane.coeffs.lambda2}},
+  ForcedSystem<Model> sys{{{lane.coeffs.k_lin},
+                           {lane.coeffs.eps},
+                           {lane.coeffs.eta},
+                           {lane.coeffs.eta_r},
+                           {lane.coeffs.phi},
+                           {lane.coeffs.lambda2}},
                           ChirpBase(o.alpha, o.from / (2 * M_PI), o.to / (2 * M_PI), o.duration)};
   typename ForcedSystem<Model>::State x;
   for (int d = 0; d < Model::kDim; ++d) x[d] = lane.x0[d];
@@ -116,8 +119,9 @@ Status ValidateChirpOptions(const ChirpOptions& o) {
   if (o.duration / o.dt > 5e7) return Violates("duration", o.duration, "<= 5e7 dt");
   if (o.sample_every < 1) return Violates("sample_every", o.sample_every, ">= 1");
   if (o.model == ModelKind::kSeries)
-    return Status::InvalidArgument("model", "model = 'series' violates model in {standalone, coupled, linear, linear-coupled, "
-                                            "dimensional} (chirp)");
+    return Status::InvalidArgument("model",
+                                   "model = 'series' violates model in {standalone, coupled, linear, linear-coupled, "
+                                   "dimensional} (chirp)");
   if (o.model == ModelKind::kDimensional) {
     BISTABLE_RETURN_IF_ERROR(CheckPositive("a0", o.a0_m));
     BISTABLE_RETURN_IF_ERROR(ValidateDimensionalParams(o.dim));
@@ -132,7 +136,8 @@ Status ValidateChirpOptions(const ChirpOptions& o) {
     s.integration.t_keep = 250;
     BISTABLE_RETURN_IF_ERROR(ValidatePointSpec(s));
     const double nyquist = M_PI / (o.dt * o.sample_every);
-    if (nyquist < 5 * std::max(o.from, o.to)) return Violates("sample_every", o.sample_every, "small enough for Nyquist >= 5 Omega_max");
+    if (nyquist < 5 * std::max(o.from, o.to))
+      return Violates("sample_every", o.sample_every, "small enough for Nyquist >= 5 Omega_max");
   }
   return Status::Ok();
 }
@@ -140,8 +145,8 @@ Status ValidateChirpOptions(const ChirpOptions& o) {
 StatusOr<ChirpRecord> RunChirp(const ChirpOptions& o) {
   BISTABLE_RETURN_IF_ERROR(ValidateChirpOptions(o));
   std::optional<ChirpRecord> r = o.model == ModelKind::kDimensional ? RunDimensional(o)
-                                 : HasResonator(o.model) ? RunNondim<CoupledModel>(o)
-                                                         : RunNondim<SingleModel>(o);
+                                 : HasResonator(o.model)            ? RunNondim<CoupledModel>(o)
+                                                                    : RunNondim<SingleModel>(o);
   if (!r) return CancelledStatus();
   return std::move(*r);
 }
@@ -195,7 +200,8 @@ H1Estimate WelchH1(const std::vector<double>& in, const std::vector<double>& out
     for (size_t i = 0; i < w_len; ++i) xi[i] = (in[start + i] - mi) * w[i], xo[i] = (out[start + i] - mo) * w[i];
     RealFftHalf(xi, &a);
     RealFftHalf(xo, &b);
-    for (size_t k = 0; k < bins; ++k) sxx[k] += std::norm(a[k]), syy[k] += std::norm(b[k]), sxy[k] += std::conj(a[k]) * b[k];
+    for (size_t k = 0; k < bins; ++k)
+      sxx[k] += std::norm(a[k]), syy[k] += std::norm(b[k]), sxy[k] += std::conj(a[k]) * b[k];
   }
   e.segments = k_seg;
   e.segment = segment;

@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "base/status.h"
 #include "dynamics/dimensional_model.h"
 #include "dynamics/point_spec.h"
-#include "base/status.h"
 
 namespace bistable {
 
@@ -18,21 +18,22 @@ struct ChirpOptions {
   // A non-dimensional cell (standalone/coupled/linear/linear-coupled) ...
   ModelKind model = ModelKind::kCoupled;
   NondimParams params;
-  double alpha = 0.5;            // base amplitude α
-  double from = 0.2, to = 3.0;   // angular frequency range Ω (rad/τ), swept linearly in time
-  double duration = 2000;        // τ
-  double dt = 0.01;              // RK4 step
+  double alpha = 0.5;           // base amplitude α
+  double from = 0.2, to = 3.0;  // angular frequency range Ω (rad/τ), swept linearly in time
+  double duration = 2000;       // τ
+  double dt = 0.01;             // RK4 step
   // ... or model = kDimensional: A0 [m], frequencies in Hz, time in s, parameters in `dim`.
   DimensionalParams dim = DimensionalParams::BistableTable2();
   double a0_m = 0.01;
   double rtol = 1e-6, atol = 1e-9;
-  int sample_every = 5;          // output sampling, steps (dimensional: output step = dt)
+  int sample_every = 5;  // output sampling, steps (dimensional: output step = dt)
 };
 
 struct ChirpRecord {
-  double dt = 0;                          // sampling interval of the series (τ or s)
-  std::vector<double> t, x0, v0, y, v_abs;  // time, base displacement and velocity, y_m, absolute velocity of the main mass
-  std::vector<double> inst_freq;          // instantaneous forcing frequency (rad/τ, or Hz for dimensional)
+  double dt = 0;  // sampling interval of the series (τ or s)
+  std::vector<double> t, x0, v0, y,
+      v_abs;                      // time, base displacement and velocity, y_m, absolute velocity of the main mass
+  std::vector<double> inst_freq;  // instantaneous forcing frequency (rad/τ, or Hz for dimensional)
   bool diverged = false;
 };
 

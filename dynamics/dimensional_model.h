@@ -34,18 +34,18 @@ BaseMotion ChirpBase(double a0_m, double f_start_hz, double f_end_hz, double dur
 
 struct DimensionalParams {
   // Main mass and beam.
-  double m_m = 0.282;        // kg
-  double k_lin = -1135.7;    // N/m (negative: pre-buckled, bistable)
-  double k3 = 2.15e6;        // N/m³
-  double c0_m = 1.5;         // N s/m
-  double c2_m = 8.6e3;       // N s/m³
+  double m_m = 0.282;      // kg
+  double k_lin = -1135.7;  // N/m (negative: pre-buckled, bistable)
+  double k3 = 2.15e6;      // N/m³
+  double c0_m = 1.5;       // N s/m
+  double c2_m = 8.6e3;     // N s/m³
   Stribeck fric_m{1.2, 0.44};
   // Resonator.
   bool has_resonator = true;
-  double m_r = 0.620;        // kg
-  double k_r = 636.6;        // N/m
-  double c0_r = 4.6;         // N s/m
-  double c2_r = 38.7e3;      // N s/m³
+  double m_r = 0.620;    // kg
+  double k_r = 636.6;    // N/m
+  double c0_r = 4.6;     // N s/m
+  double c2_r = 38.7e3;  // N s/m³
   Stribeck fric_r{1.4, 0.59};
 
   // Paper Table 2 presets, with the paper's v_sp = 0.002 m/s, v_t = 0.001 m/s.
@@ -119,7 +119,9 @@ struct DimensionalLaneModel {
 
     BISTABLE_INLINE void Eval(const V* x, V f, V* dx, Jac* j) const { EvalWith<false>(x, f, dx, j, nullptr); }
     // Eval, and the friction laws' curvatures (the same bits of dx and j as Eval).
-    BISTABLE_INLINE void EvalCurvature(const V* x, V f, V* dx, Jac* j, Curv* c) const { EvalWith<true>(x, f, dx, j, c); }
+    BISTABLE_INLINE void EvalCurvature(const V* x, V f, V* dx, Jac* j, Curv* c) const {
+      EvalWith<true>(x, f, dx, j, c);
+    }
     // The derivative of the Jacobian entries along k at the state x (c: EvalCurvature's there): with
     // Apply(dj, w, ·) it is ∂(J(x) w)/∂x · k, the tangent's coupling block of the augmented Jacobian.
     BISTABLE_INLINE void JacDirection(const V* x, const Curv& c, const V* k, Jac* dj) const {
@@ -139,15 +141,19 @@ struct DimensionalLaneModel {
     BISTABLE_INLINE void EvalWith(const V* x, V f, V* dx, Jac* j, Curv* c) const {
       const V y = x[0], yd = x[1], z = x[2], zd = x[3];
       V ff_m, sl_m, g = Splat<W>(0.0);
-      if constexpr (kCurv) fric_m_.ForceSlopeCurvature<W>(yd, &ff_m, &sl_m, &c->m);
-      else fric_m_.ForceSlope<W>(yd, &ff_m, &sl_m);
+      if constexpr (kCurv)
+        fric_m_.ForceSlopeCurvature<W>(yd, &ff_m, &sl_m, &c->m);
+      else
+        fric_m_.ForceSlope<W>(yd, &ff_m, &sl_m);
       const V y2 = y * y, damp_m = Fma(Splat<W>(p_.c2_m), y2, Splat<W>(p_.c0_m));
       j->fy = Fma(Splat<W>(-3.0 * p_.k3), y2, Splat<W>(-p_.k_lin)) - (2.0 * p_.c2_m) * (y * yd);
       j->fyd = -damp_m - sl_m;
       if (p_.has_resonator) {
         V ff_r, sl_r;
-        if constexpr (kCurv) fric_r_.ForceSlopeCurvature<W>(zd, &ff_r, &sl_r, &c->r);
-        else fric_r_.ForceSlope<W>(zd, &ff_r, &sl_r);
+        if constexpr (kCurv)
+          fric_r_.ForceSlopeCurvature<W>(zd, &ff_r, &sl_r, &c->r);
+        else
+          fric_r_.ForceSlope<W>(zd, &ff_r, &sl_r);
         const V z2 = z * z, damp_r = Fma(Splat<W>(p_.c2_r), z2, Splat<W>(p_.c0_r));
         g = Fma(Splat<W>(p_.k_r), z, Fma(damp_r, zd, ff_r));
         j->gz = Fma(Splat<W>(2.0 * p_.c2_r), z * zd, Splat<W>(p_.k_r));

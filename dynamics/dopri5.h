@@ -17,8 +17,7 @@ class Dopri5 {
 
   Dopri5(const System& sys, AdaptiveOptions opt) : sys_(sys), ctl_(opt) {
     const int n = sys.dim();
-    for (State* s : {&k1_, &k2_, &k3_, &k4_, &k5_, &k6_, &k7_, &y1_, &tmp_, &r1_, &r2_, &r3_, &r4_, &r5_})
-      s->resize(n);
+    for (State* s : {&k1_, &k2_, &k3_, &k4_, &k5_, &k6_, &k7_, &y1_, &tmp_, &r1_, &r2_, &r3_, &r4_, &r5_}) s->resize(n);
   }
 
   // Integrates x from t0 to t1 (t1 > t0). After every accepted step observer(*this) may call
@@ -81,7 +80,7 @@ class Dopri5 {
   }
 
   double InitialStep(double t, const State& x) {
-    const double d0 = Norm(x, x, x) , d1 = Norm(k1_, x, x);
+    const double d0 = Norm(x, x, x), d1 = Norm(k1_, x, x);
     double h0 = (d0 < 1e-5 || d1 < 1e-5) ? 1e-6 : 0.01 * d0 / d1;
     tmp_ = x + h0 * k1_;
     sys_(t + h0, tmp_, k2_);

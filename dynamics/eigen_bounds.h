@@ -9,10 +9,9 @@
 #define BISTABLE_DYNAMICS_EIGEN_BOUNDS_H_
 
 #if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 11
-#define BISTABLE_EIGEN_BOUNDS_BEGIN                                 \
-  _Pragma("GCC diagnostic push")                                    \
-  _Pragma("GCC diagnostic ignored \"-Warray-bounds\"")              \
-  _Pragma("GCC diagnostic ignored \"-Wstringop-overread\"")
+#define BISTABLE_EIGEN_BOUNDS_BEGIN                                                   \
+  _Pragma("GCC diagnostic push") _Pragma("GCC diagnostic ignored \"-Warray-bounds\"") \
+      _Pragma("GCC diagnostic ignored \"-Wstringop-overread\"")
 #define BISTABLE_EIGEN_BOUNDS_END _Pragma("GCC diagnostic pop")
 #else
 #define BISTABLE_EIGEN_BOUNDS_BEGIN

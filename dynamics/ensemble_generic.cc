@@ -6,7 +6,8 @@ namespace {
 
 template <int W, int kCells>
 bool RunSeriesChain(const SeriesLaneInput* in, int n, const KernelSettings& s, RawLane* out) {
-  if (in[0].cells.front().has_resonator) return EnsembleGeneric<SeriesLaneModel<kCells, true>, W>::Run(in, n, s, 1, out);
+  if (in[0].cells.front().has_resonator)
+    return EnsembleGeneric<SeriesLaneModel<kCells, true>, W>::Run(in, n, s, 1, out);
   return EnsembleGeneric<SeriesLaneModel<kCells, false>, W>::Run(in, n, s, 1, out);
 }
 
@@ -15,11 +16,16 @@ bool RunSeriesChain(const SeriesLaneInput* in, int n, const KernelSettings& s, R
 template <int W>
 bool RunSeriesLanes(const SeriesLaneInput* in, int n, const KernelSettings& s, RawLane* out) {
   switch (in[0].cells.size()) {
-    case 1: return RunSeriesChain<W, 1>(in, n, s, out);
-    case 2: return RunSeriesChain<W, 2>(in, n, s, out);
-    case 3: return RunSeriesChain<W, 3>(in, n, s, out);
-    case 4: return RunSeriesChain<W, 4>(in, n, s, out);
-    default: return RunSeriesChain<W, 0>(in, n, s, out);
+    case 1:
+      return RunSeriesChain<W, 1>(in, n, s, out);
+    case 2:
+      return RunSeriesChain<W, 2>(in, n, s, out);
+    case 3:
+      return RunSeriesChain<W, 3>(in, n, s, out);
+    case 4:
+      return RunSeriesChain<W, 4>(in, n, s, out);
+    default:
+      return RunSeriesChain<W, 0>(in, n, s, out);
   }
 }
 

@@ -81,7 +81,8 @@ class EnsembleGeneric {
         st.w[d][l] = 1.0 / std::sqrt(static_cast<double>(dim)) * (d % 2 == 0 ? 1.0 : -1.0);
       }
     }
-    WindowRecorder<2, W> rec(base_amp, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows, s.strobe_phase);
+    WindowRecorder<2, W> rec(base_amp, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows,
+                             s.strobe_phase);
     V sn, cs;
     AnchorPhase<W>(omega, 0, k.h, &sn, &cs);
     m.Eval(st.x.data(), k.amp * sn, st.k1.data(), &st.j1);
@@ -103,7 +104,8 @@ class EnsembleGeneric {
       if (step == s.n_keep + 1) rec.OnStep(s.n_keep, o0, d0, o0, d0, cs);
       OutputStep(m, dim, k, &st, &sc, &sn, &cs);
       if (step % reanchor == 0) {
-        if (CancelRequested()) [[unlikely]] return MarkCancelled(n, step * substeps, out);
+        if (CancelRequested()) [[unlikely]]
+          return MarkCancelled(n, step * substeps, out);
         AnchorPhase<W>(omega, step * substeps, k.h, &sn, &cs);
         m.Eval(st.x.data(), k.amp * sn, st.k1.data(), &st.j1);  // consistent with the re-anchored phase
       }

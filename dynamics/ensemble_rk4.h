@@ -31,8 +31,8 @@ namespace bistable {
 // One lane's inputs.
 struct LaneInput {
   CellCoeffs<double> coeffs;
-  double alpha = 0, omega = 0;      // α, Ω
-  std::array<double, 4> x0 = {};    // initial (y_m, y_m', y_r, y_r')
+  double alpha = 0, omega = 0;    // α, Ω
+  std::array<double, 4> x0 = {};  // initial (y_m, y_m', y_r, y_r')
   // A chain resumed at KernelSettings::step0 > 0 (RunChain): the tangent and forcing phase a window's
   // raw record gave (final_tangent, final_sin, final_cos), x0 its final_state.
   std::array<double, 4> resume_tangent = {};
@@ -40,9 +40,9 @@ struct LaneInput {
 };
 
 struct KernelSettings {
-  double h = 0.01;          // step
-  long n_total = 50000;     // steps in [0, t_end]
-  long n_keep = 25000;      // first window step
+  double h = 0.01;       // step
+  long n_total = 50000;  // steps in [0, t_end]
+  long n_keep = 25000;   // first window step
   int renorm_every = 50;
   int sample_every = 5;
   bool keep_samples = false;  // y_m samples (spectrum, Rosenstein)
@@ -196,8 +196,8 @@ class EnsembleRk4 {
 
   // The window's quadratures closed with the end correction, and its records moved into out[0..n).
   static void FinishWindow(const CellCoeffs<V>& c, V amp, V om, const V* x, const V* k1, const V* w, V sn, V cs,
-                           const V* q_in, const V* g0, const V* gd0, const V* g_last, V e_start,
-                           const bool* diverged, int n, long step, WindowRecorder<D, W>& rec, RawLane* out) {
+                           const V* q_in, const V* g0, const V* gd0, const V* g_last, V e_start, const bool* diverged,
+                           int n, long step, WindowRecorder<D, W>& rec, RawLane* out) {
     const V e_end = Model::Energy(c, x);
     V gd_last[4], q[4];
     QuadRate(c, x, k1, amp * sn, amp * om * cs, g_last, gd_last);
@@ -246,7 +246,8 @@ class EnsembleRk4 {
     for (long step = 1; step <= s.n_total; ++step) {
       StepSpectrum(c, amp, rot_c, rot_s, s.h, x, k1, w, &sn, &cs);
       if (step % kReanchor == 0) {
-        if (CancelRequested()) [[unlikely]] return false;
+        if (CancelRequested()) [[unlikely]]
+          return false;
         AnchorPhase<W>(omega, step, s.h, &sn, &cs);
         Model::Rhs(c, x, amp * sn, k1);
       }
@@ -269,8 +270,8 @@ class EnsembleRk4 {
  private:
   // Lane inputs into packs (unused lanes repeat lane 0), the forcing's half-step rotation, and the
   // tangent's fixed, generic start direction (it aligns with the leading direction in the transient).
-  static void LoadLanes(const LaneInput* lanes, int n, double h, double* alpha, double* omega, CellCoeffs<V>* c,
-                        V* amp, V* x, V* w, V* rot_c, V* rot_s) {
+  static void LoadLanes(const LaneInput* lanes, int n, double h, double* alpha, double* omega, CellCoeffs<V>* c, V* amp,
+                        V* x, V* w, V* rot_c, V* rot_s) {
     for (int l = 0; l < W; ++l) {
       const LaneInput& in = lanes[l < n ? l : 0];
       alpha[l] = in.alpha;
@@ -360,9 +361,9 @@ class EnsembleRk4 {
   // The first step ≥ step that needs the general loop body (lane_run.h). Renormalisations run inside
   // RunFast except the window's one that completes a growth batch (its log is taken there).
   static long NextSpecialStep(long step, const KernelSettings& s, long next_strobe, int growth_batch) {
-    const long batch_end =
-        step <= s.n_keep ? s.n_total
-                         : RoundUpTo(step, s.renorm_every) + static_cast<long>(kGrowthBatch - 1 - growth_batch) * s.renorm_every;
+    const long batch_end = step <= s.n_keep ? s.n_total
+                                            : RoundUpTo(step, s.renorm_every) +
+                                                  static_cast<long>(kGrowthBatch - 1 - growth_batch) * s.renorm_every;
     return bistable::NextSpecialStep(step, s.n_total, s.n_keep, kReanchor, next_strobe, batch_end);
   }
 
@@ -432,8 +433,8 @@ class EnsembleRk4 {
 
   // One RK4 step of state and tangent. On entry k1 = F(x, f(t)); on exit x, w advanced,
   // k1 = F(x_new, f(t + h)), (sn, cs) = (sin, cos)(Ω(t + h)).
-  static BISTABLE_INLINE void Step(const CellCoeffs<V>& c, V amp, V rot_c, V rot_s, double h, V* x, V* k1, V* w,
-                                   V* sn, V* cs) {
+  static BISTABLE_INLINE void Step(const CellCoeffs<V>& c, V amp, V rot_c, V rot_s, double h, V* x, V* k1, V* w, V* sn,
+                                   V* cs) {
     const V s_mid = Fma(*sn, rot_c, *cs * rot_s), c_mid = Fma(*cs, rot_c, -(*sn * rot_s));
     const V s_end = Fma(s_mid, rot_c, c_mid * rot_s), c_end = Fma(c_mid, rot_c, -(s_mid * rot_s));
     const V fm = amp * s_mid, f1 = amp * s_end;

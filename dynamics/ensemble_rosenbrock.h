@@ -76,7 +76,7 @@ struct Ros34pw2 {
                           b4 = 4.3586652150845900e-01;
   static constexpr double bh1 = 3.7810903145819369e-01, bh2 = -9.6042292212423178e-02, bh3 = 5.0000000000000000e-01,
                           bh4 = 2.1793326075422950e-01;
-  static constexpr double c2 = a21, c3 = a31 + a32;                              // stage times (c4 = 1)
+  static constexpr double c2 = a21, c3 = a31 + a32;                                 // stage times (c4 = 1)
   static constexpr double gs1 = gamma, gs2 = g21 + gamma, gs3 = g31 + g32 + gamma;  // γ_i = Σ_j γ_ij (γ_4 = 0)
 };
 
@@ -84,10 +84,23 @@ struct Ros34pw2 {
 // below 2e-19), Horner in θ² with fused multiply-adds: the same bits at every width.
 template <int W>
 BISTABLE_INLINE void SinCosSmall(Vec<W> th, Vec<W>* s, Vec<W>* c) {
-  static constexpr double ks[8] = {-1.0 / 6, 1.0 / 120, -1.0 / 5040, 1.0 / 362880, -1.0 / 39916800,
-                                   1.0 / 6227020800.0, -1.0 / 1307674368000.0, 1.0 / 355687428096000.0};
-  static constexpr double kc[9] = {-1.0 / 2, 1.0 / 24, -1.0 / 720, 1.0 / 40320, -1.0 / 3628800, 1.0 / 479001600.0,
-                                   -1.0 / 87178291200.0, 1.0 / 20922789888000.0, -1.0 / 6402373705728000.0};
+  static constexpr double ks[8] = {-1.0 / 6,
+                                   1.0 / 120,
+                                   -1.0 / 5040,
+                                   1.0 / 362880,
+                                   -1.0 / 39916800,
+                                   1.0 / 6227020800.0,
+                                   -1.0 / 1307674368000.0,
+                                   1.0 / 355687428096000.0};
+  static constexpr double kc[9] = {-1.0 / 2,
+                                   1.0 / 24,
+                                   -1.0 / 720,
+                                   1.0 / 40320,
+                                   -1.0 / 3628800,
+                                   1.0 / 479001600.0,
+                                   -1.0 / 87178291200.0,
+                                   1.0 / 20922789888000.0,
+                                   -1.0 / 6402373705728000.0};
   const Vec<W> t2 = th * th;
   Vec<W> ps = Splat<W>(ks[7]);
   for (int i = 6; i >= 0; --i) ps = Fma(ps, t2, Splat<W>(ks[i]));
@@ -141,7 +154,8 @@ class EnsembleRosenbrock {
     for (;;) {
       const unsigned long live = PositiveMask(st.active);
       if (!live) break;
-      if ((++polls & 4095) == 0 && CancelRequested()) [[unlikely]] return MarkCancelled(n, 0, out);
+      if ((++polls & 4095) == 0 && CancelRequested()) [[unlikely]]
+        return MarkCancelled(n, 0, out);
       Trial(m, b, &st);
       // Lanes that reached their chunk's end (or gave up): record, renormalise, finish or go on.
       const unsigned long ended = live & ~PositiveMask(st.active);
@@ -170,18 +184,18 @@ class EnsembleRosenbrock {
   // Everything per lane: the state, the item's constants, and where the lane is in its chunk.
   struct St {
     explicit St(const Lanes& m) : j(m) {}
-    V x[kD], w[kD], f[kD];  // state, tangent, F(x, t) (the first stage's value)
-    Jac j;                  // J(x)
-    typename Lanes::Curv c;  // the friction laws' curvatures at x (the tangent's coupling block)
-    V h;                    // the lane's next trial step
-    V sn, cs;               // (sin, cos)(Ω t) at the lane's time
-    V tau, len, next;       // time done in the chunk, its length, the next output point to fill
-    V active = V{};         // 1 while the lane is inside a chunk
-    V emit = V{};           // 1 when the chunk is in the window (its output points are kept)
-    V accepted = V{}, tried = V{};  // the item's accepted and trial steps (counts in doubles)
+    V x[kD], w[kD], f[kD];           // state, tangent, F(x, t) (the first stage's value)
+    Jac j;                           // J(x)
+    typename Lanes::Curv c;          // the friction laws' curvatures at x (the tangent's coupling block)
+    V h;                             // the lane's next trial step
+    V sn, cs;                        // (sin, cos)(Ω t) at the lane's time
+    V tau, len, next;                // time done in the chunk, its length, the next output point to fill
+    V active = V{};                  // 1 while the lane is inside a chunk
+    V emit = V{};                    // 1 when the chunk is in the window (its output points are kept)
+    V accepted = V{}, tried = V{};   // the item's accepted and trial steps (counts in doubles)
     V amp, omega, amp_omega, h_max;  // the item's forcing and largest step
     V dt, rtol, atol;
-    bool fixed = false;     // fixed steps (RosenbrockTolerances::fixed_step): every trial is taken
+    bool fixed = false;  // fixed steps (RosenbrockTolerances::fixed_step): every trial is taken
   };
   struct Bufs {
     V *y, *v, *a;
@@ -189,13 +203,15 @@ class EnsembleRosenbrock {
   // A lane's item and its place on the output grid (scalars: the same code at every width).
   struct LaneJob {
     int item = -1;
-    long n0 = 0, n1 = 0;     // the chunk's output steps [n0, n1]
+    long n0 = 0, n1 = 0;  // the chunk's output steps [n0, n1]
     double omega = 0, rot_c = 1, rot_s = 0;
     double sn0 = 0, cs0 = 1;  // the phase anchored at n0
     bool diverged = false;
   };
 
-  static BISTABLE_INLINE V Blend(V take, V a, V b) { return SelectLess<W>(Splat<W>(0.0), take, a, b); }  // take > 0 ? a : b
+  static BISTABLE_INLINE V Blend(V take, V a, V b) {
+    return SelectLess<W>(Splat<W>(0.0), take, a, b);
+  }  // take > 0 ? a : b
 
   // (I − sJ) k = r for the rig's J (rows 0, 2 identities; a, b rows 1, 3), precomputed per step.
   struct Solver {
@@ -298,7 +314,8 @@ class EnsembleRosenbrock {
     if (st->emit[l] > 0 && !job->diverged) {
       double sn = job->sn0, cs = job->cs0;
       for (long i = 1; i <= job->n1 - job->n0; ++i) {
-        const double sn1 = __builtin_fma(sn, job->rot_c, cs * job->rot_s), cs1 = __builtin_fma(cs, job->rot_c, -(sn * job->rot_s));
+        const double sn1 = __builtin_fma(sn, job->rot_c, cs * job->rot_s),
+                     cs1 = __builtin_fma(cs, job->rot_c, -(sn * job->rot_s));
         sn = sn1, cs = cs1;
         const Vec<1> o0[2] = {{b.y[i - 1][l]}, {b.v[i - 1][l]}}, d0[2] = {{b.v[i - 1][l]}, {b.a[i - 1][l]}};
         const Vec<1> o1[2] = {{b.y[i][l]}, {b.v[i][l]}}, d1[2] = {{b.v[i][l]}, {b.a[i][l]}};
@@ -315,8 +332,10 @@ class EnsembleRosenbrock {
         st->w[d][l] *= inv;
         bad |= !std::isfinite(st->x[d][l]) || std::fabs(st->x[d][l]) > 1e8;
       }
-      if (bad) job->diverged = true;
-      else if (n1 > s.n_keep) rec->AddLogGrowth(Vec<1>{std::log(nrm)});
+      if (bad)
+        job->diverged = true;
+      else if (n1 > s.n_keep)
+        rec->AddLogGrowth(Vec<1>{std::log(nrm)});
     }
     if (!job->diverged && n1 < s.n_total) return true;
     // Done (or diverged: stopped early, stored as diverged with NaN metrics).
@@ -340,129 +359,131 @@ class EnsembleRosenbrock {
     using R = Ros34pw2;
     St& st = *st_p;
     const V zero = Splat<W>(0.0), one = Splat<W>(1.0);
-      // The trial step: the lane's proposal, or what is left of the chunk when the proposal reaches
-      // within 1 % of its end (then it lands exactly); 0 in finished lanes. (sn, cs) is the forcing's
-      // phase at the lane's time; the stages' phases are rotated from it by Ω c_i h.
-      V a[4], b[4];
-      m.JacRows(st.j, a, b);
-      const V rest = st.len - st.tau;
-      const V last = SelectLess<W>(Fma(Splat<W>(1.01), st.h, st.tau), st.len, zero, one);
-      const V h = Blend(st.active, Blend(last, rest, st.h), zero);
-      const V th2 = st.omega * (R::c2 * h), th3 = st.omega * (R::c3 * h), th4 = st.omega * h;
-      V s2, c2, s3, c3, s4, c4;
-      SinCosSmall<W>(th2, &s2, &c2);
-      SinCosSmall<W>(th3, &s3, &c3);
-      SinCosSmall<W>(th4, &s4, &c4);
-      // f_t h² γ_i: the forcing's time derivative amp·Ω·cos(Ω t) at the step's start (row 1 only).
-      const V ft = st.amp_omega * st.cs;
-      const V h2ft = (h * h) * ft;
-      const Solver sol(h * R::gamma, a, b);
-      V kx[4][kD], kw[4][kD], r[kD], tmp[kD], xs[kD], ws[kD], fs[kD], gs[kD];
-      Jac js(m);
-      // Stage 1: f, J w at x (the step's start).
-      m.Apply(st.j, st.w, gs);
-      for (int d = 0; d < kD; ++d) r[d] = h * st.f[d];
-      r[1] = Fma(Splat<W>(R::gs1), h2ft, r[1]);
-      sol.Solve(r, kx[0]);
-      // The tangent's rows of the augmented system: (I − hγJ) kw_i = h(J(x_i) w_i + J Σ γ_ij kw_j
-      // + H(Σ γ_ij kx_j + γ kx_i)), H = ∂(J w)/∂x at the step's start (exact: a Rosenbrock method for
-      // state and tangent together, so the tangent keeps its order where the friction is stiff).
-      Jac dj(m);
-      V hk[kD];
-      auto coupling = [&](const V* u) BISTABLE_INLINE_LAMBDA {  // hk = H u
-        m.JacDirection(st.x, st.c, u, &dj);
-        m.Apply(dj, st.w, hk);
-        hk[0] = hk[2] = zero;  // rows 0 and 2 (x0' = x1, x2' = x3) do not depend on x
-      };
-      for (int d = 0; d < kD; ++d) tmp[d] = R::gamma * kx[0][d];
-      coupling(tmp);
-      for (int d = 0; d < kD; ++d) r[d] = h * (gs[d] + hk[d]);
-      sol.Solve(r, kw[0]);
-      // Stages 2–4: stage point, F and J there, and hJ Σ γ_ij k_j.
-      auto stage = [&](int i, const double* al, const double* ga, double gsum, V sn_i, V cs_i) BISTABLE_INLINE_LAMBDA {
-        for (int d = 0; d < kD; ++d) {
-          V xa = st.x[d], wa = st.w[d], gx = zero, gw = zero;
-          for (int j = 0; j < i; ++j) {
-            if (al[j] != 0.0) xa = Fma(Splat<W>(al[j]), kx[j][d], xa), wa = Fma(Splat<W>(al[j]), kw[j][d], wa);
-            gx = Fma(Splat<W>(ga[j]), kx[j][d], gx), gw = Fma(Splat<W>(ga[j]), kw[j][d], gw);
-          }
-          xs[d] = xa, ws[d] = wa, tmp[d] = gx, r[d] = gw;  // r: Σ γ k of the tangent, for now
-        }
-        const V fi = st.amp * Fma(st.sn, cs_i, st.cs * sn_i);
-        m.Eval(xs, fi, fs, &js);
-        V jg[kD], jgw[kD], jw[kD];
-        m.Apply(st.j, tmp, jg);   // J Σ γ_ij kx_j
-        m.Apply(st.j, r, jgw);    // J Σ γ_ij kw_j
-        m.Apply(js, ws, jw);       // the tangent's own right-hand side J(x_i) w_i
-        for (int d = 0; d < kD; ++d) r[d] = h * (fs[d] + jg[d]);
-        if (gsum != 0.0) r[1] = Fma(Splat<W>(gsum), h2ft, r[1]);
-        sol.Solve(r, kx[i]);
-        for (int d = 0; d < kD; ++d) tmp[d] = Fma(Splat<W>(R::gamma), kx[i][d], tmp[d]);
-        coupling(tmp);
-        for (int d = 0; d < kD; ++d) r[d] = h * ((jw[d] + jgw[d]) + hk[d]);
-        sol.Solve(r, kw[i]);
-      };
-      static constexpr double al2[1] = {R::a21}, ga2[1] = {R::g21};
-      static constexpr double al3[2] = {R::a31, R::a32}, ga3[2] = {R::g31, R::g32};
-      static constexpr double al4[3] = {R::a41, R::a42, R::a43}, ga4[3] = {R::g41, R::g42, R::g43};
-      stage(1, al2, ga2, R::gs2, s2, c2);
-      stage(2, al3, ga3, R::gs3, s3, c3);
-      stage(3, al4, ga4, 0.0, s4, c4);
-      // The new state and tangent, the error estimate (RMS over state and tangent).
-      V x1[kD], w1[kD], sum = zero;
-      const V e1 = Splat<W>(R::b1 - R::bh1), e2 = Splat<W>(R::b2 - R::bh2), e3 = Splat<W>(R::b3 - R::bh3),
-              e4 = Splat<W>(R::b4 - R::bh4);
-      // sk per component: atol + rtol·max(|x|, |x1|) for the state; for the tangent (whose size and
-      // direction matter, not its components') one scale atol + rtol·max_i max(|w_i|, |w1_i|).
-      auto combine = [&](const V (*kk)[kD], const V* x0, V* x1o, bool common) BISTABLE_INLINE_LAMBDA {
-        V e[kD], mx = zero;
-        for (int d = 0; d < kD; ++d) {
-          x1o[d] = Fma(Splat<W>(R::b4), kk[3][d],
-                       Fma(Splat<W>(R::b3), kk[2][d], Fma(Splat<W>(R::b2), kk[1][d], Fma(Splat<W>(R::b1), kk[0][d], x0[d]))));
-          e[d] = Fma(e4, kk[3][d], Fma(e3, kk[2][d], Fma(e2, kk[1][d], e1 * kk[0][d])));
-          mx = Max<W>(mx, Max<W>(Abs<W>(x0[d]), Abs<W>(x1o[d])));
-        }
-        const V inv_common = one / Fma(st.rtol, mx, st.atol);
-        for (int d = 0; d < kD; ++d) {
-          const V q = common ? e[d] * inv_common : e[d] / Fma(st.rtol, Max<W>(Abs<W>(x0[d]), Abs<W>(x1o[d])), st.atol);
-          sum = Fma(q, q, sum);
-        }
-      };
-      combine(kx, st.x, x1, false);
-      combine(kw, st.w, w1, true);
-      const V err = st.fixed ? zero : Sqrt<W>(sum * 0.125);
-      // Accept where active and err ≤ 1 (NaN: rejected); the step-size factor 0.9 err^(−1/4) in [0.2, 5].
-      const V ok = Blend(st.active, SelectLess<W>(err, Splat<W>(0x1.0000000000001p0), one, zero), zero);  // err ≤ 1
-      // err^(−1/4) as two square roots (exact in IEEE arithmetic, so the same bits at every width):
-      // a little more cautious than the asymptotic err^(−1/3) of a 2nd-order estimate.
-      const V errc = SelectLess<W>(err, Splat<W>(1e300), Max<W>(err, Splat<W>(1e-10)), Splat<W>(1e10));  // NaN, inf: 1e10
-      const V fac = Min<W>(Splat<W>(5.0), Max<W>(Splat<W>(0.2), Splat<W>(0.9) / Sqrt<W>(Sqrt<W>(errc))));
-      // F and J at the new state (the next step's first stage), at its time t + h: the forcing phase
-      // rotated by Ω h, which the lane keeps when it takes the step.
-      const V sn1 = Fma(st.sn, c4, st.cs * s4), cs1 = Fma(st.cs, c4, -(st.sn * s4));
-      V f1[kD];
-      Jac j1(m);
-      typename Lanes::Curv c1;
-      m.EvalCurvature(x1, st.amp * sn1, f1, &j1, &c1);
-      Emit(ok, st.tau, h, Blend(last, st.len, st.tau + h), st.x, st.f, x1, f1, st.dt, st.emit, &st.next, bf.y, bf.v, bf.a);
+    // The trial step: the lane's proposal, or what is left of the chunk when the proposal reaches
+    // within 1 % of its end (then it lands exactly); 0 in finished lanes. (sn, cs) is the forcing's
+    // phase at the lane's time; the stages' phases are rotated from it by Ω c_i h.
+    V a[4], b[4];
+    m.JacRows(st.j, a, b);
+    const V rest = st.len - st.tau;
+    const V last = SelectLess<W>(Fma(Splat<W>(1.01), st.h, st.tau), st.len, zero, one);
+    const V h = Blend(st.active, Blend(last, rest, st.h), zero);
+    const V th2 = st.omega * (R::c2 * h), th3 = st.omega * (R::c3 * h), th4 = st.omega * h;
+    V s2, c2, s3, c3, s4, c4;
+    SinCosSmall<W>(th2, &s2, &c2);
+    SinCosSmall<W>(th3, &s3, &c3);
+    SinCosSmall<W>(th4, &s4, &c4);
+    // f_t h² γ_i: the forcing's time derivative amp·Ω·cos(Ω t) at the step's start (row 1 only).
+    const V ft = st.amp_omega * st.cs;
+    const V h2ft = (h * h) * ft;
+    const Solver sol(h * R::gamma, a, b);
+    V kx[4][kD], kw[4][kD], r[kD], tmp[kD], xs[kD], ws[kD], fs[kD], gs[kD];
+    Jac js(m);
+    // Stage 1: f, J w at x (the step's start).
+    m.Apply(st.j, st.w, gs);
+    for (int d = 0; d < kD; ++d) r[d] = h * st.f[d];
+    r[1] = Fma(Splat<W>(R::gs1), h2ft, r[1]);
+    sol.Solve(r, kx[0]);
+    // The tangent's rows of the augmented system: (I − hγJ) kw_i = h(J(x_i) w_i + J Σ γ_ij kw_j
+    // + H(Σ γ_ij kx_j + γ kx_i)), H = ∂(J w)/∂x at the step's start (exact: a Rosenbrock method for
+    // state and tangent together, so the tangent keeps its order where the friction is stiff).
+    Jac dj(m);
+    V hk[kD];
+    auto coupling = [&](const V* u) BISTABLE_INLINE_LAMBDA {  // hk = H u
+      m.JacDirection(st.x, st.c, u, &dj);
+      m.Apply(dj, st.w, hk);
+      hk[0] = hk[2] = zero;  // rows 0 and 2 (x0' = x1, x2' = x3) do not depend on x
+    };
+    for (int d = 0; d < kD; ++d) tmp[d] = R::gamma * kx[0][d];
+    coupling(tmp);
+    for (int d = 0; d < kD; ++d) r[d] = h * (gs[d] + hk[d]);
+    sol.Solve(r, kw[0]);
+    // Stages 2–4: stage point, F and J there, and hJ Σ γ_ij k_j.
+    auto stage = [&](int i, const double* al, const double* ga, double gsum, V sn_i, V cs_i) BISTABLE_INLINE_LAMBDA {
       for (int d = 0; d < kD; ++d) {
-        st.x[d] = Blend(ok, x1[d], st.x[d]);
-        st.w[d] = Blend(ok, w1[d], st.w[d]);
-        st.f[d] = Blend(ok, f1[d], st.f[d]);
+        V xa = st.x[d], wa = st.w[d], gx = zero, gw = zero;
+        for (int j = 0; j < i; ++j) {
+          if (al[j] != 0.0) xa = Fma(Splat<W>(al[j]), kx[j][d], xa), wa = Fma(Splat<W>(al[j]), kw[j][d], wa);
+          gx = Fma(Splat<W>(ga[j]), kx[j][d], gx), gw = Fma(Splat<W>(ga[j]), kw[j][d], gw);
+        }
+        xs[d] = xa, ws[d] = wa, tmp[d] = gx, r[d] = gw;  // r: Σ γ k of the tangent, for now
       }
-      st.j.fy = Blend(ok, j1.fy, st.j.fy), st.j.fyd = Blend(ok, j1.fyd, st.j.fyd);
-      st.j.gz = Blend(ok, j1.gz, st.j.gz), st.j.gzd = Blend(ok, j1.gzd, st.j.gzd);
-      st.c.m = Blend(ok, c1.m, st.c.m), st.c.r = Blend(ok, c1.r, st.c.r);
-      st.sn = Blend(ok, sn1, st.sn), st.cs = Blend(ok, cs1, st.cs);
-      st.accepted = st.accepted + Blend(ok, one, zero);
-      st.tried = st.tried + st.active;
-      st.tau = Blend(ok, Blend(last, st.len, st.tau + h), st.tau);
-      // Next proposal: h·fac, at most h_max; after a landing step not below the proposal it cut short.
-      const V hn = Min<W>(h * fac, st.h_max);
-      st.h = Blend(st.active, Blend(ok, Blend(last, Max<W>(hn, st.h), hn), hn), st.h);
-      st.active = Blend(ok, Blend(last, zero, st.active), st.active);
-      if (const unsigned long bad = PositiveMask(st.active) & ~PositiveMask(st.h - st.dt * 1e-9); bad) [[unlikely]]
-        GiveUp(bad, st_p);
+      const V fi = st.amp * Fma(st.sn, cs_i, st.cs * sn_i);
+      m.Eval(xs, fi, fs, &js);
+      V jg[kD], jgw[kD], jw[kD];
+      m.Apply(st.j, tmp, jg);  // J Σ γ_ij kx_j
+      m.Apply(st.j, r, jgw);   // J Σ γ_ij kw_j
+      m.Apply(js, ws, jw);     // the tangent's own right-hand side J(x_i) w_i
+      for (int d = 0; d < kD; ++d) r[d] = h * (fs[d] + jg[d]);
+      if (gsum != 0.0) r[1] = Fma(Splat<W>(gsum), h2ft, r[1]);
+      sol.Solve(r, kx[i]);
+      for (int d = 0; d < kD; ++d) tmp[d] = Fma(Splat<W>(R::gamma), kx[i][d], tmp[d]);
+      coupling(tmp);
+      for (int d = 0; d < kD; ++d) r[d] = h * ((jw[d] + jgw[d]) + hk[d]);
+      sol.Solve(r, kw[i]);
+    };
+    static constexpr double al2[1] = {R::a21}, ga2[1] = {R::g21};
+    static constexpr double al3[2] = {R::a31, R::a32}, ga3[2] = {R::g31, R::g32};
+    static constexpr double al4[3] = {R::a41, R::a42, R::a43}, ga4[3] = {R::g41, R::g42, R::g43};
+    stage(1, al2, ga2, R::gs2, s2, c2);
+    stage(2, al3, ga3, R::gs3, s3, c3);
+    stage(3, al4, ga4, 0.0, s4, c4);
+    // The new state and tangent, the error estimate (RMS over state and tangent).
+    V x1[kD], w1[kD], sum = zero;
+    const V e1 = Splat<W>(R::b1 - R::bh1), e2 = Splat<W>(R::b2 - R::bh2), e3 = Splat<W>(R::b3 - R::bh3),
+            e4 = Splat<W>(R::b4 - R::bh4);
+    // sk per component: atol + rtol·max(|x|, |x1|) for the state; for the tangent (whose size and
+    // direction matter, not its components') one scale atol + rtol·max_i max(|w_i|, |w1_i|).
+    auto combine = [&](const V(*kk)[kD], const V* x0, V* x1o, bool common) BISTABLE_INLINE_LAMBDA {
+      V e[kD], mx = zero;
+      for (int d = 0; d < kD; ++d) {
+        x1o[d] =
+            Fma(Splat<W>(R::b4), kk[3][d],
+                Fma(Splat<W>(R::b3), kk[2][d], Fma(Splat<W>(R::b2), kk[1][d], Fma(Splat<W>(R::b1), kk[0][d], x0[d]))));
+        e[d] = Fma(e4, kk[3][d], Fma(e3, kk[2][d], Fma(e2, kk[1][d], e1 * kk[0][d])));
+        mx = Max<W>(mx, Max<W>(Abs<W>(x0[d]), Abs<W>(x1o[d])));
+      }
+      const V inv_common = one / Fma(st.rtol, mx, st.atol);
+      for (int d = 0; d < kD; ++d) {
+        const V q = common ? e[d] * inv_common : e[d] / Fma(st.rtol, Max<W>(Abs<W>(x0[d]), Abs<W>(x1o[d])), st.atol);
+        sum = Fma(q, q, sum);
+      }
+    };
+    combine(kx, st.x, x1, false);
+    combine(kw, st.w, w1, true);
+    const V err = st.fixed ? zero : Sqrt<W>(sum * 0.125);
+    // Accept where active and err ≤ 1 (NaN: rejected); the step-size factor 0.9 err^(−1/4) in [0.2, 5].
+    const V ok = Blend(st.active, SelectLess<W>(err, Splat<W>(0x1.0000000000001p0), one, zero), zero);  // err ≤ 1
+    // err^(−1/4) as two square roots (exact in IEEE arithmetic, so the same bits at every width):
+    // a little more cautious than the asymptotic err^(−1/3) of a 2nd-order estimate.
+    const V errc = SelectLess<W>(err, Splat<W>(1e300), Max<W>(err, Splat<W>(1e-10)), Splat<W>(1e10));  // NaN, inf: 1e10
+    const V fac = Min<W>(Splat<W>(5.0), Max<W>(Splat<W>(0.2), Splat<W>(0.9) / Sqrt<W>(Sqrt<W>(errc))));
+    // F and J at the new state (the next step's first stage), at its time t + h: the forcing phase
+    // rotated by Ω h, which the lane keeps when it takes the step.
+    const V sn1 = Fma(st.sn, c4, st.cs * s4), cs1 = Fma(st.cs, c4, -(st.sn * s4));
+    V f1[kD];
+    Jac j1(m);
+    typename Lanes::Curv c1;
+    m.EvalCurvature(x1, st.amp * sn1, f1, &j1, &c1);
+    Emit(ok, st.tau, h, Blend(last, st.len, st.tau + h), st.x, st.f, x1, f1, st.dt, st.emit, &st.next, bf.y, bf.v,
+         bf.a);
+    for (int d = 0; d < kD; ++d) {
+      st.x[d] = Blend(ok, x1[d], st.x[d]);
+      st.w[d] = Blend(ok, w1[d], st.w[d]);
+      st.f[d] = Blend(ok, f1[d], st.f[d]);
+    }
+    st.j.fy = Blend(ok, j1.fy, st.j.fy), st.j.fyd = Blend(ok, j1.fyd, st.j.fyd);
+    st.j.gz = Blend(ok, j1.gz, st.j.gz), st.j.gzd = Blend(ok, j1.gzd, st.j.gzd);
+    st.c.m = Blend(ok, c1.m, st.c.m), st.c.r = Blend(ok, c1.r, st.c.r);
+    st.sn = Blend(ok, sn1, st.sn), st.cs = Blend(ok, cs1, st.cs);
+    st.accepted = st.accepted + Blend(ok, one, zero);
+    st.tried = st.tried + st.active;
+    st.tau = Blend(ok, Blend(last, st.len, st.tau + h), st.tau);
+    // Next proposal: h·fac, at most h_max; after a landing step not below the proposal it cut short.
+    const V hn = Min<W>(h * fac, st.h_max);
+    st.h = Blend(st.active, Blend(ok, Blend(last, Max<W>(hn, st.h), hn), hn), st.h);
+    st.active = Blend(ok, Blend(last, zero, st.active), st.active);
+    if (const unsigned long bad = PositiveMask(st.active) & ~PositiveMask(st.h - st.dt * 1e-9); bad) [[unlikely]]
+      GiveUp(bad, st_p);
   }
 
   [[gnu::cold, gnu::noinline]] static void GiveUp(unsigned long lanes, St* st) {
@@ -503,7 +524,6 @@ class EnsembleRosenbrock {
       *next = *next + due;
     }
   }
-
 };
 
 // Instantiated in ensemble_generic.cc for W = 1 (one point), 4 and 8 (sweeps: kSweepLanes).

@@ -39,10 +39,10 @@ inline double StribeckHump(double scale, double v, double v_sp) {
 }
 
 struct Stribeck {
-  double f_s = 0;      // static (peak) friction force, N, ≥ 0
-  double f_c = 0;      // kinetic (Coulomb) friction force, N, ≥ 0
-  double v_sp = 0.002; // Stribeck peak velocity, m/s, > 0
-  double v_t = 0.001;  // transition velocity of the tanh, m/s, > 0
+  double f_s = 0;       // static (peak) friction force, N, ≥ 0
+  double f_c = 0;       // kinetic (Coulomb) friction force, N, ≥ 0
+  double v_sp = 0.002;  // Stribeck peak velocity, m/s, > 0
+  double v_t = 0.001;   // transition velocity of the tanh, m/s, > 0
 
   // The hump's scale F_s − F_c tanh(v_sp/v_t) (constant: callers in a loop compute it once).
   double HumpScale() const { return f_s - f_c * std::tanh(v_sp / v_t); }
@@ -78,9 +78,15 @@ struct Stribeck {
   // lane and step. The rig's step then costs what its springs and dampers cost (docs/numerics.md).
   struct Lanes {
     explicit Lanes(const Stribeck& f)
-        : a(f.HumpScale()), f_c(f.f_c), f_c_vt(f.f_c / f.v_t), inv_vt(1.0 / f.v_t), a_vsp(a / f.v_sp),
-          two_a_vsp(2.0 * a_vsp), neg_half_inv_vsp2(-0.5 / (f.v_sp * f.v_sp)),
-          neg_two_a_vsp3(-2.0 * a_vsp / (f.v_sp * f.v_sp)), neg_two_fc_vt2(-2.0 * f_c_vt / f.v_t),
+        : a(f.HumpScale()),
+          f_c(f.f_c),
+          f_c_vt(f.f_c / f.v_t),
+          inv_vt(1.0 / f.v_t),
+          a_vsp(a / f.v_sp),
+          two_a_vsp(2.0 * a_vsp),
+          neg_half_inv_vsp2(-0.5 / (f.v_sp * f.v_sp)),
+          neg_two_a_vsp3(-2.0 * a_vsp / (f.v_sp * f.v_sp)),
+          neg_two_fc_vt2(-2.0 * f_c_vt / f.v_t),
           off(f.f_s == 0 && f.f_c == 0 && !std::signbit(f.f_s) && !std::signbit(f.f_c)) {}
     template <int W>
     BISTABLE_INLINE void ForceSlope(Vec<W> v, Vec<W>* force, Vec<W>* slope) const {
@@ -137,9 +143,9 @@ struct Stribeck {
 // φ[1] = tanh(v/v_t) − tanh(v_sp/v_t) g(v); φ depends on v_sp, v_t only. Identification's simulator
 // evaluates it per RK4 stage and body, so tanh(v_sp/v_t) is computed once, and exp and tanh are the
 // project's lane math at W = 1 (dynamics/lane_math.h: within 1–2 ulp of glibc's; glibc's tanh and expm1 were
-// 18 % of the coupled rig loop's profile). It divides by v_sp and v_t rather than multiplying by their reciprocals: the coupled rig's fit ends in
-// another of its near-truth minima (1.087 % against 1.080 %) when the law's last bits change that way
-// (docs/identification.md, "Session 15"). tanh_sp is glibc's and th the lane Tanh, so φ[1](v_sp) is within a
+// 18 % of the coupled rig loop's profile). It divides by v_sp and v_t rather than multiplying by their reciprocals: the
+// coupled rig's fit ends in another of its near-truth minima (1.087 % against 1.080 %) when the law's last bits change
+// that way (docs/identification.md, "Session 15"). tanh_sp is glibc's and th the lane Tanh, so φ[1](v_sp) is within a
 // few ulp of 0 rather than exactly 0 (F_f(v_sp) = F_s to that).
 struct StribeckBasis {
   StribeckBasis(double v_sp, double v_t) : v_sp(v_sp), v_t(v_t), tanh_sp(std::tanh(v_sp / v_t)) {}
@@ -160,8 +166,10 @@ struct StribeckBasis {
     }
     const T g = u * e;
     T th;
-    if constexpr (std::is_floating_point_v<T>) th = Tanh<1>(Vec<1>{v / v_t})[0];
-    else th = Tanh<W>(v / v_t);
+    if constexpr (std::is_floating_point_v<T>)
+      th = Tanh<1>(Vec<1>{v / v_t})[0];
+    else
+      th = Tanh<W>(v / v_t);
     phi[0] = g;
     phi[1] = th - tanh_sp * g;
     if (dphi) {

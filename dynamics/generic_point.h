@@ -36,7 +36,8 @@ struct GenericWindow {
 // marked diverged with steps short of the run: it must be discarded, never stored (callers that pass
 // no flag rely on CancelRequested() staying set, see cancel.h).
 template <class System>
-RawLane RunGenericWindow(const System& sys, const Eigen::VectorXd& x0, const GenericWindow& w, bool* cancelled = nullptr) {
+RawLane RunGenericWindow(const System& sys, const Eigen::VectorXd& x0, const GenericWindow& w,
+                         bool* cancelled = nullptr) {
   const int n = sys.dim();
   const long n_total = std::lround(w.t_end / w.dt), n_keep = std::lround(w.t_keep / w.dt);
   TangentSystem<System> tan(sys);
@@ -60,8 +61,10 @@ RawLane RunGenericWindow(const System& sys, const Eigen::VectorXd& x0, const Gen
     d1[0][0] = (w.position(xv + h * dv) - w.position(xv - h * dv)) / (2 * h);
     d1[1][0] = (w.velocity(xv + h * dv) - w.velocity(xv - h * dv)) / (2 * h);
     const Vec<1> cs = {std::cos(w.omega * t)};
-    if (k == n_keep) rec.OnStep(k, x1, d1, x1, d1, cs);
-    else rec.OnStep(k, xp, dp, x1, d1, cs);
+    if (k == n_keep)
+      rec.OnStep(k, x1, d1, x1, d1, cs);
+    else
+      rec.OnStep(k, xp, dp, x1, d1, cs);
     xp[0] = x1[0], xp[1] = x1[1], dp[0] = d1[0], dp[1] = d1[1];
   };
   bool diverged = false;
@@ -77,7 +80,8 @@ RawLane RunGenericWindow(const System& sys, const Eigen::VectorXd& x0, const Gen
     Rk4<TangentSystem<System>> rk(tan);
     if (n_keep == 0) sample(0, z);
     for (long k = 1; k <= n_total && !diverged; ++k) {
-      if (k % kCancelCheckSteps == 0 && CancelRequested()) [[unlikely]] return stopped(k);
+      if (k % kCancelCheckSteps == 0 && CancelRequested()) [[unlikely]]
+        return stopped(k);
       rk.Step(static_cast<double>(k - 1) * w.dt, z, w.dt);
       if (k >= n_keep) sample(k, z);
       if (k % w.renorm_every == 0 || k == n_keep || k == n_total) {
@@ -107,8 +111,9 @@ RawLane RunGenericWindow(const System& sys, const Eigen::VectorXd& x0, const Gen
         if (seg < n_keep && end > n_keep) end = n_keep;
         if (seg == n_keep) sample(n_keep, z), next = n_keep + 1;
         const OdeTermination term =
-            seg >= n_keep ? dp5.Integrate(static_cast<double>(seg) * w.dt, z, static_cast<double>(end) * w.dt, observer)
-                          : dp5.Integrate(static_cast<double>(seg) * w.dt, z, static_cast<double>(end) * w.dt, transient);
+            seg >= n_keep
+                ? dp5.Integrate(static_cast<double>(seg) * w.dt, z, static_cast<double>(end) * w.dt, observer)
+                : dp5.Integrate(static_cast<double>(seg) * w.dt, z, static_cast<double>(end) * w.dt, transient);
         const double nrm = z.tail(n).norm();
         if (term != OdeTermination::kOk || !std::isfinite(nrm) || !z.head(n).allFinite()) diverged = true;
         z.tail(n) /= nrm;

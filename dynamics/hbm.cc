@@ -2,20 +2,20 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <complex>
+#include <cstdio>
 #include <tuple>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <Eigen/SVD>
 
+#include "base/limits.h"
+#include "base/validate.h"
 #include "dynamics/cancel.h"
 #include "dynamics/dopri5.h"
 #include "dynamics/nondim_system.h"
 #include "dynamics/point.h"
-#include "base/limits.h"
-#include "base/validate.h"
 
 namespace bistable {
 namespace {
@@ -28,7 +28,9 @@ double NextArclengthStep(int iterations, double ds, double ds_min, double ds_max
   return ds;
 }
 
-double ParamOf(const HbmOptions& o, double omega, double alpha) { return o.param == ContinuationParam::kOmega ? omega : alpha; }
+double ParamOf(const HbmOptions& o, double omega, double alpha) {
+  return o.param == ContinuationParam::kOmega ? omega : alpha;
+}
 
 // The options of a period-ν branch: harmonics of Ω/ν, H doubled (to at most 50) at every doubling.
 HbmOptions ForPeriod(const HbmOptions& o, int nu) {
@@ -42,8 +44,9 @@ HbmOptions ForPeriod(const HbmOptions& o, int nu) {
 
 Status ValidateHbmOptions(const HbmOptions& o) {
   if (!IsCellModel(o.model))
-    return Status::InvalidArgument("model", std::string("model = '") + ModelName(o.model) +
-                                                "' violates model in {standalone, coupled, linear, linear-coupled} (harmonic balance)");
+    return Status::InvalidArgument(
+        "model", std::string("model = '") + ModelName(o.model) +
+                     "' violates model in {standalone, coupled, linear, linear-coupled} (harmonic balance)");
   if (o.harmonics < 1 || o.harmonics > limits::kMaxHbmHarmonics)
     return Violates("harmonics", o.harmonics, "in [1, " + std::to_string(limits::kMaxHbmHarmonics) + "]");
   BISTABLE_RETURN_IF_ERROR(CheckPositive("alpha", o.alpha));
@@ -58,12 +61,14 @@ Status ValidateHbmOptions(const HbmOptions& o) {
     BISTABLE_RETURN_IF_ERROR(CheckPositive("phi", o.params.phi));
     BISTABLE_RETURN_IF_ERROR(CheckPositive("lambda", o.params.lambda));
   }
-  if (!(o.ds > 0 && o.ds_min > 0 && o.ds_max >= o.ds && o.ds >= o.ds_min)) return Violates("ds", o.ds, "in [ds_min, ds_max]");
+  if (!(o.ds > 0 && o.ds_min > 0 && o.ds_max >= o.ds && o.ds >= o.ds_min))
+    return Violates("ds", o.ds, "in [ds_min, ds_max]");
   if (o.max_points < 2) return Violates("max_points", o.max_points, ">= 2");
   if (o.switch_depth < 0 || o.switch_depth > 3) return Violates("switch_pd", o.switch_depth, "in [0, 3]");
   if (o.subharmonic != 1 && o.subharmonic != 2 && o.subharmonic != 4 && o.subharmonic != 8)
     return Violates("subharmonic", o.subharmonic, "in {1, 2, 4, 8}");
-  if (o.subharmonic > o.harmonics) return Violates("harmonics", o.harmonics, ">= subharmonic (the forcing is harmonic subharmonic)");
+  if (o.subharmonic > o.harmonics)
+    return Violates("harmonics", o.harmonics, ">= subharmonic (the forcing is harmonic subharmonic)");
   return Status::Ok();
 }
 
@@ -181,7 +186,8 @@ std::vector<double> HarmonicBalance::MainSamples(const Eigen::VectorXd& z, int m
   for (int s = 0; s < m; ++s) {
     const double th = 2.0 * M_PI * s / m;
     double v = z[Index(0, 0)];
-    for (int k = 1; k <= h_; ++k) v += z[Index(0, 2 * k - 1)] * std::cos(k * th) + z[Index(0, 2 * k)] * std::sin(k * th);
+    for (int k = 1; k <= h_; ++k)
+      v += z[Index(0, 2 * k - 1)] * std::cos(k * th) + z[Index(0, 2 * k)] * std::sin(k * th);
     y[s] = v;
   }
   return y;
@@ -196,7 +202,8 @@ void HarmonicBalance::Propagate(const Eigen::VectorXd& z, double omega, int step
   const double period = 2.0 * M_PI * nu_ / omega, h = period / total;
   auto y_main = [&](double t) {
     double v = z[Index(0, 0)];
-    for (int k = 1; k <= h_; ++k) v += z[Index(0, 2 * k - 1)] * std::cos(k * w * t) + z[Index(0, 2 * k)] * std::sin(k * w * t);
+    for (int k = 1; k <= h_; ++k)
+      v += z[Index(0, 2 * k - 1)] * std::cos(k * w * t) + z[Index(0, 2 * k)] * std::sin(k * w * t);
     return v;
   };
   auto jac = [&](double t) {
@@ -217,7 +224,8 @@ void HarmonicBalance::Propagate(const Eigen::VectorXd& z, double omega, int step
     if (each) each(s, p);
     const double t = s * h;
     const Eigen::MatrixXd j1 = jac(t), j2 = jac(t + 0.5 * h), j4 = jac(t + h);
-    const Eigen::MatrixXd k1 = j1 * p, k2 = j2 * (p + 0.5 * h * k1), k3 = j2 * (p + 0.5 * h * k2), k4 = j4 * (p + h * k3);
+    const Eigen::MatrixXd k1 = j1 * p, k2 = j2 * (p + 0.5 * h * k1), k3 = j2 * (p + 0.5 * h * k2),
+                          k4 = j4 * (p + h * k3);
     p += (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
   }
 }
@@ -228,7 +236,8 @@ Eigen::MatrixXd HarmonicBalance::Monodromy(const Eigen::VectorXd& z, double omeg
   return phi;
 }
 
-std::vector<std::complex<double>> HarmonicBalance::Multipliers(const Eigen::VectorXd& z, double omega, int steps) const {
+std::vector<std::complex<double>> HarmonicBalance::Multipliers(const Eigen::VectorXd& z, double omega,
+                                                               int steps) const {
   const Eigen::VectorXcd mu = Eigen::EigenSolver<Eigen::MatrixXd>(Monodromy(z, omega, steps), false).eigenvalues();
   std::vector<std::complex<double>> out(mu.data(), mu.data() + mu.size());
   std::stable_sort(out.begin(), out.end(), [](auto a, auto b) { return std::abs(a) > std::abs(b); });
@@ -266,9 +275,12 @@ OrbitWell WellOf(const HbmPoint& p) {
 
 const char* OrbitWellName(OrbitWell w) {
   switch (w) {
-    case OrbitWell::kPlus: return "+well";
-    case OrbitWell::kMinus: return "-well";
-    case OrbitWell::kInterwell: return "interwell";
+    case OrbitWell::kPlus:
+      return "+well";
+    case OrbitWell::kMinus:
+      return "-well";
+    case OrbitWell::kInterwell:
+      return "interwell";
   }
   return "interwell";
 }
@@ -330,7 +342,8 @@ class Arclength {
  public:
   Arclength(const HarmonicBalance& hb, const HbmOptions& o) : hb_(hb), o_(o), n_(hb.size()) {}
   std::pair<double, double> OmAl(double p) const {
-    return o_.param == ContinuationParam::kOmega ? std::pair<double, double>{p, o_.alpha} : std::pair<double, double>{o_.omega, p};
+    return o_.param == ContinuationParam::kOmega ? std::pair<double, double>{p, o_.alpha}
+                                                 : std::pair<double, double>{o_.omega, p};
   }
   // R and [∂R/∂z, ∂R/∂p] at u = (z, p).
   void Full(const Eigen::VectorXd& zz, double p, Eigen::VectorXd* g, Eigen::MatrixXd* a) const {
@@ -424,9 +437,10 @@ int ComplexOutside(const std::vector<std::complex<double>>& mu) {
 // Bisection on the step: corrected points at σ ∈ (0, ds) along the step's predictor, keeping the
 // sub-interval where `test` changes sign (test(σ = 0) has sign s0), until the parameter is bracketed
 // to 1e-10 (or 60 halvings). `critical` picks the multiplier reported. Invalid when a corrector fails.
-HbmLocated Locate(const HarmonicBalance& hb, const HbmOptions& o, const Arclength& al, const ArcStep& st, double s0,
-                  const std::function<double(const Eigen::VectorXd& v, const std::vector<std::complex<double>>& mu)>& test,
-                  const std::function<std::complex<double>(const std::vector<std::complex<double>>&)>& critical) {
+HbmLocated Locate(
+    const HarmonicBalance& hb, const HbmOptions& o, const Arclength& al, const ArcStep& st, double s0,
+    const std::function<double(const Eigen::VectorXd& v, const std::vector<std::complex<double>>& mu)>& test,
+    const std::function<std::complex<double>(const std::vector<std::complex<double>>&)>& critical) {
   const int n = al.n();
   double lo = 0, hi = st.ds;
   Eigen::VectorXd v_lo = st.u, v_hi;
@@ -438,8 +452,10 @@ HbmLocated Locate(const HarmonicBalance& hb, const HbmOptions& o, const Arclengt
     if (al.Correct(st.u + mid * st.t, st.t, &v) < 0) return {};
     auto [om, alpha] = al.OmAl(v[n]);
     const double f = test(v, hb.Multipliers(v.head(n), om, o.floquet_steps));
-    if ((f > 0) == (s0 > 0)) lo = mid, v_lo = v;
-    else hi = mid, v_hi = v;
+    if ((f > 0) == (s0 > 0))
+      lo = mid, v_lo = v;
+    else
+      hi = mid, v_hi = v;
   }
   const Eigen::VectorXd v = 0.5 * (v_lo + v_hi);
   HbmLocated out;
@@ -499,19 +515,22 @@ HbmBranch Continue(const HarmonicBalance& hb, const HbmOptions& o, Eigen::Vector
       pt.fold = (t[n] > 0) != (prev_tp > 0);
       pt.branch_point = !pt.fold && det_sign != prev_det_sign;
       if (pt.fold)
-        pt.fold_at = Locate(hb, o, al, step, prev_tp,
-                            [&](const Eigen::VectorXd& v, const auto&) { return al.Tangent(v, step.t, nullptr)[n]; },
-                            [](const auto& mu) { return NearestTo(mu, 1.0); });
+        pt.fold_at = Locate(
+            hb, o, al, step, prev_tp,
+            [&](const Eigen::VectorXd& v, const auto&) { return al.Tangent(v, step.t, nullptr)[n]; },
+            [](const auto& mu) { return NearestTo(mu, 1.0); });
       if ((pd > 0) != (prev_pd > 0)) {
         pt.period_doubling = true;
-        pt.period_doubling_at = Locate(hb, o, al, step, prev_pd, [](const auto&, const auto& mu) { return PeriodDoublingTest(mu); },
-                                       [](const auto& mu) { return NearestTo(mu, -1.0); });
+        pt.period_doubling_at = Locate(
+            hb, o, al, step, prev_pd, [](const auto&, const auto& mu) { return PeriodDoublingTest(mu); },
+            [](const auto& mu) { return NearestTo(mu, -1.0); });
       }
       if (ns_count != prev_ns_count) {
         pt.neimark_sacker = true;
         if ((ns > 0) != (prev_ns > 0))
-          pt.neimark_sacker_at = Locate(hb, o, al, step, prev_ns, [](const auto&, const auto& mu) { return NeimarkSackerTest(mu); },
-                                        NearestToCircle);
+          pt.neimark_sacker_at = Locate(
+              hb, o, al, step, prev_ns, [](const auto&, const auto& mu) { return NeimarkSackerTest(mu); },
+              NearestToCircle);
       }
     }
     prev_tp = t[n];
@@ -597,7 +616,8 @@ bool SwitchAtPeriodDoubling(const HarmonicBalance& hb, const HbmOptions& o, cons
     HbmBranch b = Continue(hb2, o2, v.head(n2), p, p >= p_pd ? 1.0 : -1.0);
     out->period = o2.subharmonic;
     out->start = "period-doubling at " + std::string(o.param == ContinuationParam::kOmega ? "Omega = " : "alpha = ") +
-                 FormatNumber(p_pd) + " (period " + std::to_string(hb.subharmonic()) + " -> " + std::to_string(o2.subharmonic) + ")";
+                 FormatNumber(p_pd) + " (period " + std::to_string(hb.subharmonic()) + " -> " +
+                 std::to_string(o2.subharmonic) + ")";
     out->points.clear();
     out->points.push_back(hb2.Describe(z_pd, pd.omega, pd.alpha, o.floquet_steps));
     for (HbmPoint& q : b.points) out->points.push_back(std::move(q));
@@ -610,13 +630,14 @@ bool SwitchAtPeriodDoubling(const HarmonicBalance& hb, const HbmOptions& o, cons
 void MoveFlags(HbmPoint* from, HbmPoint* to) {
   const HbmPoint none;
   const HbmPoint& f = from ? *from : none;
-  to->fold = f.fold, to->branch_point = f.branch_point, to->period_doubling = f.period_doubling, to->neimark_sacker = f.neimark_sacker;
+  to->fold = f.fold, to->branch_point = f.branch_point, to->period_doubling = f.period_doubling,
+  to->neimark_sacker = f.neimark_sacker;
   to->fold_at = f.fold_at, to->period_doubling_at = f.period_doubling_at, to->neimark_sacker_at = f.neimark_sacker_at;
 }
 
 // Steady state of a time integration at (Ω, α) from x0, sampled over one period, as coefficients.
-bool SeedFromTime(const HarmonicBalance& hb, const HbmOptions& o, double omega, double alpha, const std::array<double, 4>& x0,
-                  Eigen::VectorXd* z) {
+bool SeedFromTime(const HarmonicBalance& hb, const HbmOptions& o, double omega, double alpha,
+                  const std::array<double, 4>& x0, Eigen::VectorXd* z) {
   PointSpec s;
   s.model = o.model;
   s.params = o.params;
@@ -637,12 +658,14 @@ bool SeedFromTime(const HarmonicBalance& hb, const HbmOptions& o, double omega, 
     typename NondimSystem<Model>::State x;
     for (int d = 0; d < Model::kDim; ++d) x[d] = x0[d];
     Dopri5<NondimSystem<Model>> dp(sys, ao);
-    if (dp.Integrate(0.0, x, t_settle, [](const Dopri5<NondimSystem<Model>>&) { ThrowIfCancelled(); }) != OdeTermination::kOk)
+    if (dp.Integrate(0.0, x, t_settle, [](const Dopri5<NondimSystem<Model>>&) { ThrowIfCancelled(); }) !=
+        OdeTermination::kOk)
       return false;
     for (int k = 0; k < m; ++k) {
       ThrowIfCancelled();
       Dopri5<NondimSystem<Model>> step(sys, ao);
-      if (k > 0 && step.Integrate(t_settle + (k - 1) * orbit / m, x, t_settle + k * orbit / m) != OdeTermination::kOk) return false;
+      if (k > 0 && step.Integrate(t_settle + (k - 1) * orbit / m, x, t_settle + k * orbit / m) != OdeTermination::kOk)
+        return false;
       for (int i = 0; i < hb.dofs(); ++i) samples[i][k] = x[2 * i];
     }
     return true;
@@ -723,7 +746,8 @@ StatusOr<HbmResult> ContinueBranchesOrUnwind(const HbmOptions& o) {
       for (const HbmBranch& b : result.branches)
         if (b.period == 2 * nu)
           for (const HbmPoint& q : b.points)
-            known |= std::fabs(ParamOf(o, q.omega, q.alpha) - p) <= o.ds_max && (q.z - zd).norm() <= 0.05 * (1.0 + zd.norm());
+            known |= std::fabs(ParamOf(o, q.omega, q.alpha) - p) <= o.ds_max &&
+                     (q.z - zd).norm() <= 0.05 * (1.0 + zd.norm());
       if (known) continue;
       if (switched >= limits::kMaxHbmSwitchedBranches) break;
       HbmBranch doubled;
@@ -755,7 +779,8 @@ StatusOr<HbmResult> ContinueBranchesOrUnwind(const HbmOptions& o) {
       if (hb2.Solve(&z2, p.omega, p.alpha) < 0) continue;
       double amp2 = 0;
       for (double v : hb2.MainSamples(z2, 256 * b.period)) amp2 = std::max(amp2, std::fabs(v));
-      result.truncation_change = std::max(result.truncation_change, std::fabs(amp2 - p.amplitude) / std::max(p.amplitude, 1e-12));
+      result.truncation_change =
+          std::max(result.truncation_change, std::fabs(amp2 - p.amplitude) / std::max(p.amplitude, 1e-12));
     }
   }
   (void)ParamOf;
@@ -781,9 +806,12 @@ Status ValidateFoldCurveOptions(const FoldCurveOptions& f) {
   BISTABLE_RETURN_IF_ERROR(CheckPositive("alpha_range", f.alpha_hi));
   BISTABLE_RETURN_IF_ERROR(CheckPositive("omega_range", f.omega_lo));
   BISTABLE_RETURN_IF_ERROR(CheckPositive("omega_range", f.omega_hi));
-  if (!(f.alpha_lo < f.alpha_hi)) return Violates("alpha_range", f.alpha_hi, "> its low end " + FormatNumber(f.alpha_lo));
-  if (!(f.omega_lo < f.omega_hi)) return Violates("omega_range", f.omega_hi, "> its low end " + FormatNumber(f.omega_lo));
-  if (!(f.ds > 0 && f.ds_min > 0 && f.ds_max >= f.ds && f.ds >= f.ds_min)) return Violates("ds", f.ds, "in [ds_min, ds_max]");
+  if (!(f.alpha_lo < f.alpha_hi))
+    return Violates("alpha_range", f.alpha_hi, "> its low end " + FormatNumber(f.alpha_lo));
+  if (!(f.omega_lo < f.omega_hi))
+    return Violates("omega_range", f.omega_hi, "> its low end " + FormatNumber(f.omega_lo));
+  if (!(f.ds > 0 && f.ds_min > 0 && f.ds_max >= f.ds && f.ds >= f.ds_min))
+    return Violates("ds", f.ds, "in [ds_min, ds_max]");
   if (f.max_points < 2 || f.max_points > 100000) return Violates("max_points", f.max_points, "in [2, 100000]");
   return Status::Ok();
 }
@@ -856,7 +884,8 @@ class FoldSystem {
       res.head(n_ + 1) = f;
       res[n_ + 1] = e.dot(*u) - target;
       if (!res.allFinite()) return -1;
-      if (f.head(n_).cwiseAbs().maxCoeff() < o_.newton_tol && std::fabs(f[n_]) < 1e-9 && std::fabs(res[n_ + 1]) < 1e-12) return it;
+      if (f.head(n_).cwiseAbs().maxCoeff() < o_.newton_tol && std::fabs(f[n_]) < 1e-9 && std::fabs(res[n_ + 1]) < 1e-12)
+        return it;
       Eigen::MatrixXd m(n_ + 2, n_ + 2);
       m.topRows(n_ + 1) = a;
       m.row(n_ + 1) = e.transpose();
@@ -915,8 +944,8 @@ FoldCurvePoint FoldPointOf(const HarmonicBalance& hb, const Eigen::VectorXd& u) 
 }
 
 // One direction of the fold curve from the converged fold point u with tangent t0.
-FoldCurve FoldHalf(const HarmonicBalance& hb, const FoldCurveOptions& f, FoldSystem sys,
-                   Eigen::VectorXd u, Eigen::VectorXd t) {
+FoldCurve FoldHalf(const HarmonicBalance& hb, const FoldCurveOptions& f, FoldSystem sys, Eigen::VectorXd u,
+                   Eigen::VectorXd t) {
   FoldCurve c;
   const int n = hb.size();
   const Eigen::VectorXd u0 = u;
@@ -958,8 +987,8 @@ FoldCurve FoldHalf(const HarmonicBalance& hb, const FoldCurveOptions& f, FoldSys
 
 }  // namespace
 
-StatusOr<FoldCurve> ContinueFoldCurve(const HbmOptions& o, const FoldCurveOptions& f, const Eigen::VectorXd& z, double omega,
-                                      double alpha) {
+StatusOr<FoldCurve> ContinueFoldCurve(const HbmOptions& o, const FoldCurveOptions& f, const Eigen::VectorXd& z,
+                                      double omega, double alpha) {
   BISTABLE_RETURN_IF_ERROR(ValidateHbmOptions(o));
   BISTABLE_RETURN_IF_ERROR(ValidateFoldCurveOptions(f));
   try {
@@ -978,9 +1007,13 @@ StatusOr<FoldCurve> ContinueFoldCurve(const HbmOptions& o, const FoldCurveOption
       ok = sys.Correct(&u, e_alpha, alpha) >= 0;
       sys.MoveBorders(u);
     }
-    if (!ok) return Status::FailedPrecondition("no fold converged near Omega = " + FormatNumber(omega) + ", alpha = " + FormatNumber(alpha));
+    if (!ok)
+      return Status::FailedPrecondition("no fold converged near Omega = " + FormatNumber(omega) +
+                                        ", alpha = " + FormatNumber(alpha));
     ok = sys.Correct(&u, e_alpha, alpha) >= 0;  // once more with the borders at the fold
-    if (!ok) return Status::FailedPrecondition("no fold converged near Omega = " + FormatNumber(omega) + ", alpha = " + FormatNumber(alpha));
+    if (!ok)
+      return Status::FailedPrecondition("no fold converged near Omega = " + FormatNumber(omega) +
+                                        ", alpha = " + FormatNumber(alpha));
     Eigen::VectorXd t = sys.Kernel(u);
     t.normalize();
     if (t[n + 1] < 0) t = -t;
@@ -1002,7 +1035,8 @@ StatusOr<FoldCurve> ContinueFoldCurve(const HbmOptions& o, const FoldCurveOption
   }
 }
 
-StatusOr<std::vector<FoldCurve>> ContinueFoldCurves(const HbmOptions& o, const FoldCurveOptions& f, const HbmResult& r) {
+StatusOr<std::vector<FoldCurve>> ContinueFoldCurves(const HbmOptions& o, const FoldCurveOptions& f,
+                                                    const HbmResult& r) {
   BISTABLE_RETURN_IF_ERROR(ValidateHbmOptions(o));
   BISTABLE_RETURN_IF_ERROR(ValidateFoldCurveOptions(f));
   std::vector<FoldCurve> curves;
@@ -1044,7 +1078,8 @@ std::vector<double> Eq9Amplitudes(ModelKind model, const NondimParams& p, double
   const C i(0.0, 1.0), f = -i * alpha * omega * omega;
   C b = k_lin - omega * omega + i * p.eta * omega, e = f;
   if (HasResonator(model)) {
-    const C c = p.lambda * p.lambda + i * p.eta_r * omega, d = p.lambda * p.lambda - omega * omega + i * p.eta_r * omega;
+    const C c = p.lambda * p.lambda + i * p.eta_r * omega,
+            d = p.lambda * p.lambda - omega * omega + i * p.eta_r * omega;
     b -= p.phi * c * omega * omega / d;
     e *= 1.0 + p.phi * c / d;
   }

@@ -19,8 +19,8 @@
 
 #include <Eigen/Dense>
 
-#include "dynamics/point_spec.h"
 #include "base/status.h"
+#include "dynamics/point_spec.h"
 
 namespace bistable {
 
@@ -29,49 +29,50 @@ enum class ContinuationParam { kOmega, kAlpha };
 struct HbmOptions {
   ModelKind model = ModelKind::kStandalone;  // standalone | coupled | linear | linear-coupled
   NondimParams params;
-  double alpha = 0.5, omega = 1.0;           // the parameter not continued stays fixed
-  int harmonics = 5;                         // H
-  bool zero_mean = false;                    // drop the constant terms (the paper's Eq. 9 ansatz)
+  double alpha = 0.5, omega = 1.0;  // the parameter not continued stays fixed
+  int harmonics = 5;                // H
+  bool zero_mean = false;           // drop the constant terms (the paper's Eq. 9 ansatz)
   ContinuationParam param = ContinuationParam::kOmega;
-  double from = 0.1, to = 3.0;               // continuation range of the parameter
+  double from = 0.1, to = 3.0;                    // continuation range of the parameter
   double ds = 0.02, ds_min = 1e-5, ds_max = 0.1;  // arclength step and its bounds
-  int max_points = 4000;                     // per branch
-  double newton_tol = 1e-10;                 // on the residual's max norm
+  int max_points = 4000;                          // per branch
+  double newton_tol = 1e-10;                      // on the residual's max norm
   int newton_max_iter = 20;
-  int floquet_steps = 400;                   // RK4 steps per forcing period for the monodromy matrix
+  int floquet_steps = 400;  // RK4 steps per forcing period for the monodromy matrix
   // Period doubling: at every period-doubling point of a branch of period ν < 2^switch_depth, switch onto
   // the period-2ν branch (harmonics of Ω/2ν, 2H of them, at most 50) and continue it. 0: flag only.
   int switch_depth = 0;
-  int subharmonic = 1;                       // ν: harmonics of Ω/ν (the forcing is harmonic ν); set by switching
+  int subharmonic = 1;  // ν: harmonics of Ω/ν (the forcing is harmonic ν); set by switching
 };
 
 // A bifurcation located on the arclength step that ends at the flagged point (bisection on the step's
 // corrected points until the parameter is bracketed to 1e-10).
 struct HbmLocated {
   double omega = NAN, alpha = NAN;
-  double amplitude = NAN;            // max |y_m| of the orbit there
-  std::complex<double> multiplier;   // the critical multiplier there (≈ −1 at a period doubling, e^{±iθ} at Neimark–Sacker)
-  Eigen::VectorXd z;                 // the orbit there
+  double amplitude = NAN;  // max |y_m| of the orbit there
+  std::complex<double>
+      multiplier;     // the critical multiplier there (≈ −1 at a period doubling, e^{±iθ} at Neimark–Sacker)
+  Eigen::VectorXd z;  // the orbit there
   bool valid() const { return std::isfinite(omega) && std::isfinite(alpha); }
 };
 
 struct HbmPoint {
   double omega = 0, alpha = 0;
-  double amplitude = 0;        // max |y_m| over a period
-  double mean = 0;             // constant term of y_m
-  double y_min = 0, y_max = 0; // extremes of y_m over a period
-  bool stable = false;         // all Floquet multipliers inside the unit circle
-  double max_multiplier = 0;   // largest |μ|
+  double amplitude = 0;                           // max |y_m| over a period
+  double mean = 0;                                // constant term of y_m
+  double y_min = 0, y_max = 0;                    // extremes of y_m over a period
+  bool stable = false;                            // all Floquet multipliers inside the unit circle
+  double max_multiplier = 0;                      // largest |μ|
   std::vector<std::complex<double>> multipliers;  // all Floquet multipliers over the orbit's period, largest |μ| first
-  int period = 1;              // forcing periods per orbit: ν (2 on a branch switched onto at a period doubling)
+  int period = 1;  // forcing periods per orbit: ν (2 on a branch switched onto at a period doubling)
   bool converged = true;
-  bool fold = false;           // the parameter turns here (saddle-node)
-  bool branch_point = false;   // the augmented Jacobian's determinant changes sign without a fold
+  bool fold = false;             // the parameter turns here (saddle-node)
+  bool branch_point = false;     // the augmented Jacobian's determinant changes sign without a fold
   bool period_doubling = false;  // a real multiplier passed through −1 on the step ending here
   bool neimark_sacker = false;   // a complex pair passed through the unit circle on the step ending here
   HbmLocated fold_at, period_doubling_at, neimark_sacker_at;  // located on that step (valid() when flagged)
-  std::vector<double> harmonics;  // y_m: c0, a1, b1, ..., aH, bH (harmonics of Ω/ν)
-  Eigen::VectorXd z;           // all coefficients (DOF-major)
+  std::vector<double> harmonics;                              // y_m: c0, a1, b1, ..., aH, bH (harmonics of Ω/ν)
+  Eigen::VectorXd z;                                          // all coefficients (DOF-major)
 };
 
 // Where a periodic orbit of a bistable cell lives, by the rule of the maps' motion metric
@@ -83,8 +84,8 @@ const char* OrbitWellName(OrbitWell w);  // "+well", "-well", "interwell"
 
 struct HbmBranch {
   std::vector<HbmPoint> points;
-  std::string start;           // how the branch was seeded ("period-doubling at alpha = ..." for switched ones)
-  int period = 1;              // ν of its points
+  std::string start;  // how the branch was seeded ("period-doubling at alpha = ..." for switched ones)
+  int period = 1;     // ν of its points
 };
 
 struct HbmResult {
@@ -132,7 +133,8 @@ class HarmonicBalance {
   // eigenvector of the multiplier nearest −1, continued anti-periodically over two periods, as
   // coefficients of the doubled balance (ν' = 2ν, H' harmonics; odd harmonics only), unit norm.
   // *mu: that multiplier. Empty when the monodromy has no real negative multiplier.
-  Eigen::VectorXd DoublingDirection(const Eigen::VectorXd& z, double omega, int steps, int h_new, std::complex<double>* mu) const;
+  Eigen::VectorXd DoublingDirection(const Eigen::VectorXd& z, double omega, int steps, int h_new,
+                                    std::complex<double>* mu) const;
   int subharmonic() const { return nu_; }
   int harmonics() const { return h_; }
 
@@ -164,13 +166,13 @@ struct FoldCurvePoint {
 };
 struct FoldCurve {
   std::vector<FoldCurvePoint> points;
-  std::string start;   // the fold it was started from
+  std::string start;      // the fold it was started from
   bool converged = true;  // false when the corrector failed before the curve left the box
 };
 Status ValidateFoldCurveOptions(const FoldCurveOptions& f);
 // One fold curve through the fold at (z, Ω, α) (a point near it: the first corrector finds it at this α).
-StatusOr<FoldCurve> ContinueFoldCurve(const HbmOptions& o, const FoldCurveOptions& f, const Eigen::VectorXd& z, double omega,
-                                      double alpha);
+StatusOr<FoldCurve> ContinueFoldCurve(const HbmOptions& o, const FoldCurveOptions& f, const Eigen::VectorXd& z,
+                                      double omega, double alpha);
 // Fold curves through the located folds of the period-1 branches of r (continued with o), one per
 // distinct curve: a fold already on a computed curve, or the mirror image (y → −y) of one, is skipped.
 StatusOr<std::vector<FoldCurve>> ContinueFoldCurves(const HbmOptions& o, const FoldCurveOptions& f, const HbmResult& r);

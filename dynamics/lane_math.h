@@ -60,15 +60,15 @@ BISTABLE_INLINE Vec<W> Horner(Vec<W> x, const double (&c)[N]) {
 }
 
 // (e^r − 1)/r on |r| ≤ ln 2 / 2, lowest degree first.
-inline constexpr double kExpP[11] = {
-    0x1.0000000000000p+0,  0x1.0000000000005p-1,  0x1.5555555555557p-3,  0x1.5555555552043p-5,
-    0x1.11111111100bep-7,  0x1.6c16c17f6130bp-10, 0x1.a01a01abf85abp-13, 0x1.a019a60cd99d3p-16,
-    0x1.71de01fdbf9cap-19, 0x1.28a321f9f0475p-22, 0x1.af4e554377204p-26};
+inline constexpr double kExpP[11] = {0x1.0000000000000p+0,  0x1.0000000000005p-1,  0x1.5555555555557p-3,
+                                     0x1.5555555552043p-5,  0x1.11111111100bep-7,  0x1.6c16c17f6130bp-10,
+                                     0x1.a01a01abf85abp-13, 0x1.a019a60cd99d3p-16, 0x1.71de01fdbf9cap-19,
+                                     0x1.28a321f9f0475p-22, 0x1.af4e554377204p-26};
 // (tanh t − t)/t³ as a polynomial in s = t², 0 ≤ s ≤ 0.55², lowest degree first.
-inline constexpr double kTanhT[11] = {
-    -0x1.5555555555555p-2, 0x1.1111111111032p-3,  -0x1.ba1ba1b9fec84p-5, 0x1.664f487713373p-6,
-    -0x1.226e32f00cf0cp-7, 0x1.d6d339333f329p-9,  -0x1.7d97cfd138c28p-10, 0x1.34c5a8a996cd4p-11,
-    -0x1.ec1091436eb2ap-13, 0x1.64fd88e9900a5p-14, -0x1.59a834187ce22p-16};
+inline constexpr double kTanhT[11] = {-0x1.5555555555555p-2,  0x1.1111111111032p-3,  -0x1.ba1ba1b9fec84p-5,
+                                      0x1.664f487713373p-6,   -0x1.226e32f00cf0cp-7, 0x1.d6d339333f329p-9,
+                                      -0x1.7d97cfd138c28p-10, 0x1.34c5a8a996cd4p-11, -0x1.ec1091436eb2ap-13,
+                                      0x1.64fd88e9900a5p-14,  -0x1.59a834187ce22p-16};
 inline constexpr double kTanhSmall = 0.55;
 
 }  // namespace lane_math
@@ -132,7 +132,7 @@ template <int W>
 BISTABLE_INLINE Vec<W> Exp(Vec<W> x) {
   using namespace lane_math;
   x = Max<W>(Splat<W>(-746.0), Min<W>(Splat<W>(710.0), x));  // NaN stays NaN (MINPD/MAXPD order)
-  Vec<W> n;  // −1076 … 1025
+  Vec<W> n;                                                  // −1076 … 1025
   Bits<W> ni;
   const Vec<W> r = Reduce<W>(x, &n, &ni);
   return ScaleByPow2<W>(Fma(r, ExpP<W>(r), Splat<W>(1.0)), n, ni);

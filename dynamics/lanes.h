@@ -60,7 +60,8 @@ BISTABLE_INLINE T MapChunks(Op op, const T& a, const Ts&... more) {
 // has the unit), op1 doubles; all three must compute exactly the same thing. A target without the unit
 // leaves op512 (or op256) unused.
 template <class Op512, class Op256, class Op1, class T, class... Ts>
-BISTABLE_INLINE T LaneOp([[maybe_unused]] Op512 op512, [[maybe_unused]] Op256 op256, Op1 op1, const T& a, const Ts&... more) {
+BISTABLE_INLINE T LaneOp([[maybe_unused]] Op512 op512, [[maybe_unused]] Op256 op256, Op1 op1, const T& a,
+                         const Ts&... more) {
   constexpr int n = static_cast<int>(sizeof(T) / sizeof(double));
 #if defined(__AVX512F__)
   if constexpr (n % 8 == 0) return MapChunks<__m512d>(op512, a, more...);
@@ -174,12 +175,12 @@ BISTABLE_INLINE Vec<W> Abs(Vec<W> a) {
 // a < b ? x : y per lane (false for NaN): one compare into a mask and a blend per chunk.
 template <int W>
 BISTABLE_INLINE Vec<W> SelectLess(Vec<W> a, Vec<W> b, Vec<W> x, Vec<W> y) {
-  return LaneOp(
-      [](auto a, auto b, auto x, auto y)
-          BISTABLE_INLINE_LAMBDA { return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(a, b, _CMP_LT_OQ), y, x); },
-      [](auto a, auto b, auto x, auto y)
-          BISTABLE_INLINE_LAMBDA { return _mm256_blendv_pd(y, x, _mm256_cmp_pd(a, b, _CMP_LT_OQ)); },
-      [](double a, double b, double x, double y) BISTABLE_INLINE_LAMBDA { return a < b ? x : y; }, a, b, x, y);
+  return LaneOp([](auto a, auto b, auto x, auto y)
+                    BISTABLE_INLINE_LAMBDA { return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(a, b, _CMP_LT_OQ), y, x); },
+                [](auto a, auto b, auto x, auto y)
+                    BISTABLE_INLINE_LAMBDA { return _mm256_blendv_pd(y, x, _mm256_cmp_pd(a, b, _CMP_LT_OQ)); },
+                [](double a, double b, double x, double y) BISTABLE_INLINE_LAMBDA { return a < b ? x : y; }, a, b, x,
+                y);
 }
 
 // Scalar overloads so that models written for T = Vec<W> also compile for T = double.
@@ -188,8 +189,10 @@ inline double Min(double a, double b) { return a < b ? a : b; }
 // |a| for T = double or a lane pack (the lane width from the type).
 template <class T>
 BISTABLE_INLINE T AbsOf(T a) {
-  if constexpr (std::is_floating_point_v<T>) return __builtin_fabs(a);
-  else return Abs<static_cast<int>(sizeof(T) / sizeof(double))>(a);
+  if constexpr (std::is_floating_point_v<T>)
+    return __builtin_fabs(a);
+  else
+    return Abs<static_cast<int>(sizeof(T) / sizeof(double))>(a);
 }
 
 }  // namespace bistable

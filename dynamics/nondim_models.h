@@ -51,17 +51,29 @@ struct SingleModel {
     dw[1] = Fma(j10, w[0], -c.eta * w[1]);
   }
   template <class T>
-  BISTABLE_INLINE static T Power(const CellCoeffs<T>&, const T* x, T f) { return f * x[1]; }
+  BISTABLE_INLINE static T Power(const CellCoeffs<T>&, const T* x, T f) {
+    return f * x[1];
+  }
   template <class T>
-  BISTABLE_INLINE static T DissMain(const CellCoeffs<T>& c, const T* x) { return c.eta * (x[1] * x[1]); }
+  BISTABLE_INLINE static T DissMain(const CellCoeffs<T>& c, const T* x) {
+    return c.eta * (x[1] * x[1]);
+  }
   template <class T>
-  BISTABLE_INLINE static T DissRes(const CellCoeffs<T>&, const T* x) { return 0.0 * x[0]; }
+  BISTABLE_INLINE static T DissRes(const CellCoeffs<T>&, const T* x) {
+    return 0.0 * x[0];
+  }
   template <class T>
-  static T PowerRate(const CellCoeffs<T>&, const T* x, const T* dx, T f, T fdot) { return fdot * x[1] + f * dx[1]; }
+  static T PowerRate(const CellCoeffs<T>&, const T* x, const T* dx, T f, T fdot) {
+    return fdot * x[1] + f * dx[1];
+  }
   template <class T>
-  static T DissMainRate(const CellCoeffs<T>& c, const T* x, const T* dx) { return 2.0 * c.eta * (x[1] * dx[1]); }
+  static T DissMainRate(const CellCoeffs<T>& c, const T* x, const T* dx) {
+    return 2.0 * c.eta * (x[1] * dx[1]);
+  }
   template <class T>
-  static T DissResRate(const CellCoeffs<T>&, const T* x, const T*) { return 0.0 * x[0]; }
+  static T DissResRate(const CellCoeffs<T>&, const T* x, const T*) {
+    return 0.0 * x[0];
+  }
   template <class T>
   BISTABLE_INLINE static T Energy(const CellCoeffs<T>& c, const T* x) {
     const T y = x[0], v = x[1], y2 = y * y;
@@ -95,9 +107,13 @@ struct CoupledModel {
     dw[3] = coupling;
   }
   template <class T>
-  BISTABLE_INLINE static T Power(const CellCoeffs<T>& c, const T* x, T f) { return f * Fma(c.phi, x[3], x[1]); }
+  BISTABLE_INLINE static T Power(const CellCoeffs<T>& c, const T* x, T f) {
+    return f * Fma(c.phi, x[3], x[1]);
+  }
   template <class T>
-  BISTABLE_INLINE static T DissMain(const CellCoeffs<T>& c, const T* x) { return c.eta * (x[1] * x[1]); }
+  BISTABLE_INLINE static T DissMain(const CellCoeffs<T>& c, const T* x) {
+    return c.eta * (x[1] * x[1]);
+  }
   template <class T>
   BISTABLE_INLINE static T DissRes(const CellCoeffs<T>& c, const T* x) {
     const T dv = x[1] - x[3];
@@ -108,7 +124,9 @@ struct CoupledModel {
     return fdot * Fma(c.phi, x[3], x[1]) + f * Fma(c.phi, dx[3], dx[1]);
   }
   template <class T>
-  static T DissMainRate(const CellCoeffs<T>& c, const T* x, const T* dx) { return 2.0 * c.eta * (x[1] * dx[1]); }
+  static T DissMainRate(const CellCoeffs<T>& c, const T* x, const T* dx) {
+    return 2.0 * c.eta * (x[1] * dx[1]);
+  }
   template <class T>
   static T DissResRate(const CellCoeffs<T>& c, const T* x, const T* dx) {
     return 2.0 * c.phi * c.eta_r * ((x[1] - x[3]) * (dx[1] - dx[3]));

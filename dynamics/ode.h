@@ -24,9 +24,9 @@ const char* OdeTerminationName(OdeTermination t);
 struct AdaptiveOptions {
   double rtol = 1e-6;
   double atol = 1e-9;
-  double h0 = 0;           // initial step; 0 picks one from the problem
-  double h_max = 0;        // 0 = unlimited
-  double h_min = 1e-14;    // relative to |t|+1; below this the run ends with kStepSizeUnderflow
+  double h0 = 0;         // initial step; 0 picks one from the problem
+  double h_max = 0;      // 0 = unlimited
+  double h_min = 1e-14;  // relative to |t|+1; below this the run ends with kStepSizeUnderflow
   long max_steps = 50'000'000;
 };
 

@@ -33,8 +33,8 @@ RawLane RunAdaptive(const PointSpec& spec, bool* cancelled) {
   opt.atol = spec.integration.atol;
   opt.h_max = ks.h * ks.renorm_every;
   Dopri5<Aug> stepper(sys, opt);
-  WindowRecorder<D, 1> rec(&lane.alpha, &lane.omega, ks.h, ks.n_keep, ks.sample_every, ks.keep_samples,
-                           ks.keep_rows, ks.strobe_phase);
+  WindowRecorder<D, 1> rec(&lane.alpha, &lane.omega, ks.h, ks.n_keep, ks.sample_every, ks.keep_samples, ks.keep_rows,
+                           ks.strobe_phase);
   const CellCoeffs<Vec<1>> c1{{lane.coeffs.k_lin}, {lane.coeffs.eps}, {lane.coeffs.eta},
                               {lane.coeffs.eta_r}, {lane.coeffs.phi}, {lane.coeffs.lambda2}};
   RawLane raw;
@@ -148,7 +148,8 @@ double KaplanYorkeDimension(std::vector<double> e) {
 StatusOr<LyapunovSpectrum> EvaluateLyapunovSpectrum(const PointSpec& spec) {
   BISTABLE_RETURN_IF_ERROR(ValidatePointSpec(spec));
   if (spec.integration.integrator != IntegratorKind::kRk4)
-    return Status::InvalidArgument("integrator", std::string("integrator = '") + IntegratorName(spec.integration.integrator) +
+    return Status::InvalidArgument("integrator", std::string("integrator = '") +
+                                                     IntegratorName(spec.integration.integrator) +
                                                      "' violates the Lyapunov spectrum's integrator = 'rk4'");
   const LaneInput lane = LaneFor(spec);
   const KernelSettings ks = KernelSettingsFor(spec);
@@ -181,8 +182,9 @@ StatusOr<PointResult> EvaluatePoint(const PointSpec& spec) {
     return r;
   }
   if (spec.integration.integrator == IntegratorKind::kRosenbrock)
-    return Status::InvalidArgument("integrator", "integrator = 'rosenbrock' is for the rig's maps (model = 'dimensional'); "
-                                                 "points of the cell models use 'rk4' or 'adaptive'");
+    return Status::InvalidArgument("integrator",
+                                   "integrator = 'rosenbrock' is for the rig's maps (model = 'dimensional'); "
+                                   "points of the cell models use 'rk4' or 'adaptive'");
   RawLane raw;
   bool cancelled = false;
   if (spec.integration.integrator == IntegratorKind::kRk4) {

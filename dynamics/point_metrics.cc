@@ -37,7 +37,8 @@ int DetectPeriod(const std::vector<double>& y, const std::vector<double>& v, int
                  const Spectrum& sp, const std::vector<double>& ys, double dts, double omega) {
   const int n = StrobeRecurrence(y, v, max_period, tol);
   if (n <= 1) return n;
-  const bool genuine = SubharmonicFraction(sp, omega, n) >= kMinSubharmonicFraction && SubharmonicPersists(ys, dts, omega, n);
+  const bool genuine =
+      SubharmonicFraction(sp, omega, n) >= kMinSubharmonicFraction && SubharmonicPersists(ys, dts, omega, n);
   return genuine ? n : 0;
 }
 
@@ -59,7 +60,6 @@ int StrobeRecurrence(const std::vector<double>& y, const std::vector<double>& v,
 double SampleStep(const PointSpec& spec) { return spec.integration.dt * spec.metrics.sample_every; }
 
 namespace {
-
 
 // Every metric of one lane given its response spectrum (unused when the lane diverged).
 PointResult MetricsWithSpectrum(RawLane raw, const PointSpec& spec, const Spectrum& sp) {
@@ -102,7 +102,8 @@ PointResult MetricsWithSpectrum(RawLane raw, const PointSpec& spec, const Spectr
   if (const size_t m = raw.strobe_y.size(); m > 0) {
     size_t best = m - 1;
     for (size_t k = m - std::min<size_t>(m, std::max(r.period, 1)); k < m; ++k)
-      if (raw.strobe_y[k] < raw.strobe_y[best] || (raw.strobe_y[k] == raw.strobe_y[best] && raw.strobe_v[k] < raw.strobe_v[best]))
+      if (raw.strobe_y[k] < raw.strobe_y[best] ||
+          (raw.strobe_y[k] == raw.strobe_y[best] && raw.strobe_v[k] < raw.strobe_v[best]))
         best = k;
     r.strobe_y = raw.strobe_y[best];
     r.strobe_v = raw.strobe_v[best];

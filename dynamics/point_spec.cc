@@ -19,12 +19,18 @@ bool IsWholeSteps(double t, double dt) {
 
 const char* ModelName(ModelKind m) {
   switch (m) {
-    case ModelKind::kStandalone: return "standalone";
-    case ModelKind::kCoupled: return "coupled";
-    case ModelKind::kLinear: return "linear";
-    case ModelKind::kLinearCoupled: return "linear-coupled";
-    case ModelKind::kSeries: return "series";
-    case ModelKind::kDimensional: return "dimensional";
+    case ModelKind::kStandalone:
+      return "standalone";
+    case ModelKind::kCoupled:
+      return "coupled";
+    case ModelKind::kLinear:
+      return "linear";
+    case ModelKind::kLinearCoupled:
+      return "linear-coupled";
+    case ModelKind::kSeries:
+      return "series";
+    case ModelKind::kDimensional:
+      return "dimensional";
   }
   return "?";
 }
@@ -42,7 +48,8 @@ StatusOr<ModelKind> ParseAnyModel(const std::string& name) {
   auto m = ParseModel(name);
   if (m.ok()) return m;
   return Status::InvalidArgument(
-      "model", "model = '" + Printable(name) + "' violates model in {standalone, coupled, linear, linear-coupled, series, dimensional}");
+      "model", "model = '" + Printable(name) +
+                   "' violates model in {standalone, coupled, linear, linear-coupled, series, dimensional}");
 }
 
 bool IsCellModel(ModelKind m) { return m != ModelKind::kSeries && m != ModelKind::kDimensional; }
@@ -52,9 +59,12 @@ bool IsBistable(ModelKind m) { return m == ModelKind::kStandalone || m == ModelK
 
 const char* IntegratorName(IntegratorKind k) {
   switch (k) {
-    case IntegratorKind::kRk4: return "rk4";
-    case IntegratorKind::kRosenbrock: return "rosenbrock";
-    default: return "adaptive";
+    case IntegratorKind::kRk4:
+      return "rk4";
+    case IntegratorKind::kRosenbrock:
+      return "rosenbrock";
+    default:
+      return "adaptive";
   }
 }
 
@@ -62,17 +72,24 @@ StatusOr<IntegratorKind> ParseIntegrator(const std::string& name) {
   if (name == "rk4") return IntegratorKind::kRk4;
   if (name == "adaptive" || name == "dopri5") return IntegratorKind::kAdaptive;
   if (name == "rosenbrock") return IntegratorKind::kRosenbrock;
-  return Status::InvalidArgument("integrator", "integrator = '" + name + "' violates integrator in {rk4, adaptive, rosenbrock}");
+  return Status::InvalidArgument("integrator",
+                                 "integrator = '" + name + "' violates integrator in {rk4, adaptive, rosenbrock}");
 }
 
 const char* MotionName(Motion m) {
   switch (m) {
-    case Motion::kIntrawell: return "intrawell";
-    case Motion::kInterwell: return "interwell";
-    case Motion::kChaotic: return "chaotic";
-    case Motion::kUndefined: return "undefined";
-    case Motion::kQuasiPeriodic: return "quasi-periodic";
-    case Motion::kUnresolved: return "unresolved";
+    case Motion::kIntrawell:
+      return "intrawell";
+    case Motion::kInterwell:
+      return "interwell";
+    case Motion::kChaotic:
+      return "chaotic";
+    case Motion::kUndefined:
+      return "undefined";
+    case Motion::kQuasiPeriodic:
+      return "quasi-periodic";
+    case Motion::kUnresolved:
+      return "unresolved";
   }
   return "?";
 }
@@ -99,10 +116,14 @@ StatusOr<LabelMode> ParseLabelMode(const std::string& name) {
 
 const char* TerminationName(Termination t) {
   switch (t) {
-    case Termination::kOk: return "ok";
-    case Termination::kDiverged: return "diverged";
-    case Termination::kStepSizeUnderflow: return "step_size_underflow";
-    case Termination::kMaxSteps: return "max_steps";
+    case Termination::kOk:
+      return "ok";
+    case Termination::kDiverged:
+      return "diverged";
+    case Termination::kStepSizeUnderflow:
+      return "step_size_underflow";
+    case Termination::kMaxSteps:
+      return "max_steps";
   }
   return "?";
 }
@@ -118,8 +139,9 @@ std::array<double, 4> InitialState(const PointSpec& spec) {
 
 Status ValidatePointSpec(const PointSpec& s) {
   if (!IsCellModel(s.model))
-    return Status::InvalidArgument("model", std::string("model = '") + ModelName(s.model) +
-                                                "' violates model in {standalone, coupled, linear, linear-coupled} (a point)");
+    return Status::InvalidArgument("model",
+                                   std::string("model = '") + ModelName(s.model) +
+                                       "' violates model in {standalone, coupled, linear, linear-coupled} (a point)");
   BISTABLE_RETURN_IF_ERROR(CheckPositive("alpha", s.alpha));
   BISTABLE_RETURN_IF_ERROR(CheckPositive("omega", s.omega));
   if (IsBistable(s.model)) BISTABLE_RETURN_IF_ERROR(CheckPositive("eps", s.params.eps));
@@ -136,12 +158,16 @@ Status ValidatePointSpec(const PointSpec& s) {
   BISTABLE_RETURN_IF_ERROR(CheckPositive("t_end", in.t_end));
   BISTABLE_RETURN_IF_ERROR(CheckNonNegative("t_keep", in.t_keep));
   if (!(in.t_keep < in.t_end)) return Violates("t_keep", in.t_keep, "< t_end = " + FormatNumber(in.t_end));
-  if (in.dt > (in.t_end - in.t_keep) / 16) return Violates("dt", in.dt, "<= (t_end - t_keep)/16 = " + FormatNumber((in.t_end - in.t_keep) / 16));
-  if (!IsWholeSteps(in.t_end, in.dt)) return Violates("t_end", in.t_end, "a whole multiple of dt = " + FormatNumber(in.dt));
-  if (!IsWholeSteps(in.t_keep, in.dt)) return Violates("t_keep", in.t_keep, "a whole multiple of dt = " + FormatNumber(in.dt));
+  if (in.dt > (in.t_end - in.t_keep) / 16)
+    return Violates("dt", in.dt, "<= (t_end - t_keep)/16 = " + FormatNumber((in.t_end - in.t_keep) / 16));
+  if (!IsWholeSteps(in.t_end, in.dt))
+    return Violates("t_end", in.t_end, "a whole multiple of dt = " + FormatNumber(in.dt));
+  if (!IsWholeSteps(in.t_keep, in.dt))
+    return Violates("t_keep", in.t_keep, "a whole multiple of dt = " + FormatNumber(in.dt));
   if (in.t_end / in.dt > limits::kMaxStepsPerPoint)
-    return Violates("t_end", in.t_end, "<= " + FormatNumber(limits::kMaxStepsPerPoint) + " dt = " +
-                                           FormatNumber(limits::kMaxStepsPerPoint * in.dt) + " (steps per point limit)");
+    return Violates("t_end", in.t_end,
+                    "<= " + FormatNumber(limits::kMaxStepsPerPoint) +
+                        " dt = " + FormatNumber(limits::kMaxStepsPerPoint * in.dt) + " (steps per point limit)");
   if (in.integrator != IntegratorKind::kRk4) {
     BISTABLE_RETURN_IF_ERROR(CheckPositive("rtol", in.rtol));
     BISTABLE_RETURN_IF_ERROR(CheckPositive("atol", in.atol));
@@ -149,7 +175,8 @@ Status ValidatePointSpec(const PointSpec& s) {
   }
 
   if (in.labels == LabelMode::kSettled) {
-    if (in.integrator != IntegratorKind::kRk4) return Status::InvalidArgument("labels", "labels = 'settled' needs integrator = 'rk4'");
+    if (in.integrator != IntegratorKind::kRk4)
+      return Status::InvalidArgument("labels", "labels = 'settled' needs integrator = 'rk4'");
     BISTABLE_RETURN_IF_ERROR(CheckPositive("settle_window", in.settle_window));
     if (!IsWholeSteps(in.settle_window, in.dt))
       return Violates("settle_window", in.settle_window, "a whole multiple of dt = " + FormatNumber(in.dt));
@@ -159,7 +186,8 @@ Status ValidatePointSpec(const PointSpec& s) {
     BISTABLE_RETURN_IF_ERROR(CheckNonNegative("settle_confirm", in.settle_confirm));
     BISTABLE_RETURN_IF_ERROR(CheckPositive("settle_cap", in.settle_cap));
     if ((in.t_keep + in.settle_cap) / in.dt > limits::kMaxStepsPerPoint)
-      return Violates("settle_cap", in.settle_cap, "<= " + FormatNumber(limits::kMaxStepsPerPoint) + " dt - t_keep (steps per point limit)");
+      return Violates("settle_cap", in.settle_cap,
+                      "<= " + FormatNumber(limits::kMaxStepsPerPoint) + " dt - t_keep (steps per point limit)");
     if (in.settle_window * s.omega / (2 * M_PI) > limits::kMaxWindowSamples)
       return Violates("omega", s.omega, "<= 2 pi " + FormatNumber(limits::kMaxWindowSamples) + " / settle_window");
   }
@@ -169,9 +197,10 @@ Status ValidatePointSpec(const PointSpec& s) {
   if (m.sample_every < 1) return Violates("sample_every", m.sample_every, ">= 1");
   // Stroboscopic samples: one per forcing period in the window.
   if ((in.t_end - in.t_keep) * s.omega / (2 * M_PI) > limits::kMaxWindowSamples)
-    return Violates("omega", s.omega, "<= 2 pi " + FormatNumber(limits::kMaxWindowSamples) + " / (t_end - t_keep) = " +
-                                           FormatNumber(2 * M_PI * limits::kMaxWindowSamples / (in.t_end - in.t_keep)) +
-                                           " (forcing periods per window limit)");
+    return Violates("omega", s.omega,
+                    "<= 2 pi " + FormatNumber(limits::kMaxWindowSamples) + " / (t_end - t_keep) = " +
+                        FormatNumber(2 * M_PI * limits::kMaxWindowSamples / (in.t_end - in.t_keep)) +
+                        " (forcing periods per window limit)");
   // Window buffers (spectrum samples, trace rows) grow with the window's samples: bound them.
   const double samples = (in.t_end - in.t_keep) / in.dt / m.sample_every;
   if (samples > limits::kMaxWindowSamples)
@@ -187,7 +216,8 @@ Status ValidatePointSpec(const PointSpec& s) {
   if (!(m.poincare_phase >= 0 && m.poincare_phase < 2 * M_PI))
     return Violates("poincare_phase", m.poincare_phase, "in [0, 2 pi) (radians of Omega tau)");
   if (m.poincare_points < 0 || m.poincare_points > limits::kMaxPoincarePointsStored)
-    return Violates("poincare_points", m.poincare_points, "in [0, " + std::to_string(limits::kMaxPoincarePointsStored) + "]");
+    return Violates("poincare_points", m.poincare_points,
+                    "in [0, " + std::to_string(limits::kMaxPoincarePointsStored) + "]");
   return Status::Ok();
 }
 

@@ -20,7 +20,9 @@ struct Embedding {
   size_t kdtree_get_point_count() const { return count; }
   double kdtree_get_pt(size_t i, size_t k) const { return s[i + k * static_cast<size_t>(lag)]; }
   template <class Bbox>
-  bool kdtree_get_bbox(Bbox&) const { return false; }
+  bool kdtree_get_bbox(Bbox&) const {
+    return false;
+  }
 };
 
 // Nearest neighbour of `self` outside the Theiler window |j − self| ≤ w and with j < limit.
@@ -101,7 +103,8 @@ RosensteinResult RosensteinLle(const std::vector<double>& series, double dt, con
     for (int s = 0; s <= horizon; ++s) {
       double d2 = 0;
       for (int k = 0; k < r.dim; ++k) {
-        const double a = series[i + s + static_cast<size_t>(k) * r.lag] - series[j + s + static_cast<size_t>(k) * r.lag];
+        const double a =
+            series[i + s + static_cast<size_t>(k) * r.lag] - series[j + s + static_cast<size_t>(k) * r.lag];
         d2 += a * a;
       }
       if (d2 > 0) sum[s] += 0.5 * std::log(d2), ++cnt[s];
@@ -120,7 +123,10 @@ RosensteinResult RosensteinLle(const std::vector<double>& series, double dt, con
     b = -1, e = horizon;
     for (int s = 0; s <= horizon; ++s) {
       if (b < 0 && r.divergence[s] >= lo) b = s;
-      if (r.divergence[s] >= hi) { e = s; break; }
+      if (r.divergence[s] >= hi) {
+        e = s;
+        break;
+      }
     }
     b = std::max(b, 0);
     e = std::min(std::max(e, b + 3), horizon);

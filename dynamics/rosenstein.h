@@ -18,19 +18,19 @@
 namespace bistable {
 
 struct RosensteinOptions {
-  int dim = 4;               // embedding dimension m
-  int lag = 0;               // delay J in samples; 0 = autocorrelation rule
-  int theiler = 0;           // temporal exclusion in samples; 0 = mean period from the spectrum
-  int horizon = 0;           // steps of divergence followed; 0 = 6 mean periods (≤ N/4)
-  int fit_begin = -1;        // fit region in steps; -1 = automatic
+  int dim = 4;         // embedding dimension m
+  int lag = 0;         // delay J in samples; 0 = autocorrelation rule
+  int theiler = 0;     // temporal exclusion in samples; 0 = mean period from the spectrum
+  int horizon = 0;     // steps of divergence followed; 0 = 6 mean periods (≤ N/4)
+  int fit_begin = -1;  // fit region in steps; -1 = automatic
   int fit_end = -1;
-  double fit_lo = 0.1;       // automatic fit band, as fractions of the rise to the plateau
+  double fit_lo = 0.1;  // automatic fit band, as fractions of the rise to the plateau
   double fit_hi = 0.7;
 };
 
 struct RosensteinResult {
-  bool ok = false;           // false when the series is too short or degenerate
-  double lle = 0;            // per unit time
+  bool ok = false;  // false when the series is too short or degenerate
+  double lle = 0;   // per unit time
   int lag = 0, dim = 0, theiler = 0, fit_begin = 0, fit_end = 0, pairs = 0;
   std::vector<double> divergence;  // y(i), i = 0..horizon
 };

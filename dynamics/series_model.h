@@ -20,7 +20,7 @@
 namespace bistable {
 
 struct SeriesCell {
-  bool bistable = true;      // k_lin = −1 (bistable) or +1 (linear, ε ignored)
+  bool bistable = true;  // k_lin = −1 (bistable) or +1 (linear, ε ignored)
   double eps = 1.0;
   double eta = 0.1;
   bool has_resonator = true;
@@ -38,8 +38,8 @@ class SeriesModel {
 
   int dim() const { return dim_; }
   int cells() const { return static_cast<int>(cells_.size()); }
-  int MainIndex(int i) const { return main_[i]; }       // index of y_i in the state
-  int ResonatorIndex(int i) const { return res_[i]; }   // index of r_i, −1 when absent
+  int MainIndex(int i) const { return main_[i]; }      // index of y_i in the state
+  int ResonatorIndex(int i) const { return res_[i]; }  // index of r_i, −1 when absent
   // Rest in the positive well of every bistable link (y_i = i/√ε cumulatively), resonators with their cell.
   State WellState() const;
 
@@ -115,7 +115,8 @@ struct SeriesLaneModel {
       V link = LinearLink(0, j, w[0], w[1], zero, zero);
       for (int i = 0; i < cells(); ++i) {
         const int m = i * kStride;
-        const V next = i + 1 < cells() ? LinearLink(i + 1, j, w[m + kStride], w[m + kStride + 1], w[m], w[m + 1]) : zero;
+        const V next =
+            i + 1 < cells() ? LinearLink(i + 1, j, w[m + kStride], w[m + kStride + 1], w[m], w[m + 1]) : zero;
         Cell(i, w + m, zero, link, next, dw + m);
         link = next;
       }

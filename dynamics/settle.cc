@@ -16,11 +16,11 @@ namespace {
 struct ChainLane {
   size_t item = 0;
   LaneInput input;
-  int chunks = 1;          // kernel windows (chunks) per label window
-  int in_window = 0;       // chunks merged into acc so far
+  int chunks = 1;     // kernel windows (chunks) per label window
+  int in_window = 0;  // chunks merged into acc so far
   RawLane acc;
-  long acc_start = 0;      // step at which acc's window starts
-  long cap_step = 0;       // the lane's last window end: unresolved there
+  long acc_start = 0;                          // step at which acc's window starts
+  long cap_step = 0;                           // the lane's last window end: unresolved there
   std::vector<double> logs, log_tau, log_end;  // growth blocks: Σ log|w|, length τ, end τ − t_keep
   struct Window {
     int period = 0;
@@ -29,8 +29,8 @@ struct ChainLane {
     double spread = 0;     // rms distance of its strobes from their mean in (y_m, y_m')
   };
   std::vector<Window> windows;
-  std::vector<double> strobes;      // y_m at every strobe since t_keep (the 0-1 test)
-  std::vector<double> strobe_tau;   // their τ − t_keep
+  std::vector<double> strobes;     // y_m at every strobe since t_keep (the 0-1 test)
+  std::vector<double> strobe_tau;  // their τ − t_keep
   bool done = false;
 };
 
@@ -215,8 +215,8 @@ class Sink {
         c.acc = std::move(r);
         c.acc_start = step - window_steps_;
       } else {
-        Append(&c.acc, std::move(r), specs_[c.item].metrics.sample_every > 0 &&
-                                         window_steps_ % specs_[c.item].metrics.sample_every == 0);
+        Append(&c.acc, std::move(r),
+               specs_[c.item].metrics.sample_every > 0 && window_steps_ % specs_[c.item].metrics.sample_every == 0);
       }
       ++c.in_window;
       if (c.in_window == c.chunks || diverged) {
@@ -247,7 +247,8 @@ class Sink {
       g.lle = r.log_growth / (ps.integration.t_end - ps.integration.t_keep);
       g.y_min = r.y_min, g.y_max = r.y_max;
       g.spread = Spread(r.strobe_y, r.strobe_v);
-      g.period = r.diverged ? 0 : RecurrencePeriod(r.strobe_y, r.strobe_v, ps.metrics.max_period, ps.metrics.period_tol);
+      g.period =
+          r.diverged ? 0 : RecurrencePeriod(r.strobe_y, r.strobe_v, ps.metrics.max_period, ps.metrics.period_tol);
       ChainLane& c = *lanes_[eval_lane[i]];
       const double om = ps.omega, phase = ps.metrics.poincare_phase;
       for (size_t k = 0; k < r.strobe_y.size(); ++k) {
@@ -334,7 +335,8 @@ class Sink {
     auto label = [&](Motion m, int period, double conf) {
       lb.done = true, lb.motion = m, lb.period = period, lb.lambda = lambda, lb.sigma = sigma, lb.confidence = conf;
       // The 0-1 test where the period does not already tell the motion (K of a periodic label: NaN).
-      if (m == Motion::kChaotic || m == Motion::kQuasiPeriodic || m == Motion::kUnresolved) lb.k01 = LaneK(c, 0.5 * since);
+      if (m == Motion::kChaotic || m == Motion::kQuasiPeriodic || m == Motion::kUnresolved)
+        lb.k01 = LaneK(c, 0.5 * since);
       return lb;
     };
     if (c.windows.size() >= 2) {
@@ -401,7 +403,8 @@ bool EvaluateSettled(const PointSpec* specs, size_t n, PointResult* out) {
     c->item = i;
     c->input = LaneFor(specs[i]);
     const double period = 2 * M_PI / specs[i].omega;
-    c->chunks = std::max(1, static_cast<int>(std::ceil(specs[i].integration.settle_min_strobes * period / in.settle_window - 1e-9)));
+    c->chunks = std::max(
+        1, static_cast<int>(std::ceil(specs[i].integration.settle_min_strobes * period / in.settle_window - 1e-9)));
     const long lw = win * c->chunks;
     const long cap = StepsFor(in.settle_cap, h);
     c->cap_step = n_keep + std::max<long>(2, (cap + lw - 1) / lw) * lw;

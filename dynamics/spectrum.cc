@@ -1,11 +1,11 @@
 #include "dynamics/spectrum.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <memory>
 #include <numeric>
-#include <array>
 
 #include <unsupported/Eigen/FFT>
 

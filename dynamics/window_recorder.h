@@ -21,26 +21,26 @@ namespace bistable {
 
 // Raw window record of one lane; turned into metrics by ComputePointMetrics.
 struct RawLane {
-  double vabs_max = 0;                 // max |y_m' + αΩ cos Ωτ| over window steps
+  double vabs_max = 0;  // max |y_m' + αΩ cos Ωτ| over window steps
   double y_min = 0, y_max = 0;
-  double log_growth = 0;               // Σ log(|w| before renormalisation) over the window
+  double log_growth = 0;  // Σ log(|w| before renormalisation) over the window
   // The same sum by batches of renormalisations (the kernel's growth batches, 16 renormalisations or
   // the rest of the window): block_logs[i] over block_steps[i] steps (the settled labels' σ_λ).
   std::vector<double> block_logs;
   std::vector<long> block_steps;
-  std::vector<double> strobe_y, strobe_v;  // y_m, y_m' at τ_k = (φ + 2πk)/Ω in the window (φ: strobe phase)
+  std::vector<double> strobe_y, strobe_v;    // y_m, y_m' at τ_k = (φ + 2πk)/Ω in the window (φ: strobe phase)
   std::vector<double> strobe_yr, strobe_vr;  // y_r, y_r' at the same τ_k (models with a resonator, D = 4)
-  long strobe_k0 = 0;                  // k of the first strobe (τ_k ≥ t_keep)
-  std::vector<double> y_samples;       // y_m every sample_every steps
-  std::vector<std::array<double, 5>> rows;  // (τ, y_m, y_m', y_r, y_r') when keep_rows
-  std::vector<double> turning_points;  // y_m where y_m' changes sign in the window (bifurcation diagrams)
+  long strobe_k0 = 0;                        // k of the first strobe (τ_k ≥ t_keep)
+  std::vector<double> y_samples;             // y_m every sample_every steps
+  std::vector<std::array<double, 5>> rows;   // (τ, y_m, y_m', y_r, y_r') when keep_rows
+  std::vector<double> turning_points;        // y_m where y_m' changes sign in the window (bifurcation diagrams)
   std::array<double, 4> final_state = {0, 0, 0, 0};  // state at t_end (continuation of the next point)
   // Where a chain of windows (settled labels) resumes exactly: the tangent (normalised) and the
   // forcing phase (sin, cos)(Ωτ) as the kernel carries them at t_end.
   std::array<double, 4> final_tangent = {0, 0, 0, 0};
   double final_sin = 0, final_cos = 1;
   double q_p = 0, q_in = 0, q_m = 0, q_r = 0;  // ∫P, ∫max(P,0), W_m, W_r over the window
-  double e_start = 0, e_end = 0;       // E at t_keep and t_end
+  double e_start = 0, e_end = 0;               // E at t_keep and t_end
   bool diverged = false;
   long steps = 0;
   long rhs_evals = 0;
@@ -54,16 +54,16 @@ class WindowRecorder {
   // alpha/omega: per lane. h: step. n_keep: index of the first window step. sample_every: decimation.
   // strobe_phase: φ ∈ [0, 2π), the phase Ωτ mod 2π of the strobes (0: τ_k = 2πk/Ω, bit for bit as
   // without it).
-  WindowRecorder(const double* alpha, const double* omega, double h, long n_keep, int sample_every,
-                 bool keep_samples, bool keep_rows, double strobe_phase = 0.0)
+  WindowRecorder(const double* alpha, const double* omega, double h, long n_keep, int sample_every, bool keep_samples,
+                 bool keep_rows, double strobe_phase = 0.0)
       : h_(h), n_keep_(n_keep), sample_every_(sample_every), keep_samples_(keep_samples), keep_rows_(keep_rows) {
     for (int l = 0; l < W; ++l) {
       alpha_omega_[l] = alpha[l] * omega[l];
       strobe_period_[l] = 2.0 * M_PI / omega[l];
       strobe_offset_[l] = strobe_phase / omega[l];
       // First strobe index k with τ_k ≥ t_keep.
-      next_k_[l] = static_cast<long>(
-          std::ceil((static_cast<double>(n_keep) * h - strobe_offset_[l]) / strobe_period_[l]));
+      next_k_[l] =
+          static_cast<long>(std::ceil((static_cast<double>(n_keep) * h - strobe_offset_[l]) / strobe_period_[l]));
       lanes_[l].strobe_k0 = next_k_[l];
       Schedule(l);
     }
@@ -88,9 +88,9 @@ class WindowRecorder {
   Running& running() { return run_; }
 
   // The call-free part of window step n (> n_keep, or == n_keep for the window's first point), which
-  // goes from (y0, v0) = (y_m, y_m') at its start to x1: turning points into the buffer, extremes, and every sample_every-th y_m written to *samples
-  // (room reserved by ReserveSamples). No strobes: callers use it only for steps with none due
-  // (OnStep does the rest). Returns false when the turning-point buffer is full: flush before the
+  // goes from (y0, v0) = (y_m, y_m') at its start to x1: turning points into the buffer, extremes, and every
+  // sample_every-th y_m written to *samples (room reserved by ReserveSamples). No strobes: callers use it only for
+  // steps with none due (OnStep does the rest). Returns false when the turning-point buffer is full: flush before the
   // next step (Track needs room for one entry).
   BISTABLE_INLINE bool Track(Running& r, long n, V y0, V v0, const V* x1, V cos_end, V*& samples) {
     // Turning points: y_m' changes sign within the step; y_m at the crossing
@@ -133,7 +133,8 @@ class WindowRecorder {
                          (t3 - t2) * h_ * v1;
         std::vector<double>& tp = lanes_[l].turning_points;
         // Keep the last ones only (bounded memory on long windows; sweeps store the last 64).
-        if (tp.size() >= 2 * limits::kMaxTurningPointsKept) tp.erase(tp.begin(), tp.end() - limits::kMaxTurningPointsKept);
+        if (tp.size() >= 2 * limits::kMaxTurningPointsKept)
+          tp.erase(tp.begin(), tp.end() - limits::kMaxTurningPointsKept);
         tp.push_back(y);
       }
     }
@@ -265,7 +266,7 @@ class WindowRecorder {
   }
   std::vector<V> y_samples_ = std::move(Pool());
   size_t n_samples_ = 0;
-  std::vector<V> rows_;   // D lane vectors per row
+  std::vector<V> rows_;  // D lane vectors per row
   std::vector<double> row_times_;
   V log_growth_ = Splat<W>(0.0);
   V block_acc_ = Splat<W>(0.0);

@@ -23,7 +23,8 @@ BasinMap ClassifyAttractors(const SweepSpec& spec, const std::vector<PointRecord
     const int period = static_cast<int>(r.Get(period_i));
     const double lo = r.Get(ymin_i), hi = r.Get(ymax_i);
     const std::string well = lo > 0 ? "+well" : hi < 0 ? "-well" : "interwell";
-    const bool periodic = period > 0 && static_cast<int>(motion) != 2 && std::isfinite(r.Get(sy_i)) && std::isfinite(r.Get(sv_i));
+    const bool periodic =
+        period > 0 && static_cast<int>(motion) != 2 && std::isfinite(r.Get(sy_i)) && std::isfinite(r.Get(sv_i));
     const double y = periodic ? r.Get(sy_i) : NAN, v = periodic ? r.Get(sv_i) : NAN;
     int hit = -1;
     for (size_t a = 0; a < found.size() && hit < 0; ++a) {
@@ -73,7 +74,8 @@ BasinMap ClassifyAttractors(const SweepSpec& spec, const std::vector<PointRecord
     if (at.motion == -2)
       std::snprintf(buf, sizeof buf, "A%d_other_(more_than_%d_kinds)", at.id, limits::kMaxAttractors);
     else if (at.period > 0)
-      std::snprintf(buf, sizeof buf, "A%d_P%d_%s_y%.3f_v%.3f", at.id, at.period, at.well.c_str(), at.strobe_y, at.strobe_v);
+      std::snprintf(buf, sizeof buf, "A%d_P%d_%s_y%.3f_v%.3f", at.id, at.period, at.well.c_str(), at.strobe_y,
+                    at.strobe_v);
     else
       std::snprintf(buf, sizeof buf, "A%d_%s_%s", at.id, at.motion == 2 ? "chaotic" : "aperiodic", at.well.c_str());
     at.label = buf;

@@ -63,8 +63,10 @@ DimensionalLaneInput DimensionalInputFor(const SweepSpec& spec, const PointSpec&
   in.base_amp = p.alpha * 1e-3;
   in.omega = 2.0 * M_PI * p.omega;
   in.amp = in.base_amp * in.omega * in.omega;
-  if (p.ic_given) in.x0 = p.ic;
-  else if (spec.dimensional.bistable) in.x0[0] = std::sqrt(-in.params.k_lin / in.params.k3);
+  if (p.ic_given)
+    in.x0 = p.ic;
+  else if (spec.dimensional.bistable)
+    in.x0[0] = std::sqrt(-in.params.k_lin / in.params.k3);
   return in;
 }
 
@@ -81,7 +83,8 @@ std::optional<std::vector<PointResult>> ItemsInLanes(const SweepSpec& spec, cons
   ks.keep_rows = false;
   const bool rosenbrock = first.integration.integrator == IntegratorKind::kRosenbrock;
   const int substeps = spec.model == ModelKind::kDimensional && !rosenbrock
-                           ? Rk4Substeps(spec.dimensional.params, first.integration.dt) : 1;
+                           ? Rk4Substeps(spec.dimensional.params, first.integration.dt)
+                           : 1;
   RosenbrockTolerances tol;
   tol.rtol = first.integration.rtol;
   tol.atol = first.integration.atol;
@@ -124,7 +127,6 @@ std::optional<std::vector<PointResult>> ItemsInLanes(const SweepSpec& spec, cons
 }
 
 }  // namespace
-
 
 Status CheckItems(const SweepSpec& spec, const std::vector<WorkItem>& items, const std::string& field) {
   const long n = static_cast<long>(items.size());
@@ -219,7 +221,6 @@ std::vector<PointRecord> ComputeItems(const SweepSpec& spec, const std::vector<W
   return records ? std::move(*records) : std::vector<PointRecord>{};
 }
 
-
 PointResult EvaluateItem(const SweepSpec& spec, long index, int ic) {
   const PointSpec p = spec.PointAt(index, ic);
   if (IsCellModel(spec.model)) {
@@ -266,9 +267,12 @@ PointResult EvaluateItem(const SweepSpec& spec, long index, int ic) {
 std::optional<std::vector<PointResult>> EvaluateItemsInLanes(const SweepSpec& spec, const std::vector<WorkItem>& items,
                                                              int width) {
   switch (width) {
-    case 1: return ItemsInLanes<1>(spec, items);
-    case 4: return ItemsInLanes<4>(spec, items);
-    default: return ItemsInLanes<kSweepLanes>(spec, items);
+    case 1:
+      return ItemsInLanes<1>(spec, items);
+    case 4:
+      return ItemsInLanes<4>(spec, items);
+    default:
+      return ItemsInLanes<kSweepLanes>(spec, items);
   }
 }
 

@@ -115,10 +115,20 @@ void AddSpectrumJson(const LyapunovSpectrum& sp, nlohmann::json* j) {
 }
 
 nlohmann::json SweepStatusJson(const SweepInfo& s) {
-  return {{"id", s.id},         {"state", SweepStateName(s.state)}, {"items_done", s.items_done},
-          {"items_total", s.items_total}, {"items_cached", s.items_cached}, {"workers", s.workers},
-          {"seconds", s.seconds}, {"file", s.file}, {"name", s.name}, {"model", s.model}, {"error", s.error},
-          {"owner", s.owner}, {"created", JsonTime(s.created)}, {"finished", JsonTime(s.finished)}};
+  return {{"id", s.id},
+          {"state", SweepStateName(s.state)},
+          {"items_done", s.items_done},
+          {"items_total", s.items_total},
+          {"items_cached", s.items_cached},
+          {"workers", s.workers},
+          {"seconds", s.seconds},
+          {"file", s.file},
+          {"name", s.name},
+          {"model", s.model},
+          {"error", s.error},
+          {"owner", s.owner},
+          {"created", JsonTime(s.created)},
+          {"finished", JsonTime(s.finished)}};
 }
 
 nlohmann::json WorkerJson(const WorkerInfo& w) {

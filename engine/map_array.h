@@ -17,10 +17,10 @@ namespace bistable {
 // Values in row-major order over dims.
 struct MapArray {
   std::string metric;
-  std::vector<Axis> axes;            // the sweep axes (dims 0..axes-1)
-  std::vector<size_t> dims;          // full shape, including ic / peak dims
+  std::vector<Axis> axes;    // the sweep axes (dims 0..axes-1)
+  std::vector<size_t> dims;  // full shape, including ic / peak dims
   std::vector<std::string> dim_names;
-  std::vector<double> values;        // integers widened to double
+  std::vector<double> values;  // integers widened to double
   std::string unit, definition;
   std::vector<std::pair<int, std::string>> categories;  // code datasets: flag_values and flag_meanings
 };

@@ -7,8 +7,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <string_view>
 #include <limits>
+#include <string_view>
 
 #include "base/limits.h"
 
@@ -24,28 +24,48 @@ const std::vector<MetricInfo>& MetricCatalog() {
   static const std::vector<MetricInfo> kCatalog = {
       {"frf_db", "dB", "20 log10(max|x_m'| / (alpha Omega)) over the window, absolute velocity of the main mass", false,
        -1000, 1000, true, "frequency response of the main mass (peak absolute velocity over alpha Omega), in decibels"},
-      {"lle", "1/tau", "largest Lyapunov exponent, Benettin tangent-linear method over the window", false, -1e6, 1e6, true, "largest Lyapunov exponent (Benettin)"},
-      {"lle_rosenstein", "1/tau", "largest Lyapunov exponent, Rosenstein (1993) on sampled y_m; NaN unless requested", false,
-       -1e6, 1e6, true, "largest Lyapunov exponent (Rosenstein, from sampled y_m)"},
-      {"motion", "code", "0 intrawell, 1 interwell, 2 chaotic (lle > chaos_threshold), 3 quasi-periodic/marginal, 4 unresolved (settled labels), -1 undefined (diverged)", true, -1, 4,
-       false, "type of steady-state motion"},
-      {"period", "forcing periods", "stroboscopic period n of (y_m, y_m'); 0 when none in the window", true, 0, limits::kMaxPeriod, false, "stroboscopic period in forcing periods (0: none found)"},
-      {"hd_index", "fraction", "fraction of y_m spectral power farther than 3 bins from every multiple of Omega", false, 0, 1,
-       true, "harmonic diffusion index (fraction of spectral power off the forcing harmonics)"},
-      {"edr_b", "%", "100 W_m / W_in, W_in = integral of max(P, 0) over the window (gross injected energy)", false, 0, 1e12,
-       true, "energy dissipation ratio of the main damper"},
+      {"lle", "1/tau", "largest Lyapunov exponent, Benettin tangent-linear method over the window", false, -1e6, 1e6,
+       true, "largest Lyapunov exponent (Benettin)"},
+      {"lle_rosenstein", "1/tau", "largest Lyapunov exponent, Rosenstein (1993) on sampled y_m; NaN unless requested",
+       false, -1e6, 1e6, true, "largest Lyapunov exponent (Rosenstein, from sampled y_m)"},
+      {"motion", "code",
+       "0 intrawell, 1 interwell, 2 chaotic (lle > chaos_threshold), 3 quasi-periodic/marginal, 4 unresolved (settled "
+       "labels), -1 undefined (diverged)",
+       true, -1, 4, false, "type of steady-state motion"},
+      {"period", "forcing periods", "stroboscopic period n of (y_m, y_m'); 0 when none in the window", true, 0,
+       limits::kMaxPeriod, false, "stroboscopic period in forcing periods (0: none found)"},
+      {"hd_index", "fraction", "fraction of y_m spectral power farther than 3 bins from every multiple of Omega", false,
+       0, 1, true, "harmonic diffusion index (fraction of spectral power off the forcing harmonics)"},
+      {"edr_b", "%", "100 W_m / W_in, W_in = integral of max(P, 0) over the window (gross injected energy)", false, 0,
+       1e12, true, "energy dissipation ratio of the main damper"},
       {"edr_r", "%", "100 W_r / W_in", false, 0, 1e12, true, "energy dissipation ratio of the resonator damper"},
       {"edr_t", "%", "100 (W_m + W_r) / W_in", false, 0, 1e12, true, "total energy dissipation ratio"},
-      {"energy_balance_residual", "fraction", "|integral P - W_m - W_r - Delta E| / W_in", false, 0, 1e12, true, "relative residual of the energy balance over the window"},
-      {"y_min", "delta_s", "minimum of y_m over the window", false, -1e150, 1e150, true, "minimum displacement of the main mass relative to the base"},
-      {"y_max", "delta_s", "maximum of y_m over the window", false, -1e150, 1e150, true, "maximum displacement of the main mass relative to the base"},
-      {"termination", "code", "0 ok, 1 diverged, 2 step size underflow, 3 max steps", true, 0, 3, false, "how the integration ended"},
-      {"strobe_y", "delta_s", "y_m at a stroboscopic sample (Omega tau a multiple of 2 pi) of the window: of the last `period` samples the one with the smallest y_m; the last sample when no period was found", false, -1e150, 1e150, true, "displacement of the main mass at a point of the attractor's Poincare section"},
-      {"strobe_v", "delta_s/tau", "y_m' at the same stroboscopic sample as strobe_y", false, -1e150, 1e150, true, "velocity of the main mass at a point of the attractor's Poincare section"},
-      {"settle_time", "tau", "settled labels: tau at which the label settled (the run's end); NaN in the paper's mode", false, 0, 1e12, true, "time at which the label settled"},
-      {"lle_sigma", "1/tau", "settled labels: block-average standard error of lle; NaN in the paper's mode", false, 0, 1e12, true, "standard error of the largest Lyapunov exponent"},
-      {"label_confidence", "fraction", "settled labels: Phi(|lle - chaos_threshold| / lle_sigma), 0 when unresolved; NaN in the paper's mode", false, 0, 1, true, "confidence of the motion label"},
-      {"chaos_01", "", "settled labels: K of the 0-1 test for chaos (Gottwald-Melbourne, median over 16 c) on the strobes y_m of [T/2, T] (at least the latest 64), for chaotic, quasi-periodic and unresolved labels; near 1 chaotic, near 0 regular; NaN for a periodic label, with fewer than 64 strobes, or in the paper's mode", false, -1, 1, true, "0-1 test for chaos, K"},
+      {"energy_balance_residual", "fraction", "|integral P - W_m - W_r - Delta E| / W_in", false, 0, 1e12, true,
+       "relative residual of the energy balance over the window"},
+      {"y_min", "delta_s", "minimum of y_m over the window", false, -1e150, 1e150, true,
+       "minimum displacement of the main mass relative to the base"},
+      {"y_max", "delta_s", "maximum of y_m over the window", false, -1e150, 1e150, true,
+       "maximum displacement of the main mass relative to the base"},
+      {"termination", "code", "0 ok, 1 diverged, 2 step size underflow, 3 max steps", true, 0, 3, false,
+       "how the integration ended"},
+      {"strobe_y", "delta_s",
+       "y_m at a stroboscopic sample (Omega tau a multiple of 2 pi) of the window: of the last `period` samples the "
+       "one with the smallest y_m; the last sample when no period was found",
+       false, -1e150, 1e150, true, "displacement of the main mass at a point of the attractor's Poincare section"},
+      {"strobe_v", "delta_s/tau", "y_m' at the same stroboscopic sample as strobe_y", false, -1e150, 1e150, true,
+       "velocity of the main mass at a point of the attractor's Poincare section"},
+      {"settle_time", "tau", "settled labels: tau at which the label settled (the run's end); NaN in the paper's mode",
+       false, 0, 1e12, true, "time at which the label settled"},
+      {"lle_sigma", "1/tau", "settled labels: block-average standard error of lle; NaN in the paper's mode", false, 0,
+       1e12, true, "standard error of the largest Lyapunov exponent"},
+      {"label_confidence", "fraction",
+       "settled labels: Phi(|lle - chaos_threshold| / lle_sigma), 0 when unresolved; NaN in the paper's mode", false, 0,
+       1, true, "confidence of the motion label"},
+      {"chaos_01", "",
+       "settled labels: K of the 0-1 test for chaos (Gottwald-Melbourne, median over 16 c) on the strobes y_m of [T/2, "
+       "T] (at least the latest 64), for chaotic, quasi-periodic and unresolved labels; near 1 chaotic, near 0 "
+       "regular; NaN for a periodic label, with fewer than 64 strobes, or in the paper's mode",
+       false, -1, 1, true, "0-1 test for chaos, K"},
   };
   return kCatalog;
 }
@@ -86,12 +106,18 @@ std::vector<std::string> MetricNames() {
 
 int MotionCode(Motion m) {
   switch (m) {
-    case Motion::kIntrawell: return 0;
-    case Motion::kInterwell: return 1;
-    case Motion::kChaotic: return 2;
-    case Motion::kUndefined: return kMotionUndefined;
-    case Motion::kQuasiPeriodic: return 3;
-    case Motion::kUnresolved: return 4;
+    case Motion::kIntrawell:
+      return 0;
+    case Motion::kInterwell:
+      return 1;
+    case Motion::kChaotic:
+      return 2;
+    case Motion::kUndefined:
+      return kMotionUndefined;
+    case Motion::kQuasiPeriodic:
+      return 3;
+    case Motion::kUnresolved:
+      return 4;
   }
   return kMotionUndefined;
 }
@@ -99,14 +125,15 @@ int MotionCode(Motion m) {
 const std::vector<Category>& MetricCategories(const std::string& metric) {
   static const std::vector<Category> kMotion = [] {
     std::vector<Category> c;
-    for (Motion m : {Motion::kUndefined, Motion::kIntrawell, Motion::kInterwell, Motion::kChaotic, Motion::kQuasiPeriodic,
-                     Motion::kUnresolved})
+    for (Motion m : {Motion::kUndefined, Motion::kIntrawell, Motion::kInterwell, Motion::kChaotic,
+                     Motion::kQuasiPeriodic, Motion::kUnresolved})
       c.push_back({MotionCode(m), MotionName(m)});
     return c;
   }();
   static const std::vector<Category> kTermination = [] {
     std::vector<Category> c;
-    for (Termination t : {Termination::kOk, Termination::kDiverged, Termination::kStepSizeUnderflow, Termination::kMaxSteps})
+    for (Termination t :
+         {Termination::kOk, Termination::kDiverged, Termination::kStepSizeUnderflow, Termination::kMaxSteps})
       c.push_back({static_cast<int>(t), TerminationName(t)});
     return c;
   }();
@@ -132,7 +159,7 @@ const char* CategoryColour(const std::string& name) {
   if (name == "interwell") return "#fdae61";
   if (name == "chaotic") return "#d7191c";
   if (name == "quasi-periodic") return "#7b3294";  // settled labels: a torus or marginal orbit, purple
-  if (name == "unresolved") return "#636363";      // settled labels: no label within the cap, a darker grey than undefined
+  if (name == "unresolved") return "#636363";  // settled labels: no label within the cap, a darker grey than undefined
   if (name == "ok") return "#1a9850";
   return "";
 }
@@ -160,7 +187,8 @@ namespace {
 // The last n values of xs in order, NaN-filled to n.
 void AppendLast(const std::vector<double>& xs, int n, std::vector<double>* out) {
   const size_t have = xs.size(), first = have > static_cast<size_t>(n) ? have - n : 0;
-  for (int k = 0; k < n; ++k) out->push_back(first + k < have ? xs[first + k] : std::numeric_limits<double>::quiet_NaN());
+  for (int k = 0; k < n; ++k)
+    out->push_back(first + k < have ? xs[first + k] : std::numeric_limits<double>::quiet_NaN());
 }
 }  // namespace
 
@@ -190,8 +218,10 @@ PointRecord PointRecord::From(const PointResult& r, bool turning_points, int poi
   const auto& catalog = MetricCatalog();
   for (size_t i = 0; i < catalog.size(); ++i)
     if (!catalog[i].integer && !InDomain(catalog[i], p.v[i])) p.v[i] = nan;
-  for (int k = 0; k < kHdPeaksStored; ++k) p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].freq : nan);
-  for (int k = 0; k < kHdPeaksStored; ++k) p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].amp : nan);
+  for (int k = 0; k < kHdPeaksStored; ++k)
+    p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].freq : nan);
+  for (int k = 0; k < kHdPeaksStored; ++k)
+    p.v.push_back(k < static_cast<int>(r.hd_peaks.size()) ? r.hd_peaks[k].amp : nan);
   if (turning_points) AppendLast(r.turning_points, kTurningPointsStored, &p.v);
   if (poincare_points > 0) {  // y_m and y_m' of the same strobes (a diverged run has none: NaN)
     AppendLast(r.section_y, poincare_points, &p.v);
@@ -229,12 +259,14 @@ Status CheckDomains(const double* v, size_t width, TailName tail_name) {
   }
   for (int k = 0; k < kHdPeaksStored; ++k) {
     const double f = v[catalog.size() + k], a = v[catalog.size() + kHdPeaksStored + k];
-    if (!std::isnan(f) && !(f >= 0 && f <= kMaxPeakOrTurningValue)) return bad(catalog.size() + k, "hd_peak_freq", "NaN or in [0, 1e150]");
+    if (!std::isnan(f) && !(f >= 0 && f <= kMaxPeakOrTurningValue))
+      return bad(catalog.size() + k, "hd_peak_freq", "NaN or in [0, 1e150]");
     if (!std::isnan(a) && !(a >= 0 && a <= kMaxPeakOrTurningValue))
       return bad(catalog.size() + kHdPeaksStored + k, "hd_peak_amp", "NaN or in [0, 1e150]");
   }
   for (size_t i = catalog.size() + 2 * kHdPeaksStored; i < width; ++i)
-    if (!std::isnan(v[i]) && !(std::fabs(v[i]) <= kMaxPeakOrTurningValue)) return bad(i, tail_name(i), "NaN or |y| <= 1e150");
+    if (!std::isnan(v[i]) && !(std::fabs(v[i]) <= kMaxPeakOrTurningValue))
+      return bad(i, tail_name(i), "NaN or |y| <= 1e150");
   return Status::Ok();
 }
 
@@ -256,8 +288,9 @@ Status CheckRecord(const double* v, size_t width, bool turning_points, int poinc
 Status CheckAnyRecordWidth(size_t width) {
   const size_t lo = PointRecord::Size(false), hi = PointRecord::Size(true, limits::kMaxPoincarePointsStored);
   if (width < lo || width > hi)
-    return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) + " violates record_width in [" +
-                                                       std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) +
+                                                       " violates record_width in [" + std::to_string(lo) + ", " +
+                                                       std::to_string(hi) + "]");
   return Status::Ok();
 }
 

@@ -35,8 +35,9 @@ class Parser {
 
   StatusOr<std::shared_ptr<const Query::Node>> Run(std::vector<int>* used) {
     if (text_.size() > limits::kMaxQueryBytes)
-      return Status::InvalidArgument("query", "query of " + std::to_string(text_.size()) + " bytes violates length <= " +
-                                                  std::to_string(limits::kMaxQueryBytes) + " bytes");
+      return Status::InvalidArgument(
+          "query", "query of " + std::to_string(text_.size()) +
+                       " bytes violates length <= " + std::to_string(limits::kMaxQueryBytes) + " bytes");
     Status st = Tokenize();
     if (!st.ok()) return st;
     auto e = Or();
@@ -48,7 +49,8 @@ class Parser {
 
  private:
   Status Error(const std::string& what) {
-    return Status::InvalidArgument("query", "query '" + Shown() + "' at " + std::to_string(Peek().pos + 1) + ": " + what);
+    return Status::InvalidArgument("query",
+                                   "query '" + Shown() + "' at " + std::to_string(Peek().pos + 1) + ": " + what);
   }
   // The query as quoted in messages: long ones cut to their start.
   std::string Shown() const { return text_.size() <= 200 ? text_ : text_.substr(0, 200) + "..."; }
@@ -70,7 +72,9 @@ class Parser {
       } else if (std::isdigit(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == '+') {
         char* end = nullptr;
         const double v = std::strtod(text_.c_str() + p, &end);
-        if (end == text_.c_str() + p) return Status::InvalidArgument("query", "query '" + Shown() + "' at " + std::to_string(p + 1) + ": bad number");
+        if (end == text_.c_str() + p)
+          return Status::InvalidArgument("query",
+                                         "query '" + Shown() + "' at " + std::to_string(p + 1) + ": bad number");
         toks_.push_back({Token::kNumber, text_.substr(p, end - (text_.c_str() + p)), v, p});
         p = end - text_.c_str();
       } else if (c == '(' || c == ')') {
@@ -79,12 +83,15 @@ class Parser {
       } else if (c == '<' || c == '>' || c == '=' || c == '!') {
         std::string op(1, c);
         if (p + 1 < text_.size() && text_[p + 1] == '=') op += '=';
-        if (op == "!" ) return Status::InvalidArgument("query", "query '" + Shown() + "' at " + std::to_string(p + 1) + ": '!' must be '!='");
+        if (op == "!")
+          return Status::InvalidArgument("query",
+                                         "query '" + Shown() + "' at " + std::to_string(p + 1) + ": '!' must be '!='");
         if (op == "=") op = "==";
         toks_.push_back({Token::kOp, op, 0, p});
         p += (p + 1 < text_.size() && text_[p + 1] == '=') ? 2 : 1;
       } else {
-        return Status::InvalidArgument("query", "query '" + Shown() + "' at " + std::to_string(p + 1) + ": unexpected '" + std::string(1, c) + "'");
+        return Status::InvalidArgument("query", "query '" + Shown() + "' at " + std::to_string(p + 1) +
+                                                    ": unexpected '" + std::string(1, c) + "'");
       }
     }
     toks_.push_back({Token::kEnd, "end of query", 0, text_.size()});
@@ -131,7 +138,8 @@ class Parser {
       Next();
       auto e = Unary();
       if (!e.ok()) return e;
-      return std::shared_ptr<const Query::Node>(std::make_shared<Query::Node>(Query::Node{Query::Node::kNot, *e, nullptr}));
+      return std::shared_ptr<const Query::Node>(
+          std::make_shared<Query::Node>(Query::Node{Query::Node::kNot, *e, nullptr}));
     }
     if (Peek().kind == Token::kLParen) {
       Next();
@@ -145,7 +153,8 @@ class Parser {
     const size_t left = i_;
     Status st = Operand(&node->var_l, &node->c_l);
     if (!st.ok()) return st;
-    if (Peek().kind != Token::kOp) return Error("expected a comparison (< <= > >= == !=) after '" + toks_[i_ - 1].text + "'");
+    if (Peek().kind != Token::kOp)
+      return Error("expected a comparison (< <= > >= == !=) after '" + toks_[i_ - 1].text + "'");
     node->op = Next().text;
     const size_t right = i_;
     st = Operand(&node->var_r, &node->c_r);
@@ -206,9 +215,12 @@ class Parser {
 
 bool EvalNode(const Query::Node& n, const std::function<double(int)>& value) {
   switch (n.kind) {
-    case Query::Node::kOr: return EvalNode(*n.a, value) || EvalNode(*n.b, value);
-    case Query::Node::kAnd: return EvalNode(*n.a, value) && EvalNode(*n.b, value);
-    case Query::Node::kNot: return !EvalNode(*n.a, value);
+    case Query::Node::kOr:
+      return EvalNode(*n.a, value) || EvalNode(*n.b, value);
+    case Query::Node::kAnd:
+      return EvalNode(*n.a, value) && EvalNode(*n.b, value);
+    case Query::Node::kNot:
+      return !EvalNode(*n.a, value);
     case Query::Node::kCmp: {
       const double l = n.var_l >= 0 ? value(n.var_l) : n.c_l;
       const double r = n.var_r >= 0 ? value(n.var_r) : n.c_r;

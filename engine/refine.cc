@@ -87,9 +87,9 @@ struct RefinePlanner::State {
   int L;
   std::vector<int64_t> cls;
   std::vector<char> chaotic;
-  std::vector<long> points;        // every point planned (rounds 0..round), in planning order
-  std::vector<long> round_points;  // the current round's points, ascending
-  std::vector<Active> active;      // the cells the current round's points decide
+  std::vector<long> points;                   // every point planned (rounds 0..round), in planning order
+  std::vector<long> round_points;             // the current round's points, ascending
+  std::vector<Active> active;                 // the cells the current round's points decide
   std::vector<RefineCell> resolved, uniform;  // final cells; agreeing cells (reopened when a face point disagrees)
   long groups = 0, cells_mixed = 0;
   int round = 0;
@@ -196,7 +196,9 @@ StatusOr<RefineStep> RefinePlanner::Advance(const RefineLookup& lookup) {
         continue;
       }
       const long group = s.groups++;
-      ForBox(g, a.origin, st / 2, 1, [&](long p, const std::vector<long>&) { next.push_back({p, a.level + 1, run, group}); });
+      ForBox(g, a.origin, st / 2, 1, [&](long p, const std::vector<long>&) {
+        next.push_back({p, a.level + 1, run, group});
+      });
       ForBox(g, a.origin, st / 2, 2, [&](long p, const std::vector<long>&) {
         if (s.cls[p] == State::kUnplanned) s.cls[p] = State::kPending, next_points.push_back(p);
       });
@@ -211,7 +213,8 @@ StatusOr<RefineStep> RefinePlanner::Advance(const RefineLookup& lookup) {
   // Coarse to fine (the fill lets a finer cell own the points it shares with a coarser one).
   out.cells = s.uniform;
   out.cells.insert(out.cells.end(), s.resolved.begin(), s.resolved.end());
-  std::stable_sort(out.cells.begin(), out.cells.end(), [](const RefineCell& a, const RefineCell& b) { return a.level < b.level; });
+  std::stable_sort(out.cells.begin(), out.cells.end(),
+                   [](const RefineCell& a, const RefineCell& b) { return a.level < b.level; });
   out.points = s.points;
   std::sort(out.points.begin(), out.points.end());
   out.round = s.round;
@@ -238,13 +241,15 @@ StatusOr<RefinedGrid> FillRefinedGrid(const SweepSpec& spec, const std::vector<l
   auto plan = PlanRefinement(spec, [&](const std::vector<long>& pts, std::vector<std::optional<RefineMark>>* out) {
     out->clear();
     for (long p : pts)
-      out->push_back(slot[p] < 0 ? std::nullopt
-                                 : std::optional<RefineMark>(RefineClass(spec.refine, spec.base.metrics, stored[slot[p]])));
+      out->push_back(slot[p] < 0
+                         ? std::nullopt
+                         : std::optional<RefineMark>(RefineClass(spec.refine, spec.base.metrics, stored[slot[p]])));
     return Status::Ok();
   });
   if (!plan.ok()) return plan.status();
-  if (!plan->complete) return Status::FailedPrecondition("refined sweep is incomplete: " + std::to_string(plan->missing.size()) +
-                                                         " points of round " + std::to_string(plan->round) + " are not stored");
+  if (!plan->complete)
+    return Status::FailedPrecondition("refined sweep is incomplete: " + std::to_string(plan->missing.size()) +
+                                      " points of round " + std::to_string(plan->round) + " are not stored");
   const int L = spec.refine.levels;
   RefinedGrid out;
   out.computed = static_cast<long>(computed.size());

@@ -45,22 +45,23 @@ enum class RefineFill : int { kComputed = 0, kInterpolated = 1, kChaoticMixed = 
 const std::vector<Category>& RefineFillCategories();
 
 struct RefineCell {
-  long origin = 0;  // grid index of the corner with the smallest indices
-  int level = 0;    // stride 2^(levels - level)
+  long origin = 0;     // grid index of the corner with the smallest indices
+  int level = 0;       // stride 2^(levels - level)
   bool mixed = false;  // corners disagree (a boundary cell at the finest level, else chaotic-mixed)
 };
 
 struct RefineStep {
-  std::vector<long> points;   // every point planned so far (rounds 0..round), ascending
-  std::vector<long> missing;  // those of `points` not stored yet (all of them of `round`), ascending
-  int round = 0;              // the round being computed (round 0: the coarse grid; round k mostly level k)
-  bool complete = false;      // every round stored: the map can be published
+  std::vector<long> points;       // every point planned so far (rounds 0..round), ascending
+  std::vector<long> missing;      // those of `points` not stored yet (all of them of `round`), ascending
+  int round = 0;                  // the round being computed (round 0: the coarse grid; round k mostly level k)
+  bool complete = false;          // every round stored: the map can be published
   std::vector<RefineCell> cells;  // when complete: the cells that resolved the grid, coarse to fine
   long cells_mixed = 0;           // chaotic-mixed cells (stopped refining), when complete
 };
 
 // The marks of `points` (ascending): one per point, or nullopt where no valid record is stored.
-using RefineLookup = std::function<Status(const std::vector<long>& points, std::vector<std::optional<RefineMark>>* marks)>;
+using RefineLookup =
+    std::function<Status(const std::vector<long>& points, std::vector<std::optional<RefineMark>>* marks)>;
 
 // Plans a refined sweep against what is stored: walks the rounds while every point of a round is
 // stored and stops at the first round with missing points (or completes).

@@ -16,7 +16,8 @@ StatusOr<toml::table> ParseSpecToml(const std::string& text, const std::string& 
   try {
     return toml::parse(text, origin);
   } catch (const toml::parse_error& e) {
-    return Status::InvalidArgument("spec", TomlWhere(e.source(), origin) + ": malformed TOML: " + std::string(e.description()));
+    return Status::InvalidArgument("spec",
+                                   TomlWhere(e.source(), origin) + ": malformed TOML: " + std::string(e.description()));
   }
 }
 

@@ -28,9 +28,9 @@ constexpr double kRigRosenbrockRtol = 5e-6, kRigDopriRtol = 1e-6;
 }  // namespace
 namespace {
 
-const std::vector<std::string> kTopKeys = {"name", "model", "params", "axes", "integration", "metrics",
-                                           "initial_conditions", "output", "series", "dimensional", "continuation",
-                                           "robustness", "refine"};
+const std::vector<std::string> kTopKeys = {
+    "name",   "model",  "params",      "axes",         "integration", "metrics", "initial_conditions",
+    "output", "series", "dimensional", "continuation", "robustness",  "refine"};
 const std::vector<std::string> kRefineKeys = {"levels", "criterion", "mixed_after"};
 const std::vector<std::string> kRefineCriteria = {"frf_0db", "motion", "lle_sign", "period"};
 const std::vector<std::string> kRobustnessKeys = {"samples", "seed", "tolerance", "ic_radius"};
@@ -38,19 +38,18 @@ const std::vector<std::string> kToleranceKeys = {"eps", "eta", "eta_r", "phi", "
 const std::vector<std::string> kContinuationKeys = {"axis", "direction"};
 const std::vector<std::string> kSeriesKeys = {"cells", "resonators", "bistable", "cell"};
 const std::vector<std::string> kCellOverrideKeys = {"eps", "eta", "eta_r", "phi", "lambda"};
-const std::vector<std::string> kDimensionalKeys = {"preset", "resonator", "m_m",  "k_lin", "k3",   "c0_m",
-                                                   "c2_m",   "fs_m",      "fc_m", "m_r",   "k_r",  "c0_r",
+const std::vector<std::string> kDimensionalKeys = {"preset", "resonator", "m_m",  "k_lin", "k3",  "c0_m",
+                                                   "c2_m",   "fs_m",      "fc_m", "m_r",   "k_r", "c0_r",
                                                    "c2_r",   "fs_r",      "fc_r", "v_sp",  "v_t"};
 const std::vector<std::string> kDimensionalParamKeys = {"a0_mm", "f0_hz"};
 const std::vector<std::string> kParamKeys = {"eps", "eta", "eta_r", "phi", "lambda", "alpha", "omega"};
 const std::vector<std::string> kAxisForms = {"list", "linspace", "logspace"};
-const std::vector<std::string> kIntegrationKeys = {"integrator",    "dt",           "t_end",
-                                                   "t_keep",        "rtol",         "atol",
-                                                   "labels",        "settle_window", "settle_min_strobes",
-                                                   "settle_confirm", "settle_cap"};
-const std::vector<std::string> kMetricKeys = {"store",     "chaos_threshold", "chaos_01_min", "rosenstein", "renorm_every",
-                                              "sample_every", "period_tol",  "max_period", "hd_level",
-                                              "poincare_points", "poincare_phase"};
+const std::vector<std::string> kIntegrationKeys = {
+    "integrator",     "dt",        "t_end", "t_keep", "rtol", "atol", "labels", "settle_window", "settle_min_strobes",
+    "settle_confirm", "settle_cap"};
+const std::vector<std::string> kMetricKeys = {"store",        "chaos_threshold", "chaos_01_min",  "rosenstein",
+                                              "renorm_every", "sample_every",    "period_tol",    "max_period",
+                                              "hd_level",     "poincare_points", "poincare_phase"};
 // Section points stored per point when "poincare" is stored and poincare_points is not given.
 constexpr int kDefaultPoincarePoints = 32;
 const std::vector<std::string> kIcKeys = {"states"};
@@ -113,8 +112,8 @@ Status ReadInt(const toml::table& t, const std::string& key, const std::string& 
 // terminal or a log line when printed).
 Status CheckPlainText(const std::string& field, const std::string& s, size_t max_bytes) {
   if (s.size() > max_bytes)
-    return Status::InvalidArgument(field, field + " is " + std::to_string(s.size()) + " bytes, over the limit of " +
-                                              std::to_string(max_bytes));
+    return Status::InvalidArgument(
+        field, field + " is " + std::to_string(s.size()) + " bytes, over the limit of " + std::to_string(max_bytes));
   for (size_t i = 0; i < s.size(); ++i) {
     const unsigned char c = static_cast<unsigned char>(s[i]);
     if (c < 0x20 || c == 0x7f)
@@ -157,12 +156,12 @@ StatusOr<Axis> ParseAxis(const std::string& name, const toml::node& n) {
     if (!v.ok()) return v.status();
     axis.values = *v;
   } else if (const toml::table* t = n.as_table()) {
-    if (t->size() != 1)
-      return Status::InvalidArgument(field, field + " needs exactly one of list, linspace, logspace");
+    if (t->size() != 1) return Status::InvalidArgument(field, field + " needs exactly one of list, linspace, logspace");
     const auto it = t->begin();  // toml++ iterators own the proxy pair they hand out: keep it alive
     const std::string form(it->first.str());
     const toml::node& v = it->second;
-    if (std::find(kAxisForms.begin(), kAxisForms.end(), form) == kAxisForms.end()) return Unknown(field, form, kAxisForms);
+    if (std::find(kAxisForms.begin(), kAxisForms.end(), form) == kAxisForms.end())
+      return Unknown(field, form, kAxisForms);
     auto nums = NumberArray(v, field + "." + form);
     if (!nums.ok()) return nums.status();
     if (form == "list") {
@@ -174,7 +173,8 @@ StatusOr<Axis> ParseAxis(const std::string& name, const toml::node& n) {
       BISTABLE_RETURN_IF_ERROR(CheckFinite(field + "." + form + ".start", a));
       BISTABLE_RETURN_IF_ERROR(CheckFinite(field + "." + form + ".stop", b));
       if (!(cnt >= 1 && cnt <= static_cast<double>(kMaxValues) && cnt == std::floor(cnt)))
-        return Violates(field + "." + form + ".count", cnt, "a whole number in [1, " + std::to_string(kMaxValues) + "]");
+        return Violates(field + "." + form + ".count", cnt,
+                        "a whole number in [1, " + std::to_string(kMaxValues) + "]");
       if (form == "logspace" && !(a > 0 && b > 0))
         return Violates(field + ".logspace.start", std::min(a, b), "> 0 (logspace spans values, both ends positive)");
       const long m = static_cast<long>(cnt);
@@ -193,8 +193,8 @@ StatusOr<Axis> ParseAxis(const std::string& name, const toml::node& n) {
     BISTABLE_RETURN_IF_ERROR(CheckFinite(field + "[" + std::to_string(i) + "]", axis.values[i]));
     if (i > 0 && !(axis.values[i] > axis.values[i - 1]))
       return Status::InvalidArgument(field, field + " must be strictly increasing (value " + std::to_string(i) + " = " +
-                                                FormatNumber(axis.values[i]) + " after " + FormatNumber(axis.values[i - 1]) +
-                                                "); an inverted or empty range?");
+                                                FormatNumber(axis.values[i]) + " after " +
+                                                FormatNumber(axis.values[i - 1]) + "); an inverted or empty range?");
   }
   return axis;
 }
@@ -226,12 +226,13 @@ std::string ModelConfigText(const SweepSpec& spec) {
     os << "series.cells=" << spec.series.cells << "\nseries.resonators=" << spec.series.resonators
        << "\nseries.bistable=" << spec.series.bistable << "\n";
     for (size_t i = 0; i < spec.series.overrides.size(); ++i)
-      for (const auto& [k, v] : spec.series.overrides[i]) os << "series.cell[" << i << "]." << k << "=" << G17(v) << "\n";
+      for (const auto& [k, v] : spec.series.overrides[i])
+        os << "series.cell[" << i << "]." << k << "=" << G17(v) << "\n";
   } else if (spec.model == ModelKind::kDimensional) {
     const DimensionalParams& d = spec.dimensional.params;
     os << "dim.bistable=" << spec.dimensional.bistable << "\ndim.resonator=" << d.has_resonator;
-    for (double v : {d.m_m, d.k_lin, d.k3, d.c0_m, d.c2_m, d.fric_m.f_s, d.fric_m.f_c, d.fric_m.v_sp, d.fric_m.v_t, d.m_r,
-                     d.k_r, d.c0_r, d.c2_r, d.fric_r.f_s, d.fric_r.f_c, d.fric_r.v_sp, d.fric_r.v_t})
+    for (double v : {d.m_m, d.k_lin, d.k3, d.c0_m, d.c2_m, d.fric_m.f_s, d.fric_m.f_c, d.fric_m.v_sp, d.fric_m.v_t,
+                     d.m_r, d.k_r, d.c0_r, d.c2_r, d.fric_r.f_s, d.fric_r.f_c, d.fric_r.v_sp, d.fric_r.v_t})
       os << "," << G17(v);
     os << "\n";
   }
@@ -252,8 +253,8 @@ const std::vector<std::string>& DimensionalAxisNames() {
 const std::vector<std::string>& CanonicalAxisNames() {
   // Velocities before displacements: a map's first axis runs along the plot's vertical, so a basin
   // map over (ym0, vm0) is drawn in the usual phase plane (y_m(0) across, y_m'(0) up).
-  static const std::vector<std::string> kNames = {"alpha", "omega", "eta", "eta_r", "lambda", "phi", "eps",
-                                                  "vm0", "ym0", "vr0", "yr0"};
+  static const std::vector<std::string> kNames = {"alpha", "omega", "eta", "eta_r", "lambda", "phi",
+                                                  "eps",   "vm0",   "ym0", "vr0",   "yr0"};
   return kNames;
 }
 
@@ -272,20 +273,42 @@ bool SweepSpec::HasInitialStateAxes() const {
 }
 
 bool SweepSpec::IsBasinSweep() const {
-  return !axes.empty() && std::all_of(axes.begin(), axes.end(), [](const Axis& a) { return IsInitialStateAxis(a.name); });
+  return !axes.empty() &&
+         std::all_of(axes.begin(), axes.end(), [](const Axis& a) { return IsInitialStateAxis(a.name); });
 }
 
 std::string AxisUnit(const std::string& name) {
-  static const std::map<std::string, std::string> kUnits = {
-      {"alpha", "A0/delta_s"}, {"omega", "omega0/omega_n"}, {"eta", "c/(m_m omega_n)"}, {"eta_r", "c_r/(m_r omega_n)"},
-      {"lambda", "omega_r/omega_n"}, {"phi", "m_r/m_m"}, {"eps", "k3 delta_s^2/(m_m omega_n^2)"},
-      {"a0_mm", "mm"}, {"f0_hz", "Hz"}, {"ym0", "delta_s"}, {"vm0", "delta_s/tau"}, {"yr0", "delta_s"},
-      {"vr0", "delta_s/tau"},
-      // The dimensional (Table 2) model's parameters.
-      {"m_m", "kg"}, {"k_lin", "N/m"}, {"k3", "N/m^3"}, {"c0_m", "N s/m"}, {"c2_m", "N s/m^3"},
-      {"fric_m_fs", "N"}, {"fric_m_fc", "N"}, {"fric_m_vsp", "m/s"}, {"fric_m_vt", "m/s"},
-      {"m_r", "kg"}, {"k_r", "N/m"}, {"c0_r", "N s/m"}, {"c2_r", "N s/m^3"},
-      {"fric_r_fs", "N"}, {"fric_r_fc", "N"}, {"fric_r_vsp", "m/s"}, {"fric_r_vt", "m/s"}};
+  static const std::map<std::string, std::string> kUnits = {{"alpha", "A0/delta_s"},
+                                                            {"omega", "omega0/omega_n"},
+                                                            {"eta", "c/(m_m omega_n)"},
+                                                            {"eta_r", "c_r/(m_r omega_n)"},
+                                                            {"lambda", "omega_r/omega_n"},
+                                                            {"phi", "m_r/m_m"},
+                                                            {"eps", "k3 delta_s^2/(m_m omega_n^2)"},
+                                                            {"a0_mm", "mm"},
+                                                            {"f0_hz", "Hz"},
+                                                            {"ym0", "delta_s"},
+                                                            {"vm0", "delta_s/tau"},
+                                                            {"yr0", "delta_s"},
+                                                            {"vr0", "delta_s/tau"},
+                                                            // The dimensional (Table 2) model's parameters.
+                                                            {"m_m", "kg"},
+                                                            {"k_lin", "N/m"},
+                                                            {"k3", "N/m^3"},
+                                                            {"c0_m", "N s/m"},
+                                                            {"c2_m", "N s/m^3"},
+                                                            {"fric_m_fs", "N"},
+                                                            {"fric_m_fc", "N"},
+                                                            {"fric_m_vsp", "m/s"},
+                                                            {"fric_m_vt", "m/s"},
+                                                            {"m_r", "kg"},
+                                                            {"k_r", "N/m"},
+                                                            {"c0_r", "N s/m"},
+                                                            {"c2_r", "N s/m^3"},
+                                                            {"fric_r_fs", "N"},
+                                                            {"fric_r_fc", "N"},
+                                                            {"fric_r_vsp", "m/s"},
+                                                            {"fric_r_vt", "m/s"}};
   auto it = kUnits.find(name);
   return it == kUnits.end() ? "" : it->second;
 }
@@ -456,7 +479,8 @@ PointSpec SweepSpec::StartOf(const PointSpec& from, int ic) const {
 std::string SweepSpec::CanonicalText() const {
   std::ostringstream os;
   os << "numerics=" << kNumericsVersion << "\nmodel=" << ModelLabel() << "\n" << ModelConfigText(*this);
-  for (const std::string& name : kParamKeys) os << name << "=" << G17(*ParamSlot(const_cast<PointSpec&>(base), name)) << "\n";
+  for (const std::string& name : kParamKeys)
+    os << name << "=" << G17(*ParamSlot(const_cast<PointSpec&>(base), name)) << "\n";
   for (const Axis& a : axes) {
     os << "axis." << a.name << "=";
     for (double v : a.values) os << G17(v) << ",";
@@ -477,7 +501,8 @@ std::string SweepSpec::CanonicalText() const {
   // Only when set, so the ids of sweeps without a section stay what they were.
   if (m.poincare_points > 0 || m.poincare_phase != 0)
     os << "poincare_points=" << m.poincare_points << "\npoincare_phase=" << G17(m.poincare_phase) << "\n";
-  for (const auto& ic : initial_states) os << "ic=" << G17(ic[0]) << "," << G17(ic[1]) << "," << G17(ic[2]) << "," << G17(ic[3]) << "\n";
+  for (const auto& ic : initial_states)
+    os << "ic=" << G17(ic[0]) << "," << G17(ic[1]) << "," << G17(ic[2]) << "," << G17(ic[3]) << "\n";
   if (continuation.enabled())
     os << "continuation=" << continuation.axis << "," << continuation.up << "," << continuation.down << "\n";
   if (robustness.enabled()) {
@@ -486,7 +511,8 @@ std::string SweepSpec::CanonicalText() const {
     os << "\n";
   }
   if (refine.enabled())
-    os << "refine=" << refine.levels << "," << RefineCriterionName(refine.criterion) << "," << refine.mixed_after << "\n";
+    os << "refine=" << refine.levels << "," << RefineCriterionName(refine.criterion) << "," << refine.mixed_after
+       << "\n";
   os << "metrics=";
   for (const auto& s : metrics) os << s << ",";
   os << "\n";
@@ -511,8 +537,8 @@ std::string SweepSpec::ItemKey(long index, int ic) const {
 
 // The cells of a series point: [params] and axis values for all, then each cell's overrides.
 std::vector<SeriesCell> SweepSpec::SeriesCells(const PointSpec& p) const {
-  SeriesCell base{series.bistable, p.params.eps, p.params.eta, series.resonators, p.params.eta_r,
-                  p.params.phi, p.params.lambda};
+  SeriesCell base{series.bistable, p.params.eps, p.params.eta,   series.resonators,
+                  p.params.eta_r,  p.params.phi, p.params.lambda};
   std::vector<SeriesCell> cells(series.cells, base);
   for (size_t i = 0; i < series.overrides.size() && i < cells.size(); ++i) {
     for (const auto& [k, v] : series.overrides[i]) {
@@ -525,7 +551,6 @@ std::vector<SeriesCell> SweepSpec::SeriesCells(const PointSpec& p) const {
   }
   return cells;
 }
-
 
 int SweepSpec::ContinuationIndex(long point) const {
   const std::vector<int> idx = AxisIndices(point);
@@ -581,7 +606,8 @@ Status ReadNameAndModel(const toml::table& root, SweepSpec& spec) {
   }
   const toml::node* model = root.get("model");
   if (!model)
-    return Status::InvalidArgument("model", "model is required (standalone, coupled, linear, linear-coupled, series, dimensional)");
+    return Status::InvalidArgument(
+        "model", "model is required (standalone, coupled, linear, linear-coupled, series, dimensional)");
   {
     auto s = String(*model, "model");
     if (!s.ok()) return s.status();
@@ -609,7 +635,9 @@ Status ReadSeries(const toml::table& root, SweepSpec& spec) {
       spec.series.cells = cells;
       for (const char* flag : {"resonators", "bistable"}) {
         if (const toml::node* b = t->get(flag)) {
-          if (!b->is_boolean()) return Status::InvalidArgument(std::string("series.") + flag, std::string("series.") + flag + " must be true or false");
+          if (!b->is_boolean())
+            return Status::InvalidArgument(std::string("series.") + flag,
+                                           std::string("series.") + flag + " must be true or false");
           (std::string(flag) == "resonators" ? spec.series.resonators : spec.series.bistable) = *b->value<bool>();
         }
       }
@@ -617,7 +645,8 @@ Status ReadSeries(const toml::table& root, SweepSpec& spec) {
         const toml::array* a = c->as_array();
         if (!a) return Status::InvalidArgument("series.cell", "series.cell must be an array of tables, one per cell");
         if (static_cast<int>(a->size()) > spec.series.cells)
-          return Violates("series.cell", static_cast<double>(a->size()), "count <= series.cells = " + std::to_string(spec.series.cells));
+          return Violates("series.cell", static_cast<double>(a->size()),
+                          "count <= series.cells = " + std::to_string(spec.series.cells));
         for (size_t i = 0; i < a->size(); ++i) {
           const std::string f = "series.cell[" + std::to_string(i) + "]";
           const toml::table* ct = (*a)[i].as_table();
@@ -661,19 +690,25 @@ Status ReadDimensional(const toml::table& root, SweepSpec& spec) {
       if (const toml::node* pr = t->get("preset")) {
         auto name = String(*pr, "dimensional.preset");
         if (!name.ok()) return name.status();
-        if (*name == "bistable") spec.dimensional.params = DimensionalParams::BistableTable2(), spec.dimensional.bistable = true;
-        else if (*name == "linear") spec.dimensional.params = DimensionalParams::LinearTable2(), spec.dimensional.bistable = false;
-        else return Status::InvalidArgument("dimensional.preset", "dimensional.preset = '" + *name + "' violates preset in {bistable, linear}");
+        if (*name == "bistable")
+          spec.dimensional.params = DimensionalParams::BistableTable2(), spec.dimensional.bistable = true;
+        else if (*name == "linear")
+          spec.dimensional.params = DimensionalParams::LinearTable2(), spec.dimensional.bistable = false;
+        else
+          return Status::InvalidArgument("dimensional.preset",
+                                         "dimensional.preset = '" + *name + "' violates preset in {bistable, linear}");
       }
       DimensionalParams& d = spec.dimensional.params;
       if (const toml::node* r = t->get("resonator")) {
-        if (!r->is_boolean()) return Status::InvalidArgument("dimensional.resonator", "dimensional.resonator must be true or false");
+        if (!r->is_boolean())
+          return Status::InvalidArgument("dimensional.resonator", "dimensional.resonator must be true or false");
         d.has_resonator = *r->value<bool>();
       }
       const std::pair<const char*, double*> slots[] = {
-          {"m_m", &d.m_m},   {"k_lin", &d.k_lin}, {"k3", &d.k3},          {"c0_m", &d.c0_m}, {"c2_m", &d.c2_m},
-          {"fs_m", &d.fric_m.f_s}, {"fc_m", &d.fric_m.f_c}, {"m_r", &d.m_r}, {"k_r", &d.k_r}, {"c0_r", &d.c0_r},
-          {"c2_r", &d.c2_r}, {"fs_r", &d.fric_r.f_s}, {"fc_r", &d.fric_r.f_c}};
+          {"m_m", &d.m_m},        {"k_lin", &d.k_lin},     {"k3", &d.k3},           {"c0_m", &d.c0_m},
+          {"c2_m", &d.c2_m},      {"fs_m", &d.fric_m.f_s}, {"fc_m", &d.fric_m.f_c}, {"m_r", &d.m_r},
+          {"k_r", &d.k_r},        {"c0_r", &d.c0_r},       {"c2_r", &d.c2_r},       {"fs_r", &d.fric_r.f_s},
+          {"fc_r", &d.fric_r.f_c}};
       for (auto [k, slot] : slots) BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, k, std::string("dimensional.") + k, slot));
       double v_sp = d.fric_m.v_sp, v_t = d.fric_m.v_t;
       BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "v_sp", "dimensional.v_sp", &v_sp));
@@ -697,7 +732,8 @@ Status ReadParamsAndAxes(const toml::table& root, SweepSpec& spec, std::set<std:
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("params", "params must be a table");
     BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "params", param_keys));
-    for (const std::string& k : param_keys) BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, k, "params." + k, ParamSlot(spec.base, k)));
+    for (const std::string& k : param_keys)
+      BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, k, "params." + k, ParamSlot(spec.base, k)));
   }
   if (const toml::node* n = root.get("axes")) {
     const toml::table* t = n->as_table();
@@ -711,7 +747,8 @@ Status ReadParamsAndAxes(const toml::table& root, SweepSpec& spec, std::set<std:
         if (__builtin_mul_overflow(product, static_cast<long>(axis->values.size()), &product) ||
             product > limits::kMaxSweepItems)
           return Status::InvalidArgument(
-              "axes." + name, "the grid up to axes." + name + " has more than " + std::to_string(limits::kMaxSweepItems) +
+              "axes." + name, "the grid up to axes." + name + " has more than " +
+                                  std::to_string(limits::kMaxSweepItems) +
                                   " points (the limit of points x initial conditions per sweep; split the sweep)");
         spec.axes.push_back(*axis);
         swept.insert(name);
@@ -763,8 +800,9 @@ Status ReadIntegration(const toml::table& root, SweepSpec& spec) {
 
 // [metrics]: what is stored and the metric settings.
 Status ReadMetrics(const toml::table& root, SweepSpec& spec) {
-  spec.metrics = {"frf_db", "lle", "motion", "period", "hd_index", "hd_peaks", "edr_b", "edr_r", "edr_t",
-                  "energy_balance_residual", "y_min", "y_max", "termination"};
+  spec.metrics = {"frf_db",   "lle",   "motion",     "period", "hd_index",
+                  "hd_peaks", "edr_b", "edr_r",      "edr_t",  "energy_balance_residual",
+                  "y_min",    "y_max", "termination"};
   if (const toml::node* n = root.get("metrics")) {
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("metrics", "metrics must be a table");
@@ -787,11 +825,14 @@ Status ReadMetrics(const toml::table& root, SweepSpec& spec) {
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "chaos_01_min", "metrics.chaos_01_min", &m.chaos_01_min));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "period_tol", "metrics.period_tol", &m.period_tol));
     BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "hd_level", "metrics.hd_level", &m.hd_level));
-    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "renorm_every", "metrics.renorm_every", &m.renorm_every, 1, limits::kMaxEvery));
-    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "sample_every", "metrics.sample_every", &m.sample_every, 1, limits::kMaxEvery));
+    BISTABLE_RETURN_IF_ERROR(
+        ReadInt(*t, "renorm_every", "metrics.renorm_every", &m.renorm_every, 1, limits::kMaxEvery));
+    BISTABLE_RETURN_IF_ERROR(
+        ReadInt(*t, "sample_every", "metrics.sample_every", &m.sample_every, 1, limits::kMaxEvery));
     BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "max_period", "metrics.max_period", &m.max_period, 1, limits::kMaxPeriod));
     if (const toml::node* r = t->get("rosenstein")) {
-      if (!r->is_boolean()) return Status::InvalidArgument("metrics.rosenstein", "metrics.rosenstein must be true or false");
+      if (!r->is_boolean())
+        return Status::InvalidArgument("metrics.rosenstein", "metrics.rosenstein must be true or false");
       m.rosenstein = *r->value<bool>();
     }
     // The Poincaré section: its phase (also the period test's strobes) and the points stored.
@@ -800,12 +841,13 @@ Status ReadMetrics(const toml::table& root, SweepSpec& spec) {
       return Violates("metrics.poincare_phase", m.poincare_phase, "in [0, 2 pi) (radians of Omega tau)");
     const bool stored = std::find(spec.metrics.begin(), spec.metrics.end(), "poincare") != spec.metrics.end();
     if (stored) m.poincare_points = kDefaultPoincarePoints;
-    BISTABLE_RETURN_IF_ERROR(
-        ReadInt(*t, "poincare_points", "metrics.poincare_points", &m.poincare_points, 1, limits::kMaxPoincarePointsStored));
+    BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "poincare_points", "metrics.poincare_points", &m.poincare_points, 1,
+                                     limits::kMaxPoincarePointsStored));
     if (t->get("poincare_points") && !stored)
-      return Status::InvalidArgument("metrics.poincare_points",
-                                     "metrics.poincare_points needs \"poincare\" in metrics.store (it sets how many section "
-                                     "points are stored)");
+      return Status::InvalidArgument(
+          "metrics.poincare_points",
+          "metrics.poincare_points needs \"poincare\" in metrics.store (it sets how many section "
+          "points are stored)");
   }
   spec.base.metrics.turning_points =
       std::find(spec.metrics.begin(), spec.metrics.end(), "turning_points") != spec.metrics.end();
@@ -822,12 +864,14 @@ Status ReadInitialConditions(const toml::table& root, SweepSpec& spec) {
     if (!t) return Status::InvalidArgument("initial_conditions", "initial_conditions must be a table");
     BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "initial_conditions", kIcKeys));
     if (spec.model == ModelKind::kSeries)
-      return Status::InvalidArgument("initial_conditions", "initial_conditions are not supported for series chains yet; "
-                                                           "they start at rest in every link's positive well");
+      return Status::InvalidArgument("initial_conditions",
+                                     "initial_conditions are not supported for series chains yet; "
+                                     "they start at rest in every link's positive well");
     if (const toml::node* s = t->get("states")) {
       const toml::array* a = s->as_array();
       if (!a || a->empty())
-        return Status::InvalidArgument("initial_conditions.states", "initial_conditions.states must be a non-empty array of [ym, vm, yr, vr]");
+        return Status::InvalidArgument("initial_conditions.states",
+                                       "initial_conditions.states must be a non-empty array of [ym, vm, yr, vr]");
       if (a->size() > static_cast<size_t>(limits::kMaxInitialStates))
         return Violates("initial_conditions.states", static_cast<double>(a->size()),
                         "count <= " + std::to_string(limits::kMaxInitialStates));
@@ -835,7 +879,8 @@ Status ReadInitialConditions(const toml::table& root, SweepSpec& spec) {
         const std::string f = "initial_conditions.states[" + std::to_string(i) + "]";
         auto v = NumberArray((*a)[i], f);
         if (!v.ok()) return v.status();
-        if (v->size() != 2 && v->size() != 4) return Status::InvalidArgument(f, f + " must be [ym, vm] or [ym, vm, yr, vr]");
+        if (v->size() != 2 && v->size() != 4)
+          return Status::InvalidArgument(f, f + " must be [ym, vm] or [ym, vm, yr, vr]");
         std::array<double, 4> ic = {0, 0, 0, 0};
         for (size_t j = 0; j < v->size(); ++j) {
           BISTABLE_RETURN_IF_ERROR(CheckFinite(f + "[" + std::to_string(j) + "]", (*v)[j]));
@@ -855,7 +900,8 @@ Status ReadContinuation(const toml::table& root, SweepSpec& spec) {
     if (!t) return Status::InvalidArgument("continuation", "continuation must be a table");
     BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "continuation", kContinuationKeys));
     if (!IsCellModel(spec.model))
-      return Status::InvalidArgument("continuation", "continuation runs for standalone, coupled and linear models only");
+      return Status::InvalidArgument("continuation",
+                                     "continuation runs for standalone, coupled and linear models only");
     auto axis = t->get("axis") ? String(*t->get("axis"), "continuation.axis") : StatusOr<std::string>(std::string());
     if (!axis.ok()) return axis.status();
     std::vector<std::string> swept_names;
@@ -866,13 +912,17 @@ Status ReadContinuation(const toml::table& root, SweepSpec& spec) {
     if (const toml::node* d = t->get("direction")) {
       auto dir = String(*d, "continuation.direction");
       if (!dir.ok()) return dir.status();
-      if (*dir == "up") spec.continuation.down = false;
-      else if (*dir == "down") spec.continuation.up = false;
+      if (*dir == "up")
+        spec.continuation.down = false;
+      else if (*dir == "down")
+        spec.continuation.up = false;
       else if (*dir != "both")
-        return Status::InvalidArgument("continuation.direction", "continuation.direction = '" + *dir + "' violates direction in {up, down, both}");
+        return Status::InvalidArgument(
+            "continuation.direction", "continuation.direction = '" + *dir + "' violates direction in {up, down, both}");
     }
     if (spec.initial_states.size() > 1)
-      return Status::InvalidArgument("initial_conditions.states", "with continuation, give at most one start state (the chains' start)");
+      return Status::InvalidArgument("initial_conditions.states",
+                                     "with continuation, give at most one start state (the chains' start)");
   }
   return Status::Ok();
 }
@@ -889,13 +939,16 @@ Status ReadRobustness(const toml::table& root, SweepSpec& spec) {
   RobustnessConfig& r = spec.robustness;
   int samples = 0, seed = 1;
   BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "samples", "robustness.samples", &samples, 1, limits::kMaxRobustnessSamples));
-  if (samples == 0) return Status::InvalidArgument("robustness.samples", "robustness.samples is required (samples per grid point)");
+  if (samples == 0)
+    return Status::InvalidArgument("robustness.samples", "robustness.samples is required (samples per grid point)");
   BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "seed", "robustness.seed", &seed, 0, 2147483647));
   r.samples = samples;
   r.seed = static_cast<uint64_t>(seed);
   if (const toml::node* tn = t->get("tolerance")) {
     const toml::table* tt = tn->as_table();
-    if (!tt) return Status::InvalidArgument("robustness.tolerance", "robustness.tolerance must be a table, e.g. { eta = 0.2, lambda = 0.02 }");
+    if (!tt)
+      return Status::InvalidArgument("robustness.tolerance",
+                                     "robustness.tolerance must be a table, e.g. { eta = 0.2, lambda = 0.02 }");
     BISTABLE_RETURN_IF_ERROR(CheckKeys(*tt, "robustness.tolerance", kToleranceKeys));
     for (const std::string& k : kToleranceKeys) {
       if (!tt->get(k)) continue;
@@ -906,9 +959,11 @@ Status ReadRobustness(const toml::table& root, SweepSpec& spec) {
     }
   }
   BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "ic_radius", "robustness.ic_radius", &r.ic_radius));
-  if (!(r.ic_radius >= 0 && r.ic_radius <= 10)) return Violates("robustness.ic_radius", r.ic_radius, "in [0, 10] (delta_s)");
+  if (!(r.ic_radius >= 0 && r.ic_radius <= 10))
+    return Violates("robustness.ic_radius", r.ic_radius, "in [0, 10] (delta_s)");
   if (spec.initial_states.size() > 1)
-    return Status::InvalidArgument("initial_conditions.states", "with [robustness] give at most one state (the centre of the start disc)");
+    return Status::InvalidArgument("initial_conditions.states",
+                                   "with [robustness] give at most one state (the centre of the start disc)");
   if (spec.continuation.enabled())
     return Status::InvalidArgument("robustness", "robustness samples cannot be combined with continuation");
   if (spec.HasInitialStateAxes())
@@ -921,13 +976,17 @@ Status ReadRefine(const toml::table& root, SweepSpec& spec) {
   const toml::node* n = root.get("refine");
   if (!n) return Status::Ok();
   const toml::table* t = n->as_table();
-  if (!t) return Status::InvalidArgument("refine", "refine must be a table, e.g. { levels = 3, criterion = \"motion\" }");
+  if (!t)
+    return Status::InvalidArgument("refine", "refine must be a table, e.g. { levels = 3, criterion = \"motion\" }");
   BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "refine", kRefineKeys));
   RefineConfig& r = spec.refine;
   int levels = 0;
   BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "levels", "refine.levels", &levels, 1, limits::kMaxRefineLevels));
-  if (levels == 0) return Status::InvalidArgument("refine.levels", "refine.levels is required (halvings from the coarse grid to the axes' grid)");
-  BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "mixed_after", "refine.mixed_after", &r.mixed_after, 0, limits::kMaxRefineLevels));
+  if (levels == 0)
+    return Status::InvalidArgument("refine.levels",
+                                   "refine.levels is required (halvings from the coarse grid to the axes' grid)");
+  BISTABLE_RETURN_IF_ERROR(
+      ReadInt(*t, "mixed_after", "refine.mixed_after", &r.mixed_after, 0, limits::kMaxRefineLevels));
   if (const toml::node* c = t->get("criterion")) {
     auto s = String(*c, "refine.criterion");
     if (!s.ok()) return s.status();
@@ -941,14 +1000,16 @@ Status ReadRefine(const toml::table& root, SweepSpec& spec) {
   for (const Axis& a : spec.axes) {
     const long n_values = static_cast<long>(a.values.size());
     if (n_values < step + 1 || (n_values - 1) % step != 0)
-      return Status::InvalidArgument("axes." + a.name, "axes." + a.name + " has " + std::to_string(n_values) +
-                                                           " values; with refine.levels = " + std::to_string(levels) +
-                                                           " it needs k * " + std::to_string(step) + " + 1 values (k >= 1), e.g. " +
-                                                           std::to_string(step * ((n_values - 1) / step + 1) + 1));
+      return Status::InvalidArgument(
+          "axes." + a.name, "axes." + a.name + " has " + std::to_string(n_values) + " values; with refine.levels = " +
+                                std::to_string(levels) + " it needs k * " + std::to_string(step) +
+                                " + 1 values (k >= 1), e.g. " + std::to_string(step * ((n_values - 1) / step + 1) + 1));
   }
-  if (spec.initial_states.size() > 1 || spec.continuation.enabled() || spec.robustness.enabled() || spec.HasInitialStateAxes())
-    return Status::InvalidArgument("refine", "refined maps take one item per grid point: no several initial states, "
-                                             "continuation, robustness samples or initial-state axes");
+  if (spec.initial_states.size() > 1 || spec.continuation.enabled() || spec.robustness.enabled() ||
+      spec.HasInitialStateAxes())
+    return Status::InvalidArgument("refine",
+                                   "refined maps take one item per grid point: no several initial states, "
+                                   "continuation, robustness samples or initial-state axes");
   r.levels = levels;
   return Status::Ok();
 }
@@ -998,26 +1059,31 @@ Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
     if (!IsCellModel(spec.model))
       return Status::InvalidArgument("axes", "initial-state axes (ym0, vm0, yr0, vr0) sweep the cell models only");
     if (spec.initial_states.size() > 1)
-      return Status::InvalidArgument("initial_conditions.states",
-                                     "with initial-state axes give at most one state (it sets the components not swept)");
+      return Status::InvalidArgument(
+          "initial_conditions.states",
+          "with initial-state axes give at most one state (it sets the components not swept)");
     if (spec.continuation.enabled())
-      return Status::InvalidArgument("continuation", "continuation chains start states along an axis; it cannot be "
-                                                     "combined with initial-state axes");
+      return Status::InvalidArgument("continuation",
+                                     "continuation chains start states along an axis; it cannot be "
+                                     "combined with initial-state axes");
     for (const Axis& a : spec.axes)
       if ((a.name == "yr0" || a.name == "vr0") && !HasResonator(spec.model))
-        return Status::InvalidArgument("axes." + a.name, "axes." + a.name + " needs a model with a resonator (coupled, linear-coupled)");
+        return Status::InvalidArgument("axes." + a.name,
+                                       "axes." + a.name + " needs a model with a resonator (coupled, linear-coupled)");
   }
   if (spec.base.integration.integrator == IntegratorKind::kRosenbrock) {
     if (spec.model != ModelKind::kDimensional)
-      return Status::InvalidArgument("integration.integrator", "integrator = 'rosenbrock' is for the rig (model = "
-                                                               "'dimensional'); the other models use 'rk4' or 'adaptive'");
+      return Status::InvalidArgument("integration.integrator",
+                                     "integrator = 'rosenbrock' is for the rig (model = "
+                                     "'dimensional'); the other models use 'rk4' or 'adaptive'");
     // The stage polynomials of the forcing phase cover 2 pi f0 dt <= kMaxPhasePerStep.
     const double f0_max = kMaxPhasePerStep / (2.0 * M_PI * spec.base.integration.dt);
     auto check_f0 = [&](double f0, const std::string& field) -> Status {
       if (f0 > f0_max)
-        return Status::InvalidArgument(field, field + " = " + FormatNumber(f0) + " violates f0_hz <= " + FormatNumber(f0_max) +
-                                                  " (integrator = 'rosenbrock': 2 pi f0 dt <= " + FormatNumber(kMaxPhasePerStep) +
-                                                  "; a smaller dt allows higher f0, and integrator = 'adaptive' any)");
+        return Status::InvalidArgument(
+            field, field + " = " + FormatNumber(f0) + " violates f0_hz <= " + FormatNumber(f0_max) +
+                       " (integrator = 'rosenbrock': 2 pi f0 dt <= " + FormatNumber(kMaxPhasePerStep) +
+                       "; a smaller dt allows higher f0, and integrator = 'adaptive' any)");
       return Status::Ok();
     };
     bool f0_swept = false;
@@ -1030,8 +1096,9 @@ Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
     if (!f0_swept) BISTABLE_RETURN_IF_ERROR(check_f0(spec.base.omega, "params.f0_hz"));
   }
   if (spec.base.integration.labels == LabelMode::kSettled && !IsCellModel(spec.model))
-    return Status::InvalidArgument("integration.labels", "labels = 'settled' is for the cell models (standalone, coupled, "
-                                                         "linear, linear-coupled); series and rig maps use 'paper'");
+    return Status::InvalidArgument("integration.labels",
+                                   "labels = 'settled' is for the cell models (standalone, coupled, "
+                                   "linear, linear-coupled); series and rig maps use 'paper'");
   for (const Axis& a : spec.axes) {
     for (size_t i = 0; i < a.values.size(); ++i) {
       PointSpec p = probe;
@@ -1063,7 +1130,8 @@ Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
   }
   const double items = static_cast<double>(spec.points()) * spec.ic_count();
   if (items > static_cast<double>(limits::kMaxSweepItems))
-    return Violates("axes", items, "points x initial conditions <= " + std::to_string(limits::kMaxSweepItems) + " (split the sweep)");
+    return Violates("axes", items,
+                    "points x initial conditions <= " + std::to_string(limits::kMaxSweepItems) + " (split the sweep)");
   if (spec.continuation.enabled()) {
     // A chain runs whole inside one job, and a job's report must fit one message.
     for (const Axis& a : spec.axes)

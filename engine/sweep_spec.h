@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
+#include "base/status.h"
 #include "dynamics/dimensional_model.h"
 #include "dynamics/point_spec.h"
 #include "dynamics/series_model.h"
-#include "base/status.h"
 
 namespace bistable {
 
@@ -25,8 +25,8 @@ struct Axis {
 // N cells in series: identical cells from [params] and the axes, with optional per-cell overrides.
 struct SeriesConfig {
   int cells = 2;
-  bool resonators = true;  // every cell carries a resonator
-  bool bistable = true;    // bistable links (else linear)
+  bool resonators = true;                                              // every cell carries a resonator
+  bool bistable = true;                                                // bistable links (else linear)
   std::vector<std::vector<std::pair<std::string, double>>> overrides;  // per cell: name → value
 };
 
@@ -40,7 +40,7 @@ struct DimensionalConfig {
 // Continuation of the initial condition along one axis (bifurcation diagrams): each point starts
 // from the previous point's final state, sweeping up, down or both, so hysteresis shows.
 struct ContinuationConfig {
-  std::string axis;        // "" = off; else one of the sweep's axes
+  std::string axis;  // "" = off; else one of the sweep's axes
   bool up = true, down = true;
   bool enabled() const { return !axis.empty(); }
   int directions() const { return (up ? 1 : 0) + (down ? 1 : 0); }
@@ -51,7 +51,7 @@ struct ContinuationConfig {
 // sequence (reproducible on any machine); the map holds the fractions of motion types per point and
 // their Monte-Carlo standard errors. Samples are the point's items (the `ic` slot), so they run in lanes.
 struct RobustnessConfig {
-  int samples = 0;                          // 0 = off
+  int samples = 0;  // 0 = off
   uint64_t seed = 1;
   std::map<std::string, double> tolerance;  // parameter -> relative half-width (x (1 + tol (2u - 1)))
   double ic_radius = 0;                     // radius of the start disc in (y_m, y_m'), delta_s
@@ -105,7 +105,7 @@ struct WorkItem {
 };
 
 struct SweepSpec {
-  std::string name;                 // free text, for humans
+  std::string name;                       // free text, for humans
   ModelKind model = ModelKind::kCoupled;  // any of the six; base.model is the cell a point runs (for
                                           // series and dimensional sweeps the cell proxy that classifies motion)
   SeriesConfig series;
@@ -113,15 +113,15 @@ struct SweepSpec {
   ContinuationConfig continuation;
   RobustnessConfig robustness;
   RefineConfig refine;
-  PointSpec base;                   // fixed parameters and settings; alpha/omega used when not swept
-  std::vector<Axis> axes;           // in canonical order, only the swept ones
+  PointSpec base;                                     // fixed parameters and settings; alpha/omega used when not swept
+  std::vector<Axis> axes;                             // in canonical order, only the swept ones
   std::vector<std::array<double, 4>> initial_states;  // empty: the model's default start
-  std::vector<std::string> metrics; // stored metrics (names from MetricCatalog)
-  std::vector<std::string> plots;   // metrics rendered after `bistable run`
-  std::string source;               // the TOML text as given (stored with the maps)
-  std::string canonical_hash;       // ContentHashHex(CanonicalText()), set by ParseSweepSpec ("" = compute)
+  std::vector<std::string> metrics;                   // stored metrics (names from MetricCatalog)
+  std::vector<std::string> plots;                     // metrics rendered after `bistable run`
+  std::string source;                                 // the TOML text as given (stored with the maps)
+  std::string canonical_hash;  // ContentHashHex(CanonicalText()), set by ParseSweepSpec ("" = compute)
 
-  long points() const;              // product of axis lengths (1 with no axes)
+  long points() const;  // product of axis lengths (1 with no axes)
   // Items per point: initial conditions, or the continuation directions (up, down).
   int ic_count() const {
     if (continuation.enabled()) return continuation.directions();
@@ -137,7 +137,7 @@ struct SweepSpec {
   long ContinuationLine(long point) const;
   // Canonical text of everything that determines the numbers (not name/plots/source): its hash is the sweep id.
   std::string CanonicalText() const;
-  std::string Id() const;           // 12 hex digits of the canonical text's hash
+  std::string Id() const;  // 12 hex digits of the canonical text's hash
   bool HasInitialStateAxes() const;
   // Every axis is an initial-state axis: the map is a basin map (attractor ids, fractions; map_file).
   bool IsBasinSweep() const;
@@ -169,7 +169,6 @@ struct SweepSpec {
 // Parses and validates. `origin` names the source in messages (a file name).
 StatusOr<SweepSpec> ParseSweepSpec(const std::string& toml_text, const std::string& origin);
 StatusOr<SweepSpec> LoadSweepSpec(const std::string& path);
-
 
 }  // namespace bistable
 

@@ -15,12 +15,18 @@ enum class SweepState { kQueued, kRunning, kDone, kFailed, kCancelled, kInterrup
 
 constexpr const char* SweepStateName(SweepState s) {
   switch (s) {
-    case SweepState::kQueued: return "queued";
-    case SweepState::kRunning: return "running";
-    case SweepState::kDone: return "done";
-    case SweepState::kFailed: return "failed";
-    case SweepState::kCancelled: return "cancelled";
-    case SweepState::kInterrupted: return "interrupted";
+    case SweepState::kQueued:
+      return "queued";
+    case SweepState::kRunning:
+      return "running";
+    case SweepState::kDone:
+      return "done";
+    case SweepState::kFailed:
+      return "failed";
+    case SweepState::kCancelled:
+      return "cancelled";
+    case SweepState::kInterrupted:
+      return "interrupted";
   }
   return "failed";
 }
@@ -42,20 +48,20 @@ struct SweepInfo {
   std::string id, name, model, owner;
   SweepState state = SweepState::kQueued;
   long items_total = 0, items_done = 0, items_cached = 0;
-  int workers = 0;         // workers holding a lease of this sweep now
-  double seconds = 0;      // since submission (or total, when done)
-  std::string file;        // published map, relative to the data dir
-  std::string error;       // last storage / publication failure ("" once a report is stored again)
-  double created = 0;      // unix seconds: first submitted
-  double finished = 0;     // unix seconds: published (0 until done)
+  int workers = 0;      // workers holding a lease of this sweep now
+  double seconds = 0;   // since submission (or total, when done)
+  std::string file;     // published map, relative to the data dir
+  std::string error;    // last storage / publication failure ("" once a report is stored again)
+  double created = 0;   // unix seconds: first submitted
+  double finished = 0;  // unix seconds: published (0 until done)
 };
 
 // What a coordinator tells about a worker (`bistable workers`; the wire's WorkerStatus).
 struct WorkerInfo {
   std::string name;
-  double last_seen = 0;    // unix seconds
-  int leases = 0;          // leases held now
-  long items_done = 0;     // items reported and stored
+  double last_seen = 0;  // unix seconds
+  int leases = 0;        // leases held now
+  long items_done = 0;   // items reported and stored
 };
 
 }  // namespace bistable

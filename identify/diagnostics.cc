@@ -70,7 +70,8 @@ double Flatness(const std::vector<double>& y) {
   std::vector<double> p(L / 2 + 1, 0.0), seg(L);
   int count = 0;
   for (size_t s = 0; s + L <= y.size(); s += L / 2, ++count) {
-    for (size_t i = 0; i < L; ++i) seg[i] = y[s + i] * (0.5 - 0.5 * std::cos(2.0 * M_PI * static_cast<double>(i) / static_cast<double>(L)));
+    for (size_t i = 0; i < L; ++i)
+      seg[i] = y[s + i] * (0.5 - 0.5 * std::cos(2.0 * M_PI * static_cast<double>(i) / static_cast<double>(L)));
     std::vector<std::complex<double>> X;
     RealFftHalf(seg, &X);
     for (size_t k = 0; k < p.size() && k < X.size(); ++k) p[k] += std::norm(X[k]);
@@ -104,7 +105,8 @@ double TermForce(const TermDef& t, const double* th, double q, double v, const F
 
 // How a term's force grows with the amplitude at (q, v): total power (q and v doubled) and the power
 // of the displacement alone (q doubled).
-std::pair<double, double> AmplitudePowers(const TermDef& t, const double* th, double q, double v, const FrictionConstants& fc) {
+std::pair<double, double> AmplitudePowers(const TermDef& t, const double* th, double q, double v,
+                                          const FrictionConstants& fc) {
   const double f = TermForce(t, th, q, v, fc);
   if (!(f > 0)) return {NAN, NAN};
   return {std::log2(TermForce(t, th, 2 * q, 2 * v, fc) / f), std::log2(TermForce(t, th, 2 * q, v, fc) / f)};
@@ -155,7 +157,8 @@ Whiteness WhitenessTest(const std::vector<std::vector<double>>& residuals, const
   return w;
 }
 
-std::vector<ParamCorrelation> StrongCorrelations(const std::vector<std::string>& names, const Eigen::MatrixXd& cov, double threshold) {
+std::vector<ParamCorrelation> StrongCorrelations(const std::vector<std::string>& names, const Eigen::MatrixXd& cov,
+                                                 double threshold) {
   std::vector<ParamCorrelation> out;
   const long p = std::min<long>(static_cast<long>(names.size()), cov.rows());
   if (cov.cols() != cov.rows()) return out;
@@ -166,11 +169,13 @@ std::vector<ParamCorrelation> StrongCorrelations(const std::vector<std::string>&
       const double rho = cov(i, j) / den;
       if (std::abs(rho) > threshold) out.push_back({names[i], names[j], rho});
     }
-  std::sort(out.begin(), out.end(), [](const ParamCorrelation& a, const ParamCorrelation& b) { return std::abs(a.rho) > std::abs(b.rho); });
+  std::sort(out.begin(), out.end(),
+            [](const ParamCorrelation& a, const ParamCorrelation& b) { return std::abs(a.rho) > std::abs(b.rho); });
   return out;
 }
 
-std::vector<ParamDrift> DriftOf(const IdentModel& before, const FitResult& fit_before, const IdentModel& after, const FitResult& fit_after) {
+std::vector<ParamDrift> DriftOf(const IdentModel& before, const FitResult& fit_before, const IdentModel& after,
+                                const FitResult& fit_after) {
   std::vector<ParamDrift> out;
   const auto nb = before.ParamNames(), na = after.ParamNames();
   for (size_t i = 0; i < nb.size() && i < fit_before.theta.size(); ++i) {
@@ -193,8 +198,9 @@ namespace {
 // The final model's residual of one output per record: the simulation error, or for chaotic records
 // the short-horizon one (restarted from the measured state every `horizon_s`). Records without that
 // output are left out.
-Whiteness FinalWhiteness(const FitSnapshot& f, const std::vector<PreparedRecord>& recs, const Setup& setup, const ChaosCheck& chaos,
-                         double horizon_s, bool reestimated, OutputSlot slot) {  // horizon_s by value: named in the report
+Whiteness FinalWhiteness(const FitSnapshot& f, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                         const ChaosCheck& chaos, double horizon_s, bool reestimated,
+                         OutputSlot slot) {  // horizon_s by value: named in the report
   std::vector<std::vector<double>> res;
   std::vector<double> dts, bands;
   bool any_short = false, any_full = false;
@@ -209,13 +215,17 @@ Whiteness FinalWhiteness(const FitSnapshot& f, const std::vector<PreparedRecord>
     const double h = own ? r.horizon_s : horizon_s;
     const int restart = shortened ? ShootingSegment(h, r.dt) : 0;
     SimOutputs so;
-    if (shortened && reestimated) SimulateShooting(f.model, f.fit.theta, r, setup, h, &so);
-    else SimulateOutputs(f.model, f.fit.theta, {}, r, setup, 0, restart, false, &so);
+    if (shortened && reestimated)
+      SimulateShooting(f.model, f.fit.theta, r, setup, h, &so);
+    else
+      SimulateOutputs(f.model, f.fit.theta, {}, r, setup, 0, restart, false, &so);
     const std::vector<double>& out = so.out[static_cast<int>(slot)];
     const std::vector<double>& meas = r.Measured(slot);
     std::vector<double> e;
     for (size_t j = 0; j < r.n() && j < out.size() && std::isfinite(out[j]); ++j) e.push_back(out[j] - meas[j]);
-    if (e.size() < r.n()) diverged += (diverged.empty() ? "" : ", ") + r.name + " at t = " + Num(static_cast<double>(e.size()) * r.dt) + " s";
+    if (e.size() < r.n())
+      diverged +=
+          (diverged.empty() ? "" : ", ") + r.name + " at t = " + Num(static_cast<double>(e.size()) * r.dt) + " s";
     res.push_back(std::move(e));
     dts.push_back(r.dt);
     bands.push_back(r.f_cut);
@@ -228,7 +238,8 @@ Whiteness FinalWhiteness(const FitSnapshot& f, const std::vector<PreparedRecord>
   if (any_short)
     w.residual += std::string(any_full ? "; " : "") + "short-horizon simulation error of the chaotic records (" +
                   (reestimated ? "segments of " + Num(horizon_s) + " s from re-estimated states"
-                               : "state reset to the measured one every " + Num(horizon_s) + " s") + ")";
+                               : "state reset to the measured one every " + Num(horizon_s) + " s") +
+                  ")";
   if (!diverged.empty()) {
     w.diverged = true;
     w.residual += "; the simulation diverged (" + diverged + "), tested up to there";
@@ -237,8 +248,8 @@ Whiteness FinalWhiteness(const FitSnapshot& f, const std::vector<PreparedRecord>
 }
 
 // Which records would separate two dissipative terms that these records cannot (diagnostics.h).
-std::string PairHint(const TermDef& a, const double* tha, const TermDef& b, const double* thb, const std::vector<PreparedRecord>& recs,
-                     const FrictionConstants& fc) {
+std::string PairHint(const TermDef& a, const double* tha, const TermDef& b, const double* thb,
+                     const std::vector<PreparedRecord>& recs, const FrictionConstants& fc) {
   double q = 0, v = 0, fmin = INFINITY, fmax = 0;
   for (const PreparedRecord& r : recs) {
     q = std::max(q, r.p_range), v = std::max(v, r.v_range);
@@ -248,21 +259,24 @@ std::string PairHint(const TermDef& a, const double* tha, const TermDef& b, cons
   const auto [pa, qa] = AmplitudePowers(a, tha, 0.5 * q, 0.5 * v, fc);
   const auto [pb, qb] = AmplitudePowers(b, thb, 0.5 * q, 0.5 * v, fc);
   const std::string here = "max |y| " + Num(q) + " m, max |y'| " + Num(v) + " m/s";
-  if (!std::isfinite(pa) || !std::isfinite(pb)) return "one of them is zero here; a record at another amplitude would show it";
+  if (!std::isfinite(pa) || !std::isfinite(pb))
+    return "one of them is zero here; a record at another amplitude would show it";
   if (std::abs(pa - pb) >= 0.5) {
     const TermDef& hi = pa > pb ? a : b;
     const TermDef& lo = pa > pb ? b : a;
-    return "their forces grow as amplitude^" + Num(std::max(pa, pb), 2) + " (" + hi.id + ") and amplitude^" + Num(std::min(pa, pb), 2) + " (" +
-           lo.id + "): records at other amplitudes separate them — one at about twice the motion here (" + here + ") shows " + hi.id +
-           ", one at about half shows " + lo.id;
+    return "their forces grow as amplitude^" + Num(std::max(pa, pb), 2) + " (" + hi.id + ") and amplitude^" +
+           Num(std::min(pa, pb), 2) + " (" + lo.id +
+           "): records at other amplitudes separate them — one at about twice the motion here (" + here + ") shows " +
+           hi.id + ", one at about half shows " + lo.id;
   }
   if (std::abs(qa - qb) >= 0.5) {
     const TermDef& disp = qa > qb ? a : b;
     const TermDef& vel = qa > qb ? b : a;
     return "both grow as amplitude^" + Num(pa, 2) + ", but " + disp.id + " with displacement and " + vel.id +
-           " with velocity: records at another frequency separate them (at the same velocity a lower frequency means a larger "
-           "displacement); the response's strongest line here is " + (std::isfinite(fmin) ? Num(fmin) + (fmax > 1.01 * fmin ? "–" + Num(fmax) : "") : "?") +
-           " Hz";
+           " with velocity: records at another frequency separate them (at the same velocity a lower frequency means a "
+           "larger "
+           "displacement); the response's strongest line here is " +
+           (std::isfinite(fmin) ? Num(fmin) + (fmax > 1.01 * fmin ? "–" + Num(fmax) : "") : "?") + " Hz";
   }
   return "their forces have the same form at these amplitudes: no record separates them; declare only one";
 }
@@ -280,19 +294,22 @@ double LargestCorrelation(const FitSnapshot& f, const std::string& param, const 
 }
 
 // The separability hints and the notes on absorbed effects (diagnostics.h).
-void Separability(const FitSnapshot& fin, const std::vector<FitSnapshot>& fits, const std::vector<StepDiagnostics>& steps,
-                  const std::vector<ParamCorrelation>& corr, const std::vector<PreparedRecord>& recs, LoopDiagnostics* d) {
+void Separability(const FitSnapshot& fin, const std::vector<FitSnapshot>& fits,
+                  const std::vector<StepDiagnostics>& steps, const std::vector<ParamCorrelation>& corr,
+                  const std::vector<PreparedRecord>& recs, LoopDiagnostics* d) {
   std::set<std::pair<const TermDef*, const TermDef*>> seen;
   auto hint = [&](const TermDef* a, const TermDef* b, const FitSnapshot& f, const std::string& why) {
     if (!a || !b || (!Dissipative(a) && !Dissipative(b)) || a == b) return;
     if (!seen.insert(a < b ? std::make_pair(a, b) : std::make_pair(b, a)).second) return;
     const double* tha = f.fit.theta.data() + f.model.Offset(a);
     const double* thb = f.fit.theta.data() + f.model.Offset(b);
-    d->separability.push_back("these records cannot separate " + a->id + " and " + b->id + " (" + why + "): " +
-                              PairHint(*a, tha, *b, thb, recs, f.model.fc) + ". Fit such records together (repeat --data).");
+    d->separability.push_back("these records cannot separate " + a->id + " and " + b->id + " (" + why +
+                              "): " + PairHint(*a, tha, *b, thb, recs, f.model.fc) +
+                              ". Fit such records together (repeat --data).");
   };
   for (const ParamCorrelation& c : corr)
-    hint(TermOfParam(fin.model, c.a), TermOfParam(fin.model, c.b), fin, "correlated in the final fit, ρ = " + Num(c.rho, 3));
+    hint(TermOfParam(fin.model, c.a), TermOfParam(fin.model, c.b), fin,
+         "correlated in the final fit, ρ = " + Num(c.rho, 3));
   for (size_t k = 0; k < steps.size() && k + 1 < fits.size(); ++k) {
     const FitSnapshot& f = fits[k + 1];
     if (f.refound) continue;  // a better optimum of the same model: its drift is no term's doing
@@ -300,12 +317,13 @@ void Separability(const FitSnapshot& fin, const std::vector<FitSnapshot>& fits, 
     for (const ParamDrift& p : steps[k].drift) {
       const TermDef* moved = TermOfParam(f.model, p.name);
       if (!(std::abs(p.relative) > kLargeDrift) || !Dissipative(moved)) continue;
-      const std::string what = p.name + " moved " + Num(100 * p.relative, 2) + " % when " + added->id + " was " + (steps[k].kept ? "added" : "tried");
+      const std::string what = p.name + " moved " + Num(100 * p.relative, 2) + " % when " + added->id + " was " +
+                               (steps[k].kept ? "added" : "tried");
       // Kept, and the final fit tells the two apart: the declared value had absorbed the effect.
       const double rho = steps[k].kept ? LargestCorrelation(fin, p.name, *added) : NAN;
       if (rho < kStrongCorrelation)
-        d->absorbed.push_back(what + ": before it, " + moved->id + " absorbed part of " + added->id + "'s effect; the final fit separates them (|ρ| = " +
-                              Num(rho, 2) + ")");
+        d->absorbed.push_back(what + ": before it, " + moved->id + " absorbed part of " + added->id +
+                              "'s effect; the final fit separates them (|ρ| = " + Num(rho, 2) + ")");
       else
         hint(moved, added, f, what);
     }
@@ -321,16 +339,20 @@ std::string AttractorLoss(const Invariants& before, const Invariants& after) {
   const bool diverged = std::isnan(after.switching_rate_measured);
   std::string lost;
   if (measured_rate > 0 && before.switching_rate > 0 && !(after.switching_rate > 0))
-    lost = "no change of well over the record (" + Num(before.switching_rate, 3) + "/s before, measured " + Num(measured_rate, 3) + "/s" +
-           (diverged ? ", the free run diverged" : std::isnan(after.right_well_fraction) ? ", one well" : "") + ")";
+    lost = "no change of well over the record (" + Num(before.switching_rate, 3) + "/s before, measured " +
+           Num(measured_rate, 3) + "/s" +
+           (diverged                                ? ", the free run diverged"
+            : std::isnan(after.right_well_fraction) ? ", one well"
+                                                    : "") +
+           ")";
   if (before.poincare <= floor && !(after.poincare <= floor))
-    lost += (lost.empty() ? "" : "; ") + std::string("the Poincaré section beyond the measured floor (H ") + Num(before.poincare, 3) + " -> " +
-            Num(after.poincare, 3) + ", floor " + Num(floor, 3) + ")";
+    lost += (lost.empty() ? "" : "; ") + std::string("the Poincaré section beyond the measured floor (H ") +
+            Num(before.poincare, 3) + " -> " + Num(after.poincare, 3) + ", floor " + Num(floor, 3) + ")";
   return lost;
 }
 
-LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector<PreparedRecord>& recs, const Setup& setup,
-                         const FitOptions& fo, const std::string& stop) {
+LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector<PreparedRecord>& recs,
+                         const Setup& setup, const FitOptions& fo, const std::string& stop) {
   LoopDiagnostics d;
   d.chaos = CheckChaos(recs, setup, fo.objective);
   if (fits.empty()) return d;
@@ -361,9 +383,11 @@ LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector
   // Records fitted on short horizons (--objective auto): their residual is far from white even for the true
   // model (noise in the restart states and the input acts through an unstable flow), so it is compared
   // with the same test on the final model's twins, where nothing is missing.
-  const bool calibrate = std::any_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.chaotic || r.snaps || r.horizon_s > 0; });
+  const bool calibrate = std::any_of(recs.begin(), recs.end(),
+                                     [](const PreparedRecord& r) { return r.chaotic || r.snaps || r.horizon_s > 0; });
   const std::vector<std::vector<PreparedRecord>> twins =
-      calibrate ? TwinRecords(fin.model, fin.fit.theta, recs, setup, kTwins, fo.objective == Objective::kShooting ? horizon : 0.0)
+      calibrate ? TwinRecords(fin.model, fin.fit.theta, recs, setup, kTwins,
+                              fo.objective == Objective::kShooting ? horizon : 0.0)
                 : std::vector<std::vector<PreparedRecord>>{};
   for (int k = 0; k < kOutputSlots; ++k) {
     const OutputSlot slot = static_cast<OutputSlot>(k);
@@ -373,9 +397,13 @@ LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector
       const ChaosCheck tc = CheckChaos(twin, setup, fo.objective);
       const Whiteness tw = FinalWhiteness(fin, twin, setup, tc, horizon, fo.objective == Objective::kShooting, slot);
       if (std::isfinite(tw.flatness))
-        w.twin_predictable_share = std::isfinite(w.twin_predictable_share) ? std::max(w.twin_predictable_share, 1 - tw.flatness) : 1 - tw.flatness;
+        w.twin_predictable_share = std::isfinite(w.twin_predictable_share)
+                                       ? std::max(w.twin_predictable_share, 1 - tw.flatness)
+                                       : 1 - tw.flatness;
     }
-    if (!w.white && std::isfinite(w.twin_predictable_share) && 1 - w.flatness < w.twin_predictable_share + kPredictableShare) w.white = true;
+    if (!w.white && std::isfinite(w.twin_predictable_share) &&
+        1 - w.flatness < w.twin_predictable_share + kPredictableShare)
+      w.white = true;
     d.whiteness_by_output.emplace_back(OutputName(setup, slot), w);
   }
   std::string tested = d.whiteness_by_output.empty() ? "" : d.whiteness_by_output[0].first;
@@ -392,16 +420,18 @@ LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector
   } else if (!d.whiteness.white) {
     std::string lines;
     for (double f : d.whiteness.dominant_hz) lines += (lines.empty() ? "" : ", ") + Num(f, 4);
-    d.unexplained = "the final residual" + of + " is far from white (Ljung-Box Q = " + Num(d.whiteness.statistic, 4) + " on " +
-                    std::to_string(d.whiteness.dof) + " lags, p = " + Num(d.whiteness.p_value, 2) + " < " + Num(d.whiteness.alpha, 2) +
-                    "; spectral flatness " + Num(d.whiteness.flatness, 2) + ": " + Num(100 * (1 - d.whiteness.flatness), 2) +
-                    " % of it predictable from its past" + (lines.empty() ? "" : "; strongest lines " + lines + " Hz") +
-                    ") and the loop stopped: " + stop + ". " +
-                    (stop.rfind("it reached --max-added", 0) == 0
-                         ? "More candidates may explain part of it (raise --max-added); what they leave is a term not in the library or a "
-                           "sensor effect."
-                         : "The model lacks something the candidates do not hold (a term not in the library, or a sensor effect); nothing "
-                           "was added for it.");
+    d.unexplained =
+        "the final residual" + of + " is far from white (Ljung-Box Q = " + Num(d.whiteness.statistic, 4) + " on " +
+        std::to_string(d.whiteness.dof) + " lags, p = " + Num(d.whiteness.p_value, 2) + " < " +
+        Num(d.whiteness.alpha, 2) + "; spectral flatness " + Num(d.whiteness.flatness, 2) + ": " +
+        Num(100 * (1 - d.whiteness.flatness), 2) + " % of it predictable from its past" +
+        (lines.empty() ? "" : "; strongest lines " + lines + " Hz") + ") and the loop stopped: " + stop + ". " +
+        (stop.rfind("it reached --max-added", 0) == 0 ? "More candidates may explain part of it (raise --max-added); "
+                                                        "what they leave is a term not in the library or a "
+                                                        "sensor effect."
+                                                      : "The model lacks something the candidates do not hold (a term "
+                                                        "not in the library, or a sensor effect); nothing "
+                                                        "was added for it.");
   }
   d.correlations = StrongCorrelations(fin.model.ParamNames(), fin.fit.covariance);
   Separability(fin, fits, d.steps, d.correlations, recs, &d);

@@ -59,13 +59,13 @@ inline constexpr double kStrongCorrelation = 0.9;
 inline constexpr double kLargeDrift = 0.3;
 
 struct Whiteness {
-  double statistic = NAN;         // Ljung–Box Q, summed over records
-  int dof = 0;                    // lags, summed over records
-  double p_value = NAN;           // P(χ²_dof > Q)
+  double statistic = NAN;  // Ljung–Box Q, summed over records
+  int dof = 0;             // lags, summed over records
+  double p_value = NAN;    // P(χ²_dof > Q)
   double alpha = kWhitenessAlpha;
-  double n_eff = 0;               // band-limited samples, all records
-  double flatness = NAN;          // spectral flatness of the band-limited residual, mean over records
-  bool white = true;              // p ≥ alpha, or 1 − flatness < kPredictableShare
+  double n_eff = 0;                 // band-limited samples, all records
+  double flatness = NAN;            // spectral flatness of the band-limited residual, mean over records
+  bool white = true;                // p ≥ alpha, or 1 − flatness < kPredictableShare
   std::vector<double> dominant_hz;  // strongest lines of the residual below the band edge, strongest first (≤ 3)
   std::string residual;             // which residual was tested
   bool diverged = false;            // a record's simulation diverged: its residual tested up to there
@@ -92,8 +92,8 @@ std::vector<ParamCorrelation> StrongCorrelations(const std::vector<std::string>&
 struct ParamDrift {
   std::string name;
   double before = NAN, after = NAN;
-  double relative = NAN;   // (after − before) / |before|
-  double in_sigma = NAN;   // (after − before) / σ_before (NaN without σ)
+  double relative = NAN;  // (after − before) / |before|
+  double in_sigma = NAN;  // (after − before) / σ_before (NaN without σ)
 };
 // Every parameter of `before` that `after` still has (matched by name).
 std::vector<ParamDrift> DriftOf(const IdentModel& before, const FitResult& fit_before, const IdentModel& after,
@@ -103,7 +103,7 @@ std::vector<ParamDrift> DriftOf(const IdentModel& before, const FitResult& fit_b
 struct FitSnapshot {
   IdentModel model;
   FitResult fit;
-  std::string term;   // the candidate added ("" for the declared fit)
+  std::string term;  // the candidate added ("" for the declared fit)
   bool kept = false;
   // The refit with `term` gained by leaving the fit's basin, not by the term (GainWithoutTheTerm): the
   // snapshot is the model before the step at the refit's other values, kept in its place.
@@ -113,20 +113,20 @@ struct FitSnapshot {
 struct StepDiagnostics {
   std::string term;
   bool kept = false;
-  bool refound = false;               // FitSnapshot::refound
-  std::vector<ParamDrift> drift;      // the model before against this refit
-  Invariants before, after;           // when the records are chaotic
-  std::string attractor_loss;         // AttractorLoss(before, after), chaotic records
+  bool refound = false;           // FitSnapshot::refound
+  std::vector<ParamDrift> drift;  // the model before against this refit
+  Invariants before, after;       // when the records are chaotic
+  std::string attractor_loss;     // AttractorLoss(before, after), chaotic records
 };
 
 struct LoopDiagnostics {
   ChaosCheck chaos;
-  Invariants declared, final;         // the declared fit and the final model (chaotic records)
-  std::string attractor_loss;         // AttractorLoss(declared, final): what the loop's model lost
-  std::vector<StepDiagnostics> steps; // one per refit, in order
-  Whiteness whiteness;                // of the final model's residual: the first output far from white, else the main one
+  Invariants declared, final;          // the declared fit and the final model (chaotic records)
+  std::string attractor_loss;          // AttractorLoss(declared, final): what the loop's model lost
+  std::vector<StepDiagnostics> steps;  // one per refit, in order
+  Whiteness whiteness;  // of the final model's residual: the first output far from white, else the main one
   std::vector<std::pair<std::string, Whiteness>> whiteness_by_output;  // every measured output, by OutputName
-  std::string unexplained;            // "" when the residual is white, else what is left and why
+  std::string unexplained;  // "" when the residual is white, else what is left and why
   std::vector<ParamCorrelation> correlations;
   std::vector<std::string> separability;  // hints: which records would separate terms these cannot
   std::vector<std::string> absorbed;      // a declared value that moved > 30 % when a term was added and kept,
@@ -146,8 +146,8 @@ std::string FormatSignificant(double v, int digits);
 
 // The diagnostics of a loop's fits (fits[0] the declared model's; the final model is the last one
 // kept); `stop` says why the loop stopped (its last verdict).
-LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector<PreparedRecord>& recs, const Setup& setup,
-                         const FitOptions& fo, const std::string& stop);
+LoopDiagnostics Diagnose(const std::vector<FitSnapshot>& fits, const std::vector<PreparedRecord>& recs,
+                         const Setup& setup, const FitOptions& fo, const std::string& stop);
 
 }  // namespace bistable
 

@@ -46,8 +46,21 @@
 namespace bistable {
 
 enum class Body { kMain, kResonator, kOutput };
-enum class TermKind { kLinear, kStiffness2, kStiffness3, kStiffness5, kViscous, kDamping2, kDampingV3, kDrag, kFriction, kBias,
-                      kPiezo, kOutputOffset, kOutputScale };
+enum class TermKind {
+  kLinear,
+  kStiffness2,
+  kStiffness3,
+  kStiffness5,
+  kViscous,
+  kDamping2,
+  kDampingV3,
+  kDrag,
+  kFriction,
+  kBias,
+  kPiezo,
+  kOutputOffset,
+  kOutputScale
+};
 // The outputs a record may have: the main body's (the setup's output kind: displacement, velocity or
 // analogue), the resonator's displacement and the piezo voltage. An output term names its output by kind.
 enum class OutputSlot { kMain = 0, kResonator = 1, kVoltage = 2 };
@@ -63,11 +76,11 @@ struct TermParam {
 };
 
 struct TermDef {
-  std::string id;           // "main.stiffness_y3"
+  std::string id;  // "main.stiffness_y3"
   Body body = Body::kMain;
   TermKind kind = TermKind::kLinear;
-  std::string formula;      // "k3 y^3"
-  std::string meaning;      // one line for reports
+  std::string formula;  // "k3 y^3"
+  std::string meaning;  // one line for reports
   std::vector<TermParam> params;
   // Output terms (Body::kOutput): the output they act on, by its kind name ("velocity", "voltage", ...).
   std::string output;
@@ -104,25 +117,45 @@ BISTABLE_INLINE void TermBasisSlopes(const TermDef& t, T q, T v, const StribeckB
   const T zero{}, one = zero + 1.0;
   T dq = zero, dv = zero;
   switch (t.kind) {
-    case TermKind::kLinear: phi[0] = q, dq = one; break;
-    case TermKind::kStiffness2: phi[0] = q * q, dq = 2.0 * q; break;
-    case TermKind::kStiffness3: phi[0] = q * q * q, dq = 3.0 * q * q; break;
-    case TermKind::kStiffness5: phi[0] = q * q * q * q * q, dq = 5.0 * q * q * q * q; break;
-    case TermKind::kViscous: phi[0] = v, dv = one; break;
-    case TermKind::kDamping2: phi[0] = q * q * v, dq = 2.0 * q * v, dv = q * q; break;
-    case TermKind::kDampingV3: phi[0] = v * v * v, dv = 3.0 * v * v; break;
-    case TermKind::kDrag: phi[0] = v * AbsOf(v), dv = 2.0 * AbsOf(v); break;
+    case TermKind::kLinear:
+      phi[0] = q, dq = one;
+      break;
+    case TermKind::kStiffness2:
+      phi[0] = q * q, dq = 2.0 * q;
+      break;
+    case TermKind::kStiffness3:
+      phi[0] = q * q * q, dq = 3.0 * q * q;
+      break;
+    case TermKind::kStiffness5:
+      phi[0] = q * q * q * q * q, dq = 5.0 * q * q * q * q;
+      break;
+    case TermKind::kViscous:
+      phi[0] = v, dv = one;
+      break;
+    case TermKind::kDamping2:
+      phi[0] = q * q * v, dq = 2.0 * q * v, dv = q * q;
+      break;
+    case TermKind::kDampingV3:
+      phi[0] = v * v * v, dv = 3.0 * v * v;
+      break;
+    case TermKind::kDrag:
+      phi[0] = v * AbsOf(v), dv = 2.0 * AbsOf(v);
+      break;
     case TermKind::kFriction:
       fb.Eval(v, phi, d ? phi_v : nullptr);
       if (d) phi_q[0] = phi_q[1] = zero;
       return;
-    case TermKind::kBias: phi[0] = one; break;
+    case TermKind::kBias:
+      phi[0] = one;
+      break;
     case TermKind::kPiezo:  // no force of (q, v): the back-force needs the voltage state (model.cc)
       phi[0] = phi[1] = phi[2] = zero;
       if (d) phi_q[0] = phi_q[1] = phi_q[2] = phi_v[0] = phi_v[1] = phi_v[2] = zero;
       return;
     case TermKind::kOutputOffset:
-    case TermKind::kOutputScale: phi[0] = zero; break;  // not a force
+    case TermKind::kOutputScale:
+      phi[0] = zero;
+      break;  // not a force
   }
   if (d) phi_q[0] = dq, phi_v[0] = dv;
 }

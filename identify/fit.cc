@@ -1,6 +1,5 @@
 #include "identify/fit.h"
 
-#include "base/limits.h"
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -20,6 +19,7 @@
 #include <numeric>
 #include <thread>
 #include <type_traits>
+#include "base/limits.h"
 
 #include <ceres/ceres.h>
 #include <glog/logging.h>
@@ -73,7 +73,8 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
   // One simulation of the segments `mask` marks (null: all) from the states `st`; with `threads` ≥ 2 the
   // segments (independent of each other) in two halves side by side, the second half's rows merged in.
   const std::vector<const TermDef*> none;
-  auto simulate = [&](const std::vector<double>& st, bool sens_states, bool params, const std::vector<char>* mask, SimOutputs* o) {
+  auto simulate = [&](const std::vector<double>& st, bool sens_states, bool params, const std::vector<char>* mask,
+                      SimOutputs* o) {
     const std::vector<const TermDef*>& ex = params ? *extra : none;
     const size_t todo = mask ? static_cast<size_t>(std::count(mask->begin(), mask->end(), 1)) : nseg;
     if (threads < 2 || todo < 4) {
@@ -128,7 +129,7 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
   };
   std::vector<Seg> acc(nseg), now(nseg);
   std::vector<double> predicted(nseg, 0.0);  // the linearised model's gain for each trial step
-  std::vector<char> active(nseg, 1);  // segments still moving
+  std::vector<char> active(nseg, 1);         // segments still moving
   auto measure = [&](const SimOutputs& so, std::vector<Seg>* segs) {
     for (size_t k = 0; k < nseg; ++k) {
       if (!active[k]) continue;
@@ -177,7 +178,8 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
         for (int slot = 0; slot < kOutputSlots; ++slot) {
           if (so.out[slot].empty()) continue;
           const std::vector<double>& meas = r.Measured(static_cast<OutputSlot>(slot));
-          for (size_t i = a; i <= b; ++i) c += (so.out[slot][i] - meas[i]) * (so.out[slot][i] - meas[i]) * w[slot] * w[slot];
+          for (size_t i = a; i <= b; ++i)
+            c += (so.out[slot][i] - meas[i]) * (so.out[slot][i] - meas[i]) * w[slot] * w[slot];
         }
         if (c < seg_cost[k]) seg_cost[k] = c, states[k * kStateDim] = scan[k * kStateDim];
       }
@@ -229,7 +231,8 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
   }();
   std::string trail;
   for (; pass < kPasses && std::find(active.begin(), active.end(), 1) != active.end(); ++pass) {
-    if (debug_passes && pass % 5 == 0) trail += ' ', trail += std::to_string(std::count(active.begin(), active.end(), 1));
+    if (debug_passes && pass % 5 == 0)
+      trail += ' ', trail += std::to_string(std::count(active.begin(), active.end(), 1));
     propose();
     const bool ok = simulate(trial, true, false, &active, &so);
     if (ok) measure(so, &now);
@@ -246,13 +249,15 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
         const double rho = predicted[k] > 0 ? gain / predicted[k] : 0.0;
         acc[k].mu = std::max(mu * std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)), 1e-9);
         acc[k].nu = 2;
-        std::copy(trial.begin() + static_cast<long>(k * kStateDim), trial.begin() + static_cast<long>((k + 1) * kStateDim),
+        std::copy(trial.begin() + static_cast<long>(k * kStateDim),
+                  trial.begin() + static_cast<long>((k + 1) * kStateDim),
                   states.begin() + static_cast<long>(k * kStateDim));
         size_t a, b;
         rows(k, &a, &b);
         for (int slot = 0; slot < kOutputSlots; ++slot)
-          if (!so.out[slot].empty()) std::copy(so.out[slot].begin() + static_cast<long>(a), so.out[slot].begin() + static_cast<long>(b + 1),
-                                               best.out[slot].begin() + static_cast<long>(a));
+          if (!so.out[slot].empty())
+            std::copy(so.out[slot].begin() + static_cast<long>(a), so.out[slot].begin() + static_cast<long>(b + 1),
+                      best.out[slot].begin() + static_cast<long>(a));
       } else {
         acc[k].mu *= acc[k].nu;
         acc[k].nu *= 2;
@@ -262,8 +267,10 @@ bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::
   }
   if (debug_passes) {
     std::string mus;
-    for (size_t k = 0; k < nseg; ++k) if (active[k]) mus += ' ', mus += std::to_string(acc[k].mu);
-    std::fprintf(stderr, "shoot: %zu segments, %d passes, warm %d, active every 5:%s; mu of active:%s\n", nseg, pass, warm_start ? 1 : 0, trail.c_str(), mus.c_str());
+    for (size_t k = 0; k < nseg; ++k)
+      if (active[k]) mus += ' ', mus += std::to_string(acc[k].mu);
+    std::fprintf(stderr, "shoot: %zu segments, %d passes, warm %d, active every 5:%s; mu of active:%s\n", nseg, pass,
+                 warm_start ? 1 : 0, trail.c_str(), mus.c_str());
   }
   if (fitted) *fitted = states;
   if (!extra) {
@@ -322,7 +329,8 @@ struct ShootCache {
   void Remember(const std::vector<double>& th, int from_version, std::vector<std::vector<double>> states) {
     if (recent.size() >= 8) recent.erase(recent.begin());
     recent.push_back({th, from_version, states});
-    if (anchor.empty()) anchor = std::move(states), ++version;  // the fit's first evaluation (its start) anchors the first steps
+    if (anchor.empty())
+      anchor = std::move(states), ++version;  // the fit's first evaluation (its start) anchors the first steps
   }
   void Promote(const std::vector<double>& th) {
     for (auto it = recent.rbegin(); it != recent.rend(); ++it)
@@ -397,8 +405,8 @@ Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::
     const int restart = h > 0 ? ShootingSegment(h, recs[i].dt) : 0;
     if (shoot) {
       ok[i] = restart > 0 && ShootRecord(m, th, extra, recs[i], setup, sub, restart, &s.o[i],
-                                         start && i < start->size() ? &(*start)[i] : nullptr, fitted ? &(*fitted)[i] : nullptr,
-                                         inner, start_is_fitted);
+                                         start && i < start->size() ? &(*start)[i] : nullptr,
+                                         fitted ? &(*fitted)[i] : nullptr, inner, start_is_fitted);
       return;
     }
     ok[i] = SimulateOutputs(m, th, extra ? *extra : none, recs[i], setup, sub, restart, extra != nullptr, &s.o[i],
@@ -443,8 +451,10 @@ size_t NumResiduals(const std::vector<PreparedRecord>& recs, Objective obj) {
     for (int k = 0; k < kOutputSlots; ++k) {
       const OutputSlot slot = static_cast<OutputSlot>(k);
       if (!r.Has(slot)) continue;
-      if (obj != Objective::kFft) n += r.n();
-      else if (InSpectrum(slot)) n += NextFastFftLength(r.n()) / 2 + 1;
+      if (obj != Objective::kFft)
+        n += r.n();
+      else if (InSpectrum(slot))
+        n += NextFastFftLength(r.n()) / 2 + 1;
     }
   return n;
 }
@@ -461,13 +471,15 @@ bool ResidualsOf(const IdentModel& m, const std::vector<PreparedRecord>& recs, c
 // pass of SimulateSensitivities per record.
 bool Residuals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                const Setup& setup, Objective obj, const std::vector<int>& substeps, int threads,
-               const Magnitudes& meas_mag, double* res, double horizon_s = 0,
-               Eigen::MatrixXd* jac = nullptr, const std::vector<const TermDef*>& extra = {},
-               ShootCache* cache = nullptr) {
+               const Magnitudes& meas_mag, double* res, double horizon_s = 0, Eigen::MatrixXd* jac = nullptr,
+               const std::vector<const TermDef*>& extra = {}, ShootCache* cache = nullptr) {
   std::vector<std::vector<double>> fitted;
   const std::vector<std::vector<double>>* done = cache ? cache->At(th) : nullptr;
   const Sims s = SimulateAll(m, th, recs, setup, substeps, threads, horizon_s, jac ? &extra : nullptr, nullptr,
-                             obj == Objective::kShooting, done ? done : cache && !cache->anchor.empty() ? &cache->anchor : nullptr,
+                             obj == Objective::kShooting,
+                             done                              ? done
+                             : cache && !cache->anchor.empty() ? &cache->anchor
+                                                               : nullptr,
                              cache && !done ? &fitted : nullptr, false, done != nullptr);
   if (cache && !done && s.ok) cache->Remember(th, cache->version, std::move(fitted));
   if (!s.ok) return false;
@@ -508,7 +520,8 @@ bool ResidualsOf(const IdentModel& m, const std::vector<PreparedRecord>& recs, c
       if (jac) {  // d|X| = Re(conj(X) dX) / |X|
         for (long c = 0; c < jac->cols(); ++c) {
           const Eigen::VectorXd col = s.o[i].d[slot].col(c);
-          const std::vector<std::complex<double>> dX = VelocitySpectrum(std::vector<double>(col.data(), col.data() + n), r.dt, disp);
+          const std::vector<std::complex<double>> dX =
+              VelocitySpectrum(std::vector<double>(col.data(), col.data() + n), r.dt, disp);
           for (size_t j = 0; j < X.size(); ++j) {
             const double a = std::abs(X[j]);
             (*jac)(static_cast<long>(k + j), c) = a > 0 ? std::real(std::conj(X[j]) * dX[j]) / a / norm : 0.0;
@@ -560,7 +573,8 @@ bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, cons
                         double horizon_s) {
   out->assign(NumResiduals(recs, obj), 0.0);
   const auto mags = obj == Objective::kFft ? MeasuredMagnitudes(recs, setup) : Magnitudes{};
-  return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data(), obj == Objective::kShooting ? horizon_s : 0.0);
+  return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data(),
+                   obj == Objective::kShooting ? horizon_s : 0.0);
 }
 
 // Samples per shooting segment: horizon_s / dt rounded, at least 2; clamped in double first, so a horizon of
@@ -581,12 +595,12 @@ bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const
                        double horizon_s) {
   out->assign(NumResiduals(recs, obj), 0.0);
   const auto mags = obj == Objective::kFft ? MeasuredMagnitudes(recs, setup) : Magnitudes{};
-  return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data(), obj == Objective::kShooting ? horizon_s : 0.0,
-                   jac, extra);
+  return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data(),
+                   obj == Objective::kShooting ? horizon_s : 0.0, jac, extra);
 }
 
-std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                               double safety) {
+std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th,
+                               const std::vector<PreparedRecord>& recs, double safety) {
   std::vector<int> sub;
   for (const PreparedRecord& r : recs) sub.push_back(static_cast<int>(std::ceil(safety * SubstepsFor(m, th, r))));
   return sub;
@@ -620,7 +634,8 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
     e.record_rms.push_back(std::sqrt(ei / static_cast<double>(r.n())));
     double fi = NAN;
     if (std::isfinite(ei)) {
-      const std::vector<double> a = VelocityMagnitudes(s.o[i].out[0], r.dt, disp), b = VelocityMagnitudes(r.meas, r.dt, disp);
+      const std::vector<double> a = VelocityMagnitudes(s.o[i].out[0], r.dt, disp),
+                                b = VelocityMagnitudes(r.meas, r.dt, disp);
       double d2 = 0, b2 = 0;
       for (size_t k = 0; k < a.size(); ++k) d2 += (a[k] - b[k]) * (a[k] - b[k]), b2 += b[k] * b[k];
       fi = 100.0 * std::sqrt(d2 / b2);
@@ -671,7 +686,8 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
         }
         ek += ei;
         if (std::isfinite(ei)) {
-          const std::vector<double> a = VelocityMagnitudes(sim, recs[i].dt, false), b = VelocityMagnitudes(meas, recs[i].dt, false);
+          const std::vector<double> a = VelocityMagnitudes(sim, recs[i].dt, false),
+                                    b = VelocityMagnitudes(meas, recs[i].dt, false);
           double d2 = 0, b2 = 0;
           for (size_t j = 0; j < a.size(); ++j) d2 += (a[j] - b[j]) * (a[j] - b[j]), b2 += b[j] * b[j];
           fk += 100.0 * std::sqrt(d2 / b2);
@@ -690,8 +706,9 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
   if (shooting_horizon_s > 0) {  // segment predictions from re-estimated states, NRMSE pooled over records
     const Sims sh = SimulateAll(m, th, recs, setup, {}, 0, shooting_horizon_s, nullptr, nullptr, true);
     for (size_t o = 0; o < e.outputs.size(); ++o) {
-      const OutputSlot slot = o == 0 ? OutputSlot::kMain : recs[0].Has(OutputSlot::kResonator) && o == 1 ? OutputSlot::kResonator
-                                                                                                          : OutputSlot::kVoltage;
+      const OutputSlot slot = o == 0                                          ? OutputSlot::kMain
+                              : recs[0].Has(OutputSlot::kResonator) && o == 1 ? OutputSlot::kResonator
+                                                                              : OutputSlot::kVoltage;
       double ek = 0, mk = 0;
       for (size_t i = 0; i < recs.size() && sh.ok; ++i) {
         const std::vector<double>& meas = recs[i].Measured(slot);
@@ -699,7 +716,8 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
         double mean = 0;
         for (double v : meas) mean += v;
         mean /= static_cast<double>(meas.size());
-        for (size_t j = 0; j < meas.size(); ++j) ek += (sim[j] - meas[j]) * (sim[j] - meas[j]), mk += (meas[j] - mean) * (meas[j] - mean);
+        for (size_t j = 0; j < meas.size(); ++j)
+          ek += (sim[j] - meas[j]) * (sim[j] - meas[j]), mk += (meas[j] - mean) * (meas[j] - mean);
       }
       e.outputs[o].shooting = sh.ok && std::isfinite(ek) ? 100.0 * std::sqrt(ek / mk) : NAN;
     }
@@ -788,9 +806,15 @@ Regression BuildRegression(const IdentModel& m, const std::vector<PreparedRecord
       double target = 0;
       const double mm = m.FitsMass() ? 0.0 : m.m_main;
       switch (setup.input) {
-        case InputKind::kBaseDisplacement: target = -mm * r.pdd[i]; break;
-        case InputKind::kBaseAcceleration: target = -mm * (r.pdd[i] + r.input[i]); break;
-        case InputKind::kForce: target = r.input[i] - mm * r.pdd[i]; break;
+        case InputKind::kBaseDisplacement:
+          target = -mm * r.pdd[i];
+          break;
+        case InputKind::kBaseAcceleration:
+          target = -mm * (r.pdd[i] + r.input[i]);
+          break;
+        case InputKind::kForce:
+          target = r.input[i] - mm * r.pdd[i];
+          break;
       }
       if (mass_col >= 0) row[mass_col] = setup.input == InputKind::kBaseAcceleration ? r.pdd[i] + r.input[i] : r.pdd[i];
       if (piezo_col >= 0 && volt) row[piezo_col] = -r.w[i];
@@ -865,7 +889,8 @@ LinearFit SolveRegression(const Eigen::MatrixXd& X, const Eigen::VectorXd& b, co
       const double s2 = out.rss / static_cast<double>(n - static_cast<long>(cols.size()));
       const Eigen::MatrixXd cov = (A.transpose() * A).ldlt().solve(Eigen::MatrixXd::Identity(A.cols(), A.cols())) * s2;
       for (size_t c = 0; c < cols.size(); ++c)
-        out.sigma[cols[c]] = std::sqrt(std::max(cov(static_cast<long>(c), static_cast<long>(c)), 0.0)) / scale[static_cast<long>(c)];
+        out.sigma[cols[c]] =
+            std::sqrt(std::max(cov(static_cast<long>(c), static_cast<long>(c)), 0.0)) / scale[static_cast<long>(c)];
     }
     for (long j = 0; j < p; ++j)
       if (!free[j]) out.theta[j] = 0.0, out.sigma[j] = 0.0;
@@ -911,8 +936,8 @@ struct SimCost {
   }
   bool operator()(double const* const* params, double* residuals) const {
     ++calls;
-    return Residuals(*m, Theta(params[0]), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s, nullptr, {},
-                     warm.get());
+    return Residuals(*m, Theta(params[0]), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s,
+                     nullptr, {}, warm.get());
   }
   // The residuals at several scaled points u side by side (rs[l] for us[l]), records on `threads`: each record's
   // simulations in SIMD lanes (SimulateOutputsLanes) where they run the same substeps, one by one otherwise.
@@ -962,9 +987,11 @@ struct SimCost {
   bool Eval(const double* u, double* residuals, double* jac) const {
     ++calls;
     if (!jac)
-      return Residuals(*m, Theta(u), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s, nullptr, {}, warm.get());
+      return Residuals(*m, Theta(u), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s, nullptr, {},
+                       warm.get());
     Eigen::MatrixXd J;
-    if (!Residuals(*m, Theta(u), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s, &J, {}, warm.get()))
+    if (!Residuals(*m, Theta(u), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s, &J, {},
+                   warm.get()))
       return false;
     const long p = static_cast<long>(scale.size());
     for (long r = 0; r < J.rows(); ++r)
@@ -1032,7 +1059,8 @@ class ForwardDiffFunction : public ceres::DynamicCostFunction {
           std::vector<const double*> lanes;
           for (int l = k * width; l < std::min(sims, (k + 1) * width); ++l) lanes.push_back(us[l].data());
           // The packs are the parallelism when there are several (Residuals does not depend on threads).
-          if (!c_.LaneResiduals(lanes, &r[static_cast<size_t>(k * width)], std::min(threads, packs) > 1 ? 1 : c_.threads)) {
+          if (!c_.LaneResiduals(lanes, &r[static_cast<size_t>(k * width)],
+                                std::min(threads, packs) > 1 ? 1 : c_.threads)) {
             ok = false;
             return;
           }
@@ -1068,15 +1096,20 @@ class ForwardDiffFunction : public ceres::DynamicCostFunction {
 }  // namespace
 
 bool SpectralForwardJacobian(const IdentModel& m, const std::vector<double>& scale, const std::vector<double>& u,
-                             const std::vector<PreparedRecord>& recs, const Setup& setup, const std::vector<int>& substeps,
-                             int column_threads, bool ceres_reference, std::vector<double>* residuals, std::vector<double>* jac) {
+                             const std::vector<PreparedRecord>& recs, const Setup& setup,
+                             const std::vector<int>& substeps, int column_threads, bool ceres_reference,
+                             std::vector<double>* residuals, std::vector<double>* jac) {
   const int p = static_cast<int>(u.size());
   if (p == 0 || static_cast<int>(scale.size()) != p) return false;
-  const SimCost lc{&m, &recs, &setup, Objective::kFft, substeps, scale, MeasuredMagnitudes(recs, setup), 0, 0.0, nullptr};
+  const SimCost lc{&m, &recs, &setup, Objective::kFft, substeps, scale, MeasuredMagnitudes(recs, setup),
+                   0,  0.0,   nullptr};
   const int n = static_cast<int>(NumResiduals(recs, Objective::kFft));
   std::unique_ptr<ceres::DynamicCostFunction> fn;
-  if (ceres_reference) fn.reset(new ceres::DynamicNumericDiffCostFunction<SimCost, ceres::FORWARD>(new SimCost(lc), ceres::TAKE_OWNERSHIP));
-  else fn.reset(new ForwardDiffFunction(lc, column_threads));
+  if (ceres_reference)
+    fn.reset(
+        new ceres::DynamicNumericDiffCostFunction<SimCost, ceres::FORWARD>(new SimCost(lc), ceres::TAKE_OWNERSHIP));
+  else
+    fn.reset(new ForwardDiffFunction(lc, column_threads));
   fn->AddParameterBlock(p);
   fn->SetNumResiduals(n);
   residuals->assign(static_cast<size_t>(n), 0.0);
@@ -1105,10 +1138,24 @@ struct FitStages {
 
   FitStages(const IdentModel& m_in, const std::vector<double>& scale_in, const std::vector<PreparedRecord>& recs_in,
             const Setup& setup_in, const FitOptions& opt_in)
-      : m(m_in), recs(recs_in), setup(setup_in), opt(opt_in), p(m_in.NumParams()), signs(m_in.ParamSigns()),
-        cost{&m_in, &recs_in, &setup_in, opt_in.objective, {}, {}, {}, opt_in.threads,
-             opt_in.objective == Objective::kShooting ? opt_in.shooting_horizon_s : 0.0, nullptr},
-        nres(NumResiduals(recs_in, opt_in.objective)), buf(nres) {
+      : m(m_in),
+        recs(recs_in),
+        setup(setup_in),
+        opt(opt_in),
+        p(m_in.NumParams()),
+        signs(m_in.ParamSigns()),
+        cost{&m_in,
+             &recs_in,
+             &setup_in,
+             opt_in.objective,
+             {},
+             {},
+             {},
+             opt_in.threads,
+             opt_in.objective == Objective::kShooting ? opt_in.shooting_horizon_s : 0.0,
+             nullptr},
+        nres(NumResiduals(recs_in, opt_in.objective)),
+        buf(nres) {
     cost.scale.resize(p);
     if (opt.objective == Objective::kShooting) cost.warm = std::make_shared<ShootCache>();
     for (int i = 0; i < p; ++i) cost.scale[i] = std::max({std::abs(scale_in[i]), std::abs(m.theta[i]), 1e-12});
@@ -1155,7 +1202,8 @@ struct FitStages {
   }
   // `horizon_s` ≥ 0: the simulation error with restarts every horizon_s instead of the cost's own.
   // `restarts`: restarts from the measured (band-limited) states instead of multiple shooting's fitted ones.
-  double SumOfSquares(const std::vector<double>& u, const std::vector<int>& sub, double horizon_s = -1, bool restarts = false) {
+  double SumOfSquares(const std::vector<double>& u, const std::vector<int>& sub, double horizon_s = -1,
+                      bool restarts = false) {
     SimCost c = cost;
     c.substeps = sub;
     if (horizon_s >= 0) c.horizon_s = horizon_s;
@@ -1234,7 +1282,8 @@ std::vector<double> FitStages::GlobalStage(const std::vector<double>& centre) {
   // Under shooting a near point is the same basin whatever its gain by restarts (their optimum is not
   // shooting's: the centre is shooting's, so a point near it nearly always gains by restarts).
   if (restarts && near) return {};
-  const double gain = opt.objective == Objective::kTime && near ? kPlateauChi2 / static_cast<double>(std::max<size_t>(nres, 1)) : 0.0;
+  const double gain =
+      opt.objective == Objective::kTime && near ? kPlateauChi2 / static_cast<double>(std::max<size_t>(nres, 1)) : 0.0;
   if (!(best < start * (1 - gain))) return {};
   return x;
 }
@@ -1265,7 +1314,8 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
     // finite step averages over the exponential sensitivity of a long chaotic simulation (loop.cc).
     ceres::DynamicCostFunction* fn = nullptr;
     double start_tau = 0;  // shooting: the start residual's correlation time (the plateau below)
-    if (obj != Objective::kFft) fn = new SimCostFunction(lc, obj == Objective::kShooting ? &start_tau : nullptr);
+    if (obj != Objective::kFft)
+      fn = new SimCostFunction(lc, obj == Objective::kShooting ? &start_tau : nullptr);
     else {  // the CPUs the records leave idle take packs of columns (more than 8 simulations)
       const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
       fn = new ForwardDiffFunction(lc, recs.size() < static_cast<size_t>(cpus) ? cpus : 1);
@@ -1318,8 +1368,9 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
         if (gains.size() > static_cast<size_t>(kPlateauIterations)) gains.pop_front();
         const double sum = std::accumulate(gains.begin(), gains.end(), 0.0);
         const double per = gain * (tau ? std::max(*tau, 1.0) : 1.0);
-        return gains.size() == static_cast<size_t>(kPlateauIterations) && sum < per * it.cost ? ceres::SOLVER_TERMINATE_SUCCESSFULLY
-                                                                                             : ceres::SOLVER_CONTINUE;
+        return gains.size() == static_cast<size_t>(kPlateauIterations) && sum < per * it.cost
+                   ? ceres::SOLVER_TERMINATE_SUCCESSFULLY
+                   : ceres::SOLVER_CONTINUE;
       }
     } plateau;
     plateau.gain = kPlateauChi2 / static_cast<double>(std::max<size_t>(lres, 1));
@@ -1343,11 +1394,12 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
       ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
         // The first record's substeps: what the iterate asks (SubstepsFor), the stability floor, and those held.
         const std::vector<double> th = fs->Theta(*u);
-        std::fprintf(stderr,
-                     "    iteration %3d cost %.6e change %.3e %s radius %.3e gradient %.3e substeps %d (stable %d) of %d\n",
-                     it.iteration, it.cost, it.cost_change, it.step_is_successful ? "accepted" : "refused",
-                     it.trust_region_radius, it.gradient_max_norm, SubstepsFor(fs->m, th, fs->recs[0]),
-                     StableSubsteps(fs->m, th, fs->recs[0]), sub);
+        std::fprintf(
+            stderr,
+            "    iteration %3d cost %.6e change %.3e %s radius %.3e gradient %.3e substeps %d (stable %d) of %d\n",
+            it.iteration, it.cost, it.cost_change, it.step_is_successful ? "accepted" : "refused",
+            it.trust_region_radius, it.gradient_max_norm, SubstepsFor(fs->m, th, fs->recs[0]),
+            StableSubsteps(fs->m, th, fs->recs[0]), sub);
         return ceres::SOLVER_CONTINUE;
       }
     } trace;
@@ -1367,7 +1419,8 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
                                             static_cast<long long>(std::max(summary.num_jacobian_evaluations, 0)) *
                                                 (obj != Objective::kFft ? 1 : p));
     result.message = summary.BriefReport();
-    if (std::getenv("BISTABLE_IDENTIFY_DEBUG")) std::fprintf(stderr, "  %s (residual τ %.3g)\n", result.message.c_str(), start_tau);
+    if (std::getenv("BISTABLE_IDENTIFY_DEBUG"))
+      std::fprintf(stderr, "  %s (residual τ %.3g)\n", result.message.c_str(), start_tau);
     final_cost = summary.final_cost;
     const std::vector<double> th = Theta(u);
     bool enough = true;
@@ -1424,7 +1477,8 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
       char cost[48] = "";
       if constexpr (std::is_same_v<decltype(r), double>) std::snprintf(cost, sizeof cost, "  cost %.6g", r);
       std::fprintf(stderr, "fit stage %-14s %7.2f s %5d simulations%s\n", name,
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count(), st.result.simulations - n0, cost);
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count(),
+                   st.result.simulations - n0, cost);
     }
     return r;
   };
@@ -1466,7 +1520,8 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
     // short-horizon cost at the two results picks the start of the full-error stage (there the wrong basin
     // costs 1.8× the right one; the declared law's cost, 4 % apart, cannot tell them).
     const double second = opt.shooting_friction_smoothing_second;
-    const bool two = smooth && opt.shooting_friction_smoothing > 1 && second > 1 && second != opt.shooting_friction_smoothing;
+    const bool two =
+        smooth && opt.shooting_friction_smoothing > 1 && second > 1 && second != opt.shooting_friction_smoothing;
     const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
     auto shoot = [&](FitStages& st) {
       // This stage finds the basin; the next one converges in it. So it stops once an iteration gains
@@ -1483,8 +1538,10 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
         std::vector<double> f2 = f;
         auto first = [&] { basin_stage(basin1, &f, "shooting-1st"); };
         auto second_stage = [&] { basin_stage(basin2, &f2, "shooting-2nd"); };
-        if (cpus >= 2) RunBeside(second_stage, first);  // independent: the same result either way
-        else first(), second_stage();
+        if (cpus >= 2)
+          RunBeside(second_stage, first);  // independent: the same result either way
+        else
+          first(), second_stage();
         const double c1 = basin1.ShortHorizonCost(f), c2 = basin1.ShortHorizonCost(f2);
         if (debug) std::fprintf(stderr, "fit short-horizon Σr² under the first law: %.6g (1st) %.6g (2nd)\n", c1, c2);
         if (c2 < c1) f = f2;
@@ -1533,8 +1590,8 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
     fs.Uncertainties(u);
     return 0;
   });
-  fs.result.errors = Evaluate(m, fs.result.theta, recs, setup,
-                              opt.objective == Objective::kShooting ? opt.shooting_horizon_s : 0.0);
+  fs.result.errors =
+      Evaluate(m, fs.result.theta, recs, setup, opt.objective == Objective::kShooting ? opt.shooting_horizon_s : 0.0);
   fs.result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return fs.result;
 }

@@ -36,10 +36,10 @@ enum class Objective { kTime, kFft, kShooting };
 // and its noise level and weight in the joint fit (SetOutputWeights).
 struct OutputErrors {
   std::string name;
-  double nrmse = NAN, fft = NAN;      // %
-  double shooting = NAN;              // % NRMSE of the segment predictions (shooting objective only)
-  double noise = NAN;                 // σ, RMS over records, output unit
-  double weight = 1;                  // λ of its NRMSE² in the objective
+  double nrmse = NAN, fft = NAN;  // %
+  double shooting = NAN;          // % NRMSE of the segment predictions (shooting objective only)
+  double noise = NAN;             // σ, RMS over records, output unit
+  double weight = 1;              // λ of its NRMSE² in the objective
 };
 
 struct Errors {
@@ -47,8 +47,8 @@ struct Errors {
   // weighted mean over outputs, sqrt(Σ λ_o NRMSE_o² / Σ λ_o) (the loop's decision error). A record with its
   // own horizon (PreparedRecord::horizon_s > 0, a chaotic record) counts with its short-horizon error.
   double nrmse = NAN;
-  double fft = NAN;                   // % mean over records of 100 ‖|V_sim| − |V_meas|‖ / ‖V_meas‖
-  double eq20 = NAN;                  // the paper's Eq. 20 value, in the output's velocity unit (m/s)
+  double fft = NAN;   // % mean over records of 100 ‖|V_sim| − |V_meas|‖ / ‖V_meas‖
+  double eq20 = NAN;  // the paper's Eq. 20 value, in the output's velocity unit (m/s)
   // % short-horizon error (Objective::kShooting, segments from re-estimated states): like nrmse, with
   // several outputs the λ-weighted mean; NaN for the other objectives.
   double shooting = NAN;
@@ -74,7 +74,7 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
 
 // Rows of the equation-error regression X θ = b over a subsample of every record (edges dropped).
 struct Regression {
-  Eigen::MatrixXd X;   // one column per parameter of the model it was built for
+  Eigen::MatrixXd X;  // one column per parameter of the model it was built for
   Eigen::VectorXd b;
   std::vector<int> record_of_row;
   std::vector<double> q, v;  // main-body y, y' of each row (for residual plots)
@@ -103,8 +103,9 @@ bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, cons
 // DynamicNumericDiffCostFunction<FORWARD>, which the fit's must equal to the bit. Row-major, residuals ×
 // parameters; false when a simulation fails. For tests.
 bool SpectralForwardJacobian(const IdentModel& m, const std::vector<double>& scale, const std::vector<double>& u,
-                             const std::vector<PreparedRecord>& recs, const Setup& setup, const std::vector<int>& substeps,
-                             int column_threads, bool ceres_reference, std::vector<double>* residuals, std::vector<double>* jac);
+                             const std::vector<PreparedRecord>& recs, const Setup& setup,
+                             const std::vector<int>& substeps, int column_threads, bool ceres_reference,
+                             std::vector<double>* residuals, std::vector<double>* jac);
 bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                        const Setup& setup, Objective obj, const std::vector<int>& substeps,
                        const std::vector<const TermDef*>& extra, std::vector<double>* out, Eigen::MatrixXd* jac,
@@ -116,13 +117,13 @@ int ShootingSegment(double horizon_s, double dt);
 bool SimulateShooting(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
                       double horizon_s, SimOutputs* out);
 // Substeps per record for parameters th, times a safety factor.
-std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                               double safety = 1.5);
+std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th,
+                               const std::vector<PreparedRecord>& recs, double safety = 1.5);
 
 struct FitOptions {
   Objective objective = Objective::kTime;
-  int global_evals = 150;     // CRS2 evaluations (0: local stage only)
-  double global_box = 1.0;    // the box: θ0 ± global_box · max(|θ0|, σ0)
+  int global_evals = 150;   // CRS2 evaluations (0: local stage only)
+  double global_box = 1.0;  // the box: θ0 ± global_box · max(|θ0|, σ0)
   int lm_iterations = 60;
   // Time objective: also start from a short-horizon fit (restarts from the measured state; 0: off).
   // Shooting objective: the segment length.
@@ -135,16 +136,17 @@ struct FitOptions {
   // factor is ≤ 1 or the two are equal.
   double shooting_friction_smoothing = 2.5;
   double shooting_friction_smoothing_second = 3.5;
-  int threads = 0;            // records simulated in parallel (0: all cores)
+  int threads = 0;  // records simulated in parallel (0: all cores)
 };
 
 struct FitResult {
   std::vector<double> theta, sigma;
-  Eigen::MatrixXd covariance;  // Gauss–Newton covariance of theta (σ² on its diagonal); empty for the spectral objective
+  Eigen::MatrixXd
+      covariance;  // Gauss–Newton covariance of theta (σ² on its diagonal); empty for the spectral objective
   Errors errors;
   int simulations = 0;
   double seconds = 0;
-  std::string message;        // Ceres' summary line
+  std::string message;  // Ceres' summary line
 };
 
 // Fits m.theta (the start) and returns the fitted parameters. `scale`: typical magnitude of each

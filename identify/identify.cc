@@ -22,25 +22,32 @@ std::string Fmt(double v, int digits = 4) {
 // A fit that returns no numbers is a failure, not a result: report which parameters and stop.
 Status CheckFitted(const IdentifyResult& r, ObjectiveMode objective) {
   const std::string name = Name(objective);
-  for (const auto& [fm, fr, what] : {std::tuple{&r.declared, &r.before, "declared model"}, std::tuple{&r.final_model, &r.after, "final model"}}) {
+  for (const auto& [fm, fr, what] :
+       {std::tuple{&r.declared, &r.before, "declared model"}, std::tuple{&r.final_model, &r.after, "final model"}}) {
     const auto names = fm->ParamNames();
     std::string bad;
     for (size_t i = 0; i < fr->theta.size(); ++i)
-      if (!std::isfinite(fr->theta[i])) bad += (bad.empty() ? "" : ", ") + (i < names.size() ? names[i] : std::to_string(i));
+      if (!std::isfinite(fr->theta[i]))
+        bad += (bad.empty() ? "" : ", ") + (i < names.size() ? names[i] : std::to_string(i));
     if (!bad.empty() || fr->theta.size() != names.size())
-      return Status::FailedPrecondition(std::string("identify: the fit of the ") + what + " gave non-finite parameters (" + bad +
+      return Status::FailedPrecondition(std::string("identify: the fit of the ") + what +
+                                        " gave non-finite parameters (" + bad +
                                         "); check the data's units and the scales (--input-scale, --output-scale)");
-    const double err = objective == ObjectiveMode::kFft ? fr->errors.fft : objective == ObjectiveMode::kShooting ? fr->errors.shooting : fr->errors.nrmse;
+    const double err = objective == ObjectiveMode::kFft        ? fr->errors.fft
+                       : objective == ObjectiveMode::kShooting ? fr->errors.shooting
+                                                               : fr->errors.nrmse;
     if (!std::isfinite(err))
-      return Status::FailedPrecondition(std::string("identify: the ") + what + " as fitted cannot be simulated on the records (" + name +
-                                        " error " + Fmt(err) + "); check the data's units, the scales and --guess");
+      return Status::FailedPrecondition(std::string("identify: the ") + what +
+                                        " as fitted cannot be simulated on the records (" + name + " error " +
+                                        Fmt(err) + "); check the data's units, the scales and --guess");
   }
   return Status::Ok();
 }
 
 // Every test range of every record, simulated with the declared and the final model under the fit's final
 // output weights (which the loop may have re-estimated).
-StatusOr<std::vector<TestSplit>> TestSplits(const IdentifyResult& r, const std::vector<Record>& loaded, const Options& o, const Setup& setup) {
+StatusOr<std::vector<TestSplit>> TestSplits(const IdentifyResult& r, const std::vector<Record>& loaded,
+                                            const Options& o, const Setup& setup) {
   double weights[kOutputSlots] = {1, 1, 1};
   for (int k = 1; k < kOutputSlots; ++k)
     for (const OutputErrors& e : r.after.errors.outputs)
@@ -100,15 +107,16 @@ StatusOr<std::vector<Record>> LoadRecords(const Options& options, const std::vec
   return loaded;
 }
 
-StatusOr<std::vector<PreparedRecord>> PrepareFitted(const std::vector<Record>& decimated, const Options& o, const Setup& setup) {
+StatusOr<std::vector<PreparedRecord>> PrepareFitted(const std::vector<Record>& decimated, const Options& o,
+                                                    const Setup& setup) {
   std::vector<PreparedRecord> recs;
   for (const Record& r : decimated) {
     const size_t n = r.t.size();
     size_t b = std::min(o.range.first, n), e = std::min(o.range.second, n);
     if (o.max_seconds > 0) e = std::min<double>(e, static_cast<double>(b) + std::floor(o.max_seconds / r.dt));
     if (o.objective == ObjectiveMode::kShooting && o.horizon < 4 * r.dt)
-      return Status::InvalidArgument("horizon", "horizon = " + Fmt(o.horizon) + " s violates horizon >= 4 samples of " + Printable(r.name, 64) +
-                                                    " (4 x dt = " + Fmt(4 * r.dt) + " s)");
+      return Status::InvalidArgument("horizon", "horizon = " + Fmt(o.horizon) + " s violates horizon >= 4 samples of " +
+                                                    Printable(r.name, 64) + " (4 x dt = " + Fmt(4 * r.dt) + " s)");
     auto p = PrepareRecord(r, setup, b, e, o.deriv_cutoff, r.name);
     if (!p.ok()) return p.status();
     recs.push_back(std::move(p).value());
@@ -120,7 +128,8 @@ StatusOr<std::vector<PreparedRecord>> PrepareFitted(const std::vector<Record>& d
 
 namespace bistable {
 
-StatusOr<identify::Summary> Identify(const identify::Options& options, const std::vector<Record>& records, identify::ProgressSink progress) {
+StatusOr<identify::Summary> Identify(const identify::Options& options, const std::vector<Record>& records,
+                                     identify::ProgressSink progress) {
   using namespace identify;
   auto planned = MakePlan(options);
   if (!planned.ok()) return planned.status();
@@ -137,8 +146,9 @@ StatusOr<identify::Summary> Identify(const identify::Options& options, const std
     if (!prepared.ok()) return prepared.status();
     if (progress) {
       char line[160];
-      std::snprintf(line, sizeof line, "identify: %zu record(s), %zu parameters declared%s; fitting...\n", prepared->size(),
-                    static_cast<size_t>(plan.model.NumParams()), plan.frame_auto ? (f == 0 ? " (absolute frame)" : " (relative frame)") : "");
+      std::snprintf(line, sizeof line, "identify: %zu record(s), %zu parameters declared%s; fitting...\n",
+                    prepared->size(), static_cast<size_t>(plan.model.NumParams()),
+                    plan.frame_auto ? (f == 0 ? " (absolute frame)" : " (relative frame)") : "");
       progress(line);
     }
     IdentifyResult rf = Identify(plan.model, *prepared, plan.setup, plan.loop);
@@ -148,7 +158,9 @@ StatusOr<identify::Summary> Identify(const identify::Options& options, const std
       // Every output counts the same here (the fit's noise weights would let the cleanest output decide
       // alone): the RMS over outputs of the final NRMSE (spectral error for the fft objective).
       frame.made = true;
-      frame.metric = options.objective == ObjectiveMode::kFft ? "spectral" : options.objective == ObjectiveMode::kShooting ? "shooting" : "nrmse";
+      frame.metric = options.objective == ObjectiveMode::kFft        ? "spectral"
+                     : options.objective == ObjectiveMode::kShooting ? "shooting"
+                                                                     : "nrmse";
       frame.errors[f] = rf.after.errors;
       double ss = 0;
       for (const OutputErrors& o : rf.after.errors.outputs) ss += std::pow(OutputError(o, frame.metric), 2);

@@ -34,19 +34,19 @@ struct TestSplit {
 // (each output's error counting the same) kept.
 struct FrameDecision {
   bool made = false;
-  std::string chosen;             // "absolute" | "relative"
-  std::string metric = "nrmse";   // errors compared: nrmse, spectral (fft objective) or shooting
-  double error[2] = {NAN, NAN};   // absolute, relative: the final error of each frame's loop
+  std::string chosen;            // "absolute" | "relative"
+  std::string metric = "nrmse";  // errors compared: nrmse, spectral (fft objective) or shooting
+  double error[2] = {NAN, NAN};  // absolute, relative: the final error of each frame's loop
   Errors errors[2];
 };
 
 struct Summary {
-  Plan plan;                           // what the options gave; setup.frame: the frame fitted (chosen, with kAuto)
-  IdentifyResult result;               // the loop's result (loop.h): models, fits, steps, diagnostics
-  std::vector<PreparedRecord> records; // the fitted part of every record, as fitted
-  std::vector<TestSplit> tests;        // every test range × every record
+  Plan plan;                            // what the options gave; setup.frame: the frame fitted (chosen, with kAuto)
+  IdentifyResult result;                // the loop's result (loop.h): models, fits, steps, diagnostics
+  std::vector<PreparedRecord> records;  // the fitted part of every record, as fitted
+  std::vector<TestSplit> tests;         // every test range × every record
   FrameDecision frame;
-  long long simulations = 0;           // of both fits (saturates)
+  long long simulations = 0;  // of both fits (saturates)
 };
 
 // An output's error by a metric: "nrmse", "spectral" or "shooting".
@@ -57,7 +57,8 @@ Record Decimated(const Record& r, int k);
 // The records of every file, read with Columns(options) (each file may hold several: record.h).
 StatusOr<std::vector<Record>> LoadRecords(const Options& options, const std::vector<std::string>& paths);
 // The fitted part (options.range, options.max_seconds) of each record (decimated already), prepared for `setup`.
-StatusOr<std::vector<PreparedRecord>> PrepareFitted(const std::vector<Record>& decimated, const Options& options, const Setup& setup);
+StatusOr<std::vector<PreparedRecord>> PrepareFitted(const std::vector<Record>& decimated, const Options& options,
+                                                    const Setup& setup);
 
 // Progress lines ("identify: 2 record(s), 5 parameters declared; fitting..."): the CLI prints them without --json.
 using ProgressSink = void (*)(const std::string& line);

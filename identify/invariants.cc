@@ -22,8 +22,10 @@ double ForcingFrequency(const std::vector<double>& input, double dt) {
   const double g = 0.5 * (std::sqrt(5.0) - 1.0);
   double c = b - g * (b - a), d = a + g * (b - a), fc = amp(c), fd = amp(d);
   for (int it = 0; it < 60 && b - a > 1e-9 * peaks[0].freq; ++it) {
-    if (fc > fd) b = d, d = c, fd = fc, c = b - g * (b - a), fc = amp(c);
-    else a = c, c = d, fc = fd, d = a + g * (b - a), fd = amp(d);
+    if (fc > fd)
+      b = d, d = c, fd = fc, c = b - g * (b - a), fc = amp(c);
+    else
+      a = c, c = d, fc = fd, d = a + g * (b - a), fd = amp(d);
   }
   return 0.25 * (a + b) / M_PI;  // midpoint, rad/s → Hz
 }
@@ -43,8 +45,8 @@ void MainBodyMotion(const std::vector<double>& out, const PreparedRecord& r, con
   *yd = SpectralDerivative(*y, r.dt, 1, r.f_cut > 0 ? r.f_cut : 0.45 / r.dt);
 }
 
-Eigen::MatrixXd StroboscopicSection(const std::vector<double>& y, const std::vector<double>& yd, const std::vector<double>& input,
-                                    double dt, double f_hz) {
+Eigen::MatrixXd StroboscopicSection(const std::vector<double>& y, const std::vector<double>& yd,
+                                    const std::vector<double>& input, double dt, double f_hz) {
   const size_t n = std::min({y.size(), yd.size(), input.size()});
   if (n < 16 || !(f_hz > 0) || !std::isfinite(f_hz)) return Eigen::MatrixXd(0, 2);
   const double w = 2.0 * M_PI * f_hz;
@@ -181,8 +183,10 @@ WellCount CountWells(const std::vector<double>& means, const WellSplit& s) {
     if (now == 0) continue;  // between the wells (or NaN): the last well
     if (well != 0 && now != well) ++c.switches;
     well = now;
-    if (now > 0) ++c.right, c.sum_right += m;
-    else ++c.left, c.sum_left += m;
+    if (now > 0)
+      ++c.right, c.sum_right += m;
+    else
+      ++c.left, c.sum_left += m;
   }
   return c;
 }
@@ -211,7 +215,9 @@ double HistogramHellinger(const std::vector<double>& meas, const std::vector<dou
     for (double v : x) {
       if (!std::isfinite(v)) return false;
       const double k = std::floor((v - lo) / width);
-      (*p)[k < 0 ? 0 : k >= bins ? static_cast<size_t>(bins) + 1 : static_cast<size_t>(k) + 1] += 1.0 / static_cast<double>(x.size());
+      (*p)[k < 0       ? 0
+           : k >= bins ? static_cast<size_t>(bins) + 1
+                       : static_cast<size_t>(k) + 1] += 1.0 / static_cast<double>(x.size());
     }
     return true;
   };
@@ -233,7 +239,8 @@ ChaosCheck CheckChaos(const std::vector<PreparedRecord>& recs, const Setup& setu
       in_bb = HarmonicDiffusionIndex(AmplitudeSpectrum(r.input, r.dt), 2.0 * M_PI * f);
       out_bb = HarmonicDiffusionIndex(AmplitudeSpectrum(yd, r.dt), 2.0 * M_PI * f);
     }
-    const bool marked = objective != Objective::kTime || r.horizon_s > 0 || r.chaotic || (in_bb <= kPeriodicInput && out_bb >= kBroadbandChaotic);
+    const bool marked = objective != Objective::kTime || r.horizon_s > 0 || r.chaotic ||
+                        (in_bb <= kPeriodicInput && out_bb >= kBroadbandChaotic);
     c.forcing_hz.push_back(f);
     c.input_broadband.push_back(in_bb);
     c.output_broadband.push_back(out_bb);
@@ -241,20 +248,23 @@ ChaosCheck CheckChaos(const std::vector<PreparedRecord>& recs, const Setup& setu
     c.chaotic = c.chaotic || marked;
   }
   char buf[400];
-  std::snprintf(buf, sizeof buf,
-                "%s a record is chaotic when its input is periodic (broadband share <= %.2g) and its output velocity is not "
-                "(broadband share >= %.2g: power farther than 3 bins from every harmonic of the forcing), or when --objective auto "
-                "fitted it on short horizons (its long simulation is chaos: objective_choice)",
-                objective == Objective::kFft        ? "spectral objective: every record;"
-                : objective == Objective::kShooting ? "shooting objective: every record;"
-                                                    : "time objective:",
-                kPeriodicInput, kBroadbandChaotic);
+  std::snprintf(
+      buf, sizeof buf,
+      "%s a record is chaotic when its input is periodic (broadband share <= %.2g) and its output velocity is not "
+      "(broadband share >= %.2g: power farther than 3 bins from every harmonic of the forcing), or when --objective "
+      "auto "
+      "fitted it on short horizons (its long simulation is chaos: objective_choice)",
+      objective == Objective::kFft        ? "spectral objective: every record;"
+      : objective == Objective::kShooting ? "shooting objective: every record;"
+                                          : "time objective:",
+      kPeriodicInput, kBroadbandChaotic);
   c.rule = buf;
   return c;
 }
 
-Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                             const Setup& setup, const ChaosCheck& check, const Errors& errors) {
+Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th,
+                             const std::vector<PreparedRecord>& recs, const Setup& setup, const ChaosCheck& check,
+                             const Errors& errors) {
   Invariants inv;
   double h_sum = 0, floor_sum = 0, hist_sum = 0, fft_sum = 0, seconds = 0;
   int h_n = 0, floor_n = 0, hist_n = 0, fft_n = 0;
@@ -279,13 +289,16 @@ Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th,
     if (i < errors.record_fft.size() && std::isfinite(errors.record_fft[i])) fft_sum += errors.record_fft[i], ++fft_n;
     const double f = check.forcing_hz[i];
     if (std::isfinite(f)) {
-      const Eigen::MatrixXd a = StroboscopicSection(ym, vm, r.input, r.dt, f), b = StroboscopicSection(ys, vs, r.input, r.dt, f);
-      const double h = EnergyCoefficient(a, b), floor = EnergyCoefficient(a.topRows(a.rows() / 2), a.bottomRows(a.rows() - a.rows() / 2));
+      const Eigen::MatrixXd a = StroboscopicSection(ym, vm, r.input, r.dt, f),
+                            b = StroboscopicSection(ys, vs, r.input, r.dt, f);
+      const double h = EnergyCoefficient(a, b),
+                   floor = EnergyCoefficient(a.topRows(a.rows() / 2), a.bottomRows(a.rows() - a.rows() / 2));
       inv.section_points += static_cast<int>(a.rows());
       if (std::isfinite(h)) h_sum += h, ++h_n;
       if (std::isfinite(floor)) floor_sum += floor, ++floor_n;
     }
-    if (const WellSwitching w = std::isfinite(f) ? WellsOf(ym, ys, r.dt, f) : WellSwitching{}; w.finite && w.seconds > 0) {
+    if (const WellSwitching w = std::isfinite(f) ? WellsOf(ym, ys, r.dt, f) : WellSwitching{};
+        w.finite && w.seconds > 0) {
       // (a record with a non-finite period mean adds neither switches nor seconds)
       wells_meas.Add(w.measured);
       wells_sim.Add(w.simulated);

@@ -48,8 +48,8 @@
 
 namespace bistable {
 
-inline constexpr double kBroadbandChaotic = 0.2;   // output broadband share marking a record chaotic
-inline constexpr double kPeriodicInput = 0.1;      // input broadband share at most this: periodic forcing
+inline constexpr double kBroadbandChaotic = 0.2;  // output broadband share marking a record chaotic
+inline constexpr double kPeriodicInput = 0.1;     // input broadband share at most this: periodic forcing
 
 // The strongest line of a sampled signal [Hz], refined to the maximum of its Hann-weighted projection;
 // NaN for a signal without one (< 16 samples, constant).
@@ -62,8 +62,8 @@ void MainBodyMotion(const std::vector<double>& out, const PreparedRecord& r, con
 
 // Stroboscopic section: rows (y, y') at t_k = (2πk − φ)/ω inside the record (spline-interpolated),
 // where the input's fundamental is A cos(ωt + φ), ω = 2π f_hz.
-Eigen::MatrixXd StroboscopicSection(const std::vector<double>& y, const std::vector<double>& yd, const std::vector<double>& input,
-                                    double dt, double f_hz);
+Eigen::MatrixXd StroboscopicSection(const std::vector<double>& y, const std::vector<double>& yd,
+                                    const std::vector<double>& input, double dt, double f_hz);
 
 // Energy coefficient H of two point clouds (rows are points, same number of columns), coordinates
 // scaled by their pooled within-cloud standard deviations; clouds over 2000 points are thinned evenly.
@@ -122,19 +122,19 @@ double HistogramHellinger(const std::vector<double>& meas, const std::vector<dou
 // The invariants of one model against the records (means over chaotic records; switching rates are
 // total switches over total time).
 struct Invariants {
-  double poincare = NAN;              // energy coefficient H of the sections, dimensionless [0, 1]
-  double poincare_floor = NAN;        // H between the first and second half of the measured section: what
-                                      // another stretch of the same measurement gives (a model cannot do better)
-  int section_points = 0;             // measured section points, all records
-  double switching_rate = NAN;        // simulated, 1/s (changes of well by forcing period)
+  double poincare = NAN;        // energy coefficient H of the sections, dimensionless [0, 1]
+  double poincare_floor = NAN;  // H between the first and second half of the measured section: what
+                                // another stretch of the same measurement gives (a model cannot do better)
+  int section_points = 0;       // measured section points, all records
+  double switching_rate = NAN;  // simulated, 1/s (changes of well by forcing period)
   double switching_rate_measured = NAN;
-  double switching_error = NAN;       // |sim − meas| / meas
-  double right_well_fraction = NAN;   // simulated periods in the right well / periods in a well
+  double switching_error = NAN;      // |sim − meas| / meas
+  double right_well_fraction = NAN;  // simulated periods in the right well / periods in a well
   double right_well_fraction_measured = NAN;
   double well_centres[2] = {NAN, NAN};           // simulated: mean period mean in the left, right well, m
   double well_centres_measured[2] = {NAN, NAN};  // (y zero-mean for velocity outputs: relative positions)
-  double velocity_hellinger = NAN;    // dimensionless [0, 1]
-  double spectral_error = NAN;        // % (Errors::fft)
+  double velocity_hellinger = NAN;               // dimensionless [0, 1]
+  double spectral_error = NAN;                   // % (Errors::fft)
   // Every measured output (main first): the Hellinger distance of its measured and simulated sample
   // histograms (as for the velocity) and its spectral error (OutputErrors::fft, all records).
   struct Output {
@@ -147,19 +147,20 @@ struct Invariants {
 
 // Per record: the forcing and the rule's inputs.
 struct ChaosCheck {
-  bool chaotic = false;                    // invariants are computed (any record marked)
+  bool chaotic = false;  // invariants are computed (any record marked)
   std::vector<char> record_chaotic;
-  std::vector<double> forcing_hz;          // NaN where the input has no line
-  std::vector<double> input_broadband;     // input's broadband share about its own line
-  std::vector<double> output_broadband;    // output's broadband share about the forcing
-  std::string rule;                        // how it was decided, for reports
+  std::vector<double> forcing_hz;        // NaN where the input has no line
+  std::vector<double> input_broadband;   // input's broadband share about its own line
+  std::vector<double> output_broadband;  // output's broadband share about the forcing
+  std::string rule;                      // how it was decided, for reports
 };
 
 ChaosCheck CheckChaos(const std::vector<PreparedRecord>& recs, const Setup& setup, Objective objective);
 
 // Simulates every marked record with (m, th) and compares; `errors` supplies the spectral error.
-Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                             const Setup& setup, const ChaosCheck& check, const Errors& errors);
+Invariants ComputeInvariants(const IdentModel& m, const std::vector<double>& th,
+                             const std::vector<PreparedRecord>& recs, const Setup& setup, const ChaosCheck& check,
+                             const Errors& errors);
 
 }  // namespace bistable
 

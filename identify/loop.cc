@@ -1,15 +1,15 @@
-#include "dynamics/cancel.h"
 #include "identify/loop.h"
+#include "dynamics/cancel.h"
 
 #include <algorithm>
-#include <optional>
-#include <random>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <iterator>
+#include <optional>
+#include <random>
 #include <thread>
 #include <utility>
 
@@ -35,8 +35,8 @@ double CorrTime(const Eigen::VectorXd& e, const std::vector<int>& record_of_row)
 }
 
 // Least squares for the term parameters (and the mass) with the offsets held at m.theta's values.
-std::vector<double> StartFromRegression(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup,
-                                        std::vector<double>* sigma) {
+std::vector<double> StartFromRegression(const IdentModel& m, const std::vector<PreparedRecord>& recs,
+                                        const Setup& setup, std::vector<double>* sigma) {
   const Regression reg = BuildRegression(m, recs, setup);
   const int q = m.NumParams() - m.offsets;
   std::vector<Sign> signs = m.ParamSigns();
@@ -85,7 +85,8 @@ std::vector<double> ScaleOf(const IdentModel& m, const std::vector<double>& th, 
   const double f_typ = std::sqrt(reg.b.squaredNorm() / std::max<double>(1.0, static_cast<double>(reg.b.size())));
   std::vector<double> s(th.size());
   for (size_t i = 0; i < th.size(); ++i) {
-    const double rms = reg.X.col(static_cast<long>(i)).norm() / std::sqrt(std::max<double>(1.0, static_cast<double>(reg.X.rows())));
+    const double rms =
+        reg.X.col(static_cast<long>(i)).norm() / std::sqrt(std::max<double>(1.0, static_cast<double>(reg.X.rows())));
     const double typ = rms > 0 && f_typ > 0 ? 0.05 * f_typ / rms : 0.0;
     s[i] = std::max({std::abs(th[i]), std::isfinite(sigma[i]) ? 3.0 * sigma[i] : 0.0, typ});
   }
@@ -146,19 +147,22 @@ CandidateScore ScoreColumns(const Eigen::MatrixXd& A, const Eigen::MatrixXd& C, 
 // the data constrain).
 // Default: the force terms of the bodies measured; with a measured voltage also main.piezo and the
 // offset and scale of every measured output. Output terms of an output the records lack are dropped.
-std::vector<const TermDef*> FreshCandidates(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup,
-                                            const IdentifyOptions& opt) {
+std::vector<const TermDef*> FreshCandidates(const IdentModel& m, const std::vector<PreparedRecord>& recs,
+                                            const Setup& setup, const IdentifyOptions& opt) {
   std::vector<const TermDef*> cands = opt.candidates;
   bool res_data = true, volt_data = !recs.empty();
-  for (const PreparedRecord& r : recs) res_data = res_data && !r.z.empty(), volt_data = volt_data && r.Has(OutputSlot::kVoltage);
+  for (const PreparedRecord& r : recs)
+    res_data = res_data && !r.z.empty(), volt_data = volt_data && r.Has(OutputSlot::kVoltage);
   auto measured = [&](const TermDef& t) {
     const int slot = OutputSlotOf(t, setup);
     return slot >= 0 && !recs.empty() && recs[0].Has(static_cast<OutputSlot>(slot));
   };
   if (cands.empty())
     for (const TermDef& t : EffectLibrary()) {
-      if (t.IsForce() && (t.body == Body::kMain || (res_data && m.HasResonator()))) cands.push_back(&t);
-      else if (volt_data && (t.kind == TermKind::kPiezo || (t.body == Body::kOutput && measured(t)))) cands.push_back(&t);
+      if (t.IsForce() && (t.body == Body::kMain || (res_data && m.HasResonator())))
+        cands.push_back(&t);
+      else if (volt_data && (t.kind == TermKind::kPiezo || (t.body == Body::kOutput && measured(t))))
+        cands.push_back(&t);
     }
   // A gain on the voltage is the piezo's own scale (w → λw, c → λc, a → a/λ leaves the beam as it is):
   // with main.piezo in the model, out.voltage.scale would only fit the start of the voltage transient.
@@ -200,15 +204,17 @@ std::vector<double> CandidateBase(const TermDef& c, const std::vector<PreparedRe
   }
   return base;
 }
-bool IsZero(const std::vector<double>& v) { return std::all_of(v.begin(), v.end(), [](double x) { return x == 0.0; }); }
+bool IsZero(const std::vector<double>& v) {
+  return std::all_of(v.begin(), v.end(), [](double x) { return x == 0.0; });
+}
 
 // Supporting evidence: the restoring-force residual of the equation-error rows, regressed on the
 // declared columns (base) and scored against each candidate's columns (after them in `reg`).
 struct ForceEvidence {
   Regression reg;
-  Eigen::VectorXd r0;             // residual force of the fitted model
-  LinearFit base;                 // r0 on the declared columns
-  double n_eff = 0;               // rows / correlation time
+  Eigen::VectorXd r0;               // residual force of the fitted model
+  LinearFit base;                   // r0 on the declared columns
+  double n_eff = 0;                 // rows / correlation time
   std::vector<double> step_of_col;  // typical parameter step of every column (finite differences)
 };
 
@@ -225,7 +231,8 @@ ForceEvidence ForceResidual(const IdentModel& m, const std::vector<double>& th, 
   for (int i = 0; i < p; ++i) d[i] = f.base.theta[i];
   f.n_eff = static_cast<double>(reg.X.rows()) / CorrTime(f.r0 - reg.X.leftCols(p) * d, reg.record_of_row);
   // Typical parameter steps: a change worth 2 % of the RMS inertial force along the trajectory.
-  const double f_typ = std::sqrt(reg.b.squaredNorm() / std::max<double>(1.0, static_cast<double>(reg.b.size()))) + 1e-300;
+  const double f_typ =
+      std::sqrt(reg.b.squaredNorm() / std::max<double>(1.0, static_cast<double>(reg.b.size()))) + 1e-300;
   f.step_of_col.resize(reg.X.cols());
   for (long j = 0; j < reg.X.cols(); ++j) {
     const double rms = reg.X.col(j).norm() / std::sqrt(static_cast<double>(std::max<long>(1, reg.X.rows())));
@@ -238,12 +245,12 @@ ForceEvidence ForceResidual(const IdentModel& m, const std::vector<double>& th, 
 // parameters and Jc to every candidate's at zero (one sensitivity pass: exact derivatives of the
 // discrete simulation), and the part of −e that J cannot explain (base).
 struct SimulationEvidence {
-  std::vector<int> sub;     // substeps held fixed for every simulation of the trace
-  std::vector<double> e0;   // residual vector
-  Eigen::VectorXd target;   // −e
-  Eigen::MatrixXd J, Jc;    // declared parameters; candidates' parameters (in `fresh` order)
-  LinearFit base;           // target on J
-  double n_eff = 0;         // samples / correlation time of what J leaves
+  std::vector<int> sub;    // substeps held fixed for every simulation of the trace
+  std::vector<double> e0;  // residual vector
+  Eigen::VectorXd target;  // −e
+  Eigen::MatrixXd J, Jc;   // declared parameters; candidates' parameters (in `fresh` order)
+  LinearFit base;          // target on J
+  double n_eff = 0;        // samples / correlation time of what J leaves
 };
 
 // J and Jc by finite differences (the spectral objective): central differences for the declared
@@ -251,9 +258,10 @@ struct SimulationEvidence {
 // `steps` (substeps no fewer than the trace's); a candidate whose simulation diverges gets NaN columns.
 // Why not the sensitivities: a chaotic record's exact derivative grows like e^{λt} over the record and
 // says nothing about the spectrum a step away; differences at a finite step average over that.
-void DifferenceSensitivities(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& fresh,
-                             const double* steps, const std::vector<PreparedRecord>& recs, const Setup& setup,
-                             Objective obj, SimulationEvidence* s) {
+void DifferenceSensitivities(const IdentModel& m, const std::vector<double>& th,
+                             const std::vector<const TermDef*>& fresh, const double* steps,
+                             const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj,
+                             SimulationEvidence* s) {
   const int p = m.NumParams();
   const long N = static_cast<long>(s->e0.size());
   s->J.resize(N, p);
@@ -262,7 +270,8 @@ void DifferenceSensitivities(const IdentModel& m, const std::vector<double>& th,
     const double h = 1e-4 * (std::abs(th[i]) > 0 ? std::abs(th[i]) : steps[i]);
     std::vector<double> a = th, b = th;
     a[i] += h, b[i] -= h;
-    if (!ObjectiveResiduals(m, a, recs, setup, obj, s->sub, &ep) || !ObjectiveResiduals(m, b, recs, setup, obj, s->sub, &em)) {
+    if (!ObjectiveResiduals(m, a, recs, setup, obj, s->sub, &ep) ||
+        !ObjectiveResiduals(m, b, recs, setup, obj, s->sub, &em)) {
       s->J.col(i).setZero();
       continue;
     }
@@ -343,9 +352,9 @@ bool DissipatesEnergy(const TermDef& c, const std::vector<double>& estimate, con
 // residual e_c and sensitivities (declared parameters J_d, candidate J_c: one sensitivity pass, or finite
 // differences for the spectral objective); −e_c ≈ J_d δ + J_c (β − base) by least squares, compared with
 // what the declared parameters alone leave of −e (sim.base.rss).
-CandidateScore ScoreAtBase(const IdentModel& m, const std::vector<double>& th, const TermDef& c, const std::vector<double>& base,
-                           const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj, double horizon_s,
-                           const ForceEvidence& force, const SimulationEvidence& sim) {
+CandidateScore ScoreAtBase(const IdentModel& m, const std::vector<double>& th, const TermDef& c,
+                           const std::vector<double>& base, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                           Objective obj, double horizon_s, const ForceEvidence& force, const SimulationEvidence& sim) {
   CandidateScore s;
   const int p = m.NumParams(), nt = m.NumTermParams(), k = static_cast<int>(c.params.size());
   IdentModel mc = m;
@@ -397,9 +406,11 @@ LoopStep TraceScores(const IdentModel& m, const std::vector<double>& th, const s
 LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                        const Setup& setup, const IdentifyOptions& opt, const std::vector<std::string>& passed_over) {
   // Records fitted on short horizons, or that snap between wells: the trace's null from the fitted model's twins.
-  const bool chaotic = std::any_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.chaotic || r.snaps || r.horizon_s > 0; });
+  const bool chaotic = std::any_of(recs.begin(), recs.end(),
+                                   [](const PreparedRecord& r) { return r.chaotic || r.snaps || r.horizon_s > 0; });
   const std::vector<std::vector<PreparedRecord>> twins =
-      chaotic ? TwinRecords(m, th, recs, setup, kTwins, opt.fit.objective == Objective::kShooting ? opt.fit.shooting_horizon_s : 0.0)
+      chaotic ? TwinRecords(m, th, recs, setup, kTwins,
+                            opt.fit.objective == Objective::kShooting ? opt.fit.shooting_horizon_s : 0.0)
               : std::vector<std::vector<PreparedRecord>>{};
   return TraceScores(m, th, recs, setup, opt, passed_over, twins);
 }
@@ -415,7 +426,8 @@ LoopStep TraceScores(const IdentModel& m, const std::vector<double>& th, const s
   const ForceEvidence force = ForceResidual(m, th, recs, setup, fresh);
   step.residual_rms = std::sqrt(force.r0.squaredNorm() / static_cast<double>(force.reg.X.rows()));
   SimulationEvidence sim;
-  if (!SimulationResidual(m, th, recs, setup, opt.fit.objective, opt.fit.shooting_horizon_s, fresh, force.step_of_col, &sim)) {
+  if (!SimulationResidual(m, th, recs, setup, opt.fit.objective, opt.fit.shooting_horizon_s, fresh, force.step_of_col,
+                          &sim)) {
     step.verdict = "the fitted model diverges on a record; nothing traced";
     return step;
   }
@@ -438,7 +450,8 @@ LoopStep TraceScores(const IdentModel& m, const std::vector<double>& th, const s
     s.term = c->id;
     if (c->params[0].sign == Sign::kNonNegative) s.sign_ok = DissipatesEnergy(*c, s.estimate, recs, m.fc);
     if (c->kind == TermKind::kPiezo) s.sign_ok = s.estimate[0] * s.estimate[2] > 0;  // the coupling damps the beam
-    const CandidateScore fs = ScoreColumns(force.reg.X.leftCols(p), force.reg.X.middleCols(col, k), force.r0, force.base.rss, force.n_eff);
+    const CandidateScore fs =
+        ScoreColumns(force.reg.X.leftCols(p), force.reg.X.middleCols(col, k), force.r0, force.base.rss, force.n_eff);
     s.force_delta_bic = fs.delta_bic;
     s.force_explained = fs.explained;
     step.scores.push_back(s);
@@ -468,7 +481,8 @@ LoopStep TraceScores(const IdentModel& m, const std::vector<double>& th, const s
             [](const CandidateScore& a, const CandidateScore& b) { return a.delta_bic < b.delta_bic; });
   for (const CandidateScore& s : step.scores) {
     if (!s.sign_ok || !(s.delta_bic < -opt.bic_threshold) || !(s.explained >= opt.min_explained)) continue;
-    if (std::isfinite(s.twin_explained) && !(s.explained > kTwinFactor * s.twin_explained)) continue;  // as much as in noise
+    if (std::isfinite(s.twin_explained) && !(s.explained > kTwinFactor * s.twin_explained))
+      continue;  // as much as in noise
     if (std::find(passed_over.begin(), passed_over.end(), s.term) != passed_over.end()) continue;
     step.chosen = s.term;
     break;
@@ -499,14 +513,16 @@ namespace {
 
 // The declared model's start (m->theta): offsets from the equation-error scan, then the given
 // guesses (non-NaN, offsets included) win, and the regression fills in the rest; `sigma0` its σ.
-void StartDeclared(IdentModel* m, const std::vector<PreparedRecord>& recs, const Setup& setup, std::vector<double>* sigma0) {
+void StartDeclared(IdentModel* m, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                   std::vector<double>* sigma0) {
   const std::vector<double> given = m->theta;
   EstimateOffsets(m, recs, setup);
   if (given.size() == m->theta.size())
     for (size_t i = 0; i < given.size(); ++i)
       if (std::isfinite(given[i])) m->theta[i] = given[i];
   const std::vector<double> start = StartFromRegression(*m, recs, setup, sigma0);
-  if (static_cast<int>(m->theta.size()) != m->NumParams()) m->theta = start;
+  if (static_cast<int>(m->theta.size()) != m->NumParams())
+    m->theta = start;
   else  // given guesses win; missing ones (NaN) come from the regression
     for (int i = 0; i < m->NumParams(); ++i)
       if (!std::isfinite(m->theta[i])) m->theta[i] = start[i];
@@ -557,9 +573,10 @@ namespace {
 // start is the best of the estimate scaled by 1, 1/2, 1/4 and 0 — at 0 the fitted model itself, from
 // which the local stage cannot end above the error before the term.
 FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t, const LoopStep& step,
-                    const std::vector<PreparedRecord>& recs, const Setup& setup, const IdentifyOptions& opt, IdentModel* next) {
+                    const std::vector<PreparedRecord>& recs, const Setup& setup, const IdentifyOptions& opt,
+                    IdentModel* next) {
   const CandidateScore& s = *std::find_if(step.scores.begin(), step.scores.end(),
-                                           [&](const CandidateScore& c) { return c.term == step.chosen; });
+                                          [&](const CandidateScore& c) { return c.term == step.chosen; });
   std::vector<double> init = s.estimate;
   for (size_t j = 0; j < init.size(); ++j)
     if (t->params[j].sign == Sign::kNonNegative) init[j] = std::max(init[j], 0.0);
@@ -571,7 +588,7 @@ FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t,
     const IdentModel trial = m.With(t, scaled);
     const double e = ErrorOf(Evaluate(trial, trial.theta, recs, setup, horizon), opt.fit.objective);
     if (e < best) best = e, best_scale = scale;  // NaN (diverged) never wins
-    if (best_scale == scale) break;               // the largest step that helps
+    if (best_scale == scale) break;              // the largest step that helps
   }
   for (double& v : init) v *= best_scale;
   *next = m.With(t, init);
@@ -580,7 +597,8 @@ FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t,
   IdentModel alt = *next;
   std::vector<double> sig_alt;
   alt.theta = StartFromRegression(alt, recs, setup, &sig_alt);
-  const std::vector<double> scale = ScaleOf(*next, next->theta, sig, recs, setup), scale_alt = ScaleOf(alt, alt.theta, sig_alt, recs, setup);
+  const std::vector<double> scale = ScaleOf(*next, next->theta, sig, recs, setup),
+                            scale_alt = ScaleOf(alt, alt.theta, sig_alt, recs, setup);
   FitResult refit, refit2;
   // The two fits are independent: with two CPUs, run them side by side. With several records each fit
   // runs on one thread (a fit spreads its records over the CPUs, and three records on two cores leave one
@@ -592,13 +610,15 @@ FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t,
   if (cpus >= 2) {
     FitOptions one = opt.fit;
     if (recs.size() > 1) one.threads = 1;
-    RunBeside([&] { refit2 = Fit(alt, scale_alt, recs, setup, one); }, [&] { refit = Fit(*next, scale, recs, setup, one); });
+    RunBeside([&] { refit2 = Fit(alt, scale_alt, recs, setup, one); },
+              [&] { refit = Fit(*next, scale, recs, setup, one); });
   } else {
     refit = Fit(*next, scale, recs, setup, opt.fit);
     refit2 = Fit(alt, scale_alt, recs, setup, opt.fit);
   }
   const bool p1 = Physical(*next, refit.theta), p2 = Physical(*next, refit2.theta);
-  if ((p2 && !p1) || (p2 == p1 && ErrorOf(refit2, opt.fit.objective) < ErrorOf(refit, opt.fit.objective))) refit = refit2;
+  if ((p2 && !p1) || (p2 == p1 && ErrorOf(refit2, opt.fit.objective) < ErrorOf(refit, opt.fit.objective)))
+    refit = refit2;
   return refit;
 }
 
@@ -608,8 +628,9 @@ FitResult RefitWith(const IdentModel& m, const FitResult& fit, const TermDef* t,
 // fit's basin: when every parameter of t ends within 2σ of zero (or at zero) and the model without it, at the
 // refit's other values, keeps all but min_improvement of the gain, it is the latter, and *without is that
 // model's fit (θ, σ and covariance without t's rows; its errors evaluated).
-bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitResult& refit, const TermDef* t, double before,
-                        const std::vector<PreparedRecord>& recs, const Setup& setup, const IdentifyOptions& opt, FitResult* without) {
+bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitResult& refit, const TermDef* t,
+                        double before, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                        const IdentifyOptions& opt, FitResult* without) {
   const int off = next.Offset(t), np = static_cast<int>(t->params.size()), n = static_cast<int>(refit.theta.size());
   if (off < 0 || off + np > n || static_cast<int>(refit.sigma.size()) != n) return false;
   std::vector<int> term, keep;
@@ -642,7 +663,8 @@ bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitRe
   w.seconds = refit.seconds;
   w.message = refit.message;
   const double e = ErrorOf(w, opt.fit.objective), after = ErrorOf(refit, opt.fit.objective);
-  if (!(e <= after + opt.min_improvement * (before - after)) || !(e < before * (1.0 - opt.min_improvement))) return false;
+  if (!(e <= after + opt.min_improvement * (before - after)) || !(e < before * (1.0 - opt.min_improvement)))
+    return false;
   *without = std::move(w);
   return true;
 }
@@ -727,7 +749,8 @@ ObjectiveChoice ChooseHorizons(const IdentModel& m, std::vector<PreparedRecord>*
       if (h < twins_h) {
         char buf[240];
         std::snprintf(buf, sizeof buf,
-                      "; shortened to %.3g s: from fitted states the model's error on %.3g s segments is %.3g %%, %.3g× its %.3g %% on "
+                      "; shortened to %.3g s: from fitted states the model's error on %.3g s segments is %.3g %%, "
+                      "%.3g× its %.3g %% on "
                       "%.3g s segments (at most %.3g×: the segment's state fit no longer finds the orbit)",
                       h, twins_h, twins_e, twins_e / e0, e0, h0, kFollowableGrowth);
         p.reason += buf;
@@ -746,8 +769,8 @@ ObjectiveChoice ChooseHorizons(const IdentModel& m, std::vector<PreparedRecord>*
 // where it follows every record and its twins stay together, m's long simulation is fitted from *fit (local
 // stage: the start is in the valley) and replaces *fit when its long simulation error is lower. The errors
 // keep the shooting error too (the objective the loop ran).
-void ContinueToLongSimulation(const IdentModel& m, FitResult* fit, const std::vector<PreparedRecord>& recs, const Setup& setup,
-                              const IdentifyOptions& opt, ObjectiveChoice::Continuation* c) {
+void ContinueToLongSimulation(const IdentModel& m, FitResult* fit, const std::vector<PreparedRecord>& recs,
+                              const Setup& setup, const IdentifyOptions& opt, ObjectiveChoice::Continuation* c) {
   *c = ObjectiveChoice::Continuation{};
   const double horizon = opt.fit.shooting_horizon_s;
   std::vector<PreparedRecord> whole = recs;  // the records as the time objective sees them
@@ -760,7 +783,8 @@ void ContinueToLongSimulation(const IdentModel& m, FitResult* fit, const std::ve
   }
   c->long_before = fit->errors.long_nrmse;
   if (!all) {
-    c->reason = "the final model does not follow every record within " + std::to_string(static_cast<int>(kMeaningfulFloor)) +
+    c->reason = "the final model does not follow every record within " +
+                std::to_string(static_cast<int>(kMeaningfulFloor)) +
                 " % with predictable twins: the shooting fit stands";
     return;
   }
@@ -775,13 +799,16 @@ void ContinueToLongSimulation(const IdentModel& m, FitResult* fit, const std::ve
   c->long_after = t.errors.long_nrmse;
   const bool finite = std::all_of(t.theta.begin(), t.theta.end(), [](double v) { return std::isfinite(v); });
   if (!finite || !Physical(m, t.theta) || !(t.errors.long_nrmse < fit->errors.long_nrmse)) {
-    c->reason = "the final model follows every record, but its long simulation's fit did not lower the long simulation error: the shooting fit stands";
+    c->reason =
+        "the final model follows every record, but its long simulation's fit did not lower the long simulation error: "
+        "the shooting fit stands";
     return;
   }
   c->ran = true;
   char buf[320];
   std::snprintf(buf, sizeof buf,
-                "the final model follows every record with predictable twins: its long simulation was fitted from the shooting fit "
+                "the final model follows every record with predictable twins: its long simulation was fitted from the "
+                "shooting fit "
                 "(long simulation error %.3g %% -> %.3g %%; short-horizon error %.3g %% -> %.3g %%)",
                 fit->errors.long_nrmse, t.errors.long_nrmse, fit->errors.shooting, t.errors.shooting);
   c->reason = buf;
@@ -810,7 +837,8 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
   // again from it, those stages (with smoothed friction) left it: on a coupled null record the declared fit
   // ended at 25.3 % where its start and the truth give 2.9 %.
   FitOptions declared_fo = opt.fit;
-  if (opt.fit.objective == Objective::kTime && out.objective_choice.theta.size() == m.theta.size()) declared_fo.shooting_horizon_s = 0;
+  if (opt.fit.objective == Objective::kTime && out.objective_choice.theta.size() == m.theta.size())
+    declared_fo.shooting_horizon_s = 0;
   FitResult fit = Fit(m, ScaleOf(m, m.theta, sigma0, recs, setup), recs, setup, declared_fo);
   // The reweighted declared fit starts from the first one (σ as scale): the same basin, new weights.
   if (reweight && ReweightOutputs(fit.errors, opt.fit.objective, setup, &recs)) {
@@ -850,7 +878,8 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
     const auto tr0 = std::chrono::steady_clock::now();
     LoopStep step = TraceResidual(m, m.theta, recs, setup, opt, passed_over);
     if (std::getenv("BISTABLE_IDENTIFY_DEBUG"))
-      std::fprintf(stderr, "trace %.2f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - tr0).count());
+      std::fprintf(stderr, "trace %.2f s\n",
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - tr0).count());
     if (step.chosen.empty()) {
       step.verdict = "no candidate beats the noise (ΔBIC < −" + std::to_string(static_cast<int>(opt.bic_threshold)) +
                      ", ≥ " + std::to_string(static_cast<int>(100 * opt.min_explained)) + " % of the residual, signed)";
@@ -867,7 +896,9 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
     char buf[512];
     if (!physical) {
       const int pz = next.PiezoIndex();
-      std::snprintf(buf, sizeof buf, "%s scored best but its refit feeds energy into the beam (a c = %.3g < 0; error %.3g %% -> %.3g %%); not added",
+      std::snprintf(buf, sizeof buf,
+                    "%s scored best but its refit feeds energy into the beam (a c = %.3g < 0; error %.3g %% -> %.3g "
+                    "%%); not added",
                     t->id.c_str(), refit.theta[pz] * refit.theta[pz + 2], before, after);
       step.verdict = buf;
       step.chosen.clear();
@@ -875,8 +906,10 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
       break;
     }
     if (!confirmed) {
-      std::snprintf(buf, sizeof buf, "%s scored best but the refit by simulation did not confirm it (error %.3g %% -> %.3g %%); not added",
-                    t->id.c_str(), before, after);
+      std::snprintf(
+          buf, sizeof buf,
+          "%s scored best but the refit by simulation did not confirm it (error %.3g %% -> %.3g %%); not added",
+          t->id.c_str(), before, after);
       step.verdict = buf;
       step.chosen.clear();
       out.steps.push_back(step);
@@ -885,11 +918,12 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
     if (FitResult without; GainWithoutTheTerm(m, next, refit, t, before, recs, setup, opt, &without)) {
       // A better optimum of the model before the step: it goes on in that model's place (traced again).
       const double e = ErrorOf(without, opt.fit.objective);
-      std::snprintf(buf, sizeof buf,
-                    "%s scored best and its refit gained (error %.3g %% -> %.3g %%), but by leaving the fit's basin: its "
-                    "parameters ended insignificant (Wald test, 95 %%) and the model without it keeps the gain (%.3g %%); "
-                    "not added, the model before goes on at the refit's values",
-                    t->id.c_str(), before, after, e);
+      std::snprintf(
+          buf, sizeof buf,
+          "%s scored best and its refit gained (error %.3g %% -> %.3g %%), but by leaving the fit's basin: its "
+          "parameters ended insignificant (Wald test, 95 %%) and the model without it keeps the gain (%.3g %%); "
+          "not added, the model before goes on at the refit's values",
+          t->id.c_str(), before, after, e);
       step.verdict = buf;
       step.chosen.clear();
       passed_over.push_back(t->id);
@@ -900,7 +934,9 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
       continue;
     }
     std::snprintf(buf, sizeof buf, "added %s: error %.3g %% -> %.3g %%", t->id.c_str(), before, after);
-    if (std::getenv("BISTABLE_IDENTIFY_DEBUG")) std::fprintf(stderr, "refit: %s (%d simulations, %.1f s)\n", refit.message.c_str(), refit.simulations, refit.seconds);
+    if (std::getenv("BISTABLE_IDENTIFY_DEBUG"))
+      std::fprintf(stderr, "refit: %s (%d simulations, %.1f s)\n", refit.message.c_str(), refit.simulations,
+                   refit.seconds);
     step.verdict = buf;
     out.steps.push_back(step);
     out.added.push_back(Added(t, next, refit, before, after));
@@ -912,7 +948,8 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
   out.after = fit;
   for (AddedEffect& a : out.added) TakeValues(&a, m, fit);  // the final values (later additions refit everything)
   out.residual_after = ResidualForce(m, m.theta, recs, setup);
-  const bool went_on = !out.steps.empty() && (!out.steps.back().chosen.empty() || out.fits.back().refound);  // not a stop
+  const bool went_on =
+      !out.steps.empty() && (!out.steps.back().chosen.empty() || out.fits.back().refound);  // not a stop
   const std::string stop = out.steps.empty() ? "--max-added 0, nothing traced"
                            : went_on         ? "it reached --max-added after: " + out.steps.back().verdict
                                              : out.steps.back().verdict;

@@ -32,11 +32,11 @@ namespace bistable {
 
 struct CandidateScore {
   std::string term;
-  double delta_bic = NAN;            // simulation residual (deciding)
-  double explained = NAN;            // fraction of its sum of squares
+  double delta_bic = NAN;  // simulation residual (deciding)
+  double explained = NAN;  // fraction of its sum of squares
   bool sign_ok = true;
   std::vector<double> estimate, sigma;  // the candidate's parameters from the linearised fit
-  double force_delta_bic = NAN;      // restoring-force residual (supporting)
+  double force_delta_bic = NAN;         // restoring-force residual (supporting)
   double force_explained = NAN;
   // Records fitted on short horizons (chaotic, --objective auto): the largest share this candidate explains
   // of the residual of the fitted model's own twin records (TwinRecords), where nothing is missing; NaN when
@@ -119,7 +119,7 @@ struct ObjectiveChoice {
   Objective objective = Objective::kTime;
   double horizon_s = 0;
   std::vector<Predictability> records;  // the deciding experiment per record
-  std::string model;                     // "regression start" or "short-horizon fit"
+  std::string model;                    // "regression start" or "short-horizon fit"
   // The short-horizon fit's parameters (empty when the regression start decided): the declared fit starts
   // from them. Fitted on 0.1 s horizons of the same records with the same terms, they are nearer the vector
   // field than the regression start; on a coupled record from the regression start the declared fit of the
@@ -133,7 +133,7 @@ struct ObjectiveChoice {
   // model that understates the chaos) gets the long simulation where it can after all.
   struct Continuation {
     bool tried = false, ran = false;
-    std::vector<Predictability> records;  // the final model's twin experiment
+    std::vector<Predictability> records;         // the final model's twin experiment
     double long_before = NAN, long_after = NAN;  // % long simulation error at the shooting fit and after
     std::string reason;
   } continuation;
@@ -146,8 +146,8 @@ ObjectiveChoice ChooseHorizons(const IdentModel& m, std::vector<PreparedRecord>*
 // (opt.fit: the shooting objective and its horizon): *fit is replaced by m's long simulation fit when m
 // follows every record with predictable twins and that fit lowers the long simulation error; *c says what
 // was tried and why.
-void ContinueToLongSimulation(const IdentModel& m, FitResult* fit, const std::vector<PreparedRecord>& recs, const Setup& setup,
-                              const IdentifyOptions& opt, ObjectiveChoice::Continuation* c);
+void ContinueToLongSimulation(const IdentModel& m, FitResult* fit, const std::vector<PreparedRecord>& recs,
+                              const Setup& setup, const IdentifyOptions& opt, ObjectiveChoice::Continuation* c);
 
 struct IdentifyResult {
   IdentModel declared, final_model;
@@ -155,8 +155,8 @@ struct IdentifyResult {
   std::vector<LoopStep> steps;
   std::vector<AddedEffect> added;
   ResidualCloud residual_before, residual_after;
-  std::vector<FitSnapshot> fits;   // the declared fit, then every refit with a candidate (kept or not)
-  LoopDiagnostics diagnostics;     // whiteness / unexplained, correlations, drift, invariants (diagnostics.h)
+  std::vector<FitSnapshot> fits;     // the declared fit, then every refit with a candidate (kept or not)
+  LoopDiagnostics diagnostics;       // whiteness / unexplained, correlations, drift, invariants (diagnostics.h)
   ObjectiveChoice objective_choice;  // --objective auto: which records are fitted on short horizons, and why
   double seconds = 0;
 };
@@ -179,9 +179,9 @@ bool ReweightOutputs(const Errors& e, Objective obj, const Setup& setup, std::ve
 // min_improvement·(before − after) and below before·(1 − min_improvement). Then *without is that model's
 // fit (θ; the covariance conditional on t = 0, Σ_kk − Σ_kt Σ_tt⁻¹ Σ_tk, and its σ; its errors evaluated)
 // and the loop goes on from it, t not added and passed over by the next traces.
-bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitResult& refit, const TermDef* t, double before,
-                        const std::vector<PreparedRecord>& recs, const Setup& setup, const IdentifyOptions& opt,
-                        FitResult* without);
+bool GainWithoutTheTerm(const IdentModel& m, const IdentModel& next, const FitResult& refit, const TermDef* t,
+                        double before, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                        const IdentifyOptions& opt, FitResult* without);
 
 IdentifyResult Identify(const IdentModel& declared, const std::vector<PreparedRecord>& recs, const Setup& setup,
                         const IdentifyOptions& opt);
@@ -193,7 +193,8 @@ ResidualCloud ResidualForce(const IdentModel& m, const std::vector<double>& th, 
 // Scores every candidate against the residual of `m` (fitted `th`); exposed for tests and reports. Terms in
 // `passed_over` (whose refit gained by leaving the basin, GainWithoutTheTerm) are scored but not chosen.
 LoopStep TraceResidual(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                       const Setup& setup, const IdentifyOptions& opt, const std::vector<std::string>& passed_over = {});
+                       const Setup& setup, const IdentifyOptions& opt,
+                       const std::vector<std::string>& passed_over = {});
 
 }  // namespace bistable
 

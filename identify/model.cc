@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdio>
 #include <complex>
+#include <cstdio>
 #include <type_traits>
 
 #include <Eigen/Dense>
@@ -61,9 +61,12 @@ std::vector<double> SavitzkyGolay(const std::vector<double>& y, double dt, int h
   for (long i = 0; i < n; ++i) {
     long start = i - hw;
     Eigen::VectorXd wts;
-    if (start < 0) start = 0, wts = weights(i);
-    else if (start + w > n) start = n - w, wts = weights(i - start);
-    else wts = centre;
+    if (start < 0)
+      start = 0, wts = weights(i);
+    else if (start + w > n)
+      start = n - w, wts = weights(i - start);
+    else
+      wts = centre;
     double acc = 0;
     for (long k = 0; k < w; ++k) acc += wts[k] * y[start + k];
     out[i] = acc * scale;
@@ -84,8 +87,10 @@ std::vector<double> SpectralDerivative(const std::vector<double>& y, double dt, 
     const double f = (k <= len / 2 ? static_cast<double>(k) : -static_cast<double>(len - k)) * df;
     const double af = std::abs(f);
     double h = 1.0;
-    if (af >= f_cut_hz) h = 0.0;
-    else if (af > 0.8 * f_cut_hz) h = 0.5 * (1.0 + std::cos(M_PI * (af - 0.8 * f_cut_hz) / (0.2 * f_cut_hz)));
+    if (af >= f_cut_hz)
+      h = 0.0;
+    else if (af > 0.8 * f_cut_hz)
+      h = 0.5 * (1.0 + std::cos(M_PI * (af - 0.8 * f_cut_hz) / (0.2 * f_cut_hz)));
     std::complex<double> w(1.0, 0.0);
     for (int d = 0; d < order; ++d) w *= std::complex<double>(0.0, 2.0 * M_PI * f);
     if (order > 0 && k == len / 2 && len % 2 == 0) w = 0;  // Nyquist bin of an odd derivative: no sign
@@ -259,29 +264,39 @@ UniformSpline DriveSpline(const PreparedRecord& r, const std::vector<double>& in
 Status ValidateSetup(const Setup& s) {
   if (!(s.fc.v_sp > 0) || !std::isfinite(s.fc.v_sp)) return Status::InvalidArgument("v_sp", "v_sp must be > 0 m/s");
   if (!(s.fc.v_t > 0) || !std::isfinite(s.fc.v_t)) return Status::InvalidArgument("v_t", "v_t must be > 0 m/s");
-  if (!(s.drift_cutoff_hz >= 0) || !std::isfinite(s.drift_cutoff_hz)) {  // its upper bound is each record's: PrepareRecord
+  if (!(s.drift_cutoff_hz >= 0) ||
+      !std::isfinite(s.drift_cutoff_hz)) {  // its upper bound is each record's: PrepareRecord
     char v[32];
     std::snprintf(v, sizeof v, "%g", s.drift_cutoff_hz);
-    return Status::InvalidArgument("drift-cutoff", std::string("drift-cutoff = ") + v + " violates drift-cutoff >= 0 Hz, finite");
+    return Status::InvalidArgument("drift-cutoff",
+                                   std::string("drift-cutoff = ") + v + " violates drift-cutoff >= 0 Hz, finite");
   }
   if (s.drift_cutoff_hz > 0 && s.output != OutputKind::kVelocity)
-    return Status::InvalidArgument("drift-cutoff", "drift-cutoff acts on a displacement integrated from a velocity output: it needs --output-kind velocity");
+    return Status::InvalidArgument(
+        "drift-cutoff",
+        "drift-cutoff acts on a displacement integrated from a velocity output: it needs --output-kind velocity");
   const bool disp = s.output != OutputKind::kVelocity;
   if (s.input == InputKind::kBaseAcceleration && disp && s.frame == OutputFrame::kAbsolute)
-    return Status::InvalidArgument("output", "an absolute displacement output needs the base displacement as input; with a "
-                                             "base acceleration input use a velocity output or --output-frame relative");
+    return Status::InvalidArgument("output",
+                                   "an absolute displacement output needs the base displacement as input; with a "
+                                   "base acceleration input use a velocity output or --output-frame relative");
   if (s.input == InputKind::kBaseDisplacement && !disp)
-    return Status::InvalidArgument("output", "with a base displacement input the output must be a displacement "
-                                             "(camera/laser position); velocity outputs go with a base acceleration input");
+    return Status::InvalidArgument("output",
+                                   "with a base displacement input the output must be a displacement "
+                                   "(camera/laser position); velocity outputs go with a base acceleration input");
   return Status::Ok();
 }
 
 std::string OutputName(const Setup& s, OutputSlot slot) {
   switch (slot) {
     case OutputSlot::kMain:
-      return s.output == OutputKind::kVelocity ? "velocity" : s.output == OutputKind::kDisplacement ? "displacement" : "analogue";
-    case OutputSlot::kResonator: return "resonator";
-    case OutputSlot::kVoltage: return "voltage";
+      return s.output == OutputKind::kVelocity       ? "velocity"
+             : s.output == OutputKind::kDisplacement ? "displacement"
+                                                     : "analogue";
+    case OutputSlot::kResonator:
+      return "resonator";
+    case OutputSlot::kVoltage:
+      return "voltage";
   }
   return "";
 }
@@ -294,13 +309,16 @@ int OutputSlotOf(const TermDef& t, const Setup& s) {
 }
 
 double PreparedRecord::Scale(OutputSlot s) const {
-  return s == OutputSlot::kMain ? meas_scale : s == OutputSlot::kVoltage ? volt_scale : [&] {
-    double mean = 0, ss = 0;
-    for (double v : meas_res) mean += v;
-    mean /= static_cast<double>(std::max<size_t>(1, meas_res.size()));
-    for (double v : meas_res) ss += (v - mean) * (v - mean);
-    return std::sqrt(ss / static_cast<double>(std::max<size_t>(1, meas_res.size())));
-  }();
+  return s == OutputSlot::kMain ? meas_scale
+         : s == OutputSlot::kVoltage
+             ? volt_scale
+             : [&] {
+                 double mean = 0, ss = 0;
+                 for (double v : meas_res) mean += v;
+                 mean /= static_cast<double>(std::max<size_t>(1, meas_res.size()));
+                 for (double v : meas_res) ss += (v - mean) * (v - mean);
+                 return std::sqrt(ss / static_cast<double>(std::max<size_t>(1, meas_res.size())));
+               }();
 }
 
 std::array<double, kOutputSlots> RelativeNoise(const std::vector<PreparedRecord>& recs) {
@@ -433,7 +451,8 @@ std::vector<double> RelativeVelocity(const std::vector<double>& out, const Prepa
 
 // The resonator's coordinate r of the integrated state: x_r (displacement input: absolute) or
 // z = x_r − y otherwise (force input: no base).
-std::vector<double> ResonatorCoordinate(const std::vector<double>& xr, const std::vector<double>& out, const Setup& setup) {
+std::vector<double> ResonatorCoordinate(const std::vector<double>& xr, const std::vector<double>& out,
+                                        const Setup& setup) {
   std::vector<double> q = xr;
   if (setup.input != InputKind::kBaseDisplacement)
     for (size_t i = 0; i < q.size(); ++i) q[i] -= out[i];
@@ -482,7 +501,8 @@ void MainBodySignals(PreparedRecord* r, const std::vector<double>& out, const Se
 }
 
 // The resonator's measured coordinate and its derivatives, and z, z'.
-void ResonatorSignals(PreparedRecord* r, const std::vector<double>& xr, const std::vector<double>& out, const Setup& setup) {
+void ResonatorSignals(PreparedRecord* r, const std::vector<double>& xr, const std::vector<double>& out,
+                      const Setup& setup) {
   const size_t n = out.size();
   r->meas_res = xr;
   const std::vector<double> q = ResonatorCoordinate(xr, out, setup);
@@ -555,8 +575,9 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
   end = std::min(end, rec.t.size());
   constexpr size_t kMinSamples = 64;
   if (end <= begin || end - begin < kMinSamples)
-    return Status::InvalidArgument("data", "record '" + name + "' has " + std::to_string(end > begin ? end - begin : 0) +
-                                               " samples in the range used; at least " + std::to_string(kMinSamples) + " are needed");
+    return Status::InvalidArgument(
+        "data", "record '" + name + "' has " + std::to_string(end > begin ? end - begin : 0) +
+                    " samples in the range used; at least " + std::to_string(kMinSamples) + " are needed");
   PreparedRecord r;
   r.name = name;
   r.dt = rec.dt;
@@ -571,14 +592,16 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
   if (setup.drift_cutoff_hz > 0 && !(setup.drift_cutoff_hz < r.f_cut)) {  // it would remove the whole signal
     char v[96];
     std::snprintf(v, sizeof v, "drift-cutoff = %g violates drift-cutoff < %g Hz", setup.drift_cutoff_hz, r.f_cut);
-    return Status::InvalidArgument("drift-cutoff", std::string(v) + ", the derivative cutoff of record '" + name +
-                                                       "' (a high-pass of the displacement must keep the band the model sees)");
+    return Status::InvalidArgument("drift-cutoff",
+                                   std::string(v) + ", the derivative cutoff of record '" + name +
+                                       "' (a high-pass of the displacement must keep the band the model sees)");
   }
   MainBodySignals(&r, out, setup);
   if (!rec.resonator.empty()) {
     if (setup.input == InputKind::kBaseAcceleration)
-      return Status::InvalidArgument("resonator", "a measured resonator needs a base displacement or force input (its "
-                                                  "absolute position cannot be related to an acceleration-driven base)");
+      return Status::InvalidArgument("resonator",
+                                     "a measured resonator needs a base displacement or force input (its "
+                                     "absolute position cannot be related to an acceleration-driven base)");
     ResonatorSignals(&r, slice(rec.resonator), out, setup);
   }
   RestartStates(&r, out, setup);
@@ -596,7 +619,8 @@ StatusOr<PreparedRecord> PrepareRecord(const Record& rec, const Setup& setup, si
     for (double v : r.volt) ss += (v - mean) * (v - mean);
     r.volt_scale = std::sqrt(ss / static_cast<double>(r.n()));
     if (!(r.volt_scale > 0))
-      return Status::InvalidArgument("data", "record '" + r.name + "': the voltage output is constant over the range used");
+      return Status::InvalidArgument("data",
+                                     "record '" + r.name + "': the voltage output is constant over the range used");
     r.noise[2] = NoiseLevel(r.volt, r.dt);
   }
   return r;
@@ -623,8 +647,10 @@ int SubstepsWithin(const IdentModel& m, const std::vector<double>& th, const Pre
         tq = std::max(tq, std::abs(a));
         tv = std::max(tv, std::abs(b));
       }
-    if (t->body == Body::kMain) dq_main += tq, dv_main += tv;
-    else dq_res += tq, dv_res += tv;
+    if (t->body == Body::kMain)
+      dq_main += tq, dv_main += tv;
+    else
+      dq_res += tq, dv_res += tv;
     k += static_cast<int>(t->params.size());
   }
   double lam = dv_main / mm, om2 = dq_main / mm;
@@ -693,8 +719,8 @@ SpecialCols FindSpecialCols(const IdentModel& m, const std::vector<const TermDef
 // The terms' coordinates from the state (p, p', r, r') and the input (u, u'): the main body's y, y' (relative
 // to the base under a base displacement) and the resonator's z, z' (0 without one). T: double or a lane pack.
 template <class T>
-BISTABLE_INLINE void BodyCoordinates(InputKind in, bool res, T p, T pd, T r, T rd, double u, double ud, T* y, T* yd, T* z,
-                                     T* zd) {
+BISTABLE_INLINE void BodyCoordinates(InputKind in, bool res, T p, T pd, T r, T rd, double u, double ud, T* y, T* yd,
+                                     T* z, T* zd) {
   const bool disp = in == InputKind::kBaseDisplacement;
   *y = disp ? p - u : p, *yd = disp ? pd - ud : pd;
   *z = res ? (disp ? r - p : r) : T{}, *zd = res ? (disp ? rd - pd : rd) : T{};
@@ -740,8 +766,7 @@ class RecordSystem {
   // start state after the parameters' (multiple shooting, SegmentStates).
   RecordSystem(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
                const PreparedRecord& r, InputKind in, bool param_cols = true, int state_cols = 0)
-      : r_(r), in_(in), res_(m.HasResonator()), mm_(m.Mass(th)), mr_(m.m_res),
-        fb_(FrictionBasis(m.fc)), th_(th) {
+      : r_(r), in_(in), res_(m.HasResonator()), mm_(m.Mass(th)), mr_(m.m_res), fb_(FrictionBasis(m.fc)), th_(th) {
     int col = 0;
     for (const TermDef* t : m.terms) {
       if (t->IsForce()) terms_.push_back({t, col});
@@ -790,8 +815,10 @@ class RecordSystem {
         f += th * phi[j];
         if constexpr (kSens) fq += th * pq[j], fv += th * pv[j], phi_col[st.col + j] = phi[j];
       }
-      if (main) F += f, Fq += fq, Fv += fv;
-      else G += f, Gq += fq, Gv += fv;
+      if (main)
+        F += f, Fq += fq, Fv += fv;
+      else
+        G += f, Gq += fq, Gv += fv;
     }
     // The piezo: back-force −a w on the main body, circuit w' = −b w − c y'.
     double w = 0, wdot = 0, pa = 0, pb = 0, pc = 0;
@@ -810,8 +837,10 @@ class RecordSystem {
     if constexpr (!kSens) {
       // dx written whole: one vector store, which the integrator's next vector load of dx can forward
       // (four scalar stores cannot be, and cost ~4 % of the simulation).
-      if constexpr (kD == 4) dx = State(x[1], a1, x[3], a3);
-      else dx << x[1], a1, x[3], a3, wdot;
+      if constexpr (kD == 4)
+        dx = State(x[1], a1, x[3], a3);
+      else
+        dx << x[1], a1, x[3], a3, wdot;
     } else {
       dx[0] = x[1], dx[1] = a1, dx[2] = x[3], dx[3] = a3;
       if constexpr (kD == 5) dx[4] = wdot;
@@ -820,8 +849,10 @@ class RecordSystem {
       if (piezo_col_ >= 0 && Held(piezo_col_ + 1)) own_w_[piezo_col_ + 1] = w;
       if (piezo_col_ >= 0 && Held(piezo_col_ + 2)) own_w_[piezo_col_ + 2] = yd;
       const Coefs k{Fq, Fv, Gq, Gv, pa, pb, pc, piezo_col_ >= 0};
-      if (in_ == InputKind::kBaseDisplacement) res_ ? Columns<true, true>(k, x, dx) : Columns<true, false>(k, x, dx);
-      else res_ ? Columns<false, true>(k, x, dx) : Columns<false, false>(k, x, dx);
+      if (in_ == InputKind::kBaseDisplacement)
+        res_ ? Columns<true, true>(k, x, dx) : Columns<true, false>(k, x, dx);
+      else
+        res_ ? Columns<false, true>(k, x, dx) : Columns<false, false>(k, x, dx);
     }
   }
 
@@ -867,8 +898,10 @@ class RecordSystem {
       }
       const V dinv = (-dF + dG) / mm - load(own_a + l);
       V da3;
-      if constexpr (kDisp) da3 = kRes ? -dG / mr : dinv;
-      else da3 = kRes ? -dG / mr - dinv : V{};
+      if constexpr (kDisp)
+        da3 = kRes ? -dG / mr : dinv;
+      else
+        da3 = kRes ? -dG / mr - dinv : V{};
       store(D + l, dyd);
       store(D + N + l, dinv);
       store(D + 2 * N + l, load(S + 3 * N + l));
@@ -876,20 +909,19 @@ class RecordSystem {
     }
   }
 
-
   const PreparedRecord& r_;
   const InputKind in_;
   const bool res_;
   const double mm_, mr_;
   const StribeckBasis fb_;
-  std::vector<double> th_;  // the model's values, then 0 for candidate columns
+  std::vector<double> th_;      // the model's values, then 0 for candidate columns
   std::vector<SimTerm> terms_;  // force terms
   int cols_ = 0, mass_col_ = -1, piezo_col_ = -1;
-  int first_ = 0, end_ = 0;             // sensitivity columns held: [first_, end_) (state columns from cols_)
-  static constexpr int kW = 4;          // columns per pack
-  int stride_ = 0;                      // end_ − first_ rounded up to packs: the state's stride per component
+  int first_ = 0, end_ = 0;     // sensitivity columns held: [first_, end_) (state columns from cols_)
+  static constexpr int kW = 4;  // columns per pack
+  int stride_ = 0;              // end_ − first_ rounded up to packs: the state's stride per component
   mutable std::vector<double> phi_main_, phi_res_;  // basis value of every term column at the current stage
-  mutable std::vector<double> own_a_, own_w_;  // a column's own term in p'' and in w' (the mass; the piezo's b, c)
+  mutable std::vector<double> own_a_, own_w_;       // a column's own term in p'' and in w' (the mass; the piezo's b, c)
   mutable double input_t_ = NAN, input_u_ = 0, input_ud_ = 0;  // the input and its slope at time input_t_
 };
 
@@ -1049,7 +1081,8 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   emit(0);
   Rk4<Sys> rk4(sys);
   for (size_t i = 1; i < n; ++i) {
-    if (CancelRequested()) [[unlikely]] return false;  // Ctrl-C: every simulation fails at once, the loop ends
+    if (CancelRequested()) [[unlikely]]
+      return false;  // Ctrl-C: every simulation fails at once, the loop ends
     if (restart_every > 0 && (i - 1) % static_cast<size_t>(restart_every) == 0 && i > 1) {
       if (given) {
         set_given((i - 1) / static_cast<size_t>(restart_every));
@@ -1129,14 +1162,16 @@ bool SimulateLanesImpl(const IdentModel& m, const std::vector<double>* const* th
       TermBasisSlopes<V>(*st.t, main ? y : z, main ? yd : zd, fb, phi, nullptr, nullptr);
       V fs{};
       for (size_t j = 0; j < st.t->params.size(); ++j) fs += th[static_cast<size_t>(st.col) + j] * phi[j];
-      if (main) F += fs;
-      else G += fs;
+      if (main)
+        F += fs;
+      else
+        G += fs;
     }
     V wdot{};
     if constexpr (kD == 5) {
       if (sc.piezo >= 0) {
         const V w = x[4], pa = th[static_cast<size_t>(sc.piezo)], pb = th[static_cast<size_t>(sc.piezo) + 1],
-                  pc = th[static_cast<size_t>(sc.piezo) + 2];
+                pc = th[static_cast<size_t>(sc.piezo) + 2];
         F += -pa * w;
         wdot = -pb * w - pc * yd;
       }
@@ -1177,7 +1212,8 @@ bool SimulateLanesImpl(const IdentModel& m, const std::vector<double>* const* th
   };
   emit(0);
   for (size_t i = 1; i < n; ++i) {
-    if (CancelRequested()) [[unlikely]] return false;
+    if (CancelRequested()) [[unlikely]]
+      return false;
     for (int sub = 0; sub < ns; ++sub) step(r.t0 + static_cast<double>(i - 1) * r.dt + sub * h);
     for (int l = 0; l < W; ++l) {
       if (!std::isfinite(s[0][l]) || !std::isfinite(s[1][l]) || std::abs(s[0][l]) > limit_p[l]) return false;
@@ -1193,7 +1229,8 @@ template <int W>
 bool SimulateLanesOf(const IdentModel& m, const std::vector<const std::vector<double>*>& ths, const PreparedRecord& r,
                      const Setup& setup, int substeps, std::vector<SimOutputs>* outs) {
   const std::vector<double>* lanes[W];
-  for (int l = 0; l < W; ++l) lanes[l] = ths[std::min<size_t>(static_cast<size_t>(l), ths.size() - 1)];  // padding: the last
+  for (int l = 0; l < W; ++l)
+    lanes[l] = ths[std::min<size_t>(static_cast<size_t>(l), ths.size() - 1)];  // padding: the last
   SimOutputs so[W];
   const bool ok = m.PiezoIndex() >= 0 ? SimulateLanesImpl<W, 5>(m, lanes, r, setup, substeps, so)
                                       : SimulateLanesImpl<W, 4>(m, lanes, r, setup, substeps, so);
@@ -1231,8 +1268,8 @@ bool SimulateOutputs(const IdentModel& m, const std::vector<double>& th, const s
                : SimulateImpl<false, 4>(m, th, {}, r, setup, substeps, restart_every, out, stop, segments);
 }
 
-bool SimulateOutputsLanes(const IdentModel& m, const std::vector<const std::vector<double>*>& ths, const PreparedRecord& r,
-                          const Setup& setup, int substeps, std::vector<SimOutputs>* outs) {
+bool SimulateOutputsLanes(const IdentModel& m, const std::vector<const std::vector<double>*>& ths,
+                          const PreparedRecord& r, const Setup& setup, int substeps, std::vector<SimOutputs>* outs) {
   outs->assign(ths.size(), SimOutputs{});
   if (ths.empty() || ths.size() > static_cast<size_t>(kMaxSimLanes)) return false;
   for (const std::vector<double>* t : ths)
@@ -1245,7 +1282,8 @@ bool SimulateOutputsLanes(const IdentModel& m, const std::vector<const std::vect
 }
 
 bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
-              std::vector<double>* out, std::vector<double>* out_res, int substeps, int restart_every, EarlyStop* stop) {
+              std::vector<double>* out, std::vector<double>* out_res, int substeps, int restart_every,
+              EarlyStop* stop) {
   SimOutputs so;
   const bool ok = SimulateOutputs(m, th, {}, r, setup, substeps, restart_every, false, &so, stop);
   *out = std::move(so.out[0]);

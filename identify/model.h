@@ -14,8 +14,8 @@
 #ifndef BISTABLE_IDENTIFY_MODEL_H_
 #define BISTABLE_IDENTIFY_MODEL_H_
 
-#include <array>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -113,7 +113,7 @@ struct IdentModel {
   double m_main = 0;                  // kg; 0 = fitted (force input only), parameter "m_main"
   double m_res = 0;                   // kg; needed when any res.* term is declared
   FrictionConstants fc;
-  std::vector<double> theta;          // parameters, ParamNames() order: terms, [m_main], [offsets]
+  std::vector<double> theta;  // parameters, ParamNames() order: terms, [m_main], [offsets]
   // Velocity outputs: the static displacement (which well, where) is not observable from the
   // velocity, so each record's displacement offset [m] is a parameter ("offset.k", one per record,
   // added after the terms and the mass). PreparedRecord::index picks a record's offset.
@@ -123,16 +123,18 @@ struct IdentModel {
   int NumTermParams() const;
   int OffsetIndex(int record) const { return NumTermParams() + (FitsMass() ? 1 : 0) + record; }
   double Offset(const std::vector<double>& th, int record) const {
-    return offsets > 0 && record >= 0 && record < offsets && static_cast<int>(th.size()) > OffsetIndex(record) ? th[OffsetIndex(record)] : 0.0;
+    return offsets > 0 && record >= 0 && record<offsets&& static_cast<int>(th.size())> OffsetIndex(record)
+               ? th[OffsetIndex(record)]
+               : 0.0;
   }
   bool HasResonator() const;
   // Index of main.piezo's first parameter (a; then b, c), −1 without it.
   int PiezoIndex() const;
   int NumParams() const;
-  std::vector<std::string> ParamNames() const;   // "main.stiffness_y3.k3", ..., "m_main"
+  std::vector<std::string> ParamNames() const;  // "main.stiffness_y3.k3", ..., "m_main"
   std::vector<std::string> ParamUnits() const;
   std::vector<Sign> ParamSigns() const;
-  int Offset(const TermDef* t) const;            // index of the term's first parameter, −1 if absent
+  int Offset(const TermDef* t) const;  // index of the term's first parameter, −1 if absent
   double Mass(const std::vector<double>& th) const { return FitsMass() ? th[NumTermParams()] : m_main; }
   // F_main or G_res at (q, v) for parameters th.
   double Force(Body body, const std::vector<double>& th, double q, double v) const;
@@ -144,15 +146,15 @@ struct IdentModel {
 // A record prepared for one setup: slices, derived signals and the spline of its input.
 struct PreparedRecord {
   std::string name;
-  int index = 0;                   // position among the records fitted together (offset parameter)
+  int index = 0;  // position among the records fitted together (offset parameter)
   double t0 = 0, dt = 0;
-  std::vector<double> input;       // SI
-  std::vector<double> meas;        // the measured output in the compared form (see Setup)
-  std::vector<double> meas_res;    // measured resonator absolute displacement, or empty
+  std::vector<double> input;     // SI
+  std::vector<double> meas;      // the measured output in the compared form (see Setup)
+  std::vector<double> meas_res;  // measured resonator absolute displacement, or empty
   // Measured piezo voltage [V] (output 2), or empty; its band-limited value and derivative (regression)
   // and local cubic fit (initial and restart states of the voltage).
   std::vector<double> volt, w, wd, ic_w;
-  double volt_scale = 1;           // RMS of volt about its mean
+  double volt_scale = 1;  // RMS of volt about its mean
   // Per output slot (OutputSlot): the noise level σ (NoiseLevel) and the weight λ of the output's NRMSE²
   // in a joint fit (main output 1; SetOutputWeights), for the outputs the record has.
   double noise[kOutputSlots] = {NAN, NAN, NAN};
@@ -164,8 +166,8 @@ struct PreparedRecord {
     return s == OutputSlot::kMain ? meas : s == OutputSlot::kResonator ? meas_res : volt;
   }
   double Scale(OutputSlot s) const;  // RMS about the mean of the measured output
-  std::vector<double> base_v;      // base velocity at samples (acceleration input, absolute velocity output)
-  std::vector<double> base_x;      // base displacement at samples (displacement input)
+  std::vector<double> base_v;        // base velocity at samples (acceleration input, absolute velocity output)
+  std::vector<double> base_x;        // base displacement at samples (displacement input)
   // The body's coordinate p and its derivatives from the measurement (smoothed), for initial states
   // and restoring-force residuals: p = x (displacement input) or y.
   std::vector<double> p, pd, pdd, r, rd, rdd;
@@ -181,10 +183,10 @@ struct PreparedRecord {
   // (1.47 and 1.85 N for 1.2 on two snap-through records) to hold them. The raw samples stay in `input`
   // (noise levels, twins).
   UniformSpline in_spline;
-  double f_drive = 0;              // the drive's band edge [Hz] (DriveCutoff), 0: the input as measured
-  double meas_scale = 1;           // RMS of meas about its mean (NRMSE denominator)
-  double p_range = 1, v_range = 1; // max |y|, max |y'| along the record
-  double f_cut = 0;                // derivative cutoff used [Hz]
+  double f_drive = 0;               // the drive's band edge [Hz] (DriveCutoff), 0: the input as measured
+  double meas_scale = 1;            // RMS of meas about its mean (NRMSE denominator)
+  double p_range = 1, v_range = 1;  // max |y|, max |y'| along the record
+  double f_cut = 0;                 // derivative cutoff used [Hz]
   // The record's own horizon under the time objective (identify/predictability.h): 0 — its whole simulation is
   // compared; > 0 — the simulation is restarted from the measured state every horizon_s (a record whose long
   // simulation is chaos, not model error). A horizon asked for by a fit stage (FitOptions::shooting_horizon_s)
@@ -279,8 +281,8 @@ bool SimulateOutputs(const IdentModel& m, const std::vector<double>& th, const s
 // setup, substeps, 0, false, …) gives — whole records, no sensitivities, `substeps` > 0 for every lane. False
 // when any lane's simulation fails (its outputs are then meaningless).
 inline constexpr int kMaxSimLanes = 8;
-bool SimulateOutputsLanes(const IdentModel& m, const std::vector<const std::vector<double>*>& ths, const PreparedRecord& r,
-                          const Setup& setup, int substeps, std::vector<SimOutputs>* outs);
+bool SimulateOutputsLanes(const IdentModel& m, const std::vector<const std::vector<double>*>& ths,
+                          const PreparedRecord& r, const Setup& setup, int substeps, std::vector<SimOutputs>* outs);
 bool Simulate(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
               std::vector<double>* out, std::vector<double>* out_res = nullptr, int substeps = 0, int restart_every = 0,
               EarlyStop* stop = nullptr);

@@ -30,7 +30,8 @@ std::string Shortest(double v) {
 
 // The declared model: terms, kinds, scales, frame, constants, setup, output terms, guesses.
 Status PlanModel(const Options& o, Plan* plan) {
-  if (o.terms.empty()) return Status::InvalidArgument("terms", "declare the model: --terms main.linear,main.viscous,... (--list-terms)");
+  if (o.terms.empty())
+    return Status::InvalidArgument("terms", "declare the model: --terms main.linear,main.viscous,... (--list-terms)");
   auto terms = ParseTerms(JoinTerms(o.terms));
   if (!terms.ok()) return terms.status();
   plan->columns = Columns(o);
@@ -41,15 +42,19 @@ Status PlanModel(const Options& o, Plan* plan) {
   plan->frame_auto = o.output_frame == FrameMode::kAuto;
   setup.drift_cutoff_hz = o.drift_cutoff;
   if (plan->frame_auto && !(setup.output == OutputKind::kVelocity && setup.input == InputKind::kBaseAcceleration))
-    return Status::InvalidArgument("output-frame", "--output-frame auto decides whether a velocity sensor reads absolute or base-relative "
-                                                   "velocity: it needs --output-kind velocity and --input-kind base_acceleration");
+    return Status::InvalidArgument(
+        "output-frame",
+        "--output-frame auto decides whether a velocity sensor reads absolute or base-relative "
+        "velocity: it needs --output-kind velocity and --input-kind base_acceleration");
   IdentModel& model = plan->model;
   model.terms = *terms;
   // The constants: m_main 0 is "unknown" (fitted with a force input); the others must be positive.
-  for (const auto& [name, v] : {std::pair<const char*, double>{"m_main", o.m_main}, {"m_res", o.m_res}, {"v_sp", o.v_sp}, {"v_t", o.v_t}}) {
+  for (const auto& [name, v] :
+       {std::pair<const char*, double>{"m_main", o.m_main}, {"m_res", o.m_res}, {"v_sp", o.v_sp}, {"v_t", o.v_t}}) {
     const bool may_be_zero = std::string_view(name).substr(0, 2) == "m_";
     if (!std::isfinite(v) || v < 0 || (v == 0 && !may_be_zero))
-      return Status::InvalidArgument(std::string("known.") + name, std::string(name) + " = " + Shortest(v) + " violates " + name + " > 0");
+      return Status::InvalidArgument(std::string("known.") + name,
+                                     std::string(name) + " = " + Shortest(v) + " violates " + name + " > 0");
   }
   model.m_main = o.m_main;
   model.m_res = o.m_res;
@@ -57,8 +62,9 @@ Status PlanModel(const Options& o, Plan* plan) {
   setup.fc.v_t = o.v_t;
   model.fc = setup.fc;
   if (model.m_main <= 0 && setup.input != InputKind::kForce)
-    return Status::InvalidArgument("known.m_main", "the main mass is needed with a base input (--known m_main=0.282; "
-                                                   "m_main=1 gives parameters per unit mass); only a force input can identify it");
+    return Status::InvalidArgument("known.m_main",
+                                   "the main mass is needed with a base input (--known m_main=0.282; "
+                                   "m_main=1 gives parameters per unit mass); only a force input can identify it");
   if (model.HasResonator() && !(model.m_res > 0))
     return Status::InvalidArgument("known.m_res", "resonator terms are declared: give its mass (--known m_res=0.62)");
   BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));
@@ -69,8 +75,10 @@ Status PlanModel(const Options& o, Plan* plan) {
   model.theta.assign(names.size(), NAN);
   for (const auto& [k, v] : o.guesses) {
     auto it = std::find(names.begin(), names.end(), k);
-    if (it == names.end()) return Status::InvalidArgument("guess", UnknownNameMessage("parameter of the declared model", k, names));
-    if (!std::isfinite(v)) return Status::InvalidArgument("guess." + k, "guess." + k + " = " + Shortest(v) + " violates a finite number");
+    if (it == names.end())
+      return Status::InvalidArgument("guess", UnknownNameMessage("parameter of the declared model", k, names));
+    if (!std::isfinite(v))
+      return Status::InvalidArgument("guess." + k, "guess." + k + " = " + Shortest(v) + " violates a finite number");
     model.theta[it - names.begin()] = v;
   }
   return Status::Ok();
@@ -79,10 +87,13 @@ Status PlanModel(const Options& o, Plan* plan) {
 Status CheckRange(const SampleRange& r, const std::string& field) {
   const size_t max = static_cast<size_t>(limits::kMaxDataRows);
   if (r.first > max || (r.second > max && r.second != SIZE_MAX))
-    return Status::InvalidArgument(field, field + " = " + std::to_string(r.first) + ":" + std::to_string(r.second) + " violates " + field +
-                                              " = A:B (sample indices, 0-based, end exclusive; each <= " + std::to_string(limits::kMaxDataRows) + ")");
+    return Status::InvalidArgument(
+        field, field + " = " + std::to_string(r.first) + ":" + std::to_string(r.second) + " violates " + field +
+                   " = A:B (sample indices, 0-based, end exclusive; each <= " + std::to_string(limits::kMaxDataRows) +
+                   ")");
   if (r.second <= r.first)
-    return Status::InvalidArgument(field, field + " = " + std::to_string(r.first) + ":" + std::to_string(r.second) + " is empty (the end must exceed the start)");
+    return Status::InvalidArgument(field, field + " = " + std::to_string(r.first) + ":" + std::to_string(r.second) +
+                                              " is empty (the end must exceed the start)");
   return Status::Ok();
 }
 
@@ -112,8 +123,12 @@ ColumnMap Columns(const Options& o) {
   c.output_kind = o.output_kind;
   // By kind (ColumnMap's own defaults are x0 and x): base_displacement x0, base_acceleration a0, force u; displacement
   // x, velocity v, analogue y.
-  const std::string input = o.input_kind == InputKind::kBaseAcceleration ? "a0" : o.input_kind == InputKind::kForce ? "u" : "x0";
-  const std::string output = o.output_kind == OutputKind::kVelocity ? "v" : o.output_kind == OutputKind::kAnalogue ? "y" : "x";
+  const std::string input = o.input_kind == InputKind::kBaseAcceleration ? "a0"
+                            : o.input_kind == InputKind::kForce          ? "u"
+                                                                         : "x0";
+  const std::string output = o.output_kind == OutputKind::kVelocity   ? "v"
+                             : o.output_kind == OutputKind::kAnalogue ? "y"
+                                                                      : "x";
   c.input = o.input_column.empty() ? input : o.input_column;
   c.output = o.output_column.empty() ? output : o.output_column;
   c.time = o.time_column;
@@ -126,7 +141,8 @@ ColumnMap Columns(const Options& o) {
   return c;
 }
 
-Status CheckOutputTerms(const std::vector<const TermDef*>& terms, const ColumnMap& columns, const Setup& setup, const std::string& field) {
+Status CheckOutputTerms(const std::vector<const TermDef*>& terms, const ColumnMap& columns, const Setup& setup,
+                        const std::string& field) {
   std::vector<std::string> outputs = {OutputName(setup, OutputSlot::kMain)};
   if (!columns.resonator.empty()) outputs.push_back("resonator");
   if (!columns.voltage.empty()) outputs.push_back("voltage");
@@ -134,30 +150,45 @@ Status CheckOutputTerms(const std::vector<const TermDef*>& terms, const ColumnMa
     if (t->body != Body::kOutput || std::find(outputs.begin(), outputs.end(), t->output) != outputs.end()) continue;
     std::string list;
     for (const std::string& out : outputs) list += (list.empty() ? "" : ", ") + out;
-    return Status::InvalidArgument(field, "term '" + t->id + "' acts on a " + t->output + " output; this run's outputs are " + list);
+    return Status::InvalidArgument(
+        field, "term '" + t->id + "' acts on a " + t->output + " output; this run's outputs are " + list);
   }
   return Status::Ok();
 }
 
 StatusOr<IdentifyOptions> LoopOptions(const Options& o, const ColumnMap& columns, const Setup& setup) {
-  if (!(o.input_scale != 0) || !std::isfinite(o.input_scale)) return Status::InvalidArgument("input-scale", "must be a finite non-zero factor");
-  if (!(o.output_scale != 0) || !std::isfinite(o.output_scale)) return Status::InvalidArgument("output-scale", "must be a finite non-zero factor");
-  if (!(o.output2_scale != 0) || !std::isfinite(o.output2_scale)) return Status::InvalidArgument("output2-scale", "must be a finite non-zero factor");
+  if (!(o.input_scale != 0) || !std::isfinite(o.input_scale))
+    return Status::InvalidArgument("input-scale", "must be a finite non-zero factor");
+  if (!(o.output_scale != 0) || !std::isfinite(o.output_scale))
+    return Status::InvalidArgument("output-scale", "must be a finite non-zero factor");
+  if (!(o.output2_scale != 0) || !std::isfinite(o.output2_scale))
+    return Status::InvalidArgument("output2-scale", "must be a finite non-zero factor");
   IdentifyOptions opt;
-  opt.fit.objective = o.objective == ObjectiveMode::kFft ? Objective::kFft : o.objective == ObjectiveMode::kShooting ? Objective::kShooting : Objective::kTime;
+  opt.fit.objective = o.objective == ObjectiveMode::kFft        ? Objective::kFft
+                      : o.objective == ObjectiveMode::kShooting ? Objective::kShooting
+                                                                : Objective::kTime;
   opt.choose_objective = o.objective == ObjectiveMode::kAuto;
-  if (o.global_evals < 0 || o.global_evals > 100000) return Status::InvalidArgument("global-evals", "must be in [0, 100000]");
-  if (o.lm_iterations < 1 || o.lm_iterations > 10000) return Status::InvalidArgument("lm-iterations", "must be in [1, 10000]");
+  if (o.global_evals < 0 || o.global_evals > 100000)
+    return Status::InvalidArgument("global-evals", "must be in [0, 100000]");
+  if (o.lm_iterations < 1 || o.lm_iterations > 10000)
+    return Status::InvalidArgument("lm-iterations", "must be in [1, 10000]");
   if (o.max_added < 0 || o.max_added > 10) return Status::InvalidArgument("max-added", "must be in [0, 10]");
-  if (!(o.deriv_cutoff >= 0)) return Status::InvalidArgument("deriv-cutoff", "deriv-cutoff = " + Fmt(o.deriv_cutoff) + " violates deriv-cutoff >= 0 Hz");
+  if (!(o.deriv_cutoff >= 0))
+    return Status::InvalidArgument("deriv-cutoff",
+                                   "deriv-cutoff = " + Fmt(o.deriv_cutoff) + " violates deriv-cutoff >= 0 Hz");
   if (o.decimate < 1 || o.decimate > 1000) return Status::InvalidArgument("decimate", "must be in [1, 1000]");
-  if (!(o.horizon >= 0) || !(o.horizon <= 3600)) return Status::InvalidArgument("horizon", "horizon = " + Fmt(o.horizon) + " violates 0 <= horizon <= 3600 s");
+  if (!(o.horizon >= 0) || !(o.horizon <= 3600))
+    return Status::InvalidArgument("horizon", "horizon = " + Fmt(o.horizon) + " violates 0 <= horizon <= 3600 s");
   if (!(o.max_seconds >= 0) || !(o.max_seconds <= 1e6))
-    return Status::InvalidArgument("max-seconds", "max-seconds = " + Fmt(o.max_seconds) + " violates 0 <= max-seconds <= 1e6 s (0: all)");
+    return Status::InvalidArgument(
+        "max-seconds", "max-seconds = " + Fmt(o.max_seconds) + " violates 0 <= max-seconds <= 1e6 s (0: all)");
   if (o.threads < 0 || o.threads > 1024)
-    return Status::InvalidArgument("threads", "threads = " + std::to_string(o.threads) + " violates threads in [0, 1024] (0: the usable CPUs)");
+    return Status::InvalidArgument(
+        "threads", "threads = " + std::to_string(o.threads) + " violates threads in [0, 1024] (0: the usable CPUs)");
   if (o.objective == ObjectiveMode::kShooting && !(o.horizon > 0))
-    return Status::InvalidArgument("horizon", "horizon = 0 violates horizon > 0 s (--objective shooting cuts the records into segments of --horizon)");
+    return Status::InvalidArgument(
+        "horizon",
+        "horizon = 0 violates horizon > 0 s (--objective shooting cuts the records into segments of --horizon)");
   opt.fit.global_evals = o.global_evals;
   opt.fit.lm_iterations = o.lm_iterations;
   opt.fit.threads = o.threads;
@@ -193,14 +224,16 @@ StatusOr<InputKind> ParseInputKind(const std::string& s) {
   if (s == "base_displacement") return InputKind::kBaseDisplacement;
   if (s == "base_acceleration") return InputKind::kBaseAcceleration;
   if (s == "force") return InputKind::kForce;
-  return Status::InvalidArgument("input-kind", "'" + s + "' violates input-kind in {base_displacement, base_acceleration, force}");
+  return Status::InvalidArgument("input-kind",
+                                 "'" + s + "' violates input-kind in {base_displacement, base_acceleration, force}");
 }
 
 StatusOr<OutputKind> ParseOutputKind(const std::string& s) {
   if (s == "displacement") return OutputKind::kDisplacement;
   if (s == "velocity") return OutputKind::kVelocity;
   if (s == "analogue") return OutputKind::kAnalogue;
-  return Status::InvalidArgument("output-kind", "'" + s + "' violates output-kind in {displacement, velocity, analogue}");
+  return Status::InvalidArgument("output-kind",
+                                 "'" + s + "' violates output-kind in {displacement, velocity, analogue}");
 }
 
 StatusOr<FrameMode> ParseFrameMode(const std::string& s) {
@@ -226,17 +259,28 @@ StatusOr<OutputWeights> ParseOutputWeights(const std::string& s) {
 
 Status CheckOutput2Kind(const std::string& s) {
   if (s == "voltage") return Status::Ok();
-  return Status::InvalidArgument("output2-kind", "'" + s + "' violates output2-kind in {voltage} (a second output is the "
-                                                 "piezo voltage, compared with main.piezo's state; a resonator is --columns resonator=...)");
+  return Status::InvalidArgument(
+      "output2-kind", "'" + s +
+                          "' violates output2-kind in {voltage} (a second output is the "
+                          "piezo voltage, compared with main.piezo's state; a resonator is --columns resonator=...)");
 }
 
 const char* Name(InputKind k) {
-  return k == InputKind::kBaseDisplacement ? "base_displacement" : k == InputKind::kBaseAcceleration ? "base_acceleration" : "force";
+  return k == InputKind::kBaseDisplacement   ? "base_displacement"
+         : k == InputKind::kBaseAcceleration ? "base_acceleration"
+                                             : "force";
 }
-const char* Name(OutputKind k) { return k == OutputKind::kDisplacement ? "displacement" : k == OutputKind::kVelocity ? "velocity" : "analogue"; }
-const char* Name(FrameMode f) { return f == FrameMode::kAbsolute ? "absolute" : f == FrameMode::kRelative ? "relative" : "auto"; }
+const char* Name(OutputKind k) {
+  return k == OutputKind::kDisplacement ? "displacement" : k == OutputKind::kVelocity ? "velocity" : "analogue";
+}
+const char* Name(FrameMode f) {
+  return f == FrameMode::kAbsolute ? "absolute" : f == FrameMode::kRelative ? "relative" : "auto";
+}
 const char* Name(ObjectiveMode o) {
-  return o == ObjectiveMode::kAuto ? "auto" : o == ObjectiveMode::kTime ? "time" : o == ObjectiveMode::kFft ? "fft" : "shooting";
+  return o == ObjectiveMode::kAuto   ? "auto"
+         : o == ObjectiveMode::kTime ? "time"
+         : o == ObjectiveMode::kFft  ? "fft"
+                                     : "shooting";
 }
 const char* Name(OutputWeights w) { return w == OutputWeights::kResidual ? "residual" : "noise"; }
 
@@ -251,37 +295,51 @@ StatusOr<SampleRange> ParseRange(const std::string& s, const std::string& field)
     if (t.find_first_not_of("0123456789") != std::string_view::npos) return false;
     unsigned long long x = 0;
     const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), x);
-    if (ec != std::errc() || end != t.data() + t.size() || x > static_cast<unsigned long long>(limits::kMaxDataRows)) return false;
+    if (ec != std::errc() || end != t.data() + t.size() || x > static_cast<unsigned long long>(limits::kMaxDataRows))
+      return false;
     return *v = static_cast<size_t>(x), true;
   };
   size_t a = 0, b = SIZE_MAX;
   const std::string_view sv(s);
-  if (!side(sv.substr(0, c), 0, &a) || !side(sv.substr(c + 1), SIZE_MAX, &b)) return Status::InvalidArgument(field, bad);
-  if (b <= a) return Status::InvalidArgument(field, field + " = '" + Printable(s, 64) + "' is empty (the end must exceed the start)");
+  if (!side(sv.substr(0, c), 0, &a) || !side(sv.substr(c + 1), SIZE_MAX, &b))
+    return Status::InvalidArgument(field, bad);
+  if (b <= a)
+    return Status::InvalidArgument(field,
+                                   field + " = '" + Printable(s, 64) + "' is empty (the end must exceed the start)");
   return SampleRange{a, b};
 }
 
 Status SetColumn(const std::string& role, const std::string& name, Options* o) {
-  if (role == "t") o->time_column = name;
-  else if (role == "input") o->input_column = name;
-  else if (role == "output") o->output_column = name;
-  else if (role == "resonator") o->resonator_column = name;
-  else if (role == "output2") o->output2_column = name;
+  if (role == "t")
+    o->time_column = name;
+  else if (role == "input")
+    o->input_column = name;
+  else if (role == "output")
+    o->output_column = name;
+  else if (role == "resonator")
+    o->resonator_column = name;
+  else if (role == "output2")
+    o->output2_column = name;
   else if (role == "group") {
     std::stringstream ss(name);
     std::string g;
     while (std::getline(ss, g, ';')) o->group_columns.push_back(g);
   } else {
-    return Status::InvalidArgument("columns", UnknownNameMessage("role", role, {"t", "input", "output", "output2", "resonator", "group"}));
+    return Status::InvalidArgument(
+        "columns", UnknownNameMessage("role", role, {"t", "input", "output", "output2", "resonator", "group"}));
   }
   return Status::Ok();
 }
 
 Status SetKnown(const std::string& name, double value, Options* o) {
-  if (name == "m_main") o->m_main = value;
-  else if (name == "m_res") o->m_res = value;
-  else if (name == "v_sp") o->v_sp = value;
-  else if (name == "v_t") o->v_t = value;
+  if (name == "m_main")
+    o->m_main = value;
+  else if (name == "m_res")
+    o->m_res = value;
+  else if (name == "v_sp")
+    o->v_sp = value;
+  else if (name == "v_t")
+    o->v_t = value;
   else {
     return Status::InvalidArgument("known", UnknownNameMessage("constant", name, {"m_main", "m_res", "v_sp", "v_t"}) +
                                                 "; units: m_main, m_res [kg], v_sp, v_t [m/s]");

@@ -39,12 +39,13 @@ inline constexpr SampleRange kWholeRecord{0, SIZE_MAX};
 
 struct Options {
   // --- The declared model ---
-  std::vector<std::string> terms;       // declared term ids, in order (`identify --list-terms`); required
-  double m_main = 0;                    // kg; 0: unknown, fitted (force input only); m_main=1 gives parameters per unit mass
-  double m_res = 0;                     // kg; required (> 0) when a res.* term is declared
-  double v_sp = 0.002;                  // m/s, the friction law's Stribeck velocity (> 0)
-  double v_t = 0.001;                   // m/s, its tanh transition velocity (> 0)
-  std::map<std::string, double> guesses;  // start values, "term.param" → value in the parameter's unit; others from the regression
+  std::vector<std::string> terms;  // declared term ids, in order (`identify --list-terms`); required
+  double m_main = 0;               // kg; 0: unknown, fitted (force input only); m_main=1 gives parameters per unit mass
+  double m_res = 0;                // kg; required (> 0) when a res.* term is declared
+  double v_sp = 0.002;             // m/s, the friction law's Stribeck velocity (> 0)
+  double v_t = 0.001;              // m/s, its tanh transition velocity (> 0)
+  std::map<std::string, double>
+      guesses;  // start values, "term.param" → value in the parameter's unit; others from the regression
 
   // --- The records: what the columns hold (record.h) ---
   InputKind input_kind = InputKind::kBaseDisplacement;  // x0 [m] | a0 [m/s²] | u [N]
@@ -61,19 +62,19 @@ struct Options {
   std::vector<SampleRange> test_ranges;     // samples simulated for a test error (declared and final model)
   double max_seconds = 0;                   // s, at most this much of each record from range.first; 0: all; ≤ 1e6
   double deriv_cutoff = 0;                  // Hz, low-pass of measured derivatives; 0: four times the 99.9 % power band
-  double drift_cutoff = 0;                  // Hz, high-pass of the displacement integrated from a velocity output; 0: off
+  double drift_cutoff = 0;  // Hz, high-pass of the displacement integrated from a velocity output; 0: off
 
   // --- The loop ---
   ObjectiveMode objective = ObjectiveMode::kAuto;
-  int global_evals = 150;                   // NLopt CRS2 evaluations, [0, 100000]; 0: none
-  int lm_iterations = 60;                   // iterations of each Levenberg–Marquardt stage, [1, 10000]
-  double horizon = 0.5;                     // s, [0, 3600]: the time objective's short-horizon stage (0: none);
-                                            // the shooting objective's segment length (> 0, ≥ 4 samples)
-  int max_added = 3;                        // at most this many effects added, [0, 10]
-  std::vector<std::string> candidates;      // terms the trace may add; empty: the default set (loop.h)
-  bool fit_offsets = false;                 // velocity outputs: fit each record's displacement offset
+  int global_evals = 150;               // NLopt CRS2 evaluations, [0, 100000]; 0: none
+  int lm_iterations = 60;               // iterations of each Levenberg–Marquardt stage, [1, 10000]
+  double horizon = 0.5;                 // s, [0, 3600]: the time objective's short-horizon stage (0: none);
+                                        // the shooting objective's segment length (> 0, ≥ 4 samples)
+  int max_added = 3;                    // at most this many effects added, [0, 10]
+  std::vector<std::string> candidates;  // terms the trace may add; empty: the default set (loop.h)
+  bool fit_offsets = false;             // velocity outputs: fit each record's displacement offset
   OutputWeights output_weights = OutputWeights::kResidual;
-  int threads = 0;                          // records simulated in parallel, [0, 1024]; 0: the usable CPUs
+  int threads = 0;  // records simulated in parallel, [0, 1024]; 0: the usable CPUs
 };
 
 // OK, or the first option out of its bounds (field: the option's flag name; message: the bound).
@@ -83,7 +84,7 @@ Status Validate(const Options& options);
 // guesses applied) and the loop's own options.
 struct Plan {
   ColumnMap columns;
-  Setup setup;                // its frame absolute when options.output_frame is kAuto (each run sets it)
+  Setup setup;  // its frame absolute when options.output_frame is kAuto (each run sets it)
   IdentModel model;
   IdentifyOptions loop;
   bool frame_auto = false;
@@ -96,15 +97,16 @@ ColumnMap Columns(const Options& options);
 // outputs, ranges): what `identify --predict` needs of the options, its model coming from a file.
 StatusOr<IdentifyOptions> LoopOptions(const Options& options, const ColumnMap& columns, const Setup& setup);
 // Output terms (out.<output>.offset / .scale) must name an output of this run; `field`: where they were given.
-Status CheckOutputTerms(const std::vector<const TermDef*>& terms, const ColumnMap& columns, const Setup& setup, const std::string& field);
+Status CheckOutputTerms(const std::vector<const TermDef*>& terms, const ColumnMap& columns, const Setup& setup,
+                        const std::string& field);
 
 // --- Names: the options' values as the CLI and the Python module spell them (errors as the CLI prints them) ---
-StatusOr<InputKind> ParseInputKind(const std::string& s);      // base_displacement | base_acceleration | force
-StatusOr<OutputKind> ParseOutputKind(const std::string& s);    // displacement | velocity | analogue
-StatusOr<FrameMode> ParseFrameMode(const std::string& s);      // absolute | relative | auto
+StatusOr<InputKind> ParseInputKind(const std::string& s);          // base_displacement | base_acceleration | force
+StatusOr<OutputKind> ParseOutputKind(const std::string& s);        // displacement | velocity | analogue
+StatusOr<FrameMode> ParseFrameMode(const std::string& s);          // absolute | relative | auto
 StatusOr<ObjectiveMode> ParseObjectiveMode(const std::string& s);  // auto | time | fft | shooting
 StatusOr<OutputWeights> ParseOutputWeights(const std::string& s);  // residual | noise
-Status CheckOutput2Kind(const std::string& s);                 // voltage (the only kind of a second output)
+Status CheckOutput2Kind(const std::string& s);                     // voltage (the only kind of a second output)
 const char* Name(InputKind k);
 const char* Name(OutputKind k);
 const char* Name(FrameMode f);

@@ -45,7 +45,8 @@ double PolyDerivative(const std::vector<double>& c, double y) {
 // V(y) = ∫₀^y Σ c_k s^k ds.
 double PolyIntegral(const std::vector<double>& c, double y) {
   double v = 0;
-  for (size_t k = 0; k < c.size(); ++k) v += c[k] * std::pow(y, static_cast<double>(k + 1)) / static_cast<double>(k + 1);
+  for (size_t k = 0; k < c.size(); ++k)
+    v += c[k] * std::pow(y, static_cast<double>(k + 1)) / static_cast<double>(k + 1);
   return v;
 }
 
@@ -113,7 +114,8 @@ std::vector<double> RealPolynomialRoots(const std::vector<double>& coef) {
   // A double root may come out as two nearly equal reals: keep one.
   std::vector<double> unique;
   for (double y : out)
-    if (unique.empty() || std::abs(y - unique.back()) > 1e-9 * std::max({std::abs(y), std::abs(unique.back()), 1e-300})) unique.push_back(y);
+    if (unique.empty() || std::abs(y - unique.back()) > 1e-9 * std::max({std::abs(y), std::abs(unique.back()), 1e-300}))
+      unique.push_back(y);
   return unique;
 }
 
@@ -137,7 +139,8 @@ StatusOr<ModelStatics> AnalyseStatics(const IdentModel& m, const std::vector<dou
     return Status::InvalidArgument("model.params", "the model has " + std::to_string(names.size()) + " parameters, " +
                                                        std::to_string(th.size()) + " given");
   for (size_t i = 0; i < th.size(); ++i)
-    if (!std::isfinite(th[i])) return Status::InvalidArgument("model.params", "parameter " + names[i] + " is not finite");
+    if (!std::isfinite(th[i]))
+      return Status::InvalidArgument("model.params", "parameter " + names[i] + " is not finite");
   ModelStatics st;
   st.mass = m.Mass(th);
   if (!(st.mass > 0) || !std::isfinite(st.mass))
@@ -147,23 +150,35 @@ StatusOr<ModelStatics> AnalyseStatics(const IdentModel& m, const std::vector<dou
   for (const TermDef* t : m.terms) {
     if (t->body == Body::kMain) {
       switch (t->kind) {
-        case TermKind::kLinear: st.force_coef[1] += th[k]; break;
-        case TermKind::kStiffness2: st.force_coef[2] += th[k]; break;
-        case TermKind::kStiffness3: st.force_coef[3] += th[k]; break;
-        case TermKind::kStiffness5: st.force_coef[5] += th[k]; break;
-        case TermKind::kBias: st.force_coef[0] += th[k]; break;
+        case TermKind::kLinear:
+          st.force_coef[1] += th[k];
+          break;
+        case TermKind::kStiffness2:
+          st.force_coef[2] += th[k];
+          break;
+        case TermKind::kStiffness3:
+          st.force_coef[3] += th[k];
+          break;
+        case TermKind::kStiffness5:
+          st.force_coef[5] += th[k];
+          break;
+        case TermKind::kBias:
+          st.force_coef[0] += th[k];
+          break;
         case TermKind::kPiezo:
           st.piezo = true, st.piezo_a = th[k], st.piezo_b = th[k + 1], st.piezo_c = th[k + 2];
           break;
-        default: break;  // damping, drag, friction: zero at rest
+        default:
+          break;  // damping, drag, friction: zero at rest
       }
     }
     k += static_cast<int>(t->params.size());
   }
   const std::vector<double> roots = RealPolynomialRoots(st.force_coef);
   if (roots.empty() && st.force_coef[1] == 0 && st.force_coef[2] == 0 && st.force_coef[3] == 0 && st.force_coef[5] == 0)
-    return Status::InvalidArgument("model.terms", "the model has no static restoring force (no linear, y2, y3 or y5 stiffness): "
-                                                  "it has no wells");
+    return Status::InvalidArgument("model.terms",
+                                   "the model has no static restoring force (no linear, y2, y3 or y5 stiffness): "
+                                   "it has no wells");
   for (double y : roots) st.equilibria.push_back(At(m, th, st.force_coef, y));
   auto make_well = [&](const Equilibrium& e, const std::string& side) {
     Well w;
@@ -184,7 +199,8 @@ StatusOr<ModelStatics> AnalyseStatics(const IdentModel& m, const std::vector<dou
   int barrier = -1;
   for (size_t i = 1; i + 1 < st.equilibria.size(); ++i) {
     if (st.equilibria[i].stable || !st.equilibria[i - 1].stable || !st.equilibria[i + 1].stable) continue;
-    if (barrier < 0 || std::abs(st.equilibria[i].y) < std::abs(st.equilibria[static_cast<size_t>(barrier)].y)) barrier = static_cast<int>(i);
+    if (barrier < 0 || std::abs(st.equilibria[i].y) < std::abs(st.equilibria[static_cast<size_t>(barrier)].y))
+      barrier = static_cast<int>(i);
   }
   if (barrier >= 0) {
     const size_t b = static_cast<size_t>(barrier);
@@ -200,7 +216,9 @@ StatusOr<ModelStatics> AnalyseStatics(const IdentModel& m, const std::vector<dou
   const Equilibrium* best = nullptr;
   for (const Equilibrium& e : st.equilibria)
     if (e.stable && (!best || std::abs(e.y) < std::abs(best->y))) best = &e;
-  if (!best) return Status::InvalidArgument("model.params", "the model's static restoring force has no stable equilibrium (no well)");
+  if (!best)
+    return Status::InvalidArgument("model.params",
+                                   "the model's static restoring force has no stable equilibrium (no well)");
   st.wells.push_back(make_well(*best, "only"));
   return st;
 }
@@ -210,8 +228,8 @@ double AmplitudeAt(const std::vector<double>& x, double dt, double f_hz) {
   return ToneAmplitude(x.data(), x.size(), dt, 2.0 * M_PI * f_hz);
 }
 
-RecordPrediction PredictRecord(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
-                               const ModelStatics& statics, Objective objective) {
+RecordPrediction PredictRecord(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r,
+                               const Setup& setup, const ModelStatics& statics, Objective objective) {
   RecordPrediction p;
   p.name = r.name;
   p.seconds = static_cast<double>(r.n()) * r.dt;
@@ -276,7 +294,8 @@ RecordPrediction PredictRecord(const IdentModel& m, const std::vector<double>& t
   p.mean_displacement_predicted = Mean(y_model);
   if (statics.bistable && !y_model.empty()) {
     p.switches.model = CountSwitches(y_model, statics.barrier.y, p.switches.well_hysteresis) / p.seconds;
-    const double right = static_cast<double>(std::count_if(y_model.begin(), y_model.end(), [&](double y) { return y > statics.barrier.y; }));
+    const double right = static_cast<double>(
+        std::count_if(y_model.begin(), y_model.end(), [&](double y) { return y > statics.barrier.y; }));
     p.switches.model_right_fraction = right / static_cast<double>(y_model.size());
   }
   if (p.chaotic) p.invariants = ComputeInvariants(m, th, one, setup, check, e);

@@ -50,24 +50,24 @@ struct Equilibrium {
 };
 
 struct Well {
-  std::string side;                // "left", "right", or "only" (monostable)
+  std::string side;  // "left", "right", or "only" (monostable)
   Equilibrium at;
-  double depth = NAN;              // V(barrier) − V(well), J (NaN without a barrier)
-  double small_orbit_hz = NAN;     // sqrt(K/m)/(2π): the mechanical linearised frequency
-  double damping_ratio = NAN;      // C / (2 sqrt(K m)), mechanical
-  bool with_circuit = false;       // main.piezo: the coupled values below are set
-  LinearMode coupled;              // beam and circuit together
-  double piezo_stiffness = NAN;    // the circuit's added stiffness a c ω²/(b² + ω²) at ω = 2π small_orbit_hz, N/m
-  double piezo_damping = NAN;      // its added damping a c b/(b² + ω²), N s/m
+  double depth = NAN;            // V(barrier) − V(well), J (NaN without a barrier)
+  double small_orbit_hz = NAN;   // sqrt(K/m)/(2π): the mechanical linearised frequency
+  double damping_ratio = NAN;    // C / (2 sqrt(K m)), mechanical
+  bool with_circuit = false;     // main.piezo: the coupled values below are set
+  LinearMode coupled;            // beam and circuit together
+  double piezo_stiffness = NAN;  // the circuit's added stiffness a c ω²/(b² + ω²) at ω = 2π small_orbit_hz, N/m
+  double piezo_damping = NAN;    // its added damping a c b/(b² + ω²), N s/m
 };
 
 struct ModelStatics {
-  std::vector<double> force_coef;        // F(y) at rest = Σ force_coef[k] y^k, k = 0..5, N
-  double mass = NAN;                     // kg
-  std::vector<Equilibrium> equilibria;   // ascending
-  std::vector<Well> wells;               // bistable: left, right (either side of the barrier); monostable: one
+  std::vector<double> force_coef;       // F(y) at rest = Σ force_coef[k] y^k, k = 0..5, N
+  double mass = NAN;                    // kg
+  std::vector<Equilibrium> equilibria;  // ascending
+  std::vector<Well> wells;              // bistable: left, right (either side of the barrier); monostable: one
   bool bistable = false;
-  Equilibrium barrier;                   // bistable only
+  Equilibrium barrier;  // bistable only
   bool piezo = false;
   double piezo_a = NAN, piezo_b = NAN, piezo_c = NAN;
 };
@@ -83,10 +83,10 @@ double AmplitudeAt(const std::vector<double>& x, double dt, double f_hz);
 
 // One output of a predicted record, measured against predicted.
 struct OutputPrediction {
-  std::string name;                                   // OutputName: velocity, voltage, ...
-  double nrmse = NAN, spectral = NAN;                 // %, as Evaluate
+  std::string name;                                            // OutputName: velocity, voltage, ...
+  double nrmse = NAN, spectral = NAN;                          // %, as Evaluate
   double amplitude_measured = NAN, amplitude_predicted = NAN;  // at the drive frequency, output unit
-  double rms_measured = NAN, rms_predicted = NAN;     // about the mean, output unit
+  double rms_measured = NAN, rms_predicted = NAN;              // about the mean, output unit
 };
 
 // Well switching of one record, by three counts (switches per second):
@@ -106,24 +106,24 @@ struct SwitchCounts {
 struct RecordPrediction {
   std::string name;
   double seconds = 0;
-  double forcing_hz = NAN;          // the input's strongest line
-  double input_amplitude = NAN;     // the input at forcing_hz, input unit (SI)
-  double start_y = NAN;             // the model's initial displacement, m
+  double forcing_hz = NAN;       // the input's strongest line
+  double input_amplitude = NAN;  // the input at forcing_hz, input unit (SI)
+  double start_y = NAN;          // the model's initial displacement, m
   bool diverged = false;
   std::vector<OutputPrediction> outputs;  // every measured output, main first
   double displacement_amplitude_measured = NAN, displacement_amplitude_predicted = NAN;  // y at forcing_hz, m
-  double mean_displacement_measured = NAN;  // displacement outputs only (a velocity output cannot give it), m
-  double mean_displacement_predicted = NAN; // the model's own y, m
+  double mean_displacement_measured = NAN;   // displacement outputs only (a velocity output cannot give it), m
+  double mean_displacement_predicted = NAN;  // the model's own y, m
   SwitchCounts switches;
-  bool chaotic = false;             // CheckChaos on this record alone
+  bool chaotic = false;  // CheckChaos on this record alone
   double output_broadband = NAN;
-  Invariants invariants;            // set when chaotic
+  Invariants invariants;  // set when chaotic
 };
 
 // Simulates the record with (m, th) (r.index picks m's start offset, if any) and compares. `statics`
 // from AnalyseStatics(m, th); `objective`: kFft marks every record chaotic (CheckChaos).
-RecordPrediction PredictRecord(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
-                               const ModelStatics& statics, Objective objective);
+RecordPrediction PredictRecord(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r,
+                               const Setup& setup, const ModelStatics& statics, Objective objective);
 
 }  // namespace bistable
 

@@ -87,15 +87,17 @@ double RelativeRms(const std::vector<double>& a, const std::vector<double>& b, c
 // is the longest lag (at least 4 samples, at most max_horizon_s) whose segments' RMS difference up to that lag
 // stays below kShortDivergence % of the output's RMS. (TestPredictability moves the input only: multiple shooting
 // fits the states.)
-double ShortHorizon(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const PreparedRecord& noisy_input,
-                    const Setup& setup, double max_horizon_s, double sigma, double sigma_v, int sub, double* divergence) {
+double ShortHorizon(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r,
+                    const PreparedRecord& noisy_input, const Setup& setup, double max_horizon_s, double sigma,
+                    double sigma_v, int sub, double* divergence) {
   const int every = std::max(4, static_cast<int>(std::round(max_horizon_s / r.dt)));
   const size_t segs = NumSegments(r.n(), every);
   std::vector<double> states(segs * kStateDim), moved(segs * kStateDim);
   for (size_t k = 0; k < segs; ++k) {
     const std::array<double, kStateDim> x = MeasuredState(m, th, r, setup, k * static_cast<size_t>(every));
     const double sgn = (k % 2 == 0) ? 1.0 : -1.0;
-    for (int c = 0; c < kStateDim; ++c) states[k * kStateDim + c] = moved[k * kStateDim + c] = x[static_cast<size_t>(c)];
+    for (int c = 0; c < kStateDim; ++c)
+      states[k * kStateDim + c] = moved[k * kStateDim + c] = x[static_cast<size_t>(c)];
     moved[k * kStateDim + 0] += sgn * sigma;
     moved[k * kStateDim + 1] += ((k / 2) % 2 == 0 ? 1.0 : -1.0) * sigma_v;
   }
@@ -123,8 +125,10 @@ double ShortHorizon(const IdentModel& m, const std::vector<double>& th, const Pr
   for (int lag = 1; lag <= every; ++lag) {
     cum += ss[static_cast<size_t>(lag)], cum_n += count[static_cast<size_t>(lag)];
     const double rel = cum_n ? 100.0 * std::sqrt(cum / static_cast<double>(cum_n)) / r.meas_scale : 0.0;
-    if (rel < kShortDivergence) best = std::max(best, lag), *divergence = rel;
-    else break;
+    if (rel < kShortDivergence)
+      best = std::max(best, lag), *divergence = rel;
+    else
+      break;
   }
   return best * r.dt;
 }
@@ -181,7 +185,8 @@ Predictability TestPredictability(const IdentModel& m, const std::vector<double>
       const double d = other[i] - base[i];
       run += d * d;
       if (i >= window) run -= (other[i - window] - base[i - window]) * (other[i - window] - base[i - window]);
-      if (i + 1 >= window && i < first_apart && std::sqrt(std::max(run, 0.0) / static_cast<double>(window)) > kDivergedShare * r.meas_scale)
+      if (i + 1 >= window && i < first_apart &&
+          std::sqrt(std::max(run, 0.0) / static_cast<double>(window)) > kDivergedShare * r.meas_scale)
         first_apart = i;
     }
     floor = std::max(floor, RelativeRms(other, base, r));
@@ -195,40 +200,50 @@ Predictability TestPredictability(const IdentModel& m, const std::vector<double>
   if (p.long_meaningful) {
     p.fit_horizon_s = 0;
     std::snprintf(buf, sizeof buf,
-                  "twins of the model (start moved by the noise, %.3g mm and %.3g mm/s; the input's noise, %.3g SI, drawn again) stay "
-                  "within %.3g %% of each other over the %.1f s record (< %.3g %%): the long simulation is meaningful and is fitted",
+                  "twins of the model (start moved by the noise, %.3g mm and %.3g mm/s; the input's noise, %.3g SI, "
+                  "drawn again) stay "
+                  "within %.3g %% of each other over the %.1f s record (< %.3g %%): the long simulation is meaningful "
+                  "and is fitted",
                   1e3 * sigma, 1e3 * sigma_v, sigma_in, floor, p.duration_s, kMeaningfulFloor);
   } else {
     PreparedRecord banded = r, banded_twin = twin;  // the twin: the input's noise drawn again
     BandLimitedRestarts(&banded), BandLimitedRestarts(&banded_twin);
     // Under multiple shooting the segment states are fitted, so what limits a segment is the input's noise:
     // the restarted twins differ by the input drawn again, not by their states.
-    p.fit_horizon_s = ShortHorizon(m, th, banded, banded_twin, setup, max_horizon_s, 0.0, 0.0, sub, &p.short_divergence);
+    p.fit_horizon_s =
+        ShortHorizon(m, th, banded, banded_twin, setup, max_horizon_s, 0.0, 0.0, sub, &p.short_divergence);
     if (!diverged && floor < kMeaningfulFloor)  // predictable twins, but the model does not follow the record
-      std::snprintf(buf, sizeof buf,
-                    "twins of the model stay within %.3g %% of each other (< %.3g %%), but its long simulation misses the record by "
-                    "%.3g %% (%d changes of well measured): it is outside the long simulation error's basin or understates the "
-                    "record's chaos. Fitted by multiple shooting on %.3g s segments, the longest over which twins restarted from "
-                    "the same state, their inputs a noise apart, stay within %.3g %% (%.3g %%)",
-                    floor, kMeaningfulFloor, p.long_error, p.well_changes, p.fit_horizon_s, kShortDivergence, p.short_divergence);
+      std::snprintf(
+          buf, sizeof buf,
+          "twins of the model stay within %.3g %% of each other (< %.3g %%), but its long simulation misses the record "
+          "by "
+          "%.3g %% (%d changes of well measured): it is outside the long simulation error's basin or understates the "
+          "record's chaos. Fitted by multiple shooting on %.3g s segments, the longest over which twins restarted from "
+          "the same state, their inputs a noise apart, stay within %.3g %% (%.3g %%)",
+          floor, kMeaningfulFloor, p.long_error, p.well_changes, p.fit_horizon_s, kShortDivergence, p.short_divergence);
     else
-      std::snprintf(buf, sizeof buf,
-                    "twins of the model (start moved by the noise, %.3g mm and %.3g mm/s; the input's noise, %.3g SI, drawn again) differ by %.3g %% over the "
-                    "record (>= %.3g %%; %.0f %% of the output's RMS apart after %.2f s; %d changes of well measured): its long "
-                    "simulation is chaos, not model error. Fitted by multiple shooting on %.3g s segments, the longest over which "
-                    "twins restarted from the same state, their inputs a noise apart, stay within %.3g %% (%.3g %%)",
-                    1e3 * sigma, 1e3 * sigma_v, sigma_in, floor, kMeaningfulFloor, 100 * kDivergedShare, p.horizon_s, p.well_changes,
-                    p.fit_horizon_s, kShortDivergence, p.short_divergence);
+      std::snprintf(
+          buf, sizeof buf,
+          "twins of the model (start moved by the noise, %.3g mm and %.3g mm/s; the input's noise, %.3g SI, drawn "
+          "again) differ by %.3g %% over the "
+          "record (>= %.3g %%; %.0f %% of the output's RMS apart after %.2f s; %d changes of well measured): its long "
+          "simulation is chaos, not model error. Fitted by multiple shooting on %.3g s segments, the longest over "
+          "which "
+          "twins restarted from the same state, their inputs a noise apart, stay within %.3g %% (%.3g %%)",
+          1e3 * sigma, 1e3 * sigma_v, sigma_in, floor, kMeaningfulFloor, 100 * kDivergedShare, p.horizon_s,
+          p.well_changes, p.fit_horizon_s, kShortDivergence, p.short_divergence);
   }
   p.reason = buf;
   return p;
 }
 
 std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const std::vector<double>& th,
-                                                     const std::vector<PreparedRecord>& recs, const Setup& setup, int twins,
-                                                     double shooting_horizon_s) {
+                                                     const std::vector<PreparedRecord>& recs, const Setup& setup,
+                                                     int twins, double shooting_horizon_s) {
   std::vector<std::vector<PreparedRecord>> out;
-  if (setup.input == InputKind::kForce || (setup.output == OutputKind::kVelocity && setup.frame == OutputFrame::kRelative)) return out;
+  if (setup.input == InputKind::kForce ||
+      (setup.output == OutputKind::kVelocity && setup.frame == OutputFrame::kRelative))
+    return out;
   // The twins' true input: the measured one low-passed at its own band (AutoCutoff), so that, as for the record,
   // the truth is driven smoothly and only the recorded input carries noise. Driven by the noisy input itself,
   // a twin's truth jitters through friction's narrow transition (σ_v of the spline's slope ≫ v_t) and never
@@ -264,7 +279,8 @@ std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const 
       std::vector<double> res(r.n());
       for (size_t j = 0; j < r.n(); ++j) res[j] = meas[j] - model.out[k][j];
       const double s_res = NoiseLevel(res, r.dt);
-      if (std::isfinite(s_res) && s_res > 0 && !(s_res >= noise[i][static_cast<size_t>(k)])) noise[i][static_cast<size_t>(k)] = s_res;
+      if (std::isfinite(s_res) && s_res > 0 && !(s_res >= noise[i][static_cast<size_t>(k)]))
+        noise[i][static_cast<size_t>(k)] = s_res;
     }
   }
   for (int k = 0; k < twins; ++k) {
@@ -281,8 +297,10 @@ std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const 
         rec.t.push_back(r.t0 + r.dt * static_cast<double>(j));
         rec.input.push_back(clean[i][j] + (std::isfinite(s_in) ? s_in : 0.0) * unit(rng));
         rec.output.push_back(sims[i].out[0][j] + (std::isfinite(s_out) ? s_out : 0.0) * unit(rng));
-        if (r.Has(OutputSlot::kResonator)) rec.resonator.push_back(sims[i].out[1][j] + (std::isfinite(s_res) ? s_res : 0.0) * unit(rng));
-        if (r.Has(OutputSlot::kVoltage)) rec.voltage.push_back(sims[i].out[2][j] + (std::isfinite(s_v) ? s_v : 0.0) * unit(rng));
+        if (r.Has(OutputSlot::kResonator))
+          rec.resonator.push_back(sims[i].out[1][j] + (std::isfinite(s_res) ? s_res : 0.0) * unit(rng));
+        if (r.Has(OutputSlot::kVoltage))
+          rec.voltage.push_back(sims[i].out[2][j] + (std::isfinite(s_v) ? s_v : 0.0) * unit(rng));
       }
       auto p = PrepareRecord(rec, setup, 0, rec.t.size(), r.f_cut, rec.name);
       if (!p.ok()) return {};

@@ -53,16 +53,16 @@ inline constexpr int kTwins = 4;                 // twin records calibrating the
 struct Predictability {
   std::string record;
   double duration_s = 0;
-  double chaos_floor = NAN;        // % NRMSE between the model's simulation and its twins (the largest)
-  double horizon_s = NAN;          // first time the twins are kDivergedShare apart (the record's length if never)
-  int well_changes = -1;           // of the measured record (−1: the model has no two wells)
-  double long_error = NAN;         // % NRMSE of the model's own long simulation against the record (main output)
-  bool followed = true;            // long_error < kMeaningfulFloor (asked for with require_followed only)
-  bool long_meaningful = true;     // chaos_floor < kMeaningfulFloor, followed, and the simulations did not diverge
-  double fit_horizon_s = 0;        // 0: the whole simulation is fitted; > 0: restarts every fit_horizon_s
-  double short_divergence = NAN;   // % twin difference at fit_horizon_s (restarted twins a noise apart)
+  double chaos_floor = NAN;       // % NRMSE between the model's simulation and its twins (the largest)
+  double horizon_s = NAN;         // first time the twins are kDivergedShare apart (the record's length if never)
+  int well_changes = -1;          // of the measured record (−1: the model has no two wells)
+  double long_error = NAN;        // % NRMSE of the model's own long simulation against the record (main output)
+  bool followed = true;           // long_error < kMeaningfulFloor (asked for with require_followed only)
+  bool long_meaningful = true;    // chaos_floor < kMeaningfulFloor, followed, and the simulations did not diverge
+  double fit_horizon_s = 0;       // 0: the whole simulation is fitted; > 0: restarts every fit_horizon_s
+  double short_divergence = NAN;  // % twin difference at fit_horizon_s (restarted twins a noise apart)
   double noise = NAN, input_noise = NAN;  // σ of the output and of the input used for the twins
-  std::string reason;              // one sentence for reports
+  std::string reason;                     // one sentence for reports
 };
 
 // The twin experiment on one record with the model m at th; `max_horizon_s`: the short horizon used when the
@@ -97,8 +97,8 @@ double HorizonError(const IdentModel& m, const std::vector<double>& th, const Pr
 // broadband: its own level read 0.0557 and 0.0625 mm for 0.05 mm of noise, twins that noisy were whiter than the
 // record (predictable share 0.26 and 0.19 against 0.37), and two null records were called `unexplained`.
 std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const std::vector<double>& th,
-                                                     const std::vector<PreparedRecord>& recs, const Setup& setup, int twins,
-                                                     double shooting_horizon_s = 0);
+                                                     const std::vector<PreparedRecord>& recs, const Setup& setup,
+                                                     int twins, double shooting_horizon_s = 0);
 
 // Changes of well of a relative displacement series y between wells at ±well (hysteresis: a change counts
 // when y passes the other well's half depth, ∓well/2).

@@ -30,7 +30,8 @@ bool SplitLine(std::string_view line, char sep, std::vector<std::string>* cells,
     std::string cell;
     if (i < n && line[i] == '"') {
       for (++i;; ++i) {
-        if (i >= n) return *error = "column " + std::to_string(cells->size() + 1) + ": a quote is not closed on its line", false;
+        if (i >= n)
+          return *error = "column " + std::to_string(cells->size() + 1) + ": a quote is not closed on its line", false;
         if (line[i] != '"') {
           cell += line[i];
         } else if (i + 1 < n && line[i + 1] == '"') {
@@ -61,8 +62,10 @@ int CountOutsideQuotes(std::string_view line, char sep) {
   int count = 0;
   bool quoted = false;
   for (char ch : line) {
-    if (ch == '"') quoted = !quoted;
-    else if (ch == sep && !quoted) ++count;
+    if (ch == '"')
+      quoted = !quoted;
+    else if (ch == sep && !quoted)
+      ++count;
   }
   return count;
 }
@@ -114,13 +117,20 @@ enum class Quantity { kNone, kTime, kLength, kVelocity, kAcceleration, kForce, k
 
 const char* QuantityName(Quantity q) {
   switch (q) {
-    case Quantity::kTime: return "time";
-    case Quantity::kLength: return "length";
-    case Quantity::kVelocity: return "velocity";
-    case Quantity::kAcceleration: return "acceleration";
-    case Quantity::kForce: return "force";
-    case Quantity::kVoltage: return "voltage";
-    case Quantity::kNone: break;
+    case Quantity::kTime:
+      return "time";
+    case Quantity::kLength:
+      return "length";
+    case Quantity::kVelocity:
+      return "velocity";
+    case Quantity::kAcceleration:
+      return "acceleration";
+    case Quantity::kForce:
+      return "force";
+    case Quantity::kVoltage:
+      return "voltage";
+    case Quantity::kNone:
+      break;
   }
   return "other";
 }
@@ -134,19 +144,43 @@ struct UnitInfo {
 // The units a header may give, with their factor to SI. "µ" is accepted as MICRO SIGN (U+00B5) and
 // GREEK SMALL LETTER MU (U+03BC); g is standard gravity.
 constexpr UnitInfo kUnits[] = {
-    {"s", Quantity::kTime, 1},           {"ms", Quantity::kTime, 1e-3},          {"us", Quantity::kTime, 1e-6},
-    {"\xc2\xb5s", Quantity::kTime, 1e-6}, {"\xce\xbcs", Quantity::kTime, 1e-6},   {"ns", Quantity::kTime, 1e-9},
-    {"m", Quantity::kLength, 1},         {"cm", Quantity::kLength, 1e-2},        {"mm", Quantity::kLength, 1e-3},
-    {"um", Quantity::kLength, 1e-6},     {"\xc2\xb5m", Quantity::kLength, 1e-6}, {"\xce\xbcm", Quantity::kLength, 1e-6},
-    {"nm", Quantity::kLength, 1e-9},     {"m/s", Quantity::kVelocity, 1},        {"cm/s", Quantity::kVelocity, 1e-2},
-    {"mm/s", Quantity::kVelocity, 1e-3}, {"um/s", Quantity::kVelocity, 1e-6},    {"\xc2\xb5m/s", Quantity::kVelocity, 1e-6},
+    {"s", Quantity::kTime, 1},
+    {"ms", Quantity::kTime, 1e-3},
+    {"us", Quantity::kTime, 1e-6},
+    {"\xc2\xb5s", Quantity::kTime, 1e-6},
+    {"\xce\xbcs", Quantity::kTime, 1e-6},
+    {"ns", Quantity::kTime, 1e-9},
+    {"m", Quantity::kLength, 1},
+    {"cm", Quantity::kLength, 1e-2},
+    {"mm", Quantity::kLength, 1e-3},
+    {"um", Quantity::kLength, 1e-6},
+    {"\xc2\xb5m", Quantity::kLength, 1e-6},
+    {"\xce\xbcm", Quantity::kLength, 1e-6},
+    {"nm", Quantity::kLength, 1e-9},
+    {"m/s", Quantity::kVelocity, 1},
+    {"cm/s", Quantity::kVelocity, 1e-2},
+    {"mm/s", Quantity::kVelocity, 1e-3},
+    {"um/s", Quantity::kVelocity, 1e-6},
+    {"\xc2\xb5m/s", Quantity::kVelocity, 1e-6},
     {"\xce\xbcm/s", Quantity::kVelocity, 1e-6},
-    {"m/s^2", Quantity::kAcceleration, 1}, {"m/s\xc2\xb2", Quantity::kAcceleration, 1}, {"m/s2", Quantity::kAcceleration, 1},
-    {"mm/s^2", Quantity::kAcceleration, 1e-3}, {"mm/s\xc2\xb2", Quantity::kAcceleration, 1e-3}, {"mm/s2", Quantity::kAcceleration, 1e-3},
-    {"cm/s^2", Quantity::kAcceleration, 1e-2}, {"cm/s\xc2\xb2", Quantity::kAcceleration, 1e-2}, {"cm/s2", Quantity::kAcceleration, 1e-2},
-    {"g", Quantity::kAcceleration, 9.80665}, {"N", Quantity::kForce, 1},      {"mN", Quantity::kForce, 1e-3},
-    {"kN", Quantity::kForce, 1e3},       {"V", Quantity::kVoltage, 1},           {"mV", Quantity::kVoltage, 1e-3},
-    {"uV", Quantity::kVoltage, 1e-6},    {"\xc2\xb5V", Quantity::kVoltage, 1e-6}, {"kV", Quantity::kVoltage, 1e3},
+    {"m/s^2", Quantity::kAcceleration, 1},
+    {"m/s\xc2\xb2", Quantity::kAcceleration, 1},
+    {"m/s2", Quantity::kAcceleration, 1},
+    {"mm/s^2", Quantity::kAcceleration, 1e-3},
+    {"mm/s\xc2\xb2", Quantity::kAcceleration, 1e-3},
+    {"mm/s2", Quantity::kAcceleration, 1e-3},
+    {"cm/s^2", Quantity::kAcceleration, 1e-2},
+    {"cm/s\xc2\xb2", Quantity::kAcceleration, 1e-2},
+    {"cm/s2", Quantity::kAcceleration, 1e-2},
+    {"g", Quantity::kAcceleration, 9.80665},
+    {"N", Quantity::kForce, 1},
+    {"mN", Quantity::kForce, 1e-3},
+    {"kN", Quantity::kForce, 1e3},
+    {"V", Quantity::kVoltage, 1},
+    {"mV", Quantity::kVoltage, 1e-3},
+    {"uV", Quantity::kVoltage, 1e-6},
+    {"\xc2\xb5V", Quantity::kVoltage, 1e-6},
+    {"kV", Quantity::kVoltage, 1e3},
 };
 
 const UnitInfo* FindUnit(const std::string& unit) {
@@ -170,13 +204,20 @@ std::string Join(const std::vector<std::string>& v) {
 
 const char* SiName(Quantity q) {
   switch (q) {
-    case Quantity::kTime: return "s";
-    case Quantity::kLength: return "m";
-    case Quantity::kVelocity: return "m/s";
-    case Quantity::kAcceleration: return "m/s^2";
-    case Quantity::kForce: return "N";
-    case Quantity::kVoltage: return "V";
-    case Quantity::kNone: break;
+    case Quantity::kTime:
+      return "s";
+    case Quantity::kLength:
+      return "m";
+    case Quantity::kVelocity:
+      return "m/s";
+    case Quantity::kAcceleration:
+      return "m/s^2";
+    case Quantity::kForce:
+      return "N";
+    case Quantity::kVoltage:
+      return "V";
+    case Quantity::kNone:
+      break;
   }
   return "";
 }
@@ -192,8 +233,9 @@ struct ColumnRef {
 // conversion only); a unit of another quantity is an error; any other unit (a sensor's volts) is read
 // as is only when the scale flag says how (scale != 1) — else a misspelt unit would be taken as SI; the
 // time column must be in a time unit.
-StatusOr<ColumnRef> FindColumn(const std::vector<HeaderCell>& header, const std::string& wanted, const std::string& role,
-                               Quantity q, double scale, const char* scale_field, const std::string& file) {
+StatusOr<ColumnRef> FindColumn(const std::vector<HeaderCell>& header, const std::string& wanted,
+                               const std::string& role, Quantity q, double scale, const char* scale_field,
+                               const std::string& file) {
   std::vector<int> hits;
   for (size_t i = 0; i < header.size(); ++i)
     if (header[i].text == wanted) hits.push_back(static_cast<int>(i));
@@ -206,9 +248,9 @@ StatusOr<ColumnRef> FindColumn(const std::vector<HeaderCell>& header, const std:
     return Status::InvalidArgument(role, file + " (" + role + "): " + UnknownNameMessage("column", wanted, names));
   }
   if (hits.size() > 1)
-    return Status::InvalidArgument(role, file + " (" + role + "): columns '" + Printable(header[hits[0]].text) + "' and '" +
-                                             Printable(header[hits[1]].text) + "' both match '" + Printable(wanted) +
-                                             "'; name one as the header spells it");
+    return Status::InvalidArgument(role, file + " (" + role + "): columns '" + Printable(header[hits[0]].text) +
+                                             "' and '" + Printable(header[hits[1]].text) + "' both match '" +
+                                             Printable(wanted) + "'; name one as the header spells it");
   const HeaderCell& h = header[hits[0]];
   ColumnRef ref{hits[0], 1.0};
   if (h.unit.empty() || q == Quantity::kNone) return ref;
@@ -220,42 +262,51 @@ StatusOr<ColumnRef> FindColumn(const std::vector<HeaderCell>& header, const std:
   if (u && u->quantity == Quantity::kVoltage && q != Quantity::kVoltage) u = nullptr;
   if (u && u->quantity == q) {
     if (scale != 1.0)
-      return Status::InvalidArgument(scale_field, where + ": the header gives the unit " + Printable(h.unit) + ", converted to " +
-                                                      SiName(q) + "; " + scale_field + " = " + FormatNumber(scale) +
+      return Status::InvalidArgument(scale_field, where + ": the header gives the unit " + Printable(h.unit) +
+                                                      ", converted to " + SiName(q) + "; " + scale_field + " = " +
+                                                      FormatNumber(scale) +
                                                       " would convert it again (use one or the other)");
     ref.factor = u->to_si;
     return ref;
   }
   if (u)
-    return Status::InvalidArgument(role, where + ": '" + Printable(h.unit) + "' is a unit of " + QuantityName(u->quantity) +
-                                             "; a " + QuantityName(q) + " column takes " + Join(UnitNames(q)));
+    return Status::InvalidArgument(role, where + ": '" + Printable(h.unit) + "' is a unit of " +
+                                             QuantityName(u->quantity) + "; a " + QuantityName(q) + " column takes " +
+                                             Join(UnitNames(q)));
   if (q == Quantity::kTime)
     return Status::InvalidArgument(role, where + ": " + UnknownNameMessage("time unit", h.unit, UnitNames(q)));
   if (scale == 1.0) {
     const bool has_flag = scale_field[0] != '\0';
-    return Status::InvalidArgument(has_flag ? std::string(scale_field) : role,
-                                   where + ": '" + Printable(h.unit) + "' is no unit of " + QuantityName(q) + " (" + Join(UnitNames(q)) +
-                                       ")" + (has_flag ? std::string("; to read the column as is, give ") + scale_field +
-                                                             " (the factor to " + SiName(q) + ")"
-                                                       : std::string()));
+    return Status::InvalidArgument(
+        has_flag ? std::string(scale_field) : role,
+        where + ": '" + Printable(h.unit) + "' is no unit of " + QuantityName(q) + " (" + Join(UnitNames(q)) + ")" +
+            (has_flag
+                 ? std::string("; to read the column as is, give ") + scale_field + " (the factor to " + SiName(q) + ")"
+                 : std::string()));
   }
   return ref;
 }
 
 Quantity InputQuantity(InputKind k) {
   switch (k) {
-    case InputKind::kBaseDisplacement: return Quantity::kLength;
-    case InputKind::kBaseAcceleration: return Quantity::kAcceleration;
-    case InputKind::kForce: return Quantity::kForce;
+    case InputKind::kBaseDisplacement:
+      return Quantity::kLength;
+    case InputKind::kBaseAcceleration:
+      return Quantity::kAcceleration;
+    case InputKind::kForce:
+      return Quantity::kForce;
   }
   return Quantity::kNone;
 }
 
 Quantity OutputQuantity(OutputKind k) {
   switch (k) {
-    case OutputKind::kDisplacement: return Quantity::kLength;
-    case OutputKind::kVelocity: return Quantity::kVelocity;
-    case OutputKind::kAnalogue: return Quantity::kNone;
+    case OutputKind::kDisplacement:
+      return Quantity::kLength;
+    case OutputKind::kVelocity:
+      return Quantity::kVelocity;
+    case OutputKind::kAnalogue:
+      return Quantity::kNone;
   }
   return Quantity::kNone;
 }
@@ -263,9 +314,12 @@ Quantity OutputQuantity(OutputKind k) {
 }  // namespace
 
 StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnMap& c) {
-  if (!(std::isfinite(c.input_scale) && c.input_scale != 0)) return Violates("input_scale", c.input_scale, "finite and != 0");
-  if (!(std::isfinite(c.output_scale) && c.output_scale != 0)) return Violates("output_scale", c.output_scale, "finite and != 0");
-  if (!(std::isfinite(c.voltage_scale) && c.voltage_scale != 0)) return Violates("output2_scale", c.voltage_scale, "finite and != 0");
+  if (!(std::isfinite(c.input_scale) && c.input_scale != 0))
+    return Violates("input_scale", c.input_scale, "finite and != 0");
+  if (!(std::isfinite(c.output_scale) && c.output_scale != 0))
+    return Violates("output_scale", c.output_scale, "finite and != 0");
+  if (!(std::isfinite(c.voltage_scale) && c.voltage_scale != 0))
+    return Violates("output2_scale", c.voltage_scale, "finite and != 0");
   auto reader = LineReader::Open(path, "data", limits::kMaxDataLineBytes);
   if (!reader.ok()) return reader.status();
   const std::string name = std::filesystem::path(path).filename().string();  // records' names
@@ -280,9 +334,9 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
       if (!r.ok()) return r.status();
       if (*r == LineReader::Result::kEnd) return false;
       if (*r == LineReader::Result::kTooLong)
-        return Status::InvalidArgument("data", at() + ": the line is longer than " + std::to_string(limits::kMaxDataLineBytes) +
-                                                   " bytes (violates line length <= " +
-                                                   std::to_string(limits::kMaxDataLineBytes) + ")");
+        return Status::InvalidArgument(
+            "data", at() + ": the line is longer than " + std::to_string(limits::kMaxDataLineBytes) +
+                        " bytes (violates line length <= " + std::to_string(limits::kMaxDataLineBytes) + ")");
       if ((*reader)->line_number() == 1) {
         if (line.rfind("\xef\xbb\xbf", 0) == 0) line.erase(0, 3);
         if (line.rfind("\xff\xfe", 0) == 0 || line.rfind("\xfe\xff", 0) == 0)
@@ -304,18 +358,23 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
   bool tie = false;
   for (char s : {',', '\t', ';'}) {
     const int n = CountOutsideQuotes(line, s);
-    if (n > best) best = n, sep = s, tie = false;
-    else if (n == best && n > 0) tie = true;
+    if (n > best)
+      best = n, sep = s, tie = false;
+    else if (n == best && n > 0)
+      tie = true;
   }
   if (sep == 0)
-    return Status::InvalidArgument("data", at() + " (header): no separator splits it (',' tab ';' were tried; the header names the columns, e.g. t,x0,x)");
+    return Status::InvalidArgument(
+        "data",
+        at() + " (header): no separator splits it (',' tab ';' were tried; the header names the columns, e.g. t,x0,x)");
   if (tie)
     return Status::InvalidArgument("data", at() + " (header): it splits as often at " + SeparatorName(sep) +
                                                " as at another of ',' tab ';'; quote the names that hold a separator");
   const bool decimal_comma = sep != ',';
   std::vector<std::string> cells;
   std::string split_error;
-  if (!SplitLine(line, sep, &cells, &split_error)) return Status::InvalidArgument("data", at() + " (header) " + split_error);
+  if (!SplitLine(line, sep, &cells, &split_error))
+    return Status::InvalidArgument("data", at() + " (header) " + split_error);
   // A trailing separator (some exports end every line with one) makes no column.
   const bool trailing_sep = cells.size() > 1 && cells.back().empty();
   if (trailing_sep) cells.pop_back();
@@ -327,7 +386,8 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     all_numbers = all_numbers && ParseNumber(cell, decimal_comma, &v);
   }
   if (all_numbers)
-    return Status::InvalidArgument("data", at() + ": the first line that is not a comment holds numbers, not column names "
+    return Status::InvalidArgument("data", at() +
+                                               ": the first line that is not a comment holds numbers, not column names "
                                                "(a header line is required; comment lines start with #)");
 
   auto ct = FindColumn(header, c.time, "time", Quantity::kTime, 1.0, "", file);
@@ -354,7 +414,8 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     if (!r.ok()) return r.status();
     cg.push_back(r->index);
   }
-  const double time_factor = ct->factor, in_factor = ci->factor * c.input_scale, out_factor = co->factor * c.output_scale;
+  const double time_factor = ct->factor, in_factor = ci->factor * c.input_scale,
+               out_factor = co->factor * c.output_scale;
 
   std::vector<Record> records;
   std::vector<double> row(header.size());
@@ -364,9 +425,9 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     if (!has.ok()) return has.status();
     if (!*has) break;
     if (++rows > limits::kMaxDataRows)
-      return Status::InvalidArgument("data", at() + ": more than " + std::to_string(limits::kMaxDataRows) +
-                                                 " data rows (violates rows <= " + std::to_string(limits::kMaxDataRows) +
-                                                 "; split the file)");
+      return Status::InvalidArgument(
+          "data", at() + ": more than " + std::to_string(limits::kMaxDataRows) +
+                      " data rows (violates rows <= " + std::to_string(limits::kMaxDataRows) + "; split the file)");
     if (!SplitLine(line, sep, &cells, &split_error)) return Status::InvalidArgument("data", at() + " " + split_error);
     if (trailing_sep && cells.size() == header.size() + 1 && cells.back().empty()) cells.pop_back();
     if (cells.size() != header.size())
@@ -375,10 +436,11 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     for (size_t k = 0; k < cells.size(); ++k) {
       double v = 0;
       if (!ParseNumber(cells[k], decimal_comma, &v))
-        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) + "': '" + Printable(cells[k]) +
-                                                   "' is not a finite number");
+        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) + "': '" +
+                                                   Printable(cells[k]) + "' is not a finite number");
       if (!(std::fabs(v) <= limits::kMaxDataMagnitude))
-        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) + "': " + Printable(cells[k]) +
+        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) +
+                                                   "': " + Printable(cells[k]) +
                                                    " violates |value| <= " + FormatNumber(limits::kMaxDataMagnitude));
       row[k] = v;
     }
@@ -392,18 +454,20 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
       const double start = records.front().t.front();
       const double dt = records.back().t.size() >= 2 ? records.back().t[1] - records.back().t[0] : 0.0;
       if (!(std::abs(t - start) <= 0.5 * std::abs(dt)) || records.back().t.size() < 2)
-        return Status::InvalidArgument("data", at() + ": time " + FormatNumber(t) +
-                                                   (t == records.back().t.back() ? " repeats" : " is before") +
-                                                   " the previous row's " + FormatNumber(records.back().t.back()) +
-                                                   " (time must increase; a restart must return to " + FormatNumber(start) + ")");
+        return Status::InvalidArgument(
+            "data", at() + ": time " + FormatNumber(t) + (t == records.back().t.back() ? " repeats" : " is before") +
+                        " the previous row's " + FormatNumber(records.back().t.back()) +
+                        " (time must increase; a restart must return to " + FormatNumber(start) + ")");
     }
     const bool restart = records.empty() || back || gv != records.back().group_values;
     if (restart) {
-      if (!records.empty() && records.back().t.size() < 2) return Status::InvalidArgument("data", at() + ": a record of a single row");
+      if (!records.empty() && records.back().t.size() < 2)
+        return Status::InvalidArgument("data", at() + ": a record of a single row");
       if (static_cast<long>(records.size()) >= limits::kMaxDataRecords)
-        return Status::InvalidArgument("data", at() + ": more than " + std::to_string(limits::kMaxDataRecords) +
-                                                   " records in one file (violates records <= " + std::to_string(limits::kMaxDataRecords) +
-                                                   "; a record starts where the group columns change or time restarts)");
+        return Status::InvalidArgument(
+            "data", at() + ": more than " + std::to_string(limits::kMaxDataRecords) +
+                        " records in one file (violates records <= " + std::to_string(limits::kMaxDataRecords) +
+                        "; a record starts where the group columns change or time restarts)");
       Record r;
       r.name = name + "#" + std::to_string(records.size());
       r.group_values = gv;
@@ -413,12 +477,13 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     const double scaled_res = cr.index >= 0 ? row[cr.index] * cr.factor : 0.0;
     const double volt_factor = cv.factor * c.voltage_scale;
     const double scaled_volt = cv.index >= 0 ? row[cv.index] * volt_factor : 0.0;
-    for (auto [v, k, factor] : {std::tuple{scaled_in, ci->index, in_factor}, std::tuple{scaled_out, co->index, out_factor},
-                                std::tuple{scaled_res, cr.index, cr.factor}, std::tuple{scaled_volt, cv.index, volt_factor}})
+    for (auto [v, k, factor] :
+         {std::tuple{scaled_in, ci->index, in_factor}, std::tuple{scaled_out, co->index, out_factor},
+          std::tuple{scaled_res, cr.index, cr.factor}, std::tuple{scaled_volt, cv.index, volt_factor}})
       if (k >= 0 && !(std::fabs(v) <= limits::kMaxDataMagnitude))
-        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) + "': " + Printable(cells[k]) +
-                                                   " x scale " + FormatNumber(factor) + " violates |value| <= " +
-                                                   FormatNumber(limits::kMaxDataMagnitude));
+        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) +
+                                                   "': " + Printable(cells[k]) + " x scale " + FormatNumber(factor) +
+                                                   " violates |value| <= " + FormatNumber(limits::kMaxDataMagnitude));
     Record& r = records.back();
     r.t.push_back(t);
     r.input.push_back(scaled_in);
@@ -435,9 +500,9 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     // mean step is used from here on.
     for (size_t i = 1; i < r.t.size(); ++i)
       if (std::fabs(r.t[i] - r.t[i - 1] - r.dt) > 0.25 * r.dt)
-        return Status::InvalidArgument("data", Printable(r.name, 200) + ": sampling is not uniform near t = " + FormatNumber(r.t[i]) +
-                                                   " s (step " + FormatNumber(r.t[i] - r.t[i - 1]) + " s, mean " +
-                                                   FormatNumber(r.dt) + " s)");
+        return Status::InvalidArgument(
+            "data", Printable(r.name, 200) + ": sampling is not uniform near t = " + FormatNumber(r.t[i]) +
+                        " s (step " + FormatNumber(r.t[i] - r.t[i - 1]) + " s, mean " + FormatNumber(r.dt) + " s)");
   }
   if (records.size() == 1) records[0].name = name;
   return records;

@@ -1,7 +1,7 @@
 // Measured time histories for identification (issue 5): CSV with a header, a time column, one input
-// and one to three outputs (main body, resonator, piezo voltage), mapped to SI by kind, header unit and scale. Several records in one file are
-// split where the time restarts (e.g. the harvester's steady-sine file) or where group columns change.
-// Every value is checked: a bad cell names its row and column; a missing column suggests the nearest.
+// and one to three outputs (main body, resonator, piezo voltage), mapped to SI by kind, header unit and scale. Several
+// records in one file are split where the time restarts (e.g. the harvester's steady-sine file) or where group columns
+// change. Every value is checked: a bad cell names its row and column; a missing column suggests the nearest.
 //
 // What DAQ exports write is read (docs/identification.md, "Data files"): a UTF-8 BOM, CRLF line ends,
 // blank lines and '#' comment lines anywhere; the separator , tab or ; (the one that splits the header
@@ -34,19 +34,19 @@ struct ColumnMap {
   std::string time = "t";
   std::string input = "x0";
   InputKind input_kind = InputKind::kBaseDisplacement;
-  double input_scale = 1.0;     // multiply to get SI (e.g. 9.81 for acceleration in g); not with a header unit
+  double input_scale = 1.0;  // multiply to get SI (e.g. 9.81 for acceleration in g); not with a header unit
   std::string output = "x";
   OutputKind output_kind = OutputKind::kDisplacement;
-  double output_scale = 1.0;    // e.g. 0.1 for the harvester's laser volts → m/s
-  std::string resonator;        // optional column: resonator absolute displacement xr [m]
-  std::string voltage;          // optional column: a piezo voltage [V] (a second output, compared with main.piezo's state)
-  double voltage_scale = 1.0;   // multiply to get volts (e.g. an amplifier's gain); not with a header unit
+  double output_scale = 1.0;  // e.g. 0.1 for the harvester's laser volts → m/s
+  std::string resonator;      // optional column: resonator absolute displacement xr [m]
+  std::string voltage;  // optional column: a piezo voltage [V] (a second output, compared with main.piezo's state)
+  double voltage_scale = 1.0;      // multiply to get volts (e.g. an amplifier's gain); not with a header unit
   std::vector<std::string> group;  // optional columns whose change starts a new record
 };
 
 struct Record {
-  std::string name;             // file name, with "#k" for the k-th record of a file
-  double dt = 0;                // sampling interval [s] (uniform)
+  std::string name;                                 // file name, with "#k" for the k-th record of a file
+  double dt = 0;                                    // sampling interval [s] (uniform)
   std::vector<double> t, input, output, resonator;  // SI after scaling; resonator may be empty
   std::vector<double> voltage;                      // V, or empty
   std::vector<double> group_values;                 // values of the group columns for this record

@@ -18,13 +18,15 @@ StatusOr<TermValues> ParseSyntheticExtra(const std::string& spec) {
   if (spec.size() > 200) return Status::InvalidArgument(field, "--synthetic-extra is longer than 200 characters");
   const size_t eq = spec.find('=');
   if (eq == std::string::npos)
-    return Status::InvalidArgument(field, "--synthetic-extra '" + spec + "' is not TERM=VALUE[:VALUE] (e.g. main.drag=5)");
+    return Status::InvalidArgument(field,
+                                   "--synthetic-extra '" + spec + "' is not TERM=VALUE[:VALUE] (e.g. main.drag=5)");
   auto t = FindTerm(spec.substr(0, eq));
   if (!t.ok()) return Status::InvalidArgument(field, "--synthetic-extra: " + t.status().message());
   const TermDef& d = **t;
   if (!d.IsForce() || d.kind == TermKind::kFriction)
-    return Status::InvalidArgument(field, "--synthetic-extra " + d.id + ": only force terms other than friction (the rig has friction on "
-                                          "both bodies already; leave res.friction out of --terms to test it)");
+    return Status::InvalidArgument(field, "--synthetic-extra " + d.id +
+                                              ": only force terms other than friction (the rig has friction on "
+                                              "both bodies already; leave res.friction out of --terms to test it)");
   TermValues e{*t, {}};
   std::string rest = spec.substr(eq + 1);
   size_t start = 0;
@@ -34,17 +36,19 @@ StatusOr<TermValues> ParseSyntheticExtra(const std::string& spec) {
     char* end = nullptr;
     const double x = std::strtod(v.c_str(), &end);
     if (v.empty() || end != v.c_str() + v.size() || !std::isfinite(x) || std::abs(x) > 1e15)
-      return Status::InvalidArgument(field, "--synthetic-extra " + d.id + ": '" + v + "' is not a finite number with |value| <= 1e15");
+      return Status::InvalidArgument(
+          field, "--synthetic-extra " + d.id + ": '" + v + "' is not a finite number with |value| <= 1e15");
     const size_t k = e.values.size();
     if (k < d.params.size() && d.params[k].sign == Sign::kNonNegative && x < 0)
-      return Status::InvalidArgument(field, "--synthetic-extra " + d.id + "." + d.params[k].name + " = " + v + " violates >= 0");
+      return Status::InvalidArgument(
+          field, "--synthetic-extra " + d.id + "." + d.params[k].name + " = " + v + " violates >= 0");
     e.values.push_back(x);
     start = colon + 1;
     if (colon == rest.size()) break;
   }
   if (e.values.size() != d.params.size())
-    return Status::InvalidArgument(field, "--synthetic-extra " + d.id + " takes " + std::to_string(d.params.size()) + " value(s), got " +
-                                              std::to_string(e.values.size()));
+    return Status::InvalidArgument(field, "--synthetic-extra " + d.id + " takes " + std::to_string(d.params.size()) +
+                                              " value(s), got " + std::to_string(e.values.size()));
   return e;
 }
 
@@ -64,7 +68,8 @@ std::vector<TermValues> TruthTerms(const DimensionalParams& p, const std::vector
   }
   for (const TermValues& e : extra) {
     auto same = std::find_if(out.begin(), out.end(), [&](const TermValues& t) { return t.term == e.term; });
-    if (same == out.end()) out.push_back(e);
+    if (same == out.end())
+      out.push_back(e);
     else
       for (size_t k = 0; k < e.values.size(); ++k) same->values[k] += e.values[k];  // the extra adds to the rig's own
   }
@@ -161,7 +166,8 @@ Status Integrate(const System& sys, double y0, double dt, size_t n, double fs_hz
     }
   });
   if (term != OdeTermination::kOk || next < n)
-    return Status::Internal(std::string("synthetic record '") + name + "': integration ended early (" + OdeTerminationName(term) + ")");
+    return Status::Internal(std::string("synthetic record '") + name + "': integration ended early (" +
+                            OdeTerminationName(term) + ")");
   return Status::Ok();
 }
 
@@ -171,18 +177,22 @@ StatusOr<Record> MakeSyntheticRecord(const DimensionalParams& p, const Synthetic
   BISTABLE_RETURN_IF_ERROR(ValidateDimensionalParams(p));
   if (!(o.fs_hz > 0) || !(o.duration_s > 0) || !(o.noise_m >= 0) || !(o.input_noise_m >= 0))
     return Status::InvalidArgument("synthetic", "fs_hz, duration_s must be > 0 and noise_m, input_noise_m >= 0");
-  if (!(o.duration_s * o.fs_hz <= 1e7)) return Status::InvalidArgument("synthetic", "duration_s * fs_hz must be <= 1e7 samples");
+  if (!(o.duration_s * o.fs_hz <= 1e7))
+    return Status::InvalidArgument("synthetic", "duration_s * fs_hz must be <= 1e7 samples");
   for (const TermValues& e : o.extra)
-    if (e.term == nullptr || !e.term->IsForce() || e.term->kind == TermKind::kFriction || e.values.size() != e.term->params.size() ||
-        (e.term->body == Body::kResonator && !p.has_resonator))
-      return Status::InvalidArgument("synthetic-extra", "an extra must be a force term other than friction, with one value per parameter, "
-                                                        "on a body the rig has");
+    if (e.term == nullptr || !e.term->IsForce() || e.term->kind == TermKind::kFriction ||
+        e.values.size() != e.term->params.size() || (e.term->body == Body::kResonator && !p.has_resonator))
+      return Status::InvalidArgument("synthetic-extra",
+                                     "an extra must be a force term other than friction, with one value per parameter, "
+                                     "on a body the rig has");
   const BaseMotion base = ChirpBase(o.a0_m, o.f_start_hz, o.f_end_hz, o.duration_s);
   const size_t n = static_cast<size_t>(o.duration_s * o.fs_hz) + 1;
   const double dt = 1.0 / o.fs_hz;
   std::vector<DimensionalModel::State> samples;
-  if (o.extra.empty()) BISTABLE_RETURN_IF_ERROR(Integrate(DimensionalModel(p, base), o.y0_m, dt, n, o.fs_hz, name, &samples));
-  else BISTABLE_RETURN_IF_ERROR(Integrate(RigWithExtras(p, base, o.extra), o.y0_m, dt, n, o.fs_hz, name, &samples));
+  if (o.extra.empty())
+    BISTABLE_RETURN_IF_ERROR(Integrate(DimensionalModel(p, base), o.y0_m, dt, n, o.fs_hz, name, &samples));
+  else
+    BISTABLE_RETURN_IF_ERROR(Integrate(RigWithExtras(p, base, o.extra), o.y0_m, dt, n, o.fs_hz, name, &samples));
   std::mt19937_64 rng(o.seed);
   std::normal_distribution<double> noise(0.0, o.noise_m), in_noise(0.0, o.input_noise_m > 0 ? o.input_noise_m : 1.0);
   Record r;
@@ -195,7 +205,8 @@ StatusOr<Record> MakeSyntheticRecord(const DimensionalParams& p, const Synthetic
     const double xm = x0 + samples[i][0];
     r.output.push_back(xm + (o.noise_m > 0 ? noise(rng) : 0.0));
     if (p.has_resonator) r.resonator.push_back(xm + samples[i][2] + (o.noise_m > 0 ? noise(rng) : 0.0));
-    r.input.push_back(x0 + (o.input_noise_m > 0 ? in_noise(rng) : 0.0));  // drawn last: records without it keep their bits
+    r.input.push_back(x0 +
+                      (o.input_noise_m > 0 ? in_noise(rng) : 0.0));  // drawn last: records without it keep their bits
   }
   return r;
 }
@@ -204,8 +215,10 @@ Status WriteRecordCsv(const Record& r, const std::string& path) {
   std::string text = r.resonator.empty() ? "t,x0,x\n" : "t,x0,x,xr\n";
   char buf[160];
   for (size_t i = 0; i < r.t.size(); ++i) {
-    if (r.resonator.empty()) std::snprintf(buf, sizeof buf, "%.10g,%.10g,%.10g\n", r.t[i], r.input[i], r.output[i]);
-    else std::snprintf(buf, sizeof buf, "%.10g,%.10g,%.10g,%.10g\n", r.t[i], r.input[i], r.output[i], r.resonator[i]);
+    if (r.resonator.empty())
+      std::snprintf(buf, sizeof buf, "%.10g,%.10g,%.10g\n", r.t[i], r.input[i], r.output[i]);
+    else
+      std::snprintf(buf, sizeof buf, "%.10g,%.10g,%.10g,%.10g\n", r.t[i], r.input[i], r.output[i], r.resonator[i]);
     text += buf;
   }
   auto f = AtomicFile::Create(path, "csv");  // whole or not at all

@@ -22,13 +22,13 @@ struct TermValues {
 };
 
 struct SyntheticOptions {
-  double a0_m = 0.002;            // chirp amplitude of the table [m]
+  double a0_m = 0.002;  // chirp amplitude of the table [m]
   double f_start_hz = 1, f_end_hz = 8, duration_s = 20;
-  double fs_hz = 120;             // sampling rate (the paper's camera)
-  double noise_m = 0.05e-3;       // standard deviation of the noise on x and x_r [m]
+  double fs_hz = 120;        // sampling rate (the paper's camera)
+  double noise_m = 0.05e-3;  // standard deviation of the noise on x and x_r [m]
   unsigned seed = 1;
-  double y0_m = 0;                // initial relative displacement (a well, for bistable beams)
-  double input_noise_m = 0;       // standard deviation of the noise on the recorded input x0 [m]
+  double y0_m = 0;           // initial relative displacement (a well, for bistable beams)
+  double input_noise_m = 0;  // standard deviation of the noise on the recorded input x0 [m]
   // Force terms of the effect library added to the rig's truth (the effect a declared model may lack).
   std::vector<TermValues> extra;
 };
@@ -50,7 +50,8 @@ double SyntheticWell(const DimensionalParams& p, const std::vector<TermValues>& 
 
 // Columns as ColumnMap's defaults: t, x0 (the table motion, with input_noise_m of noise), x, and xr when
 // the model has a resonator. The truth is the rig (DimensionalModel) plus o.extra's forces, integrated as one
-// system by Rosenbrock 2(3) (the extras' slopes join its Jacobian). Records of a failed integration come back as an error.
+// system by Rosenbrock 2(3) (the extras' slopes join its Jacobian). Records of a failed integration come back as an
+// error.
 StatusOr<Record> MakeSyntheticRecord(const DimensionalParams& p, const SyntheticOptions& o, const std::string& name);
 
 // Writes a record as CSV (t,x0,x[,xr]) with 10 significant digits.

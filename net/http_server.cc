@@ -44,7 +44,7 @@ struct HttpServer::Impl {
   std::atomic<int> connections{0};
   std::map<std::string, HttpHandler> routes;
   std::set<std::string> slow_routes;
-  std::atomic<int> slow_pending{0};  // slow requests queued or running
+  std::atomic<int> slow_pending{0};         // slow requests queued or running
   std::unique_ptr<asio::ssl::context> tls;  // set: every connection is TLS
   asio::io_context io{1};
   tcp::acceptor acceptor{io};
@@ -56,27 +56,30 @@ struct HttpServer::Impl {
   std::set<std::string> heavy_routes;
   std::mutex heavy_mu;
   std::map<std::string, std::deque<SlowWork>> heavy_waiting;  // by client, in arrival order
-  std::deque<std::string> heavy_turns;                                     // clients with waiting requests, in turn
-  std::map<std::string, int> heavy_held;                                   // by client: waiting or running
+  std::deque<std::string> heavy_turns;                        // clients with waiting requests, in turn
+  std::map<std::string, int> heavy_held;                      // by client: waiting or running
   int heavy_running = 0, heavy_pending = 0;
 
   void Accept();
   // Queues `work` (a heavy request of `client`) to run in its turn; false, with why, when the client's or
   // the server's bound is reached.
   bool QueueHeavy(const std::string& client, SlowWork work, std::string* why);
-  void StartHeavyLocked();  // under heavy_mu: starts waiting requests, one client after another, while a thread is free to them
+  void StartHeavyLocked();  // under heavy_mu: starts waiting requests, one client after another, while a thread is free
+                            // to them
 };
 
 bool HttpServer::Impl::QueueHeavy(const std::string& client, SlowWork work, std::string* why) {
   std::lock_guard<std::mutex> lock(heavy_mu);
   const auto held = heavy_held.find(client);
   if (held != heavy_held.end() && held->second >= HttpServer::kMaxHeavyPerClient) {
-    *why = "busy: " + std::to_string(held->second) + " requests of this client to slow routes are running or waiting (at most " +
+    *why = "busy: " + std::to_string(held->second) +
+           " requests of this client to slow routes are running or waiting (at most " +
            std::to_string(HttpServer::kMaxHeavyPerClient) + " per client); retry when one has answered\n";
     return false;
   }
   if (heavy_pending >= HttpServer::kMaxHeavyPending) {
-    *why = "busy: " + std::to_string(heavy_pending) + " heavy requests are running or waiting, the most this server holds; retry\n";
+    *why = "busy: " + std::to_string(heavy_pending) +
+           " heavy requests are running or waiting, the most this server holds; retry\n";
     return false;
   }
   ++heavy_held[client];
@@ -95,8 +98,10 @@ void HttpServer::Impl::StartHeavyLocked() {
     const auto it = heavy_waiting.find(client);
     SlowWork work = std::move(it->second.front());
     it->second.pop_front();
-    if (it->second.empty()) heavy_waiting.erase(it);
-    else heavy_turns.push_back(client);  // its next request waits for the other clients' turns
+    if (it->second.empty())
+      heavy_waiting.erase(it);
+    else
+      heavy_turns.push_back(client);  // its next request waits for the other clients' turns
     ++heavy_running;
     asio::post(slow, [this, client, work = std::move(work)]() mutable {
       work([&] {
@@ -196,18 +201,20 @@ class Session : public std::enable_shared_from_this<Session<Stream>> {
     const bool heavy = server_->heavy_routes.count(request.path) > 0;
     // Runs the handler, then `finished` (the bounds count down), then posts the answer.
     SlowWork work = [self = this->shared_from_this(), handler, request = std::move(request), method = req.method(),
-                     version = req.version(), keep_alive = req.keep_alive()](const std::function<void()>& finished) mutable {
+                     version = req.version(),
+                     keep_alive = req.keep_alive()](const std::function<void()>& finished) mutable {
       HttpResponse r = Call(*handler, request);
       finished();
       // The session's last reference goes with the answer onto its strand (it is destroyed there).
       auto& strand = self->stream_;
-      asio::post(strand.get_executor(), [self = std::move(self), r = std::move(r), method, version, keep_alive]() mutable {
-        self->Respond(std::move(r), method, version, keep_alive);
-      });
+      asio::post(strand.get_executor(),
+                 [self = std::move(self), r = std::move(r), method, version, keep_alive]() mutable {
+                   self->Respond(std::move(r), method, version, keep_alive);
+                 });
     };
     auto busy = [&](std::string why) {
-      Respond(HttpResponse{503, "text/plain; charset=utf-8", std::move(why), {{"Retry-After", "1"}}}, req.method(), req.version(),
-              req.keep_alive());
+      Respond(HttpResponse{503, "text/plain; charset=utf-8", std::move(why), {{"Retry-After", "1"}}}, req.method(),
+              req.version(), req.keep_alive());
     };
     if (heavy) {  // in turn by client, at most kSlowThreads - 1 at once
       std::string why;
@@ -221,7 +228,8 @@ class Session : public std::enable_shared_from_this<Session<Stream>> {
       busy("busy: too many slow requests at once, retry\n");
       return;
     }
-    asio::post(server_->slow, [server = server_, work = std::move(work)]() mutable { work([server] { --server->slow_pending; }); });
+    asio::post(server_->slow,
+               [server = server_, work = std::move(work)]() mutable { work([server] { --server->slow_pending; }); });
   }
 
   static HttpResponse Call(const HttpHandler& handler, const HttpRequest& request) {
@@ -328,8 +336,9 @@ HttpServer::~HttpServer() {
 
 int HttpServer::port() const { return impl_->port; }
 
-StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(const std::string& address, std::map<std::string, HttpHandler> routes,
-                                                       const Options& options) {
+StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(const std::string& address,
+                                                        std::map<std::string, HttpHandler> routes,
+                                                        const Options& options) {
   auto ep = ParseEndpoint(address);
   if (!ep.ok()) return ep.status();
   auto impl = std::make_unique<Impl>();
@@ -342,7 +351,8 @@ StatusOr<std::unique_ptr<HttpServer>> HttpServer::Start(const std::string& addre
   if (!options.tls_cert_pem.empty()) {
     impl->tls = std::make_unique<asio::ssl::context>(asio::ssl::context::tls_server);
     impl->tls->set_options(asio::ssl::context::default_workarounds | asio::ssl::context::no_sslv2 |
-                           asio::ssl::context::no_sslv3 | asio::ssl::context::no_tlsv1 | asio::ssl::context::no_tlsv1_1);
+                           asio::ssl::context::no_sslv3 | asio::ssl::context::no_tlsv1 |
+                           asio::ssl::context::no_tlsv1_1);
     impl->tls->use_certificate_chain(asio::buffer(options.tls_cert_pem), ec);
     if (!ec) impl->tls->use_private_key(asio::buffer(options.tls_key_pem), asio::ssl::context::pem, ec);
     if (ec) return Status::InvalidArgument("tls", "cannot use the TLS certificate and key: " + ec.message());
@@ -407,7 +417,8 @@ StatusOr<std::map<std::string, std::string>> ParseQueryString(const std::string&
     if (name->empty()) return Status::InvalidArgument("query", "a query parameter without a name");
     if (out.size() >= max_params)
       return Status::InvalidArgument("query", "more than " + std::to_string(max_params) + " query parameters");
-    if (!out.emplace(*name, *value).second) return Status::InvalidArgument("query", "query parameter '" + name->substr(0, 32) + "' repeated");
+    if (!out.emplace(*name, *value).second)
+      return Status::InvalidArgument("query", "query parameter '" + name->substr(0, 32) + "' repeated");
   }
   return out;
 }
@@ -450,20 +461,24 @@ bool HostAllowed(const std::string& host, const std::vector<std::string>& allowe
   if (!ec) return true;
   const std::string lower = Lower(name);
   if (lower == "localhost") return true;
-  return std::any_of(allowed_names.begin(), allowed_names.end(), [&](const std::string& a) { return Lower(a) == lower; });
+  return std::any_of(allowed_names.begin(), allowed_names.end(),
+                     [&](const std::string& a) { return Lower(a) == lower; });
 }
 
-std::map<std::string, HttpHandler> HostChecked(std::map<std::string, HttpHandler> routes, std::vector<std::string> allowed_names) {
+std::map<std::string, HttpHandler> HostChecked(std::map<std::string, HttpHandler> routes,
+                                               std::vector<std::string> allowed_names) {
   auto allowed = std::make_shared<const std::vector<std::string>>(std::move(allowed_names));
   for (auto& [path, handler] : routes) {
     if (path == "/healthz") continue;  // no data: probes may name the host as they like
     handler = [allowed, handler = std::move(handler)](const HttpRequest& req) {
       if (HostAllowed(req.host, *allowed)) return handler(req);
       // The header is not echoed.
-      return HttpResponse{421, "application/json",
-                          "{\"error\": \"misdirected request: this server answers a Host that is an IP address, localhost or a name "
-                          "given with --http-allowed-host\"}",
-                          {}};
+      return HttpResponse{
+          421,
+          "application/json",
+          "{\"error\": \"misdirected request: this server answers a Host that is an IP address, localhost or a name "
+          "given with --http-allowed-host\"}",
+          {}};
     };
   }
   return routes;
@@ -472,8 +487,9 @@ std::map<std::string, HttpHandler> HostChecked(std::map<std::string, HttpHandler
 Status CheckAllowedHostName(const std::string& name, const std::string& field) {
   if (name.empty() || name.size() > 253 ||
       name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-.") != std::string::npos)
-    return Status::InvalidArgument(field, field + " '" + Printable(name, 64) +
-                                              "' violates a host name of 1-253 letters, digits, '-' and '.' (no port, no wildcard)");
+    return Status::InvalidArgument(
+        field, field + " '" + Printable(name, 64) +
+                   "' violates a host name of 1-253 letters, digits, '-' and '.' (no port, no wildcard)");
   return Status::Ok();
 }
 
@@ -485,7 +501,8 @@ std::string CookieValue(const std::string& header, const std::string& name) {
     size_t b = header.find_first_not_of(' ', pos);
     if (b < end) {
       const size_t eq = header.find('=', b);
-      if (eq < end && header.compare(b, eq - b, name) == 0 && eq - b == name.size()) return header.substr(eq + 1, end - eq - 1);
+      if (eq < end && header.compare(b, eq - b, name) == 0 && eq - b == name.size())
+        return header.substr(eq + 1, end - eq - 1);
     }
     pos = end + 1;
   }

@@ -59,9 +59,10 @@ class HttpServer {
   // Listens on "host:port" (an IP literal, "localhost" or "[v6]"; port 0 picks a free one) and serves
   // `routes` (path → handler, e.g. "/metrics") on one thread of its own. Handlers run on that thread, but
   // those of Options::slow_routes (which must be safe to call from several threads at once).
-  static StatusOr<std::unique_ptr<HttpServer>> Start(const std::string& address, std::map<std::string, HttpHandler> routes,
-                                                     const Options& options);
-  static StatusOr<std::unique_ptr<HttpServer>> Start(const std::string& address, std::map<std::string, HttpHandler> routes) {
+  static StatusOr<std::unique_ptr<HttpServer>> Start(const std::string& address,
+                                                     std::map<std::string, HttpHandler> routes, const Options& options);
+  static StatusOr<std::unique_ptr<HttpServer>> Start(const std::string& address,
+                                                     std::map<std::string, HttpHandler> routes) {
     return Start(address, std::move(routes), Options{});
   }
   ~HttpServer();  // stops: closes the listener and every connection, joins the thread and waits for the slow
@@ -92,7 +93,8 @@ bool HostAllowed(const std::string& host, const std::vector<std::string>& allowe
 
 // `routes` under that rule: every route but /healthz (which carries no data) answers a request whose Host
 // fails HostAllowed with 421 and a fixed JSON error that does not echo the header.
-std::map<std::string, HttpHandler> HostChecked(std::map<std::string, HttpHandler> routes, std::vector<std::string> allowed_names);
+std::map<std::string, HttpHandler> HostChecked(std::map<std::string, HttpHandler> routes,
+                                               std::vector<std::string> allowed_names);
 
 // A name for --http-allowed-host: 1-253 letters, digits, '-' and '.' (a DNS name, no port, no wildcard);
 // InvalidArgument naming `field` otherwise.

@@ -18,15 +18,19 @@ Status CheckBearerToken(const std::string& token, const std::string& field) {
   const std::string rule = "a token is 1 to " + std::to_string(limits::kMaxTokenBytes) +
                            " visible ASCII characters (0x21-0x7e); the token is not shown";
   if (token.size() > limits::kMaxTokenBytes)
-    return Status::InvalidArgument(field, "the token is " + std::to_string(token.size()) + " bytes long (" + rule + ")");
+    return Status::InvalidArgument(field,
+                                   "the token is " + std::to_string(token.size()) + " bytes long (" + rule + ")");
   for (size_t i = 0; i < token.size(); ++i) {
     const auto c = static_cast<unsigned char>(token[i]);
     if (c >= 0x21 && c <= 0x7e) continue;
     char hex[8];
     std::snprintf(hex, sizeof hex, "0x%02x", c);
-    const char* what = c == 0 ? "a NUL byte" : c == ' ' ? "a space" : c < 0x20 || c == 0x7f ? "a control byte" : "a non-ASCII byte";
-    return Status::InvalidArgument(field, "the token holds " + std::string(what) + " (" + hex + ") at byte " + std::to_string(i + 1) +
-                                              " (" + rule + ")");
+    const char* what = c == 0                  ? "a NUL byte"
+                       : c == ' '              ? "a space"
+                       : c < 0x20 || c == 0x7f ? "a control byte"
+                                               : "a non-ASCII byte";
+    return Status::InvalidArgument(field, "the token holds " + std::string(what) + " (" + hex + ") at byte " +
+                                              std::to_string(i + 1) + " (" + rule + ")");
   }
   return Status::Ok();
 }
@@ -52,9 +56,10 @@ StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(const ConnectOptions& o) {
   // on (and log) is refused before any call is made.
   if (Status st = CheckBearerToken(o.token, "token"); !st.ok()) return st;
   if (!o.token.empty() && o.tls_ca.empty() && !o.insecure_remote && !IsLoopbackAddress(o.address))
-    return Status::InvalidArgument("insecure-remote", "refusing to send the bearer token in plaintext to " + Printable(o.address, 128) +
-                                                          ", which is not a loopback address: anyone on the path could read it and "
-                                                          "use it; give --tls-ca (the coordinator's CA), or --insecure-remote to send it anyway");
+    return Status::InvalidArgument(
+        "insecure-remote", "refusing to send the bearer token in plaintext to " + Printable(o.address, 128) +
+                               ", which is not a loopback address: anyone on the path could read it and "
+                               "use it; give --tls-ca (the coordinator's CA), or --insecure-remote to send it anyway");
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(256 << 20);
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);

@@ -14,8 +14,8 @@ namespace bistable {
 
 struct ConnectOptions {
   std::string address;
-  std::string tls_ca;      // PEM file of the CA that signed the coordinator's certificate ("" = plaintext)
-  std::string token;       // bearer token ("" = none)
+  std::string tls_ca;            // PEM file of the CA that signed the coordinator's certificate ("" = plaintext)
+  std::string token;             // bearer token ("" = none)
   bool insecure_remote = false;  // allow the token in plaintext to an address that is not loopback
 };
 

@@ -72,7 +72,8 @@ MapArray FromProto(const v1::MapReply& rep) {
   m.metric = rep.metric();
   m.unit = rep.unit();
   m.definition = rep.definition();
-  for (const auto& a : rep.axes()) m.axes.push_back(Axis{a.name(), std::vector<double>(a.values().begin(), a.values().end())});
+  for (const auto& a : rep.axes())
+    m.axes.push_back(Axis{a.name(), std::vector<double>(a.values().begin(), a.values().end())});
   for (auto d : rep.dims()) m.dims.push_back(d);
   m.dim_names.assign(rep.dim_names().begin(), rep.dim_names().end());
   m.values.assign(rep.values().begin(), rep.values().end());
@@ -85,8 +86,8 @@ void ToProto(const std::vector<WorkItem>& items, v1::LeaseReply* rep) {
 
 StatusOr<std::vector<WorkItem>> ItemsFromProto(const v1::LeaseReply& rep) {
   if (rep.points_size() > limits::kMaxLeaseItems)  // before anything is allocated for them
-    return Status::InvalidArgument("lease", "a lease of " + std::to_string(rep.points_size()) + " items violates items <= " +
-                                                std::to_string(limits::kMaxLeaseItems));
+    return Status::InvalidArgument("lease", "a lease of " + std::to_string(rep.points_size()) +
+                                                " items violates items <= " + std::to_string(limits::kMaxLeaseItems));
   if (rep.points_size() != rep.ics_size())
     return Status::InvalidArgument("lease", "a lease with " + std::to_string(rep.points_size()) + " points and " +
                                                 std::to_string(rep.ics_size()) + " initial-condition slots");
@@ -123,12 +124,14 @@ bool IsSpecKey(std::string_view key) {
 StatusOr<std::vector<std::string>> KnownSpecsFromProto(const google::protobuf::RepeatedPtrField<std::string>& in,
                                                        const std::string& field) {
   if (in.size() > limits::kMaxKnownSpecs)  // before anything is copied
-    return Status::InvalidArgument(field, field + " names " + std::to_string(in.size()) + " spec keys, over the limit of " +
+    return Status::InvalidArgument(field, field + " names " + std::to_string(in.size()) +
+                                              " spec keys, over the limit of " +
                                               std::to_string(limits::kMaxKnownSpecs));
   std::vector<std::string> keys;
   for (int i = 0; i < in.size(); ++i) {
     if (!IsSpecKey(in.Get(i)))
-      return Status::InvalidArgument(field, field + "[" + std::to_string(i) + "] is not a spec key (64 lowercase hex digits)");
+      return Status::InvalidArgument(field,
+                                     field + "[" + std::to_string(i) + "] is not a spec key (64 lowercase hex digits)");
     keys.push_back(in.Get(i));
   }
   return keys;
@@ -137,7 +140,8 @@ StatusOr<std::vector<std::string>> KnownSpecsFromProto(const google::protobuf::R
 namespace {
 
 bool IsSweepId(std::string_view id) {
-  return !id.empty() && id.size() <= limits::kMaxIdBytes && id.find_first_not_of("0123456789abcdef") == std::string_view::npos;
+  return !id.empty() && id.size() <= limits::kMaxIdBytes &&
+         id.find_first_not_of("0123456789abcdef") == std::string_view::npos;
 }
 
 }  // namespace
@@ -158,18 +162,20 @@ StatusOr<std::optional<LeasedWork>> FromProto(const v1::LeaseReply& in) {
   // Ids go into requests, log lines and the spec cache: bounded and plain, as the coordinator makes them.
   if (in.lease_id().empty() || in.lease_id().size() > limits::kMaxIdBytes ||
       std::any_of(in.lease_id().begin(), in.lease_id().end(), [](char c) { return c < 0x21 || c > 0x7e; }))
-    return Status::InvalidArgument("lease", "lease_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " visible ASCII characters");
+    return Status::InvalidArgument(
+        "lease", "lease_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " visible ASCII characters");
   if (!IsSweepId(in.sweep_id()))
-    return Status::InvalidArgument("lease", "sweep_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
+    return Status::InvalidArgument(
+        "lease", "sweep_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
   if (!in.spec_key().empty() && !IsSpecKey(in.spec_key()))
     return Status::InvalidArgument("lease", "spec_key is not a spec key (64 lowercase hex digits)");
   if (in.spec_toml().size() > limits::kMaxSpecBytes)
-    return Status::InvalidArgument("lease", "spec_toml is " + std::to_string(in.spec_toml().size()) + " bytes, over the limit of " +
-                                                std::to_string(limits::kMaxSpecBytes));
+    return Status::InvalidArgument("lease", "spec_toml is " + std::to_string(in.spec_toml().size()) +
+                                                " bytes, over the limit of " + std::to_string(limits::kMaxSpecBytes));
   auto items = ItemsFromProto(in);
   if (!items.ok()) return items.status();
-  return std::optional<LeasedWork>(
-      LeasedWork{in.lease_id(), in.sweep_id(), static_cast<long>(in.job_id()), in.spec_toml(), in.spec_key(), std::move(*items), in.deadline()});
+  return std::optional<LeasedWork>(LeasedWork{in.lease_id(), in.sweep_id(), static_cast<long>(in.job_id()),
+                                              in.spec_toml(), in.spec_key(), std::move(*items), in.deadline()});
 }
 
 void ToProto(const SpecText& in, v1::SpecReply* out) {
@@ -180,10 +186,11 @@ void ToProto(const SpecText& in, v1::SpecReply* out) {
 
 StatusOr<SpecText> FromProto(const v1::SpecReply& in) {
   if (!IsSweepId(in.sweep_id()))
-    return Status::InvalidArgument("spec", "sweep_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
+    return Status::InvalidArgument(
+        "spec", "sweep_id violates 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
   if (in.spec_toml().size() > limits::kMaxSpecBytes)
-    return Status::InvalidArgument("spec", "spec_toml is " + std::to_string(in.spec_toml().size()) + " bytes, over the limit of " +
-                                               std::to_string(limits::kMaxSpecBytes));
+    return Status::InvalidArgument("spec", "spec_toml is " + std::to_string(in.spec_toml().size()) +
+                                               " bytes, over the limit of " + std::to_string(limits::kMaxSpecBytes));
   if (in.spec_key() != SpecKey(in.spec_toml()))
     return Status::InvalidArgument("spec", "spec_key is not the SHA-256 of spec_toml");
   return SpecText{in.sweep_id(), in.spec_toml(), in.spec_key()};

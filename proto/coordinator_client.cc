@@ -2,10 +2,10 @@
 
 #include <algorithm>
 
-#include "bistable.grpc.pb.h"
 #include "base/limits.h"
 #include "base/names.h"
 #include "base/sha256.h"
+#include "bistable.grpc.pb.h"
 #include "proto/convert.h"
 #include "proto/status_convert.h"
 
@@ -15,7 +15,8 @@ struct CoordinatorClient::Impl {
   std::unique_ptr<v1::Coordinator::Stub> stub;
 };
 
-CoordinatorClient::CoordinatorClient(ConnectOptions o, std::unique_ptr<Impl> impl) : o_(std::move(o)), impl_(std::move(impl)) {}
+CoordinatorClient::CoordinatorClient(ConnectOptions o, std::unique_ptr<Impl> impl)
+    : o_(std::move(o)), impl_(std::move(impl)) {}
 CoordinatorClient::~CoordinatorClient() = default;
 
 StatusOr<std::unique_ptr<CoordinatorClient>> CoordinatorClient::Connect(const ConnectOptions& o) {
@@ -37,13 +38,14 @@ Status FromCall(const grpc::Status& s, const std::string& address) {
 
 }  // namespace
 
-#define BISTABLE_RPC(call, seconds, req, rep)                                  \
-  do {                                                                         \
+#define BISTABLE_RPC(call, seconds, req, rep)                                            \
+  do {                                                                                   \
     const grpc::Status _s = impl_->stub->call(CallContext(o_, seconds).get(), req, rep); \
-    if (!_s.ok()) return FromCall(_s, o_.address);                                            \
+    if (!_s.ok()) return FromCall(_s, o_.address);                                       \
   } while (0)
 
-StatusOr<CoordinatorClient::Submitted> CoordinatorClient::Submit(const std::string& spec_toml, const std::string& origin) {
+StatusOr<CoordinatorClient::Submitted> CoordinatorClient::Submit(const std::string& spec_toml,
+                                                                 const std::string& origin) {
   v1::SubmitRequest req;
   req.set_spec_toml(spec_toml);
   req.set_origin(origin);
@@ -60,7 +62,8 @@ StatusOr<SweepInfo> CoordinatorClient::GetStatus(const std::string& id) {
   return FromProto(rep);
 }
 
-StatusOr<SweepInfo> CoordinatorClient::Watch(const std::string& id, const std::function<bool(const SweepInfo&)>& on_status) {
+StatusOr<SweepInfo> CoordinatorClient::Watch(const std::string& id,
+                                             const std::function<bool(const SweepInfo&)>& on_status) {
   v1::StatusRequest req;
   req.set_id(id);
   auto ctx = CallContext(o_, 0);  // no deadline: the stream lasts as long as the sweep
@@ -142,15 +145,18 @@ StatusOr<CoordinatorClient::Fetched> CoordinatorClient::FetchMap(const std::stri
     if (first) {
       out.id = chunk.id();
       total = chunk.total_bytes();
-      if (out.id.empty() || out.id.size() > limits::kMaxIdBytes || out.id.find_first_not_of("0123456789abcdef") != std::string::npos)
-        return refuse("the sweep id is not lowercase hex of at most " + std::to_string(limits::kMaxIdBytes) + " digits");
+      if (out.id.empty() || out.id.size() > limits::kMaxIdBytes ||
+          out.id.find_first_not_of("0123456789abcdef") != std::string::npos)
+        return refuse("the sweep id is not lowercase hex of at most " + std::to_string(limits::kMaxIdBytes) +
+                      " digits");
       if (total > limits::kMaxFetchBytes)
         return refuse("the file is announced as " + std::to_string(total) + " bytes, over the limit of " +
                       std::to_string(limits::kMaxFetchBytes));
       first = false;
     }
     if (chunk.id() != out.id || chunk.total_bytes() != total) return refuse("the id or size changed mid-stream");
-    if (chunk.offset() != out.bytes) return refuse("chunk at offset " + std::to_string(chunk.offset()) + ", expected " + std::to_string(out.bytes));
+    if (chunk.offset() != out.bytes)
+      return refuse("chunk at offset " + std::to_string(chunk.offset()) + ", expected " + std::to_string(out.bytes));
     if (chunk.data().size() > total - out.bytes) return refuse("more data than the announced size");
     sha.Update(chunk.data());
     out.bytes += chunk.data().size();
@@ -161,8 +167,11 @@ StatusOr<CoordinatorClient::Fetched> CoordinatorClient::FetchMap(const std::stri
     if (!chunk.sha256().empty()) {
       finished = true;
       out.sha256 = sha.HexDigest();
-      if (out.bytes != total) return refuse("the checksum came at " + std::to_string(out.bytes) + " of " + std::to_string(total) + " bytes");
-      if (chunk.sha256() != out.sha256) return refuse("SHA-256 mismatch: received " + out.sha256 + ", the coordinator sent " + Printable(chunk.sha256(), 80));
+      if (out.bytes != total)
+        return refuse("the checksum came at " + std::to_string(out.bytes) + " of " + std::to_string(total) + " bytes");
+      if (chunk.sha256() != out.sha256)
+        return refuse("SHA-256 mismatch: received " + out.sha256 + ", the coordinator sent " +
+                      Printable(chunk.sha256(), 80));
     }
   }
   const grpc::Status st = reader->Finish();
@@ -180,13 +189,15 @@ StatusOr<double> CoordinatorClient::Register(const std::string& name, int thread
   // The worker heartbeats at a third of it: a NaN, negative or absurd period from a broken or hostile
   // coordinator is refused, not slept on.
   if (!(rep.lease_seconds() > 0 && rep.lease_seconds() <= limits::kMaxLeaseSeconds))
-    return Status::InvalidArgument("lease_seconds", "the coordinator's lease_seconds = " + std::to_string(rep.lease_seconds()) +
-                                                        " violates lease_seconds in (0, " + std::to_string(static_cast<long>(limits::kMaxLeaseSeconds)) + "]");
+    return Status::InvalidArgument("lease_seconds",
+                                   "the coordinator's lease_seconds = " + std::to_string(rep.lease_seconds()) +
+                                       " violates lease_seconds in (0, " +
+                                       std::to_string(static_cast<long>(limits::kMaxLeaseSeconds)) + "]");
   return rep.lease_seconds();
 }
 
-StatusOr<std::optional<CoordinatorClient::Lease>> CoordinatorClient::LeaseJob(const std::string& worker, int max_jobs,
-                                                                               const std::vector<std::string>& known_specs) {
+StatusOr<std::optional<CoordinatorClient::Lease>> CoordinatorClient::LeaseJob(
+    const std::string& worker, int max_jobs, const std::vector<std::string>& known_specs) {
   v1::LeaseRequest req;
   req.set_worker(worker);
   req.set_max_jobs(max_jobs);
@@ -203,7 +214,8 @@ StatusOr<SpecText> CoordinatorClient::GetSpec(const std::string& sweep_id) {
   BISTABLE_RPC(GetSpec, 30, req, &rep);
   auto spec = FromProto(rep);
   if (spec.ok() && spec->sweep_id != sweep_id)
-    return Status::InvalidArgument("spec", "the coordinator answered with the spec of sweep " + spec->sweep_id + " for " + sweep_id);
+    return Status::InvalidArgument(
+        "spec", "the coordinator answered with the spec of sweep " + spec->sweep_id + " for " + sweep_id);
   return spec;
 }
 

@@ -61,7 +61,8 @@ class CoordinatorClient {
   Status Heartbeat(const std::string& lease_id);
   // Reports; with `lease_next_for` non-empty the reply may carry the worker's next job (into *next).
   Status Report(const std::string& lease_id, const std::vector<PointRecord>& records, const std::string& lease_next_for,
-                std::optional<Lease>* next, int next_max_jobs = 1, const std::vector<std::string>& next_known_specs = {});
+                std::optional<Lease>* next, int next_max_jobs = 1,
+                const std::vector<std::string>& next_known_specs = {});
   // A sweep's spec text and key (a lease that came without it); the key is checked to be the text's.
   StatusOr<SpecText> GetSpec(const std::string& sweep_id);
   Status Release(const std::string& lease_id);

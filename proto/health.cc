@@ -31,7 +31,8 @@ int HealthService::StatusOf(const std::string& service) const {
 }
 
 grpc::Status HealthService::Check(grpc::ServerContext*, const HealthCheckRequest* req, HealthCheckResponse* rep) {
-  if (req->service().size() > kMaxServiceNameBytes) return {grpc::StatusCode::INVALID_ARGUMENT, "service name too long"};
+  if (req->service().size() > kMaxServiceNameBytes)
+    return {grpc::StatusCode::INVALID_ARGUMENT, "service name too long"};
   const int st = StatusOf(req->service());
   if (st == HealthCheckResponse::SERVICE_UNKNOWN) return {grpc::StatusCode::NOT_FOUND, "unknown service"};
   rep->set_status(static_cast<HealthCheckResponse::ServingStatus>(st));
@@ -40,7 +41,8 @@ grpc::Status HealthService::Check(grpc::ServerContext*, const HealthCheckRequest
 
 grpc::Status HealthService::Watch(grpc::ServerContext* ctx, const HealthCheckRequest* req,
                                   grpc::ServerWriter<HealthCheckResponse>* writer) {
-  if (req->service().size() > kMaxServiceNameBytes) return {grpc::StatusCode::INVALID_ARGUMENT, "service name too long"};
+  if (req->service().size() > kMaxServiceNameBytes)
+    return {grpc::StatusCode::INVALID_ARGUMENT, "service name too long"};
   int last = -1;
   while (!ctx->IsCancelled()) {
     const int st = StatusOf(req->service());
@@ -56,17 +58,20 @@ grpc::Status HealthService::Watch(grpc::ServerContext* ctx, const HealthCheckReq
   return grpc::Status::OK;
 }
 
-StatusOr<std::unique_ptr<grpc::Server>> StartHealthServer(const std::string& address, HealthService* health, int* port) {
+StatusOr<std::unique_ptr<grpc::Server>> StartHealthServer(const std::string& address, HealthService* health,
+                                                          int* port) {
   grpc::ServerBuilder b;
   b.AddListeningPort(address, grpc::InsecureServerCredentials(), port);
   b.RegisterService(health);
-  b.SetMaxReceiveMessageSize(4096);  // a health request is a service name
+  b.SetMaxReceiveMessageSize(4096);                   // a health request is a service name
   b.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);  // a port in use is an error, not shared
   grpc::ResourceQuota quota("bistable-health");
   quota.SetMaxThreads(16);  // watches hold a thread each: bounded
   b.SetResourceQuota(quota);
   std::unique_ptr<grpc::Server> s = b.BuildAndStart();
-  if (!s || *port == 0) return Status::IoError("health", "cannot listen on " + address + " for health checks (in use, or not an address of this host)");
+  if (!s || *port == 0)
+    return Status::IoError(
+        "health", "cannot listen on " + address + " for health checks (in use, or not an address of this host)");
   return s;
 }
 

@@ -33,16 +33,16 @@
 #include "client/embedded_run.h"
 #include "client/hbm_json.h"
 #include "client/identify_command.h"
+#include "client/json_out.h"
 #include "client/map_query.h"
 #include "client/map_source.h"
-#include "client/json_out.h"
 #include "client/poincare_section.h"
 #include "dynamics/cancel.h"
-#include "identify/options.h"
 #include "dynamics/hbm.h"
 #include "dynamics/point.h"
 #include "engine/sweep_spec.h"
 #include "engine/sweep_state.h"
+#include "identify/options.h"
 #include "proto/coordinator_client.h"
 
 namespace py = pybind11;
@@ -72,12 +72,21 @@ py::str Utf8(const std::string& s) {
   PyObject* type = PyExc_RuntimeError;
   switch (st.code()) {
     case Status::Code::kInvalidArgument:
-    case Status::Code::kFailedPrecondition: type = PyExc_ValueError; break;
-    case Status::Code::kNotFound: type = PyExc_LookupError; break;
-    case Status::Code::kIoError: type = PyExc_OSError; break;
+    case Status::Code::kFailedPrecondition:
+      type = PyExc_ValueError;
+      break;
+    case Status::Code::kNotFound:
+      type = PyExc_LookupError;
+      break;
+    case Status::Code::kIoError:
+      type = PyExc_OSError;
+      break;
     case Status::Code::kUnauthenticated:
-    case Status::Code::kPermissionDenied: type = PyExc_PermissionError; break;
-    default: break;
+    case Status::Code::kPermissionDenied:
+      type = PyExc_PermissionError;
+      break;
+    default:
+      break;
   }
   PyErr_SetObject(type, msg.ptr());
   throw py::error_already_set();
@@ -111,8 +120,8 @@ auto Compute(F&& work, bool cancellable = true) -> decltype(work()) {
   std::unique_lock<std::mutex> handler(handler_mutex, std::defer_lock);
   struct sigaction old {};
   bool installed = false;
-  if (cancellable && OnPythonMainThread() && handler.try_lock() &&
-      ::sigaction(SIGINT, nullptr, &old) == 0 && old.sa_handler != SIG_IGN) {
+  if (cancellable && OnPythonMainThread() && handler.try_lock() && ::sigaction(SIGINT, nullptr, &old) == 0 &&
+      old.sa_handler != SIG_IGN) {
     struct sigaction sa {};
     sa.sa_handler = [](int) {
       if (CancelRequested()) {  // the second Ctrl-C: stop now (async-signal-safe calls only)
@@ -153,15 +162,20 @@ auto Compute(F&& work, bool cancellable = true) -> decltype(work()) {
 
 py::object ToPython(const nlohmann::json& j) {
   switch (j.type()) {
-    case nlohmann::json::value_t::null: return py::none();
-    case nlohmann::json::value_t::boolean: return py::bool_(j.get<bool>());
-    case nlohmann::json::value_t::number_integer: return py::int_(j.get<long long>());
-    case nlohmann::json::value_t::number_unsigned: return py::int_(j.get<unsigned long long>());
+    case nlohmann::json::value_t::null:
+      return py::none();
+    case nlohmann::json::value_t::boolean:
+      return py::bool_(j.get<bool>());
+    case nlohmann::json::value_t::number_integer:
+      return py::int_(j.get<long long>());
+    case nlohmann::json::value_t::number_unsigned:
+      return py::int_(j.get<unsigned long long>());
     case nlohmann::json::value_t::number_float: {  // NaN/inf as --json prints them: null
       const double v = j.get<double>();
       return std::isfinite(v) ? py::object(py::float_(v)) : py::object(py::none());
     }
-    case nlohmann::json::value_t::string: return Utf8(j.get_ref<const std::string&>());
+    case nlohmann::json::value_t::string:
+      return Utf8(j.get_ref<const std::string&>());
     case nlohmann::json::value_t::array: {
       py::list l;
       for (const auto& v : j) l.append(ToPython(v));
@@ -172,7 +186,8 @@ py::object ToPython(const nlohmann::json& j) {
       for (const auto& [k, v] : j.items()) d[Utf8(k)] = ToPython(v);
       return d;
     }
-    default: return py::none();
+    default:
+      return py::none();
   }
 }
 
@@ -200,7 +215,8 @@ std::string Shown(const py::handle& v) {
       const py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(v.ptr()));
       if (!i) throw py::error_already_set();
       const long long bits = py::int_(i.attr("bit_length")()).cast<long long>();
-      if (bits > 3300) return "an integer of about " + std::to_string(static_cast<long long>(bits * 0.30103) + 1) + " digits";
+      if (bits > 3300)
+        return "an integer of about " + std::to_string(static_cast<long long>(bits * 0.30103) + 1) + " digits";
       return py::str(i);
     }
     static const py::object& real = *new py::object(py::module_::import("numbers").attr("Real"));  // never destroyed
@@ -236,8 +252,7 @@ double Number(const py::handle& v, const std::string& name) {
   } catch (const py::error_already_set&) {  // an int beyond a double's range: OverflowError in float()
     x = INFINITY;
   }
-  if (!std::isfinite(x))
-    throw py::value_error(name + " = " + Shown(v) + " violates " + name + " finite");
+  if (!std::isfinite(x)) throw py::value_error(name + " = " + Shown(v) + " violates " + name + " finite");
   return x;
 }
 
@@ -265,7 +280,8 @@ int Integer(const py::handle& v, const std::string& name) {
 }
 
 bool Flag(const py::handle& v, const std::string& name) {
-  if (!py::isinstance<py::bool_>(v)) throw py::value_error(name + " = " + Shown(v) + " violates " + name + " True or False");
+  if (!py::isinstance<py::bool_>(v))
+    throw py::value_error(name + " = " + Shown(v) + " violates " + name + " True or False");
   return v.cast<bool>();
 }
 
@@ -296,13 +312,22 @@ PointSpec PointFromKeywords(const py::dict& kw, long* section_limit = nullptr) {
   std::string model = "coupled", integrator = "rk4";
   bool alpha = false, omega = false, t_end = false;
   std::optional<long> periods;
-  std::map<std::string, double*> numbers = {
-      {"alpha", &s.alpha}, {"omega", &s.omega}, {"eps", &s.params.eps}, {"eta", &s.params.eta},
-      {"eta_r", &s.params.eta_r}, {"phi", &s.params.phi}, {"lambda", &s.params.lambda},
-      {"t_end", &s.integration.t_end}, {"t_keep", &s.integration.t_keep}, {"dt", &s.integration.dt},
-      {"rtol", &s.integration.rtol}, {"atol", &s.integration.atol}, {"chaos_threshold", &s.metrics.chaos_threshold},
-      {"poincare_phase", &s.metrics.poincare_phase}};
-  std::map<std::string, int*> integers = {{"renorm_every", &s.metrics.renorm_every}, {"sample_every", &s.metrics.sample_every}};
+  std::map<std::string, double*> numbers = {{"alpha", &s.alpha},
+                                            {"omega", &s.omega},
+                                            {"eps", &s.params.eps},
+                                            {"eta", &s.params.eta},
+                                            {"eta_r", &s.params.eta_r},
+                                            {"phi", &s.params.phi},
+                                            {"lambda", &s.params.lambda},
+                                            {"t_end", &s.integration.t_end},
+                                            {"t_keep", &s.integration.t_keep},
+                                            {"dt", &s.integration.dt},
+                                            {"rtol", &s.integration.rtol},
+                                            {"atol", &s.integration.atol},
+                                            {"chaos_threshold", &s.metrics.chaos_threshold},
+                                            {"poincare_phase", &s.metrics.poincare_phase}};
+  std::map<std::string, int*> integers = {{"renorm_every", &s.metrics.renorm_every},
+                                          {"sample_every", &s.metrics.sample_every}};
   std::vector<std::string> known = {"model", "integrator", "ic", "rosenstein", "poincare_periods"};
   for (const auto& [k, _] : numbers) known.push_back(k);
   for (const auto& [k, _] : integers) known.push_back(k);
@@ -325,7 +350,9 @@ PointSpec PointFromKeywords(const py::dict& kw, long* section_limit = nullptr) {
       if (!py::isinstance<py::sequence>(value) || py::isinstance<py::str>(value))
         throw py::value_error("ic = " + Shown(value) + " violates ic = (ym, vm) or (ym, vm, yr, vr)");
       const auto seq = py::reinterpret_borrow<py::sequence>(value);
-      if (seq.size() != 2 && seq.size() != 4) throw py::value_error("ic has " + std::to_string(seq.size()) + " numbers; violates ic = (ym, vm) or (ym, vm, yr, vr)");
+      if (seq.size() != 2 && seq.size() != 4)
+        throw py::value_error("ic has " + std::to_string(seq.size()) +
+                              " numbers; violates ic = (ym, vm) or (ym, vm, yr, vr)");
       for (size_t i = 0; i < seq.size(); ++i) s.ic[i] = Number(seq[i], "ic[" + std::to_string(i) + "]");
       s.ic_given = true;
     } else {
@@ -338,8 +365,9 @@ PointSpec PointFromKeywords(const py::dict& kw, long* section_limit = nullptr) {
   s.integration.integrator = Unwrap(ParseIntegrator(integrator));
   if (periods) {
     if (t_end)
-      throw py::value_error("t_end excludes poincare_periods (the window is made poincare_periods + 1 forcing periods long): "
-                            "give one of them");
+      throw py::value_error(
+          "t_end excludes poincare_periods (the window is made poincare_periods + 1 forcing periods long): "
+          "give one of them");
     const Status st = SetPoincareWindow(*periods, "poincare_periods", &s);
     if (!st.ok()) Raise(st);
   }
@@ -360,15 +388,18 @@ py::dict SectionDict(const PointSpec& spec, const PointResult& r, long limit) {
     for (size_t c = 0; c < columns.size(); ++c) arrays[c].mutable_at(i) = row[c];
   }
   for (size_t c = 0; c < columns.size(); ++c)
-    out[py::str(columns[c].first)] = columns[c].first == "k" ? py::object(arrays[c].attr("astype")("int64")) : py::object(arrays[c]);
+    out[py::str(columns[c].first)] =
+        columns[c].first == "k" ? py::object(arrays[c].attr("astype")("int64")) : py::object(arrays[c]);
   return out;
 }
 
 py::dict Point(const py::kwargs& kw) {
   py::dict rest = py::reinterpret_borrow<py::dict>(kw).attr("copy")();
   bool spectrum = false, poincare = false;
-  if (rest.contains("spectrum")) spectrum = Flag(rest["spectrum"], "spectrum"), PyDict_DelItemString(rest.ptr(), "spectrum");
-  if (rest.contains("poincare")) poincare = Flag(rest["poincare"], "poincare"), PyDict_DelItemString(rest.ptr(), "poincare");
+  if (rest.contains("spectrum"))
+    spectrum = Flag(rest["spectrum"], "spectrum"), PyDict_DelItemString(rest.ptr(), "spectrum");
+  if (rest.contains("poincare"))
+    poincare = Flag(rest["poincare"], "poincare"), PyDict_DelItemString(rest.ptr(), "poincare");
   long section_limit = 0;
   const PointSpec spec = PointFromKeywords(rest, &section_limit);
   const PointResult r = Unwrap(Compute([&] { return EvaluatePoint(spec); }));
@@ -402,7 +433,8 @@ py::dict Trajectory(const py::kwargs& kw) {
 // spec: TOML text; origin names it in error messages. Returns {"id", "file"}.
 py::dict Run(const std::string& toml, const std::string& origin, const std::string& data, int threads, bool progress) {
   SweepSpec spec = Unwrap(ParseSweepSpec(toml, origin));
-  if (threads < 0 || threads > 1024) throw py::value_error("threads = " + std::to_string(threads) + " violates threads in [0, 1024]");
+  if (threads < 0 || threads > 1024)
+    throw py::value_error("threads = " + std::to_string(threads) + " violates threads in [0, 1024]");
   const int n = threads > 0 ? threads : UsableCpus();  // as `bistable run`
   const std::string path = Unwrap(Compute([&] { return RunEmbeddedSweep(spec, data, n, progress); }));
   py::dict out;
@@ -462,28 +494,43 @@ py::dict Hbm(const py::kwargs& kw) {
   FoldCurveOptions f;
   bool fold_curve = false;
   std::string model = "standalone", param = "omega";
-  std::map<std::string, double*> numbers = {{"start", &o.from}, {"stop", &o.to}, {"alpha", &o.alpha}, {"omega", &o.omega},
-                                           {"eps", &o.params.eps}, {"eta", &o.params.eta}, {"eta_r", &o.params.eta_r},
-                                           {"phi", &o.params.phi}, {"lambda", &o.params.lambda}, {"ds", &o.ds}};
-  std::vector<std::string> known = {"model", "param", "harmonics", "zero_mean", "switch_pd", "fold_curve", "alpha_range", "omega_range"};
+  std::map<std::string, double*> numbers = {
+      {"start", &o.from},           {"stop", &o.to},        {"alpha", &o.alpha},        {"omega", &o.omega},
+      {"eps", &o.params.eps},       {"eta", &o.params.eta}, {"eta_r", &o.params.eta_r}, {"phi", &o.params.phi},
+      {"lambda", &o.params.lambda}, {"ds", &o.ds}};
+  std::vector<std::string> known = {"model",     "param",      "harmonics",   "zero_mean",
+                                    "switch_pd", "fold_curve", "alpha_range", "omega_range"};
   for (const auto& [k, _] : numbers) known.push_back(k);
   for (const auto& [key, value] : kw) {
     const std::string k = py::str(key);
-    if (auto it = numbers.find(k); it != numbers.end()) *it->second = Number(value, k);
-    else if (k == "model") model = Text(value, k);
-    else if (k == "param") param = Text(value, k);
-    else if (k == "harmonics") o.harmonics = Integer(value, k);
-    else if (k == "switch_pd") o.switch_depth = Integer(value, k);
-    else if (k == "zero_mean") o.zero_mean = Flag(value, k);
-    else if (k == "fold_curve") fold_curve = Flag(value, k);
-    else if (k == "alpha_range") Range(value, k, &f.alpha_lo, &f.alpha_hi);
-    else if (k == "omega_range") Range(value, k, &f.omega_lo, &f.omega_hi);
-    else UnknownKeyword(k, known);
+    if (auto it = numbers.find(k); it != numbers.end())
+      *it->second = Number(value, k);
+    else if (k == "model")
+      model = Text(value, k);
+    else if (k == "param")
+      param = Text(value, k);
+    else if (k == "harmonics")
+      o.harmonics = Integer(value, k);
+    else if (k == "switch_pd")
+      o.switch_depth = Integer(value, k);
+    else if (k == "zero_mean")
+      o.zero_mean = Flag(value, k);
+    else if (k == "fold_curve")
+      fold_curve = Flag(value, k);
+    else if (k == "alpha_range")
+      Range(value, k, &f.alpha_lo, &f.alpha_hi);
+    else if (k == "omega_range")
+      Range(value, k, &f.omega_lo, &f.omega_hi);
+    else
+      UnknownKeyword(k, known);
   }
   o.model = Unwrap(ParseModel(model));
-  if (param == "omega") o.param = ContinuationParam::kOmega;
-  else if (param == "alpha") o.param = ContinuationParam::kAlpha;
-  else throw py::value_error("param = '" + param + "' violates param in {omega, alpha}");
+  if (param == "omega")
+    o.param = ContinuationParam::kOmega;
+  else if (param == "alpha")
+    o.param = ContinuationParam::kAlpha;
+  else
+    throw py::value_error("param = '" + param + "' violates param in {omega, alpha}");
   if (const Status st = ValidateFoldCurveOptions(f); !st.ok()) Raise(st);  // as `hbm`: the ranges are checked always
   // `hbm --fold-curve`'s two steps: the branches, then the fold curves through their folds.
   auto [branches_or, curves_or] = Compute([&] {
@@ -505,7 +552,8 @@ py::dict Hbm(const py::kwargs& kw) {
     auto H = harm.mutable_unchecked<2>();
     for (size_t i = 0; i < n; ++i) {
       const HbmPoint& p = b.points[i];
-      om.mutable_at(i) = p.omega, al.mutable_at(i) = p.alpha, amp.mutable_at(i) = p.amplitude, mean.mutable_at(i) = p.mean;
+      om.mutable_at(i) = p.omega, al.mutable_at(i) = p.alpha, amp.mutable_at(i) = p.amplitude,
+      mean.mutable_at(i) = p.mean;
       mu.mutable_at(i) = p.max_multiplier, stable.mutable_at(i) = p.stable, fold.mutable_at(i) = p.fold;
       bp.mutable_at(i) = p.branch_point, conv.mutable_at(i) = p.converged;
       pd.mutable_at(i) = p.period_doubling, ns.mutable_at(i) = p.neimark_sacker;
@@ -524,10 +572,13 @@ py::dict Hbm(const py::kwargs& kw) {
     branches.append(d);
   }
   py::dict settings;
-  settings["model"] = ModelName(o.model), settings["param"] = param, settings["start"] = o.from, settings["stop"] = o.to;
-  settings["alpha"] = o.alpha, settings["omega"] = o.omega, settings["harmonics"] = o.harmonics, settings["zero_mean"] = o.zero_mean;
+  settings["model"] = ModelName(o.model), settings["param"] = param, settings["start"] = o.from,
+  settings["stop"] = o.to;
+  settings["alpha"] = o.alpha, settings["omega"] = o.omega, settings["harmonics"] = o.harmonics,
+  settings["zero_mean"] = o.zero_mean;
   settings["eps"] = o.params.eps, settings["eta"] = o.params.eta;
-  if (HasResonator(o.model)) settings["eta_r"] = o.params.eta_r, settings["phi"] = o.params.phi, settings["lambda"] = o.params.lambda;
+  if (HasResonator(o.model))
+    settings["eta_r"] = o.params.eta_r, settings["phi"] = o.params.phi, settings["lambda"] = o.params.lambda;
   settings["numerics_version"] = kNumericsVersion;
   py::dict out;
   out["branches"] = branches;
@@ -571,7 +622,8 @@ py::object IdentifyArgs(const std::vector<std::string>& args) {
 std::vector<std::string> TermList(const py::handle& v, const std::string& name) {
   if (py::isinstance<py::str>(v)) return identify::SplitTerms(v.cast<std::string>());
   if (!py::isinstance<py::list>(v) && !py::isinstance<py::tuple>(v))
-    throw py::value_error(name + " = " + Shown(v) + " violates " + name + " a string of comma-separated term ids or a list of them");
+    throw py::value_error(name + " = " + Shown(v) + " violates " + name +
+                          " a string of comma-separated term ids or a list of them");
   std::vector<std::string> out;
   for (const py::handle& t : py::reinterpret_borrow<py::sequence>(v)) out.push_back(Text(t, name + "[]"));
   return out;
@@ -593,7 +645,8 @@ identify::SampleRange Range(const py::handle& v, const std::string& name) {
     if (x.is_none()) return none;
     const std::optional<long long> i = IndexValue(x, name);
     if (!i || *i < 0 || *i > limits::kMaxDataRows)
-      throw py::value_error(name + " = " + Shown(v) + " violates 0 <= " + name + " <= " + std::to_string(limits::kMaxDataRows));
+      throw py::value_error(name + " = " + Shown(v) + " violates 0 <= " + name +
+                            " <= " + std::to_string(limits::kMaxDataRows));
     return static_cast<size_t>(*i);
   };
   return {side(seq[0], 0), side(seq[1], SIZE_MAX)};
@@ -603,15 +656,18 @@ identify::SampleRange Range(const py::handle& v, const std::string& name) {
 // typed values, no command-line text. *report gets `report` (a directory, "" none).
 identify::Options IdentifyOptionsFromKeywords(const py::dict& kw, std::string* report) {
   identify::Options o;
-  std::map<std::string, double*> numbers = {{"input_scale", &o.input_scale}, {"output_scale", &o.output_scale},
-                                            {"output2_scale", &o.output2_scale}, {"max_seconds", &o.max_seconds},
-                                            {"deriv_cutoff", &o.deriv_cutoff}, {"drift_cutoff", &o.drift_cutoff},
-                                            {"horizon", &o.horizon}};
-  std::map<std::string, int*> integers = {{"decimate", &o.decimate}, {"global_evals", &o.global_evals},
-                                          {"lm_iterations", &o.lm_iterations}, {"max_added", &o.max_added}, {"threads", &o.threads}};
-  std::vector<std::string> known = {"terms", "candidates", "known", "guess", "columns", "input_kind", "output_kind",
-                                    "output_frame", "output2_kind", "objective", "output_weights", "fit_offsets", "range",
-                                    "test_range", "report"};
+  std::map<std::string, double*> numbers = {
+      {"input_scale", &o.input_scale}, {"output_scale", &o.output_scale}, {"output2_scale", &o.output2_scale},
+      {"max_seconds", &o.max_seconds}, {"deriv_cutoff", &o.deriv_cutoff}, {"drift_cutoff", &o.drift_cutoff},
+      {"horizon", &o.horizon}};
+  std::map<std::string, int*> integers = {{"decimate", &o.decimate},
+                                          {"global_evals", &o.global_evals},
+                                          {"lm_iterations", &o.lm_iterations},
+                                          {"max_added", &o.max_added},
+                                          {"threads", &o.threads}};
+  std::vector<std::string> known = {"terms",          "candidates",  "known",        "guess",        "columns",
+                                    "input_kind",     "output_kind", "output_frame", "output2_kind", "objective",
+                                    "output_weights", "fit_offsets", "range",        "test_range",   "report"};
   for (const auto& [k, _] : numbers) known.push_back(k);
   for (const auto& [k, _] : integers) known.push_back(k);
   for (const auto& [key, value] : kw) {
@@ -632,7 +688,8 @@ identify::Options IdentifyOptionsFromKeywords(const py::dict& kw, std::string* r
         if (!st.ok()) Raise(st);
       }
     } else if (k == "guess") {
-      for (const auto& [name, v] : Dict(value, k)) o.guesses[py::str(name)] = Number(v, "guess." + std::string(py::str(name)));
+      for (const auto& [name, v] : Dict(value, k))
+        o.guesses[py::str(name)] = Number(v, "guess." + std::string(py::str(name)));
     } else if (k == "columns") {
       for (const auto& [role, v] : Dict(value, k)) {
         const std::string r = py::str(role);
@@ -661,9 +718,10 @@ identify::Options IdentifyOptionsFromKeywords(const py::dict& kw, std::string* r
     } else if (k == "range") {
       o.range = Range(value, k);
     } else if (k == "test_range") {  // one range, or a list of them
-      const bool one = py::isinstance<py::str>(value) ||
-                       (py::isinstance<py::tuple>(value) && py::len(value) == 2 && !py::isinstance<py::str>(py::reinterpret_borrow<py::tuple>(value)[0]) &&
-                        !py::isinstance<py::tuple>(py::reinterpret_borrow<py::tuple>(value)[0]));
+      const bool one =
+          py::isinstance<py::str>(value) || (py::isinstance<py::tuple>(value) && py::len(value) == 2 &&
+                                             !py::isinstance<py::str>(py::reinterpret_borrow<py::tuple>(value)[0]) &&
+                                             !py::isinstance<py::tuple>(py::reinterpret_borrow<py::tuple>(value)[0]));
       if (one) {
         o.test_ranges.push_back(Range(value, k));
       } else {
@@ -686,8 +744,10 @@ identify::Options IdentifyOptionsFromKeywords(const py::dict& kw, std::string* r
 py::object IdentifyFit(const py::list& data, const py::dict& kw) {
   std::vector<std::string> paths;
   for (const py::handle& p : data) {
-    if (py::isinstance<py::bytes>(p)) paths.push_back(p.cast<std::string>());
-    else paths.push_back(Text(p, "data"));
+    if (py::isinstance<py::bytes>(p))
+      paths.push_back(p.cast<std::string>());
+    else
+      paths.push_back(Text(p, "data"));
   }
   std::string report;
   const identify::Options o = IdentifyOptionsFromKeywords(kw, &report);
@@ -703,14 +763,17 @@ class PyClient {
   py::object Submit(const std::string& toml, const std::string& origin) {
     return ToPython(SubmittedJson(Unwrap(Compute([&] { return c_->Submit(toml, origin); }, false))));
   }
-  py::object Status(const std::string& id) { return ToPython(SweepStatusJson(Unwrap(Compute([&] { return c_->GetStatus(id); }, false)))); }
+  py::object Status(const std::string& id) {
+    return ToPython(SweepStatusJson(Unwrap(Compute([&] { return c_->GetStatus(id); }, false))));
+  }
   // Until the sweep is final, or `timeout` seconds (< 0: no limit) pass: its last status.
   py::object Wait(const std::string& id, double timeout) {
     const auto start = std::chrono::steady_clock::now();
     auto last = Compute([&] {
       return c_->Watch(id, [&](const SweepInfo&) {
         return !CancelRequested() &&
-               (timeout < 0 || std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() < timeout);
+               (timeout < 0 ||
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() < timeout);
       });
     });
     return ToPython(SweepStatusJson(Unwrap(std::move(last))));
@@ -758,8 +821,8 @@ PYBIND11_MODULE(_core, m) {
   m.def("identify_args", &IdentifyArgs, py::arg("args"));
   m.def("identify_terms", [] { return ToPython(IdentifyTermsJson()); });
   py::class_<PyClient>(m, "Client")
-      .def(py::init<const std::string&, const std::string&, const std::string&, bool>(), py::arg("address"), py::arg("token"),
-           py::arg("tls_ca"), py::arg("insecure_remote"))
+      .def(py::init<const std::string&, const std::string&, const std::string&, bool>(), py::arg("address"),
+           py::arg("token"), py::arg("tls_ca"), py::arg("insecure_remote"))
       .def("submit", &PyClient::Submit)
       .def("status", &PyClient::Status)
       .def("wait", &PyClient::Wait)

@@ -5,7 +5,7 @@ set -euo pipefail
 
 PACKAGES=(
   # toolchain
-  build-essential cmake ninja-build ccache pkg-config git
+  build-essential cmake ninja-build ccache pkg-config git clang-format
   # numerics and utilities (dynamics/, engine/, identify/)
   libeigen3-dev libnanoflann-dev libxxhash-dev nlohmann-json3-dev libcli11-dev libtomlplusplus-dev libspdlog-dev
   libceres-dev libnlopt-dev libnlopt-cxx-dev

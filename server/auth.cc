@@ -13,7 +13,6 @@
 
 namespace bistable {
 
-
 std::string NewToken() {
   std::random_device rd;  // /dev/urandom
   std::string t;
@@ -24,18 +23,25 @@ std::string NewToken() {
 
 Status CheckTokenName(const std::string& name, const std::string& field) {
   // The name is an owner in the index and in log lines: visible ASCII only (never echoed as given).
-  if (name.size() > 64 || name.find(':') != std::string::npos ||
-      std::any_of(name.begin(), name.end(), [](char c) { return static_cast<unsigned char>(c) < 0x21 || static_cast<unsigned char>(c) > 0x7e; }))
-    return Status::InvalidArgument(field, "name '" + Printable(name, 64) + "' violates name: at most 64 visible ASCII characters (0x21-0x7e) without ':'");
+  if (name.size() > 64 || name.find(':') != std::string::npos || std::any_of(name.begin(), name.end(), [](char c) {
+        return static_cast<unsigned char>(c) < 0x21 || static_cast<unsigned char>(c) > 0x7e;
+      }))
+    return Status::InvalidArgument(field,
+                                   "name '" + Printable(name, 64) +
+                                       "' violates name: at most 64 visible ASCII characters (0x21-0x7e) without ':'");
   return Status::Ok();
 }
 
 const char* RoleName(Role r) {
   switch (r) {
-    case Role::kViewer: return "viewer";
-    case Role::kClient: return "client";
-    case Role::kWorker: return "worker";
-    case Role::kAdmin: return "admin";
+    case Role::kViewer:
+      return "viewer";
+    case Role::kClient:
+      return "client";
+    case Role::kWorker:
+      return "worker";
+    case Role::kAdmin:
+      return "admin";
   }
   return "?";
 }
@@ -57,15 +63,24 @@ StatusOr<TokenStore> TokenStore::Load(const std::string& path) {
     ss >> digest >> name;
     const std::string where = "tokens file line " + std::to_string(n);
     Role r;
-    if (role == "viewer") r = Role::kViewer;
-    else if (role == "client") r = Role::kClient;
-    else if (role == "worker") r = Role::kWorker;
-    else if (role == "admin") r = Role::kAdmin;
-    else return Status::InvalidArgument("tokens", where + ": role '" + role + "' violates role in {viewer, client, worker, admin}");
+    if (role == "viewer")
+      r = Role::kViewer;
+    else if (role == "client")
+      r = Role::kClient;
+    else if (role == "worker")
+      r = Role::kWorker;
+    else if (role == "admin")
+      r = Role::kAdmin;
+    else
+      return Status::InvalidArgument("tokens",
+                                     where + ": role '" + role + "' violates role in {viewer, client, worker, admin}");
     if (digest.size() != 64 || digest.find_first_not_of("0123456789abcdef") != std::string::npos)
-      return Status::InvalidArgument("tokens", where + ": expected the token's SHA-256 as 64 lowercase hex digits "
-                                               "(`bistable token --role " + role + "` prints such a line)");
-    if (Status st = CheckTokenName(name, "tokens"); !st.ok()) return Status::InvalidArgument("tokens", where + ": " + st.message());
+      return Status::InvalidArgument("tokens", where +
+                                                   ": expected the token's SHA-256 as 64 lowercase hex digits "
+                                                   "(`bistable token --role " +
+                                                   role + "` prints such a line)");
+    if (Status st = CheckTokenName(name, "tokens"); !st.ok())
+      return Status::InvalidArgument("tokens", where + ": " + st.message());
     store.by_hash_[digest] = {r, name.empty() ? "token:" + digest.substr(0, 12) : name};
   }
   if (store.by_hash_.empty()) return Status::InvalidArgument("tokens", "tokens file '" + path + "' holds no tokens");
@@ -76,13 +91,14 @@ StatusOr<TokenStore> TokenStore::Load(const std::string& path) {
     std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
     if (st.st_mode & S_IWOTH)
       return Status::InvalidArgument("tokens", "tokens file '" + path + "' has mode " + mode +
-                                                   ": every user may write it (and add an admin token); chmod 600 '" + path +
-                                                   "' (640 for a group that reads it)");
+                                                   ": every user may write it (and add an admin token); chmod 600 '" +
+                                                   path + "' (640 for a group that reads it)");
     if (st.st_mode & (S_IWGRP | S_IROTH)) {
       store.lax_mode_ = mode;
       store.lax_reason_ = std::string(st.st_mode & S_IWGRP ? "the group may write it" : "") +
                           (st.st_mode & S_IWGRP && st.st_mode & S_IROTH ? " and " : "") +
-                          (st.st_mode & S_IROTH ? "every user may read it" : "") + "; chmod 600 (640 for a group that reads it)";
+                          (st.st_mode & S_IROTH ? "every user may read it" : "") +
+                          "; chmod 600 (640 for a group that reads it)";
     }
   }
   return store;
@@ -111,12 +127,12 @@ Status TokenStore::CheckToken(const std::string& token, Op op, std::string* who,
   const Role r = e->second.role;
   if (role) *role = r;
   if (r == Role::kAdmin) return Status::Ok();
-  const bool worker_op = op == Op::kRegister || op == Op::kLease || op == Op::kHeartbeat || op == Op::kReport || op == Op::kRelease;
+  const bool worker_op =
+      op == Op::kRegister || op == Op::kLease || op == Op::kHeartbeat || op == Op::kReport || op == Op::kRelease;
   const bool read_op = op == Op::kStatus || op == Op::kList || op == Op::kMap || op == Op::kWorkers;
   if (r == Role::kViewer ? !read_op : worker_op != (r == Role::kWorker))
     return Status::PermissionDenied(std::string("a ") + RoleName(r) + " token may not make this call");
   return Status::Ok();
 }
-
 
 }  // namespace bistable

@@ -64,7 +64,6 @@ const char* RoleName(Role r);
 // characters without ':' — it is an owner in the index and in log lines. InvalidArgument(`field`).
 Status CheckTokenName(const std::string& name, const std::string& field);
 
-
 }  // namespace bistable
 
 #endif  // BISTABLE_SERVER_AUTH_H_

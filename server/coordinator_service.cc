@@ -10,8 +10,8 @@
 
 #include "base/limits.h"
 #include "base/log.h"
-#include "base/sha256.h"
 #include "base/names.h"
+#include "base/sha256.h"
 #include "engine/evaluate.h"
 #include "proto/convert.h"
 #include "proto/status_convert.h"
@@ -55,7 +55,8 @@ constexpr int kRefusalLogsPerSecond = 20;
 Status CheckWorkerName(const std::string& name) {
   if (name.empty()) return Status::InvalidArgument("worker", "worker name is empty");
   if (name.size() > limits::kMaxWorkerNameBytes)
-    return Status::InvalidArgument("worker", "worker name is " + std::to_string(name.size()) + " bytes, over the limit of " +
+    return Status::InvalidArgument("worker", "worker name is " + std::to_string(name.size()) +
+                                                 " bytes, over the limit of " +
                                                  std::to_string(limits::kMaxWorkerNameBytes));
   for (char c : name)
     if (c < 0x21 || c > 0x7e)
@@ -65,10 +66,10 @@ Status CheckWorkerName(const std::string& name) {
 
 Status CheckLeaseId(const std::string& id) {
   if (id.empty() || id.size() > limits::kMaxIdBytes)
-    return Status::InvalidArgument("lease_id", "lease_id must be 1 to " + std::to_string(limits::kMaxIdBytes) + " bytes");
+    return Status::InvalidArgument("lease_id",
+                                   "lease_id must be 1 to " + std::to_string(limits::kMaxIdBytes) + " bytes");
   return Status::Ok();
 }
-
 
 }  // namespace
 
@@ -77,10 +78,12 @@ grpc::Status CoordinatorService::Answer(const grpc::ServerContext* ctx, const ch
   grpc::Status g = ToGrpcStatus(st);
   const char* code = GrpcCodeName(g.error_code());
   if (metrics_) metrics_->CountRefusal(method, code);
-  const bool auth = g.error_code() == grpc::StatusCode::UNAUTHENTICATED || g.error_code() == grpc::StatusCode::PERMISSION_DENIED;
+  const bool auth =
+      g.error_code() == grpc::StatusCode::UNAUTHENTICATED || g.error_code() == grpc::StatusCode::PERMISSION_DENIED;
   const log::Level level = auth ? log::Level::kWarn : log::Level::kInfo;
   if (!log::Enabled(level)) return g;
-  const long long second = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  const long long second =
+      std::chrono::duration_cast<std::chrono::seconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
   long long suppressed = 0;
   {
     std::lock_guard<std::mutex> lock(refusal_log_mu_);
@@ -93,7 +96,11 @@ grpc::Status CoordinatorService::Answer(const grpc::ServerContext* ctx, const ch
   }
   // The reason is the answer the caller gets (it never holds a token); the peer is the transport's address.
   log::Event(level, "call.refused",
-             {{"method", method}, {"code", code}, {"peer", ctx->peer()}, {"reason", g.error_message()}, {"suppressed", suppressed}});
+             {{"method", method},
+              {"code", code},
+              {"peer", ctx->peer()},
+              {"reason", g.error_message()},
+              {"suppressed", suppressed}});
   return g;
 }
 
@@ -104,7 +111,8 @@ StatusOr<std::pair<std::string, std::string>> CoordinatorService::PublishedMap(c
   auto info = c_->Info(*id);
   if (!info.ok()) return info.status();
   if (info->file.empty())
-    return Status::FailedPrecondition("sweep " + *id + " has no published map yet (state " + SweepStateName(info->state) + ")");
+    return Status::FailedPrecondition("sweep " + *id + " has no published map yet (state " +
+                                      SweepStateName(info->state) + ")");
   return std::make_pair(*id, (std::filesystem::path(c_->data_dir()) / info->file).string());
 }
 
@@ -126,7 +134,8 @@ StatusOr<SpecText> CoordinatorService::KeyedSpec(const std::string& sweep_id) {
   auto it = spec_keys_.find(sweep_id);
   if (it == spec_keys_.end() || it->second.spec_toml != *text) {
     // At most kMaxKnownSpecs texts kept (an active sweep's key is computed again when it was pushed out).
-    if (it == spec_keys_.end() && spec_keys_.size() >= static_cast<size_t>(limits::kMaxKnownSpecs)) spec_keys_.erase(spec_keys_.begin());
+    if (it == spec_keys_.end() && spec_keys_.size() >= static_cast<size_t>(limits::kMaxKnownSpecs))
+      spec_keys_.erase(spec_keys_.begin());
     SpecText keyed{sweep_id, std::move(*text), ""};
     keyed.spec_key = SpecKey(keyed.spec_toml);
     it = spec_keys_.insert_or_assign(sweep_id, std::move(keyed)).first;
@@ -137,10 +146,11 @@ StatusOr<SpecText> CoordinatorService::KeyedSpec(const std::string& sweep_id) {
 grpc::Status CoordinatorService::Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitReply* rep) {
   return Serve(ctx, "Submit", Op::kSubmit, [&](const Caller& caller) -> Status {
     if (req->spec_toml().size() > limits::kMaxSpecBytes)
-      return Status::InvalidArgument("spec", "spec is " + std::to_string(req->spec_toml().size()) + " bytes, over the limit of " +
-                                                 std::to_string(limits::kMaxSpecBytes));
+      return Status::InvalidArgument("spec", "spec is " + std::to_string(req->spec_toml().size()) +
+                                                 " bytes, over the limit of " + std::to_string(limits::kMaxSpecBytes));
     // The origin only names the spec in messages: bounded, printable, never a path that is opened.
-    const std::string origin = req->origin().empty() ? "submitted spec" : Printable(req->origin(), limits::kMaxNameBytes);
+    const std::string origin =
+        req->origin().empty() ? "submitted spec" : Printable(req->origin(), limits::kMaxNameBytes);
     auto spec = ParseSweepSpec(req->spec_toml(), origin);
     if (!spec.ok()) return spec.status();
     // Jobs of about job_seconds of work on one core, at least 64 per sweep (the last jobs balance).
@@ -152,7 +162,8 @@ grpc::Status CoordinatorService::Submit(grpc::ServerContext* ctx, const v1::Subm
   });
 }
 
-grpc::Status CoordinatorService::GetStatus(grpc::ServerContext* ctx, const v1::StatusRequest* req, v1::SweepStatus* rep) {
+grpc::Status CoordinatorService::GetStatus(grpc::ServerContext* ctx, const v1::StatusRequest* req,
+                                           v1::SweepStatus* rep) {
   return Serve(ctx, "GetStatus", Op::kStatus, [&](const Caller&) -> Status {
     auto id = c_->ResolveId(req->id());
     if (!id.ok()) return id.status();
@@ -184,7 +195,8 @@ grpc::Status CoordinatorService::WatchStatus(grpc::ServerContext* ctx, const v1:
     }
     // Ended by a shutdown, not by the sweep: the watcher must not take the last status for the end.
     if (shutting_down_ && !ctx->IsCancelled())
-      return grpc::Status(grpc::StatusCode::UNAVAILABLE, "the coordinator is shutting down; the sweep goes on when it restarts");
+      return grpc::Status(grpc::StatusCode::UNAVAILABLE,
+                          "the coordinator is shutting down; the sweep goes on when it restarts");
     return grpc::Status::OK;
   });
 }
@@ -203,7 +215,8 @@ grpc::Status CoordinatorService::Cancel(grpc::ServerContext* ctx, const v1::Canc
   });
 }
 
-grpc::Status CoordinatorService::ListSweeps(grpc::ServerContext* ctx, const v1::ListSweepsRequest*, v1::ListSweepsReply* rep) {
+grpc::Status CoordinatorService::ListSweeps(grpc::ServerContext* ctx, const v1::ListSweepsRequest*,
+                                            v1::ListSweepsReply* rep) {
   return Serve(ctx, "ListSweeps", Op::kList, [&](const Caller&) -> Status {
     auto infos = c_->ListSweeps();
     if (!infos.ok()) return infos.status();
@@ -224,7 +237,8 @@ grpc::Status CoordinatorService::GetMap(grpc::ServerContext* ctx, const v1::MapR
   });
 }
 
-grpc::Status CoordinatorService::ListMetrics(grpc::ServerContext* ctx, const v1::MapRequest* req, v1::MetricsReply* rep) {
+grpc::Status CoordinatorService::ListMetrics(grpc::ServerContext* ctx, const v1::MapRequest* req,
+                                             v1::MetricsReply* rep) {
   return Serve(ctx, "ListMetrics", Op::kMap, [&](const Caller&) -> Status {
     auto map = PublishedMap(req->id());
     if (!map.ok()) return map.status();
@@ -236,11 +250,15 @@ grpc::Status CoordinatorService::ListMetrics(grpc::ServerContext* ctx, const v1:
   });
 }
 
-grpc::Status CoordinatorService::RegisterWorker(grpc::ServerContext* ctx, const v1::RegisterRequest* req, v1::RegisterReply* rep) {
+grpc::Status CoordinatorService::RegisterWorker(grpc::ServerContext* ctx, const v1::RegisterRequest* req,
+                                                v1::RegisterReply* rep) {
   return Serve(ctx, "RegisterWorker", Op::kRegister, [&](const Caller& caller) -> Status {
     BISTABLE_RETURN_IF_ERROR(CheckWorkerName(req->name()));
     log::Event(log::Level::kInfo, "worker.registered",
-               {{"worker", req->name()}, {"threads", static_cast<long long>(req->threads())}, {"peer", ctx->peer()}, {"identity", caller.who}});
+               {{"worker", req->name()},
+                {"threads", static_cast<long long>(req->threads())},
+                {"peer", ctx->peer()},
+                {"identity", caller.who}});
     rep->set_lease_seconds(lease_seconds_);
     return Status::Ok();
   });
@@ -254,8 +272,8 @@ grpc::Status CoordinatorService::Lease(grpc::ServerContext* ctx, const v1::Lease
   });
 }
 
-Status CoordinatorService::LeaseInto(const std::string& worker, const std::string& who, v1::LeaseReply* rep, int max_jobs,
-                                     const std::vector<std::string>& known_specs) {
+Status CoordinatorService::LeaseInto(const std::string& worker, const std::string& who, v1::LeaseReply* rep,
+                                     int max_jobs, const std::vector<std::string>& known_specs) {
   BISTABLE_RETURN_IF_ERROR(CheckWorkerName(worker));
   if (max_jobs < 0 || max_jobs > static_cast<int>(limits::kMaxJobsPerLease))
     return Status::InvalidArgument("max_jobs", "max_jobs = " + std::to_string(max_jobs) + " violates max_jobs in [0, " +
@@ -270,8 +288,8 @@ Status CoordinatorService::LeaseInto(const std::string& worker, const std::strin
   if (!spec.ok()) return spec.status();
   // The text travels only to a worker that does not name its key (an old worker names none).
   const bool held = std::find(known_specs.begin(), known_specs.end(), spec->spec_key) != known_specs.end();
-  ToProto(LeasedWork{g->lease_id, g->sweep_id, g->job_id, held ? std::string() : std::move(spec->spec_toml), spec->spec_key,
-                     std::move(g->items), g->deadline},
+  ToProto(LeasedWork{g->lease_id, g->sweep_id, g->job_id, held ? std::string() : std::move(spec->spec_toml),
+                     spec->spec_key, std::move(g->items), g->deadline},
           rep);
   return Status::Ok();
 }
@@ -281,7 +299,8 @@ grpc::Status CoordinatorService::GetSpec(grpc::ServerContext* ctx, const v1::Spe
     // A whole sweep id, as a lease names it (no prefixes: a worker never guesses).
     if (req->sweep_id().empty() || req->sweep_id().size() > limits::kMaxIdBytes ||
         req->sweep_id().find_first_not_of("0123456789abcdef") != std::string::npos)
-      return Status::InvalidArgument("sweep_id", "sweep_id must be 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
+      return Status::InvalidArgument(
+          "sweep_id", "sweep_id must be 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
     auto spec = KeyedSpec(req->sweep_id());
     if (!spec.ok()) return spec.status();
     ToProto(*spec, rep);
@@ -289,7 +308,8 @@ grpc::Status CoordinatorService::GetSpec(grpc::ServerContext* ctx, const v1::Spe
   });
 }
 
-grpc::Status CoordinatorService::Heartbeat(grpc::ServerContext* ctx, const v1::HeartbeatRequest* req, v1::HeartbeatReply*) {
+grpc::Status CoordinatorService::Heartbeat(grpc::ServerContext* ctx, const v1::HeartbeatRequest* req,
+                                           v1::HeartbeatReply*) {
   return Serve(ctx, "Heartbeat", Op::kHeartbeat, [&](const Caller& caller) -> Status {
     BISTABLE_RETURN_IF_ERROR(CheckLeaseId(req->lease_id()));
     return c_->Extend(req->lease_id(), caller.who);
@@ -317,11 +337,12 @@ grpc::Status CoordinatorService::Report(grpc::ServerContext* ctx, const v1::Repo
     if (!known.ok()) return known.status();
     // The coordinator checks the lease, its job's size and layout and every value's domain before it
     // copies anything out of the request.
-    BISTABLE_RETURN_IF_ERROR(
-        c_->Report(req->lease_id(), req->record_width(), req->values().data(), static_cast<size_t>(req->values_size()), who));
+    BISTABLE_RETURN_IF_ERROR(c_->Report(req->lease_id(), req->record_width(), req->values().data(),
+                                        static_cast<size_t>(req->values_size()), who));
     if (req->lease_next_for().empty()) return Status::Ok();
     // The report is stored; a failure to lease now is not the report's failure (the worker polls).
-    if (Status st = LeaseInto(req->lease_next_for(), who, rep->mutable_next(), req->next_max_jobs(), *known); !st.ok()) {
+    if (Status st = LeaseInto(req->lease_next_for(), who, rep->mutable_next(), req->next_max_jobs(), *known);
+        !st.ok()) {
       rep->mutable_next()->Clear();
       rep->mutable_next()->set_has_job(false);
     }
@@ -336,7 +357,8 @@ grpc::Status CoordinatorService::Release(grpc::ServerContext* ctx, const v1::Rel
   });
 }
 
-grpc::Status CoordinatorService::ListWorkers(grpc::ServerContext* ctx, const v1::ListWorkersRequest*, v1::ListWorkersReply* rep) {
+grpc::Status CoordinatorService::ListWorkers(grpc::ServerContext* ctx, const v1::ListWorkersRequest*,
+                                             v1::ListWorkersReply* rep) {
   return Serve(ctx, "ListWorkers", Op::kWorkers, [&](const Caller&) -> Status {
     for (const WorkerInfo& w : c_->Workers()) ToProto(w, rep->add_workers());
     return Status::Ok();
@@ -368,7 +390,8 @@ grpc::Status CoordinatorService::FetchMap(grpc::ServerContext* ctx, const v1::Fe
       std::string digest;
       if (last) {
         if (offset != total)
-          return Answer(ctx, "FetchMap", Status::IoError("map", "the map of sweep " + map->first + " changed size while read"));
+          return Answer(ctx, "FetchMap",
+                        Status::IoError("map", "the map of sweep " + map->first + " changed size while read"));
         digest = sha.HexDigest();
       }
       v1::FileChunk chunk;
@@ -377,7 +400,10 @@ grpc::Status CoordinatorService::FetchMap(grpc::ServerContext* ctx, const v1::Fe
       if (last) break;
     }
     log::Event(log::Level::kInfo, "map.fetched",
-               {{"sweep", map->first}, {"bytes", static_cast<long long>(total)}, {"identity", caller.who}, {"peer", ctx->peer()},
+               {{"sweep", map->first},
+                {"bytes", static_cast<long long>(total)},
+                {"identity", caller.who},
+                {"peer", ctx->peer()},
                 {"ms", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count()}});
     return grpc::Status::OK;
   });

@@ -34,7 +34,10 @@ class CoordinatorService final : public v1::Coordinator::Service {
   // maps: the published maps' cache to share (with the dashboard); none: one of its own.
   CoordinatorService(SweepCoordinator* c, double lease_seconds, double job_seconds = 2.0, TokenStore tokens = {},
                      std::shared_ptr<MapCache> maps = nullptr)
-      : c_(c), lease_seconds_(lease_seconds), job_seconds_(job_seconds), tokens_(std::move(tokens)),
+      : c_(c),
+        lease_seconds_(lease_seconds),
+        job_seconds_(job_seconds),
+        tokens_(std::move(tokens)),
         maps_(maps ? std::move(maps) : std::make_shared<MapCache>()) {}
   void Shutdown() { shutting_down_ = true; }
   // Metrics to feed (report latency, refusals); optional, not owned.
@@ -42,7 +45,8 @@ class CoordinatorService final : public v1::Coordinator::Service {
 
   grpc::Status Submit(grpc::ServerContext*, const v1::SubmitRequest*, v1::SubmitReply*) override;
   grpc::Status GetStatus(grpc::ServerContext*, const v1::StatusRequest*, v1::SweepStatus*) override;
-  grpc::Status WatchStatus(grpc::ServerContext*, const v1::StatusRequest*, grpc::ServerWriter<v1::SweepStatus>*) override;
+  grpc::Status WatchStatus(grpc::ServerContext*, const v1::StatusRequest*,
+                           grpc::ServerWriter<v1::SweepStatus>*) override;
   grpc::Status Cancel(grpc::ServerContext*, const v1::CancelRequest*, v1::CancelReply*) override;
   grpc::Status ListSweeps(grpc::ServerContext*, const v1::ListSweepsRequest*, v1::ListSweepsReply*) override;
   grpc::Status GetMap(grpc::ServerContext*, const v1::MapRequest*, v1::MapReply*) override;
@@ -71,7 +75,8 @@ class CoordinatorService final : public v1::Coordinator::Service {
   grpc::Status Answer(const grpc::ServerContext* ctx, const char* method, const Status& st);
   // Leases the next job for `worker` into `rep` (has_job false when there is none), up to max_jobs
   // (0: 1) queued jobs merged into it; the spec text is left out when `known_specs` names its key.
-  Status LeaseInto(const std::string& worker, const std::string& who, v1::LeaseReply* rep, int max_jobs,  // bound to who
+  Status LeaseInto(const std::string& worker, const std::string& who, v1::LeaseReply* rep,
+                   int max_jobs,  // bound to who
                    const std::vector<std::string>& known_specs);
   StatusOr<std::pair<std::string, std::string>> PublishedMap(const std::string& id_or_prefix) const;
   // A sweep's spec text and its key (SpecKey), the key computed once per text (the last kMaxKnownSpecs sweeps').

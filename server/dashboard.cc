@@ -3,10 +3,10 @@
 #include <malloc.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <chrono>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -32,29 +32,38 @@ namespace {
 using nlohmann::json;
 
 // Bounds of what one answer carries (the page draws at most this much).
-constexpr size_t kMaxSliceSide = 1024;         // a map slice: at most 1024 × 1024 cells (larger: every k-th cell)
-constexpr long kMaxLiveItems = 1 << 18;        // a running sweep's partial map: looked up only up to this many items
-constexpr double kCacheSeconds = 2;            // a loaded metric serves every request for (sweep, metric) this long
-constexpr size_t kCacheEntries = 8;            // (sweep, metric) pairs kept
-constexpr size_t kMaxSeriesRows = 4000;        // time series rows of a cell (decimated)
-constexpr size_t kMaxSpectrumBins = 4000;      // spectrum bins of a cell (the low end)
-constexpr size_t kMaxSectionPoints = 5000;     // Poincaré section points of a cell
-constexpr size_t kMaxParamBytes = 64;          // id, metric, axis names, numbers
-constexpr int kSessionSeconds = 12 * 3600;     // the token cookie's lifetime
+constexpr size_t kMaxSliceSide = 1024;      // a map slice: at most 1024 × 1024 cells (larger: every k-th cell)
+constexpr long kMaxLiveItems = 1 << 18;     // a running sweep's partial map: looked up only up to this many items
+constexpr double kCacheSeconds = 2;         // a loaded metric serves every request for (sweep, metric) this long
+constexpr size_t kCacheEntries = 8;         // (sweep, metric) pairs kept
+constexpr size_t kMaxSeriesRows = 4000;     // time series rows of a cell (decimated)
+constexpr size_t kMaxSpectrumBins = 4000;   // spectrum bins of a cell (the low end)
+constexpr size_t kMaxSectionPoints = 5000;  // Poincaré section points of a cell
+constexpr size_t kMaxParamBytes = 64;       // id, metric, axis names, numbers
+constexpr int kSessionSeconds = 12 * 3600;  // the token cookie's lifetime
 
-HttpResponse Json(const json& j, int status = 200) {
-  return {status, "application/json", DumpJson(j), {}};
-}
+HttpResponse Json(const json& j, int status = 200) { return {status, "application/json", DumpJson(j), {}}; }
 
 HttpResponse Error(const Status& st) {
   int code = 500;
   switch (st.code()) {
-    case Status::Code::kInvalidArgument: code = 400; break;
-    case Status::Code::kNotFound: code = 404; break;
-    case Status::Code::kFailedPrecondition: code = 409; break;
-    case Status::Code::kUnauthenticated: code = 401; break;
-    case Status::Code::kPermissionDenied: code = 403; break;
-    default: break;
+    case Status::Code::kInvalidArgument:
+      code = 400;
+      break;
+    case Status::Code::kNotFound:
+      code = 404;
+      break;
+    case Status::Code::kFailedPrecondition:
+      code = 409;
+      break;
+    case Status::Code::kUnauthenticated:
+      code = 401;
+      break;
+    case Status::Code::kPermissionDenied:
+      code = 403;
+      break;
+    default:
+      break;
   }
   HttpResponse r = Json({{"error", st.ToString()}}, code);
   if (code == 401) r.headers.push_back({"WWW-Authenticate", "Bearer"});
@@ -158,24 +167,33 @@ json CategoriesJson(const std::vector<std::pair<int, std::string>>& cats) {
 json MetricJson(const std::string& m) {
   std::vector<std::pair<int, std::string>> cats;
   if (m == kRefineLevel)
-    return {{"name", m}, {"unit", ""}, {"definition", "refinement level of the smallest cell holding the point (0: the coarse grid)"},
-            {"integer", true}, {"categories", json::array()}};
+    return {{"name", m},
+            {"unit", ""},
+            {"definition", "refinement level of the smallest cell holding the point (0: the coarse grid)"},
+            {"integer", true},
+            {"categories", json::array()}};
   if (m == kRefineFill) {
     for (const Category& k : RefineFillCategories()) cats.push_back({k.code, k.name});
-    return {{"name", m}, {"unit", "code"}, {"definition", "how the point's values were obtained in the refined map"},
-            {"integer", true}, {"categories", CategoriesJson(cats)}};
+    return {{"name", m},
+            {"unit", "code"},
+            {"definition", "how the point's values were obtained in the refined map"},
+            {"integer", true},
+            {"categories", CategoriesJson(cats)}};
   }
   const MetricInfo* info = FindMetric(m);
   for (const Category& k : MetricCategories(m)) cats.push_back({k.code, k.name});
-  return {{"name", m}, {"unit", info->unit}, {"definition", info->definition}, {"integer", info->integer},
+  return {{"name", m},
+          {"unit", info->unit},
+          {"definition", info->definition},
+          {"integer", info->integer},
           {"categories", CategoriesJson(cats)}};
 }
 
 // A metric loaded for the views: the whole map's values (empty: not shown, see note) and their range.
 struct Loaded {
   std::shared_ptr<const MapArray> array;
-  bool partial = false;   // what is stored so far of a running sweep
-  std::string note;       // why no values are shown
+  bool partial = false;       // what is stored so far of a running sweep
+  std::string note;           // why no values are shown
   double lo = NAN, hi = NAN;  // over every finite value (one colour range for every slice)
 };
 
@@ -188,20 +206,23 @@ using DashboardCache = SingleFlightCache<Loaded>;
 // The range of every finite value (one colour range for every slice).
 void SetRange(Loaded* l) {
   for (double v : l->array->values)
-    if (std::isfinite(v)) l->lo = std::isnan(l->lo) ? v : std::min(l->lo, v), l->hi = std::isnan(l->hi) ? v : std::max(l->hi, v);
+    if (std::isfinite(v))
+      l->lo = std::isnan(l->lo) ? v : std::min(l->lo, v), l->hi = std::isnan(l->hi) ? v : std::max(l->hi, v);
 }
 
 // A metric over the sweep's items: the published map file, or what is stored so far of a planned sweep
 // (looked up only when the sweep has at most kMaxLiveItems items: the size comes from the spec's axis
 // lengths, before anything is loaded; cached for kCacheSeconds).
-StatusOr<Loaded> LoadMetric(SweepCoordinator* c, DashboardCache* cache, MapCache* maps, const SweepView& s, const std::string& metric) {
+StatusOr<Loaded> LoadMetric(SweepCoordinator* c, DashboardCache* cache, MapCache* maps, const SweepView& s,
+                            const std::string& metric) {
   const bool published = Published(s.info);
   const auto offered = MapMetrics(s.spec, published);
   if (std::find(offered.begin(), offered.end(), metric) == offered.end())
-    return Status::InvalidArgument("metric", "sweep " + s.id + " stores no metric '" + metric.substr(0, 32) + "'" +
-                                                 (s.spec.refine.enabled() && (metric == kRefineLevel || metric == kRefineFill)
-                                                      ? " yet (written when the refined map is published)"
-                                                      : ""));
+    return Status::InvalidArgument("metric",
+                                   "sweep " + s.id + " stores no metric '" + metric.substr(0, 32) + "'" +
+                                       (s.spec.refine.enabled() && (metric == kRefineLevel || metric == kRefineFill)
+                                            ? " yet (written when the refined map is published)"
+                                            : ""));
   if (published) {
     auto a = maps->Metric((std::filesystem::path(c->data_dir()) / s.info.file).string(), metric);
     if (!a.ok()) return a.status();
@@ -222,11 +243,12 @@ StatusOr<Loaded> LoadMetric(SweepCoordinator* c, DashboardCache* cache, MapCache
     for (const Category& k : MetricCategories(metric)) a.categories.push_back({k.code, k.name});
     const long items = s.spec.points() * s.spec.ic_count();
     if (items > kMaxLiveItems) {
-      l.note = "partial map not shown above " + std::to_string(kMaxLiveItems) + " items (this sweep has " + std::to_string(items) +
-               "); the published map will be";
+      l.note = "partial map not shown above " + std::to_string(kMaxLiveItems) + " items (this sweep has " +
+               std::to_string(items) + "); the published map will be";
     } else {
       auto values = c->StoredValues(s.id, metric);
-      if (!values.ok()) return Status::NotFound("sweep " + s.id + " has no map yet (state " + SweepStateName(s.info.state) + ")");
+      if (!values.ok())
+        return Status::NotFound("sweep " + s.id + " has no map yet (state " + SweepStateName(s.info.state) + ")");
       a.values = std::move(*values);
     }
     l.array = std::make_shared<const MapArray>(std::move(a));
@@ -239,10 +261,10 @@ StatusOr<Loaded> LoadMetric(SweepCoordinator* c, DashboardCache* cache, MapCache
 // Which cells a slice shows: x (and y) axis, every other dimension fixed by "at" = "name:index,...".
 // An axis longer than kMaxSliceSide is shown decimated: every stride-th value (0, stride, 2·stride, ...).
 struct Slice {
-  int x = -1, y = -1;           // dimension indices (y = -1: a one-axis slice)
-  std::vector<size_t> fixed;    // index of every dimension (x and y ignored)
-  size_t sx = 1, sy = 1;        // strides along x and y
-  size_t nx = 1, ny = 1;        // cells shown along x and y
+  int x = -1, y = -1;         // dimension indices (y = -1: a one-axis slice)
+  std::vector<size_t> fixed;  // index of every dimension (x and y ignored)
+  size_t sx = 1, sy = 1;      // strides along x and y
+  size_t nx = 1, ny = 1;      // cells shown along x and y
 };
 
 StatusOr<Slice> ParseSlice(const std::map<std::string, std::string>& p, const MapArray& a) {
@@ -256,7 +278,8 @@ StatusOr<Slice> ParseSlice(const std::map<std::string, std::string>& p, const Ma
   const std::string xs = Get(p, "x"), ys = Get(p, "y");
   if (!a.axes.empty()) {
     s.x = xs.empty() ? static_cast<int>(a.axes.size()) - 1 : dim(xs);
-    if (s.x < 0 || s.x >= static_cast<int>(a.axes.size())) return Status::InvalidArgument("x", "x is not an axis of the sweep");
+    if (s.x < 0 || s.x >= static_cast<int>(a.axes.size()))
+      return Status::InvalidArgument("x", "x is not an axis of the sweep");
     if (!ys.empty()) {
       s.y = dim(ys);
       if (s.y < 0 || s.y >= static_cast<int>(a.axes.size()) || s.y == s.x)
@@ -303,7 +326,8 @@ size_t FlatIndex(const MapArray& a, const Slice& s, size_t ix, size_t iy) {
 json AxisJson(const Axis& ax, size_t stride = 1) {
   std::vector<double> v;
   for (size_t i = 0; i < ax.values.size(); i += stride) v.push_back(ax.values[i]);
-  return {{"name", ax.name}, {"unit", AxisUnit(ax.name)}, {"values", v}, {"stride", stride}, {"size", ax.values.size()}};
+  return {
+      {"name", ax.name}, {"unit", AxisUnit(ax.name)}, {"values", v}, {"stride", stride}, {"size", ax.values.size()}};
 }
 
 HttpResponse SweepsRoute(SweepCoordinator* c) {
@@ -316,7 +340,8 @@ HttpResponse SweepsRoute(SweepCoordinator* c) {
     const double computed = static_cast<double>(s.items_done - s.items_cached);
     const double rate = s.seconds > 0 && computed > 0 ? computed / s.seconds : 0;
     j["items_per_second"] = rate;
-    j["eta_seconds"] = rate > 0 && !IsFinal(s.state) ? json(static_cast<double>(s.items_total - s.items_done) / rate) : json(nullptr);
+    j["eta_seconds"] =
+        rate > 0 && !IsFinal(s.state) ? json(static_cast<double>(s.items_total - s.items_done) / rate) : json(nullptr);
     sweeps.push_back(std::move(j));
   }
   json workers = json::array();
@@ -336,15 +361,25 @@ HttpResponse SweepRoute(SweepCoordinator* c, const HttpRequest& req) {
   // Every dimension of the sweep's maps by the name /api/map's "at" takes (the map file's names).
   const MapArray shape = ShapeOf(s->spec);
   json dims = json::array();
-  for (size_t d = 0; d < shape.dims.size(); ++d) dims.push_back({{"name", shape.dim_names[d]}, {"size", shape.dims[d]}});
+  for (size_t d = 0; d < shape.dims.size(); ++d)
+    dims.push_back({{"name", shape.dim_names[d]}, {"size", shape.dims[d]}});
   std::string cell_note;
-  if (!IsCellModel(s->spec.model)) cell_note = "cells of " + s->spec.ModelLabel() + " sweeps cannot be opened (bistable point runs cell models)";
-  else if (s->spec.continuation.enabled()) cell_note = "continuation sweeps start each point from the previous one: a cell alone is not that item";
+  if (!IsCellModel(s->spec.model))
+    cell_note = "cells of " + s->spec.ModelLabel() + " sweeps cannot be opened (bistable point runs cell models)";
+  else if (s->spec.continuation.enabled())
+    cell_note = "continuation sweeps start each point from the previous one: a cell alone is not that item";
   const long items = s->spec.points() * s->spec.ic_count();
-  return Json({{"status", SweepStatusJson(s->info)}, {"spec", s->spec.source}, {"axes", axes}, {"ic_count", s->spec.ic_count()},
-               {"dims", dims}, {"item_dim", shape.dims.size() > shape.axes.size() ? json(ItemDim(s->spec)) : json(nullptr)},
-               {"refined", s->spec.refine.enabled()}, {"live_map", items <= kMaxLiveItems},
-               {"metrics", metrics}, {"cells", cell_note.empty()}, {"cell_note", cell_note}});
+  return Json({{"status", SweepStatusJson(s->info)},
+               {"spec", s->spec.source},
+               {"axes", axes},
+               {"ic_count", s->spec.ic_count()},
+               {"dims", dims},
+               {"item_dim", shape.dims.size() > shape.axes.size() ? json(ItemDim(s->spec)) : json(nullptr)},
+               {"refined", s->spec.refine.enabled()},
+               {"live_map", items <= kMaxLiveItems},
+               {"metrics", metrics},
+               {"cells", cell_note.empty()},
+               {"cell_note", cell_note}});
 }
 
 HttpResponse MapRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* maps, const HttpRequest& req) {
@@ -360,14 +395,24 @@ HttpResponse MapRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* maps
   json values = json::array();
   const bool shown = !a.values.empty();
   for (size_t iy = 0; iy < sl->ny; ++iy)
-    for (size_t ix = 0; ix < sl->nx; ++ix) values.push_back(shown ? JsonNumber(a.values[FlatIndex(a, *sl, ix, iy)]) : json(nullptr));
+    for (size_t ix = 0; ix < sl->nx; ++ix)
+      values.push_back(shown ? JsonNumber(a.values[FlatIndex(a, *sl, ix, iy)]) : json(nullptr));
   json dims = json::array();
   for (size_t d = 0; d < a.dims.size(); ++d) dims.push_back({{"name", a.dim_names[d]}, {"size", a.dims[d]}});
-  return Json({{"sweep", s->id}, {"metric", a.metric}, {"unit", a.unit}, {"partial", l->partial}, {"note", l->note},
+  return Json({{"sweep", s->id},
+               {"metric", a.metric},
+               {"unit", a.unit},
+               {"partial", l->partial},
+               {"note", l->note},
                {"x", sl->x >= 0 ? AxisJson(a.axes[sl->x], sl->sx) : json(nullptr)},
-               {"y", sl->y >= 0 ? AxisJson(a.axes[sl->y], sl->sy) : json(nullptr)}, {"stride", {{"x", sl->sx}, {"y", sl->sy}}},
-               {"dims", dims}, {"categories", CategoriesJson(a.categories)}, {"min", JsonNumber(l->lo)},
-               {"max", JsonNumber(l->hi)}, {"diverging", DivergesAboutZero(a.metric)}, {"values", values}});
+               {"y", sl->y >= 0 ? AxisJson(a.axes[sl->y], sl->sy) : json(nullptr)},
+               {"stride", {{"x", sl->sx}, {"y", sl->sy}}},
+               {"dims", dims},
+               {"categories", CategoriesJson(a.categories)},
+               {"min", JsonNumber(l->lo)},
+               {"max", JsonNumber(l->hi)},
+               {"diverging", DivergesAboutZero(a.metric)},
+               {"values", values}});
 }
 
 HttpResponse QueryRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* maps, const HttpRequest& req) {
@@ -398,15 +443,21 @@ HttpResponse QueryRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* ma
   const size_t per_point = static_cast<size_t>(s->spec.ic_count());
   std::vector<int> mask(sl->nx * sl->ny, 0);
   auto column = [&](int v) -> const std::vector<double>& { return loaded.at(v).array->values; };
-  const QueryScan scan = ScanQuery(*q, s->spec.axes, per_point, column, [&](size_t item, const std::vector<size_t>& idx) {
-    for (size_t d = 0; d < s->spec.axes.size(); ++d)
-      if (static_cast<int>(d) != sl->x && static_cast<int>(d) != sl->y && idx[d] != sl->fixed[d]) return;
-    if (per_point > 1 && item % per_point != sl->fixed.back()) return;
-    if ((sl->x >= 0 && idx[sl->x] % sl->sx) || (sl->y >= 0 && idx[sl->y] % sl->sy)) return;  // not a shown cell
-    mask[(sl->y >= 0 ? idx[sl->y] / sl->sy * sl->nx : 0) + (sl->x >= 0 ? idx[sl->x] / sl->sx : 0)] = 1;
-  });
-  return Json({{"sweep", s->id}, {"count", scan.count}, {"total", scan.total}, {"fraction", scan.fraction},
-               {"area_fraction", scan.area_fraction}, {"partial", partial}, {"stride", {{"x", sl->sx}, {"y", sl->sy}}},
+  const QueryScan scan =
+      ScanQuery(*q, s->spec.axes, per_point, column, [&](size_t item, const std::vector<size_t>& idx) {
+        for (size_t d = 0; d < s->spec.axes.size(); ++d)
+          if (static_cast<int>(d) != sl->x && static_cast<int>(d) != sl->y && idx[d] != sl->fixed[d]) return;
+        if (per_point > 1 && item % per_point != sl->fixed.back()) return;
+        if ((sl->x >= 0 && idx[sl->x] % sl->sx) || (sl->y >= 0 && idx[sl->y] % sl->sy)) return;  // not a shown cell
+        mask[(sl->y >= 0 ? idx[sl->y] / sl->sy * sl->nx : 0) + (sl->x >= 0 ? idx[sl->x] / sl->sx : 0)] = 1;
+      });
+  return Json({{"sweep", s->id},
+               {"count", scan.count},
+               {"total", scan.total},
+               {"fraction", scan.fraction},
+               {"area_fraction", scan.area_fraction},
+               {"partial", partial},
+               {"stride", {{"x", sl->sx}, {"y", sl->sy}}},
                {"mask", mask}});
 }
 
@@ -429,8 +480,9 @@ std::string PointCommand(const PointSpec& s, std::string* note) {
   if (s.integration.integrator != IntegratorKind::kRk4)
     cmd += " --rtol " + Num(s.integration.rtol) + " --atol " + Num(s.integration.atol);
   if (s.ic_given) cmd += " --ic " + Num(s.ic[0]) + "," + Num(s.ic[1]) + "," + Num(s.ic[2]) + "," + Num(s.ic[3]);
-  cmd += " --chaos-threshold " + Num(s.metrics.chaos_threshold) + " --renorm-every " + std::to_string(s.metrics.renorm_every) +
-         " --sample-every " + std::to_string(s.metrics.sample_every) + " --poincare-phase " + Num(s.metrics.poincare_phase);
+  cmd += " --chaos-threshold " + Num(s.metrics.chaos_threshold) + " --renorm-every " +
+         std::to_string(s.metrics.renorm_every) + " --sample-every " + std::to_string(s.metrics.sample_every) +
+         " --poincare-phase " + Num(s.metrics.poincare_phase);
   if (!s.metrics.rosenstein) cmd += " --no-rosenstein";
   if (s.metrics.period_tol != d.metrics.period_tol || s.metrics.max_period != d.metrics.max_period ||
       s.metrics.hd_level != d.metrics.hd_level || s.metrics.hd_top_k != d.metrics.hd_top_k)
@@ -444,7 +496,8 @@ HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* map
   auto s = ResolveSweep(c, *p);
   if (!s.ok()) return Error(s.status());
   if (!IsCellModel(s->spec.model) || s->spec.continuation.enabled())
-    return Error(Status::FailedPrecondition("cells of this sweep cannot be computed alone (see /api/sweep's cell_note)"));
+    return Error(
+        Status::FailedPrecondition("cells of this sweep cannot be computed alone (see /api/sweep's cell_note)"));
   auto point = Index(*p, "point", s->spec.points());
   if (!point.ok()) return Error(point.status());
   auto ic = Index(*p, "ic", s->spec.ic_count());
@@ -458,8 +511,9 @@ HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* map
   if (steps > limits::kMaxCellSteps || samples > limits::kMaxCellSamples) {
     std::string note;
     return Json({{"error", "this cell needs " + FormatNumber(steps) + " steps and " + FormatNumber(samples) +
-                               " window samples; the dashboard computes cells of at most " + FormatNumber(limits::kMaxCellSteps) +
-                               " steps and " + FormatNumber(limits::kMaxCellSamples) + " samples: run it with the command given"},
+                               " window samples; the dashboard computes cells of at most " +
+                               FormatNumber(limits::kMaxCellSteps) + " steps and " +
+                               FormatNumber(limits::kMaxCellSamples) + " samples: run it with the command given"},
                  {"command", PointCommand(spec, &note)}},
                 422);
   }
@@ -476,19 +530,26 @@ HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* map
     std::string refine_note;
     if (Published(s->info)) {
       auto l = LoadMetric(c, cache, maps, *s, kRefineFill);
-      const size_t item = static_cast<size_t>(*point) * static_cast<size_t>(s->spec.ic_count()) + static_cast<size_t>(*ic);
+      const size_t item =
+          static_cast<size_t>(*point) * static_cast<size_t>(s->spec.ic_count()) + static_cast<size_t>(*ic);
       if (l.ok() && item < l->array->values.size()) {
         const double code = l->array->values[item];
         for (const Category& k : RefineFillCategories())
           if (code == k.code) fill = k.name;
         if (code == static_cast<int>(RefineFill::kInterpolated))
-          refine_note = "this cell was interpolated in the refined map (not computed there); the values shown are computed now at this point";
+          refine_note =
+              "this cell was interpolated in the refined map (not computed there); the values shown are computed now "
+              "at this point";
         else if (code == static_cast<int>(RefineFill::kChaoticMixed))
-          refine_note = "this cell lies in a chaotic-mixed region of the refined map (its map values are a corner's, not computed here); "
-                        "the values shown are computed now at this point";
+          refine_note =
+              "this cell lies in a chaotic-mixed region of the refined map (its map values are a corner's, not "
+              "computed here); "
+              "the values shown are computed now at this point";
       }
     } else {
-      refine_note = "refined sweep still running: the map holds computed points only; the values shown are computed now at this point";
+      refine_note =
+          "refined sweep still running: the map holds computed points only; the values shown are computed now at this "
+          "point";
     }
     j["refine_fill"] = fill;
     j["refine_note"] = refine_note;
@@ -502,7 +563,8 @@ HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* map
   json series = json::array();
   for (size_t i = 0; i < n; i += step) {
     const auto& row = r->samples[i];
-    series.push_back({JsonNumber(row[0]), JsonNumber(row[1]), JsonNumber(row[2]), JsonNumber(row[3]), JsonNumber(row[4])});
+    series.push_back(
+        {JsonNumber(row[0]), JsonNumber(row[1]), JsonNumber(row[2]), JsonNumber(row[3]), JsonNumber(row[4])});
   }
   j["series"] = {{"columns", {"tau", "y_m", "dy_m", "y_r", "dy_r"}}, {"every", step}, {"rows", series}};
   // The response spectrum of y_m over the window, as the harmonic-diffusion metrics see it.
@@ -511,7 +573,8 @@ HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* map
     for (size_t i = 0; i < n; ++i) y[i] = r->samples[i][1];
     const Spectrum sp = AmplitudeSpectrum(y, SampleStep(spec));
     const size_t bins = std::min(sp.amp.size(), kMaxSpectrumBins);
-    j["spectrum"] = {{"d_omega", sp.d_omega}, {"amp", std::vector<double>(sp.amp.begin(), sp.amp.begin() + static_cast<long>(bins))}};
+    j["spectrum"] = {{"d_omega", sp.d_omega},
+                     {"amp", std::vector<double>(sp.amp.begin(), sp.amp.begin() + static_cast<long>(bins))}};
   }
   json section = json::array();
   for (size_t i = 0; i < r->section_y.size() && i < kMaxSectionPoints; ++i)
@@ -527,9 +590,12 @@ HttpResponse SessionRoute(const TokenStore* tokens, const HttpRequest& req) {
   HttpResponse r = Json({{"who", who}, {"role", RoleName(role)}, {"auth", tokens->enabled()}});
   // A token given in the header once is kept in an HttpOnly cookie: the page never holds it.
   const std::string token = TokenOf(req);
-  const bool cookie_safe = token.find_first_not_of("0123456789abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ._~-") == std::string::npos;
+  const bool cookie_safe =
+      token.find_first_not_of("0123456789abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ._~-") ==
+      std::string::npos;
   if (tokens->enabled() && req.authorization.rfind("Bearer ", 0) == 0 && cookie_safe)
-    r.headers.push_back({"Set-Cookie", std::string(kDashboardCookie) + "=" + token + "; Path=/; HttpOnly; SameSite=Strict; Max-Age=" +
+    r.headers.push_back({"Set-Cookie", std::string(kDashboardCookie) + "=" + token +
+                                           "; Path=/; HttpOnly; SameSite=Strict; Max-Age=" +
                                            std::to_string(kSessionSeconds) + (req.tls ? "; Secure" : "")});
   return r;
 }
@@ -543,14 +609,16 @@ HttpServer::Options DashboardHttpOptions() {
   return o;
 }
 
-std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens, std::vector<std::string> allowed_hosts,
+std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const TokenStore* tokens,
+                                                   std::vector<std::string> allowed_hosts,
                                                    std::shared_ptr<MapCache> maps) {
   std::map<std::string, HttpHandler> routes;
   auto cache = std::make_shared<DashboardCache>(kCacheSeconds, kCacheEntries);
   if (!maps) maps = std::make_shared<MapCache>();
   for (const EmbeddedFile& f : DashboardAssets()) {
     HttpResponse r{200, std::string(f.content_type), std::string(f.bytes), {}};
-    r.headers.push_back({"Content-Security-Policy", "default-src 'self'; img-src 'self' data:; frame-ancestors 'none'"});
+    r.headers.push_back(
+        {"Content-Security-Policy", "default-src 'self'; img-src 'self' data:; frame-ancestors 'none'"});
     auto serve = [r](const HttpRequest&) { return r; };
     routes["/" + std::string(f.name)] = serve;
     if (f.name == "index.html") routes["/"] = serve;
@@ -565,13 +633,16 @@ std::map<std::string, HttpHandler> DashboardRoutes(SweepCoordinator* c, const To
   routes["/api/session"] = [tokens](const HttpRequest& req) { return SessionRoute(tokens, req); };
   routes["/api/logout"] = [](const HttpRequest&) {
     HttpResponse r = Json({{"ok", true}});
-    r.headers.push_back({"Set-Cookie", std::string(kDashboardCookie) + "=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0"});
+    r.headers.push_back(
+        {"Set-Cookie", std::string(kDashboardCookie) + "=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0"});
     return r;
   };
   routes["/api/sweeps"] = guarded([c](const HttpRequest&) { return SweepsRoute(c); });
   routes["/api/sweep"] = guarded([c](const HttpRequest& req) { return SweepRoute(c, req); });
-  routes["/api/map"] = guarded([c, cache, maps](const HttpRequest& req) { return MapRoute(c, cache.get(), maps.get(), req); });
-  routes["/api/query"] = guarded([c, cache, maps](const HttpRequest& req) { return QueryRoute(c, cache.get(), maps.get(), req); });
+  routes["/api/map"] =
+      guarded([c, cache, maps](const HttpRequest& req) { return MapRoute(c, cache.get(), maps.get(), req); });
+  routes["/api/query"] =
+      guarded([c, cache, maps](const HttpRequest& req) { return QueryRoute(c, cache.get(), maps.get(), req); });
   routes["/api/cell"] = guarded([c, cache, maps](const HttpRequest& req) {
     HttpResponse r = CellRoute(c, cache.get(), maps.get(), req);
     // The window's rows and the spectrum are freed, and so are this pool thread's transform tables for the

@@ -30,7 +30,8 @@ namespace bistable {
 
 class MapCache {
  public:
-  explicit MapCache(std::size_t max_entries = limits::kMaxMapCacheEntries, std::size_t max_bytes = limits::kMaxMapCacheBytes)
+  explicit MapCache(std::size_t max_entries = limits::kMaxMapCacheEntries,
+                    std::size_t max_bytes = limits::kMaxMapCacheBytes)
       : max_entries_(max_entries), max_bytes_(max_bytes) {}
 
   // One metric of the map file at `path` (storage/map_file.h ReadMapMetric: only a metric the map lists).
@@ -50,7 +51,8 @@ class MapCache {
     std::shared_ptr<const std::vector<std::string>> names;
     std::size_t bytes = 0;
   };
-  StatusOr<Value> GetOrLoad(const std::string& path, const std::string& what, const std::function<StatusOr<Value>()>& load);
+  StatusOr<Value> GetOrLoad(const std::string& path, const std::string& what,
+                            const std::function<StatusOr<Value>()>& load);
   void PutLocked(const std::string& key, const Value& v);
 
   const std::size_t max_entries_, max_bytes_;

@@ -55,8 +55,8 @@ class StatsCollector : public prometheus::Collectable {
     one("bistable_leases_granted_total", "Leases granted", MetricType::Counter, static_cast<double>(s.leases_granted));
     one("bistable_leases_expired_total", "Leases expired without a report (their jobs were requeued)",
         MetricType::Counter, static_cast<double>(s.leases_expired));
-    one("bistable_leases_released_total", "Leases given back by workers (their jobs were requeued)", MetricType::Counter,
-        static_cast<double>(s.leases_released));
+    one("bistable_leases_released_total", "Leases given back by workers (their jobs were requeued)",
+        MetricType::Counter, static_cast<double>(s.leases_released));
     out.push_back(Family("bistable_reports_total", "Reports by outcome", MetricType::Counter));
     Add(out.back(), static_cast<double>(s.reports_stored), {{"outcome", "stored"}});
     Add(out.back(), static_cast<double>(s.reports_duplicate), {{"outcome", "duplicate"}});
@@ -67,7 +67,8 @@ class StatsCollector : public prometheus::Collectable {
     for (const WorkerInfo& w : s.workers) Add(out.back(), static_cast<double>(w.items_done), {{"worker", w.name}});
     out.push_back(Family("bistable_sweeps", "Sweeps this coordinator holds, by state", MetricType::Gauge));
     for (int st = 0; st < static_cast<int>(s.sweeps_by_state.size()); ++st)
-      Add(out.back(), static_cast<double>(s.sweeps_by_state[st]), {{"state", SweepStateName(static_cast<SweepState>(st))}});
+      Add(out.back(), static_cast<double>(s.sweeps_by_state[st]),
+          {{"state", SweepStateName(static_cast<SweepState>(st))}});
     // The heap as malloc sees it: what is allocated now, and what is free but kept (fragments in the
     // arenas that malloc_trim cannot give back). RSS alone mixes the two with the mapped libraries.
     const struct mallinfo2 mi = ::mallinfo2();
@@ -103,8 +104,8 @@ CoordinatorMetrics::CoordinatorMetrics(const SweepCoordinator* c)
                          .Name("bistable_report_seconds")
                          .Help("Report calls, from decode to answer (checks, durable store, next lease)")
                          .Register(*registry_)
-                         .Add({}, prometheus::Histogram::BucketBoundaries{0.0005, 0.001, 0.002, 0.005, 0.01, 0.02,
-                                                                          0.05, 0.1, 0.2, 0.5, 1, 2, 5});
+                         .Add({}, prometheus::Histogram::BucketBoundaries{0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05,
+                                                                          0.1, 0.2, 0.5, 1, 2, 5});
   refused_ = &prometheus::BuildCounter()
                   .Name("bistable_calls_refused_total")
                   .Help("Calls answered with an error, by method and gRPC code")

@@ -33,7 +33,8 @@ class SingleFlightCache {
     std::promise<StatusOr<V>> mine;
     {
       std::lock_guard<std::mutex> lock(mu_);
-      if (auto it = entries_.find(key); it != entries_.end() && Now() - it->second.first <= ttl_) return it->second.second;
+      if (auto it = entries_.find(key); it != entries_.end() && Now() - it->second.first <= ttl_)
+        return it->second.second;
       if (auto f = flights_.find(key); f != flights_.end()) {
         wait = f->second;
       } else {
@@ -68,7 +69,9 @@ class SingleFlightCache {
   }
 
  private:
-  static double Now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
+  static double Now() {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  }
   void PutLocked(const std::string& key, const V& v) {
     entries_.erase(key);
     while (!entries_.empty() && entries_.size() >= max_) {

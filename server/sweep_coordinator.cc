@@ -4,33 +4,30 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <limits>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <random>
 #include <set>
 
-#include "base/limits.h"
-#include "engine/refine.h"
 #include "base/file.h"
+#include "base/limits.h"
 #include "base/log.h"
 #include "engine/evaluate.h"
+#include "engine/refine.h"
 #include "storage/data_dir.h"
 #include "storage/map_file.h"
 
 namespace bistable {
 namespace {
 
-double Now() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
+double Now() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
 
 double SteadyNow() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
-
 
 }  // namespace
 
@@ -60,7 +57,8 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
   // Results are the owner's (and a group's): the directory and sweeps/ are created 0750, the index and the
   // maps 0640 (docs/operations.md, "One data directory"); a directory that exists keeps its mode.
   BISTABLE_RETURN_IF_ERROR(MakeDirectory(data_dir, kDataDirectoryMode, "data"));
-  BISTABLE_RETURN_IF_ERROR(MakeDirectory((std::filesystem::path(data_dir) / "sweeps").string(), kDataDirectoryMode, "data"));
+  BISTABLE_RETURN_IF_ERROR(
+      MakeDirectory((std::filesystem::path(data_dir) / "sweeps").string(), kDataDirectoryMode, "data"));
   if (::access(data_dir.c_str(), W_OK) != 0)
     return Status::IoError("data", "data directory '" + data_dir + "' is not writable");
   std::vector<std::string> repairs;
@@ -93,7 +91,8 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
   // A sweep stored everything but has no map (killed between the last report and the publication)
   // is published by Submit, since no report will come to trigger it.
   for (const SweepRow& r : *rows) {
-    if (r.state != SweepState::kRunning && r.state != SweepState::kInterrupted && r.state != SweepState::kQueued) continue;
+    if (r.state != SweepState::kRunning && r.state != SweepState::kInterrupted && r.state != SweepState::kQueued)
+      continue;
     auto spec = ParseSweepSpec(r.spec, "sweep " + r.id);
     if (!spec.ok() || spec->Id() != r.id) {
       SweepRow failed = r;
@@ -129,7 +128,8 @@ std::optional<SweepPlan> SweepCoordinator::ActivePlanLocked(const std::string& i
   return plan;
 }
 
-StatusOr<SweepPlan> SweepCoordinator::SubmitImpl(const SweepSpec& spec, long job_items, const std::string& owner, bool enforce_limits) {
+StatusOr<SweepPlan> SweepCoordinator::SubmitImpl(const SweepSpec& spec, long job_items, const std::string& owner,
+                                                 bool enforce_limits) {
   const std::string id = spec.Id();
   const long items = std::clamp<long>(job_items, 1, limits::kMaxJobItems);
   {
@@ -154,10 +154,12 @@ StatusOr<SweepPlan> SweepCoordinator::SubmitImpl(const SweepSpec& spec, long job
     if (enforce_limits && mine >= limits::kMaxActiveSweepsPerOwner)
       return Status::FailedPrecondition("'" + owner + "' has " + std::to_string(mine) +
                                         " sweeps queued, running or being planned, the limit per owner is " +
-                                        std::to_string(limits::kMaxActiveSweepsPerOwner) + "; wait for one or cancel one");
+                                        std::to_string(limits::kMaxActiveSweepsPerOwner) +
+                                        "; wait for one or cancel one");
     if (enforce_limits && all >= limits::kMaxActiveSweeps)
       return Status::FailedPrecondition("the coordinator holds " + std::to_string(all) +
-                                        " sweeps queued, running or being planned, its limit is " + std::to_string(limits::kMaxActiveSweeps));
+                                        " sweeps queued, running or being planned, its limit is " +
+                                        std::to_string(limits::kMaxActiveSweeps));
     planning_[id] = Planning{owner, true};
   }
   const auto plan_start = std::chrono::steady_clock::now();
@@ -171,9 +173,15 @@ StatusOr<SweepPlan> SweepCoordinator::SubmitImpl(const SweepSpec& spec, long job
   lock.unlock();
   if (plan.ok())
     Log(log::Level::kInfo, "sweep.planned",
-        {{"sweep", plan->id}, {"name", spec.name}, {"owner", owner}, {"items", plan->items_total},
-         {"cached", plan->items_cached}, {"jobs", plan->jobs}, {"published", plan->already_published},
-         {"plan_ms", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - plan_start).count()}});
+        {{"sweep", plan->id},
+         {"name", spec.name},
+         {"owner", owner},
+         {"items", plan->items_total},
+         {"cached", plan->items_cached},
+         {"jobs", plan->jobs},
+         {"published", plan->already_published},
+         {"plan_ms",
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - plan_start).count()}});
   if (plan.ok() && plan->jobs == 0 && !plan->already_published)  // everything cached: publish now
     if (auto path = Publish(plan->id); !path.ok()) return path.status();
   return plan;
@@ -203,7 +211,8 @@ struct JobBuilder {
 };
 }  // namespace
 
-StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec& spec, long job_items, RefineCarry carry) {
+StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec& spec, long job_items,
+                                                                RefineCarry carry) {
   Planned out;
   SweepPlan& plan = out.plan;
   Sweep& s = out.sweep;
@@ -212,13 +221,15 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
   const long points = spec.points();
   long total = 0;
   if (__builtin_mul_overflow(points, static_cast<long>(nic), &total) || total > limits::kMaxSweepItems)
-    return Status::InvalidArgument("axes", "points x initial conditions violates <= " + std::to_string(limits::kMaxSweepItems));
+    return Status::InvalidArgument("axes",
+                                   "points x initial conditions violates <= " + std::to_string(limits::kMaxSweepItems));
   plan.items_total = total;
   auto existing = Db()->GetSweep(plan.id);
   if (!existing.ok()) return existing.status();
   s.spec = spec;
   s.row = existing.value() && existing.value()->id == plan.id ? *existing.value() : SweepRow{};
-  if (s.row.state == SweepState::kDone && !s.row.file.empty() && std::filesystem::exists(std::filesystem::path(data_dir_) / s.row.file)) {
+  if (s.row.state == SweepState::kDone && !s.row.file.empty() &&
+      std::filesystem::exists(std::filesystem::path(data_dir_) / s.row.file)) {
     // Published: served as it is if the file is whole. A damaged one (truncated, overwritten) is moved aside
     // and the sweep planned again: its stored points go into a new map, the rest are computed.
     const std::string file = (std::filesystem::path(data_dir_) / s.row.file).string();
@@ -231,7 +242,8 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
     }
     auto aside = MoveAside(file);
     if (!aside.ok()) return aside.status();
-    Repaired("map.corrupt", whole.message() + ": moved aside to '" + *aside + "'; sweep " + plan.id + " is planned again and its map written anew");
+    Repaired("map.corrupt", whole.message() + ": moved aside to '" + *aside + "'; sweep " + plan.id +
+                                " is planned again and its map written anew");
     s.row.state = SweepState::kQueued;
     s.row.file.clear();
   }
@@ -257,8 +269,7 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
     for (size_t i = 0; i < batch.size(); ++i)
       if (cached->count(batch[i])) is_missing[b + i] = false;
   }
-  if (corrupt_total > 0)
-    ChecksumFailed(plan.id, corrupt_total, "recompute");
+  if (corrupt_total > 0) ChecksumFailed(plan.id, corrupt_total, "recompute");
   if (spec.continuation.enabled()) {
     // Chains run whole and in order (each point starts where the previous ended): a chain with any
     // missing item is recomputed entirely; jobs hold whole chains.
@@ -285,38 +296,40 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
   return out;
 }
 
-Status SweepCoordinator::BuildRefinedPlan(const SweepSpec& spec, long job_items, RefineCarry carry, Sweep& s, SweepPlan& plan) {
+Status SweepCoordinator::BuildRefinedPlan(const SweepSpec& spec, long job_items, RefineCarry carry, Sweep& s,
+                                          SweepPlan& plan) {
   const size_t width = PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points);
   std::map<long, std::string> looked_up;  // keys of the points looked up now (the current round's)
   long corrupt_total = 0;
-  if (!carry.planner) carry = RefineCarry{std::make_shared<RefinePlanner>(spec), {}, {}, false, 0, 0};  // a walk from the start
-  auto step = carry.planner->Advance([&](const std::vector<long>& pts, std::vector<std::optional<RefineMark>>* classes) {
-    classes->assign(pts.size(), std::nullopt);
-    constexpr size_t kBatch = 65536;  // batches, each under the index lock on its own
-    for (size_t b = 0; b < pts.size(); b += kBatch) {
-      const size_t e = std::min(pts.size(), b + kBatch);
-      std::vector<std::string> batch;
-      batch.reserve(e - b);
-      for (size_t i = b; i < e; ++i) batch.push_back(spec.ItemKey(pts[i], 0));
-      long corrupt = 0;
-      auto cached = Db()->LookupPoints(batch, width, &corrupt);
-      if (!cached.ok()) return cached.status();
-      corrupt_total += corrupt;
-      for (size_t i = b; i < e; ++i) {
-        if (auto it = cached->find(batch[i - b]); it != cached->end())
-          (*classes)[i] = RefineClass(spec.refine, spec.base.metrics, it->second);
-        looked_up[pts[i]] = std::move(batch[i - b]);
-      }
-    }
-    return Status::Ok();
-  });
+  if (!carry.planner)
+    carry = RefineCarry{std::make_shared<RefinePlanner>(spec), {}, {}, false, 0, 0};  // a walk from the start
+  auto step =
+      carry.planner->Advance([&](const std::vector<long>& pts, std::vector<std::optional<RefineMark>>* classes) {
+        classes->assign(pts.size(), std::nullopt);
+        constexpr size_t kBatch = 65536;  // batches, each under the index lock on its own
+        for (size_t b = 0; b < pts.size(); b += kBatch) {
+          const size_t e = std::min(pts.size(), b + kBatch);
+          std::vector<std::string> batch;
+          batch.reserve(e - b);
+          for (size_t i = b; i < e; ++i) batch.push_back(spec.ItemKey(pts[i], 0));
+          long corrupt = 0;
+          auto cached = Db()->LookupPoints(batch, width, &corrupt);
+          if (!cached.ok()) return cached.status();
+          corrupt_total += corrupt;
+          for (size_t i = b; i < e; ++i) {
+            if (auto it = cached->find(batch[i - b]); it != cached->end())
+              (*classes)[i] = RefineClass(spec.refine, spec.base.metrics, it->second);
+            looked_up[pts[i]] = std::move(batch[i - b]);
+          }
+        }
+        return Status::Ok();
+      });
   if (!step.ok()) {
     s.refiner.reset();  // a failed lookup leaves the walk mid-round: the next plan walks from the start
     return step.status();
   }
   s.refiner = carry.planner;
-  if (corrupt_total > 0)
-    ChecksumFailed(plan.id, corrupt_total, "recompute");
+  if (corrupt_total > 0) ChecksumFailed(plan.id, corrupt_total, "recompute");
   // Every planned point's key: looked up now, or carried from the last plan (both ascending).
   s.points = step->points;
   s.keys.clear();
@@ -403,10 +416,10 @@ Status SweepCoordinator::Replan(const std::string& id) {
     owner = it->second.row.owner;
     job_items = it->second.job_items;
     if (it->second.refiner && !it->second.refine_complete)  // continue the walk: look up only the new round
-      carry = RefineCarry{it->second.refiner, it->second.points, it->second.keys, true, it->second.items_cached,
-                          it->second.refine_queued};
+      carry = RefineCarry{it->second.refiner,      it->second.points,       it->second.keys, true,
+                          it->second.items_cached, it->second.refine_queued};
     generation = it->second.generation = ++generation_counter_;  // reports of the old plan store, but count nowhere
-    it->second.queue.clear();                       // and nothing is leased while the new one is built
+    it->second.queue.clear();                                    // and nothing is leased while the new one is built
     RevokeLeasesLocked(id);
     planning_[id] = Planning{owner, false};
   }
@@ -418,15 +431,19 @@ Status SweepCoordinator::Replan(const std::string& id) {
   // Cancelled, interrupted or planned again while this plan was built (outside the lock): the newer
   // decision stands and this plan is dropped (installing it would bring a cancelled sweep back).
   if (auto it = sweeps_.find(id); it == sweeps_.end() || it->second.cancelled || it->second.generation != generation ||
-                                  it->second.row.state == SweepState::kInterrupted || it->second.row.state == SweepState::kFailed)
+                                  it->second.row.state == SweepState::kInterrupted ||
+                                  it->second.row.state == SweepState::kFailed)
     return Status::Ok();
   built.value().sweep.job_items = job_items;
   auto plan = InstallLocked(std::move(*built), owner);
   if (!plan.ok()) return plan.status();
   if (spec.refine.enabled())
     Log(log::Level::kInfo, "sweep.refined",
-        {{"sweep", id}, {"round", sweeps_.at(id).refine_round}, {"items", plan->items_total - plan->items_cached},
-         {"planned", plan->items_total}, {"complete", sweeps_.at(id).refine_complete}});
+        {{"sweep", id},
+         {"round", sweeps_.at(id).refine_round},
+         {"items", plan->items_total - plan->items_cached},
+         {"planned", plan->items_total},
+         {"complete", sweeps_.at(id).refine_complete}});
   else
     Log(log::Level::kInfo, "sweep.replanned", {{"sweep", id}, {"items", plan->items_total - plan->items_cached}});
   if (plan->jobs == 0) {
@@ -474,7 +491,8 @@ void SweepCoordinator::TouchWorkerLocked(const std::string& worker, double now) 
       // Forget the longest-idle worker without leases; if every one holds a lease, do not record this one.
       auto oldest = workers_.end();
       for (auto w = workers_.begin(); w != workers_.end(); ++w)
-        if (w->second.leases == 0 && (oldest == workers_.end() || w->second.last_seen < oldest->second.last_seen)) oldest = w;
+        if (w->second.leases == 0 && (oldest == workers_.end() || w->second.last_seen < oldest->second.last_seen))
+          oldest = w;
       if (oldest == workers_.end()) return;
       workers_.erase(oldest);
     }
@@ -494,8 +512,12 @@ void SweepCoordinator::RequeueExpiredLocked(double mono) {
     ++stats_.leases_expired;
     const LeaseState& l = it->second;
     Log(log::Level::kWarn, "lease.expired",
-        {{"sweep", l.sweep_id}, {"job", l.job_ids.front()}, {"jobs", l.job_ids.size()}, {"worker", l.worker},
-         {"overdue_s", mono - l.deadline}, {"action", "requeue"}});
+        {{"sweep", l.sweep_id},
+         {"job", l.job_ids.front()},
+         {"jobs", l.job_ids.size()},
+         {"worker", l.worker},
+         {"overdue_s", mono - l.deadline},
+         {"action", "requeue"}});
     RequeueLocked(l);
     if (auto w = workers_.find(l.worker); w != workers_.end() && w->second.leases == 0)
       Log(log::Level::kWarn, "worker.lost", {{"worker", l.worker}, {"last_seen_s", Clock() - w->second.last_seen}});
@@ -514,8 +536,8 @@ void SweepCoordinator::RequeueLocked(const LeaseState& l) {
   if (auto w = workers_.find(l.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
 }
 
-std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep, int max_jobs,
-                                                  const std::string& identity) {
+std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep,
+                                                  int max_jobs, const std::string& identity) {
   std::lock_guard<std::mutex> lock(mu_);
   const double now = Clock(), mono = Monotonic();
   TouchWorkerLocked(worker, now);
@@ -523,7 +545,8 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
   RequeueExpiredLocked(mono);
   Sweep* best = nullptr;
   for (auto& [id, s] : sweeps_)
-    if (!s.cancelled && !s.queue.empty() && (!best || s.seq < best->seq) && (only_sweep.empty() || id == only_sweep)) best = &s;
+    if (!s.cancelled && !s.queue.empty() && (!best || s.seq < best->seq) && (only_sweep.empty() || id == only_sweep))
+      best = &s;
   if (!best) return std::nullopt;
   std::vector<long> jobs{best->queue.front()};
   best->queue.pop_front();
@@ -550,7 +573,8 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
   LeaseGrant g{id, best->row.id, jobs[0], static_cast<int>(jobs.size()), {}, now + opt_.lease_seconds};
   g.items.reserve(items);
   for (long j : jobs) g.items.insert(g.items.end(), best->jobs[j].items.begin(), best->jobs[j].items.end());
-  leases_[g.lease_id] = {g.sweep_id, worker, identity, jobs, best->generation, mono + opt_.lease_seconds};  // g.deadline: the wire's wall time
+  leases_[g.lease_id] = {g.sweep_id, worker,           identity,
+                         jobs,       best->generation, mono + opt_.lease_seconds};  // g.deadline: the wire's wall time
   if (auto w = workers_.find(worker); w != workers_.end()) ++w->second.leases;
   ++stats_.leases_granted;
   Log(log::Level::kDebug, "lease.granted",
@@ -560,7 +584,8 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
 
 namespace {
 Status NotTheLeaseHolder() {
-  return Status::PermissionDenied("the lease was granted to another identity (token): only its holder may extend, report or release it");
+  return Status::PermissionDenied(
+      "the lease was granted to another identity (token): only its holder may extend, report or release it");
 }
 }  // namespace
 
@@ -571,7 +596,8 @@ Status SweepCoordinator::Extend(const std::string& lease_id, const std::string& 
   if (it == leases_.end())
     return finished_leases_.count(lease_id) ? Status::Ok() : Status::NotFound("lease '" + lease_id + "' is unknown");
   if (it->second.identity != identity) return NotTheLeaseHolder();
-  if (it->second.deadline < mono) return Status::FailedPrecondition("lease '" + lease_id + "' expired; its job was requeued");
+  if (it->second.deadline < mono)
+    return Status::FailedPrecondition("lease '" + lease_id + "' expired; its job was requeued");
   it->second.deadline = mono + opt_.lease_seconds;
   TouchWorkerLocked(it->second.worker, Clock());
   return Status::Ok();
@@ -607,7 +633,8 @@ Status SweepCoordinator::AwaitCommit(unsigned long long ticket) {
   return st;
 }
 
-Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<PointRecord>& records, const std::string& identity) {
+Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<PointRecord>& records,
+                                const std::string& identity) {
   const size_t width = records.empty() ? 0 : records[0].v.size();
   std::vector<double> flat;
   flat.reserve(records.size() * width);
@@ -621,14 +648,14 @@ Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<P
 }
 
 Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const double* values, size_t n_values,
-                               const std::string& identity) {
+                                const std::string& identity) {
   // The record layout is checked first, without the lock: the width must be that of some layout
   // and every value in its metric's domain (forged or corrupt numbers never reach the cache). The
   // sweep's exact layout (turning points, section points) is compared under the lock below.
   BISTABLE_RETURN_IF_ERROR(CheckAnyRecordWidth(width));
   if (n_values % width != 0)
-    return Status::InvalidArgument("values", std::to_string(n_values) + " values do not split into records of width " +
-                                                 std::to_string(width));
+    return Status::InvalidArgument(
+        "values", std::to_string(n_values) + " values do not split into records of width " + std::to_string(width));
   const size_t n_records = n_values / width;
   // Every value's domain, and the one copy of the values, outside the coordinator's lock: concurrent
   // reports check and copy in parallel; under the lock only the lease and the keys are looked at.
@@ -650,8 +677,9 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
         ++stats_.reports_duplicate;
         return Status::Ok();
       }
-      return Status::NotFound("lease is unknown (never granted, revoked by a cancel or a new plan, or granted before a "
-                              "coordinator restart)");
+      return Status::NotFound(
+          "lease is unknown (never granted, revoked by a cancel or a new plan, or granted before a "
+          "coordinator restart)");
     }
     // One worker token cannot report (in-range, forged) values for another's job: they would serve every
     // later sweep through the content cache (issue 39).
@@ -666,10 +694,12 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
         if (j < 0 || j >= static_cast<long>(sit->second.jobs.size())) return true;
       return false;
     };
-    if (sit == sweeps_.end() || sit->second.cancelled || sit->second.generation != it->second.generation || out_of_plan()) {
+    if (sit == sweeps_.end() || sit->second.cancelled || sit->second.generation != it->second.generation ||
+        out_of_plan()) {
       if (auto w = workers_.find(it->second.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
       leases_.erase(it);
-      return Status::FailedPrecondition("lease '" + lease_id + "' belongs to a cancelled or replaced plan of its sweep");
+      return Status::FailedPrecondition("lease '" + lease_id +
+                                        "' belongs to a cancelled or replaced plan of its sweep");
     }
     Sweep& s = sit->second;
     size_t lease_items = 0;
@@ -705,13 +735,17 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
   const long n = static_cast<long>(n_records);
   const auto store_start = std::chrono::steady_clock::now();
   const Status stored = AwaitCommit(EnqueueResults(std::move(rows)));  // without mu_: reports batch up here
-  const double store_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - store_start).count();
+  const double store_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - store_start).count();
   std::lock_guard<std::mutex> lock(mu_);
   committing_.erase(lease_id);
   if (!stored.ok()) {
     ++stats_.reports_failed;
     Log(log::Level::kError, "report.store_failed",
-        {{"sweep", lease.sweep_id}, {"job", lease.job_ids.front()}, {"worker", lease.worker}, {"reason", stored.ToString()}});
+        {{"sweep", lease.sweep_id},
+         {"job", lease.job_ids.front()},
+         {"worker", lease.worker},
+         {"reason", stored.ToString()}});
     auto sit = sweeps_.find(lease.sweep_id);
     if (sit != sweeps_.end()) sit->second.error = "storing results failed: " + stored.ToString();
     if (sit != sweeps_.end() && !sit->second.cancelled && sit->second.generation == lease.generation)
@@ -741,8 +775,12 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
     ++stats_.reports_stored;
     if (auto w = workers_.find(lease.worker); w != workers_.end()) w->second.items_done += counted;
     Log(log::Level::kDebug, "report.stored",
-        {{"sweep", lease.sweep_id}, {"job", lease.job_ids.front()}, {"jobs", lease.job_ids.size()}, {"worker", lease.worker},
-         {"items", n}, {"store_ms", store_ms}});
+        {{"sweep", lease.sweep_id},
+         {"job", lease.job_ids.front()},
+         {"jobs", lease.job_ids.size()},
+         {"worker", lease.worker},
+         {"items", n},
+         {"store_ms", store_ms}});
   }
   if (s.items_done >= s.row.items_total && s.row.state != SweepState::kDone) {
     // Publish off the report path: the report is acknowledged once its rows are durable, and the
@@ -792,8 +830,11 @@ Status SweepCoordinator::Release(const std::string& lease_id, const std::string&
   if (it->second.identity != identity) return NotTheLeaseHolder();
   ++stats_.leases_released;
   Log(log::Level::kInfo, "lease.released",
-      {{"sweep", it->second.sweep_id}, {"job", it->second.job_ids.front()}, {"jobs", it->second.job_ids.size()},
-       {"worker", it->second.worker}, {"action", "requeue"}});
+      {{"sweep", it->second.sweep_id},
+       {"job", it->second.job_ids.front()},
+       {"jobs", it->second.job_ids.size()},
+       {"worker", it->second.worker},
+       {"action", "requeue"}});
   RequeueLocked(it->second);
   leases_.erase(it);
   return Status::Ok();
@@ -803,9 +844,11 @@ Status SweepCoordinator::Cancel(const std::string& sweep_id) {
   std::lock_guard<std::mutex> lock(mu_);
   auto it = sweeps_.find(sweep_id);
   if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
-  if (it->second.row.state == SweepState::kDone) return Status::FailedPrecondition("sweep '" + sweep_id + "' is already done");
+  if (it->second.row.state == SweepState::kDone)
+    return Status::FailedPrecondition("sweep '" + sweep_id + "' is already done");
   if (it->second.publishing)  // its index row would say done after the cancel said cancelled
-    return Status::FailedPrecondition("sweep '" + sweep_id + "' is complete and its map is being published; it cannot be cancelled");
+    return Status::FailedPrecondition("sweep '" + sweep_id +
+                                      "' is complete and its map is being published; it cannot be cancelled");
   it->second.cancelled = true;
   Log(log::Level::kInfo, "sweep.cancelled", {{"sweep", sweep_id}, {"items_done", it->second.items_done}});
   RevokeLeasesLocked(sweep_id);  // a report of this plan is refused from now on
@@ -839,7 +882,8 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
       needs_plan = static_cast<long>(s.keys.size()) != s.row.items_total;  // plan freed after an earlier publication
       if (!needs_plan && s.spec.refine.enabled() && !s.refine_complete) {
         if (s.items_done < s.row.items_total || attempt > 0)
-          return Status::FailedPrecondition("sweep " + sweep_id + " is refining: round " + std::to_string(s.refine_round) + " has " +
+          return Status::FailedPrecondition("sweep " + sweep_id + " is refining: round " +
+                                            std::to_string(s.refine_round) + " has " +
                                             std::to_string(s.row.items_total - s.items_done) + " items to compute");
         advance = true;
       }
@@ -848,14 +892,16 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
       points = s.points;
       row = s.row;
       started = s.started;
-      if (!advance && !needs_plan && s.items_done >= s.row.items_total) it->second.publishing = true;  // a cancel is refused now
+      if (!advance && !needs_plan && s.items_done >= s.row.items_total)
+        it->second.publishing = true;  // a cancel is refused now
     }
     if (!advance) break;
     BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));
   }
   if (needs_plan) {
     BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));
-    return Status::FailedPrecondition("sweep " + sweep_id + " lost its map file; it is being planned and published again");
+    return Status::FailedPrecondition("sweep " + sweep_id +
+                                      " lost its map file; it is being planned and published again");
   }
   bool incomplete = false;
   const auto publish_start = std::chrono::steady_clock::now();
@@ -877,23 +923,28 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
   }
   s.row = *published;
   Log(log::Level::kInfo, "sweep.published",
-      {{"sweep", sweep_id}, {"items", s.row.items_done}, {"file", s.row.file}, {"seconds", s.row.seconds},
-       {"publish_ms", std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - publish_start).count()}});
+      {{"sweep", sweep_id},
+       {"items", s.row.items_done},
+       {"file", s.row.file},
+       {"seconds", s.row.seconds},
+       {"publish_ms",
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - publish_start).count()}});
   FreePlan(s);  // published: keys and jobs are no longer needed
   final_cv_.notify_all();
   return path;
 }
 
 StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys,
-                                                      const std::vector<long>& points, const SweepRow& row, double started,
-                                                      const std::string& path, bool* incomplete) {
+                                                      const std::vector<long>& points, const SweepRow& row,
+                                                      double started, const std::string& path, bool* incomplete) {
   // Every record is read back through its checksum: a corrupt one counts as missing. The staged
   // records are read where they are staged; moving them into the keyed point cache (SQLite inserts,
   // as long as the map's HDF5 writing) runs on a second thread beside the writing, and ends before the
   // index row: a crash in between leaves them staged, folded by the next lookup.
   long corrupt = 0;
-  auto found = Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points), &corrupt,
-                                  IndexDb::Fold::kLater);
+  auto found =
+      Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points),
+                         &corrupt, IndexDb::Fold::kLater);
   if (!found.ok()) return found.status();
   Status folded = Status::Ok();
   std::thread folder;
@@ -908,16 +959,16 @@ StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, con
       if (t.joinable()) t.join();
     }
   } join{folder};
-  if (corrupt > 0)
-    ChecksumFailed(row.id, corrupt, "replan");
+  if (corrupt > 0) ChecksumFailed(row.id, corrupt, "replan");
   std::vector<PointRecord> records;
   records.reserve(keys.size());
   for (const std::string& k : keys) {
     auto it = found->find(k);
     if (it == found->end()) {
       *incomplete = true;
-      return Status::FailedPrecondition("sweep " + row.id + " is incomplete: " +
-                                        std::to_string(keys.size() - found->size()) + " items are not stored (or failed their checksum)");
+      return Status::FailedPrecondition("sweep " + row.id +
+                                        " is incomplete: " + std::to_string(keys.size() - found->size()) +
+                                        " items are not stored (or failed their checksum)");
     }
     records.push_back(it->second);  // a copy: two items of a sweep can share a key (equal initial states)
   }
@@ -986,8 +1037,8 @@ namespace {
 
 // A sweep that is not active in this process, as its index row says.
 SweepInfo InfoOfRow(const SweepRow& r) {
-  return SweepInfo{r.id, r.name, r.model, r.owner, r.state, r.items_total, r.items_done, 0, 0, r.seconds, r.file, "",
-                   r.created, r.finished};
+  return SweepInfo{r.id, r.name, r.model,   r.owner, r.state, r.items_total, r.items_done,
+                   0,    0,      r.seconds, r.file,  "",      r.created,     r.finished};
 }
 
 }  // namespace
@@ -1001,10 +1052,22 @@ std::map<std::string, int> SweepCoordinator::LeaseHoldersLocked() const {
 }
 
 SweepInfo SweepCoordinator::InfoLocked(const Sweep& s, const std::map<std::string, int>& holders) const {
-  SweepInfo info{s.row.id, s.row.name, s.row.model, s.row.owner, s.row.state, s.row.items_total, s.items_done, s.items_cached, 0,
-                 s.row.state == SweepState::kDone ? s.row.seconds : Clock() - s.started, s.row.file, "", s.row.created,
+  SweepInfo info{s.row.id,
+                 s.row.name,
+                 s.row.model,
+                 s.row.owner,
+                 s.row.state,
+                 s.row.items_total,
+                 s.items_done,
+                 s.items_cached,
+                 0,
+                 s.row.state == SweepState::kDone ? s.row.seconds : Clock() - s.started,
+                 s.row.file,
+                 "",
+                 s.row.created,
                  s.row.state == SweepState::kDone ? s.row.finished : 0.0};
-  if (info.state == SweepState::kRunning && !s.any_leased && s.items_done == s.items_cached) info.state = SweepState::kQueued;
+  if (info.state == SweepState::kRunning && !s.any_leased && s.items_done == s.items_cached)
+    info.state = SweepState::kQueued;
   if (s.cancelled) info.state = SweepState::kCancelled;
   info.error = s.error;
   auto h = holders.find(s.row.id);
@@ -1025,7 +1088,8 @@ StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
   return InfoOfRow(*row.value());
 }
 
-StatusOr<std::vector<double>> SweepCoordinator::StoredValues(const std::string& sweep_id, const std::string& metric) const {
+StatusOr<std::vector<double>> SweepCoordinator::StoredValues(const std::string& sweep_id,
+                                                             const std::string& metric) const {
   const MetricInfo* m = FindMetric(metric);
   if (!m) return Status::InvalidArgument("metric", "unknown metric");
   std::vector<std::string> keys;
@@ -1035,7 +1099,8 @@ StatusOr<std::vector<double>> SweepCoordinator::StoredValues(const std::string& 
   {
     std::lock_guard<std::mutex> lock(mu_);
     auto it = sweeps_.find(sweep_id);
-    if (it == sweeps_.end() || it->second.keys.empty()) return Status::NotFound("sweep " + sweep_id + " has no plan in memory");
+    if (it == sweeps_.end() || it->second.keys.empty())
+      return Status::NotFound("sweep " + sweep_id + " has no plan in memory");
     keys = it->second.keys;
     points = it->second.points;
     items = it->second.spec.points() * it->second.spec.ic_count();
@@ -1046,13 +1111,16 @@ StatusOr<std::vector<double>> SweepCoordinator::StoredValues(const std::string& 
   // batch at most, not for the whole sweep.
   constexpr size_t kBatch = 16384;
   const size_t mi = MetricIndex(m->name);
-  std::vector<double> out(points.empty() ? keys.size() : static_cast<size_t>(items), std::numeric_limits<double>::quiet_NaN());
+  std::vector<double> out(points.empty() ? keys.size() : static_cast<size_t>(items),
+                          std::numeric_limits<double>::quiet_NaN());
   for (size_t b = 0; b < keys.size(); b += kBatch) {
-    const std::vector<std::string> batch(keys.begin() + static_cast<long>(b), keys.begin() + static_cast<long>(std::min(keys.size(), b + kBatch)));
+    const std::vector<std::string> batch(keys.begin() + static_cast<long>(b),
+                                         keys.begin() + static_cast<long>(std::min(keys.size(), b + kBatch)));
     auto found = Db()->LookupPoints(batch, width);
     if (!found.ok()) return found.status();
     for (size_t i = b; i < b + batch.size(); ++i)
-      if (auto f = found->find(keys[i]); f != found->end()) out[points.empty() ? i : static_cast<size_t>(points[i])] = f->second.v[mi];
+      if (auto f = found->find(keys[i]); f != found->end())
+        out[points.empty() ? i : static_cast<size_t>(points[i])] = f->second.v[mi];
   }
   return out;
 }

@@ -43,8 +43,8 @@ struct Job {
 
 struct SweepPlan {
   std::string id;
-  long items_total = 0;    // grid points × initial conditions
-  long items_cached = 0;   // already stored under their content key (reused, not recomputed)
+  long items_total = 0;   // grid points × initial conditions
+  long items_cached = 0;  // already stored under their content key (reused, not recomputed)
   long jobs = 0;
   bool already_published = false;  // done before, map file present: nothing to do
 };
@@ -56,19 +56,19 @@ struct SweepProgress {
 
 // A granted lease: the job's items of one sweep, to be reported before `deadline`.
 struct LeaseGrant {
-  std::string lease_id;    // opaque, unique, unguessable: the sweep id and 128 random bits
+  std::string lease_id;  // opaque, unique, unguessable: the sweep id and 128 random bits
   std::string sweep_id;
-  long job_id = 0;          // the first job of the lease
-  int jobs = 1;             // jobs merged into this lease
+  long job_id = 0;  // the first job of the lease
+  int jobs = 1;     // jobs merged into this lease
   std::vector<WorkItem> items;
-  double deadline = 0;     // unix seconds (the wire's; the coordinator keeps its own on the monotonic clock)
+  double deadline = 0;  // unix seconds (the wire's; the coordinator keeps its own on the monotonic clock)
 };
 
 // Counters since this process started and gauges now, for metrics (server/metrics.h).
 struct CoordinatorStats {
   long leases_granted = 0, leases_expired = 0, leases_released = 0;
   long reports_stored = 0, reports_duplicate = 0, reports_failed = 0;
-  long items_stored = 0;       // items of stored reports (counted once per job)
+  long items_stored = 0;  // items of stored reports (counted once per job)
   long leases_outstanding = 0, jobs_queued = 0, items_pending = 0, workers_active = 0;
   std::array<long, 6> sweeps_by_state{};  // indexed by SweepState
   std::vector<WorkerInfo> workers;
@@ -96,7 +96,7 @@ class SweepCoordinator {
     // empty: the system clock for timestamps and the monotonic clock for deadlines, so a stepped wall clock
     // (NTP, a resumed VM) neither expires every lease at once nor keeps a dead worker's job.
     std::function<double()> clock = nullptr;
-    std::function<double()> monotonic = nullptr;  // the deadlines' clock when set (tests: a wall clock that jumps)
+    std::function<double()> monotonic = nullptr;       // the deadlines' clock when set (tests: a wall clock that jumps)
     std::function<void()> before_index_row = nullptr;  // tests: runs when a map file is written, before its index row
     // Repairs of the data directory, one sentence each naming the files (a damaged index or map moved aside
     // and made again, map files indexed again, stored points that failed their checksum): also logged as
@@ -107,7 +107,9 @@ class SweepCoordinator {
   // Opens <data>/index.sqlite and <data>/sweeps/ (creating them; repairing a damaged index and indexing
   // map files it has no row for: storage/data_dir.h, OpenDataIndex) and resumes unfinished sweeps.
   static StatusOr<std::unique_ptr<SweepCoordinator>> Open(const std::string& data_dir, Options opt);
-  static StatusOr<std::unique_ptr<SweepCoordinator>> Open(const std::string& data_dir) { return Open(data_dir, Options{}); }
+  static StatusOr<std::unique_ptr<SweepCoordinator>> Open(const std::string& data_dir) {
+    return Open(data_dir, Options{});
+  }
   // Finishes queued publications, then stops the publisher thread.
   ~SweepCoordinator();
 
@@ -163,9 +165,9 @@ class SweepCoordinator {
   StatusOr<std::string> SpecText(const std::string& sweep_id) const;
   SweepProgress progress(const std::string& sweep_id) const;
   // What is stored so far of a planned (queued or running) sweep: scalar metric `metric` (a catalog
-  // name) for every item in grid order (point · ic_count + ic; a refined sweep: every grid point), NaN where nothing is stored yet,
-  // looked up by content key in the point cache (read transactions of at most 16,384 keys each). NotFound when the sweep has no
-  // plan in memory (published, cancelled or unknown: read its map file instead). For live views.
+  // name) for every item in grid order (point · ic_count + ic; a refined sweep: every grid point), NaN where nothing is
+  // stored yet, looked up by content key in the point cache (read transactions of at most 16,384 keys each). NotFound
+  // when the sweep has no plan in memory (published, cancelled or unknown: read its map file instead). For live views.
   StatusOr<std::vector<double>> StoredValues(const std::string& sweep_id, const std::string& metric) const;
   const std::string& data_dir() const { return data_dir_; }
   std::string MapPath(const std::string& id) const;
@@ -175,30 +177,30 @@ class SweepCoordinator {
   struct Sweep {
     SweepSpec spec;
     SweepRow row;
-    unsigned long long generation = 0;  // this plan's number: leases of other plans are void
-    std::vector<std::string> keys;  // content key of item point·ic_count + ic; refined: of points[j]
-    std::vector<long> points;       // refined sweeps ([refine]): the grid points planned so far, ascending
-    long job_items = 0;             // items per job as submitted (replans and refinement rounds keep it)
+    unsigned long long generation = 0;       // this plan's number: leases of other plans are void
+    std::vector<std::string> keys;           // content key of item point·ic_count + ic; refined: of points[j]
+    std::vector<long> points;                // refined sweeps ([refine]): the grid points planned so far, ascending
+    long job_items = 0;                      // items per job as submitted (replans and refinement rounds keep it)
     std::shared_ptr<RefinePlanner> refiner;  // refined sweeps: the walk so far (engine/refine.h)
-    int refine_round = 0;           // refined sweeps: the round being computed (engine/refine.h)
-    long refine_queued = 0;         // refined sweeps: items this round queued (not found stored)
-    bool refine_complete = false;   // refined sweeps: every level stored, ready to publish
+    int refine_round = 0;                    // refined sweeps: the round being computed (engine/refine.h)
+    long refine_queued = 0;                  // refined sweeps: items this round queued (not found stored)
+    bool refine_complete = false;            // refined sweeps: every level stored, ready to publish
     std::vector<Job> jobs;
     std::vector<JobState> job_state;
     std::deque<long> queue;
     long items_done = 0, items_cached = 0;
-    long seq = 0;                   // submission order
+    long seq = 0;  // submission order
     bool cancelled = false, any_leased = false;
     bool publishing = false;  // its map is being written and indexed: a cancel now is refused
-    std::string error;              // last storage / publication failure, for status
+    std::string error;        // last storage / publication failure, for status
     double started = 0;
   };
   struct LeaseState {
     std::string sweep_id, worker;
-    std::string identity;             // who leased it (Lease's identity): only they may extend, report, release
-    std::vector<long> job_ids;        // one job, or several merged (Lease's max_jobs)
+    std::string identity;               // who leased it (Lease's identity): only they may extend, report, release
+    std::vector<long> job_ids;          // one job, or several merged (Lease's max_jobs)
     unsigned long long generation = 0;  // the plan the job belongs to
-    double deadline = 0;  // Monotonic() seconds
+    double deadline = 0;                // Monotonic() seconds
   };
   // A plan built outside mu_: the sweep's keys, its jobs against the point cache.
   struct Planned {
@@ -231,8 +233,8 @@ class SweepCoordinator {
   void RememberFinishedLocked(const std::string& lease_id, const std::string& sweep_id);
   void TouchWorkerLocked(const std::string& worker, double now);
   void RequeueExpiredLocked(double mono);  // mono: Monotonic()
-  double Clock() const;      // unix seconds (timestamps)
-  double Monotonic() const;  // seconds of the monotonic clock (lease deadlines)
+  double Clock() const;                    // unix seconds (timestamps)
+  double Monotonic() const;                // seconds of the monotonic clock (lease deadlines)
   // A structured event (base/log.h), unless Options::log is off.
   void Log(log::Level level, std::string_view event, std::initializer_list<log::Field> fields) const;
   // A repair of the data directory: a warn event with the sentence (unless Options::log is off), and the
@@ -273,26 +275,26 @@ class SweepCoordinator {
   std::string data_dir_;
   std::unique_ptr<IndexDb> db_;
   mutable std::mutex db_mu_;
-  unsigned long long committed_through_ = 0;             // under db_mu_
+  unsigned long long committed_through_ = 0;              // under db_mu_
   std::map<unsigned long long, Status> commit_failures_;  // under db_mu_: ticket → why
   std::mutex batch_mu_;
-  std::vector<IndexDb::JobResults> batch_;               // under batch_mu_
-  unsigned long long last_ticket_ = 0;                   // under batch_mu_
-  std::map<std::string, LeaseState> committing_;         // under mu_: leases whose rows are being stored
+  std::vector<IndexDb::JobResults> batch_;        // under batch_mu_
+  unsigned long long last_ticket_ = 0;            // under batch_mu_
+  std::map<std::string, LeaseState> committing_;  // under mu_: leases whose rows are being stored
   Options opt_;
   std::map<std::string, Sweep> sweeps_;
   std::map<std::string, LeaseState> leases_;
   std::map<std::string, std::string> finished_leases_;  // lease id → sweep id, for duplicate reports
-  std::deque<std::string> finished_order_;               // oldest first: bounded memory
+  std::deque<std::string> finished_order_;              // oldest first: bounded memory
   struct Planning {
     std::string owner;
     bool reserves_slot = false;  // a submit's reservation of an active-sweep slot (a replan's sweep is counted already)
   };
-  std::map<std::string, Planning> planning_;             // sweep ids being planned (outside mu_)
-  std::condition_variable plan_cv_;                      // with mu_: a planning finished
+  std::map<std::string, Planning> planning_;  // sweep ids being planned (outside mu_)
+  std::condition_variable plan_cv_;           // with mu_: a planning finished
   unsigned long long generation_counter_ = 0;
   std::map<std::string, WorkerInfo> workers_;
-  CoordinatorStats stats_;                                // counters, under mu_
+  CoordinatorStats stats_;  // counters, under mu_
   long next_seq_ = 0;
   std::random_device lease_random_;  // the kernel's CSPRNG (getrandom): lease ids cannot be predicted from earlier ones
   bool stopped_ = false;
@@ -309,7 +311,7 @@ class SweepCoordinator {
   std::condition_variable checkpoint_cv_;
   bool checkpoint_stop_ = false;
   std::thread checkpointer_;  // started by Open, joined first by the destructor
-  std::thread publisher_;  // last member: started after, and joined before, everything it uses
+  std::thread publisher_;     // last member: started after, and joined before, everything it uses
 };
 
 }  // namespace bistable

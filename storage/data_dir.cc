@@ -24,7 +24,8 @@ StatusOr<std::string> MoveAside(const std::string& path) {
   std::strftime(stamp, sizeof stamp, "%Y%m%dT%H%M%SZ", &utc);
   std::string aside = path + ".corrupt-" + stamp;
   std::error_code ec;
-  for (int n = 2; fs::exists(fs::symlink_status(aside, ec)); ++n) aside = path + ".corrupt-" + stamp + "-" + std::to_string(n);
+  for (int n = 2; fs::exists(fs::symlink_status(aside, ec)); ++n)
+    aside = path + ".corrupt-" + stamp + "-" + std::to_string(n);
   fs::rename(path, aside, ec);
   if (ec) return Status::IoError("data", "cannot move '" + path + "' aside to '" + aside + "': " + ec.message());
   return aside;
@@ -32,8 +33,10 @@ StatusOr<std::string> MoveAside(const std::string& path) {
 
 Status CheckMapFile(const std::string& path, const std::string& id) {
   auto stored = ReadMapAttribute(path, "sweep_id");
-  if (!stored.ok()) return Status::IoError("map", "map file '" + path + "' does not open as HDF5 (truncated or overwritten)");
-  if (*stored != id) return Status::IoError("map", "map file '" + path + "' names sweep '" + stored->substr(0, 64) + "', not " + id);
+  if (!stored.ok())
+    return Status::IoError("map", "map file '" + path + "' does not open as HDF5 (truncated or overwritten)");
+  if (*stored != id)
+    return Status::IoError("map", "map file '" + path + "' names sweep '" + stored->substr(0, 64) + "', not " + id);
   auto metrics = ListMapMetrics(path);
   if (!metrics.ok() || metrics->empty()) return Status::IoError("map", "map file '" + path + "' holds no metric");
   return Status::Ok();
@@ -42,8 +45,7 @@ Status CheckMapFile(const std::string& path, const std::string& id) {
 namespace {
 
 bool IsMapName(const std::string& name) {
-  return name.size() == 15 && name.compare(12, 3, ".h5") == 0 &&
-         name.find_first_not_of("0123456789abcdef") == 12;
+  return name.size() == 15 && name.compare(12, 3, ".h5") == 0 && name.find_first_not_of("0123456789abcdef") == 12;
 }
 
 // The index row and map rows of a published map file, from the file alone.
@@ -53,7 +55,9 @@ Status IndexMapFile(IndexDb& db, const std::string& data_dir, const std::string&
   if (!toml.ok()) return toml.status();
   auto spec = ParseSweepSpec(*toml, "map " + path);
   if (!spec.ok()) return Status::FailedPrecondition("its spec does not parse here (" + spec.status().ToString() + ")");
-  if (spec->Id() != id) return Status::FailedPrecondition("its spec is sweep " + spec->Id() + " for this program (another numerics version?)");
+  if (spec->Id() != id)
+    return Status::FailedPrecondition("its spec is sweep " + spec->Id() +
+                                      " for this program (another numerics version?)");
   SweepRow row;
   row.id = id;
   row.name = spec->name;
@@ -86,7 +90,8 @@ Status IndexMapFile(IndexDb& db, const std::string& data_dir, const std::string&
 StatusOr<std::vector<std::string>> UnindexedMapFiles(IndexDb* db, const std::string& data_dir) {
   std::vector<std::string> out;
   std::error_code ec;
-  for (auto it = fs::directory_iterator(fs::path(data_dir) / "sweeps", ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+  for (auto it = fs::directory_iterator(fs::path(data_dir) / "sweeps", ec); !ec && it != fs::directory_iterator();
+       it.increment(ec)) {
     const std::string name = it->path().filename().string();
     if (!IsMapName(name) || !it->is_regular_file(ec)) continue;
     if (db) {
@@ -119,8 +124,9 @@ StatusOr<std::unique_ptr<IndexDb>> OpenDataIndex(const std::string& data_dir, st
     auto got = (*db)->SalvageFrom(aside);
     if (!got.ok()) return got.status();
     notes->push_back("index '" + index + "' is damaged (" + problem->substr(0, 200) + "): moved aside to '" + aside +
-                     "'; the new index holds what could be read of it (" + std::to_string(got->sweeps) + " unfinished sweeps, " +
-                     std::to_string(got->points) + " stored points, " + std::to_string(got->staged) +
+                     "'; the new index holds what could be read of it (" + std::to_string(got->sweeps) +
+                     " unfinished sweeps, " + std::to_string(got->points) + " stored points, " +
+                     std::to_string(got->staged) +
                      " staged reports) and the published maps of sweeps/; what is missing is computed again");
   }
   // Map files the index holds no row for: an empty, missing or rebuilt index.
@@ -134,7 +140,8 @@ StatusOr<std::unique_ptr<IndexDb>> OpenDataIndex(const std::string& data_dir, st
       indexed.push_back(id);
     } else if (st.code() == Status::Code::kIoError && st.field() == "map") {  // does not open: aside, not lost
       auto aside = MoveAside(path);
-      notes->push_back(st.message() + (aside.ok() ? ": moved aside to '" + *aside + "'" : ": " + aside.status().message()));
+      notes->push_back(st.message() +
+                       (aside.ok() ? ": moved aside to '" + *aside + "'" : ": " + aside.status().message()));
     } else {
       notes->push_back("map file '" + path + "' is not indexed: " + st.message());
     }

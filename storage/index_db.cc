@@ -36,7 +36,9 @@ class Stmt {
   ~Stmt() { sqlite3_finalize(s_); }
   bool ok() const { return rc_ == SQLITE_OK; }
   sqlite3_stmt* get() { return s_; }
-  void Text(int i, const std::string& v) { sqlite3_bind_text(s_, i, v.c_str(), static_cast<int>(v.size()), SQLITE_TRANSIENT); }
+  void Text(int i, const std::string& v) {
+    sqlite3_bind_text(s_, i, v.c_str(), static_cast<int>(v.size()), SQLITE_TRANSIENT);
+  }
   void Int(int i, long v) { sqlite3_bind_int64(s_, i, v); }
   void Real(int i, double v) { sqlite3_bind_double(s_, i, v); }
   std::string ColText(int i) {
@@ -52,7 +54,9 @@ class Stmt {
 // A transaction that rolls back unless committed: every multi-statement write is all or nothing.
 class Transaction {
  public:
-  Transaction(sqlite3* db, const char* begin) : db_(db) { ok_ = sqlite3_exec(db, begin, nullptr, nullptr, nullptr) == SQLITE_OK; }
+  Transaction(sqlite3* db, const char* begin) : db_(db) {
+    ok_ = sqlite3_exec(db, begin, nullptr, nullptr, nullptr) == SQLITE_OK;
+  }
   ~Transaction() {
     if (ok_ && !done_) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
   }
@@ -143,7 +147,8 @@ Status IndexDb::Exec(const std::string& sql) {
 StatusOr<std::unique_ptr<IndexDb>> IndexDb::Open(const std::string& path) {
   // A new index is created here with kDataFileMode (SQLite would take 0644; its WAL and shared-memory
   // files take the index's mode); SQLite reads an empty file as an empty database.
-  if (const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, static_cast<mode_t>(kDataFileMode)); fd >= 0)
+  if (const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, static_cast<mode_t>(kDataFileMode));
+      fd >= 0)
     ::close(fd);
   sqlite3* db = nullptr;
   if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr) !=
@@ -171,9 +176,11 @@ StatusOr<std::unique_ptr<IndexDb>> IndexDb::Open(const std::string& path) {
   if (schema == "1") {
     Transaction tx(db, "BEGIN IMMEDIATE");
     st = tx.ok() ? idx->Exec(kMigrate2) : Status::IoError("index", "cannot begin the schema migration");
-    if (!st.ok() || !tx.Commit()) return Status::IoError("data", "index '" + path + "': migrating to schema 2: " + st.message());
+    if (!st.ok() || !tx.Commit())
+      return Status::IoError("data", "index '" + path + "': migrating to schema 2: " + st.message());
   } else if (schema != "2") {
-    return Status::IoError("data", "index '" + path + "' has schema '" + schema + "', this program reads schema 2 (newer program?)");
+    return Status::IoError(
+        "data", "index '" + path + "' has schema '" + schema + "', this program reads schema 2 (newer program?)");
   }
   return idx;
 }
@@ -187,7 +194,8 @@ StatusOr<std::string> IndexDb::QuickCheck(const std::string& path) {
     sqlite3* db;
     ~Close() { sqlite3_close(db); }
   } close{db};
-  if (rc != SQLITE_OK) return Status::IoError("data", "cannot open index '" + path + "': " + (db ? sqlite3_errmsg(db) : "out of memory"));
+  if (rc != SQLITE_OK)
+    return Status::IoError("data", "cannot open index '" + path + "': " + (db ? sqlite3_errmsg(db) : "out of memory"));
   sqlite3_db_config(db, SQLITE_DBCONFIG_NO_CKPT_ON_CLOSE, 1, nullptr);  // the file stays as it was found
   sqlite3_busy_timeout(db, 10000);
   std::string problem;
@@ -220,7 +228,8 @@ StatusOr<IndexDb::Salvaged> IndexDb::SalvageFrom(const std::string& old_path) {
   Transaction tx(db_, "BEGIN IMMEDIATE");
   if (!tx.ok()) return Error("begin salvage");
   // Each table row by row, until the end or its first unreadable page.
-  const auto copy = [&](const char* select, const char* insert, int columns, long* count, const std::function<bool(Stmt&)>& keep) -> Status {
+  const auto copy = [&](const char* select, const char* insert, int columns, long* count,
+                        const std::function<bool(Stmt&)>& keep) -> Status {
     Stmt from(old, select);
     Stmt to(db_, insert);
     if (!from.ok()) return Status::Ok();  // the table cannot be read at all
@@ -235,12 +244,14 @@ StatusOr<IndexDb::Salvaged> IndexDb::SalvageFrom(const std::string& old_path) {
     return Status::Ok();
   };
   BISTABLE_RETURN_IF_ERROR(copy("SELECT " SWEEP_COLUMNS " FROM sweeps",
-                                "INSERT OR IGNORE INTO sweeps(" SWEEP_COLUMNS ") VALUES(?,?,?,?,?,?,?,?,?,?,?,?)", 12, &n.sweeps,
-                                [](Stmt& r) { return r.ColText(4) != SweepStateName(SweepState::kDone); }));
-  BISTABLE_RETURN_IF_ERROR(copy("SELECT key, record, created FROM points", "INSERT OR IGNORE INTO points(key, record, created) VALUES(?,?,?)", 3,
-                                &n.points, nullptr));
+                                "INSERT OR IGNORE INTO sweeps(" SWEEP_COLUMNS ") VALUES(?,?,?,?,?,?,?,?,?,?,?,?)", 12,
+                                &n.sweeps, [](Stmt& r) { return r.ColText(4) != SweepStateName(SweepState::kDone); }));
+  BISTABLE_RETURN_IF_ERROR(copy("SELECT key, record, created FROM points",
+                                "INSERT OR IGNORE INTO points(key, record, created) VALUES(?,?,?)", 3, &n.points,
+                                nullptr));
   BISTABLE_RETURN_IF_ERROR(copy("SELECT sweep_id, width, keys, records, sum FROM results ORDER BY seq",
-                                "INSERT INTO results(sweep_id, width, keys, records, sum) VALUES(?,?,?,?,?)", 5, &n.staged, nullptr));
+                                "INSERT INTO results(sweep_id, width, keys, records, sum) VALUES(?,?,?,?,?)", 5,
+                                &n.staged, nullptr));
   if (!tx.Commit()) return Error("commit salvage");
   return n;
 }
@@ -312,7 +323,8 @@ StatusOr<std::vector<MapRow>> IndexDb::ListMaps(const std::string& sweep_id) {
 }
 
 StatusOr<std::optional<SweepRow>> IndexDb::GetSweep(const std::string& id) {
-  Stmt s(db_, "SELECT " SWEEP_COLUMNS " FROM sweeps WHERE id = ? OR substr(id, 1, length(?)) = ? ORDER BY id = ? DESC LIMIT 2");
+  Stmt s(db_, "SELECT " SWEEP_COLUMNS
+              " FROM sweeps WHERE id = ? OR substr(id, 1, length(?)) = ? ORDER BY id = ? DESC LIMIT 2");
   if (!s.ok()) return Error("prepare sweep lookup");
   s.Text(1, id);
   s.Text(2, id);
@@ -322,7 +334,8 @@ StatusOr<std::optional<SweepRow>> IndexDb::GetSweep(const std::string& id) {
   while (sqlite3_step(s.get()) == SQLITE_ROW) rows.push_back(ReadSweep(s));
   if (rows.empty()) return std::optional<SweepRow>();
   if (rows.size() > 1 && rows[0].id != id)
-    return Status::InvalidArgument("id", "sweep id prefix '" + id + "' is ambiguous (" + rows[0].id + ", " + rows[1].id + ", ...)");
+    return Status::InvalidArgument(
+        "id", "sweep id prefix '" + id + "' is ambiguous (" + rows[0].id + ", " + rows[1].id + ", ...)");
   return std::optional<SweepRow>(rows[0]);
 }
 
@@ -335,7 +348,8 @@ StatusOr<std::vector<SweepRow>> IndexDb::ListSweeps() {
 }
 
 StatusOr<std::unordered_map<std::string, PointRecord>> IndexDb::LookupPoints(const std::vector<std::string>& keys,
-                                                                                size_t record_size, long* corrupt, Fold fold) {
+                                                                             size_t record_size, long* corrupt,
+                                                                             Fold fold) {
   // Staged records (folded just now, or read where they are staged) come from rows whose checksum was
   // verified: they are taken from memory instead of being read back by key (at publication that is
   // every computed point).
@@ -402,15 +416,18 @@ Status IndexDb::PutPoints(const std::vector<JobResults>& jobs) {
   for (const JobResults& job : jobs) {
     const size_t n = static_cast<size_t>(std::count(job.keys.begin(), job.keys.end(), '\n'));
     if (job.width == 0 || job.values.size() != n * job.width || (!job.keys.empty() && job.keys.back() != '\n'))
-      return Status::InvalidArgument("records", std::to_string(n) + " keys do not match " + std::to_string(job.values.size()) +
-                                                    " values of width " + std::to_string(job.width));
+      return Status::InvalidArgument("records", std::to_string(n) + " keys do not match " +
+                                                    std::to_string(job.values.size()) + " values of width " +
+                                                    std::to_string(job.width));
     if (n > 0) {
       sqlite3_reset(ins);
       sqlite3_bind_text(ins, 1, job.sweep_id.c_str(), static_cast<int>(job.sweep_id.size()), SQLITE_STATIC);
       sqlite3_bind_int64(ins, 2, static_cast<sqlite3_int64>(job.width));
       sqlite3_bind_text(ins, 3, job.keys.c_str(), static_cast<int>(job.keys.size()), SQLITE_STATIC);
       sqlite3_bind_blob(ins, 4, job.values.data(), static_cast<int>(job.values.size() * sizeof(double)), SQLITE_STATIC);
-      sqlite3_bind_int64(ins, 5, static_cast<sqlite3_int64>(RecordSum(job.keys.data(), job.keys.size(), job.values.data(), job.values.size())));
+      sqlite3_bind_int64(ins, 5,
+                         static_cast<sqlite3_int64>(
+                             RecordSum(job.keys.data(), job.keys.size(), job.values.data(), job.values.size())));
       if (sqlite3_step(ins) != SQLITE_DONE) return Error("store point results");
       sqlite3_reset(ins);
     }
@@ -424,7 +441,8 @@ Status IndexDb::PutPoints(const std::vector<JobResults>& jobs) {
   return Status::Ok();
 }
 
-StatusOr<long> IndexDb::ReadStagedRows(long after_seq, int limit, bool count_corrupt, std::vector<StagedEntry>* entries) {
+StatusOr<long> IndexDb::ReadStagedRows(long after_seq, int limit, bool count_corrupt,
+                                       std::vector<StagedEntry>* entries) {
   sqlite3_stmt* sel = Cached("SELECT seq, width, keys, records, sum FROM results WHERE seq > ? ORDER BY seq LIMIT ?");
   if (!sel) return Error("prepare result scan");
   sqlite3_bind_int64(sel, 1, after_seq);
@@ -440,7 +458,8 @@ StatusOr<long> IndexDb::ReadStagedRows(long after_seq, int limit, bool count_cor
     const size_t key_bytes = static_cast<size_t>(sqlite3_column_bytes(sel, 2));
     // A staged row whose checksum fails is dropped whole: its points are missing and recomputed.
     if (sqlite3_column_type(sel, 4) != SQLITE_NULL &&
-        static_cast<uint64_t>(sqlite3_column_int64(sel, 4)) != RecordSum(keys ? keys : "", keys ? key_bytes : 0, vals, nvals)) {
+        static_cast<uint64_t>(sqlite3_column_int64(sel, 4)) !=
+            RecordSum(keys ? keys : "", keys ? key_bytes : 0, vals, nvals)) {
       if (count_corrupt) ++corrupt_rows_;
       continue;
     }
@@ -449,7 +468,8 @@ StatusOr<long> IndexDb::ReadStagedRows(long after_seq, int limit, bool count_cor
     for (const char* p = keys; p && *p; ++k) {
       const char* nl = std::strchr(p, '\n');
       if (!nl || (k + 1) * width > nvals) break;  // a malformed row: stop (its points are recomputed)
-      entries->push_back({std::string(p, nl), static_cast<long>(entries->size()), std::vector<double>(vals + k * width, vals + (k + 1) * width)});
+      entries->push_back({std::string(p, nl), static_cast<long>(entries->size()),
+                          std::vector<double>(vals + k * width, vals + (k + 1) * width)});
       p = nl + 1;
     }
   }
@@ -486,8 +506,9 @@ Status IndexDb::FoldResults(std::unordered_map<std::string, std::vector<double>>
     if (!last.ok()) return last.status();
     const long last_seq = *last;
     if (last_seq < 0) return Status::Ok();  // nothing staged
-    std::sort(entries.begin(), entries.end(),
-              [](const StagedEntry& a, const StagedEntry& b) { return a.key != b.key ? a.key < b.key : a.order < b.order; });
+    std::sort(entries.begin(), entries.end(), [](const StagedEntry& a, const StagedEntry& b) {
+      return a.key != b.key ? a.key < b.key : a.order < b.order;
+    });
     sqlite3_stmt* ins = Cached("INSERT OR REPLACE INTO points(key, record, created) VALUES(?, ?, unixepoch())");
     if (!ins) return Error("prepare point insert");
     std::vector<unsigned char> blob;

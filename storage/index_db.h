@@ -23,24 +23,24 @@ struct sqlite3_stmt;
 namespace bistable {
 
 struct SweepRow {
-  std::string id;          // 12 hex digits (hash of the canonical spec)
+  std::string id;  // 12 hex digits (hash of the canonical spec)
   std::string name;
   std::string model;
-  std::string spec;        // the TOML as given
+  std::string spec;                        // the TOML as given
   SweepState state = SweepState::kQueued;  // stored as its name
-  long items_total = 0;   // grid points × initial conditions (SQL columns points_total / points_done)
+  long items_total = 0;                    // grid points × initial conditions (SQL columns points_total / points_done)
   long items_done = 0;
-  std::string file;        // map file path relative to the data dir, "" until published
-  double created = 0;      // unix seconds
+  std::string file;    // map file path relative to the data dir, "" until published
+  double created = 0;  // unix seconds
   double finished = 0;
-  double seconds = 0;      // wall time of the last run
-  std::string owner;       // identity of the token that submitted it ("local" without tokens)
+  double seconds = 0;  // wall time of the last run
+  std::string owner;   // identity of the token that submitted it ("local" without tokens)
 };
 
 // One published map dataset: what `bistable sweeps --json` and clients can list without opening HDF5.
 struct MapRow {
   std::string sweep_id, metric, file;
-  std::string shape;      // "201x201" (axis lengths, then ic / peak dims)
+  std::string shape;        // "201x201" (axis lengths, then ic / peak dims)
   double min = 0, max = 0;  // over finite values (NaN when none)
 };
 
@@ -106,7 +106,6 @@ class IndexDb {
   Status CheckpointPassive();
   // The connection's page cache in KiB (a checkpoint-only connection needs next to none).
   Status SetCacheKib(int kib);
-
 
  private:
   explicit IndexDb(sqlite3* db) : db_(db) {}

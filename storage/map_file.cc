@@ -12,19 +12,19 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <ctime>
+#include <filesystem>
 #include <limits>
 #include <map>
 #include <mutex>
 
 #include "base/iso_time.h"
 #include "base/limits.h"
-#include "base/version.h"
 #include "base/names.h"
+#include "base/validate.h"
+#include "base/version.h"
 #include "dynamics/host_lanes.h"
 #include "engine/basins.h"
-#include "base/validate.h"
 #include "storage/data_dir.h"
 #include "storage/metric_name.h"
 
@@ -95,7 +95,8 @@ Status WriteNumberAttr(hid_t obj, const char* name, hid_t type, const void* valu
   const hsize_t dims = n;
   Handle space(n == 1 ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &dims, nullptr), H5Sclose);
   Handle attr(H5Acreate2(obj, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
-  if (!attr.ok() || H5Awrite(attr.get(), type, values) < 0) return Status::IoError("map", std::string("attribute ") + name);
+  if (!attr.ok() || H5Awrite(attr.get(), type, values) < 0)
+    return Status::IoError("map", std::string("attribute ") + name);
   return Status::Ok();
 }
 
@@ -165,8 +166,9 @@ Status WriteCfAttrs(hid_t obj, const CfQuantity& q, const std::string& coordinat
 }
 
 // Creates a chunked, shuffled, deflated dataset and writes `data` (converted to `file_type`).
-Status WriteDataset(hid_t file, const std::string& name, const std::vector<hsize_t>& dims, const std::vector<double>& data,
-                    hid_t file_type, const CfQuantity& q, const std::string& coordinates) {
+Status WriteDataset(hid_t file, const std::string& name, const std::vector<hsize_t>& dims,
+                    const std::vector<double>& data, hid_t file_type, const CfQuantity& q,
+                    const std::string& coordinates) {
   Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose);
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   // Chunks of about 8,192 values (64 KiB of doubles): whole trailing dims, then as many rows of the
@@ -234,7 +236,8 @@ Status WriteScale(hid_t file, const std::string& name, const std::vector<double>
 // A fixed parameter: a scalar variable that the data variables name in their "coordinates".
 Status WriteScalar(hid_t file, const std::string& name, double value, const CfQuantity& q) {
   Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  Handle ds(H5Dcreate2(file, name.c_str(), H5T_NATIVE_DOUBLE, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
+  Handle ds(H5Dcreate2(file, name.c_str(), H5T_NATIVE_DOUBLE, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+            H5Dclose);
   if (!ds.ok() || H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value) < 0)
     return Status::IoError("map", "write parameter " + name);
   return WriteCfAttrs(ds.get(), q, "");
@@ -251,8 +254,10 @@ Status FsyncPath(const std::string& path, bool directory) {
 // Dimensional sweeps measure in SI: time in s, lengths in m, angular frequencies in rad/s.
 std::string UnitFor(const SweepSpec& spec, std::string unit) {
   if (spec.model != ModelKind::kDimensional) return unit;
-  for (auto [from, to] : {std::pair<std::string, std::string>{"rad/tau", "rad/s"}, {"1/tau", "1/s"}, {"delta_s", "m"},
-                         {"delta_s/tau", "m/s"}})
+  for (auto [from, to] : {std::pair<std::string, std::string>{"rad/tau", "rad/s"},
+                          {"1/tau", "1/s"},
+                          {"delta_s", "m"},
+                          {"delta_s/tau", "m/s"}})
     if (unit == from) return to;
   return unit;
 }
@@ -266,7 +271,8 @@ std::vector<double> Iota(size_t n) {
 // A basin map (every axis an initial-state axis): the attractor each start ends on, and per attractor
 // its description, basin fraction and boundary fraction over a trailing `attractor_id` dimension.
 Status WriteBasins(hid_t file, const SweepSpec& spec, const std::vector<PointRecord>& records,
-                   const std::vector<hsize_t>& dims, const std::vector<std::string>& names, const std::string& coordinates) {
+                   const std::vector<hsize_t>& dims, const std::vector<std::string>& names,
+                   const std::string& coordinates) {
   const BasinMap basins = ClassifyAttractors(spec, records, 10 * spec.base.metrics.period_tol);
   std::vector<Category> legend;
   for (const Attractor& a : basins.attractors) legend.push_back({a.id, a.label.c_str()});
@@ -284,7 +290,8 @@ Status WriteBasins(hid_t file, const SweepSpec& spec, const std::vector<PointRec
   Handle group(H5Gcreate2(file, "attractors", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
   if (!group.ok()) return Status::IoError("map", "create group attractors");
   const hid_t g = group.get();
-  BISTABLE_RETURN_IF_ERROR(WriteScale(g, "attractor_id", Iota(n), {"attractor id (0 = largest basin)", "", "", &legend}, /*integer=*/true));
+  BISTABLE_RETURN_IF_ERROR(
+      WriteScale(g, "attractor_id", Iota(n), {"attractor id (0 = largest basin)", "", "", &legend}, /*integer=*/true));
   auto column = [&](const char* name, auto get, hid_t type, const CfQuantity& q) -> Status {
     std::vector<double> v(n);
     for (size_t k = 0; k < n; ++k) v[k] = get(basins.attractors[k]);
@@ -292,15 +299,19 @@ Status WriteBasins(hid_t file, const SweepSpec& spec, const std::vector<PointRec
     return AttachScales(g, name, {"attractor_id"});
   };
   const std::vector<Category>& motions = MetricCategories("motion");
-  BISTABLE_RETURN_IF_ERROR(column("basin_fraction", [](const Attractor& a) { return a.basin_fraction; }, H5T_NATIVE_DOUBLE,
-                                  {"fraction of the starts ending on the attractor", "fraction", "cells of its basin / all starts"}));
-  BISTABLE_RETURN_IF_ERROR(column("boundary_fraction", [](const Attractor& a) { return a.boundary_fraction; }, H5T_NATIVE_DOUBLE,
-                                  {"fraction of the basin's cells on a basin boundary", "fraction",
-                                   "cells with a grid neighbour (+-1 along an axis) ending on another attractor / cells of the basin"}));
-  BISTABLE_RETURN_IF_ERROR(column("motion", [](const Attractor& a) { return static_cast<double>(a.motion < 0 ? kMotionUndefined : a.motion); }, H5T_NATIVE_INT32,
-                                  {"type of motion on the attractor", "code", MotionCodesText(), &motions}));
-  BISTABLE_RETURN_IF_ERROR(column("period", [](const Attractor& a) { return static_cast<double>(a.period); }, H5T_NATIVE_INT32,
-                                  {"period of the attractor in forcing periods (0: not periodic)", "forcing periods", "stroboscopic period"}));
+  BISTABLE_RETURN_IF_ERROR(
+      column("basin_fraction", [](const Attractor& a) { return a.basin_fraction; }, H5T_NATIVE_DOUBLE,
+             {"fraction of the starts ending on the attractor", "fraction", "cells of its basin / all starts"}));
+  BISTABLE_RETURN_IF_ERROR(
+      column("boundary_fraction", [](const Attractor& a) { return a.boundary_fraction; }, H5T_NATIVE_DOUBLE,
+             {"fraction of the basin's cells on a basin boundary", "fraction",
+              "cells with a grid neighbour (+-1 along an axis) ending on another attractor / cells of the basin"}));
+  BISTABLE_RETURN_IF_ERROR(column(
+      "motion", [](const Attractor& a) { return static_cast<double>(a.motion < 0 ? kMotionUndefined : a.motion); },
+      H5T_NATIVE_INT32, {"type of motion on the attractor", "code", MotionCodesText(), &motions}));
+  BISTABLE_RETURN_IF_ERROR(column(
+      "period", [](const Attractor& a) { return static_cast<double>(a.period); }, H5T_NATIVE_INT32,
+      {"period of the attractor in forcing periods (0: not periodic)", "forcing periods", "stroboscopic period"}));
   BISTABLE_RETURN_IF_ERROR(column("strobe_y", [](const Attractor& a) { return a.strobe_y; }, H5T_NATIVE_DOUBLE,
                                   {"displacement at the attractor's Poincare fingerprint", UnitFor(spec, "delta_s"),
                                    "strobe_y of the attractor (NaN: not periodic)"}));
@@ -314,12 +325,12 @@ Status WriteBasins(hid_t file, const SweepSpec& spec, const std::vector<PointRec
 Status WriteRefinement(hid_t file, const SweepSpec& spec, const RefinedGrid& refined, const std::vector<hsize_t>& dims,
                        const std::vector<std::string>& names, const std::string& coordinates) {
   const std::string levels = std::to_string(spec.refine.levels);
-  BISTABLE_RETURN_IF_ERROR(WriteDataset(
-      file, "refine_level", dims, refined.level, H5T_NATIVE_INT32,
-      {"refinement level of the smallest cell holding the point", "",
-       "0 = the coarse grid (every 2^" + levels + "-th axis value), " + levels +
-           " = the axes' own spacing; cells split where their corners disagree on " + RefineCriterionName(spec.refine.criterion)},
-      coordinates));
+  BISTABLE_RETURN_IF_ERROR(WriteDataset(file, "refine_level", dims, refined.level, H5T_NATIVE_INT32,
+                                        {"refinement level of the smallest cell holding the point", "",
+                                         "0 = the coarse grid (every 2^" + levels + "-th axis value), " + levels +
+                                             " = the axes' own spacing; cells split where their corners disagree on " +
+                                             RefineCriterionName(spec.refine.criterion)},
+                                        coordinates));
   BISTABLE_RETURN_IF_ERROR(AttachScales(file, "refine_level", names));
   BISTABLE_RETURN_IF_ERROR(WriteDataset(
       file, "refine_fill", dims, refined.fill, H5T_NATIVE_INT32,
@@ -336,8 +347,8 @@ Status WriteRefinement(hid_t file, const SweepSpec& spec, const RefinedGrid& ref
   return WriteStringAttr(file, "refine_criterion", RefineCriterionName(spec.refine.criterion));
 }
 
-Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records,
-                 const RefinedGrid* refined) {
+Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& spec,
+                 const std::vector<PointRecord>& records, const RefinedGrid* refined) {
   const long np = spec.points();
   const int nic = spec.ic_count();
   std::vector<hsize_t> axis_dims;
@@ -391,7 +402,8 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
     pn.push_back("peak");
     std::vector<double> f(records.size() * kHdPeaksStored), a(f.size());
     for (size_t i = 0; i < records.size(); ++i)
-      for (int k = 0; k < kHdPeaksStored; ++k) f[i * kHdPeaksStored + k] = records[i].PeakFreq(k), a[i * kHdPeaksStored + k] = records[i].PeakAmp(k);
+      for (int k = 0; k < kHdPeaksStored; ++k)
+        f[i * kHdPeaksStored + k] = records[i].PeakFreq(k), a[i * kHdPeaksStored + k] = records[i].PeakAmp(k);
     BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_freq", pd, f, H5T_NATIVE_DOUBLE,
                                           {"angular frequency of a spectral peak of y_m", UnitFor(spec, "rad/tau"),
                                            "spectral peaks of y_m (strongest first), angular frequency; NaN = none"},
@@ -404,9 +416,10 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "hd_peak_amp", pn));
   }
   if (spec.base.metrics.turning_points) {
-    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), "turning_point", Iota(kTurningPointsStored),
-                                        {"index of the turning point (time order within the last 64 of the window)", "", ""},
-                                        /*integer=*/true));
+    BISTABLE_RETURN_IF_ERROR(
+        WriteScale(file.get(), "turning_point", Iota(kTurningPointsStored),
+                   {"index of the turning point (time order within the last 64 of the window)", "", ""},
+                   /*integer=*/true));
     std::vector<hsize_t> td = dims;
     td.push_back(kTurningPointsStored);
     std::vector<std::string> tn = names;
@@ -414,10 +427,11 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
     std::vector<double> tp(records.size() * kTurningPointsStored);
     for (size_t i = 0; i < records.size(); ++i)
       for (int k = 0; k < kTurningPointsStored; ++k) tp[i * kTurningPointsStored + k] = records[i].TurningPoint(k);
-    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "turning_points", td, tp, H5T_NATIVE_DOUBLE,
-                                          {"displacement y_m at a turning point (y_m' = 0)", UnitFor(spec, "delta_s"),
-                                           "y_m where y_m' = 0 in the window (last 64, time order; NaN = none): bifurcation diagrams"},
-                                          coordinates));
+    BISTABLE_RETURN_IF_ERROR(
+        WriteDataset(file.get(), "turning_points", td, tp, H5T_NATIVE_DOUBLE,
+                     {"displacement y_m at a turning point (y_m' = 0)", UnitFor(spec, "delta_s"),
+                      "y_m where y_m' = 0 in the window (last 64, time order; NaN = none): bifurcation diagrams"},
+                     coordinates));
     BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "turning_points", tn));
   }
   if (const int np_section = spec.base.metrics.poincare_points; np_section > 0) {
@@ -431,10 +445,11 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
     sd.push_back(np_section);
     std::vector<std::string> sn = names;
     sn.push_back("poincare_point");
-    const char* phase_note = spec.model == ModelKind::kDimensional ? "t_k = (phase + 2 pi k)/omega_0" : "tau_k = (phase + 2 pi k)/Omega";
-    const std::string when = std::string(" at the strobes ") + phase_note + ", phase = poincare_phase = " +
-                             FormatNumber(spec.base.metrics.poincare_phase) + " rad, the last " + std::to_string(np_section) +
-                             " in the window (time order; NaN = none)";
+    const char* phase_note =
+        spec.model == ModelKind::kDimensional ? "t_k = (phase + 2 pi k)/omega_0" : "tau_k = (phase + 2 pi k)/Omega";
+    const std::string when = std::string(" at the strobes ") + phase_note +
+                             ", phase = poincare_phase = " + FormatNumber(spec.base.metrics.poincare_phase) +
+                             " rad, the last " + std::to_string(np_section) + " in the window (time order; NaN = none)";
     const struct {
       const char* name;
       int component;
@@ -446,9 +461,11 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
     for (const auto& c : kSection) {
       std::vector<double> values(records.size() * np_section);
       for (size_t i = 0; i < records.size(); ++i)
-        for (int k = 0; k < np_section; ++k) values[i * np_section + k] = records[i].Poincare(k, c.component, tp, np_section);
+        for (int k = 0; k < np_section; ++k)
+          values[i * np_section + k] = records[i].Poincare(k, c.component, tp, np_section);
       BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), c.name, sd, values, H5T_NATIVE_DOUBLE,
-                                            {c.long_name, UnitFor(spec, c.unit), std::string(c.what) + when}, coordinates));
+                                            {c.long_name, UnitFor(spec, c.unit), std::string(c.what) + when},
+                                            coordinates));
       BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), c.name, sn));
     }
   }
@@ -462,20 +479,24 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
         for (int i = 0; i < nic; ++i) hit += records[p * nic + i].Get(motion_index) == code;
         frac[p] = static_cast<double>(hit) / nic;
       }
-      const std::string motion = MotionName(code == 0 ? Motion::kIntrawell : code == 1 ? Motion::kInterwell : Motion::kChaotic);
-      BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), kNames[code], axis_dims, frac, H5T_NATIVE_DOUBLE,
-                                            {"fraction of the initial conditions ending in " + motion + " motion", "fraction",
-                                             "fraction of the initial conditions whose motion type is this one"},
-                                            coordinates));
+      const std::string motion = MotionName(code == 0   ? Motion::kIntrawell
+                                            : code == 1 ? Motion::kInterwell
+                                                        : Motion::kChaotic);
+      BISTABLE_RETURN_IF_ERROR(
+          WriteDataset(file.get(), kNames[code], axis_dims, frac, H5T_NATIVE_DOUBLE,
+                       {"fraction of the initial conditions ending in " + motion + " motion", "fraction",
+                        "fraction of the initial conditions whose motion type is this one"},
+                       coordinates));
       BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), kNames[code], axis_names));
       if (spec.robustness.enabled()) {  // a probability estimated from nic samples: its standard error
         std::vector<double> se(np);
         for (long p = 0; p < np; ++p) se[p] = std::sqrt(frac[p] * (1.0 - frac[p]) / nic);
         const std::string name = std::string(kNames[code]) + "_stderr";
-        BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), name, axis_dims, se, H5T_NATIVE_DOUBLE,
-                                              {"Monte-Carlo standard error of " + std::string(kNames[code]), "fraction",
-                                               "sqrt(p (1 - p) / samples) of the fraction p over the tolerance samples"},
-                                              coordinates));
+        BISTABLE_RETURN_IF_ERROR(
+            WriteDataset(file.get(), name, axis_dims, se, H5T_NATIVE_DOUBLE,
+                         {"Monte-Carlo standard error of " + std::string(kNames[code]), "fraction",
+                          "sqrt(p (1 - p) / samples) of the fraction p over the tolerance samples"},
+                         coordinates));
         BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), name, axis_names));
       }
     }
@@ -485,24 +506,26 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
   const IntegrationSettings& in = spec.base.integration;
   const bool dimensional = spec.model == ModelKind::kDimensional;
   char settings[256];
-  std::snprintf(settings, sizeof settings, "%s, dt = %.6g, window %.6g to %.6g %s", IntegratorName(in.integrator), in.dt,
-                in.t_keep, in.t_end, dimensional ? "s" : "(tau = omega_n t)");
+  std::snprintf(settings, sizeof settings, "%s, dt = %.6g, window %.6g to %.6g %s", IntegratorName(in.integrator),
+                in.dt, in.t_keep, in.t_end, dimensional ? "s" : "(tau = omega_n t)");
   const hid_t f = file.get();
   // CF-1.10 global attributes (provenance), then the project's own.
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "Conventions", "CF-1.10"));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "title", spec.name.empty() ? "bistable-sweep map " + spec.Id() : spec.name));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(
-      f, "source",
-      std::string("bistable-sweep ") + kSoftwareVersion + " (numerics " + kNumericsVersion + "): " + spec.ModelLabel() +
-          " model, " + settings));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "history", IsoTimeUtc(static_cast<double>(std::time(nullptr))) + " bistable-sweep " + kSoftwareVersion +
-                                                             ": map of sweep " + spec.Id() + " written"));
+  BISTABLE_RETURN_IF_ERROR(
+      WriteStringAttr(f, "title", spec.name.empty() ? "bistable-sweep map " + spec.Id() : spec.name));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "source",
+                                           std::string("bistable-sweep ") + kSoftwareVersion + " (numerics " +
+                                               kNumericsVersion + "): " + spec.ModelLabel() + " model, " + settings));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "history",
+                                           IsoTimeUtc(static_cast<double>(std::time(nullptr))) + " bistable-sweep " +
+                                               kSoftwareVersion + ": map of sweep " + spec.Id() + " written"));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(
       f, "references",
       "Models and metrics: docs/model.md and docs/numerics.md of bistable-sweep. Paper: Numerical and experimental "
       "studies on a bistable oscillator coupled with a resonator for vibration attenuation and chaos prediction."));
-  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "comment", "The sweep's spec (TOML) is in the attribute 'spec'; its canonical "
-                                                         "form, which the sweep id hashes, in 'canonical_spec'."));
+  BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "comment",
+                                           "The sweep's spec (TOML) is in the attribute 'spec'; its canonical "
+                                           "form, which the sweep id hashes, in 'canonical_spec'."));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "spec", spec.source));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "canonical_spec", spec.CanonicalText()));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "numerics_version", kNumericsVersion));
@@ -567,13 +590,14 @@ Status WriteFileBytes(const std::string& path, const std::vector<char>& bytes) {
 Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records,
                 const RefinedGrid* refined) {
   Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
-  if (!fapl.ok() || H5Pset_fapl_core(fapl.get(), size_t{8} << 20, /*backing_store=*/0) < 0) return H5Fail(tmp, "core driver");
+  if (!fapl.ok() || H5Pset_fapl_core(fapl.get(), size_t{8} << 20, /*backing_store=*/0) < 0)
+    return H5Fail(tmp, "core driver");
   const hid_t id = H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
   if (id < 0) return H5Fail(tmp, "create");
   Status st;
   {
     const Handle file(id, [](hid_t) -> herr_t { return 0; });  // closed below, checked
-    st = WriteInto(file, tmp, spec, records, refined);  // every other handle is closed when it returns
+    st = WriteInto(file, tmp, spec, records, refined);         // every other handle is closed when it returns
   }
   std::vector<char> image;
   if (st.ok()) {
@@ -600,7 +624,8 @@ Status WriteMapFileImpl(const std::string& path, const SweepSpec& spec, const st
   // A temporary of this writer's own (process id and a counter): two processes publishing the same sweep
   // into one data directory each rename a whole file, never one the other is still writing.
   static std::atomic<unsigned long> serial{0};
-  const std::string tmp = path + "." + std::to_string(static_cast<long>(getpid())) + "-" + std::to_string(++serial) + ".tmp";
+  const std::string tmp =
+      path + "." + std::to_string(static_cast<long>(getpid())) + "-" + std::to_string(++serial) + ".tmp";
   Status st;
   {
     std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
@@ -649,7 +674,8 @@ StatusOr<std::vector<std::string>> ListMapMetrics(const std::string& path) {
         Handle ds(H5Dopen2(g, name, H5P_DEFAULT), H5Dclose);
         if (!ds.ok() || H5DSis_scale(ds.get()) > 0) return 0;
         Handle space(H5Dget_space(ds.get()), H5Sclose);  // fixed parameters are scalars, not metrics
-        if (space.ok() && H5Sget_simple_extent_ndims(space.get()) > 0) static_cast<std::vector<std::string>*>(out)->push_back(name);
+        if (space.ok() && H5Sget_simple_extent_ndims(space.get()) > 0)
+          static_cast<std::vector<std::string>*>(out)->push_back(name);
         return 0;
       },
       &names);
@@ -723,7 +749,7 @@ StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& met
   out.values.resize(total);
   if (H5Dread(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.values.data()) < 0)
     return Status::IoError("map", "read " + metric + " from '" + path + "'");
-  out.unit = ReadStringAttr(ds.get(), "unit_label");  // the plots' label; "units" is CF's
+  out.unit = ReadStringAttr(ds.get(), "unit_label");                   // the plots' label; "units" is CF's
   if (out.unit.empty()) out.unit = ReadStringAttr(ds.get(), "units");  // maps written before CF metadata
   out.definition = ReadStringAttr(ds.get(), "definition");
   ReadCategories(ds.get(), &out.categories);
@@ -736,14 +762,15 @@ StatusOr<MapArray> ReadMapMetric(const std::string& path, const std::string& met
     Handle sd(H5Dopen2(file.get(), a.name.c_str(), H5P_DEFAULT), H5Dclose);
     Handle ss(H5Dget_space(sd.get()), H5Sclose);
     hsize_t n = 0;
-    if (!sd.ok() || !ss.ok() || H5Sget_simple_extent_ndims(ss.get()) != 1 || H5Sget_simple_extent_dims(ss.get(), &n, nullptr) < 0 ||
-        n > limits::kMaxMapValuesRead)
+    if (!sd.ok() || !ss.ok() || H5Sget_simple_extent_ndims(ss.get()) != 1 ||
+        H5Sget_simple_extent_dims(ss.get(), &n, nullptr) < 0 || n > limits::kMaxMapValuesRead)
       return Status::IoError("map", "axis '" + Printable(a.name) + "' of '" + path + "' is missing or malformed");
     a.values.resize(n);
     H5Dread(sd.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, a.values.data());
     const size_t k = out.axes.size();
     if (k >= dims.size() || dims[k] != n)
-      return Status::IoError("map", "dataset " + metric + " in '" + path + "' does not match its axis '" + Printable(a.name) + "'");
+      return Status::IoError(
+          "map", "dataset " + metric + " in '" + path + "' does not match its axis '" + Printable(a.name) + "'");
     out.axes.push_back(a);
     out.dim_names.push_back(a.name);
     start = end + 1;

@@ -30,10 +30,12 @@ inline Status CheckMetricName(const std::string& metric, const std::vector<std::
   if (std::find(stored.begin(), stored.end(), metric) != stored.end()) return Status::Ok();
   std::vector<std::string> allowed = stored;
   allowed.insert(allowed.end(), extra.begin(), extra.end());
-  if (IsPlainMetricName(metric)) return Status::InvalidArgument("metric", UnknownNameMessage("metric", metric, allowed));
+  if (IsPlainMetricName(metric))
+    return Status::InvalidArgument("metric", UnknownNameMessage("metric", metric, allowed));
   std::string list;
   for (const auto& n : allowed) list += (list.empty() ? "" : ", ") + n;
-  return Status::InvalidArgument("metric", "metric '" + Printable(metric) + "' is not a metric name (allowed: " + list + ")");
+  return Status::InvalidArgument("metric",
+                                 "metric '" + Printable(metric) + "' is not a metric name (allowed: " + list + ")");
 }
 
 }  // namespace bistable

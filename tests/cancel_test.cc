@@ -20,15 +20,15 @@
 
 #include "dynamics/cancel.h"
 #include "dynamics/chirp.h"
+#include "dynamics/generic_point.h"
 #include "dynamics/hbm.h"
 #include "dynamics/point.h"
 #include "dynamics/series_model.h"
-#include "dynamics/generic_point.h"
+#include "engine/evaluate.h"
 #include "engine/sweep_spec.h"
 #include "storage/index_db.h"
 #include "tests/map_compare.h"
 #include "tests/process_util.h"
-#include "engine/evaluate.h"
 
 namespace bistable {
 namespace {
@@ -233,9 +233,9 @@ TEST(Cancel, AdaptiveGenericChirpAndHbmStopToo) {
 // and continuation paths); ComputeItems' empty answer is refused by any coordinator for its size.
 TEST(Cancel, ASweepJobThatSawTheFlagHasNoRecords) {
   ScopedCancelReset reset;
-  for (const char* extra : {"", "[integration]\nintegrator = \"adaptive\"\n",
-                            "[continuation]\naxis = \"omega\"\n"}) {
-    const std::string toml = std::string("model = \"coupled\"\n[axes]\nalpha = [0.5, 1.0]\nomega = [1.0, 1.2, 1.4, 1.6]\n") + extra;
+  for (const char* extra : {"", "[integration]\nintegrator = \"adaptive\"\n", "[continuation]\naxis = \"omega\"\n"}) {
+    const std::string toml =
+        std::string("model = \"coupled\"\n[axes]\nalpha = [0.5, 1.0]\nomega = [1.0, 1.2, 1.4, 1.6]\n") + extra;
     auto spec = ParseSweepSpec(toml, "cancel");
     ASSERT_TRUE(spec.ok()) << extra << spec.status().ToString();
     std::vector<WorkItem> items;
@@ -306,10 +306,11 @@ TEST(CancelCli, PointStopsWithinASecondOfSigterm) { PointStopsOnSignal(SIGTERM);
 // simulation stops at its next sample and the loop ends — within 1.5 s, 130, nothing printed, no report.
 TEST(CancelCli, IdentifyStopsWithinASecondOfCtrlCAndWritesNothing) {
   const std::string dir = Dir("identify");
-  ASSERT_EQ(std::system((std::string(BISTABLE_CLI) + " identify --make-synthetic " + dir + "/syn > /dev/null").c_str()), 0);
-  const Child c = Spawn({BISTABLE_CLI, "identify", "--data", dir + "/syn/chirp_6mm.csv", "--data", dir + "/syn/chirp_10mm.csv", "--data",
-                         dir + "/syn/chirp_14mm.csv", "--known", "m_main=0.282", "--terms", "main.linear,main.viscous,main.damping_y2",
-                         "--report", dir + "/report", "--json"},
+  ASSERT_EQ(std::system((std::string(BISTABLE_CLI) + " identify --make-synthetic " + dir + "/syn > /dev/null").c_str()),
+            0);
+  const Child c = Spawn({BISTABLE_CLI, "identify", "--data", dir + "/syn/chirp_6mm.csv", "--data",
+                         dir + "/syn/chirp_10mm.csv", "--data", dir + "/syn/chirp_14mm.csv", "--known", "m_main=0.282",
+                         "--terms", "main.linear,main.viscous,main.damping_y2", "--report", dir + "/report", "--json"},
                         dir + "/out.txt");
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
   const auto [status, latency] = SignalAndWait(c.pid, SIGINT, 20);
@@ -395,15 +396,17 @@ TEST(CancelCli, WorkerStopsWithinASecondOfSigtermAndReleasesItsLease) {
   const std::string spec = dir + "/spec.toml";
   std::ofstream(spec) << kLongPoints;
   const std::string log = dir + "/coord.log";
-  const Child coord = Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", "--lease-seconds",
-                             "60", "--job-seconds", "0.01"},
+  const Child coord = Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data",
+                             "--lease-seconds", "60", "--job-seconds", "0.01"},
                             log);
   std::string addr;
   for (int i = 0; i < 400 && addr.empty(); ++i) {
     std::ifstream in(log);
     std::string line;
-    if (std::getline(in, line) && line.rfind("listening on ", 0) == 0) addr = line.substr(13);
-    else std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    if (std::getline(in, line) && line.rfind("listening on ", 0) == 0)
+      addr = line.substr(13);
+    else
+      std::this_thread::sleep_for(std::chrono::milliseconds(25));
   }
   ASSERT_FALSE(addr.empty()) << "coordinator did not start: " << Slurp(coord.err_file);
   const Child w1 = Spawn({BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--name", "w1"}, dir + "/w1.log");
@@ -439,12 +442,14 @@ TEST(CancelCli, WorkerStopsWithinASecondOfSigtermAndReleasesItsLease) {
     if (st.value("state", "") == "done") break;
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
-  ASSERT_EQ(st.value("state", ""), "done") << "the released job was not requeued (the lease would expire only after 60 s)";
+  ASSERT_EQ(st.value("state", ""), "done")
+      << "the released job was not requeued (the lease would expire only after 60 s)";
   ::kill(w2.pid, SIGTERM);
   EXPECT_NE(WaitFor(w2.pid, 10), -1);
   ::kill(coord.pid, SIGTERM);
   WaitFor(coord.pid, 10);
-  const auto embedded = bistable_test::Bistable("run " + spec + " --data " + dir + "/embedded --json --no-plots --quiet");
+  const auto embedded =
+      bistable_test::Bistable("run " + spec + " --data " + dir + "/embedded --json --no-plots --quiet");
   ASSERT_EQ(embedded.exit_code, 0) << embedded.err;
   bistable_test::ExpectSameMaps(dir + "/data/" + st["file"].get<std::string>(),
                                 nlohmann::json::parse(embedded.out)["files"][0]);

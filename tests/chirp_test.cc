@@ -87,7 +87,10 @@ TEST(Chirp, DimensionalSweepRunsInSecondsAndHertz) {
 TEST(Chirp, WelchH1IsUnbiasedByOutputNoiseAndCoherenceMeasuresIt) {
   uint64_t s = 88172645463325252ull;
   auto gauss = [&] {  // Box-Muller on xorshift64
-    auto u = [&] { s ^= s << 13, s ^= s >> 7, s ^= s << 17; return (static_cast<double>(s >> 11) + 0.5) / 9007199254740992.0; };
+    auto u = [&] {
+      s ^= s << 13, s ^= s >> 7, s ^= s << 17;
+      return (static_cast<double>(s >> 11) + 0.5) / 9007199254740992.0;
+    };
     return std::sqrt(-2 * std::log(u())) * std::cos(2 * M_PI * u());
   };
   const size_t n = 1 << 16;
@@ -99,7 +102,8 @@ TEST(Chirp, WelchH1IsUnbiasedByOutputNoiseAndCoherenceMeasuresIt) {
   ASSERT_GT(a.freq.size(), 100u);
   EXPECT_EQ(a.segments, 255);
   double db_a = 0, db_b = 0, coh_a = 0, coh_b = 0;
-  for (size_t k = 0; k < a.freq.size(); ++k) db_a += a.db[k], db_b += b.db[k], coh_a += a.coherence[k], coh_b += b.coherence[k];
+  for (size_t k = 0; k < a.freq.size(); ++k)
+    db_a += a.db[k], db_b += b.db[k], coh_a += a.coherence[k], coh_b += b.coherence[k];
   const double m = static_cast<double>(a.freq.size());
   EXPECT_NEAR(db_a / m, 20 * std::log10(2.0), 0.02);
   EXPECT_NEAR(db_b / m, 20 * std::log10(2.0), 0.1);

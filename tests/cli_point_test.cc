@@ -13,8 +13,8 @@
 
 #include <gtest/gtest.h>
 
-#include "tests/process_util.h"
 #include <nlohmann/json.hpp>
+#include "tests/process_util.h"
 
 namespace {
 
@@ -75,10 +75,10 @@ TEST(CliPoint, SettingsFromJsonReproduceTheResult) {
   const auto ja = nlohmann::json::parse(a.out);
   const auto& s = ja["settings"];
   const auto& ic = s["ic"];
-  const std::string again = "point --model " + s["model"].get<std::string>() + " --alpha " + std::to_string(s["alpha"].get<double>()) +
-                            " --omega " + std::to_string(s["omega"].get<double>()) + " --eta " +
-                            std::to_string(s["eta"].get<double>()) + " --ic " + std::to_string(ic[0].get<double>()) + "," +
-                            std::to_string(ic[1].get<double>()) + " --json";
+  const std::string again =
+      "point --model " + s["model"].get<std::string>() + " --alpha " + std::to_string(s["alpha"].get<double>()) +
+      " --omega " + std::to_string(s["omega"].get<double>()) + " --eta " + std::to_string(s["eta"].get<double>()) +
+      " --ic " + std::to_string(ic[0].get<double>()) + "," + std::to_string(ic[1].get<double>()) + " --json";
   const ProcessResult b = Bistable(again);
   ASSERT_EQ(b.exit_code, 0) << b.err;
   EXPECT_EQ(nlohmann::json::parse(b.out)["lle"], ja["lle"]);
@@ -125,9 +125,9 @@ TEST(CliPoint, BadInputNamesFieldAndExitsNonZero) {
       {"point --model duffing --alpha 1 --omega 1", "model = 'duffing' violates model in"},
       {"point --alpha 1 --omega 1 --integrator euler", "integrator"},
       {"point --alpha 1 --omega 1 --ic 1,2,3", "ic"},
-      {"point --alpha 1", "omega"},                      // missing required option
-      {"point --alpha abc --omega 1", "alpha"},          // not a number
-      {"frobnicate", "frobnicate"},                      // unknown subcommand
+      {"point --alpha 1", "omega"},              // missing required option
+      {"point --alpha abc --omega 1", "alpha"},  // not a number
+      {"frobnicate", "frobnicate"},              // unknown subcommand
   };
   for (const Case& c : cases) {
     const ProcessResult r = Bistable(c.args);
@@ -143,9 +143,10 @@ TEST(CliPoint, BadInputNamesFieldAndExitsNonZero) {
 // --json puts the points into the JSON; the plot; bad values name the flag and the bound.
 TEST(CliPoint, PoincareSectionFileJsonAndPlot) {
   const std::string dir = bistable_test::FreshDir("cli_point", "poincare");
-  const std::string duffing = "point --model standalone --alpha 0.3472222222222222 --omega 1.2 --eta 0.3 --no-rosenstein ";
-  const ProcessResult r = Bistable(duffing + "--poincare-periods 3000 --poincare " + dir + "/s.csv --poincare-plot " + dir +
-                                   "/s.png --json");
+  const std::string duffing =
+      "point --model standalone --alpha 0.3472222222222222 --omega 1.2 --eta 0.3 --no-rosenstein ";
+  const ProcessResult r = Bistable(duffing + "--poincare-periods 3000 --poincare " + dir + "/s.csv --poincare-plot " +
+                                   dir + "/s.png --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["motion"], "chaotic");
@@ -166,7 +167,8 @@ TEST(CliPoint, PoincareSectionFileJsonAndPlot) {
     EXPECT_EQ(e.path().filename().string().find(".bistable-out-"), std::string::npos) << "left behind: " << e.path();
 
   // "-" with --json: the points inside the JSON (coupled: six columns, the resonator's too), at the phase.
-  const ProcessResult c = Bistable("point --model coupled --alpha 0.3 --omega 0.8 --no-rosenstein --poincare - --poincare-phase 1.5 --json");
+  const ProcessResult c = Bistable(
+      "point --model coupled --alpha 0.3 --omega 0.8 --no-rosenstein --poincare - --poincare-phase 1.5 --json");
   ASSERT_EQ(c.exit_code, 0) << c.err;
   const auto jc = nlohmann::json::parse(c.out);
   ASSERT_EQ(jc["poincare"]["points"].size(), jc["poincare"]["count"].get<size_t>());
@@ -203,7 +205,8 @@ TEST(CliPoint, PoincareSectionFileJsonAndPlot) {
   // The steps-per-point limit, said in terms of the flag.
   const ProcessResult far = Bistable("point --model standalone --alpha 0.3 --omega 0.01 --poincare-periods 100000");
   EXPECT_EQ(far.exit_code, 2);
-  EXPECT_NE(far.err.find("--poincare-periods = 100000 violates --poincare-periods <= 1590"), std::string::npos) << far.err;
+  EXPECT_NE(far.err.find("--poincare-periods = 100000 violates --poincare-periods <= 1590"), std::string::npos)
+      << far.err;
   std::filesystem::remove_all(dir);
 }
 
@@ -221,7 +224,8 @@ TEST(CliPoint, HelpDocumentsUnits) {
 namespace {
 
 TEST(CliHbm, JsonHasBranchesWithTheContractKeys) {
-  const ProcessResult r = Bistable("hbm --model standalone --continue omega --from 0.2 --to 2 --alpha 0.3 --harmonics 3 --json");
+  const ProcessResult r =
+      Bistable("hbm --model standalone --continue omega --from 0.2 --to 2 --alpha 0.3 --harmonics 3 --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_TRUE(j["branches"].is_array());
@@ -254,7 +258,8 @@ TEST(CliHbm, FailedBranchSwitchIsReported) {
 // Period doublings flagged with their located values and the switched period-2 branch; fold curves
 // with a cusp (the double-well Duffing cases of tests/hbm_test.cc).
 TEST(CliHbm, JsonHasPeriodDoublingsSwitchedBranchesAndFoldCurves) {
-  ProcessResult r = Bistable("hbm --continue alpha --omega 1.2 --eta 0.3 --from 0.1 --to 0.25 --harmonics 10 --switch-pd 1 --json");
+  ProcessResult r =
+      Bistable("hbm --continue alpha --omega 1.2 --eta 0.3 --from 0.1 --to 0.25 --harmonics 10 --switch-pd 1 --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   auto j = nlohmann::json::parse(r.out);
   int pd = 0, period2 = 0;
@@ -314,7 +319,8 @@ namespace {
 
 TEST(CliChirp, WritesFrfSpectrogramAndSeries) {
   const std::string out = bistable_test::FreshDir("cli_point", "chirp") + "/chirp";
-  const ProcessResult r = Bistable("chirp --model coupled --alpha 0.2 --from 0.3 --to 2 --duration 600 --direction both --json --out " + out);
+  const ProcessResult r = Bistable(
+      "chirp --model coupled --alpha 0.2 --from 0.3 --to 2 --duration 600 --direction both --json --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["sweeps"].size(), 2u);

@@ -16,9 +16,9 @@
 
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
 #include "tests/map_compare.h"
 #include "tests/process_util.h"
-#include <nlohmann/json.hpp>
 
 #include "base/iso_time.h"
 #include "engine/metric_catalog.h"
@@ -63,7 +63,8 @@ TEST(CliSweep, RunMapQueryAndSweepsHaveTheirJsonShapes) {
   for (size_t i = 1; i < j["files"].size(); ++i) EXPECT_GT(fs::file_size(j["files"][i].get<std::string>()), 1000u);
 
   // h5py (Debian's python3-h5py) opens it with the obvious shapes.
-  const int rc = std::system(("/usr/bin/python3 " BISTABLE_TESTS_DIR "/h5py_check.py " + h5 + " 6 5 > /dev/null").c_str());
+  const int rc =
+      std::system(("/usr/bin/python3 " BISTABLE_TESTS_DIR "/h5py_check.py " + h5 + " 6 5 > /dev/null").c_str());
   EXPECT_EQ(rc, 0) << "h5py_check.py failed on " << h5;
 
   const ProcessResult map = Bistable("map " + id + " --metric frf_db --format json --data " + dir + "/data");
@@ -81,11 +82,13 @@ TEST(CliSweep, RunMapQueryAndSweepsHaveTheirJsonShapes) {
   EXPECT_EQ(curve.out.substr(0, curve.out.find('\n')), "omega,lle");
   EXPECT_EQ(std::count(curve.out.begin(), curve.out.end(), '\n'), 6);
 
-  const ProcessResult png = Bistable("map " + id + " --metric motion --format png --out " + dir + "/m.png --data " + dir + "/data");
+  const ProcessResult png =
+      Bistable("map " + id + " --metric motion --format png --out " + dir + "/m.png --data " + dir + "/data");
   ASSERT_EQ(png.exit_code, 0) << png.err;
   EXPECT_GT(fs::file_size(dir + "/m.png"), 1000u);
 
-  const ProcessResult q = Bistable("query " + id + " \"frf_db < 0 or motion == chaotic\" --json --data " + dir + "/data");
+  const ProcessResult q =
+      Bistable("query " + id + " \"frf_db < 0 or motion == chaotic\" --json --data " + dir + "/data");
   ASSERT_EQ(q.exit_code, 0) << q.err;
   const auto qj = nlohmann::json::parse(q.out);
   for (const char* k : {"count", "total", "fraction", "area_fraction", "points"}) EXPECT_TRUE(qj.contains(k)) << k;
@@ -234,9 +237,10 @@ TEST(CliSweep, JsonPrintsMotionByNameAndIntegersAsIntegers) {
 // A continuation sweep's query names its item dimension as the map file does: "direction" (0 up, 1 down), not "ic".
 TEST(CliSweep, QueryOfAContinuationSweepNamesTheDirection) {
   const std::string dir = Dir("query_direction");
-  const std::string spec = WriteSpec(dir, "name = \"up and down\"\nmodel = \"standalone\"\n[axes]\nalpha = [0.1]\n"
-                                          "omega = { linspace = [0.5, 1.3, 9] }\n[continuation]\naxis = \"omega\"\n"
-                                          "direction = \"both\"\n[integration]\nt_end = 60\nt_keep = 30\n");
+  const std::string spec = WriteSpec(dir,
+                                     "name = \"up and down\"\nmodel = \"standalone\"\n[axes]\nalpha = [0.1]\n"
+                                     "omega = { linspace = [0.5, 1.3, 9] }\n[continuation]\naxis = \"omega\"\n"
+                                     "direction = \"both\"\n[integration]\nt_end = 60\nt_keep = 30\n");
   const std::string data = " --data " + dir + "/data";
   const ProcessResult run = Bistable("run " + spec + " --no-plots --quiet --json" + data);
   ASSERT_EQ(run.exit_code, 0) << run.err;
@@ -257,8 +261,9 @@ TEST(CliSweep, QueryOfAContinuationSweepNamesTheDirection) {
 // `map --out -` is standard output, for every format: the bytes equal the file --out FILE writes.
 TEST(CliSweep, OutDashWritesTheFileBytesToStdout) {
   const std::string dir = Dir("dash");
-  const std::string spec = WriteSpec(dir, "name = \"dash\"\nmodel = \"standalone\"\n[axes]\nalpha = [0.5, 1.0]\n"
-                                          "omega = [0.8, 1.2]\n[integration]\nt_end = 20.0\nt_keep = 10.0\n");
+  const std::string spec = WriteSpec(dir,
+                                     "name = \"dash\"\nmodel = \"standalone\"\n[axes]\nalpha = [0.5, 1.0]\n"
+                                     "omega = [0.8, 1.2]\n[integration]\nt_end = 20.0\nt_keep = 10.0\n");
   const ProcessResult run = Bistable("run " + spec + " --data " + dir + "/data --json --no-plots");
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const std::string id = nlohmann::json::parse(run.out)["id"];
@@ -281,7 +286,9 @@ TEST(CliSweep, OutDashWritesTheFileBytesToStdout) {
     ASSERT_GT(bytes.size(), 10u);
     EXPECT_EQ(to_stdout.out.size(), bytes.size());
     EXPECT_TRUE(to_stdout.out == bytes) << "stdout differs from the file";
-    if (format == "png") { EXPECT_EQ(to_stdout.out.substr(1, 3), "PNG"); }
+    if (format == "png") {
+      EXPECT_EQ(to_stdout.out.substr(1, 3), "PNG");
+    }
     EXPECT_FALSE(fs::exists(dir + "/-")) << "a file named '-' was written";
     if (format == "csv" || format == "json") {
       EXPECT_EQ(map({"--metric", "lle", "--format", format}, dir + "/tmp").out, bytes) << "no --out prints the same";
@@ -293,12 +300,14 @@ TEST(CliSweep, OutDashWritesTheFileBytesToStdout) {
   EXPECT_EQ(hd.out.substr(1, 3), "PNG");
   EXPECT_FALSE(fs::exists(dir + "/-"));
   EXPECT_TRUE(fs::is_empty(dir + "/tmp")) << "a temporary plot directory was left behind";
-  for (const auto& e : fs::directory_iterator(dir)) EXPECT_NE(e.path().filename().string().rfind(".bistable-", 0), 0u) << e.path();
+  for (const auto& e : fs::directory_iterator(dir))
+    EXPECT_NE(e.path().filename().string().rfind(".bistable-", 0), 0u) << e.path();
   // A temporary directory that cannot be made is a clear error naming out.
   const auto notmp = map({"--metric", "lle", "--format", "svg", "--out", "-"}, dir + "/no/such/dir");
   EXPECT_EQ(notmp.exit_code, 2);
   EXPECT_TRUE(notmp.out.empty());
-  EXPECT_NE(notmp.err.find("(out: cannot create a temporary directory for the plot in '" + dir + "/no/such/dir'"), std::string::npos)
+  EXPECT_NE(notmp.err.find("(out: cannot create a temporary directory for the plot in '" + dir + "/no/such/dir'"),
+            std::string::npos)
       << notmp.err;
   fs::remove_all(dir);
 }
@@ -310,7 +319,8 @@ TEST(JsonOut, TimesAreIso8601UtcToTheMillisecond) {
   EXPECT_EQ(bistable::IsoTimeUtc(1795381445.9996), "2026-11-22T21:04:06.000Z");  // the carry reaches the second
   EXPECT_EQ(bistable::IsoTimeUtc(951782400.5), "2000-02-29T00:00:00.500Z");
   EXPECT_EQ(bistable::IsoTimeUtc(253402300799.0), "9999-12-31T23:59:59.000Z");
-  for (double bad : {-1.0, 253402300800.0, double(NAN), double(INFINITY)}) EXPECT_EQ(bistable::IsoTimeUtc(bad), "") << bad;
+  for (double bad : {-1.0, 253402300800.0, double(NAN), double(INFINITY)})
+    EXPECT_EQ(bistable::IsoTimeUtc(bad), "") << bad;
   for (double t : {0.0, 1.5, 1795381445.123, 1e9 + 0.999})
     EXPECT_NEAR(bistable_test::ParseIsoTimeUtc(bistable::IsoTimeUtc(t)), t, 5e-4) << t;
   EXPECT_TRUE(std::isnan(bistable_test::ParseIsoTimeUtc("2026-11-22 21:04:05.123Z")));
@@ -376,10 +386,11 @@ poincare_phase = 0.75
   const double alphas[] = {0.1388888888888889, 0.19444444444444445, 0.3472222222222222};
   for (int p = 0; p < 3; ++p) {
     char args[256];
-    std::snprintf(args, sizeof args,
-                  "point --model standalone --alpha %.17g --omega 1.2 --eta 0.3 --t-keep 1000 --t-end 2000 --no-rosenstein "
-                  "--poincare - --poincare-phase 0.75 --json",
-                  alphas[p]);
+    std::snprintf(
+        args, sizeof args,
+        "point --model standalone --alpha %.17g --omega 1.2 --eta 0.3 --t-keep 1000 --t-end 2000 --no-rosenstein "
+        "--poincare - --poincare-phase 0.75 --json",
+        alphas[p]);
     const ProcessResult pt = Bistable(args);
     ASSERT_EQ(pt.exit_code, 0) << pt.err;
     const auto pts = nlohmann::json::parse(pt.out)["poincare"]["points"];
@@ -408,7 +419,9 @@ poincare_phase = 0.75
                               "d=f['poincare_y']; assert d.shape==(3,12), d.shape; "
                               "assert d.attrs['units']=='1' and 'long_name' in d.attrs; "
                               "assert f['poincare_v'].attrs['unit_label']=='delta_s/tau'; "
-                              "assert list(f['poincare_point'][:])==list(range(12))\" " + h5).c_str());
+                              "assert list(f['poincare_point'][:])==list(range(12))\" " +
+                              h5)
+                                 .c_str());
   EXPECT_EQ(rc, 0);
 
   // Bad settings name the field and the bound.
@@ -416,12 +429,15 @@ poincare_phase = 0.75
     std::string text, expect;
   };
   for (const Case& c : std::vector<Case>{
-           {"store = [\"poincare\"]\npoincare_points = 65", "metrics.poincare_points = 65 violates metrics.poincare_points in [1, 64]"},
-           {"store = [\"poincare\"]\npoincare_points = 0", "metrics.poincare_points = 0 violates metrics.poincare_points in [1, 64]"},
+           {"store = [\"poincare\"]\npoincare_points = 65",
+            "metrics.poincare_points = 65 violates metrics.poincare_points in [1, 64]"},
+           {"store = [\"poincare\"]\npoincare_points = 0",
+            "metrics.poincare_points = 0 violates metrics.poincare_points in [1, 64]"},
            {"store = [\"lle\"]\npoincare_points = 8", "metrics.poincare_points needs \"poincare\" in metrics.store"},
            {"poincare_phase = 6.5", "metrics.poincare_phase = 6.5 violates metrics.poincare_phase in [0, 2 pi)"},
        }) {
-    std::ofstream(dir + "/bad.toml") << "model = \"standalone\"\n[axes]\nalpha = [0.1, 0.2]\n[metrics]\n" << c.text << "\n";
+    std::ofstream(dir + "/bad.toml") << "model = \"standalone\"\n[axes]\nalpha = [0.1, 0.2]\n[metrics]\n"
+                                     << c.text << "\n";
     const ProcessResult r = Bistable("run " + dir + "/bad.toml --data " + dir + "/data --no-plots");
     EXPECT_EQ(r.exit_code, 2) << c.text;
     EXPECT_NE(r.err.find(c.expect), std::string::npos) << c.text << "\n" << r.err;
@@ -490,8 +506,8 @@ pid_t Spawn(const std::string& spec, const std::string& data) {
   if (pid == 0) {
     ::freopen("/dev/null", "w", stderr);
     ::freopen("/dev/null", "w", stdout);
-    ::execl(BISTABLE_CLI, BISTABLE_CLI, "run", spec.c_str(), "--data", data.c_str(), "--threads", "1", "--job-items", "16",
-            "--no-plots", static_cast<char*>(nullptr));
+    ::execl(BISTABLE_CLI, BISTABLE_CLI, "run", spec.c_str(), "--data", data.c_str(), "--threads", "1", "--job-items",
+            "16", "--no-plots", static_cast<char*>(nullptr));
     ::_exit(127);
   }
   return pid;
@@ -525,7 +541,8 @@ void InterruptThenResume(int signal_number) {
   auto rows = (*db)->ListSweeps();
   ASSERT_TRUE(rows.ok());
   EXPECT_EQ((*rows)[0].file, "");
-  EXPECT_EQ((*rows)[0].state, signal_number == SIGKILL ? bistable::SweepState::kRunning : bistable::SweepState::kInterrupted);
+  EXPECT_EQ((*rows)[0].state,
+            signal_number == SIGKILL ? bistable::SweepState::kRunning : bistable::SweepState::kInterrupted);
   for (const auto& e : fs::directory_iterator(data + "/sweeps")) EXPECT_NE(e.path().extension(), ".h5") << e.path();
 
   const ProcessResult resume = Bistable("run " + spec + " --data " + data + " --json --no-plots");
@@ -553,12 +570,14 @@ TEST(CliSweep, FullDiskIsAClearErrorAndLosesNothing) {
   const ProcessResult first = Bistable("run " + small + " --data " + mnt + " --json --no-plots");
   ASSERT_EQ(first.exit_code, 0) << first.err;
   const std::string first_map = nlohmann::json::parse(first.out)["files"][0];
-  std::ofstream(dir + "/big.toml") << "model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 150] }\n"
-                                      "omega = { linspace = [0.1, 3, 150] }\n[integration]\nt_end = 20.0\nt_keep = 10.0\n";
+  std::ofstream(dir + "/big.toml")
+      << "model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 150] }\n"
+         "omega = { linspace = [0.1, 3, 150] }\n[integration]\nt_end = 20.0\nt_keep = 10.0\n";
   const ProcessResult big = Bistable("run " + dir + "/big.toml --data " + mnt + " --no-plots --quiet");
   EXPECT_EQ(big.exit_code, 2) << big.err;
   EXPECT_EQ(big.err.rfind("error: ", 0), 0u) << big.err;
-  EXPECT_TRUE(big.err.find("disk full") != std::string::npos || big.err.find("No space") != std::string::npos) << big.err;
+  EXPECT_TRUE(big.err.find("disk full") != std::string::npos || big.err.find("No space") != std::string::npos)
+      << big.err;
   // Nothing stored was lost: the first sweep is listed as done and its map reads back.
   const ProcessResult ls = Bistable("sweeps --json --data " + mnt);
   ASSERT_EQ(ls.exit_code, 0) << ls.err;

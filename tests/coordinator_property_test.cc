@@ -13,12 +13,12 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/evaluate.h"
 #include "engine/sweep_spec.h"
 #include "server/sweep_coordinator.h"
 #include "storage/map_file.h"
 #include "tests/map_compare.h"
 #include "tests/process_util.h"
-#include "engine/evaluate.h"
 #include "tests/spec_fixture.h"
 
 namespace bistable {
@@ -78,12 +78,25 @@ std::vector<PointRecord> Forged(const LeaseGrant& g, std::mt19937& rng) {
   if (r.empty()) return r;
   PointRecord& x = r[rng() % r.size()];
   switch (rng() % 6) {
-    case 0: x.v[0] = 1e300; break;                           // frf_db
-    case 1: x.v[3] = 1e300; break;                           // motion
-    case 2: x.v[3] = 0.5; break;                             // motion: not a code
-    case 3: x.v[12] = std::nan(""); break;                   // termination NaN
-    case 4: r.push_back(r.front()); break;                   // one record too many
-    default: x.v.resize(x.v.size() + 3, 0.0); for (auto& y : r) y.v.resize(x.v.size(), 0.0); break;  // wrong width
+    case 0:
+      x.v[0] = 1e300;
+      break;  // frf_db
+    case 1:
+      x.v[3] = 1e300;
+      break;  // motion
+    case 2:
+      x.v[3] = 0.5;
+      break;  // motion: not a code
+    case 3:
+      x.v[12] = std::nan("");
+      break;  // termination NaN
+    case 4:
+      r.push_back(r.front());
+      break;  // one record too many
+    default:
+      x.v.resize(x.v.size() + 3, 0.0);
+      for (auto& y : r) y.v.resize(x.v.size(), 0.0);
+      break;  // wrong width
   }
   return r;
 }
@@ -116,13 +129,18 @@ TEST(CoordinatorProperty, RandomInterleavingsEndInTheSequentialMap) {
     };
     for (int op = 0; op < kOps; ++op) {
       const int w = static_cast<int>(rng() % kWorkers);
-      const std::string name = std::string("w").append(std::to_string(w));  // not "w" + ...: GCC 12 -Wrestrict false positive
+      const std::string name =
+          std::string("w").append(std::to_string(w));  // not "w" + ...: GCC 12 -Wrestrict false positive
       switch (rng() % 12) {
-        case 0: case 1: case 2:
+        case 0:
+        case 1:
+        case 2:
           // One job, or up to three merged into one lease (a worker's --jobs-per-lease).
           if (auto g = c->Lease(name, "", 1 + static_cast<int>(rng() % 3))) held[w].push_back(*g);
           break;
-        case 3: case 4: case 5:
+        case 3:
+        case 4:
+        case 5:
           if (auto g = pick(w)) {
             (void)c->Report(g->lease_id, Honest(*g));  // may be refused (revoked, expired): never wrong
             reported.push_back(*g);
@@ -154,8 +172,10 @@ TEST(CoordinatorProperty, RandomInterleavingsEndInTheSequentialMap) {
           break;
         case 10:
           if (auto g = pick(w)) {
-            if (rng() % 2) (void)c->Release(g->lease_id);
-            else if (c->Extend(g->lease_id).ok()) held[w].push_back(*g);
+            if (rng() % 2)
+              (void)c->Release(g->lease_id);
+            else if (c->Extend(g->lease_id).ok())
+              held[w].push_back(*g);
           }
           break;
         case 11:
@@ -197,8 +217,9 @@ TEST(CoordinatorProperty, RandomInterleavingsEndInTheSequentialMap) {
   EXPECT_GT(refused_forgeries, 10);
   EXPECT_GT(restarts, 3);
   EXPECT_GT(cancels, 5);
-  std::printf("property: %d seeds x %d ops: %d forged reports refused, %d stale reports refused, %d cancels, %d restarts\n",
-              kSeeds, kOps, refused_forgeries, stale_refused, cancels, restarts);
+  std::printf(
+      "property: %d seeds x %d ops: %d forged reports refused, %d stale reports refused, %d cancels, %d restarts\n",
+      kSeeds, kOps, refused_forgeries, stale_refused, cancels, restarts);
 }
 
 // The failure the issue found: cancel and resubmit while a worker holds a lease; the old lease's
@@ -246,11 +267,12 @@ TEST(CoordinatorProperty, FlippedByteInTheCacheIsRecomputedNotPublished) {
     ASSERT_TRUE(db.ok());
     ASSERT_GT((*db)->CachedPointCount(), 0);
   }
-  ASSERT_EQ(std::system(("/usr/bin/python3 -c \"import sqlite3; c = sqlite3.connect('" + dir +
-                         "/index.sqlite'); k, r = c.execute('select key, record from points limit 1').fetchone(); "
-                         "b = bytearray(r); b[3] ^= 1; c.execute('update points set record = ? where key = ?', (bytes(b), k)); "
-                         "c.commit()\"")
-                            .c_str()),
+  ASSERT_EQ(std::system(
+                ("/usr/bin/python3 -c \"import sqlite3; c = sqlite3.connect('" + dir +
+                 "/index.sqlite'); k, r = c.execute('select key, record from points limit 1').fetchone(); "
+                 "b = bytearray(r); b[3] ^= 1; c.execute('update points set record = ? where key = ?', (bytes(b), k)); "
+                 "c.commit()\"")
+                    .c_str()),
             0);
   std::filesystem::remove_all(dir + "/sweeps");
   {

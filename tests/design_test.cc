@@ -53,7 +53,8 @@ TEST(DesignSpec, EveryFieldIsCheckedByName) {
     std::string edit, field, says;
   };
   const std::vector<Row> rows = {
-      {"bounds = { lambda = [0.5, 1.5], phi = [0, 0.5] }", "design.bounds.phi[0]", "design.bounds.phi[0] = 0 violates design.bounds.phi[0] in [0.001, 100]"},
+      {"bounds = { lambda = [0.5, 1.5], phi = [0, 0.5] }", "design.bounds.phi[0]",
+       "design.bounds.phi[0] = 0 violates design.bounds.phi[0] in [0.001, 100]"},
       {"bounds = { lambda = [1.5, 0.5] }", "design.bounds.lambda[1]", ">= design.bounds.lambda[0] = 1.5"},
       {"bounds = { eta_r = [0.1, 200] }", "design.bounds.eta_r[1]", "in [0, 100]"},
       {"bounds = { lamda = [0.5, 1.5] }", "design.bounds.lamda", "did you mean 'lambda'"},
@@ -82,7 +83,8 @@ TEST(DesignSpec, EveryFieldIsCheckedByName) {
     EXPECT_EQ(s.status().field(), r.field) << r.edit << ": " << s.status().ToString();
     EXPECT_NE(s.status().message().find(r.says), std::string::npos) << r.edit << ": " << s.status().ToString();
   }
-  auto standalone = ParseDesignSpec(std::string(kLinearTmd).replace(std::string(kLinearTmd).find("linear-coupled"), 14, "standalone"), "t");
+  auto standalone = ParseDesignSpec(
+      std::string(kLinearTmd).replace(std::string(kLinearTmd).find("linear-coupled"), 14, "standalone"), "t");
   ASSERT_FALSE(standalone.ok());
   EXPECT_EQ(standalone.status().field(), "model");
   auto axes = ParseDesignSpec(std::string(kLinearTmd) + "[axes]\neta = [0.1, 0.2]\n", "t");
@@ -210,7 +212,8 @@ TEST(DesignSearch, FindsTheClosedFormBandOfTheLinearTmdAndReusesEveryCandidate) 
   const Candidate& b = r->candidates[r->best];
   EXPECT_GT(r->computed, 0);
   // Within 3 % of the closed form's optimum (closed-form optimum at lambda, phi, eta_r = bx).
-  EXPECT_GE(b.score.band_width, 0.97 * best) << "closed-form optimum " << best << " at " << bx[0] << ", " << bx[1] << ", " << bx[2];
+  EXPECT_GE(b.score.band_width, 0.97 * best)
+      << "closed-form optimum " << best << " at " << bx[0] << ", " << bx[1] << ", " << bx[2];
   // The simulated band of the best design equals the closed form's band of that design.
   EXPECT_NEAR(b.score.band_width, ClosedFormBand(spec->omega, b.x), 0.01);
   EXPECT_EQ(b.score.chaotic_in_band, 0);
@@ -219,13 +222,16 @@ TEST(DesignSearch, FindsTheClosedFormBandOfTheLinearTmdAndReusesEveryCandidate) 
   // or a repeat of a member's design; no design listed twice.
   ASSERT_FALSE(r->front.empty());
   for (int i : r->front)
-    for (const Candidate& c : r->candidates) EXPECT_FALSE(Dominates(c, r->candidates[i])) << c.index << " dominates " << i;
+    for (const Candidate& c : r->candidates)
+      EXPECT_FALSE(Dominates(c, r->candidates[i])) << c.index << " dominates " << i;
   for (size_t a = 0; a < r->front.size(); ++a)
-    for (size_t b = a + 1; b < r->front.size(); ++b) EXPECT_FALSE(r->candidates[r->front[a]].x == r->candidates[r->front[b]].x);
+    for (size_t b = a + 1; b < r->front.size(); ++b)
+      EXPECT_FALSE(r->candidates[r->front[a]].x == r->candidates[r->front[b]].x);
   for (const Candidate& c : r->candidates) {
     if (std::find(r->front.begin(), r->front.end(), c.index) != r->front.end()) continue;
     bool dominated = false, repeat = false;  // a design evaluated twice is listed once
-    for (int i : r->front) dominated = dominated || Dominates(r->candidates[i], c), repeat = repeat || r->candidates[i].x == c.x;
+    for (int i : r->front)
+      dominated = dominated || Dominates(r->candidates[i], c), repeat = repeat || r->candidates[i].x == c.x;
     EXPECT_TRUE(dominated || repeat) << c.index;
   }
 
@@ -254,15 +260,16 @@ TEST(DesignCli, JsonContractAndBadFlags) {
   ASSERT_EQ(j["candidates"].size(), 8u);
   for (const auto& c : j["candidates"]) {
     EXPECT_EQ(c["sweep_id"].get<std::string>().size(), 12u);
-    for (const char* k : {"design", "cost", "band_width", "chaotic_share_band", "unsafe_share_band", "chaotic_share", "feasible", "items",
-                          "computed"})
+    for (const char* k : {"design", "cost", "band_width", "chaotic_share_band", "unsafe_share_band", "chaotic_share",
+                          "feasible", "items", "computed"})
       EXPECT_TRUE(c.contains(k)) << k;
   }
   EXPECT_EQ(j["search"]["points"].get<long>(), 8 * 29);
   EXPECT_EQ(j["brute_force"]["points"].get<long>(), 8 * 29);  // 2 x 2 x 2 designs
   EXPECT_TRUE(std::filesystem::exists(j["report_dir"].get<std::string>() + "/report.json"));
   // The candidates are ordinary sweeps: `bistable map` reads one.
-  auto m = bistable_test::Bistable("map " + j["best"]["sweep_id"].get<std::string>() + " --metric frf_db --format json --data " + dir + "/data");
+  auto m = bistable_test::Bistable("map " + j["best"]["sweep_id"].get<std::string>() +
+                                   " --metric frf_db --format json --data " + dir + "/data");
   EXPECT_EQ(m.exit_code, 0) << m.err;
   // Again: nothing computed.
   auto again = bistable_test::Bistable("design " + spec + " --data " + dir + "/data --json --no-plots");

@@ -7,15 +7,15 @@
 #include <chrono>
 #include <cstring>
 #include <filesystem>
-#include <functional>
 #include <fstream>
+#include <functional>
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
-#include "engine/metric_catalog.h"
 #include <nlohmann/json.hpp>
+#include "engine/metric_catalog.h"
 
 #include "bistable.grpc.pb.h"
 #include "storage/map_file.h"
@@ -43,7 +43,7 @@ void Kill(pid_t pid, int sig) {
 
 // Starts a coordinator on a free loopback port; returns its pid and address.
 std::pair<pid_t, std::string> StartCoordinator(const std::string& data, const std::string& log, double lease = 1.0,
-                                                const std::string& listen = "127.0.0.1:0") {
+                                               const std::string& listen = "127.0.0.1:0") {
   const pid_t pid = Spawn({BISTABLE_COORDINATOR, "--listen", listen, "--data", data, "--lease-seconds",
                            std::to_string(lease), "--job-seconds", "0.01"},
                           log);
@@ -101,7 +101,8 @@ TEST(Distributed, ThreeWorkersGiveTheEmbeddedMapBitForBit) {
   auto [coord, addr] = StartCoordinator(dir + "/data", dir + "/coord.log");
   ASSERT_FALSE(addr.empty()) << "coordinator did not start";
   std::vector<pid_t> workers;
-  for (int i = 0; i < 3; ++i) workers.push_back(StartWorker(addr, "w" + std::to_string(i), dir + "/w" + std::to_string(i) + ".log"));
+  for (int i = 0; i < 3; ++i)
+    workers.push_back(StartWorker(addr, "w" + std::to_string(i), dir + "/w" + std::to_string(i) + ".log"));
   const ProcessResult sub = Bistable("submit " + spec + " --json --coordinator " + addr);
   ASSERT_EQ(sub.exit_code, 0) << sub.err;
   const std::string id = nlohmann::json::parse(sub.out)["id"];
@@ -122,9 +123,10 @@ TEST(Distributed, ThreeWorkersGiveTheEmbeddedMapBitForBit) {
   }
   EXPECT_GE(busy, 2);
   // map and query answer the same through the coordinator as from the data directory.
-  for (const std::string& args : {"map " + id + " --metric frf_db --format json", "map " + id + " --metric lle --at alpha=3 --format csv",
-                                  "map " + id + " --metric motion --format json --out -",
-                                  "query " + id + " \"lle > 0.01 and frf_db < 5\" --json"}) {
+  for (const std::string& args :
+       {"map " + id + " --metric frf_db --format json", "map " + id + " --metric lle --at alpha=3 --format csv",
+        "map " + id + " --metric motion --format json --out -",
+        "query " + id + " \"lle > 0.01 and frf_db < 5\" --json"}) {
     const ProcessResult remote = Bistable(args + " --coordinator " + addr);
     const ProcessResult local = Bistable(args + " --data " + dir + "/data");
     ASSERT_EQ(remote.exit_code, 0) << args << ": " << remote.err;
@@ -143,7 +145,8 @@ TEST(Distributed, KilledWorkerAndRestartedCoordinatorLoseNothing) {
   auto [coord, addr] = StartCoordinator(dir + "/data", dir + "/coord.log", 1.0);
   ASSERT_FALSE(addr.empty());
   std::vector<pid_t> workers;
-  for (int i = 0; i < 3; ++i) workers.push_back(StartWorker(addr, "w" + std::to_string(i), dir + "/w" + std::to_string(i) + ".log"));
+  for (int i = 0; i < 3; ++i)
+    workers.push_back(StartWorker(addr, "w" + std::to_string(i), dir + "/w" + std::to_string(i) + ".log"));
   const std::string id = nlohmann::json::parse(Bistable("submit " + spec + " --json --coordinator " + addr).out)["id"];
   auto progress = [&] { return Status(id, addr)["items_done"].get<long>(); };
   while (progress() < 150) std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -188,7 +191,8 @@ TEST(Distributed, BadInputOverTheWireGetsTheRightStatusCode) {
     return stub->Report(&ctx, req, &rep).error_code();
   };
   // A valid sweep and two leases to misuse.
-  ASSERT_EQ(submit("model = \"coupled\"\n[axes]\nalpha = [0.5, 1.0]\nomega = [0.5, 1.0]\n[integration]\nt_end = 50.0\nt_keep = 25.0\n"),
+  ASSERT_EQ(submit("model = \"coupled\"\n[axes]\nalpha = [0.5, 1.0]\nomega = [0.5, 1.0]\n[integration]\nt_end = "
+                   "50.0\nt_keep = 25.0\n"),
             grpc::StatusCode::OK);
   auto lease = [&] {
     grpc::ClientContext ctx;
@@ -214,15 +218,23 @@ TEST(Distributed, BadInputOverTheWireGetsTheRightStatusCode) {
       {"malformed spec", [&] { return submit("model = \"coupled\"\n[axes\n"); }, grpc::StatusCode::INVALID_ARGUMENT},
       {"oversized spec", [&] { return submit(std::string(2 << 20, '#')); }, grpc::StatusCode::INVALID_ARGUMENT},
       {"grid above the limit",
-       [&] { return submit("model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 10000] }\nomega = { linspace = [0.1, 3, 10000] }\n"); },
+       [&] {
+         return submit(
+             "model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 10000] }\nomega = { linspace = [0.1, 3, "
+             "10000] }\n");
+       },
        grpc::StatusCode::INVALID_ARGUMENT},
-      {"unknown key", [&] { return submit("model = \"coupled\"\n[axes]\nalpah = [1]\n"); }, grpc::StatusCode::INVALID_ARGUMENT},
-      {"result for an unknown lease", [&] { return report("no-such-lease", width, good); }, grpc::StatusCode::NOT_FOUND},
+      {"unknown key", [&] { return submit("model = \"coupled\"\n[axes]\nalpah = [1]\n"); },
+       grpc::StatusCode::INVALID_ARGUMENT},
+      {"result for an unknown lease", [&] { return report("no-such-lease", width, good); },
+       grpc::StatusCode::NOT_FOUND},
       {"result of the wrong shape", [&] { return report(l1.lease_id(), width, std::vector<double>(width, 0.0)); },
        grpc::StatusCode::INVALID_ARGUMENT},
-      {"values not a whole number of records", [&] { return report(l1.lease_id(), width, std::vector<double>(width + 7, 0.0)); },
+      {"values not a whole number of records",
+       [&] { return report(l1.lease_id(), width, std::vector<double>(width + 7, 0.0)); },
        grpc::StatusCode::INVALID_ARGUMENT},
-      {"infinity in a result", [&] { return report(l1.lease_id(), width, with_inf); }, grpc::StatusCode::INVALID_ARGUMENT},
+      {"infinity in a result", [&] { return report(l1.lease_id(), width, with_inf); },
+       grpc::StatusCode::INVALID_ARGUMENT},
       {"result for an expired lease",
        [&] {
          std::this_thread::sleep_for(std::chrono::milliseconds(400));  // lease period 0.3 s
@@ -270,19 +282,27 @@ TEST(Distributed, TokensAndRolesAreEnforcedAndNeverLogged) {
   auto [bob, bob_line] = MintToken("client", "bob");
   auto [worker, worker_line] = MintToken("worker", "w");
   auto [admin, admin_line] = MintToken("admin", "root");
-  std::ofstream(dir + "/tokens") << "# role sha256 name\n" << alice_line << "\n" << bob_line << "\n" << worker_line << "\n" << admin_line << "\n";
-  const pid_t coord = Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", "--tokens", dir + "/tokens"},
-                            dir + "/coord.log");
+  std::ofstream(dir + "/tokens") << "# role sha256 name\n"
+                                 << alice_line << "\n"
+                                 << bob_line << "\n"
+                                 << worker_line << "\n"
+                                 << admin_line << "\n";
+  const pid_t coord =
+      Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", "--tokens", dir + "/tokens"},
+            dir + "/coord.log");
   std::string addr;
   for (int i = 0; i < 200 && addr.empty(); ++i) {
     std::ifstream in(dir + "/coord.log");
     std::string line;
-    if (std::getline(in, line) && line.rfind("listening on ", 0) == 0) addr = line.substr(13);
-    else std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    if (std::getline(in, line) && line.rfind("listening on ", 0) == 0)
+      addr = line.substr(13);
+    else
+      std::this_thread::sleep_for(std::chrono::milliseconds(25));
   }
   ASSERT_FALSE(addr.empty());
   auto stub = bistable::v1::Coordinator::NewStub(grpc::CreateChannel(addr, grpc::InsecureChannelCredentials()));
-  const std::string spec = "model = \"coupled\"\n[axes]\nalpha = [0.5]\nomega = [1.0]\n[integration]\nt_end = 50.0\nt_keep = 25.0\n";
+  const std::string spec =
+      "model = \"coupled\"\n[axes]\nalpha = [0.5]\nomega = [1.0]\n[integration]\nt_end = 50.0\nt_keep = 25.0\n";
   auto submit = [&](grpc::ClientContext* c) {
     bistable::v1::SubmitRequest req;
     req.set_spec_toml(spec);
@@ -337,8 +357,10 @@ TEST(Distributed, TokensAndRolesAreEnforcedAndNeverLogged) {
   for (const Case& c : cases) EXPECT_EQ(CallWith(c.token, c.call), c.expect) << c.what;
   Kill(coord, SIGTERM);
   std::ifstream log(dir + "/coord.log"), err(dir + "/coord.log.err");
-  const std::string text = std::string(std::istreambuf_iterator<char>(log), {}) + std::string(std::istreambuf_iterator<char>(err), {});
-  for (const std::string& t : {alice, bob, worker, admin}) EXPECT_EQ(text.find(t), std::string::npos) << "a token was logged";
+  const std::string text =
+      std::string(std::istreambuf_iterator<char>(log), {}) + std::string(std::istreambuf_iterator<char>(err), {});
+  for (const std::string& t : {alice, bob, worker, admin})
+    EXPECT_EQ(text.find(t), std::string::npos) << "a token was logged";
   std::ifstream tf(dir + "/tokens");
   const std::string tokens_text((std::istreambuf_iterator<char>(tf)), {});
   EXPECT_EQ(tokens_text.find(alice), std::string::npos) << "the tokens file must hold hashes only";
@@ -356,11 +378,12 @@ TEST(Distributed, TlsAndTokensAcrossNetworkNamespaces) {
   sh(ip + " netns add " + b);
   const std::string va = "vA" + std::to_string(::getpid() % 10000), vb = "vB" + std::to_string(::getpid() % 10000);
   const bool net_ok =
-      sh(ip + " link add " + va + " type veth peer name " + vb) == 0 && sh(ip + " link set " + va + " netns " + a) == 0 &&
-      sh(ip + " link set " + vb + " netns " + b) == 0 && sh(ip + " -n " + a + " addr add 10.77.0.1/24 dev " + va) == 0 &&
-      sh(ip + " -n " + b + " addr add 10.77.0.2/24 dev " + vb) == 0 && sh(ip + " -n " + a + " link set " + va + " up") == 0 &&
-      sh(ip + " -n " + b + " link set " + vb + " up") == 0 && sh(ip + " -n " + a + " link set lo up") == 0 &&
-      sh(ip + " -n " + b + " link set lo up") == 0;
+      sh(ip + " link add " + va + " type veth peer name " + vb) == 0 &&
+      sh(ip + " link set " + va + " netns " + a) == 0 && sh(ip + " link set " + vb + " netns " + b) == 0 &&
+      sh(ip + " -n " + a + " addr add 10.77.0.1/24 dev " + va) == 0 &&
+      sh(ip + " -n " + b + " addr add 10.77.0.2/24 dev " + vb) == 0 &&
+      sh(ip + " -n " + a + " link set " + va + " up") == 0 && sh(ip + " -n " + b + " link set " + vb + " up") == 0 &&
+      sh(ip + " -n " + a + " link set lo up") == 0 && sh(ip + " -n " + b + " link set lo up") == 0;
   auto cleanup = [&] {
     sh(ip + " netns del " + a);
     sh(ip + " netns del " + b);
@@ -370,7 +393,8 @@ TEST(Distributed, TlsAndTokensAcrossNetworkNamespaces) {
     GTEST_SKIP() << "cannot create a veth pair between namespaces here";
   }
   const std::string dir = Dir("netns");
-  ASSERT_EQ(std::system((std::string(BISTABLE_TESTS_DIR) + "/make_test_certs.sh " + dir + "/tls 10.77.0.1").c_str()), 0);
+  ASSERT_EQ(std::system((std::string(BISTABLE_TESTS_DIR) + "/make_test_certs.sh " + dir + "/tls 10.77.0.1").c_str()),
+            0);
   auto [client, client_line] = MintToken("client", "alice");
   auto [worker, worker_line] = MintToken("worker", "w");
   std::ofstream(dir + "/tokens") << client_line << "\n" << worker_line << "\n";
@@ -381,13 +405,15 @@ TEST(Distributed, TlsAndTokensAcrossNetworkNamespaces) {
                              "--tls-cert", dir + "/tls/server.pem", "--tls-key", dir + "/tls/server.key", "--tokens",
                              dir + "/tokens", "--job-seconds", "0.01"},
                             dir + "/coord.log");
-  const pid_t work = Spawn({ip, "netns", "exec", b, BISTABLE_WORKER, "--coordinator", addr, "--tls-ca", dir + "/tls/ca.pem",
-                            "--token-file", dir + "/worker.tok", "--threads", "2"},
+  const pid_t work = Spawn({ip, "netns", "exec", b, BISTABLE_WORKER, "--coordinator", addr, "--tls-ca",
+                            dir + "/tls/ca.pem", "--token-file", dir + "/worker.tok", "--threads", "2"},
                            dir + "/worker.log");
   const std::string spec = dir + "/spec.toml";
-  std::ofstream(spec) << "model = \"coupled\"\n[axes]\nalpha = { linspace = [0.2, 2.0, 8] }\nomega = { linspace = [0.4, 2.4, 8] }\n"
-                         "[integration]\nt_end = 100.0\nt_keep = 50.0\n";
-  const std::string remote = " --coordinator " + addr + " --tls-ca " + dir + "/tls/ca.pem --token-file " + dir + "/client.tok";
+  std::ofstream(spec)
+      << "model = \"coupled\"\n[axes]\nalpha = { linspace = [0.2, 2.0, 8] }\nomega = { linspace = [0.4, 2.4, 8] }\n"
+         "[integration]\nt_end = 100.0\nt_keep = 50.0\n";
+  const std::string remote =
+      " --coordinator " + addr + " --tls-ca " + dir + "/tls/ca.pem --token-file " + dir + "/client.tok";
   // The client runs in namespace b (the worker's host) and reaches the coordinator over the veth link.
   auto in_b = [&](const std::string& args) {
     const std::string cmd = ip + " netns exec " + b + " " + BISTABLE_CLI + " " + args + remote + " 2>/dev/null";
@@ -413,8 +439,9 @@ TEST(Distributed, TlsAndTokensAcrossNetworkNamespaces) {
   }
   EXPECT_TRUE(done) << "the sweep did not finish across namespaces";
   // Plaintext to the TLS coordinator fails.
-  const int plain = std::system((ip + " netns exec " + b + " " + BISTABLE_CLI + " status " + id + " --coordinator " + addr +
-                                 " --token-file " + dir + "/client.tok >/dev/null 2>&1").c_str());
+  const int plain = std::system((ip + " netns exec " + b + " " + BISTABLE_CLI + " status " + id + " --coordinator " +
+                                 addr + " --token-file " + dir + "/client.tok >/dev/null 2>&1")
+                                    .c_str());
   EXPECT_NE(WEXITSTATUS(plain), 0);
   Kill(work, SIGTERM);
   Kill(coord, SIGTERM);
@@ -431,7 +458,8 @@ TEST(Distributed, TlsAndTokensAcrossNetworkNamespaces) {
 TEST(Distributed, CoordinatorRefusesNonLoopbackWithoutTls) {
   const ProcessResult r{[] {
     const std::string out = ::testing::TempDir() + "/coord_nl.txt";
-    const int rc = std::system((std::string(BISTABLE_COORDINATOR) + " --listen 0.0.0.0:0 --data /tmp/x 2>" + out).c_str());
+    const int rc =
+        std::system((std::string(BISTABLE_COORDINATOR) + " --listen 0.0.0.0:0 --data /tmp/x 2>" + out).c_str());
     std::ifstream in(out);
     return ProcessResult{WEXITSTATUS(rc), "", std::string(std::istreambuf_iterator<char>(in), {})};
   }()};

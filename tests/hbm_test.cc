@@ -64,7 +64,8 @@ Steady TimeIntegrateModel(const HbmOptions& o, double omega, std::array<double, 
 }
 
 Steady TimeIntegrate(const HbmOptions& o, double omega, std::array<double, 4> x0) {
-  return HasResonator(o.model) ? TimeIntegrateModel<CoupledModel>(o, omega, x0) : TimeIntegrateModel<SingleModel>(o, omega, x0);
+  return HasResonator(o.model) ? TimeIntegrateModel<CoupledModel>(o, omega, x0)
+                               : TimeIntegrateModel<SingleModel>(o, omega, x0);
 }
 
 TEST(Hbm, LinearOscillatorMatchesExactAmplitude) {
@@ -127,8 +128,12 @@ TEST(Hbm, ContinuationPassesFoldsAndFindsIntrawellBranchesAboutPlusMinusOne) {
     if (mean0 < -0.9) ++intrawell_minus;
     if (b.points.front().amplitude > 2.0 || std::fabs(mean0) < 0.1) ++interwell;
     // The plots name branches by well (WellOf): the ±1 intrawell branches start in their well.
-    if (mean0 > 0.9) { EXPECT_EQ(WellOf(b.points.front()), OrbitWell::kPlus) << b.start; }
-    if (mean0 < -0.9) { EXPECT_EQ(WellOf(b.points.front()), OrbitWell::kMinus) << b.start; }
+    if (mean0 > 0.9) {
+      EXPECT_EQ(WellOf(b.points.front()), OrbitWell::kPlus) << b.start;
+    }
+    if (mean0 < -0.9) {
+      EXPECT_EQ(WellOf(b.points.front()), OrbitWell::kMinus) << b.start;
+    }
     for (const HbmPoint& p : b.points) {
       EXPECT_LE(p.y_min, p.mean + 1e-12);
       EXPECT_GE(p.y_max, p.mean - 1e-12);
@@ -179,7 +184,8 @@ TEST_P(HbmVsTime, StablePointsAgreeWithTimeIntegrationAndUnstableOnesAreLeft) {
       const int per = 2 * o.harmonics + 1;
       for (int dof = 0; dof < hb.dofs(); ++dof) {
         double y0 = p.z[dof * per], v0 = 0;
-        for (int k = 1; k <= o.harmonics; ++k) y0 += p.z[dof * per + 2 * k - 1], v0 += k * p.omega * p.z[dof * per + 2 * k];
+        for (int k = 1; k <= o.harmonics; ++k)
+          y0 += p.z[dof * per + 2 * k - 1], v0 += k * p.omega * p.z[dof * per + 2 * k];
         x0[2 * dof] = y0, x0[2 * dof + 1] = v0;
       }
       const Steady s = TimeIntegrate(o, p.omega, x0);
@@ -259,7 +265,6 @@ TEST(Hbm, BadOptionsNameTheFieldAndNonConvergenceIsARecordedResult) {
     for (const auto& p : b.points) any_failed |= !p.converged;
   EXPECT_TRUE(any_failed || r->branches.empty());
 }
-
 
 // ---- Period doubling, branch switching and fold curves ----------------------------------------------
 
@@ -373,7 +378,8 @@ TEST(HbmPeriodDoubling, CascadeOfTheDoubleWellDuffingMatchesABruteForceBifurcati
   const std::vector<Strobes> diagram = BruteForceDiagram(o, 0.180, da, 46);
   double first2 = NAN, first4 = NAN;
   for (const Strobes& s : diagram) {
-    const bool p2 = s.Split(1) > 1e-3 && s.Split(2) < 0.1 * s.Split(1), p4 = s.Split(2) > 1e-3 && s.Split(4) < 0.1 * s.Split(2);
+    const bool p2 =
+        s.Split(1) > 1e-3 && s.Split(2)<0.1 * s.Split(1), p4 = s.Split(2)> 1e-3 && s.Split(4) < 0.1 * s.Split(2);
     if (std::isnan(first2) && p2) first2 = s.alpha;
     if (std::isnan(first4) && p4) first4 = s.alpha;
   }
@@ -403,9 +409,10 @@ TEST(HbmPeriodDoubling, CascadeOfTheDoubleWellDuffingMatchesABruteForceBifurcati
   EXPECT_NEAR(a_pd2, a_brute2, 1e-4) << "brute force " << a_brute2 << ", continuation " << a_pd2;
   RecordProperty("alpha_pd1_hbm", std::to_string(a_pd1));
   RecordProperty("alpha_pd1_brute", std::to_string(a_brute));
-  std::printf("period doubling 1: continuation %.8f, brute force %.8f (grid: first period 2 at %.4f); "
-              "period doubling 2: continuation %.8f, brute force %.8f (grid: first period 4 at %.4f)\n",
-              a_pd1, a_brute, first2, a_pd2, a_brute2, first4);
+  std::printf(
+      "period doubling 1: continuation %.8f, brute force %.8f (grid: first period 2 at %.4f); "
+      "period doubling 2: continuation %.8f, brute force %.8f (grid: first period 4 at %.4f)\n",
+      a_pd1, a_brute, first2, a_pd2, a_brute2, first4);
 
   // The switched period-2 branch against the integrated period-2 orbit at α = 0.19 (a grid point).
   const double a = 0.19;
@@ -440,9 +447,11 @@ TEST(HbmPeriodDoubling, CascadeOfTheDoubleWellDuffingMatchesABruteForceBifurcati
   for (int k = 1; k <= 20; ++k) y0 += z[2 * k - 1], yt += z[2 * k - 1] * (k % 2 ? -1.0 : 1.0);
   const double d_same = std::max(std::fabs(y0 - s19->y[0]), std::fabs(yt - s19->y[1]));
   const double d_swap = std::max(std::fabs(y0 - s19->y[1]), std::fabs(yt - s19->y[0]));
-  EXPECT_LT(std::min(d_same, d_swap), 1e-6) << "HBM " << y0 << ", " << yt << "; integration " << s19->y[0] << ", " << s19->y[1];
-  std::printf("period-2 orbit at alpha 0.19: amplitude %.6f (HBM) vs %.6f (integration); strobes %.8f %.8f vs %.8f %.8f\n",
-              p2.amplitude, s19->amplitude, y0, yt, s19->y[0], s19->y[1]);
+  EXPECT_LT(std::min(d_same, d_swap), 1e-6)
+      << "HBM " << y0 << ", " << yt << "; integration " << s19->y[0] << ", " << s19->y[1];
+  std::printf(
+      "period-2 orbit at alpha 0.19: amplitude %.6f (HBM) vs %.6f (integration); strobes %.8f %.8f vs %.8f %.8f\n",
+      p2.amplitude, s19->amplitude, y0, yt, s19->y[0], s19->y[1]);
 }
 
 TEST(HbmFoldCurve, FoldsOfOneParameterContinuationsLieOnTheFoldCurveAndItsCuspEndsTheHysteresis) {
@@ -482,7 +491,8 @@ TEST(HbmFoldCurve, FoldsOfOneParameterContinuationsLieOnTheFoldCurveAndItsCuspEn
         for (const HbmPoint& p : b.points)
           if (p.fold && p.fold_at.valid()) nearest = std::min(nearest, std::fabs(p.fold_at.omega - q->omega));
       EXPECT_LT(nearest, 1e-6) << "alpha " << q->alpha << ", Omega on the fold curve " << q->omega;
-      std::printf("fold curve point alpha %.6f Omega %.8f: one-parameter fold within %.2e\n", q->alpha, q->omega, nearest);
+      std::printf("fold curve point alpha %.6f Omega %.8f: one-parameter fold within %.2e\n", q->alpha, q->omega,
+                  nearest);
     }
   }
   // Below the cusp the +well resonance does not fold (one orbit per Ω: no hysteresis); above it, twice.
@@ -519,7 +529,9 @@ TEST(HbmNeimarkSacker, LocatedWhereAComplexPairCrossesTheUnitCircle) {
       const double lo = std::min(b.points[i - 1].omega, p.omega), hi = std::max(b.points[i - 1].omega, p.omega);
       EXPECT_GE(p.neimark_sacker_at.omega, lo);
       EXPECT_LE(p.neimark_sacker_at.omega, hi);
-      if (!p.period_doubling && !p.fold) { EXPECT_NE(p.stable, b.points[i - 1].stable); }
+      if (!p.period_doubling && !p.fold) {
+        EXPECT_NE(p.stable, b.points[i - 1].stable);
+      }
       ++located;
     }
   EXPECT_GE(located, 2);

@@ -22,8 +22,8 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 #include <sqlite3.h>
+#include <nlohmann/json.hpp>
 
 #include "client/plot.h"
 #include "storage/map_file.h"
@@ -64,9 +64,12 @@ std::string TomlString(const std::string& s) {
 std::string XmlEscape(const std::string& s) {
   std::string out;
   for (char c : s) {
-    if (c == '&') out += "&amp;";
-    else if (c == '<') out += "&lt;";
-    else out += c;
+    if (c == '&')
+      out += "&amp;";
+    else if (c == '<')
+      out += "&lt;";
+    else
+      out += c;
   }
   return out;
 }
@@ -101,8 +104,8 @@ std::string RecordCsv(int n, const std::map<std::pair<int, int>, std::string>& c
 // ---- the table ----------------------------------------------------------------------------------
 
 enum class Outcome {
-  kOk,         // every step exits 0
-  kError,      // a step exits 2 with err_has in its stderr (later steps are not run)
+  kOk,     // every step exits 0
+  kError,  // a step exits 2 with err_has in its stderr (later steps are not run)
 };
 
 enum class JsonCheck {
@@ -116,8 +119,8 @@ enum class JsonCheck {
 // {id} = the sweep id printed by step 0 (`run --json`), {name} = the spec name (in svg_has).
 struct Row {
   std::string name;
-  std::string spec_name;                                   // non-empty: {spec} is TinySpec(this)
-  std::vector<std::vector<std::string>> steps;             // bistable arguments, one process each
+  std::string spec_name;                        // non-empty: {spec} is TinySpec(this)
+  std::vector<std::vector<std::string>> steps;  // bistable arguments, one process each
   Outcome outcome = Outcome::kOk;
   std::string err_has;                                     // error outcomes: in the failing step's stderr
   std::string err_lacks;                                   // never in any step's stderr or stdout (a secret)
@@ -161,8 +164,19 @@ std::vector<std::string> Map(std::vector<std::string> extra) {
 }
 std::vector<std::string> Query(const std::string& expr) { return {"query", "{id}", expr, "--data", "{data}"}; }
 std::vector<std::string> Identify(const std::string& data, std::vector<std::string> extra = {}) {
-  std::vector<std::string> v = {"identify", "--data", data, "--terms", "main.linear,main.viscous", "--known", "m_main=1",
-                                "--max-added", "0", "--global-evals", "0", "--horizon", "0"};
+  std::vector<std::string> v = {"identify",
+                                "--data",
+                                data,
+                                "--terms",
+                                "main.linear,main.viscous",
+                                "--known",
+                                "m_main=1",
+                                "--max-added",
+                                "0",
+                                "--global-evals",
+                                "0",
+                                "--horizon",
+                                "0"};
   v.insert(v.end(), extra.begin(), extra.end());
   return v;
 }
@@ -187,8 +201,9 @@ Row NameRow(const std::string& row_name, const std::string& spec_name, Outcome o
 }
 
 // A plain sweep, then one command against it.
-Row OnSweep(const std::string& row_name, std::vector<std::string> step, Outcome outcome, const std::string& err_has = "",
-            std::vector<std::string> ok_files = {}, std::vector<std::string> absent = {}) {
+Row OnSweep(const std::string& row_name, std::vector<std::string> step, Outcome outcome,
+            const std::string& err_has = "", std::vector<std::string> ok_files = {},
+            std::vector<std::string> absent = {}) {
   Row r;
   r.name = row_name;
   r.spec_name = "plain";
@@ -224,25 +239,35 @@ std::vector<Row> Rows() {
 
   // -- 2. Output paths: never in the script, never through a shell; a missing directory is an error.
   const auto png = [](const std::string& out) { return Map({"--metric", "frf_db", "--format", "png", "--out", out}); };
-  rows.push_back(OnSweep("out_dollar_paren_relative", png("$(touch pwned).png"), Outcome::kOk, "", {"{dir}/$(touch pwned).png"}));
-  rows.push_back(OnSweep("out_backquote_relative", png("`touch pwned`.png"), Outcome::kOk, "", {"{dir}/`touch pwned`.png"}));
+  rows.push_back(
+      OnSweep("out_dollar_paren_relative", png("$(touch pwned).png"), Outcome::kOk, "", {"{dir}/$(touch pwned).png"}));
+  rows.push_back(
+      OnSweep("out_backquote_relative", png("`touch pwned`.png"), Outcome::kOk, "", {"{dir}/`touch pwned`.png"}));
   rows.push_back(OnSweep("out_pipe_relative", png("|touch pwned"), Outcome::kOk, "", {"{dir}/|touch pwned"}));
-  rows.push_back(OnSweep("out_pipe_absolute", png("|touch {canary}"), Outcome::kError, "invalid argument (out: ", {}, {"{dir}/|touch "}));
+  rows.push_back(OnSweep("out_pipe_absolute", png("|touch {canary}"), Outcome::kError, "invalid argument (out: ", {},
+                         {"{dir}/|touch "}));
   rows.push_back(OnSweep("out_newline_relative", png("n\nset output '|touch pwned'\n.png"), Outcome::kOk, "",
                          {"{dir}/n\nset output '|touch pwned'\n.png"}));
   rows.push_back(OnSweep("out_quote_relative", png("q\"; system(\"touch pwned\") #.png"), Outcome::kOk, "",
                          {"{dir}/q\"; system(\"touch pwned\") #.png"}));
-  rows.push_back(OnSweep("out_dollar_absolute", png("{dir}/$(touch {canary}).png"), Outcome::kError, "invalid argument (out: "));
-  rows.push_back(OnSweep("out_svg_hostile", Map({"--metric", "motion", "--format", "svg", "--out", "s`touch pwned`.svg"}),
-                         Outcome::kOk, "", {"{dir}/s`touch pwned`.svg"}));
-  rows.push_back(OnSweep("out_missing_dir_png", png("{dir}/nodir/x.png"), Outcome::kError, "does not exist", {}, {"{dir}/nodir"}));
-  rows.push_back(OnSweep("out_missing_dir_svg", Map({"--metric", "lle", "--format", "svg", "--out", "{dir}/nodir/x.svg"}),
-                         Outcome::kError, "invalid argument (out: ", {}, {"{dir}/nodir"}));
-  rows.push_back(OnSweep("out_missing_dir_json", Map({"--metric", "lle", "--format", "json", "--out", "{dir}/nodir/x.json"}),
-                         Outcome::kError, "invalid argument (out: ", {}, {"{dir}/nodir"}));
-  rows.push_back(OnSweep("out_missing_dir_csv", Map({"--metric", "lle", "--format", "csv", "--out", "{dir}/nodir/x.csv"}),
-                         Outcome::kError, "invalid argument (out: ", {}, {"{dir}/nodir"}));
-  rows.push_back(OnSweep("out_json_hostile", Map({"--metric", "lle", "--format", "json", "--out", "j`touch pwned`$(touch pwned).json"}),
+  rows.push_back(
+      OnSweep("out_dollar_absolute", png("{dir}/$(touch {canary}).png"), Outcome::kError, "invalid argument (out: "));
+  rows.push_back(OnSweep("out_svg_hostile",
+                         Map({"--metric", "motion", "--format", "svg", "--out", "s`touch pwned`.svg"}), Outcome::kOk,
+                         "", {"{dir}/s`touch pwned`.svg"}));
+  rows.push_back(
+      OnSweep("out_missing_dir_png", png("{dir}/nodir/x.png"), Outcome::kError, "does not exist", {}, {"{dir}/nodir"}));
+  rows.push_back(OnSweep("out_missing_dir_svg",
+                         Map({"--metric", "lle", "--format", "svg", "--out", "{dir}/nodir/x.svg"}), Outcome::kError,
+                         "invalid argument (out: ", {}, {"{dir}/nodir"}));
+  rows.push_back(OnSweep("out_missing_dir_json",
+                         Map({"--metric", "lle", "--format", "json", "--out", "{dir}/nodir/x.json"}), Outcome::kError,
+                         "invalid argument (out: ", {}, {"{dir}/nodir"}));
+  rows.push_back(OnSweep("out_missing_dir_csv",
+                         Map({"--metric", "lle", "--format", "csv", "--out", "{dir}/nodir/x.csv"}), Outcome::kError,
+                         "invalid argument (out: ", {}, {"{dir}/nodir"}));
+  rows.push_back(OnSweep("out_json_hostile",
+                         Map({"--metric", "lle", "--format", "json", "--out", "j`touch pwned`$(touch pwned).json"}),
                          Outcome::kOk, "", {"{dir}/j`touch pwned`$(touch pwned).json"}));
   rows.push_back(OnSweep("out_is_a_directory", png("{dir}/data"), Outcome::kError, "(out: "));
   rows.push_back(OnSweep("out_trailing_slash", png("{dir}/sub/"), Outcome::kError, "invalid argument (out: "));
@@ -252,11 +277,12 @@ std::vector<Row> Rows() {
     rows.push_back(r);
   }
   rows.push_back(OnSweep("hd_scatter_missing_dir",
-                         Map({"--metric", "hd_scatter", "--at", "alpha=0.5", "--out", "{dir}/nodir/h.png"}), Outcome::kError,
-                         "invalid argument (out: ", {}, {"{dir}/nodir"}));
-  rows.push_back(OnSweep("hd_scatter_hostile_out",
-                         Map({"--metric", "hd_scatter", "--at", "alpha=0.5", "--out", "h`touch pwned`$(touch pwned).png"}),
-                         Outcome::kOk, "", {"{dir}/h`touch pwned`$(touch pwned).png"}));
+                         Map({"--metric", "hd_scatter", "--at", "alpha=0.5", "--out", "{dir}/nodir/h.png"}),
+                         Outcome::kError, "invalid argument (out: ", {}, {"{dir}/nodir"}));
+  rows.push_back(
+      OnSweep("hd_scatter_hostile_out",
+              Map({"--metric", "hd_scatter", "--at", "alpha=0.5", "--out", "h`touch pwned`$(touch pwned).png"}),
+              Outcome::kOk, "", {"{dir}/h`touch pwned`$(touch pwned).png"}));
   {
     Row r;
     r.name = "run_data_dir_hostile";
@@ -265,41 +291,54 @@ std::vector<Row> Rows() {
     r.json = JsonCheck::kRunFiles;
     rows.push_back(r);
   }
-  rows.push_back(Case("hbm_missing_dir", {{"hbm", "--out", "{dir}/nodir/b.png"}}).Error("invalid argument (out: ").Absent({"{dir}/nodir"}));
-  rows.push_back(Case("hbm_out_stdout", {{"hbm", "--out", "-"}}).Error("invalid argument (out: --out - (standard output) is not supported: hbm's summary and --json use standard output").Absent({"{dir}/-"}));
-  rows.push_back(Case("hbm_fold_out_stdout", {{"hbm", "--fold-curve", "--fold-out", "-"}})
-                     .Error("invalid argument (fold_out: --fold-out - (standard output) is not supported: hbm's summary")
+  rows.push_back(Case("hbm_missing_dir", {{"hbm", "--out", "{dir}/nodir/b.png"}})
+                     .Error("invalid argument (out: ")
+                     .Absent({"{dir}/nodir"}));
+  rows.push_back(Case("hbm_out_stdout", {{"hbm", "--out", "-"}})
+                     .Error("invalid argument (out: --out - (standard output) is not supported: hbm's summary and "
+                            "--json use standard output")
                      .Absent({"{dir}/-"}));
+  rows.push_back(
+      Case("hbm_fold_out_stdout", {{"hbm", "--fold-curve", "--fold-out", "-"}})
+          .Error("invalid argument (fold_out: --fold-out - (standard output) is not supported: hbm's summary")
+          .Absent({"{dir}/-"}));
   // fetch --out -: refused before any connection (no file named "-", nothing half-written to stdout).
-  rows.push_back(Case("fetch_out_stdout", {{"fetch", "abc", "--out", "-", "--coordinator", "127.0.0.1:9"}})
-                     .Error("invalid argument (out: --out - (standard output) is not supported: a fetched map is written to a file")
-                     .Absent({"{dir}/-"}));
+  rows.push_back(
+      Case("fetch_out_stdout", {{"fetch", "abc", "--out", "-", "--coordinator", "127.0.0.1:9"}})
+          .Error(
+              "invalid argument (out: --out - (standard output) is not supported: a fetched map is written to a file")
+          .Absent({"{dir}/-"}));
   rows.push_back(Case("hbm_hostile_out", {{"hbm", "--out", "b`touch pwned`$(touch pwned).png"}})
                      .OkFiles({"{dir}/b`touch pwned`$(touch pwned).png"}));
   rows.push_back(Case("chirp_hostile_out", {{"chirp", "--duration", "200", "--out", "c`touch pwned`$(touch pwned)"}})
-                     .OkFiles({"{dir}/c`touch pwned`$(touch pwned)/frf.png", "{dir}/c`touch pwned`$(touch pwned)/sweep_up_spectrogram.png"}));
-  rows.push_back(Case("point_trace_missing_dir",
-                      {{"point", "--alpha", "1", "--omega", "1", "--t-end", "20", "--t-keep", "10", "--trace", "{dir}/nodir/t.csv"}})
+                     .OkFiles({"{dir}/c`touch pwned`$(touch pwned)/frf.png",
+                               "{dir}/c`touch pwned`$(touch pwned)/sweep_up_spectrogram.png"}));
+  rows.push_back(Case("point_trace_missing_dir", {{"point", "--alpha", "1", "--omega", "1", "--t-end", "20", "--t-keep",
+                                                   "10", "--trace", "{dir}/nodir/t.csv"}})
                      .Error("trace")
                      .Absent({"{dir}/nodir"}));
-  rows.push_back(Case("point_trace_stdout_and_json",
-                      {{"point", "--alpha", "1", "--omega", "1", "--t-end", "20", "--t-keep", "10", "--trace", "-", "--json"}})
+  rows.push_back(Case("point_trace_stdout_and_json", {{"point", "--alpha", "1", "--omega", "1", "--t-end", "20",
+                                                       "--t-keep", "10", "--trace", "-", "--json"}})
                      .Error("--trace - writes the trace CSV to standard output, which --json uses too")
                      .Absent({"{dir}/-"}));
-  rows.push_back(Case("point_trace_hostile", {{"point", "--alpha", "1", "--omega", "1", "--t-end", "20", "--t-keep", "10", "--trace",
-                                               "t`touch pwned`$(touch pwned).csv"}})
+  rows.push_back(Case("point_trace_hostile", {{"point", "--alpha", "1", "--omega", "1", "--t-end", "20", "--t-keep",
+                                               "10", "--trace", "t`touch pwned`$(touch pwned).csv"}})
                      .OkFiles({"{dir}/t`touch pwned`$(touch pwned).csv"}));
-  rows.push_back(Case("identify_report_dir_hostile", {Identify("{dir}/ok.csv", {"--report", "r`touch pwned`$(touch pwned)"})})
-                     .OkFiles({"{dir}/r`touch pwned`$(touch pwned)/residual_force.png", "{dir}/r`touch pwned`$(touch pwned)/record_1.png"})
-                     .Files({{"{dir}/ok.csv", RecordCsv(200)}}));
+  rows.push_back(
+      Case("identify_report_dir_hostile", {Identify("{dir}/ok.csv", {"--report", "r`touch pwned`$(touch pwned)"})})
+          .OkFiles({"{dir}/r`touch pwned`$(touch pwned)/residual_force.png",
+                    "{dir}/r`touch pwned`$(touch pwned)/record_1.png"})
+          .Files({{"{dir}/ok.csv", RecordCsv(200)}}));
   // The record's file name reaches multiplot titles (RenderPanels): newline, backquote, quotes.
-  rows.push_back(Case("identify_record_name_hostile", {Identify("{dir}/n\n`touch pwned`$(touch pwned)\"'.csv", {"--report", "{dir}/rep"})})
+  rows.push_back(Case("identify_record_name_hostile",
+                      {Identify("{dir}/n\n`touch pwned`$(touch pwned)\"'.csv", {"--report", "{dir}/rep"})})
                      .OkFiles({"{dir}/rep/residual_force.png", "{dir}/rep/record_1.png"})
                      .Files({{"{dir}/n\n`touch pwned`$(touch pwned)\"'.csv", RecordCsv(200)}}));
 
   // -- 3. gnuplot missing or failing: a clear error, no signal, no file, no temporary left behind.
   {
-    Row r = OnSweep("gnuplot_missing", png("{dir}/x.png"), Outcome::kError, "cannot start gnuplot", {}, {"{dir}/x.png"});
+    Row r =
+        OnSweep("gnuplot_missing", png("{dir}/x.png"), Outcome::kError, "cannot start gnuplot", {}, {"{dir}/x.png"});
     r.env = {{"PATH", "{dir}/empty-path"}};
     rows.push_back(r);
   }
@@ -326,7 +365,8 @@ std::vector<Row> Rows() {
   const auto metric = [](const std::string& m, const std::string& format = "json") {
     return Map({"--metric", m, "--format", format, "--out", "{dir}/m." + format});
   };
-  rows.push_back(OnSweep("metric_slash", metric("/"), Outcome::kError, "invalid argument (metric: ", {}, {"{dir}/m.json"}));
+  rows.push_back(
+      OnSweep("metric_slash", metric("/"), Outcome::kError, "invalid argument (metric: ", {}, {"{dir}/m.json"}));
   rows.push_back(OnSweep("metric_empty", metric(""), Outcome::kError, "invalid argument (metric: "));
   rows.push_back(OnSweep("metric_dot", metric("."), Outcome::kError, "invalid argument (metric: "));
   rows.push_back(OnSweep("metric_dotdot", metric(".."), Outcome::kError, "invalid argument (metric: "));
@@ -334,35 +374,48 @@ std::vector<Row> Rows() {
   rows.push_back(OnSweep("metric_axis_scale", metric("alpha"), Outcome::kError, "unknown metric 'alpha'"));
   rows.push_back(OnSweep("metric_newline", metric("frf_db\nlle"), Outcome::kError, "invalid argument (metric: "));
   rows.push_back(OnSweep("metric_traversal", metric("frf_db/../lle"), Outcome::kError, "invalid argument (metric: "));
-  rows.push_back(OnSweep("metric_slash_csv", metric("/", "csv"), Outcome::kError, "invalid argument (metric: ", {}, {"{dir}/m.csv"}));
-  rows.push_back(OnSweep("metric_slash_png", metric("/", "png"), Outcome::kError, "invalid argument (metric: ", {}, {"{dir}/m.png"}));
+  rows.push_back(OnSweep("metric_slash_csv", metric("/", "csv"), Outcome::kError, "invalid argument (metric: ", {},
+                         {"{dir}/m.csv"}));
+  rows.push_back(OnSweep("metric_slash_png", metric("/", "png"), Outcome::kError, "invalid argument (metric: ", {},
+                         {"{dir}/m.png"}));
   rows.push_back(OnSweep("metric_typo_suggests", metric("frf"), Outcome::kError, "did you mean 'frf_db'"));
 
   // -- 5. Queries: bounded length and nesting (the parser recursed into a segfault).
-  rows.push_back(OnSweep("query_10k_nested_parens", Query(Repeat("(", 10000) + "lle < 0" + Repeat(")", 10000)), Outcome::kError,
-                         "violates length <= 4096"));
-  rows.push_back(OnSweep("query_limit_negative", {"query", "{id}", "lle < 1e9", "--data", "{data}", "--limit", "-1"}, Outcome::kError,
+  rows.push_back(OnSweep("query_10k_nested_parens", Query(Repeat("(", 10000) + "lle < 0" + Repeat(")", 10000)),
+                         Outcome::kError, "violates length <= 4096"));
+  rows.push_back(OnSweep("query_limit_negative", {"query", "{id}", "lle < 1e9", "--data", "{data}", "--limit", "-1"},
+                         Outcome::kError,
                          "limit = -1 violates limit >= 0"));  // issue 39: it printed no point at all
-  rows.push_back(OnSweep("query_10k_open_parens", Query(Repeat("(", 10000)), Outcome::kError, "violates length <= 4096"));
-  rows.push_back(OnSweep("query_65_nested_parens", Query(Repeat("(", 65) + "lle < 0" + Repeat(")", 65)), Outcome::kError,
-                         "violates depth <= 64"));
-  rows.push_back(OnSweep("query_64_nested_parens_ok", Query(Repeat("(", 64) + "lle < 0" + Repeat(")", 64)), Outcome::kOk));
+  rows.push_back(
+      OnSweep("query_10k_open_parens", Query(Repeat("(", 10000)), Outcome::kError, "violates length <= 4096"));
+  rows.push_back(OnSweep("query_65_nested_parens", Query(Repeat("(", 65) + "lle < 0" + Repeat(")", 65)),
+                         Outcome::kError, "violates depth <= 64"));
+  rows.push_back(
+      OnSweep("query_64_nested_parens_ok", Query(Repeat("(", 64) + "lle < 0" + Repeat(")", 64)), Outcome::kOk));
   rows.push_back(OnSweep("query_4000_open_parens", Query(Repeat("(", 4000)), Outcome::kError, "violates depth <= 64"));
-  rows.push_back(OnSweep("query_70_nots", Query(Repeat("not ", 70) + "lle < 0"), Outcome::kError, "violates depth <= 64"));
-  rows.push_back(OnSweep("query_too_long", Query(Repeat("lle < 0 or ", 400) + "lle < 0"), Outcome::kError, "violates length <= 4096"));
+  rows.push_back(
+      OnSweep("query_70_nots", Query(Repeat("not ", 70) + "lle < 0"), Outcome::kError, "violates depth <= 64"));
+  rows.push_back(OnSweep("query_too_long", Query(Repeat("lle < 0 or ", 400) + "lle < 0"), Outcome::kError,
+                         "violates length <= 4096"));
   rows.push_back(OnSweep("query_long_chain_ok", Query(Repeat("lle < 0 or ", 360) + "lle < 0"), Outcome::kOk));
 
   // -- 6. Measured data with absurd values; a fit that gives no numbers is an error.
-  const auto data_row = [](const std::string& name, const std::string& csv, const std::string& err, std::vector<std::string> extra = {}) {
+  const auto data_row = [](const std::string& name, const std::string& csv, const std::string& err,
+                           std::vector<std::string> extra = {}) {
     return Case(name, {Identify("{dir}/d.csv", std::move(extra))}).Error(err).Files({{"{dir}/d.csv", csv}});
   };
-  rows.push_back(data_row("identify_1e300_cell", RecordCsv(200, {{{49, 1}, "1e300"}}), "row 51 column 'x0': 1e300 violates |value| <= 1e+12"));
+  rows.push_back(data_row("identify_1e300_cell", RecordCsv(200, {{{49, 1}, "1e300"}}),
+                          "row 51 column 'x0': 1e300 violates |value| <= 1e+12"));
   rows.push_back(data_row("identify_1e300_everywhere", RecordCsv(200, {}, 1e303), "violates |value| <= 1e+12"));
   rows.push_back(data_row("identify_1e300_time", RecordCsv(200, {{{10, 0}, "1e300"}}), "row 12 column 't'"));
-  rows.push_back(data_row("identify_inf_cell", RecordCsv(200, {{{5, 2}, "inf"}}), "row 7 column 'x': 'inf' is not a finite number"));
-  rows.push_back(data_row("identify_1e400_cell", RecordCsv(200, {{{5, 2}, "1e400"}}), "row 7 column 'x': '1e400' is not a finite number"));
-  rows.push_back(data_row("identify_scaled_beyond_bound", RecordCsv(200, {}, 1e9), "x scale", {"--input-scale", "1e7"}));
-  rows.push_back(data_row("identify_absurd_guess", RecordCsv(200), "identify: the", {"--guess", "main.linear.k_lin=1e308"}));
+  rows.push_back(data_row("identify_inf_cell", RecordCsv(200, {{{5, 2}, "inf"}}),
+                          "row 7 column 'x': 'inf' is not a finite number"));
+  rows.push_back(data_row("identify_1e400_cell", RecordCsv(200, {{{5, 2}, "1e400"}}),
+                          "row 7 column 'x': '1e400' is not a finite number"));
+  rows.push_back(
+      data_row("identify_scaled_beyond_bound", RecordCsv(200, {}, 1e9), "x scale", {"--input-scale", "1e7"}));
+  rows.push_back(
+      data_row("identify_absurd_guess", RecordCsv(200), "identify: the", {"--guess", "main.linear.k_lin=1e308"}));
   rows.push_back(Case("identify_counts_and_params_finite", {Identify("{dir}/d.csv", {"--json"})})
                      .Files({{"{dir}/d.csv", RecordCsv(200)}})
                      .Json(JsonCheck::kIdentifyFinite));
@@ -372,18 +425,21 @@ std::vector<Row> Rows() {
   const std::string plain = RecordCsv(200), body = plain.substr(plain.find('\n') + 1);
   rows.push_back(data_row("identify_line_over_bound", plain + std::string(70000, '7') + "\n",
                           "d.csv row 202: the line is longer than 65536 bytes (violates line length <= 65536)"));
-  rows.push_back(data_row("identify_4mb_without_newline", std::string(4 << 20, ','), "d.csv row 1: the line is longer than 65536 bytes"));
-  rows.push_back(data_row("identify_unclosed_quote", "t,x0,x\n0,\"0,0\n" + body, "d.csv row 2 column 2: a quote is not closed on its line"));
+  rows.push_back(data_row("identify_4mb_without_newline", std::string(4 << 20, ','),
+                          "d.csv row 1: the line is longer than 65536 bytes"));
+  rows.push_back(data_row("identify_unclosed_quote", "t,x0,x\n0,\"0,0\n" + body,
+                          "d.csv row 2 column 2: a quote is not closed on its line"));
   rows.push_back(data_row("identify_no_separator", "t x0 x\n" + body, "d.csv row 1 (header): no separator splits it"));
   rows.push_back(data_row("identify_utf16", std::string("\xff\xfet\0,\0x\0\0\n\0", 10), "d.csv is UTF-16 text"));
-  rows.push_back(data_row("identify_time_in_mm", "t [mm],x0,x\n" + body, "column 't [mm]' (time): 'mm' is a unit of length"));
+  rows.push_back(
+      data_row("identify_time_in_mm", "t [mm],x0,x\n" + body, "column 't [mm]' (time): 'mm' is a unit of length"));
   rows.push_back(data_row("identify_unknown_time_unit", "t [samples],x0,x\n" + body, "unknown time unit 'samples'"));
   rows.push_back(data_row("identify_unit_and_scale", "t,x0 [mm],x\n" + body,
                           "input_scale = 0.001 would convert it again", {"--input-scale", "0.001"}));
   rows.push_back(data_row("identify_decimal_comma_in_comma_file", "t,x0,x\n0,\"0,5\",0\n" + body,
                           "d.csv row 2 column 'x0': '0,5' is not a finite number"));
-  rows.push_back(data_row("identify_escape_in_header", "t,x0,\x1b]0;owned\x07\n" + body,
-                          "(allowed: t, x0, \\x1b]0;owned\\x07)"));
+  rows.push_back(
+      data_row("identify_escape_in_header", "t,x0,\x1b]0;owned\x07\n" + body, "(allowed: t, x0, \\x1b]0;owned\\x07)"));
   {
     std::string wide = "t,x0";
     for (int i = 0; i < 5000; ++i) wide += ",c" + std::to_string(i);
@@ -393,63 +449,82 @@ std::vector<Row> Rows() {
   {
     std::string daq = "\xef\xbb\xbf# export\r\n\"t [s]\";\"x0 (m)\";\"x [m]\"\r\n";
     for (char ch : body) {
-      if (ch == ',') daq += ';';
-      else if (ch == '.') daq += ',';
-      else if (ch == '\n') daq += "\r\n";
-      else daq += ch;
+      if (ch == ',')
+        daq += ';';
+      else if (ch == '.')
+        daq += ',';
+      else if (ch == '\n')
+        daq += "\r\n";
+      else
+        daq += ch;
     }
     rows.push_back(Case("identify_daq_export_ok", {Identify("{dir}/d.csv", {"--json"})})
                        .Files({{"{dir}/d.csv", daq}})
                        .Json(JsonCheck::kIdentifyFinite));
   }
   // -- 7. The output weights and a model file read by --predict: names and bounds in the errors, no shell.
-  rows.push_back(data_row("identify_output_weights_shell", RecordCsv(200), "violates output-weights in {residual, noise}",
+  rows.push_back(data_row("identify_output_weights_shell", RecordCsv(200),
+                          "violates output-weights in {residual, noise}",
                           {"--output-weights", "$(touch pwned)`touch pwned`"}));
-  rows.push_back(data_row("identify_lm_iterations_zero", RecordCsv(200), "lm-iterations: must be in [1, 10000]", {"--lm-iterations", "0"}));
+  rows.push_back(data_row("identify_lm_iterations_zero", RecordCsv(200), "lm-iterations: must be in [1, 10000]",
+                          {"--lm-iterations", "0"}));
   rows.push_back(data_row("identify_lm_iterations_beyond_bound", RecordCsv(200), "lm-iterations: must be in [1, 10000]",
                           {"--lm-iterations", "10001"}));
-  rows.push_back(data_row("identify_drift_cutoff_negative", RecordCsv(200), "drift-cutoff = -0.5 violates drift-cutoff >= 0 Hz, finite",
-                          {"--drift-cutoff", "-0.5"}));
-  rows.push_back(data_row("identify_drift_cutoff_nan", RecordCsv(200), "drift-cutoff = nan violates drift-cutoff >= 0 Hz, finite",
-                          {"--drift-cutoff", "nan"}));
+  rows.push_back(data_row("identify_drift_cutoff_negative", RecordCsv(200),
+                          "drift-cutoff = -0.5 violates drift-cutoff >= 0 Hz, finite", {"--drift-cutoff", "-0.5"}));
+  rows.push_back(data_row("identify_drift_cutoff_nan", RecordCsv(200),
+                          "drift-cutoff = nan violates drift-cutoff >= 0 Hz, finite", {"--drift-cutoff", "nan"}));
   rows.push_back(data_row("identify_drift_cutoff_displacement_output", RecordCsv(200), "needs --output-kind velocity",
                           {"--drift-cutoff", "0.5"}));
   // -- 8. Ranges, budgets and threads (session 19 review): strict numbers, named bounds.
-  for (const auto& [name, range] : std::vector<std::pair<std::string, std::string>>{
-           {"identify_range_scientific", "1e3:2500"}, {"identify_range_hex", "0x10:2000"}, {"identify_range_negative_end", "0:-1"},
-           {"identify_range_trailing_garbage", "500:2500garbage"}, {"identify_range_beyond_rows", "0:99999999999"}})
+  for (const auto& [name, range] :
+       std::vector<std::pair<std::string, std::string>>{{"identify_range_scientific", "1e3:2500"},
+                                                        {"identify_range_hex", "0x10:2000"},
+                                                        {"identify_range_negative_end", "0:-1"},
+                                                        {"identify_range_trailing_garbage", "500:2500garbage"},
+                                                        {"identify_range_beyond_rows", "0:99999999999"}})
     rows.push_back(data_row(name, RecordCsv(200), "violates range = A:B", {"--range", range}));
-  rows.push_back(data_row("identify_test_range_plus_sign", RecordCsv(200), "violates test-range = A:B", {"--test-range", "+5:100"}));
+  rows.push_back(data_row("identify_test_range_plus_sign", RecordCsv(200), "violates test-range = A:B",
+                          {"--test-range", "+5:100"}));
   for (const std::string v : {"nan", "inf", "-5", "1e300"})
-    rows.push_back(data_row("identify_max_seconds_" + std::string(v == "-5" ? "negative" : v == "1e300" ? "huge" : v), RecordCsv(200),
-                            "violates 0 <= max-seconds <= 1e6 s", {"--max-seconds", v}));
-  rows.push_back(data_row("identify_threads_negative", RecordCsv(200), "threads = -1 violates threads in [0, 1024]", {"--threads", "-1"}));
-  rows.push_back(data_row("identify_threads_huge", RecordCsv(200), "threads = 100000 violates threads in [0, 1024]", {"--threads", "100000"}));
-  rows.push_back(Case("identify_shooting_horizon_below_four_samples",
-                      {{"identify", "--data", "{dir}/d.csv", "--terms", "main.linear,main.viscous", "--known", "m_main=1", "--max-added", "0",
-                        "--global-evals", "0", "--objective", "shooting", "--horizon", "1e-300"}})
-                     .Error("violates horizon >= 4 samples")
-                     .Files({{"{dir}/d.csv", RecordCsv(200)}}));
+    rows.push_back(data_row("identify_max_seconds_" + std::string(v == "-5"      ? "negative"
+                                                                  : v == "1e300" ? "huge"
+                                                                                 : v),
+                            RecordCsv(200), "violates 0 <= max-seconds <= 1e6 s", {"--max-seconds", v}));
+  rows.push_back(data_row("identify_threads_negative", RecordCsv(200), "threads = -1 violates threads in [0, 1024]",
+                          {"--threads", "-1"}));
+  rows.push_back(data_row("identify_threads_huge", RecordCsv(200), "threads = 100000 violates threads in [0, 1024]",
+                          {"--threads", "100000"}));
+  rows.push_back(
+      Case("identify_shooting_horizon_below_four_samples",
+           {{"identify", "--data", "{dir}/d.csv", "--terms", "main.linear,main.viscous", "--known", "m_main=1",
+             "--max-added", "0", "--global-evals", "0", "--objective", "shooting", "--horizon", "1e-300"}})
+          .Error("violates horizon >= 4 samples")
+          .Files({{"{dir}/d.csv", RecordCsv(200)}}));
   {
     std::string grouped = "t,x0,x,g\n";
     for (int i = 0; i < 2 * 4100; ++i)
-      grouped += std::to_string(i * 0.01) + "," + std::to_string(0.001 * std::sin(i * 0.3)) + "," + std::to_string(0.0012 * std::sin(i * 0.3)) +
-                 "," + std::to_string(i / 2) + "\n";
-    rows.push_back(data_row("identify_4100_records_in_one_file", grouped, "more than 4096 records in one file", {"--columns", "group=g"}));
+      grouped += std::to_string(i * 0.01) + "," + std::to_string(0.001 * std::sin(i * 0.3)) + "," +
+                 std::to_string(0.0012 * std::sin(i * 0.3)) + "," + std::to_string(i / 2) + "\n";
+    rows.push_back(data_row("identify_4100_records_in_one_file", grouped, "more than 4096 records in one file",
+                            {"--columns", "group=g"}));
   }
   // A file name that is not UTF-8 reaches the JSON (records are named by their files): printed with U+FFFD, and
   // the report's files are written whole.
   rows.push_back(Case("identify_non_utf8_file_name_json", {Identify("{dir}/bad\xff\xfe.csv", {"--json"})})
                      .Files({{"{dir}/bad\xff\xfe.csv", RecordCsv(200)}})
                      .Json(JsonCheck::kIdentifyFinite));
-  rows.push_back(Case("identify_non_utf8_file_name_report", {Identify("{dir}/bad\xff\xfe.csv", {"--report", "{dir}/rep"})})
-                     .Files({{"{dir}/bad\xff\xfe.csv", RecordCsv(200)}})
-                     .OkFiles({"{dir}/rep/report.json", "{dir}/rep/report.md"}));
+  rows.push_back(
+      Case("identify_non_utf8_file_name_report", {Identify("{dir}/bad\xff\xfe.csv", {"--report", "{dir}/rep"})})
+          .Files({{"{dir}/bad\xff\xfe.csv", RecordCsv(200)}})
+          .OkFiles({"{dir}/rep/report.json", "{dir}/rep/report.md"}));
   {
-    const std::string model = R"({"final_terms": ["main.linear", "main.viscous"], "params": {"main.linear.k_lin": 100, "main.viscous.c0": 1},
+    const std::string model =
+        R"({"final_terms": ["main.linear", "main.viscous"], "params": {"main.linear.k_lin": 100, "main.viscous.c0": 1},
                                   "settings": {"m_main": 1}, "errors_by_output": {"voltage": {"weight": WEIGHT}}})";
     auto with_weight = [&](const std::string& w) { return std::string(model).replace(model.find("WEIGHT"), 6, w); };
-    const std::vector<std::string> predict = {"identify", "--predict", "--model", "{dir}/m.json", "--data", "{dir}/d.csv"};
+    const std::vector<std::string> predict = {"identify",     "--predict", "--model",
+                                              "{dir}/m.json", "--data",    "{dir}/d.csv"};
     rows.push_back(Case("identify_predict_weight_beyond_bound", {predict})
                        .Error("model.errors_by_output.voltage.weight = 1e+06 violates 0.01 <= weight <= 100")
                        .Files({{"{dir}/d.csv", RecordCsv(200)}, {"{dir}/m.json", with_weight("1e6")}}));
@@ -457,28 +532,34 @@ std::vector<Row> Rows() {
                        .Error("model.errors_by_output.voltage.weight")
                        .Files({{"{dir}/d.csv", RecordCsv(200)}, {"{dir}/m.json", with_weight("\"$(touch pwned)\"")}}));
     // The snap-through family's flags (issue 37): refused by name before anything is written.
-    rows.push_back(Case("identify_synthetic_amplitude_out_of_range",
-                        {{"identify", "--make-synthetic", "{dir}/syn", "--synthetic", "bistable", "--synthetic-amplitude", "200"}})
-                       .Error("synthetic-amplitude = 200 violates 0.01 <= value <= 100")
-                       .Absent({"{dir}/syn"}));
+    rows.push_back(
+        Case("identify_synthetic_amplitude_out_of_range",
+             {{"identify", "--make-synthetic", "{dir}/syn", "--synthetic", "bistable", "--synthetic-amplitude", "200"}})
+            .Error("synthetic-amplitude = 200 violates 0.01 <= value <= 100")
+            .Absent({"{dir}/syn"}));
     rows.push_back(Case("identify_synthetic_extra_friction_or_hostile",
-                        {{"identify", "--make-synthetic", "{dir}/syn", "--synthetic", "bistable", "--synthetic-extra", "main.friction=1:$(touch pwned)"}})
+                        {{"identify", "--make-synthetic", "{dir}/syn", "--synthetic", "bistable", "--synthetic-extra",
+                          "main.friction=1:$(touch pwned)"}})
                        .Error("synthetic-extra")
                        .Absent({"{dir}/syn"}));
     rows.push_back(Case("identify_synthetic_resonator_extra_without_resonator",
-                        {{"identify", "--make-synthetic", "{dir}/syn", "--synthetic", "bistable", "--synthetic-extra", "res.stiffness_z3=1e5"}})
+                        {{"identify", "--make-synthetic", "{dir}/syn", "--synthetic", "bistable", "--synthetic-extra",
+                          "res.stiffness_z3=1e5"}})
                        .Error("needs --synthetic bistable-coupled")
                        .Absent({"{dir}/syn"}));
-    rows.push_back(Case("identify_predict_model_path_hostile",
-                        {{"identify", "--predict", "--model", "{dir}/m`touch pwned`$(touch pwned).json", "--data", "{dir}/d.csv"}})
-                       .Error("model")
-                       .Files({{"{dir}/d.csv", RecordCsv(200)}}));
+    rows.push_back(
+        Case("identify_predict_model_path_hostile",
+             {{"identify", "--predict", "--model", "{dir}/m`touch pwned`$(touch pwned).json", "--data", "{dir}/d.csv"}})
+            .Error("model")
+            .Files({{"{dir}/d.csv", RecordCsv(200)}}));
   }
   // -- 9. Tokens (issue 39): a control byte in a token (file or $BISTABLE_TOKEN) used to reach gRPC, which
   // logs the metadata (the whole token) and aborts; refused before any call, the token never shown.
-  for (const auto& [name, token] : std::vector<std::pair<std::string, std::string>>{
-           {"token_file_with_newline", "SECRETA\nSECRETB\n"}, {"token_file_with_nul", std::string("SECRETA\0SECRETB", 15)},
-           {"token_file_with_escape", "SECRETA\x1b[2JSECRETB"}, {"token_file_with_space", "SECRETA SECRETB"}}) {
+  for (const auto& [name, token] :
+       std::vector<std::pair<std::string, std::string>>{{"token_file_with_newline", "SECRETA\nSECRETB\n"},
+                                                        {"token_file_with_nul", std::string("SECRETA\0SECRETB", 15)},
+                                                        {"token_file_with_escape", "SECRETA\x1b[2JSECRETB"},
+                                                        {"token_file_with_space", "SECRETA SECRETB"}}) {
     Row r = Case(name, {{"status", "abc", "--coordinator", "127.0.0.1:1", "--token-file", "{dir}/t"}})
                 .Error("token-file: the token holds")
                 .Files({{"{dir}/t", token}});
@@ -488,7 +569,8 @@ std::vector<Row> Rows() {
   // A good token in plaintext to an address that is not loopback: refused, unless --insecure-remote (then the
   // call is made: 0.0.0.0 is this host, nothing listens on port 1, so it cannot reach it).
   {
-    Row r = Case("token_plaintext_to_a_remote_address", {{"status", "abc", "--coordinator", "0.0.0.0:1", "--token-file", "{dir}/t"}})
+    Row r = Case("token_plaintext_to_a_remote_address",
+                 {{"status", "abc", "--coordinator", "0.0.0.0:1", "--token-file", "{dir}/t"}})
                 .Error("refusing to send the bearer token in plaintext to 0.0.0.0:1")
                 .Files({{"{dir}/t", "SECRETAgoodtoken\n"}});
     r.err_lacks = "SECRET";
@@ -500,12 +582,15 @@ std::vector<Row> Rows() {
     ok.err_lacks = "SECRET";
     rows.push_back(ok);
   }
-  rows.push_back(Case("sweeps_data_is_a_file", {{"sweeps", "--data", "/etc/passwd", "--json"}}).Error("data: '/etc/passwd' is not a directory"));
+  rows.push_back(Case("sweeps_data_is_a_file", {{"sweeps", "--data", "/etc/passwd", "--json"}})
+                     .Error("data: '/etc/passwd' is not a directory"));
   // -- 12. A diverged point (issue 39): its extremes and energies are undefined (null), not 0.0.
   {
     Row r = Case("point_diverged_extremes_and_energy_are_null",
-                 {{"point", "--model", "standalone", "--alpha", "3", "--omega", "3", "--dt", "1", "--t-end", "500", "--t-keep", "250", "--json"}});
-    r.out_has = {"\"termination\": \"diverged\"", "\"y_min\": null", "\"y_max\": null", "\"w_in\": null", "\"delta_e\": null"};
+                 {{"point", "--model", "standalone", "--alpha", "3", "--omega", "3", "--dt", "1", "--t-end", "500",
+                   "--t-keep", "250", "--json"}});
+    r.out_has = {"\"termination\": \"diverged\"", "\"y_min\": null", "\"y_max\": null", "\"w_in\": null",
+                 "\"delta_e\": null"};
     rows.push_back(r);
   }
   // -- 11. Messages stay short (issue 39): a 1 MB unknown key is cut, not echoed whole.
@@ -518,14 +603,18 @@ std::vector<Row> Rows() {
   }
   // -- 10. Numbers and names of service commands (issue 39): refused naming the flag and the bound.
   for (const std::string v : {"nan", "-1", "0", "1e300"})
-    rows.push_back(Case("health_timeout_" + std::string(v == "-1" ? "negative" : v == "1e300" ? "huge" : v),
+    rows.push_back(Case("health_timeout_" + std::string(v == "-1"      ? "negative"
+                                                        : v == "1e300" ? "huge"
+                                                                       : v),
                         {{"health", "--coordinator", "127.0.0.1:1", "--timeout", v}})
                        .Error("violates timeout in (0, 3600] s"));
   rows.push_back(Case("token_name_with_colon", {{"token", "--name", "a:b"}}).Error("name: name 'a:b' violates name"));
   rows.push_back(Case("token_name_with_newline", {{"token", "--name", "a\nb"}}).Error("name 'a\\x0ab' violates name"));
-  rows.push_back(Case("token_name_of_65_characters", {{"token", "--name", std::string(65, 'n')}}).Error("at most 64 visible ASCII"));
+  rows.push_back(Case("token_name_of_65_characters", {{"token", "--name", std::string(65, 'n')}})
+                     .Error("at most 64 visible ASCII"));
   {
-    Row r = Case("token_env_with_control_byte", {{"sweeps", "--coordinator", "127.0.0.1:1"}}).Error("BISTABLE_TOKEN: the token holds a control byte (0x01)");
+    Row r = Case("token_env_with_control_byte", {{"sweeps", "--coordinator", "127.0.0.1:1"}})
+                .Error("BISTABLE_TOKEN: the token holds a control byte (0x01)");
     r.env = {{"BISTABLE_TOKEN", "SECRETA\x01SECRETB"}};
     r.err_lacks = "SECRET";
     rows.push_back(r);
@@ -540,7 +629,8 @@ class HostileCli : public ::testing::TestWithParam<Row> {};
 // Files named exactly "pwned" (what every hostile command would create), and leftover temporaries.
 void ExpectNothingRanAndNothingLeft(const fs::path& dir) {
   std::error_code ec;
-  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
     const std::string base = it->path().filename().string();
     EXPECT_NE(base, "pwned") << "a command ran: " << it->path();
     EXPECT_NE(base.rfind(".bistable-plot-", 0), 0u) << "temporary plot file left: " << it->path();
@@ -555,8 +645,10 @@ TEST_P(HostileCli, Row) {
   const fs::path dir = fs::path(bistable_test::FreshDir("hostile", row.name));
   const std::string canary = (dir / "pwned").string();
   const std::string spec_name = ReplaceAll(row.spec_name, "{canary}", canary);
-  std::map<std::string, std::string> vars = {{"{dir}", dir.string()},          {"{canary}", canary},
-                                             {"{spec}", (dir / "spec.toml").string()}, {"{data}", (dir / "data").string()},
+  std::map<std::string, std::string> vars = {{"{dir}", dir.string()},
+                                             {"{canary}", canary},
+                                             {"{spec}", (dir / "spec.toml").string()},
+                                             {"{data}", (dir / "data").string()},
                                              {"{name}", spec_name}};
   auto expand = [&](std::string s) {
     for (const auto& [k, v] : vars) s = ReplaceAll(s, k, v);
@@ -599,13 +691,17 @@ TEST_P(HostileCli, Row) {
       EXPECT_EQ(r.exit_code, 2) << "an error must be exit 2 (bad input)";
       EXPECT_NE(r.err.find("error: "), std::string::npos) << "no 'error: ' line";
       EXPECT_NE(r.err.find(row.err_has), std::string::npos) << "stderr lacks '" << row.err_has << "'";
-      if (row.err_max_bytes > 0) { EXPECT_LE(r.err.size(), row.err_max_bytes) << "stderr of " << r.err.size() << " bytes"; }
+      if (row.err_max_bytes > 0) {
+        EXPECT_LE(r.err.size(), row.err_max_bytes) << "stderr of " << r.err.size() << " bytes";
+      }
       failed_step = true;
       break;
     }
     if (i + 1 == row.steps.size()) {
-      ASSERT_NE(row.outcome, Outcome::kError) << "succeeded; expected an error with '" << row.err_has << "'\nstdout: " << r.out.substr(0, 400);
-      for (const std::string& want : row.out_has) EXPECT_NE(r.out.find(want), std::string::npos) << "stdout lacks '" << want << "':\n" << r.out;
+      ASSERT_NE(row.outcome, Outcome::kError)
+          << "succeeded; expected an error with '" << row.err_has << "'\nstdout: " << r.out.substr(0, 400);
+      for (const std::string& want : row.out_has)
+        EXPECT_NE(r.out.find(want), std::string::npos) << "stdout lacks '" << want << "':\n" << r.out;
       if (row.json == JsonCheck::kIdentifyFinite) {
         const auto j = nlohmann::json::parse(r.out, nullptr, false);
         ASSERT_TRUE(j.is_object()) << r.out;
@@ -662,13 +758,16 @@ TEST(HostileDisk, RunOnATwoMegabyteTmpfsExitsTwoWithTheDiskFullMessageTenTimes) 
   const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "disk_full"));
   const std::string mnt = (dir / "mnt").string();
   fs::create_directories(mnt);
-  std::ofstream(dir / "g60.toml") << "model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 60] }\n"
-                                     "omega = { linspace = [0.1, 3, 60] }\n[integration]\nt_end = 20.0\nt_keep = 10.0\n";
+  std::ofstream(dir / "g60.toml")
+      << "model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3, 60] }\n"
+         "omega = { linspace = [0.1, 3, 60] }\n[integration]\nt_end = 20.0\nt_keep = 10.0\n";
   int disk_full = 0, map_full = 0;
   for (int run = 0; run < 10; ++run) {
     SCOPED_TRACE("run " + std::to_string(run));
-    if (RunArgv({"/bin/mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", mnt}).exit_code != 0) GTEST_SKIP() << "cannot mount a tmpfs here";
-    const ExecResult r = RunArgv({BISTABLE_CLI, "run", (dir / "g60.toml").string(), "--data", mnt, "--no-plots", "--quiet"}, dir.string());
+    if (RunArgv({"/bin/mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", mnt}).exit_code != 0)
+      GTEST_SKIP() << "cannot mount a tmpfs here";
+    const ExecResult r = RunArgv(
+        {BISTABLE_CLI, "run", (dir / "g60.toml").string(), "--data", mnt, "--no-plots", "--quiet"}, dir.string());
     RunArgv({"/bin/umount", mnt});
     ASSERT_FALSE(r.timed_out);
     ASSERT_EQ(r.signal, 0) << "died of signal " << r.signal << " (" << strsignal(r.signal) << ")\n" << r.err;
@@ -693,12 +792,14 @@ TEST(HostileFiles, TheDataDirectoryIsCreated0750AndItsIndexAndMaps0640) {
   const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "modes"));
   std::ofstream(dir / "spec.toml") << TinySpec("modes");
   const mode_t saved = ::umask(022);  // the common default; the children inherit it
-  const ExecResult r = RunArgv({BISTABLE_CLI, "run", (dir / "spec.toml").string(), "--data", (dir / "new" / "data").string(),
-                                "--no-plots", "--json"}, dir.string());
+  const ExecResult r = RunArgv({BISTABLE_CLI, "run", (dir / "spec.toml").string(), "--data",
+                                (dir / "new" / "data").string(), "--no-plots", "--json"},
+                               dir.string());
   fs::create_directories(dir / "old");
   fs::permissions(dir / "old", fs::perms(0755), fs::perm_options::replace);
-  const ExecResult r2 = RunArgv({BISTABLE_CLI, "run", (dir / "spec.toml").string(), "--data", (dir / "old").string(), "--no-plots", "--json"},
-                                dir.string());
+  const ExecResult r2 = RunArgv(
+      {BISTABLE_CLI, "run", (dir / "spec.toml").string(), "--data", (dir / "old").string(), "--no-plots", "--json"},
+      dir.string());
   ::umask(saved);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   ASSERT_EQ(r2.exit_code, 0) << r2.err;
@@ -713,7 +814,9 @@ TEST(HostileFiles, TheDataDirectoryIsCreated0750AndItsIndexAndMaps0640) {
   EXPECT_EQ(mode(data / "index.sqlite"), 0640) << std::oct << mode(data / "index.sqlite");
   EXPECT_EQ(mode(data / "sweeps" / (id + ".h5")), 0640) << std::oct << mode(data / "sweeps" / (id + ".h5"));
   for (const char* side : {"index.sqlite-wal", "index.sqlite-shm"}) {
-    if (fs::exists(data / side)) { EXPECT_EQ(mode(data / side), 0640) << side << " " << std::oct << mode(data / side); }
+    if (fs::exists(data / side)) {
+      EXPECT_EQ(mode(data / side), 0640) << side << " " << std::oct << mode(data / side);
+    }
   }
   EXPECT_EQ(mode(dir / "old"), 0755) << "an existing data directory keeps its mode";
   EXPECT_EQ(mode(dir / "old" / "sweeps"), 0750);
@@ -731,8 +834,11 @@ struct DataDir {
   explicit DataDir(const std::string& name) : dir(bistable_test::FreshDir("hostile", name)), data(dir / "data") {}
   // `bistable run` of TinySpec(name) with one more alpha value: its JSON (exit 0 asserted by the caller).
   ExecResult Run(const std::string& name, const std::string& alpha = "1.0") const {
-    std::ofstream(dir / (name + ".toml")) << ReplaceAll(TinySpec(name), "alpha = [0.5, 1.0]", "alpha = [0.5, " + alpha + "]");
-    return RunArgv({BISTABLE_CLI, "run", (dir / (name + ".toml")).string(), "--data", data.string(), "--no-plots", "--json"}, dir.string());
+    std::ofstream(dir / (name + ".toml"))
+        << ReplaceAll(TinySpec(name), "alpha = [0.5, 1.0]", "alpha = [0.5, " + alpha + "]");
+    return RunArgv(
+        {BISTABLE_CLI, "run", (dir / (name + ".toml")).string(), "--data", data.string(), "--no-plots", "--json"},
+        dir.string());
   }
   // Two published sweeps, "first" and "second"; false (with the failure added) when a run failed.
   bool TwoPublished(ExecResult* a, ExecResult* b) const {
@@ -754,7 +860,8 @@ struct DataDir {
     std::vector<fs::path> out;
     for (const auto& e : fs::directory_iterator(folder)) {
       const std::string n = e.path().filename().string();
-      if (n.rfind(prefix + ".corrupt-", 0) == 0 && n.find("-wal") == std::string::npos && n.find("-shm") == std::string::npos)
+      if (n.rfind(prefix + ".corrupt-", 0) == 0 && n.find("-wal") == std::string::npos &&
+          n.find("-shm") == std::string::npos)
         out.push_back(e.path());
     }
     return out;
@@ -780,7 +887,8 @@ TEST(HostileFiles, ATruncatedMapIsMovedAsideAndWrittenAgainByARerun) {
   fs::resize_file(map, size / 2);
   const ExecResult again = d.Run("truncated");
   ASSERT_EQ(again.exit_code, 0) << again.err;
-  for (const std::string& want : std::vector<std::string>{"warning: ", "map file '" + map + "' does not open", "moved aside to '" + map + ".corrupt-", "planned again"})
+  for (const std::string& want : std::vector<std::string>{"warning: ", "map file '" + map + "' does not open",
+                                                          "moved aside to '" + map + ".corrupt-", "planned again"})
     EXPECT_NE(again.err.find(want), std::string::npos) << "stderr lacks '" << want << "':\n" << again.err;
   EXPECT_EQ(Frf(map), good) << "the map was not written again";
   EXPECT_EQ(nlohmann::json::parse(again.out)["computed"], 0) << "the stored points were computed again";
@@ -810,7 +918,8 @@ TEST(HostileFiles, AZeroLengthIndexIsRebuiltFromTheMapFiles) {
   EXPECT_NE(listed.err.find(want), std::string::npos) << "stderr lacks '" << want << "':\n" << listed.err;
   const ExecResult rerun = d.Run("first");
   ASSERT_EQ(rerun.exit_code, 0) << rerun.err;
-  EXPECT_NE(rerun.err.find("warning: index '" + (d.data / "index.sqlite").string() + "' held no row for 2 map file(s)"), std::string::npos)
+  EXPECT_NE(rerun.err.find("warning: index '" + (d.data / "index.sqlite").string() + "' held no row for 2 map file(s)"),
+            std::string::npos)
       << rerun.err;
   EXPECT_EQ(nlohmann::json::parse(rerun.out)["computed"], 0) << "the published sweep was computed again";
   const ExecResult after = d.Cli({"sweeps", "--json"});
@@ -822,7 +931,8 @@ TEST(HostileFiles, AZeroLengthIndexIsRebuiltFromTheMapFiles) {
     const auto& w = was[i];
     const auto it = std::find_if(now.begin(), now.end(), [&](const auto& n) { return n["id"] == w["id"]; });
     ASSERT_NE(it, now.end()) << w["id"];
-    for (const char* k : {"name", "model", "status", "items_total", "items_done", "file", "maps"}) EXPECT_EQ((*it)[k], w[k]) << k;
+    for (const char* k : {"name", "model", "status", "items_total", "items_done", "file", "maps"})
+      EXPECT_EQ((*it)[k], w[k]) << k;
   }
   const ExecResult map = d.Cli({"map", nlohmann::json::parse(b.out)["id"], "--metric", "frf_db"});
   EXPECT_EQ(map.exit_code, 0) << map.err;
@@ -843,14 +953,16 @@ TEST(HostileFiles, ADamagedIndexIsMovedAsideAndRebuiltAtStart) {
   {
     sqlite3* db = nullptr;
     ASSERT_EQ(sqlite3_open(index.c_str(), &db), SQLITE_OK);
-    ASSERT_EQ(sqlite3_exec(db, "UPDATE points SET record = zeroblob(length(record))", nullptr, nullptr, nullptr), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(db, "UPDATE points SET record = zeroblob(length(record))", nullptr, nullptr, nullptr),
+              SQLITE_OK);
     sqlite3_close(db);
   }
   fs::remove(map_a);
   const ExecResult recomputed = d.Run("first");
   ASSERT_EQ(recomputed.exit_code, 0) << recomputed.err;
-  EXPECT_NE(recomputed.err.find("warning: 4 stored results of sweep " + nlohmann::json::parse(a.out)["id"].get<std::string>() +
-                                " failed their checksum in '" + index + "': computed again"),
+  EXPECT_NE(recomputed.err.find("warning: 4 stored results of sweep " +
+                                nlohmann::json::parse(a.out)["id"].get<std::string>() + " failed their checksum in '" +
+                                index + "': computed again"),
             std::string::npos)
       << recomputed.err;
   EXPECT_EQ(Frf(map_a), good);
@@ -864,8 +976,9 @@ TEST(HostileFiles, ADamagedIndexIsMovedAsideAndRebuiltAtStart) {
   const auto damaged_size = fs::file_size(index);
   const ExecResult rerun = d.Run("first");
   ASSERT_EQ(rerun.exit_code, 0) << rerun.err;
-  for (const std::string& want : std::vector<std::string>{"warning: index '" + index + "' is damaged", "moved aside to '" + index + ".corrupt-",
-                                  "published maps of sweeps/"})
+  for (const std::string& want :
+       std::vector<std::string>{"warning: index '" + index + "' is damaged", "moved aside to '" + index + ".corrupt-",
+                                "published maps of sweeps/"})
     EXPECT_NE(rerun.err.find(want), std::string::npos) << "stderr lacks '" << want << "':\n" << rerun.err;
   const auto aside = d.Aside(d.data, "index.sqlite");
   ASSERT_EQ(aside.size(), 1u);
@@ -874,10 +987,13 @@ TEST(HostileFiles, ADamagedIndexIsMovedAsideAndRebuiltAtStart) {
     sqlite3* db = nullptr;
     ASSERT_EQ(sqlite3_open(index.c_str(), &db), SQLITE_OK);
     std::string check;
-    sqlite3_exec(db, "PRAGMA quick_check", [](void* out, int, char** v, char**) {
-      *static_cast<std::string*>(out) += v[0] ? v[0] : "";
-      return 0;
-    }, &check, nullptr);
+    sqlite3_exec(
+        db, "PRAGMA quick_check",
+        [](void* out, int, char** v, char**) {
+          *static_cast<std::string*>(out) += v[0] ? v[0] : "";
+          return 0;
+        },
+        &check, nullptr);
     sqlite3_close(db);
     EXPECT_EQ(check, "ok");
   }
@@ -913,7 +1029,8 @@ TEST(GnuplotString, NoCharacterGnuplotActsOnSurvivesUnescaped) {
   const std::string q = bistable::GnuplotString(all);
   ASSERT_GE(q.size(), 2u);
   const std::string body = q.substr(1, q.size() - 2);
-  for (char c : std::string("`@$\"'#;!|\n\r%&~^<>?*")) EXPECT_EQ(body.find(c), std::string::npos) << "raw '" << c << "'";
+  for (char c : std::string("`@$\"'#;!|\n\r%&~^<>?*"))
+    EXPECT_EQ(body.find(c), std::string::npos) << "raw '" << c << "'";
   // Every backslash starts a 4-digit octal escape "\0ooo".
   for (size_t p = body.find('\\'); p != std::string::npos; p = body.find('\\', p + 1)) {
     ASSERT_LE(p + 5, body.size());
@@ -1050,14 +1167,15 @@ TEST(RenderPlot, MissingGnuplotIsAClearError) {
 TEST(ReadMapMetric, RefusesNamesThatAreNotMetricsOfTheMap) {
   const fs::path dir = fs::path(bistable_test::FreshDir("hostile", "readmetric"));
   std::ofstream(dir / "spec.toml") << TinySpec("plain");
-  const ExecResult r = RunArgv({BISTABLE_CLI, "run", (dir / "spec.toml").string(), "--data", (dir / "data").string(), "--json",
-                                "--quiet", "--no-plots"});
+  const ExecResult r = RunArgv({BISTABLE_CLI, "run", (dir / "spec.toml").string(), "--data", (dir / "data").string(),
+                                "--json", "--quiet", "--no-plots"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   fs::path h5 = nlohmann::json::parse(r.out)["files"][0].get<std::string>();
   if (h5.is_relative()) h5 = fs::current_path() / h5;
-  for (const std::string& bad : {std::string("/"), std::string(""), std::string("."), std::string(".."), std::string("/axes/alpha"),
-                                 std::string("alpha"), std::string("omega"), std::string("frf_db\0lle", 10), std::string("frf_db\n"),
-                                 std::string("frf_db/."), std::string("../frf_db"), std::string(100000, 'a')}) {
+  for (const std::string& bad :
+       {std::string("/"), std::string(""), std::string("."), std::string(".."), std::string("/axes/alpha"),
+        std::string("alpha"), std::string("omega"), std::string("frf_db\0lle", 10), std::string("frf_db\n"),
+        std::string("frf_db/."), std::string("../frf_db"), std::string(100000, 'a')}) {
     auto m = bistable::ReadMapMetric(h5.string(), bad);
     ASSERT_FALSE(m.ok()) << "'" << bad << "' was read";
     EXPECT_EQ(m.status().code(), bistable::Status::Code::kInvalidArgument) << m.status().ToString();

@@ -24,13 +24,13 @@
 
 #include "base/limits.h"
 #include "bistable.grpc.pb.h"
+#include "engine/evaluate.h"
 #include "engine/sweep_spec.h"
 #include "storage/index_db.h"
 #include "storage/map_file.h"
-#include "tests/map_compare.h"
 #include "tests/http_client.h"
+#include "tests/map_compare.h"
 #include "tests/process_util.h"
-#include "engine/evaluate.h"
 
 namespace {
 
@@ -46,9 +46,9 @@ int Wait(pid_t pid, double seconds) { return bistable_test::WaitExitFor(pid, sec
 std::string ReadFile(const std::string& path) { return ReadText(path); }
 
 std::pair<pid_t, std::string> StartCoordinator(const std::string& data, const std::string& log,
-                                                const std::vector<std::string>& extra = {}) {
-  std::vector<std::string> argv = {BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", data, "--lease-seconds", "5",
-                                   "--job-seconds", "0.01"};
+                                               const std::vector<std::string>& extra = {}) {
+  std::vector<std::string> argv = {BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0",   "--data", data,
+                                   "--lease-seconds",    "5",        "--job-seconds", "0.01"};
   argv.insert(argv.end(), extra.begin(), extra.end());
   fs::remove(log);  // a previous run's "listening on" must not be read
   const pid_t pid = Spawn(argv, log);
@@ -82,7 +82,7 @@ struct World {
   long rss_before = 0;
   int metrics_port = -1;     // the coordinator's --metrics port
   double heap_before = 0;    // its bistable_heap_in_use_bytes after the warm-up
-  std::string unheld_id;  // a sweep in the index that this coordinator does not hold
+  std::string unheld_id;     // a sweep in the index that this coordinator does not hold
   std::string published_id;  // the warm-up sweep: done, with a map
   std::unique_ptr<v1::Coordinator::Stub> stub;
 };
@@ -146,7 +146,8 @@ std::vector<double> Honest(const v1::LeaseReply& l) {
   return flat;
 }
 
-const uint32_t kWidth = static_cast<uint32_t>(bistable::PointRecord::Size(false));  // metrics + 10 peak frequencies + 10 amplitudes
+const uint32_t kWidth =
+    static_cast<uint32_t>(bistable::PointRecord::Size(false));  // metrics + 10 peak frequencies + 10 amplitudes
 
 // A row: what is sent and what must come back. Returns "" when the row holds, else what went wrong.
 struct Row {
@@ -156,7 +157,8 @@ struct Row {
 
 std::string Expect(const grpc::Status& st, grpc::StatusCode code, const std::string& fragment = "") {
   std::ostringstream os;
-  if (st.error_code() != code) os << "status " << st.error_code() << " (want " << code << "): " << st.error_message();
+  if (st.error_code() != code)
+    os << "status " << st.error_code() << " (want " << code << "): " << st.error_message();
   else if (!fragment.empty() && st.error_message().find(fragment) == std::string::npos)
     os << "message lacks '" << fragment << "': " << st.error_message();
   return os.str();
@@ -206,26 +208,32 @@ void AfterTheStorm() {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
     rss = RssKb(g->coord), in_use = heap();
   }
-  std::printf("  coordinator memory: RSS %ld kB before the rows, %ld kB after; heap in use %.0f kB before, %.0f kB after\n",
-              g->rss_before, rss, g->heap_before / 1024, in_use / 1024);
-  if (std::getenv("HOSTILE_DEBUG")) std::printf("%s\n%s\n", ReadFile("/proc/" + std::to_string(g->coord) + "/status").c_str(), ReadFile("/proc/" + std::to_string(g->coord) + "/smaps_rollup").c_str());
+  std::printf(
+      "  coordinator memory: RSS %ld kB before the rows, %ld kB after; heap in use %.0f kB before, %.0f kB after\n",
+      g->rss_before, rss, g->heap_before / 1024, in_use / 1024);
+  if (std::getenv("HOSTILE_DEBUG"))
+    std::printf("%s\n%s\n", ReadFile("/proc/" + std::to_string(g->coord) + "/status").c_str(),
+                ReadFile("/proc/" + std::to_string(g->coord) + "/smaps_rollup").c_str());
   EXPECT_GT(in_use, 0) << "no bistable_heap_in_use_bytes on /metrics";
   EXPECT_LE(in_use, heap_bound) << "heap in use grew by more than 20 % + 512 KiB: a leak";
   EXPECT_LE(rss, rss_bound) << "RSS stayed more than 24 MB above the baseline";
   // A sweep through the service, drained by a real worker.
-  const std::string toml = Spec("alpha = { linspace = [0.2, 2.6, 7] }\nomega = { linspace = [0.4, 2.0, 6] }\n", "name = \"after the storm\"");
+  const std::string toml = Spec("alpha = { linspace = [0.2, 2.6, 7] }\nomega = { linspace = [0.4, 2.0, 6] }\n",
+                                "name = \"after the storm\"");
   std::ofstream(g->dir + "/after.toml") << toml;
   v1::SubmitReply sub;
   ASSERT_TRUE(Submit(toml, &sub).ok());
-  const pid_t worker = Spawn({BISTABLE_WORKER, "--coordinator", g->addr, "--threads", "1", "--name", "honest"}, g->dir + "/worker.log");
+  const pid_t worker =
+      Spawn({BISTABLE_WORKER, "--coordinator", g->addr, "--threads", "1", "--name", "honest"}, g->dir + "/worker.log");
   v1::SweepStatus st;
   for (int i = 0; i < 600 && !(GetStatus(sub.id(), &st).ok() && st.state() == "done"); ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   ::kill(worker, SIGTERM);
   Wait(worker, 20);
   ASSERT_EQ(st.state(), "done");
-  const pid_t run = Spawn({BISTABLE_CLI, "run", g->dir + "/after.toml", "--data", g->dir + "/embedded", "--no-plots", "--quiet"},
-                          g->dir + "/run.log");
+  const pid_t run =
+      Spawn({BISTABLE_CLI, "run", g->dir + "/after.toml", "--data", g->dir + "/embedded", "--no-plots", "--quiet"},
+            g->dir + "/run.log");
   ASSERT_EQ(Wait(run, 120), 0) << ReadFile(g->dir + "/run.log.err");
   bistable_test::ExpectSameMaps(g->data + "/" + st.file(), g->dir + "/embedded/sweeps/" + sub.id() + ".h5");
 }
@@ -245,7 +253,10 @@ const std::vector<Row>& Rows() {
                          grpc::StatusCode::INVALID_ARGUMENT, "axes");
          });
        }},
-      {"AxisCount2e63", [] { return Expect(Submit(Spec(Lin("alpha", "9223372036854775807"))), grpc::StatusCode::INVALID_ARGUMENT, "count"); }},
+      {"AxisCount2e63",
+       [] {
+         return Expect(Submit(Spec(Lin("alpha", "9223372036854775807"))), grpc::StatusCode::INVALID_ARGUMENT, "count");
+       }},
       {"SevenAxesOf1e7ValuesFailFast",
        [] {
          std::string axes;
@@ -253,16 +264,19 @@ const std::vector<Row>& Rows() {
          return Within(2, [&] { return Expect(Submit(Spec(axes)), grpc::StatusCode::INVALID_ARGUMENT, "1048576"); });
        }},
       {"GridJustOverTheItemLimit",
-       [] { return Expect(Submit(Spec(Lin("alpha", "2049") + Lin("omega", "2048"))), grpc::StatusCode::INVALID_ARGUMENT, "4194304"); }},
+       [] {
+         return Expect(Submit(Spec(Lin("alpha", "2049") + Lin("omega", "2048"))), grpc::StatusCode::INVALID_ARGUMENT,
+                       "4194304");
+       }},
       {"IntegerNotNarrowed_max_period_4294967297",
        [] {
-         return Expect(Submit(Spec("alpha = [1.0]\n", "[metrics]\nmax_period = 4294967297\n")), grpc::StatusCode::INVALID_ARGUMENT,
-                       "metrics.max_period");
+         return Expect(Submit(Spec("alpha = [1.0]\n", "[metrics]\nmax_period = 4294967297\n")),
+                       grpc::StatusCode::INVALID_ARGUMENT, "metrics.max_period");
        }},
       {"IntegerNotNarrowed_sample_every_2e32",
        [] {
-         return Expect(Submit(Spec("alpha = [1.0]\n", "[metrics]\nsample_every = 4294967301\n")), grpc::StatusCode::INVALID_ARGUMENT,
-                       "metrics.sample_every");
+         return Expect(Submit(Spec("alpha = [1.0]\n", "[metrics]\nsample_every = 4294967301\n")),
+                       grpc::StatusCode::INVALID_ARGUMENT, "metrics.sample_every");
        }},
       {"BillionStepsPerPoint",
        [] {
@@ -274,33 +288,41 @@ const std::vector<Row>& Rows() {
          return Expect(Submit("model = \"coupled\"\n[integration]\nt_end = 500000.0\nt_keep = 0.0\ndt = 0.01\n"),
                        grpc::StatusCode::INVALID_ARGUMENT, "window samples");
        }},
-      {"SpecOverOneMiB", [] { return Expect(Submit(std::string((1 << 20) + 1, '#')), grpc::StatusCode::INVALID_ARGUMENT, "1048576"); }},
+      {"SpecOverOneMiB",
+       [] { return Expect(Submit(std::string((1 << 20) + 1, '#')), grpc::StatusCode::INVALID_ARGUMENT, "1048576"); }},
       {"MessageOverTheRpcLimit",
        [] { return Expect(Submit(std::string(9 << 20, '#')), grpc::StatusCode::RESOURCE_EXHAUSTED); }},
       {"NameWithControlCharacters",
        [] {
-         return Expect(Submit(Spec("alpha = [1.0]\n", "name = \"a\\u001b]0;owned\\u0007\\nb\"\n")), grpc::StatusCode::INVALID_ARGUMENT,
-                       "name");
+         return Expect(Submit(Spec("alpha = [1.0]\n", "name = \"a\\u001b]0;owned\\u0007\\nb\"\n")),
+                       grpc::StatusCode::INVALID_ARGUMENT, "name");
        }},
       {"NameOverTheLimit",
-       [] { return Expect(Submit(Spec("alpha = [1.0]\n", "name = \"" + std::string(300, 'x') + "\"\n")), grpc::StatusCode::INVALID_ARGUMENT, "200"); }},
+       [] {
+         return Expect(Submit(Spec("alpha = [1.0]\n", "name = \"" + std::string(300, 'x') + "\"\n")),
+                       grpc::StatusCode::INVALID_ARGUMENT, "200");
+       }},
       {"HugeOriginIsBoundedInMessages",
        [] {
-         const grpc::Status st = Submit("model = \"coupled\"\n[axes\n", nullptr, std::string(100000, 'o') + "\n\x1b[2J");
+         const grpc::Status st =
+             Submit("model = \"coupled\"\n[axes\n", nullptr, std::string(100000, 'o') + "\n\x1b[2J");
          std::string r = Expect(st, grpc::StatusCode::INVALID_ARGUMENT);
-         if (r.empty() && st.error_message().size() > 2000) r = "message of " + std::to_string(st.error_message().size()) + " bytes";
+         if (r.empty() && st.error_message().size() > 2000)
+           r = "message of " + std::to_string(st.error_message().size()) + " bytes";
          if (r.empty() && st.error_message().find('\x1b') != std::string::npos) r = "control character echoed";
          return r;
        }},
       {"ContinuationChainLongerThanAJob",
        [] {
-         return Expect(Submit(Spec(Lin("alpha", "5000"), "[continuation]\naxis = \"alpha\"\n")), grpc::StatusCode::INVALID_ARGUMENT,
-                       "continuation");
+         return Expect(Submit(Spec(Lin("alpha", "5000"), "[continuation]\naxis = \"alpha\"\n")),
+                       grpc::StatusCode::INVALID_ARGUMENT, "continuation");
        }},
       // --- Ids and names ---------------------------------------------------------------------------
       {"StatusIdWithLikeWildcard", [] { return Expect(GetStatus("%"), grpc::StatusCode::INVALID_ARGUMENT, "id"); }},
-      {"StatusIdUnderscoreWildcard", [] { return Expect(GetStatus("____"), grpc::StatusCode::INVALID_ARGUMENT, "id"); }},
-      {"StatusIdTenKilobytes", [] { return Expect(GetStatus(std::string(10000, 'a')), grpc::StatusCode::INVALID_ARGUMENT, "64"); }},
+      {"StatusIdUnderscoreWildcard",
+       [] { return Expect(GetStatus("____"), grpc::StatusCode::INVALID_ARGUMENT, "id"); }},
+      {"StatusIdTenKilobytes",
+       [] { return Expect(GetStatus(std::string(10000, 'a')), grpc::StatusCode::INVALID_ARGUMENT, "64"); }},
       {"StatusIdEmpty", [] { return Expect(GetStatus(""), grpc::StatusCode::INVALID_ARGUMENT, "empty"); }},
       {"CancelIdWithQuote", [] { return Expect(Cancel("' OR 1=1 --"), grpc::StatusCode::INVALID_ARGUMENT, "hex"); }},
       {"WatchOfASweepTheCoordinatorDoesNotHoldIsRateLimited",
@@ -318,12 +340,14 @@ const std::vector<Row>& Rows() {
       {"MapMetricsThatAreHdf5PathsOnAPublishedMap",
        [] {
          // A published map: the name itself must be refused (naming the field), not the sweep's state.
-         for (const std::string& metric : std::vector<std::string>{"/", "", ".", "..", "/axes/alpha", "alpha", "frf_db/../lle", std::string("frf_db\0x", 8)}) {
+         for (const std::string& metric : std::vector<std::string>{"/", "", ".", "..", "/axes/alpha", "alpha",
+                                                                   "frf_db/../lle", std::string("frf_db\0x", 8)}) {
            v1::MapRequest req;
            req.set_id(g->published_id);
            req.set_metric(metric);
            v1::MapReply rep;
-           const std::string r = Expect(g->stub->GetMap(Ctx().get(), req, &rep), grpc::StatusCode::INVALID_ARGUMENT, "metric");
+           const std::string r =
+               Expect(g->stub->GetMap(Ctx().get(), req, &rep), grpc::StatusCode::INVALID_ARGUMENT, "metric");
            if (!r.empty()) return "'" + metric + "': " + r;
          }
          return std::string();
@@ -340,7 +364,8 @@ const std::vector<Row>& Rows() {
          v1::ListWorkersRequest lreq;
          v1::ListWorkersReply lrep;
          if (r.empty()) r = Expect(g->stub->ListWorkers(Ctx().get(), lreq, &lrep), grpc::StatusCode::OK);
-         if (r.empty() && lrep.ByteSizeLong() > 100000) r = "workers list is " + std::to_string(lrep.ByteSizeLong()) + " bytes";
+         if (r.empty() && lrep.ByteSizeLong() > 100000)
+           r = "workers list is " + std::to_string(lrep.ByteSizeLong()) + " bytes";
          return r;
        }},
       {"LeaseWorkerNameWithNewline",
@@ -359,7 +384,10 @@ const std::vector<Row>& Rows() {
        }},
       // --- Reports ---------------------------------------------------------------------------------
       {"SixtyMegabyteReportWithAForgedLease",
-       [] { return Expect(Report("forged", kWidth, std::vector<double>(60 << 17, 0.0)), grpc::StatusCode::RESOURCE_EXHAUSTED); }},
+       [] {
+         return Expect(Report("forged", kWidth, std::vector<double>(60 << 17, 0.0)),
+                       grpc::StatusCode::RESOURCE_EXHAUSTED);
+       }},
       {"FourConcurrentOversizedReports",
        [] {
          std::vector<std::thread> ts;
@@ -372,15 +400,23 @@ const std::vector<Row>& Rows() {
            if (r.empty()) r = Expect(st, grpc::StatusCode::RESOURCE_EXHAUSTED);
          return r;
        }},
-      {"ReportForForgedLease", [] { return Expect(Report("forged-lease", kWidth, std::vector<double>(kWidth, 0.0)), grpc::StatusCode::NOT_FOUND); }},
+      {"ReportForForgedLease",
+       [] {
+         return Expect(Report("forged-lease", kWidth, std::vector<double>(kWidth, 0.0)), grpc::StatusCode::NOT_FOUND);
+       }},
       {"ReportGarbageWidth",
-       [] { return Expect(Report("forged-lease", 0xffffffffu, std::vector<double>(8, 0.0)), grpc::StatusCode::INVALID_ARGUMENT, "record_width"); }},
-      {"ReportWidthZero", [] { return Expect(Report("forged-lease", 0, {}), grpc::StatusCode::INVALID_ARGUMENT, "record_width"); }},
+       [] {
+         return Expect(Report("forged-lease", 0xffffffffu, std::vector<double>(8, 0.0)),
+                       grpc::StatusCode::INVALID_ARGUMENT, "record_width");
+       }},
+      {"ReportWidthZero",
+       [] { return Expect(Report("forged-lease", 0, {}), grpc::StatusCode::INVALID_ARGUMENT, "record_width"); }},
       {"ForgedValuesOnARealLeaseAreRefusedAndTheHonestReportThenStored",
        [] {
          v1::SubmitReply sub;
-         std::string r = Expect(Submit(Spec("alpha = [0.5, 1.0]\nomega = [0.7, 1.3]\n", "name = \"forgery target\""), &sub),
-                                grpc::StatusCode::OK);
+         std::string r =
+             Expect(Submit(Spec("alpha = [0.5, 1.0]\nomega = [0.7, 1.3]\n", "name = \"forgery target\""), &sub),
+                    grpc::StatusCode::OK);
          if (!r.empty()) return r;
          const v1::LeaseReply l = Lease();
          if (!l.has_job()) return std::string("no job leased");
@@ -390,17 +426,18 @@ const std::vector<Row>& Rows() {
            size_t index;
            double value;
          };
-         for (const Forgery& f : {Forgery{"frf_db = 1e300", 0, 1e300}, Forgery{"motion = 1e300", 3, 1e300},
-                                  Forgery{"motion = 7", 3, 7}, Forgery{"motion = NaN", 3, NAN}, Forgery{"period = -1", 4, -1},
-                                  Forgery{"lle = inf", 1, INFINITY}, Forgery{"hd_index = 2", 5, 2},
-                                  Forgery{"termination = 0.5", 12, 0.5}, Forgery{"peak amplitude < 0", 23, -1}}) {
+         for (const Forgery& f :
+              {Forgery{"frf_db = 1e300", 0, 1e300}, Forgery{"motion = 1e300", 3, 1e300}, Forgery{"motion = 7", 3, 7},
+               Forgery{"motion = NaN", 3, NAN}, Forgery{"period = -1", 4, -1}, Forgery{"lle = inf", 1, INFINITY},
+               Forgery{"hd_index = 2", 5, 2}, Forgery{"termination = 0.5", 12, 0.5},
+               Forgery{"peak amplitude < 0", 23, -1}}) {
            std::vector<double> bad = honest;
            bad[kWidth + f.index] = f.value;  // in the second record
            const grpc::Status st = Report(l.lease_id(), kWidth, bad);
            if (st.error_code() != grpc::StatusCode::INVALID_ARGUMENT) return std::string(f.what) + " was not refused";
          }
-         r = Expect(Report(l.lease_id(), kWidth, honest, bistable::CatalogHash() ^ 1), grpc::StatusCode::FAILED_PRECONDITION,
-                    "metric catalog");
+         r = Expect(Report(l.lease_id(), kWidth, honest, bistable::CatalogHash() ^ 1),
+                    grpc::StatusCode::FAILED_PRECONDITION, "metric catalog");
          if (!r.empty()) return r;
          std::vector<double> extra = honest;
          extra.insert(extra.end(), honest.begin(), honest.begin() + kWidth);
@@ -450,7 +487,8 @@ const std::vector<Row>& Rows() {
          std::string r;
          v1::SubmitReply sub;
          grpc::Status st;
-         std::thread big([&] { st = Submit(Spec(Lin("alpha", "2048") + Lin("omega", "2048"), "name = \"big\""), &sub); });
+         std::thread big(
+             [&] { st = Submit(Spec(Lin("alpha", "2048") + Lin("omega", "2048"), "name = \"big\""), &sub); });
          std::this_thread::sleep_for(std::chrono::milliseconds(300));
          double worst = 0;
          for (int i = 0; i < 10; ++i) {  // while the plan is built: status and listing answer at once
@@ -466,8 +504,10 @@ const std::vector<Row>& Rows() {
          if (r.empty() && worst > 1.0) r = "a call took " + std::to_string(worst) + " s while a big sweep was planned";
          if (r.empty()) r = Expect(Cancel(sub.id()), grpc::StatusCode::OK);
          const long rss1 = RssKb(g->coord);
-         std::printf("  big submit: %ld -> %ld kB after cancel; slowest call while planning %.3f s\n", rss0, rss1, worst);
-         if (r.empty() && rss1 > rss0 * 1.2 + 20000) r = "memory " + std::to_string(rss0) + " -> " + std::to_string(rss1) + " kB after cancel";
+         std::printf("  big submit: %ld -> %ld kB after cancel; slowest call while planning %.3f s\n", rss0, rss1,
+                     worst);
+         if (r.empty() && rss1 > rss0 * 1.2 + 20000)
+           r = "memory " + std::to_string(rss0) + " -> " + std::to_string(rss1) + " kB after cancel";
          return r;
        }},
       {"ZZ_AfterTheStormTheCoordinatorIsUpItsMemoryBackAndItsMapsExact", [] { return AfterTheStormRow(); }},
@@ -512,7 +552,8 @@ class Hostile : public ::testing::TestWithParam<size_t> {
     // calls), then take the memory baseline: "before" is a coordinator that has served a sweep.
     v1::SubmitReply warm;
     ASSERT_TRUE(Submit(Spec("alpha = [0.5, 1.5]\nomega = [0.5, 1.0, 1.5]\n", "name = \"warm-up\""), &warm).ok());
-    for (v1::LeaseReply l = Lease(); l.has_job(); l = Lease()) ASSERT_TRUE(Report(l.lease_id(), kWidth, Honest(l)).ok());
+    for (v1::LeaseReply l = Lease(); l.has_job(); l = Lease())
+      ASSERT_TRUE(Report(l.lease_id(), kWidth, Honest(l)).ok());
     v1::SweepStatus st;
     for (int i = 0; i < 100 && !(GetStatus(warm.id(), &st).ok() && st.state() == "done"); ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -525,7 +566,8 @@ class Hostile : public ::testing::TestWithParam<size_t> {
     ASSERT_TRUE(g->stub->GetMap(Ctx().get(), mreq, &mrep).ok());
     for (int i = 0; i < 20; ++i) GetStatus(g->unheld_id);
     g->rss_before = RssKb(pid);
-    g->heap_before = bistable_test::ParseMetrics(bistable_test::HttpRequest(g->metrics_port, "/metrics").body)["bistable_heap_in_use_bytes"];
+    g->heap_before = bistable_test::ParseMetrics(
+        bistable_test::HttpRequest(g->metrics_port, "/metrics").body)["bistable_heap_in_use_bytes"];
   }
   static void TearDownTestSuite() {
     if (g->coord > 0) {
@@ -544,9 +586,10 @@ TEST_P(Hostile, Row) {
   EXPECT_EQ(failure, "") << row.name;
   const auto m = bistable_test::ParseMetrics(bistable_test::HttpRequest(g->metrics_port, "/metrics").body);
   const auto heap = m.find("bistable_heap_in_use_bytes");
-  std::printf("  %-70s %s  (coordinator RSS %ld kB, heap in use %.0f kB)\n", row.name, failure.empty() ? "held" : "FAILED",
-              RssKb(g->coord), heap == m.end() ? -1.0 : heap->second / 1024);
-  EXPECT_TRUE(Alive(g->coord)) << "the coordinator died in row " << row.name << ": " << ReadFile(g->dir + "/coord.log.err");
+  std::printf("  %-70s %s  (coordinator RSS %ld kB, heap in use %.0f kB)\n", row.name,
+              failure.empty() ? "held" : "FAILED", RssKb(g->coord), heap == m.end() ? -1.0 : heap->second / 1024);
+  EXPECT_TRUE(Alive(g->coord)) << "the coordinator died in row " << row.name << ": "
+                               << ReadFile(g->dir + "/coord.log.err");
 }
 
 INSTANTIATE_TEST_SUITE_P(Wire, Hostile, ::testing::Range<size_t>(0, Rows().size()),
@@ -650,7 +693,8 @@ TEST(HostileStartup, UnnamedTokensAreDistinctOwnersAcrossRestarts) {
     v1::CancelRequest c;
     c.set_id(id);
     v1::CancelReply cr;
-    EXPECT_EQ(stub.Cancel(with(tb).get(), c, &cr).error_code(), grpc::StatusCode::PERMISSION_DENIED) << "B cancelled A's sweep";
+    EXPECT_EQ(stub.Cancel(with(tb).get(), c, &cr).error_code(), grpc::StatusCode::PERMISSION_DENIED)
+        << "B cancelled A's sweep";
   });
   run([&](v1::Coordinator::Stub& stub) {  // restarted: ownership is stored with the sweep
     v1::CancelRequest c;
@@ -665,7 +709,8 @@ TEST(HostileStartup, UnnamedTokensAreDistinctOwnersAcrossRestarts) {
 // ---- Issue 39 (hostile input, second round): their own ctest entries (HostileWire.<name>) -------------
 
 std::string Round2Dir(const std::string& what) {
-  const std::string dir = (fs::path(::testing::TempDir()) / ("hostile2_" + what + "_" + std::to_string(::getpid()))).string();
+  const std::string dir =
+      (fs::path(::testing::TempDir()) / ("hostile2_" + what + "_" + std::to_string(::getpid()))).string();
   fs::remove_all(dir);
   fs::create_directories(dir);
   bistable_test::RemoveWhenAllPass(dir);
@@ -701,8 +746,8 @@ void ConcurrentSubmitsStopAtTheLimit(bool with_token, int n) {
   for (int i = 0; i < n; ++i)
     threads.emplace_back([&, i] {
       v1::SubmitRequest req;
-      req.set_spec_toml(Spec("alpha = { linspace = [0.1, 3.0, 256] }\nomega = { linspace = [0.1, " + std::to_string(3.0 + 0.01 * i) +
-                             ", 256] }\n"));
+      req.set_spec_toml(Spec("alpha = { linspace = [0.1, 3.0, 256] }\nomega = { linspace = [0.1, " +
+                             std::to_string(3.0 + 0.01 * i) + ", 256] }\n"));
       auto ctx = Ctx(120);
       if (with_token) ctx->AddMetadata("authorization", "Bearer " + token);
       ++ready;
@@ -714,15 +759,18 @@ void ConcurrentSubmitsStopAtTheLimit(bool with_token, int n) {
   for (auto& t : threads) t.join();
   int accepted = 0, refused = 0;
   for (int i = 0; i < n; ++i) {
-    if (got[i].ok()) ++accepted;
+    if (got[i].ok())
+      ++accepted;
     else if (got[i].error_code() == grpc::StatusCode::FAILED_PRECONDITION &&
              got[i].error_message().find("limit per owner is 8") != std::string::npos)
       ++refused;
     else
       ADD_FAILURE() << "submit " << i << ": " << got[i].error_code() << " " << got[i].error_message();
   }
-  std::printf("  %d concurrent submits (%s): %d accepted, %d refused\n", n, with_token ? "one client token" : "no tokens", accepted, refused);
-  EXPECT_EQ(accepted, bistable::limits::kMaxActiveSweepsPerOwner) << "the per-owner limit did not hold under concurrency";
+  std::printf("  %d concurrent submits (%s): %d accepted, %d refused\n", n,
+              with_token ? "one client token" : "no tokens", accepted, refused);
+  EXPECT_EQ(accepted, bistable::limits::kMaxActiveSweepsPerOwner)
+      << "the per-owner limit did not hold under concurrency";
   EXPECT_EQ(refused, n - bistable::limits::kMaxActiveSweepsPerOwner);
   // The slots are real: one more submit, now sequential, is refused too; a cancel frees one.
   v1::SubmitRequest more;
@@ -746,7 +794,9 @@ void ConcurrentSubmitsStopAtTheLimit(bool with_token, int n) {
 }
 
 TEST(HostileRound2, ConcurrentSubmitsOfOneTokenStopAtThePerOwnerLimit) { ConcurrentSubmitsStopAtTheLimit(true, 12); }
-TEST(HostileRound2, ConcurrentSubmitsWithoutTokensStopAtThePerOwnerLimit) { ConcurrentSubmitsStopAtTheLimit(false, 20); }
+TEST(HostileRound2, ConcurrentSubmitsWithoutTokensStopAtThePerOwnerLimit) {
+  ConcurrentSubmitsStopAtTheLimit(false, 20);
+}
 
 // Fail 2: a token with a newline, a control byte or a NUL is refused before it reaches gRPC (which logs
 // the whole metadata and aborts), by every process that sends one, and never printed.
@@ -757,10 +807,12 @@ TEST(HostileRound2, ATokenWithAControlByteIsRefusedAndNeverPrinted) {
   const std::string secret_a = "SECRETA1b2c3", secret_b = "SECRETB4d5e6";
   for (const std::string& token : {secret_a + "\n" + secret_b, secret_a + std::string(1, '\0') + secret_b,
                                    secret_a + "\x01" + secret_b, secret_a + " " + secret_b, secret_a + "\x7f"}) {
-    SCOPED_TRACE(std::to_string(token.size()) + " bytes, byte 13 = " + std::to_string(static_cast<unsigned char>(token[12])));
+    SCOPED_TRACE(std::to_string(token.size()) +
+                 " bytes, byte 13 = " + std::to_string(static_cast<unsigned char>(token[12])));
     std::ofstream(dir + "/t", std::ios::binary | std::ios::trunc) << token;
     for (const std::vector<std::string>& argv :
-         {std::vector<std::string>{BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--token-file", dir + "/t"},
+         {std::vector<std::string>{BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--token-file",
+                                   dir + "/t"},
           std::vector<std::string>{BISTABLE_CLI, "status", "abc", "--coordinator", addr, "--token-file", dir + "/t"},
           std::vector<std::string>{BISTABLE_CLI, "sweeps", "--coordinator", addr, "--token-file", dir + "/t"}}) {
       const pid_t p = Spawn(argv, dir + "/out");
@@ -774,7 +826,8 @@ TEST(HostileRound2, ATokenWithAControlByteIsRefusedAndNeverPrinted) {
   }
   // A good token in plaintext to an address that is not loopback: the worker refuses to start (exit 2).
   std::ofstream(dir + "/t", std::ios::trunc) << secret_a << "\n";
-  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", "0.0.0.0:1", "--threads", "1", "--token-file", dir + "/t"}, dir + "/plain");
+  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", "0.0.0.0:1", "--threads", "1", "--token-file", dir + "/t"},
+                        dir + "/plain");
   EXPECT_EQ(Wait(w, 20), 2) << ReadFile(dir + "/plain.err");
   EXPECT_NE(ReadFile(dir + "/plain.err").find("--insecure-remote"), std::string::npos) << ReadFile(dir + "/plain.err");
   EXPECT_TRUE(Alive(pid));
@@ -832,7 +885,8 @@ TEST(HostileRound2, LeasesAreBoundToTheLeasingTokenAndTheirIdsAreUnguessable) {
   EXPECT_TRUE(w.stub->Report(as(worker_a).get(), rreq, &rrep).ok()) << "the holder's own report";
   // Ids: the sweep id, '-', then 32 hex digits (128 bits from the kernel's CSPRNG), all different.
   std::set<std::string> ids = {lease.lease_id()};
-  for (v1::LeaseReply l; w.stub->Lease(as(worker_a).get(), lreq, &l).ok() && l.has_job(); l.Clear()) ids.insert(l.lease_id());
+  for (v1::LeaseReply l; w.stub->Lease(as(worker_a).get(), lreq, &l).ok() && l.has_job(); l.Clear())
+    ids.insert(l.lease_id());
   EXPECT_GE(ids.size(), 2u);
   for (const std::string& id : ids) {
     const std::string rand = id.substr(id.find('-') + 1);
@@ -849,10 +903,15 @@ TEST(HostileRound2, LeasesAreBoundToTheLeasingTokenAndTheirIdsAreUnguessable) {
 // Minor: numeric flags of the coordinator are bounded (NaN, negative and absurd values used to be accepted).
 TEST(HostileRound2, CoordinatorRefusesBadNumericFlags) {
   const std::string dir = Round2Dir("flags");
-  for (const auto& [flag, value] : std::vector<std::pair<std::string, std::string>>{
-           {"--job-seconds", "-1"}, {"--job-seconds", "nan"}, {"--job-seconds", "0"}, {"--job-seconds", "1e300"},
-           {"--lease-seconds", "1e300"}, {"--lease-seconds", "nan"}, {"--lease-seconds", "-1"}}) {
-    const pid_t p = Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", flag, value}, dir + "/log");
+  for (const auto& [flag, value] : std::vector<std::pair<std::string, std::string>>{{"--job-seconds", "-1"},
+                                                                                    {"--job-seconds", "nan"},
+                                                                                    {"--job-seconds", "0"},
+                                                                                    {"--job-seconds", "1e300"},
+                                                                                    {"--lease-seconds", "1e300"},
+                                                                                    {"--lease-seconds", "nan"},
+                                                                                    {"--lease-seconds", "-1"}}) {
+    const pid_t p =
+        Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", flag, value}, dir + "/log");
     const int code = Wait(p, 10);
     const std::string err = ReadFile(dir + "/log.err");
     EXPECT_EQ(code, 2) << flag << " " << value << "\n" << err;
@@ -899,7 +958,8 @@ TEST(HostileRound2, ARestartResumesEveryInterruptedSweepBeyondThePerOwnerLimit) 
     EXPECT_NE(st.state(), "failed") << id << ": " << st.error();
   }
   std::printf("  10 interrupted sweeps of one owner at start: %d failed\n", failed);
-  EXPECT_EQ(ReadFile(dir + "/coord.log.err").find("sweep.resume_failed"), std::string::npos) << ReadFile(dir + "/coord.log.err");
+  EXPECT_EQ(ReadFile(dir + "/coord.log.err").find("sweep.resume_failed"), std::string::npos)
+      << ReadFile(dir + "/coord.log.err");
   ::kill(pid, SIGTERM);
   Wait(pid, 10);
 }
@@ -929,21 +989,24 @@ int AwaitPrintedPort(const std::string& log, const std::string& what) {
 // --http-allowed-host is answered, any other name gets 421 and nothing; /healthz answers anyone.
 TEST(HostileRound2, MetricsListenersAnswerNoForeignHostName) {
   const std::string dir = Round2Dir("metrics_host");
-  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log",
-                                      {"--metrics", "127.0.0.1:0", "--http", "127.0.0.1:0", "--http-allowed-host", "bistable-coordinator"});
+  auto [pid, addr] = StartCoordinator(
+      dir + "/data", dir + "/coord.log",
+      {"--metrics", "127.0.0.1:0", "--http", "127.0.0.1:0", "--http-allowed-host", "bistable-coordinator"});
   const Stopped stop_coordinator{pid};
   ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
-  const int coord_metrics = AwaitPrintedPort(dir + "/coord.log", "metrics"), dashboard = AwaitPrintedPort(dir + "/coord.log", "dashboard");
+  const int coord_metrics = AwaitPrintedPort(dir + "/coord.log", "metrics"),
+            dashboard = AwaitPrintedPort(dir + "/coord.log", "dashboard");
   ASSERT_GT(coord_metrics, 0);
   ASSERT_GT(dashboard, 0);
-  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--name", "victim-worker", "--metrics", "127.0.0.1:0",
-                         "--http-allowed-host", "Metrics.Internal"},
+  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--name", "victim-worker",
+                         "--metrics", "127.0.0.1:0", "--http-allowed-host", "Metrics.Internal"},
                         dir + "/worker.log");
   const Stopped stop_worker{w};
   int worker_metrics = 0;
   for (int i = 0; i < 400 && !worker_metrics; ++i) {  // the worker says its port in its worker.started line
     const std::string log = ReadFile(dir + "/worker.log.err");
-    if (const size_t at = log.find("metrics="); at != std::string::npos && std::isdigit(static_cast<unsigned char>(log[at + 8])))
+    if (const size_t at = log.find("metrics=");
+        at != std::string::npos && std::isdigit(static_cast<unsigned char>(log[at + 8])))
       worker_metrics = std::stoi(log.substr(at + 8));
     else
       std::this_thread::sleep_for(std::chrono::milliseconds(25));
@@ -968,22 +1031,44 @@ TEST(HostileRound2, MetricsListenersAnswerNoForeignHostName) {
     std::string target, data;  // a route and what only its answer holds
     std::vector<std::string> answered, refused;
   };
-  const std::vector<std::string> foreign = {"evil.example", "evil.example:" + cp, "localhost.evil.example", "127.0.0.1.nip.io:" + cp,
-                                            "bistable-coordinator.evil.example", "[::1", "localhost:80x", ""};
+  const std::vector<std::string> foreign = {"evil.example",
+                                            "evil.example:" + cp,
+                                            "localhost.evil.example",
+                                            "127.0.0.1.nip.io:" + cp,
+                                            "bistable-coordinator.evil.example",
+                                            "[::1",
+                                            "localhost:80x",
+                                            ""};
   auto with = [](std::vector<std::string> v, std::initializer_list<std::string> more) {
     v.insert(v.end(), more);
     return v;
   };
   const std::vector<Listener> listeners = {
-      {"coordinator --metrics", coord_metrics, "/metrics", "victim-worker",
-       {"127.0.0.1:" + cp, "10.0.0.5:9090", "[::1]:" + cp, "[2001:db8::7]", "localhost", "LOCALHOST:" + cp, "bistable-coordinator:9090",
-        "Bistable-Coordinator"},
+      {"coordinator --metrics",
+       coord_metrics,
+       "/metrics",
+       "victim-worker",
+       {"127.0.0.1:" + cp, "10.0.0.5:9090", "[::1]:" + cp, "[2001:db8::7]", "localhost", "LOCALHOST:" + cp,
+        "bistable-coordinator:9090", "Bistable-Coordinator"},
        with(foreign, {"metrics.internal"})},
-      {"worker --metrics", worker_metrics, "/metrics", "bistable_worker_threads",
-       {"127.0.0.1", "10.0.0.6:9090", "[::1]", "localhost:9090", "metrics.internal:9090"}, with(foreign, {"bistable-coordinator"})},
-      {"coordinator --http (no tokens)", dashboard, "/api/sweeps", "victim-worker",
-       {"127.0.0.1", "192.168.1.20:8080", "localhost", "bistable-coordinator"}, foreign},
-      {"coordinator --http /metrics (no tokens)", dashboard, "/metrics", "victim-worker", {"127.0.0.1", "bistable-coordinator"}, foreign},
+      {"worker --metrics",
+       worker_metrics,
+       "/metrics",
+       "bistable_worker_threads",
+       {"127.0.0.1", "10.0.0.6:9090", "[::1]", "localhost:9090", "metrics.internal:9090"},
+       with(foreign, {"bistable-coordinator"})},
+      {"coordinator --http (no tokens)",
+       dashboard,
+       "/api/sweeps",
+       "victim-worker",
+       {"127.0.0.1", "192.168.1.20:8080", "localhost", "bistable-coordinator"},
+       foreign},
+      {"coordinator --http /metrics (no tokens)",
+       dashboard,
+       "/metrics",
+       "victim-worker",
+       {"127.0.0.1", "bistable-coordinator"},
+       foreign},
   };
   for (const Listener& l : listeners) {
     SCOPED_TRACE(l.what);
@@ -994,18 +1079,22 @@ TEST(HostileRound2, MetricsListenersAnswerNoForeignHostName) {
     }
     for (const std::string& host : l.refused) {
       const auto r = get(l.port, l.target, host);
-      EXPECT_EQ(r.status, 421) << "Host '" << host << "' was answered (DNS rebinding reads it):\n" << r.body.substr(0, 300);
+      EXPECT_EQ(r.status, 421) << "Host '" << host << "' was answered (DNS rebinding reads it):\n"
+                               << r.body.substr(0, 300);
       EXPECT_EQ(r.body.find(l.data), std::string::npos) << "Host '" << host << "'";
       EXPECT_EQ(r.body.find("bistable_"), std::string::npos) << "Host '" << host << "'";
       EXPECT_NE(r.body.find("--http-allowed-host"), std::string::npos) << r.body;
-      if (host.size() > 4) { EXPECT_EQ(r.body.find(host), std::string::npos) << "the Host header was echoed"; }
+      if (host.size() > 4) {
+        EXPECT_EQ(r.body.find(host), std::string::npos) << "the Host header was echoed";
+      }
     }
     EXPECT_EQ(get(l.port, "/healthz", "evil.example").status, 200);  // no data: open to any Host
   }
   // A bad --http-allowed-host is refused at start, by both programs.
-  for (const std::vector<std::string>& argv : {std::vector<std::string>{BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/d2",
-                                                                        "--http-allowed-host", "host:80"},
-                                               std::vector<std::string>{BISTABLE_WORKER, "--coordinator", addr, "--http-allowed-host", "*.example"}}) {
+  for (const std::vector<std::string>& argv :
+       {std::vector<std::string>{BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/d2",
+                                 "--http-allowed-host", "host:80"},
+        std::vector<std::string>{BISTABLE_WORKER, "--coordinator", addr, "--http-allowed-host", "*.example"}}) {
     const int code = Wait(Spawn(argv, dir + "/bad"), 10);
     EXPECT_EQ(code, 2) << argv[0] << "\n" << ReadFile(dir + "/bad.err");
     EXPECT_NE(ReadFile(dir + "/bad.err").find("http-allowed-host"), std::string::npos) << ReadFile(dir + "/bad.err");
@@ -1029,18 +1118,22 @@ TEST(HostileRound2, ATokensFileEveryoneMayWriteIsRefusedAndALaxOneIsWarnedOf) {
     fs::permissions(tokens, static_cast<fs::perms>(mode), fs::perm_options::replace);
     return StartCoordinator(dir + "/data", dir + "/coord.log", {"--tokens", tokens});
   };
-  for (const auto& [mode, text] : std::vector<std::pair<mode_t, std::string>>{{0666, "0666"}, {0602, "0602"}, {0646, "0646"}}) {
+  for (const auto& [mode, text] :
+       std::vector<std::pair<mode_t, std::string>>{{0666, "0666"}, {0602, "0602"}, {0646, "0646"}}) {
     SCOPED_TRACE(text);
     fs::permissions(tokens, static_cast<fs::perms>(mode), fs::perm_options::replace);
-    const int code = Wait(Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", "--tokens", tokens},
-                                dir + "/coord.log"),
-                          10);
+    const int code =
+        Wait(Spawn({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", "--tokens", tokens},
+                   dir + "/coord.log"),
+             10);
     const std::string err = ReadFile(dir + "/coord.log.err");
     EXPECT_EQ(code, 2) << "a tokens file every user may write was used (-2: still running)\n" << err;
-    for (const std::string& want : std::vector<std::string>{"tokens", "'" + tokens + "'", "mode " + text, "every user may write it", "chmod 600"})
+    for (const std::string& want :
+         std::vector<std::string>{"tokens", "'" + tokens + "'", "mode " + text, "every user may write it", "chmod 600"})
       EXPECT_NE(err.find(want), std::string::npos) << "lacks '" << want << "':\n" << err;
   }
-  for (const auto& [mode, text] : std::vector<std::pair<mode_t, std::string>>{{0664, "0664"}, {0660, "0660"}, {0644, "0644"}, {0604, "0604"}}) {
+  for (const auto& [mode, text] :
+       std::vector<std::pair<mode_t, std::string>>{{0664, "0664"}, {0660, "0660"}, {0644, "0644"}, {0604, "0604"}}) {
     SCOPED_TRACE(text);
     auto [pid, addr] = start(mode);
     EXPECT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
@@ -1053,8 +1146,9 @@ TEST(HostileRound2, ATokensFileEveryoneMayWriteIsRefusedAndALaxOneIsWarnedOf) {
   for (mode_t mode : {0600, 0640, 0400}) {
     auto [pid, addr] = start(mode);
     EXPECT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
-    EXPECT_EQ(ReadFile(dir + "/coord.log.err").find("tokens.mode"), std::string::npos) << std::oct << mode << "\n"
-                                                                                        << ReadFile(dir + "/coord.log.err");
+    EXPECT_EQ(ReadFile(dir + "/coord.log.err").find("tokens.mode"), std::string::npos)
+        << std::oct << mode << "\n"
+        << ReadFile(dir + "/coord.log.err");
     ::kill(pid, SIGTERM);
     Wait(pid, 10);
   }
@@ -1066,7 +1160,10 @@ TEST(HostileRound2, ATokensFileEveryoneMayWriteIsRefusedAndALaxOneIsWarnedOf) {
 TEST(HostileRound2, ACoordinatorStartingOnAnEmptyIndexServesItsMapsAgain) {
   const std::string dir = Round2Dir("empty_index");
   std::ofstream(dir + "/spec.toml") << Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n");
-  ASSERT_EQ(Wait(Spawn({BISTABLE_CLI, "run", dir + "/spec.toml", "--data", dir + "/data", "--no-plots", "--quiet"}, dir + "/run"), 60), 0)
+  ASSERT_EQ(Wait(Spawn({BISTABLE_CLI, "run", dir + "/spec.toml", "--data", dir + "/data", "--no-plots", "--quiet"},
+                       dir + "/run"),
+                 60),
+            0)
       << ReadFile(dir + "/run.err");
   const std::string id = bistable::ParseSweepSpec(Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n"), "x")->Id();
   fs::resize_file(dir + "/data/index.sqlite", 0);
@@ -1097,8 +1194,10 @@ TEST(HostileRound2, ACoordinatorStartingOnAnEmptyIndexServesItsMapsAgain) {
   ::kill(w, SIGTERM);
   Wait(w, 20);
   EXPECT_EQ(st.state(), "done");
-  EXPECT_NE(ReadFile(dir + "/coord.log.err").find("map.corrupt"), std::string::npos) << ReadFile(dir + "/coord.log.err");
-  EXPECT_TRUE(bistable::ReadMapMetric(dir + "/data/sweeps/" + id + ".h5", "frf_db").ok()) << "the map was not written again";
+  EXPECT_NE(ReadFile(dir + "/coord.log.err").find("map.corrupt"), std::string::npos)
+      << ReadFile(dir + "/coord.log.err");
+  EXPECT_TRUE(bistable::ReadMapMetric(dir + "/data/sweeps/" + id + ".h5", "frf_db").ok())
+      << "the map was not written again";
   ::kill(pid, SIGTERM);
   Wait(pid, 10);
 }
@@ -1113,7 +1212,8 @@ TEST(HostileRound2, DashboardCellsAreBoundedAndTakenInTurnByClient) {
   const std::string client(64, 'c'), alice(64, 'a'), bob(64, 'b');
   std::ofstream(dir + "/tokens") << "client " << Sha256Of(dir, client) << " carol\nviewer " << Sha256Of(dir, alice)
                                  << " alice\nviewer " << Sha256Of(dir, bob) << " bob\n";
-  auto [pid, addr] = StartCoordinator(dir + "/data", dir + "/coord.log", {"--tokens", dir + "/tokens", "--http", "127.0.0.1:0"});
+  auto [pid, addr] =
+      StartCoordinator(dir + "/data", dir + "/coord.log", {"--tokens", dir + "/tokens", "--http", "127.0.0.1:0"});
   const Stopped stop_coordinator{pid};
   ASSERT_FALSE(addr.empty()) << ReadFile(dir + "/coord.log.err");
   const int http = AwaitPrintedPort(dir + "/coord.log", "dashboard");
@@ -1129,14 +1229,17 @@ TEST(HostileRound2, DashboardCellsAreBoundedAndTakenInTurnByClient) {
     return rep.id();
   };
   // No worker: the sweeps stay queued; cells are computed on demand all the same.
-  const std::string huge = submit("alpha = [0.5]\nomega = [1.0]", "t_end = 1000000.0\nt_keep = 500000.0\n[metrics]\nsample_every = 16\n");
+  const std::string huge =
+      submit("alpha = [0.5]\nomega = [1.0]", "t_end = 1000000.0\nt_keep = 500000.0\n[metrics]\nsample_every = 16\n");
   const std::string some = submit("alpha = [0.5, 0.6]\nomega = [0.9, 1.0]", "t_end = 30000.0\nt_keep = 25000.0\n");
   const std::string near = submit("alpha = [0.5, 0.6]\nomega = [1.0]", "t_end = 99000.0\nt_keep = 89000.0\n");
   const auto get = [&](const std::string& target, const std::string& token) {
     return bistable_test::HttpExchange(http, target, boost::beast::http::verb::get,
                                        {{"Host", "127.0.0.1"}, {"Authorization", "Bearer " + token}});
   };
-  const auto cell = [&](const std::string& id, int point) { return "/api/cell?id=" + id + "&point=" + std::to_string(point) + "&ic=0"; };
+  const auto cell = [&](const std::string& id, int point) {
+    return "/api/cell?id=" + id + "&point=" + std::to_string(point) + "&ic=0";
+  };
   ASSERT_EQ(get(cell(some, 0), alice).status, 200);  // warm: the code paths and the caches are in
   // The heap in use (malloc's own count, on /metrics: a viewer token reads it) and the RSS.
   const auto heap = [&] {
@@ -1170,20 +1273,25 @@ TEST(HostileRound2, DashboardCellsAreBoundedAndTakenInTurnByClient) {
   for (int i = 0; i < 12; ++i) threads.emplace_back([&, i] { storm[i] = get(cell(some, i % 4), alice); });
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
   threads.emplace_back([&] { bobs[0] = get(cell(some, 3), bob); });
-  for (int i = 1; i < 5; ++i) threads.emplace_back([&, i] { bobs[i] = get("/api/map?id=" + some + "&metric=frf_db", bob); });
+  for (int i = 1; i < 5; ++i)
+    threads.emplace_back([&, i] { bobs[i] = get("/api/map?id=" + some + "&metric=frf_db", bob); });
   for (auto& t : threads) t.join();
   int accepted = 0, busy = 0;
   for (const auto& r : storm) {
-    if (r.status == 200) ++accepted;
-    else if (r.status == 503 && r.body.find("at most 2 per client") != std::string::npos) ++busy;
-    else ADD_FAILURE() << "alice: " << r.status << " " << r.body.substr(0, 200);
+    if (r.status == 200)
+      ++accepted;
+    else if (r.status == 503 && r.body.find("at most 2 per client") != std::string::npos)
+      ++busy;
+    else
+      ADD_FAILURE() << "alice: " << r.status << " " << r.body.substr(0, 200);
   }
   std::printf("  12 cells of one client at once: %d computed, %d refused to it\n", accepted, busy);
   EXPECT_GE(accepted, 1);
   EXPECT_LE(accepted, 4) << "one client held more than its share";
   for (size_t i = 0; i < bobs.size(); ++i)
     EXPECT_EQ(bobs[i].status, 200) << (i == 0 ? "bob's cell" : "bob's map") << ": " << bobs[i].body.substr(0, 200);
-  std::printf("  RSS: %ld kB at first, %ld kB after two cells of 10^6 samples, %ld kB after the storm\n", rss0, rss1, RssKb(pid));
+  std::printf("  RSS: %ld kB at first, %ld kB after two cells of 10^6 samples, %ld kB after the storm\n", rss0, rss1,
+              RssKb(pid));
   EXPECT_TRUE(Alive(pid));
   ::kill(pid, SIGTERM);
   Wait(pid, 20);
@@ -1196,7 +1304,8 @@ TEST(HostileRound2, DashboardCellsAreBoundedAndTakenInTurnByClient) {
 // computed and reported.
 class FakeCoordinator final : public v1::Coordinator::Service {
  public:
-  FakeCoordinator(v1::LeaseReply first, double lease_seconds) : first_(std::move(first)), lease_seconds_(lease_seconds) {}
+  FakeCoordinator(v1::LeaseReply first, double lease_seconds)
+      : first_(std::move(first)), lease_seconds_(lease_seconds) {}
   grpc::Status RegisterWorker(grpc::ServerContext*, const v1::RegisterRequest*, v1::RegisterReply* rep) override {
     rep->set_lease_seconds(lease_seconds_);
     return grpc::Status::OK;
@@ -1221,10 +1330,22 @@ class FakeCoordinator final : public v1::Coordinator::Service {
     released_.push_back(req->lease_id());
     return grpc::Status::OK;
   }
-  int leases() { std::lock_guard<std::mutex> l(mu_); return leases_; }
-  int reports() { std::lock_guard<std::mutex> l(mu_); return reports_; }
-  int report_values() { std::lock_guard<std::mutex> l(mu_); return report_values_; }
-  std::vector<std::string> released() { std::lock_guard<std::mutex> l(mu_); return released_; }
+  int leases() {
+    std::lock_guard<std::mutex> l(mu_);
+    return leases_;
+  }
+  int reports() {
+    std::lock_guard<std::mutex> l(mu_);
+    return reports_;
+  }
+  int report_values() {
+    std::lock_guard<std::mutex> l(mu_);
+    return report_values_;
+  }
+  std::vector<std::string> released() {
+    std::lock_guard<std::mutex> l(mu_);
+    return released_;
+  }
 
  private:
   std::mutex mu_;
@@ -1254,7 +1375,9 @@ FakeRun RunWorkerAgainst(const std::string& dir, const v1::LeaseReply& first, do
   if (!server || port <= 0) return r;
   static int run = 0;
   const std::string log = dir + "/worker" + std::to_string(++run) + ".log";
-  const pid_t w = Spawn({BISTABLE_WORKER, "--coordinator", "127.0.0.1:" + std::to_string(port), "--threads", "1", "--name", "victim"}, log);
+  const pid_t w = Spawn(
+      {BISTABLE_WORKER, "--coordinator", "127.0.0.1:" + std::to_string(port), "--threads", "1", "--name", "victim"},
+      log);
   bool exited = false;
   for (int i = 0; i < 300; ++i) {
     int st = 0;
@@ -1271,7 +1394,8 @@ FakeRun RunWorkerAgainst(const std::string& dir, const v1::LeaseReply& first, do
     r.exit_code = Wait(w, 20);
   }
   r.log = ReadFile(log + ".err");
-  r.leases = fake.leases(), r.reports = fake.reports(), r.report_values = fake.report_values(), r.released = fake.released();
+  r.leases = fake.leases(), r.reports = fake.reports(), r.report_values = fake.report_values(),
+  r.released = fake.released();
   server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(1));
   return r;
 }
@@ -1283,7 +1407,8 @@ v1::LeaseReply HostileLease(const std::vector<int64_t>& points, const std::vecto
   l.set_sweep_id("0123456789ab");
   l.set_job_id(0);
   // 2 x 2 grid points, two initial states: points in [0, 3], ic slots in [0, 1].
-  l.set_spec_toml(Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n", "[initial_conditions]\nstates = [[1, 0, 1, 0], [-1, 0, -1, 0]]\n"));
+  l.set_spec_toml(Spec("alpha = [0.5, 1.0]\nomega = [0.8, 1.2]\n",
+                       "[initial_conditions]\nstates = [[1, 0, 1, 0], [-1, 0, -1, 0]]\n"));
   for (int64_t p : points) l.add_points(p);
   for (int32_t i : ics) l.add_ics(i);
   l.set_deadline(1e10);
@@ -1310,11 +1435,14 @@ TEST(HostileRound2, WorkerRefusesAHostileLeaseFromAFakeCoordinator) {
   std::vector<int32_t> million_ics(1'000'000, 0);
   const std::vector<Case> cases = {
       {"ic 10^6", HostileLease({0}, {1'000'000}), "ic = 1000000 violates ic in [0, 1]", true},
-      {"ic -10^8", HostileLease({1, 2}, {0, -100'000'000}), "lease.items[1]: ic = -100000000 violates ic in [0, 1]", true},
+      {"ic -10^8", HostileLease({1, 2}, {0, -100'000'000}), "lease.items[1]: ic = -100000000 violates ic in [0, 1]",
+       true},
       {"point -1", HostileLease({-1}, {0}), "point = -1 violates point in [0, 3]", true},
       {"point 2^40", HostileLease({int64_t{1} << 40}, {0}), "point = 1099511627776 violates point in [0, 3]", true},
-      {"point one past the grid", HostileLease({0, 4}, {0, 0}), "lease.items[1]: point = 4 violates point in [0, 3]", true},
-      {"points and ics of different lengths", HostileLease({0, 1, 2}, {0, 0}), "3 points and 2 initial-condition slots", false},
+      {"point one past the grid", HostileLease({0, 4}, {0, 0}), "lease.items[1]: point = 4 violates point in [0, 3]",
+       true},
+      {"points and ics of different lengths", HostileLease({0, 1, 2}, {0, 0}), "3 points and 2 initial-condition slots",
+       false},
       {"a million items", HostileLease(million, million_ics), "a lease of 1000000 items violates items <= 8192", false},
       {"no items", HostileLease({}, {}), "lease of 0 items violates items in [1, 8192]", true},
   };
@@ -1326,11 +1454,14 @@ TEST(HostileRound2, WorkerRefusesAHostileLeaseFromAFakeCoordinator) {
     EXPECT_EQ(r.exit_code, 0) << "the worker did not stop cleanly (-1: killed by a signal)\n" << r.log;
     EXPECT_NE(r.log.find(c.says), std::string::npos) << r.log;
     EXPECT_EQ(r.reports, 0) << "a hostile lease was computed and reported";
-    if (c.released) { EXPECT_EQ(r.released, std::vector<std::string>{"fake-lease-1"}) << r.log; }
+    if (c.released) {
+      EXPECT_EQ(r.released, std::vector<std::string>{"fake-lease-1"}) << r.log;
+    }
   }
   // A lease period the worker cannot heartbeat by: refused at registration, exit 2, not slept on.
   for (double bad : {std::nan(""), -1.0, 0.0, 1e300}) {
-    const FakeRun r = RunWorkerAgainst(dir, HostileLease({0}, {0}), bad, [](const std::string&, FakeCoordinator&) { return false; });
+    const FakeRun r =
+        RunWorkerAgainst(dir, HostileLease({0}, {0}), bad, [](const std::string&, FakeCoordinator&) { return false; });
     EXPECT_EQ(r.exit_code, 2) << bad << "\n" << r.log;
     EXPECT_NE(r.log.find("lease_seconds"), std::string::npos) << bad << "\n" << r.log;
     EXPECT_EQ(r.leases, 0);

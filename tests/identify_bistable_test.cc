@@ -53,8 +53,8 @@ TEST(SyntheticFamily, ExtraTermsAreParsedWithTheirBounds) {
   ASSERT_TRUE(drag.ok()) << drag.status().ToString();
   EXPECT_EQ(drag->term->id, "main.drag");
   EXPECT_EQ(drag->values, std::vector<double>{5.0});
-  for (const char* bad : {"main.drag", "main.drag=-1", "main.friction=1:0.5", "main.piezo=1:2:3", "main.nope=1", "main.drag=1:2",
-                          "main.drag=nan", "main.drag=1e300", "main.drag=", "res.stiffness_z3=abc"}) {
+  for (const char* bad : {"main.drag", "main.drag=-1", "main.friction=1:0.5", "main.piezo=1:2:3", "main.nope=1",
+                          "main.drag=1:2", "main.drag=nan", "main.drag=1e300", "main.drag=", "res.stiffness_z3=abc"}) {
     const auto r = ParseSyntheticExtra(bad);
     EXPECT_FALSE(r.ok()) << bad;
     EXPECT_EQ(r.status().field(), "synthetic-extra") << bad;
@@ -104,7 +104,8 @@ TEST(ObjectiveChoice, ChaoticSnapThroughIsFittedOnShortHorizonsAndAnIntrawellRec
   // Over its horizon the true model from re-estimated states (multiple shooting) stays near the noise.
   PreparedRecord banded = rc;
   BandLimitedRestarts(&banded);
-  EXPECT_LT(Evaluate(m, m.theta, {banded}, bistable::Setup{}, pc.fit_horizon_s).shooting, 2.0) << pc.fit_horizon_s << " s";
+  EXPECT_LT(Evaluate(m, m.theta, {banded}, bistable::Setup{}, pc.fit_horizon_s).shooting, 2.0)
+      << pc.fit_horizon_s << " s";
   EXPECT_EQ(pq.well_changes, 0);
   EXPECT_TRUE(pq.long_meaningful) << pq.reason;
   EXPECT_EQ(pq.fit_horizon_s, 0.0);
@@ -121,7 +122,8 @@ TEST(ObjectiveChoice, AModelThatDoesNotFollowTheRecordIsNotTrustedWithItsLongSim
   auto calm = MakeSyntheticRecord(Beam(), Chirp(10, 8, 11, 0.05), "intrawell");
   ASSERT_TRUE(calm.ok());
   const PreparedRecord r = Prepared(*calm);
-  ASSERT_GT(HorizonError(off, off.theta, r, bistable::Setup{}, 0), kMeaningfulFloor) << "the test needs a model that misses";
+  ASSERT_GT(HorizonError(off, off.theta, r, bistable::Setup{}, 0), kMeaningfulFloor)
+      << "the test needs a model that misses";
   const Predictability plain = TestPredictability(off, off.theta, r, bistable::Setup{}, 0.5);
   EXPECT_TRUE(plain.long_meaningful) << "its twins alone say predictable: " << plain.reason;
   EXPECT_LT(plain.chaos_floor, kMeaningfulFloor);
@@ -162,8 +164,8 @@ TEST(ObjectiveChoice, AShootingFitIsContinuedToTheLongSimulationOnlyWhereTheMode
   ASSERT_TRUE(c.ran) << c.reason;
   EXPECT_LT(fit.errors.long_nrmse, before);
   const double truth_long = HorizonError(truth, truth.theta, recs[0], bistable::Setup{}, 0);
-  EXPECT_LT(fit.errors.long_nrmse, 1.05 * truth_long) << "at the truth's level: " << fit.errors.long_nrmse << " vs " << truth_long
-                                                       << " (from " << before << ")";
+  EXPECT_LT(fit.errors.long_nrmse, 1.05 * truth_long)
+      << "at the truth's level: " << fit.errors.long_nrmse << " vs " << truth_long << " (from " << before << ")";
   EXPECT_TRUE(std::isfinite(fit.errors.shooting)) << "the errors keep the objective the loop ran";
 
   FitResult at_truth;
@@ -235,7 +237,8 @@ TEST(ObjectiveChoice, TwinsOfAChaoticRecordCarryItsNoiseLevel) {
   ASSERT_EQ(twins.size(), 2u);
   // Two twins share their truth and differ by two independent draws of the noise: RMS √2 σ.
   double ss = 0;
-  for (size_t i = 0; i < r.n(); ++i) ss += (twins[0][0].meas[i] - twins[1][0].meas[i]) * (twins[0][0].meas[i] - twins[1][0].meas[i]);
+  for (size_t i = 0; i < r.n(); ++i)
+    ss += (twins[0][0].meas[i] - twins[1][0].meas[i]) * (twins[0][0].meas[i] - twins[1][0].meas[i]);
   const double level = std::sqrt(ss / static_cast<double>(r.n()) / 2.0);
   EXPECT_NEAR(level, 0.05e-3, 0.1 * 0.05e-3) << "the twin's noise; the output's own level " << r.noise[0];
 }
@@ -243,7 +246,7 @@ TEST(ObjectiveChoice, TwinsOfAChaoticRecordCarryItsNoiseLevel) {
 TEST(ObjectiveChoice, WellChangesCountCrossingsWithHysteresis) {
   EXPECT_EQ(CountWellChanges({1, 1, -1, -1, 1}, 1.0), 2);
   EXPECT_EQ(CountWellChanges({1, 0.4, -0.4, 0.6, 0.4}, 1.0), 0);  // never past the other well's half depth
-  EXPECT_EQ(CountWellChanges({1, -1}, 0.0), -1);                   // no two wells
+  EXPECT_EQ(CountWellChanges({1, -1}, 0.0), -1);                  // no two wells
 }
 
 // Twin records carry the fitted model's own output, recorded with the measured noise: the true model's error on
@@ -298,7 +301,8 @@ TEST(ObjectiveChoice, OnAChaoticNullRecordShootingIsChosenAndTheTwinCalibratedTr
   FitResult at_truth;
   at_truth.theta = truth.theta;
   at_truth.sigma.assign(truth.theta.size(), NAN);
-  const LoopDiagnostics d = Diagnose({FitSnapshot{truth, at_truth, "", true}}, recs, bistable::Setup{}, opt.fit, "test");
+  const LoopDiagnostics d =
+      Diagnose({FitSnapshot{truth, at_truth, "", true}}, recs, bistable::Setup{}, opt.fit, "test");
   EXPECT_TRUE(d.unexplained.empty()) << d.unexplained;
   ASSERT_TRUE(std::isfinite(d.whiteness.twin_predictable_share));
   EXPECT_GE(1 - d.whiteness.flatness, kPredictableShare) << "the plain test alone would have claimed a missing effect";

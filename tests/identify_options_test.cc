@@ -52,10 +52,19 @@ TEST(IdentifyOptions, EachBadFieldIsNamedWithItsBound) {
   };
   const Case cases[] = {
       {"no terms", [](Options* o) { o->terms.clear(); }, "terms", "declare the model"},
-      {"unknown term", [](Options* o) { o->terms = {"main.linear", "main.stifness_y3"}; }, "terms", "did you mean 'main.stiffness_y3'"},
-      {"term twice", [](Options* o) { o->terms = {"main.linear", "main.linear"}; }, "terms", "listed twice"},
+      {"unknown term",
+       [](Options* o) {
+         o->terms = {"main.linear", "main.stifness_y3"};
+       },
+       "terms", "did you mean 'main.stiffness_y3'"},
+      {"term twice",
+       [](Options* o) {
+         o->terms = {"main.linear", "main.linear"};
+       },
+       "terms", "listed twice"},
       {"negative mass", [](Options* o) { o->m_main = -1; }, "known.m_main", "m_main = -1 violates m_main > 0"},
-      {"no mass, base input", [](Options* o) { o->m_main = 0; }, "known.m_main", "the main mass is needed with a base input"},
+      {"no mass, base input", [](Options* o) { o->m_main = 0; }, "known.m_main",
+       "the main mass is needed with a base input"},
       {"NaN mass", [](Options* o) { o->m_main = NAN; }, "known.m_main", "violates m_main > 0"},
       {"v_sp 0", [](Options* o) { o->v_sp = 0; }, "known.v_sp", "v_sp = 0 violates v_sp > 0"},
       {"v_t negative", [](Options* o) { o->v_t = -0.5; }, "known.v_t", "v_t = -0.5 violates v_t > 0"},
@@ -65,31 +74,53 @@ TEST(IdentifyOptions, EachBadFieldIsNamedWithItsBound) {
       {"output2 scale NaN", [](Options* o) { o->output2_scale = NAN; }, "output2-scale", "finite non-zero"},
       {"frame auto, displacement", [](Options* o) { o->output_frame = identify::FrameMode::kAuto; }, "output-frame",
        "needs --output-kind velocity and --input-kind base_acceleration"},
-      {"drift cutoff negative", [](Options* o) { o->drift_cutoff = -0.5; }, "drift-cutoff", "drift-cutoff = -0.5 violates drift-cutoff >= 0 Hz"},
-      {"drift cutoff, displacement", [](Options* o) { o->drift_cutoff = 0.5; }, "drift-cutoff", "needs --output-kind velocity"},
+      {"drift cutoff negative", [](Options* o) { o->drift_cutoff = -0.5; }, "drift-cutoff",
+       "drift-cutoff = -0.5 violates drift-cutoff >= 0 Hz"},
+      {"drift cutoff, displacement", [](Options* o) { o->drift_cutoff = 0.5; }, "drift-cutoff",
+       "needs --output-kind velocity"},
       {"velocity with base displacement", [](Options* o) { o->output_kind = OutputKind::kVelocity; }, "output",
        "with a base displacement input the output must be a displacement"},
       {"output term of a missing output", [](Options* o) { o->terms.push_back("out.voltage.offset"); }, "terms",
        "acts on a voltage output; this run's outputs are displacement"},
-      {"guess of no parameter", [](Options* o) { o->guesses["main.linear.k"] = 1; }, "guess", "did you mean 'main.linear.k_lin'"},
-      {"guess not finite", [](Options* o) { o->guesses["main.linear.k_lin"] = INFINITY; }, "guess.main.linear.k_lin", "violates a finite number"},
+      {"guess of no parameter", [](Options* o) { o->guesses["main.linear.k"] = 1; }, "guess",
+       "did you mean 'main.linear.k_lin'"},
+      {"guess not finite", [](Options* o) { o->guesses["main.linear.k_lin"] = INFINITY; }, "guess.main.linear.k_lin",
+       "violates a finite number"},
       {"global evals negative", [](Options* o) { o->global_evals = -1; }, "global-evals", "must be in [0, 100000]"},
       {"lm iterations 0", [](Options* o) { o->lm_iterations = 0; }, "lm-iterations", "must be in [1, 10000]"},
       {"max added 11", [](Options* o) { o->max_added = 11; }, "max-added", "must be in [0, 10]"},
-      {"deriv cutoff negative", [](Options* o) { o->deriv_cutoff = -1; }, "deriv-cutoff", "deriv-cutoff = -1 violates deriv-cutoff >= 0 Hz"},
+      {"deriv cutoff negative", [](Options* o) { o->deriv_cutoff = -1; }, "deriv-cutoff",
+       "deriv-cutoff = -1 violates deriv-cutoff >= 0 Hz"},
       {"decimate 0", [](Options* o) { o->decimate = 0; }, "decimate", "must be in [1, 1000]"},
-      {"horizon an hour and more", [](Options* o) { o->horizon = 4000; }, "horizon", "horizon = 4000 violates 0 <= horizon <= 3600 s"},
+      {"horizon an hour and more", [](Options* o) { o->horizon = 4000; }, "horizon",
+       "horizon = 4000 violates 0 <= horizon <= 3600 s"},
       {"horizon NaN", [](Options* o) { o->horizon = NAN; }, "horizon", "violates 0 <= horizon <= 3600 s"},
-      {"shooting without horizon", [](Options* o) { o->objective = identify::ObjectiveMode::kShooting, o->horizon = 0; }, "horizon",
+      {"shooting without horizon",
+       [](Options* o) { o->objective = identify::ObjectiveMode::kShooting, o->horizon = 0; }, "horizon",
        "horizon = 0 violates horizon > 0 s"},
-      {"max seconds negative", [](Options* o) { o->max_seconds = -5; }, "max-seconds", "max-seconds = -5 violates 0 <= max-seconds <= 1e6 s"},
-      {"threads beyond", [](Options* o) { o->threads = 2000; }, "threads", "threads = 2000 violates threads in [0, 1024]"},
-      {"unknown candidate", [](Options* o) { o->candidates = {"main.dragg"}; }, "candidates", "did you mean 'main.drag'"},
-      {"candidate on a missing output", [](Options* o) { o->candidates = {"out.voltage.scale"}; }, "candidates", "acts on a voltage output"},
-      {"empty range", [](Options* o) { o->range = {5, 5}; }, "range", "range = 5:5 is empty"},
-      {"range beyond the rows", [](Options* o) { o->range = {0, static_cast<size_t>(limits::kMaxDataRows) + 1}; }, "range",
-       "each <= " + std::to_string(limits::kMaxDataRows)},
-      {"test range backwards", [](Options* o) { o->test_ranges = {{0, 100}, {300, 200}}; }, "test-range", "test-range = 300:200 is empty"},
+      {"max seconds negative", [](Options* o) { o->max_seconds = -5; }, "max-seconds",
+       "max-seconds = -5 violates 0 <= max-seconds <= 1e6 s"},
+      {"threads beyond", [](Options* o) { o->threads = 2000; }, "threads",
+       "threads = 2000 violates threads in [0, 1024]"},
+      {"unknown candidate", [](Options* o) { o->candidates = {"main.dragg"}; }, "candidates",
+       "did you mean 'main.drag'"},
+      {"candidate on a missing output", [](Options* o) { o->candidates = {"out.voltage.scale"}; }, "candidates",
+       "acts on a voltage output"},
+      {"empty range",
+       [](Options* o) {
+         o->range = {5, 5};
+       },
+       "range", "range = 5:5 is empty"},
+      {"range beyond the rows",
+       [](Options* o) {
+         o->range = {0, static_cast<size_t>(limits::kMaxDataRows) + 1};
+       },
+       "range", "each <= " + std::to_string(limits::kMaxDataRows)},
+      {"test range backwards",
+       [](Options* o) {
+         o->test_ranges = {{0, 100}, {300, 200}};
+       },
+       "test-range", "test-range = 300:200 is empty"},
   };
   for (const Case& c : cases) {
     Options o = Valid();
@@ -102,10 +133,13 @@ TEST(IdentifyOptions, EachBadFieldIsNamedWithItsBound) {
 }
 
 TEST(IdentifyOptions, NamesReadBackAndBadNamesListTheChoices) {
-  for (const char* n : {"base_displacement", "base_acceleration", "force"}) EXPECT_STREQ(identify::Name(*identify::ParseInputKind(n)), n);
-  for (const char* n : {"displacement", "velocity", "analogue"}) EXPECT_STREQ(identify::Name(*identify::ParseOutputKind(n)), n);
+  for (const char* n : {"base_displacement", "base_acceleration", "force"})
+    EXPECT_STREQ(identify::Name(*identify::ParseInputKind(n)), n);
+  for (const char* n : {"displacement", "velocity", "analogue"})
+    EXPECT_STREQ(identify::Name(*identify::ParseOutputKind(n)), n);
   for (const char* n : {"absolute", "relative", "auto"}) EXPECT_STREQ(identify::Name(*identify::ParseFrameMode(n)), n);
-  for (const char* n : {"auto", "time", "fft", "shooting"}) EXPECT_STREQ(identify::Name(*identify::ParseObjectiveMode(n)), n);
+  for (const char* n : {"auto", "time", "fft", "shooting"})
+    EXPECT_STREQ(identify::Name(*identify::ParseObjectiveMode(n)), n);
   for (const char* n : {"residual", "noise"}) EXPECT_STREQ(identify::Name(*identify::ParseOutputWeights(n)), n);
   EXPECT_EQ(identify::ParseObjectiveMode("phase").status().ToString(),
             "invalid argument (objective: 'phase' violates objective in {auto, time, fft, shooting})");
@@ -116,7 +150,8 @@ TEST(IdentifyOptions, NamesReadBackAndBadNamesListTheChoices) {
   EXPECT_EQ(*identify::ParseRange("10:20", "range"), identify::SampleRange(10, 20));
   EXPECT_EQ(*identify::ParseRange(":20", "range"), identify::SampleRange(0, 20));
   EXPECT_EQ(*identify::ParseRange("10:", "range"), identify::SampleRange(10, SIZE_MAX));
-  EXPECT_NE(identify::ParseRange("1e3:2000", "test-range").status().message().find("violates test-range = A:B"), std::string::npos);
+  EXPECT_NE(identify::ParseRange("1e3:2000", "test-range").status().message().find("violates test-range = A:B"),
+            std::string::npos);
   // Columns and constants by name.
   Options o;
   EXPECT_TRUE(identify::SetColumn("group", "a;b", &o).ok());
@@ -198,7 +233,8 @@ TEST(IdentifyEntryPoint, RefusesBadOptionsAndNoRecordsBeforeFitting) {
   o.horizon = 0.02;  // < 4 samples at 120 Hz
   const auto shooting = Identify(o, OneChirp());
   ASSERT_FALSE(shooting.ok());
-  EXPECT_NE(shooting.status().message().find("violates horizon >= 4 samples of chirp 6 mm"), std::string::npos) << shooting.status().ToString();
+  EXPECT_NE(shooting.status().message().find("violates horizon >= 4 samples of chirp 6 mm"), std::string::npos)
+      << shooting.status().ToString();
 }
 
 }  // namespace

@@ -10,8 +10,8 @@
 #include <nlohmann/json.hpp>
 
 #include "identify/loop.h"
-#include "tests/identify_synthetic.h"
 #include "tests/harvester_flags.h"
+#include "tests/identify_synthetic.h"
 #include "tests/process_util.h"
 
 namespace bistable {
@@ -85,7 +85,8 @@ TEST(IdentifyPiezo, TheLoopFindsTheCouplingOnASyntheticTwoOutputRecord) {
   o.fit.global_evals = 0;
   o.max_added = 1;
   o.candidates = *ParseTerms("main.damping_y2,main.bias,main.piezo,out.velocity.scale");
-  const IdentifyResult res = Identify(Model("main.linear,main.stiffness_y3,main.viscous", {}), {r}, HarvesterSetup(), o);
+  const IdentifyResult res =
+      Identify(Model("main.linear,main.stiffness_y3,main.viscous", {}), {r}, HarvesterSetup(), o);
   ASSERT_EQ(res.added.size(), 1u) << (res.steps.empty() ? "" : res.steps[0].verdict);
   EXPECT_EQ(res.added[0].term, "main.piezo");
   const auto& p = res.added[0].params;
@@ -141,7 +142,8 @@ TEST(IdentifyPiezo, CliFindsThePiezoOnTheIntrawellRecord) {
                           " --max-seconds 3 --decimate 4 --global-evals 40 --max-added 2 --output-frame auto --json");
   ASSERT_EQ(p.exit_code, 0) << p.err;
   const auto j = nlohmann::json::parse(p.out);
-  for (const char* key : {"error_before", "error_after", "effects_added", "params", "records", "errors_by_output", "velocity_frame"})
+  for (const char* key :
+       {"error_before", "error_after", "effects_added", "params", "records", "errors_by_output", "velocity_frame"})
     EXPECT_TRUE(j.contains(key)) << key;
   bool piezo = false;
   for (const auto& e : j["effects_added"]) {
@@ -165,8 +167,9 @@ TEST(IdentifyPiezo, CliFindsThePiezoOnTheIntrawellRecord) {
   EXPECT_TRUE(f["chosen"] == "absolute" || f["chosen"] == "relative");
   EXPECT_TRUE(f["error_absolute"].is_number() && f["error_relative"].is_number());
   std::printf("intrawell left: error %.2f %% -> %.2f %%, voltage %.1f %% -> %.1f %%, frame %s (%.2f / %.2f %%)\n",
-              j["error_before"].get<double>(), j["error_after"].get<double>(), v["before"].get<double>(), v["after"].get<double>(),
-              f["chosen"].get<std::string>().c_str(), f["error_absolute"].get<double>(), f["error_relative"].get<double>());
+              j["error_before"].get<double>(), j["error_after"].get<double>(), v["before"].get<double>(),
+              v["after"].get<double>(), f["chosen"].get<std::string>().c_str(), f["error_absolute"].get<double>(),
+              f["error_relative"].get<double>());
 }
 
 }  // namespace

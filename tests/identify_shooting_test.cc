@@ -29,7 +29,8 @@ constexpr double kChaoticDrive = 9.0;
 // The chaotic record (seconds long, noise 2e-3 on both outputs, output weights set) and the true model
 // with every parameter moved by ±off (alternately up and down): a fit's problem.
 std::vector<PreparedRecord> ChaoticRecords(double seconds) {
-  std::vector<PreparedRecord> recs = {SyntheticRecord(Model(kBistable, BistableTheta()), seconds, 640, 2e-3, 2e-3, kChaoticDrive)};
+  std::vector<PreparedRecord> recs = {
+      SyntheticRecord(Model(kBistable, BistableTheta()), seconds, 640, 2e-3, 2e-3, kChaoticDrive)};
   SetOutputWeights(&recs);
   return recs;
 }
@@ -86,7 +87,8 @@ TEST(IdentifyShooting, SegmentStateSensitivitiesMatchFiniteDifferences) {
           err = std::max(err, std::abs(fd - so.ds[slot](static_cast<long>(i), c)));
           scale = std::max(scale, std::abs(fd));
         }
-        SCOPED_TRACE("state " + std::to_string(c) + " segment " + std::to_string(k) + " output " + std::to_string(slot));
+        SCOPED_TRACE("state " + std::to_string(c) + " segment " + std::to_string(k) + " output " +
+                     std::to_string(slot));
         EXPECT_EQ(outside, 0.0);
         ASSERT_GT(scale, 0.0);
         EXPECT_LT(err, 1e-5 * scale) << "max |fd - ds| " << err << " of " << scale;
@@ -104,7 +106,8 @@ TEST(IdentifyShooting, ReestimatedStatesReachTheNoiseOnTheModelsOwnChaoticRecord
   std::vector<PreparedRecord> recs = {r};
   SetOutputWeights(&recs);
   const ChaosCheck chaos = CheckChaos(recs, s, Objective::kTime);
-  ASSERT_TRUE(chaos.record_chaotic[0]) << "the synthetic record must be chaotic: output broadband share " << chaos.output_broadband[0];
+  ASSERT_TRUE(chaos.record_chaotic[0]) << "the synthetic record must be chaotic: output broadband share "
+                                       << chaos.output_broadband[0];
   const Errors e = Evaluate(m, m.theta, recs, s, 0.46);
   double rms = 0, mean = 0;
   for (double v : r.meas) mean += v;
@@ -154,9 +157,10 @@ TEST(IdentifyShooting, InvariantsCoverEveryOutput) {
   ASSERT_EQ(bad.by_output.size(), 2u);
   EXPECT_EQ(good.by_output[0].name, "velocity");
   EXPECT_EQ(good.by_output[1].name, "voltage");
-  std::printf("  Hellinger velocity %.3f / %.3f, voltage %.3f / %.3f; spectral voltage %.1f / %.1f %% (true / doubled gain)\n",
-              good.by_output[0].hellinger, bad.by_output[0].hellinger, good.by_output[1].hellinger, bad.by_output[1].hellinger,
-              good.by_output[1].spectral_error, bad.by_output[1].spectral_error);
+  std::printf(
+      "  Hellinger velocity %.3f / %.3f, voltage %.3f / %.3f; spectral voltage %.1f / %.1f %% (true / doubled gain)\n",
+      good.by_output[0].hellinger, bad.by_output[0].hellinger, good.by_output[1].hellinger, bad.by_output[1].hellinger,
+      good.by_output[1].spectral_error, bad.by_output[1].spectral_error);
   EXPECT_TRUE(good.by_output[0].hellinger > 0 && good.by_output[0].hellinger < 1);
   EXPECT_LT(good.by_output[1].hellinger, 0.25);
   EXPECT_GT(bad.by_output[1].hellinger, 2 * good.by_output[1].hellinger);

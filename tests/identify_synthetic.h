@@ -36,8 +36,8 @@ inline IdentModel Model(const std::string& terms, std::vector<double> theta) {
 // A record simulated by the model itself: a 6.5 Hz base acceleration (with a harmonic), velocity and
 // voltage from a first simulation started at rest, then prepared again from those outputs.
 // `drive`: amplitude of the 6.5 Hz base acceleration [m/s²].
-inline PreparedRecord SyntheticRecord(const IdentModel& m, double seconds, double fs, double noise_v = 0, double noise_w = 0,
-                                      double drive = 1.1) {
+inline PreparedRecord SyntheticRecord(const IdentModel& m, double seconds, double fs, double noise_v = 0,
+                                      double noise_w = 0, double drive = 1.1) {
   Record rec;
   rec.dt = 1.0 / fs;
   const int n = static_cast<int>((seconds + 8.0) * fs), begin = static_cast<int>(8.0 * fs);
@@ -62,7 +62,8 @@ inline PreparedRecord SyntheticRecord(const IdentModel& m, double seconds, doubl
     auto u = [&] { return ((state = state * 1664525u + 1013904223u) >> 8) / 16777216.0 + 1e-9; };
     return std::sqrt(-2 * std::log(u())) * std::cos(2 * M_PI * u());
   };
-  for (int i = 0; i < n; ++i) rec.output[i] = so.out[0][i] + noise_v * gauss(), rec.voltage[i] = so.out[2][i] + noise_w * gauss();
+  for (int i = 0; i < n; ++i)
+    rec.output[i] = so.out[0][i] + noise_v * gauss(), rec.voltage[i] = so.out[2][i] + noise_w * gauss();
   auto p = PrepareRecord(rec, s, begin, rec.t.size(), 0.0, "synthetic");
   EXPECT_TRUE(p.ok()) << p.status().ToString();
   return *p;

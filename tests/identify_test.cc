@@ -141,12 +141,14 @@ TEST(Identify, DriftCutoffRemovesTheIntegratedSensorDrift) {
   };
   EXPECT_GT(rms_error(0.0), 1.0);   // the integrated drift is larger than the orbit
   EXPECT_LT(rms_error(0.5), 0.02);  // removed
-  s.drift_cutoff_hz = 300;  // above the derivative cutoff: nothing of the signal would be left
+  s.drift_cutoff_hz = 300;          // above the derivative cutoff: nothing of the signal would be left
   const auto above = PrepareRecord(r, s, 0, r.t.size(), 0.0, "drift");
   ASSERT_FALSE(above.ok());
-  EXPECT_NE(above.status().ToString().find("drift-cutoff = 300 violates drift-cutoff <"), std::string::npos) << above.status().ToString();
+  EXPECT_NE(above.status().ToString().find("drift-cutoff = 300 violates drift-cutoff <"), std::string::npos)
+      << above.status().ToString();
   s.drift_cutoff_hz = -1;
-  EXPECT_NE(ValidateSetup(s).ToString().find("drift-cutoff = -1 violates drift-cutoff >= 0 Hz, finite"), std::string::npos);
+  EXPECT_NE(ValidateSetup(s).ToString().find("drift-cutoff = -1 violates drift-cutoff >= 0 Hz, finite"),
+            std::string::npos);
   s.drift_cutoff_hz = 0.5, s.output = OutputKind::kDisplacement, s.frame = OutputFrame::kRelative;
   EXPECT_NE(ValidateSetup(s).ToString().find("needs --output-kind velocity"), std::string::npos);
 }
@@ -155,7 +157,8 @@ TEST(Identify, RecordOffsetsShiftTheSimulatedDisplacement) {
   // A free mass (no forces, u = 0) stays where it starts: at the measured start plus its offset.
   Record r;
   r.dt = 0.01;
-  for (int i = 0; i < 100; ++i) r.t.push_back(i * r.dt), r.input.push_back(0.0), r.output.push_back(0.002 + 1e-6 * i * i);
+  for (int i = 0; i < 100; ++i)
+    r.t.push_back(i * r.dt), r.input.push_back(0.0), r.output.push_back(0.002 + 1e-6 * i * i);
   bistable::Setup s;
   s.input = InputKind::kForce;
   s.output = OutputKind::kDisplacement;
@@ -173,15 +176,16 @@ TEST(Identify, RecordOffsetsShiftTheSimulatedDisplacement) {
 
 TEST(Identify, FindsTheUndeclaredDisplacementDependentDamping) {
   const auto recs = Prepare(Chirps(0.05e-3));
-  const IdentifyResult r = Identify(Declared("main.linear,main.viscous,main.friction"), recs, bistable::Setup{}, Options());
+  const IdentifyResult r =
+      Identify(Declared("main.linear,main.viscous,main.friction"), recs, bistable::Setup{}, Options());
   ASSERT_GE(r.added.size(), 1u);
   EXPECT_EQ(r.added[0].term, "main.damping_y2");
   EXPECT_EQ(r.added.size(), 1u) << "only the missing effect is added";
   EXPECT_GT(r.before.errors.nrmse, 5.0);
   EXPECT_LT(r.after.errors.nrmse, 0.2 * r.before.errors.nrmse);
   EXPECT_NEAR(r.added[0].params[0], 8.9e3, 0.05 * 8.9e3);
-  std::printf("damping case: NRMSE %.3f %% -> %.3f %%, c2 = %.0f ± %.0f, %.1f s\n", r.before.errors.nrmse, r.after.errors.nrmse,
-              r.added[0].params[0], r.added[0].sigma[0], r.seconds);
+  std::printf("damping case: NRMSE %.3f %% -> %.3f %%, c2 = %.0f ± %.0f, %.1f s\n", r.before.errors.nrmse,
+              r.after.errors.nrmse, r.added[0].params[0], r.added[0].sigma[0], r.seconds);
 }
 
 TEST(Identify, NothingIsAddedWhenNothingIsMissing) {
@@ -224,7 +228,8 @@ TEST(Identify, OneRecordFitOnTwoThreadsEqualsTheSequentialFit) {
   Record rec = Chirps(0.05e-3)[0];
   auto p = PrepareRecord(rec, bistable::Setup{}, 0, 6 * 120, 0.0, rec.name);  // the first 6 s
   ASSERT_TRUE(p.ok()) << p.status().ToString();
-  EXPECT_LT(ExpectTheSameFitOnOneAndTwoThreads({*p}).errors.nrmse, 5.0);  // it did fit (8 % from the regression start without c2)
+  EXPECT_LT(ExpectTheSameFitOnOneAndTwoThreads({*p}).errors.nrmse,
+            5.0);  // it did fit (8 % from the regression start without c2)
 }
 
 // Substeps held by a fit are raised to what keeps RK4 stable at the evaluated parameters. Held below it (a
@@ -297,7 +302,8 @@ TEST(Identify, ForwardDifferencesEqualCeresToTheBit) {
   std::vector<double> r_ref, j_ref, r, j;
   ASSERT_TRUE(SpectralForwardJacobian(m, scale, u, {*p}, bistable::Setup{}, {2}, 1, true, &r_ref, &j_ref));
   ASSERT_EQ(j_ref.size(), r_ref.size() * 4);
-  EXPECT_GT(std::count_if(j_ref.begin(), j_ref.end(), [](double v) { return v != 0.0; }), static_cast<long>(j_ref.size() / 2));
+  EXPECT_GT(std::count_if(j_ref.begin(), j_ref.end(), [](double v) { return v != 0.0; }),
+            static_cast<long>(j_ref.size() / 2));
   for (int threads : {1, 3}) {
     ASSERT_TRUE(SpectralForwardJacobian(m, scale, u, {*p}, bistable::Setup{}, {2}, threads, false, &r, &j));
     EXPECT_EQ(r, r_ref) << threads;
@@ -306,11 +312,13 @@ TEST(Identify, ForwardDifferencesEqualCeresToTheBit) {
   Record rec2 = Chirps(0.05e-3)[1];
   auto p2 = PrepareRecord(rec2, bistable::Setup{}, 0, 2 * 120, 0.0, rec2.name);
   ASSERT_TRUE(p2.ok()) << p2.status().ToString();
-  const IdentModel m9 = Declared("main.linear,main.stiffness_y2,main.stiffness_y3,main.viscous,main.damping_y2,"
-                                 "main.damping_v3,main.drag,main.friction");
+  const IdentModel m9 = Declared(
+      "main.linear,main.stiffness_y2,main.stiffness_y3,main.viscous,main.damping_y2,"
+      "main.damping_v3,main.drag,main.friction");
   const std::vector<double> scale9 = {400.0, 1e3, 1e5, 2.0, 1e4, 10.0, 5.0, 1.0, 0.5};
   const std::vector<double> u9 = {1.1, 0.1, 0.2, 0.9, 0.7, 0.05, 0.1, 0.8, 0.3};
-  for (const std::vector<PreparedRecord>& recs : {std::vector<PreparedRecord>{*p}, std::vector<PreparedRecord>{*p, *p2}}) {
+  for (const std::vector<PreparedRecord>& recs :
+       {std::vector<PreparedRecord>{*p}, std::vector<PreparedRecord>{*p, *p2}}) {
     const std::vector<int> sub(recs.size(), 2);
     ASSERT_TRUE(SpectralForwardJacobian(m9, scale9, u9, recs, bistable::Setup{}, sub, 1, true, &r_ref, &j_ref));
     ASSERT_EQ(j_ref.size(), r_ref.size() * 9);
@@ -373,12 +381,14 @@ TEST(Identify, LaneSimulationsEqualTheScalarOnes) {
   {
     SCOPED_TRACE("harvester form: every force term kind, piezo, output terms");
     IdentModel m = bistable_test::Model(
-        "main.linear,main.stiffness_y2,main.stiffness_y3,main.stiffness_y5,main.viscous,main.damping_y2,main.damping_v3,"
+        "main.linear,main.stiffness_y2,main.stiffness_y3,main.stiffness_y5,main.viscous,main.damping_y2,main.damping_"
+        "v3,"
         "main.drag,main.friction,main.bias,main.piezo,out.velocity.scale,out.voltage.offset",
         {900.0, 2e4, 1.3e8, 1e12, 0.6, 5e3, 10.0, 2.0, 0.05, 0.02, 0.01, -130.0, 7.0, -9.0, 0.02, 1e-3});
-    const PreparedRecord r = bistable_test::SyntheticRecord(bistable_test::Model("main.linear,main.stiffness_y3,main.viscous,main.piezo",
-                                                                                 {900.0, 1.3e8, 0.6, -130.0, 7.0, -9.0}),
-                                                            1.0, 640);
+    const PreparedRecord r =
+        bistable_test::SyntheticRecord(bistable_test::Model("main.linear,main.stiffness_y3,main.viscous,main.piezo",
+                                                            {900.0, 1.3e8, 0.6, -130.0, 7.0, -9.0}),
+                                       1.0, 640);
     ExpectLanesEqualScalar(m, r, bistable_test::HarvesterSetup());
   }
   {
@@ -430,7 +440,7 @@ TEST(Identify, SpectralFitOnTwoThreadsEqualsTheSequentialFit) {
   EXPECT_EQ(one.message, two.message);
   EXPECT_EQ(one.errors.fft, two.errors.fft);
   EXPECT_GT(two.simulations, 2 * 5);  // Jacobians were evaluated (p + 1 simulations each)
-  EXPECT_NE(two.theta, m.theta);     // and the fit moved
+  EXPECT_NE(two.theta, m.theta);      // and the fit moved
 }
 
 // A refit that gains by leaving the fit's basin, not by its term (the coupled rig's declared fit stops at
@@ -466,7 +476,8 @@ TEST(Identify, AGainByLeavingTheBasinIsNotCreditedToTheTerm) {
     return std::make_pair(next, r);
   };
   IdentifyOptions io;
-  const double e0 = Evaluate(m, fit.theta, recs, bistable::Setup{}, 0.0).nrmse, before = 1.5 * e0;  // as if from a worse basin
+  const double e0 = Evaluate(m, fit.theta, recs, bistable::Setup{}, 0.0).nrmse,
+               before = 1.5 * e0;  // as if from a worse basin
   {
     const auto [next, refit] = refit_with(0.0, 0.5);
     FitResult without;
@@ -474,7 +485,8 @@ TEST(Identify, AGainByLeavingTheBasinIsNotCreditedToTheTerm) {
     EXPECT_EQ(without.theta, fit.theta);
     EXPECT_EQ(without.errors.nrmse, e0);
     EXPECT_TRUE(without.covariance.isApprox(fit.covariance, 1e-12)) << "no cross terms: conditional = marginal";
-    EXPECT_FALSE(GainWithoutTheTerm(m, next, refit, drag, e0, recs, bistable::Setup{}, io, &without)) << "no gain to keep";
+    EXPECT_FALSE(GainWithoutTheTerm(m, next, refit, drag, e0, recs, bistable::Setup{}, io, &without))
+        << "no gain to keep";
   }
   {
     // Drag correlated with c0 (ρ = −0.9): the model without drag has c0's conditional variance σ²(1 − ρ²), not σ².
@@ -488,7 +500,8 @@ TEST(Identify, AGainByLeavingTheBasinIsNotCreditedToTheTerm) {
     EXPECT_EQ(without.theta, fit.theta);
   }
   {
-    auto [next, refit] = refit_with(0.02, 0.5);  // insignificant; the refit's own error claimed far lower than without it
+    auto [next, refit] =
+        refit_with(0.02, 0.5);  // insignificant; the refit's own error claimed far lower than without it
     refit.errors.nrmse *= 0.5;
     FitResult without;
     EXPECT_FALSE(GainWithoutTheTerm(m, next, refit, drag, before, recs, bistable::Setup{}, io, &without));
@@ -528,11 +541,14 @@ TEST(Identify, CliFindsTheUndeclaredFrictionAndWritesTheReport) {
     ASSERT_TRUE(WriteRecordCsv(r, path).ok());
     data += " --data " + path;
   }
-  const auto p = Bistable("identify" + data + " --terms main.linear,main.viscous,main.damping_y2 --known m_main=0.282 --global-evals 40 --json --report " +
-                          dir + "/report");
+  const auto p = Bistable(
+      "identify" + data +
+      " --terms main.linear,main.viscous,main.damping_y2 --known m_main=0.282 --global-evals 40 --json --report " +
+      dir + "/report");
   ASSERT_EQ(p.exit_code, 0) << p.err;
   const auto j = nlohmann::json::parse(p.out);
-  for (const char* key : {"error_before", "error_after", "effects_added", "params", "records"}) EXPECT_TRUE(j.contains(key)) << key;
+  for (const char* key : {"error_before", "error_after", "effects_added", "params", "records"})
+    EXPECT_TRUE(j.contains(key)) << key;
   ASSERT_EQ(j["effects_added"].size(), 1u) << j["effects_added"].dump();
   EXPECT_EQ(j["effects_added"][0]["term"], "main.friction");
   EXPECT_NEAR(j["effects_added"][0]["params"]["F_c"].get<double>(), 0.65, 0.1 * 0.65);
@@ -550,9 +566,11 @@ TEST(Identify, CliFindsTheUndeclaredFrictionAndWritesTheReport) {
 TEST(IdentifyRig, CoupledRigLoopReachesTheTruthFromTheDeclaredFit) {
   const std::string dir = FreshDir("identify", "rig");
   ASSERT_EQ(Bistable("identify --make-synthetic " + dir + " --synthetic coupled").exit_code, 0);
-  const auto p = Bistable("identify --data " + dir + "/coupled_70s.csv --columns resonator=xr --known m_main=0.282,m_res=0.62 "
-                          "--terms main.linear,main.stiffness_y3,main.viscous,main.damping_y2,main.friction,res.linear,res.viscous,"
-                          "res.damping_z2,res.friction --json");
+  const auto p = Bistable(
+      "identify --data " + dir +
+      "/coupled_70s.csv --columns resonator=xr --known m_main=0.282,m_res=0.62 "
+      "--terms main.linear,main.stiffness_y3,main.viscous,main.damping_y2,main.friction,res.linear,res.viscous,"
+      "res.damping_z2,res.friction --json");
   ASSERT_EQ(p.exit_code, 0) << p.err;
   const auto j = nlohmann::json::parse(p.out);
   EXPECT_LT(j["error_before"].get<double>(), 1.2);  // the declared fit (3.10 % in the wrong basin)
@@ -560,10 +578,13 @@ TEST(IdentifyRig, CoupledRigLoopReachesTheTruthFromTheDeclaredFit) {
   EXPECT_EQ(j["effects_added"].size(), 0u) << j["effects_added"].dump();
   EXPECT_TRUE(j["unexplained"].is_null()) << j["unexplained"].dump();
   const auto& th = j["params"];
-  const std::vector<std::pair<const char*, std::pair<double, double>>> truth = {  // value, relative tolerance
-      {"main.friction.F_s", {1.2, 0.02}},     {"main.friction.F_c", {0.44, 0.02}}, {"main.damping_y2.c2", {8600, 0.05}},
-      {"main.viscous.c0", {1.5, 0.1}},        {"res.friction.F_s", {1.4, 0.02}},   {"res.friction.F_c", {0.59, 0.02}},
-      {"res.damping_z2.c2", {38700, 0.05}}, {"res.viscous.c0", {4.6, 0.05}},     {"main.stiffness_y3.k3", {2.15e6, 0.02}}};
+  const std::vector<std::pair<const char*, std::pair<double, double>>> truth = {
+      // value, relative tolerance
+      {"main.friction.F_s", {1.2, 0.02}},      {"main.friction.F_c", {0.44, 0.02}},
+      {"main.damping_y2.c2", {8600, 0.05}},    {"main.viscous.c0", {1.5, 0.1}},
+      {"res.friction.F_s", {1.4, 0.02}},       {"res.friction.F_c", {0.59, 0.02}},
+      {"res.damping_z2.c2", {38700, 0.05}},    {"res.viscous.c0", {4.6, 0.05}},
+      {"main.stiffness_y3.k3", {2.15e6, 0.02}}};
   for (const auto& [name, v] : truth) EXPECT_NEAR(th[name].get<double>(), v.first, v.second * v.first) << name;
   std::filesystem::remove_all(dir);
 }
@@ -587,7 +608,8 @@ TEST(Identify, CliFitsADaqExportLikeThePlainCsv) {
   }
   std::ofstream(dir + "/plain.csv", std::ios::binary) << plain;
   std::ofstream(dir + "/daq.csv", std::ios::binary) << daq;
-  const std::string args = " --terms main.linear,main.viscous --known m_main=1 --max-added 0 --global-evals 0 --horizon 0 --json";
+  const std::string args =
+      " --terms main.linear,main.viscous --known m_main=1 --max-added 0 --global-evals 0 --horizon 0 --json";
   const auto a = Bistable("identify --data " + dir + "/plain.csv" + args);
   const auto b = Bistable("identify --data " + dir + "/daq.csv" + args);
   ASSERT_EQ(a.exit_code, 0) << a.err;
@@ -599,7 +621,8 @@ TEST(Identify, CliFitsADaqExportLikeThePlainCsv) {
     // ms → s and mm → m multiply by 1e-3, which is not the decimal division the plain file's text
     // holds: a last-digit difference in the data, far below the fit's own precision.
     if (ja[key].is_object()) {
-      for (const auto& [k, v] : ja[key].items()) EXPECT_NEAR(v.get<double>(), jb[key][k].get<double>(), 1e-6 * std::fabs(v.get<double>())) << k;
+      for (const auto& [k, v] : ja[key].items())
+        EXPECT_NEAR(v.get<double>(), jb[key][k].get<double>(), 1e-6 * std::fabs(v.get<double>())) << k;
     } else {
       EXPECT_NEAR(ja[key].get<double>(), jb[key].get<double>(), 1e-6 * std::fabs(ja[key].get<double>()));
     }
@@ -614,11 +637,13 @@ TEST(Identify, LmIterationsCapEveryStage) {
   std::string csv = "t,x0,x\n";
   char line[96];
   for (int i = 0; i < 400; ++i) {  // a linear oscillator's steady response: omega 2, x = 1.2 x0 with a lag
-    std::snprintf(line, sizeof line, "%.3f,%.9f,%.9f\n", i * 0.01, 0.001 * std::sin(i * 0.02), 0.0012 * std::sin(i * 0.02 - 0.2));
+    std::snprintf(line, sizeof line, "%.3f,%.9f,%.9f\n", i * 0.01, 0.001 * std::sin(i * 0.02),
+                  0.0012 * std::sin(i * 0.02 - 0.2));
     csv += line;
   }
   std::ofstream(dir + "/d.csv") << csv;
-  const std::string args = "identify --data " + dir + "/d.csv --terms main.linear,main.viscous --known m_main=1 --max-added 0 " +
+  const std::string args = "identify --data " + dir +
+                           "/d.csv --terms main.linear,main.viscous --known m_main=1 --max-added 0 " +
                            "--global-evals 0 --horizon 0 --guess main.linear.k_lin=40,main.viscous.c0=30 --json";
   const auto full = Bistable(args), one = Bistable(args + " --lm-iterations 1");
   ASSERT_EQ(full.exit_code, 0) << full.err;
@@ -638,32 +663,44 @@ TEST(Identify, BadInputNamesTheFileRowOrTerm) {
     return dir + "/" + name;
   };
   std::string good = "t,x0,x\n";
-  for (int i = 0; i < 200; ++i) good += std::to_string(i * 0.01) + "," + std::to_string(0.001 * std::sin(i * 0.3)) + "," +
-                                        std::to_string(0.0012 * std::sin(i * 0.3 - 0.2)) + "\n";
+  for (int i = 0; i < 200; ++i)
+    good += std::to_string(i * 0.01) + "," + std::to_string(0.001 * std::sin(i * 0.3)) + "," +
+            std::to_string(0.0012 * std::sin(i * 0.3 - 0.2)) + "\n";
   const std::string ok = write("ok.csv", good);
   struct Case {
     std::string args, expect;
   };
   const Case cases[] = {
-      {"--data " + write("nocol.csv", "t,x0,pos\n0,0,0\n0.01,0,0\n") + " --terms main.linear --known m_main=1", "(output): unknown column 'x'"},
-      {"--data " + write("back.csv", "t,x0,x\n0,0,0\n0.01,0,0\n0.02,0,0\n0.015,0,0\n") + " --terms main.linear --known m_main=1",
+      {"--data " + write("nocol.csv", "t,x0,pos\n0,0,0\n0.01,0,0\n") + " --terms main.linear --known m_main=1",
+       "(output): unknown column 'x'"},
+      {"--data " + write("back.csv", "t,x0,x\n0,0,0\n0.01,0,0\n0.02,0,0\n0.015,0,0\n") +
+           " --terms main.linear --known m_main=1",
        "row 5: time 0.015 is before the previous row's 0.02"},
-      {"--data " + write("dup.csv", "t,x0,x\n0,0,0\n0.01,0,0\n0.01,0,0\n") + " --terms main.linear --known m_main=1", "row 4: time 0.01 repeats"},
-      {"--data " + write("gap.csv", "t,x0,x\n0,0,0\n0.01,nan,0\n") + " --terms main.linear --known m_main=1", "row 3 column 'x0': 'nan'"},
-      {"--data " + ok + " --terms main.linear,main.stifness_y3 --known m_main=1", "unknown term 'main.stifness_y3'; did you mean 'main.stiffness_y3'?"},
-      {"--data " + write("short.csv", "t,x0,x\n0,0,0\n0.01,0,0.001\n0.02,0,0.002\n") + " --terms main.linear --known m_main=1",
+      {"--data " + write("dup.csv", "t,x0,x\n0,0,0\n0.01,0,0\n0.01,0,0\n") + " --terms main.linear --known m_main=1",
+       "row 4: time 0.01 repeats"},
+      {"--data " + write("gap.csv", "t,x0,x\n0,0,0\n0.01,nan,0\n") + " --terms main.linear --known m_main=1",
+       "row 3 column 'x0': 'nan'"},
+      {"--data " + ok + " --terms main.linear,main.stifness_y3 --known m_main=1",
+       "unknown term 'main.stifness_y3'; did you mean 'main.stiffness_y3'?"},
+      {"--data " + write("short.csv", "t,x0,x\n0,0,0\n0.01,0,0.001\n0.02,0,0.002\n") +
+           " --terms main.linear --known m_main=1",
        "has 3 samples in the range used; at least 64"},
       {"--data " + ok + " --terms main.linear --known m_mian=1", "unknown constant 'm_mian'; did you mean 'm_main'?"},
       {"--data " + ok + " --terms main.linear", "known.m_main"},
       {"--data " + ok + " --terms main.linear --known m_main=-1", "m_main = -1 violates m_main > 0"},
       {"--data " + ok + " --terms main.linear,res.linear --known m_main=1", "give its mass"},
-      {"--data " + ok + " --terms main.linear --known m_main=1 --objective phase", "objective in {auto, time, fft, shooting}"},
-      {"--data " + ok + " --terms main.linear --known m_main=1 --objective shooting --horizon 0", "violates horizon > 0 s"},
+      {"--data " + ok + " --terms main.linear --known m_main=1 --objective phase",
+       "objective in {auto, time, fft, shooting}"},
+      {"--data " + ok + " --terms main.linear --known m_main=1 --objective shooting --horizon 0",
+       "violates horizon > 0 s"},
       {"--data " + ok + " --terms main.linear --known m_main=1 --horizon 1e9", "violates 0 <= horizon <= 3600 s"},
-      {"--data " + ok + " --terms main.linear --known m_main=1 --output-weights equal", "violates output-weights in {residual, noise}"},
+      {"--data " + ok + " --terms main.linear --known m_main=1 --output-weights equal",
+       "violates output-weights in {residual, noise}"},
       {"--data " + dir + "/absent.csv --terms main.linear --known m_main=1", "absent.csv"},
-      {"--data " + ok + " --terms main.linear,out.voltage.offset --known m_main=1", "acts on a voltage output; this run's outputs are displacement"},
-      {"--data " + ok + " --columns output2=piezo --terms main.linear --known m_main=1", "(output2): unknown column 'piezo'"},
+      {"--data " + ok + " --terms main.linear,out.voltage.offset --known m_main=1",
+       "acts on a voltage output; this run's outputs are displacement"},
+      {"--data " + ok + " --columns output2=piezo --terms main.linear --known m_main=1",
+       "(output2): unknown column 'piezo'"},
   };
   for (const Case& c : cases) {
     const auto p = Bistable("identify " + c.args + " --max-added 0 --global-evals 0");

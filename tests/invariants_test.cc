@@ -33,7 +33,9 @@ Eigen::MatrixXd Gaussian(long n, long dims, double mean, unsigned seed) {
 }
 
 // D² of N(0, 1) against N(μ, 1): 2 E|X − Y| − E|X − X'| − E|Y − Y'| with X − Y ~ N(μ, 2).
-double GaussianEnergy(double mu) { return 4.0 / std::sqrt(M_PI) * (std::exp(-mu * mu / 4) - 1) + 2 * mu * std::erf(mu / 2); }
+double GaussianEnergy(double mu) {
+  return 4.0 / std::sqrt(M_PI) * (std::exp(-mu * mu / 4) - 1) + 2 * mu * std::erf(mu / 2);
+}
 
 TEST(IdentifyInvariants, EnergyDistanceOfGaussiansMatchesTheClosedForm) {
   const Eigen::MatrixXd a = Gaussian(2000, 1, 0.0, 1);
@@ -124,14 +126,17 @@ TEST(IdentifyInvariants, AttractorLossNamesWhatTheFreeRunLost) {
   EXPECT_EQ(AttractorLoss(before, after), "");
   after.switching_rate = 0.0;
   after.right_well_fraction = NAN;  // one well
-  EXPECT_EQ(AttractorLoss(before, after), "no change of well over the record (2.23/s before, measured 0.5/s, one well)");
+  EXPECT_EQ(AttractorLoss(before, after),
+            "no change of well over the record (2.23/s before, measured 0.5/s, one well)");
   after.poincare = 0.398;
   EXPECT_EQ(AttractorLoss(before, after),
-            "no change of well over the record (2.23/s before, measured 0.5/s, one well); the Poincaré section beyond the measured floor "
+            "no change of well over the record (2.23/s before, measured 0.5/s, one well); the Poincaré section beyond "
+            "the measured floor "
             "(H 0.031 -> 0.398, floor 0.156)");
   after = Invariants{};  // the free run diverged: ComputeInvariants gives no field, the measured ones neither
   EXPECT_EQ(AttractorLoss(before, after),
-            "no change of well over the record (2.23/s before, measured 0.5/s, the free run diverged); the Poincaré section beyond the "
+            "no change of well over the record (2.23/s before, measured 0.5/s, the free run diverged); the Poincaré "
+            "section beyond the "
             "measured floor (H 0.031 -> nan, floor 0.156)");
   after = before;
   after.switching_rate = 0.0;  // two wells, but no change between them
@@ -156,12 +161,13 @@ TEST(IdentifyInvariants, AttractorLossNamesWhatTheFreeRunLost) {
 // barrier rule but never changes well; the period rule counts the changes of well only, whatever the
 // displacement's mean (a velocity sensor loses it), each series by its own split.
 TEST(IdentifyInvariants, WellsByForcingPeriodIgnoreWideOrbitsAndTheMean) {
-  const double dt = 1e-3, f = 5.0;               // 200 samples per period
+  const double dt = 1e-3, f = 5.0;                                             // 200 samples per period
   const std::vector<int> wells = {-1, -1, 1, 1, 1, -1, 1, 1, -1, -1, -1, -1};  // 4 changes, 5 of 12 periods right
   auto record = [&](double offset, double orbit, const std::vector<int>& pattern) {
     std::vector<double> y;
     for (size_t k = 0; k < pattern.size(); ++k)
-      for (int i = 0; i < 200; ++i) y.push_back(offset + 0.02 * pattern[k] + orbit * std::sin(2 * M_PI * f * (200 * k + i) * dt));
+      for (int i = 0; i < 200; ++i)
+        y.push_back(offset + 0.02 * pattern[k] + orbit * std::sin(2 * M_PI * f * (200 * k + i) * dt));
     return y;
   };
   const std::vector<double> y = record(0.0, 0.05, wells);  // orbit ±50 mm about wells at ±20 mm
@@ -178,7 +184,8 @@ TEST(IdentifyInvariants, WellsByForcingPeriodIgnoreWideOrbitsAndTheMean) {
   EXPECT_EQ(c.right, 5);
   EXPECT_EQ(c.left, 7);
   // A mean of 7 mm (a zero-mean integral of an unequal occupancy) changes nothing.
-  const WellSwitching shifted = WellsOf(record(0.007, 0.05, wells), record(0.007, 0.05, std::vector<int>(12, 1)), dt, f);
+  const WellSwitching shifted =
+      WellsOf(record(0.007, 0.05, wells), record(0.007, 0.05, std::vector<int>(12, 1)), dt, f);
   EXPECT_EQ(shifted.measured.switches, 4);
   EXPECT_EQ(shifted.simulated.switches, 0) << "a model staying in one well";
   EXPECT_FALSE(shifted.simulated_split.two_wells);
@@ -211,7 +218,8 @@ TEST(IdentifyInvariants, WellsByForcingPeriodIgnoreWideOrbitsAndTheMean) {
 PreparedRecord ForcedRecord(const std::vector<double>& out, double dt) {
   Record r;
   r.dt = dt;
-  for (size_t i = 0; i < out.size(); ++i) r.t.push_back(i * dt), r.input.push_back(std::cos(2 * M_PI * 6.5 * i * dt)), r.output.push_back(out[i]);
+  for (size_t i = 0; i < out.size(); ++i)
+    r.t.push_back(i * dt), r.input.push_back(std::cos(2 * M_PI * 6.5 * i * dt)), r.output.push_back(out[i]);
   bistable::Setup s;
   s.input = InputKind::kForce;
   s.output = OutputKind::kDisplacement;
@@ -241,7 +249,8 @@ TEST(IdentifyInvariants, BroadbandResponsesToPeriodicForcingAreMarkedChaotic) {
   EXPECT_FALSE(c.record_chaotic[0]);
   EXPECT_TRUE(c.record_chaotic[1]);
   EXPECT_TRUE(c.chaotic);
-  EXPECT_TRUE(CheckChaos({ForcedRecord(locked, dt)}, s, Objective::kFft).chaotic) << "the spectral objective marks every record";
+  EXPECT_TRUE(CheckChaos({ForcedRecord(locked, dt)}, s, Objective::kFft).chaotic)
+      << "the spectral objective marks every record";
 }
 
 std::vector<double> WhiteNoise(size_t n, unsigned seed) {
@@ -348,21 +357,23 @@ TEST(IdentifyDiagnostics, AStructuredResidualNoCandidateExplainsIsUnexplained) {
 TEST(IdentifyDiagnostics, CliReportsInvariantsOfTheChaoticHarvesterRecord) {
   const std::string data = bistable_test::HarvesterFile("bistable_sym_interwell_6p5Hz.csv");
   if (!std::filesystem::exists(data)) GTEST_SKIP() << data << " absent";
-  const auto p = Bistable("identify --data " + data + bistable_test::kHarvesterFlags + " --columns input=base_acc_g,output=laser_V"
-                          " --candidates main.stiffness_y2,main.stiffness_y5,main.damping_y2,main.damping_v3,main.drag,main.bias"
-                          " --objective fft --max-seconds 8 --decimate 4 --json");
+  const auto p =
+      Bistable("identify --data " + data + bistable_test::kHarvesterFlags +
+               " --columns input=base_acc_g,output=laser_V"
+               " --candidates main.stiffness_y2,main.stiffness_y5,main.damping_y2,main.damping_v3,main.drag,main.bias"
+               " --objective fft --max-seconds 8 --decimate 4 --json");
   ASSERT_EQ(p.exit_code, 0) << p.err;
   const auto j = nlohmann::json::parse(p.out);
-  for (const char* key : {"error_before", "error_after", "effects_added", "params", "records", "seconds", "invariants", "unexplained",
-                          "correlations", "whiteness", "chaos_check", "refits", "separability"})
+  for (const char* key : {"error_before", "error_after", "effects_added", "params", "records", "seconds", "invariants",
+                          "unexplained", "correlations", "whiteness", "chaos_check", "refits", "separability"})
     EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_TRUE(j["chaos_check"]["chaotic"].get<bool>());
   EXPECT_NEAR(j["chaos_check"]["records"][0]["forcing_hz"].get<double>(), 6.5, 1e-3);
   const auto& inv = j["invariants"];
   ASSERT_TRUE(inv.is_object());
   for (const char* when : {"before", "after"})
-    for (const char* key : {"poincare_energy", "poincare_floor", "switching_rate_hz", "switching_rate_measured_hz", "velocity_hellinger",
-                            "spectral_error_percent"})
+    for (const char* key : {"poincare_energy", "poincare_floor", "switching_rate_hz", "switching_rate_measured_hz",
+                            "velocity_hellinger", "spectral_error_percent"})
       EXPECT_TRUE(inv[when][key].is_number()) << when << "." << key;
   EXPECT_EQ(inv["steps"].size(), j["refits"].size());
   EXPECT_TRUE(inv["attractor_lost"].is_null() || inv["attractor_lost"].is_string());
@@ -371,7 +382,8 @@ TEST(IdentifyDiagnostics, CliReportsInvariantsOfTheChaoticHarvesterRecord) {
   EXPECT_GT(inv["before"]["switching_rate_measured_hz"].get<double>(), 1.0) << "cross-well motion";
   for (const auto& e : j["effects_added"]) EXPECT_TRUE(e.contains("drift")) << e.dump();
   ASSERT_TRUE(j["unexplained"].is_object()) << "a chaotic record's residual is far from white here";
-  for (const char* key : {"statistic", "p_value", "dominant_frequencies_hz", "message"}) EXPECT_TRUE(j["unexplained"].contains(key)) << key;
+  for (const char* key : {"statistic", "p_value", "dominant_frequencies_hz", "message"})
+    EXPECT_TRUE(j["unexplained"].contains(key)) << key;
 }
 
 // A record without periodic forcing: invariants null; a white residual: unexplained null.
@@ -383,9 +395,10 @@ TEST(IdentifyDiagnostics, CliGivesNullInvariantsAndUnexplainedForAWhiteNonChaoti
   o.a0_m = 0.010;
   o.seed = 5;
   ASSERT_TRUE(WriteRecordCsv(*MakeSyntheticRecord(p, o, "chirp"), dir + "/c.csv").ok());
-  const auto r = Bistable("identify --data " + dir +
-                          "/c.csv --terms main.linear,main.viscous,main.damping_y2,main.friction --known m_main=0.282 --max-added 0 "
-                          "--global-evals 0 --json");
+  const auto r = Bistable(
+      "identify --data " + dir +
+      "/c.csv --terms main.linear,main.viscous,main.damping_y2,main.friction --known m_main=0.282 --max-added 0 "
+      "--global-evals 0 --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_TRUE(j["invariants"].is_null());

@@ -38,7 +38,8 @@ double Lane1(bool tanh, double x) { return ApplyLanes<1>(tanh, {x}, 0)[0]; }
 // x evenly spaced over [lo, hi] (n points) plus a jitter that reaches the low mantissa bits.
 std::vector<double> Samples(double lo, double hi, long n) {
   std::vector<double> x;
-  for (long i = 0; i < n; ++i) x.push_back(lo + (hi - lo) * ((static_cast<double>(i) + 0.318309886 * ((i * 7919) % 1000) / 1000.0) / n));
+  for (long i = 0; i < n; ++i)
+    x.push_back(lo + (hi - lo) * ((static_cast<double>(i) + 0.318309886 * ((i * 7919) % 1000) / 1000.0) / n));
   return x;
 }
 
@@ -138,7 +139,8 @@ TEST(LaneMath, TanhSpecialCases) {
 TEST(LaneMath, SameBitsAtEveryWidth) {
   std::vector<double> x = Samples(-30, 30, 20011);
   // The one-lane tanh takes only its branch, and returns ±1 from |x| ≥ 20 on: both edges.
-  for (double v : {0.0, -0.0, 1e-310, -800.0, 709.9, 0.55, -0.55, 0.5499999999999999, 19.06, 19.5, 19.999999999999996, 20.0, -20.0})
+  for (double v : {0.0, -0.0, 1e-310, -800.0, 709.9, 0.55, -0.55, 0.5499999999999999, 19.06, 19.5, 19.999999999999996,
+                   20.0, -20.0})
     x.push_back(v);
   // Subnormal results and the overflow edge: the 2^n scaling (VSCALEFPD in 8-lane chunks on AVX-512,
   // two multiplications in the one-point path) must round the same.

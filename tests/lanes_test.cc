@@ -16,6 +16,7 @@
 
 #include <gtest/gtest.h>
 
+#include "base/cpus.h"
 #include "dynamics/cancel.h"
 #include "dynamics/dopri5.h"
 #include "dynamics/ensemble_generic.h"
@@ -23,7 +24,6 @@
 #include "dynamics/friction.h"
 #include "dynamics/generic_point.h"
 #include "dynamics/host_lanes.h"
-#include "base/cpus.h"
 #include "dynamics/point.h"
 #include "engine/evaluate.h"
 #include "engine/sweep_spec.h"
@@ -61,7 +61,8 @@ void ExpectLanesEqualOnePointPath(const SweepSpec& spec) {
     auto lanes = EvaluateItemsInLanes(spec, items, width);
     ASSERT_TRUE(lanes.has_value());
     for (size_t i = 0; i < items.size(); ++i)
-      EXPECT_TRUE(SameBits(PointRecord::From((*lanes)[i]), alone[i])) << "width " << width << " point " << items[i].point;
+      EXPECT_TRUE(SameBits(PointRecord::From((*lanes)[i]), alone[i]))
+          << "width " << width << " point " << items[i].point;
   }
   const std::vector<PointRecord> sweep = ComputeItems(spec, items);
   ASSERT_EQ(sweep.size(), items.size());
@@ -118,7 +119,8 @@ SweepSpec RigSweep(const std::string& dimensional) {
   return Parse(R"(
 model = "dimensional"
 [dimensional]
-)" + dimensional + R"(
+)" + dimensional +
+               R"(
 [axes]
 a0_mm = [0.5, 3.0, 10.0]
 f0_hz = [2.0, 3.5, 6.0]
@@ -256,7 +258,8 @@ TEST(DimensionalLanes, FrictionForceAndSlopeInLanesHaveTheBitsOfWidthOne) {
 // and slope equal the law's own operations at every velocity, signed zeros and subnormals included;
 // a non-finite velocity gives NaN both ways. A −0 force keeps the law.
 TEST(DimensionalLanes, FrictionlessBodySkipsTheLawWithItsBits) {
-  std::vector<double> vs = {0.0, -0.0, 4.9e-324, -4.9e-324, 2.2e-308, -2.2e-308, 1e-300, -1e-300, 1e150, -1e150, 1e152, -1e152, 1e300, -1e300, 1e307, -1e307, 1.7e308};
+  std::vector<double> vs = {0.0,    -0.0,  4.9e-324, -4.9e-324, 2.2e-308, -2.2e-308, 1e-300, -1e-300, 1e150,
+                            -1e150, 1e152, -1e152,   1e300,     -1e300,   1e307,     -1e307, 1.7e308};
   for (double v = -0.3; v <= 0.3; v += 0.000617) vs.push_back(v);
   for (const Stribeck f : {Stribeck{0, 0}, Stribeck{0, 0, 0.01, 0.0003}, Stribeck{-0.0, 0}, Stribeck{0, -0.0}}) {
     const Stribeck::Lanes fl(f);
@@ -309,7 +312,9 @@ void ExpectFastLoopEqualsGeneralLoop(const std::vector<Input>& in, KernelSetting
   ASSERT_TRUE(run(in.data(), ks, fast.data()));
   ks.keep_rows = true;
   ASSERT_TRUE(run(in.data(), ks, general.data()));
-  auto same = [](const auto& a, const auto& b) { return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0; };
+  auto same = [](const auto& a, const auto& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0;
+  };
   for (int l = 0; l < 8; ++l) {
     const RawLane &f = fast[l], &g = general[l];
     EXPECT_EQ(std::memcmp(&f.vabs_max, &g.vabs_max, sizeof(double)), 0) << l;
@@ -383,7 +388,8 @@ SweepSpec RosenbrockRigSweep(const std::string& dimensional) {
   return Parse(R"(
 model = "dimensional"
 [dimensional]
-)" + dimensional + R"(
+)" + dimensional +
+               R"(
 [axes]
 a0_mm = [0.5, 3.0, 10.0]
 f0_hz = [2.0, 3.5, 6.0]
@@ -419,10 +425,12 @@ a0_mm = [1.0]
 [integration]
 integrator = "rosenbrock"
 rtol = 1e-7
-)", "t.toml");
+)",
+                              "t.toml");
   ASSERT_TRUE(given.ok()) << given.status().ToString();
   EXPECT_EQ(given->base.integration.rtol, 1e-7);
-  auto cell = ParseSweepSpec("model = \"coupled\"\n[axes]\nomega = [1.0]\n[integration]\nintegrator = \"rosenbrock\"\n", "t.toml");
+  auto cell = ParseSweepSpec("model = \"coupled\"\n[axes]\nomega = [1.0]\n[integration]\nintegrator = \"rosenbrock\"\n",
+                             "t.toml");
   ASSERT_FALSE(cell.ok());
   EXPECT_EQ(cell.status().field(), "integration.integrator") << cell.status().ToString();
   auto fast = ParseSweepSpec(R"(
@@ -431,7 +439,8 @@ model = "dimensional"
 f0_hz = [10.0, 150.0]
 [integration]
 integrator = "rosenbrock"
-)", "t.toml");
+)",
+                             "t.toml");
   ASSERT_FALSE(fast.ok());
   EXPECT_EQ(fast.status().field(), "axes.f0_hz[1]") << fast.status().ToString();
   PointSpec point;
@@ -448,12 +457,14 @@ integrator = "rosenbrock"
     EXPECT_TRUE(d.UsesGenericLanes()) << text;
     EXPECT_EQ(d.ItemKey(0, 0), named.ItemKey(0, 0)) << "the default is the rosenbrock path, keys and all";
   }
-  const SweepSpec dp5 = Parse("model = \"dimensional\"\n[axes]\na0_mm = [1.0]\n[integration]\nintegrator = \"adaptive\"\n");
+  const SweepSpec dp5 =
+      Parse("model = \"dimensional\"\n[axes]\na0_mm = [1.0]\n[integration]\nintegrator = \"adaptive\"\n");
   EXPECT_EQ(dp5.base.integration.rtol, 1e-6);
   EXPECT_FALSE(dp5.UsesGenericLanes());
   auto fast_default = ParseSweepSpec("model = \"dimensional\"\n[axes]\nf0_hz = [150.0]\n", "t.toml");
   ASSERT_FALSE(fast_default.ok());
-  EXPECT_NE(fast_default.status().message().find("integrator = 'adaptive'"), std::string::npos) << fast_default.status().ToString();
+  EXPECT_NE(fast_default.status().message().find("integrator = 'adaptive'"), std::string::npos)
+      << fast_default.status().ToString();
 }
 
 // Fixed steps on a smooth problem (the rig without friction: cubic spring, c2 dampers, resonator):
@@ -523,15 +534,16 @@ TEST(RosenbrockLanes, StickSlipAgreesWithDormandPrince) {
   x << in.x0[0], 0, 0, 0;
   double slow_m = 0, slow_r = 0;  // time with |y'| and |z'| below v_t (1 mm/s) in the second second: sticking
   double t_prev = 0;
-  ASSERT_EQ(dp.Integrate(0.0, x, 2.0, [&](const Dopri5<DimensionalModel>& st) {
-              const double t = st.t(), dt = t - t_prev;
-              t_prev = t;
-              if (t < 1.0) return;
-              DimensionalModel::State xi;
-              st.Interpolate(t, xi);
-              if (std::fabs(xi[1]) < p.fric_m.v_t) slow_m += dt;
-              if (std::fabs(xi[3]) < p.fric_r.v_t) slow_r += dt;
-            }),
+  ASSERT_EQ(dp.Integrate(0.0, x, 2.0,
+                         [&](const Dopri5<DimensionalModel>& st) {
+                           const double t = st.t(), dt = t - t_prev;
+                           t_prev = t;
+                           if (t < 1.0) return;
+                           DimensionalModel::State xi;
+                           st.Interpolate(t, xi);
+                           if (std::fabs(xi[1]) < p.fric_m.v_t) slow_m += dt;
+                           if (std::fabs(xi[3]) < p.fric_r.v_t) slow_r += dt;
+                         }),
             OdeTermination::kOk);
   std::printf("time below v_t in [1, 2] s: main mass %.3f s, resonator %.3f s\n", slow_m, slow_r);
   EXPECT_GT(slow_m + slow_r, 0.02);
@@ -573,7 +585,7 @@ dt = 0.001
     EXPECT_NEAR(a.frf_db, b.frf_db, 0.01) << p;
     EXPECT_NEAR(a.y_max, b.y_max, 1e-5) << p;  // m
     EXPECT_NEAR(a.y_min, b.y_min, 1e-5) << p;
-    EXPECT_NEAR(a.lle, b.lle, 0.05) << p;      // 1/s
+    EXPECT_NEAR(a.lle, b.lle, 0.05) << p;  // 1/s
     EXPECT_EQ(a.motion, b.motion) << p;
     EXPECT_EQ(a.period, b.period) << p;
   }
@@ -641,7 +653,9 @@ TEST(HostLanes, SayTheEnginesWidthAndTheCpusUnit) {
   }
   const std::string line = HostLanesLine(h);
   EXPECT_NE(line.find("cpu: " + h.cpu_model + " | isa: " + h.isa), std::string::npos) << line;
-  EXPECT_NE(line.find("| lanes: " + std::to_string(kSweepLanes) + " (fixed at compile time: -march="), std::string::npos) << line;
+  EXPECT_NE(line.find("| lanes: " + std::to_string(kSweepLanes) + " (fixed at compile time: -march="),
+            std::string::npos)
+      << line;
 }
 
 TEST(HostLanes, LineSaysAWiderCpuAndTheCpuinfoNameIsTrimmed) {
@@ -655,9 +669,11 @@ TEST(HostLanes, LineSaysAWiderCpuAndTheCpuinfoNameIsTrimmed) {
             "cpu: AMD EPYC 7R13 Processor | isa: AVX2+FMA (the CPU has AVX-512) | lanes: 4 (fixed at compile time: "
             "-march=x86-64-v3)");
   h.isa = h.cpu_isa = "AVX-512", h.march = "native", h.lanes = 8;
-  EXPECT_EQ(HostLanesLine(h), "cpu: AMD EPYC 7R13 Processor | isa: AVX-512 | lanes: 8 (fixed at compile time: -march=native)");
-  EXPECT_EQ(CpuModelFromCpuinfo("processor\t: 0\nvendor_id\t: AuthenticAMD\nmodel name\t: AMD EPYC 9R14 \r\nflags\t: fpu\n"),
-            "AMD EPYC 9R14");
+  EXPECT_EQ(HostLanesLine(h),
+            "cpu: AMD EPYC 7R13 Processor | isa: AVX-512 | lanes: 8 (fixed at compile time: -march=native)");
+  EXPECT_EQ(
+      CpuModelFromCpuinfo("processor\t: 0\nvendor_id\t: AuthenticAMD\nmodel name\t: AMD EPYC 9R14 \r\nflags\t: fpu\n"),
+      "AMD EPYC 9R14");
   EXPECT_EQ(CpuModelFromCpuinfo("processor\t: 0\nBogoMIPS\t: 50.00\n"), "");
 }
 

@@ -4,8 +4,8 @@
 #include <functional>
 #include <vector>
 
-#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include "dynamics/benettin.h"
 #include "dynamics/dopri5.h"
@@ -177,8 +177,8 @@ TEST(LyapunovSpectrum, ChaoticPointHasOnePositiveExponentAndAFractalDimension) {
   // (λ1, 0, λ2, λ3, λ4) with λ1 + λ2 > 0 here: between 3 and 4 (measured 3.41).
   EXPECT_GT(sp->kaplan_yorke, 2.0);
   EXPECT_LT(sp->kaplan_yorke, 5.0);
-  EXPECT_DOUBLE_EQ(sp->kaplan_yorke, KaplanYorkeDimension({sp->exponents[0], sp->exponents[1], sp->exponents[2],
-                                                           sp->exponents[3], 0.0}));
+  EXPECT_DOUBLE_EQ(sp->kaplan_yorke,
+                   KaplanYorkeDimension({sp->exponents[0], sp->exponents[1], sp->exponents[2], sp->exponents[3], 0.0}));
 }
 
 // On a periodic orbit the exponents are the Floquet exponents log|μ_i|/T of its monodromy matrix,
@@ -235,10 +235,10 @@ TEST(LyapunovSpectrum, StandaloneHasTwoExponentsSummingToMinusEta) {
 }
 
 TEST(LyapunovSpectrum, KaplanYorkeDimensionOfKnownSpectra) {
-  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({-0.1, -0.2}), 0.0);                // a fixed point
-  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({0.0, -0.1, -0.2}), 1.0);           // a limit cycle
-  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({0.1, 0.0, -0.4}), 2.25);           // 2 + 0.1/0.4
-  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({0.0, 0.1, -0.4, -1.0}), 2.25);     // order does not matter
+  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({-0.1, -0.2}), 0.0);                 // a fixed point
+  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({0.0, -0.1, -0.2}), 1.0);            // a limit cycle
+  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({0.1, 0.0, -0.4}), 2.25);            // 2 + 0.1/0.4
+  EXPECT_DOUBLE_EQ(KaplanYorkeDimension({0.0, 0.1, -0.4, -1.0}), 2.25);      // order does not matter
   EXPECT_NEAR(KaplanYorkeDimension({0.9056, 0.0, -14.5723}), 2.0621, 1e-4);  // Lorenz (Sprott)
 }
 

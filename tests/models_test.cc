@@ -31,12 +31,14 @@ void ExpectJacobianMatchesFiniteDifferences(const Sys& sys, double t, const type
     xm[j] -= d;
     sys(t, xp, fp);
     sys(t, xm, fm);
-    for (int i = 0; i < n; ++i) EXPECT_NEAR(J(i, j), (fp[i] - fm[i]) / (2 * d), 1e-6 * scale) << "J(" << i << "," << j << ")";
+    for (int i = 0; i < n; ++i)
+      EXPECT_NEAR(J(i, j), (fp[i] - fm[i]) / (2 * d), 1e-6 * scale) << "J(" << i << "," << j << ")";
   }
   const double dt = 1e-6;
   sys(t + dt, x, fp);
   sys(t - dt, x, fm);
-  for (int i = 0; i < n; ++i) EXPECT_NEAR(dfdt[i], (fp[i] - fm[i]) / (2 * dt), 1e-6 * std::max(1.0, dfdt.cwiseAbs().maxCoeff()));
+  for (int i = 0; i < n; ++i)
+    EXPECT_NEAR(dfdt[i], (fp[i] - fm[i]) / (2 * dt), 1e-6 * std::max(1.0, dfdt.cwiseAbs().maxCoeff()));
 }
 
 CellCoeffs<double> Coeffs(ModelKind m) {
@@ -102,7 +104,13 @@ TEST(SeriesModel, OneCellWithoutResonatorEqualsTheStandaloneModel) {
   SeriesCell cell{true, 1.0, 0.1, false};
   SeriesModel series = SeriesModel::Uniform(1, cell, 0.5, 0.9);
   ASSERT_EQ(series.dim(), 2);
-  NondimSystem<SingleModel> single_eps1(LaneFor([] { PointSpec s; s.model = ModelKind::kStandalone; return s; }()).coeffs, 0.5, 0.9);
+  NondimSystem<SingleModel> single_eps1(LaneFor([] {
+                                          PointSpec s;
+                                          s.model = ModelKind::kStandalone;
+                                          return s;
+                                        }())
+                                            .coeffs,
+                                        0.5, 0.9);
   Eigen::Vector2d x(0.3, -0.7), a;
   BISTABLE_EIGEN_BOUNDS_BEGIN
   Eigen::VectorXd xs = x, b(2);
@@ -114,9 +122,8 @@ TEST(SeriesModel, OneCellWithoutResonatorEqualsTheStandaloneModel) {
 }
 
 TEST(SeriesModel, JacobianMatchesFiniteDifferencesWithMixedCells) {
-  std::vector<SeriesCell> cells = {{true, 1.0, 0.1, true, 0.075, 2.0, 0.8},
-                                   {false, 0.0, 0.2, false},
-                                   {true, 1.5, 0.05, true, 0.3, 0.5, 1.2}};
+  std::vector<SeriesCell> cells = {
+      {true, 1.0, 0.1, true, 0.075, 2.0, 0.8}, {false, 0.0, 0.2, false}, {true, 1.5, 0.05, true, 0.3, 0.5, 1.2}};
   SeriesModel m(cells, 0.8, 1.1);
   ASSERT_EQ(m.dim(), 10);
   Eigen::VectorXd x(10);
@@ -135,7 +142,8 @@ TEST(Stribeck, PeaksAtStaticForceAndTendsToCoulomb) {
   EXPECT_DOUBLE_EQ(f.Force(-0.01), -f.Force(0.01));
   EXPECT_DOUBLE_EQ(f.Force(0.0), 0.0);
   const double d = 1e-9;
-  for (double v : {-0.01, -0.002, 0.0, 0.0005, 0.003}) EXPECT_NEAR(f.Slope(v), (f.Force(v + d) - f.Force(v - d)) / (2 * d), 1e-3 * std::fabs(f.Slope(v)) + 1e-3);
+  for (double v : {-0.01, -0.002, 0.0, 0.0005, 0.003})
+    EXPECT_NEAR(f.Slope(v), (f.Force(v + d) - f.Force(v - d)) / (2 * d), 1e-3 * std::fabs(f.Slope(v)) + 1e-3);
 }
 
 TEST(DimensionalModel, JacobianMatchesFiniteDifferencesWithFriction) {
@@ -179,8 +187,8 @@ TEST(DimensionalModel, ReducesToNondimensionalModelWithoutFriction) {
   o.rtol = 1e-11;
   o.atol = 1e-13;
   const double tau_end = 30;
-  Eigen::Vector4d xn(1, 0, 1, 0);               // at rest in the positive well
-  Eigen::Vector4d xd(delta_s, 0, 0, 0);         // y = δs, z = x_r − x_m = 0
+  Eigen::Vector4d xn(1, 0, 1, 0);        // at rest in the positive well
+  Eigen::Vector4d xd(delta_s, 0, 0, 0);  // y = δs, z = x_r − x_m = 0
   Dopri5<NondimSystem<CoupledModel>> a(nd, o);
   Dopri5<DimensionalModel> b(dim, o);
   ASSERT_EQ(a.Integrate(0.0, xn, tau_end), OdeTermination::kOk);

@@ -108,21 +108,20 @@ struct Service {
     std::ofstream(dir + "/tokens") << cl << "\n" << wl << "\n" << al << "\n";
     std::ofstream(dir + "/client.token") << client_token << "\n";
     std::ofstream(dir + "/worker.token") << worker_token << "\n";
-    coord = bistable_test::SpawnLogged({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", "--tokens",
-                                        dir + "/tokens", "--job-seconds", "0.02", "--log-format", "json", "--metrics",
-                                        "127.0.0.1:0", "--health", "127.0.0.1:0"},
-                                       dir + "/coord.log");
+    coord = bistable_test::SpawnLogged(
+        {BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", "--tokens", dir + "/tokens",
+         "--job-seconds", "0.02", "--log-format", "json", "--metrics", "127.0.0.1:0", "--health", "127.0.0.1:0"},
+        dir + "/coord.log");
     const int port = AwaitPort(dir + "/coord.log", "listening");
     addr = "127.0.0.1:" + std::to_string(port);
     metrics = AwaitPort(dir + "/coord.log", "metrics");
     health = AwaitPort(dir + "/coord.log", "health");
     for (int i = 0; i < 2; ++i) {
       const std::string log = dir + "/w" + std::to_string(i) + ".log";
-      workers.push_back(bistable_test::SpawnLogged({BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--name",
-                                                    "w" + std::to_string(i), "--token-file", dir + "/worker.token",
-                                                    "--log-format", "json", "--metrics", "127.0.0.1:0", "--health",
-                                                    "127.0.0.1:0"},
-                                                   log));
+      workers.push_back(bistable_test::SpawnLogged(
+          {BISTABLE_WORKER, "--coordinator", addr, "--threads", "1", "--name", "w" + std::to_string(i), "--token-file",
+           dir + "/worker.token", "--log-format", "json", "--metrics", "127.0.0.1:0", "--health", "127.0.0.1:0"},
+          log));
     }
     for (int i = 0; i < 2; ++i) {
       // The worker prints no "on" lines; its ports are in its worker.started event.
@@ -176,8 +175,8 @@ TEST(Observability, MetricsLogsAndHealthAgreeWithTheSweep) {
   // A caller with a token the coordinator does not know: refused, counted, logged without the token.
   const std::string forged(64, 'f');
   std::ofstream(s.dir + "/forged.token") << forged << "\n";
-  const ExecResult bad = RunArgv({BISTABLE_CLI, "submit", s.dir + "/spec.toml", "--coordinator", s.addr, "--token-file",
-                                  s.dir + "/forged.token"});
+  const ExecResult bad = RunArgv(
+      {BISTABLE_CLI, "submit", s.dir + "/spec.toml", "--coordinator", s.addr, "--token-file", s.dir + "/forged.token"});
   EXPECT_NE(bad.exit_code, 0);
 
   const HttpReply scrape = HttpRequest(s.metrics, "/metrics");
@@ -193,8 +192,8 @@ TEST(Observability, MetricsLogsAndHealthAgreeWithTheSweep) {
   EXPECT_EQ(m.at("bistable_workers"), 2);
   EXPECT_EQ(m.at("bistable_sweeps{state=\"done\"}"), 1);
   EXPECT_EQ(SumOf(m, "bistable_worker_items_total{"), items);
-  EXPECT_EQ(m.at("bistable_report_seconds_count"), m.at("bistable_reports_total{outcome=\"stored\"}") +
-                                                          m.at("bistable_reports_total{outcome=\"duplicate\"}"));
+  EXPECT_EQ(m.at("bistable_report_seconds_count"),
+            m.at("bistable_reports_total{outcome=\"stored\"}") + m.at("bistable_reports_total{outcome=\"duplicate\"}"));
   EXPECT_EQ(m.at("bistable_calls_refused_total{code=\"UNAUTHENTICATED\",method=\"Submit\"}"), 1);
   // Each worker's own counters: together they computed every item once.
   double computed = 0, reports = 0;
@@ -216,7 +215,8 @@ TEST(Observability, MetricsLogsAndHealthAgreeWithTheSweep) {
   }
   for (int p : s.worker_health)
     EXPECT_EQ(*bistable::CheckHealth({"127.0.0.1:" + std::to_string(p), "", ""}, "bistable.v1.Worker", 5), "SERVING");
-  const ExecResult h = RunArgv({BISTABLE_CLI, "health", "--coordinator", "127.0.0.1:" + std::to_string(s.health), "--json"});
+  const ExecResult h =
+      RunArgv({BISTABLE_CLI, "health", "--coordinator", "127.0.0.1:" + std::to_string(s.health), "--json"});
   EXPECT_EQ(h.exit_code, 0) << h.err;
   EXPECT_EQ(nlohmann::json::parse(h.out)["status"], "SERVING");
 
@@ -250,7 +250,8 @@ TEST(Observability, MetricsLogsAndHealthAgreeWithTheSweep) {
   EXPECT_EQ(refused[0]["code"], "UNAUTHENTICATED");
   EXPECT_EQ(refused[0]["method"], "Submit");
   EXPECT_EQ(refused[0]["level"], "warning");
-  for (const std::string& t : {s.client_token, s.worker_token, s.admin_token, forged}) EXPECT_EQ(log.find(t), std::string::npos);
+  for (const std::string& t : {s.client_token, s.worker_token, s.admin_token, forged})
+    EXPECT_EQ(log.find(t), std::string::npos);
   for (int i = 0; i < 2; ++i) {
     const std::string wlog = bistable_test::ReadText(s.dir + "/w" + std::to_string(i) + ".log.err");
     EXPECT_EQ(wlog.find(s.worker_token), std::string::npos);
@@ -272,7 +273,8 @@ TEST(Observability, SweepsAndFetchOverTheWire) {
   // Submission and publication times (ISO 8601 UTC), in `sweeps --json` and `status --json`.
   for (const nlohmann::json& row : {sweeps[0], nlohmann::json::parse(s.Cli({"status", id, "--json"}).out)}) {
     ASSERT_TRUE(row["created"].is_string() && row["finished"].is_string()) << row.dump();
-    const double created = bistable_test::ParseIsoTimeUtc(row["created"]), finished = bistable_test::ParseIsoTimeUtc(row["finished"]);
+    const double created = bistable_test::ParseIsoTimeUtc(row["created"]),
+                 finished = bistable_test::ParseIsoTimeUtc(row["finished"]);
     EXPECT_GE(created, s.submitted_at - 1) << row.dump();
     EXPECT_LE(created, finished) << row.dump();
     EXPECT_LE(finished, s.done_at + 1) << row.dump();
@@ -324,19 +326,23 @@ TEST(Observability, APortInUseIsAnErrorNotShared) {
 // --log-format json every line the coordinator writes on stderr is a JSON object, one of them "grpc.log".
 TEST(Observability, GrpcMessagesAreEventsOfTheLog) {
   const std::string dir = Dir("grpc_log");
-  ASSERT_EQ(std::system((std::string(BISTABLE_TESTS_DIR) + "/make_test_certs.sh " + dir + "/tls 127.0.0.1 >/dev/null 2>&1").c_str()), 0);
+  ASSERT_EQ(
+      std::system(
+          (std::string(BISTABLE_TESTS_DIR) + "/make_test_certs.sh " + dir + "/tls 127.0.0.1 >/dev/null 2>&1").c_str()),
+      0);
   auto [ct, cl] = MintToken("client", "alice");
   std::ofstream(dir + "/tokens") << cl << "\n";
-  const pid_t coord = bistable_test::SpawnLogged({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data",
-                                                  "--tokens", dir + "/tokens", "--tls-cert", dir + "/tls/server.pem",
-                                                  "--tls-key", dir + "/tls/server.key", "--log-format", "json"},
-                                                 dir + "/coord.log");
+  const pid_t coord = bistable_test::SpawnLogged(
+      {BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data", "--tokens", dir + "/tokens",
+       "--tls-cert", dir + "/tls/server.pem", "--tls-key", dir + "/tls/server.key", "--log-format", "json"},
+      dir + "/coord.log");
   const int port = AwaitPort(dir + "/coord.log", "listening");
   ASSERT_GT(port, 0) << bistable_test::ReadText(dir + "/coord.log.err");
   // A client without --tls-ca speaks plaintext to the TLS port: its call fails, the server's handshake too.
   std::ofstream(dir + "/client.token") << ct << "\n";
-  const ExecResult r = RunArgv({BISTABLE_CLI, "sweeps", "--coordinator", "127.0.0.1:" + std::to_string(port), "--token-file",
-                                dir + "/client.token"}, "", {}, 20);
+  const ExecResult r = RunArgv({BISTABLE_CLI, "sweeps", "--coordinator", "127.0.0.1:" + std::to_string(port),
+                                "--token-file", dir + "/client.token"},
+                               "", {}, 20);
   EXPECT_NE(r.exit_code, 0);
   std::vector<nlohmann::json> grpc;
   for (int i = 0; i < 200 && grpc.empty(); ++i) {
@@ -358,8 +364,8 @@ TEST(Observability, GrpcMessagesAreEventsOfTheLog) {
 // last status taken for the end: the sweep is still running (it has no workers here).
 TEST(Observability, AWatchEndedByShutdownIsAnError) {
   const std::string dir = Dir("watch_shutdown");
-  const pid_t coord = bistable_test::SpawnLogged({BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data"},
-                                                 dir + "/coord.log");
+  const pid_t coord = bistable_test::SpawnLogged(
+      {BISTABLE_COORDINATOR, "--listen", "127.0.0.1:0", "--data", dir + "/data"}, dir + "/coord.log");
   const int port = AwaitPort(dir + "/coord.log", "listening");
   ASSERT_GT(port, 0) << bistable_test::ReadText(dir + "/coord.log.err");
   const std::string addr = "127.0.0.1:" + std::to_string(port);
@@ -367,7 +373,8 @@ TEST(Observability, AWatchEndedByShutdownIsAnError) {
   const ExecResult sub = RunArgv({BISTABLE_CLI, "submit", dir + "/spec.toml", "--coordinator", addr, "--json"});
   ASSERT_EQ(sub.exit_code, 0) << sub.err;
   const std::string id = nlohmann::json::parse(sub.out)["id"];
-  const pid_t watch = bistable_test::SpawnLogged({BISTABLE_CLI, "status", id, "--watch", "--coordinator", addr}, dir + "/watch.log");
+  const pid_t watch =
+      bistable_test::SpawnLogged({BISTABLE_CLI, "status", id, "--watch", "--coordinator", addr}, dir + "/watch.log");
   std::this_thread::sleep_for(std::chrono::milliseconds(800));  // the stream is open and has sent a status
   ::kill(coord, SIGTERM);
   const int code = bistable_test::WaitExitFor(watch, 20);
@@ -382,8 +389,12 @@ TEST(Observability, AWatchEndedByShutdownIsAnError) {
 
 TEST(HttpServer, RoutesMethodsAndBounds) {
   auto server = bistable::HttpServer::Start(
-      "127.0.0.1:0", {{"/x", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain", "hello\n", {}}; }},
-                      {"/boom", [](const bistable::HttpRequest&) -> bistable::HttpResponse { throw std::runtime_error("no"); }}});
+      "127.0.0.1:0",
+      {{"/x",
+        [](const bistable::HttpRequest&) {
+          return bistable::HttpResponse{200, "text/plain", "hello\n", {}};
+        }},
+       {"/boom", [](const bistable::HttpRequest&) -> bistable::HttpResponse { throw std::runtime_error("no"); }}});
   ASSERT_TRUE(server.ok()) << server.status().ToString();
   const int port = (*server)->port();
   EXPECT_EQ(HttpRequest(port, "/x").body, "hello\n");
@@ -431,7 +442,8 @@ TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
   options.slow_routes = {"/slow", "/slow-boom"};
   auto server = bistable::HttpServer::Start(
       "127.0.0.1:0",
-      {{"/slow", [&](const bistable::HttpRequest&) {
+      {{"/slow",
+        [&](const bistable::HttpRequest&) {
           ++started;
           std::shared_future<void> r;
           {
@@ -442,7 +454,10 @@ TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
           return bistable::HttpResponse{200, "text/plain", "slow\n", {}};
         }},
        {"/slow-boom", [](const bistable::HttpRequest&) -> bistable::HttpResponse { throw 42; }},
-       {"/healthz", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain", "ok\n", {}}; }}},
+       {"/healthz",
+        [](const bistable::HttpRequest&) {
+          return bistable::HttpResponse{200, "text/plain", "ok\n", {}};
+        }}},
       options);
   ASSERT_TRUE(server.ok()) << server.status().ToString();
   std::unique_ptr<bistable::HttpServer> srv = std::move(server).value();
@@ -450,7 +465,7 @@ TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
   struct Guard {
     std::function<void()> f;
     ~Guard() { f(); }
-  } guard{[&] { release(0), release(1); }};  // destroyed before srv
+  } guard{[&] { release(0), release(1); }};                // destroyed before srv
   EXPECT_EQ(HttpRequest(port, "/slow-boom").status, 500);  // not even a non-std exception ends the process
   auto wait_for = [](auto pred) {
     for (int i = 0; i < 500 && !pred(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
@@ -458,7 +473,8 @@ TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
   };
   constexpr int kLimit = 4 * bistable::HttpServer::kSlowThreads;
   std::vector<std::future<HttpReply>> slow;
-  for (int i = 0; i < 2; ++i) slow.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
+  for (int i = 0; i < 2; ++i)
+    slow.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
   if (!wait_for([&] { return started.load() == 2; })) {
     release(0);
     FAIL() << "slow handlers started: " << started.load();
@@ -466,7 +482,8 @@ TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
   auto health = std::async(std::launch::async, [port] { return HttpRequest(port, "/healthz"); });
   const bool answered = health.wait_for(std::chrono::seconds(5)) == std::future_status::ready;
   EXPECT_TRUE(answered) << "/healthz waited for the slow handlers";
-  for (int i = 2; i < kLimit; ++i) slow.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
+  for (int i = 2; i < kLimit; ++i)
+    slow.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   EXPECT_EQ(started.load(), 2);  // the others wait for a pool thread
   auto busy = std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); });  // one past the limit
@@ -495,14 +512,16 @@ TEST(HttpServer, SlowRoutesRunBesideTheOthers) {
   }
   started = 0;
   std::vector<std::future<HttpReply>> more;
-  for (int i = 0; i < 3; ++i) more.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
+  for (int i = 0; i < 3; ++i)
+    more.push_back(std::async(std::launch::async, [port] { return HttpRequest(port, "/slow"); }));
   if (!wait_for([&] { return started.load() == 2; })) {
     release(1);
     FAIL() << "slow handlers started: " << started.load();
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the third is queued by now
   auto stopped = std::async(std::launch::async, [&] { srv.reset(); });
-  EXPECT_EQ(stopped.wait_for(std::chrono::milliseconds(200)), std::future_status::timeout);  // waits for the running two
+  EXPECT_EQ(stopped.wait_for(std::chrono::milliseconds(200)),
+            std::future_status::timeout);  // waits for the running two
   release(1);
   stopped.get();
   EXPECT_EQ(started.load(), 2);
@@ -525,18 +544,23 @@ TEST(HttpServer, HeavyRoutesLeaveAThreadAndBoundEachClient) {
   bistable::HttpServer::Options options;
   options.slow_routes = {"/heavy", "/light"};
   options.heavy_routes = {"/heavy"};
-  auto server = bistable::HttpServer::Start(
-      "127.0.0.1:0",
-      {{"/heavy", [&](const bistable::HttpRequest&) {
-          ++started;
-          const int now = ++running;
-          for (int m = most.load(); now > m && !most.compare_exchange_weak(m, now);) {}
-          released.wait();
-          --running;
-          return bistable::HttpResponse{200, "text/plain", "cell\n", {}};
-        }},
-       {"/light", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain", "map\n", {}}; }}},
-      options);
+  auto server =
+      bistable::HttpServer::Start("127.0.0.1:0",
+                                  {{"/heavy",
+                                    [&](const bistable::HttpRequest&) {
+                                      ++started;
+                                      const int now = ++running;
+                                      for (int m = most.load(); now > m && !most.compare_exchange_weak(m, now);) {
+                                      }
+                                      released.wait();
+                                      --running;
+                                      return bistable::HttpResponse{200, "text/plain", "cell\n", {}};
+                                    }},
+                                   {"/light",
+                                    [](const bistable::HttpRequest&) {
+                                      return bistable::HttpResponse{200, "text/plain", "map\n", {}};
+                                    }}},
+                                  options);
   ASSERT_TRUE(server.ok()) << server.status().ToString();
   std::unique_ptr<bistable::HttpServer> srv = std::move(server).value();
   struct Guard {
@@ -545,7 +569,8 @@ TEST(HttpServer, HeavyRoutesLeaveAThreadAndBoundEachClient) {
   } guard{let_go};  // destroyed before srv: the handlers are released on every way out
   const int port = srv->port();
   const auto as = [port](const std::string& who, const std::string& target) {
-    return bistable_test::HttpExchange(port, target, http::verb::get, {{"Host", "127.0.0.1"}, {"Authorization", "Bearer " + who}});
+    return bistable_test::HttpExchange(port, target, http::verb::get,
+                                       {{"Host", "127.0.0.1"}, {"Authorization", "Bearer " + who}});
   };
   std::vector<std::future<HttpReply>> a;
   for (int i = 0; i < 2; ++i) a.push_back(std::async(std::launch::async, [&] { return as("alice", "/heavy"); }));
@@ -558,7 +583,9 @@ TEST(HttpServer, HeavyRoutesLeaveAThreadAndBoundEachClient) {
   auto map = std::async(std::launch::async, [&] { return as("bob", "/light"); });
   const bool map_answered = map.wait_for(std::chrono::seconds(5)) == std::future_status::ready;
   EXPECT_TRUE(map_answered) << "a light slow route waited for the heavy ones";
-  if (map_answered) { EXPECT_EQ(map.get().status, 200); }
+  if (map_answered) {
+    EXPECT_EQ(map.get().status, 200);
+  }
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   EXPECT_EQ(started.load(), 1) << "a second heavy handler took the other thread";
   let_go();
@@ -575,13 +602,13 @@ TEST(HttpServer, QueryStringsAndCookies) {
   EXPECT_EQ(q->at("id"), "ab12");
   EXPECT_EQ(q->at("q"), "frf_db < -3 and lle>0");
   EXPECT_EQ(q->at("x"), "");
-  EXPECT_FALSE(bistable::ParseQueryString("a=1&a=2").ok());       // repeated
-  EXPECT_FALSE(bistable::ParseQueryString("a=%zz").ok());         // malformed escape
-  EXPECT_FALSE(bistable::ParseQueryString("a=%0a").ok());         // control character
-  EXPECT_FALSE(bistable::ParseQueryString("=1").ok());            // no name
+  EXPECT_FALSE(bistable::ParseQueryString("a=1&a=2").ok());  // repeated
+  EXPECT_FALSE(bistable::ParseQueryString("a=%zz").ok());    // malformed escape
+  EXPECT_FALSE(bistable::ParseQueryString("a=%0a").ok());    // control character
+  EXPECT_FALSE(bistable::ParseQueryString("=1").ok());       // no name
   std::string many;
   for (int i = 0; i < 17; ++i) many += "p" + std::to_string(i) + "=1&";
-  EXPECT_FALSE(bistable::ParseQueryString(many).ok());            // more than 16
+  EXPECT_FALSE(bistable::ParseQueryString(many).ok());  // more than 16
   EXPECT_EQ(bistable::CookieValue("a=1; bistable_token=t0k; b=2", "bistable_token"), "t0k");
   EXPECT_EQ(bistable::CookieValue("xbistable_token=no", "bistable_token"), "");
   EXPECT_EQ(bistable::CookieValue("", "bistable_token"), "");
@@ -591,13 +618,30 @@ TEST(HttpServer, QueryStringsAndCookies) {
 // its own host name; an IP literal is no name an attacker controls).
 TEST(HttpServer, HostRuleAnswersIpLiteralsLocalhostAndAllowedNamesOnly) {
   const std::vector<std::string> allowed = {"bistable-coordinator", "Metrics.Internal"};
-  for (const char* ok : {"localhost", "LocalHost:8080", "127.0.0.1", "127.0.0.1:65535", "[::1]", "[::1]:80", "127.0.0.2", "0.0.0.0",
-                         "10.1.2.3:9090", "[::2]:80", "[2001:db8::7]", "bistable-coordinator", "BISTABLE-COORDINATOR:9090",
-                         "metrics.internal"})
+  for (const char* ok : {"localhost", "LocalHost:8080", "127.0.0.1", "127.0.0.1:65535", "[::1]", "[::1]:80",
+                         "127.0.0.2", "0.0.0.0", "10.1.2.3:9090", "[::2]:80", "[2001:db8::7]", "bistable-coordinator",
+                         "BISTABLE-COORDINATOR:9090", "metrics.internal"})
     EXPECT_TRUE(bistable::HostAllowed(ok, allowed)) << ok;
-  for (const char* bad : {"", "evil.example", "evil.example:8080", "localhost.evil.example", "127.0.0.1.nip.io", "localhost:",
-                          "localhost:80x", "localhost:123456", "[::1", "[::1]x", "[::1]:", "::1", "[evil.example]", "[127.0.0.1]",
-                          "localhost.", " localhost", "127.0.0.1:80:80", "127.1", "0x7f000001", "bistable-coordinator.evil.example",
+  for (const char* bad : {"",
+                          "evil.example",
+                          "evil.example:8080",
+                          "localhost.evil.example",
+                          "127.0.0.1.nip.io",
+                          "localhost:",
+                          "localhost:80x",
+                          "localhost:123456",
+                          "[::1",
+                          "[::1]x",
+                          "[::1]:",
+                          "::1",
+                          "[evil.example]",
+                          "[127.0.0.1]",
+                          "localhost.",
+                          " localhost",
+                          "127.0.0.1:80:80",
+                          "127.1",
+                          "0x7f000001",
+                          "bistable-coordinator.evil.example",
                           "metrics"})
     EXPECT_FALSE(bistable::HostAllowed(bad, allowed)) << bad;
   EXPECT_FALSE(bistable::HostAllowed("bistable-coordinator", {}));  // only when allowed
@@ -612,11 +656,13 @@ TEST(Log, FieldsFromHostileInputCannotForgeLines) {
   using bistable::log::Field;
   using bistable::log::Format;
   const std::string evil = "w1\n2026-01-01T00:00:00Z info sweep.published sweep=x\"} {\"a\":1\x01\xff";
-  const std::string text = bistable::log::Render(Format::kText, "worker.joined", {{"worker", evil}, {"n", 3}, {"ok", true}});
+  const std::string text =
+      bistable::log::Render(Format::kText, "worker.joined", {{"worker", evil}, {"n", 3}, {"ok", true}});
   EXPECT_EQ(text.find('\n'), std::string::npos) << text;
   EXPECT_NE(text.find("worker=\"w1\\x0a"), std::string::npos) << text;
   EXPECT_NE(text.find(" n=3 ok=true"), std::string::npos) << text;
-  const std::string json = "{" + bistable::log::Render(Format::kJson, "worker.joined", {{"worker", evil}, {"x", 0.5}}) + "}";
+  const std::string json =
+      "{" + bistable::log::Render(Format::kJson, "worker.joined", {{"worker", evil}, {"x", 0.5}}) + "}";
   auto j = nlohmann::json::parse(json, nullptr, false);
   ASSERT_FALSE(j.is_discarded()) << json;
   EXPECT_EQ(j["event"], "worker.joined");
@@ -628,7 +674,8 @@ TEST(Log, FieldsFromHostileInputCannotForgeLines) {
   EXPECT_LT(big.size(), 600u);
   EXPECT_TRUE(nlohmann::json::parse("{" + big + "}", nullptr, false).is_object());
   // Non-finite numbers stay valid JSON.
-  EXPECT_TRUE(nlohmann::json::parse("{" + bistable::log::Render(Format::kJson, "e", {{"v", NAN}}) + "}", nullptr, false).is_object());
+  EXPECT_TRUE(nlohmann::json::parse("{" + bistable::log::Render(Format::kJson, "e", {{"v", NAN}}) + "}", nullptr, false)
+                  .is_object());
   EXPECT_FALSE(bistable::log::ParseLevel("verbose").ok());
   EXPECT_FALSE(bistable::log::ParseFormat("xml").ok());
 }

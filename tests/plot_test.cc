@@ -27,7 +27,8 @@ struct PngStats {
   int width = 0, height = 0, distinct = 0;
   double non_background = 0;
   std::map<std::string, long> colours;  // pixels near each asked colour
-  std::map<std::string, std::pair<int, int>> rows;  // with rows: the 5th and 95th percentile rows of each colour's pixels
+  std::map<std::string, std::pair<int, int>>
+      rows;  // with rows: the 5th and 95th percentile rows of each colour's pixels
 };
 
 PngStats Stats(const std::string& png, const std::vector<std::string>& colours = {}, bool rows = false) {
@@ -62,7 +63,9 @@ void ExpectDrawn(const bistable::Status& st, const std::string& png, int width, 
 
 class Figures : public ::testing::Test {
  protected:
-  void SetUp() override { dir_ = bistable_test::FreshDir("plot", ::testing::UnitTest::GetInstance()->current_test_info()->name()); }
+  void SetUp() override {
+    dir_ = bistable_test::FreshDir("plot", ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  }
   void TearDown() override {
     if (!HasFailure()) fs::remove_all(dir_);
   }
@@ -101,7 +104,8 @@ TEST_F(Figures, SharedColourRangeIsTheGivenOne) {
   d.cb_lo = -20, d.cb_hi = 20;
   const std::string out = File("shared.png");
   ASSERT_TRUE(bistable::RenderPlot(d, out).ok());
-  EXPECT_LT(Stats(out, {"#b2182b"}).colours["#b2182b"], 2000) << "the data drew the full red: the range was not applied";
+  EXPECT_LT(Stats(out, {"#b2182b"}).colours["#b2182b"], 2000)
+      << "the data drew the full red: the range was not applied";
   d.cb_lo = d.cb_hi = NAN;  // its own range: ±1 dB, so 1 dB is the deepest red
   ASSERT_TRUE(bistable::RenderPlot(d, out).ok());
   EXPECT_GT(Stats(out, {"#b2182b"}).colours["#b2182b"], 20000);
@@ -189,8 +193,10 @@ TEST_F(Figures, BranchLegendNamesOnlyWhatIsDrawn) {
   d.x_name = "omega";
   d.x_unit = "omega0/omega_n";
   d.y_label = "max |y_m|";
-  bistable::BranchPlot::Branch plus{"+well", 5, {0.1, 0.5, 1.0, 1.5}, {1.0, 1.1, 1.3, 1.2}, {true, true, true, true}, {1.0}, {1.3}};
-  bistable::BranchPlot::Branch inter{"interwell", 2, {0.8, 1.2, 1.6, 2.0}, {1.5, 1.8, 2.2, 2.6}, {false, false, true, true}, {}, {}};
+  bistable::BranchPlot::Branch plus{"+well", 5,    {0.1, 0.5, 1.0, 1.5}, {1.0, 1.1, 1.3, 1.2}, {true, true, true, true},
+                                    {1.0},   {1.3}};
+  bistable::BranchPlot::Branch inter{
+      "interwell", 2, {0.8, 1.2, 1.6, 2.0}, {1.5, 1.8, 2.2, 2.6}, {false, false, true, true}, {}, {}};
   d.branches = {plus, inter};
   const std::string out = File("branches.png");
   ExpectDrawn(bistable::RenderBranches(d, out), out, 900, 700, {"#1b9e77", "#d95f02"}, 100);
@@ -229,7 +235,8 @@ TEST_F(Figures, HeatmapOverlaysAreDrawnWithALegend) {
   d.unit = "code";
   d.axis_names = {"alpha", "omega"};
   d.axis_units = {"A0/delta_s", "omega0/omega_n"};
-  for (int i = 0; i < 20; ++i) d.axis_values.resize(2), d.axis_values[0].push_back(0.05 * (i + 1)), d.axis_values[1].push_back(0.1 * (i + 1));
+  for (int i = 0; i < 20; ++i)
+    d.axis_values.resize(2), d.axis_values[0].push_back(0.05 * (i + 1)), d.axis_values[1].push_back(0.1 * (i + 1));
   for (int i = 0; i < 20; ++i)
     for (int j = 0; j < 20; ++j) d.values.push_back(i + j < 20 ? 0 : 1);
   d.codes = bistable::MetricCodes("motion", d.values);
@@ -248,7 +255,8 @@ TEST_F(Figures, HarmonicDiffusionScatter) {
   d.title = "hd, alpha = " + bistable::PlotNumber(1.0 / 3);
   EXPECT_EQ(bistable::PlotNumber(1.0 / 3), "0.3333");
   for (int i = 1; i <= 40; ++i)
-    for (int k = 1; k <= 3; ++k) d.x.push_back(0.075 * i), d.y.push_back(0.075 * i * k), d.amp.push_back(std::pow(10.0, -k));
+    for (int k = 1; k <= 3; ++k)
+      d.x.push_back(0.075 * i), d.y.push_back(0.075 * i * k), d.amp.push_back(std::pow(10.0, -k));
   const std::string out = File("hd.png");
   ExpectDrawn(bistable::RenderHdScatter(d, out), out, 900, 700, {"#999999"}, 200);
 }
@@ -276,7 +284,8 @@ TEST_F(Figures, ChirpFrfWithCoherence) {
   c.label = "sweep up";
   for (int i = 0; i < 100; ++i) {
     const double f = 1 + 0.07 * i;
-    c.freq.push_back(f), c.in_mag.push_back(0.01 * f), c.out_mag.push_back(0.01 * f * (1 + 1 / (0.1 + std::fabs(f - 4))));
+    c.freq.push_back(f), c.in_mag.push_back(0.01 * f),
+        c.out_mag.push_back(0.01 * f * (1 + 1 / (0.1 + std::fabs(f - 4))));
     c.db.push_back(20 * std::log10(c.out_mag.back() / c.in_mag.back())), c.coherence.push_back(0.5 + 0.5 * std::cos(f));
     c.raw_freq.push_back(f), c.raw_db.push_back(c.db.back() + 3 * std::sin(13 * f));
   }
@@ -316,7 +325,8 @@ TEST_F(Figures, PanelsShareAYRange) {
       panel.x_label = "time t [s]";
       panel.y_label = "y [mm]";
       if (shared) panel.y_lo = -30, panel.y_hi = 40;
-      bistable::PanelPlot::Series s{"", {}, {}, false, p ? "#2166ac" : "#d95f02"};  // no key: its line sample would count
+      bistable::PanelPlot::Series s{
+          "", {}, {}, false, p ? "#2166ac" : "#d95f02"};  // no key: its line sample would count
       for (int i = 0; i < 500; ++i) s.x.push_back(0.05 * i), s.y.push_back((p ? 25 : 5) * std::sin(0.3 * i));
       panel.series.push_back(s);
       d.panels.push_back(panel);
@@ -341,8 +351,9 @@ TEST_F(Figures, PanelsShareAYRange) {
 // ---- without gnuplot: a real `bistable run` whose PATH has no gnuplot ------------------------------
 
 TEST_F(Figures, RunWithoutGnuplotKeepsTheMapSaysWhatIsMissingAndSucceeds) {
-  std::ofstream(File("spec.toml")) << "name = \"tiny\"\nmodel = \"standalone\"\n[axes]\nalpha = [0.2, 0.5]\nomega = [0.8, 1.2]\n"
-                                      "[integration]\nt_end = 40\nt_keep = 20\n";
+  std::ofstream(File("spec.toml"))
+      << "name = \"tiny\"\nmodel = \"standalone\"\n[axes]\nalpha = [0.2, 0.5]\nomega = [0.8, 1.2]\n"
+         "[integration]\nt_end = 40\nt_keep = 20\n";
   fs::create_directories(File("bin"));  // a PATH with nothing in it
   const auto r = RunArgv({BISTABLE_CLI, "run", File("spec.toml"), "--data", File("data"), "--quiet", "--json"}, "",
                          {{"PATH", File("bin")}}, 120);
@@ -361,7 +372,8 @@ TEST_F(Figures, RunWithoutGnuplotKeepsTheMapSaysWhatIsMissingAndSucceeds) {
   for (char ch : r.err) lines += ch == '\n';
   EXPECT_EQ(lines, 1u) << "one warning, not one per figure: " << r.err;
   // `reproduce` draws figures for a living: it refuses before computing anything.
-  const auto rp = RunArgv({BISTABLE_CLI, "reproduce", "paper", "--quick", "--out", File("paper")}, "", {{"PATH", File("bin")}}, 60);
+  const auto rp =
+      RunArgv({BISTABLE_CLI, "reproduce", "paper", "--quick", "--out", File("paper")}, "", {{"PATH", File("bin")}}, 60);
   EXPECT_EQ(rp.exit_code, 2) << rp.err;
   EXPECT_NE(rp.err.find("gnuplot not found"), std::string::npos) << rp.err;
   EXPECT_FALSE(fs::exists(File("paper/data"))) << "nothing computed";

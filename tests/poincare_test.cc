@@ -28,7 +28,6 @@ PointSpec Duffing(double gamma, double t_keep, double t_end) {
   return s;
 }
 
-
 // Largest distance (max norm over y, y') between section points i and j of the same residue mod n.
 double SpreadWithinResidues(const PointResult& r, int n) {
   double worst = 0;
@@ -77,7 +76,8 @@ TEST(Poincare, PhaseConventionMatchesTheLinearClosedForm) {
     const double tau0 = (phase + 2 * M_PI * r.section_k0) / s.omega;
     EXPECT_GE(tau0, s.integration.t_keep);
     EXPECT_LT(tau0 - 2 * M_PI / s.omega, s.integration.t_keep);
-    EXPECT_EQ(r.section_y.size(), static_cast<size_t>(std::floor((s.integration.t_end - tau0) * s.omega / (2 * M_PI))) + 1);
+    EXPECT_EQ(r.section_y.size(),
+              static_cast<size_t>(std::floor((s.integration.t_end - tau0) * s.omega / (2 * M_PI))) + 1);
     for (size_t i = 0; i < r.section_y.size(); ++i) {
       EXPECT_NEAR(r.section_y[i], amp * std::sin(phase - theta), 1e-8) << "phase " << phase << " point " << i;
       EXPECT_NEAR(r.section_v[i], amp * s.omega * std::cos(phase - theta), 1e-8) << "phase " << phase << " point " << i;

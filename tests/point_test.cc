@@ -23,7 +23,6 @@ PointSpec Spec(ModelKind m, double alpha, double omega) {
   return s;
 }
 
-
 // Absolute-velocity transmissibility of y'' + ηy' + y = αΩ² sin Ωτ: |1 + iηΩ| / |1 − Ω² + iηΩ|.
 double LinearTransmissibilityDb(double eta, double omega) {
   return 20 * std::log10(std::hypot(1.0, eta * omega) / std::hypot(1.0 - omega * omega, eta * omega));
@@ -36,8 +35,7 @@ TEST(PointFrf, LinearOscillatorMatchesClosedFormTransmissibility) {
       s.integration.integrator = integ;
       const PointResult r = Eval(s);
       // 0.01 dB is the acceptance bound; the transient has decayed by e^{−ηt_keep/2} ≈ 4e-6 at the window.
-      EXPECT_NEAR(r.frf_db, LinearTransmissibilityDb(0.1, omega), 0.01)
-          << IntegratorName(integ) << " omega " << omega;
+      EXPECT_NEAR(r.frf_db, LinearTransmissibilityDb(0.1, omega), 0.01) << IntegratorName(integ) << " omega " << omega;
       EXPECT_EQ(r.motion, Motion::kIntrawell);
     }
   }
@@ -48,8 +46,8 @@ TEST(PointEnergy, BalanceClosesOnCoupledPeriodicAndChaoticRuns) {
     double alpha, omega;
     Motion expect;
   };
-  for (const Case c : {Case{0.6, 1.2, Motion::kIntrawell}, Case{1.0, 1.2, Motion::kChaotic},
-                       Case{2.0, 3.0, Motion::kInterwell}}) {
+  for (const Case c :
+       {Case{0.6, 1.2, Motion::kIntrawell}, Case{1.0, 1.2, Motion::kChaotic}, Case{2.0, 3.0, Motion::kInterwell}}) {
     for (IntegratorKind integ : {IntegratorKind::kRk4, IntegratorKind::kAdaptive}) {
       PointSpec s = Spec(ModelKind::kCoupled, c.alpha, c.omega);
       s.integration.integrator = integ;
@@ -81,10 +79,16 @@ void ExpectSameBits(const RawLane& a, const RawLane& b, const std::string& where
   auto same_vec = [](const std::vector<double>& x, const std::vector<double>& y) {
     return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(double)) == 0);
   };
-  for (auto [name, x, y] : {std::tuple{"vabs_max", a.vabs_max, b.vabs_max}, {"y_min", a.y_min, b.y_min},
-                            {"y_max", a.y_max, b.y_max}, {"log_growth", a.log_growth, b.log_growth},
-                            {"q_p", a.q_p, b.q_p}, {"q_in", a.q_in, b.q_in}, {"q_m", a.q_m, b.q_m},
-                            {"q_r", a.q_r, b.q_r}, {"e_start", a.e_start, b.e_start}, {"e_end", a.e_end, b.e_end}})
+  for (auto [name, x, y] : {std::tuple{"vabs_max", a.vabs_max, b.vabs_max},
+                            {"y_min", a.y_min, b.y_min},
+                            {"y_max", a.y_max, b.y_max},
+                            {"log_growth", a.log_growth, b.log_growth},
+                            {"q_p", a.q_p, b.q_p},
+                            {"q_in", a.q_in, b.q_in},
+                            {"q_m", a.q_m, b.q_m},
+                            {"q_r", a.q_r, b.q_r},
+                            {"e_start", a.e_start, b.e_start},
+                            {"e_end", a.e_end, b.e_end}})
     EXPECT_TRUE(same(x, y)) << where << ": " << name << " " << x << " vs " << y;
   for (int d = 0; d < 4; ++d) EXPECT_TRUE(same(a.final_state[d], b.final_state[d])) << where << ": final_state " << d;
   EXPECT_TRUE(same_vec(a.y_samples, b.y_samples)) << where << ": y_samples";
@@ -198,7 +202,9 @@ TEST(PointMotion, ClassifiesIntrawellInterwellChaoticAndPeriod) {
       EXPECT_GT(r.lle, 3 * PointSpec{}.metrics.chaos_threshold);
       EXPECT_GT(r.hd_index, 0.3);
     }
-    if (c.period == 1) { EXPECT_LT(r.hd_index, 1e-3); }
+    if (c.period == 1) {
+      EXPECT_LT(r.hd_index, 1e-3);
+    }
   }
 }
 

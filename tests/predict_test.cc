@@ -138,7 +138,8 @@ TEST(IdentifyPredict, AmplitudeAtTheDriveFrequency) {
   std::vector<double> x;
   for (int i = 0; i < 640 * 8; ++i) {
     const double t = i * dt;
-    x.push_back(0.37 * std::sin(2 * M_PI * f * t + 0.3) + 0.05 * std::sin(2 * M_PI * 2 * f * t) + 0.02 * std::cos(2 * M_PI * 0.8 * t) + 0.01);
+    x.push_back(0.37 * std::sin(2 * M_PI * f * t + 0.3) + 0.05 * std::sin(2 * M_PI * 2 * f * t) +
+                0.02 * std::cos(2 * M_PI * 0.8 * t) + 0.01);
   }
   EXPECT_NEAR(AmplitudeAt(x, dt, f), 0.37, 2e-3);
   EXPECT_NEAR(AmplitudeAt(x, dt, ForcingFrequency(x, dt)), 0.37, 2e-3);
@@ -172,22 +173,27 @@ TEST(IdentifyPredict, CliPredictsTheFittedRecordWithTheFitsErrors) {
   // intrawell record, started in the model's right well.
   const std::string inter = bistable_test::HarvesterFile("bistable_sym_interwell_6p5Hz.csv");
   const std::string intra = bistable_test::HarvesterFile("bistable_sym_intrawell_right_6p5Hz.csv");
-  if (!std::filesystem::exists(inter) || !std::filesystem::exists(intra)) GTEST_SKIP() << "no measured data at " << inter;
+  if (!std::filesystem::exists(inter) || !std::filesystem::exists(intra))
+    GTEST_SKIP() << "no measured data at " << inter;
   const std::string slice = " --objective fft --max-seconds 4 --decimate 4";
-  const auto fit = Bistable("identify --data " + inter + PiezoFlags() + slice + " --global-evals 0 --max-added 0 --json");
+  const auto fit =
+      Bistable("identify --data " + inter + PiezoFlags() + slice + " --global-evals 0 --max-added 0 --json");
   ASSERT_EQ(fit.exit_code, 0) << fit.err;
   const auto f = nlohmann::json::parse(fit.out);
   ASSERT_EQ(f["final_terms"].size(), 4u);
   EXPECT_EQ(f["final_terms"][3], "main.piezo");
   const std::string model = bistable_test::FreshDir("predict", "model") + "/model.json";
   WriteFile(model, fit.out);
-  const auto pred = Bistable("identify --predict --model " + model + " --data " + inter + PiezoFlags() + slice + " --json");
+  const auto pred =
+      Bistable("identify --predict --model " + model + " --data " + inter + PiezoFlags() + slice + " --json");
   ASSERT_EQ(pred.exit_code, 0) << pred.err;
   const auto j = nlohmann::json::parse(pred.out);
   ASSERT_TRUE(j.contains("prediction"));
   const auto& p = j["prediction"];
-  for (const char* key : {"model", "records", "error", "observability", "settings", "seconds"}) EXPECT_TRUE(p.contains(key)) << key;
-  for (const char* key : {"wells", "small_orbit_hz", "small_orbit_hz_with_circuit", "equilibria", "barrier", "piezo", "params", "terms"})
+  for (const char* key : {"model", "records", "error", "observability", "settings", "seconds"})
+    EXPECT_TRUE(p.contains(key)) << key;
+  for (const char* key :
+       {"wells", "small_orbit_hz", "small_orbit_hz_with_circuit", "equilibria", "barrier", "piezo", "params", "terms"})
     EXPECT_TRUE(p["model"].contains(key)) << key;
   ASSERT_EQ(p["records"].size(), 1u);
   const auto& r = p["records"][0];
@@ -197,7 +203,8 @@ TEST(IdentifyPredict, CliPredictsTheFittedRecordWithTheFitsErrors) {
     const auto& fo = f["errors_by_output"][o];
     EXPECT_NEAR(Num(po["nrmse"]), Num(fo["after"]), 1e-9 * Num(fo["after"]));
     EXPECT_NEAR(Num(po["spectral_error"]), Num(fo["fft_after"]), 1e-9 * Num(fo["fft_after"]));
-    for (const char* k : {"amplitude_measured", "amplitude_predicted", "rms_measured", "rms_predicted"}) EXPECT_GT(Num(po[k]), 0) << k;
+    for (const char* k : {"amplitude_measured", "amplitude_predicted", "rms_measured", "rms_predicted"})
+      EXPECT_GT(Num(po[k]), 0) << k;
   }
   EXPECT_NEAR(Num(p["error"]["nrmse"]), Num(f["error_after"]), 1e-9 * Num(f["error_after"]));
   EXPECT_NEAR(Num(r["forcing_hz"]), 6.5, 0.01);
@@ -215,7 +222,8 @@ TEST(IdentifyPredict, CliPredictsTheFittedRecordWithTheFitsErrors) {
   // The report directory form of --model and the fit's frame: same numbers.
   const std::string dir = bistable_test::FreshDir("predict", "report");
   WriteFile(dir + "/report.json", fit.out);
-  const auto again = Bistable("identify --predict --model " + dir + " --data " + inter + PiezoFlags() + slice + " --json");
+  const auto again =
+      Bistable("identify --predict --model " + dir + " --data " + inter + PiezoFlags() + slice + " --json");
   ASSERT_EQ(again.exit_code, 0) << again.err;
   EXPECT_EQ(nlohmann::json::parse(again.out)["prediction"]["records"], p["records"]);
 
@@ -227,10 +235,12 @@ TEST(IdentifyPredict, CliPredictsTheFittedRecordWithTheFitsErrors) {
   const auto& rr = right_json["prediction"]["records"][0];
   EXPECT_EQ(rr["start_well"], "right");
   EXPECT_GT(Num(rr["start_y_m"]), 0.5 * Num(m["wells"][1]["y_m"]));
-  EXPECT_GT(Num(rr["mean_displacement_m"]["predicted"]), 0) << "the model stays in the right well at the intrawell drive";
+  EXPECT_GT(Num(rr["mean_displacement_m"]["predicted"]), 0)
+      << "the model stays in the right well at the intrawell drive";
   EXPECT_FALSE(rr["chaotic"].get<bool>());
   EXPECT_TRUE(rr["invariants"].is_null());
-  const auto text = Bistable("identify --predict --model " + model + " --data " + intra + PiezoFlags() + " --max-seconds 4 --decimate 4");
+  const auto text = Bistable("identify --predict --model " + model + " --data " + intra + PiezoFlags() +
+                             " --max-seconds 4 --decimate 4");
   ASSERT_EQ(text.exit_code, 0) << text.err;
   for (const char* s : {"small orbit [Hz]", "with circuit [Hz]", "velocity", "voltage", "not measured"})
     EXPECT_NE(text.out.find(s), std::string::npos) << s << "\n" << text.out;
@@ -243,7 +253,8 @@ TEST(IdentifyPredict, CliRefusesABadModelNamingTheField) {
   std::string csv = "t,a0,v\n";
   for (int i = 0; i < 800; ++i) {
     const double t = i / 200.0;
-    csv += std::to_string(t) + "," + std::to_string(3 * std::sin(2 * M_PI * 6.5 * t)) + "," + std::to_string(0.05 * std::cos(2 * M_PI * 6.5 * t)) + "\n";
+    csv += std::to_string(t) + "," + std::to_string(3 * std::sin(2 * M_PI * 6.5 * t)) + "," +
+           std::to_string(0.05 * std::cos(2 * M_PI * 6.5 * t)) + "\n";
   }
   WriteFile(dir + "/d.csv", csv);
   const std::string flags = " --data " + dir + "/d.csv --input-kind base_acceleration --output-kind velocity";
@@ -274,17 +285,23 @@ TEST(IdentifyPredict, CliRefusesABadModelNamingTheField) {
       {"not_json", "{\"params\": ", "", "is not JSON"},
       {"not_object", "[1, 2]", "", "is not a JSON object"},
       {"no_params", "{\"declared\": \"main.linear\"}", "", "model.params"},
-      {"missing_param", variant("\"main.stiffness_y3.k3\": 2e6, ", ""), "", "model.params.main.stiffness_y3.k3 is missing"},
-      {"null_param", variant("\"main.viscous.c0\": 1.5", "\"main.viscous.c0\": null"), "", "model.params.main.viscous.c0 is not a number"},
-      {"string_param", variant("\"main.viscous.c0\": 1.5", "\"main.viscous.c0\": \"1.5\""), "", "model.params.main.viscous.c0 is not a number"},
+      {"missing_param", variant("\"main.stiffness_y3.k3\": 2e6, ", ""), "",
+       "model.params.main.stiffness_y3.k3 is missing"},
+      {"null_param", variant("\"main.viscous.c0\": 1.5", "\"main.viscous.c0\": null"), "",
+       "model.params.main.viscous.c0 is not a number"},
+      {"string_param", variant("\"main.viscous.c0\": 1.5", "\"main.viscous.c0\": \"1.5\""), "",
+       "model.params.main.viscous.c0 is not a number"},
       {"huge_param", variant("2e6", "1e300"), "", "model.params.main.stiffness_y3.k3 = 1e+300 violates"},
       {"negative_damping", variant("1.5", "-1.5"), "", "model.params.main.viscous.c0 = -1.5 violates >= 0"},
-      {"extra_param", variant("\"main.bias.f_b\": 0.1", "\"main.bias.f_b\": 0.1, \"main.drag.cq\": 1"), "", "'main.drag.cq', not a parameter"},
+      {"extra_param", variant("\"main.bias.f_b\": 0.1", "\"main.bias.f_b\": 0.1, \"main.drag.cq\": 1"), "",
+       "'main.drag.cq', not a parameter"},
       {"unknown_term", variant("\"term\": \"main.bias\"", "\"term\": \"main.biass\""), "", "model.final_terms"},
-      {"bad_final_terms", variant("\"declared\"", "\"final_terms\": [\"main.linear\", 3], \"declared\""), "", "model.final_terms[1] is not a string"},
+      {"bad_final_terms", variant("\"declared\"", "\"final_terms\": [\"main.linear\", 3], \"declared\""), "",
+       "model.final_terms[1] is not a string"},
       {"terms_mismatch", good, " --terms main.linear,main.viscous", "is neither the model's declared terms"},
       {"mass_mismatch", good, " --known m_main=0.3", "known.m_main"},
-      {"input_mismatch", variant("\"base_acceleration\"", "\"base_displacement\""), "", "fitted with --input-kind base_displacement"},
+      {"input_mismatch", variant("\"base_acceleration\"", "\"base_displacement\""), "",
+       "fitted with --input-kind base_displacement"},
       {"bad_mass", variant("\"m_main\": 1", "\"m_main\": -1"), "", "model.settings.m_main"},
       {"no_well", variant("-1000", "1000"), " --start-well right", "the model has one well"},
       {"deep", std::string(100, '[') + std::string(100, ']'), "", "nests deeper than 64"},

@@ -20,9 +20,9 @@ const std::string kData = BISTABLE_MEASURED_DIR;
 
 // The measured files live beside the repository (../shared/data/measured, not redistributable here);
 // a checkout elsewhere skips these tests and says why.
-#define REQUIRE_MEASURED(file)                                                                       \
-  if (!std::filesystem::exists(kData + "/" + file))                                                  \
-  GTEST_SKIP() << "measured data not found at " << kData << "/" << file                               \
+#define REQUIRE_MEASURED(file)                                          \
+  if (!std::filesystem::exists(kData + "/" + file))                     \
+  GTEST_SKIP() << "measured data not found at " << kData << "/" << file \
                << " (the repository's sibling ../shared/data/measured)"
 
 TEST(Records, SilverboxLoadsAsOneUniformRecord) {
@@ -44,10 +44,10 @@ TEST(Records, HarvesterScalesToSIAndSplitsTheSteadySineRecords) {
   ColumnMap c;
   c.input = "base_acc_g";
   c.input_kind = InputKind::kBaseAcceleration;
-  c.input_scale = 9.81;   // g → m/s²
+  c.input_scale = 9.81;  // g → m/s²
   c.output = "laser_V";
   c.output_kind = OutputKind::kVelocity;
-  c.output_scale = 0.1;   // the authors' 100 mm/s per V
+  c.output_scale = 0.1;  // the authors' 100 mm/s per V
   auto one = LoadRecords(kData + "/bistable-harvester/bistable_sym_intrawell_left_6p5Hz.csv", c);
   ASSERT_TRUE(one.ok()) << one.status().ToString();
   ASSERT_EQ(one->size(), 1u);
@@ -82,7 +82,8 @@ TEST(Records, BadFilesNameTheRowColumnAndBound) {
       {write("cell.csv", "t,x0,x\n0,0,0\n0.1,abc,0\n"), "row 3 column 'x0': 'abc' is not a finite number"},
       {write("nan.csv", "t,x0,x\n0,0,0\n0.1,0,nan\n"), "row 3 column 'x': 'nan' is not a finite number"},
       {write("short.csv", "t,x0,x\n0,0,0\n0.1,0\n"), "row 3: 2 cells, the header has 3"},
-      {write("jitter.csv", "t,x0,x\n0,0,0\n0.1,0,0\n0.3,0,0\n0.4,0,0\n0.5,0,0\n"), "sampling is not uniform"},  // a dropped sample
+      {write("jitter.csv", "t,x0,x\n0,0,0\n0.1,0,0\n0.3,0,0\n0.4,0,0\n0.5,0,0\n"),
+       "sampling is not uniform"},  // a dropped sample
       {write("empty.csv", "t,x0,x\n"), "no rows"},
       {dir + "/missing.csv", "cannot read data file"},
   };
@@ -144,11 +145,11 @@ TEST(Records, NonRegularDataFilesAreRefusedWithoutBlocking) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   ColumnMap c;
   const auto t0 = std::chrono::steady_clock::now();
-  for (const auto& [file, expect] : std::vector<std::pair<std::string, std::string>>{
-           {fifo, "data file '" + fifo + "' is not a regular file"},
-           {dir + "/a_directory.csv", "is not a regular file"},
-           {dir + "/missing.csv", "no such file"},
-           {"/dev/zero", "data file '/dev/zero' is not a regular file"}}) {
+  for (const auto& [file, expect] :
+       std::vector<std::pair<std::string, std::string>>{{fifo, "data file '" + fifo + "' is not a regular file"},
+                                                        {dir + "/a_directory.csv", "is not a regular file"},
+                                                        {dir + "/missing.csv", "no such file"},
+                                                        {"/dev/zero", "data file '/dev/zero' is not a regular file"}}) {
     auto r = LoadRecords(file, c);
     ASSERT_FALSE(r.ok()) << file;
     EXPECT_NE(r.status().ToString().find(expect), std::string::npos) << r.status().ToString();
@@ -175,8 +176,9 @@ TEST(Records, DaqQuirksReadAsThePlainCsv) {
       {"semicolon.csv", "t;x0;x\n" + Rows(p, ";")},
       {"semicolon_decimal_comma.csv", "t;x0;x\n" + Rows(p, ";", 1, 1, ',')},
       {"tab_decimal_comma.tsv", "t\tx0\tx\n" + Rows(p, "\t", 1, 1, ',')},
-      {"comments_and_blank_lines.csv", "# exported by a DAQ\n#channels: 3\n\nt,x0,x\n# data follow\n" + rows.substr(0, mid) +
-                                           "\n   \n# a marker\n" + rows.substr(mid) + "\n# end\n"},
+      {"comments_and_blank_lines.csv", "# exported by a DAQ\n#channels: 3\n\nt,x0,x\n# data follow\n" +
+                                           rows.substr(0, mid) + "\n   \n# a marker\n" + rows.substr(mid) +
+                                           "\n# end\n"},
       {"units_si.csv", "t [s],x0 (m),x [m]\n" + Rows(p, ",")},
       {"units_scaled.csv", "t [ms],x0 (mm),x [\xc2\xb5m]\n" + Rows(p, ",", 1e3, 1e3)},
       {"crlf.csv", "t,x0,x\r\n" + Rows(p, ",", 1, 1, '.', "\r\n")},
@@ -258,26 +260,33 @@ TEST(Records, MalformedDaqFilesNameTheLineColumnAndBound) {
        "long_line.csv row 3: the line is longer than 65536 bytes (violates line length <= 65536)"},
       {"long_header.csv", long_line, c, "long_header.csv row 1: the line is longer than 65536 bytes"},
       {"no_newline_ever.csv", std::string(200000, 'x'), c, "row 1: the line is longer than 65536 bytes"},
-      {"open_quote.csv", "t,x0,x\n0,0,0\n0.01,\"0,0\n", c, "open_quote.csv row 3 column 2: a quote is not closed on its line"},
+      {"open_quote.csv", "t,x0,x\n0,0,0\n0.01,\"0,0\n", c,
+       "open_quote.csv row 3 column 2: a quote is not closed on its line"},
       {"after_quote.csv", "\"t\"s,x0,x\n0,0,0\n", c, "row 1 (header) column 1: text after the closing quote"},
       {"no_separator.csv", "t x0 x\n0 0 0\n", c, "row 1 (header): no separator splits it"},
       {"tie.csv", "t,x0;x;y,z\n", c, "row 1 (header): it splits as often at ','"},
-      {"numbers_first.csv", "# t,x0,x\n0,0,0\n0.01,0,0\n", c, "row 2: the first line that is not a comment holds numbers"},
+      {"numbers_first.csv", "# t,x0,x\n0,0,0\n0.01,0,0\n", c,
+       "row 2: the first line that is not a comment holds numbers"},
       {"comments_only.csv", "# nothing\n\n# here\n", c, "comments_only.csv is empty (a header line is required)"},
       {"utf16.csv", std::string("\xff\xfet\0,\0x\0", 8), c, "utf16.csv is UTF-16 text; save it as UTF-8"},
       {"time_unit.csv", "t [samples],x0,x\n" + rows, c, "column 't [samples]' (time): unknown time unit 'samples'"},
-      {"time_in_mm.csv", "t [mm],x0,x\n" + rows, c, "column 't [mm]' (time): 'mm' is a unit of length; a time column takes s, ms"},
-      {"x_in_s.csv", "t,x0,x [s]\n" + rows, c, "column 'x [s]' (output, length): 's' is a unit of time; a length column takes m, cm, mm"},
-      {"a_in_g_for_disp.csv", "t,x0 [g],x\n" + rows, c, "column 'x0 [g]' (input, length): 'g' is a unit of acceleration"},
+      {"time_in_mm.csv", "t [mm],x0,x\n" + rows, c,
+       "column 't [mm]' (time): 'mm' is a unit of length; a time column takes s, ms"},
+      {"x_in_s.csv", "t,x0,x [s]\n" + rows, c,
+       "column 'x [s]' (output, length): 's' is a unit of time; a length column takes m, cm, mm"},
+      {"a_in_g_for_disp.csv", "t,x0 [g],x\n" + rows, c,
+       "column 'x0 [g]' (input, length): 'g' is a unit of acceleration"},
       {"twice.csv", "t,x0 [mm],x\n" + rows, scaled,
-       "column 'x0 [mm]' (input, length): the header gives the unit mm, converted to m; input_scale = 0.001 would convert it again"},
+       "column 'x0 [mm]' (input, length): the header gives the unit mm, converted to m; input_scale = 0.001 would "
+       "convert it again"},
       {"ambiguous.csv", "t,x0,x [m],x [V]\n", c, "(output): columns 'x [m]' and 'x [V]' both match 'x'"},
       {"decimal_comma_in_csv.csv", "t,x0,x\n0,\"0,5\",0\n", c, "row 2 column 'x0': '0,5' is not a finite number"},
       {"thousands.csv", "t;x0;x\n0;1.234,5;0\n", c, "row 2 column 'x0': '1.234,5' is not a finite number"},
       {"control_bytes.csv", "t,x0,x\n0,\x1b[31m,0\n", c, "row 2 column 'x0': '\\x1b[31m' is not a finite number"},
       {"typo_with_units.csv", "t [s],x0 [m],pos [m]\n" + rows, c, "unknown column 'x'"},
       {"misspelt_unit.csv", "t,x0 [mmm],x\n" + rows, c,
-       "column 'x0 [mmm]' (input, length): 'mmm' is no unit of length (m, cm, mm, um, \xc2\xb5m, \xce\xbcm, nm); to read the "
+       "column 'x0 [mmm]' (input, length): 'mmm' is no unit of length (m, cm, mm, um, \xc2\xb5m, \xce\xbcm, nm); to "
+       "read the "
        "column as is, give input_scale"},
   };
   for (const Case& k : cases) {

@@ -44,7 +44,8 @@ namespace fs = std::filesystem;
 // Sweeps of other lengths or t_end share no items (whose stored results would be reused, not leased).
 std::string SpecText(int n, const std::string& name, int t_end = 40) {
   return "name = \"" + name + "\"\nmodel = \"coupled\"\n[axes]\nalpha = { linspace = [0.2, 2.5, " + std::to_string(n) +
-         "] }\nomega = { linspace = [0.3, 2.0, 4] }\n[integration]\nt_end = " + std::to_string(t_end) + ".0\nt_keep = 20.0\n";
+         "] }\nomega = { linspace = [0.3, 2.0, 4] }\n[integration]\nt_end = " + std::to_string(t_end) +
+         ".0\nt_keep = 20.0\n";
 }
 
 // A coordinator and its service on 127.0.0.1 (port 0: any; or the port of a previous server, to restart).
@@ -108,24 +109,107 @@ TEST(Service, EveryMethodChecksTheTokenBeforeTheRequest) {
   auto stub = s.Stub();
   // One call per method, with an empty request: the token is what is refused, never the request.
   using Call = std::function<grpc::Status(grpc::ClientContext*)>;
-  const std::map<std::string, std::pair<Call, bool>> calls = {  // method -> (call, a viewer may make it)
-      {"Submit", {[&](grpc::ClientContext* x) { v1::SubmitReply r; return stub->Submit(x, {}, &r); }, false}},
-      {"GetStatus", {[&](grpc::ClientContext* x) { v1::SweepStatus r; return stub->GetStatus(x, {}, &r); }, true}},
-      {"WatchStatus", {[&](grpc::ClientContext* x) { v1::SweepStatus r; auto rd = stub->WatchStatus(x, {}); while (rd->Read(&r)) {} return rd->Finish(); }, true}},
-      {"Cancel", {[&](grpc::ClientContext* x) { v1::CancelReply r; return stub->Cancel(x, {}, &r); }, false}},
-      {"ListSweeps", {[&](grpc::ClientContext* x) { v1::ListSweepsReply r; return stub->ListSweeps(x, {}, &r); }, true}},
-      {"GetMap", {[&](grpc::ClientContext* x) { v1::MapReply r; return stub->GetMap(x, {}, &r); }, true}},
-      {"ListMetrics", {[&](grpc::ClientContext* x) { v1::MetricsReply r; return stub->ListMetrics(x, {}, &r); }, true}},
-      {"RegisterWorker", {[&](grpc::ClientContext* x) { v1::RegisterReply r; return stub->RegisterWorker(x, {}, &r); }, false}},
-      {"Lease", {[&](grpc::ClientContext* x) { v1::LeaseReply r; return stub->Lease(x, {}, &r); }, false}},
-      {"Heartbeat", {[&](grpc::ClientContext* x) { v1::HeartbeatReply r; return stub->Heartbeat(x, {}, &r); }, false}},
-      {"Report", {[&](grpc::ClientContext* x) { v1::ReportReply r; return stub->Report(x, {}, &r); }, false}},
-      {"Release", {[&](grpc::ClientContext* x) { v1::ReleaseReply r; return stub->Release(x, {}, &r); }, false}},
-      {"ListWorkers", {[&](grpc::ClientContext* x) { v1::ListWorkersReply r; return stub->ListWorkers(x, {}, &r); }, true}},
-      {"FetchMap", {[&](grpc::ClientContext* x) { v1::FileChunk r; auto rd = stub->FetchMap(x, {}); while (rd->Read(&r)) {} return rd->Finish(); }, true}},
-      {"GetSpec", {[&](grpc::ClientContext* x) { v1::SpecReply r; return stub->GetSpec(x, {}, &r); }, false}},
+  const std::map<std::string, std::pair<Call, bool>> calls = {
+      // method -> (call, a viewer may make it)
+      {"Submit",
+       {[&](grpc::ClientContext* x) {
+          v1::SubmitReply r;
+          return stub->Submit(x, {}, &r);
+        },
+        false}},
+      {"GetStatus",
+       {[&](grpc::ClientContext* x) {
+          v1::SweepStatus r;
+          return stub->GetStatus(x, {}, &r);
+        },
+        true}},
+      {"WatchStatus",
+       {[&](grpc::ClientContext* x) {
+          v1::SweepStatus r;
+          auto rd = stub->WatchStatus(x, {});
+          while (rd->Read(&r)) {
+          }
+          return rd->Finish();
+        },
+        true}},
+      {"Cancel",
+       {[&](grpc::ClientContext* x) {
+          v1::CancelReply r;
+          return stub->Cancel(x, {}, &r);
+        },
+        false}},
+      {"ListSweeps",
+       {[&](grpc::ClientContext* x) {
+          v1::ListSweepsReply r;
+          return stub->ListSweeps(x, {}, &r);
+        },
+        true}},
+      {"GetMap",
+       {[&](grpc::ClientContext* x) {
+          v1::MapReply r;
+          return stub->GetMap(x, {}, &r);
+        },
+        true}},
+      {"ListMetrics",
+       {[&](grpc::ClientContext* x) {
+          v1::MetricsReply r;
+          return stub->ListMetrics(x, {}, &r);
+        },
+        true}},
+      {"RegisterWorker",
+       {[&](grpc::ClientContext* x) {
+          v1::RegisterReply r;
+          return stub->RegisterWorker(x, {}, &r);
+        },
+        false}},
+      {"Lease",
+       {[&](grpc::ClientContext* x) {
+          v1::LeaseReply r;
+          return stub->Lease(x, {}, &r);
+        },
+        false}},
+      {"Heartbeat",
+       {[&](grpc::ClientContext* x) {
+          v1::HeartbeatReply r;
+          return stub->Heartbeat(x, {}, &r);
+        },
+        false}},
+      {"Report",
+       {[&](grpc::ClientContext* x) {
+          v1::ReportReply r;
+          return stub->Report(x, {}, &r);
+        },
+        false}},
+      {"Release",
+       {[&](grpc::ClientContext* x) {
+          v1::ReleaseReply r;
+          return stub->Release(x, {}, &r);
+        },
+        false}},
+      {"ListWorkers",
+       {[&](grpc::ClientContext* x) {
+          v1::ListWorkersReply r;
+          return stub->ListWorkers(x, {}, &r);
+        },
+        true}},
+      {"FetchMap",
+       {[&](grpc::ClientContext* x) {
+          v1::FileChunk r;
+          auto rd = stub->FetchMap(x, {});
+          while (rd->Read(&r)) {
+          }
+          return rd->Finish();
+        },
+        true}},
+      {"GetSpec",
+       {[&](grpc::ClientContext* x) {
+          v1::SpecReply r;
+          return stub->GetSpec(x, {}, &r);
+        },
+        false}},
   };
-  const auto* service = google::protobuf::DescriptorPool::generated_pool()->FindServiceByName(v1::Coordinator::service_full_name());
+  const auto* service =
+      google::protobuf::DescriptorPool::generated_pool()->FindServiceByName(v1::Coordinator::service_full_name());
   ASSERT_NE(service, nullptr);
   std::set<std::string> seen;
   for (int i = 0; i < service->method_count(); ++i) {
@@ -147,9 +231,11 @@ TEST(Service, EveryMethodChecksTheTokenBeforeTheRequest) {
       const grpc::Status st = it->second.first(&x);
       const bool allowed = is_viewer ? it->second.second : (!it->second.second && m != "Submit" && m != "Cancel");
       if (allowed)
-        EXPECT_NE(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << m << " refused a " << (is_viewer ? "viewer" : "worker");
+        EXPECT_NE(st.error_code(), grpc::StatusCode::PERMISSION_DENIED)
+            << m << " refused a " << (is_viewer ? "viewer" : "worker");
       else
-        EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED) << m << " let a " << (is_viewer ? "viewer" : "worker") << " in";
+        EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED)
+            << m << " let a " << (is_viewer ? "viewer" : "worker") << " in";
     }
   }
   EXPECT_EQ(seen.size(), calls.size()) << "a row of this test names no method of the service";
@@ -383,7 +469,8 @@ TEST(Service, PublishedMapsAreReadOnceForTheServiceAndTheDashboard) {
   for (const std::string& bad : {std::string("nope"), std::string("/axes/alpha"), std::string(100, 'm')}) {
     auto r = client->GetMap(id, bad);
     EXPECT_FALSE(r.ok());
-    EXPECT_NE(r.status().ToString().find(ReadMapMetric(path, bad).status().message()), std::string::npos) << r.status().ToString();
+    EXPECT_NE(r.status().ToString().find(ReadMapMetric(path, bad).status().message()), std::string::npos)
+        << r.status().ToString();
   }
   EXPECT_EQ(s.maps->loads(), after_first);
 

@@ -3,8 +3,8 @@
 // lane alone (`bistable point`) — map == point.
 #include <algorithm>
 #include <cmath>
-#include <tuple>
 #include <cstring>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -33,10 +33,14 @@ void ExpectSame(const PointResult& a, const PointResult& b, const char* what) {
   EXPECT_EQ(a.motion, b.motion);
   EXPECT_EQ(a.period, b.period);
   EXPECT_EQ(a.steps, b.steps);
-  for (auto [x, y, name] : {std::tuple{a.lle, b.lle, "lle"}, {a.lle_sigma, b.lle_sigma, "lle_sigma"},
+  for (auto [x, y, name] : {std::tuple{a.lle, b.lle, "lle"},
+                            {a.lle_sigma, b.lle_sigma, "lle_sigma"},
                             {a.settle_time, b.settle_time, "settle_time"},
-                            {a.label_confidence, b.label_confidence, "label_confidence"}, {a.frf_db, b.frf_db, "frf"},
-                            {a.hd_index, b.hd_index, "hd"}, {a.edr_t, b.edr_t, "edr_t"}, {a.y_min, b.y_min, "y_min"},
+                            {a.label_confidence, b.label_confidence, "label_confidence"},
+                            {a.frf_db, b.frf_db, "frf"},
+                            {a.hd_index, b.hd_index, "hd"},
+                            {a.edr_t, b.edr_t, "edr_t"},
+                            {a.y_min, b.y_min, "y_min"},
                             {a.strobe_y, b.strobe_y, "strobe_y"}})
     EXPECT_TRUE(SameBits(x, y)) << name << ": " << x << " vs " << y;
   for (int d = 0; d < 4; ++d) EXPECT_TRUE(SameBits(a.final_state[d], b.final_state[d]));
@@ -182,7 +186,9 @@ TEST(Settle, ChaoticLabelsCarryTheirZeroOneTestAndTheVetoHolds) {
   auto q = EvaluatePoint(p);
   ASSERT_TRUE(q.ok());
   EXPECT_NE(q->motion, Motion::kChaotic);
-  if (q->period >= 1) { EXPECT_TRUE(std::isnan(q->chaos_01)); }
+  if (q->period >= 1) {
+    EXPECT_TRUE(std::isnan(q->chaos_01));
+  }
   s.metrics.chaos_01_min = 1.0;
   s.integration.settle_cap = 3000;
   auto v = EvaluatePoint(s);

@@ -139,7 +139,8 @@ void ExpectSameSpectraAsOneAtATime() {
     ASSERT_EQ(one.amp.size(), block[l].amp.size()) << "W " << W << " lane " << l;
     EXPECT_EQ(std::memcmp(&one.d_omega, &block[l].d_omega, sizeof(double)), 0);
     for (size_t k = 0; k < one.amp.size(); ++k)
-      ASSERT_EQ(std::memcmp(&one.amp[k], &block[l].amp[k], sizeof(double)), 0) << "W " << W << " lane " << l << " bin " << k;
+      ASSERT_EQ(std::memcmp(&one.amp[k], &block[l].amp[k], sizeof(double)), 0)
+          << "W " << W << " lane " << l << " bin " << k;
   }
 }
 

@@ -4,29 +4,28 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <chrono>
 #include <thread>
 
-#include <future>
 #include <gtest/gtest.h>
 #include <sqlite3.h>
+#include <future>
 
-#include "dynamics/point.h"
-#include "engine/content_hash.h"
-#include "engine/query.h"
-#include "engine/sweep_spec.h"
-#include "server/sweep_coordinator.h"
-#include "storage/map_file.h"
 #include "dynamics/dopri5.h"
 #include "dynamics/nondim_system.h"
 #include "dynamics/point.h"
 #include "engine/basins.h"
+#include "engine/content_hash.h"
 #include "engine/evaluate.h"
+#include "engine/query.h"
 #include "engine/refine.h"
+#include "engine/sweep_spec.h"
+#include "server/sweep_coordinator.h"
+#include "storage/map_file.h"
 #include "tests/map_compare.h"
 #include "tests/process_util.h"
 #include "tests/spec_fixture.h"
@@ -35,7 +34,8 @@ namespace bistable {
 namespace {
 
 std::string TempDir(const std::string& name) {
-  const auto dir = std::filesystem::path(::testing::TempDir()) / ("bistable_" + name + "_" + std::to_string(::getpid()));
+  const auto dir =
+      std::filesystem::path(::testing::TempDir()) / ("bistable_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   bistable_test::RemoveWhenAllPass(dir);
   return dir.string();
@@ -51,7 +51,8 @@ std::string RunSweep(SweepCoordinator& c, const SweepSpec& spec, int threads, Sw
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t)
     pool.emplace_back([&] {
-      while (auto lease = c.Lease("test")) EXPECT_TRUE(c.Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
+      while (auto lease = c.Lease("test"))
+        EXPECT_TRUE(c.Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
     });
   for (auto& th : pool) th.join();
   auto path = c.Publish(p->id);
@@ -105,7 +106,9 @@ eta = 0.2
 [axes]
 alpha = { list = [0.5, 1.5] }
 omega = { logspace = [0.1, 10, 3] }
-)").Id(), s.Id());  // ids depend on content, not on layout
+)")
+                .Id(),
+            s.Id());  // ids depend on content, not on layout
 }
 
 TEST(SweepSpec, ShippedExamplesParse) {
@@ -131,7 +134,8 @@ TEST(SweepSpec, BadInputNamesTheFieldAndTheBound) {
       {"model = \"coupled\"\n[axis]\nalpha = [1]", "axis", "did you mean 'axes'"},
       {"model = \"duffing\"", "model", "model in {standalone, coupled"},
       {"[axes]\nalpha = [1]", "model", "required"},
-      {"model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3.0, 0] }", "axes.alpha.linspace.count", "[1, 1048576]"},
+      {"model = \"coupled\"\n[axes]\nalpha = { linspace = [0.1, 3.0, 0] }", "axes.alpha.linspace.count",
+       "[1, 1048576]"},
       {"model = \"coupled\"\n[axes]\nalpha = { linspace = [3.0, 0.1, 5] }", "axes.alpha", "strictly increasing"},
       {"model = \"coupled\"\n[axes]\nalpha = []", "axes.alpha", "empty"},
       {"model = \"coupled\"\n[axes]\nalpha = [0.5, nan]", "axes.alpha[1]", "finite"},
@@ -147,7 +151,8 @@ TEST(SweepSpec, BadInputNamesTheFieldAndTheBound) {
       {"model = \"coupled\"\n[metrics]\nhd_level = 2.0", "metrics.hd_level", "in (0, 1)"},
       {"model = \"coupled\"\n[metrics]\nmax_period = 100", "metrics.max_period", "in [1, 64]"},
       // A long model name is cut in the message, not echoed whole.
-      {"model = \"duffingduffingduffingduffingduffingduffingduffingduffingduffingduffingduffingduffingduffing\"", "model", "..."},
+      {"model = \"duffingduffingduffingduffingduffingduffingduffingduffingduffingduffingduffingduffingduffing\"",
+       "model", "..."},
   };
   for (const Case& c : cases) {
     auto s = ParseSweepSpec(c.toml, "test.toml");
@@ -161,7 +166,9 @@ TEST(Query, EvaluatesComparisonsConnectivesAndMotionNames) {
   const std::vector<std::string> names = {"alpha", "frf_db", "lle", "motion"};
   auto q = Query::Parse("frf_db < -3 and (lle < 0.01 or motion == chaotic) and not alpha >= 2", names);
   ASSERT_TRUE(q.ok()) << q.status().ToString();
-  auto at = [](double a, double f, double l, double m) { return [=](int v) { return std::vector<double>{a, f, l, m}[v]; }; };
+  auto at = [](double a, double f, double l, double m) {
+    return [=](int v) { return std::vector<double>{a, f, l, m}[v]; };
+  };
   EXPECT_TRUE(q->Eval(at(1, -5, 0.0, 0)));
   EXPECT_TRUE(q->Eval(at(1, -5, 0.2, 2)));
   EXPECT_FALSE(q->Eval(at(1, -5, 0.2, 1)));
@@ -188,7 +195,8 @@ TEST(Query, CategoryWordsNameTheOtherSidesCodes) {
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.status().message().find("termination value"), std::string::npos) << bad.status().message();
   EXPECT_NE(bad.status().message().find("did you mean 'diverged'"), std::string::npos) << bad.status().message();
-  EXPECT_NE(bad.status().message().find("at 16"), std::string::npos) << "the word's position: " << bad.status().message();
+  EXPECT_NE(bad.status().message().find("at 16"), std::string::npos)
+      << "the word's position: " << bad.status().message();
   EXPECT_FALSE(Query::Parse("motion == diverged", names).ok()) << "a termination name is not a motion value";
 }
 
@@ -425,7 +433,8 @@ TEST(SweepEngine, LeasesExpireByTheMonotonicClockNotTheWallClock) {
   const std::string dir = TempDir("clockjump");
   double wall = 1e9, mono = 100;
   auto c = SweepCoordinator::Open(
-      dir, {.lease_seconds = 10, .resume = true, .clock = [&wall] { return wall; }, .monotonic = [&mono] { return mono; }});
+      dir,
+      {.lease_seconds = 10, .resume = true, .clock = [&wall] { return wall; }, .monotonic = [&mono] { return mono; }});
   ASSERT_TRUE(c.ok());
   const SweepSpec spec = Parse(kSmall);  // 15 items
   auto plan = (*c)->Submit(spec, 8);     // jobs of 8 and 7
@@ -440,7 +449,8 @@ TEST(SweepEngine, LeasesExpireByTheMonotonicClockNotTheWallClock) {
   EXPECT_TRUE((*c)->Extend(first->lease_id).ok());
   ASSERT_TRUE((*c)->Report(first->lease_id, ComputeItems(spec, first->items)).ok());
   mono += 11;  // now the second lease's deadline passes
-  EXPECT_EQ((*c)->Report(second->lease_id, ComputeItems(spec, second->items)).code(), Status::Code::kFailedPrecondition);
+  EXPECT_EQ((*c)->Report(second->lease_id, ComputeItems(spec, second->items)).code(),
+            Status::Code::kFailedPrecondition);
   auto again = (*c)->Lease("w3");
   ASSERT_TRUE(again.has_value());
   EXPECT_EQ(again->job_id, second->job_id);
@@ -460,8 +470,8 @@ TEST(SweepEngine, CancelDuringPublicationIsRefused) {
   std::shared_future<void> go = release.get_future().share();
   std::atomic<bool> first{true};
   auto c = SweepCoordinator::Open(dir, {.before_index_row = [&] {
-                                          if (first.exchange(false)) reached.set_value(), go.wait();
-                                        }});
+                                    if (first.exchange(false)) reached.set_value(), go.wait();
+                                  }});
   ASSERT_TRUE(c.ok());
   const SweepSpec spec = Parse(kSmall);
   auto plan = (*c)->Submit(spec, 16);  // one job
@@ -564,12 +574,17 @@ TEST(SweepEngine, LookupWithoutFoldingFindsWhatFoldingFinds) {
     {  // corrupt the second staged row's records: its four points go missing either way
       sqlite3* raw = nullptr;
       ASSERT_EQ(sqlite3_open(path.c_str(), &raw), SQLITE_OK);
-      ASSERT_EQ(sqlite3_exec(raw, "UPDATE results SET records = zeroblob(length(records)) WHERE seq = (SELECT min(seq) + 1 FROM results)",
-                             nullptr, nullptr, nullptr), SQLITE_OK);
+      ASSERT_EQ(
+          sqlite3_exec(
+              raw,
+              "UPDATE results SET records = zeroblob(length(records)) WHERE seq = (SELECT min(seq) + 1 FROM results)",
+              nullptr, nullptr, nullptr),
+          SQLITE_OK);
       sqlite3_close(raw);
     }
     long corrupt = -1;
-    auto found = (*db)->LookupPoints(keys, rec[0].v.size(), &corrupt, variant ? IndexDb::Fold::kLater : IndexDb::Fold::kNow);
+    auto found =
+        (*db)->LookupPoints(keys, rec[0].v.size(), &corrupt, variant ? IndexDb::Fold::kLater : IndexDb::Fold::kNow);
     ASSERT_TRUE(found.ok());
     EXPECT_EQ(corrupt, 0) << "the corrupt row is a staged one, not a cached record";
     EXPECT_EQ(found->size(), keys.size() - 4);
@@ -610,7 +625,8 @@ TEST(SweepEngine, StagedRecordsOverrideTheCacheAndTheLaterReportWins) {
     ASSERT_TRUE((*db)->PutPoints({job({"a", "b"}, 1.0)}).ok());
     ASSERT_EQ((*db)->CachedPointCount(), 2);  // folded: a and b are in the point cache with 1
     std::vector<IndexDb::JobResults> staged;
-    for (int i = 0; i < 5000; ++i) staged.push_back(job({std::string("k").append(std::to_string(i))}, i));  // more rows than one page of reads
+    for (int i = 0; i < 5000; ++i)
+      staged.push_back(job({std::string("k").append(std::to_string(i))}, i));  // more rows than one page of reads
     staged.push_back(job({"a"}, 2.0));
     staged.push_back(job({"a"}, 3.0));  // the later report of a
     ASSERT_TRUE((*db)->PutPoints(staged).ok());
@@ -855,7 +871,8 @@ ic_radius = %g
     return mid;
   };
   std::vector<double> c0, c1, c5, c5b, c5s;
-  const int none = band(spec_for(0.0, 7), &c0), small = band(spec_for(0.01, 7), &c1), wide = band(spec_for(0.05, 7), &c5);
+  const int none = band(spec_for(0.0, 7), &c0), small = band(spec_for(0.01, 7), &c1),
+            wide = band(spec_for(0.05, 7), &c5);
   EXPECT_EQ(none, 0);  // identical samples: 0 or 1 everywhere
   EXPECT_GT(small, 0);
   EXPECT_GT(wide, small) << "the band widens with the tolerance";
@@ -928,7 +945,8 @@ TEST(SweepEngine, RefinedMapEqualsTheUniformMapWhereComputedAndCostsLess) {
     ASSERT_TRUE(fill.ok() && level.ok());
     EXPECT_EQ(fill->categories.size(), 3u);
     long computed = 0, boundary_points = 0;
-    for (size_t i = 0; i < fill->values.size(); ++i) computed += fill->values[i] == 0, boundary_points += level->values[i] == 3;
+    for (size_t i = 0; i < fill->values.size(); ++i)
+      computed += fill->values[i] == 0, boundary_points += level->values[i] == 3;
     EXPECT_LT(computed, 65 * 65 / 2) << "refinement computes a fraction of the uniform grid";
     EXPECT_GT(boundary_points, 0) << "some cells were refined to the finest spacing";
     auto attr = ReadMapAttribute(path_r, "refine_criterion");
@@ -980,7 +998,8 @@ TEST(SweepEngine, RefinedSweepResumesFromItsStoredLevels) {
     level0 = plan->items_total;
     EXPECT_EQ(level0, 9 * 9);  // the coarse grid: every 8th value of 65
     EXPECT_EQ((*c)->progress(spec.Id()).refine_round, 0) << "round 0: the coarse grid";
-    while (auto lease = (*c)->Lease("w")) ASSERT_TRUE((*c)->Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
+    while (auto lease = (*c)->Lease("w"))
+      ASSERT_TRUE((*c)->Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
     // "crash" here: the next level may or may not have been planned
   }
   auto c = SweepCoordinator::Open(dir);  // resumes: plans again from the stored levels
@@ -1041,7 +1060,9 @@ mixed_after = 2
   for (const RefineCell& c : step->cells) {
     const long i = c.origin / 65, j = c.origin % 65;
     if (c.level == 4 && c.mixed)
-      (i >= 48 && j >= 48 ? finest_in_square : i >= 48 && j < 16 ? finest_in_regular_square : finest_mixed_on_line) += 1;
+      (i >= 48 && j >= 48  ? finest_in_square
+       : i >= 48 && j < 16 ? finest_in_regular_square
+                           : finest_mixed_on_line) += 1;
   }
   EXPECT_GT(finest_mixed_on_line, 20) << "the boundary line is refined to the finest spacing";
   EXPECT_EQ(finest_in_square, 0) << "the chaotic speckled square is not";
@@ -1069,7 +1090,8 @@ TEST(SweepSpec, RefineIsCheckedByName) {
     ASSERT_FALSE(s.ok()) << toml;
     EXPECT_EQ(s.status().field(), field) << s.status().ToString();
   }
-  auto ok = ParseSweepSpec("model = \"coupled\"\n[axes]\nomega = { linspace = [1.0, 2.0, 5] }\n[refine]\nlevels = 2\n", "t.toml");
+  auto ok = ParseSweepSpec("model = \"coupled\"\n[axes]\nomega = { linspace = [1.0, 2.0, 5] }\n[refine]\nlevels = 2\n",
+                           "t.toml");
   ASSERT_TRUE(ok.ok()) << ok.status().ToString();
   auto plain = ParseSweepSpec("model = \"coupled\"\n[axes]\nomega = { linspace = [1.0, 2.0, 5] }\n", "t.toml");
   EXPECT_NE(ok->Id(), plain->Id()) << "refinement is part of the sweep's identity";
@@ -1084,7 +1106,8 @@ TEST(SweepSpec, RobustnessIsCheckedByName) {
            {"[robustness]\nsamples = 8\ntolerance = { eta = 0.7 }\n", "robustness.tolerance.eta"},
            {"[robustness]\nsamples = 8\ntolerance = { etta = 0.1 }\n", "robustness.tolerance.etta"},
            {"[robustness]\nsamples = 8\nic_radius = -1\n", "robustness.ic_radius"},
-           {"[robustness]\nsamples = 8\n[initial_conditions]\nstates = [[1, 0], [-1, 0]]\n", "initial_conditions.states"}}) {
+           {"[robustness]\nsamples = 8\n[initial_conditions]\nstates = [[1, 0], [-1, 0]]\n",
+            "initial_conditions.states"}}) {
     auto s = ParseSweepSpec("model = \"coupled\"\n[axes]\nomega = [1.0, 2.0]\n" + toml, "test.toml");
     ASSERT_FALSE(s.ok()) << toml;
     EXPECT_EQ(s.status().field(), field) << s.status().ToString();

@@ -16,9 +16,11 @@ std::shared_ptr<const SweepSpec> SpecCache::Find(const std::string& key) {
   return nullptr;
 }
 
-StatusOr<std::shared_ptr<const SweepSpec>> SpecCache::Put(const std::string& sweep_id, const std::string& toml, const std::string& key) {
+StatusOr<std::shared_ptr<const SweepSpec>> SpecCache::Put(const std::string& sweep_id, const std::string& toml,
+                                                          const std::string& key) {
   const std::string own = SpecKey(toml);
-  if (!key.empty() && key != own) return Status::InvalidArgument("spec", "the spec of sweep " + sweep_id + " does not have its key " + key);
+  if (!key.empty() && key != own)
+    return Status::InvalidArgument("spec", "the spec of sweep " + sweep_id + " does not have its key " + key);
   if (auto held = Find(own)) return held;
   auto spec = ParseSweepSpec(toml, "sweep " + sweep_id);  // outside the lock: a spec takes milliseconds to parse
   if (!spec.ok()) return spec.status();
@@ -48,9 +50,11 @@ long SpecCache::parses() const {
   return parses_;
 }
 
-StatusOr<std::shared_ptr<const SweepSpec>> SpecOfLease(CoordinatorClient* c, SpecCache* cache, const CoordinatorClient::Lease& lease) {
+StatusOr<std::shared_ptr<const SweepSpec>> SpecOfLease(CoordinatorClient* c, SpecCache* cache,
+                                                       const CoordinatorClient::Lease& lease) {
   // The text when it came (an old coordinator sends no key: the cache keys it itself).
-  if (!lease.spec_toml.empty() || lease.spec_key.empty()) return cache->Put(lease.sweep_id, lease.spec_toml, lease.spec_key);
+  if (!lease.spec_toml.empty() || lease.spec_key.empty())
+    return cache->Put(lease.sweep_id, lease.spec_toml, lease.spec_key);
   if (auto held = cache->Find(lease.spec_key)) return held;
   // Named as held, but pushed out since (or a coordinator that left it out unasked): asked for once.
   auto text = c->GetSpec(lease.sweep_id);
@@ -67,7 +71,8 @@ StatusOr<std::optional<LeasedJob>> GrpcJobSource::Lease() {
 
 void GrpcJobSource::Heartbeat(const LeasedJob& job) { Count("Heartbeat", c_->Heartbeat(job.lease_id)); }
 
-Status GrpcJobSource::Report(const LeasedJob& job, const std::vector<PointRecord>& records, std::optional<LeasedJob>* next) {
+Status GrpcJobSource::Report(const LeasedJob& job, const std::vector<PointRecord>& records,
+                             std::optional<LeasedJob>* next) {
   std::optional<CoordinatorClient::Lease> following;
   const Status st = c_->Report(job.lease_id, records, next ? name_ : "", next ? &following : nullptr, jobs_per_lease_,
                                next ? cache_->Keys() : std::vector<std::string>());
@@ -91,7 +96,8 @@ StatusOr<std::optional<LeasedJob>> GrpcJobSource::ToJob(std::optional<Coordinato
   auto spec = SpecOfLease(c_, cache_, *lease);
   if (!spec.ok()) {
     (void)c_->Release(lease->lease_id);
-    return Status::FailedPrecondition("cannot get or parse the spec of sweep " + lease->sweep_id + " (released): " + spec.status().ToString());
+    return Status::FailedPrecondition("cannot get or parse the spec of sweep " + lease->sweep_id +
+                                      " (released): " + spec.status().ToString());
   }
   return std::optional<LeasedJob>(LeasedJob{lease->lease_id, *spec, std::move(lease->items)});
 }

@@ -38,7 +38,8 @@ class SpecCache {
   // Parses `toml` (named "sweep <sweep_id>" in errors) and keeps it under its own key (SpecKey(toml)),
   // which must equal `key` when `key` is given (InvalidArgument "spec" otherwise). Kept specs are not parsed
   // again.
-  StatusOr<std::shared_ptr<const SweepSpec>> Put(const std::string& sweep_id, const std::string& toml, const std::string& key = "");
+  StatusOr<std::shared_ptr<const SweepSpec>> Put(const std::string& sweep_id, const std::string& toml,
+                                                 const std::string& key = "");
   // The keys held, most recently used first: what a lease request names.
   std::vector<std::string> Keys() const;
   // Parses done so far (tests: a spec is parsed once per process).
@@ -53,7 +54,8 @@ class SpecCache {
 
 // The spec of a lease: its text when it came with one, else the cache's entry for its key, else the
 // coordinator's answer to GetSpec.
-StatusOr<std::shared_ptr<const SweepSpec>> SpecOfLease(CoordinatorClient* c, SpecCache* cache, const CoordinatorClient::Lease& lease);
+StatusOr<std::shared_ptr<const SweepSpec>> SpecOfLease(CoordinatorClient* c, SpecCache* cache,
+                                                       const CoordinatorClient::Lease& lease);
 
 class GrpcJobSource : public JobSource {
  public:

@@ -10,8 +10,8 @@
 namespace bistable {
 
 void SleepUnlessCancelled(double seconds) {
-  const auto end = std::chrono::steady_clock::now() +
-                   std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(seconds));
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                          std::chrono::duration<double>(seconds));
   const std::chrono::steady_clock::duration slice = std::chrono::milliseconds(20);
   while (!CancelRequested()) {
     const auto left = end - std::chrono::steady_clock::now();
@@ -34,7 +34,8 @@ std::optional<std::vector<PointRecord>> Compute(JobSource& source, const LeasedJ
   if (heartbeat_seconds <= 0) return ComputeItemsUnlessCancelled(*job.spec, job.items);
   auto work = std::async(std::launch::async, [&] { return ComputeItemsUnlessCancelled(*job.spec, job.items); });
   // The computation stops within milliseconds of a cancellation, so waiting for it is short then.
-  while (work.wait_for(std::chrono::duration<double>(heartbeat_seconds)) != std::future_status::ready) source.Heartbeat(job);
+  while (work.wait_for(std::chrono::duration<double>(heartbeat_seconds)) != std::future_status::ready)
+    source.Heartbeat(job);
   return work.get();
 }
 
@@ -53,7 +54,8 @@ PullLoopResult RunPullLoop(JobSource& source, const PullLoopOptions& opt) {
       auto leased = source.Lease();
       if (!leased.ok()) {
         if (!Transient(leased.status()) && opt.log)
-          log::Event(log::Level::kWarn, "lease.refused", {{"worker", opt.name}, {"reason", leased.status().ToString()}});
+          log::Event(log::Level::kWarn, "lease.refused",
+                     {{"worker", opt.name}, {"reason", leased.status().ToString()}});
         if (opt.stop_on_error && !Transient(leased.status())) {
           fail(leased.status());
           break;
@@ -77,7 +79,9 @@ PullLoopResult RunPullLoop(JobSource& source, const PullLoopOptions& opt) {
       const Status rs = source.Release(job);
       if (opt.log)
         log::Event(log::Level::kError, "lease.refused",
-                   {{"worker", opt.name}, {"lease", job.lease_id}, {"reason", bad.ToString()},
+                   {{"worker", opt.name},
+                    {"lease", job.lease_id},
+                    {"reason", bad.ToString()},
                     {"action", rs.ok() ? "released, not computed" : "not computed; release failed"}});
       fail(bad);
       if (opt.stop_on_error) break;
@@ -90,7 +94,8 @@ PullLoopResult RunPullLoop(JobSource& source, const PullLoopOptions& opt) {
       const Status rs = source.Release(job);
       if (opt.log)
         log::Event(log::Level::kInfo, "job.stopped",
-                   {{"worker", opt.name}, {"lease", job.lease_id},
+                   {{"worker", opt.name},
+                    {"lease", job.lease_id},
                     {"outcome", rs.ok() ? "released" : "release failed; it requeues when the lease expires"},
                     {"reason", rs.ok() ? "" : rs.ToString()}});
       break;
@@ -108,7 +113,9 @@ PullLoopResult RunPullLoop(JobSource& source, const PullLoopOptions& opt) {
       if (!Transient(st) || attempt >= opt.report_retries || CancelRequested()) {
         if (opt.log)
           log::Event(log::Level::kWarn, "report.failed",
-                     {{"worker", opt.name}, {"lease", job.lease_id}, {"outcome", Transient(st) ? "not answered" : "refused"},
+                     {{"worker", opt.name},
+                      {"lease", job.lease_id},
+                      {"outcome", Transient(st) ? "not answered" : "refused"},
                       {"reason", st.ToString()},
                       {"action", opt.stop_on_error ? "stop" : "its job requeues when the lease expires"}});
         fail(st);

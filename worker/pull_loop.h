@@ -37,21 +37,22 @@ class JobSource {
   virtual void Heartbeat(const LeasedJob& job) = 0;
   // Stores the job's records. When `next` is not null the source may lease the following job in the
   // same call and put it there (one round trip per job instead of two).
-  virtual Status Report(const LeasedJob& job, const std::vector<PointRecord>& records, std::optional<LeasedJob>* next) = 0;
+  virtual Status Report(const LeasedJob& job, const std::vector<PointRecord>& records,
+                        std::optional<LeasedJob>* next) = 0;
   // Gives the job back unreported (cancelled, or its spec could not be used).
   virtual Status Release(const LeasedJob& job) = 0;
 };
 
 struct PullLoopOptions {
-  std::string name = "worker";       // the worker's name in log events
-  double heartbeat_seconds = 0;      // while computing; 0 = never
-  bool until_idle = false;           // end when the source has no job (the embedded run); else poll
+  std::string name = "worker";   // the worker's name in log events
+  double heartbeat_seconds = 0;  // while computing; 0 = never
+  bool until_idle = false;       // end when the source has no job (the embedded run); else poll
   double idle_poll_seconds = 0.05;
-  int report_retries = 50;           // transient report failures retried with backoff (0: fail at once)
-  bool stop_on_error = false;        // end at the first report failure (the embedded run) instead of
-                                     // logging it and going on (the job requeues when its lease expires)
-  bool log = true;                   // refusals and stops as log events (base/log.h)
-  std::function<bool()> stop;        // checked between jobs, besides cancellation
+  int report_retries = 50;             // transient report failures retried with backoff (0: fail at once)
+  bool stop_on_error = false;          // end at the first report failure (the embedded run) instead of
+                                       // logging it and going on (the job requeues when its lease expires)
+  bool log = true;                     // refusals and stops as log events (base/log.h)
+  std::function<bool()> stop;          // checked between jobs, besides cancellation
   std::function<void(long)> on_items;  // items reported (progress)
   std::function<void(long items, double seconds)> on_computed;  // a job computed (metrics)
 };

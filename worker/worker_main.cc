@@ -1,8 +1,8 @@
 // bistable-worker: pulls jobs from a coordinator and computes them with the same pull loop and the
 // same evaluation as the embedded `bistable run` (worker/pull_loop.h, engine/evaluate.h), one loop per
 // thread; while a job computes, a heartbeat extends its lease; RPC failures back off exponentially
-// (0.1 s → 5 s) and retry, so a restarted coordinator is picked up again. SIGTERM/SIGINT (dynamics/cancel.h): the jobs in hand stop
-// computing within a few milliseconds, their leases are released unreported (the coordinator requeues
+// (0.1 s → 5 s) and retry, so a restarted coordinator is picked up again. SIGTERM/SIGINT (dynamics/cancel.h): the jobs
+// in hand stop computing within a few milliseconds, their leases are released unreported (the coordinator requeues
 // them), and the worker exits; a second signal ends it at once.
 #include <unistd.h>
 
@@ -13,11 +13,11 @@
 #include <mutex>
 #include <thread>
 
-#include <CLI/CLI.hpp>
 #include <prometheus/counter.h>
 #include <prometheus/gauge.h>
 #include <prometheus/histogram.h>
 #include <prometheus/registry.h>
+#include <CLI/CLI.hpp>
 
 #include "base/cpus.h"
 #include "base/exit_codes.h"
@@ -49,11 +49,12 @@ struct WorkerMetrics {
                                                       .Name("bistable_worker_rpcs_total")
                                                       .Help("Calls to the coordinator by method and outcome")
                                                       .Register(*registry);
-  prometheus::Histogram& job_seconds = prometheus::BuildHistogram()
-                                           .Name("bistable_worker_job_seconds")
-                                           .Help("Compute time of one job on one thread")
-                                           .Register(*registry)
-                                           .Add({}, prometheus::Histogram::BucketBoundaries{0.1, 0.25, 0.5, 1, 2, 4, 8, 16, 32, 64});
+  prometheus::Histogram& job_seconds =
+      prometheus::BuildHistogram()
+          .Name("bistable_worker_job_seconds")
+          .Help("Compute time of one job on one thread")
+          .Register(*registry)
+          .Add({}, prometheus::Histogram::BucketBoundaries{0.1, 0.25, 0.5, 1, 2, 4, 8, 16, 32, 64});
   prometheus::Counter& busy_seconds = prometheus::BuildCounter()
                                           .Name("bistable_worker_compute_seconds_total")
                                           .Help("Thread-seconds spent computing jobs")
@@ -65,7 +66,10 @@ struct WorkerMetrics {
                                    .Register(*registry)
                                    .Add({});
   void Rpc(const char* method, const bistable::Status& st) {
-    rpcs.Add({{"method", method}, {"outcome", st.ok() ? "ok" : st.code() == bistable::Status::Code::kIoError ? "unavailable" : "refused"}})
+    rpcs.Add({{"method", method},
+              {"outcome", st.ok()                                         ? "ok"
+                          : st.code() == bistable::Status::Code::kIoError ? "unavailable"
+                                                                          : "refused"}})
         .Increment();
   }
 };
@@ -83,12 +87,15 @@ int main(int argc, char** argv) {
   int threads = 0, jobs_per_lease = 1;
   std::string log_level = "info", log_format = "text", metrics_addr, health_addr;
   app.add_option("--coordinator", coordinator, "coordinator address")->capture_default_str();
-  app.add_option("--threads", threads, "pull loops, one per core (0 = the CPUs this process may use: affinity and cgroup CPU quota)")->capture_default_str();
+  app.add_option("--threads", threads,
+                 "pull loops, one per core (0 = the CPUs this process may use: affinity and cgroup CPU quota)")
+      ->capture_default_str();
   app.add_option("--name", name, "worker name (default host:pid)");
   app.add_option("--token-file", token_file, "file holding this worker's bearer token (else $BISTABLE_TOKEN)");
   app.add_option("--tls-ca", tls_ca, "PEM CA certificate to verify a TLS coordinator");
   bool insecure_remote = false;
-  app.add_flag("--insecure-remote", insecure_remote, "send the token in plaintext to an address that is not loopback (refused otherwise)");
+  app.add_flag("--insecure-remote", insecure_remote,
+               "send the token in plaintext to an address that is not loopback (refused otherwise)");
   app.add_option("--jobs-per-lease", jobs_per_lease,
                  "merge up to this many queued jobs into one lease (at most 4096 items): fewer, larger round trips "
                  "for a worker far from the coordinator, or to lift a busy coordinator's ceiling (docs/scaling.md)")
@@ -98,9 +105,10 @@ int main(int argc, char** argv) {
   app.add_option("--metrics", metrics_addr, "serve Prometheus metrics (/metrics) and /healthz over HTTP on HOST:PORT");
   app.add_option("--health", health_addr, "serve grpc.health.v1 (plaintext) on HOST:PORT, for liveness probes");
   std::vector<std::string> allowed_hosts;
-  app.add_option("--http-allowed-host", allowed_hosts,
-                 "a host name under which --metrics answers; repeatable. Without it, only a Host that is an IP address or "
-                 "localhost (DNS rebinding)");
+  app.add_option(
+      "--http-allowed-host", allowed_hosts,
+      "a host name under which --metrics answers; repeatable. Without it, only a Host that is an IP address or "
+      "localhost (DNS rebinding)");
   CLI11_PARSE(app, argc, argv);
   for (const std::string& h : allowed_hosts)
     if (auto st = bistable::CheckAllowedHostName(h, "http-allowed-host"); !st.ok()) return Fail(st);
@@ -137,8 +145,12 @@ int main(int argc, char** argv) {
     auto h = bistable::HttpServer::Start(
         metrics_addr,
         bistable::HostChecked(  // the metrics only for a Host that names this worker (DNS rebinding)
-            {{"/metrics", [&metrics](const bistable::HttpRequest&) { return bistable::PrometheusText({metrics.registry}); }},
-             {"/healthz", [](const bistable::HttpRequest&) { return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n"}; }}},
+            {{"/metrics",
+              [&metrics](const bistable::HttpRequest&) { return bistable::PrometheusText({metrics.registry}); }},
+             {"/healthz",
+              [](const bistable::HttpRequest&) {
+                return bistable::HttpResponse{200, "text/plain; charset=utf-8", "ok\n"};
+              }}},
             allowed_hosts));
     if (!h.ok()) return Fail(h.status());
     http = std::move(h).value();
@@ -154,8 +166,12 @@ int main(int argc, char** argv) {
     health_service.Set("bistable.v1.Worker", true);
   }
   bistable::log::Event(bistable::log::Level::kInfo, "worker.started",
-                       {{"worker", name}, {"coordinator", coordinator}, {"threads", threads}, {"tls", !tls_ca.empty()},
-                        {"metrics", http ? std::to_string(http->port()) : ""}, {"health", health ? std::to_string(health_port) : ""}});
+                       {{"worker", name},
+                        {"coordinator", coordinator},
+                        {"threads", threads},
+                        {"tls", !tls_ca.empty()},
+                        {"metrics", http ? std::to_string(http->port()) : ""},
+                        {"health", health ? std::to_string(health_port) : ""}});
   CoordinatorClient& c = **client;
   bistable::InstallCancelSignalHandlers();
   double lease_seconds = 60;
@@ -180,8 +196,9 @@ int main(int argc, char** argv) {
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t)
     pool.emplace_back([&] {
-      bistable::GrpcJobSource source(&c, name, &cache, jobs_per_lease,
-                                     [&metrics](const char* method, const bistable::Status& st) { metrics.Rpc(method, st); });
+      bistable::GrpcJobSource source(
+          &c, name, &cache, jobs_per_lease,
+          [&metrics](const char* method, const bistable::Status& st) { metrics.Rpc(method, st); });
       bistable::PullLoopOptions opt;
       opt.name = name;
       opt.heartbeat_seconds = lease_seconds / 3;
