@@ -71,8 +71,10 @@ def spec(grid, path):
     extra = integration[name]
     if tols:
         extra += "\nrtol = %s" % tols[0] + ("\natol = %s" % tols[1] if len(tols) > 1 else "")
-    if extra:
-        s = re.sub(r"^rtol = .*$", extra, s, flags=re.M)
+    if extra:  # the path's lines open the [integration] table (an rtol line of the example's would repeat a key)
+        s = re.sub(r"^rtol = .*\n", "", s, flags=re.M)
+        assert "[integration]\n" in s, "the example has no [integration] table"
+        s = s.replace("[integration]\n", "[integration]\n" + extra + "\n", 1)
     f = os.path.join(tmp, "%s_%s.toml" % (grid, path))
     open(f, "w").write(s)
     return f
