@@ -3,21 +3,15 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <limits>
 #include <map>
-#include <set>
 #include <sstream>
 
-#include <toml++/toml.h>
-
-#include "base/file.h"
 #include "base/limits.h"
 #include "base/names.h"
 #include "base/validate.h"
 #include "engine/content_hash.h"
 #include "engine/metric_catalog.h"
-#include "engine/spec_toml.h"
 #include "engine/sweep_spec_keys.h"
 
 namespace bistable {
