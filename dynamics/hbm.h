@@ -169,6 +169,10 @@ struct FoldCurve {
   std::string start;      // the fold it was started from
   bool converged = true;  // false when the corrector failed before the curve left the box
 };
+// The arclength step after an accepted corrector, for every continuation (branches and fold curves): grow it
+// when the corrector converged fast (≤ 3 iterations), shrink it when slowly (≥ 8), within [ds_min, ds_max].
+double NextArclengthStep(int iterations, double ds, double ds_min, double ds_max);
+
 Status ValidateFoldCurveOptions(const FoldCurveOptions& f);
 // One fold curve through the fold at (z, Ω, α) (a point near it: the first corrector finds it at this α).
 StatusOr<FoldCurve> ContinueFoldCurve(const HbmOptions& o, const FoldCurveOptions& f, const Eigen::VectorXd& z,
