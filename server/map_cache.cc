@@ -2,7 +2,6 @@
 
 #include <sys/stat.h>
 
-#include <exception>
 #include <optional>
 #include <utility>
 
@@ -39,41 +38,29 @@ StatusOr<MapCache::Value> MapCache::GetOrLoad(const std::string& path, const std
     return load();
   }
   const std::string key = path + "\n" + *before + "\n" + what;
-  std::shared_future<StatusOr<Value>> wait;
-  std::promise<StatusOr<Value>> mine;
-  {
+  // A hit (touched as the most recent), or nullopt.
+  auto cached = [&]() -> std::optional<Value> {
     std::lock_guard<std::mutex> lock(mu_);
-    if (auto it = entries_.find(key); it != entries_.end()) {
-      lru_.splice(lru_.begin(), lru_, it->second.pos);
-      return it->second.value;
-    }
-    if (auto f = flights_.find(key); f != flights_.end()) {
-      wait = f->second;
-    } else {
-      flights_.emplace(key, mine.get_future().share());
+    auto it = entries_.find(key);
+    if (it == entries_.end()) return std::nullopt;
+    lru_.splice(lru_.begin(), lru_, it->second.pos);
+    return it->second.value;
+  };
+  if (std::optional<Value> v = cached()) return *v;
+  return flights_.Do(key, [&]() -> StatusOr<Value> {
+    if (std::optional<Value> v = cached()) return *v;  // landed between the miss and this flight
+    {
+      std::lock_guard<std::mutex> lock(mu_);
       ++loads_;
     }
-  }
-  if (wait.valid()) return wait.get();
-  try {
     StatusOr<Value> v = load();
     // Kept only when the file read is the one keyed: a file replaced meanwhile is served, not kept.
-    const bool same = v.ok() && Identity(path) == before;
-    {
+    if (v.ok() && Identity(path) == before) {
       std::lock_guard<std::mutex> lock(mu_);
-      if (same) PutLocked(key, *v);
-      flights_.erase(key);
+      PutLocked(key, *v);
     }
-    mine.set_value(v);
     return v;
-  } catch (...) {
-    {
-      std::lock_guard<std::mutex> lock(mu_);
-      flights_.erase(key);
-    }
-    mine.set_exception(std::current_exception());
-    throw;
-  }
+  });
 }
 
 void MapCache::PutLocked(const std::string& key, const Value& v) {

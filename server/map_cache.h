@@ -25,6 +25,7 @@
 #include "base/limits.h"
 #include "base/status.h"
 #include "engine/map_array.h"
+#include "server/single_flight.h"
 
 namespace bistable {
 
@@ -63,9 +64,9 @@ class MapCache {
     std::list<std::string>::iterator pos;
   };
   std::map<std::string, Entry> entries_;
-  std::map<std::string, std::shared_future<StatusOr<Value>>> flights_;
   std::size_t bytes_ = 0;
   long loads_ = 0;
+  SingleFlight<Value> flights_;  // after the members its loads touch
 };
 
 }  // namespace bistable
