@@ -113,9 +113,9 @@ t_keep = 15.0
 )"));
 }
 
-// A 3 × 3 rig sweep from sticking (small A0) to sliding, RK4 in lanes; `dimensional` is its
-// [dimensional] table's lines.
-SweepSpec RigSweep(const std::string& dimensional) {
+// A 3 × 3 rig sweep from sticking (small A0) to sliding, in lanes with `integrator` (RK4 unless said);
+// `dimensional` is its [dimensional] table's lines.
+SweepSpec RigSweep(const std::string& dimensional, const std::string& integrator = "rk4") {
   return Parse(R"(
 model = "dimensional"
 [dimensional]
@@ -125,7 +125,8 @@ model = "dimensional"
 a0_mm = [0.5, 3.0, 10.0]
 f0_hz = [2.0, 3.5, 6.0]
 [integration]
-integrator = "rk4"
+integrator = ")" +
+               integrator + R"("
 t_end = 1.0
 t_keep = 0.5
 dt = 0.001
@@ -384,22 +385,7 @@ t_keep = 0.5
 
 // A 3 × 3 rig map from sticking (small A0) to sliding with the linearly implicit lanes: 9 items, so at
 // widths 4 and 8 lanes take further items as theirs finish.
-SweepSpec RosenbrockRigSweep(const std::string& dimensional) {
-  return Parse(R"(
-model = "dimensional"
-[dimensional]
-)" + dimensional +
-               R"(
-[axes]
-a0_mm = [0.5, 3.0, 10.0]
-f0_hz = [2.0, 3.5, 6.0]
-[integration]
-integrator = "rosenbrock"
-t_end = 1.0
-t_keep = 0.5
-dt = 0.001
-)");
-}
+SweepSpec RosenbrockRigSweep(const std::string& dimensional) { return RigSweep(dimensional, "rosenbrock"); }
 
 // map == point at every width and lane position, for the Table 2 rig, a frictionless main mass (its
 // law and curvature skipped) and the rig without a resonator.
