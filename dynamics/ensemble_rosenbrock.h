@@ -140,7 +140,8 @@ class EnsembleRosenbrock {
     int next_item = 0;
     // Lanes to (re)start a chunk, as bits; the vector F, J evaluation of a chunk's start is shared.
     unsigned long start = 0;
-    for (int l = 0; l < W; ++l) {
+    // Lane l takes the job's next item (to start with the others in `start`), or idles when none is left.
+    auto take_next = [&](int l) {
       if (next_item < n) {
         Load(l, next_item, in[next_item], s, tol, &st, &job[l], &rec[l]);
         ++next_item;
@@ -148,7 +149,8 @@ class EnsembleRosenbrock {
       } else {
         job[l].item = -1;
       }
-    }
+    };
+    for (int l = 0; l < W; ++l) take_next(l);
     StartChunks(m, s, start, b, &st, job, rec);
     long polls = 0;
     for (;;) {
@@ -167,13 +169,7 @@ class EnsembleRosenbrock {
           start |= 1ul << l;
           continue;
         }
-        if (next_item < n) {  // the item is done: the lane takes the next one
-          Load(l, next_item, in[next_item], s, tol, &st, &job[l], &rec[l]);
-          ++next_item;
-          start |= 1ul << l;
-        } else {
-          job[l].item = -1;
-        }
+        take_next(l);  // the item is done: the lane takes the next one
       }
       StartChunks(m, s, start, b, &st, job, rec);
     }
