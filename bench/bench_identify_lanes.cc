@@ -15,22 +15,16 @@
 #include <string>
 #include <vector>
 
+#include "bench/bench_timing.h"
 #include "dynamics/host_lanes.h"
 #include "dynamics/lanes.h"
 #include "identify/model.h"
 #include "identify/synthetic.h"
 
 using namespace bistable;
+using bistable_bench::Seconds;
 
-namespace {
-
-double Seconds(const std::function<void()>& f) {
-  const auto t0 = std::chrono::steady_clock::now();
-  f();
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-}  // namespace
+namespace {}  // namespace
 
 int main(int argc, char** argv) {
   const int reps = argc > 1 ? std::max(1, std::atoi(argv[1])) : 5;

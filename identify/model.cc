@@ -678,6 +678,10 @@ int StableSubsteps(const IdentModel& m, const std::vector<double>& th, const Pre
   return SubstepsWithin(m, th, r, 2.5, 2.5);
 }
 
+int AccurateSubsteps(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r) {
+  return SubstepsWithin(m, th, r, 2.5, 0.5);
+}
+
 namespace {
 
 // One term of a simulation: its definition and first parameter column (model terms at their place in
