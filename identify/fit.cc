@@ -29,6 +29,7 @@
 #include "base/cpus.h"
 #include "dynamics/eigen_bounds.h"
 #include "dynamics/spectrum.h"
+#include "identify/shooting.h"
 
 namespace bistable {
 namespace {
@@ -36,324 +37,6 @@ namespace {
 struct Sims {
   std::vector<SimOutputs> o;  // per record: every output (and, when asked for, its sensitivities)
   bool ok = true;
-};
-
-// Multiple shooting with re-estimated states (Objective::kShooting) on one record: segments of `every`
-// samples, each from its own start state x_k. For the given θ every x_k is fitted by Levenberg–Marquardt
-// on its segment's weighted error (all segments in one simulation pass per iteration; a segment whose
-// trial step raises its error keeps its state and raises its damping), started from the measured
-// (smoothed) state. `out` receives the outputs at the fitted states; with `extra` (sensitivities asked
-// for) also d: ∂out/∂θ with each segment's state directions projected out (Kaufman's variable-projection
-// Jacobian: the derivative of the error with the states re-fitted). Only the states the model moves and
-// the data constrain are fitted: p, p' (main body), r, r' with a resonator, w with a piezo and a
-// measured voltage. `start` (optional): states fitted at an earlier θ of the same fit (ShootCache) — the
-// start instead of the scan below (multiple shooting proper carries its states from iteration to
-// iteration); empty or of another size: a cold start. `start_is_fitted`: `start` holds the states fitted at
-// this θ already (ShootCache::At), so no pass runs. `fitted` (optional) receives the states fitted.
-// False when the simulation at the start diverges.
-// Eigen's packet loop over the small `Row J(nl)` (dynamics/eigen_bounds.h).
-BISTABLE_EIGEN_BOUNDS_BEGIN
-bool ShootRecord(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>* extra,
-                 const PreparedRecord& r, const Setup& setup, int substeps, int every, SimOutputs* out,
-                 const std::vector<double>* start = nullptr, std::vector<double>* fitted = nullptr, int threads = 1,
-                 bool start_is_fitted = false) {
-  const size_t n = r.n(), nseg = NumSegments(n, every);
-  std::vector<int> live = {0, 1};
-  if (m.HasResonator()) live.push_back(2), live.push_back(3);
-  if (m.PiezoIndex() >= 0 && r.Has(OutputSlot::kVoltage)) live.push_back(4);
-  const int nl = static_cast<int>(live.size());
-  double w[kOutputSlots] = {0, 0, 0};
-  for (int k = 0; k < kOutputSlots; ++k)
-    if (r.Has(static_cast<OutputSlot>(k)))
-      w[k] = std::sqrt(r.weight[k]) / (r.Scale(static_cast<OutputSlot>(k)) * std::sqrt(static_cast<double>(n)));
-  auto rows = [&](size_t k, size_t* a, size_t* b) {
-    *a = k == 0 ? 0 : k * static_cast<size_t>(every) + 1;
-    *b = std::min((k + 1) * static_cast<size_t>(every), n - 1);
-  };
-  // One simulation of the segments `mask` marks (null: all) from the states `st`; with `threads` ≥ 2 the
-  // segments (independent of each other) in two halves side by side, the second half's rows merged in.
-  const std::vector<const TermDef*> none;
-  auto simulate = [&](const std::vector<double>& st, bool sens_states, bool params, const std::vector<char>* mask,
-                      SimOutputs* o) {
-    const std::vector<const TermDef*>& ex = params ? *extra : none;
-    const size_t todo = mask ? static_cast<size_t>(std::count(mask->begin(), mask->end(), 1)) : nseg;
-    if (threads < 2 || todo < 4) {
-      const SegmentStates g{&st, sens_states, params, mask};
-      return SimulateOutputs(m, th, ex, r, setup, substeps, every, params, o, nullptr, &g);
-    }
-    // The segments to simulate, dealt in two halves by count: a state fit's later passes move only some
-    // segments, and the record's own halves could leave one core without work.
-    std::vector<char> ma(nseg, 0), mb(nseg, 0);
-    for (size_t k = 0, dealt = 0; k < nseg; ++k)
-      if (!mask || (*mask)[k]) (dealt++ < (todo + 1) / 2 ? ma : mb)[k] = 1;
-    SimOutputs ob;
-    bool okb = false;
-    bool oka = false;
-    RunBeside(
-        [&] {
-          const SegmentStates g{&st, sens_states, params, &mb};
-          okb = SimulateOutputs(m, th, ex, r, setup, substeps, every, params, &ob, nullptr, &g);
-        },
-        [&] {
-          const SegmentStates g{&st, sens_states, params, &ma};
-          oka = SimulateOutputs(m, th, ex, r, setup, substeps, every, params, o, nullptr, &g);
-        });
-    if (!oka || !okb) return false;
-    for (size_t k = 0; k < nseg; ++k) {
-      if (!mb[k]) continue;
-      size_t a, b;
-      rows(k, &a, &b);
-      const long la = static_cast<long>(a), len = static_cast<long>(b - a + 1);
-      for (int slot = 0; slot < kOutputSlots; ++slot) {
-        if (o->out[slot].empty()) continue;
-        std::copy(ob.out[slot].begin() + la, ob.out[slot].begin() + la + len, o->out[slot].begin() + la);
-        if (o->d[slot].size() > 0) o->d[slot].middleRows(la, len) = ob.d[slot].middleRows(la, len);
-        if (o->ds[slot].size() > 0) o->ds[slot].middleRows(la, len) = ob.ds[slot].middleRows(la, len);
-      }
-    }
-    return true;
-  };
-  std::vector<double> states(nseg * kStateDim), trial;
-  for (size_t k = 0; k < nseg; ++k) {
-    const std::array<double, kStateDim> x = MeasuredState(m, th, r, setup, k * static_cast<size_t>(every));
-    std::copy(x.begin(), x.end(), states.begin() + static_cast<long>(k * kStateDim));
-  }
-  using Mat = Eigen::MatrixXd;
-  using Vec = Eigen::VectorXd;
-  using Row = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kStateDim, 1>;  // a row's state sensitivities: no heap
-  // Per segment: the weighted error's sum of squares, gradient and Gauss–Newton matrix at a pass's states.
-  struct Seg {
-    double cost = INFINITY, mu = 1e-3, nu = 2;
-    Vec g;
-    Mat H;
-  };
-  std::vector<Seg> acc(nseg), now(nseg);
-  std::vector<double> predicted(nseg, 0.0);  // the linearised model's gain for each trial step
-  std::vector<char> active(nseg, 1);         // segments still moving
-  auto measure = [&](const SimOutputs& so, std::vector<Seg>* segs) {
-    for (size_t k = 0; k < nseg; ++k) {
-      if (!active[k]) continue;
-      Seg& sg = (*segs)[k];
-      sg.cost = 0;
-      sg.g.setZero(nl);
-      sg.H.setZero(nl, nl);
-      size_t a, b;
-      rows(k, &a, &b);
-      for (int slot = 0; slot < kOutputSlots; ++slot) {
-        if (so.out[slot].empty()) continue;
-        const std::vector<double>& meas = r.Measured(static_cast<OutputSlot>(slot));
-        for (size_t i = a; i <= b; ++i) {
-          const double e = (so.out[slot][i] - meas[i]) * w[slot];
-          Row J(nl);
-          for (int c = 0; c < nl; ++c) J[c] = so.ds[slot](static_cast<long>(i), live[c]) * w[slot];
-          sg.cost += e * e;
-          sg.g += J * e;
-          sg.H += J * J.transpose();
-        }
-      }
-      if (!std::isfinite(sg.cost)) sg.cost = INFINITY;
-    }
-  };
-  SimOutputs best, so;
-  // A velocity output does not measure the position (its integral is high-passed: a chaotic orbit's well
-  // is lost), and a segment started in the wrong well finds no way back by local steps. So first the start
-  // position of every segment is scanned (plain simulations, the measured velocity kept): the measured
-  // value and a grid over ±1.5 the record's displacement range; each segment keeps its best. (With a
-  // coarser grid the local steps need more passes from the farther start: on a chaotic synthetic record
-  // 16 points left 1.3 % against the 0.65 % noise after 10 passes; 64 reach it in 8.)
-  const bool warm_start = start && start->size() == states.size();
-  if (warm_start) states = *start;
-  if (setup.output == OutputKind::kVelocity && !warm_start) {
-    constexpr int kGrid = 64;
-    std::vector<double> seg_cost(nseg, INFINITY), scan = states;
-    const std::vector<double> measured = states;
-    for (int g = -1; g < kGrid; ++g) {
-      for (size_t k = 0; k < nseg; ++k)
-        scan[k * kStateDim] = g < 0 ? measured[k * kStateDim] : r.p_range * (-1.5 + 3.0 * g / (kGrid - 1));
-      if (!simulate(scan, false, false, nullptr, &so)) continue;
-      for (size_t k = 0; k < nseg; ++k) {
-        size_t a, b;
-        rows(k, &a, &b);
-        double c = 0;
-        for (int slot = 0; slot < kOutputSlots; ++slot) {
-          if (so.out[slot].empty()) continue;
-          const std::vector<double>& meas = r.Measured(static_cast<OutputSlot>(slot));
-          for (size_t i = a; i <= b; ++i)
-            c += (so.out[slot][i] - meas[i]) * (so.out[slot][i] - meas[i]) * w[slot] * w[slot];
-        }
-        if (c < seg_cost[k]) seg_cost[k] = c, states[k * kStateDim] = scan[k * kStateDim];
-      }
-    }
-  }
-  // States fitted at this θ already (ShootCache::At): no pass runs, and when the Jacobian is asked for its
-  // sensitivity pass below gives the outputs too, so the plain pass here is skipped.
-  const bool fitted_here = warm_start && start_is_fitted;
-  if (fitted_here) std::fill(active.begin(), active.end(), 0);
-  if (!(fitted_here && extra)) {
-    if (!simulate(states, true, false, nullptr, &best)) return false;
-    measure(best, &acc);
-  }
-  // Levenberg–Marquardt steps per segment; a pass simulates every moving segment's trial state at once. A
-  // segment stops when a step gains less than 1e-9 of its error, or after its damping reached 1e6 (its
-  // steps keep failing). The inner fit must converge: an objective left on a slow crawl is noisy in θ,
-  // and the outer Levenberg–Marquardt then refuses every step.
-  auto propose = [&] {
-    trial = states;
-    for (size_t k = 0; k < nseg; ++k) {
-      if (!active[k]) continue;
-      const Seg& sg = acc[k];
-      Mat A = sg.H;
-      for (int c = 0; c < nl; ++c) A(c, c) += sg.mu * std::max(sg.H(c, c), 1e-300);
-      const Vec step = A.ldlt().solve(-sg.g);
-      if (!step.allFinite()) {
-        active[k] = 0;
-        continue;
-      }
-      predicted[k] = -(2.0 * sg.g.dot(step) + step.dot(sg.H * step));
-      for (int c = 0; c < nl; ++c) trial[k * kStateDim + static_cast<size_t>(live[c])] += step[c];
-    }
-  };
-  // From the anchor (warm) 20 passes: the anchor carries a crawling segment's progress from one accepted
-  // point to the next, so a segment left moving goes on at the next evaluation. On the coupled c_y2_14 record
-  // (100 of its 240 stick–slip segments at the cap) the declared fit's stage took 712 s with 60 passes and the
-  // old damping update; with Nielsen's update and 60 passes its first round still ran 58 iterations (about
-  // 10 minutes, other builds beside it); with 20 passes the stage took 159 s, and the loop added the same term
-  // (k2 9,997 ± 5.7 for 10,000). The reported errors come from cold fits (Evaluate), without this cap.
-  const int kPasses = warm_start ? 20 : 60;
-  int pass = 0;
-  // BISTABLE_IDENTIFY_DEBUG=3: per evaluation the passes and the moving segments every 5 passes (on the
-  // coupled rig's 0.5 s segments a fifth of them crawl to the 60-pass cap: stick–slip makes their fit
-  // non-smooth; stopping them at a gain of 1e-6 instead of 1e-9 cut the declared fit's time by a third but
-  // left it at a 7 % higher cost — the outer steps then see their noise).
-  static const bool debug_passes = [] {
-    const char* d = std::getenv("BISTABLE_IDENTIFY_DEBUG");
-    return d && std::string(d) == "3";
-  }();
-  std::string trail;
-  for (; pass < kPasses && std::find(active.begin(), active.end(), 1) != active.end(); ++pass) {
-    if (debug_passes && pass % 5 == 0)
-      trail += ' ', trail += std::to_string(std::count(active.begin(), active.end(), 1));
-    propose();
-    const bool ok = simulate(trial, true, false, &active, &so);
-    if (ok) measure(so, &now);
-    for (size_t k = 0; k < nseg; ++k) {
-      if (!active[k]) continue;
-      if (ok && now[k].cost < acc[k].cost) {
-        const double gain = acc[k].cost - now[k].cost, mu = acc[k].mu;
-        if (gain <= 1e-9 * acc[k].cost) active[k] = 0;
-        acc[k] = now[k];
-        // Nielsen's damping update (Madsen, Nielsen & Tingleff 2004, eq. 3.16): a step whose gain the
-        // linear model predicted well lowers the damping (at most 3×), a poor one keeps it. Dividing by
-        // 10 after every success made the stick–slip segments alternate between a refused pass and an
-        // accepted one (their damping read 10 or 1,000 after 60 passes).
-        const double rho = predicted[k] > 0 ? gain / predicted[k] : 0.0;
-        acc[k].mu = std::max(mu * std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)), 1e-9);
-        acc[k].nu = 2;
-        std::copy(trial.begin() + static_cast<long>(k * kStateDim),
-                  trial.begin() + static_cast<long>((k + 1) * kStateDim),
-                  states.begin() + static_cast<long>(k * kStateDim));
-        size_t a, b;
-        rows(k, &a, &b);
-        for (int slot = 0; slot < kOutputSlots; ++slot)
-          if (!so.out[slot].empty())
-            std::copy(so.out[slot].begin() + static_cast<long>(a), so.out[slot].begin() + static_cast<long>(b + 1),
-                      best.out[slot].begin() + static_cast<long>(a));
-      } else {
-        acc[k].mu *= acc[k].nu;
-        acc[k].nu *= 2;
-        if (acc[k].mu > 1e6) active[k] = 0;
-      }
-    }
-  }
-  if (debug_passes) {
-    std::string mus;
-    for (size_t k = 0; k < nseg; ++k)
-      if (active[k]) mus += ' ', mus += std::to_string(acc[k].mu);
-    std::fprintf(stderr, "shoot: %zu segments, %d passes, warm %d, active every 5:%s; mu of active:%s\n", nseg, pass,
-                 warm_start ? 1 : 0, trail.c_str(), mus.c_str());
-  }
-  if (fitted) *fitted = states;
-  if (!extra) {
-    for (int slot = 0; slot < kOutputSlots; ++slot) out->out[slot] = std::move(best.out[slot]);
-    return true;
-  }
-  // The Jacobian at the fitted states: parameters' and states' columns in one pass, then per segment the
-  // parameters' columns minus their least-squares projection on the states' (weighted as the error).
-  if (!simulate(states, true, true, nullptr, out)) return false;
-  const long P = out->d[0].cols();
-  for (size_t k = 0; k < nseg; ++k) {
-    size_t a, b;
-    rows(k, &a, &b);
-    Mat A = Mat::Zero(nl, nl), AB = Mat::Zero(nl, P);
-    for (int slot = 0; slot < kOutputSlots; ++slot) {
-      if (out->out[slot].empty()) continue;
-      const double w2 = w[slot] * w[slot];
-      for (size_t i = a; i <= b; ++i) {
-        Row J(nl);
-        for (int c = 0; c < nl; ++c) J[c] = out->ds[slot](static_cast<long>(i), live[c]);
-        A += w2 * J * J.transpose();
-        AB += w2 * J * out->d[slot].row(static_cast<long>(i));
-      }
-    }
-    const Mat G = A.completeOrthogonalDecomposition().solve(AB);
-    for (int slot = 0; slot < kOutputSlots; ++slot) {
-      if (out->out[slot].empty()) continue;
-      for (size_t i = a; i <= b; ++i) {
-        Row J(nl);
-        for (int c = 0; c < nl; ++c) J[c] = out->ds[slot](static_cast<long>(i), live[c]);
-        out->d[slot].row(static_cast<long>(i)) -= J.transpose() * G;
-      }
-    }
-  }
-  return true;
-}
-BISTABLE_EIGEN_BOUNDS_END
-
-// Every record simulated (in parallel over records); with `extra` given, with sensitivities to the
-// model's parameters and those terms'.
-// The shooting objective's segment states within one fit: the anchor every evaluation starts from (the
-// states at the last accepted point), and the states fitted at the last few evaluated θ, one of which
-// the fit promotes when it accepts that point (LocalStage's iteration callback). Only accepted points may
-// become the anchor: with the last evaluation's states instead, a rejected trial step far from the
-// solution (or a line-search probe) moved the anchor into other minima, the objective jumped between
-// evaluations at almost the same θ, and Ceres refused every step (seen on the harvester).
-struct ShootCache {
-  std::vector<std::vector<double>> anchor;  // per record; empty: cold starts
-  int version = 0;                          // changes with the anchor
-  struct Fitted {
-    std::vector<double> th;
-    int version;  // the anchor they were fitted from
-    std::vector<std::vector<double>> states;
-  };
-  std::vector<Fitted> recent;
-  void Remember(const std::vector<double>& th, int from_version, std::vector<std::vector<double>> states) {
-    if (recent.size() >= 8) recent.erase(recent.begin());
-    recent.push_back({th, from_version, states});
-    if (anchor.empty())
-      anchor = std::move(states), ++version;  // the fit's first evaluation (its start) anchors the first steps
-  }
-  void Promote(const std::vector<double>& th) {
-    for (auto it = recent.rbegin(); it != recent.rend(); ++it)
-      if (it->th == th) {
-        anchor = it->states;
-        ++version;
-        return;
-      }
-  }
-  // A new round of a stage (other substeps held): the states fitted so far were fitted under the old
-  // substeps, so none is reused as fitted; the anchor stays the next evaluations' start.
-  void NewRound() {
-    recent.clear();
-    ++version;
-  }
-  // The states fitted at th from today's anchor, if they are at hand. Ceres evaluates an accepted point
-  // again for its Jacobian, and the state fit from the same anchor is deterministic: it would give the
-  // same states (on a coupled record with 240 segments each evaluation ran 60 passes, three times per θ).
-  const std::vector<std::vector<double>>* At(const std::vector<double>& th) const {
-    for (auto it = recent.rbegin(); it != recent.rend(); ++it)
-      if (it->version == version && it->th == th) return &it->states;
-    return nullptr;
-  }
 };
 
 // one(i) for every record i < n, on up to `cpus` threads (records dealt round robin).
@@ -384,7 +67,9 @@ int SubstepsAt(const IdentModel& m, const std::vector<double>& th, const std::ve
   return substeps.empty() ? SubstepsFor(m, th, recs[i]) : std::max(substeps[i], StableSubsteps(m, th, recs[i]));
 }
 
-// `shoot`: the shooting objective's simulation (ShootRecord) with segments of horizon_s.
+// Every record simulated (in parallel over records); with `extra` given, with sensitivities to the
+// model's parameters and those terms'. `shoot`: the shooting objective's simulation (ShootRecord) with
+// segments of horizon_s.
 Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
                  const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0,
                  const std::vector<const TermDef*>* extra = nullptr, std::vector<EarlyStop>* stops = nullptr,
@@ -600,9 +285,20 @@ bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const
 }
 
 std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th,
-                               const std::vector<PreparedRecord>& recs, double safety) {
+                               const std::vector<PreparedRecord>& recs, Objective obj, double safety) {
+  // Short horizons (the shooting objective): the safety is accuracy's headroom as the parameters move, and
+  // stability needs none, since every evaluation runs at least StableSubsteps at its own parameters
+  // (SubstepsAt). Where the oscillations set the step that is SubstepsFor's count times the safety, as for the
+  // other objectives; where a sticking friction law does (the snap-through rig) it is the stable count, whose
+  // error over a 0.125 s segment is 50× below the records' noise (bench_identify_steps), where SubstepsFor's
+  // times 1.5 ran twice the steps. A long simulation accumulates its error over the record: SubstepsFor's
+  // margin times the safety stays.
   std::vector<int> sub;
-  for (const PreparedRecord& r : recs) sub.push_back(static_cast<int>(std::ceil(safety * SubstepsFor(m, th, r))));
+  for (const PreparedRecord& r : recs)
+    sub.push_back(
+        obj == Objective::kShooting
+            ? std::max(static_cast<int>(std::ceil(safety * OscillationSubsteps(m, th, r))), StableSubsteps(m, th, r))
+            : static_cast<int>(std::ceil(safety * SubstepsFor(m, th, r))));
   return sub;
 }
 
@@ -734,169 +430,6 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
     if (shooting_horizon_s > 0) e.shooting = std::sqrt(ss / wn);
   }
   return e;
-}
-
-Regression BuildRegression(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup,
-                           const std::vector<const TermDef*>& extra, size_t max_rows) {
-  const int p_model = m.NumParams();
-  int p_extra = 0;
-  for (const TermDef* t : extra) p_extra += static_cast<int>(t->params.size());
-  size_t total = 0;
-  for (const PreparedRecord& r : recs) total += r.n() * (r.z.empty() ? 1 : 2);
-  const size_t stride = std::max<size_t>(1, (total + max_rows - 1) / max_rows);
-  std::vector<std::vector<double>> rows;
-  std::vector<double> rhs;
-  Regression reg;
-  const int mass_col = m.FitsMass() ? m.NumTermParams() : -1;
-  auto add_body_columns = [&](std::vector<double>& row, Body body, double sign, double q, double v) {
-    int k = 0;
-    double phi[kMaxTermParams];
-    for (const TermDef* t : m.terms) {
-      if (t->body == body) {
-        TermBasis(*t, q, v, m.fc, phi);
-        for (size_t j = 0; j < t->params.size(); ++j) row[k + j] += sign * phi[j];
-      }
-      k += static_cast<int>(t->params.size());
-    }
-    k = p_model;
-    for (const TermDef* t : extra) {
-      if (t->body == body) {
-        TermBasis(*t, q, v, m.fc, phi);
-        for (size_t j = 0; j < t->params.size(); ++j) row[k + j] += sign * phi[j];
-      }
-      k += static_cast<int>(t->params.size());
-    }
-  };
-  // The piezo (model or extra): its back-force column a is −w along the measured voltage; its circuit is
-  // rows of its own, b w + c y' = −w' (model piezo only), scaled to the force rows' size (the two row sets
-  // share no column, so the scale changes no estimate, only the pooled σ).
-  int piezo_col = m.PiezoIndex();
-  const bool model_piezo = piezo_col >= 0;
-  if (!model_piezo) {
-    int k = p_model;
-    for (const TermDef* t : extra) {
-      if (t->kind == TermKind::kPiezo) piezo_col = k;
-      k += static_cast<int>(t->params.size());
-    }
-  }
-  double circuit_scale = 1;
-  if (model_piezo) {
-    double f2 = 0, w2 = 0, nf = 0, nw = 0;
-    for (const PreparedRecord& r : recs) {
-      if (r.wd.empty()) continue;
-      for (size_t i = 0; i < r.n(); ++i) {
-        const double a = setup.input == InputKind::kBaseAcceleration ? r.pdd[i] + r.input[i] : r.pdd[i];
-        f2 += a * a, w2 += r.wd[i] * r.wd[i], ++nf, ++nw;
-      }
-    }
-    const double mm = m.FitsMass() ? 1.0 : m.m_main;
-    if (w2 > 0 && f2 > 0) circuit_scale = mm * std::sqrt(f2 / nf) / std::sqrt(w2 / nw);
-  }
-  for (size_t ri = 0; ri < recs.size(); ++ri) {
-    const PreparedRecord& r = recs[ri];
-    const bool res = !r.z.empty();
-    const bool volt = !r.w.empty();
-    const size_t edge = std::min<size_t>(std::max<size_t>(12, r.n() / 50), r.n() / 4);  // derivative end effects
-    for (size_t i = edge; i + edge < r.n(); i += stride) {
-      // Main body: F(y, y') − G(z, z') [+ m p''] = target.
-      std::vector<double> row(p_model + p_extra, 0.0);
-      const double yi = r.y[i] + m.Offset(m.theta, r.index);  // offsets enter as fixed values here
-      add_body_columns(row, Body::kMain, 1.0, yi, r.yd[i]);
-      if (res) add_body_columns(row, Body::kResonator, -1.0, r.z[i], r.zd[i]);
-      double target = 0;
-      const double mm = m.FitsMass() ? 0.0 : m.m_main;
-      switch (setup.input) {
-        case InputKind::kBaseDisplacement:
-          target = -mm * r.pdd[i];
-          break;
-        case InputKind::kBaseAcceleration:
-          target = -mm * (r.pdd[i] + r.input[i]);
-          break;
-        case InputKind::kForce:
-          target = r.input[i] - mm * r.pdd[i];
-          break;
-      }
-      if (mass_col >= 0) row[mass_col] = setup.input == InputKind::kBaseAcceleration ? r.pdd[i] + r.input[i] : r.pdd[i];
-      if (piezo_col >= 0 && volt) row[piezo_col] = -r.w[i];
-      rows.push_back(std::move(row));
-      rhs.push_back(target);
-      reg.record_of_row.push_back(static_cast<int>(ri));
-      reg.q.push_back(yi);
-      reg.v.push_back(r.yd[i]);
-      if (model_piezo && volt) {  // the circuit: b w + c y' = −w'
-        std::vector<double> crow(p_model + p_extra, 0.0);
-        crow[piezo_col + 1] = circuit_scale * r.w[i];
-        crow[piezo_col + 2] = circuit_scale * r.yd[i];
-        rows.push_back(std::move(crow));
-        rhs.push_back(-circuit_scale * r.wd[i]);
-        reg.record_of_row.push_back(static_cast<int>(ri));
-        reg.q.push_back(NAN);
-        reg.v.push_back(NAN);
-      }
-      if (res && m.m_res > 0) {  // resonator: G(z, z') = −m_r x_r''
-        std::vector<double> rrow(p_model + p_extra, 0.0);
-        add_body_columns(rrow, Body::kResonator, 1.0, r.z[i], r.zd[i]);
-        const double xr_dd = setup.input == InputKind::kBaseDisplacement ? r.rdd[i] : r.pdd[i] + r.rdd[i];
-        rows.push_back(std::move(rrow));
-        rhs.push_back(-m.m_res * xr_dd);
-        reg.record_of_row.push_back(static_cast<int>(ri));
-        reg.q.push_back(NAN);
-        reg.v.push_back(NAN);
-      }
-    }
-  }
-  reg.X.resize(static_cast<long>(rows.size()), p_model + p_extra);
-  reg.b.resize(static_cast<long>(rows.size()));
-  for (size_t i = 0; i < rows.size(); ++i) {
-    for (int j = 0; j < p_model + p_extra; ++j) reg.X(static_cast<long>(i), j) = rows[i][j];
-    reg.b[static_cast<long>(i)] = rhs[i];
-  }
-  return reg;
-}
-
-LinearFit SolveRegression(const Eigen::MatrixXd& X, const Eigen::VectorXd& b, const std::vector<Sign>& signs) {
-  const long p = X.cols(), n = X.rows();
-  std::vector<bool> free(p, true);
-  LinearFit out;
-  out.theta.assign(p, 0.0);
-  out.sigma.assign(p, NAN);
-  for (int pass = 0; pass <= p; ++pass) {
-    std::vector<long> cols;
-    for (long j = 0; j < p; ++j)
-      if (free[j]) cols.push_back(j);
-    Eigen::MatrixXd A(n, static_cast<long>(cols.size()));
-    Eigen::VectorXd scale(static_cast<long>(cols.size()));
-    for (size_t c = 0; c < cols.size(); ++c) {
-      const double s = X.col(cols[c]).norm();
-      scale[static_cast<long>(c)] = s > 0 ? s : 1.0;
-      A.col(static_cast<long>(c)) = X.col(cols[c]) / scale[static_cast<long>(c)];
-    }
-    const Eigen::VectorXd x = cols.empty() ? Eigen::VectorXd() : Eigen::VectorXd(A.colPivHouseholderQr().solve(b));
-    bool clipped = false;
-    std::fill(out.theta.begin(), out.theta.end(), 0.0);
-    for (size_t c = 0; c < cols.size(); ++c) {
-      const double v = x[static_cast<long>(c)] / scale[static_cast<long>(c)];
-      if (signs.size() == static_cast<size_t>(p) && signs[cols[c]] == Sign::kNonNegative && v < 0) {
-        free[cols[c]] = false;
-        clipped = true;
-      }
-      out.theta[cols[c]] = v;
-    }
-    if (clipped) continue;
-    const Eigen::VectorXd r = cols.empty() ? b : Eigen::VectorXd(b - A * x);
-    out.rss = r.squaredNorm();
-    if (!cols.empty() && n > static_cast<long>(cols.size())) {
-      const double s2 = out.rss / static_cast<double>(n - static_cast<long>(cols.size()));
-      const Eigen::MatrixXd cov = (A.transpose() * A).ldlt().solve(Eigen::MatrixXd::Identity(A.cols(), A.cols())) * s2;
-      for (size_t c = 0; c < cols.size(); ++c)
-        out.sigma[cols[c]] =
-            std::sqrt(std::max(cov(static_cast<long>(c), static_cast<long>(c)), 0.0)) / scale[static_cast<long>(c)];
-    }
-    for (long j = 0; j < p; ++j)
-      if (!free[j]) out.theta[j] = 0.0, out.sigma[j] = 0.0;
-    break;
-  }
-  return out;
 }
 
 namespace {
@@ -1198,7 +731,7 @@ struct FitStages {
   }
   // Σ r² of the short-horizon simulation error (segments of opt.shooting_horizon_s) at u; 1e30 on divergence.
   double ShortHorizonCost(const std::vector<double>& u) {
-    return SumOfSquares(u, FixedSubsteps(m, Theta(u), recs), opt.shooting_horizon_s);
+    return SumOfSquares(u, FixedSubsteps(m, Theta(u), recs, Objective::kShooting), opt.shooting_horizon_s);
   }
   // `horizon_s` ≥ 0: the simulation error with restarts every horizon_s instead of the cost's own.
   // `restarts`: restarts from the measured (band-limited) states instead of multiple shooting's fitted ones.
@@ -1310,7 +843,7 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
   if (lc.warm) lc.warm = std::make_shared<ShootCache>();
   bool slack_used = false;
   for (int round = 0; round < 3; ++round) {
-    const std::vector<int> sub = FixedSubsteps(m, Theta(u), recs);
+    const std::vector<int> sub = FixedSubsteps(m, Theta(u), recs, obj);
     lc.substeps = sub;
     if (lc.warm && round > 0) lc.warm->NewRound();
     // Time objective: exact Jacobians. Spectral objective (chaotic records): forward differences, whose
@@ -1423,7 +956,7 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
       bool fired = false;
       ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
         if (it.iteration == 0 || !it.step_is_successful) return ceres::SOLVER_CONTINUE;
-        const std::vector<int> want = FixedSubsteps(fs->m, fs->Theta(*u), fs->recs);
+        const std::vector<int> want = FixedSubsteps(fs->m, fs->Theta(*u), fs->recs, Objective::kShooting);
         for (size_t k = 0; k < want.size(); ++k)
           if (kSlackRatio * want[k] > (*held)[k]) return ceres::SOLVER_CONTINUE;
         fired = true;
@@ -1431,7 +964,8 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
       }
     } slack;
     slack.fs = this, slack.u = &u, slack.held = &sub;
-    if (round < 2 && !slack_used) so.callbacks.push_back(&slack), so.update_state_every_iteration = true;
+    if (obj == Objective::kShooting && round < 2 && !slack_used)
+      so.callbacks.push_back(&slack), so.update_state_every_iteration = true;
     ceres::Solver::Summary summary;
     ceres::Solve(so, &problem, &summary);
     // Ceres leaves both counts at -1 when it stops before evaluating (invalid start or problem):
@@ -1455,9 +989,12 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
     // accuracy needs (AccurateSubsteps), not against SubstepsFor's stability margin on top. (On the coupled
     // c_y2_14 record the declared fit's friction stiffened from 72 to 136 substeps: the end point ran 109, stable
     // and accurate, and the margin alone sent a second round of 10 iterations at 204 substeps.)
+    // (Short horizons only; a long simulation keeps SubstepsFor's margin: FixedSubsteps.)
     bool enough = true;
     for (size_t k = 0; k < recs.size(); ++k)
-      enough = enough && AccurateSubsteps(m, th, recs[k]) <= SubstepsAt(m, th, recs, sub, k);
+      enough =
+          enough && (obj == Objective::kShooting ? AccurateSubsteps(m, th, recs[k]) <= SubstepsAt(m, th, recs, sub, k)
+                                                 : SubstepsFor(m, th, recs[k]) <= sub[k]);
     if (enough) break;
   }
   return final_cost;
@@ -1469,7 +1006,7 @@ void FitStages::Uncertainties(const std::vector<double>& u) {
   result.sigma.assign(p, NAN);
   if (opt.objective == Objective::kFft) return;
   SimCost c = cost;
-  c.substeps = FixedSubsteps(m, result.theta, recs, 1.5);
+  c.substeps = FixedSubsteps(m, result.theta, recs, opt.objective, 1.5);
   std::vector<double> r0(nres), jac(nres * static_cast<size_t>(p));
   if (!c.Eval(u.data(), r0.data(), jac.data())) return;
   AddSimulations(&result.simulations, 1);

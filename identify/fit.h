@@ -116,9 +116,10 @@ int ShootingSegment(double horizon_s, double dt);
 // states (fit.cc ShootRecord). False on divergence.
 bool SimulateShooting(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
                       double horizon_s, SimOutputs* out);
-// Substeps per record for parameters th, times a safety factor.
+// Substeps per record for parameters th held by a fit of objective `obj`: SubstepsFor times a safety factor;
+// under the shooting objective OscillationSubsteps times the safety, at least StableSubsteps (fit.cc).
 std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th,
-                               const std::vector<PreparedRecord>& recs, double safety = 1.5);
+                               const std::vector<PreparedRecord>& recs, Objective obj, double safety = 1.5);
 
 struct FitOptions {
   Objective objective = Objective::kTime;

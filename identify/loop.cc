@@ -292,7 +292,7 @@ void DifferenceSensitivities(const IdentModel& m, const std::vector<double>& th,
       std::vector<double> init(k, 0.0);
       init[j] = steps[p + col];
       const IdentModel mc = m.With(c, init);
-      std::vector<int> subc = FixedSubsteps(mc, mc.theta, recs);
+      std::vector<int> subc = FixedSubsteps(mc, mc.theta, recs, obj);
       for (size_t r = 0; r < subc.size(); ++r) subc[r] = std::max(subc[r], s->sub[r]);
       std::vector<double> ec, e0c = s->e0;
       if (!ObjectiveResiduals(mc, mc.theta, recs, setup, obj, subc, &ec) ||
@@ -311,7 +311,7 @@ bool SimulationResidual(const IdentModel& m, const std::vector<double>& th, cons
                         const Setup& setup, Objective obj, double horizon_s, const std::vector<const TermDef*>& fresh,
                         const std::vector<double>& steps, SimulationEvidence* s) {
   const int p = m.NumParams();
-  s->sub = FixedSubsteps(m, th, recs);
+  s->sub = FixedSubsteps(m, th, recs, obj);
   if (obj != Objective::kFft) {
     Eigen::MatrixXd all;
     if (!ObjectiveJacobian(m, th, recs, setup, obj, s->sub, fresh, &s->e0, &all, horizon_s)) return false;
@@ -366,7 +366,7 @@ CandidateScore ScoreAtBase(const IdentModel& m, const std::vector<double>& th, c
   mc.theta = th;
   mc = mc.With(&c, base);
   SimulationEvidence ev;
-  ev.sub = FixedSubsteps(mc, mc.theta, recs);
+  ev.sub = FixedSubsteps(mc, mc.theta, recs, obj);
   for (size_t r = 0; r < ev.sub.size(); ++r) ev.sub[r] = std::max(ev.sub[r], sim.sub[r]);
   bool ok = false;
   Eigen::MatrixXd all;
