@@ -998,8 +998,17 @@ TEST(SweepEngine, RefinedSweepResumesFromItsStoredLevels) {
     level0 = plan->items_total;
     EXPECT_EQ(level0, 9 * 9);  // the coarse grid: every 8th value of 65
     EXPECT_EQ((*c)->progress(spec.Id()).refine_round, 0) << "round 0: the coarse grid";
-    while (auto lease = (*c)->Lease("w"))
+    // Round 0 only: the report completing it has the publisher thread plan round 1, and a loop leasing
+    // "until nothing is queued" raced it (1 run in ~60: the loop went on through every round and the sweep
+    // was published before the "crash", so the resumed coordinator held no plan: round -1).
+    long reported = 0;
+    while (reported < level0) {
+      auto lease = (*c)->Lease("w");
+      ASSERT_TRUE(lease.has_value()) << reported << " of " << level0 << " items reported";
       ASSERT_TRUE((*c)->Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
+      reported += static_cast<long>(lease->items.size());
+    }
+    ASSERT_EQ(reported, level0) << "leases of round 0 hold round 0's items only";
     // "crash" here: the next level may or may not have been planned
   }
   auto c = SweepCoordinator::Open(dir);  // resumes: plans again from the stored levels
