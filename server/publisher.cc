@@ -36,7 +36,9 @@ StatusOr<std::string> Publisher::Run(const std::string& sweep_id) {
   if (closing_) return Status::FailedPrecondition("the publisher is closing");
   std::shared_ptr<Request> r = QueueLocked(sweep_id);
   r->awaited = true;
+  ++waiting_;
   done_cv_.wait(lock, [&] { return r->finished; });
+  --waiting_;
   return r->outcome;
 }
 
@@ -67,6 +69,11 @@ void Publisher::Loop() {
 long Publisher::steps() const {
   std::lock_guard<std::mutex> lock(mu_);
   return steps_;
+}
+
+long Publisher::waiting() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return waiting_;
 }
 
 }  // namespace bistable

@@ -40,7 +40,8 @@ class Publisher {
   // Runs the queued steps, then stops the thread; later requests are refused. Idempotent.
   void Close();
 
-  long steps() const;  // steps run since start (tests)
+  long steps() const;    // steps run since start (tests)
+  long waiting() const;  // callers waiting in Run (tests)
 
  private:
   struct Request {
@@ -60,6 +61,7 @@ class Publisher {
   std::deque<std::shared_ptr<Request>> queue_;
   bool closing_ = false;
   long steps_ = 0;
+  long waiting_ = 0;
   std::thread thread_;  // last: started after, and joined before, what it uses
 };
 

@@ -75,4 +75,9 @@ long ResultWriter::checkpoints() const {
   return checkpoints_;
 }
 
+size_t ResultWriter::queued() const {
+  std::lock_guard<std::mutex> lock(batch_mu_);
+  return batch_.size();
+}
+
 }  // namespace bistable

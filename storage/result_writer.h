@@ -49,6 +49,7 @@ class ResultWriter {
 
   long transactions() const;  // PutPoints transactions run (tests: several commits, one transaction)
   long checkpoints() const;   // checkpoints the background connection ran
+  size_t queued() const;      // jobs queued for the next transaction (tests)
   bool checkpointing() const { return checkpointer_.joinable(); }
 
  private:
