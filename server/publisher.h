@@ -15,8 +15,12 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "base/status.h"
+#include "engine/sweep_spec.h"
+#include "storage/index_db.h"
+#include "storage/result_writer.h"
 
 namespace bistable {
 
@@ -64,6 +68,30 @@ class Publisher {
   long waiting_ = 0;
   std::thread thread_;  // last: started after, and joined before, what it uses
 };
+
+// What a publication writes: a sweep's map from its stored records, then its index row. The coordinator
+// reads it under its lock; PublishMap runs without that lock.
+struct MapPublication {
+  SweepSpec spec;
+  std::vector<std::string> keys;  // content keys of the items (a refined sweep: of `points`)
+  std::vector<long> points;       // a refined sweep's computed grid points, ascending; empty otherwise
+  SweepRow row;                   // the sweep's row as it stands
+  double started = 0;             // when the sweep started (unix seconds)
+  std::string path;               // the map file to write (atomically: beside, then renamed)
+  std::string data_dir;           // the row's file is relative to it
+  // What the caller says of it (the coordinator's log and warnings).
+  struct Outcome {
+    bool incomplete = false;       // some item is missing or failed its checksum: plan the sweep again
+    long corrupt = 0;              // stored results that failed their checksum
+    Status folded = Status::Ok();  // moving the staged records into the keyed cache (beside the writing)
+  };
+};
+// Gathers the records through their checksums (the staged ones folded into the cache on a second thread
+// meanwhile), writes the map file (a refined sweep's finest grid filled in: engine/refine.h), and indexes
+// it with its map rows (shape and range of every stored metric) in one transaction; returns the row as
+// published (state done, `clock()` its finish). `before_index_row` runs between the file and the row (tests).
+StatusOr<SweepRow> PublishMap(const MapPublication& m, ResultWriter& writer, const std::function<double()>& clock,
+                              const std::function<void()>& before_index_row, MapPublication::Outcome* said);
 
 }  // namespace bistable
 

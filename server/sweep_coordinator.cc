@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <filesystem>
 #include <limits>
 
@@ -14,9 +13,7 @@
 #include "base/log.h"
 #include "base/sha256.h"
 #include "engine/evaluate.h"
-#include "engine/refine.h"
 #include "storage/data_dir.h"
-#include "storage/map_file.h"
 
 namespace bistable {
 namespace {
@@ -585,53 +582,46 @@ Status SweepCoordinator::Cancel(const std::string& sweep_id) {
 StatusOr<std::string> SweepCoordinator::PublishStep(const std::string& sweep_id) {
   // One step at a time (the publisher's one thread); the coordinator's lock is held only to read the sweep
   // and to record the outcome, so leases and reports of other sweeps go on while the map is gathered and
-  // written.
-  SweepSpec spec;
-  std::vector<std::string> keys;
-  SweepRow row;
-  double started = 0;
-  std::vector<long> points;
-  bool needs_plan = false;
+  // written. What comes next is the plan's to say (JobPlan::next): a refined sweep whose round is stored
+  // has its next round planned, and is published once no round is left.
   const std::string path = MapPath(sweep_id);
-  // A refined sweep whose round is stored plans its next round here, and is published once no round is left.
+  MapPublication m;
+  bool needs_plan = false;
   for (int attempt = 0;; ++attempt) {
-    bool advance = false;
     {
       std::lock_guard<std::mutex> lock(mu_);
       auto it = sweeps_.find(sweep_id);
       if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
-      const Sweep& s = it->second;
+      Sweep& s = it->second;
       if (s.row.state == SweepState::kDone && !s.row.file.empty() && std::filesystem::exists(path)) return path;
       if (s.cancelled) return Status::FailedPrecondition("sweep " + sweep_id + " was cancelled");
-      // The plan was freed after an earlier publication.
-      needs_plan = static_cast<long>(s.plan.keys().size()) != s.row.items_total;
+      needs_plan = static_cast<long>(s.plan.keys().size()) != s.row.items_total;  // freed after a publication
       const JobPlan::Next next = s.plan.next();
-      if (!needs_plan && s.plan.refined() && !s.plan.refine_complete()) {
-        if (next == JobPlan::Next::kCompute || attempt > 0)
-          return Status::FailedPrecondition(
-              "sweep " + sweep_id + " is refining: round " + std::to_string(s.plan.refine_round()) + " has " +
-              std::to_string(s.row.items_total - s.plan.items_done()) + " items to compute");
-        advance = true;
+      const bool refining = !needs_plan && s.plan.refined() && !s.plan.refine_complete();
+      if (refining && (next == JobPlan::Next::kCompute || attempt > 0))
+        return Status::FailedPrecondition(
+            "sweep " + sweep_id + " is refining: round " + std::to_string(s.plan.refine_round()) + " has " +
+            std::to_string(s.row.items_total - s.plan.items_done()) + " items to compute");
+      if (!refining) {
+        m = MapPublication{s.spec, s.plan.keys(), s.plan.points(), s.row, s.started, path, data_dir_};
+        if (!needs_plan && next == JobPlan::Next::kPublish) s.publishing = true;  // a cancel is refused now
+        break;
       }
-      spec = s.spec;
-      keys = s.plan.keys();
-      points = s.plan.points();
-      row = s.row;
-      started = s.started;
-      if (!advance && !needs_plan && next == JobPlan::Next::kPublish)
-        it->second.publishing = true;  // a cancel is refused now
     }
-    if (!advance) break;
-    BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));
+    BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));  // the next round (found stored already: the loop goes on)
   }
   if (needs_plan) {
     BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));
     return Status::FailedPrecondition("sweep " + sweep_id +
                                       " lost its map file; it is being planned and published again");
   }
-  bool incomplete = false;
   const auto publish_start = std::chrono::steady_clock::now();
-  auto published = WriteAndIndexMap(spec, keys, points, row, started, path, &incomplete);
+  MapPublication::Outcome said;
+  auto published = PublishMap(
+      m, *writer_, [this] { return Clock(); }, opt_.before_index_row, &said);
+  if (said.corrupt > 0) ChecksumFailed(sweep_id, said.corrupt, "replan");
+  if (!said.folded.ok())  // the records stay staged and are folded by a later lookup; the map is complete
+    Log(log::Level::kWarn, "sweep.fold_failed", {{"sweep", sweep_id}, {"reason", said.folded.ToString()}});
   std::unique_lock<std::mutex> lock(mu_);
   Sweep& s = sweeps_.at(sweep_id);
   s.publishing = false;
@@ -641,7 +631,7 @@ StatusOr<std::string> SweepCoordinator::PublishStep(const std::string& sweep_id)
     // A write failure (disk full, unwritable dir) fails the sweep. Results missing at publication
     // (a stored result failed its checksum) are computed again: the sweep is planned anew.
     if (published.status().code() == Status::Code::kIoError && !s.cancelled) MarkLocked(s, SweepState::kFailed);
-    if (incomplete && !s.cancelled) {
+    if (said.incomplete && !s.cancelled) {
       lock.unlock();
       if (Status st = Replan(sweep_id); !st.ok()) return st;
     }
@@ -658,85 +648,6 @@ StatusOr<std::string> SweepCoordinator::PublishStep(const std::string& sweep_id)
   FreePlan(s);  // published: keys and jobs are no longer needed
   final_cv_.notify_all();
   return path;
-}
-
-StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys,
-                                                      const std::vector<long>& points, const SweepRow& row,
-                                                      double started, const std::string& path, bool* incomplete) {
-  // Every record is read back through its checksum: a corrupt one counts as missing. The staged
-  // records are read where they are staged; moving them into the keyed point cache (SQLite inserts,
-  // as long as the map's HDF5 writing) runs on a second thread beside the writing, and ends before the
-  // index row: a crash in between leaves them staged, folded by the next lookup.
-  long corrupt = 0;
-  auto found =
-      Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points),
-                         &corrupt, IndexDb::Fold::kLater);
-  if (!found.ok()) return found.status();
-  Status folded = Status::Ok();
-  std::thread folder;
-  try {
-    folder = std::thread([this, &folded] { folded = Db()->FoldResults(); });
-  } catch (const std::system_error&) {  // no thread to be had: fold here
-    folded = Db()->FoldResults();
-  }
-  struct Join {
-    std::thread& t;
-    ~Join() {
-      if (t.joinable()) t.join();
-    }
-  } join{folder};
-  if (corrupt > 0) ChecksumFailed(row.id, corrupt, "replan");
-  std::vector<PointRecord> records;
-  records.reserve(keys.size());
-  for (const std::string& k : keys) {
-    auto it = found->find(k);
-    if (it == found->end()) {
-      *incomplete = true;
-      return Status::FailedPrecondition("sweep " + row.id +
-                                        " is incomplete: " + std::to_string(keys.size() - found->size()) +
-                                        " items are not stored (or failed their checksum)");
-    }
-    records.push_back(it->second);  // a copy: two items of a sweep can share a key (equal initial states)
-  }
-  SweepRow done = row;
-  done.items_done = static_cast<long>(records.size());
-  if (spec.refine.enabled()) {  // the finest grid, completed from the computed points
-    auto refined = FillRefinedGrid(spec, points, records);
-    if (!refined.ok()) {
-      *incomplete = refined.status().code() == Status::Code::kFailedPrecondition;
-      return refined.status();
-    }
-    RefinedGrid grid = std::move(refined).value();
-    BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, grid));
-    records = std::move(grid.records);  // the map rows' ranges are those of the map as written
-  } else {
-    BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, records));
-  }
-  done.state = SweepState::kDone;
-  done.file = std::filesystem::relative(path, data_dir_).string();
-  done.finished = Clock();
-  done.seconds = done.finished - started;
-  // Map rows: shape and range of every stored metric, for listings that need not open HDF5.
-  const std::string shape = MapShape(spec);
-  std::vector<MapRow> maps;
-  const auto& catalog = MetricCatalog();
-  for (size_t mi = 0; mi < catalog.size(); ++mi) {
-    if (std::find(spec.metrics.begin(), spec.metrics.end(), catalog[mi].name) == spec.metrics.end()) continue;
-    double lo = NAN, hi = NAN;
-    for (const PointRecord& r : records) {
-      const double v = r.Get(mi);
-      if (!std::isfinite(v)) continue;
-      lo = std::isnan(lo) ? v : std::min(lo, v);
-      hi = std::isnan(hi) ? v : std::max(hi, v);
-    }
-    maps.push_back({done.id, catalog[mi].name, done.file, shape, lo, hi});
-  }
-  if (folder.joinable()) folder.join();
-  if (opt_.before_index_row) opt_.before_index_row();
-  if (!folded.ok())  // the records stay staged and are folded by a later lookup; the map is complete
-    Log(log::Level::kWarn, "sweep.fold_failed", {{"sweep", row.id}, {"reason", folded.ToString()}});
-  BISTABLE_RETURN_IF_ERROR(Db()->PublishSweep(done, maps));
-  return done;
 }
 
 Status SweepCoordinator::MarkLocked(Sweep& s, SweepState state) {

@@ -226,13 +226,6 @@ class SweepCoordinator {
   void ChecksumFailed(const std::string& sweep, long items, const char* action) const;
   // Gives a lease's jobs back to their queue (if the lease's plan is still current). Under mu_.
   void RequeueLocked(const LeaseState& l);
-  // Gathers the records, writes the map file, indexes it; returns the sweep's row as published.
-  // Called without mu_ (it takes the writer's lock for the index).
-  // *incomplete: some item is missing or failed its checksum (the sweep must be planned again).
-  // `points`: a refined sweep's computed grid points (keys[i] is points[i]'s); empty otherwise.
-  StatusOr<SweepRow> WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys,
-                                      const std::vector<long>& points, const SweepRow& row, double started,
-                                      const std::string& path, bool* incomplete);
   Status MarkLocked(Sweep& s, SweepState state);
   // Info of an active sweep (mu_ held), its worker count from LeaseTable::HoldersBySweep.
   SweepInfo InfoLocked(const Sweep& s, const std::map<std::string, int>& holders) const;

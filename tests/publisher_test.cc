@@ -11,6 +11,11 @@
 
 #include <gtest/gtest.h>
 
+#include "engine/evaluate.h"
+#include "storage/map_file.h"
+#include "tests/process_util.h"
+#include "tests/spec_fixture.h"
+
 namespace bistable {
 namespace {
 
@@ -115,6 +120,80 @@ TEST(Publisher, CloseRunsWhatIsQueuedThenRefusesMore) {
   EXPECT_EQ(p->Run("z").status().code(), Status::Code::kFailedPrecondition);
   p->Post("z");
   EXPECT_EQ(steps.ran.size(), 4u);
+}
+
+// PublishMap, the publication itself, on a real SQLite index and a real HDF5 map file: the records as the
+// writer stored them, checked, gathered and written; a sweep with an item not stored is not published.
+TEST(Publisher, PublishMapWritesTheStoredRecordsAndIndexesTheMapOnlyWhenEveryItemIsStored) {
+  const std::string dir = bistable_test::FreshDir("bistable_publish_map", "real");
+  std::filesystem::create_directories(std::filesystem::path(dir) / "sweeps");
+  const std::string index = dir + "/index.sqlite";
+  auto db = IndexDb::Open(index);
+  ASSERT_TRUE(db.ok()) << db.status().ToString();
+  ResultWriter writer(std::move(db).value(), index, ResultWriter::Options{.checkpoint_seconds = 0});
+  const SweepSpec spec = bistable_test::ParsedSpec(R"(
+model = "coupled"
+[axes]
+alpha = { linspace = [0.2, 1.4, 5] }
+omega = [0.8, 1.2, 2.0]
+)");
+  std::vector<WorkItem> items;
+  std::vector<std::string> keys;
+  for (long p = 0; p < spec.points(); ++p) items.push_back({p, 0}), keys.push_back(spec.ItemKey(p, 0));
+  const std::vector<PointRecord> records = ComputeItems(spec, items);
+  ASSERT_EQ(records.size(), items.size());
+  SweepRow row;
+  row.id = spec.Id();
+  row.spec = spec.source;
+  row.state = SweepState::kRunning;
+  row.items_total = static_cast<long>(items.size());
+  ASSERT_TRUE(writer.Db()->UpsertSweep(row).ok());
+  auto store = [&](size_t from, size_t to) {
+    IndexDb::JobResults rows;
+    rows.sweep_id = row.id;
+    rows.width = records[0].v.size();
+    for (size_t i = from; i < to; ++i) {
+      rows.keys += keys[i] + "\n";
+      rows.values.insert(rows.values.end(), records[i].v.begin(), records[i].v.end());
+    }
+    return writer.Commit(std::move(rows));
+  };
+  ASSERT_TRUE(store(0, items.size() - 1).ok());  // all but the last item
+  const std::string path = dir + "/sweeps/" + row.id + ".h5";
+  const MapPublication m{spec, keys, {}, row, 100.0, path, dir};
+  MapPublication::Outcome said;
+  bool indexed = false;
+  auto early = PublishMap(
+      m, writer, [] { return 160.0; }, [&] { indexed = true; }, &said);
+  ASSERT_FALSE(early.ok());
+  EXPECT_TRUE(said.incomplete) << early.status().ToString();
+  EXPECT_FALSE(indexed);
+  EXPECT_FALSE(std::filesystem::exists(path));
+  ASSERT_TRUE(store(items.size() - 1, items.size()).ok());
+  said = {};
+  auto done = PublishMap(
+      m, writer, [] { return 160.0; }, [&] { indexed = true; }, &said);
+  ASSERT_TRUE(done.ok()) << done.status().ToString();
+  EXPECT_FALSE(said.incomplete);
+  EXPECT_EQ(said.corrupt, 0);
+  EXPECT_TRUE(said.folded.ok());
+  EXPECT_TRUE(indexed);
+  EXPECT_EQ(done->state, SweepState::kDone);
+  EXPECT_EQ(done->file, "sweeps/" + row.id + ".h5");
+  EXPECT_EQ(done->seconds, 60.0);
+  EXPECT_EQ(done->items_done, static_cast<long>(items.size()));
+  // The index says published, and the file holds the records as computed, in grid order.
+  auto stored_row = writer.Db()->GetSweep(row.id);
+  ASSERT_TRUE(stored_row.ok() && stored_row.value());
+  EXPECT_EQ(stored_row.value()->state, SweepState::kDone);
+  auto maps = writer.Db()->ListMaps(row.id);
+  ASSERT_TRUE(maps.ok());
+  EXPECT_FALSE(maps->empty());
+  auto y_max = ReadMapMetric(path, "y_max");
+  ASSERT_TRUE(y_max.ok()) << y_max.status().ToString();
+  ASSERT_EQ(y_max->values.size(), items.size());
+  const size_t mi = MetricIndex("y_max");
+  for (size_t i = 0; i < items.size(); ++i) EXPECT_EQ(y_max->values[i], records[i].v[mi]) << "item " << i;
 }
 
 }  // namespace
