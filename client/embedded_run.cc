@@ -275,8 +275,9 @@ StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& sp
                                         const std::string& label, EmbeddedRunStats* stats) {
   const std::string id = spec.Id();
   const long first = c.progress(id).items_done;
-  // A refined sweep ([refine]) computes round by round: publishing a stored round plans the next one
-  // (one progress line per round); any other sweep goes round once.
+  // A refined sweep ([refine]) computes round by round: the publisher's step for a stored round plans the next
+  // one (one progress line per round); any other sweep goes round once. Publish asks the coordinator's
+  // publisher (server/publisher.h, the one place a publication starts) and waits for its step.
   for (;;) {
     const SweepProgress p = c.progress(id);
     const long to_compute = p.items_total - p.items_done;

@@ -127,20 +127,22 @@ grpc::Status CoordinatorService::Serve(grpc::ServerContext* ctx, const char* met
   }
 }
 
-StatusOr<SpecText> CoordinatorService::KeyedSpec(const std::string& sweep_id) {
-  auto text = c_->SpecText(sweep_id);
-  if (!text.ok()) return text.status();
-  std::lock_guard<std::mutex> lock(spec_keys_mu_);
-  auto it = spec_keys_.find(sweep_id);
-  if (it == spec_keys_.end() || it->second.spec_toml != *text) {
-    // At most kMaxKnownSpecs texts kept (an active sweep's key is computed again when it was pushed out).
-    if (it == spec_keys_.end() && spec_keys_.size() >= static_cast<size_t>(limits::kMaxKnownSpecs))
-      spec_keys_.erase(spec_keys_.begin());
-    SpecText keyed{sweep_id, std::move(*text), ""};
-    keyed.spec_key = SpecKey(keyed.spec_toml);
-    it = spec_keys_.insert_or_assign(sweep_id, std::move(keyed)).first;
+StatusOr<SpecText> CoordinatorService::KeyedSpec(const std::string& sweep_id, const std::string& spec_key) {
+  if (!spec_key.empty()) {
+    std::lock_guard<std::mutex> lock(spec_texts_mu_);
+    if (auto it = spec_texts_.find(spec_key); it != spec_texts_.end()) return SpecText{sweep_id, it->second, spec_key};
   }
-  return it->second;
+  std::string key;
+  auto text = c_->SpecText(sweep_id, &key);
+  if (!text.ok()) return text.status();
+  SpecText keyed{sweep_id, std::move(*text), std::move(key)};
+  std::lock_guard<std::mutex> lock(spec_texts_mu_);
+  if (!spec_texts_.count(keyed.spec_key)) {
+    // At most kMaxKnownSpecs texts kept (a text pushed out is asked of the coordinator again).
+    if (spec_texts_.size() >= static_cast<size_t>(limits::kMaxKnownSpecs)) spec_texts_.erase(spec_texts_.begin());
+    spec_texts_.emplace(keyed.spec_key, keyed.spec_toml);
+  }
+  return keyed;
 }
 
 grpc::Status CoordinatorService::Submit(grpc::ServerContext* ctx, const v1::SubmitRequest* req, v1::SubmitReply* rep) {
@@ -284,12 +286,16 @@ Status CoordinatorService::LeaseInto(const std::string& worker, const std::strin
     rep->set_has_job(false);
     return Status::Ok();
   }
-  auto spec = KeyedSpec(g->sweep_id);
+  // The text travels only to a worker that does not name its key (an old worker names none); the lease
+  // carries the key, so a worker that holds the spec costs no copy of its text.
+  if (std::find(known_specs.begin(), known_specs.end(), g->spec_key) != known_specs.end()) {
+    ToProto(LeasedWork{g->lease_id, g->sweep_id, g->job_id, "", g->spec_key, std::move(g->items), g->deadline}, rep);
+    return Status::Ok();
+  }
+  auto spec = KeyedSpec(g->sweep_id, g->spec_key);
   if (!spec.ok()) return spec.status();
-  // The text travels only to a worker that does not name its key (an old worker names none).
-  const bool held = std::find(known_specs.begin(), known_specs.end(), spec->spec_key) != known_specs.end();
-  ToProto(LeasedWork{g->lease_id, g->sweep_id, g->job_id, held ? std::string() : std::move(spec->spec_toml),
-                     spec->spec_key, std::move(g->items), g->deadline},
+  ToProto(LeasedWork{g->lease_id, g->sweep_id, g->job_id, std::move(spec->spec_toml), spec->spec_key,
+                     std::move(g->items), g->deadline},
           rep);
   return Status::Ok();
 }
@@ -301,7 +307,7 @@ grpc::Status CoordinatorService::GetSpec(grpc::ServerContext* ctx, const v1::Spe
         req->sweep_id().find_first_not_of("0123456789abcdef") != std::string::npos)
       return Status::InvalidArgument(
           "sweep_id", "sweep_id must be 1 to " + std::to_string(limits::kMaxIdBytes) + " lowercase hex digits");
-    auto spec = KeyedSpec(req->sweep_id());
+    auto spec = KeyedSpec(req->sweep_id(), "");
     if (!spec.ok()) return spec.status();
     ToProto(*spec, rep);
     return Status::Ok();

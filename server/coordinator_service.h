@@ -79,16 +79,17 @@ class CoordinatorService final : public v1::Coordinator::Service {
                    int max_jobs,  // bound to who
                    const std::vector<std::string>& known_specs);
   StatusOr<std::pair<std::string, std::string>> PublishedMap(const std::string& id_or_prefix) const;
-  // A sweep's spec text and its key (SpecKey), the key computed once per text (the last kMaxKnownSpecs sweeps').
-  StatusOr<SpecText> KeyedSpec(const std::string& sweep_id);
+  // A sweep's spec text and its key (SpecKey): by `spec_key` (a lease's) from the texts kept (the last
+  // kMaxKnownSpecs), else the coordinator's text and key.
+  StatusOr<SpecText> KeyedSpec(const std::string& sweep_id, const std::string& spec_key);
   SweepCoordinator* c_;
   double lease_seconds_, job_seconds_;
   TokenStore tokens_;
   std::atomic<bool> shutting_down_{false};
   std::shared_ptr<MapCache> maps_;
   CoordinatorMetrics* metrics_ = nullptr;
-  std::mutex spec_keys_mu_;
-  std::map<std::string, SpecText> spec_keys_;  // by sweep id
+  std::mutex spec_texts_mu_;
+  std::map<std::string, std::string> spec_texts_;  // spec key → text
   std::mutex refusal_log_mu_;
   long long refusal_log_second_ = 0, refusal_logs_this_second_ = 0, refusals_suppressed_ = 0;
 };

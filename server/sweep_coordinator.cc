@@ -5,20 +5,15 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <limits>
-#include <random>
-#include <set>
 
 #include "base/file.h"
 #include "base/limits.h"
 #include "base/log.h"
+#include "base/sha256.h"
 #include "engine/evaluate.h"
-#include "engine/refine.h"
 #include "storage/data_dir.h"
-#include "storage/map_file.h"
 
 namespace bistable {
 namespace {
@@ -47,6 +42,24 @@ void SweepCoordinator::ChecksumFailed(const std::string& sweep, long items, cons
               (std::filesystem::path(data_dir_) / "index.sqlite").string() + "': computed again");
 }
 
+SweepCoordinator::SweepCoordinator(std::string dir, std::unique_ptr<IndexDb> db, Options opt)
+    : data_dir_(std::move(dir)),
+      opt_(std::move(opt)),
+      // Checkpoints off the report path (measured: docs/scaling.md): a second connection checkpoints in the
+      // background; the writer's own automatic checkpoint stays as a safety net at ~400 MB of WAL.
+      writer_(std::make_unique<ResultWriter>(
+          std::move(db), (std::filesystem::path(data_dir_) / "index.sqlite").string(), ResultWriter::Options{})),
+      leases_([this] { return Monotonic(); }, opt_.lease_seconds),
+      publisher_(std::make_unique<Publisher>(
+          [this](const std::string& id) { return PublishStep(id); },
+          [this](const std::string& id, const Status& st) {
+            Log(log::Level::kError, "sweep.publish_failed", {{"sweep", id}, {"reason", st.ToString()}});
+          })) {}
+
+SweepCoordinator::~SweepCoordinator() {
+  publisher_->Close();  // finishes queued publications first, while every part it uses is still here
+}
+
 double SweepCoordinator::Clock() const { return opt_.clock ? opt_.clock() : Now(); }
 
 double SweepCoordinator::Monotonic() const {
@@ -66,24 +79,6 @@ StatusOr<std::unique_ptr<SweepCoordinator>> SweepCoordinator::Open(const std::st
   if (!db.ok()) return db.status();
   std::unique_ptr<SweepCoordinator> c(new SweepCoordinator(data_dir, std::move(db.value()), opt));
   for (const std::string& r : repairs) c->Repaired("data.repaired", r);
-  // Checkpoints off the report path (measured: docs/scaling.md): a second connection checkpoints in the
-  // background; the writer's own automatic checkpoint stays as a safety net at ~400 MB of WAL.
-  if (auto ck = IndexDb::Open((std::filesystem::path(data_dir) / "index.sqlite").string()); ck.ok()) {
-    c->checkpoint_db_ = std::move(ck).value();
-    (void)c->checkpoint_db_->SetCacheKib(64);  // it copies WAL frames; it caches nothing worth memory
-    if (c->Db()->SetAutoCheckpoint(100000).ok()) {
-      SweepCoordinator* self = c.get();
-      c->checkpointer_ = std::thread([self] {
-        constexpr auto kCheckpointSeconds = std::chrono::milliseconds(250);
-        std::unique_lock<std::mutex> lock(self->checkpoint_mu_);
-        while (!self->checkpoint_cv_.wait_for(lock, kCheckpointSeconds, [self] { return self->checkpoint_stop_; })) {
-          lock.unlock();
-          (void)self->checkpoint_db_->CheckpointPassive();
-          lock.lock();
-        }
-      });
-    }
-  }
   if (!opt.resume) return c;
   // Resume every unfinished sweep: plan it again against the point cache.
   auto rows = c->Db()->ListSweeps();
@@ -122,8 +117,8 @@ std::optional<SweepPlan> SweepCoordinator::ActivePlanLocked(const std::string& i
   SweepPlan plan;
   plan.id = id;
   plan.items_total = it->second.row.items_total;
-  plan.items_cached = it->second.items_cached;
-  plan.jobs = static_cast<long>(it->second.jobs.size());
+  plan.items_cached = it->second.plan.items_cached();
+  plan.jobs = it->second.plan.jobs();
   plan.already_published = it->second.row.state == SweepState::kDone;
   return plan;
 }
@@ -187,46 +182,16 @@ StatusOr<SweepPlan> SweepCoordinator::SubmitImpl(const SweepSpec& spec, long job
   return plan;
 }
 
-namespace {
-// Cuts a plan's items into jobs of about `job_items`: a group (a continuation chain) is never split,
-// so a job closes once it holds job_items or more.
-struct JobBuilder {
-  std::vector<Job>& jobs;
-  long job_items;
-  Job open{};
-  void Add(const WorkItem& item) {
-    open.items.push_back(item);
-    if (static_cast<long>(open.items.size()) >= job_items) Close();
-  }
-  void Add(const std::vector<WorkItem>& group) {
-    open.items.insert(open.items.end(), group.begin(), group.end());
-    if (static_cast<long>(open.items.size()) >= job_items) Close();
-  }
-  void Close() {
-    if (open.items.empty()) return;
-    open.id = static_cast<long>(jobs.size());
-    jobs.push_back(std::move(open));
-    open = Job{};
-  }
-};
-}  // namespace
-
 StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec& spec, long job_items,
                                                                 RefineCarry carry) {
   Planned out;
   SweepPlan& plan = out.plan;
   Sweep& s = out.sweep;
   plan.id = spec.Id();
-  const int nic = spec.ic_count();
-  const long points = spec.points();
-  long total = 0;
-  if (__builtin_mul_overflow(points, static_cast<long>(nic), &total) || total > limits::kMaxSweepItems)
-    return Status::InvalidArgument("axes",
-                                   "points x initial conditions violates <= " + std::to_string(limits::kMaxSweepItems));
-  plan.items_total = total;
   auto existing = Db()->GetSweep(plan.id);
   if (!existing.ok()) return existing.status();
   s.spec = spec;
+  s.spec_key = Sha256Hex(spec.source);
   s.row = existing.value() && existing.value()->id == plan.id ? *existing.value() : SweepRow{};
   if (s.row.state == SweepState::kDone && !s.row.file.empty() &&
       std::filesystem::exists(std::filesystem::path(data_dir_) / s.row.file)) {
@@ -235,9 +200,12 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
     const std::string file = (std::filesystem::path(data_dir_) / s.row.file).string();
     Status whole = CheckMapFile(file, plan.id);
     if (whole.ok()) {
+      long total = 0;
+      if (__builtin_mul_overflow(spec.points(), static_cast<long>(spec.ic_count()), &total))
+        return Status::InvalidArgument("axes", "points x initial conditions overflows");
       plan.already_published = true;
-      plan.items_cached = plan.items_total;
-      s.items_done = s.items_cached = plan.items_total;
+      plan.items_total = plan.items_cached = total;
+      s.plan = JobPlan::Published(total);
       return out;
     }
     auto aside = MoveAside(file);
@@ -247,125 +215,26 @@ StatusOr<SweepCoordinator::Planned> SweepCoordinator::BuildPlan(const SweepSpec&
     s.row.state = SweepState::kQueued;
     s.row.file.clear();
   }
-  if (spec.refine.enabled()) {
-    BISTABLE_RETURN_IF_ERROR(BuildRefinedPlan(spec, job_items, std::move(carry), s, plan));
-    return out;
-  }
-  s.keys.reserve(plan.items_total);
-  for (long p = 0; p < points; ++p)
-    for (int i = 0; i < nic; ++i) s.keys.push_back(spec.ItemKey(p, i));
-  // Look the keys up in batches, each under the index lock on its own, so reports of other sweeps
-  // commit in between.
-  constexpr size_t kBatch = 65536;
-  std::vector<bool> is_missing(s.keys.size(), true);
+  // The plan looks its keys up in batches, each under the index lock on its own, so reports of other
+  // sweeps commit in between.
   const size_t width = PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points);
   long corrupt_total = 0;
-  for (size_t b = 0; b < s.keys.size(); b += kBatch) {
-    const std::vector<std::string> batch(s.keys.begin() + b, s.keys.begin() + std::min(s.keys.size(), b + kBatch));
-    long corrupt = 0;
-    auto cached = Db()->LookupPoints(batch, width, &corrupt);
-    if (!cached.ok()) return cached.status();
-    corrupt_total += corrupt;
-    for (size_t i = 0; i < batch.size(); ++i)
-      if (cached->count(batch[i])) is_missing[b + i] = false;
-  }
+  auto built = JobPlan::Build(
+      spec, job_items,
+      [&](const std::vector<std::string>& keys) {
+        long corrupt = 0;
+        auto found = Db()->LookupPoints(keys, width, &corrupt);
+        corrupt_total += corrupt;
+        return found;
+      },
+      std::move(carry));
+  if (!built.ok()) return built.status();
   if (corrupt_total > 0) ChecksumFailed(plan.id, corrupt_total, "recompute");
-  if (spec.continuation.enabled()) {
-    // Chains run whole and in order (each point starts where the previous ended): a chain with any
-    // missing item is recomputed entirely; jobs hold whole chains.
-    JobBuilder jobs{s.jobs, job_items};
-    for (const auto& chain : spec.ContinuationChains()) {
-      bool any = false;
-      for (const WorkItem& w : chain) any = any || is_missing[w.point * nic + w.ic];
-      if (any) jobs.Add(chain);
-    }
-    jobs.Close();
-  } else {
-    JobBuilder jobs{s.jobs, job_items};
-    for (long p = 0; p < points; ++p)
-      for (int i = 0; i < nic; ++i)
-        if (is_missing[p * nic + i]) jobs.Add(WorkItem{p, i});
-    jobs.Close();
-  }
-  long queued = 0;
-  for (const Job& j : s.jobs) queued += static_cast<long>(j.items.size()), s.queue.push_back(j.id);
-  s.job_state.assign(s.jobs.size(), JobState::kQueued);
-  plan.items_cached = plan.items_total - queued;  // items of partly stored chains are recomputed
-  plan.jobs = static_cast<long>(s.jobs.size());
-  s.items_cached = s.items_done = plan.items_cached;
+  s.plan = std::move(built).value();
+  plan.items_total = s.plan.items_total();
+  plan.items_cached = s.plan.items_cached();
+  plan.jobs = s.plan.jobs();
   return out;
-}
-
-Status SweepCoordinator::BuildRefinedPlan(const SweepSpec& spec, long job_items, RefineCarry carry, Sweep& s,
-                                          SweepPlan& plan) {
-  const size_t width = PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points);
-  std::map<long, std::string> looked_up;  // keys of the points looked up now (the current round's)
-  long corrupt_total = 0;
-  if (!carry.planner)
-    carry = RefineCarry{std::make_shared<RefinePlanner>(spec), {}, {}, false, 0, 0};  // a walk from the start
-  auto step =
-      carry.planner->Advance([&](const std::vector<long>& pts, std::vector<std::optional<RefineMark>>* classes) {
-        classes->assign(pts.size(), std::nullopt);
-        constexpr size_t kBatch = 65536;  // batches, each under the index lock on its own
-        for (size_t b = 0; b < pts.size(); b += kBatch) {
-          const size_t e = std::min(pts.size(), b + kBatch);
-          std::vector<std::string> batch;
-          batch.reserve(e - b);
-          for (size_t i = b; i < e; ++i) batch.push_back(spec.ItemKey(pts[i], 0));
-          long corrupt = 0;
-          auto cached = Db()->LookupPoints(batch, width, &corrupt);
-          if (!cached.ok()) return cached.status();
-          corrupt_total += corrupt;
-          for (size_t i = b; i < e; ++i) {
-            if (auto it = cached->find(batch[i - b]); it != cached->end())
-              (*classes)[i] = RefineClass(spec.refine, spec.base.metrics, it->second);
-            looked_up[pts[i]] = std::move(batch[i - b]);
-          }
-        }
-        return Status::Ok();
-      });
-  if (!step.ok()) {
-    s.refiner.reset();  // a failed lookup leaves the walk mid-round: the next plan walks from the start
-    return step.status();
-  }
-  s.refiner = carry.planner;
-  if (corrupt_total > 0) ChecksumFailed(plan.id, corrupt_total, "recompute");
-  // Every planned point's key: looked up now, or carried from the last plan (both ascending).
-  s.points = step->points;
-  s.keys.clear();
-  s.keys.reserve(s.points.size());
-  size_t c = 0;
-  for (long p : s.points) {
-    while (c < carry.points.size() && carry.points[c] < p) ++c;
-    if (auto it = looked_up.find(p); it != looked_up.end())
-      s.keys.push_back(std::move(it->second));
-    else if (c < carry.points.size() && carry.points[c] == p)
-      s.keys.push_back(std::move(carry.keys[c]));
-    else
-      s.keys.push_back(spec.ItemKey(p, 0));
-  }
-  s.refine_round = step->round;
-  s.refine_complete = step->complete;
-  JobBuilder jobs{s.jobs, job_items};
-  for (long p : step->missing) jobs.Add(WorkItem{p, 0});
-  jobs.Close();
-  for (const Job& job : s.jobs) s.queue.push_back(job.id);
-  s.job_state.assign(s.jobs.size(), JobState::kQueued);
-  plan.items_total = static_cast<long>(s.points.size());  // grows round by round
-  plan.jobs = static_cast<long>(s.jobs.size());
-  s.items_done = plan.items_total - static_cast<long>(step->missing.size());
-  s.refine_queued = static_cast<long>(step->missing.size());
-  // Reused from the cache: at the first plan, what was stored; later rounds add what they found stored
-  // beyond the items this coordinator computed for the round before (carry.computed).
-  const long found = static_cast<long>(looked_up.size()) - static_cast<long>(step->missing.size());
-  s.items_cached = carry.continued ? carry.cached + found - carry.computed : s.items_done;
-  plan.items_cached = s.items_cached;
-  return Status::Ok();
-}
-
-const std::string& SweepCoordinator::KeyOf(const Sweep& s, const WorkItem& w) {
-  if (s.points.empty()) return s.keys[w.point * s.spec.ic_count() + w.ic];
-  return s.keys[std::lower_bound(s.points.begin(), s.points.end(), w.point) - s.points.begin()];
 }
 
 StatusOr<SweepPlan> SweepCoordinator::InstallLocked(Planned p, const std::string& owner) {
@@ -390,7 +259,7 @@ StatusOr<SweepPlan> SweepCoordinator::InstallLocked(Planned p, const std::string
   s.row.spec = s.spec.source;
   s.row.state = SweepState::kRunning;
   s.row.items_total = plan.items_total;
-  s.row.items_done = s.items_done;
+  s.row.items_done = s.plan.items_done();
   s.row.file = "";
   s.row.owner = owner;
   if (s.row.created == 0) s.row.created = s.started;
@@ -415,11 +284,9 @@ Status SweepCoordinator::Replan(const std::string& id) {
     spec = it->second.spec;
     owner = it->second.row.owner;
     job_items = it->second.job_items;
-    if (it->second.refiner && !it->second.refine_complete)  // continue the walk: look up only the new round
-      carry = RefineCarry{it->second.refiner,      it->second.points,       it->second.keys, true,
-                          it->second.items_cached, it->second.refine_queued};
+    carry = it->second.plan.Carry();  // a refined sweep continues its walk: only the new round is looked up
     generation = it->second.generation = ++generation_counter_;  // reports of the old plan store, but count nowhere
-    it->second.queue.clear();                                    // and nothing is leased while the new one is built
+    it->second.plan.ClearQueue();                                // and nothing is leased while the new one is built
     RevokeLeasesLocked(id);
     planning_[id] = Planning{owner, false};
   }
@@ -437,51 +304,27 @@ Status SweepCoordinator::Replan(const std::string& id) {
   built.value().sweep.job_items = job_items;
   auto plan = InstallLocked(std::move(*built), owner);
   if (!plan.ok()) return plan.status();
+  const JobPlan& installed = sweeps_.at(id).plan;
   if (spec.refine.enabled())
     Log(log::Level::kInfo, "sweep.refined",
         {{"sweep", id},
-         {"round", sweeps_.at(id).refine_round},
+         {"round", installed.refine_round()},
          {"items", plan->items_total - plan->items_cached},
          {"planned", plan->items_total},
-         {"complete", sweeps_.at(id).refine_complete}});
+         {"complete", installed.refine_complete()}});
   else
     Log(log::Level::kInfo, "sweep.replanned", {{"sweep", id}, {"items", plan->items_total - plan->items_cached}});
-  if (plan->jobs == 0) {
-    std::lock_guard<std::mutex> p(publish_queue_mu_);
-    publish_queue_.push_back(id);
-    publish_cv_.notify_one();
-  }
+  if (plan->jobs == 0) publisher_->Post(id);
   return Status::Ok();
 }
 
 void SweepCoordinator::RevokeLeasesLocked(const std::string& sweep_id) {
-  for (auto it = leases_.begin(); it != leases_.end();) {
-    if (it->second.sweep_id != sweep_id) {
-      ++it;
-      continue;
-    }
-    if (auto w = workers_.find(it->second.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
-    it = leases_.erase(it);
-  }
+  for (const LeaseState& l : leases_.Revoke(sweep_id)) LeaseEndedLocked(l.worker);
 }
 
 void SweepCoordinator::FreePlan(Sweep& s) {
-  std::vector<std::string>().swap(s.keys);
-  std::vector<long>().swap(s.points);
-  s.refiner.reset();
-  std::vector<Job>().swap(s.jobs);
-  std::vector<JobState>().swap(s.job_state);
-  std::deque<long>().swap(s.queue);
+  s.plan.Free();
   ::malloc_trim(0);  // a cancelled 4 M-item plan is hundreds of MB: give them back
-}
-
-void SweepCoordinator::RememberFinishedLocked(const std::string& lease_id, const std::string& sweep_id) {
-  constexpr size_t kRemembered = 1 << 16;  // retried reports arrive within seconds; this is hours of them
-  if (finished_leases_.emplace(lease_id, sweep_id).second) finished_order_.push_back(lease_id);
-  while (finished_order_.size() > kRemembered) {
-    finished_leases_.erase(finished_order_.front());
-    finished_order_.pop_front();
-  }
 }
 
 void SweepCoordinator::TouchWorkerLocked(const std::string& worker, double now) {
@@ -503,14 +346,14 @@ void SweepCoordinator::TouchWorkerLocked(const std::string& worker, double now) 
   it->second.last_seen = now;
 }
 
-void SweepCoordinator::RequeueExpiredLocked(double mono) {
-  for (auto it = leases_.begin(); it != leases_.end();) {
-    if (it->second.deadline >= mono) {
-      ++it;
-      continue;
-    }
+void SweepCoordinator::LeaseEndedLocked(const std::string& worker) {
+  if (auto w = workers_.find(worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
+}
+
+void SweepCoordinator::RequeueExpiredLocked() {
+  const double mono = leases_.Now();
+  for (const LeaseState& l : leases_.TakeExpired()) {
     ++stats_.leases_expired;
-    const LeaseState& l = it->second;
     Log(log::Level::kWarn, "lease.expired",
         {{"sweep", l.sweep_id},
          {"job", l.job_ids.front()},
@@ -521,60 +364,33 @@ void SweepCoordinator::RequeueExpiredLocked(double mono) {
     RequeueLocked(l);
     if (auto w = workers_.find(l.worker); w != workers_.end() && w->second.leases == 0)
       Log(log::Level::kWarn, "worker.lost", {{"worker", l.worker}, {"last_seen_s", Clock() - w->second.last_seen}});
-    it = leases_.erase(it);
   }
 }
 
 void SweepCoordinator::RequeueLocked(const LeaseState& l) {
   auto s = sweeps_.find(l.sweep_id);
   if (s != sweeps_.end() && !s->second.cancelled && s->second.generation == l.generation)
-    for (auto j = l.job_ids.rbegin(); j != l.job_ids.rend(); ++j)  // back at the front, in their order
-      if (*j < static_cast<long>(s->second.job_state.size()) && s->second.job_state[*j] == JobState::kLeased) {
-        s->second.job_state[*j] = JobState::kQueued;
-        s->second.queue.push_front(*j);
-      }
-  if (auto w = workers_.find(l.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
+    s->second.plan.Requeue(l.job_ids);
+  LeaseEndedLocked(l.worker);
 }
 
 std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, const std::string& only_sweep,
                                                   int max_jobs, const std::string& identity) {
   std::lock_guard<std::mutex> lock(mu_);
-  const double now = Clock(), mono = Monotonic();
+  const double now = Clock();
   TouchWorkerLocked(worker, now);
   if (stopped_) return std::nullopt;
-  RequeueExpiredLocked(mono);
+  RequeueExpiredLocked();
   Sweep* best = nullptr;
   for (auto& [id, s] : sweeps_)
-    if (!s.cancelled && !s.queue.empty() && (!best || s.seq < best->seq) && (only_sweep.empty() || id == only_sweep))
+    if (!s.cancelled && s.plan.queued() > 0 && (!best || s.seq < best->seq) && (only_sweep.empty() || id == only_sweep))
       best = &s;
   if (!best) return std::nullopt;
-  std::vector<long> jobs{best->queue.front()};
-  best->queue.pop_front();
-  size_t items = best->jobs[jobs[0]].items.size();
-  while (static_cast<int>(jobs.size()) < max_jobs && !best->queue.empty() &&
-         items + best->jobs[best->queue.front()].items.size() <= static_cast<size_t>(limits::kMaxJobItems)) {
-    jobs.push_back(best->queue.front());
-    items += best->jobs[jobs.back()].items.size();
-    best->queue.pop_front();
-  }
-  for (long j : jobs) best->job_state[j] = JobState::kLeased;
+  std::vector<long> jobs = best->plan.Take(max_jobs, limits::kMaxJobItems);
   best->any_leased = true;
-  // 128 bits from the kernel's CSPRNG: a worker that saw any number of lease ids cannot name another's
-  // (the old counter and Mersenne Twister salt were predictable after 624 leases, issue 39).
-  std::string id;
-  do {
-    id = best->row.id + "-";
-    for (int i = 0; i < 4; ++i) {
-      char b[9];
-      std::snprintf(b, sizeof b, "%08x", static_cast<unsigned>(lease_random_()));
-      id += b;
-    }
-  } while (leases_.count(id) || committing_.count(id) || finished_leases_.count(id));
-  LeaseGrant g{id, best->row.id, jobs[0], static_cast<int>(jobs.size()), {}, now + opt_.lease_seconds};
-  g.items.reserve(items);
-  for (long j : jobs) g.items.insert(g.items.end(), best->jobs[j].items.begin(), best->jobs[j].items.end());
-  leases_[g.lease_id] = {g.sweep_id, worker,           identity,
-                         jobs,       best->generation, mono + opt_.lease_seconds};  // g.deadline: the wire's wall time
+  LeaseGrant g{"", best->row.id, best->spec_key, jobs[0], static_cast<int>(jobs.size()), best->plan.ItemsFor(jobs), 0};
+  g.lease_id = leases_.Grant({g.sweep_id, worker, identity, jobs, best->generation, 0});
+  g.deadline = now + opt_.lease_seconds;  // the wire's wall time; the table keeps its own on the monotonic clock
   if (auto w = workers_.find(worker); w != workers_.end()) ++w->second.leases;
   ++stats_.leases_granted;
   Log(log::Level::kDebug, "lease.granted",
@@ -582,55 +398,11 @@ std::optional<LeaseGrant> SweepCoordinator::Lease(const std::string& worker, con
   return g;
 }
 
-namespace {
-Status NotTheLeaseHolder() {
-  return Status::PermissionDenied(
-      "the lease was granted to another identity (token): only its holder may extend, report or release it");
-}
-}  // namespace
-
 Status SweepCoordinator::Extend(const std::string& lease_id, const std::string& identity) {
   std::lock_guard<std::mutex> lock(mu_);
-  const double mono = Monotonic();
-  auto it = leases_.find(lease_id);
-  if (it == leases_.end())
-    return finished_leases_.count(lease_id) ? Status::Ok() : Status::NotFound("lease '" + lease_id + "' is unknown");
-  if (it->second.identity != identity) return NotTheLeaseHolder();
-  if (it->second.deadline < mono)
-    return Status::FailedPrecondition("lease '" + lease_id + "' expired; its job was requeued");
-  it->second.deadline = mono + opt_.lease_seconds;
-  TouchWorkerLocked(it->second.worker, Clock());
+  BISTABLE_RETURN_IF_ERROR(leases_.Extend(lease_id, identity));
+  if (const LeaseState* l = leases_.Find(lease_id)) TouchWorkerLocked(l->worker, Clock());
   return Status::Ok();
-}
-
-unsigned long long SweepCoordinator::EnqueueResults(IndexDb::JobResults rows) {
-  std::lock_guard<std::mutex> lock(batch_mu_);
-  batch_.push_back(std::move(rows));
-  return ++last_ticket_;
-}
-
-Status SweepCoordinator::AwaitCommit(unsigned long long ticket) {
-  std::lock_guard<std::mutex> lock(db_mu_);
-  if (ticket > committed_through_) {
-    // Lead: store everything queued so far (this ticket and any that arrived while the previous
-    // transaction ran) in one transaction.
-    std::vector<IndexDb::JobResults> batch;
-    unsigned long long last = 0;
-    {
-      std::lock_guard<std::mutex> b(batch_mu_);
-      batch.swap(batch_);
-      last = last_ticket_;
-    }
-    const Status st = db_->PutPoints(batch);
-    if (!st.ok())
-      for (unsigned long long t = committed_through_ + 1; t <= last; ++t) commit_failures_[t] = st;
-    committed_through_ = last;
-  }
-  auto failed = commit_failures_.find(ticket);
-  if (failed == commit_failures_.end()) return Status::Ok();
-  Status st = failed->second;
-  commit_failures_.erase(failed);
-  return st;
 }
 
 Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<PointRecord>& records,
@@ -646,6 +418,13 @@ Status SweepCoordinator::Report(const std::string& lease_id, const std::vector<P
   }
   return Report(lease_id, width, flat.data(), flat.size(), identity);
 }
+
+namespace {
+Status NotTheLeaseHolder() {
+  return Status::PermissionDenied(
+      "the lease was granted to another identity (token): only its holder may extend, report or release it");
+}
+}  // namespace
 
 Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const double* values, size_t n_values,
                                 const std::string& identity) {
@@ -668,12 +447,11 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
   LeaseState lease;
   {
     std::lock_guard<std::mutex> lock(mu_);
-    const double mono = Monotonic();
-    if (committing_.count(lease_id))  // a retry racing its own first attempt: answer once it is stored
+    if (leases_.Committing(lease_id))  // a retry racing its own first attempt: answer once it is stored
       return Status::IoError("coordinator", "the report of lease '" + lease_id + "' is being stored; retry");
-    auto it = leases_.find(lease_id);
-    if (it == leases_.end()) {
-      if (finished_leases_.count(lease_id)) {  // a retried report: already stored
+    const LeaseState* l = leases_.Find(lease_id);
+    if (!l) {
+      if (leases_.Finished(lease_id)) {  // a retried report: already stored
         ++stats_.reports_duplicate;
         return Status::Ok();
       }
@@ -683,27 +461,21 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
     }
     // One worker token cannot report (in-range, forged) values for another's job: they would serve every
     // later sweep through the content cache (issue 39).
-    if (it->second.identity != identity) return NotTheLeaseHolder();
-    if (it->second.deadline < mono) {
-      RequeueExpiredLocked(mono);
+    if (l->identity != identity) return NotTheLeaseHolder();
+    if (leases_.Expired(*l)) {
+      RequeueExpiredLocked();
       return Status::FailedPrecondition("lease '" + lease_id + "' expired before its report; its job was requeued");
     }
-    auto sit = sweeps_.find(it->second.sweep_id);
-    auto out_of_plan = [&] {
-      for (long j : it->second.job_ids)
-        if (j < 0 || j >= static_cast<long>(sit->second.jobs.size())) return true;
-      return false;
-    };
-    if (sit == sweeps_.end() || sit->second.cancelled || sit->second.generation != it->second.generation ||
-        out_of_plan()) {
-      if (auto w = workers_.find(it->second.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
-      leases_.erase(it);
+    auto sit = sweeps_.find(l->sweep_id);
+    if (sit == sweeps_.end() || sit->second.cancelled || sit->second.generation != l->generation ||
+        !sit->second.plan.Holds(l->job_ids)) {
+      LeaseEndedLocked(l->worker);
+      leases_.Take(lease_id);
       return Status::FailedPrecondition("lease '" + lease_id +
                                         "' belongs to a cancelled or replaced plan of its sweep");
     }
     Sweep& s = sit->second;
-    size_t lease_items = 0;
-    for (long j : it->second.job_ids) lease_items += s.jobs[j].items.size();
+    const size_t lease_items = static_cast<size_t>(s.plan.ItemsOf(l->job_ids));
     if (n_records != lease_items)
       return Status::InvalidArgument("values", "the lease's job has " + std::to_string(lease_items) +
                                                    " items, the report has " + std::to_string(n_records) + " records");
@@ -712,65 +484,51 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
       return Status::InvalidArgument("record_width", "record_width = " + std::to_string(width) +
                                                          " violates record_width = " + std::to_string(expected) +
                                                          " (this sweep's layout)");
-    lease = it->second;
-    leases_.erase(it);
-    bool all_done = true;
-    for (long j : lease.job_ids) all_done = all_done && s.job_state[j] == JobState::kDone;
-    if (all_done) {  // other leases of these jobs were stored first
+    lease = *leases_.Take(lease_id);
+    if (s.plan.AllDone(lease.job_ids)) {  // other leases of these jobs were stored first
       ++stats_.reports_duplicate;
-      if (auto w = workers_.find(lease.worker); w != workers_.end() && w->second.leases > 0) --w->second.leases;
+      LeaseEndedLocked(lease.worker);
       TouchWorkerLocked(lease.worker, Clock());
-      RememberFinishedLocked(lease_id, s.row.id);
+      leases_.Finish(lease_id, s.row.id);
       return Status::Ok();
     }
     rows.sweep_id = s.row.id;
-    rows.keys.reserve(n_records * (s.keys.empty() ? 0 : s.keys[0].size() + 1));
-    for (long j : lease.job_ids)
-      for (const WorkItem& w : s.jobs[j].items) {
-        rows.keys += KeyOf(s, w);
-        rows.keys += '\n';
-      }
-    committing_[lease_id] = lease;  // not in leases_ while stored: it cannot expire or be requeued meanwhile
+    rows.keys = s.plan.KeysFor(lease.job_ids);
+    leases_.BeginCommit(lease_id, lease);  // not active while stored: it cannot expire or be requeued meanwhile
   }
   const long n = static_cast<long>(n_records);
   const auto store_start = std::chrono::steady_clock::now();
-  const Status stored = AwaitCommit(EnqueueResults(std::move(rows)));  // without mu_: reports batch up here
+  const Status stored = writer_->Commit(std::move(rows));  // without mu_: reports batch up here
   const double store_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - store_start).count();
   std::lock_guard<std::mutex> lock(mu_);
-  committing_.erase(lease_id);
+  auto sit = sweeps_.find(lease.sweep_id);
+  const bool current = sit != sweeps_.end() && !sit->second.cancelled && sit->second.generation == lease.generation;
   if (!stored.ok()) {
+    // Nothing stored: the worker may retry while the lease lasts (if its plan is still current).
+    leases_.EndCommit(lease_id, /*restore=*/current);
     ++stats_.reports_failed;
     Log(log::Level::kError, "report.store_failed",
         {{"sweep", lease.sweep_id},
          {"job", lease.job_ids.front()},
          {"worker", lease.worker},
          {"reason", stored.ToString()}});
-    auto sit = sweeps_.find(lease.sweep_id);
     if (sit != sweeps_.end()) sit->second.error = "storing results failed: " + stored.ToString();
-    if (sit != sweeps_.end() && !sit->second.cancelled && sit->second.generation == lease.generation)
-      leases_[lease_id] = lease;  // nothing stored: the worker may retry while the lease lasts
     return stored;
   }
+  leases_.EndCommit(lease_id, /*restore=*/false);
   const double now = Clock();
   if (auto w = workers_.find(lease.worker); w != workers_.end()) {
     if (w->second.leases > 0) --w->second.leases;
     w->second.last_seen = now;
   }
-  auto sit = sweeps_.find(lease.sweep_id);
-  RememberFinishedLocked(lease_id, lease.sweep_id);
+  leases_.Finish(lease_id, lease.sweep_id);
   // Stored under the right content keys either way; counted only in the plan it was leased from.
-  if (sit == sweeps_.end() || sit->second.cancelled || sit->second.generation != lease.generation) return Status::Ok();
+  if (!current) return Status::Ok();
   Sweep& s = sit->second;
   s.error.clear();
-  long counted = 0;  // two leases of one job stored at once count once
-  for (long j : lease.job_ids) {
-    if (s.job_state[j] == JobState::kDone) continue;
-    s.job_state[j] = JobState::kDone;
-    counted += static_cast<long>(s.jobs[j].items.size());
-  }
+  const long counted = s.plan.Complete(lease.job_ids);  // two leases of one job stored at once count once
   if (counted > 0) {
-    s.items_done += counted;
     stats_.items_stored += counted;
     ++stats_.reports_stored;
     if (auto w = workers_.find(lease.worker); w != workers_.end()) w->second.items_done += counted;
@@ -782,61 +540,25 @@ Status SweepCoordinator::Report(const std::string& lease_id, size_t width, const
          {"items", n},
          {"store_ms", store_ms}});
   }
-  if (s.items_done >= s.row.items_total && s.row.state != SweepState::kDone) {
-    // Publish off the report path: the report is acknowledged once its rows are durable, and the
-    // map (seconds of HDF5 writing for a large grid) is written by the publisher thread.
-    std::lock_guard<std::mutex> p(publish_queue_mu_);
-    publish_queue_.push_back(s.row.id);
-    publish_cv_.notify_one();
-  }
+  // Publish (or plan a refined sweep's next round) off the report path: the report is acknowledged once its
+  // rows are durable, and the map (seconds of HDF5 writing for a large grid) is written by the publisher.
+  if (s.plan.next() != JobPlan::Next::kCompute && s.row.state != SweepState::kDone) publisher_->Post(s.row.id);
   return Status::Ok();
-}
-
-void SweepCoordinator::PublisherLoop() {
-  while (true) {
-    std::string id;
-    {
-      std::unique_lock<std::mutex> lock(publish_queue_mu_);
-      publish_cv_.wait(lock, [&] { return closing_ || !publish_queue_.empty(); });
-      if (publish_queue_.empty()) return;  // closing, nothing left
-      id = publish_queue_.front();
-      publish_queue_.pop_front();
-    }
-    auto path = Publish(id);
-    if (!path.ok() && path.status().code() != Status::Code::kFailedPrecondition)  // cancelled meanwhile: nothing to say
-      Log(log::Level::kError, "sweep.publish_failed", {{"sweep", id}, {"reason", path.status().ToString()}});
-  }
-}
-
-SweepCoordinator::~SweepCoordinator() {
-  {
-    std::lock_guard<std::mutex> lock(checkpoint_mu_);
-    checkpoint_stop_ = true;
-  }
-  checkpoint_cv_.notify_all();
-  if (checkpointer_.joinable()) checkpointer_.join();
-  {
-    std::lock_guard<std::mutex> lock(publish_queue_mu_);
-    closing_ = true;
-  }
-  publish_cv_.notify_all();
-  if (publisher_.joinable()) publisher_.join();  // finishes queued publications first
 }
 
 Status SweepCoordinator::Release(const std::string& lease_id, const std::string& identity) {
   std::lock_guard<std::mutex> lock(mu_);
-  auto it = leases_.find(lease_id);
-  if (it == leases_.end()) return Status::NotFound("lease is unknown");
-  if (it->second.identity != identity) return NotTheLeaseHolder();
+  const LeaseState* l = leases_.Find(lease_id);
+  if (!l) return Status::NotFound("lease is unknown");
+  if (l->identity != identity) return NotTheLeaseHolder();
   ++stats_.leases_released;
   Log(log::Level::kInfo, "lease.released",
-      {{"sweep", it->second.sweep_id},
-       {"job", it->second.job_ids.front()},
-       {"jobs", it->second.job_ids.size()},
-       {"worker", it->second.worker},
+      {{"sweep", l->sweep_id},
+       {"job", l->job_ids.front()},
+       {"jobs", l->job_ids.size()},
+       {"worker", l->worker},
        {"action", "requeue"}});
-  RequeueLocked(it->second);
-  leases_.erase(it);
+  RequeueLocked(*leases_.Take(lease_id));
   return Status::Ok();
 }
 
@@ -850,62 +572,56 @@ Status SweepCoordinator::Cancel(const std::string& sweep_id) {
     return Status::FailedPrecondition("sweep '" + sweep_id +
                                       "' is complete and its map is being published; it cannot be cancelled");
   it->second.cancelled = true;
-  Log(log::Level::kInfo, "sweep.cancelled", {{"sweep", sweep_id}, {"items_done", it->second.items_done}});
+  Log(log::Level::kInfo, "sweep.cancelled", {{"sweep", sweep_id}, {"items_done", it->second.plan.items_done()}});
   RevokeLeasesLocked(sweep_id);  // a report of this plan is refused from now on
   const Status st = MarkLocked(it->second, SweepState::kCancelled);
   FreePlan(it->second);
   return st;
 }
 
-StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
-  // One publication at a time; the coordinator's lock is held only to read the sweep and to record
-  // the outcome, so leases and reports of other sweeps go on while the map is gathered and written.
-  std::lock_guard<std::mutex> one(publish_mu_);
-  SweepSpec spec;
-  std::vector<std::string> keys;
-  SweepRow row;
-  double started = 0;
-  std::vector<long> points;
-  bool needs_plan = false;
+StatusOr<std::string> SweepCoordinator::PublishStep(const std::string& sweep_id) {
+  // One step at a time (the publisher's one thread); the coordinator's lock is held only to read the sweep
+  // and to record the outcome, so leases and reports of other sweeps go on while the map is gathered and
+  // written. What comes next is the plan's to say (JobPlan::next): a refined sweep whose round is stored
+  // has its next round planned, and is published once no round is left.
   const std::string path = MapPath(sweep_id);
-  // A refined sweep whose level is stored plans its next level here (the publisher thread runs this
-  // when a level's last report is stored), and is published once no level is left.
+  MapPublication m;
+  bool needs_plan = false;
   for (int attempt = 0;; ++attempt) {
-    bool advance = false;
     {
       std::lock_guard<std::mutex> lock(mu_);
       auto it = sweeps_.find(sweep_id);
       if (it == sweeps_.end()) return Status::NotFound("no active sweep '" + sweep_id + "'");
-      const Sweep& s = it->second;
+      Sweep& s = it->second;
       if (s.row.state == SweepState::kDone && !s.row.file.empty() && std::filesystem::exists(path)) return path;
       if (s.cancelled) return Status::FailedPrecondition("sweep " + sweep_id + " was cancelled");
-      needs_plan = static_cast<long>(s.keys.size()) != s.row.items_total;  // plan freed after an earlier publication
-      if (!needs_plan && s.spec.refine.enabled() && !s.refine_complete) {
-        if (s.items_done < s.row.items_total || attempt > 0)
-          return Status::FailedPrecondition("sweep " + sweep_id + " is refining: round " +
-                                            std::to_string(s.refine_round) + " has " +
-                                            std::to_string(s.row.items_total - s.items_done) + " items to compute");
-        advance = true;
+      needs_plan = static_cast<long>(s.plan.keys().size()) != s.row.items_total;  // freed after a publication
+      const JobPlan::Next next = s.plan.next();
+      const bool refining = !needs_plan && s.plan.refined() && !s.plan.refine_complete();
+      if (refining && (next == JobPlan::Next::kCompute || attempt > 0))
+        return Status::FailedPrecondition(
+            "sweep " + sweep_id + " is refining: round " + std::to_string(s.plan.refine_round()) + " has " +
+            std::to_string(s.row.items_total - s.plan.items_done()) + " items to compute");
+      if (!refining) {
+        m = MapPublication{s.spec, s.plan.keys(), s.plan.points(), s.row, s.started, path, data_dir_};
+        if (!needs_plan && next == JobPlan::Next::kPublish) s.publishing = true;  // a cancel is refused now
+        break;
       }
-      spec = s.spec;
-      keys = s.keys;
-      points = s.points;
-      row = s.row;
-      started = s.started;
-      if (!advance && !needs_plan && s.items_done >= s.row.items_total)
-        it->second.publishing = true;  // a cancel is refused now
     }
-    if (!advance) break;
-    BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));
+    BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));  // the next round (found stored already: the loop goes on)
   }
   if (needs_plan) {
     BISTABLE_RETURN_IF_ERROR(Replan(sweep_id));
     return Status::FailedPrecondition("sweep " + sweep_id +
                                       " lost its map file; it is being planned and published again");
   }
-  bool incomplete = false;
   const auto publish_start = std::chrono::steady_clock::now();
-  auto published = WriteAndIndexMap(spec, keys, points, row, started, path, &incomplete);
+  MapPublication::Outcome said;
+  auto published = PublishMap(
+      m, *writer_, [this] { return Clock(); }, opt_.before_index_row, &said);
+  if (said.corrupt > 0) ChecksumFailed(sweep_id, said.corrupt, "replan");
+  if (!said.folded.ok())  // the records stay staged and are folded by a later lookup; the map is complete
+    Log(log::Level::kWarn, "sweep.fold_failed", {{"sweep", sweep_id}, {"reason", said.folded.ToString()}});
   std::unique_lock<std::mutex> lock(mu_);
   Sweep& s = sweeps_.at(sweep_id);
   s.publishing = false;
@@ -915,7 +631,7 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
     // A write failure (disk full, unwritable dir) fails the sweep. Results missing at publication
     // (a stored result failed its checksum) are computed again: the sweep is planned anew.
     if (published.status().code() == Status::Code::kIoError && !s.cancelled) MarkLocked(s, SweepState::kFailed);
-    if (incomplete && !s.cancelled) {
+    if (said.incomplete && !s.cancelled) {
       lock.unlock();
       if (Status st = Replan(sweep_id); !st.ok()) return st;
     }
@@ -934,89 +650,10 @@ StatusOr<std::string> SweepCoordinator::Publish(const std::string& sweep_id) {
   return path;
 }
 
-StatusOr<SweepRow> SweepCoordinator::WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys,
-                                                      const std::vector<long>& points, const SweepRow& row,
-                                                      double started, const std::string& path, bool* incomplete) {
-  // Every record is read back through its checksum: a corrupt one counts as missing. The staged
-  // records are read where they are staged; moving them into the keyed point cache (SQLite inserts,
-  // as long as the map's HDF5 writing) runs on a second thread beside the writing, and ends before the
-  // index row: a crash in between leaves them staged, folded by the next lookup.
-  long corrupt = 0;
-  auto found =
-      Db()->LookupPoints(keys, PointRecord::Size(spec.base.metrics.turning_points, spec.base.metrics.poincare_points),
-                         &corrupt, IndexDb::Fold::kLater);
-  if (!found.ok()) return found.status();
-  Status folded = Status::Ok();
-  std::thread folder;
-  try {
-    folder = std::thread([this, &folded] { folded = Db()->FoldResults(); });
-  } catch (const std::system_error&) {  // no thread to be had: fold here
-    folded = Db()->FoldResults();
-  }
-  struct Join {
-    std::thread& t;
-    ~Join() {
-      if (t.joinable()) t.join();
-    }
-  } join{folder};
-  if (corrupt > 0) ChecksumFailed(row.id, corrupt, "replan");
-  std::vector<PointRecord> records;
-  records.reserve(keys.size());
-  for (const std::string& k : keys) {
-    auto it = found->find(k);
-    if (it == found->end()) {
-      *incomplete = true;
-      return Status::FailedPrecondition("sweep " + row.id +
-                                        " is incomplete: " + std::to_string(keys.size() - found->size()) +
-                                        " items are not stored (or failed their checksum)");
-    }
-    records.push_back(it->second);  // a copy: two items of a sweep can share a key (equal initial states)
-  }
-  SweepRow done = row;
-  done.items_done = static_cast<long>(records.size());
-  if (spec.refine.enabled()) {  // the finest grid, completed from the computed points
-    auto refined = FillRefinedGrid(spec, points, records);
-    if (!refined.ok()) {
-      *incomplete = refined.status().code() == Status::Code::kFailedPrecondition;
-      return refined.status();
-    }
-    RefinedGrid grid = std::move(refined).value();
-    BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, grid));
-    records = std::move(grid.records);  // the map rows' ranges are those of the map as written
-  } else {
-    BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, records));
-  }
-  done.state = SweepState::kDone;
-  done.file = std::filesystem::relative(path, data_dir_).string();
-  done.finished = Clock();
-  done.seconds = done.finished - started;
-  // Map rows: shape and range of every stored metric, for listings that need not open HDF5.
-  const std::string shape = MapShape(spec);
-  std::vector<MapRow> maps;
-  const auto& catalog = MetricCatalog();
-  for (size_t mi = 0; mi < catalog.size(); ++mi) {
-    if (std::find(spec.metrics.begin(), spec.metrics.end(), catalog[mi].name) == spec.metrics.end()) continue;
-    double lo = NAN, hi = NAN;
-    for (const PointRecord& r : records) {
-      const double v = r.Get(mi);
-      if (!std::isfinite(v)) continue;
-      lo = std::isnan(lo) ? v : std::min(lo, v);
-      hi = std::isnan(hi) ? v : std::max(hi, v);
-    }
-    maps.push_back({done.id, catalog[mi].name, done.file, shape, lo, hi});
-  }
-  if (folder.joinable()) folder.join();
-  if (opt_.before_index_row) opt_.before_index_row();
-  if (!folded.ok())  // the records stay staged and are folded by a later lookup; the map is complete
-    Log(log::Level::kWarn, "sweep.fold_failed", {{"sweep", row.id}, {"reason", folded.ToString()}});
-  BISTABLE_RETURN_IF_ERROR(Db()->PublishSweep(done, maps));
-  return done;
-}
-
 Status SweepCoordinator::MarkLocked(Sweep& s, SweepState state) {
   s.row.state = state;
   final_cv_.notify_all();
-  s.row.items_done = s.items_done;
+  s.row.items_done = s.plan.items_done();
   s.row.seconds = Clock() - s.started;
   return Db()->UpsertSweep(s.row);
 }
@@ -1043,14 +680,6 @@ SweepInfo InfoOfRow(const SweepRow& r) {
 
 }  // namespace
 
-std::map<std::string, int> SweepCoordinator::LeaseHoldersLocked() const {
-  std::map<std::string, std::set<std::string>> workers;  // sweep → the workers holding a lease of it
-  for (const auto& [id, l] : leases_) workers[l.sweep_id].insert(l.worker);
-  std::map<std::string, int> out;
-  for (const auto& [sweep, w] : workers) out[sweep] = static_cast<int>(w.size());
-  return out;
-}
-
 SweepInfo SweepCoordinator::InfoLocked(const Sweep& s, const std::map<std::string, int>& holders) const {
   SweepInfo info{s.row.id,
                  s.row.name,
@@ -1058,15 +687,15 @@ SweepInfo SweepCoordinator::InfoLocked(const Sweep& s, const std::map<std::strin
                  s.row.owner,
                  s.row.state,
                  s.row.items_total,
-                 s.items_done,
-                 s.items_cached,
+                 s.plan.items_done(),
+                 s.plan.items_cached(),
                  0,
                  s.row.state == SweepState::kDone ? s.row.seconds : Clock() - s.started,
                  s.row.file,
                  "",
                  s.row.created,
                  s.row.state == SweepState::kDone ? s.row.finished : 0.0};
-  if (info.state == SweepState::kRunning && !s.any_leased && s.items_done == s.items_cached)
+  if (info.state == SweepState::kRunning && !s.any_leased && s.plan.items_done() == s.plan.items_cached())
     info.state = SweepState::kQueued;
   if (s.cancelled) info.state = SweepState::kCancelled;
   info.error = s.error;
@@ -1079,7 +708,7 @@ StatusOr<SweepInfo> SweepCoordinator::Info(const std::string& sweep_id) const {
   {
     std::lock_guard<std::mutex> lock(mu_);
     auto it = sweeps_.find(sweep_id);
-    if (it != sweeps_.end()) return InfoLocked(it->second, LeaseHoldersLocked());
+    if (it != sweeps_.end()) return InfoLocked(it->second, leases_.HoldersBySweep());
   }
   // Not active here: the index row (read outside the coordinator's lock).
   auto row = Db()->GetSweep(sweep_id);
@@ -1099,10 +728,10 @@ StatusOr<std::vector<double>> SweepCoordinator::StoredValues(const std::string& 
   {
     std::lock_guard<std::mutex> lock(mu_);
     auto it = sweeps_.find(sweep_id);
-    if (it == sweeps_.end() || it->second.keys.empty())
+    if (it == sweeps_.end() || it->second.plan.keys().empty())
       return Status::NotFound("sweep " + sweep_id + " has no plan in memory");
-    keys = it->second.keys;
-    points = it->second.points;
+    keys = it->second.plan.keys();
+    points = it->second.plan.points();
     items = it->second.spec.points() * it->second.spec.ic_count();
     const MetricSettings& ms = it->second.spec.base.metrics;
     width = PointRecord::Size(ms.turning_points, ms.poincare_points);
@@ -1156,7 +785,7 @@ StatusOr<std::vector<SweepInfo>> SweepCoordinator::ListSweeps() const {
   std::vector<SweepInfo> out;
   out.reserve(rows->size());
   std::lock_guard<std::mutex> lock(mu_);
-  const std::map<std::string, int> holders = LeaseHoldersLocked();
+  const std::map<std::string, int> holders = leases_.HoldersBySweep();
   for (const SweepRow& r : *rows) {
     auto it = sweeps_.find(r.id);
     out.push_back(it == sweeps_.end() ? InfoOfRow(r) : InfoLocked(it->second, holders));
@@ -1167,13 +796,14 @@ StatusOr<std::vector<SweepInfo>> SweepCoordinator::ListSweeps() const {
 CoordinatorStats SweepCoordinator::Stats() const {
   std::lock_guard<std::mutex> lock(mu_);
   CoordinatorStats out = stats_;
-  out.leases_outstanding = static_cast<long>(leases_.size() + committing_.size());
+  out.leases_outstanding = leases_.outstanding();
   for (const auto& [id, s] : sweeps_) {
     const SweepState st = s.cancelled ? SweepState::kCancelled : s.row.state;
     ++out.sweeps_by_state[static_cast<int>(st)];
     if (s.cancelled) continue;
-    out.jobs_queued += static_cast<long>(s.queue.size());
-    if (st == SweepState::kRunning || st == SweepState::kQueued) out.items_pending += s.row.items_total - s.items_done;
+    out.jobs_queued += static_cast<long>(s.plan.queued());
+    if (st == SweepState::kRunning || st == SweepState::kQueued)
+      out.items_pending += s.row.items_total - s.plan.items_done();
   }
   const double now = Clock();
   for (const auto& [name, w] : workers_) {
@@ -1190,17 +820,21 @@ std::vector<WorkerInfo> SweepCoordinator::Workers() const {
   return out;
 }
 
-StatusOr<std::string> SweepCoordinator::SpecText(const std::string& sweep_id) const {
+StatusOr<std::string> SweepCoordinator::SpecText(const std::string& sweep_id, std::string* spec_key) const {
   {
     std::lock_guard<std::mutex> lock(mu_);
     auto it = sweeps_.find(sweep_id);
-    if (it != sweeps_.end()) return it->second.spec.source;
+    if (it != sweeps_.end()) {
+      if (spec_key) *spec_key = it->second.spec_key;
+      return it->second.spec.source;
+    }
   }
   // A sweep this process holds no plan of (finished before a restart, or never submitted here): the
   // spec as stored in its index row.
   auto row = Db()->GetSweep(sweep_id);
   if (!row.ok()) return row.status();
   if (!row.value() || row.value()->id != sweep_id) return Status::NotFound("no sweep '" + sweep_id + "'");
+  if (spec_key) *spec_key = Sha256Hex(row.value()->spec);
   return row.value()->spec;
 }
 
@@ -1209,7 +843,8 @@ SweepProgress SweepCoordinator::progress(const std::string& sweep_id) const {
   auto it = sweeps_.find(sweep_id);
   if (it == sweeps_.end()) return {};
   const Sweep& s = it->second;
-  return {s.row.items_total, s.items_done, s.items_cached, s.spec.refine.enabled() ? s.refine_round : -1};
+  return {s.row.items_total, s.plan.items_done(), s.plan.items_cached(),
+          s.spec.refine.enabled() ? s.plan.refine_round() : -1};
 }
 
 }  // namespace bistable

@@ -4,6 +4,13 @@
 // and publishes a sweep's HDF5 map when its last job is stored. The embedded `bistable run` drives
 // it with in-process worker threads; `bistable-coordinator` drives the same class over gRPC.
 //
+// It is the composition of four parts (issue 40; docs/architecture.md, "The coordinator's parts"):
+// each sweep's plan (engine/sweep_plan.h: jobs, what next; no locks, no I/O), the lease table
+// (server/lease_table.h, on the injected clock), the result writer (storage/result_writer.h: the index
+// connection, group commit, checkpoints) and the publisher (server/publisher.h: the one thread that
+// publishes maps and plans refined sweeps' next rounds). The coordinator holds the plans and the lease
+// table under its lock and decides; the parts do not call each other.
+//
 // Durability: sweeps (spec, status) and every acknowledged result live in SQLite (WAL). Jobs and
 // leases are derived state: on Open, every unfinished sweep is planned again against the point
 // cache, so a restarted coordinator continues each sweep and recomputes only unacknowledged work.
@@ -17,29 +24,24 @@
 
 #include <array>
 #include <condition_variable>
-#include <deque>
 #include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <random>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "base/log.h"
 #include "engine/metric_catalog.h"
-#include "engine/refine.h"
+#include "engine/sweep_plan.h"
 #include "engine/sweep_spec.h"
+#include "server/lease_table.h"
+#include "server/publisher.h"
 #include "storage/index_db.h"
+#include "storage/result_writer.h"
 
 namespace bistable {
-
-struct Job {
-  long id = 0;
-  std::vector<WorkItem> items;
-};
 
 struct SweepPlan {
   std::string id;
@@ -58,8 +60,10 @@ struct SweepProgress {
 struct LeaseGrant {
   std::string lease_id;  // opaque, unique, unguessable: the sweep id and 128 random bits
   std::string sweep_id;
-  long job_id = 0;  // the first job of the lease
-  int jobs = 1;     // jobs merged into this lease
+  std::string spec_key;  // SHA-256 of the sweep's spec text (proto/convert.h's SpecKey): the text itself is
+                         // the coordinator's SpecText, fetched once per sweep by whoever lacks it
+  long job_id = 0;       // the first job of the lease
+  int jobs = 1;          // jobs merged into this lease
   std::vector<WorkItem> items;
   double deadline = 0;  // unix seconds (the wire's; the coordinator keeps its own on the monotonic clock)
 };
@@ -72,16 +76,6 @@ struct CoordinatorStats {
   long leases_outstanding = 0, jobs_queued = 0, items_pending = 0, workers_active = 0;
   std::array<long, 6> sweeps_by_state{};  // indexed by SweepState
   std::vector<WorkerInfo> workers;
-};
-
-// A refined sweep's planner and keys carried from its last plan to the next round (Replan).
-struct RefineCarry {
-  std::shared_ptr<RefinePlanner> planner;
-  std::vector<long> points;
-  std::vector<std::string> keys;
-  bool continued = false;  // the sweep's last plan is continued (else a walk from the start)
-  long cached = 0;         // items the last plan counted as reused from the cache
-  long computed = 0;       // items the last plan queued (computed by this coordinator since)
 };
 
 class SweepCoordinator {
@@ -143,10 +137,13 @@ class SweepCoordinator {
   // Gives a lease's job back to the queue (a worker shutting down).
   Status Release(const std::string& lease_id, const std::string& identity = "");
   Status Cancel(const std::string& sweep_id);
-  // Gathers a sweep's records from the cache, writes its map atomically, marks it done (idempotent;
-  // waits for a publication of the sweep in progress). Failure marks the sweep failed. The last
-  // report of a sweep queues this for a background thread; clients wait for state "done".
-  StatusOr<std::string> Publish(const std::string& sweep_id);
+  // Asks the publisher (the one place a publication starts) for the sweep's next step and waits for it:
+  // a sweep whose items are all stored has its records gathered from the cache, its map written
+  // atomically and is marked done (idempotent); a refined sweep whose round is stored has its next round
+  // planned instead (FailedPrecondition "refining": compute that round, then ask again). A write failure
+  // marks the sweep failed. The last report of a sweep or round asks for this without waiting; clients
+  // wait for state "done".
+  StatusOr<std::string> Publish(const std::string& sweep_id) { return publisher_->Run(sweep_id); }
   Status MarkInterrupted(const std::string& sweep_id);
   void Stop();
 
@@ -161,8 +158,11 @@ class SweepCoordinator {
   // Every sweep of the index, oldest first, as Info reports it.
   StatusOr<std::vector<SweepInfo>> ListSweeps() const;
   // The spec text (TOML) of a sweep, for workers that parse it themselves and the dashboard: the plan's
-  // in memory, else the index row's (a sweep finished before this process started).
-  StatusOr<std::string> SpecText(const std::string& sweep_id) const;
+  // in memory, else the index row's (a sweep finished before this process started). With `spec_key`, also
+  // the text's key (SHA-256, proto/convert.h's SpecKey; the plan's is computed once per plan).
+  StatusOr<std::string> SpecText(const std::string& sweep_id, std::string* spec_key = nullptr) const;
+  // The result writer's counters (tests: group commit, checkpoints).
+  const ResultWriter& writer() const { return *writer_; }
   SweepProgress progress(const std::string& sweep_id) const;
   // What is stored so far of a planned (queued or running) sweep: scalar metric `metric` (a catalog
   // name) for every item in grid order (point · ic_count + ic; a refined sweep: every grid point), NaN where nothing is
@@ -173,34 +173,18 @@ class SweepCoordinator {
   std::string MapPath(const std::string& id) const;
 
  private:
-  enum class JobState { kQueued, kLeased, kDone };
   struct Sweep {
     SweepSpec spec;
+    std::string spec_key;  // SHA-256 of spec.source, computed once per plan: what each lease carries
     SweepRow row;
-    unsigned long long generation = 0;       // this plan's number: leases of other plans are void
-    std::vector<std::string> keys;           // content key of item point·ic_count + ic; refined: of points[j]
-    std::vector<long> points;                // refined sweeps ([refine]): the grid points planned so far, ascending
-    long job_items = 0;                      // items per job as submitted (replans and refinement rounds keep it)
-    std::shared_ptr<RefinePlanner> refiner;  // refined sweeps: the walk so far (engine/refine.h)
-    int refine_round = 0;                    // refined sweeps: the round being computed (engine/refine.h)
-    long refine_queued = 0;                  // refined sweeps: items this round queued (not found stored)
-    bool refine_complete = false;            // refined sweeps: every level stored, ready to publish
-    std::vector<Job> jobs;
-    std::vector<JobState> job_state;
-    std::deque<long> queue;
-    long items_done = 0, items_cached = 0;
-    long seq = 0;  // submission order
+    unsigned long long generation = 0;  // this plan's number: leases of other plans are void
+    JobPlan plan;                       // the items, jobs and what next (engine/sweep_plan.h)
+    long job_items = 0;                 // items per job as submitted (replans and refinement rounds keep it)
+    long seq = 0;                       // submission order
     bool cancelled = false, any_leased = false;
     bool publishing = false;  // its map is being written and indexed: a cancel now is refused
     std::string error;        // last storage / publication failure, for status
     double started = 0;
-  };
-  struct LeaseState {
-    std::string sweep_id, worker;
-    std::string identity;               // who leased it (Lease's identity): only they may extend, report, release
-    std::vector<long> job_ids;          // one job, or several merged (Lease's max_jobs)
-    unsigned long long generation = 0;  // the plan the job belongs to
-    double deadline = 0;                // Monotonic() seconds
   };
   // A plan built outside mu_: the sweep's keys, its jobs against the point cache.
   struct Planned {
@@ -208,33 +192,31 @@ class SweepCoordinator {
     SweepPlan plan;
   };
 
-  SweepCoordinator(std::string dir, std::unique_ptr<IndexDb> db, Options opt)
-      : data_dir_(std::move(dir)), db_(std::move(db)), opt_(opt), publisher_([this] { PublisherLoop(); }) {}
+  SweepCoordinator(std::string dir, std::unique_ptr<IndexDb> db, Options opt);
   // Submit; `limits` false when Open resumes sweeps the index already holds (accepted before: a restart
   // must not fail the ninth interrupted sweep of an owner).
   StatusOr<SweepPlan> SubmitImpl(const SweepSpec& spec, long job_items, const std::string& owner, bool limits);
-  // Plans a sweep against the point cache (keys, lookups in bounded batches, jobs). Without mu_.
+  // Plans a sweep against the point cache (JobPlan::Build with lookups in bounded batches; a published
+  // sweep's map checked). Without mu_.
   StatusOr<Planned> BuildPlan(const SweepSpec& spec, long job_items, RefineCarry carry = {});
   // Makes a built plan the sweep's current one (a new generation) and persists its row. Under mu_.
   StatusOr<SweepPlan> InstallLocked(Planned p, const std::string& owner);
   // The plan of an active (not cancelled) sweep, if any. Under mu_.
   std::optional<SweepPlan> ActivePlanLocked(const std::string& id) const;
-  // Plans the sweep again (stored items that went missing or failed their checksum are recomputed).
+  // Plans the sweep again (stored items that went missing or failed their checksum are recomputed; a
+  // refined sweep's next round).
   Status Replan(const std::string& id);
+  // The publisher's step (its thread only): publishes the sweep, or plans a refined sweep's next round.
+  StatusOr<std::string> PublishStep(const std::string& sweep_id);
   // Drops every lease of a sweep (cancel, replan). Under mu_.
   void RevokeLeasesLocked(const std::string& sweep_id);
   // Frees a finished or cancelled sweep's plan (keys, jobs) and returns the memory to the system.
   static void FreePlan(Sweep& s);
-  // The content key of a planned item (dense grid, or a refined sweep's planned points).
-  static const std::string& KeyOf(const Sweep& s, const WorkItem& w);
-  // A refined sweep's plan: walks its levels against the cache (engine/refine.h) and queues the first
-  // round's missing points. Part of BuildPlan.
-  Status BuildRefinedPlan(const SweepSpec& spec, long job_items, RefineCarry carry, Sweep& s, SweepPlan& plan);
-  void RememberFinishedLocked(const std::string& lease_id, const std::string& sweep_id);
   void TouchWorkerLocked(const std::string& worker, double now);
-  void RequeueExpiredLocked(double mono);  // mono: Monotonic()
-  double Clock() const;                    // unix seconds (timestamps)
-  double Monotonic() const;                // seconds of the monotonic clock (lease deadlines)
+  void LeaseEndedLocked(const std::string& worker);  // the worker holds one lease fewer
+  void RequeueExpiredLocked();
+  double Clock() const;      // unix seconds (timestamps)
+  double Monotonic() const;  // seconds of the monotonic clock (lease deadlines)
   // A structured event (base/log.h), unless Options::log is off.
   void Log(log::Level level, std::string_view event, std::initializer_list<log::Field> fields) const;
   // A repair of the data directory: a warn event with the sentence (unless Options::log is off), and the
@@ -242,50 +224,21 @@ class SweepCoordinator {
   void Repaired(std::string_view event, const std::string& message) const;
   // `items` stored results of `sweep` failed their checksum: recomputed (`action`); logged and said.
   void ChecksumFailed(const std::string& sweep, long items, const char* action) const;
-  // Gives a lease's job back to its queue (if the lease's plan is still current). Under mu_.
+  // Gives a lease's jobs back to their queue (if the lease's plan is still current). Under mu_.
   void RequeueLocked(const LeaseState& l);
-  // Gathers the records, writes the map file, indexes it; returns the sweep's row as published.
-  // Called without mu_ (it takes db_mu_ for the index).
-  // *incomplete: some item is missing or failed its checksum (the sweep must be planned again).
-  // `points`: a refined sweep's computed grid points (keys[i] is points[i]'s); empty otherwise.
-  StatusOr<SweepRow> WriteAndIndexMap(const SweepSpec& spec, const std::vector<std::string>& keys,
-                                      const std::vector<long>& points, const SweepRow& row, double started,
-                                      const std::string& path, bool* incomplete);
-  void PublisherLoop();
   Status MarkLocked(Sweep& s, SweepState state);
-  // Sweep id → how many workers hold a lease of it (mu_ held).
-  std::map<std::string, int> LeaseHoldersLocked() const;
-  // Info of an active sweep (mu_ held), its worker count from LeaseHoldersLocked.
+  // Info of an active sweep (mu_ held), its worker count from LeaseTable::HoldersBySweep.
   SweepInfo InfoLocked(const Sweep& s, const std::map<std::string, int>& holders) const;
-
-  // The SQLite connection, used under db_mu_ (lock order: mu_ before db_mu_; batch_mu_ is a leaf).
-  struct LockedDb {
-    std::unique_lock<std::mutex> lock;
-    IndexDb* db;
-    IndexDb* operator->() const { return db; }
-  };
-  LockedDb Db() const { return {std::unique_lock<std::mutex>(db_mu_), db_.get()}; }
-  // Group commit: concurrent reports queue their rows; whichever reporter holds db_mu_ next stores
-  // every queued job in one transaction. Returns when `ticket` is durable (or failed).
-  unsigned long long EnqueueResults(IndexDb::JobResults rows);
-  Status AwaitCommit(unsigned long long ticket);
+  // The index connection under the writer's lock (lock order: mu_ before it).
+  ResultWriter::Locked Db() const { return writer_->Db(); }
 
   mutable std::mutex mu_;
   mutable std::condition_variable final_cv_;  // with mu_: a sweep became done, failed or cancelled
   std::string data_dir_;
-  std::unique_ptr<IndexDb> db_;
-  mutable std::mutex db_mu_;
-  unsigned long long committed_through_ = 0;              // under db_mu_
-  std::map<unsigned long long, Status> commit_failures_;  // under db_mu_: ticket → why
-  std::mutex batch_mu_;
-  std::vector<IndexDb::JobResults> batch_;        // under batch_mu_
-  unsigned long long last_ticket_ = 0;            // under batch_mu_
-  std::map<std::string, LeaseState> committing_;  // under mu_: leases whose rows are being stored
   Options opt_;
-  std::map<std::string, Sweep> sweeps_;
-  std::map<std::string, LeaseState> leases_;
-  std::map<std::string, std::string> finished_leases_;  // lease id → sweep id, for duplicate reports
-  std::deque<std::string> finished_order_;              // oldest first: bounded memory
+  std::unique_ptr<ResultWriter> writer_;  // the index: group commit and checkpoints
+  LeaseTable leases_;                     // under mu_
+  std::map<std::string, Sweep> sweeps_;   // under mu_
   struct Planning {
     std::string owner;
     bool reserves_slot = false;  // a submit's reservation of an active-sweep slot (a replan's sweep is counted already)
@@ -296,22 +249,8 @@ class SweepCoordinator {
   std::map<std::string, WorkerInfo> workers_;
   CoordinatorStats stats_;  // counters, under mu_
   long next_seq_ = 0;
-  std::random_device lease_random_;  // the kernel's CSPRNG (getrandom): lease ids cannot be predicted from earlier ones
   bool stopped_ = false;
-  // Publications: one at a time (publish_mu_, taken before mu_); complete sweeps are queued for the
-  // publisher thread so that the report completing a sweep is not held up by the map writing.
-  std::mutex publish_mu_;
-  std::mutex publish_queue_mu_;
-  std::condition_variable publish_cv_;
-  std::deque<std::string> publish_queue_;
-  bool closing_ = false;
-  // WAL checkpoints on a connection of their own, every kCheckpointSeconds, so no report waits for one.
-  std::unique_ptr<IndexDb> checkpoint_db_;
-  std::mutex checkpoint_mu_;
-  std::condition_variable checkpoint_cv_;
-  bool checkpoint_stop_ = false;
-  std::thread checkpointer_;  // started by Open, joined first by the destructor
-  std::thread publisher_;     // last member: started after, and joined before, everything it uses
+  std::unique_ptr<Publisher> publisher_;  // last member: started after, and closed before, everything it uses
 };
 
 }  // namespace bistable

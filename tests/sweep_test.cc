@@ -15,6 +15,7 @@
 #include <sqlite3.h>
 #include <future>
 
+#include "base/sha256.h"
 #include "dynamics/dopri5.h"
 #include "dynamics/nondim_system.h"
 #include "dynamics/point.h"
@@ -459,6 +460,60 @@ TEST(SweepEngine, LeasesExpireByTheMonotonicClockNotTheWallClock) {
   ASSERT_TRUE(info.ok());
   EXPECT_EQ(info->state, SweepState::kDone);
   EXPECT_EQ(info->items_done, 15);
+  std::filesystem::remove_all(dir);
+}
+
+// Issue 40: a lease carries its spec's key (SHA-256 of the text, computed once per plan), not the text;
+// the text is asked for once, by key, by whoever lacks it.
+TEST(SweepEngine, ALeaseCarriesItsSpecsKey) {
+  const std::string dir = TempDir("spec_key");
+  auto c = SweepCoordinator::Open(dir);
+  ASSERT_TRUE(c.ok());
+  const SweepSpec spec = Parse(kSmall);
+  ASSERT_TRUE((*c)->Submit(spec, 8).ok());
+  auto lease = (*c)->Lease("w");
+  ASSERT_TRUE(lease.has_value());
+  EXPECT_EQ(lease->spec_key, Sha256Hex(spec.source));
+  std::string key;
+  auto text = (*c)->SpecText(spec.Id(), &key);
+  ASSERT_TRUE(text.ok());
+  EXPECT_EQ(*text, spec.source);
+  EXPECT_EQ(key, lease->spec_key);
+  std::filesystem::remove_all(dir);
+}
+
+// Issue 40: a publication starts in one place, the publisher's thread: Publish (the embedded run's, a
+// submit of a sweep found wholly stored) asks it and waits; it never writes the map on the caller's thread.
+TEST(SweepEngine, PublicationRunsOnThePublishersThreadOnly) {
+  const std::string dir = TempDir("publisher_thread");
+  const SweepSpec spec = Parse(kSmall);
+  std::mutex mu;
+  std::vector<std::thread::id> writers;  // the threads that reached a map's index row
+  SweepCoordinator::Options opt;
+  opt.before_index_row = [&] {
+    std::lock_guard<std::mutex> lock(mu);
+    writers.push_back(std::this_thread::get_id());
+  };
+  {
+    auto c = SweepCoordinator::Open(dir, opt);
+    ASSERT_TRUE(c.ok());
+    SweepPlan plan;
+    RunSweep(**c, spec, 1, &plan);
+  }
+  // The map goes missing: a submit finds every item stored and publishes at once (before issue 40, inline
+  // on the submitting thread).
+  ASSERT_TRUE(std::filesystem::remove(std::filesystem::path(dir) / "sweeps" / (spec.Id() + ".h5")));
+  auto c = SweepCoordinator::Open(dir, opt);
+  ASSERT_TRUE(c.ok());
+  auto plan = (*c)->Submit(spec, 8);
+  ASSERT_TRUE(plan.ok()) << plan.status().ToString();
+  EXPECT_EQ(plan->jobs, 0);
+  auto info = (*c)->Info(spec.Id());
+  ASSERT_TRUE(info.ok());
+  EXPECT_EQ(info->state, SweepState::kDone) << "published before Submit returned";
+  std::lock_guard<std::mutex> lock(mu);
+  ASSERT_EQ(writers.size(), 2u);
+  for (const std::thread::id& t : writers) EXPECT_NE(t, std::this_thread::get_id());
   std::filesystem::remove_all(dir);
 }
 
@@ -998,8 +1053,17 @@ TEST(SweepEngine, RefinedSweepResumesFromItsStoredLevels) {
     level0 = plan->items_total;
     EXPECT_EQ(level0, 9 * 9);  // the coarse grid: every 8th value of 65
     EXPECT_EQ((*c)->progress(spec.Id()).refine_round, 0) << "round 0: the coarse grid";
-    while (auto lease = (*c)->Lease("w"))
+    // Round 0 only: the report completing it has the publisher thread plan round 1, and a loop leasing
+    // "until nothing is queued" raced it (1 run in ~60: the loop went on through every round and the sweep
+    // was published before the "crash", so the resumed coordinator held no plan: round -1).
+    long reported = 0;
+    while (reported < level0) {
+      auto lease = (*c)->Lease("w");
+      ASSERT_TRUE(lease.has_value()) << reported << " of " << level0 << " items reported";
       ASSERT_TRUE((*c)->Report(lease->lease_id, ComputeItems(spec, lease->items)).ok());
+      reported += static_cast<long>(lease->items.size());
+    }
+    ASSERT_EQ(reported, level0) << "leases of round 0 hold round 0's items only";
     // "crash" here: the next level may or may not have been planned
   }
   auto c = SweepCoordinator::Open(dir);  // resumes: plans again from the stored levels
