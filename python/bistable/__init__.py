@@ -3,7 +3,8 @@
     import bistable
     r = bistable.point(model="coupled", alpha=1.0, omega=1.2)     # dict, as `bistable point --json`
     ds = bistable.run("examples/paper_fig8_frf.toml")              # xarray.Dataset of the map
-    ds.frf_db.plot()
+    ds.frf_db.plot()                                               # labelled: long_name [dB]
+    bistable.plot(ds.motion)                                       # codes by name: intrawell, chaotic, ...
 
 Units are the model's (docs/model.md): non-dimensional time tau = omega_n t, lengths in delta_s, unless
 the model is "dimensional". Every function releases the GIL while it computes; Ctrl-C stops it
@@ -14,12 +15,14 @@ import builtins as _builtins
 import os as _os
 
 from . import _core
+from .plotting import plot
 
 __version__ = _core.__version__
 numerics_version = _core.numerics_version
 DEFAULT_DATA = "bistable-data"
 
-__all__ = ["point", "trajectory", "run", "open", "open_file", "find", "sweeps", "query", "hbm", "identify", "Client"]
+__all__ = ["point", "trajectory", "run", "open", "open_file", "find", "sweeps", "query", "hbm", "identify", "plot",
+           "Client"]
 
 
 def point(**kw):
