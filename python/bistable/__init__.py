@@ -13,6 +13,7 @@ the bound it violates, as the CLI's error lines do.
 """
 import builtins as _builtins
 import os as _os
+import sys as _sys
 
 from . import _core
 from .plotting import plot
@@ -108,7 +109,13 @@ def _toml_dump(spec):
 
 def open_file(path):
     """The map file at `path` as an xarray.Dataset (CF-1.10; docs/map-files.md), loaded into memory."""
-    import xarray
+    try:
+        import h5netcdf  # noqa: F401 (xarray's engine)
+        import xarray
+    except ImportError as e:  # another Python than the one the module was built and installed for
+        raise ImportError("bistable reads maps with xarray and h5netcdf (Debian: apt-get install python3-xarray "
+                          "python3-h5netcdf), which %s cannot import (%s); use Debian's /usr/bin/python3 or a venv "
+                          "made with --system-site-packages (docs/python.md)" % (_sys.executable, e)) from e
 
     with xarray.open_dataset(path, engine="h5netcdf") as ds:
         return ds.load()
