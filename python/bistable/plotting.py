@@ -31,7 +31,8 @@ def categories(da):
 def plot(da, **kw):
     """Plots a DataArray of a map: da.plot(**kw), but a code variable (CF flag_values/flag_meanings, e.g.
     ds.motion) with one colour per category and the categories' names on the colour bar (2-D) or the y
-    axis (1-D). Returns what xarray's plot returns (the QuadMesh of a 2-D plot, the lines of a 1-D one)."""
+    axis (1-D). Returns what xarray's plot returns (the QuadMesh of a 2-D plot, a FacetGrid with col= or row=,
+    the lines of a 1-D one)."""
     cats = categories(da)
     if cats is None:
         return da.plot(**kw)
@@ -58,7 +59,8 @@ def plot(da, **kw):
     cbar_kwargs.setdefault("ticks", codes)
     cbar_kwargs.setdefault("label", da.attrs.get("long_name", da.name))
     mesh = da.plot(cbar_kwargs=cbar_kwargs, **kw)
-    if getattr(mesh, "colorbar", None) is not None:
-        mesh.colorbar.set_ticks(codes)
-        mesh.colorbar.set_ticklabels(names)
+    colorbar = getattr(mesh, "colorbar", None) or getattr(mesh, "cbar", None)  # a plot's, or a FacetGrid's (col=)
+    if colorbar is not None:
+        colorbar.set_ticks(codes)
+        colorbar.set_ticklabels(names)
     return mesh

@@ -643,6 +643,10 @@ def test_plots_are_labelled_with_units_and_category_names(tmp_path):
     plt.close("all")
     img = plt.imread(png)
     assert len(np.unique(img.reshape(-1, img.shape[-1]), axis=0)) > 20
+    # Facets (col=) share one colour bar, named too.
+    grid = bistable.plot(ds.motion.expand_dims(run=[0, 1]), x="omega", col="run")
+    assert [t.get_text() for t in grid.cbar.ax.get_yticklabels()] == names
+    plt.close("all")
     # 1-D: the names on the y axis; a variable without flags is xarray's own plot.
     lines = bistable.plot(ds.motion.isel(alpha=0))
     assert [t.get_text() for t in lines[0].axes.get_yticklabels()] == names
