@@ -7,6 +7,7 @@
 
 #include "base/exit_codes.h"
 #include "base/names.h"
+#include "base/version.h"
 #include "client/chirp_command.h"
 #include "client/design_command.h"
 #include "client/hbm_command.h"
@@ -25,7 +26,10 @@ int main(int argc, char** argv) {
   sigemptyset(&ignore_pipe.sa_mask);
   sigaction(SIGPIPE, &ignore_pipe, nullptr);
   CLI::App app{"bistable-sweep: maps of bistable (snap-through) oscillators, alone or with a tuned resonator"};
-  app.set_version_flag("--version", std::string("bistable ") + bistable::kNumericsVersion);
+  // The software's version (CMake's project version, as the map files' software_version and bistable.__version__),
+  // then the numerics version that keys stored results.
+  app.set_version_flag("--version", std::string("bistable ") + bistable::kSoftwareVersion + " (numerics " +
+                                        bistable::kNumericsVersion + ")");
   app.require_subcommand(1);
   int exit_code = 0;
   bistable::AddPointCommand(app, &exit_code);

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs every Debian package bistable-sweep needs. Idempotent; run as root on a fresh Debian bookworm machine.
 # Nothing is downloaded from anywhere but Debian's package registry.
+#   scripts/setup.sh            what the build and the main job need
+#   scripts/setup.sh --tests    also what only the tests need (README's test command; .ci/run)
 set -euo pipefail
 
 PACKAGES=(
@@ -26,6 +28,19 @@ PACKAGES=(
   # deployment tests (deploy/slurm/test-cluster.sh: a Slurm cluster in network namespaces)
   slurmctld slurmd slurm-client munge procps util-linux
 )
+
+# Only the tests: the example notebooks run by nbclient in ipykernel (Python.ExampleNotebooks); `pip install .`
+# into a venv with Debian's pip, setuptools and wheel (Python.PipInstallIntoVenv; docs/python.md).
+TEST_PACKAGES=(
+  python3-nbclient python3-nbformat python3-ipykernel
+  python3-venv python3-pip python3-setuptools python3-wheel
+)
+
+case "${1:-}" in
+  "") ;;
+  --tests) PACKAGES+=("${TEST_PACKAGES[@]}") ;;
+  *) echo "usage: scripts/setup.sh [--tests]" >&2; exit 2 ;;
+esac
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -100,10 +100,13 @@ Status WriteNumberAttr(hid_t obj, const char* name, hid_t type, const void* valu
   return Status::Ok();
 }
 
-// How a quantity is described in the file (CF-1.10): UDUNITS-parsable units ("1" for a
-// non-dimensional quantity, its scale in the comment), a long name, and the label the plots use
-// (unit_label, e.g. "1/tau", "A0/delta_s"). Code metrics carry flag_values/flag_meanings instead of
-// units. No CF standard name describes these quantities, so none is written.
+// How a quantity is described in the file (CF-1.10): units, a long name, and the label the plots use
+// (unit_label, e.g. "1/tau", "A0/delta_s"). units are UDUNITS-parsable, or "dB" (the unit of the CF
+// standard-name table's levels; not UDUNITS'). A quantity scaled by the model's references (1/tau,
+// delta_s, A0/delta_s, ...) is dimensionless: it has no units (CF 3.1: none means dimensionless; "1"
+// made xarray label its plots "[1]") and its scale in `unit`, which xarray shows when there are no units,
+// and in the comment. Code metrics carry flag_values/flag_meanings instead of units. No CF standard name
+// describes these quantities, so none is written.
 struct CfQuantity {
   std::string long_name, label, definition;
   const std::vector<Category>* categories = nullptr;
@@ -115,16 +118,16 @@ struct CfUnits {
 
 CfUnits CfUnitsFor(const std::string& label) {
   static const std::map<std::string, CfUnits> kUnits = {
-      {"dB", {"1", "decibels: 20 log10 of an amplitude ratio (dB is not a UDUNITS unit)"}},
+      {"dB", {"dB", "decibels: 20 log10 of an amplitude ratio"}},
       {"%", {"percent", ""}},
       {"fraction", {"1", ""}},
       {"", {"1", ""}},
-      {"forcing periods", {"1", "counted in forcing periods 2 pi/Omega"}},
-      {"1/tau", {"1", "per unit of non-dimensional time tau = omega_n t"}},
-      {"tau", {"1", "non-dimensional time tau = omega_n t"}},
-      {"rad/tau", {"1", "angular frequency in units of omega_n (rad per unit of tau)"}},
-      {"delta_s", {"1", "in units of delta_s, the static position of a well"}},
-      {"delta_s/tau", {"1", "velocity in units of delta_s omega_n (delta_s per unit of non-dimensional time tau)"}},
+      {"forcing periods", {"", "counted in forcing periods 2 pi/Omega"}},
+      {"1/tau", {"", "per unit of non-dimensional time tau = omega_n t"}},
+      {"tau", {"", "non-dimensional time tau = omega_n t"}},
+      {"rad/tau", {"", "angular frequency in units of omega_n (rad per unit of tau)"}},
+      {"delta_s", {"", "in units of delta_s, the static position of a well"}},
+      {"delta_s/tau", {"", "velocity in units of delta_s omega_n (delta_s per unit of non-dimensional time tau)"}},
       {"1/s", {"s-1", ""}},
       {"rad/s", {"rad/s", ""}},
       {"m", {"m", ""}},
@@ -139,7 +142,7 @@ CfUnits CfUnitsFor(const std::string& label) {
       {"m/s", {"m/s", ""}}};
   auto it = kUnits.find(label);
   if (it != kUnits.end()) return it->second;
-  return {"1", "non-dimensional: " + label};  // the paper's ratios (A0/delta_s, omega_r/omega_n, ...)
+  return {"", "non-dimensional: " + label};  // the paper's ratios (A0/delta_s, omega_r/omega_n, ...)
 }
 
 Status WriteCfAttrs(hid_t obj, const CfQuantity& q, const std::string& coordinates) {
@@ -156,7 +159,11 @@ Status WriteCfAttrs(hid_t obj, const CfQuantity& q, const std::string& coordinat
     BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "flag_meanings", meanings));
   } else {
     const CfUnits u = CfUnitsFor(q.label);
-    BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "units", u.units));
+    if (u.units.empty()) {
+      BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "unit", q.label));
+    } else {
+      BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "units", u.units));
+    }
     if (!u.comment.empty()) BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "comment", u.comment));
   }
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(obj, "unit_label", q.label));

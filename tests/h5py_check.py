@@ -19,9 +19,11 @@ with h5py.File(path, "r") as f:
         assert d.dims[0].label == "alpha" and d.dims[1].label == "omega", (name, d.dims[0].label)
         assert np.allclose(d.dims[0][0][:], f["alpha"][:]) and np.allclose(d.dims[1][0][:], f["omega"][:])
         assert d.attrs["definition"] and d.attrs["long_name"], name
-        assert isinstance(d.attrs.get("units"), str) or len(d.attrs["flag_values"]) > 1, name  # CF: codes carry flags
+        # CF: codes carry flags; scaled dimensionless quantities no units (CF 3.1) but their scale in `unit` (xarray's label)
+        assert isinstance(d.attrs.get("units"), str) or isinstance(d.attrs.get("unit"), str) or len(d.attrs["flag_values"]) > 1, name
         assert d.chunks is not None and d.compression == "gzip", (name, d.chunks, d.compression)
-    assert f["alpha"].attrs["units"] == "1" and f["alpha"].attrs["unit_label"] == "A0/delta_s"
+    assert "units" not in f["alpha"].attrs and f["alpha"].attrs["unit"] == f["alpha"].attrs["unit_label"] == "A0/delta_s"
+    assert f["frf_db"].attrs["units"] == "dB" and f["lle"].attrs["unit"] == "1/tau" and f["edr_t"].attrs["units"] == "percent"
     assert f.attrs["Conventions"] == "CF-1.10"
     assert f["hd_peak_freq"].shape == (na, nw, 10)
     assert set(np.unique(f["motion"][:])) <= {-1, 0, 1, 2}

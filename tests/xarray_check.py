@@ -10,8 +10,9 @@ default), and the map file is checked:
   * every dimension of every variable has a coordinate variable, and the sweep's axes are exactly
     the map's leading dimensions;
   * CF attributes: Conventions, history, source; every data variable has long_name, and either units
-    that UDUNITS-2 parses (the udunits2 program) or flag_values/flag_meanings; fixed parameters are
-    scalar coordinates holding the spec's values;
+    that UDUNITS-2 parses (the udunits2 program; or dB), or flag_values/flag_meanings, or (a dimensionless
+    quantity scaled by the model's references) no units and its scale in `unit`, which xarray's labels
+    show; fixed parameters are scalar coordinates holding the spec's values;
   * values read through xarray equal what h5py reads, bit for bit (NaN where NaN), and motion decodes
     to its flag meanings;
   * ds.frf_db.plot() (or the first data variable's) writes a PNG that is not blank.
@@ -89,8 +90,12 @@ def check(path, spec):
         assert a.get("long_name"), "%s has no long_name" % name
         if "flag_values" in a:
             assert len(a["flag_meanings"].split()) == len(np.atleast_1d(a["flag_values"])), name
-        else:
-            assert "units" in a and udunits_ok(a["units"]), "%s: units %r not UDUNITS-parsable" % (name, a.get("units"))
+        elif "units" in a:  # UDUNITS-2's, or dB: the CF standard-name table's unit of levels, which UDUNITS lacks
+            assert a["units"] == "dB" or udunits_ok(a["units"]), "%s: units %r not UDUNITS-parsable" % (name, a.get("units"))
+            assert a["units"] != "1" or a.get("unit_label") in ("fraction", ""), "%s: a scaled quantity with units 1" % name
+        else:  # dimensionless (CF 3.1: no units), its scale in `unit`, which xarray's plot labels show
+            assert a.get("unit") and a["unit"] == a["unit_label"] and a.get("comment"), "%s: no units, no unit" % name
+            assert xr.plot.utils.label_from_attrs(var).replace("\n", " ").endswith("[%s]" % a["unit"]), name
     data_vars = list(ds.data_vars)
     assert data_vars, "no data variables"
     for name in data_vars:
@@ -126,6 +131,11 @@ def check(path, spec):
     extra = [d for d in da.dims[2:]] if len(axes) >= 2 else list(da.dims[1:])
     da = da.isel({d: 0 for d in extra})
     png = os.path.join(work, os.path.basename(path) + ".png")
+    for coord in [v for v in axes + [name] if "flag_values" not in ds[v].attrs]:  # codes: bistable.plot names them
+        # xarray's labels (long_name [units]) name a real unit or scale; "[1]" only for fractions (CF's unit of them)
+        label = xr.plot.utils.label_from_attrs(ds[coord]).replace("\n", " ")
+        fraction = ds[coord].attrs.get("unit_label") in ("fraction", "")
+        assert label.endswith("]") and (fraction or not label.endswith("[1]")), "%s is labelled %r" % (coord, label)
     plt.figure()
     da.plot()
     plt.savefig(png)

@@ -3,7 +3,8 @@
     import bistable
     r = bistable.point(model="coupled", alpha=1.0, omega=1.2)     # dict, as `bistable point --json`
     ds = bistable.run("examples/paper_fig8_frf.toml")              # xarray.Dataset of the map
-    ds.frf_db.plot()
+    ds.frf_db.plot()                                               # labelled: long_name [dB]
+    bistable.plot(ds.motion)                                       # codes by name: intrawell, chaotic, ...
 
 Units are the model's (docs/model.md): non-dimensional time tau = omega_n t, lengths in delta_s, unless
 the model is "dimensional". Every function releases the GIL while it computes; Ctrl-C stops it
@@ -12,14 +13,17 @@ the bound it violates, as the CLI's error lines do.
 """
 import builtins as _builtins
 import os as _os
+import sys as _sys
 
 from . import _core
+from .plotting import plot
 
 __version__ = _core.__version__
 numerics_version = _core.numerics_version
 DEFAULT_DATA = "bistable-data"
 
-__all__ = ["point", "trajectory", "run", "open", "open_file", "find", "sweeps", "query", "hbm", "identify", "Client"]
+__all__ = ["point", "trajectory", "run", "open", "open_file", "find", "sweeps", "query", "hbm", "identify", "plot",
+           "Client"]
 
 
 def point(**kw):
@@ -105,7 +109,13 @@ def _toml_dump(spec):
 
 def open_file(path):
     """The map file at `path` as an xarray.Dataset (CF-1.10; docs/map-files.md), loaded into memory."""
-    import xarray
+    try:
+        import h5netcdf  # noqa: F401 (xarray's engine)
+        import xarray
+    except ImportError as e:  # another Python than the one the module was built and installed for
+        raise ImportError("bistable reads maps with xarray and h5netcdf (Debian: apt-get install python3-xarray "
+                          "python3-h5netcdf), which %s cannot import (%s); use Debian's /usr/bin/python3 or a venv "
+                          "made with --system-site-packages (docs/python.md)" % (_sys.executable, e)) from e
 
     with xarray.open_dataset(path, engine="h5netcdf") as ds:
         return ds.load()

@@ -599,3 +599,58 @@ def test_ctrl_c_in_one_thread_does_not_let_another_store_a_cut_short_job(tmp_pat
     with h5py.File(resumed) as f, h5py.File(clean) as g:
         for name in ("frf_db", "lle", "motion"):
             assert np.array_equal(f[name][()], g[name][()], equal_nan=True), name
+
+
+def test_one_version_in_the_cli_the_map_and_the_module(tmp_path):
+    # CMake's project version is the one software version (issue 43): `bistable --version`, a map's
+    # software_version and bistable.__version__ all say it; the numerics version follows it where it is shown.
+    project = re.search(r"project\(bistable_sweep VERSION (\d+\.\d+\.\d+)", open(os.path.join(SOURCE, "CMakeLists.txt")).read())
+    r = subprocess.run([CLI, "--version"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "bistable %s (numerics %s)" % (project.group(1), bistable.numerics_version)
+    ds = bistable.run(SMALL, data=tmp_path / "d")
+    assert bistable.__version__ == ds.attrs["software_version"] == project.group(1)
+    assert ds.attrs["numerics_version"] == bistable.numerics_version
+
+
+def test_plots_are_labelled_with_units_and_category_names(tmp_path):
+    # What xarray draws from the map's attributes (issue 43): long_name [units], or the scale of a dimensionless
+    # quantity ([1/tau], [A0/delta_s]) where it has no units; never "[1]". Codes plot with their names.
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ds = bistable.run(SMALL, data=tmp_path / "d")
+    label = lambda text: text.replace("\n", " ")  # noqa: E731 (xarray wraps labels at 30 characters)
+    q = ds.frf_db.plot(x="omega")
+    assert label(q.colorbar.ax.get_ylabel()) == ds.frf_db.attrs["long_name"] + " [dB]"
+    assert label(q.axes.get_xlabel()) == "excitation frequency Omega = omega0/omega_n [omega0/omega_n]"
+    assert label(q.axes.get_ylabel()) == "base excitation amplitude alpha = A0/delta_s [A0/delta_s]"
+    plt.close("all")
+    assert label(ds.lle.plot(x="omega").colorbar.ax.get_ylabel()).endswith(" [1/tau]")
+    plt.close("all")
+    # A code variable: one colour per flag value, the flag meanings on the colour bar.
+    m = bistable.plot(ds.motion, x="omega")
+    names = ds.motion.attrs["flag_meanings"].split()
+    assert [t.get_text() for t in m.colorbar.ax.get_yticklabels()] == names
+    assert list(m.colorbar.get_ticks()) == sorted(np.atleast_1d(ds.motion.attrs["flag_values"]).tolist())
+    assert m.colorbar.ax.get_ylabel() == "type of steady-state motion"
+    colours = m.cmap(m.norm(np.atleast_1d(ds.motion.attrs["flag_values"])))
+    assert len({tuple(c) for c in colours}) == len(names)  # a colour per category
+    png = tmp_path / "motion.png"
+    plt.savefig(png)
+    plt.close("all")
+    img = plt.imread(png)
+    assert len(np.unique(img.reshape(-1, img.shape[-1]), axis=0)) > 20
+    # Facets (col=) share one colour bar, named too.
+    grid = bistable.plot(ds.motion.expand_dims(run=[0, 1]), x="omega", col="run")
+    assert [t.get_text() for t in grid.cbar.ax.get_yticklabels()] == names
+    plt.close("all")
+    # 1-D: the names on the y axis; a variable without flags is xarray's own plot.
+    lines = bistable.plot(ds.motion.isel(alpha=0))
+    assert [t.get_text() for t in lines[0].axes.get_yticklabels()] == names
+    plt.close("all")
+    q = bistable.plot(ds.edr_t, x="omega")
+    assert label(q.colorbar.ax.get_ylabel()) == "total energy dissipation ratio [percent]"
+    plt.close("all")
