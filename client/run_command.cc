@@ -272,7 +272,7 @@ void AddRunCommand(CLI::App& app, int* exit_code) {
       "with\n"
       "rk4 is 2x faster again but off a converged reference: periods equal on 72 % of the example's points, LLEs\n"
       "within 0.05 /s on 58 % (measured: docs/numerics.md, bench/rig_ratio.sh).\n\n"
-      "Job arrays (--shard I/N; docs/deploy: deploy/slurm/array.sbatch): for clusters that allow no service or\n"
+      "Job arrays (--shard I/N; deploy/slurm/README.md, array.sbatch): for clusters that allow no service or\n"
       "open port on compute nodes. Each task computes a deterministic slice (items dealt round-robin; continuation\n"
       "chains whole) into its own store, with no map and no plots; a rerun resumes it. `bistable merge SPEC`\n"
       "assembles the N stores into the map this command writes without --shard, bit for bit. Refined sweeps\n"
