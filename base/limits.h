@@ -46,6 +46,9 @@ inline constexpr int kMaxAttractors = 255;
 inline constexpr int kMaxRobustnessSamples = 4096;
 // Halvings of an adaptive map ([refine] levels: the coarse grid takes every 2^levels-th axis value).
 inline constexpr int kMaxRefineLevels = 10;
+// `bistable run --shard I/N` (issue 43): shards of one sweep (a job array's tasks; Slurm's default MaxArraySize is
+// 1001).
+inline constexpr int kMaxShards = 100'000;
 
 // --- Design search (`bistable design`, [design]) ---------------------------------------------------
 inline constexpr int kMaxDesignBudget = 10'000;  // candidates one search may evaluate (design.budget)

@@ -227,21 +227,18 @@ class EmbeddedJobSource : public JobSource {
 
 }  // namespace
 
-Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, bool any_work, std::atomic<bool>* stop,
-                       ProgressBar* bar) {
+Status RunPullThreads(JobSource& source, int threads, const std::function<std::pair<long, long>()>& done_of,
+                      const std::function<void()>& halt, std::atomic<bool>* stop, ProgressBar* bar) {
   std::mutex err_mu;
   Status worker_error;
   std::atomic<bool> failed{false};
   std::vector<std::thread> pool;
-  const std::string id = spec.Id();
-  const SweepProgress start = c.progress(id);
+  const long start = done_of().first;
   auto stopping = [&] { return CancelRequested() || (stop && stop->load()) || failed.load(); };
-  const auto shared = std::make_shared<const SweepSpec>(spec);
   std::atomic<int> running{0};
-  for (int t = 0; t < threads && any_work; ++t) {
+  for (int t = 0; t < threads; ++t) {
     ++running;
     pool.emplace_back([&] {
-      EmbeddedJobSource source(c, shared);
       PullLoopOptions opt;
       opt.name = "embedded";
       opt.until_idle = true;
@@ -254,21 +251,34 @@ Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, 
         std::lock_guard<std::mutex> lock(err_mu);
         if (worker_error.ok()) worker_error = r.error;
         failed.store(true);
-        c.Stop();
+        halt();
       }
       --running;
     });
   }
   while (!pool.empty()) {
-    if (stopping()) c.Stop();
-    const SweepProgress p = c.progress(id);
-    if (p.items_done >= p.items_total || stopping() || running.load() == 0) break;
-    if (bar) bar->Update(p.items_done - start.items_done);
+    if (stopping()) halt();
+    const auto [done, total] = done_of();
+    if (done >= total || stopping() || running.load() == 0) break;
+    if (bar) bar->Update(done - start);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   for (auto& th : pool) th.join();
-  if (bar) bar->Finish(c.progress(id).items_done - start.items_done);
+  if (bar) bar->Finish(done_of().first - start);
   return worker_error;
+}
+
+Status ComputeEmbedded(SweepCoordinator& c, const SweepSpec& spec, int threads, bool any_work, std::atomic<bool>* stop,
+                       ProgressBar* bar) {
+  const std::string id = spec.Id();
+  EmbeddedJobSource source(c, std::make_shared<const SweepSpec>(spec));
+  return RunPullThreads(
+      source, any_work ? threads : 0,
+      [&] {
+        const SweepProgress p = c.progress(id);
+        return std::pair<long, long>(p.items_done, p.items_total);
+      },
+      [&] { c.Stop(); }, stop, bar);
 }
 
 StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& spec, int threads, bool progress,

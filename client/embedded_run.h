@@ -4,17 +4,28 @@
 #define BISTABLE_CLIENT_EMBEDDED_RUN_H_
 
 #include <atomic>
+#include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "client/progress.h"
 #include "server/sweep_coordinator.h"
+#include "worker/pull_loop.h"
 
 namespace bistable {
 
 // The coordinator of an embedded run (`run`, `reproduce`, `design`, Python's run): no resumes, no log
 // events, a long lease; repairs of the data directory (storage/data_dir.h) said on stderr as warnings.
 SweepCoordinator::Options EmbeddedCoordinatorOptions();
+
+// Runs `threads` pull loops (worker/pull_loop.h) over one thread-safe `source` until it has no job left,
+// *stop is set, cancellation is requested (dynamics/cancel.h), or a report fails (that status is returned;
+// `halt` is called then, and on a stop, so the source leases nothing more). done_of() says {items done, items
+// total}: the loop ends when they meet, and `bar` (may be null) counts from the first. The embedded run's
+// threads (ComputeEmbedded) and a shard's (client/shard_run.h) are both this.
+Status RunPullThreads(JobSource& source, int threads, const std::function<std::pair<long, long>()>& done_of,
+                      const std::function<void()>& halt, std::atomic<bool>* stop, ProgressBar* bar);
 
 // Runs `threads` worker threads until the coordinator's queue is empty, *stop is set, cancellation is
 // requested (dynamics/cancel.h), or a report fails (that status is returned). A job cut short by

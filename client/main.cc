@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
   int exit_code = 0;
   bistable::AddPointCommand(app, &exit_code);
   bistable::AddRunCommand(app, &exit_code);
+  bistable::AddMergeCommand(app, &exit_code);
   bistable::AddHbmCommand(app, &exit_code);
   bistable::AddChirpCommand(app, &exit_code);
   bistable::AddReproduceCommand(app, &exit_code);

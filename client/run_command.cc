@@ -1,5 +1,6 @@
 // `bistable run SPEC.toml`: the embedded deployment — the sweep coordinator and worker threads in
-// one process over a local data directory.
+// one process over a local data directory; with --shard I/N one slice of it into a shard store, and
+// `bistable merge` to assemble the slices (client/shard_run.h).
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -20,6 +21,7 @@
 #include "client/map_slice.h"
 #include "client/plot.h"
 #include "client/progress.h"
+#include "client/shard_run.h"
 #include "client/sweep_commands.h"
 #include "dynamics/cancel.h"
 #include "engine/evaluate.h"
@@ -39,7 +41,48 @@ struct RunArgs {
   bool json = false, no_plots = false, quiet = false;
   std::string serve;  // dashboard address (loopback)
   long job_items = 0;
+  std::string shard;  // "I/N": one slice into its shard store
 };
+
+// `bistable run SPEC --shard I/N`: the shard's items into <data>/shards/<id>-<I>-of-<N>/ (client/shard_run.h).
+int RunShardOf(const RunArgs& a, const SweepSpec& spec, int threads) {
+  auto shard = ParseShard(a.shard);
+  if (!shard.ok()) return Fail(shard.status());
+  if (Status st = CheckShardable(spec); !st.ok()) return Fail(st);
+  if (!a.serve.empty())
+    return Fail(Status::InvalidArgument("serve",
+                                        "--serve shows a coordinator's sweeps; a shard run has none (its "
+                                        "store is assembled by bistable merge)"));
+  const auto t0 = std::chrono::steady_clock::now();
+  InstallCancelSignalHandlers("\nstopping: finished jobs are kept (press Ctrl-C again to quit at once)\n");
+  ShardRunResult r;
+  const Status st = RunShard(spec, *shard, a.data, threads, a.job_items, !a.quiet && !a.json, &r);
+  RestoreDefaultSignalHandlers();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!st.ok() && CancelRequested()) {
+    std::cerr << "interrupted: " << r.cached + r.computed << "/" << r.items << " items of shard " << shard->Label()
+              << " stored in " << r.store << "; rerun the same command to resume\n";
+    return CancelExitStatus();
+  }
+  if (!st.ok()) {
+    std::cerr << "error: " << st.ToString() << "\n";
+    if (!r.store.empty())
+      std::cerr << "finished jobs are stored in " << r.store << "; rerun the same command to resume\n";
+    return kExitError;
+  }
+  if (a.json) {
+    const nlohmann::json j = {{"id", spec.Id()},    {"shard", shard->Label()}, {"store", r.store},
+                              {"items", r.items},   {"cached", r.cached},      {"computed", r.computed},
+                              {"seconds", seconds}, {"threads", threads},      {"complete", true}};
+    std::cout << DumpJson(j, 2) << "\n";
+  } else {
+    std::printf("shard %s of sweep %s done: %ld items (%ld computed, %ld reused from its store) in %.1f s\n",
+                shard->Label().c_str(), spec.Id().c_str(), r.items, r.computed, r.cached, seconds);
+    std::printf("store: %s\nwhen every shard is done: bistable merge %s --data %s\n", r.store.c_str(),
+                a.spec_path.c_str(), a.data.c_str());
+  }
+  return 0;
+}
 
 int RunSweep(const RunArgs& a) {
   auto spec = LoadSweepSpec(a.spec_path);
@@ -47,6 +90,7 @@ int RunSweep(const RunArgs& a) {
   if (a.threads < 0 || a.threads > 1024)
     return Fail(Status::InvalidArgument("threads",
                                         "threads = " + std::to_string(a.threads) + " violates threads in [0, 1024]"));
+  if (!a.shard.empty()) return RunShardOf(a, *spec, a.threads > 0 ? a.threads : UsableCpus());
   auto coord = SweepCoordinator::Open(a.data, EmbeddedCoordinatorOptions());
   if (!coord.ok()) return Fail(coord.status());
   SweepCoordinator& c = **coord;
@@ -150,7 +194,53 @@ int RunSweep(const RunArgs& a) {
   return 0;
 }
 
+int MergeSweep(const std::string& spec_path, const std::vector<std::string>& stores, const std::string& data,
+               bool json) {
+  auto spec = LoadSweepSpec(spec_path);
+  if (!spec.ok()) return Fail(spec.status());
+  const auto t0 = std::chrono::steady_clock::now();
+  auto merged = MergeShards(*spec, stores, data);
+  if (!merged.ok()) return Fail(merged.status());
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (json) {
+    const nlohmann::json j = {{"id", merged->id},       {"data", std::filesystem::absolute(data).string()},
+                              {"files", {merged->map}}, {"shards", merged->shards},
+                              {"items", merged->items}, {"seconds", seconds}};
+    std::cout << DumpJson(j, 2) << "\n";
+  } else {
+    std::printf("sweep %s merged from %d shards: %ld items in %.1f s\nmap: %s\n", merged->id.c_str(), merged->shards,
+                merged->items, seconds, merged->map.c_str());
+  }
+  return 0;
+}
+
 }  // namespace
+
+void AddMergeCommand(CLI::App& app, int* exit_code) {
+  struct MergeArgs {
+    std::string spec_path, data = kDefaultDataDir;
+    std::vector<std::string> stores;
+    bool json = false;
+  };
+  auto a = std::make_shared<MergeArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "merge", "Assemble the shard stores of `bistable run SPEC --shard I/N` into the sweep's map (a job array's end)");
+  cmd->add_option("spec", a->spec_path, "the sweep spec (TOML) the shards were run with")->required();
+  cmd->add_option("stores", a->stores,
+                  "shard store directories (default: every <data>/shards/<id>-* store of this spec)");
+  cmd->add_option("--data", a->data, "data directory the map is written to and indexed in (sweeps/<id>.h5)")
+      ->capture_default_str();
+  cmd->add_flag("--json", a->json, "print {id, data, files, shards, items, seconds} as JSON");
+  cmd->footer(
+      "The map is the one `bistable run SPEC` writes, bit for bit (every dataset and attribute), but for its\n"
+      "provenance: the root attribute merged_from_shards = N and the history line say it was merged (history also\n"
+      "carries the time it was written). The records are added to the data directory's point cache too.\n"
+      "Refused, naming the store and the problem, with nothing written: a directory that is not a shard store, a\n"
+      "shard of another spec or of another numerics version, stores of different shard counts, a shard given\n"
+      "twice, a shard missing, or a shard incomplete (interrupted: rerun its `bistable run --shard I/N`).\n"
+      "No plots: draw them from the map (bistable map ID --data DIR).");
+  cmd->callback([a, exit_code]() { *exit_code = MergeSweep(a->spec_path, a->stores, a->data, a->json); });
+}
 
 void AddRunCommand(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<RunArgs>();
@@ -165,6 +255,10 @@ void AddRunCommand(CLI::App& app, int* exit_code) {
   cmd->add_flag("--no-plots", a->no_plots,
                 "do not render the default plots (without gnuplot they are skipped with a warning)");
   cmd->add_flag("--quiet", a->quiet, "no progress output");
+  cmd->add_option("--shard", a->shard,
+                  "I/N: compute only shard I of N of the sweep (0 <= I < N; a job array's task) into its own store, "
+                  "<data>/shards/<id>-<I>-of-<N>/; then bistable merge assembles the map")
+      ->type_name("I/N");
   cmd->add_option("--serve", a->serve,
                   "serve the live dashboard on HOST:PORT (loopback; docs/dashboard.md) while the sweep runs and, "
                   "after it is done, until Ctrl-C");
@@ -177,7 +271,12 @@ void AddRunCommand(CLI::App& app, int* exit_code) {
       "(model = \"dimensional\": ROS34PW2 in lanes, 10.8-16.6x faster than Dormand-Prince at its accuracy). The rig "
       "with\n"
       "rk4 is 2x faster again but off a converged reference: periods equal on 72 % of the example's points, LLEs\n"
-      "within 0.05 /s on 58 % (measured: docs/numerics.md, bench/rig_ratio.sh).");
+      "within 0.05 /s on 58 % (measured: docs/numerics.md, bench/rig_ratio.sh).\n\n"
+      "Job arrays (--shard I/N; deploy/slurm/README.md, array.sbatch): for clusters that allow no service or\n"
+      "open port on compute nodes. Each task computes a deterministic slice (items dealt round-robin; continuation\n"
+      "chains whole) into its own store, with no map and no plots; a rerun resumes it. `bistable merge SPEC`\n"
+      "assembles the N stores into the map this command writes without --shard, bit for bit. Refined sweeps\n"
+      "([refine]) cannot be sharded: each round is planned from the whole previous round.");
   cmd->callback([a, exit_code]() { *exit_code = RunSweep(*a); });
 }
 

@@ -7,6 +7,7 @@
 namespace bistable {
 
 void AddRunCommand(CLI::App& app, int* exit_code);
+void AddMergeCommand(CLI::App& app, int* exit_code);
 void AddSweepsCommand(CLI::App& app, int* exit_code);
 void AddMapCommand(CLI::App& app, int* exit_code);
 void AddQueryCommand(CLI::App& app, int* exit_code);

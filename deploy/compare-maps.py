@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Compares two bistable-sweep HDF5 maps: every dataset's shape, dtype and values bit for bit, and
-every attribute (object references by the path they point to). Attributes that record when or
-where a file was made may differ legitimately; those whose names say so are skipped and listed.
+every attribute (object references by the path they point to). Attributes that record when, where or
+how a file was made (a map merged from shards) may differ legitimately; those whose names say so are skipped
+and listed.
 
 usage: deploy/compare-maps.py A.h5 B.h5   → one line of figures; exit 0 when identical, 1 otherwise
 Needs h5py and numpy (Debian's python3-h5py, python3-numpy): run it with /usr/bin/python3.
@@ -12,9 +13,9 @@ import sys
 import h5py
 import numpy as np
 
-# Names of when/where-made attributes ("created_at", "creation_time", "hostname", "wall_seconds", CF's
-# "history", ...); "time_unit" and the like are compared.
-SKIP = re.compile(r"(^|_)(created|creation|timestamp|date|datetime|host|hostname|pid|elapsed|wall|history)(_|$)|(^|_)(time|seconds)$",
+# Names of when/where/how-made attributes ("created_at", "creation_time", "hostname", "wall_seconds", CF's
+# "history", a merged map's "merged_from_shards", ...); "time_unit" and the like are compared.
+SKIP = re.compile(r"(^|_)(created|creation|timestamp|date|datetime|host|hostname|pid|elapsed|wall|history|merged)(_|$)|(^|_)(time|seconds)$",
                   re.IGNORECASE)
 
 

@@ -43,82 +43,164 @@ JobPlan JobPlan::Published(long items_total) {
   return p;
 }
 
-StatusOr<JobPlan> JobPlan::Build(const SweepSpec& spec, long job_items, const PointLookup& lookup, RefineCarry carry) {
-  JobPlan s;
-  s.ic_count_ = spec.ic_count();
-  const int nic = spec.ic_count();
-  const long points = spec.points();
+namespace {
+// Grid points x initial conditions, within limits::kMaxSweepItems.
+StatusOr<long> ItemsTotal(const SweepSpec& spec) {
   long total = 0;
-  if (__builtin_mul_overflow(points, static_cast<long>(nic), &total) || total > limits::kMaxSweepItems)
+  if (__builtin_mul_overflow(spec.points(), static_cast<long>(spec.ic_count()), &total) ||
+      total > limits::kMaxSweepItems)
     return Status::InvalidArgument("axes",
                                    "points x initial conditions violates <= " + std::to_string(limits::kMaxSweepItems));
-  s.items_total_ = total;
-  if (spec.refine.enabled()) {
-    s.refined_ = true;
-    std::map<long, std::string> looked_up;  // keys of the points looked up now (the current round's)
-    if (!carry.planner)
-      carry = RefineCarry{std::make_shared<RefinePlanner>(spec), {}, {}, false, 0, 0};  // a walk from the start
-    auto step =
-        carry.planner->Advance([&](const std::vector<long>& pts, std::vector<std::optional<RefineMark>>* classes) {
-          classes->assign(pts.size(), std::nullopt);
-          for (size_t b = 0; b < pts.size(); b += kPlanLookupBatch) {
-            const size_t e = std::min(pts.size(), b + kPlanLookupBatch);
-            std::vector<std::string> batch;
-            batch.reserve(e - b);
-            for (size_t i = b; i < e; ++i) batch.push_back(spec.ItemKey(pts[i], 0));
-            auto cached = lookup(batch);
-            if (!cached.ok()) return cached.status();
-            for (size_t i = b; i < e; ++i) {
-              if (auto it = cached->find(batch[i - b]); it != cached->end())
-                (*classes)[i] = RefineClass(spec.refine, spec.base.metrics, it->second);
-              looked_up[pts[i]] = std::move(batch[i - b]);
-            }
-          }
-          return Status::Ok();
-        });
-    if (!step.ok()) return step.status();  // the walk is left mid-round: the next plan walks from the start
-    s.refiner_ = carry.planner;
-    // Every planned point's key: looked up now, or carried from the last plan (both ascending).
-    s.points_ = step->points;
-    s.keys_.reserve(s.points_.size());
-    size_t c = 0;
-    for (long p : s.points_) {
-      while (c < carry.points.size() && carry.points[c] < p) ++c;
-      if (auto it = looked_up.find(p); it != looked_up.end())
-        s.keys_.push_back(std::move(it->second));
-      else if (c < carry.points.size() && carry.points[c] == p)
-        s.keys_.push_back(std::move(carry.keys[c]));
-      else
-        s.keys_.push_back(spec.ItemKey(p, 0));
-    }
-    s.refine_round_ = step->round;
-    s.refine_complete_ = step->complete;
-    JobBuilder jobs{s.jobs_, job_items};
-    for (long p : step->missing) jobs.Add(WorkItem{p, 0});
-    jobs.Close();
-    s.QueueAllJobs();
-    s.items_total_ = static_cast<long>(s.points_.size());  // grows round by round
-    s.items_done_ = s.items_total_ - static_cast<long>(step->missing.size());
-    s.refine_queued_ = static_cast<long>(step->missing.size());
-    // Reused from the cache: at the first plan, what was stored; later rounds add what they found stored
-    // beyond the items this plan's owner computed for the round before (carry.computed).
-    const long found = static_cast<long>(looked_up.size()) - static_cast<long>(step->missing.size());
-    s.items_cached_ = carry.continued ? carry.cached + found - carry.computed : s.items_done_;
-    return s;
+  return total;
+}
+}  // namespace
+
+StatusOr<Shard> ParseShard(const std::string& text) {
+  const size_t slash = text.find('/');
+  auto number = [](const std::string& t, long* out) {
+    if (t.empty() || t.size() > 9 || t.find_first_not_of("0123456789") != std::string::npos) return false;
+    *out = std::stol(t);
+    return true;
+  };
+  long i = 0, n = 0;
+  if (slash == std::string::npos || !number(text.substr(0, slash), &i) || !number(text.substr(slash + 1), &n))
+    return Status::InvalidArgument("shard", "shard = '" + text +
+                                                "' is not I/N (e.g. 3/8: shard 3 of 8, numbered from 0; a job "
+                                                "array's task id and task count)");
+  if (n < 1 || n > limits::kMaxShards)
+    return Status::InvalidArgument("shard", "shard = " + text + ": N = " + std::to_string(n) +
+                                                " violates 1 <= N <= " + std::to_string(limits::kMaxShards));
+  if (i >= n)
+    return Status::InvalidArgument("shard", "shard = " + text + ": I = " + std::to_string(i) +
+                                                " violates 0 <= I < N = " + std::to_string(n) +
+                                                " (shards are numbered from 0)");
+  return Shard{static_cast<int>(i), static_cast<int>(n)};
+}
+
+Status CheckShardable(const SweepSpec& spec) {
+  if (spec.refine.enabled())
+    return Status::InvalidArgument(
+        "shard", "sweep " + spec.Id() +
+                     " is refined ([refine]): each round is planned from the whole previous round's results, so it "
+                     "cannot be cut into independent shards; run it whole (bistable run without --shard, or "
+                     "bistable submit to a coordinator)");
+  return Status::Ok();
+}
+
+std::vector<long> ShardItemIndices(const SweepSpec& spec, const Shard& shard) {
+  std::vector<long> out;
+  const int nic = spec.ic_count();
+  if (spec.continuation.enabled()) {  // whole chains, dealt in the order ContinuationChains lists them
+    const auto chains = spec.ContinuationChains();
+    for (size_t c = static_cast<size_t>(shard.index); c < chains.size(); c += static_cast<size_t>(shard.count))
+      for (const WorkItem& w : chains[c]) out.push_back(w.point * nic + w.ic);
+    std::sort(out.begin(), out.end());
+    return out;
   }
-  s.keys_.reserve(total);
-  for (long p = 0; p < points; ++p)
-    for (int i = 0; i < nic; ++i) s.keys_.push_back(spec.ItemKey(p, i));
-  // Looked up in batches, so the owner's reads of the cache are bounded.
-  std::vector<bool> is_missing(s.keys_.size(), true);
-  for (size_t b = 0; b < s.keys_.size(); b += kPlanLookupBatch) {
-    const std::vector<std::string> batch(s.keys_.begin() + b,
-                                         s.keys_.begin() + std::min(s.keys_.size(), b + kPlanLookupBatch));
+  const long total = spec.points() * nic;
+  for (long i = shard.index; i < total; i += shard.count) out.push_back(i);
+  return out;
+}
+
+std::vector<std::string> ItemKeys(const SweepSpec& spec) {
+  std::vector<std::string> keys;
+  const int nic = spec.ic_count();
+  keys.reserve(static_cast<size_t>(spec.points()) * static_cast<size_t>(nic));
+  for (long p = 0; p < spec.points(); ++p)
+    for (int i = 0; i < nic; ++i) keys.push_back(spec.ItemKey(p, i));
+  return keys;
+}
+
+StatusOr<JobPlan> JobPlan::BuildShard(const SweepSpec& spec, long job_items, const PointLookup& lookup,
+                                      const Shard& shard) {
+  BISTABLE_RETURN_IF_ERROR(CheckShardable(spec));
+  return BuildGrid(spec, job_items, lookup, &shard);
+}
+
+StatusOr<JobPlan> JobPlan::Build(const SweepSpec& spec, long job_items, const PointLookup& lookup, RefineCarry carry) {
+  if (!spec.refine.enabled()) return BuildGrid(spec, job_items, lookup, nullptr);
+  auto total = ItemsTotal(spec);  // the grid's bound holds for a refined sweep too
+  if (!total.ok()) return total.status();
+  JobPlan s;
+  s.ic_count_ = spec.ic_count();
+  s.refined_ = true;
+  std::map<long, std::string> looked_up;  // keys of the points looked up now (the current round's)
+  if (!carry.planner)
+    carry = RefineCarry{std::make_shared<RefinePlanner>(spec), {}, {}, false, 0, 0};  // a walk from the start
+  auto step =
+      carry.planner->Advance([&](const std::vector<long>& pts, std::vector<std::optional<RefineMark>>* classes) {
+        classes->assign(pts.size(), std::nullopt);
+        for (size_t b = 0; b < pts.size(); b += kPlanLookupBatch) {
+          const size_t e = std::min(pts.size(), b + kPlanLookupBatch);
+          std::vector<std::string> batch;
+          batch.reserve(e - b);
+          for (size_t i = b; i < e; ++i) batch.push_back(spec.ItemKey(pts[i], 0));
+          auto cached = lookup(batch);
+          if (!cached.ok()) return cached.status();
+          for (size_t i = b; i < e; ++i) {
+            if (auto it = cached->find(batch[i - b]); it != cached->end())
+              (*classes)[i] = RefineClass(spec.refine, spec.base.metrics, it->second);
+            looked_up[pts[i]] = std::move(batch[i - b]);
+          }
+        }
+        return Status::Ok();
+      });
+  if (!step.ok()) return step.status();  // the walk is left mid-round: the next plan walks from the start
+  s.refiner_ = carry.planner;
+  // Every planned point's key: looked up now, or carried from the last plan (both ascending).
+  s.points_ = step->points;
+  s.keys_.reserve(s.points_.size());
+  size_t c = 0;
+  for (long p : s.points_) {
+    while (c < carry.points.size() && carry.points[c] < p) ++c;
+    if (auto it = looked_up.find(p); it != looked_up.end())
+      s.keys_.push_back(std::move(it->second));
+    else if (c < carry.points.size() && carry.points[c] == p)
+      s.keys_.push_back(std::move(carry.keys[c]));
+    else
+      s.keys_.push_back(spec.ItemKey(p, 0));
+  }
+  s.refine_round_ = step->round;
+  s.refine_complete_ = step->complete;
+  JobBuilder jobs{s.jobs_, job_items};
+  for (long p : step->missing) jobs.Add(WorkItem{p, 0});
+  jobs.Close();
+  s.QueueAllJobs();
+  s.items_total_ = static_cast<long>(s.points_.size());  // grows round by round
+  s.items_done_ = s.items_total_ - static_cast<long>(step->missing.size());
+  s.refine_queued_ = static_cast<long>(step->missing.size());
+  // Reused from the cache: at the first plan, what was stored; later rounds add what they found stored
+  // beyond the items this plan's owner computed for the round before (carry.computed).
+  const long found = static_cast<long>(looked_up.size()) - static_cast<long>(step->missing.size());
+  s.items_cached_ = carry.continued ? carry.cached + found - carry.computed : s.items_done_;
+  return s;
+}
+
+StatusOr<JobPlan> JobPlan::BuildGrid(const SweepSpec& spec, long job_items, const PointLookup& lookup,
+                                     const Shard* shard) {
+  auto total = ItemsTotal(spec);
+  if (!total.ok()) return total.status();
+  JobPlan s;
+  s.ic_count_ = spec.ic_count();
+  s.keys_ = ItemKeys(spec);
+  // The items this plan holds (every item, or the shard's), looked up in batches so the owner's reads of
+  // the cache are bounded; items it does not hold are neither missing nor counted.
+  std::vector<long> shard_items;
+  if (shard) shard_items = ShardItemIndices(spec, *shard);
+  const long held = shard ? static_cast<long>(shard_items.size()) : *total;
+  auto item = [&](long k) { return shard ? shard_items[k] : k; };
+  std::vector<bool> is_missing(s.keys_.size(), false);
+  for (long b = 0; b < held; b += static_cast<long>(kPlanLookupBatch)) {
+    const long e = std::min(held, b + static_cast<long>(kPlanLookupBatch));
+    std::vector<std::string> batch;
+    batch.reserve(e - b);
+    for (long k = b; k < e; ++k) batch.push_back(s.keys_[item(k)]);
     auto cached = lookup(batch);
     if (!cached.ok()) return cached.status();
-    for (size_t i = 0; i < batch.size(); ++i)
-      if (cached->count(batch[i])) is_missing[b + i] = false;
+    for (long k = b; k < e; ++k)
+      if (!cached->count(batch[k - b])) is_missing[item(k)] = true;
   }
+  const int nic = s.ic_count_;
   JobBuilder jobs{s.jobs_, job_items};
   if (spec.continuation.enabled()) {
     // Chains run whole and in order (each point starts where the previous ended): a chain with any
@@ -129,7 +211,7 @@ StatusOr<JobPlan> JobPlan::Build(const SweepSpec& spec, long job_items, const Po
       if (any) jobs.Add(chain);
     }
   } else {
-    for (long p = 0; p < points; ++p)
+    for (long p = 0; p < spec.points(); ++p)
       for (int i = 0; i < nic; ++i)
         if (is_missing[p * nic + i]) jobs.Add(WorkItem{p, i});
   }
@@ -137,7 +219,8 @@ StatusOr<JobPlan> JobPlan::Build(const SweepSpec& spec, long job_items, const Po
   s.QueueAllJobs();
   long queued = 0;
   for (const Job& j : s.jobs_) queued += static_cast<long>(j.items.size());
-  s.items_cached_ = s.items_done_ = total - queued;  // items of partly stored chains are recomputed
+  s.items_total_ = held;
+  s.items_cached_ = s.items_done_ = held - queued;  // items of partly stored chains are recomputed
   return s;
 }
 

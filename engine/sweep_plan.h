@@ -33,6 +33,30 @@ inline constexpr size_t kPlanLookupBatch = 65536;  // keys per lookup: each batc
 
 class RefinePlanner;
 
+// A deterministic slice of a sweep, for a batch system's job array (issue 43: `bistable run --shard I/N`,
+// merged by `bistable merge`). The sweep's units — its items, or its continuation chains whole (a chain
+// runs in order from its first point) — are dealt round-robin: unit u is shard u mod count's. The shards
+// partition the sweep, and each item is computed exactly as in the whole sweep (same item, same code), so
+// the merged map is the embedded run's bit for bit. Round-robin rather than blocks: neighbouring grid
+// points cost alike (chaotic regions, adaptive steps), so every shard gets a share of the dear ones.
+struct Shard {
+  int index = 0;  // I: 0 <= index < count
+  int count = 1;  // N
+  std::string Label() const { return std::to_string(index) + "/" + std::to_string(count); }
+};
+// "I/N" (decimal, 0 <= I < N <= limits::kMaxShards) as a Shard; InvalidArgument naming `shard` and the
+// bound otherwise.
+StatusOr<Shard> ParseShard(const std::string& text);
+// Whether `spec` can be cut into independent shards. A refined sweep ([refine]) cannot: each round is
+// planned from the whole previous round's results (FailedPrecondition saying so). Plain grids, several
+// initial conditions, robustness samples, basin sweeps (attractors are classified from all records when
+// the map is written) and continuation chains (whole chains per shard) can.
+Status CheckShardable(const SweepSpec& spec);
+// The items of `shard` of `spec`, as item indices (point · ic_count + ic), ascending.
+std::vector<long> ShardItemIndices(const SweepSpec& spec, const Shard& shard);
+// The content key of every item of `spec`, in item order (point · ic_count + ic).
+std::vector<std::string> ItemKeys(const SweepSpec& spec);
+
 // A refined sweep's walk and keys carried from its last plan into the next round.
 struct RefineCarry {
   std::shared_ptr<RefinePlanner> planner;
@@ -60,6 +84,10 @@ class JobPlan {
   // checksum: the lookup's to count) is missing.
   static StatusOr<JobPlan> Build(const SweepSpec& spec, long job_items, const PointLookup& lookup,
                                  RefineCarry carry = {});
+  // The plan of one shard of a sweep (CheckShardable): only the shard's items are looked up, counted and
+  // queued (items_total is the shard's); keys() still holds every item's key, in item order.
+  static StatusOr<JobPlan> BuildShard(const SweepSpec& spec, long job_items, const PointLookup& lookup,
+                                      const Shard& shard);
   // The plan of a published sweep: every item stored, nothing to compute.
   static JobPlan Published(long items_total);
 
@@ -100,6 +128,9 @@ class JobPlan {
 
  private:
   const std::string& KeyOf(const WorkItem& w) const;
+  // A grid sweep's plan (not refined); with `shard`, of that shard's items only.
+  static StatusOr<JobPlan> BuildGrid(const SweepSpec& spec, long job_items, const PointLookup& lookup,
+                                     const Shard* shard);
   void QueueAllJobs();  // every job queued, in order
 
   int ic_count_ = 1;

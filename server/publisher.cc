@@ -139,7 +139,7 @@ StatusOr<SweepRow> PublishMap(const MapPublication& m, ResultWriter& writer, con
     BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, grid));
     records = std::move(grid.records);  // the map rows' ranges are those of the map as written
   } else {
-    BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, records));
+    BISTABLE_RETURN_IF_ERROR(WriteMapFile(path, spec, records, m.origin));
   }
   done.state = SweepState::kDone;
   done.file = std::filesystem::relative(path, m.data_dir).string();

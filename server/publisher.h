@@ -20,6 +20,7 @@
 #include "base/status.h"
 #include "engine/sweep_spec.h"
 #include "storage/index_db.h"
+#include "storage/map_file.h"
 #include "storage/result_writer.h"
 
 namespace bistable {
@@ -79,6 +80,7 @@ struct MapPublication {
   double started = 0;             // when the sweep started (unix seconds)
   std::string path;               // the map file to write (atomically: beside, then renamed)
   std::string data_dir;           // the row's file is relative to it
+  MapOrigin origin = {};          // provenance beyond the spec (a map merged from shards: `bistable merge`)
   // What the caller says of it (the coordinator's log and warnings).
   struct Outcome {
     bool incomplete = false;       // some item is missing or failed its checksum: plan the sweep again

@@ -355,7 +355,7 @@ Status WriteRefinement(hid_t file, const SweepSpec& spec, const RefinedGrid& ref
 }
 
 Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& spec,
-                 const std::vector<PointRecord>& records, const RefinedGrid* refined) {
+                 const std::vector<PointRecord>& records, const RefinedGrid* refined, const MapOrigin& origin) {
   const long np = spec.points();
   const int nic = spec.ic_count();
   std::vector<hsize_t> axis_dims;
@@ -523,9 +523,13 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "source",
                                            std::string("bistable-sweep ") + kSoftwareVersion + " (numerics " +
                                                kNumericsVersion + "): " + spec.ModelLabel() + " model, " + settings));
+  const std::string merged =
+      origin.merged_from_shards > 0
+          ? " merged from " + std::to_string(origin.merged_from_shards) + " shards (bistable merge) and"
+          : "";
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "history",
                                            IsoTimeUtc(static_cast<double>(std::time(nullptr))) + " bistable-sweep " +
-                                               kSoftwareVersion + ": map of sweep " + spec.Id() + " written"));
+                                               kSoftwareVersion + ": map of sweep " + spec.Id() + merged + " written"));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(
       f, "references",
       "Models and metrics: docs/model.md and docs/numerics.md of bistable-sweep. Paper: Numerical and experimental "
@@ -543,6 +547,10 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "name", spec.name));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "axes", axes_attr));
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "motion_codes", MotionCodesText()));
+  if (origin.merged_from_shards > 0) {  // provenance: the records came from that many shard stores
+    const int32_t shards = origin.merged_from_shards;
+    BISTABLE_RETURN_IF_ERROR(WriteNumberAttr(f, "merged_from_shards", H5T_NATIVE_INT32, &shards, 1));
+  }
   // Where it was written: the CPU and the lanes the engine ran there (dynamics/host_lanes.h). host_*: names
   // that say where a file was made, which compare-maps.py skips (a map computed elsewhere is the same map).
   const HostLanes host = ThisHostLanes();
@@ -595,7 +603,7 @@ Status WriteFileBytes(const std::string& path, const std::vector<char>& bytes) {
 // its exit handler (H5_term_library) crashed closing it again — SIGSEGV after the disk-full error had
 // been printed (issue 39). The image is the compressed file (smaller than the records it holds).
 Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector<PointRecord>& records,
-                const RefinedGrid* refined) {
+                const RefinedGrid* refined, const MapOrigin& origin) {
   Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
   if (!fapl.ok() || H5Pset_fapl_core(fapl.get(), size_t{8} << 20, /*backing_store=*/0) < 0)
     return H5Fail(tmp, "core driver");
@@ -603,8 +611,8 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
   if (id < 0) return H5Fail(tmp, "create");
   Status st;
   {
-    const Handle file(id, [](hid_t) -> herr_t { return 0; });  // closed below, checked
-    st = WriteInto(file, tmp, spec, records, refined);         // every other handle is closed when it returns
+    const Handle file(id, [](hid_t) -> herr_t { return 0; });   // closed below, checked
+    st = WriteInto(file, tmp, spec, records, refined, origin);  // every other handle is closed when it returns
   }
   std::vector<char> image;
   if (st.ok()) {
@@ -625,7 +633,7 @@ Status WriteAll(const std::string& tmp, const SweepSpec& spec, const std::vector
 
 namespace {
 Status WriteMapFileImpl(const std::string& path, const SweepSpec& spec, const std::vector<PointRecord>& records,
-                        const RefinedGrid* refined) {
+                        const RefinedGrid* refined, const MapOrigin& origin) {
   if (records.size() != static_cast<size_t>(spec.points()) * spec.ic_count())
     return Status::Internal("map file: record count does not match the grid");
   // A temporary of this writer's own (process id and a counter): two processes publishing the same sweep
@@ -637,7 +645,7 @@ Status WriteMapFileImpl(const std::string& path, const SweepSpec& spec, const st
   {
     std::lock_guard<std::recursive_mutex> lock(Hdf5Mutex());
     H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors come back as Status, not printed
-    st = WriteAll(tmp, spec, records, refined);
+    st = WriteAll(tmp, spec, records, refined, origin);
   }
   if (st.ok()) st = FsyncPath(tmp, false);
   if (st.ok()) {
@@ -651,12 +659,13 @@ Status WriteMapFileImpl(const std::string& path, const SweepSpec& spec, const st
 }
 }  // namespace
 
-Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::vector<PointRecord>& records) {
-  return WriteMapFileImpl(path, spec, records, nullptr);
+Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::vector<PointRecord>& records,
+                    const MapOrigin& origin) {
+  return WriteMapFileImpl(path, spec, records, nullptr, origin);
 }
 
 Status WriteMapFile(const std::string& path, const SweepSpec& spec, const RefinedGrid& refined) {
-  return WriteMapFileImpl(path, spec, refined.records, &refined);
+  return WriteMapFileImpl(path, spec, refined.records, &refined, MapOrigin{});
 }
 
 std::string MapShape(const SweepSpec& spec) {

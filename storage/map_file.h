@@ -4,9 +4,9 @@
 // fractions of motion types over the initial conditions. Every dimension has a coordinate variable
 // (dimension scale); fixed parameters are scalar coordinates; variables carry long_name, UDUNITS units
 // (or flag_values/flag_meanings for codes), unit_label (the plots' label) and definition; global
-// attributes carry provenance (Conventions, source, history, spec, versions, and the writing host's CPU
-// and lanes: host_cpu_model, host_simd_isa, host_lane_width). Chunked, shuffled and deflated. Written to
-// a temporary file, fsynced and renamed into place: a reader never sees a partial file.
+// attributes carry provenance (Conventions, source, history, spec, versions, the writing host's CPU
+// and lanes: host_cpu_model, host_simd_isa, host_lane_width; merged_from_shards for a merged map). Chunked, shuffled
+// and deflated. Written to a temporary file, fsynced and renamed into place: a reader never sees a partial file.
 #ifndef BISTABLE_STORAGE_MAP_FILE_H_
 #define BISTABLE_STORAGE_MAP_FILE_H_
 
@@ -21,8 +21,15 @@
 
 namespace bistable {
 
+// Where a map's records came from, beyond the spec (provenance attributes).
+struct MapOrigin {
+  int merged_from_shards = 0;  // > 0: assembled by `bistable merge` from that many shard stores (the root
+                               // attribute merged_from_shards, and said in history)
+};
+
 // records[point * ic_count + ic], point in the spec's row-major order.
-Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::vector<PointRecord>& records);
+Status WriteMapFile(const std::string& path, const SweepSpec& spec, const std::vector<PointRecord>& records,
+                    const MapOrigin& origin = {});
 // A refined map ([refine]): the finest grid's records plus refine_level and refine_fill.
 Status WriteMapFile(const std::string& path, const SweepSpec& spec, const RefinedGrid& refined);
 

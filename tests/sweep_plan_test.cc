@@ -42,6 +42,29 @@ alpha = { linspace = [0.2, 1.4, 5] }
 omega = [0.8, 1.2, 2.0]
 )";  // 15 points, one initial condition
 
+// A refined sweep: 17 x 17, 2 levels, short integration.
+constexpr const char* kRefined = R"(
+model = "coupled"
+[axes]
+alpha = { linspace = [0.015, 1.2, 17] }
+omega = { linspace = [0.3, 3.0, 17] }
+[integration]
+t_end = 120
+t_keep = 60
+[metrics]
+store = ["frf_db", "motion"]
+[refine]
+levels = 2
+criterion = "frf_0db"
+)";
+
+// Continuation over omega on 3 lines of 5 points, `direction` "up", "down" or "both".
+std::string ChainSpec(const std::string& direction) {
+  return "model = \"coupled\"\n[axes]\nalpha = [0.2, 0.6, 1.0]\nomega = { linspace = [0.8, 1.6, 5] }\n"
+         "[continuation]\naxis = \"omega\"\ndirection = \"" +
+         direction + "\"\n";
+}
+
 TEST(SweepPlan, QueuesOnlyTheMissingItemsInJobsOfTheAskedSize) {
   const SweepSpec spec = bistable_test::ParsedSpec(kGrid);
   FakeCache cache;
@@ -112,15 +135,7 @@ TEST(SweepPlan, AJobCountsOnceAndTheLastOneMakesThePlanPublishable) {
 }
 
 TEST(SweepPlan, AContinuationChainWithAnyMissingItemIsQueuedWholeInOneJob) {
-  const SweepSpec spec = bistable_test::ParsedSpec(R"(
-model = "coupled"
-[axes]
-alpha = [0.2, 0.6, 1.0]
-omega = { linspace = [0.8, 1.6, 5] }
-[continuation]
-axis = "omega"
-direction = "up"
-)");
+  const SweepSpec spec = bistable_test::ParsedSpec(ChainSpec("up"));
   const auto chains = spec.ContinuationChains();
   ASSERT_EQ(chains.size(), 3u);
   FakeCache cache;
@@ -145,20 +160,7 @@ TEST(SweepPlan, ALookupFailureIsThePlansError) {
 }
 
 TEST(SweepPlan, ARefinedSweepPlansRoundAfterRoundUntilItPublishes) {
-  const SweepSpec spec = bistable_test::ParsedSpec(R"(
-model = "coupled"
-[axes]
-alpha = { linspace = [0.015, 1.2, 17] }
-omega = { linspace = [0.3, 3.0, 17] }
-[integration]
-t_end = 120
-t_keep = 60
-[metrics]
-store = ["frf_db", "motion"]
-[refine]
-levels = 2
-criterion = "frf_0db"
-)");
+  const SweepSpec spec = bistable_test::ParsedSpec(kRefined);
   FakeCache cache;
   JobPlan plan = Planned(JobPlan::Build(spec, 64, cache.Lookup()));
   EXPECT_TRUE(plan.refined());
@@ -198,6 +200,85 @@ criterion = "frf_0db"
   EXPECT_EQ(again->jobs(), 0);
   EXPECT_EQ(again->points(), plan.points());
   EXPECT_EQ(again->keys(), plan.keys());
+}
+
+// Shards (issue 43): `bistable run --shard I/N` plans one slice of a sweep.
+TEST(SweepPlan, ShardTextIsIOverNWithItsBoundsNamed) {
+  auto s = ParseShard("3/8");
+  ASSERT_TRUE(s.ok()) << s.status().ToString();
+  EXPECT_EQ(s->index, 3);
+  EXPECT_EQ(s->count, 8);
+  EXPECT_EQ(s->Label(), "3/8");
+  for (const char* bad : {"8/8", "9/8", "0/0", "-1/4", "1/", "/4", "a/b", "3", "3/8/1", "1/100001", " 1/4"}) {
+    auto r = ParseShard(bad);
+    ASSERT_FALSE(r.ok()) << bad;
+    EXPECT_EQ(r.status().field(), "shard") << bad;
+  }
+  EXPECT_NE(ParseShard("8/8").status().message().find("0 <= I < N = 8"), std::string::npos);
+  EXPECT_NE(ParseShard("0/0").status().message().find("1 <= N <= 100000"), std::string::npos);
+}
+
+TEST(SweepPlan, ShardsPartitionTheItemsRoundRobinAndQueueOnlyTheirMissingOnes) {
+  const SweepSpec spec = bistable_test::ParsedSpec(kGrid);  // 15 items
+  FakeCache cache;
+  cache.stored[spec.ItemKey(4, 0)] = PointRecord{};  // shard 1/3's (4 mod 3 = 1)
+  std::vector<int> owner(15, -1);
+  long total = 0;
+  for (int i = 0; i < 3; ++i) {
+    const Shard shard{i, 3};
+    JobPlan plan = Planned(JobPlan::BuildShard(spec, 2, cache.Lookup(), shard));
+    EXPECT_EQ(plan.keys().size(), 15u) << "every item's key, in item order";
+    EXPECT_EQ(plan.items_total(), 5);
+    EXPECT_EQ(plan.items_cached(), i == 1 ? 1 : 0);
+    total += plan.items_total();
+    std::vector<long> jobs;
+    for (long j = 0; j < plan.jobs(); ++j) jobs.push_back(j);
+    for (const WorkItem& w : plan.ItemsFor(jobs)) {
+      EXPECT_EQ(owner[w.point], -1) << "item " << w.point << " in two shards";
+      owner[w.point] = i;
+      EXPECT_EQ(w.point % 3, i);
+    }
+    EXPECT_EQ(ShardItemIndices(spec, shard).size(), 5u);
+  }
+  EXPECT_EQ(total, 15);
+  for (long p = 0; p < 15; ++p) EXPECT_EQ(owner[p], p == 4 ? -1 : p % 3) << p;  // item 4: stored, not queued
+  // More shards than items: the last ones are empty, and done.
+  JobPlan empty = Planned(JobPlan::BuildShard(spec, 2, cache.Lookup(), Shard{16, 20}));
+  EXPECT_EQ(empty.items_total(), 0);
+  EXPECT_EQ(empty.next(), JobPlan::Next::kPublish);
+}
+
+TEST(SweepPlan, AContinuationShardHoldsWholeChains) {
+  const SweepSpec spec = bistable_test::ParsedSpec(ChainSpec("both"));
+  const auto chains = spec.ContinuationChains();
+  ASSERT_EQ(chains.size(), 6u);  // 3 lines x 2 directions
+  FakeCache cache;
+  long total = 0;
+  for (int i = 0; i < 4; ++i) {
+    JobPlan plan = Planned(JobPlan::BuildShard(spec, 2, cache.Lookup(), Shard{i, 4}));
+    std::vector<long> jobs;
+    for (long j = 0; j < plan.jobs(); ++j) jobs.push_back(j);
+    const std::vector<WorkItem> items = plan.ItemsFor(jobs);
+    std::vector<WorkItem> expected;  // chains i and i + 4, whole and in their order
+    for (size_t c = static_cast<size_t>(i); c < chains.size(); c += 4)
+      expected.insert(expected.end(), chains[c].begin(), chains[c].end());
+    ASSERT_EQ(items.size(), expected.size()) << "shard " << i;
+    for (size_t k = 0; k < items.size(); ++k) {
+      EXPECT_EQ(items[k].point, expected[k].point);
+      EXPECT_EQ(items[k].ic, expected[k].ic);
+    }
+    total += plan.items_total();
+  }
+  EXPECT_EQ(total, 30);
+}
+
+TEST(SweepPlan, ARefinedSweepCannotBeSharded) {
+  const SweepSpec spec = bistable_test::ParsedSpec(kRefined);
+  FakeCache cache;
+  auto plan = JobPlan::BuildShard(spec, 8, cache.Lookup(), Shard{0, 2});
+  ASSERT_FALSE(plan.ok());
+  EXPECT_EQ(plan.status().field(), "shard");
+  EXPECT_NE(plan.status().message().find("refined"), std::string::npos) << plan.status().message();
 }
 
 }  // namespace

@@ -19,7 +19,9 @@
 #   full mode also: a clean 3-node run first, an admin downing node2 mid-sweep
 #   (scontrol update state=down), and a 1-node allocation (coordinator and worker on one node,
 #   --overlap).
-# --quick (CI): the node-loss run with the refusals, map equality and items per node.
+#   - the job-array path (deploy/slurm/array.sbatch, issue 43): 3 array tasks (`bistable run --shard I/3`),
+#     a merge job after them, the merged map equal to the embedded one, a task rerun alone resuming;
+# --quick (CI): the node-loss run with the refusals, map equality and items per node, and the array run.
 # Prints a table (PASS/FAIL per check, with figures); exit 0 only when every row passes; 77 (with a
 # one-line reason) when this machine cannot run it (not root, no network namespaces, no Slurm/munge).
 # Everything it starts is torn down on exit (trap): processes, namespaces, bridge, temp dir (--keep
@@ -491,6 +493,65 @@ refusal_checks() {
   fi
 }
 
+# ---------------------------------------------------------------------------------------------
+# The job-array path (issue 43): deploy/slurm/array.sbatch as an array of N shards, the merge as a job
+# depending on it, then one task rerun alone (it resumes: everything reused).  run_array NAME N
+# wait_jobs JOB...: until squeue lists none of them (420 s).
+wait_jobs() {
+  local end=$((SECONDS + 420))
+  while [ -n "$(on ctl squeue -h -j "$(IFS=,; echo "$*")" -o %i 2> /dev/null || true)" ]; do
+    [ "$SECONDS" -lt "$end" ] || { on ctl scancel "$@" || true; sleep 5; return 1; }
+    sleep 0.5
+  done
+}
+run_array() {
+  local name=$1 n=$2 run=$T/runs/$1 arr mid rerun t0 states bad map cmp rc=0 nodes
+  mkdir -p "$run"
+  t0=$SECONDS
+  arr=$(on ctl env BISTABLE_BIN="$BUILD" BISTABLE_DATA="$run/data" \
+    sbatch --parsable --array=0-$((n - 1)) --chdir="$run" --output="$run/array-%A_%a.out" --job-name="bsl-$name" \
+    "$REPO/deploy/slurm/array.sbatch" "$SPEC")
+  arr=${arr%%;*}
+  mid=$(on ctl env BISTABLE_BIN="$BUILD" BISTABLE_DATA="$run/data" \
+    sbatch --parsable --dependency=afterok:"$arr" --chdir="$run" --output="$run/merge-%j.out" --job-name="bsl-$name-merge" \
+    "$REPO/deploy/slurm/array.sbatch" --merge "$SPEC")
+  mid=${mid%%;*}
+  log "$name: array job $arr ($n tasks), merge job $mid after it"
+  wait_jobs "$arr" "$mid" || log "$name: still running after 420 s: cancelled"
+  # Every task and the merge COMPLETED 0:0 (MinJobAge keeps their records).
+  states=$(on ctl scontrol show job -o "$arr" 2> /dev/null | grep -o 'JobState=[A-Z_]* .* ExitCode=[0-9:]*' |
+    sed 's/JobState=\([A-Z_]*\) .* ExitCode=\([0-9:]*\)/\1 \2/' | sort | uniq -c | sed 's/^ *//' | paste -sd, -)
+  bad=$(on ctl scontrol show job -o "$arr" "$mid" 2> /dev/null | grep -vc 'JobState=COMPLETED .* ExitCode=0:0' || true)
+  nodes=$(grep -ho 'on [a-z0-9]*: shard [0-9]*/[0-9]*' "$run"/array-*.out 2> /dev/null | awk '{print $4 " on " $2}' | sort | sed 's/:$//' | paste -sd, -)
+  map=$(sed -n 's/^array\.sbatch: sweep [0-9a-f]* merged; map: //p' "$run"/merge-"$mid".out 2> /dev/null | tail -n 1)
+  if [ "$bad" = 0 ] && [ -n "$map" ]; then
+    row "$name: sbatch --array=0-$((n - 1)), then --merge, jobs end" PASS \
+      "array job $arr: $n tasks (${states:-?}); shards ${nodes:-?}; merge job $mid COMPLETED 0:0; $((SECONDS - t0))s; map $map"
+  else
+    row "$name: sbatch --array=0-$((n - 1)), then --merge, jobs end" FAIL \
+      "array $arr: ${states:-?}; merge $mid: $(tail -n 2 "$run"/merge-"$mid".out 2> /dev/null | tr '\n' ' ')"
+  fi
+  if [ -n "$map" ] && [ -f "$map" ]; then
+    cmp=$("$PY" "$HERE/../compare-maps.py" "$map" "$EMBEDDED" 2>&1) || rc=1
+  else
+    cmp="no map" rc=1
+  fi
+  row "$name: merged map == embedded bistable run" "$([ "$rc" = 0 ] && echo PASS || echo FAIL)" "$cmp"
+  # One task again, alone (a failed task resubmitted): it resumes from its store and computes nothing.
+  rerun=$(on ctl env BISTABLE_BIN="$BUILD" BISTABLE_DATA="$run/data" BISTABLE_SHARDS="$n" \
+    sbatch --parsable --array=1 --chdir="$run" --output="$run/rerun-%A_%a.out" --job-name="bsl-$name-rerun" \
+    "$REPO/deploy/slurm/array.sbatch" "$SPEC")
+  rerun=${rerun%%;*}
+  wait_jobs "$rerun" || true
+  local said
+  said=$(grep -h '^shard 1/' "$run"/rerun-"$rerun"_1.out 2> /dev/null || true)
+  if [[ $said =~ \(0\ computed,\ [1-9][0-9]*\ reused ]]; then
+    row "$name: a task rerun alone resumes from its store" PASS "BISTABLE_SHARDS=$n sbatch --array=1: '$said'"
+  else
+    row "$name: a task rerun alone resumes from its store" FAIL "'${said:-no output}' ($run/rerun-${rerun}_1.out)"
+  fi
+}
+
 PORT=50100
 if [ "$QUICK" = 0 ]; then
   run_job clean 3 $((PORT + 1)) none 1
@@ -505,6 +566,7 @@ if [ "$QUICK" = 0 ]; then
 else
   run_job node-loss 3 $((PORT + 2)) kill9:node3 1
 fi
+run_array array 3
 # The rogue workers must never have registered.
 if grep -qs rogue- "$T"/runs/*/workers-all.json; then
   row "rogue workers never registered" FAIL "$(grep -ho '"rogue-[a-z]*' "$T"/runs/*/workers-all.json | sort -u | tr '\n' ' ')"
