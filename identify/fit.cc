@@ -731,7 +731,8 @@ struct FitStages {
   }
   // Σ r² of the short-horizon simulation error (segments of opt.shooting_horizon_s) at u; 1e30 on divergence.
   double ShortHorizonCost(const std::vector<double>& u) {
-    return SumOfSquares(u, FixedSubsteps(m, Theta(u), recs, Objective::kShooting), opt.shooting_horizon_s);
+    // The fit's own objective's steps: a time-objective fit compares its basins as it always has.
+    return SumOfSquares(u, FixedSubsteps(m, Theta(u), recs, opt.objective), opt.shooting_horizon_s);
   }
   // `horizon_s` ≥ 0: the simulation error with restarts every horizon_s instead of the cost's own.
   // `restarts`: restarts from the measured (band-limited) states instead of multiple shooting's fitted ones.
