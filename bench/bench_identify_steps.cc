@@ -25,18 +25,6 @@ using bistable_bench::Seconds;
 
 namespace {
 
-IdentModel Truth(const DimensionalParams& p) {
-  IdentModel m;
-  m.m_main = p.m_m;
-  m.m_res = p.has_resonator ? p.m_r : 0.0;
-  for (const TermValues& t : TruthTerms(p, {})) {
-    m.terms.push_back(t.term);
-    m.theta.insert(m.theta.end(), t.values.begin(), t.values.end());
-  }
-  m.fc = FrictionConstants{p.fric_m.v_sp, p.fric_m.v_t};
-  return m;
-}
-
 // RMS over the record of a − b on the main output, as a percentage of the reference's RMS (NaN samples skipped).
 double ErrorPercent(const std::vector<double>& a, const std::vector<double>& ref) {
   double se = 0, mean = 0, ss = 0;
@@ -70,7 +58,7 @@ int main(int argc, char** argv) {
               rec->name.c_str(), r->n(), 1.0 / r->dt, 100.0 * r->noise[0] / r->meas_scale, every);
   std::printf("%-12s %-16s %6s %10s %11s\n", "model", "substeps", "count", "error_%", "time_ratio");
   for (const double friction_scale : {1.0, 4.0, 0.0}) {
-    IdentModel m = Truth(p);
+    IdentModel m = TruthModel(p, {});
     const std::vector<std::string> names = m.ParamNames();
     for (size_t j = 0; j < names.size(); ++j)
       if (names[j].find(".friction.") != std::string::npos) m.theta[j] *= friction_scale;

@@ -76,6 +76,18 @@ std::vector<TermValues> TruthTerms(const DimensionalParams& p, const std::vector
   return out;
 }
 
+IdentModel TruthModel(const DimensionalParams& p, const std::vector<TermValues>& extra) {
+  IdentModel m;
+  m.m_main = p.m_m;
+  m.m_res = p.has_resonator ? p.m_r : 0.0;
+  for (const TermValues& t : TruthTerms(p, extra)) {
+    m.terms.push_back(t.term);
+    m.theta.insert(m.theta.end(), t.values.begin(), t.values.end());
+  }
+  m.fc = FrictionConstants{p.fric_m.v_sp, p.fric_m.v_t};
+  return m;
+}
+
 double SyntheticWell(const DimensionalParams& p, const std::vector<TermValues>& extra, double y_guess) {
   const StribeckBasis fb(0.002, 0.001);  // unused: friction is no extra
   double y = y_guess;

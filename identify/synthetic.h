@@ -11,6 +11,7 @@
 
 #include "dynamics/dimensional_model.h"
 #include "identify/effects.h"
+#include "identify/model.h"
 #include "identify/record.h"
 
 namespace bistable {
@@ -42,6 +43,8 @@ StatusOr<TermValues> ParseSyntheticExtra(const std::string& spec);
 // main.friction; with the resonator res.linear, res.viscous, res.damping_z2, res.friction) and the extras,
 // each with its values — what a model file for `identify --predict` holds.
 std::vector<TermValues> TruthTerms(const DimensionalParams& p, const std::vector<TermValues>& extra);
+// The same truth as an identify model (masses and the friction law's constants from the rig).
+IdentModel TruthModel(const DimensionalParams& p, const std::vector<TermValues>& extra);
 
 // The main body's static equilibrium nearest `y_guess` [m] of the rig plus the extras (the restoring force at
 // rest, k_lin y + k3 y³ + the extras' force at v = 0, is zero there): a well of the truth, where a record can

@@ -30,17 +30,7 @@ SyntheticOptions Chirp(double a0_mm, double f_end, unsigned seed, double noise_m
 }
 
 // The truth of a record as an identify model.
-IdentModel Truth(const DimensionalParams& p, const std::vector<TermValues>& extra) {
-  IdentModel m;
-  m.m_main = p.m_m;
-  m.m_res = p.has_resonator ? p.m_r : 0.0;
-  for (const TermValues& t : TruthTerms(p, extra)) {
-    m.terms.push_back(t.term);
-    m.theta.insert(m.theta.end(), t.values.begin(), t.values.end());
-  }
-  m.fc = FrictionConstants{p.fric_m.v_sp, p.fric_m.v_t};
-  return m;
-}
+IdentModel Truth(const DimensionalParams& p, const std::vector<TermValues>& extra) { return TruthModel(p, extra); }
 
 PreparedRecord Prepared(const Record& r) {
   auto p = PrepareRecord(r, bistable::Setup{}, 0, r.t.size(), 0.0, r.name);
@@ -241,6 +231,32 @@ TEST(ObjectiveChoice, TwinsOfAChaoticRecordCarryItsNoiseLevel) {
     ss += (twins[0][0].meas[i] - twins[1][0].meas[i]) * (twins[0][0].meas[i] - twins[1][0].meas[i]);
   const double level = std::sqrt(ss / static_cast<double>(r.n()) / 2.0);
   EXPECT_NEAR(level, 0.05e-3, 0.1 * 0.05e-3) << "the twin's noise; the output's own level " << r.noise[0];
+}
+
+// The substeps a fit holds (FixedSubsteps). Short horizons: on a sticking friction law the stable count (each
+// evaluation raises to it anyway; bench_identify_steps: 50x below the noise there), not 1.5x SubstepsFor's margin
+// on top; a long simulation keeps that margin; where the oscillations set the step both hold the same.
+TEST(ObjectiveChoice, ShortHorizonsHoldTheStableCountOnStickingFriction) {
+  DimensionalParams beam = Beam();
+  auto rec = MakeSyntheticRecord(beam, Chirp(12, 10, 3, 0.05), "held steps");
+  ASSERT_TRUE(rec.ok()) << rec.status().ToString();
+  const std::vector<PreparedRecord> recs = {Prepared(*rec)};
+  IdentModel sticky = Truth(beam, {});
+  const std::vector<std::string> names = sticky.ParamNames();
+  for (size_t j = 0; j < names.size(); ++j)
+    if (names[j].find(".friction.") != std::string::npos) sticky.theta[j] *= 4.0;
+  const int stable = StableSubsteps(sticky, sticky.theta, recs[0]), full = SubstepsFor(sticky, sticky.theta, recs[0]);
+  ASSERT_GT(full, 10 * OscillationSubsteps(sticky, sticky.theta, recs[0]));  // the friction sets the step
+  EXPECT_EQ(FixedSubsteps(sticky, sticky.theta, recs, Objective::kShooting)[0], stable);
+  EXPECT_EQ(FixedSubsteps(sticky, sticky.theta, recs, Objective::kTime)[0], static_cast<int>(std::ceil(1.5 * full)));
+  // 1.5 × SubstepsFor is 1.5 / 0.8 = 1.9× the stable count where the friction sets both.
+  EXPECT_LT(1.8 * FixedSubsteps(sticky, sticky.theta, recs, Objective::kShooting)[0],
+            FixedSubsteps(sticky, sticky.theta, recs, Objective::kTime)[0]);
+  IdentModel smooth = sticky;
+  for (size_t j = 0; j < names.size(); ++j)
+    if (names[j].find(".friction.") != std::string::npos) smooth.theta[j] = 0.0;
+  EXPECT_EQ(FixedSubsteps(smooth, smooth.theta, recs, Objective::kShooting),
+            FixedSubsteps(smooth, smooth.theta, recs, Objective::kTime));
 }
 
 TEST(ObjectiveChoice, WellChangesCountCrossingsWithHysteresis) {
