@@ -27,7 +27,6 @@
 
 #include "base/beside.h"
 #include "base/cpus.h"
-#include "dynamics/eigen_bounds.h"
 #include "dynamics/spectrum.h"
 #include "identify/shooting.h"
 
