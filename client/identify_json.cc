@@ -203,6 +203,19 @@ nlohmann::json ResultJson(const identify::Options& o, const identify::Summary& s
   j["uncertainty"] = nlohmann::json::object();
   const auto names = r.final_model.ParamNames();
   for (size_t i = 0; i < names.size(); ++i) j["uncertainty"][names[i]] = JsonNumber(r.after.sigma[i]);
+  // The final fit's Gauss–Newton covariance over `params` (row by row, in the order of `names`; null for the
+  // spectral objective, which has none): what a robustness map of the fitted model draws from (issue 42).
+  j["covariance"] = nullptr;
+  if (r.after.covariance.rows() == static_cast<Eigen::Index>(names.size()) &&
+      r.after.covariance.cols() == static_cast<Eigen::Index>(names.size())) {
+    nlohmann::json rows = nlohmann::json::array();
+    for (Eigen::Index a = 0; a < r.after.covariance.rows(); ++a) {
+      nlohmann::json row = nlohmann::json::array();
+      for (Eigen::Index b = 0; b < r.after.covariance.cols(); ++b) row.push_back(JsonNumber(r.after.covariance(a, b)));
+      rows.push_back(row);
+    }
+    j["covariance"] = {{"names", names}, {"matrix", rows}};
+  }
   j["params_declared_fit"] = ParamsJson(r.declared, r.before);
   j["errors_by_output"] = ErrorsByOutputJson(r.before.errors, r.after.errors);
   j["records"] = nlohmann::json::array();

@@ -14,6 +14,7 @@
 #include "client/map_source.h"
 #include "client/progress.h"
 #include "client/remote_commands.h"
+#include "client/terms_report.h"
 #include "dynamics/cancel.h"
 #include "engine/json_shapes.h"
 #include "proto/coordinator_client.h"
@@ -36,7 +37,9 @@ StatusOr<std::unique_ptr<CoordinatorClient>> Connect(const RemoteArgs& a) {
 }
 
 int Submit(CoordinatorClient& c, const RemoteArgs& a) {
-  auto text = ReadTextFile(a.target, "spec", limits::kMaxSpecBytes);
+  auto read = ReadTextFile(a.target, "spec", limits::kMaxSpecBytes);
+  if (!read.ok()) return Fail(read.status());
+  auto text = InlineTermsReport(*read, a.target);  // the coordinator never reads the user's files
   if (!text.ok()) return Fail(text.status());
   auto rep = c.Submit(*text, a.target);
   if (!rep.ok()) return Fail(rep.status());

@@ -23,6 +23,7 @@
 #include "client/progress.h"
 #include "client/shard_run.h"
 #include "client/sweep_commands.h"
+#include "client/terms_report.h"
 #include "dynamics/cancel.h"
 #include "engine/evaluate.h"
 #include "engine/json_shapes.h"
@@ -86,7 +87,7 @@ int RunShardOf(const RunArgs& a, const SweepSpec& spec, int threads) {
 }
 
 int RunSweep(const RunArgs& a) {
-  auto spec = LoadSweepSpec(a.spec_path);
+  auto spec = LoadClientSweepSpec(a.spec_path);
   if (!spec.ok()) return Fail(spec.status());
   if (a.threads < 0 || a.threads > 1024)
     return Fail(Status::InvalidArgument("threads",
@@ -197,7 +198,7 @@ int RunSweep(const RunArgs& a) {
 
 int MergeSweep(const std::string& spec_path, const std::vector<std::string>& stores, const std::string& data,
                bool json) {
-  auto spec = LoadSweepSpec(spec_path);
+  auto spec = LoadClientSweepSpec(spec_path);
   if (!spec.ok()) return Fail(spec.status());
   const auto t0 = std::chrono::steady_clock::now();
   auto merged = MergeShards(*spec, stores, data);

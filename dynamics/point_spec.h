@@ -110,6 +110,9 @@ struct PointSpec {
   std::array<double, 4> ic = {0, 0, 0, 0};
   IntegrationSettings integration;
   MetricSettings metrics;
+  // A term model's parameters at this point (a sweep with model = "terms": engine/sweep_spec.h's TermsConfig, in
+  // TermModel::ParamNames order); empty for every other model.
+  std::vector<double> theta;
 };
 
 // Checks every field; the message names the field and the bound ("alpha = -1 violates alpha > 0").

@@ -107,8 +107,7 @@ void TermForce(const TermModel& m, Body body, const double* th, double q, double
   *f = sum, *fq = sq, *fv = sv;
 }
 
-int TermRk4Substeps(const TermModel& m, const double* th, double dt) {
-  // Rest states of the main body: the origin and the zeros of F(q, 0) (sign changes on a log grid).
+std::vector<double> TermRestStates(const TermModel& m, const double* th) {
   std::vector<double> rest = {0.0};
   for (double sign : {1.0, -1.0}) {
     double q0 = 0, f0 = 0, unused;
@@ -131,6 +130,22 @@ int TermRk4Substeps(const TermModel& m, const double* th, double dt) {
       q0 = sign * a, f0 = f;
     }
   }
+  std::sort(rest.begin(), rest.end());
+  return rest;
+}
+
+double TermWell(const TermModel& m, const double* th) {
+  for (double q : TermRestStates(m, th)) {
+    if (!(q > 0)) continue;
+    double f, fq, fv;
+    TermForce(m, Body::kMain, th, q, 0.0, &f, &fq, &fv);
+    if (fq > 0) return q;
+  }
+  return 0.0;
+}
+
+int TermRk4Substeps(const TermModel& m, const double* th, double dt) {
+  const std::vector<double> rest = TermRestStates(m, th);
   const bool res = m.HasResonator();
   const double inv_m = 1.0 / m.m_main, inv_r = res ? 1.0 / m.m_res : 0.0;
   double rho = 0;

@@ -52,6 +52,12 @@ Status ValidateTermModel(const TermModel& m);
 
 // F (main body) or G (resonator) of a term model at (q, v) with parameters th, and its slopes.
 void TermForce(const TermModel& m, Body body, const double* th, double q, double v, double* f, double* fq, double* fv);
+// The rest states of the main body: the origin and every zero of F(q, 0) found on a log grid of |q| from
+// 1 µm to 1 m (bisected to 1e-9 relative), ascending.
+std::vector<double> TermRestStates(const TermModel& m, const double* th);
+// The positive well: the smallest positive rest state where ∂F/∂q > 0 (a stable equilibrium), 0 when there is
+// none (a monostable model; its lanes start at the origin).
+double TermWell(const TermModel& m, const double* th);
 // RK4 steps per output step dt: the Jacobian's spectral radius ρ at the rest states (the origin and every
 // zero of F(q, 0) found on a log grid of |q| from 1 µm to 1 m), h ≤ 2/ρ — the rig's rule (Rk4Substeps).
 int TermRk4Substeps(const TermModel& m, const double* th, double dt);

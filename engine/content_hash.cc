@@ -78,6 +78,8 @@ std::string PointKey(const PointSpec& p) {
   // keys of points without one stay those already cached.
   if (m.poincare_points > 0 || m.poincare_phase != 0)
     t.Field("pc_n", static_cast<long>(m.poincare_points)).Field("pc_phase", m.poincare_phase);
+  // A term model's parameters (issue 42), keyed only when there are some: no other point's key changes.
+  for (size_t k = 0; k < p.theta.size(); ++k) t.Field("th", p.theta[k]);
   return t.Hash();
 }
 

@@ -36,9 +36,12 @@ PointSpec MetricProxy(const SweepSpec& spec, const PointSpec& p) {
     return proxy;
   }
   const DimensionalParams& dp = spec.dimensional.params;
-  const RigDrive drive = RigDriveOf(p);
-  const double a0 = drive.a0_m, delta_s = spec.dimensional.bistable ? std::sqrt(-dp.k_lin / dp.k3) : 0.0;
-  proxy.model = spec.dimensional.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
+  const RigDrive drive = spec.DriveAt(p);
+  const double delta_s = spec.terms                  ? TermWell(spec.terms->model, p.theta.data())
+                         : spec.dimensional.bistable ? std::sqrt(-dp.k_lin / dp.k3)
+                                                     : 0.0;
+  const double a0 = drive.a0_m;
+  proxy.model = (spec.terms ? delta_s > 0 : spec.dimensional.bistable) ? ModelKind::kStandalone : ModelKind::kLinear;
   proxy.alpha = a0;
   proxy.omega = drive.omega_rad_s;
   proxy.metrics.period_tol = p.metrics.period_tol * (delta_s > 0 ? delta_s : a0);
@@ -57,20 +60,59 @@ SeriesLaneInput SeriesInputFor(const SweepSpec& spec, const PointSpec& p) {
   return in;
 }
 
+// A two-body lane's sine base at the point's drive (SI), and its start when one is given: what the rig's and a
+// term model's lane inputs share.
+template <class Input>
+bool SetBaseDrive(const SweepSpec& spec, const PointSpec& p, Input* in) {
+  const RigDrive drive = spec.DriveAt(p);
+  in->base_amp = drive.a0_m;
+  in->omega = drive.omega_rad_s;
+  in->amp = in->base_amp * in->omega * in->omega;
+  if (p.ic_given) in->x0 = p.ic;
+  return p.ic_given;
+}
+
 // The rig at its point (a0_mm, f0_hz): a sine base, at rest in the positive well (a linear beam at
 // the origin) unless initial states are given.
 DimensionalLaneInput DimensionalInputFor(const SweepSpec& spec, const PointSpec& p) {
   DimensionalLaneInput in;
   in.params = spec.dimensional.params;
-  const RigDrive drive = RigDriveOf(p);
-  in.base_amp = drive.a0_m;
-  in.omega = drive.omega_rad_s;
-  in.amp = in.base_amp * in.omega * in.omega;
-  if (p.ic_given)
-    in.x0 = p.ic;
-  else if (spec.dimensional.bistable)
-    in.x0[0] = std::sqrt(-in.params.k_lin / in.params.k3);
+  if (!SetBaseDrive(spec, p, &in) && spec.dimensional.bistable) in.x0[0] = std::sqrt(-in.params.k_lin / in.params.k3);
   return in;
+}
+
+// A term model at its point (model = "terms"): the point's own parameters (p.theta, which must outlive the
+// run), a sine base, at rest in the positive well (the origin for a monostable model) unless a start is given.
+TermLaneInput TermInputFor(const SweepSpec& spec, const PointSpec& p) {
+  TermLaneInput in;
+  in.model = &spec.terms->model;
+  in.theta = p.theta.data();
+  if (!SetBaseDrive(spec, p, &in)) in.x0[0] = TermWell(spec.terms->model, p.theta.data());
+  return in;
+}
+
+// RK4 substeps of a term-model sweep: the stiffest of its parameter sets — the nominal one, each swept
+// parameter at its axis's ends, and with covariance samples each parameter at ±4σ — by the rig's rule
+// (TermRk4Substeps). One count for the whole sweep, so a lane's bits do not depend on its neighbours.
+int TermSweepSubsteps(const SweepSpec& spec) {
+  const TermModel& m = spec.terms->model;
+  const double dt = spec.base.integration.dt;
+  int n = TermRk4Substeps(m, m.theta.data(), dt);
+  auto with = [&](int k, double v) {
+    std::vector<double> th = m.theta;
+    th[k] = v;
+    n = std::max(n, TermRk4Substeps(m, th.data(), dt));
+  };
+  for (const Axis& a : spec.axes)
+    if (const int k = m.IndexOf(a.name); k >= 0) with(k, a.values.front()), with(k, a.values.back());
+  if (spec.robustness.covariance && !spec.terms->covariance.empty()) {
+    const int np = m.NumParams();
+    for (int k = 0; k < np; ++k) {
+      const double sd = std::sqrt(std::max(0.0, spec.terms->covariance[k * np + k]));
+      with(k, m.theta[k] - 4 * sd), with(k, m.theta[k] + 4 * sd);
+    }
+  }
+  return n;
 }
 
 // Items of a series or dimensional RK4 sweep through the lane kernel, W side by side. Every item of a
@@ -85,7 +127,8 @@ std::optional<std::vector<PointResult>> ItemsInLanes(const SweepSpec& spec, cons
   KernelSettings ks = KernelSettingsFor(first);
   ks.keep_rows = false;
   const bool rosenbrock = first.integration.integrator == IntegratorKind::kRosenbrock;
-  const int substeps = spec.model == ModelKind::kDimensional && !rosenbrock
+  const int substeps = spec.terms ? TermSweepSubsteps(spec)
+                       : spec.model == ModelKind::kDimensional && !rosenbrock
                            ? Rk4Substeps(spec.dimensional.params, first.integration.dt)
                            : 1;
   RosenbrockTolerances tol;
@@ -116,6 +159,10 @@ std::optional<std::vector<PointResult>> ItemsInLanes(const SweepSpec& spec, cons
       std::array<SeriesLaneInput, W> in;
       for (int l = 0; l < n; ++l) in[l] = SeriesInputFor(spec, specs[l]);
       done = RunSeriesLanes<W>(in.data(), n, ks, raw.data());
+    } else if (spec.terms) {
+      std::array<TermLaneInput, W> in;
+      for (int l = 0; l < n; ++l) in[l] = TermInputFor(spec, specs[l]);
+      done = RunTermLanes<W>(in.data(), n, ks, substeps, raw.data());
     } else {
       std::array<DimensionalLaneInput, W> in;
       for (int l = 0; l < n; ++l) in[l] = DimensionalInputFor(spec, specs[l]);

@@ -176,12 +176,16 @@ class RobustnessKind : public SweepKind {
     const RobustnessConfig& r = spec.robustness;
     std::string s = "robustness=" + std::to_string(r.samples) + "," + std::to_string(r.seed) + "," + G17(r.ic_radius);
     for (const auto& [k, v] : r.tolerance) s += "," + k + ":" + G17(v);
+    if (r.covariance) s += ",covariance";  // only when set: other sweeps keep their ids
     return s + "\n";
   }
 
  protected:
   void Vary(const SweepSpec& spec, int slot, PointSpec* p) const override {
-    ApplyRobustnessSample(spec.robustness, slot, p);
+    if (spec.terms)
+      ApplyCovarianceSample(*spec.terms, spec.robustness, slot, p);
+    else
+      ApplyRobustnessSample(spec.robustness, slot, p);
   }
 };
 
@@ -308,8 +312,7 @@ PointSpec SweepKind::Start(const SweepSpec& spec, int slot) const {
 PointSpec SweepKind::PointAt(const SweepSpec& spec, long point, int slot) const {
   PointSpec p = Start(spec, slot);
   const std::vector<int> idx = spec.AxisIndices(point);
-  for (size_t k = 0; k < spec.axes.size(); ++k)
-    *spec_keys::ParamSlot(p, spec.axes[k].name) = spec.axes[k].values[idx[k]];
+  for (size_t k = 0; k < spec.axes.size(); ++k) *spec.Slot(p, spec.axes[k].name) = spec.axes[k].values[idx[k]];
   Vary(spec, slot, &p);
   return p;
 }

@@ -41,6 +41,8 @@ std::string SweepSpec::ModelConfigText() const {
     for (size_t i = 0; i < spec.series.overrides.size(); ++i)
       for (const auto& [k, v] : spec.series.overrides[i])
         os << "series.cell[" << i << "]." << k << "=" << G17(v) << "\n";
+  } else if (spec.terms) {
+    os << spec_keys::TermsText(*spec.terms);
   } else if (spec.model == ModelKind::kDimensional) {
     const DimensionalParams& d = spec.dimensional.params;
     os << "dim.bistable=" << spec.dimensional.bistable << "\ndim.resonator=" << d.has_resonator;
@@ -97,6 +99,7 @@ std::string AxisUnit(const std::string& name) {
                                                             {"phi", "m_r/m_m"},
                                                             {"eps", "k3 delta_s^2/(m_m omega_n^2)"},
                                                             {"a0_mm", "mm"},
+                                                            {"acc0_g", "g"},
                                                             {"f0_hz", "Hz"},
                                                             {"ym0", "delta_s"},
                                                             {"vm0", "delta_s/tau"},
@@ -138,6 +141,7 @@ std::string AxisLongName(const std::string& name) {
       {"yr0", "initial displacement of the resonator relative to the base y_r(0)"},
       {"vr0", "initial velocity of the resonator relative to the base y_r'(0)"},
       {"a0_mm", "base displacement amplitude A0"},
+      {"acc0_g", "base acceleration amplitude (g = 9.80665 m/s^2)"},
       {"f0_hz", "excitation frequency f0"},
       {"m_m", "main mass"},
       {"k_lin", "linear stiffness of the main spring (negative: pre-buckled)"},
@@ -168,8 +172,23 @@ std::vector<FixedParameter> SweepSpec::FixedParameters() const {
     return false;
   };
   auto add = [&](const std::string& n, double v) {
-    if (!swept(n)) out.push_back({n, v, AxisUnit(n), AxisLongName(n)});
+    if (!swept(n)) out.push_back({n, v, UnitOf(n), LongNameOf(n)});
   };
+  if (terms) {  // the drive, then every parameter of the term model and the masses
+    add(terms->DriveAxis(), base.alpha);
+    add("f0_hz", base.omega);
+    const std::vector<std::string> names = terms->model.ParamNames();
+    for (size_t k = 0; k < names.size(); ++k) add(names[k], base.theta[k]);
+    out.push_back({"m_main", terms->model.m_main, "kg", "mass of the main body"});
+    if (terms->model.HasResonator()) out.push_back({"m_res", terms->model.m_res, "kg", "mass of the resonator"});
+    const bool friction = std::any_of(terms->model.terms.begin(), terms->model.terms.end(),
+                                      [](const TermDef* t) { return t->kind == TermKind::kFriction; });
+    if (friction) {
+      out.push_back({"v_sp", terms->model.fc.v_sp, "m/s", "Stribeck peak velocity of the friction terms"});
+      out.push_back({"v_t", terms->model.fc.v_t, "m/s", "transition velocity (tanh) of the friction terms"});
+    }
+    return out;
+  }
   if (model == ModelKind::kDimensional) {
     add("a0_mm", base.alpha);
     add("f0_hz", base.omega);
@@ -305,7 +324,43 @@ std::string SweepSpec::CanonicalText() const {
 
 const char* RefineCriterionName(RefineCriterion c) { return kRefineCriteria[static_cast<int>(c)].c_str(); }
 
-std::string SweepSpec::ModelLabel() const { return ModelName(model); }
+std::string SweepSpec::ModelLabel() const { return terms ? "terms" : ModelName(model); }
+
+double* SweepSpec::Slot(PointSpec& p, const std::string& name) const {
+  if (terms) {
+    const int k = terms->model.IndexOf(name);
+    if (k >= 0) return static_cast<size_t>(k) < p.theta.size() ? &p.theta[k] : nullptr;
+    if (name == "acc0_g") return &p.alpha;
+  }
+  return ParamSlot(p, name);
+}
+
+std::string SweepSpec::UnitOf(const std::string& name) const {
+  if (terms) {
+    const int k = terms->model.IndexOf(name);
+    if (k >= 0) return terms->model.ParamUnits()[k];
+  }
+  return AxisUnit(name);
+}
+
+std::string SweepSpec::LongNameOf(const std::string& name) const {
+  if (terms) {
+    const int k = terms->model.IndexOf(name);
+    if (k >= 0) {
+      const size_t dot = name.rfind('.');
+      auto t = FindTerm(name.substr(0, dot));
+      return "parameter " + name.substr(dot + 1) + " of " + name.substr(0, dot) +
+             (t.ok() ? " (" + (*t)->meaning + ")" : "");
+    }
+  }
+  return AxisLongName(name);
+}
+
+RigDrive SweepSpec::DriveAt(const PointSpec& p) const {
+  const double omega = 2.0 * M_PI * p.omega;
+  if (terms && terms->acceleration_drive) return {p.alpha * kStandardGravity / (omega * omega), p.omega, omega};
+  return {p.alpha * 1e-3, p.omega, omega};
+}
 
 std::string SweepSpec::ItemKey(long index, int ic) const { return KindOf(*this).ItemKey(*this, index, ic); }
 

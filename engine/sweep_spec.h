@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,7 @@
 #include "dynamics/dimensional_model.h"
 #include "dynamics/point_spec.h"
 #include "dynamics/series_model.h"
+#include "dynamics/term_model.h"
 
 namespace bistable {
 
@@ -38,15 +40,31 @@ struct DimensionalConfig {
   double a0_mm = 10.0, f0_hz = 5.0;
 };
 
-// A rig point's drive in SI. A dimensional sweep's PointSpec holds its axes' own units — A0 in mm in
-// `alpha`, f0 in Hz in `omega` (the content keys hash those, so stored points keep their keys) — and
-// code reads a rig point's drive only through RigDriveOf, never from alpha/omega.
+// A rig point's drive in SI (SweepSpec::DriveAt). A dimensional sweep's PointSpec holds its axes' own units —
+// A0 in mm (or, for a term model driven by acceleration, the base acceleration amplitude in g) in `alpha`,
+// f0 in Hz in `omega` (the content keys hash those, so stored points keep their keys) — and code reads a rig
+// point's drive only through DriveAt, never from alpha/omega.
 struct RigDrive {
   double a0_m = 0;         // base displacement amplitude A0 [m]
   double f0_hz = 0;        // excitation frequency f0 [Hz]
   double omega_rad_s = 0;  // 2 pi f0 [rad/s]
 };
-inline RigDrive RigDriveOf(const PointSpec& p) { return {p.alpha * 1e-3, p.omega, 2.0 * M_PI * p.omega}; }
+inline constexpr double kStandardGravity = 9.80665;  // m/s² per g
+
+// A model of effect-library terms (model = "terms", issue 42): the model `bistable identify` fits, swept in lanes
+// (dynamics/term_model.h). Given inline in [terms] (list, theta, m_main, m_res, v_sp, v_t, covariance) — a
+// client resolves `report = "DIR/report.json"` into that before a spec is parsed (client/terms_report.h), so a
+// spec that travels to a coordinator or a worker carries its model and no path. Its points are dimensional (SI);
+// the drive is the base's displacement amplitude (axis a0_mm) or, for a model fitted to a base-acceleration
+// input, its acceleration amplitude in g (axis acc0_g), at f0_hz; any term parameter can be an axis by its name
+// ("main.viscous.c0").
+struct TermsConfig {
+  TermModel model;                  // terms, nominal parameters, masses, friction constants
+  std::vector<double> covariance;   // model.NumParams()² row-major (the fit's), or empty
+  bool acceleration_drive = false;  // drive amplitude in g (acc0_g) instead of mm (a0_mm)
+  std::string origin;               // where the model came from (free text for humans: a report's path)
+  const char* DriveAxis() const { return acceleration_drive ? "acc0_g" : "a0_mm"; }
+};
 
 // Continuation of the initial condition along one axis (bifurcation diagrams): each point starts
 // from the previous point's final state, sweeping up, down or both, so hysteresis shows.
@@ -64,6 +82,9 @@ struct ContinuationConfig {
 struct RobustnessConfig {
   int samples = 0;  // 0 = off
   uint64_t seed = 1;
+  // Term models (model = "terms"): each sample's parameters drawn from N(θ, Σ) with the fit's covariance Σ
+  // ([terms] covariance), correlated as fitted (ApplyCovarianceSample), instead of independent tolerances.
+  bool covariance = false;
   std::map<std::string, double> tolerance;  // parameter -> relative half-width (x (1 + tol (2u - 1)))
   double ic_radius = 0;                     // radius of the start disc in (y_m, y_m'), delta_s
   bool enabled() const { return samples > 0; }
@@ -87,6 +108,11 @@ const char* RefineCriterionName(RefineCriterion c);  // "frf_0db", "motion", "ll
 // 1 + tol (2u − 1), the start moved within the disc of radius ic_radius (uniform in area); u from a
 // seeded, shifted Halton sequence, one coordinate per toleranced parameter (canonical order), two for the disc.
 void ApplyRobustnessSample(const RobustnessConfig& r, int k, PointSpec* p);
+// Sample k of a covariance robustness map of a term model: p->theta (the point's parameters, axes applied)
+// plus L z, L the Cholesky factor of the covariance (eigenvalues clipped at 0 when it is not positive
+// definite) and z standard normal by Box–Muller from a seeded counter generator (splitmix64 of seed, k, and
+// the coordinate): reproducible on any machine with the same libm; then the start disc as above.
+void ApplyCovarianceSample(const TermsConfig& t, const RobustnessConfig& r, int k, PointSpec* p);
 
 // Axis names in the canonical order used for enumeration and for the map datasets.
 const std::vector<std::string>& CanonicalAxisNames();
@@ -122,6 +148,7 @@ struct SweepSpec {
                                           // series and dimensional sweeps the cell proxy that classifies motion)
   SeriesConfig series;
   DimensionalConfig dimensional;
+  std::optional<TermsConfig> terms;  // model = "terms" (then model is kDimensional: SI points, rig metrics)
   ContinuationConfig continuation;
   RobustnessConfig robustness;
   RefineConfig refine;
@@ -166,8 +193,16 @@ struct SweepSpec {
   std::string ModelConfigText() const;
   // The cells of a series chain at a point: [params] and the axis values for all, then each cell's overrides.
   std::vector<SeriesCell> SeriesCells(const PointSpec& p) const;
-  // Display name of the model ("coupled", "series", "dimensional").
+  // Display name of the model ("coupled", "series", "dimensional", "terms").
   std::string ModelLabel() const;
+  // Where a named parameter or axis lives in a point: the PointSpec field, or a term model's parameter in
+  // p.theta; nullptr for a name the model does not have.
+  double* Slot(PointSpec& p, const std::string& name) const;
+  // AxisUnit / AxisLongName, and a term model's parameters (their library units and meanings).
+  std::string UnitOf(const std::string& name) const;
+  std::string LongNameOf(const std::string& name) const;
+  // The drive of a dimensional point in SI.
+  RigDrive DriveAt(const PointSpec& p) const;
   // The model's scalar parameters that no axis sweeps, in canonical order: the non-dimensional ones
   // of cell and series models (eps only for bistable cells), the rig's table for the dimensional model.
   std::vector<FixedParameter> FixedParameters() const;

@@ -3,9 +3,11 @@
 #ifndef BISTABLE_ENGINE_SWEEP_SPEC_KEYS_H_
 #define BISTABLE_ENGINE_SWEEP_SPEC_KEYS_H_
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
+#include "engine/spec_toml.h"
 #include "engine/sweep_spec.h"
 
 namespace bistable::spec_keys {
@@ -28,6 +30,17 @@ inline double* ParamSlot(PointSpec& s, const std::string& name) {
     if (name == InitialStateAxisNames()[k]) return &s.ic[k];
   return nullptr;
 }
+
+// model = "terms" (sweep_spec_terms.cc): the axes a term model may sweep (its drive, f0_hz, every parameter by
+// name), its [params] keys, the [terms] reader (after the model is read; sets the points' defaults), the checks
+// once the whole spec is read, its canonical lines, and the counter generator of its covariance samples.
+std::vector<std::string> TermAxisNames(const SweepSpec& spec);
+std::vector<std::string> TermParamKeys(const SweepSpec& spec);
+Status ReadTerms(const toml::table& root, SweepSpec& spec);
+Status CheckTerms(const SweepSpec& spec);
+std::string TermsText(const TermsConfig& c);
+uint64_t Mix(uint64_t z);
+double Uniform(uint64_t seed, uint64_t k, uint64_t d);  // in (0, 1)
 
 }  // namespace bistable::spec_keys
 

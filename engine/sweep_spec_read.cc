@@ -25,10 +25,14 @@
 
 namespace bistable {
 
+using spec_keys::CheckTerms;
 using spec_keys::kParamKeys;
 using spec_keys::kRefineCriteria;
 using spec_keys::kToleranceKeys;
 using spec_keys::ParamSlot;
+using spec_keys::ReadTerms;
+using spec_keys::TermAxisNames;
+using spec_keys::TermParamKeys;
 
 namespace {
 // The rig's default relative tolerances (model = "dimensional"): ROS34PW2 in lanes, its default integrator,
@@ -39,9 +43,9 @@ namespace {
 
 const std::vector<std::string> kTopKeys = {
     "name",   "model",  "params",      "axes",         "integration", "metrics", "initial_conditions",
-    "output", "series", "dimensional", "continuation", "robustness",  "refine"};
+    "output", "series", "dimensional", "continuation", "robustness",  "refine",  "terms"};
 const std::vector<std::string> kRefineKeys = {"levels", "criterion", "mixed_after"};
-const std::vector<std::string> kRobustnessKeys = {"samples", "seed", "tolerance", "ic_radius"};
+const std::vector<std::string> kRobustnessKeys = {"samples", "seed", "tolerance", "ic_radius", "covariance"};
 const std::vector<std::string> kContinuationKeys = {"axis", "direction"};
 const std::vector<std::string> kSeriesKeys = {"cells", "resonators", "bistable", "cell"};
 const std::vector<std::string> kCellOverrideKeys = {"eps", "eta", "eta_r", "phi", "lambda"};
@@ -60,86 +64,6 @@ const std::vector<std::string> kMetricKeys = {"store",        "chaos_threshold",
 constexpr int kDefaultPoincarePoints = 32;
 const std::vector<std::string> kIcKeys = {"states"};
 const std::vector<std::string> kOutputKeys = {"plots"};
-
-Status Unknown(const std::string& field, const std::string& key, const std::vector<std::string>& allowed) {
-  // The key as it appears in the field name is cut and escaped like the message's (a 1 MB key was echoed whole).
-  const std::string shown = Printable(key, 80);
-  return Status::InvalidArgument(field.empty() ? shown : field + "." + shown, UnknownNameMessage("key", key, allowed));
-}
-
-// A value outside its vocabulary (a metric name in a list, ...).
-Status UnknownValue(const std::string& field, const std::string& value, const std::vector<std::string>& allowed) {
-  return Status::InvalidArgument(field, UnknownNameMessage("name", value, allowed));
-}
-
-Status CheckKeys(const toml::table& t, const std::string& field, const std::vector<std::string>& allowed) {
-  for (auto&& [k, v] : t) {
-    (void)v;
-    const std::string key(k.str());
-    if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) return Unknown(field, key, allowed);
-  }
-  return Status::Ok();
-}
-
-StatusOr<double> Number(const toml::node& n, const std::string& field) {
-  if (auto i = n.value<int64_t>(); i && n.is_integer()) return static_cast<double>(*i);
-  if (auto d = n.value<double>()) return *d;
-  return Status::InvalidArgument(field, field + " must be a number");
-}
-
-StatusOr<std::string> String(const toml::node& n, const std::string& field) {
-  if (auto s = n.value<std::string>()) return *s;
-  return Status::InvalidArgument(field, field + " must be a string");
-}
-
-Status ReadNumber(const toml::table& t, const std::string& key, const std::string& field, double* out) {
-  if (const toml::node* n = t.get(key)) {
-    auto v = Number(*n, field);
-    if (!v.ok()) return v.status();
-    *out = *v;
-  }
-  return Status::Ok();
-}
-
-// An integer setting in [lo, hi]: TOML integers are 64-bit; nothing is narrowed silently.
-Status ReadInt(const toml::table& t, const std::string& key, const std::string& field, int* out, long lo, long hi) {
-  if (const toml::node* n = t.get(key)) {
-    if (!n->is_integer()) return Status::InvalidArgument(field, field + " must be an integer");
-    const int64_t v = *n->value<int64_t>();
-    if (v < lo || v > hi)
-      return Status::InvalidArgument(field, field + " = " + std::to_string(v) + " violates " + field + " in [" +
-                                                std::to_string(lo) + ", " + std::to_string(hi) + "]");
-    *out = static_cast<int>(v);
-  }
-  return Status::Ok();
-}
-
-// Text for humans (names, origins): bounded, and no control characters (they would rewrite a
-// terminal or a log line when printed).
-Status CheckPlainText(const std::string& field, const std::string& s, size_t max_bytes) {
-  if (s.size() > max_bytes)
-    return Status::InvalidArgument(
-        field, field + " is " + std::to_string(s.size()) + " bytes, over the limit of " + std::to_string(max_bytes));
-  for (size_t i = 0; i < s.size(); ++i) {
-    const unsigned char c = static_cast<unsigned char>(s[i]);
-    if (c < 0x20 || c == 0x7f)
-      return Status::InvalidArgument(field, field + " holds a control character (byte " + std::to_string(c) + " at " +
-                                                std::to_string(i) + "); names are plain text");
-  }
-  return Status::Ok();
-}
-
-StatusOr<std::vector<double>> NumberArray(const toml::node& n, const std::string& field) {
-  const toml::array* a = n.as_array();
-  if (!a) return Status::InvalidArgument(field, field + " must be an array of numbers");
-  std::vector<double> out;
-  for (size_t i = 0; i < a->size(); ++i) {
-    auto v = Number((*a)[i], field + "[" + std::to_string(i) + "]");
-    if (!v.ok()) return v.status();
-    out.push_back(*v);
-  }
-  return out;
-}
 
 StatusOr<std::vector<std::string>> StringArray(const toml::node& n, const std::string& field) {
   const toml::array* a = n.as_array();
@@ -216,10 +140,16 @@ Status ReadNameAndModel(const toml::table& root, SweepSpec& spec) {
   const toml::node* model = root.get("model");
   if (!model)
     return Status::InvalidArgument(
-        "model", "model is required (standalone, coupled, linear, linear-coupled, series, dimensional)");
+        "model", "model is required (standalone, coupled, linear, linear-coupled, series, dimensional, terms)");
   {
     auto s = String(*model, "model");
     if (!s.ok()) return s.status();
+    if (*s == "terms") {  // a model of effect-library terms: SI points like the rig's ([terms], ReadTerms)
+      spec.model = ModelKind::kDimensional;
+      spec.base.model = ModelKind::kStandalone;
+      spec.terms.emplace();
+      return Status::Ok();
+    }
     auto m = ParseAnyModel(*s);
     if (!m.ok()) return m.status();
     spec.model = *m;
@@ -281,7 +211,7 @@ Status ReadSeries(const toml::table& root, SweepSpec& spec) {
 
 // [dimensional] (model = "dimensional" only): its preset, parameters and SI defaults.
 Status ReadDimensional(const toml::table& root, SweepSpec& spec) {
-  if (spec.model == ModelKind::kDimensional) {
+  if (spec.model == ModelKind::kDimensional && !spec.terms) {
     spec.base.model = ModelKind::kStandalone;
     IntegrationSettings& in = spec.base.integration;  // seconds; ROS34PW2 in lanes with tangent (issue 41)
     in.integrator = IntegratorKind::kRosenbrock;
@@ -335,14 +265,18 @@ Status ReadDimensional(const toml::table& root, SweepSpec& spec) {
 // [params] and [axes]: fixed values and the grid (its size checked while it is read).
 Status ReadParamsAndAxes(const toml::table& root, SweepSpec& spec, std::set<std::string>& swept) {
   const bool dimensional = spec.model == ModelKind::kDimensional;
-  const std::vector<std::string>& param_keys = dimensional ? kDimensionalParamKeys : kParamKeys;
-  const std::vector<std::string>& axis_names = dimensional ? DimensionalAxisNames() : CanonicalAxisNames();
+  const std::vector<std::string> param_keys = spec.terms    ? TermParamKeys(spec)
+                                              : dimensional ? kDimensionalParamKeys
+                                                            : kParamKeys;
+  const std::vector<std::string> axis_names = spec.terms    ? TermAxisNames(spec)
+                                              : dimensional ? DimensionalAxisNames()
+                                                            : CanonicalAxisNames();
   if (const toml::node* n = root.get("params")) {
     const toml::table* t = n->as_table();
     if (!t) return Status::InvalidArgument("params", "params must be a table");
     BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "params", param_keys));
     for (const std::string& k : param_keys)
-      BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, k, "params." + k, ParamSlot(spec.base, k)));
+      BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, k, "params." + k, spec.Slot(spec.base, k)));
   }
   if (const toml::node* n = root.get("axes")) {
     const toml::table* t = n->as_table();
@@ -543,9 +477,19 @@ Status ReadRobustness(const toml::table& root, SweepSpec& spec) {
   const toml::table* t = n->as_table();
   if (!t) return Status::InvalidArgument("robustness", "robustness must be a table");
   BISTABLE_RETURN_IF_ERROR(CheckKeys(*t, "robustness", kRobustnessKeys));
-  if (!IsCellModel(spec.model))
-    return Status::InvalidArgument("robustness", "robustness maps run for standalone, coupled and linear models only");
+  if (!IsCellModel(spec.model) && !spec.terms)
+    return Status::InvalidArgument("robustness",
+                                   "robustness maps run for standalone, coupled, linear and term models only");
   RobustnessConfig& r = spec.robustness;
+  if (const toml::node* c = t->get("covariance")) {
+    if (!c->is_boolean())
+      return Status::InvalidArgument("robustness.covariance", "robustness.covariance must be true or false");
+    r.covariance = *c->value<bool>();
+    if (r.covariance && !spec.terms)
+      return Status::InvalidArgument("robustness.covariance",
+                                     "robustness.covariance draws a term model's parameters (model = \"terms\"); "
+                                     "the other models take robustness.tolerance");
+  }
   int samples = 0, seed = 1;
   BISTABLE_RETURN_IF_ERROR(ReadInt(*t, "samples", "robustness.samples", &samples, 1, limits::kMaxRobustnessSamples));
   if (samples == 0)
@@ -654,16 +598,20 @@ Status ReadOutput(const toml::table& root, SweepSpec& spec) {
 
 // Whole-spec checks after every section is read.
 Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
+  BISTABLE_RETURN_IF_ERROR(CheckTerms(spec));
   const bool dimensional = spec.model == ModelKind::kDimensional;
-  const std::vector<std::string>& param_keys = dimensional ? kDimensionalParamKeys : kParamKeys;
+  const std::vector<std::string> param_keys = spec.terms    ? TermParamKeys(spec)
+                                              : dimensional ? kDimensionalParamKeys
+                                                            : kParamKeys;
   // Whole-spec checks: a representative point validates every fixed value and setting; swept values
   // are checked one axis value at a time so the message names the axis.
   auto field_of = [&](const std::string& f) {
     if (!dimensional) return f;
-    return f == "alpha" ? std::string("a0_mm") : f == "omega" ? std::string("f0_hz") : f;
+    const std::string drive = spec.terms ? spec.terms->DriveAxis() : "a0_mm";
+    return f == "alpha" ? drive : f == "omega" ? std::string("f0_hz") : f;
   };
   PointSpec probe = KindOf(spec).Start(spec, 0);
-  for (const Axis& a : spec.axes) *ParamSlot(probe, a.name) = a.values.front();
+  for (const Axis& a : spec.axes) *spec.Slot(probe, a.name) = a.values.front();
   if (spec.HasInitialStateAxes()) {
     if (!IsCellModel(spec.model))
       return Status::InvalidArgument("axes", "initial-state axes (ym0, vm0, yr0, vr0) sweep the cell models only");
@@ -711,7 +659,7 @@ Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
   for (const Axis& a : spec.axes) {
     for (size_t i = 0; i < a.values.size(); ++i) {
       PointSpec p = probe;
-      *ParamSlot(p, a.name) = a.values[i];
+      *spec.Slot(p, a.name) = a.values[i];
       if (Status st = ValidatePointSpec(p); !st.ok() && field_of(st.field()) == a.name)
         return Status::InvalidArgument("axes." + a.name + "[" + std::to_string(i) + "]", st.message());
     }
@@ -764,6 +712,7 @@ StatusOr<SweepSpec> ParseSweepSpec(const std::string& text, const std::string& o
   BISTABLE_RETURN_IF_ERROR(ReadNameAndModel(root, spec));
   BISTABLE_RETURN_IF_ERROR(ReadSeries(root, spec));
   BISTABLE_RETURN_IF_ERROR(ReadDimensional(root, spec));
+  BISTABLE_RETURN_IF_ERROR(ReadTerms(root, spec));
   std::set<std::string> swept;
   BISTABLE_RETURN_IF_ERROR(ReadParamsAndAxes(root, spec, swept));
   BISTABLE_RETURN_IF_ERROR(ReadIntegration(root, spec));
