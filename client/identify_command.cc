@@ -519,9 +519,10 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
 }
 
 // The fit of the records of `data` (identify/identify.h) as --json prints it; the report directory is
-// written when asked, the text summary printed when `text`.
+// written when asked, the text summary printed when `text`; `full_report` (optional) receives the text
+// (Summary::FullReport).
 StatusOr<nlohmann::json> FitJson(const identify::Options& o, const std::vector<std::string>& data,
-                                 const std::string& report, bool text) {
+                                 const std::string& report, bool text, std::string* full_report = nullptr) {
   auto plan = identify::MakePlan(o);  // the options' errors before any file is read
   if (!plan.ok()) return plan.status();
   // Resonator terms without a resonator column: the resonator is then a hidden state, started where the main body
@@ -540,7 +541,8 @@ StatusOr<nlohmann::json> FitJson(const identify::Options& o, const std::vector<s
   if (!s.ok()) return s.status();
   const nlohmann::json j = ResultJson(o, *s);
   if (!report.empty()) BISTABLE_RETURN_IF_ERROR(WriteReport(report, identify::JoinTerms(o.terms), *s, j));
-  if (text) PrintSummary(o, report, *s, j["tests"]);
+  if (text) PrintSummary(report, *s);
+  if (full_report) *full_report = s->FullReport();
   return j;
 }
 
@@ -723,9 +725,9 @@ StatusOr<nlohmann::json> IdentifyFromArgs(const std::vector<std::string>& args) 
 }
 
 StatusOr<nlohmann::json> IdentifyFitJson(const identify::Options& options, const std::vector<std::string>& data,
-                                         const std::string& report) {
+                                         const std::string& report, std::string* full_report) {
   if (data.empty()) return Status::InvalidArgument("data", "give at least one data file (CSV)");
-  return FitJson(options, data, report, false);
+  return FitJson(options, data, report, false, full_report);
 }
 
 nlohmann::json IdentifyTermsJson() { return TermsJson(); }
