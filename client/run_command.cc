@@ -26,6 +26,7 @@
 #include "dynamics/cancel.h"
 #include "engine/evaluate.h"
 #include "engine/json_shapes.h"
+#include "engine/sweep_kind.h"
 #include "net/http_server.h"
 #include "server/dashboard.h"
 #include "server/sweep_coordinator.h"
@@ -178,7 +179,7 @@ int RunSweep(const RunArgs& a) {
         "sweep %s done: %ld points x %d = %ld items (%ld computed, %ld reused) in %.1f s, %.0f computed items/s\n",
         plan->id.c_str(), spec->points(), spec->ic_count(), items, computed, items - computed, seconds,
         seconds > 0 ? static_cast<double>(computed) / seconds : 0.0);
-    if (spec->refine.enabled())
+    if (KindOf(*spec).InRounds())
       std::printf("refined map: %ld of %ld grid points integrated (%.1f %% of the uniform grid), the rest filled\n",
                   items, spec->points(), 100.0 * static_cast<double>(items) / static_cast<double>(spec->points()));
     std::printf("map: %s\n", path->c_str());

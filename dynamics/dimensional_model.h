@@ -89,6 +89,23 @@ struct DimensionalLaneInput {
   std::array<double, 4> x0 = {0, 0, 0, 0};
 };
 
+// dw = J w of a main body (y, y') under a base with a resonator (z, z') on it, from the force slopes
+// j.fy = −∂F/∂y, j.fyd = −∂F/∂y', j.gz = ∂G/∂z, j.gzd = ∂G/∂z' (the lane models of the rig and of term models).
+template <int W, class Jac>
+BISTABLE_INLINE void TwoBodyApply(const Jac& j, const Vec<W>* w, Vec<W>* dw, double inv_m_m, double inv_m_r,
+                                  bool resonator) {
+  const Vec<W> gw = Fma(j.gz, w[2], j.gzd * w[3]);
+  const Vec<W> a = Fma(j.fy, w[0], Fma(j.fyd, w[1], gw)) * inv_m_m;
+  dw[0] = w[1];
+  dw[1] = a;
+  if (resonator) {
+    dw[2] = w[3];
+    dw[3] = Fma(-gw, Splat<W>(inv_m_r), -a);
+  } else {
+    dw[2] = dw[3] = Splat<W>(0.0);
+  }
+}
+
 // DimensionalModel's equations for lane packs (the lane kernel's model concept): the Stribeck terms
 // through Stribeck::Lanes (the project's lane exp and tanh), fused multiply-adds, and products with
 // reciprocals of the masses, so a lane's bits are those of the same point at W = 1 (and within ulps
@@ -174,16 +191,7 @@ struct DimensionalLaneModel {
       }
     }
     BISTABLE_INLINE void Apply(const Jac& j, const V* w, V* dw) const {
-      const V gw = Fma(j.gz, w[2], j.gzd * w[3]);
-      const V a = Fma(j.fy, w[0], Fma(j.fyd, w[1], gw)) * inv_m_m_;
-      dw[0] = w[1];
-      dw[1] = a;
-      if (p_.has_resonator) {
-        dw[2] = w[3];
-        dw[3] = Fma(-gw, Splat<W>(inv_m_r_), -a);
-      } else {
-        dw[2] = dw[3] = Splat<W>(0.0);
-      }
+      TwoBodyApply<W>(j, w, dw, inv_m_m_, inv_m_r_, p_.has_resonator);
     }
     // The Jacobian's two dense rows, J[1][0..3] (the main mass's acceleration) and J[3][0..3] (the
     // resonator's), in the operations of Apply (rows 0 and 2 are (0 1 0 0) and (0 0 0 1)); without a

@@ -35,6 +35,11 @@ bool RunDimensionalLanes(const DimensionalLaneInput* in, int n, const KernelSett
 }
 
 template <int W>
+bool RunTermLanes(const TermLaneInput* in, int n, const KernelSettings& s, int substeps, RawLane* out) {
+  return EnsembleGeneric<TermLaneModel, W>::Run(in, n, s, substeps, out);
+}
+
+template <int W>
 bool RunDimensionalRosenbrock(const DimensionalLaneInput* in, int n, const KernelSettings& s,
                               const RosenbrockTolerances& tol, RawLane* out) {
   return EnsembleRosenbrock<W>::Run(in, n, s, tol, out);
@@ -46,6 +51,9 @@ template bool RunSeriesLanes<8>(const SeriesLaneInput*, int, const KernelSetting
 template bool RunDimensionalLanes<1>(const DimensionalLaneInput*, int, const KernelSettings&, int, RawLane*);
 template bool RunDimensionalLanes<4>(const DimensionalLaneInput*, int, const KernelSettings&, int, RawLane*);
 template bool RunDimensionalLanes<8>(const DimensionalLaneInput*, int, const KernelSettings&, int, RawLane*);
+template bool RunTermLanes<1>(const TermLaneInput*, int, const KernelSettings&, int, RawLane*);
+template bool RunTermLanes<4>(const TermLaneInput*, int, const KernelSettings&, int, RawLane*);
+template bool RunTermLanes<8>(const TermLaneInput*, int, const KernelSettings&, int, RawLane*);
 template bool RunDimensionalRosenbrock<1>(const DimensionalLaneInput*, int, const KernelSettings&,
                                           const RosenbrockTolerances&, RawLane*);
 template bool RunDimensionalRosenbrock<4>(const DimensionalLaneInput*, int, const KernelSettings&,

@@ -41,6 +41,7 @@
 #include "dynamics/lane_run.h"
 #include "dynamics/lanes.h"
 #include "dynamics/series_model.h"
+#include "dynamics/term_model.h"
 #include "dynamics/window_recorder.h"
 
 namespace bistable {
@@ -295,6 +296,9 @@ template <int W>
 bool RunSeriesLanes(const SeriesLaneInput* in, int n, const KernelSettings& s, RawLane* out);
 template <int W>
 bool RunDimensionalLanes(const DimensionalLaneInput* in, int n, const KernelSettings& s, int substeps, RawLane* out);
+// Term models (term_model.h: a model of effect-library terms, identify's), `substeps` from TermRk4Substeps.
+template <int W>
+bool RunTermLanes(const TermLaneInput* in, int n, const KernelSettings& s, int substeps, RawLane* out);
 
 }  // namespace bistable
 

@@ -2,7 +2,7 @@
 //   F_f(v) = (F_s − F_c tanh(v_sp/v_t)) g(v) + F_c tanh(v/v_t),   g(v) = (v/v_sp) exp(1/2 − v²/(2 v_sp²))
 // so that F_f(v_sp) = F_s (static peak) and F_f → F_c sign(v) (Coulomb) for |v| ≫ v_sp.
 // Units: forces in N, velocities in m/s. The one home of the law: the dimensional model (dynamics/)
-// uses Force/Slope, identification (identify/effects.h) the same law as a basis linear in F_s, F_c.
+// uses Force/Slope, identification and term-model sweeps (dynamics/terms.h) the same law as a basis linear in F_s, F_c.
 #ifndef BISTABLE_DYNAMICS_FRICTION_H_
 #define BISTABLE_DYNAMICS_FRICTION_H_
 

@@ -12,6 +12,7 @@
 #include "dynamics/generic_point.h"
 #include "dynamics/point.h"
 #include "dynamics/settle.h"
+#include "engine/sweep_kind.h"
 
 namespace bistable {
 namespace {
@@ -35,10 +36,11 @@ PointSpec MetricProxy(const SweepSpec& spec, const PointSpec& p) {
     return proxy;
   }
   const DimensionalParams& dp = spec.dimensional.params;
-  const double a0 = p.alpha * 1e-3, delta_s = spec.dimensional.bistable ? std::sqrt(-dp.k_lin / dp.k3) : 0.0;
+  const RigDrive drive = RigDriveOf(p);
+  const double a0 = drive.a0_m, delta_s = spec.dimensional.bistable ? std::sqrt(-dp.k_lin / dp.k3) : 0.0;
   proxy.model = spec.dimensional.bistable ? ModelKind::kStandalone : ModelKind::kLinear;
   proxy.alpha = a0;
-  proxy.omega = 2.0 * M_PI * p.omega;
+  proxy.omega = drive.omega_rad_s;
   proxy.metrics.period_tol = p.metrics.period_tol * (delta_s > 0 ? delta_s : a0);
   return proxy;
 }
@@ -60,8 +62,9 @@ SeriesLaneInput SeriesInputFor(const SweepSpec& spec, const PointSpec& p) {
 DimensionalLaneInput DimensionalInputFor(const SweepSpec& spec, const PointSpec& p) {
   DimensionalLaneInput in;
   in.params = spec.dimensional.params;
-  in.base_amp = p.alpha * 1e-3;
-  in.omega = 2.0 * M_PI * p.omega;
+  const RigDrive drive = RigDriveOf(p);
+  in.base_amp = drive.a0_m;
+  in.omega = drive.omega_rad_s;
   in.amp = in.base_amp * in.omega * in.omega;
   if (p.ic_given)
     in.x0 = p.ic;
@@ -153,7 +156,8 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
   std::vector<PointRecord> out(items.size());
   const bool turning = spec.base.metrics.turning_points;
   const int section = spec.base.metrics.poincare_points;
-  if (spec.continuation.enabled()) {
+  const SweepKind& kind = KindOf(spec);
+  if (kind.Chained()) {
     // Chains in order: a point that continues the previous item's chain (same line and direction,
     // next index along the axis) starts from that item's final state; a chain's first point from the
     // spec's start state. One lane: the same kernel code as everywhere, so the bits are those of
@@ -162,14 +166,9 @@ std::optional<std::vector<PointRecord>> ComputeItemsUnlessCancelled(const SweepS
     for (size_t i = 0; i < items.size(); ++i) {
       if (CancelRequested()) return std::nullopt;
       PointSpec p = spec.PointAt(items[i].point, items[i].ic);
-      if (i > 0) {
-        const WorkItem& prev = items[i - 1];
-        const int step = spec.ChainGoesDown(items[i].ic) ? -1 : 1;
-        if (prev.ic == items[i].ic && spec.ContinuationLine(prev.point) == spec.ContinuationLine(items[i].point) &&
-            spec.ContinuationIndex(items[i].point) == spec.ContinuationIndex(prev.point) + step) {
-          p.ic_given = true;
-          p.ic = last;
-        }
+      if (i > 0 && kind.Continues(spec, items[i - 1], items[i])) {
+        p.ic_given = true;
+        p.ic = last;
       }
       auto r = EvaluatePoint(p);
       if (!r.ok() && CancelRequested()) return std::nullopt;  // cancelled: no result, not "diverged"

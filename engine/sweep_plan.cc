@@ -5,6 +5,7 @@
 #include <optional>
 
 #include "base/limits.h"
+#include "engine/sweep_kind.h"
 
 namespace bistable {
 
@@ -78,10 +79,10 @@ StatusOr<Shard> ParseShard(const std::string& text) {
 }
 
 Status CheckShardable(const SweepSpec& spec) {
-  if (spec.refine.enabled())
+  if (KindOf(spec).InRounds())
     return Status::InvalidArgument(
-        "shard", "sweep " + spec.Id() +
-                     " is refined ([refine]): each round is planned from the whole previous round's results, so it "
+        "shard", "sweep " + spec.Id() + " is " + KindOf(spec).Name() +
+                     " ([refine]): each round is planned from the whole previous round's results, so it "
                      "cannot be cut into independent shards; run it whole (bistable run without --shard, or "
                      "bistable submit to a coordinator)");
   return Status::Ok();
@@ -90,8 +91,7 @@ Status CheckShardable(const SweepSpec& spec) {
 std::vector<long> ShardItemIndices(const SweepSpec& spec, const Shard& shard) {
   std::vector<long> out;
   const int nic = spec.ic_count();
-  if (spec.continuation.enabled()) {  // whole chains, dealt in the order ContinuationChains lists them
-    const auto chains = spec.ContinuationChains();
+  if (const auto chains = KindOf(spec).Chains(spec); !chains.empty()) {  // whole chains, dealt in their order
     for (size_t c = static_cast<size_t>(shard.index); c < chains.size(); c += static_cast<size_t>(shard.count))
       for (const WorkItem& w : chains[c]) out.push_back(w.point * nic + w.ic);
     std::sort(out.begin(), out.end());
@@ -118,7 +118,7 @@ StatusOr<JobPlan> JobPlan::BuildShard(const SweepSpec& spec, long job_items, con
 }
 
 StatusOr<JobPlan> JobPlan::Build(const SweepSpec& spec, long job_items, const PointLookup& lookup, RefineCarry carry) {
-  if (!spec.refine.enabled()) return BuildGrid(spec, job_items, lookup, nullptr);
+  if (!KindOf(spec).InRounds()) return BuildGrid(spec, job_items, lookup, nullptr);
   auto total = ItemsTotal(spec);  // the grid's bound holds for a refined sweep too
   if (!total.ok()) return total.status();
   JobPlan s;
@@ -202,10 +202,10 @@ StatusOr<JobPlan> JobPlan::BuildGrid(const SweepSpec& spec, long job_items, cons
   }
   const int nic = s.ic_count_;
   JobBuilder jobs{s.jobs_, job_items};
-  if (spec.continuation.enabled()) {
+  if (const auto chains = KindOf(spec).Chains(spec); !chains.empty()) {
     // Chains run whole and in order (each point starts where the previous ended): a chain with any
     // missing item is computed entirely.
-    for (const auto& chain : spec.ContinuationChains()) {
+    for (const auto& chain : chains) {
       bool any = false;
       for (const WorkItem& w : chain) any = any || is_missing[w.point * nic + w.ic];
       if (any) jobs.Add(chain);

@@ -12,6 +12,7 @@
 #include "base/validate.h"
 #include "engine/content_hash.h"
 #include "engine/metric_catalog.h"
+#include "engine/sweep_kind.h"
 #include "engine/sweep_spec_keys.h"
 
 namespace bistable {
@@ -29,7 +30,10 @@ std::string G17(double v) {
   return b;
 }
 
-std::string ModelConfigText(const SweepSpec& spec) {
+}  // namespace
+
+std::string SweepSpec::ModelConfigText() const {
+  const SweepSpec& spec = *this;
   std::ostringstream os;
   if (spec.model == ModelKind::kSeries) {
     os << "series.cells=" << spec.series.cells << "\nseries.resonators=" << spec.series.resonators
@@ -51,8 +55,6 @@ std::string ModelConfigText(const SweepSpec& spec) {
   if (spec.UsesGenericLanes() && spec.base.integration.integrator == IntegratorKind::kRk4) os << "rk4=lanes\n";
   return os.str();
 }
-
-}  // namespace
 
 const std::vector<std::string>& DimensionalAxisNames() {
   static const std::vector<std::string> kNames = {"a0_mm", "f0_hz"};
@@ -217,13 +219,9 @@ std::vector<int> SweepSpec::AxisIndices(long index) const {
   return idx;
 }
 
-PointSpec SweepSpec::PointAt(long index, int ic) const {
-  PointSpec p = StartOf(base, ic);
-  const std::vector<int> idx = AxisIndices(index);
-  for (size_t k = 0; k < axes.size(); ++k) *ParamSlot(p, axes[k].name) = axes[k].values[idx[k]];
-  if (robustness.enabled()) ApplyRobustnessSample(robustness, ic, &p);
-  return p;
-}
+int SweepSpec::ic_count() const { return KindOf(*this).Slots(*this); }
+
+PointSpec SweepSpec::PointAt(long index, int ic) const { return KindOf(*this).PointAt(*this, index, ic); }
 
 namespace {
 
@@ -271,23 +269,9 @@ void ApplyRobustnessSample(const RobustnessConfig& r, int k, PointSpec* p) {
   }
 }
 
-// A point's start before the axes apply: [initial_conditions] state `ic` (continuation: the chains'
-// start), or with initial-state axes the model's default start whose swept components the axes then set.
-PointSpec SweepSpec::StartOf(const PointSpec& from, int ic) const {
-  PointSpec p = from;
-  if (!initial_states.empty()) {
-    p.ic_given = true;
-    p.ic = initial_states[continuation.enabled() || robustness.enabled() ? 0 : ic];
-  } else if (HasInitialStateAxes()) {
-    p.ic = InitialState(p);
-    p.ic_given = true;
-  }
-  return p;
-}
-
 std::string SweepSpec::CanonicalText() const {
   std::ostringstream os;
-  os << "numerics=" << kNumericsVersion << "\nmodel=" << ModelLabel() << "\n" << ModelConfigText(*this);
+  os << "numerics=" << kNumericsVersion << "\nmodel=" << ModelLabel() << "\n" << ModelConfigText();
   for (const std::string& name : kParamKeys)
     os << name << "=" << G17(*ParamSlot(const_cast<PointSpec&>(base), name)) << "\n";
   for (const Axis& a : axes) {
@@ -312,16 +296,7 @@ std::string SweepSpec::CanonicalText() const {
     os << "poincare_points=" << m.poincare_points << "\npoincare_phase=" << G17(m.poincare_phase) << "\n";
   for (const auto& ic : initial_states)
     os << "ic=" << G17(ic[0]) << "," << G17(ic[1]) << "," << G17(ic[2]) << "," << G17(ic[3]) << "\n";
-  if (continuation.enabled())
-    os << "continuation=" << continuation.axis << "," << continuation.up << "," << continuation.down << "\n";
-  if (robustness.enabled()) {
-    os << "robustness=" << robustness.samples << "," << robustness.seed << "," << G17(robustness.ic_radius);
-    for (const auto& [k, v] : robustness.tolerance) os << "," << k << ":" << G17(v);
-    os << "\n";
-  }
-  if (refine.enabled())
-    os << "refine=" << refine.levels << "," << RefineCriterionName(refine.criterion) << "," << refine.mixed_after
-       << "\n";
+  os << KindOf(*this).CanonicalLine(*this);
   os << "metrics=";
   for (const auto& s : metrics) os << s << ",";
   os << "\n";
@@ -332,17 +307,7 @@ const char* RefineCriterionName(RefineCriterion c) { return kRefineCriteria[stat
 
 std::string SweepSpec::ModelLabel() const { return ModelName(model); }
 
-std::string SweepSpec::ItemKey(long index, int ic) const {
-  // A chained point's start state is the previous point's end state: it is determined by the whole
-  // spec and the point's place in its chain, so that is what the key hashes.
-  // (The canonical text is hashed once per spec, not once per item: it holds every axis value.)
-  if (continuation.enabled())
-    return ContentHashHex((canonical_hash.empty() ? ContentHashHex(CanonicalText()) : canonical_hash) + "|chain|" +
-                          std::to_string(index) + "|" + std::to_string(ic));
-  const std::string point = PointKey(PointAt(index, ic));
-  if (IsCellModel(model)) return point;
-  return ContentHashHex(ModelConfigText(*this) + "|" + point);
-}
+std::string SweepSpec::ItemKey(long index, int ic) const { return KindOf(*this).ItemKey(*this, index, ic); }
 
 // The cells of a series point: [params] and axis values for all, then each cell's overrides.
 std::vector<SeriesCell> SweepSpec::SeriesCells(const PointSpec& p) const {
@@ -359,44 +324,6 @@ std::vector<SeriesCell> SweepSpec::SeriesCells(const PointSpec& p) const {
     }
   }
   return cells;
-}
-
-int SweepSpec::ContinuationIndex(long point) const {
-  const std::vector<int> idx = AxisIndices(point);
-  for (size_t k = 0; k < axes.size(); ++k)
-    if (axes[k].name == continuation.axis) return idx[k];
-  return 0;
-}
-
-long SweepSpec::ContinuationLine(long point) const {
-  long stride = 1;
-  for (long k = static_cast<long>(axes.size()) - 1; k >= 0; --k) {
-    if (axes[k].name == continuation.axis) return point - ContinuationIndex(point) * stride;
-    stride *= static_cast<long>(axes[k].values.size());
-  }
-  return point;
-}
-
-std::vector<std::vector<WorkItem>> SweepSpec::ContinuationChains() const {
-  std::vector<std::vector<WorkItem>> chains;
-  if (!continuation.enabled()) return chains;
-  long stride = 1, n = 1;
-  for (long k = static_cast<long>(axes.size()) - 1; k >= 0; --k) {
-    if (axes[k].name == continuation.axis) {
-      n = static_cast<long>(axes[k].values.size());
-      break;
-    }
-    stride *= static_cast<long>(axes[k].values.size());
-  }
-  for (long p = 0; p < points(); ++p) {
-    if (ContinuationIndex(p) != 0) continue;  // p is a line's first point
-    for (int ic = 0; ic < ic_count(); ++ic) {
-      std::vector<WorkItem> chain;
-      for (long i = 0; i < n; ++i) chain.push_back({p + (ChainGoesDown(ic) ? n - 1 - i : i) * stride, ic});
-      chains.push_back(std::move(chain));
-    }
-  }
-  return chains;
 }
 
 std::string SweepSpec::Id() const {

@@ -5,6 +5,7 @@
 #define BISTABLE_ENGINE_SWEEP_SPEC_H_
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -36,6 +37,16 @@ struct DimensionalConfig {
   bool bistable = true;
   double a0_mm = 10.0, f0_hz = 5.0;
 };
+
+// A rig point's drive in SI. A dimensional sweep's PointSpec holds its axes' own units — A0 in mm in
+// `alpha`, f0 in Hz in `omega` (the content keys hash those, so stored points keep their keys) — and
+// code reads a rig point's drive only through RigDriveOf, never from alpha/omega.
+struct RigDrive {
+  double a0_m = 0;         // base displacement amplitude A0 [m]
+  double f0_hz = 0;        // excitation frequency f0 [Hz]
+  double omega_rad_s = 0;  // 2 pi f0 [rad/s]
+};
+inline RigDrive RigDriveOf(const PointSpec& p) { return {p.alpha * 1e-3, p.omega, 2.0 * M_PI * p.omega}; }
 
 // Continuation of the initial condition along one axis (bifurcation diagrams): each point starts
 // from the previous point's final state, sweeping up, down or both, so hysteresis shows.
@@ -101,7 +112,8 @@ struct FixedParameter {
 // One unit of work in a sweep: a grid point with one of its initial conditions.
 struct WorkItem {
   long point = 0;  // row-major grid index
-  int ic = 0;      // index into the spec's initial states
+  int ic = 0;      // the item's slot at its point: an initial state, a continuation direction or a tolerance
+                   // sample — what it is, is the sweep kind's (engine/sweep_kind.h: SweepKind::Dimension)
 };
 
 struct SweepSpec {
@@ -122,27 +134,19 @@ struct SweepSpec {
   std::string canonical_hash;  // ContentHashHex(CanonicalText()), set by ParseSweepSpec ("" = compute)
 
   long points() const;  // product of axis lengths (1 with no axes)
-  // Items per point: initial conditions, or the continuation directions (up, down).
-  int ic_count() const {
-    if (continuation.enabled()) return continuation.directions();
-    if (robustness.enabled()) return robustness.samples;
-    return initial_states.empty() ? 1 : static_cast<int>(initial_states.size());
-  }
-  // With continuation: whether item slot ic sweeps downward, and every chain (line of the
-  // continuation axis × direction) in the order its points must run.
+  // Item slots per point (a WorkItem's `ic`): what a slot is — an initial state, a continuation direction,
+  // a tolerance sample — is the sweep kind's (engine/sweep_kind.h: KindOf(spec).Slots, .Dimension).
+  int ic_count() const;
+  // With continuation: whether item slot ic sweeps downward (the chains are the kind's: SweepKind::Chains).
   bool ChainGoesDown(int ic) const { return continuation.enabled() && (!continuation.up || ic == 1); }
-  std::vector<std::vector<WorkItem>> ContinuationChains() const;
-  // The point's index along the continuation axis and its line (the point with that index zeroed).
-  int ContinuationIndex(long point) const;
-  long ContinuationLine(long point) const;
   // Canonical text of everything that determines the numbers (not name/plots/source): its hash is the sweep id.
   std::string CanonicalText() const;
   std::string Id() const;  // 12 hex digits of the canonical text's hash
   bool HasInitialStateAxes() const;
   // Every axis is an initial-state axis: the map is a basin map (attractor ids, fractions; map_file).
   bool IsBasinSweep() const;
-  PointSpec StartOf(const PointSpec& from, int ic) const;
-  // The point spec of grid point `index` (row-major over axes, last axis fastest) with initial condition ic.
+  // The point spec of grid point `index` (row-major over axes, last axis fastest), item slot ic: the
+  // kind's (SweepKind::PointAt).
   PointSpec PointAt(long index, int ic) const;
   // Axis indices of a point.
   std::vector<int> AxisIndices(long index) const;
@@ -155,8 +159,11 @@ struct SweepSpec {
     return !IsCellModel(model) && (base.integration.integrator == IntegratorKind::kRk4 ||
                                    base.integration.integrator == IntegratorKind::kRosenbrock);
   }
-  // Content key of an item: model configuration, parameters, settings, initial state, numerics version.
+  // Content key of an item: model configuration, parameters, settings, initial state, numerics version
+  // (the kind's: SweepKind::ItemKey).
   std::string ItemKey(long index, int ic) const;
+  // The canonical lines of the model's configuration (series cells, the rig's table; "" for cell models).
+  std::string ModelConfigText() const;
   // The cells of a series chain at a point: [params] and the axis values for all, then each cell's overrides.
   std::vector<SeriesCell> SeriesCells(const PointSpec& p) const;
   // Display name of the model ("coupled", "series", "dimensional").

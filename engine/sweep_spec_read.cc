@@ -20,6 +20,7 @@
 #include "engine/content_hash.h"
 #include "engine/metric_catalog.h"
 #include "engine/spec_toml.h"
+#include "engine/sweep_kind.h"
 #include "engine/sweep_spec_keys.h"
 
 namespace bistable {
@@ -661,7 +662,7 @@ Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
     if (!dimensional) return f;
     return f == "alpha" ? std::string("a0_mm") : f == "omega" ? std::string("f0_hz") : f;
   };
-  PointSpec probe = spec.StartOf(spec.base, 0);
+  PointSpec probe = KindOf(spec).Start(spec, 0);
   for (const Axis& a : spec.axes) *ParamSlot(probe, a.name) = a.values.front();
   if (spec.HasInitialStateAxes()) {
     if (!IsCellModel(spec.model))

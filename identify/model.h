@@ -2,7 +2,7 @@
 // and its simulation driven by a measured record's input.
 //
 // Three input forms (record.h), one state (p, p', r, r') — and a voltage w when the model has main.piezo
-// (w' = −b w − c y', back-force −a w on the main body; effects.h):
+// (w' = −b w − c y', back-force −a w on the main body; dynamics/terms.h):
 //   base displacement x0 [m]   p = x (absolute main mass), r = x_r: needs x0 and x0' (cubic spline of the samples)
 //       m_m x'' = −F(y, y') + G(z, z'),  y = x − x0,  m_r x_r'' = −G(z, z'),  z = x_r − x
 //   base acceleration a0 [m/s²] p = y (relative), r = z:  y'' = (−F + G)/m_m − a0,  z'' = −G/m_r − (−F + G)/m_m
@@ -25,7 +25,7 @@
 #include <Eigen/Dense>
 
 #include "base/status.h"
-#include "identify/effects.h"
+#include "dynamics/terms.h"
 #include "identify/record.h"
 #include "identify/signals.h"
 

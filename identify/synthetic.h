@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "dynamics/dimensional_model.h"
-#include "identify/effects.h"
+#include "dynamics/terms.h"
 #include "identify/model.h"
 #include "identify/record.h"
 

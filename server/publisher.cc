@@ -6,7 +6,7 @@
 #include <system_error>
 
 #include "engine/metric_catalog.h"
-#include "engine/refine.h"
+#include "engine/sweep_kind.h"
 #include "storage/map_file.h"
 
 namespace bistable {
@@ -129,8 +129,8 @@ StatusOr<SweepRow> PublishMap(const MapPublication& m, ResultWriter& writer, con
   }
   SweepRow done = row;
   done.items_done = static_cast<long>(records.size());
-  if (spec.refine.enabled()) {  // the finest grid, completed from the computed points
-    auto refined = FillRefinedGrid(spec, m.points, records);
+  if (const SweepKind& kind = KindOf(spec); kind.InRounds()) {  // the finest grid, from the computed points
+    auto refined = kind.Fill(spec, m.points, records);
     if (!refined.ok()) {
       *incomplete = refined.status().code() == Status::Code::kFailedPrecondition;
       return refined.status();

@@ -13,6 +13,7 @@
 #include "base/log.h"
 #include "base/sha256.h"
 #include "engine/evaluate.h"
+#include "engine/sweep_kind.h"
 #include "storage/data_dir.h"
 
 namespace bistable {
@@ -305,7 +306,7 @@ Status SweepCoordinator::Replan(const std::string& id) {
   auto plan = InstallLocked(std::move(*built), owner);
   if (!plan.ok()) return plan.status();
   const JobPlan& installed = sweeps_.at(id).plan;
-  if (spec.refine.enabled())
+  if (KindOf(spec).InRounds())
     Log(log::Level::kInfo, "sweep.refined",
         {{"sweep", id},
          {"round", installed.refine_round()},
@@ -844,7 +845,7 @@ SweepProgress SweepCoordinator::progress(const std::string& sweep_id) const {
   if (it == sweeps_.end()) return {};
   const Sweep& s = it->second;
   return {s.row.items_total, s.plan.items_done(), s.plan.items_cached(),
-          s.spec.refine.enabled() ? s.plan.refine_round() : -1};
+          KindOf(s.spec).InRounds() ? s.plan.refine_round() : -1};
 }
 
 }  // namespace bistable

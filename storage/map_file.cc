@@ -24,7 +24,7 @@
 #include "base/validate.h"
 #include "base/version.h"
 #include "dynamics/host_lanes.h"
-#include "engine/basins.h"
+#include "engine/sweep_kind.h"
 #include "storage/data_dir.h"
 #include "storage/metric_name.h"
 
@@ -275,88 +275,57 @@ std::vector<double> Iota(size_t n) {
   return v;
 }
 
-// A basin map (every axis an initial-state axis): the attractor each start ends on, and per attractor
-// its description, basin fraction and boundary fraction over a trailing `attractor_id` dimension.
-Status WriteBasins(hid_t file, const SweepSpec& spec, const std::vector<PointRecord>& records,
-                   const std::vector<hsize_t>& dims, const std::vector<std::string>& names,
-                   const std::string& coordinates) {
-  const BasinMap basins = ClassifyAttractors(spec, records, 10 * spec.base.metrics.period_tol);
-  std::vector<Category> legend;
-  for (const Attractor& a : basins.attractors) legend.push_back({a.id, a.label.c_str()});
-  std::vector<double> ids(basins.ids.begin(), basins.ids.end());
-  BISTABLE_RETURN_IF_ERROR(WriteDataset(
-      file, "attractor", dims, ids, H5T_NATIVE_INT32,
-      {"attractor reached from the initial state (basin map)", "code",
-       "id of the attractor this start ends on (0 = largest basin; -1 undefined); the group attractors describes each",
-       &legend},
-      coordinates));
-  BISTABLE_RETURN_IF_ERROR(AttachScales(file, "attractor", names));
-  // The table of attractors, one row per id, in the group "attractors" (a netCDF-4 group: xarray's
-  // open_dataset(path, group="attractors")), so the root holds only gridded variables.
-  const size_t n = basins.attractors.size();
-  Handle group(H5Gcreate2(file, "attractors", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
-  if (!group.ok()) return Status::IoError("map", "create group attractors");
-  const hid_t g = group.get();
-  BISTABLE_RETURN_IF_ERROR(
-      WriteScale(g, "attractor_id", Iota(n), {"attractor id (0 = largest basin)", "", "", &legend}, /*integer=*/true));
-  auto column = [&](const char* name, auto get, hid_t type, const CfQuantity& q) -> Status {
-    std::vector<double> v(n);
-    for (size_t k = 0; k < n; ++k) v[k] = get(basins.attractors[k]);
-    BISTABLE_RETURN_IF_ERROR(WriteDataset(g, name, {static_cast<hsize_t>(n)}, v, type, q, ""));
-    return AttachScales(g, name, {"attractor_id"});
+// What the sweep's kind adds to the map (engine/sweep_kind.h: motion fractions, basins, refinement), in
+// the order the kind gives it. Units are the catalog's, in SI for the rig (UnitFor).
+Status WriteKindPart(hid_t file, const SweepSpec& spec, const KindMapPart& part, const std::vector<hsize_t>& axis_dims,
+                     const std::vector<std::string>& axis_names, const std::vector<hsize_t>& dims,
+                     const std::vector<std::string>& names, const std::string& coordinates) {
+  // Flag names as CF categories (the strings stay owned by the part while they are written).
+  auto categories = [](const std::vector<std::pair<int, std::string>>& labels) {
+    std::vector<Category> cats;
+    for (const auto& [code, name] : labels) cats.push_back({code, name.c_str()});
+    return cats;
   };
-  const std::vector<Category>& motions = MetricCategories("motion");
-  BISTABLE_RETURN_IF_ERROR(
-      column("basin_fraction", [](const Attractor& a) { return a.basin_fraction; }, H5T_NATIVE_DOUBLE,
-             {"fraction of the starts ending on the attractor", "fraction", "cells of its basin / all starts"}));
-  BISTABLE_RETURN_IF_ERROR(
-      column("boundary_fraction", [](const Attractor& a) { return a.boundary_fraction; }, H5T_NATIVE_DOUBLE,
-             {"fraction of the basin's cells on a basin boundary", "fraction",
-              "cells with a grid neighbour (+-1 along an axis) ending on another attractor / cells of the basin"}));
-  BISTABLE_RETURN_IF_ERROR(column(
-      "motion", [](const Attractor& a) { return static_cast<double>(a.motion < 0 ? kMotionUndefined : a.motion); },
-      H5T_NATIVE_INT32, {"type of motion on the attractor", "code", MotionCodesText(), &motions}));
-  BISTABLE_RETURN_IF_ERROR(column(
-      "period", [](const Attractor& a) { return static_cast<double>(a.period); }, H5T_NATIVE_INT32,
-      {"period of the attractor in forcing periods (0: not periodic)", "forcing periods", "stroboscopic period"}));
-  BISTABLE_RETURN_IF_ERROR(column("strobe_y", [](const Attractor& a) { return a.strobe_y; }, H5T_NATIVE_DOUBLE,
-                                  {"displacement at the attractor's Poincare fingerprint", UnitFor(spec, "delta_s"),
-                                   "strobe_y of the attractor (NaN: not periodic)"}));
-  BISTABLE_RETURN_IF_ERROR(column("strobe_v", [](const Attractor& a) { return a.strobe_v; }, H5T_NATIVE_DOUBLE,
-                                  {"velocity at the attractor's Poincare fingerprint", UnitFor(spec, "delta_s/tau"),
-                                   "strobe_v of the attractor (NaN: not periodic)"}));
-  return WriteNumberAttr(file, "basin_boundary_fraction", H5T_NATIVE_DOUBLE, &basins.boundary_fraction, 1);
-}
-
-// A refined map (engine/refine.h): how each grid point got its values, and the cost in global attributes.
-Status WriteRefinement(hid_t file, const SweepSpec& spec, const RefinedGrid& refined, const std::vector<hsize_t>& dims,
-                       const std::vector<std::string>& names, const std::string& coordinates) {
-  const std::string levels = std::to_string(spec.refine.levels);
-  BISTABLE_RETURN_IF_ERROR(WriteDataset(file, "refine_level", dims, refined.level, H5T_NATIVE_INT32,
-                                        {"refinement level of the smallest cell holding the point", "",
-                                         "0 = the coarse grid (every 2^" + levels + "-th axis value), " + levels +
-                                             " = the axes' own spacing; cells split where their corners disagree on " +
-                                             RefineCriterionName(spec.refine.criterion)},
-                                        coordinates));
-  BISTABLE_RETURN_IF_ERROR(AttachScales(file, "refine_level", names));
-  BISTABLE_RETURN_IF_ERROR(WriteDataset(
-      file, "refine_fill", dims, refined.fill, H5T_NATIVE_INT32,
-      {"how the point's values were obtained in the refined map", "code",
-       "computed = integrated at this point; interpolated = inside a cell whose corners agree on the criterion "
-       "(real-valued metrics multilinear in the corners, codes from the nearest corner); chaotic_mixed = inside a "
-       "cell that stayed mixed in every child for refine.mixed_after levels (values of the nearest corner sample)",
-       &RefineFillCategories()},
-      coordinates));
-  BISTABLE_RETURN_IF_ERROR(AttachScales(file, "refine_fill", names));
-  const long total = spec.points();
-  BISTABLE_RETURN_IF_ERROR(WriteNumberAttr(file, "refine_points_computed", H5T_NATIVE_LONG, &refined.computed, 1));
-  BISTABLE_RETURN_IF_ERROR(WriteNumberAttr(file, "refine_points_uniform", H5T_NATIVE_LONG, &total, 1));
-  return WriteStringAttr(file, "refine_criterion", RefineCriterionName(spec.refine.criterion));
+  auto write = [&](hid_t where, const KindVariable& v, const std::vector<hsize_t>& d, const std::vector<std::string>& n,
+                   const std::string& coords) -> Status {
+    const std::vector<Category> cats = categories(v.labels);
+    const CfQuantity q{v.long_name, UnitFor(spec, v.unit), v.definition, cats.empty() ? nullptr : &cats};
+    BISTABLE_RETURN_IF_ERROR(
+        WriteDataset(where, v.name, d, v.values, v.integer ? H5T_NATIVE_INT32 : H5T_NATIVE_DOUBLE, q, coords));
+    return AttachScales(where, v.name, n);
+  };
+  for (const KindVariable& v : part.variables) {
+    const bool items = v.over == KindVariable::Over::kItems;
+    BISTABLE_RETURN_IF_ERROR(write(file, v, items ? dims : axis_dims, items ? names : axis_names, coordinates));
+  }
+  if (part.table) {
+    const KindMapPart::Table& t = *part.table;
+    Handle group(H5Gcreate2(file, t.group.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+    if (!group.ok()) return Status::IoError("map", "create group " + t.group);
+    const std::vector<Category> legend = categories(t.labels);
+    BISTABLE_RETURN_IF_ERROR(WriteScale(group.get(), t.dimension, Iota(static_cast<size_t>(t.size)),
+                                        {t.long_name, "", "", &legend}, /*integer=*/true));
+    for (const KindVariable& v : part.table_variables)
+      BISTABLE_RETURN_IF_ERROR(write(group.get(), v, {static_cast<hsize_t>(t.size)}, {t.dimension}, ""));
+  }
+  for (const KindAttribute& a : part.attributes) {
+    switch (a.type) {
+      case KindAttribute::Type::kDouble:
+        BISTABLE_RETURN_IF_ERROR(WriteNumberAttr(file, a.name.c_str(), H5T_NATIVE_DOUBLE, &a.number, 1));
+        break;
+      case KindAttribute::Type::kLong:
+        BISTABLE_RETURN_IF_ERROR(WriteNumberAttr(file, a.name.c_str(), H5T_NATIVE_LONG, &a.integer, 1));
+        break;
+      case KindAttribute::Type::kString:
+        BISTABLE_RETURN_IF_ERROR(WriteStringAttr(file, a.name.c_str(), a.text));
+        break;
+    }
+  }
+  return Status::Ok();
 }
 
 Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& spec,
                  const std::vector<PointRecord>& records, const RefinedGrid* refined, const MapOrigin& origin) {
-  const long np = spec.points();
   const int nic = spec.ic_count();
   std::vector<hsize_t> axis_dims;
   std::vector<std::string> axis_names;
@@ -373,15 +342,14 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
     BISTABLE_RETURN_IF_ERROR(WriteScalar(file.get(), p.name, p.value, {p.long_name, p.unit, ""}));
     coordinates += (coordinates.empty() ? "" : " ") + p.name;
   }
-  // The trailing item dimension: initial conditions, or continuation directions.
-  const bool chained = spec.continuation.enabled();
-  const std::string item_dim = chained ? "direction" : "ic";
-  static const std::vector<Category> kDirections = {{0, "up"}, {1, "down"}};
+  // The trailing item dimension: the kind's slots (initial conditions, continuation directions, samples).
+  const SweepKind& kind = KindOf(spec);
+  const SlotDimension slot = kind.Dimension(spec);
+  const std::string& item_dim = slot.name;
   if (nic > 1) {
-    CfQuantity q{"index into the sweep's initial states ([initial_conditions] states)", "", ""};
-    if (chained) q = {"direction of the continuation sweep along " + spec.continuation.axis, "", "", &kDirections};
-    if (spec.robustness.enabled())
-      q = {"index of the tolerance sample ([robustness]: seeded, shifted Halton sequence)", "", ""};
+    std::vector<Category> slot_names;
+    for (const auto& [code, name] : slot.labels) slot_names.push_back({code, name.c_str()});
+    const CfQuantity q{slot.long_name, "", "", slot_names.empty() ? nullptr : &slot_names};
     BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), item_dim, Iota(nic), q, /*integer=*/true));
   }
   std::vector<hsize_t> dims = axis_dims;
@@ -476,40 +444,8 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
       BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), c.name, sn));
     }
   }
-  if (nic > 1 && !chained) {  // multistability: fraction of initial conditions ending in each motion type
-    const size_t motion_index = MetricIndex("motion");
-    for (int code = 0; code <= 2; ++code) {
-      static const char* kNames[] = {"frac_intrawell", "frac_interwell", "frac_chaotic"};
-      std::vector<double> frac(np, 0.0);
-      for (long p = 0; p < np; ++p) {
-        int hit = 0;
-        for (int i = 0; i < nic; ++i) hit += records[p * nic + i].Get(motion_index) == code;
-        frac[p] = static_cast<double>(hit) / nic;
-      }
-      const std::string motion = MotionName(code == 0   ? Motion::kIntrawell
-                                            : code == 1 ? Motion::kInterwell
-                                                        : Motion::kChaotic);
-      BISTABLE_RETURN_IF_ERROR(
-          WriteDataset(file.get(), kNames[code], axis_dims, frac, H5T_NATIVE_DOUBLE,
-                       {"fraction of the initial conditions ending in " + motion + " motion", "fraction",
-                        "fraction of the initial conditions whose motion type is this one"},
-                       coordinates));
-      BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), kNames[code], axis_names));
-      if (spec.robustness.enabled()) {  // a probability estimated from nic samples: its standard error
-        std::vector<double> se(np);
-        for (long p = 0; p < np; ++p) se[p] = std::sqrt(frac[p] * (1.0 - frac[p]) / nic);
-        const std::string name = std::string(kNames[code]) + "_stderr";
-        BISTABLE_RETURN_IF_ERROR(
-            WriteDataset(file.get(), name, axis_dims, se, H5T_NATIVE_DOUBLE,
-                         {"Monte-Carlo standard error of " + std::string(kNames[code]), "fraction",
-                          "sqrt(p (1 - p) / samples) of the fraction p over the tolerance samples"},
-                         coordinates));
-        BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), name, axis_names));
-      }
-    }
-  }
-  if (spec.IsBasinSweep()) BISTABLE_RETURN_IF_ERROR(WriteBasins(file.get(), spec, records, dims, names, coordinates));
-  if (refined) BISTABLE_RETURN_IF_ERROR(WriteRefinement(file.get(), spec, *refined, dims, names, coordinates));
+  BISTABLE_RETURN_IF_ERROR(WriteKindPart(file.get(), spec, kind.MapPart(spec, records, refined), axis_dims, axis_names,
+                                         dims, names, coordinates));
   const IntegrationSettings& in = spec.base.integration;
   const bool dimensional = spec.model == ModelKind::kDimensional;
   char settings[256];

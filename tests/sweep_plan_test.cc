@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "engine/evaluate.h"
+#include "engine/sweep_kind.h"
 #include "tests/spec_fixture.h"
 
 namespace bistable {
@@ -136,7 +137,7 @@ TEST(SweepPlan, AJobCountsOnceAndTheLastOneMakesThePlanPublishable) {
 
 TEST(SweepPlan, AContinuationChainWithAnyMissingItemIsQueuedWholeInOneJob) {
   const SweepSpec spec = bistable_test::ParsedSpec(ChainSpec("up"));
-  const auto chains = spec.ContinuationChains();
+  const auto chains = KindOf(spec).Chains(spec);
   ASSERT_EQ(chains.size(), 3u);
   FakeCache cache;
   for (const auto& chain : chains)
@@ -250,7 +251,7 @@ TEST(SweepPlan, ShardsPartitionTheItemsRoundRobinAndQueueOnlyTheirMissingOnes) {
 
 TEST(SweepPlan, AContinuationShardHoldsWholeChains) {
   const SweepSpec spec = bistable_test::ParsedSpec(ChainSpec("both"));
-  const auto chains = spec.ContinuationChains();
+  const auto chains = KindOf(spec).Chains(spec);
   ASSERT_EQ(chains.size(), 6u);  // 3 lines x 2 directions
   FakeCache cache;
   long total = 0;

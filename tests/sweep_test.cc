@@ -24,6 +24,7 @@
 #include "engine/evaluate.h"
 #include "engine/query.h"
 #include "engine/refine.h"
+#include "engine/sweep_kind.h"
 #include "engine/sweep_spec.h"
 #include "server/sweep_coordinator.h"
 #include "storage/map_file.h"
@@ -1345,7 +1346,7 @@ TEST(Continuation, ChainedPointsStartFromThePreviousFinalState) {
   const SweepSpec spec = Parse(kHysteresis);
   ASSERT_TRUE(spec.continuation.enabled());
   EXPECT_EQ(spec.ic_count(), 2);
-  const auto chains = spec.ContinuationChains();
+  const auto chains = KindOf(spec).Chains(spec);
   ASSERT_EQ(chains.size(), 2u);
   EXPECT_EQ(chains[0].front().point, 0);
   EXPECT_EQ(chains[1].front().point, 20);  // the downward chain starts at the top of the axis

@@ -1,4 +1,4 @@
-#include "identify/effects.h"
+#include "dynamics/terms.h"
 
 #include <cmath>
 #include <set>

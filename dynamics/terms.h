@@ -1,6 +1,8 @@
-// The effect library for identification: terms with stable ids, each a force on one body that is
-// linear in its parameters, F = Σ θ_k φ_k(q, v), so that a model is a parameter vector over basis
-// functions (fits by simulation, residual regressions and uncertainties all use the same φ).
+// The effect library: terms with stable ids, each a force on one body that is linear in its parameters,
+// F = Σ θ_k φ_k(q, v), so that a model is a parameter vector over basis functions (fits by simulation,
+// residual regressions and uncertainties all use the same φ). One model description (issue 42): the
+// identification (identify/) fits these terms, and a sweep maps a model made of them in lanes
+// (dynamics/term_model.h), with the same basis code.
 //
 // Bodies and coordinates (model.md §2): on the main body q = y = x − x0 (relative to the base, or the
 // displacement itself under a force input), v = y'; on the resonator q = z = x_r − x, v = z'.
@@ -33,8 +35,8 @@
 // <output> is the output's kind: displacement, velocity, analogue, resonator, voltage):
 //  offset         output = model + d                     d          output unit  either
 //  scale          output = (1 + g) model                 g          1            either (sensor gain error)
-#ifndef BISTABLE_IDENTIFY_EFFECTS_H_
-#define BISTABLE_IDENTIFY_EFFECTS_H_
+#ifndef BISTABLE_DYNAMICS_TERMS_H_
+#define BISTABLE_DYNAMICS_TERMS_H_
 
 #include <cmath>
 #include <string>
@@ -165,4 +167,4 @@ void TermSlopes(const TermDef& t, const double* theta, double q, double v, const
 
 }  // namespace bistable
 
-#endif  // BISTABLE_IDENTIFY_EFFECTS_H_
+#endif  // BISTABLE_DYNAMICS_TERMS_H_

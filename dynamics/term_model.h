@@ -1,0 +1,158 @@
+// A model made of effect-library terms (dynamics/terms.h) — what `bistable identify` fits — for the lane
+// kernel (ensemble_generic.h): one model description for identification and sweeps (issue 42).
+//
+// State (y, y', z, z'): the main body relative to a sine base, the resonator relative to the main body,
+// as the rig's (dimensional_model.h):
+//   m_main y'' = −F(y, y') + G(z, z') − m_main a0,   m_res z'' = −G(z, z') − m_res (y'' + a0),
+//   F = Σ θ_k φ_k(y, y') over the main body's terms, G over the resonator's; a0 = −A0 ω² sin(ω t).
+// Each force is evaluated by TermBasisSlopes — the identification simulator's basis code — term by term
+// in declaration order. Parameters may differ per lane (a robustness sweep draws them per sample); the
+// terms, masses and friction constants are lane 0's.
+//
+// Not here (yet): the piezo's voltage state and output terms (refused by ValidateTermModel), the
+// Rosenbrock path (the friction basis has no curvature): term models integrate by RK4 with substeps from
+// the Jacobian's spectral radius at rest (TermRk4Substeps), as the rig does under integrator = "rk4".
+#ifndef BISTABLE_DYNAMICS_TERM_MODEL_H_
+#define BISTABLE_DYNAMICS_TERM_MODEL_H_
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "base/status.h"
+#include "dynamics/dimensional_model.h"
+#include "dynamics/lanes.h"
+#include "dynamics/terms.h"
+
+namespace bistable {
+
+struct TermModel {
+  std::vector<const TermDef*> terms;  // force terms of the main body and the resonator, in declaration order
+  std::vector<double> theta;          // their parameters, term by term (TermDef::params order)
+  double m_main = 0;                  // kg
+  double m_res = 0;                   // kg; needed when any res.* term is declared
+  FrictionConstants fc;
+
+  bool HasResonator() const;
+  int NumParams() const;                        // Σ over terms of their parameter count
+  std::vector<std::string> ParamNames() const;  // "main.linear.k_lin", ...
+  std::vector<std::string> ParamUnits() const;  // "N/m", ...
+  int IndexOf(const std::string& name) const;   // of a ParamNames() entry, −1 if none
+  // The rig of the paper's Table 2 (or any DimensionalParams) as terms: linear, stiffness_y3, viscous,
+  // damping_y2 and friction on each body (the resonator's without a cubic spring). InvalidArgument when the
+  // two bodies' friction laws have different v_sp or v_t (a term model has one pair).
+  static StatusOr<TermModel> FromDimensional(const DimensionalParams& p);
+};
+
+// Refuses what the lane model cannot run: no terms, a term that is not a force of the main body or the
+// resonator (piezo, output terms), a parameter count that does not match, masses not positive and finite
+// (m_res only with resonator terms), friction constants not positive. The field named is `terms`,
+// `theta`, `m_main`, `m_res` or `friction`.
+Status ValidateTermModel(const TermModel& m);
+
+// F (main body) or G (resonator) of a term model at (q, v) with parameters th, and its slopes.
+void TermForce(const TermModel& m, Body body, const double* th, double q, double v, double* f, double* fq, double* fv);
+// RK4 steps per output step dt: the Jacobian's spectral radius ρ at the rest states (the origin and every
+// zero of F(q, 0) found on a log grid of |q| from 1 µm to 1 m), h ≤ 2/ρ — the rig's rule (Rk4Substeps).
+int TermRk4Substeps(const TermModel& m, const double* th, double dt);
+
+// One lane of a term-model sweep (ensemble_generic.h): a sine base x0 = A0 sin(ω t), output cell y, y'.
+struct TermLaneInput {
+  double amp = 0, omega = 0, base_amp = 0;  // A0 ω² [m/s²], ω [rad/s], A0 [m]
+  const TermModel* model = nullptr;         // the structure every lane shares (lane 0's)
+  const double* theta = nullptr;            // this lane's parameters (model->NumParams()); null: model->theta
+  std::array<double, 4> x0 = {0, 0, 0, 0};
+};
+
+struct TermLaneModel {
+  static constexpr int kDim = 4;
+  using Input = TermLaneInput;
+
+  template <int W>
+  class Lanes {
+   public:
+    using V = Vec<W>;
+    // −∂F/∂y, −∂F/∂y', ∂G/∂z, ∂G/∂z' at the evaluated state (DimensionalLaneModel's entries).
+    struct Jac {
+      explicit Jac(const Lanes&) {}
+      V fy, fyd, gz, gzd;
+    };
+
+    explicit Lanes(const Input& in)
+        : fb_(FrictionBasis(in.model->fc)),
+          inv_m_m_(1.0 / in.model->m_main),
+          inv_m_r_(in.model->HasResonator() ? 1.0 / in.model->m_res : 0.0),
+          res_(in.model->HasResonator()) {
+      int offset = 0;
+      for (const TermDef* t : in.model->terms) {
+        (t->body == Body::kMain ? main_ : resonator_).push_back({t, offset});
+        offset += static_cast<int>(t->params.size());
+      }
+      th_.resize(offset);
+    }
+    int dim() const { return kDim; }
+    void Load(int l, const Input& in) {
+      const double* th = in.theta ? in.theta : in.model->theta.data();
+      for (size_t k = 0; k < th_.size(); ++k) th_[k][l] = th[k];
+    }
+
+    BISTABLE_INLINE void Eval(const V* x, V f, V* dx, Jac* j) const {
+      const V y = x[0], yd = x[1];
+      V force, fq, fv;
+      Force(main_, y, yd, &force, &fq, &fv);
+      j->fy = -fq, j->fyd = -fv;
+      V g = Splat<W>(0.0);
+      if (res_) {
+        Force(resonator_, x[2], x[3], &g, &j->gz, &j->gzd);
+      } else {
+        j->gz = j->gzd = g;
+      }
+      const V fm = (g - force) * inv_m_m_;
+      dx[0] = yd;
+      dx[1] = fm + f;  // f = −(base acceleration)
+      if (res_) {
+        dx[2] = x[3];
+        dx[3] = Fma(-g, Splat<W>(inv_m_r_), -fm);
+      } else {
+        dx[2] = dx[3] = g;
+      }
+    }
+    BISTABLE_INLINE void Apply(const Jac& j, const V* w, V* dw) const {
+      TwoBodyApply<W>(j, w, dw, inv_m_m_, inv_m_r_, res_);
+    }
+    BISTABLE_INLINE void Output(const V* x, const V* dx, V* out, V* dout) const {
+      out[0] = x[0], out[1] = x[1], dout[0] = dx[0], dout[1] = dx[1];
+    }
+
+   private:
+    struct Term {
+      const TermDef* def;
+      int offset;  // of its first parameter in th_
+    };
+    // Σ θ φ over a body's terms and its slopes, in declaration order (the basis of TermBasisSlopes).
+    BISTABLE_INLINE void Force(const std::vector<Term>& terms, V q, V v, V* f, V* fq, V* fv) const {
+      V sum = Splat<W>(0.0), sq = sum, sv = sum;
+      for (const Term& t : terms) {
+        V phi[kMaxTermParams], pq[kMaxTermParams], pv[kMaxTermParams];
+        TermBasisSlopes<V>(*t.def, q, v, fb_, phi, pq, pv);
+        for (size_t k = 0; k < t.def->params.size(); ++k) {
+          const V th = th_[t.offset + k];
+          sum = Fma(th, phi[k], sum);
+          sq = Fma(th, pq[k], sq);
+          sv = Fma(th, pv[k], sv);
+        }
+      }
+      *f = sum, *fq = sq, *fv = sv;
+    }
+
+    StribeckBasis fb_;
+    double inv_m_m_, inv_m_r_;
+    bool res_;
+    std::vector<Term> main_, resonator_;
+    std::vector<V> th_;  // per parameter, the lanes' values
+  };
+};
+
+}  // namespace bistable
+
+#endif  // BISTABLE_DYNAMICS_TERM_MODEL_H_
