@@ -206,6 +206,67 @@ StatusOr<std::unique_ptr<DesignSweeps>> OpenRemoteSweeps(const std::string& addr
   return std::unique_ptr<DesignSweeps>(new RemoteSweeps(std::move(c.value())));
 }
 
+// report.json's head: the design, where it ran, the search's settings, every candidate, the Pareto front, the
+// best design, and the search's counts.
+nlohmann::json SearchJson(const DesignSpec& spec, const DesignRunOptions& o, const std::string& out,
+                          const SearchResult& r) {
+  nlohmann::json j;
+  const bool remote = !o.coordinator.empty();
+  j["design_id"] = spec.id;
+  j["name"] = spec.name;
+  j["report_dir"] = std::filesystem::absolute(out).string();
+  if (remote)
+    j["coordinator"] = o.coordinator;
+  else
+    j["data"] = std::filesystem::absolute(o.data).string();
+  j["optimizer"] = spec.optimizer;
+  j["objective"] = "maximise safe_band_width (band_width without cells at unsafe band points)";
+  j["cost_parameter"] = spec.cost;
+  j["alpha"] = spec.alphas;
+  j["omega"] = {{"min", spec.omega.front()}, {"max", spec.omega.back()}, {"count", spec.omega.size()}};
+  j["bounds"] = {
+      {"lambda", {spec.lo[0], spec.hi[0]}}, {"phi", {spec.lo[1], spec.hi[1]}}, {"eta_r", {spec.lo[2], spec.hi[2]}}};
+  j["candidates"] = nlohmann::json::array();
+  for (const Candidate& c : r.candidates) j["candidates"].push_back(CandidateJson(c));
+  j["front"] = nlohmann::json::array();
+  for (int i : r.front) j["front"].push_back(CandidateJson(r.candidates[i]));
+  j["best"] = r.best >= 0 ? CandidateJson(r.candidates[r.best]) : nlohmann::json(nullptr);
+  j["search"] = {{"candidates", r.candidates.size()},
+                 {"points", r.items},
+                 {"computed", r.computed},
+                 {"cached", r.items - r.computed},
+                 {"seconds", r.seconds}};
+  return j;
+}
+
+// Maps of the best designs: ordinary sweeps over map_alpha x omega (bistable map / query work on them), with
+// their default plots; j["maps"].
+Status AddBestMaps(const DesignSpec& spec, const DesignRunOptions& o, const std::string& out, const SearchResult& r,
+                   DesignSweeps& sweeps, nlohmann::json* j) {
+  (*j)["maps"] = nlohmann::json::array();
+  const std::vector<int> best = BestCandidates(r.candidates, spec.maps);
+  for (size_t k = 0; k < best.size(); ++k) {
+    const Candidate& c = r.candidates[best[k]];
+    const std::string title = (spec.name.empty() ? "design " + spec.id : spec.name) + " best #" + std::to_string(k + 1);
+    const std::string toml = spec.MapToml(c.x, title);
+    auto m = sweeps.Run(toml);
+    if (!m.ok()) return m.status();
+    nlohmann::json mj = {{"rank", k + 1},           {"candidate", c.index}, {"design", PointJson(c.x)},
+                         {"sweep_id", m->sweep_id}, {"points", m->items},   {"computed", m->items - m->cached},
+                         {"seconds", m->seconds}};
+    if (o.plots && CheckGnuplot().ok()) {
+      const std::string dir = (std::filesystem::path(out) / ("best-" + std::to_string(k + 1))).string();
+      std::error_code ec;
+      std::filesystem::create_directories(dir, ec);
+      auto local = sweeps.LocalMap(*m, dir);
+      auto parsed = ParseSweepSpec(toml, "design");
+      if (local.ok() && parsed.ok()) mj["plots"] = RenderDefaultPlots(*parsed, *local, dir);
+    }
+    (*j)["maps"].push_back(mj);
+  }
+  return Status::Ok();
+}
+
 StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOptions& o) {
   if (o.brute_force != 0 && (o.brute_force < 2 || o.brute_force > limits::kMaxBruteForceSide))
     return Violates("brute-force", o.brute_force,
@@ -237,53 +298,10 @@ StatusOr<nlohmann::json> RunDesign(const DesignSpec& spec, const DesignRunOption
   if (search->interrupted) return CancelledStatus();
   const SearchResult& r = *search;
 
-  nlohmann::json j;
-  j["design_id"] = spec.id;
-  j["name"] = spec.name;
-  j["report_dir"] = std::filesystem::absolute(out).string();
-  if (remote)
-    j["coordinator"] = o.coordinator;
-  else
-    j["data"] = std::filesystem::absolute(o.data).string();
-  j["optimizer"] = spec.optimizer;
-  j["objective"] = "maximise safe_band_width (band_width without cells at unsafe band points)";
-  j["cost_parameter"] = spec.cost;
-  j["alpha"] = spec.alphas;
-  j["omega"] = {{"min", spec.omega.front()}, {"max", spec.omega.back()}, {"count", spec.omega.size()}};
-  j["bounds"] = {
-      {"lambda", {spec.lo[0], spec.hi[0]}}, {"phi", {spec.lo[1], spec.hi[1]}}, {"eta_r", {spec.lo[2], spec.hi[2]}}};
-  j["candidates"] = nlohmann::json::array();
-  for (const Candidate& c : r.candidates) j["candidates"].push_back(CandidateJson(c));
-  j["front"] = nlohmann::json::array();
-  for (int i : r.front) j["front"].push_back(CandidateJson(r.candidates[i]));
-  j["best"] = r.best >= 0 ? CandidateJson(r.candidates[r.best]) : nlohmann::json(nullptr);
-  j["search"] = {{"candidates", r.candidates.size()},
-                 {"points", r.items},
-                 {"computed", r.computed},
-                 {"cached", r.items - r.computed},
-                 {"seconds", r.seconds}};
+  nlohmann::json j = SearchJson(spec, o, out, r);
 
   // Maps of the best designs: ordinary sweeps over map_alpha x omega (bistable map / query work on them).
-  j["maps"] = nlohmann::json::array();
-  const std::vector<int> best = BestCandidates(r.candidates, spec.maps);
-  for (size_t k = 0; k < best.size(); ++k) {
-    const Candidate& c = r.candidates[best[k]];
-    const std::string title = (spec.name.empty() ? "design " + spec.id : spec.name) + " best #" + std::to_string(k + 1);
-    const std::string toml = spec.MapToml(c.x, title);
-    auto m = sweeps.value()->Run(toml);
-    if (!m.ok()) return m.status();
-    nlohmann::json mj = {{"rank", k + 1},           {"candidate", c.index}, {"design", PointJson(c.x)},
-                         {"sweep_id", m->sweep_id}, {"points", m->items},   {"computed", m->items - m->cached},
-                         {"seconds", m->seconds}};
-    if (o.plots && CheckGnuplot().ok()) {
-      const std::string dir = (std::filesystem::path(out) / ("best-" + std::to_string(k + 1))).string();
-      std::filesystem::create_directories(dir, ec);
-      auto local = sweeps.value()->LocalMap(*m, dir);
-      auto parsed = ParseSweepSpec(toml, "design");
-      if (local.ok() && parsed.ok()) mj["plots"] = RenderDefaultPlots(*parsed, *local, dir);
-    }
-    j["maps"].push_back(mj);
-  }
+  BISTABLE_RETURN_IF_ERROR(AddBestMaps(spec, o, out, r, *sweeps.value(), &j));
 
   // Brute force in the same run: one sweep over the N per free parameter grid x alphas x omega, from
   // an empty cache (a data directory of its own, removed afterwards) so its time is the real cost.

@@ -176,6 +176,80 @@ StatusOr<PlotData> FoldsOverMap(const HbmArgs& a, const std::vector<FoldCurve>& 
   return d;
 }
 
+// `hbm --json`: the branches (every point, with its well for a bistable model), the bifurcations, the settings,
+// the truncation check and notes; with --fold-curve the fold curves.
+nlohmann::json HbmJson(const HbmArgs& a, const HbmResult& r, const std::vector<FoldCurve>& curves) {
+  nlohmann::json branches = nlohmann::json::array();
+  for (const HbmBranch& b : r.branches) {
+    nlohmann::json pts = nlohmann::json::array();
+    for (const HbmPoint& p : b.points) {
+      pts.push_back(PointJson(p));
+      if (IsBistable(a.o.model)) pts.back()["well"] = OrbitWellName(WellOf(p));
+    }
+    branches.push_back({{"start", b.start}, {"period", b.period}, {"points", pts}});
+  }
+  nlohmann::json settings = {{"model", ModelName(a.o.model)},
+                             {"continue", a.param},
+                             {"from", a.o.from},
+                             {"to", a.o.to},
+                             {"alpha", a.o.alpha},
+                             {"omega", a.o.omega},
+                             {"harmonics", a.o.harmonics},
+                             {"zero_mean", a.o.zero_mean},
+                             {"eps", a.o.params.eps},
+                             {"eta", a.o.params.eta},
+                             {"switch_pd", a.o.switch_depth},
+                             {"numerics_version", kNumericsVersion}};
+  if (HasResonator(a.o.model))
+    settings.update({{"eta_r", a.o.params.eta_r}, {"phi", a.o.params.phi}, {"lambda", a.o.params.lambda}});
+  nlohmann::json out = {{"branches", branches},
+                        {"bifurcations", BifurcationsJson(r)},
+                        {"settings", settings},
+                        {"truncation_change", r.truncation_change},
+                        {"notes", r.notes}};
+  if (a.fold_curve) {
+    out["fold_curves"] = FoldCurvesJson(curves, IsBistable(a.o.model));
+    out["settings"].update({{"alpha_range", a.alpha_range}, {"omega_range", a.omega_range}});
+  }
+  return out;
+}
+
+// hbm's summary on stdout (no --json, no figure): each branch, the period doublings and Neimark–Sacker points,
+// and with --fold-curve each fold curve and its cusps.
+void PrintHbmSummary(const HbmArgs& a, const HbmResult& r, const std::vector<FoldCurve>& curves) {
+  const bool omega = a.o.param == ContinuationParam::kOmega;
+  std::printf("%zu branches (truncation check: amplitude changes by %.2g%% with H+2 harmonics)\n", r.branches.size(),
+              100 * r.truncation_change);
+  for (const HbmBranch& b : r.branches) {
+    int stable = 0, folds = 0, pds = 0, nss = 0;
+    double lo = INFINITY, hi = 0;
+    for (const HbmPoint& p : b.points)
+      stable += p.stable, folds += p.fold, pds += p.period_doubling, nss += p.neimark_sacker,
+          lo = std::min(lo, p.amplitude), hi = std::max(hi, p.amplitude);
+    std::printf("  %-50s %4zu points, period %d, amplitude %.3f..%.3f, mean %+.3f, %d stable, %d folds, %d PD, %d NS\n",
+                b.start.c_str(), b.points.size(), b.period, lo, hi, b.points.front().mean, stable, folds, pds, nss);
+  }
+  const char* pname = omega ? "Omega" : "alpha";
+  for (const auto& j : BifurcationsJson(r)) {
+    if (j["kind"] == "fold") continue;
+    const double v = j[omega ? "omega" : "alpha"].is_null() ? NAN : j[omega ? "omega" : "alpha"].get<double>();
+    std::printf("  %s on branch %d (period %d) at %s = %.10g, amplitude %.5g\n",
+                j["kind"] == "period_doubling" ? "period doubling" : "Neimark-Sacker", j["branch"].get<int>(),
+                j["period"].get<int>(), pname, v, j["amplitude"].is_null() ? NAN : j["amplitude"].get<double>());
+  }
+  if (a.fold_curve)
+    for (const FoldCurve& c : curves) {
+      int cusps = 0;
+      double alo = INFINITY, ahi = 0;
+      for (const FoldCurvePoint& p : c.points)
+        cusps += p.cusp, alo = std::min(alo, p.alpha), ahi = std::max(ahi, p.alpha);
+      std::printf("  fold curve from %s: %zu points, alpha %.4g..%.4g, %d cusps%s\n", c.start.c_str(), c.points.size(),
+                  alo, ahi, cusps, c.converged ? "" : " (the corrector failed before it left the box)");
+      for (const FoldCurvePoint& p : c.points)
+        if (p.cusp) std::printf("    cusp near alpha = %.5g, Omega = %.5g\n", p.alpha, p.omega);
+    }
+}
+
 int RunHbm(HbmArgs& a) {
   auto m = ParseModel(a.model);
   if (!m.ok()) return Fail(m.status());
@@ -211,41 +285,7 @@ int RunHbm(HbmArgs& a) {
   if (!r.ok()) return Fail(r.status());
   if (!curves.ok()) return Fail(curves.status());
   const bool omega = a.o.param == ContinuationParam::kOmega;
-  if (a.json) {
-    nlohmann::json branches = nlohmann::json::array();
-    for (const HbmBranch& b : r->branches) {
-      nlohmann::json pts = nlohmann::json::array();
-      for (const HbmPoint& p : b.points) {
-        pts.push_back(PointJson(p));
-        if (IsBistable(a.o.model)) pts.back()["well"] = OrbitWellName(WellOf(p));
-      }
-      branches.push_back({{"start", b.start}, {"period", b.period}, {"points", pts}});
-    }
-    nlohmann::json settings = {{"model", ModelName(a.o.model)},
-                               {"continue", a.param},
-                               {"from", a.o.from},
-                               {"to", a.o.to},
-                               {"alpha", a.o.alpha},
-                               {"omega", a.o.omega},
-                               {"harmonics", a.o.harmonics},
-                               {"zero_mean", a.o.zero_mean},
-                               {"eps", a.o.params.eps},
-                               {"eta", a.o.params.eta},
-                               {"switch_pd", a.o.switch_depth},
-                               {"numerics_version", kNumericsVersion}};
-    if (HasResonator(a.o.model))
-      settings.update({{"eta_r", a.o.params.eta_r}, {"phi", a.o.params.phi}, {"lambda", a.o.params.lambda}});
-    nlohmann::json out = {{"branches", branches},
-                          {"bifurcations", BifurcationsJson(*r)},
-                          {"settings", settings},
-                          {"truncation_change", r->truncation_change},
-                          {"notes", r->notes}};
-    if (a.fold_curve) {
-      out["fold_curves"] = FoldCurvesJson(*curves, IsBistable(a.o.model));
-      out["settings"].update({{"alpha_range", a.alpha_range}, {"omega_range", a.omega_range}});
-    }
-    std::cout << DumpJson(out, 1) << "\n";
-  }
+  if (a.json) std::cout << DumpJson(HbmJson(a, *r, *curves), 1) << "\n";
   const std::string ext = a.format.empty() ? "png" : a.format;
   if (!a.format.empty() || !a.out.empty()) {
     BranchPlot d = HbmBranchPlot(*r, a.o.model, a.o.param,
@@ -281,40 +321,7 @@ int RunHbm(HbmArgs& a) {
   }
   if (!a.json)
     for (const std::string& n : r->notes) std::cerr << "note: " << n << "\n";
-  if (!a.json && a.format.empty() && a.out.empty()) {
-    std::printf("%zu branches (truncation check: amplitude changes by %.2g%% with H+2 harmonics)\n", r->branches.size(),
-                100 * r->truncation_change);
-    for (const HbmBranch& b : r->branches) {
-      int stable = 0, folds = 0, pds = 0, nss = 0;
-      double lo = INFINITY, hi = 0;
-      for (const HbmPoint& p : b.points)
-        stable += p.stable, folds += p.fold, pds += p.period_doubling, nss += p.neimark_sacker,
-            lo = std::min(lo, p.amplitude), hi = std::max(hi, p.amplitude);
-      std::printf(
-          "  %-50s %4zu points, period %d, amplitude %.3f..%.3f, mean %+.3f, %d stable, %d folds, %d PD, %d NS\n",
-          b.start.c_str(), b.points.size(), b.period, lo, hi, b.points.front().mean, stable, folds, pds, nss);
-    }
-    const char* pname = omega ? "Omega" : "alpha";
-    for (const auto& j : BifurcationsJson(*r)) {
-      if (j["kind"] == "fold") continue;
-      const double v = j[omega ? "omega" : "alpha"].is_null() ? NAN : j[omega ? "omega" : "alpha"].get<double>();
-      std::printf("  %s on branch %d (period %d) at %s = %.10g, amplitude %.5g\n",
-                  j["kind"] == "period_doubling" ? "period doubling" : "Neimark-Sacker", j["branch"].get<int>(),
-                  j["period"].get<int>(), pname, v, j["amplitude"].is_null() ? NAN : j["amplitude"].get<double>());
-    }
-    if (a.fold_curve)
-      for (const FoldCurve& c : *curves) {
-        int cusps = 0;
-        double alo = INFINITY, ahi = 0;
-        for (const FoldCurvePoint& p : c.points)
-          cusps += p.cusp, alo = std::min(alo, p.alpha), ahi = std::max(ahi, p.alpha);
-        std::printf("  fold curve from %s: %zu points, alpha %.4g..%.4g, %d cusps%s\n", c.start.c_str(),
-                    c.points.size(), alo, ahi, cusps,
-                    c.converged ? "" : " (the corrector failed before it left the box)");
-        for (const FoldCurvePoint& p : c.points)
-          if (p.cusp) std::printf("    cusp near alpha = %.5g, Omega = %.5g\n", p.alpha, p.omega);
-      }
-  }
+  if (!a.json && a.format.empty() && a.out.empty()) PrintHbmSummary(a, *r, *curves);
   return 0;
 }
 

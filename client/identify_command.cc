@@ -94,6 +94,69 @@ int ListTerms(bool json) {
   return 0;
 }
 
+// --synthetic bistable|bistable-coupled: its flags within their bounds, and resonator terms of
+// --synthetic-extra only with the resonator.
+Status CheckFamilyFlags(const IdentifyArgs& a, const std::vector<TermValues>& extra) {
+  auto check = [](const char* flag, double v, double lo, double hi) -> Status {
+    if (!(v >= lo && v <= hi))
+      return Status::InvalidArgument(flag, std::string("--") + flag + " = " + Fmt(v, 6) + " violates " + Fmt(lo, 6) +
+                                               " <= value <= " + Fmt(hi, 6));
+    return Status::Ok();
+  };
+  for (const TermValues& e : extra)
+    if (e.term->body == Body::kResonator && a.synth_kind != "bistable-coupled")
+      return Status::InvalidArgument(
+          "synthetic-extra", "--synthetic-extra " + e.term->id + " needs --synthetic bistable-coupled (a resonator)");
+  BISTABLE_RETURN_IF_ERROR(check("synthetic-f-start", a.synth_f_start, 0.01, 50));
+  BISTABLE_RETURN_IF_ERROR(check("synthetic-f-end", a.synth_f_end, 0.01, 50));
+  BISTABLE_RETURN_IF_ERROR(check("synthetic-duration", a.synth_duration, 1, 600));
+  BISTABLE_RETURN_IF_ERROR(check("synthetic-noise", a.synth_noise_mm, 0, 10));
+  if (a.synth_start != "left" && a.synth_start != "right")
+    return Status::InvalidArgument("synthetic-start", "--synthetic-start '" + a.synth_start + "' is not left or right");
+  if (a.synth_amplitudes_mm.size() > 16)
+    return Status::InvalidArgument("synthetic-amplitude", "at most 16 --synthetic-amplitude values");
+  for (double mm : a.synth_amplitudes_mm) BISTABLE_RETURN_IF_ERROR(check("synthetic-amplitude", mm, 0.01, 100));
+  return Status::Ok();
+}
+
+// truth.json of a synthetic family: the truth `p` (with the `extra` force terms) as a `--predict --model` file
+// (final_terms, params, settings) and how its `records` were made.
+nlohmann::json TruthJson(const DimensionalParams& p, const std::vector<TermValues>& extra, const IdentifyArgs& a,
+                         const nlohmann::json& records) {
+  nlohmann::json params = nlohmann::json::object(), final_terms = nlohmann::json::array(),
+                 extras = nlohmann::json::array();
+  for (const TermValues& t : TruthTerms(p, extra)) {
+    final_terms.push_back(t.term->id);
+    for (size_t k = 0; k < t.values.size(); ++k) params[t.term->id + "." + t.term->params[k].name] = t.values[k];
+  }
+  for (const TermValues& e : extra) {
+    nlohmann::json v = nlohmann::json::object();
+    for (size_t k = 0; k < e.values.size(); ++k) v[e.term->params[k].name] = e.values[k];
+    extras.push_back({{"term", e.term->id}, {"values", v}});
+  }
+  nlohmann::json settings = {{"m_main", p.m_m},
+                             {"v_sp", p.fric_m.v_sp},
+                             {"v_t", p.fric_m.v_t},
+                             {"input_kind", "base_displacement"},
+                             {"output_kind", "displacement"},
+                             {"output_frame", "absolute"}};
+  if (p.has_resonator) settings["m_res"] = p.m_r;
+  return {{"final_terms", final_terms},
+          {"params", params},
+          {"settings", settings},
+          {"synthetic",
+           {{"kind", a.synth_kind},
+            {"f_start_hz", a.synth_f_start},
+            {"f_end_hz", a.synth_f_end},
+            {"duration_s", a.synth_duration},
+            {"fs_hz", 120},
+            {"noise_mm", a.synth_noise_mm},
+            {"noise_on", p.has_resonator ? nlohmann::json{"x0", "x", "xr"} : nlohmann::json{"x0", "x"}},
+            {"start_well", a.synth_start},
+            {"extra", extras},
+            {"records", records}}}};
+}
+
 // --make-synthetic DIR: synthetic records for trying the loop (noise 0.05 mm on every measured
 // position, sampled at 120 Hz like the paper's camera):
 //   linear   the paper's Table 2 linear rig (no resonator) under 1 → 8 Hz chirps of 6, 10, 14 mm, 20 s each;
@@ -120,28 +183,7 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
     return Status::InvalidArgument(
         "synthetic",
         "--synthetic-extra and --synthetic-amplitude are options of --synthetic bistable|bistable-coupled");
-  auto check = [](const char* flag, double v, double lo, double hi) -> Status {
-    if (!(v >= lo && v <= hi))
-      return Status::InvalidArgument(flag, std::string("--") + flag + " = " + Fmt(v, 6) + " violates " + Fmt(lo, 6) +
-                                               " <= value <= " + Fmt(hi, 6));
-    return Status::Ok();
-  };
-  if (family) {  // every flag checked before anything is written
-    for (const TermValues& e : extra)
-      if (e.term->body == Body::kResonator && kind != "bistable-coupled")
-        return Status::InvalidArgument(
-            "synthetic-extra", "--synthetic-extra " + e.term->id + " needs --synthetic bistable-coupled (a resonator)");
-    BISTABLE_RETURN_IF_ERROR(check("synthetic-f-start", a.synth_f_start, 0.01, 50));
-    BISTABLE_RETURN_IF_ERROR(check("synthetic-f-end", a.synth_f_end, 0.01, 50));
-    BISTABLE_RETURN_IF_ERROR(check("synthetic-duration", a.synth_duration, 1, 600));
-    BISTABLE_RETURN_IF_ERROR(check("synthetic-noise", a.synth_noise_mm, 0, 10));
-    if (a.synth_start != "left" && a.synth_start != "right")
-      return Status::InvalidArgument("synthetic-start",
-                                     "--synthetic-start '" + a.synth_start + "' is not left or right");
-    if (a.synth_amplitudes_mm.size() > 16)
-      return Status::InvalidArgument("synthetic-amplitude", "at most 16 --synthetic-amplitude values");
-    for (double mm : a.synth_amplitudes_mm) BISTABLE_RETURN_IF_ERROR(check("synthetic-amplitude", mm, 0.01, 100));
-  }
+  if (family) BISTABLE_RETURN_IF_ERROR(CheckFamilyFlags(a, extra));  // every flag before anything is written
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return Status::IoError("make-synthetic", "cannot create '" + dir + "': " + ec.message());
@@ -175,39 +217,7 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
       ++seed;
     }
     // The truth as a model file for `identify --predict --model` (and the tests' reference values).
-    nlohmann::json params = nlohmann::json::object(), final_terms = nlohmann::json::array(),
-                   extras = nlohmann::json::array();
-    for (const TermValues& t : TruthTerms(p, extra)) {
-      final_terms.push_back(t.term->id);
-      for (size_t k = 0; k < t.values.size(); ++k) params[t.term->id + "." + t.term->params[k].name] = t.values[k];
-    }
-    for (const TermValues& e : extra) {
-      nlohmann::json v = nlohmann::json::object();
-      for (size_t k = 0; k < e.values.size(); ++k) v[e.term->params[k].name] = e.values[k];
-      extras.push_back({{"term", e.term->id}, {"values", v}});
-    }
-    nlohmann::json settings = {{"m_main", p.m_m},
-                               {"v_sp", p.fric_m.v_sp},
-                               {"v_t", p.fric_m.v_t},
-                               {"input_kind", "base_displacement"},
-                               {"output_kind", "displacement"},
-                               {"output_frame", "absolute"}};
-    if (p.has_resonator) settings["m_res"] = p.m_r;
-    nlohmann::json truth = {
-        {"final_terms", final_terms},
-        {"params", params},
-        {"settings", settings},
-        {"synthetic",
-         {{"kind", kind},
-          {"f_start_hz", a.synth_f_start},
-          {"f_end_hz", a.synth_f_end},
-          {"duration_s", a.synth_duration},
-          {"fs_hz", 120},
-          {"noise_mm", a.synth_noise_mm},
-          {"noise_on", p.has_resonator ? nlohmann::json{"x0", "x", "xr"} : nlohmann::json{"x0", "x"}},
-          {"start_well", a.synth_start},
-          {"extra", extras},
-          {"records", records}}}};
+    const nlohmann::json truth = TruthJson(p, extra, a, records);
     const std::string path = (std::filesystem::path(dir) / "truth.json").string();
     auto f = AtomicFile::Create(path, "json");
     if (!f.ok()) return f.status();
@@ -374,10 +384,38 @@ StatusOr<std::vector<std::string>> ParseStartWells(const IdentifyArgs& a) {
   return w;
 }
 
-// --predict: the fitted model of --model simulated on every --data record (its columns, input, output and
-// frame flags as in a fit, --range/--max-seconds/--decimate selecting the samples); nothing is fitted.
-StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
-  const auto t0 = std::chrono::steady_clock::now();
+// Per record: the errors over one and four drive periods and at --horizon from the measured state, and the
+// twin experiment of --objective auto under this model (is the record's long simulation meaningful?).
+void AddRecordPredictability(const IdentModel& m, const std::vector<double>& th,
+                             const std::vector<PreparedRecord>& recs, const Setup& setup, double horizon,
+                             nlohmann::json* pj) {
+  for (size_t i = 0; i < recs.size(); ++i) {
+    const double f = DriveFrequency(recs[i]);
+    nlohmann::json h = DrivePeriodErrors(recs[i], setup, {{"nrmse", &m, &th}});
+    h.push_back({{"horizon_s", horizon},
+                 {"nrmse", JsonNumber(horizon > 0 ? HorizonError(m, th, recs[i], setup, horizon) : NAN)}});
+    const Predictability pr = TestPredictability(m, th, recs[i], setup, horizon > 0 ? horizon : 0.5);
+    nlohmann::json& rj = (*pj)["prediction"]["records"][i];
+    rj["drive_hz"] = JsonNumber(f);
+    rj["drive_band_hz"] = recs[i].f_drive;  // the simulation's drive: the input low-passed there (0: as measured)
+    rj["horizon_errors"] = h;
+    rj["long_simulation_nrmse"] = JsonNumber(HorizonError(m, th, recs[i], setup, 0));
+    // Multiple shooting at --horizon (segments from re-estimated states): the shooting objective's error.
+    // Its segment states start from the band-limited ones, as a fit of a chaotic record's do (BandLimitedRestarts).
+    PreparedRecord banded = recs[i];
+    BandLimitedRestarts(&banded);
+    rj["shooting_nrmse"] = JsonNumber(horizon > 0 ? Evaluate(m, th, {banded}, setup, horizon).shooting : NAN);
+    rj["predictability"] = {{"chaos_floor_percent", JsonNumber(pr.chaos_floor)},
+                            {"prediction_horizon_s", JsonNumber(pr.horizon_s)},
+                            {"well_changes", pr.well_changes},
+                            {"long_meaningful", pr.long_meaningful},
+                            {"fit_horizon_s", pr.fit_horizon_s},
+                            {"reason", pr.reason}};
+  }
+}
+
+// --predict's flags that only a fit takes, and what it needs: --model and --data.
+Status CheckPredictFlags(const IdentifyArgs& a) {
   if (a.model_file.empty())
     return Status::InvalidArgument(
         "model",
@@ -392,6 +430,14 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
     return Status::InvalidArgument(
         "test-range",
         "--predict simulates the --data records themselves (--range and --max-seconds select the samples)");
+  return Status::Ok();
+}
+
+// --predict: the fitted model of --model simulated on every --data record (its columns, input, output and
+// frame flags as in a fit, --range/--max-seconds/--decimate selecting the samples); nothing is fitted.
+StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
+  const auto t0 = std::chrono::steady_clock::now();
+  BISTABLE_RETURN_IF_ERROR(CheckPredictFlags(a));
   auto read = ReadFittedModel(a.model_file);
   if (!read.ok()) return read.status();
   FittedModel fitted = std::move(read).value();
@@ -490,38 +536,15 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
                              {"start_well", *wells}};
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   nlohmann::json pj = PredictionJson(*fm, *statics, out, joint, setup, settings, seconds);
-  // Per record: the errors over one and four drive periods and at --horizon from the measured state, and the
-  // twin experiment of --objective auto under this model (is the record's long simulation meaningful?).
-  for (size_t i = 0; i < recs.size(); ++i) {
-    const double f = DriveFrequency(recs[i]);
-    nlohmann::json h = DrivePeriodErrors(recs[i], setup, {{"nrmse", &m, &th}});
-    h.push_back({{"horizon_s", a.horizon},
-                 {"nrmse", JsonNumber(a.horizon > 0 ? HorizonError(m, th, recs[i], setup, a.horizon) : NAN)}});
-    const Predictability pr = TestPredictability(m, th, recs[i], setup, a.horizon > 0 ? a.horizon : 0.5);
-    nlohmann::json& rj = pj["prediction"]["records"][i];
-    rj["drive_hz"] = JsonNumber(f);
-    rj["drive_band_hz"] = recs[i].f_drive;  // the simulation's drive: the input low-passed there (0: as measured)
-    rj["horizon_errors"] = h;
-    rj["long_simulation_nrmse"] = JsonNumber(HorizonError(m, th, recs[i], setup, 0));
-    // Multiple shooting at --horizon (segments from re-estimated states): the shooting objective's error.
-    // Its segment states start from the band-limited ones, as a fit of a chaotic record's do (BandLimitedRestarts).
-    PreparedRecord banded = recs[i];
-    BandLimitedRestarts(&banded);
-    rj["shooting_nrmse"] = JsonNumber(a.horizon > 0 ? Evaluate(m, th, {banded}, setup, a.horizon).shooting : NAN);
-    rj["predictability"] = {{"chaos_floor_percent", JsonNumber(pr.chaos_floor)},
-                            {"prediction_horizon_s", JsonNumber(pr.horizon_s)},
-                            {"well_changes", pr.well_changes},
-                            {"long_meaningful", pr.long_meaningful},
-                            {"fit_horizon_s", pr.fit_horizon_s},
-                            {"reason", pr.reason}};
-  }
+  AddRecordPredictability(m, th, recs, setup, a.horizon, &pj);
   return pj;
 }
 
 // The fit of the records of `data` (identify/identify.h) as --json prints it; the report directory is
-// written when asked, the text summary printed when `text`.
+// written when asked, the text summary printed when `text`; `full_report` (optional) receives the text
+// (Summary::FullReport).
 StatusOr<nlohmann::json> FitJson(const identify::Options& o, const std::vector<std::string>& data,
-                                 const std::string& report, bool text) {
+                                 const std::string& report, bool text, std::string* full_report = nullptr) {
   auto plan = identify::MakePlan(o);  // the options' errors before any file is read
   if (!plan.ok()) return plan.status();
   // Resonator terms without a resonator column: the resonator is then a hidden state, started where the main body
@@ -540,7 +563,8 @@ StatusOr<nlohmann::json> FitJson(const identify::Options& o, const std::vector<s
   if (!s.ok()) return s.status();
   const nlohmann::json j = ResultJson(o, *s);
   if (!report.empty()) BISTABLE_RETURN_IF_ERROR(WriteReport(report, identify::JoinTerms(o.terms), *s, j));
-  if (text) PrintSummary(o, report, *s, j["tests"]);
+  if (text) PrintSummary(report, *s);
+  if (full_report) *full_report = s->FullReport();
   return j;
 }
 
@@ -723,9 +747,9 @@ StatusOr<nlohmann::json> IdentifyFromArgs(const std::vector<std::string>& args) 
 }
 
 StatusOr<nlohmann::json> IdentifyFitJson(const identify::Options& options, const std::vector<std::string>& data,
-                                         const std::string& report) {
+                                         const std::string& report, std::string* full_report) {
   if (data.empty()) return Status::InvalidArgument("data", "give at least one data file (CSV)");
-  return FitJson(options, data, report, false);
+  return FitJson(options, data, report, false, full_report);
 }
 
 nlohmann::json IdentifyTermsJson() { return TermsJson(); }

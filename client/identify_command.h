@@ -21,9 +21,10 @@ StatusOr<nlohmann::json> IdentifyFromArgs(const std::vector<std::string>& args);
 
 // The fit for a program (the Python module), with no command-line text: `options` as the library takes them
 // (identify/options.h), the records of the files `data`, Identify (identify/identify.h); returns what
-// `identify --json` prints. `report`: a directory for report.md, report.json and the figures ("": none).
+// `identify --json` prints. `report`: a directory for report.md, report.json and the figures ("": none);
+// `full_report` (optional) receives the fit as text (identify::Summary::FullReport, what the command prints).
 StatusOr<nlohmann::json> IdentifyFitJson(const identify::Options& options, const std::vector<std::string>& data,
-                                         const std::string& report = "");
+                                         const std::string& report = "", std::string* full_report = nullptr);
 // The effect library as `identify --list-terms --json` prints it.
 nlohmann::json IdentifyTermsJson();
 }  // namespace bistable

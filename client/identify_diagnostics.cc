@@ -206,22 +206,4 @@ void WriteDiagnosticsReport(std::ostream& md, const IdentifyResult& r) {
   for (const std::string& h : d.separability) md << "**Separability:** " << h << "\n\n";
 }
 
-std::string DiagnosticsSummary(const IdentifyResult& r) {
-  const LoopDiagnostics& d = r.diagnostics;
-  std::string s;
-  if (d.chaos.chaotic)
-    s += "invariants (declared -> final): Poincare H " + F(d.declared.poincare, 3) + " -> " + F(d.final.poincare, 3) +
-         ", switches/s " + F(d.declared.switching_rate, 3) + " -> " + F(d.final.switching_rate, 3) + " (measured " +
-         F(d.final.switching_rate_measured, 3) + "), right-well share " + F(d.declared.right_well_fraction, 2) +
-         " -> " + F(d.final.right_well_fraction, 2) + " (measured " + F(d.final.right_well_fraction_measured, 2) +
-         "), velocity Hellinger " + F(d.declared.velocity_hellinger, 3) + " -> " + F(d.final.velocity_hellinger, 3) +
-         "\n";
-  if (!d.attractor_loss.empty())
-    s += "the final model loses the attractor the declared model had: " + d.attractor_loss + "\n";
-  s += d.unexplained.empty() ? "residual white (Ljung-Box p = " + F(d.whiteness.p_value, 2) + ")\n"
-                             : "unexplained: " + d.unexplained + "\n";
-  for (const std::string& h : d.separability) s += h + "\n";
-  return s;
-}
-
 }  // namespace bistable

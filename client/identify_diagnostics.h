@@ -25,9 +25,6 @@ void AddDiagnosticsJson(const IdentifyResult& r, const std::vector<PreparedRecor
 // report.md sections: invariants, residual whiteness / unexplained, correlations and drift.
 void WriteDiagnosticsReport(std::ostream& md, const IdentifyResult& r);
 
-// One or two lines for the summary on stdout.
-std::string DiagnosticsSummary(const IdentifyResult& r);
-
 }  // namespace bistable
 
 #endif  // BISTABLE_CLIENT_IDENTIFY_DIAGNOSTICS_H_

@@ -206,29 +206,9 @@ Status WriteReport(const std::string& report, const std::string& declared, const
 }
 
 // The human-readable result on stdout.
-void PrintSummary(const identify::Options& o, const std::string& report, const identify::Summary& s,
-                  const nlohmann::json& tests) {
-  const IdentifyResult& r = s.result;
-  std::printf("error (NRMSE of the output): %s %% before, %s %% after   (spectral: %s %% -> %s %%)\n",
-              Fmt(r.before.errors.nrmse).c_str(), Fmt(r.after.errors.nrmse).c_str(), Fmt(r.before.errors.fft).c_str(),
-              Fmt(r.after.errors.fft).c_str());
-  if (std::isfinite(r.after.errors.shooting))
-    std::printf("short-horizon error (--objective shooting, %s s segments): %s %% before, %s %% after\n",
-                Fmt(o.horizon).c_str(), Fmt(r.before.errors.shooting).c_str(), Fmt(r.after.errors.shooting).c_str());
-  for (const LoopStep& s : r.steps) std::printf("  %s\n", s.verdict.c_str());
-  const auto names = r.final_model.ParamNames();
-  const auto units = r.final_model.ParamUnits();
-  std::printf("final model:\n");
-  for (size_t i = 0; i < names.size(); ++i)
-    std::printf("  %-28s %12s ± %-9s %s\n", names[i].c_str(), Fmt(r.after.theta[i], 6).c_str(),
-                Fmt(r.after.sigma[i], 2).c_str(), units[i].c_str());
-  for (const auto& t : tests)
-    std::printf("test %s [%s): RMS %s before, %s after\n", t["record"].get<std::string>().c_str(),
-                t["range"].get<std::string>().c_str(), TestRms(t, "rms_before").c_str(),
-                TestRms(t, "rms_after").c_str());
-  std::printf("%s", DiagnosticsSummary(r).c_str());
-  std::printf("%.1f s, %lld simulations%s\n", r.seconds, s.simulations,
-              report.empty() ? "" : ("; report in " + report).c_str());
+void PrintSummary(const std::string& report, const identify::Summary& s) {
+  std::printf("%s", s.FullReport().c_str());
+  if (!report.empty()) std::printf("report in %s\n", report.c_str());
 }
 
 }  // namespace bistable

@@ -17,9 +17,8 @@ namespace bistable {
 Status WriteReport(const std::string& report, const std::string& declared, const identify::Summary& s,
                    const nlohmann::json& j);
 
-// The human-readable result on stdout; `tests`: j["tests"]; `report`: the report directory ("" none).
-void PrintSummary(const identify::Options& o, const std::string& report, const identify::Summary& s,
-                  const nlohmann::json& tests);
+// The human-readable result on stdout (identify::Summary::FullReport); `report`: the report directory ("" none).
+void PrintSummary(const std::string& report, const identify::Summary& s);
 
 }  // namespace bistable
 

@@ -177,6 +177,106 @@ Status Refused(const std::vector<std::string>& problems) {
   return Status::InvalidArgument("stores", "merge refused: " + Join(problems, "; "));
 }
 
+// The stores of a merge (MergeShards), checked: each a shard of `spec` computed with this numerics version and
+// record layout, all of one shard count, each shard once, none missing. Sorted by shard; Refused (every problem
+// named) otherwise.
+StatusOr<std::vector<StoreInfo>> CheckStores(const SweepSpec& spec, const std::vector<std::string>& stores) {
+  const std::string id = spec.Id();
+  // Each store: a shard of this spec, computed with this numerics version and record layout.
+  std::vector<std::string> problems;
+  std::vector<StoreInfo> infos;
+  for (const std::string& path : stores) {
+    auto s = ReadStore(path);
+    if (!s.ok()) {
+      problems.push_back(s.status().message());
+      continue;
+    }
+    if (s->sweep_id != id)
+      problems.push_back("'" + path + "' is a shard of another spec: sweep " + s->sweep_id +
+                         (s->name.empty() ? "" : " ('" + s->name + "')") + ", not sweep " + id +
+                         (spec.name.empty() ? "" : " ('" + spec.name + "')"));
+    else if (s->numerics != kNumericsVersion)
+      problems.push_back("'" + path + "' was computed with numerics version " + s->numerics +
+                         ", this bistable is numerics version " + kNumericsVersion + ": rerun shard " +
+                         s->shard.Label() + " with this bistable");
+    else if (s->layout != LayoutHex())
+      problems.push_back("'" + path + "' holds records of another layout (" + s->layout + ", this bistable's is " +
+                         LayoutHex() + "): rerun shard " + s->shard.Label() + " with this bistable");
+    else
+      infos.push_back(std::move(s).value());
+  }
+  if (!problems.empty()) return Refused(problems);
+  // Together: one shard count, each shard once, none missing.
+  std::map<int, std::vector<std::string>> counts, by_index;
+  for (const StoreInfo& s : infos) counts[s.shard.count].push_back("'" + s.path + "' is " + s.shard.Label());
+  if (counts.size() > 1) {
+    std::vector<std::string> said;
+    for (const auto& [n, paths] : counts) said.push_back(Join(paths, ", "));
+    return Refused({"the stores are shards of different counts N: " + Join(said, "; ")});
+  }
+  const int n = infos.front().shard.count;
+  for (const StoreInfo& s : infos) by_index[s.shard.index].push_back("'" + s.path + "'");
+  for (const auto& [i, paths] : by_index)
+    if (paths.size() > 1)
+      problems.push_back("shard " + Shard{i, n}.Label() + " is given twice: " + Join(paths, " and "));
+  std::vector<std::string> missing;
+  for (int i = 0; i < n; ++i)
+    if (!by_index.count(i)) missing.push_back(Shard{i, n}.Label());
+  if (!missing.empty())
+    problems.push_back(std::to_string(missing.size()) + " of " + std::to_string(n) + " shards missing: " +
+                       Join(missing, ", ") + " (run `bistable run SPEC --shard I/N` for each, or name their stores)");
+  if (!problems.empty()) return Refused(problems);
+  std::sort(infos.begin(), infos.end(),
+            [](const StoreInfo& a, const StoreInfo& b) { return a.shard.index < b.shard.index; });
+  return infos;
+}
+
+// Every item of every shard (`infos`, checked), read through its checksum (the stores are not written to), in
+// batches to import; Refused where a shard is incomplete or cannot be opened.
+StatusOr<std::vector<IndexDb::JobResults>> ReadShards(const SweepSpec& spec, const std::vector<StoreInfo>& infos,
+                                                      const std::vector<std::string>& keys) {
+  const std::string id = spec.Id();
+  std::vector<std::string> problems;
+  const size_t width = RecordWidth(spec);
+  std::vector<IndexDb::JobResults> imports;
+  for (const StoreInfo& s : infos) {
+    const std::vector<long> items = ShardItemIndices(spec, s.shard);
+    auto db = IndexDb::Open((fs::path(s.path) / "index.sqlite").string());
+    if (!db.ok()) {
+      problems.push_back("shard " + s.shard.Label() + " ('" + s.path + "'): " + db.status().message());
+      continue;
+    }
+    long found = 0, corrupt = 0;
+    for (size_t b = 0; b < items.size(); b += kPlanLookupBatch) {
+      IndexDb::JobResults rows;
+      rows.sweep_id = id;
+      rows.width = width;
+      std::vector<std::string> batch;
+      for (size_t k = b; k < std::min(items.size(), b + kPlanLookupBatch); ++k) batch.push_back(keys[items[k]]);
+      long bad = 0;
+      auto got = (*db)->LookupPoints(batch, width, &bad, IndexDb::Fold::kLater);
+      if (!got.ok()) return got.status();
+      corrupt += bad;
+      for (const std::string& k : batch) {
+        auto it = got->find(k);
+        if (it == got->end()) continue;
+        ++found;
+        rows.keys += k + '\n';
+        rows.values.insert(rows.values.end(), it->second.v.begin(), it->second.v.end());
+      }
+      imports.push_back(std::move(rows));
+    }
+    if (found < static_cast<long>(items.size()))
+      problems.push_back("shard " + s.shard.Label() + " ('" + s.path + "') is incomplete: " + std::to_string(found) +
+                         " of " + std::to_string(items.size()) + " items stored" +
+                         (corrupt > 0 ? " (" + std::to_string(corrupt) + " failed their checksum)" : "") +
+                         (s.complete ? "" : ", its run did not finish") + "; rerun `bistable run SPEC --shard " +
+                         s.shard.Label() + "` on that store to finish it");
+  }
+  if (!problems.empty()) return Refused(problems);
+  return imports;
+}
+
 }  // namespace
 
 std::string ShardStorePath(const std::string& data_dir, const std::string& sweep_id, const Shard& shard) {
@@ -248,91 +348,13 @@ StatusOr<MergeResult> MergeShards(const SweepSpec& spec, std::vector<std::string
                                                    "': run `bistable run SPEC --shard I/N --data " + data_dir +
                                                    "` for every I first, or name the stores");
   }
-  // Each store: a shard of this spec, computed with this numerics version and record layout.
-  std::vector<std::string> problems;
-  std::vector<StoreInfo> infos;
-  for (const std::string& path : stores) {
-    auto s = ReadStore(path);
-    if (!s.ok()) {
-      problems.push_back(s.status().message());
-      continue;
-    }
-    if (s->sweep_id != id)
-      problems.push_back("'" + path + "' is a shard of another spec: sweep " + s->sweep_id +
-                         (s->name.empty() ? "" : " ('" + s->name + "')") + ", not sweep " + id +
-                         (spec.name.empty() ? "" : " ('" + spec.name + "')"));
-    else if (s->numerics != kNumericsVersion)
-      problems.push_back("'" + path + "' was computed with numerics version " + s->numerics +
-                         ", this bistable is numerics version " + kNumericsVersion + ": rerun shard " +
-                         s->shard.Label() + " with this bistable");
-    else if (s->layout != LayoutHex())
-      problems.push_back("'" + path + "' holds records of another layout (" + s->layout + ", this bistable's is " +
-                         LayoutHex() + "): rerun shard " + s->shard.Label() + " with this bistable");
-    else
-      infos.push_back(std::move(s).value());
-  }
-  if (!problems.empty()) return Refused(problems);
-  // Together: one shard count, each shard once, none missing.
-  std::map<int, std::vector<std::string>> counts, by_index;
-  for (const StoreInfo& s : infos) counts[s.shard.count].push_back("'" + s.path + "' is " + s.shard.Label());
-  if (counts.size() > 1) {
-    std::vector<std::string> said;
-    for (const auto& [n, paths] : counts) said.push_back(Join(paths, ", "));
-    return Refused({"the stores are shards of different counts N: " + Join(said, "; ")});
-  }
-  const int n = infos.front().shard.count;
-  for (const StoreInfo& s : infos) by_index[s.shard.index].push_back("'" + s.path + "'");
-  for (const auto& [i, paths] : by_index)
-    if (paths.size() > 1)
-      problems.push_back("shard " + Shard{i, n}.Label() + " is given twice: " + Join(paths, " and "));
-  std::vector<std::string> missing;
-  for (int i = 0; i < n; ++i)
-    if (!by_index.count(i)) missing.push_back(Shard{i, n}.Label());
-  if (!missing.empty())
-    problems.push_back(std::to_string(missing.size()) + " of " + std::to_string(n) + " shards missing: " +
-                       Join(missing, ", ") + " (run `bistable run SPEC --shard I/N` for each, or name their stores)");
-  if (!problems.empty()) return Refused(problems);
-  std::sort(infos.begin(), infos.end(),
-            [](const StoreInfo& a, const StoreInfo& b) { return a.shard.index < b.shard.index; });
-  // Every item of every shard, read through its checksum (the stores are not written to).
+  auto infos = CheckStores(spec, stores);
+  if (!infos.ok()) return infos.status();
+  const int n = infos->front().shard.count;
   const std::vector<std::string> keys = ItemKeys(spec);
-  const size_t width = RecordWidth(spec);
-  std::vector<IndexDb::JobResults> imports;
-  for (const StoreInfo& s : infos) {
-    const std::vector<long> items = ShardItemIndices(spec, s.shard);
-    auto db = IndexDb::Open((fs::path(s.path) / "index.sqlite").string());
-    if (!db.ok()) {
-      problems.push_back("shard " + s.shard.Label() + " ('" + s.path + "'): " + db.status().message());
-      continue;
-    }
-    long found = 0, corrupt = 0;
-    for (size_t b = 0; b < items.size(); b += kPlanLookupBatch) {
-      IndexDb::JobResults rows;
-      rows.sweep_id = id;
-      rows.width = width;
-      std::vector<std::string> batch;
-      for (size_t k = b; k < std::min(items.size(), b + kPlanLookupBatch); ++k) batch.push_back(keys[items[k]]);
-      long bad = 0;
-      auto got = (*db)->LookupPoints(batch, width, &bad, IndexDb::Fold::kLater);
-      if (!got.ok()) return got.status();
-      corrupt += bad;
-      for (const std::string& k : batch) {
-        auto it = got->find(k);
-        if (it == got->end()) continue;
-        ++found;
-        rows.keys += k + '\n';
-        rows.values.insert(rows.values.end(), it->second.v.begin(), it->second.v.end());
-      }
-      imports.push_back(std::move(rows));
-    }
-    if (found < static_cast<long>(items.size()))
-      problems.push_back("shard " + s.shard.Label() + " ('" + s.path + "') is incomplete: " + std::to_string(found) +
-                         " of " + std::to_string(items.size()) + " items stored" +
-                         (corrupt > 0 ? " (" + std::to_string(corrupt) + " failed their checksum)" : "") +
-                         (s.complete ? "" : ", its run did not finish") + "; rerun `bistable run SPEC --shard " +
-                         s.shard.Label() + "` on that store to finish it");
-  }
-  if (!problems.empty()) return Refused(problems);
+  auto read = ReadShards(spec, *infos, keys);
+  if (!read.ok()) return read.status();
+  std::vector<IndexDb::JobResults> imports = std::move(read).value();
 
   // The map, written and indexed as the embedded run publishes it (server/publisher.h, PublishMap).
   BISTABLE_RETURN_IF_ERROR(MakeDirectory((fs::path(data_dir) / "sweeps").string(), kDataDirectoryMode, "data"));

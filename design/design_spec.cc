@@ -146,65 +146,50 @@ std::string DesignSpec::CanonicalText() const {
   return out;
 }
 
-StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string& origin) {
-  auto parsed = ParseSpecToml(text, origin);
-  if (!parsed.ok()) return parsed.status();
-  const toml::table& root = *parsed;
-  DesignSpec d;
-  d.origin = origin;
-  d.source = text;
-  const toml::table* design = root["design"].as_table();
-  if (!design)
-    return Status::InvalidArgument("design", "a design spec needs a [design] table (bounds, alpha, omega, budget)");
-  for (auto&& [k, v] : *design) {
-    (void)v;
-    const std::string key(k.str());
-    if (std::find(kDesignKeys.begin(), kDesignKeys.end(), key) == kDesignKeys.end())
-      return Status::InvalidArgument("design." + key, UnknownNameMessage("key", key, kDesignKeys));
-  }
-  for (const std::string& s : kRefusedSections)
-    if (root.contains(s))
-      return Status::InvalidArgument(
-          s, "[" + s +
-                 "] is not part of a design spec: candidates sweep design.omega (and design.alpha) "
-                 "with the parameters the optimiser picks within design.bounds");
-  toml::table base = root;
-  base.erase("design");
+namespace {
 
-  // The base alone, as the engine reads it: model, params, integration, metrics, one start state.
-  {
-    toml::table probe = base;
-    if (!probe.contains("params")) probe.insert("params", toml::table{});
-    auto spec = ParseSweepSpec(Toml(probe), origin);
-    if (!spec.ok()) return spec.status();
-    if (spec->model != ModelKind::kCoupled && spec->model != ModelKind::kLinearCoupled)
-      return Status::InvalidArgument(
-          "model", "model = " + std::string(ModelName(spec->model)) +
-                       " violates model in {coupled, linear-coupled} (a design search tunes the resonator)");
-    if (spec->ic_count() != 1)
-      return Violates("initial_conditions.states", spec->ic_count(),
-                      "count <= 1 (a design search runs one start per point)");
-    d.name = spec->name;
-    d.chaos_threshold = spec->base.metrics.chaos_threshold;
-    const NondimParams& p = spec->base.params;
-    d.lo = d.hi = {p.lambda, p.phi, p.eta_r};
-  }
-  // Stored metrics: what the score reads, whatever else the base asks for.
-  {
-    if (!base.contains("metrics")) base.insert("metrics", toml::table{});
-    toml::table& m = *base["metrics"].as_table();
-    if (!m.contains("store")) m.insert("store", toml::array{});
-    toml::array* store = m["store"].as_array();
-    if (!store) return Status::InvalidArgument("metrics.store", "metrics.store must be a list of metric names");
-    for (const char* need : {"frf_db", "lle", "motion"}) {
-      bool has = false;
-      for (auto& e : *store) has = has || (e.value<std::string>() && *e.value<std::string>() == need);
-      if (!has) store->push_back(need);
-    }
-  }
-  d.base_toml = Toml(base);
+// The base spec alone, as the engine reads it: model, params, integration, metrics, one start state. Sets the
+// design's name, chaos threshold and (until design.bounds) its bounds at [params].
+Status ReadBase(const toml::table& base, const std::string& origin, DesignSpec* out) {
+  DesignSpec& d = *out;
+  toml::table probe = base;
+  if (!probe.contains("params")) probe.insert("params", toml::table{});
+  auto spec = ParseSweepSpec(Toml(probe), origin);
+  if (!spec.ok()) return spec.status();
+  if (spec->model != ModelKind::kCoupled && spec->model != ModelKind::kLinearCoupled)
+    return Status::InvalidArgument(
+        "model", "model = " + std::string(ModelName(spec->model)) +
+                     " violates model in {coupled, linear-coupled} (a design search tunes the resonator)");
+  if (spec->ic_count() != 1)
+    return Violates("initial_conditions.states", spec->ic_count(),
+                    "count <= 1 (a design search runs one start per point)");
+  d.name = spec->name;
+  d.chaos_threshold = spec->base.metrics.chaos_threshold;
+  const NondimParams& p = spec->base.params;
+  d.lo = d.hi = {p.lambda, p.phi, p.eta_r};
+  return Status::Ok();
+}
 
-  // bounds = { lambda = [lo, hi], phi = [lo, hi], eta_r = [lo, hi] }; an omitted one stays at [params].
+// Stored metrics: what the score reads (frf_db, lle, motion), whatever else the base asks for.
+Status StoreScoreMetrics(toml::table* base_in) {
+  toml::table& base = *base_in;
+  if (!base.contains("metrics")) base.insert("metrics", toml::table{});
+  toml::table& m = *base["metrics"].as_table();
+  if (!m.contains("store")) m.insert("store", toml::array{});
+  toml::array* store = m["store"].as_array();
+  if (!store) return Status::InvalidArgument("metrics.store", "metrics.store must be a list of metric names");
+  for (const char* need : {"frf_db", "lle", "motion"}) {
+    bool has = false;
+    for (auto& e : *store) has = has || (e.value<std::string>() && *e.value<std::string>() == need);
+    if (!has) store->push_back(need);
+  }
+  return Status::Ok();
+}
+
+// design.bounds = { lambda = [lo, hi], phi = [lo, hi], eta_r = [lo, hi] }; an omitted one stays at [params].
+// At least one parameter must be free.
+Status ReadBounds(const toml::table* design, DesignSpec* out) {
+  DesignSpec& d = *out;
   if (const toml::node* b = design->get("bounds")) {
     const toml::table* bt = b->as_table();
     if (!bt)
@@ -235,46 +220,41 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
     return Status::InvalidArgument(
         "design.bounds",
         "design.bounds: no parameter is free (give at least one of lambda, phi, eta_r as [lo, hi] with lo < hi)");
+  return Status::Ok();
+}
 
-  // alpha = 1.0 or [0.5, 1.0]: the forcing amplitude(s) the band must hold at.
-  {
-    const toml::node* a = design->get("alpha");
-    if (!a)
-      return Status::InvalidArgument("design.alpha",
-                                     "design.alpha is required: the forcing amplitude (a number or a list)");
-    if (a->is_array()) {
-      for (size_t i = 0; i < a->as_array()->size(); ++i) {
-        auto v = Num(*a->as_array()->get(i), "design.alpha[" + std::to_string(i) + "]");
-        if (!v.ok()) return v.status();
-        d.alphas.push_back(*v);
-      }
-    } else {
-      auto v = Num(*a, "design.alpha");
+// design.alpha = 1.0 or [0.5, 1.0]: the forcing amplitude(s) the band must hold at.
+Status ReadAlphas(const toml::table* design, DesignSpec* out) {
+  DesignSpec& d = *out;
+  const toml::node* a = design->get("alpha");
+  if (!a)
+    return Status::InvalidArgument("design.alpha",
+                                   "design.alpha is required: the forcing amplitude (a number or a list)");
+  if (a->is_array()) {
+    for (size_t i = 0; i < a->as_array()->size(); ++i) {
+      auto v = Num(*a->as_array()->get(i), "design.alpha[" + std::to_string(i) + "]");
       if (!v.ok()) return v.status();
       d.alphas.push_back(*v);
     }
-    if (d.alphas.empty() || static_cast<int>(d.alphas.size()) > limits::kMaxDesignAlphas)
-      return Violates("design.alpha", static_cast<double>(d.alphas.size()),
-                      "count in [1, " + std::to_string(limits::kMaxDesignAlphas) + "]");
-    for (size_t i = 0; i < d.alphas.size(); ++i) {
-      const std::string f = d.alphas.size() == 1 ? "design.alpha" : "design.alpha[" + std::to_string(i) + "]";
-      BISTABLE_RETURN_IF_ERROR(CheckPositive(f, d.alphas[i]));
-    }
-    d.alpha_toml = Toml(*a);
+  } else {
+    auto v = Num(*a, "design.alpha");
+    if (!v.ok()) return v.status();
+    d.alphas.push_back(*v);
   }
-  // omega: any axis form; the engine computes its values.
-  {
-    const toml::node* o = design->get("omega");
-    if (!o)
-      return Status::InvalidArgument("design.omega",
-                                     "design.omega is required: the Omega line, e.g. { linspace = [0.2, 3.0, 57] }");
-    d.omega_toml = Toml(*o);
+  if (d.alphas.empty() || static_cast<int>(d.alphas.size()) > limits::kMaxDesignAlphas)
+    return Violates("design.alpha", static_cast<double>(d.alphas.size()),
+                    "count in [1, " + std::to_string(limits::kMaxDesignAlphas) + "]");
+  for (size_t i = 0; i < d.alphas.size(); ++i) {
+    const std::string f = d.alphas.size() == 1 ? "design.alpha" : "design.alpha[" + std::to_string(i) + "]";
+    BISTABLE_RETURN_IF_ERROR(CheckPositive(f, d.alphas[i]));
   }
-  if (const toml::node* m = design->get("map_alpha"))
-    d.map_alpha_toml = Toml(*m);
-  else
-    d.map_alpha_toml = "{ linspace = [0.1, 3.0, 30] }";
+  d.alpha_toml = Toml(*a);
+  return Status::Ok();
+}
 
+// design.budget, seed, maps (whole numbers within their limits), optimizer and cost (names).
+Status ReadSearchSettings(const toml::table* design, DesignSpec* spec) {
+  DesignSpec& d = *spec;
   auto integer = [&](const char* key, long lo, long hi, long* out) -> Status {
     const toml::node* n = design->get(key);
     if (!n) return Status::Ok();
@@ -304,8 +284,13 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
   };
   BISTABLE_RETURN_IF_ERROR(word("optimizer", kOptimizers, &d.optimizer));
   BISTABLE_RETURN_IF_ERROR(word("cost", kCosts, &d.cost));
+  return Status::Ok();
+}
 
-  // Every sweep the search runs is an ordinary spec: check them with the engine's parser now, before any work.
+// Every sweep the search runs is an ordinary spec: checked with the engine's parser now, before any work. Sets
+// the design's id and its Omega values.
+Status CheckSweeps(const std::string& origin, DesignSpec* out) {
+  DesignSpec& d = *out;
   d.id = ContentHashHex(d.CanonicalText()).substr(0, 12);
   auto cand = ParseSweepSpec(d.CandidateToml(d.lo), origin);
   if (!cand.ok()) return Renamed(cand.status(), kCandidateFields);
@@ -321,6 +306,58 @@ StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string&
     // design.map_alpha spans with it (an oversized map_alpha was reported as design.omega).
     if (!m.ok()) return Renamed(m.status(), {{"axes.alpha", "design.map_alpha"}, {"axes.omega", "design.map_alpha"}});
   }
+  return Status::Ok();
+}
+
+}  // namespace
+
+StatusOr<DesignSpec> ParseDesignSpec(const std::string& text, const std::string& origin) {
+  auto parsed = ParseSpecToml(text, origin);
+  if (!parsed.ok()) return parsed.status();
+  const toml::table& root = *parsed;
+  DesignSpec d;
+  d.origin = origin;
+  d.source = text;
+  const toml::table* design = root["design"].as_table();
+  if (!design)
+    return Status::InvalidArgument("design", "a design spec needs a [design] table (bounds, alpha, omega, budget)");
+  for (auto&& [k, v] : *design) {
+    (void)v;
+    const std::string key(k.str());
+    if (std::find(kDesignKeys.begin(), kDesignKeys.end(), key) == kDesignKeys.end())
+      return Status::InvalidArgument("design." + key, UnknownNameMessage("key", key, kDesignKeys));
+  }
+  for (const std::string& s : kRefusedSections)
+    if (root.contains(s))
+      return Status::InvalidArgument(
+          s, "[" + s +
+                 "] is not part of a design spec: candidates sweep design.omega (and design.alpha) "
+                 "with the parameters the optimiser picks within design.bounds");
+  toml::table base = root;
+  base.erase("design");
+
+  BISTABLE_RETURN_IF_ERROR(ReadBase(base, origin, &d));
+  BISTABLE_RETURN_IF_ERROR(StoreScoreMetrics(&base));
+  d.base_toml = Toml(base);
+
+  BISTABLE_RETURN_IF_ERROR(ReadBounds(design, &d));
+  BISTABLE_RETURN_IF_ERROR(ReadAlphas(design, &d));
+  // omega: any axis form; the engine computes its values.
+  {
+    const toml::node* o = design->get("omega");
+    if (!o)
+      return Status::InvalidArgument("design.omega",
+                                     "design.omega is required: the Omega line, e.g. { linspace = [0.2, 3.0, 57] }");
+    d.omega_toml = Toml(*o);
+  }
+  if (const toml::node* m = design->get("map_alpha"))
+    d.map_alpha_toml = Toml(*m);
+  else
+    d.map_alpha_toml = "{ linspace = [0.1, 3.0, 30] }";
+
+  BISTABLE_RETURN_IF_ERROR(ReadSearchSettings(design, &d));
+
+  BISTABLE_RETURN_IF_ERROR(CheckSweeps(origin, &d));
   return d;
 }
 

@@ -1,25 +1,17 @@
 #include "identify/fit.h"
 
 #include <algorithm>
-#include <array>
-#include <atomic>
-#include <cassert>
 #include <chrono>
 #include <cmath>
-#include <complex>
 #include <cstdio>
 #include <cstdlib>
 #include <deque>
 #include <exception>
 #include <functional>
-#include <future>
 #include <limits>
 #include <memory>
-#include <mutex>
 #include <numeric>
-#include <thread>
 #include <type_traits>
-#include "base/limits.h"
 
 #include <ceres/ceres.h>
 #include <glog/logging.h>
@@ -27,211 +19,10 @@
 
 #include "base/beside.h"
 #include "base/cpus.h"
-#include "dynamics/spectrum.h"
 #include "identify/shooting.h"
+#include "identify/sim_cost.h"
 
 namespace bistable {
-namespace {
-
-struct Sims {
-  std::vector<SimOutputs> o;  // per record: every output (and, when asked for, its sensitivities)
-  bool ok = true;
-};
-
-// one(i) for every record i < n, on up to `cpus` threads (records dealt round robin).
-template <class F>
-void ForEachRecord(size_t n, int cpus, const F& one) {  // cpus ≤ 0: all usable
-  const size_t nt = std::min<size_t>(n, static_cast<size_t>(cpus > 0 ? cpus : UsableCpus()));
-  if (nt <= 1) {
-    for (size_t i = 0; i < n; ++i) one(i);
-    return;
-  }
-  std::vector<std::future<void>> fs;
-  for (size_t w = 0; w < nt; ++w)
-    fs.push_back(std::async(std::launch::async, [&, w] {
-      for (size_t i = w; i < n; i += nt) one(i);
-    }));
-  for (auto& f : fs) f.get();
-}
-
-// The substeps a simulation of record i at th runs: the held ones raised to what keeps RK4 stable (below),
-// or, with none held, SubstepsFor's.
-int SubstepsAt(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-               const std::vector<int>& substeps, size_t i) {
-  // Held substeps are raised to what keeps RK4 stable at th (StableSubsteps): below it the state chatters
-  // where friction sticks, bounded by the law's saturation, while its sensitivities grow without bound (on
-  // the coupled rig the third LM iteration ran 6 substeps where SubstepsFor asked 24: a gradient of 1e62, and which
-  // basin the fit reached depended on the last bits of tanh). The count is then a function of θ, constant
-  // between stiffness thresholds.
-  return substeps.empty() ? SubstepsFor(m, th, recs[i]) : std::max(substeps[i], StableSubsteps(m, th, recs[i]));
-}
-
-// Every record simulated (in parallel over records); with `extra` given, with sensitivities to the
-// model's parameters and those terms'. `shoot`: the shooting objective's simulation (ShootRecord) with
-// segments of horizon_s.
-Sims SimulateAll(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                 const Setup& setup, const std::vector<int>& substeps, int threads, double horizon_s = 0,
-                 const std::vector<const TermDef*>* extra = nullptr, std::vector<EarlyStop>* stops = nullptr,
-                 bool shoot = false, const std::vector<std::vector<double>>* start = nullptr,
-                 std::vector<std::vector<double>>* fitted = nullptr, bool whole = false, bool start_is_fitted = false) {
-  Sims s;
-  s.o.resize(recs.size());
-  if (fitted) fitted->assign(recs.size(), {});
-  std::vector<char> ok(recs.size(), 1);
-  const std::vector<const TermDef*> none;
-  const int cpus = threads > 0 ? threads : UsableCpus();
-  // Shooting: the CPUs left over by the records run a record's segments side by side.
-  const int inner = std::max<int>(1, cpus / static_cast<int>(std::max<size_t>(1, recs.size())));
-  auto one = [&](size_t i) {
-    const int sub = substeps.empty() ? 0 : SubstepsAt(m, th, recs, substeps, i);
-    // A stage's horizon, else the record's own (PreparedRecord::horizon_s) unless the whole simulation is asked for.
-    const double h = horizon_s > 0 ? horizon_s : whole ? 0.0 : recs[i].horizon_s;
-    const int restart = h > 0 ? ShootingSegment(h, recs[i].dt) : 0;
-    if (shoot) {
-      ok[i] = restart > 0 && ShootRecord(m, th, extra, recs[i], setup, sub, restart, &s.o[i],
-                                         start && i < start->size() ? &(*start)[i] : nullptr,
-                                         fitted ? &(*fitted)[i] : nullptr, inner, start_is_fitted);
-      return;
-    }
-    ok[i] = SimulateOutputs(m, th, extra ? *extra : none, recs[i], setup, sub, restart, extra != nullptr, &s.o[i],
-                            stops ? &(*stops)[i] : nullptr);
-  };
-  ForEachRecord(recs.size(), cpus, one);
-  for (char c : ok) s.ok = s.ok && c;
-  return s;
-}
-
-// The outputs of the spectral objective: the main output (velocity form) and a voltage (as is).
-bool InSpectrum(OutputSlot k) { return k != OutputSlot::kResonator; }
-
-// FFT / n of the velocity form of a compared output (derivative of displacement outputs), mean removed:
-// linear in the series, so a sensitivity column goes through the same map.
-std::vector<std::complex<double>> VelocitySpectrum(const std::vector<double>& series, double dt, bool displacement) {
-  std::vector<double> v = displacement ? SavitzkyGolay(series, dt, 3, 1) : series;
-  double mean = 0;
-  for (double x : v) mean += x;
-  mean /= static_cast<double>(v.size());
-  const size_t len = NextFastFftLength(v.size());
-  std::vector<double> x(len, 0.0);
-  for (size_t i = 0; i < v.size(); ++i) x[i] = v[i] - mean;
-  std::vector<std::complex<double>> X;
-  RealFftFull(x, &X);
-  X.resize(len / 2 + 1);
-  for (auto& c : X) c /= static_cast<double>(v.size());
-  return X;
-}
-
-// |FFT| / n of the velocity form of a compared output.
-std::vector<double> VelocityMagnitudes(const std::vector<double>& series, double dt, bool displacement) {
-  const std::vector<std::complex<double>> X = VelocitySpectrum(series, dt, displacement);
-  std::vector<double> mag(X.size());
-  for (size_t k = 0; k < mag.size(); ++k) mag[k] = std::abs(X[k]);
-  return mag;
-}
-
-size_t NumResiduals(const std::vector<PreparedRecord>& recs, Objective obj) {
-  size_t n = 0;
-  for (const PreparedRecord& r : recs)
-    for (int k = 0; k < kOutputSlots; ++k) {
-      const OutputSlot slot = static_cast<OutputSlot>(k);
-      if (!r.Has(slot)) continue;
-      if (obj != Objective::kFft)
-        n += r.n();
-      else if (InSpectrum(slot))
-        n += NextFastFftLength(r.n()) / 2 + 1;
-    }
-  return n;
-}
-
-// Measured spectrum magnitudes per record and output slot (empty where not in the spectral objective).
-using Magnitudes = std::vector<std::array<std::vector<double>, kOutputSlots>>;
-
-bool ResidualsOf(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj,
-                 const Magnitudes& meas_mag, const Sims& s, double* res, Eigen::MatrixXd* jac,
-                 const std::vector<const TermDef*>& extra);
-
-// Residuals of the objective; false when a simulation diverged. With `jac` (and `extra`): the
-// residuals' derivatives by θ (N × P: the model's parameters, then the extra terms' at 0), from one
-// pass of SimulateSensitivities per record.
-bool Residuals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-               const Setup& setup, Objective obj, const std::vector<int>& substeps, int threads,
-               const Magnitudes& meas_mag, double* res, double horizon_s = 0, Eigen::MatrixXd* jac = nullptr,
-               const std::vector<const TermDef*>& extra = {}, ShootCache* cache = nullptr) {
-  std::vector<std::vector<double>> fitted;
-  const std::vector<std::vector<double>>* done = cache ? cache->At(th) : nullptr;
-  const Sims s = SimulateAll(m, th, recs, setup, substeps, threads, horizon_s, jac ? &extra : nullptr, nullptr,
-                             obj == Objective::kShooting,
-                             done                              ? done
-                             : cache && !cache->anchor.empty() ? &cache->anchor
-                                                               : nullptr,
-                             cache && !done ? &fitted : nullptr, false, done != nullptr);
-  if (cache && !done && s.ok) cache->Remember(th, cache->version, std::move(fitted));
-  if (!s.ok) return false;
-  return ResidualsOf(m, recs, setup, obj, meas_mag, s, res, jac, extra);
-}
-
-// The residuals (and with `jac` their derivatives) of the objective from the records' simulations.
-bool ResidualsOf(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup, Objective obj,
-                 const Magnitudes& meas_mag, const Sims& s, double* res, Eigen::MatrixXd* jac,
-                 const std::vector<const TermDef*>& extra) {
-  if (jac) {
-    long P = m.NumParams();
-    for (const TermDef* t : extra) P += static_cast<long>(t->params.size());
-    jac->resize(static_cast<long>(NumResiduals(recs, obj)), P);
-  }
-  size_t k = 0;
-  for (size_t i = 0; i < recs.size(); ++i) {
-    const PreparedRecord& r = recs[i];
-    const long n = static_cast<long>(r.n());
-    for (int slot = 0; slot < kOutputSlots; ++slot) {
-      const OutputSlot os = static_cast<OutputSlot>(slot);
-      if (!r.Has(os)) continue;
-      const std::vector<double>& sim = s.o[i].out[slot];
-      const std::vector<double>& meas = r.Measured(os);
-      if (obj != Objective::kFft) {
-        // Σ squares = λ NRMSE² of this output on this record (λ = 1 for the main output).
-        const double w = std::sqrt(r.weight[slot]) / (r.Scale(os) * std::sqrt(static_cast<double>(r.n())));
-        if (jac) jac->middleRows(static_cast<long>(k), n) = s.o[i].d[slot] * w;
-        for (size_t j = 0; j < r.n(); ++j) res[k++] = (sim[j] - meas[j]) * w;
-        continue;
-      }
-      if (!InSpectrum(os)) continue;
-      const bool disp = os == OutputSlot::kMain && setup.output != OutputKind::kVelocity;
-      const std::vector<std::complex<double>> X = VelocitySpectrum(sim, r.dt, disp);
-      double norm = 0;
-      for (double v : meas_mag[i][slot]) norm += v * v;
-      norm = std::sqrt(std::max(norm, 1e-300)) / std::sqrt(r.weight[slot]);
-      if (jac) {  // d|X| = Re(conj(X) dX) / |X|
-        for (long c = 0; c < jac->cols(); ++c) {
-          const Eigen::VectorXd col = s.o[i].d[slot].col(c);
-          const std::vector<std::complex<double>> dX =
-              VelocitySpectrum(std::vector<double>(col.data(), col.data() + n), r.dt, disp);
-          for (size_t j = 0; j < X.size(); ++j) {
-            const double a = std::abs(X[j]);
-            (*jac)(static_cast<long>(k + j), c) = a > 0 ? std::real(std::conj(X[j]) * dX[j]) / a / norm : 0.0;
-          }
-        }
-      }
-      for (size_t j = 0; j < X.size(); ++j) res[k++] = (std::abs(X[j]) - meas_mag[i][slot][j]) / norm;
-    }
-  }
-  for (size_t j = 0; j < k; ++j)
-    if (!std::isfinite(res[j])) return false;
-  if (jac && !jac->allFinite()) return false;
-  return true;
-}
-
-Magnitudes MeasuredMagnitudes(const std::vector<PreparedRecord>& recs, const Setup& setup) {
-  Magnitudes out;
-  for (const PreparedRecord& r : recs) {
-    out.emplace_back();
-    out.back()[0] = VelocityMagnitudes(r.meas, r.dt, setup.output != OutputKind::kVelocity);
-    if (r.Has(OutputSlot::kVoltage)) out.back()[2] = VelocityMagnitudes(r.volt, r.dt, false);
-  }
-  return out;
-}
-
-}  // namespace
 
 double CorrelationTime(const double* e, size_t n, size_t max_lag) {
   if (n < 8) return 1.0;
@@ -252,81 +43,34 @@ double CorrelationTime(const double* e, size_t n, size_t max_lag) {
   return tau;
 }
 
-bool ObjectiveResiduals(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                        const Setup& setup, Objective obj, const std::vector<int>& substeps, std::vector<double>* out,
-                        double horizon_s) {
-  out->assign(NumResiduals(recs, obj), 0.0);
-  const auto mags = obj == Objective::kFft ? MeasuredMagnitudes(recs, setup) : Magnitudes{};
-  return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data(),
-                   obj == Objective::kShooting ? horizon_s : 0.0);
+namespace {
+
+// Σ (sim − meas)² and Σ (meas − mean)² of record i's main output in the simulations `sims`.
+void MainSquares(const std::vector<PreparedRecord>& recs, const Sims& sims, size_t i, double* ei, double* mi) {
+  const PreparedRecord& r = recs[i];
+  double mean = 0;
+  for (double v : r.meas) mean += v;
+  mean /= static_cast<double>(r.n());
+  *ei = 0, *mi = 0;
+  for (size_t j = 0; j < r.n(); ++j) {
+    const double d = sims.o[i].out[0][j] - r.meas[j];
+    *ei += std::isfinite(d) ? d * d : INFINITY;
+    *mi += (r.meas[j] - mean) * (r.meas[j] - mean);
+  }
 }
 
-// Samples per shooting segment: horizon_s / dt rounded, at least 2; clamped in double first, so a horizon of
-// more samples than an int holds (a record has at most limits::kMaxDataRows) is the whole record, not a wrap.
-int ShootingSegment(double horizon_s, double dt) {
-  const double n = std::clamp(std::round(horizon_s / dt), 2.0, static_cast<double>(limits::kMaxDataRows));
-  return std::isfinite(n) ? static_cast<int>(n) : 2;
-}
-
-bool SimulateShooting(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
-                      double horizon_s, SimOutputs* out) {
-  return ShootRecord(m, th, nullptr, r, setup, 0, ShootingSegment(horizon_s, r.dt), out);
-}
-
-bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                       const Setup& setup, Objective obj, const std::vector<int>& substeps,
-                       const std::vector<const TermDef*>& extra, std::vector<double>* out, Eigen::MatrixXd* jac,
-                       double horizon_s) {
-  out->assign(NumResiduals(recs, obj), 0.0);
-  const auto mags = obj == Objective::kFft ? MeasuredMagnitudes(recs, setup) : Magnitudes{};
-  return Residuals(m, th, recs, setup, obj, substeps, 0, mags, out->data(),
-                   obj == Objective::kShooting ? horizon_s : 0.0, jac, extra);
-}
-
-std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th,
-                               const std::vector<PreparedRecord>& recs, Objective obj, double safety) {
-  // Short horizons (the shooting objective): the safety is accuracy's headroom as the parameters move, and
-  // stability needs none, since every evaluation runs at least StableSubsteps at its own parameters
-  // (SubstepsAt). Where the oscillations set the step that is SubstepsFor's count times the safety, as for the
-  // other objectives; where a sticking friction law does (the snap-through rig) it is the stable count, whose
-  // error over a 0.125 s segment is 50× below the records' noise (bench_identify_steps), where SubstepsFor's
-  // times 1.5 ran twice the steps. A long simulation accumulates its error over the record: SubstepsFor's
-  // margin times the safety stays.
-  std::vector<int> sub;
-  for (const PreparedRecord& r : recs)
-    sub.push_back(
-        obj == Objective::kShooting
-            ? std::max(static_cast<int>(std::ceil(safety * OscillationSubsteps(m, th, r))), StableSubsteps(m, th, r))
-            : static_cast<int>(std::ceil(safety * SubstepsFor(m, th, r))));
-  return sub;
-}
-
-Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
-                const Setup& setup, double shooting_horizon_s) {
-  Errors e;
-  const Sims s = SimulateAll(m, th, recs, setup, {}, 0);
+// The main output's errors in the records' simulations `s`: NRMSE, spectral error and Eq. 20, pooled and per
+// record; the long NRMSE the same (LongErrors replaces it where records have horizons of their own).
+void MainOutputErrors(const std::vector<PreparedRecord>& recs, const Setup& setup, const Sims& s, Errors* e) {
   const bool disp = setup.output != OutputKind::kVelocity;
   double se = 0, sm = 0, fft_sum = 0, eq20 = 0;
-  // Σ (sim − meas)² and Σ (meas − mean)² of record i's main output in the simulations `sims`.
-  auto squares = [&](const Sims& sims, size_t i, double* ei, double* mi) {
-    const PreparedRecord& r = recs[i];
-    double mean = 0;
-    for (double v : r.meas) mean += v;
-    mean /= static_cast<double>(r.n());
-    *ei = 0, *mi = 0;
-    for (size_t j = 0; j < r.n(); ++j) {
-      const double d = sims.o[i].out[0][j] - r.meas[j];
-      *ei += std::isfinite(d) ? d * d : INFINITY;
-      *mi += (r.meas[j] - mean) * (r.meas[j] - mean);
-    }
-  };
   for (size_t i = 0; i < recs.size(); ++i) {
     const PreparedRecord& r = recs[i];
     double ei, mi;
-    squares(s, i, &ei, &mi);
+    MainSquares(recs, s, i, &ei, &mi);
     se += ei, sm += mi;
-    e.record_nrmse.push_back(100.0 * std::sqrt(ei / mi));
-    e.record_rms.push_back(std::sqrt(ei / static_cast<double>(r.n())));
+    e->record_nrmse.push_back(100.0 * std::sqrt(ei / mi));
+    e->record_rms.push_back(std::sqrt(ei / static_cast<double>(r.n())));
     double fi = NAN;
     if (std::isfinite(ei)) {
       const std::vector<double> a = VelocityMagnitudes(s.o[i].out[0], r.dt, disp),
@@ -336,98 +80,131 @@ Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::v
       fi = 100.0 * std::sqrt(d2 / b2);
       eq20 += std::sqrt(d2) / static_cast<double>(a.size());
     }
-    e.record_fft.push_back(fi);
+    e->record_fft.push_back(fi);
     fft_sum += fi;
   }
-  e.diverged = !s.ok;
-  e.nrmse = 100.0 * std::sqrt(se / sm);
-  e.long_nrmse = e.nrmse, e.record_long_nrmse = e.record_nrmse;
-  if (std::any_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.horizon_s > 0; })) {
-    const Sims w = SimulateAll(m, th, recs, setup, {}, 0, 0, nullptr, nullptr, false, nullptr, nullptr, /*whole=*/true);
-    double lse = 0, lsm = 0;
-    e.record_long_nrmse.clear();
-    for (size_t i = 0; i < recs.size(); ++i) {
-      double ei, mi;
-      squares(w, i, &ei, &mi);
-      lse += ei, lsm += mi;
-      e.record_long_nrmse.push_back(100.0 * std::sqrt(ei / mi));
-    }
-    e.long_nrmse = 100.0 * std::sqrt(lse / lsm);
+  e->diverged = !s.ok;
+  e->nrmse = 100.0 * std::sqrt(se / sm);
+  e->long_nrmse = e->nrmse, e->record_long_nrmse = e->record_nrmse;
+  e->fft = fft_sum / static_cast<double>(recs.size());
+  e->eq20 = eq20 / static_cast<double>(recs.size());
+}
+
+// Where a record has a horizon of its own (PreparedRecord::horizon_s > 0): the long NRMSE from every record's whole
+// simulation, pooled and per record.
+void LongErrors(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                const Setup& setup, Errors* e) {
+  if (std::none_of(recs.begin(), recs.end(), [](const PreparedRecord& r) { return r.horizon_s > 0; })) return;
+  const Sims w = SimulateAll(m, th, recs, setup, {}, 0, 0, nullptr, nullptr, false, nullptr, nullptr, /*whole=*/true);
+  double lse = 0, lsm = 0;
+  e->record_long_nrmse.clear();
+  for (size_t i = 0; i < recs.size(); ++i) {
+    double ei, mi;
+    MainSquares(recs, w, i, &ei, &mi);
+    lse += ei, lsm += mi;
+    e->record_long_nrmse.push_back(100.0 * std::sqrt(ei / mi));
   }
-  e.fft = fft_sum / static_cast<double>(recs.size());
-  e.eq20 = eq20 / static_cast<double>(recs.size());
-  // Per output (every record has the same outputs): NRMSE pooled over records, spectral error averaged.
+  e->long_nrmse = 100.0 * std::sqrt(lse / lsm);
+}
+
+// Output slot k ≥ 1 (a further output) in the records' simulations `s`: its NRMSE pooled over records and its
+// spectral error averaged over them.
+void FurtherOutputErrors(const std::vector<PreparedRecord>& recs, const Sims& s, int k, OutputErrors* o) {
+  const OutputSlot slot = static_cast<OutputSlot>(k);
+  double ek = 0, mk = 0, fk = 0;
+  for (size_t i = 0; i < recs.size(); ++i) {
+    const std::vector<double>& meas = recs[i].Measured(slot);
+    const std::vector<double>& sim = s.o[i].out[k];
+    double mean = 0;
+    for (double v : meas) mean += v;
+    mean /= static_cast<double>(meas.size());
+    double ei = 0;
+    for (size_t j = 0; j < meas.size(); ++j) {
+      const double d = sim[j] - meas[j];
+      ei += std::isfinite(d) ? d * d : INFINITY;
+      mk += (meas[j] - mean) * (meas[j] - mean);
+    }
+    ek += ei;
+    if (std::isfinite(ei)) {
+      const std::vector<double> a = VelocityMagnitudes(sim, recs[i].dt, false),
+                                b = VelocityMagnitudes(meas, recs[i].dt, false);
+      double d2 = 0, b2 = 0;
+      for (size_t j = 0; j < a.size(); ++j) d2 += (a[j] - b[j]) * (a[j] - b[j]), b2 += b[j] * b[j];
+      fk += 100.0 * std::sqrt(d2 / b2);
+    } else {
+      fk = NAN;
+    }
+  }
+  o->nrmse = 100.0 * std::sqrt(ek / mk);
+  o->fft = fk / static_cast<double>(recs.size());
+}
+
+// Every measured output's errors (every record has the same outputs), main first: e->outputs.
+void PerOutputErrors(const std::vector<PreparedRecord>& recs, const Setup& setup, const Sims& s, Errors* e) {
   for (int k = 0; k < kOutputSlots; ++k) {
     const OutputSlot slot = static_cast<OutputSlot>(k);
     if (recs.empty() || !recs[0].Has(slot)) continue;
     OutputErrors o;
     o.name = OutputName(setup, slot);
     o.weight = recs[0].weight[k];
-    if (k == 0) {
-      o.nrmse = e.nrmse, o.fft = e.fft;
-    } else {
-      double ek = 0, mk = 0, fk = 0;
-      for (size_t i = 0; i < recs.size(); ++i) {
-        const std::vector<double>& meas = recs[i].Measured(slot);
-        const std::vector<double>& sim = s.o[i].out[k];
-        double mean = 0;
-        for (double v : meas) mean += v;
-        mean /= static_cast<double>(meas.size());
-        double ei = 0;
-        for (size_t j = 0; j < meas.size(); ++j) {
-          const double d = sim[j] - meas[j];
-          ei += std::isfinite(d) ? d * d : INFINITY;
-          mk += (meas[j] - mean) * (meas[j] - mean);
-        }
-        ek += ei;
-        if (std::isfinite(ei)) {
-          const std::vector<double> a = VelocityMagnitudes(sim, recs[i].dt, false),
-                                    b = VelocityMagnitudes(meas, recs[i].dt, false);
-          double d2 = 0, b2 = 0;
-          for (size_t j = 0; j < a.size(); ++j) d2 += (a[j] - b[j]) * (a[j] - b[j]), b2 += b[j] * b[j];
-          fk += 100.0 * std::sqrt(d2 / b2);
-        } else {
-          fk = NAN;
-        }
-      }
-      o.nrmse = 100.0 * std::sqrt(ek / mk);
-      o.fft = fk / static_cast<double>(recs.size());
-    }
+    if (k == 0)
+      o.nrmse = e->nrmse, o.fft = e->fft;
+    else
+      FurtherOutputErrors(recs, s, k, &o);
     double ns = 0;
     for (const PreparedRecord& r : recs) ns += r.noise[k] * r.noise[k];
     o.noise = std::sqrt(ns / static_cast<double>(recs.size()));
-    e.outputs.push_back(o);
+    e->outputs.push_back(o);
   }
-  if (shooting_horizon_s > 0) {  // segment predictions from re-estimated states, NRMSE pooled over records
-    const Sims sh = SimulateAll(m, th, recs, setup, {}, 0, shooting_horizon_s, nullptr, nullptr, true);
-    for (size_t o = 0; o < e.outputs.size(); ++o) {
-      const OutputSlot slot = o == 0                                          ? OutputSlot::kMain
-                              : recs[0].Has(OutputSlot::kResonator) && o == 1 ? OutputSlot::kResonator
-                                                                              : OutputSlot::kVoltage;
-      double ek = 0, mk = 0;
-      for (size_t i = 0; i < recs.size() && sh.ok; ++i) {
-        const std::vector<double>& meas = recs[i].Measured(slot);
-        const std::vector<double>& sim = sh.o[i].out[static_cast<int>(slot)];
-        double mean = 0;
-        for (double v : meas) mean += v;
-        mean /= static_cast<double>(meas.size());
-        for (size_t j = 0; j < meas.size(); ++j)
-          ek += (sim[j] - meas[j]) * (sim[j] - meas[j]), mk += (meas[j] - mean) * (meas[j] - mean);
-      }
-      e.outputs[o].shooting = sh.ok && std::isfinite(ek) ? 100.0 * std::sqrt(ek / mk) : NAN;
+}
+
+// The shooting error of every output: segment predictions of horizon_s from re-estimated states, NRMSE pooled over
+// records.
+void ShootingErrors(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                    const Setup& setup, double horizon_s, Errors* e) {
+  const Sims sh = SimulateAll(m, th, recs, setup, {}, 0, horizon_s, nullptr, nullptr, true);
+  for (size_t o = 0; o < e->outputs.size(); ++o) {
+    const OutputSlot slot = o == 0                                          ? OutputSlot::kMain
+                            : recs[0].Has(OutputSlot::kResonator) && o == 1 ? OutputSlot::kResonator
+                                                                            : OutputSlot::kVoltage;
+    double ek = 0, mk = 0;
+    for (size_t i = 0; i < recs.size() && sh.ok; ++i) {
+      const std::vector<double>& meas = recs[i].Measured(slot);
+      const std::vector<double>& sim = sh.o[i].out[static_cast<int>(slot)];
+      double mean = 0;
+      for (double v : meas) mean += v;
+      mean /= static_cast<double>(meas.size());
+      for (size_t j = 0; j < meas.size(); ++j)
+        ek += (sim[j] - meas[j]) * (sim[j] - meas[j]), mk += (meas[j] - mean) * (meas[j] - mean);
     }
-    if (!e.outputs.empty()) e.shooting = e.outputs[0].shooting;
+    e->outputs[o].shooting = sh.ok && std::isfinite(ek) ? 100.0 * std::sqrt(ek / mk) : NAN;
   }
-  if (e.outputs.size() > 1) {  // the joint error: λ-weighted over outputs (the resonator is not in the spectrum)
-    double wn = 0, wf = 0, sn = 0, sf = 0, ss = 0;
-    for (const OutputErrors& o : e.outputs) {
-      wn += o.weight, sn += o.weight * o.nrmse * o.nrmse, ss += o.weight * o.shooting * o.shooting;
-      if (o.name != "resonator") wf += o.weight, sf += o.weight * o.fft * o.fft;
-    }
-    e.nrmse = std::sqrt(sn / wn);
-    e.fft = std::sqrt(sf / wf);
-    if (shooting_horizon_s > 0) e.shooting = std::sqrt(ss / wn);
+  if (!e->outputs.empty()) e->shooting = e->outputs[0].shooting;
+}
+
+// With several outputs, the joint errors: λ-weighted over outputs (the resonator is not in the spectrum).
+void JointErrors(bool shooting, Errors* e) {
+  double wn = 0, wf = 0, sn = 0, sf = 0, ss = 0;
+  for (const OutputErrors& o : e->outputs) {
+    wn += o.weight, sn += o.weight * o.nrmse * o.nrmse, ss += o.weight * o.shooting * o.shooting;
+    if (o.name != "resonator") wf += o.weight, sf += o.weight * o.fft * o.fft;
   }
+  e->nrmse = std::sqrt(sn / wn);
+  e->fft = std::sqrt(sf / wf);
+  if (shooting) e->shooting = std::sqrt(ss / wn);
+}
+
+}  // namespace
+
+Errors Evaluate(const IdentModel& m, const std::vector<double>& th, const std::vector<PreparedRecord>& recs,
+                const Setup& setup, double shooting_horizon_s) {
+  Errors e;
+  const Sims s = SimulateAll(m, th, recs, setup, {}, 0);
+  MainOutputErrors(recs, setup, s, &e);
+  LongErrors(m, th, recs, setup, &e);
+  PerOutputErrors(recs, setup, s, &e);
+  if (shooting_horizon_s > 0) ShootingErrors(m, th, recs, setup, shooting_horizon_s, &e);
+  if (e.outputs.size() > 1) JointErrors(shooting_horizon_s > 0, &e);
   return e;
 }
 
@@ -446,212 +223,6 @@ void AddSimulations(int* counter, long long n) {
 bool AllFinite(const std::vector<double>& v) {
   return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
 }
-
-struct SimCost {
-  const IdentModel* m;
-  const std::vector<PreparedRecord>* recs;
-  const Setup* setup;
-  Objective obj;
-  std::vector<int> substeps;
-  std::vector<double> scale;
-  Magnitudes meas_mag;
-  int threads;
-  double horizon_s = 0;  // > 0: short-horizon (multiple shooting) simulation error
-  // Shooting objective: the segment states (ShootCache), shared by the copies of one fit's cost (one
-  // evaluation at a time).
-  std::shared_ptr<ShootCache> warm;
-  mutable int calls = 0;
-  std::vector<double> Theta(const double* u) const {
-    std::vector<double> th(scale.size());
-    for (size_t i = 0; i < th.size(); ++i) th[i] = u[i] * scale[i];
-    return th;
-  }
-  bool operator()(double const* const* params, double* residuals) const {
-    ++calls;
-    return Residuals(*m, Theta(params[0]), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s,
-                     nullptr, {}, warm.get());
-  }
-  // The residuals at several scaled points u side by side (rs[l] for us[l]), records on `threads`: each record's
-  // simulations in SIMD lanes (SimulateOutputsLanes) where they run the same substeps, one by one otherwise.
-  // (Short horizons and segment states: one point after the other, through operator().)
-  bool LaneResiduals(const std::vector<const double*>& us, std::vector<double>* rs, int threads) const {
-    const size_t L = us.size();
-    if (horizon_s != 0 || warm || obj == Objective::kShooting) {  // segments: one evaluation at a time
-      SimCost c = *this;
-      c.threads = threads;
-      for (size_t l = 0; l < L; ++l) {
-        rs[l].assign(NumResiduals(*recs, obj), 0.0);
-        const double* pp[1] = {us[l]};
-        if (!c(pp, rs[l].data())) return false;
-      }
-      return true;
-    }
-    std::vector<std::vector<double>> ths;
-    for (const double* u : us) ths.push_back(Theta(u));
-    std::vector<Sims> sims(L);
-    for (Sims& sl : sims) sl.o.resize(recs->size());
-    std::vector<char> ok(recs->size(), 1);
-    ForEachRecord(recs->size(), threads, [&](size_t i) {
-      std::vector<int> sub(L);
-      for (size_t l = 0; l < L; ++l) sub[l] = SubstepsAt(*m, ths[l], *recs, substeps, i);
-      if (std::all_of(sub.begin(), sub.end(), [&](int v) { return v == sub[0]; })) {
-        std::vector<const std::vector<double>*> lanes;
-        for (const std::vector<double>& th : ths) lanes.push_back(&th);
-        std::vector<SimOutputs> outs;
-        ok[i] = SimulateOutputsLanes(*m, lanes, (*recs)[i], *setup, sub[0], &outs);
-        for (size_t l = 0; l < L; ++l) sims[l].o[i] = std::move(outs[l]);
-      } else {
-        for (size_t l = 0; l < L && ok[i]; ++l)
-          ok[i] = SimulateOutputs(*m, ths[l], {}, (*recs)[i], *setup, sub[l], 0, false, &sims[l].o[i]);
-      }
-    });
-    for (char c : ok)
-      if (!c) return false;
-    const size_t n = NumResiduals(*recs, obj);
-    for (size_t l = 0; l < L; ++l) {
-      rs[l].assign(n, 0.0);
-      if (!ResidualsOf(*m, *recs, *setup, obj, meas_mag, sims[l], rs[l].data(), nullptr, {})) return false;
-    }
-    return true;
-  }
-  // Residuals and, when `jac` is given, their derivatives by the scaled parameters u (row-major,
-  // Ceres' layout), from one sensitivity pass.
-  bool Eval(const double* u, double* residuals, double* jac) const {
-    ++calls;
-    if (!jac)
-      return Residuals(*m, Theta(u), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s, nullptr, {},
-                       warm.get());
-    Eigen::MatrixXd J;
-    if (!Residuals(*m, Theta(u), *recs, *setup, obj, substeps, threads, meas_mag, residuals, horizon_s, &J, {},
-                   warm.get()))
-      return false;
-    const long p = static_cast<long>(scale.size());
-    for (long r = 0; r < J.rows(); ++r)
-      for (long j = 0; j < p; ++j) jac[r * p + j] = J(r, j) * scale[static_cast<size_t>(j)];
-    return true;
-  }
-};
-
-// The simulation error for Ceres with exact Jacobians (SimCost::Eval): one sensitivity pass per
-// Jacobian where forward differences took a simulation per parameter.
-class SimCostFunction : public ceres::DynamicCostFunction {
- public:
-  // `start_tau` (optional): receives the correlation time (samples) of the first residual evaluated.
-  explicit SimCostFunction(SimCost c, double* start_tau = nullptr) : c_(std::move(c)), start_tau_(start_tau) {}
-  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
-    const bool ok = c_.Eval(params[0], residuals, jacobians ? jacobians[0] : nullptr);
-    if (ok && start_tau_ && !(*start_tau_ > 0))
-      *start_tau_ = CorrelationTime(residuals, static_cast<size_t>(num_residuals()), 2000);
-    return ok;
-  }
-  int Calls() const { return c_.calls; }
-
- private:
-  SimCost c_;
-  double* start_tau_;
-};
-
-// The spectral objective's forward-difference Jacobian: the arithmetic of Ceres'
-// DynamicNumericDiffCostFunction<FORWARD> (step max(√ε, 1e-6 |u_j|), (r(u + δ e_j) − r(u)) · (1/δ)), so
-// the same bits (Identify.ForwardDifferencesEqualCeresToTheBit). The residuals at u and the p columns'
-// simulations run side by side in SIMD lanes, packs of up to kMaxSimLanes; more than one pack spread over
-// `column_threads` (the CPUs the records leave idle), one pack with the records over the cost's threads.
-class ForwardDiffFunction : public ceres::DynamicCostFunction {
- public:
-  ForwardDiffFunction(SimCost c, int column_threads) : c_(std::move(c)), threads_(std::max(1, column_threads)) {
-    assert(!c_.warm);  // segment states (shooting) are shared by copies: one evaluation at a time only
-  }
-  bool Evaluate(double const* const* params, double* residuals, double** jacobians) const override {
-    if (!jacobians || !jacobians[0]) return c_(params, residuals);
-    const int p = parameter_block_sizes()[0], n = num_residuals();
-    const double* u = params[0];
-    const double min_step = std::sqrt(std::numeric_limits<double>::epsilon());
-    // Simulation 0 at u (the residuals), simulation j + 1 at u + δ_j e_j (column j), side by side in SIMD
-    // lanes (SimCost::LaneResiduals: every lane the bits of its own simulation), packs of up to kMaxSimLanes
-    // spread over the threads. A pack of 4 lanes costs about one scalar simulation, one of 8 about 1.3
-    // (build/bench/bench_identify_lanes), so up to 8 simulations take one pack on one thread and leave the
-    // other cores to the work beside (a refit's second start).
-    const int sims = p + 1;
-    std::vector<std::vector<double>> us(static_cast<size_t>(sims), std::vector<double>(u, u + p));
-    std::vector<double> delta(static_cast<size_t>(p));
-    for (int j = 0; j < p; ++j) {
-      delta[j] = std::max(min_step, std::abs(u[j]) * 1e-6);
-      us[j + 1][j] = u[j] + delta[j];
-    }
-    const int threads = std::min(threads_, sims);
-    const int width = std::min(kMaxSimLanes, sims), packs = (sims + width - 1) / width;
-    std::vector<std::vector<double>> r(static_cast<size_t>(sims));
-    std::atomic<int> next{0};
-    std::atomic<bool> ok{true};
-    std::exception_ptr error;
-    std::mutex error_mu;
-    auto work = [&] {
-      try {
-        for (int k = next++; k < packs && ok; k = next++) {
-          std::vector<const double*> lanes;
-          for (int l = k * width; l < std::min(sims, (k + 1) * width); ++l) lanes.push_back(us[l].data());
-          // The packs are the parallelism when there are several (Residuals does not depend on threads).
-          if (!c_.LaneResiduals(lanes, &r[static_cast<size_t>(k * width)],
-                                std::min(threads, packs) > 1 ? 1 : c_.threads)) {
-            ok = false;
-            return;
-          }
-        }
-      } catch (...) {  // rethrown on the calling thread once every thread has joined
-        std::lock_guard<std::mutex> lock(error_mu);
-        if (!error) error = std::current_exception();
-        ok = false;
-      }
-    };
-    std::vector<std::thread> pool;
-    try {
-      for (int t = 1; t < std::min(threads, packs); ++t) pool.emplace_back(work);  // packs > 1: more than 8 simulations
-    } catch (...) {  // no thread to be had: the packs left run on this one
-    }
-    work();
-    for (std::thread& t : pool) t.join();
-    if (error) std::rethrow_exception(error);
-    if (!ok) return false;
-    std::copy(r[0].begin(), r[0].end(), residuals);
-    for (int j = 0; j < p; ++j) {
-      const double inv = 1.0 / delta[j];
-      for (int i = 0; i < n; ++i) jacobians[0][static_cast<size_t>(i) * p + j] = (r[j + 1][i] - residuals[i]) * inv;
-    }
-    return true;
-  }
-
- private:
-  SimCost c_;
-  int threads_;
-};
-
-}  // namespace
-
-bool SpectralForwardJacobian(const IdentModel& m, const std::vector<double>& scale, const std::vector<double>& u,
-                             const std::vector<PreparedRecord>& recs, const Setup& setup,
-                             const std::vector<int>& substeps, int column_threads, bool ceres_reference,
-                             std::vector<double>* residuals, std::vector<double>* jac) {
-  const int p = static_cast<int>(u.size());
-  if (p == 0 || static_cast<int>(scale.size()) != p) return false;
-  const SimCost lc{&m, &recs, &setup, Objective::kFft, substeps, scale, MeasuredMagnitudes(recs, setup),
-                   0,  0.0,   nullptr};
-  const int n = static_cast<int>(NumResiduals(recs, Objective::kFft));
-  std::unique_ptr<ceres::DynamicCostFunction> fn;
-  if (ceres_reference)
-    fn.reset(
-        new ceres::DynamicNumericDiffCostFunction<SimCost, ceres::FORWARD>(new SimCost(lc), ceres::TAKE_OWNERSHIP));
-  else
-    fn.reset(new ForwardDiffFunction(lc, column_threads));
-  fn->AddParameterBlock(p);
-  fn->SetNumResiduals(n);
-  residuals->assign(static_cast<size_t>(n), 0.0);
-  jac->assign(static_cast<size_t>(n) * p, 0.0);
-  const double* params[1] = {u.data()};
-  double* jacs[1] = {jac->data()};
-  return fn->Evaluate(params, residuals->data(), jacs);
-}
-
-namespace {
 
 // What the stages of one fit share: the problem in scaled parameters u = θ / scale (the cost functor
 // `cost` holds the scales), the sign bounds, and the result they fill in (simulation count, Ceres'
@@ -763,6 +334,79 @@ bool HasFriction(const IdentModel& m) {
   return std::any_of(m.terms.begin(), m.terms.end(), [](const TermDef* t) { return t->kind == TermKind::kFriction; });
 }
 
+// Shooting objective: an accepted step makes its point's states the anchor of the next evaluations
+// (ShootCache); Ceres writes the accepted point into u at every iteration for that.
+struct PromoteCallback : ceres::IterationCallback {
+  const SimCost* c;
+  const std::vector<double>* u;
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
+    if (it.step_is_successful) c->warm->Promote(c->Theta(u->data()));
+    return ceres::SOLVER_CONTINUE;
+  }
+};
+
+// Full simulation error: stop on a plateau, when the last kPlateauIterations accepted steps together
+// changed χ² by less than kPlateauChi2. At the noise floor χ² ≈ N (the number of residuals), so that is a
+// relative gain below kPlateauChi2 / N (less still with correlated residuals): progress the data cannot
+// tell from nothing. Levenberg–Marquardt converges in a few iterations and may then crawl along a flat
+// valley of correlated parameters: on the coupled rig it reached 2.582076e-4 in 4 iterations and spent 56
+// more (71 s) on 8.5e-5 of the cost (N = 16,800: Δχ² ≈ 1.4), moving c0 by 0.1 % against its σ of 7 %.
+struct PlateauCallback : ceres::IterationCallback {
+  double gain = 0;              // relative
+  const double* tau = nullptr;  // the residuals' correlation time (samples), or null: 1
+  std::deque<double> gains;
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
+    if (it.iteration == 0) return ceres::SOLVER_CONTINUE;
+    if (!it.step_is_successful) {  // a refused step shrinks the trust region: the next small gains may be
+      gains.clear();               // the radius's, not the cost's; the window starts again
+      return ceres::SOLVER_CONTINUE;
+    }
+    gains.push_back(it.cost_change);
+    if (gains.size() > static_cast<size_t>(kPlateauIterations)) gains.pop_front();
+    const double sum = std::accumulate(gains.begin(), gains.end(), 0.0);
+    const double per = gain * (tau ? std::max(*tau, 1.0) : 1.0);
+    return gains.size() == static_cast<size_t>(kPlateauIterations) && sum < per * it.cost
+               ? ceres::SOLVER_TERMINATE_SUCCESSFULLY
+               : ceres::SOLVER_CONTINUE;
+  }
+};
+
+// BISTABLE_IDENTIFY_DEBUG=2: every Levenberg–Marquardt iteration on stderr (where a stage's
+// iterations go: a crawling tail, refused steps, a shrinking trust region).
+struct TraceCallback : ceres::IterationCallback {
+  const FitStages* fs;
+  const std::vector<double>* u;
+  int sub;
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
+    // The first record's substeps: what the iterate asks (SubstepsFor), the stability floor, and those held.
+    const std::vector<double> th = fs->Theta(*u);
+    std::fprintf(
+        stderr, "    iteration %3d cost %.6e change %.3e %s radius %.3e gradient %.3e substeps %d (stable %d) of %d\n",
+        it.iteration, it.cost, it.cost_change, it.step_is_successful ? "accepted" : "refused", it.trust_region_radius,
+        it.gradient_max_norm, SubstepsFor(fs->m, th, fs->recs[0]), StableSubsteps(fs->m, th, fs->recs[0]), sub);
+    return ceres::SOLVER_CONTINUE;
+  }
+};
+
+// Held steps far above what the point now needs end the round (the next holds what it needs): a start from
+// a fit whose friction had stiffened relaxes in its first iterations. (On the coupled c_y2_14 record the
+// refit from the declared fit plus k2 held 204 substeps, SubstepsFor asked 44 from its fourth iteration on,
+// and the start ran 61 iterations, 173 s, at 204.) At most once per stage, in its first two rounds.
+struct SlackCallback : ceres::IterationCallback {
+  const FitStages* fs;
+  const std::vector<double>* u;
+  const std::vector<int>* held;
+  bool fired = false;
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
+    if (it.iteration == 0 || !it.step_is_successful) return ceres::SOLVER_CONTINUE;
+    const std::vector<int> want = FixedSubsteps(fs->m, fs->Theta(*u), fs->recs, Objective::kShooting);
+    for (size_t k = 0; k < want.size(); ++k)
+      if (kSlackRatio * want[k] > (*held)[k]) return ceres::SOLVER_CONTINUE;
+    fired = true;
+    return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+  }
+};
+
 // Global stage (automatic substeps: the box may reach much stiffer parameters than the start): CRS2
 // in a box around `centre`; returns its best point when clearly better than the centre, else {}.
 std::vector<double> FitStages::GlobalStage(const std::vector<double>& centre) {
@@ -868,47 +512,16 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
     so.function_tolerance = tolerance;
     so.parameter_tolerance = tolerance;
     so.logging_type = ceres::SILENT;
-    // Shooting objective: an accepted step makes its point's states the anchor of the next evaluations
-    // (ShootCache); Ceres writes the accepted point into u at every iteration for that.
-    struct Promote : ceres::IterationCallback {
-      const SimCost* c;
-      const std::vector<double>* u;
-      ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-        if (it.step_is_successful) c->warm->Promote(c->Theta(u->data()));
-        return ceres::SOLVER_CONTINUE;
-      }
-    } promote;
+    // Shooting objective: accepted points anchor the next evaluations (PromoteCallback).
+    PromoteCallback promote;
     if (lc.warm) {
       promote.c = &lc;
       promote.u = &u;
       so.update_state_every_iteration = true;
       so.callbacks.push_back(&promote);
     }
-    // Full simulation error: stop on a plateau, when the last kPlateauIterations accepted steps together
-    // changed χ² by less than kPlateauChi2. At the noise floor χ² ≈ N (the number of residuals), so that is a
-    // relative gain below kPlateauChi2 / N (less still with correlated residuals): progress the data cannot
-    // tell from nothing. Levenberg–Marquardt converges in a few iterations and may then crawl along a flat
-    // valley of correlated parameters: on the coupled rig it reached 2.582076e-4 in 4 iterations and spent 56
-    // more (71 s) on 8.5e-5 of the cost (N = 16,800: Δχ² ≈ 1.4), moving c0 by 0.1 % against its σ of 7 %.
-    struct Plateau : ceres::IterationCallback {
-      double gain = 0;              // relative
-      const double* tau = nullptr;  // the residuals' correlation time (samples), or null: 1
-      std::deque<double> gains;
-      ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-        if (it.iteration == 0) return ceres::SOLVER_CONTINUE;
-        if (!it.step_is_successful) {  // a refused step shrinks the trust region: the next small gains may be
-          gains.clear();               // the radius's, not the cost's; the window starts again
-          return ceres::SOLVER_CONTINUE;
-        }
-        gains.push_back(it.cost_change);
-        if (gains.size() > static_cast<size_t>(kPlateauIterations)) gains.pop_front();
-        const double sum = std::accumulate(gains.begin(), gains.end(), 0.0);
-        const double per = gain * (tau ? std::max(*tau, 1.0) : 1.0);
-        return gains.size() == static_cast<size_t>(kPlateauIterations) && sum < per * it.cost
-                   ? ceres::SOLVER_TERMINATE_SUCCESSFULLY
-                   : ceres::SOLVER_CONTINUE;
-      }
-    } plateau;
+    // Full simulation error: stop on a plateau (PlateauCallback).
+    PlateauCallback plateau;
     plateau.gain = kPlateauChi2 / static_cast<double>(std::max<size_t>(lres, 1));
     // Multiple shooting likewise: its residual is the short-horizon error, near the noise where the model is
     // right, and each of its evaluations fits every segment's state (the coupled rig's declared fit: 41
@@ -921,48 +534,16 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
     if (obj == Objective::kShooting) plateau.tau = &start_tau;
     const bool plateau_stop = (obj == Objective::kTime && lc.horizon_s == 0) || obj == Objective::kShooting;
     if (plateau_stop && tolerance < plateau.gain) so.callbacks.push_back(&plateau);
-    // BISTABLE_IDENTIFY_DEBUG=2: every Levenberg–Marquardt iteration on stderr (where a stage's
-    // iterations go: a crawling tail, refused steps, a shrinking trust region).
-    struct Trace : ceres::IterationCallback {
-      const FitStages* fs;
-      const std::vector<double>* u;
-      int sub;
-      ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-        // The first record's substeps: what the iterate asks (SubstepsFor), the stability floor, and those held.
-        const std::vector<double> th = fs->Theta(*u);
-        std::fprintf(
-            stderr,
-            "    iteration %3d cost %.6e change %.3e %s radius %.3e gradient %.3e substeps %d (stable %d) of %d\n",
-            it.iteration, it.cost, it.cost_change, it.step_is_successful ? "accepted" : "refused",
-            it.trust_region_radius, it.gradient_max_norm, SubstepsFor(fs->m, th, fs->recs[0]),
-            StableSubsteps(fs->m, th, fs->recs[0]), sub);
-        return ceres::SOLVER_CONTINUE;
-      }
-    } trace;
+    // BISTABLE_IDENTIFY_DEBUG=2: every iteration on stderr (TraceCallback).
+    TraceCallback trace;
     trace.fs = this, trace.u = &u, trace.sub = sub.empty() ? 0 : sub[0];
     static const bool trace_iterations = [] {
       const char* d = std::getenv("BISTABLE_IDENTIFY_DEBUG");
       return d && std::string(d) == "2";
     }();
     if (trace_iterations) so.callbacks.push_back(&trace), so.update_state_every_iteration = true;
-    // Held steps far above what the point now needs end the round (the next holds what it needs): a start from
-    // a fit whose friction had stiffened relaxes in its first iterations. (On the coupled c_y2_14 record the
-    // refit from the declared fit plus k2 held 204 substeps, SubstepsFor asked 44 from its fourth iteration on,
-    // and the start ran 61 iterations, 173 s, at 204.) At most once per stage, in its first two rounds.
-    struct Slack : ceres::IterationCallback {
-      const FitStages* fs;
-      const std::vector<double>* u;
-      const std::vector<int>* held;
-      bool fired = false;
-      ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-        if (it.iteration == 0 || !it.step_is_successful) return ceres::SOLVER_CONTINUE;
-        const std::vector<int> want = FixedSubsteps(fs->m, fs->Theta(*u), fs->recs, Objective::kShooting);
-        for (size_t k = 0; k < want.size(); ++k)
-          if (kSlackRatio * want[k] > (*held)[k]) return ceres::SOLVER_CONTINUE;
-        fired = true;
-        return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
-      }
-    } slack;
+    // Held steps far above what the point needs end the round (SlackCallback), once per stage.
+    SlackCallback slack;
     slack.fs = this, slack.u = &u, slack.held = &sub;
     if (obj == Objective::kShooting && round < 2 && !slack_used)
       so.callbacks.push_back(&slack), so.update_state_every_iteration = true;
@@ -1023,6 +604,126 @@ void FitStages::Uncertainties(const std::vector<double>& u) {
   result.covariance = scale.asDiagonal() * cov * scale.asDiagonal();
 }
 
+// BISTABLE_IDENTIFY_DEBUG: each stage's wall time and simulations on stderr (where a fit's time goes).
+bool FitDebug() {
+  static const bool debug = std::getenv("BISTABLE_IDENTIFY_DEBUG") != nullptr;
+  return debug;
+}
+
+// Runs one stage of a fit, fn(), on the stages `st`; returns what fn returns (with BISTABLE_IDENTIFY_DEBUG its
+// wall time, simulations and, for a cost, the cost on stderr).
+template <class Fn>
+auto TimedStage(FitStages& st, const char* name, Fn&& fn) {
+  const auto s0 = std::chrono::steady_clock::now();
+  const int n0 = st.result.simulations;
+  auto r = fn();
+  if (FitDebug()) {
+    char cost[48] = "";
+    if constexpr (std::is_same_v<decltype(r), double>) std::snprintf(cost, sizeof cost, "  cost %.6g", r);
+    std::fprintf(stderr, "fit stage %-14s %7.2f s %5d simulations%s\n", name,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count(),
+                 st.result.simulations - n0, cost);
+  }
+  return r;
+}
+
+// BISTABLE_IDENTIFY_DEBUG: a fit's θ at scaled parameters u (the start, the end: which basin a fit went to).
+void PrintTheta(const FitStages& fs, const char* what, const std::vector<double>& u) {
+  if (!FitDebug()) return;
+  std::string line = std::string("fit ") + what + " θ (" + std::to_string(u.size()) + " parameters):";
+  char num[32];
+  for (double v : fs.Theta(u)) std::snprintf(num, sizeof num, " %.5g", v), line += num;
+  line += "\n";
+  std::fputs(line.c_str(), stderr);  // one write: fits may run side by side
+}
+
+// The time objective's short-horizon start (FitOptions::shooting_horizon_s): the short-horizon simulation error
+// first (its basin is wide; stick-slip friction makes the long simulation error a narrow valley in a plateau),
+// from start_u, under one or two smoothed friction laws; then the full simulation error from there. `lm` runs the
+// plain LM from the start (updating *best_cost), beside or before the short-horizon stages, or not at all with two
+// smoothings. *u and *best_cost take the short-horizon start's result when its cost is lower.
+void ShortHorizonStart(FitStages& fs, const IdentModel& m, const std::vector<double>& scale_in,
+                       const std::vector<PreparedRecord>& recs, const Setup& setup, const FitOptions& opt,
+                       const std::vector<double>& start_u, const std::function<void()>& lm, std::vector<double>* u,
+                       double* best_cost) {
+  std::vector<double> f = start_u;
+  double fc = INFINITY;
+  // Smoothed friction: with friction terms the short-horizon stage fits the law with v_t widened (a
+  // smoothed sign). On the coupled rig (docs/identification.md) the declared law's short-horizon cost
+  // stops this stage after a few iterations in a basin with the static peak below the Coulomb level
+  // (full error 3.1 %), at v_t · 1.5 too; at v_t · 1.9 and · 2.5 it runs on to the truth's basin, from which
+  // the full-error stage with the declared law converges (1.08 %). The scaled parameters u are the same for
+  // every law (same start, same scale).
+  const bool smooth = HasFriction(m);
+  auto smoothed = [&](double factor) {
+    IdentModel sm = m;
+    if (smooth && factor > 1) sm.fc.v_t *= factor;
+    return sm;
+  };
+  // Two smoothings: which basin the short-horizon stage reaches depends on the smoothing and on the noise
+  // realisation. On five records of the coupled rig with 0.01 mm more noise, × 2.5 alone reached the truth's
+  // basin on three; × 3.5 reached it on the record where × 2.5 ended in the wrong basin (full error 2.68 →
+  // 1.10 %; docs/identification.md, "Session 16"). Both stages run side by side; the first law's
+  // short-horizon cost at the two results picks the start of the full-error stage (there the wrong basin
+  // costs 1.8× the right one; the declared law's cost, 4 % apart, cannot tell them).
+  const double second = opt.shooting_friction_smoothing_second;
+  const bool two =
+      smooth && opt.shooting_friction_smoothing > 1 && second > 1 && second != opt.shooting_friction_smoothing;
+  const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
+  auto shoot = [&](FitStages& st) {
+    // This stage finds the basin; the next one converges in it. So it stops once an iteration gains
+    // less than 1e-4 of the cost: with friction its tail crawls (on the synthetic c2 refit 47 of 53
+    // iterations gained 0.6 % together, 8 of the fit's 18 s) and the full-error stage polishes anyway.
+    const IdentModel law1 = smoothed(opt.shooting_friction_smoothing);  // FitStages hold a reference
+    FitStages basin1(law1, scale_in, recs, setup, opt);
+    auto basin_stage = [&](FitStages& basin, std::vector<double>* x, const char* name) {
+      TimedStage(basin, name, [&] { return basin.LocalStage(*x, Objective::kTime, opt.shooting_horizon_s, 1e-4); });
+    };
+    if (two) {
+      const IdentModel law2 = smoothed(second);
+      FitStages basin2(law2, scale_in, recs, setup, opt);
+      std::vector<double> f2 = f;
+      auto first = [&] { basin_stage(basin1, &f, "shooting-1st"); };
+      auto second_stage = [&] { basin_stage(basin2, &f2, "shooting-2nd"); };
+      if (cpus >= 2)
+        RunBeside(second_stage, first);  // independent: the same result either way
+      else
+        first(), second_stage();
+      const double c1 = basin1.ShortHorizonCost(f), c2 = basin1.ShortHorizonCost(f2);
+      if (FitDebug())
+        std::fprintf(stderr, "fit short-horizon Σr² under the first law: %.6g (1st) %.6g (2nd)\n", c1, c2);
+      if (c2 < c1) f = f2;
+      AddSimulations(&st.result.simulations, basin2.result.simulations);
+    } else {
+      basin_stage(basin1, &f, "shooting");
+    }
+    AddSimulations(&st.result.simulations, basin1.result.simulations);
+    fc = TimedStage(st, "lm-after-shoot", [&] { return st.LocalStage(f, Objective::kTime); });
+  };
+  // The two starts are independent. When the records leave a core idle (one record, whose simulation
+  // uses one core; three records on two cores), run them side by side, each with its own stages' state,
+  // so one start's simulations fill the other's gaps; the result is the sequential one (a fit does not
+  // depend on its thread count: Identify.FitsOfSeveralRecordsDoNotDependOnThreads).
+  // With friction (two smoothed stages) the plain LM from the regression start is left out: that start
+  // has no friction, and LM from it stops on the long simulation error's plateau (the coupled rig: cost
+  // 0.00213 against 0.00026 after the short-horizon stages). Of the loops of docs/identification.md it
+  // won only the synthetic c2 loop's declared fit, by 8.152 against 8.153 % (same loop result); without it
+  // the two smoothed stages have both cores (rig loop 24.1 → 21.1 s, synthetic loops 1.13–1.20×).
+  if (two) {
+    shoot(fs);
+  } else if (cpus >= 2 && recs.size() % static_cast<size_t>(cpus) != 0) {
+    FitStages other = fs;
+    other.result = FitResult{};
+    RunBeside([&] { shoot(other); }, lm);
+    AddSimulations(&fs.result.simulations, other.result.simulations);
+    fs.result.message = other.result.message;  // the last Ceres run, as in the sequential order
+  } else {
+    lm();
+    shoot(fs);
+  }
+  if (fc < *best_cost) *u = f, *best_cost = fc;
+}
+
 }  // namespace
 
 FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const std::vector<PreparedRecord>& recs,
@@ -1037,126 +738,25 @@ FitResult Fit(const IdentModel& m, const std::vector<double>& scale_in, const st
   FitStages fs(m, scale_in, recs, setup, opt);
   // LM from the start; then the global stage around that result, and LM again from the global
   // stage's best when it found a lower cost; the better of the two wins.
-  // BISTABLE_IDENTIFY_DEBUG: each stage's wall time and simulations on stderr (where a fit's time goes).
-  static const bool debug = std::getenv("BISTABLE_IDENTIFY_DEBUG") != nullptr;
-  auto stage = [&](FitStages& st, const char* name, auto&& fn) {
-    const auto s0 = std::chrono::steady_clock::now();
-    const int n0 = st.result.simulations;
-    auto r = fn();
-    if (debug) {
-      char cost[48] = "";
-      if constexpr (std::is_same_v<decltype(r), double>) std::snprintf(cost, sizeof cost, "  cost %.6g", r);
-      std::fprintf(stderr, "fit stage %-14s %7.2f s %5d simulations%s\n", name,
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count(),
-                   st.result.simulations - n0, cost);
-    }
-    return r;
-  };
   const std::vector<double> start_u = fs.ScaledStart();
   std::vector<double> u = start_u;
-  // BISTABLE_IDENTIFY_DEBUG: the start and, after the stages, the end (which basin a fit went to).
-  auto print_theta = [&](const char* what, const std::vector<double>& uu) {  // one write: fits may run side by side
-    if (!debug) return;
-    std::string line = std::string("fit ") + what + " θ (" + std::to_string(uu.size()) + " parameters):";
-    char num[32];
-    for (double v : fs.Theta(uu)) std::snprintf(num, sizeof num, " %.5g", v), line += num;
-    line += "\n";
-    std::fputs(line.c_str(), stderr);
-  };
-  print_theta("start", u);
+  PrintTheta(fs, "start", u);
   double best_cost = INFINITY;
-  auto lm = [&] { best_cost = stage(fs, "lm", [&] { return fs.LocalStage(u, opt.objective); }); };
-  if (opt.objective == Objective::kTime && opt.shooting_horizon_s > 0) {
-    // Short-horizon simulation error first (its basin is wide; stick-slip friction makes the long
-    // simulation error a narrow valley in a plateau), then the full simulation error from there.
-    std::vector<double> f = start_u;
-    double fc = INFINITY;
-    // Smoothed friction: with friction terms the short-horizon stage fits the law with v_t widened (a
-    // smoothed sign). On the coupled rig (docs/identification.md) the declared law's short-horizon cost
-    // stops this stage after a few iterations in a basin with the static peak below the Coulomb level
-    // (full error 3.1 %), at v_t · 1.5 too; at v_t · 1.9 and · 2.5 it runs on to the truth's basin, from which
-    // the full-error stage with the declared law converges (1.08 %). The scaled parameters u are the same for
-    // every law (same start, same scale).
-    const bool smooth = HasFriction(m);
-    auto smoothed = [&](double factor) {
-      IdentModel sm = m;
-      if (smooth && factor > 1) sm.fc.v_t *= factor;
-      return sm;
-    };
-    // Two smoothings: which basin the short-horizon stage reaches depends on the smoothing and on the noise
-    // realisation. On five records of the coupled rig with 0.01 mm more noise, × 2.5 alone reached the truth's
-    // basin on three; × 3.5 reached it on the record where × 2.5 ended in the wrong basin (full error 2.68 →
-    // 1.10 %; docs/identification.md, "Session 16"). Both stages run side by side; the first law's
-    // short-horizon cost at the two results picks the start of the full-error stage (there the wrong basin
-    // costs 1.8× the right one; the declared law's cost, 4 % apart, cannot tell them).
-    const double second = opt.shooting_friction_smoothing_second;
-    const bool two =
-        smooth && opt.shooting_friction_smoothing > 1 && second > 1 && second != opt.shooting_friction_smoothing;
-    const int cpus = opt.threads > 0 ? opt.threads : UsableCpus();
-    auto shoot = [&](FitStages& st) {
-      // This stage finds the basin; the next one converges in it. So it stops once an iteration gains
-      // less than 1e-4 of the cost: with friction its tail crawls (on the synthetic c2 refit 47 of 53
-      // iterations gained 0.6 % together, 8 of the fit's 18 s) and the full-error stage polishes anyway.
-      const IdentModel law1 = smoothed(opt.shooting_friction_smoothing);  // FitStages hold a reference
-      FitStages basin1(law1, scale_in, recs, setup, opt);
-      auto basin_stage = [&](FitStages& basin, std::vector<double>* x, const char* name) {
-        stage(basin, name, [&] { return basin.LocalStage(*x, Objective::kTime, opt.shooting_horizon_s, 1e-4); });
-      };
-      if (two) {
-        const IdentModel law2 = smoothed(second);
-        FitStages basin2(law2, scale_in, recs, setup, opt);
-        std::vector<double> f2 = f;
-        auto first = [&] { basin_stage(basin1, &f, "shooting-1st"); };
-        auto second_stage = [&] { basin_stage(basin2, &f2, "shooting-2nd"); };
-        if (cpus >= 2)
-          RunBeside(second_stage, first);  // independent: the same result either way
-        else
-          first(), second_stage();
-        const double c1 = basin1.ShortHorizonCost(f), c2 = basin1.ShortHorizonCost(f2);
-        if (debug) std::fprintf(stderr, "fit short-horizon Σr² under the first law: %.6g (1st) %.6g (2nd)\n", c1, c2);
-        if (c2 < c1) f = f2;
-        AddSimulations(&st.result.simulations, basin2.result.simulations);
-      } else {
-        basin_stage(basin1, &f, "shooting");
-      }
-      AddSimulations(&st.result.simulations, basin1.result.simulations);
-      fc = stage(st, "lm-after-shoot", [&] { return st.LocalStage(f, Objective::kTime); });
-    };
-    // The two starts are independent. When the records leave a core idle (one record, whose simulation
-    // uses one core; three records on two cores), run them side by side, each with its own stages' state,
-    // so one start's simulations fill the other's gaps; the result is the sequential one (a fit does not
-    // depend on its thread count: Identify.FitsOfSeveralRecordsDoNotDependOnThreads).
-    // With friction (two smoothed stages) the plain LM from the regression start is left out: that start
-    // has no friction, and LM from it stops on the long simulation error's plateau (the coupled rig: cost
-    // 0.00213 against 0.00026 after the short-horizon stages). Of the loops of docs/identification.md it
-    // won only the synthetic c2 loop's declared fit, by 8.152 against 8.153 % (same loop result); without it
-    // the two smoothed stages have both cores (rig loop 24.1 → 21.1 s, synthetic loops 1.13–1.20×).
-    if (two) {
-      shoot(fs);
-    } else if (cpus >= 2 && recs.size() % static_cast<size_t>(cpus) != 0) {
-      FitStages other = fs;
-      other.result = FitResult{};
-      RunBeside([&] { shoot(other); }, lm);
-      AddSimulations(&fs.result.simulations, other.result.simulations);
-      fs.result.message = other.result.message;  // the last Ceres run, as in the sequential order
-    } else {
-      lm();
-      shoot(fs);
-    }
-    if (fc < best_cost) u = f, best_cost = fc;
-  } else {
+  auto lm = [&] { best_cost = TimedStage(fs, "lm", [&] { return fs.LocalStage(u, opt.objective); }); };
+  if (opt.objective == Objective::kTime && opt.shooting_horizon_s > 0)
+    ShortHorizonStart(fs, m, scale_in, recs, setup, opt, start_u, lm, &u, &best_cost);
+  else
     lm();
-  }
   if (opt.global_evals > 0) {
-    std::vector<double> g = stage(fs, "global", [&] { return fs.GlobalStage(u); });
+    std::vector<double> g = TimedStage(fs, "global", [&] { return fs.GlobalStage(u); });
     if (!g.empty()) {
-      const double gc = stage(fs, "lm-after-glob", [&] { return fs.LocalStage(g, opt.objective); });
+      const double gc = TimedStage(fs, "lm-after-glob", [&] { return fs.LocalStage(g, opt.objective); });
       if (gc < best_cost) u = g, best_cost = gc;
     }
   }
   fs.result.theta = fs.Theta(u);
-  print_theta("end", u);
-  stage(fs, "sigma", [&] {
+  PrintTheta(fs, "end", u);
+  TimedStage(fs, "sigma", [&] {
     fs.Uncertainties(u);
     return 0;
   });

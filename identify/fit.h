@@ -113,11 +113,11 @@ bool ObjectiveJacobian(const IdentModel& m, const std::vector<double>& th, const
 // The shooting objective's segment length in samples of a record (≥ 2).
 int ShootingSegment(double horizon_s, double dt);
 // One record's outputs under the shooting objective: segments of horizon_s from re-estimated start
-// states (fit.cc ShootRecord). False on divergence.
+// states (shooting.h ShootRecord). False on divergence.
 bool SimulateShooting(const IdentModel& m, const std::vector<double>& th, const PreparedRecord& r, const Setup& setup,
                       double horizon_s, SimOutputs* out);
 // Substeps per record for parameters th held by a fit of objective `obj`: SubstepsFor times a safety factor;
-// under the shooting objective OscillationSubsteps times the safety, at least StableSubsteps (fit.cc).
+// under the shooting objective OscillationSubsteps times the safety, at least StableSubsteps (sim_cost.cc).
 std::vector<int> FixedSubsteps(const IdentModel& m, const std::vector<double>& th,
                                const std::vector<PreparedRecord>& recs, Objective obj, double safety = 1.5);
 

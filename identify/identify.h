@@ -8,7 +8,8 @@
 //   summary->result.after.theta ...
 //
 // `bistable identify` (client/identify_command.cc) and the Python module's `bistable.identify` both call it;
-// the JSON both print is rendered from the Summary in client/ (IdentifyResultJson).
+// the JSON both print is rendered from the Summary in client/ (IdentifyResultJson), the text from the Summary
+// itself (Summary::FullReport).
 #ifndef BISTABLE_IDENTIFY_IDENTIFY_H_
 #define BISTABLE_IDENTIFY_IDENTIFY_H_
 
@@ -47,6 +48,12 @@ struct Summary {
   std::vector<TestSplit> tests;         // every test range × every record
   FrameDecision frame;
   long long simulations = 0;  // of both fits (saturates)
+
+  // The fit as text, after Ceres's Summary::FullReport: the records and the objective that ran, the errors
+  // before and after, every step's verdict, the declared model as fitted and the final model (each parameter
+  // with its σ and unit), the test ranges, the diagnostics, wall time and simulations. What `bistable identify`
+  // prints without --json and what the Python module's result returns as full_report() (full_report.cc).
+  std::string FullReport() const;
 };
 
 // An output's error by a metric: "nrmse", "spectral" or "shooting".

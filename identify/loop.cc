@@ -696,6 +696,46 @@ AddedEffect Added(const TermDef* t, const IdentModel& m, const FitResult& fit, d
   return a;
 }
 
+// The verdict of a round whose best candidate is not added: its refit feeds energy into the beam (not `physical`),
+// or did not confirm it.
+std::string NotAddedVerdict(const TermDef* t, const IdentModel& next, const FitResult& refit, double before,
+                            double after, bool physical) {
+  char buf[512];
+  if (!physical) {
+    const int pz = next.PiezoIndex();
+    std::snprintf(buf, sizeof buf,
+                  "%s scored best but its refit feeds energy into the beam (a c = %.3g < 0; error %.3g %% -> %.3g "
+                  "%%); not added",
+                  t->id.c_str(), refit.theta[pz] * refit.theta[pz + 2], before, after);
+  } else {
+    std::snprintf(buf, sizeof buf,
+                  "%s scored best but the refit by simulation did not confirm it (error %.3g %% -> %.3g %%); not added",
+                  t->id.c_str(), before, after);
+  }
+  return buf;
+}
+
+// The verdict of a round whose refit gained by leaving the basin (GainWithoutTheTerm): the model without the term
+// keeps the gain (its error `e`).
+std::string LeftTheBasinVerdict(const TermDef* t, double before, double after, double e) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "%s scored best and its refit gained (error %.3g %% -> %.3g %%), but by leaving the fit's basin: its "
+                "parameters ended insignificant (Wald test, 95 %%) and the model without it keeps the gain (%.3g %%); "
+                "not added, the model before goes on at the refit's values",
+                t->id.c_str(), before, after, e);
+  return buf;
+}
+
+// Why the loop stopped, for the diagnostics: its last step's verdict, or that it reached --max-added.
+std::string StopReason(const IdentifyResult& out) {
+  const bool went_on =
+      !out.steps.empty() && (!out.steps.back().chosen.empty() || out.fits.back().refound);  // not a stop
+  return out.steps.empty() ? "--max-added 0, nothing traced"
+         : went_on         ? "it reached --max-added after: " + out.steps.back().verdict
+                           : out.steps.back().verdict;
+}
+
 }  // namespace
 
 // `recs` by value: their output weights may be re-estimated below.
@@ -775,38 +815,15 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
     const bool physical = Physical(next, refit.theta);
     const bool confirmed = physical && after < before * (1.0 - opt.min_improvement);
     out.fits.push_back({next, refit, t->id, confirmed});
-    char buf[512];
-    if (!physical) {
-      const int pz = next.PiezoIndex();
-      std::snprintf(buf, sizeof buf,
-                    "%s scored best but its refit feeds energy into the beam (a c = %.3g < 0; error %.3g %% -> %.3g "
-                    "%%); not added",
-                    t->id.c_str(), refit.theta[pz] * refit.theta[pz + 2], before, after);
-      step.verdict = buf;
-      step.chosen.clear();
-      out.steps.push_back(step);
-      break;
-    }
-    if (!confirmed) {
-      std::snprintf(
-          buf, sizeof buf,
-          "%s scored best but the refit by simulation did not confirm it (error %.3g %% -> %.3g %%); not added",
-          t->id.c_str(), before, after);
-      step.verdict = buf;
+    if (!physical || !confirmed) {
+      step.verdict = NotAddedVerdict(t, next, refit, before, after, physical);
       step.chosen.clear();
       out.steps.push_back(step);
       break;
     }
     if (FitResult without; GainWithoutTheTerm(m, next, refit, t, before, recs, setup, opt, &without)) {
       // A better optimum of the model before the step: it goes on in that model's place (traced again).
-      const double e = ErrorOf(without, opt.fit.objective);
-      std::snprintf(
-          buf, sizeof buf,
-          "%s scored best and its refit gained (error %.3g %% -> %.3g %%), but by leaving the fit's basin: its "
-          "parameters ended insignificant (Wald test, 95 %%) and the model without it keeps the gain (%.3g %%); "
-          "not added, the model before goes on at the refit's values",
-          t->id.c_str(), before, after, e);
-      step.verdict = buf;
+      step.verdict = LeftTheBasinVerdict(t, before, after, ErrorOf(without, opt.fit.objective));
       step.chosen.clear();
       passed_over.push_back(t->id);
       out.steps.push_back(step);
@@ -815,6 +832,7 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
       --round;  // nothing was added
       continue;
     }
+    char buf[512];
     std::snprintf(buf, sizeof buf, "added %s: error %.3g %% -> %.3g %%", t->id.c_str(), before, after);
     if (std::getenv("BISTABLE_IDENTIFY_DEBUG"))
       std::fprintf(stderr, "refit: %s (%d simulations, %.1f s)\n", refit.message.c_str(), refit.simulations,
@@ -830,12 +848,7 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
   out.after = fit;
   for (AddedEffect& a : out.added) TakeValues(&a, m, fit);  // the final values (later additions refit everything)
   out.residual_after = ResidualForce(m, m.theta, recs, setup);
-  const bool went_on =
-      !out.steps.empty() && (!out.steps.back().chosen.empty() || out.fits.back().refound);  // not a stop
-  const std::string stop = out.steps.empty() ? "--max-added 0, nothing traced"
-                           : went_on         ? "it reached --max-added after: " + out.steps.back().verdict
-                                             : out.steps.back().verdict;
-  out.diagnostics = Diagnose(out.fits, recs, setup, opt.fit, stop);
+  out.diagnostics = Diagnose(out.fits, recs, setup, opt.fit, StopReason(out));
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

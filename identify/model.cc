@@ -434,6 +434,73 @@ double WithOutputEffects(const SpecialCols& sc, const std::vector<double>& thx, 
   return (1.0 + g) * value + d;
 }
 
+// A simulation's outputs and their sensitivity rows at sample i (SimulateImpl's emit): the main output (state
+// component oc, MainOutputValue), the resonator's (s[2], plus s[0] when res_plus_p), the voltage (the piezo's state, 0
+// without a piezo), each with its output effects; and the early stop's running error.
+template <bool kSens, int kD, class Sys>
+struct OutputRows {
+  const PreparedRecord& r;
+  const Setup& setup;
+  const SpecialCols& sc;
+  const std::vector<double>& thx;
+  const Sys& sys;
+  typename Sys::State& s;
+  SimOutputs* so;
+  EarlyStop* stop;
+  int P, SC, oc;
+  bool res, res_plus_p, any_output_term;
+
+  // Component c of sensitivity column j (parameters 0 … P − 1, then the state columns).
+  double& sens(int c, int j) const { return s[sys.SensIndex(c, j)]; }
+  // Output effects of slot k on a model value (and its sensitivity row): (1 + g) value + d.
+  double output_effects(int k, size_t i, double value) const {
+    if (!any_output_term) return value;
+    const double g = sc.scale[k] >= 0 ? thx[sc.scale[k]] : 0.0;
+    if constexpr (kSens) {
+      if (sc.scale[k] >= 0) {
+        for (int j = 0; j < P; ++j) so->d[k](static_cast<long>(i), j) *= 1.0 + g;
+        for (int j = 0; j < SC; ++j) so->ds[k](static_cast<long>(i), j) *= 1.0 + g;
+        if (P > 0) so->d[k](static_cast<long>(i), sc.scale[k]) = value;
+      }
+      if (sc.offset[k] >= 0 && P > 0) so->d[k](static_cast<long>(i), sc.offset[k]) = 1.0;
+    }
+    return WithOutputEffects(sc, thx, k, value);
+  }
+  // Row i of slot k's sensitivities: component c of every column, plus component c2 when c2 >= 0.
+  void sens_row(int k, size_t i, int c, int c2) const {
+    if constexpr (kSens) {
+      for (int j = 0; j < P; ++j) so->d[k](static_cast<long>(i), j) = sens(c, j) + (c2 >= 0 ? sens(c2, j) : 0.0);
+      for (int j = 0; j < SC; ++j)
+        so->ds[k](static_cast<long>(i), j) = sens(c, P + j) + (c2 >= 0 ? sens(c2, P + j) : 0.0);
+    }
+  }
+  void Emit(size_t i) const {
+    double value = MainOutputValue(r, setup, s[oc], i);
+    sens_row(0, i, oc, -1);
+    value = output_effects(0, i, value);
+    so->out[0][i] = value;
+    if (stop) {
+      const double d = (value - (*stop->meas)[i]) * stop->w;
+      stop->sse += d * d;
+      stop->stopped = stop->sse > stop->budget;
+    }
+    if (!so->out[1].empty() && res) {
+      sens_row(1, i, 2, res_plus_p ? 0 : -1);
+      so->out[1][i] = output_effects(1, i, res_plus_p ? s[2] + s[0] : s[2]);
+    }
+    if (!so->out[2].empty()) {  // the voltage: the piezo's state, 0 without a piezo
+      double w = 0;
+      if constexpr (kD == 5) {
+        w = s[4];
+        sens_row(2, i, 4, -1);
+      } else if constexpr (kSens) {
+        if (P > 0) so->d[2].row(static_cast<long>(i)).setZero();
+      }
+      so->out[2][i] = output_effects(2, i, w);
+    }
+  }
+};
+
 template <bool kSens, int kD>
 bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std::vector<const TermDef*>& extra,
                   const PreparedRecord& r, const Setup& setup, int substeps, int restart_every, SimOutputs* so,
@@ -509,55 +576,9 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
   // The compared output is state component `oc` (plus a known signal); the resonator's is s[2] (+ s[0]).
   const int oc = MainStateComponent(setup);
   const bool res_plus_p = in != InputKind::kBaseDisplacement;
-  const bool any_output_term = sc.AnyOutputTerm();
-  // Output effects of slot k on a model value (and its sensitivity row): (1 + g) value + d.
-  auto output_effects = [&](int k, size_t i, double value) {
-    if (!any_output_term) return value;
-    const double g = sc.scale[k] >= 0 ? thx[sc.scale[k]] : 0.0;
-    if constexpr (kSens) {
-      if (sc.scale[k] >= 0) {
-        for (int j = 0; j < P; ++j) so->d[k](static_cast<long>(i), j) *= 1.0 + g;
-        for (int j = 0; j < SC; ++j) so->ds[k](static_cast<long>(i), j) *= 1.0 + g;
-        if (P > 0) so->d[k](static_cast<long>(i), sc.scale[k]) = value;
-      }
-      if (sc.offset[k] >= 0 && P > 0) so->d[k](static_cast<long>(i), sc.offset[k]) = 1.0;
-    }
-    return WithOutputEffects(sc, thx, k, value);
-  };
-  // Row i of slot k's sensitivities: component c of every column, plus component c2 when c2 >= 0.
-  auto sens_row = [&](int k, size_t i, int c, int c2) {
-    if constexpr (kSens) {
-      for (int j = 0; j < P; ++j) so->d[k](static_cast<long>(i), j) = sens(c, j) + (c2 >= 0 ? sens(c2, j) : 0.0);
-      for (int j = 0; j < SC; ++j)
-        so->ds[k](static_cast<long>(i), j) = sens(c, P + j) + (c2 >= 0 ? sens(c2, P + j) : 0.0);
-    }
-  };
-  auto emit = [&](size_t i) {
-    double value = MainOutputValue(r, setup, s[oc], i);
-    sens_row(0, i, oc, -1);
-    value = output_effects(0, i, value);
-    so->out[0][i] = value;
-    if (stop) {
-      const double d = (value - (*stop->meas)[i]) * stop->w;
-      stop->sse += d * d;
-      stop->stopped = stop->sse > stop->budget;
-    }
-    if (!so->out[1].empty() && res) {
-      sens_row(1, i, 2, res_plus_p ? 0 : -1);
-      so->out[1][i] = output_effects(1, i, res_plus_p ? s[2] + s[0] : s[2]);
-    }
-    if (!so->out[2].empty()) {  // the voltage: the piezo's state, 0 without a piezo
-      double w = 0;
-      if constexpr (kD == 5) {
-        w = s[4];
-        sens_row(2, i, 4, -1);
-      } else if constexpr (kSens) {
-        if (P > 0) so->d[2].row(static_cast<long>(i)).setZero();
-      }
-      so->out[2][i] = output_effects(2, i, w);
-    }
-  };
-  emit(0);
+  const OutputRows<kSens, kD, Sys> rows{r,    setup, sc, thx, sys, s,          so,
+                                        stop, P,     SC, oc,  res, res_plus_p, sc.AnyOutputTerm()};
+  rows.Emit(0);
   Rk4<Sys> rk4(sys);
   for (size_t i = 1; i < n; ++i) {
     if (CancelRequested()) [[unlikely]]
@@ -578,7 +599,7 @@ bool SimulateImpl(const IdentModel& m, const std::vector<double>& th, const std:
     if (!std::isfinite(s[0]) || !std::isfinite(s[1]) || std::abs(s[0]) > limit_p) return false;
     if constexpr (kD == 5)
       if (!std::isfinite(s[4])) return false;
-    emit(i);
+    rows.Emit(i);
     if (stop && stop->stopped) return false;
   }
   return true;

@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 #include <filesystem>
+#include <memory>
 #include <string_view>
 #include <tuple>
 
@@ -311,6 +312,195 @@ Quantity OutputQuantity(OutputKind k) {
   return Quantity::kNone;
 }
 
+// The data lines of a CSV file: the next line that is neither blank nor a comment ('#' first), without a UTF-8 BOM
+// or a CR; At() names the file and the row for messages.
+class DataLines {
+ public:
+  DataLines(std::unique_ptr<LineReader> reader, std::string file)
+      : reader_(std::move(reader)), file_(std::move(file)) {}
+  std::string At() const { return file_ + " row " + std::to_string(reader_->line_number()); }
+  const std::string& line() const { return line_; }
+  // True with the next line in line(), false at the end.
+  StatusOr<bool> Next() {
+    for (;;) {
+      auto r = reader_->Next(&line_);
+      if (!r.ok()) return r.status();
+      if (*r == LineReader::Result::kEnd) return false;
+      if (*r == LineReader::Result::kTooLong)
+        return Status::InvalidArgument(
+            "data", At() + ": the line is longer than " + std::to_string(limits::kMaxDataLineBytes) +
+                        " bytes (violates line length <= " + std::to_string(limits::kMaxDataLineBytes) + ")");
+      if (reader_->line_number() == 1) {
+        if (line_.rfind("\xef\xbb\xbf", 0) == 0) line_.erase(0, 3);
+        if (line_.rfind("\xff\xfe", 0) == 0 || line_.rfind("\xfe\xff", 0) == 0)
+          return Status::InvalidArgument("data", file_ + " is UTF-16 text; save it as UTF-8 (or ASCII)");
+      }
+      if (!line_.empty() && line_.back() == '\r') line_.pop_back();
+      const size_t first = line_.find_first_not_of(" \t");
+      if (first == std::string::npos || line_[first] == '#') continue;
+      return true;
+    }
+  }
+
+ private:
+  std::unique_ptr<LineReader> reader_;
+  std::string file_;
+  std::string line_;
+};
+
+// A file's header line: its separator, whether numbers take a decimal comma, whether lines end with a separator,
+// and its cells.
+struct Header {
+  char sep = 0;
+  bool decimal_comma = false, trailing_sep = false;
+  std::vector<HeaderCell> cells;
+};
+
+// The header line `line` (lines: where it was read, for messages): the separator is the one of , tab ; that splits it
+// most often.
+StatusOr<Header> ReadHeader(const std::string& line, const DataLines& lines) {
+  Header h;
+  int best = 0;
+  bool tie = false;
+  for (char s : {',', '\t', ';'}) {
+    const int n = CountOutsideQuotes(line, s);
+    if (n > best)
+      best = n, h.sep = s, tie = false;
+    else if (n == best && n > 0)
+      tie = true;
+  }
+  if (h.sep == 0)
+    return Status::InvalidArgument(
+        "data",
+        lines.At() +
+            " (header): no separator splits it (',' tab ';' were tried; the header names the columns, e.g. t,x0,x)");
+  if (tie)
+    return Status::InvalidArgument("data", lines.At() + " (header): it splits as often at " + SeparatorName(h.sep) +
+                                               " as at another of ',' tab ';'; quote the names that hold a separator");
+  h.decimal_comma = h.sep != ',';
+  std::vector<std::string> cells;
+  std::string split_error;
+  if (!SplitLine(line, h.sep, &cells, &split_error))
+    return Status::InvalidArgument("data", lines.At() + " (header) " + split_error);
+  // A trailing separator (some exports end every line with one) makes no column.
+  h.trailing_sep = cells.size() > 1 && cells.back().empty();
+  if (h.trailing_sep) cells.pop_back();
+  bool all_numbers = true;
+  for (const std::string& cell : cells) {
+    h.cells.push_back(ParseHeaderCell(cell));
+    double v;
+    all_numbers = all_numbers && ParseNumber(cell, h.decimal_comma, &v);
+  }
+  if (all_numbers)
+    return Status::InvalidArgument("data", lines.At() +
+                                               ": the first line that is not a comment holds numbers, not column names "
+                                               "(a header line is required; comment lines start with #)");
+  return h;
+}
+
+// The columns a ColumnMap names in a header (FindColumn): time, input, output, and the optional resonator,
+// voltage and group columns (index -1 where not named).
+struct Columns {
+  ColumnRef t, in, out, res, volt;
+  std::vector<int> group;
+};
+
+StatusOr<Columns> FindColumns(const std::vector<HeaderCell>& header, const ColumnMap& c, const std::string& file) {
+  Columns cols;
+  auto ct = FindColumn(header, c.time, "time", Quantity::kTime, 1.0, "", file);
+  if (!ct.ok()) return ct.status();
+  auto ci = FindColumn(header, c.input, "input", InputQuantity(c.input_kind), c.input_scale, "input_scale", file);
+  if (!ci.ok()) return ci.status();
+  auto co = FindColumn(header, c.output, "output", OutputQuantity(c.output_kind), c.output_scale, "output_scale", file);
+  if (!co.ok()) return co.status();
+  cols.t = *ct, cols.in = *ci, cols.out = *co;
+  if (!c.resonator.empty()) {
+    auto r = FindColumn(header, c.resonator, "resonator", Quantity::kLength, 1.0, "", file);
+    if (!r.ok()) return r.status();
+    cols.res = *r;
+  }
+  if (!c.voltage.empty()) {
+    auto r = FindColumn(header, c.voltage, "output2", Quantity::kVoltage, c.voltage_scale, "output2_scale", file);
+    if (!r.ok()) return r.status();
+    cols.volt = *r;
+  }
+  for (const auto& g : c.group) {
+    auto r = FindColumn(header, g, "group", Quantity::kNone, 1.0, "", file);
+    if (!r.ok()) return r.status();
+    cols.group.push_back(r->index);
+  }
+  return cols;
+}
+
+// The numbers of one data line's cells into *row (each finite and within limits::kMaxDataMagnitude).
+Status ParseRow(const std::vector<std::string>& cells, const Header& h, const DataLines& lines,
+                std::vector<double>* row) {
+  for (size_t k = 0; k < cells.size(); ++k) {
+    double v = 0;
+    if (!ParseNumber(cells[k], h.decimal_comma, &v))
+      return Status::InvalidArgument("data", lines.At() + " column '" + Printable(h.cells[k].text) + "': '" +
+                                                 Printable(cells[k]) + "' is not a finite number");
+    if (!(std::fabs(v) <= limits::kMaxDataMagnitude))
+      return Status::InvalidArgument("data", lines.At() + " column '" + Printable(h.cells[k].text) +
+                                                 "': " + Printable(cells[k]) +
+                                                 " violates |value| <= " + FormatNumber(limits::kMaxDataMagnitude));
+    (*row)[k] = v;
+  }
+  return Status::Ok();
+}
+
+// Starts a new record at time t with group values gv where one begins (the first row, the group columns change, or
+// time restarts at the first record's start); an error where time goes back otherwise, a record would hold a single
+// row, or the file more than limits::kMaxDataRecords records. `name`: the file's, for the records' names.
+Status StartRecordIfNew(double t, const std::vector<double>& gv, const std::string& name, const DataLines& lines,
+                        std::vector<Record>* records) {
+  const bool back = !records->empty() && t <= records->back().t.back();
+  // Time may go back only to restart a record at the first record's start time (concatenated
+  // records, e.g. the harvester's steady-sine file); anything else is a broken time column.
+  if (back && gv == records->back().group_values) {
+    const double start = records->front().t.front();
+    const double dt = records->back().t.size() >= 2 ? records->back().t[1] - records->back().t[0] : 0.0;
+    if (!(std::abs(t - start) <= 0.5 * std::abs(dt)) || records->back().t.size() < 2)
+      return Status::InvalidArgument("data", lines.At() + ": time " + FormatNumber(t) +
+                                                 (t == records->back().t.back() ? " repeats" : " is before") +
+                                                 " the previous row's " + FormatNumber(records->back().t.back()) +
+                                                 " (time must increase; a restart must return to " +
+                                                 FormatNumber(start) + ")");
+  }
+  const bool restart = records->empty() || back || gv != records->back().group_values;
+  if (!restart) return Status::Ok();
+  if (!records->empty() && records->back().t.size() < 2)
+    return Status::InvalidArgument("data", lines.At() + ": a record of a single row");
+  if (static_cast<long>(records->size()) >= limits::kMaxDataRecords)
+    return Status::InvalidArgument(
+        "data", lines.At() + ": more than " + std::to_string(limits::kMaxDataRecords) +
+                    " records in one file (violates records <= " + std::to_string(limits::kMaxDataRecords) +
+                    "; a record starts where the group columns change or time restarts)");
+  Record r;
+  r.name = name + "#" + std::to_string(records->size());
+  r.group_values = gv;
+  records->push_back(std::move(r));
+  return Status::Ok();
+}
+
+// Every record's mean step (dt), and an error where a record has fewer than two samples or its sampling is not
+// uniform.
+Status SetSteps(std::vector<Record>* records) {
+  for (Record& r : *records) {
+    if (r.t.size() < 2) return Status::InvalidArgument("data", Printable(r.name, 200) + ": fewer than two samples");
+    r.dt = (r.t.back() - r.t.front()) / static_cast<double>(r.t.size() - 1);
+    // 25 % of a step: printed time columns are quantised (the harvester's 64 Hz file prints 10.016 for
+    // 10.015625, a 6 % step error), while a dropped or duplicated sample moves a step by 100 %. The
+    // mean step is used from here on.
+    for (size_t i = 1; i < r.t.size(); ++i)
+      if (std::fabs(r.t[i] - r.t[i - 1] - r.dt) > 0.25 * r.dt)
+        return Status::InvalidArgument(
+            "data", Printable(r.name, 200) + ": sampling is not uniform near t = " + FormatNumber(r.t[i]) +
+                        " s (step " + FormatNumber(r.t[i] - r.t[i - 1]) + " s, mean " + FormatNumber(r.dt) + " s)");
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnMap& c) {
@@ -324,164 +514,51 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
   if (!reader.ok()) return reader.status();
   const std::string name = std::filesystem::path(path).filename().string();  // records' names
   const std::string file = Printable(name, 200);                             // in messages
-  const auto at = [&]() { return file + " row " + std::to_string((*reader)->line_number()); };
+  DataLines lines(std::move(reader).value(), file);
 
-  // The next line that is neither blank nor a comment ('#' first), without a UTF-8 BOM or a CR.
-  std::string line;
-  const auto next = [&]() -> StatusOr<bool> {
-    for (;;) {
-      auto r = (*reader)->Next(&line);
-      if (!r.ok()) return r.status();
-      if (*r == LineReader::Result::kEnd) return false;
-      if (*r == LineReader::Result::kTooLong)
-        return Status::InvalidArgument(
-            "data", at() + ": the line is longer than " + std::to_string(limits::kMaxDataLineBytes) +
-                        " bytes (violates line length <= " + std::to_string(limits::kMaxDataLineBytes) + ")");
-      if ((*reader)->line_number() == 1) {
-        if (line.rfind("\xef\xbb\xbf", 0) == 0) line.erase(0, 3);
-        if (line.rfind("\xff\xfe", 0) == 0 || line.rfind("\xfe\xff", 0) == 0)
-          return Status::InvalidArgument("data", file + " is UTF-16 text; save it as UTF-8 (or ASCII)");
-      }
-      if (!line.empty() && line.back() == '\r') line.pop_back();
-      const size_t first = line.find_first_not_of(" \t");
-      if (first == std::string::npos || line[first] == '#') continue;
-      return true;
-    }
-  };
-
-  auto has = next();
+  auto has = lines.Next();
   if (!has.ok()) return has.status();
   if (!*has) return Status::InvalidArgument("data", file + " is empty (a header line is required)");
-  // The separator is the one of , tab ; that splits the header most often.
-  char sep = 0;
-  int best = 0;
-  bool tie = false;
-  for (char s : {',', '\t', ';'}) {
-    const int n = CountOutsideQuotes(line, s);
-    if (n > best)
-      best = n, sep = s, tie = false;
-    else if (n == best && n > 0)
-      tie = true;
-  }
-  if (sep == 0)
-    return Status::InvalidArgument(
-        "data",
-        at() + " (header): no separator splits it (',' tab ';' were tried; the header names the columns, e.g. t,x0,x)");
-  if (tie)
-    return Status::InvalidArgument("data", at() + " (header): it splits as often at " + SeparatorName(sep) +
-                                               " as at another of ',' tab ';'; quote the names that hold a separator");
-  const bool decimal_comma = sep != ',';
-  std::vector<std::string> cells;
-  std::string split_error;
-  if (!SplitLine(line, sep, &cells, &split_error))
-    return Status::InvalidArgument("data", at() + " (header) " + split_error);
-  // A trailing separator (some exports end every line with one) makes no column.
-  const bool trailing_sep = cells.size() > 1 && cells.back().empty();
-  if (trailing_sep) cells.pop_back();
-  std::vector<HeaderCell> header;
-  bool all_numbers = true;
-  for (const std::string& cell : cells) {
-    header.push_back(ParseHeaderCell(cell));
-    double v;
-    all_numbers = all_numbers && ParseNumber(cell, decimal_comma, &v);
-  }
-  if (all_numbers)
-    return Status::InvalidArgument("data", at() +
-                                               ": the first line that is not a comment holds numbers, not column names "
-                                               "(a header line is required; comment lines start with #)");
-
-  auto ct = FindColumn(header, c.time, "time", Quantity::kTime, 1.0, "", file);
-  if (!ct.ok()) return ct.status();
-  auto ci = FindColumn(header, c.input, "input", InputQuantity(c.input_kind), c.input_scale, "input_scale", file);
-  if (!ci.ok()) return ci.status();
-  auto co = FindColumn(header, c.output, "output", OutputQuantity(c.output_kind), c.output_scale, "output_scale", file);
-  if (!co.ok()) return co.status();
-  ColumnRef cr;
-  if (!c.resonator.empty()) {
-    auto r = FindColumn(header, c.resonator, "resonator", Quantity::kLength, 1.0, "", file);
-    if (!r.ok()) return r.status();
-    cr = *r;
-  }
-  ColumnRef cv;
-  if (!c.voltage.empty()) {
-    auto r = FindColumn(header, c.voltage, "output2", Quantity::kVoltage, c.voltage_scale, "output2_scale", file);
-    if (!r.ok()) return r.status();
-    cv = *r;
-  }
-  std::vector<int> cg;
-  for (const auto& g : c.group) {
-    auto r = FindColumn(header, g, "group", Quantity::kNone, 1.0, "", file);
-    if (!r.ok()) return r.status();
-    cg.push_back(r->index);
-  }
-  const double time_factor = ct->factor, in_factor = ci->factor * c.input_scale,
-               out_factor = co->factor * c.output_scale;
+  auto header = ReadHeader(lines.line(), lines);
+  if (!header.ok()) return header.status();
+  auto cols = FindColumns(header->cells, c, file);
+  if (!cols.ok()) return cols.status();
+  const ColumnRef &ct = cols->t, &ci = cols->in, &co = cols->out, &cr = cols->res, &cv = cols->volt;
+  const double time_factor = ct.factor, in_factor = ci.factor * c.input_scale, out_factor = co.factor * c.output_scale;
 
   std::vector<Record> records;
-  std::vector<double> row(header.size());
+  std::vector<std::string> cells;
+  std::string split_error;
+  std::vector<double> row(header->cells.size());
   long rows = 0;
   for (;;) {
-    has = next();
+    has = lines.Next();
     if (!has.ok()) return has.status();
     if (!*has) break;
     if (++rows > limits::kMaxDataRows)
       return Status::InvalidArgument(
-          "data", at() + ": more than " + std::to_string(limits::kMaxDataRows) +
+          "data", lines.At() + ": more than " + std::to_string(limits::kMaxDataRows) +
                       " data rows (violates rows <= " + std::to_string(limits::kMaxDataRows) + "; split the file)");
-    if (!SplitLine(line, sep, &cells, &split_error)) return Status::InvalidArgument("data", at() + " " + split_error);
-    if (trailing_sep && cells.size() == header.size() + 1 && cells.back().empty()) cells.pop_back();
-    if (cells.size() != header.size())
-      return Status::InvalidArgument("data", at() + ": " + std::to_string(cells.size()) + " cells, the header has " +
-                                                 std::to_string(header.size()));
-    for (size_t k = 0; k < cells.size(); ++k) {
-      double v = 0;
-      if (!ParseNumber(cells[k], decimal_comma, &v))
-        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) + "': '" +
-                                                   Printable(cells[k]) + "' is not a finite number");
-      if (!(std::fabs(v) <= limits::kMaxDataMagnitude))
-        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) +
-                                                   "': " + Printable(cells[k]) +
-                                                   " violates |value| <= " + FormatNumber(limits::kMaxDataMagnitude));
-      row[k] = v;
-    }
+    if (!SplitLine(lines.line(), header->sep, &cells, &split_error))
+      return Status::InvalidArgument("data", lines.At() + " " + split_error);
+    if (header->trailing_sep && cells.size() == header->cells.size() + 1 && cells.back().empty()) cells.pop_back();
+    if (cells.size() != header->cells.size())
+      return Status::InvalidArgument("data", lines.At() + ": " + std::to_string(cells.size()) +
+                                                 " cells, the header has " + std::to_string(header->cells.size()));
+    BISTABLE_RETURN_IF_ERROR(ParseRow(cells, *header, lines, &row));
     std::vector<double> gv;
-    for (int g : cg) gv.push_back(row[g]);
-    const double t = row[ct->index] * time_factor;
-    const bool back = !records.empty() && t <= records.back().t.back();
-    // Time may go back only to restart a record at the first record's start time (concatenated
-    // records, e.g. the harvester's steady-sine file); anything else is a broken time column.
-    if (back && gv == records.back().group_values) {
-      const double start = records.front().t.front();
-      const double dt = records.back().t.size() >= 2 ? records.back().t[1] - records.back().t[0] : 0.0;
-      if (!(std::abs(t - start) <= 0.5 * std::abs(dt)) || records.back().t.size() < 2)
-        return Status::InvalidArgument(
-            "data", at() + ": time " + FormatNumber(t) + (t == records.back().t.back() ? " repeats" : " is before") +
-                        " the previous row's " + FormatNumber(records.back().t.back()) +
-                        " (time must increase; a restart must return to " + FormatNumber(start) + ")");
-    }
-    const bool restart = records.empty() || back || gv != records.back().group_values;
-    if (restart) {
-      if (!records.empty() && records.back().t.size() < 2)
-        return Status::InvalidArgument("data", at() + ": a record of a single row");
-      if (static_cast<long>(records.size()) >= limits::kMaxDataRecords)
-        return Status::InvalidArgument(
-            "data", at() + ": more than " + std::to_string(limits::kMaxDataRecords) +
-                        " records in one file (violates records <= " + std::to_string(limits::kMaxDataRecords) +
-                        "; a record starts where the group columns change or time restarts)");
-      Record r;
-      r.name = name + "#" + std::to_string(records.size());
-      r.group_values = gv;
-      records.push_back(std::move(r));
-    }
-    const double scaled_in = row[ci->index] * in_factor, scaled_out = row[co->index] * out_factor;
+    for (int g : cols->group) gv.push_back(row[g]);
+    const double t = row[ct.index] * time_factor;
+    BISTABLE_RETURN_IF_ERROR(StartRecordIfNew(t, gv, name, lines, &records));
+    const double scaled_in = row[ci.index] * in_factor, scaled_out = row[co.index] * out_factor;
     const double scaled_res = cr.index >= 0 ? row[cr.index] * cr.factor : 0.0;
     const double volt_factor = cv.factor * c.voltage_scale;
     const double scaled_volt = cv.index >= 0 ? row[cv.index] * volt_factor : 0.0;
     for (auto [v, k, factor] :
-         {std::tuple{scaled_in, ci->index, in_factor}, std::tuple{scaled_out, co->index, out_factor},
+         {std::tuple{scaled_in, ci.index, in_factor}, std::tuple{scaled_out, co.index, out_factor},
           std::tuple{scaled_res, cr.index, cr.factor}, std::tuple{scaled_volt, cv.index, volt_factor}})
       if (k >= 0 && !(std::fabs(v) <= limits::kMaxDataMagnitude))
-        return Status::InvalidArgument("data", at() + " column '" + Printable(header[k].text) +
+        return Status::InvalidArgument("data", lines.At() + " column '" + Printable(header->cells[k].text) +
                                                    "': " + Printable(cells[k]) + " x scale " + FormatNumber(factor) +
                                                    " violates |value| <= " + FormatNumber(limits::kMaxDataMagnitude));
     Record& r = records.back();
@@ -492,18 +569,7 @@ StatusOr<std::vector<Record>> LoadRecords(const std::string& path, const ColumnM
     if (cv.index >= 0) r.voltage.push_back(scaled_volt);
   }
   if (records.empty()) return Status::InvalidArgument("data", file + " has a header but no rows");
-  for (Record& r : records) {
-    if (r.t.size() < 2) return Status::InvalidArgument("data", Printable(r.name, 200) + ": fewer than two samples");
-    r.dt = (r.t.back() - r.t.front()) / static_cast<double>(r.t.size() - 1);
-    // 25 % of a step: printed time columns are quantised (the harvester's 64 Hz file prints 10.016 for
-    // 10.015625, a 6 % step error), while a dropped or duplicated sample moves a step by 100 %. The
-    // mean step is used from here on.
-    for (size_t i = 1; i < r.t.size(); ++i)
-      if (std::fabs(r.t[i] - r.t[i - 1] - r.dt) > 0.25 * r.dt)
-        return Status::InvalidArgument(
-            "data", Printable(r.name, 200) + ": sampling is not uniform near t = " + FormatNumber(r.t[i]) +
-                        " s (step " + FormatNumber(r.t[i] - r.t[i - 1]) + " s, mean " + FormatNumber(r.dt) + " s)");
-  }
+  BISTABLE_RETURN_IF_ERROR(SetSteps(&records));
   if (records.size() == 1) records[0].name = name;
   return records;
 }

@@ -1,6 +1,6 @@
 // Multiple shooting with re-estimated segment states (the shooting objective, Objective::kShooting, of fit.h):
 // one record's segments simulated from states fitted per segment, and the states a fit carries from one
-// evaluation to the next. Internal to identify/ (fit.cc's objective).
+// evaluation to the next. Internal to identify/ (the objective of fit.cc and sim_cost.cc).
 #ifndef BISTABLE_IDENTIFY_SHOOTING_H_
 #define BISTABLE_IDENTIFY_SHOOTING_H_
 

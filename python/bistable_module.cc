@@ -740,7 +740,8 @@ identify::Options IdentifyOptionsFromKeywords(const py::dict& kw, std::string* r
   return o;
 }
 
-// A fit: the records of the files `data` (bytes or str paths) under the keyword options.
+// A fit: the records of the files `data` (bytes or str paths) under the keyword options; (what --json prints,
+// the fit as text: identify::Summary::FullReport).
 py::object IdentifyFit(const py::list& data, const py::dict& kw) {
   std::vector<std::string> paths;
   for (const py::handle& p : data) {
@@ -751,7 +752,12 @@ py::object IdentifyFit(const py::list& data, const py::dict& kw) {
   }
   std::string report;
   const identify::Options o = IdentifyOptionsFromKeywords(kw, &report);
-  return ToPython(Unwrap(Compute([&] { return IdentifyFitJson(o, paths, report); })));
+  std::string full_report;
+  const nlohmann::json j = Unwrap(Compute([&] { return IdentifyFitJson(o, paths, report, &full_report); }));
+  // A record's name holds what its file name held (any bytes): invalid UTF-8 becomes U+FFFD, as in the JSON.
+  PyObject* text = PyUnicode_DecodeUTF8(full_report.data(), static_cast<Py_ssize_t>(full_report.size()), "replace");
+  if (!text) throw py::error_already_set();
+  return py::make_tuple(ToPython(j), py::reinterpret_steal<py::str>(text));
 }
 
 // A coordinator, through the CLI's CoordinatorClient (one channel; the token on every call).

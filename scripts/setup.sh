@@ -30,10 +30,12 @@ PACKAGES=(
 )
 
 # Only the tests: the example notebooks run by nbclient in ipykernel (Python.ExampleNotebooks); `pip install .`
-# into a venv with Debian's pip, setuptools and wheel (Python.PipInstallIntoVenv; docs/python.md).
+# into a venv with Debian's pip, setuptools and wheel (Python.PipInstallIntoVenv; docs/python.md); universal-ctags
+# measures functions for Hygiene.FunctionAndFileLengths (scripts/function_lengths.sh).
 TEST_PACKAGES=(
   python3-nbclient python3-nbformat python3-ipykernel
   python3-venv python3-pip python3-setuptools python3-wheel
+  universal-ctags
 )
 
 case "${1:-}" in

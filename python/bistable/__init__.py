@@ -22,8 +22,8 @@ __version__ = _core.__version__
 numerics_version = _core.numerics_version
 DEFAULT_DATA = "bistable-data"
 
-__all__ = ["point", "trajectory", "run", "open", "open_file", "find", "sweeps", "query", "hbm", "identify", "plot",
-           "Client"]
+__all__ = ["point", "trajectory", "run", "open", "open_file", "find", "sweeps", "query", "hbm", "identify",
+           "IdentifyResult", "plot", "Client"]
 
 
 def point(**kw):
@@ -186,8 +186,25 @@ def hbm(**kw):
     return _core.hbm(**kw)
 
 
+class IdentifyResult(dict):
+    """A fit of `identify`: the dict `bistable identify --json` prints (it compares, indexes and serialises as that
+    dict), and the fit as text, `full_report()`."""
+
+    def __init__(self, result, full_report):
+        super().__init__(result)
+        self._full_report = full_report
+
+    def full_report(self):
+        """The fit as text, after Ceres's Summary::FullReport (identify::Summary::FullReport, what `bistable identify`
+        prints without --json): the records and the objective, the errors before and after, every step's verdict,
+        the declared and the final model (each parameter with its sigma and unit), the test ranges, the diagnostics,
+        wall time and simulations."""
+        return self._full_report
+
+
 def identify(data, **kw):
-    """Fits the model to measured records (`bistable identify`); the dict `--json` prints.
+    """Fits the model to measured records (`bistable identify`); the dict `--json` prints (an IdentifyResult: its
+    full_report() is the fit as text).
 
     data: a CSV path or a list of them. Keywords are the fields of the library's options
     (identify/options.h: identify::Options), named as the CLI's flags with '_' for '-', typed, SI units:
@@ -211,7 +228,7 @@ def identify(data, **kw):
     if kw.get("list_terms"):
         return _core.identify_terms()
     if "make_synthetic" not in kw and not kw.get("predict"):
-        return _core.identify(paths, kw)
+        return IdentifyResult(*_core.identify(paths, kw))
     args = []
     for path in paths:
         args += ["--data", path]

@@ -451,6 +451,24 @@ def test_identify_is_the_cli_identify(tmp_path):
         bistable.identify(record, no_such_flag=1)
 
 
+def test_identify_full_report_is_the_cli_text(tmp_path):
+    # identify::Summary::FullReport, one copy: what `bistable identify` prints without --json is the Python
+    # result's full_report() (but for the wall time on the last line).
+    record = bistable.identify([], make_synthetic=str(tmp_path / "syn"))["files"][0]
+    r = bistable.identify(record, terms=["main.linear", "main.viscous"], known={"m_main": 0.282}, max_seconds=6,
+                          global_evals=0, max_added=1, test_range=[(720, 960)])
+    text = r.full_report()
+    for part in ["1 record(s)", "error (NRMSE of the output)", "declared model (fitted):", "final model:",
+                 "main.linear.k_lin", "test ", " simulations"]:
+        assert part in text
+    cli = subprocess.run([CLI, "identify", "--data", record, "--terms", "main.linear,main.viscous", "--known",
+                          "m_main=0.282", "--max-seconds", "6", "--global-evals", "0", "--max-added", "1",
+                          "--test-range", "720:960"], capture_output=True, text=True, timeout=600)
+    assert cli.returncode == 0, cli.stderr
+    assert cli.stdout.splitlines()[:-1] == text.splitlines()[:-1]
+    assert isinstance(r, dict) and r["params"]["main.linear.k_lin"] > 0
+
+
 def without_seconds(j):
     """A result without its timing fields ("seconds" anywhere)."""
     if isinstance(j, dict):
