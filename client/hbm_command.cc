@@ -149,7 +149,9 @@ StatusOr<PlotData> FoldsOverMap(const HbmArgs& a, const std::vector<FoldCurve>& 
     BISTABLE_RETURN_IF_ERROR(CheckMapParam(*at, *canonical, "phi", p.phi, "--phi"));
     BISTABLE_RETURN_IF_ERROR(CheckMapParam(*at, *canonical, "lambda", p.lambda, "--lambda"));
   }
-  auto fig = MapFigure(*m, *at, prefix);
+  MapContext context = MapContextOfFile(path);
+  if (context.name.empty() && context.id.empty()) context.name = prefix;
+  auto fig = MapFigure(*m, *at, context);
   if (!fig.ok()) return fig.status();
   PlotData d = std::move(fig).value();
   const auto& ax = d.axis_names;
@@ -172,7 +174,7 @@ StatusOr<PlotData> FoldsOverMap(const HbmArgs& a, const std::vector<FoldCurve>& 
     d.overlays.push_back(std::move(ov));
   }
   if (!cusps.x.empty()) d.overlays.push_back(std::move(cusps));
-  d.title += "\nfold curves of harmonic balance: edges of the regions where a branch has three orbits";
+  d.title += " and fold curves of harmonic balance";
   return d;
 }
 

@@ -9,8 +9,8 @@
 // (gnuplot writes a file created here in the destination directory, renamed onto the path). A
 // destination directory that does not exist is InvalidArgument naming "out"; a missing or failing
 // gnuplot is an IoError with gnuplot's message (CheckGnuplot tells beforehand whether there is one).
-// Figure conventions (units on every axis, discrete codes, shared ranges, number formats): the
-// "Figures" section of docs/numerics.md. Callers should ignore SIGPIPE (client/main.cc does);
+// Figure conventions (titles, labels with symbols and units, fixed parameters in a subtitle,
+// categorical legends, contours, sizes, formats): docs/figures.md. Callers should ignore SIGPIPE (client/main.cc does);
 // the write to gnuplot blocks it in the calling thread regardless.
 #ifndef BISTABLE_CLIENT_PLOT_H_
 #define BISTABLE_CLIENT_PLOT_H_
@@ -26,22 +26,46 @@
 namespace bistable {
 
 struct PlotData {
+  // The title: plain text shown literally, or gnuplot enhanced text when title_markup (MapFigure
+  // builds it from the metric catalogue; any text from a file in it is escaped with EnhancedText).
   std::string title;
+  bool title_markup = false;
+  // Subtitle items (enhanced text, e.g. "η = 0.1"), joined with ", " and wrapped on a line or two
+  // under the title: the fixed parameters and the slice's fixed axis values.
+  std::vector<std::string> subtitle;
+  std::string footer;  // plain text, small and grey in the bottom-left corner (provenance)
   std::string metric, unit;
+  // The colour-bar (heatmap) or value-axis (curve) label, enhanced text ("FRF [dB]"); empty: the
+  // metric name with its unit ("[unit]" only for a unit that is not "", "1" or "code").
+  std::string value_label;
   std::vector<std::string> axis_names, axis_units;  // 1 (curve) or 2 (heatmap: x = axis 1, y = axis 0)
   std::vector<std::vector<double>> axis_values;
   std::vector<double> values;       // row-major over the axes; curves: one block per series
   std::vector<std::string> series;  // curves: a legend label per block (e.g. "up", "down")
-  // Integer codes (motion, period, termination): one colour and one labelled colour-bar tick per
-  // code (heatmaps), points on the code's row with the names on the y axis (curves). Values not
-  // among the codes are drawn as missing. Empty: a continuous metric.
+  // Integer codes (motion, period, termination): one colour and one legend entry per code
+  // (heatmaps: a legend of flat boxes beside the map), points on the code's row with the names on
+  // the y axis (curves). Values not among the codes are drawn as missing. Empty: a continuous metric.
   struct Code {
     double value;
     std::string name, colour;  // colour "#rrggbb"; empty: the next of a qualitative palette
+    bool at_least = false;     // the class of every value >= value (the tail of many periods)
   };
   std::vector<Code> codes;
   // Colour range (heatmaps of continuous metrics) shared with other maps; NaN: ColourRange of values.
+  // Values beyond the range take its end colours and the figure says so under the plot, with
+  // clip_reason when given (enhanced text).
   double cb_lo = NAN, cb_hi = NAN;
+  std::string clip_reason;
+  std::string cb_note;  // enhanced text under the plot about the colour scale ("shared by ...")
+  // Heatmaps of continuous metrics: contour lines at these levels (e.g. 0 dB, the chaos threshold),
+  // each with a legend entry below the plot.
+  struct Contour {
+    double level;
+    std::string label;  // enhanced text
+    std::string colour = "#000000";
+    bool dashed = false;
+  };
+  std::vector<Contour> contours;
   // Heatmaps: curves (or points) in the axes' coordinates drawn over the map (e.g. fold curves of
   // harmonic balance), each with a legend entry (below the plot) unless its label is empty.
   struct Overlay {
@@ -51,10 +75,30 @@ struct PlotData {
     std::string colour = "#000000";
   };
   std::vector<Overlay> overlays;
+  // Heatmaps: at most this many cells drawn along each axis (every k-th grid value; the footer says
+  // so), so a 1601 x 1601 map draws in a second; 0: every value.
+  int max_cells = 600;
 };
 
-// format: "png" or "svg" (from the output's extension when empty).
+// format: "png", "svg" or "pdf" (from the output's extension when empty).
 Status RenderPlot(const PlotData& d, const std::string& out_path, std::string format = "");
+
+// The figure format of an output path by its extension: "svg", "pdf", else "png".
+std::string PlotFormatOf(const std::string& out_path);
+
+// `text` shown literally inside gnuplot enhanced text (its markup characters ^ _ @ & ~ { } \ escaped).
+std::string EnhancedText(const std::string& text);
+
+// A parameter or axis name as a symbol in enhanced text ("eta_r" → "η_r", "k_lin" → "k_{lin}"); a
+// name not in the table is shown literally.
+std::string SymbolOf(const std::string& name);
+
+// A unit as stored (AxisUnit's or a map file's unit_label: "delta_s/tau", "1/tau", "N s/m^3") as
+// enhanced text with symbols ("δ_s/τ"); "" for "", "1" and "code".
+std::string UnitMarkup(const std::string& unit);
+
+// "η = 0.1" (PlotNumber) with the unit when it is dimensional ("m_m = 0.0123 kg").
+std::string ParameterItem(const std::string& name, double value, const std::string& unit);
 
 // The colour range of a continuous metric's heatmap: symmetric about 0 for the diverging metrics
 // (frf_db: attenuation blue, amplification red; lle: stable blue, chaotic red), [min, max] otherwise.
