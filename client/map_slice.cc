@@ -250,13 +250,17 @@ std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::ve
     if (codes.size() > 16) return {};
     return codes;
   }
-  if (metric == "refine_level") {  // levels are ordered: light to dark blue, by number
+  if (metric == "refine_level") {  // levels are ordered: light to dark blue, spread over the levels present
     const char* blues[] = {"#c6dbef", "#9ecae1", "#6baed6", "#4292c6", "#2171b5", "#08519c", "#08306b"};
-    std::vector<PlotData::Code> codes;
+    std::vector<double> levels;
     for (double v : present)
-      if (v >= 0 && v == std::floor(v))
-        codes.push_back({v, v == 0 ? "0 (coarse grid)" : FormatNumber(v), blues[std::min<size_t>(codes.size(), 6)]});
-    return codes.size() > 16 ? std::vector<PlotData::Code>{} : codes;
+      if (v >= 0 && v == std::floor(v)) levels.push_back(v);
+    if (levels.size() > 16) return {};
+    std::vector<PlotData::Code> codes;
+    for (size_t k = 0; k < levels.size(); ++k)
+      codes.push_back({levels[k], FormatNumber(levels[k]),
+                       blues[levels.size() == 1 ? 0 : (k * 6 + (levels.size() - 1) / 2) / (levels.size() - 1)]});
+    return codes;
   }
   if (!info || !info->integer) return {};
   std::vector<PlotData::Code> codes;

@@ -380,7 +380,7 @@ void WriteDecor(std::ostream& s, const Decor& d, int w, int h, int* top_px, int*
     s << "set label " << tag++ << " " << GnuplotString(line) << at(centre, top) << " center font ',12' enhanced\n";
   }
   *top_px = top + 20;
-  int bottom = 6;
+  int bottom = 8;
   if (!d.footer.empty()) {
     s << "set label " << tag++ << " " << GnuplotString(d.footer) << at(0.01, h - bottom - 4)
       << " left font ',9' noenhanced textcolor rgb '#666666'\n";
@@ -737,7 +737,7 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
     int top_px = 0, bottom_px = 0;
     WriteDecor(s, decor, w, h, &top_px, &bottom_px, (100.0 + w - right_px) / (2.0 * w));
     const int key_px = keyed ? 26 : 0;
-    const int plot_bottom = bottom_px + key_px + 70;
+    const int plot_bottom = bottom_px + key_px + 78;
     if (keyed)
       s << "set key at screen " << Num(0.5) << ", " << Num(static_cast<double>(bottom_px + key_px) / h)
         << " center top horizontal enhanced samplen 3 spacing 1.1\n";
@@ -775,13 +775,14 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
     if (xs.empty() || d.values.size() != xs.size() * n_series)
       return Status::InvalidArgument("plot", "a curve needs one value per axis value and series");
     int top_px = 0, bottom_px = 0;
-    const int left_px = codes.empty() ? 100 : 150, right_px = d.series.empty() ? 30 : 150;
+    // The series' legend goes below the plot, in one row: the plot keeps the canvas' width.
+    const int left_px = codes.empty() ? 100 : 150, right_px = 40, key_px = d.series.empty() ? 0 : 26;
     WriteDecor(s, decor, w, h, &top_px, &bottom_px, (left_px + w - right_px) / (2.0 * w));
-    s << Margins(w, h, left_px, right_px, bottom_px + 70, top_px);
+    s << Margins(w, h, left_px, right_px, bottom_px + key_px + 78, top_px);
     s << "set grid\n"
       << (d.series.empty() ? "set key off\n"
-                           : "set key at screen " + Num(1.0 - (right_px - 12.0) / w) + ", " +
-                                 Num(1.0 - static_cast<double>(top_px) / h) + " left top noenhanced\n");
+                           : "set key at screen 0.5, " + Num(static_cast<double>(bottom_px + key_px) / h) +
+                                 " center top horizontal Left reverse samplen 3 noenhanced\n");
     for (size_t k = 0; k < n_series; ++k) {
       // Codes: series side by side within the code's row, so up and down stay visible where they agree.
       const double offset =
