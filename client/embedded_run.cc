@@ -179,7 +179,14 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
         BifurcationData bd;
         bd.x_name = spec.continuation.axis;
         bd.x_unit = AxisUnit(spec.continuation.axis);
-        bd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": bifurcation diagram" + combo.title;
+        bd.title = "Bifurcation diagram: turning points of y_m";
+        bd.title_markup = true;
+        for (const FixedParameter& p : context.fixed) bd.subtitle.push_back(ParameterItem(p.name, p.value, p.unit));
+        for (size_t k = 0; k < spec.axes.size(); ++k)
+          if (k != cont)
+            bd.subtitle.push_back(
+                ParameterItem(spec.axes[k].name, spec.axes[k].values[combo.fixed[k]], AxisUnit(spec.axes[k].name)));
+        bd.footer = context.name.empty() ? "sweep " + context.id : context.name + "  \u00b7  sweep " + context.id;
         const std::string suffix = combo.suffix;
         for (size_t i = 0; i < spec.axes[cont].values.size(); ++i) {
           combo.fixed[cont] = i;

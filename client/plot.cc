@@ -828,16 +828,21 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
 Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
   std::ostringstream s;
   s << Terminal(PlotFormatOf(out_path));
-  s << "set title " << GnuplotString(d.title) << " noenhanced\n";
+  int top_px = 0, bottom_px = 0;
+  WriteDecor(s, Decor{d.title, d.title_markup, d.subtitle, {}, ""}, 900, 700, &top_px, &bottom_px);
+  s << "set tmargin at screen " << Num(1.0 - top_px / 700.0) << "\n";
   s << "set xlabel " << GnuplotString(AxisLabel(d.x_name, d.x_unit)) << "\n";
-  s << "set ylabel " << GnuplotString(d.y_label) << "\nset grid\nset key below left maxrows 4 noenhanced\n";
+  s << "set ylabel " << GnuplotString(d.y_label)
+    << "\nset grid\nset key below center horizontal maxrows 3 noenhanced\n";
   // One colour per branch name (in order of first appearance); each stable/unstable run of a branch
-  // is its own segment (blank line between). A legend entry goes with the first block of each
-  // (name, stability) that has a segment, so every entry names something drawn.
+  // is its own segment (blank line between). The legend is compact: one entry per name (its colour,
+  // solid), one "unstable (dashed)" entry when an unstable run is drawn, so every entry names
+  // something drawn and a cascade of branches does not fill the canvas with legend.
   std::vector<std::string> names;
   for (const auto& br : d.branches)
     if (std::find(names.begin(), names.end(), br.name) == names.end()) names.push_back(br.name);
   std::vector<std::pair<std::string, int>> titled;
+  bool any_unstable = false;
   std::string plot = "plot ";
   for (size_t b = 0; b < d.branches.size(); ++b) {
     const auto& br = d.branches[b];
@@ -857,15 +862,18 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
       if (!any) continue;
       const std::string name = "$b" + std::to_string(b) + "s" + std::to_string(stable);
       s << name << " << EOD\n" << block.str() << "EOD\n";
-      const bool first = std::find(titled.begin(), titled.end(), std::make_pair(br.name, stable)) == titled.end();
-      if (first) titled.emplace_back(br.name, stable);
-      const std::string title = !d.stability      ? br.name
-                                : br.name.empty() ? (stable ? "stable" : "unstable")
-                                                  : br.name + (stable ? ", stable" : ", unstable");
+      const bool first = std::find(titled.begin(), titled.end(), std::make_pair(br.name, 1)) == titled.end();
+      if (first) titled.emplace_back(br.name, 1);
+      any_unstable |= d.stability && !stable;
       plot += name + " using 1:2 with lines lw " + Num(br.width) + " dt " + (stable ? "1" : "2") + " lc rgb " +
-              GnuplotString(kQualitative[colour % 12]) + " title " + GnuplotString(first ? title : "") + ", ";
+              GnuplotString(kQualitative[colour % 12]) + " notitle, ";
+      // The name's legend entry: a solid sample in its colour (whatever the first run's stability).
+      if (first)
+        plot += "NaN with lines lw 2 dt 1 lc rgb " + GnuplotString(kQualitative[colour % 12]) + " title " +
+                GnuplotString(br.name.empty() ? "branch" : br.name) + ", ";
     }
   }
+  if (any_unstable) plot += "NaN with lines lw 2 dt 2 lc rgb '#555555' title 'unstable (dashed)', ";
   // Folds of every branch: one block, one legend entry.
   std::ostringstream folds;
   for (const auto& br : d.branches)
@@ -938,21 +946,30 @@ Status RenderPanels(const PanelPlot& d, const std::string& out_path) {
 Status RenderBifurcation(const BifurcationData& d, const std::string& out_path) {
   std::ostringstream s;
   s << Terminal(PlotFormatOf(out_path));
-  s << "set title " << GnuplotString(d.title) << " noenhanced\n";
+  int top_px = 0, bottom_px = 0;
+  WriteDecor(s, Decor{d.title, d.title_markup, d.subtitle, {}, d.footer}, 900, 700, &top_px, &bottom_px);
+  s << "set tmargin at screen " << Num(1.0 - top_px / 700.0) << "\nset bmargin at screen "
+    << Num((bottom_px + 100) / 700.0) << "\n";
   s << "set xlabel " << GnuplotString(AxisLabel(d.x_name, d.x_unit)) << "\n";
-  s << "set ylabel " << GnuplotString("y_m at y_m' = 0 [{/Symbol d}_s]") << "\nset grid\nset key top left\n";
+  s << "set ylabel " << GnuplotString("y_m at y_m' = 0 [\u03b4_s]") << "\nset grid\n";
+  // The legend below the plot, with samples big enough to see (the data's dots are tiny).
+  s << "set key at screen 0.5, " << Num((bottom_px + 26) / 700.0) << " center top horizontal samplen 1\n";
   std::string plot = "plot ";
   if (!d.x_up.empty()) {
     s << "$up << EOD\n";
     for (size_t i = 0; i < d.x_up.size(); ++i) s << Num(d.x_up[i]) << " " << Num(d.y_up[i]) << "\n";
     s << "EOD\n";
-    plot += "$up using 1:2 with points pt 7 ps 0.15 lc rgb '#2166ac' title 'increasing', ";
+    plot +=
+        "$up using 1:2 with points pt 7 ps 0.15 lc rgb '#2166ac' notitle, NaN with points pt 7 ps 1.5 lc rgb "
+        "'#2166ac' title 'increasing', ";
   }
   if (!d.x_down.empty()) {
     s << "$down << EOD\n";
     for (size_t i = 0; i < d.x_down.size(); ++i) s << Num(d.x_down[i]) << " " << Num(d.y_down[i]) << "\n";
     s << "EOD\n";
-    plot += "$down using 1:2 with points pt 7 ps 0.15 lc rgb '#b2182b' title 'decreasing', ";
+    plot +=
+        "$down using 1:2 with points pt 7 ps 0.15 lc rgb '#b2182b' notitle, NaN with points pt 7 ps 1.5 lc rgb "
+        "'#b2182b' title 'decreasing', ";
   }
   if (plot.size() == 5) return Status::InvalidArgument("plot", "no turning points to plot");
   plot.resize(plot.size() - 2);
@@ -982,31 +999,41 @@ Status RenderChirpFrf(const ChirpFrfPlot& d, const std::string& out_path) {
     s << "EOD\n";
   }
   s << "set multiplot layout 3,1 title " << GnuplotString(d.title)
-    << " noenhanced\nset grid\nset key outside right top noenhanced\n";
-  s << "set lmargin 12\nset rmargin 40\n";  // the same plot width in every row, the legends beside
-  // 1. Averaged Fourier amplitudes of input and output.
+    << " noenhanced\nset grid\nset key outside right top noenhanced samplen 2\n";
+  // The same plot width in every row; the legends beside it only as wide as their longest entry (the
+  // curves' names in row 1; rows 2 and 3 say what their line styles are).
+  size_t longest = std::string("input (dashed)").size();
+  for (const auto& c : d.curves) longest = std::max(longest, c.label.size());
+  s << "set lmargin 12\nset rmargin " << std::clamp<size_t>(longest + 8, 22, 40) << "\n";
+  // 1. Averaged Fourier amplitudes of input (dashed) and output (solid), a colour per curve.
   s << "set ylabel " << GnuplotString(d.mag_label) << "\nset logscale y\nset format y '10^{%L}'\nunset xlabel\nplot ";
   for (size_t c = 0; c < d.curves.size(); ++c)
     s << (c ? ", " : "") << "$c" << c << " using 1:2 with lines lw 1 dt 2 lc rgb " << GnuplotString(colours[c % 4])
-      << " title " << GnuplotString("input, " + d.curves[c].label) << ", $c" << c
-      << " using 1:3 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4]) << " title "
-      << GnuplotString("output, " + d.curves[c].label);
-  // 2. FRF: H1 (Welch) over the raw ratio.
+      << " notitle, $c" << c << " using 1:3 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4]) << " title "
+      << GnuplotString(d.curves[c].label);
+  s << ", NaN with lines lw 1 dt 2 lc rgb '#555555' title 'input (dashed)'";
+  // 2. FRF: H1 (Welch) where the coherence says the ratio means something, over the raw ratio.
+  char threshold[16];
+  std::snprintf(threshold, sizeof threshold, "%g", kChirpCoherenceMin);
   s << "\nunset logscale y\nset format y '% g'\nset ylabel 'FRF |H_1| [dB re 1]'\n";
   s << "plot 0 with lines dt 3 lc rgb 'black' notitle";
+  bool raw = false;
   for (size_t c = 0; c < d.curves.size(); ++c)
-    if (!d.curves[c].raw_freq.empty())
-      s << ", $r" << c << " using 1:2 with lines lw 0.6 lc rgb " << GnuplotString(tints[c % 4]) << " title "
-        << GnuplotString("raw FFT ratio, " + d.curves[c].label);
+    if (!d.curves[c].raw_freq.empty()) {
+      raw = true;
+      s << ", $r" << c << " using 1:2 with lines lw 0.6 lc rgb " << GnuplotString(tints[c % 4]) << " notitle";
+    }
   for (size_t c = 0; c < d.curves.size(); ++c)
-    s << ", $c" << c << " using 1:4 with lines lw 2 lc rgb " << GnuplotString(colours[c % 4]) << " title "
-      << GnuplotString("Welch H1, " + d.curves[c].label);
-  // 3. Coherence.
+    s << ", $c" << c << " using 1:($5 >= " << threshold << " ? $4 : NaN) with lines lw 2 lc rgb "
+      << GnuplotString(colours[c % 4]) << " notitle";
+  s << ", NaN with lines lw 2 lc rgb '#555555' title " << GnuplotString(std::string("H1 where coh. >= ") + threshold);
+  if (raw) s << ", NaN with lines lw 2 lc rgb '#c8c8c8' title 'raw FFT ratio'";
+  // 3. Coherence, the threshold marked.
   s << "\nset xlabel " << GnuplotString(d.freq_label)
-    << "\nset ylabel 'coherence {/Symbol g}^2'\nset yrange [0:1.05]\nplot ";
+    << "\nset ylabel 'coherence {/Symbol g}^2'\nset yrange [0:1.05]\nplot " << threshold
+    << " with lines dt 3 lc rgb '#555555' title " << GnuplotString(std::string("threshold ") + threshold);
   for (size_t c = 0; c < d.curves.size(); ++c)
-    s << (c ? ", " : "") << "$c" << c << " using 1:5 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4])
-      << " title " << GnuplotString(d.curves[c].label);
+    s << ", $c" << c << " using 1:5 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4]) << " notitle";
   s << "\nunset multiplot\n";
   return RunGnuplot(s.str(), out_path);
 }

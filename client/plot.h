@@ -119,13 +119,15 @@ struct ScatterData {
 Status RenderHdScatter(const ScatterData& d, const std::string& out_path);
 
 // Continuation branches (amplitude vs parameter): each branch piece named (e.g. "+well", "-well",
-// "interwell"; one colour per name), stable runs solid, unstable dashed, folds marked; the legend has
-// one entry per (name, stability) actually drawn, plus "fold" when a fold is, below the plot.
+// "interwell"; one colour per name), stable runs solid, unstable dashed, folds marked; the legend (below
+// the plot) has one entry per name drawn, "unstable (dashed)" when an unstable run is, "fold" when a fold is.
 // Further markers (period doublings, Neimark–Sacker points, cusps) with their own legend entries.
 // Optional extra points (e.g. the one-harmonic closed form) in grey. With stability = false every
 // curve is solid and its legend entry is its name alone (curves that are not orbits: fold curves).
 struct BranchPlot {
-  std::string title, x_name, x_unit, y_label;
+  std::string title, x_name, x_unit, y_label;  // y_label: enhanced text
+  bool title_markup = false;                   // the title is enhanced text (else shown literally)
+  std::vector<std::string> subtitle;           // enhanced text items (the fixed parameters)
   struct Branch {
     std::string name;
     double width = 2;  // line width (a wider curve drawn first stays visible under one it coincides with)
@@ -151,13 +153,19 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path);
 // upward sweep and the downward sweep overlaid so hysteresis shows.
 struct BifurcationData {
   std::string title, x_name, x_unit;
+  bool title_markup = false;
+  std::vector<std::string> subtitle;  // enhanced text items (the fixed parameters)
+  std::string footer;                 // plain text (the sweep's name and id)
   std::vector<double> x_up, y_up, x_down, y_down;
 };
 Status RenderBifurcation(const BifurcationData& d, const std::string& out_path);
 
 // Frequency-sweep FRF (paper Figs. 23–24), three rows over frequency: the averaged Fourier amplitudes
-// of input and output (mag_label names the quantity and its unit), the FRF in dB (Welch H1 in colour
-// over the raw single-FFT ratio in a light tint), and the coherence γ² in [0, 1]; one colour per curve.
+// of input and output (mag_label names the quantity and its unit), the FRF in dB (Welch H1 in colour,
+// only where the coherence is at least kChirpCoherenceMin: elsewhere the input has too little energy
+// for a ratio, over the raw single-FFT ratio in a light tint), and the coherence γ² in [0, 1] with the
+// threshold; one colour per curve, named once (row 1).
+inline constexpr double kChirpCoherenceMin = 0.5;
 struct ChirpFrfPlot {
   std::string title, freq_label, mag_label;
   struct Curve {

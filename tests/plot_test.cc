@@ -224,9 +224,14 @@ TEST_F(Figures, BranchLegendNamesOnlyWhatIsDrawn) {
   const std::string svg = File("branches.svg");
   ASSERT_TRUE(bistable::RenderBranches(d, svg).ok());
   const std::string text = bistable_test::ReadText(svg);
-  for (const char* drawn : {"+well, stable", "interwell, stable", "interwell, unstable", "fold"})
+  // Compact: one entry per name, one for the dashed unstable runs (a cascade of branches must not fill the canvas).
+  for (const char* drawn : {">+well<", ">interwell<", ">unstable (dashed)<", ">fold<"})
     EXPECT_NE(text.find(drawn), std::string::npos) << drawn;
-  EXPECT_EQ(text.find("+well, unstable"), std::string::npos) << "no unstable +well run is drawn";
+  EXPECT_EQ(text.find(", stable"), std::string::npos);
+  // Nothing unstable drawn: no entry for it.
+  d.branches = {plus};
+  ASSERT_TRUE(bistable::RenderBranches(d, svg).ok());
+  EXPECT_EQ(bistable_test::ReadText(svg).find("unstable"), std::string::npos) << "no unstable run is drawn";
 }
 
 // Period-doubling and Neimark–Sacker markers in their colours with legend entries; drawn only when
@@ -294,6 +299,15 @@ TEST_F(Figures, BifurcationDiagram) {
     }
   const std::string out = File("bif.png");
   ExpectDrawn(bistable::RenderBifurcation(d, out), out, 900, 700, {"#2166ac", "#b2182b"}, 100);
+  // The legend's samples are big enough to see: with one data point each (a dot of a few pixels), the legend's
+  // dots cover > 40 px each.
+  bistable::BifurcationData key = d;
+  for (auto* v : {&key.x_up, &key.y_up, &key.x_down, &key.y_down}) v->resize(1);
+  const std::string legend = File("bif_key.png");
+  ASSERT_TRUE(bistable::RenderBifurcation(key, legend).ok());
+  const PngStats ks = Stats(legend, {"#2166ac", "#b2182b"});
+  EXPECT_GT(ks.colours.at("#2166ac"), 40);
+  EXPECT_GT(ks.colours.at("#b2182b"), 40);
 }
 
 TEST_F(Figures, ChirpFrfWithCoherence) {
@@ -313,6 +327,15 @@ TEST_F(Figures, ChirpFrfWithCoherence) {
   d.curves = {c};
   const std::string out = File("frf.png");
   ExpectDrawn(bistable::RenderChirpFrf(d, out), out, 1100, 1100, {"#2166ac", "#c6dbef"}, 200);
+  // H1 is drawn only where the coherence reaches the threshold: with none anywhere, its line is gone (the
+  // curve's colour keeps only rows 1 and 3), and the SVG says the threshold.
+  const long with_h1 = Stats(out, {"#2166ac"}).colours.at("#2166ac");
+  for (double& g : d.curves[0].coherence) g = 0.1;
+  const std::string low = File("frf_low.png"), svg = File("frf.svg");
+  ASSERT_TRUE(bistable::RenderChirpFrf(d, low).ok());
+  EXPECT_LT(Stats(low, {"#2166ac"}).colours.at("#2166ac"), with_h1 * 0.8) << "H1 drawn where the coherence is 0.1";
+  ASSERT_TRUE(bistable::RenderChirpFrf(d, svg).ok());
+  EXPECT_NE(bistable_test::ReadText(svg).find("H1 where coh. >= 0.5"), std::string::npos);
 }
 
 TEST_F(Figures, Spectrogram) {
