@@ -60,8 +60,9 @@ long PointIndex(const SweepSpec& spec, const std::vector<size_t>& idx) {
 
 }  // namespace
 
-std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path,
-                                            const std::string& dir) {
+std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir,
+                                            const std::string& format) {
+  const std::string ext = "." + format;
   std::vector<std::string> files;
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
@@ -85,7 +86,7 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
     gnuplot_gone = st.message().find("cannot start gnuplot") != std::string::npos;
     std::cerr << "warning: " << st.ToString() << "\n";
   };
-  const std::string prefix = spec.name.empty() ? spec.Id() : spec.name;
+  const MapContext context = MapContextOf(spec);
   // With continuation in both directions, a heatmap per direction; curves show both (MapFigure).
   const int directions = spec.continuation.enabled() ? spec.continuation.directions() : 1;
   for (const std::string& metric : spec.plots) {
@@ -107,10 +108,10 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
             at[spec.axes[k].name] = spec.axes[k].values[combo.fixed[k]];
         std::string suffix = combo.suffix;
         if (per_combo == 2) at["direction"] = item, suffix += spec.ChainGoesDown(item) ? "_down" : "_up";
-        auto d = MapFigure(*m, at, prefix);
+        auto d = MapFigure(*m, at, context);
         if (!d.ok()) continue;
         if (std::none_of(d->values.begin(), d->values.end(), [](double v) { return std::isfinite(v); })) continue;
-        figures.emplace_back(std::move(*d), (std::filesystem::path(dir) / (metric + suffix + ".png")).string());
+        figures.emplace_back(std::move(*d), (std::filesystem::path(dir) / (metric + suffix + ext)).string());
       }
     }
     // Maps of one metric from one sweep are compared with each other: one colour range for all.
@@ -124,12 +125,12 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
       for (auto& [d, out] : figures) {
         if (d.axis_names.size() != 2 || !d.codes.empty()) continue;
         d.cb_lo = lo, d.cb_hi = hi;
-        d.title += "\n(colour scale shared by the " + std::to_string(heatmaps) + " " + metric + " maps of this sweep)";
+        d.cb_note = "one colour scale for the " + std::to_string(heatmaps) + " maps of this quantity in this sweep";
       }
     }
     for (const auto& [d, out] : figures) {
       if (CancelRequested() || gnuplot_gone) break;  // asked to stop: no more gnuplot runs
-      render(RenderPlot(d, out), out);
+      render(RenderPlot(d, out, format), out);
     }
   }
   // Fig. 6: one harmonic-diffusion scatter per combination of the axes other than omega (at most 3,
@@ -159,7 +160,7 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
                   sd.amp.push_back(a->values[off]);
           }
         }
-        const std::string out = (std::filesystem::path(dir) / ("hd_scatter" + suffix + ".png")).string();
+        const std::string out = (std::filesystem::path(dir) / ("hd_scatter" + suffix + ext)).string();
         if (!gnuplot_gone) render(RenderHdScatter(sd, out), out);
       }
     }
@@ -178,7 +179,14 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
         BifurcationData bd;
         bd.x_name = spec.continuation.axis;
         bd.x_unit = AxisUnit(spec.continuation.axis);
-        bd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": bifurcation diagram" + combo.title;
+        bd.title = "Bifurcation diagram: turning points of y_m";
+        bd.title_markup = true;
+        for (const FixedParameter& p : context.fixed) bd.subtitle.push_back(ParameterItem(p.name, p.value, p.unit));
+        for (size_t k = 0; k < spec.axes.size(); ++k)
+          if (k != cont)
+            bd.subtitle.push_back(
+                ParameterItem(spec.axes[k].name, spec.axes[k].values[combo.fixed[k]], AxisUnit(spec.axes[k].name)));
+        bd.footer = context.name.empty() ? "sweep " + context.id : context.name + "  \u00b7  sweep " + context.id;
         const std::string suffix = combo.suffix;
         for (size_t i = 0; i < spec.axes[cont].values.size(); ++i) {
           combo.fixed[cont] = i;
@@ -193,7 +201,7 @@ std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::st
             }
           }
         }
-        const std::string out = (std::filesystem::path(dir) / ("bifurcation" + suffix + ".png")).string();
+        const std::string out = (std::filesystem::path(dir) / ("bifurcation" + suffix + ext)).string();
         if (!gnuplot_gone) render(RenderBifurcation(bd, out), out);
       }
     }

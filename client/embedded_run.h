@@ -51,9 +51,11 @@ StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& sp
 // stored stays in the cache).
 StatusOr<std::string> RunEmbeddedSweep(const SweepSpec& spec, const std::string& data_dir, int threads, bool progress);
 
-// The default figures of a published sweep (heatmaps, Fig. 6 scatter, bifurcation diagrams) into dir.
-// Stops starting new figures once cancellation is requested.
-std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir);
+// The default figures of a published sweep (heatmaps, Fig. 6 scatter, bifurcation diagrams) into dir,
+// as PNG, SVG or PDF files (format; docs/figures.md). Stops starting new figures once cancellation is
+// requested.
+std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir,
+                                            const std::string& format = "png");
 
 }  // namespace bistable
 

@@ -62,12 +62,12 @@ nlohmann::json PointJson(const HbmPoint& p) {
 // The fold curves as a figure in (Ω, α) (x = Ω, y = α as in the maps), one colour per well, cusps marked.
 BranchPlot FoldCurvePlot(const std::vector<FoldCurve>& curves, const HbmArgs& a) {
   BranchPlot d;
-  d.title = std::string("fold curves of harmonic balance, ") + ModelName(a.o.model) +
-            " (H = " + std::to_string(a.o.harmonics) + ", eta = " + PlotNumber(a.o.params.eta) +
-            ")\ninside a cusp-shaped region bounded by a curve, its branch has three orbits: hysteresis";
+  d.title = "Fold curves of harmonic balance";
+  d.subtitle = {std::string(ModelName(a.o.model)) + " model", "H = " + std::to_string(a.o.harmonics),
+                ParameterItem("eta", a.o.params.eta, "")};
   d.x_name = "omega";
   d.x_unit = "omega0/omega_n";
-  d.y_label = "{/Symbol a} = A_0/{/Symbol d}_s";
+  d.y_label = AxisLabel("alpha", "A0/delta_s");
   d.stability = false;
   BranchPlot::Marker cusps{"cusp", 13, "#000000", {}, {}};
   for (const FoldCurve& c : curves) {
@@ -149,7 +149,9 @@ StatusOr<PlotData> FoldsOverMap(const HbmArgs& a, const std::vector<FoldCurve>& 
     BISTABLE_RETURN_IF_ERROR(CheckMapParam(*at, *canonical, "phi", p.phi, "--phi"));
     BISTABLE_RETURN_IF_ERROR(CheckMapParam(*at, *canonical, "lambda", p.lambda, "--lambda"));
   }
-  auto fig = MapFigure(*m, *at, prefix);
+  MapContext context = MapContextOfFile(path);
+  if (context.name.empty() && context.id.empty()) context.name = prefix;
+  auto fig = MapFigure(*m, *at, context);
   if (!fig.ok()) return fig.status();
   PlotData d = std::move(fig).value();
   const auto& ax = d.axis_names;
@@ -172,7 +174,7 @@ StatusOr<PlotData> FoldsOverMap(const HbmArgs& a, const std::vector<FoldCurve>& 
     d.overlays.push_back(std::move(ov));
   }
   if (!cusps.x.empty()) d.overlays.push_back(std::move(cusps));
-  d.title += "\nfold curves of harmonic balance: edges of the regions where a branch has three orbits";
+  d.title += " and fold curves of harmonic balance";
   return d;
 }
 
@@ -288,10 +290,10 @@ int RunHbm(HbmArgs& a) {
   if (a.json) std::cout << DumpJson(HbmJson(a, *r, *curves), 1) << "\n";
   const std::string ext = a.format.empty() ? "png" : a.format;
   if (!a.format.empty() || !a.out.empty()) {
-    BranchPlot d = HbmBranchPlot(*r, a.o.model, a.o.param,
-                                 std::string("harmonic balance, ") + ModelName(a.o.model) +
-                                     " (H = " + std::to_string(a.o.harmonics) + "), " +
-                                     (omega ? "alpha = " + PlotNumber(a.o.alpha) : "Omega = " + PlotNumber(a.o.omega)));
+    BranchPlot d = HbmBranchPlot(*r, a.o.model, a.o.param, "Periodic orbits by harmonic balance");
+    d.subtitle = {std::string(ModelName(a.o.model)) + " model", "H = " + std::to_string(a.o.harmonics),
+                  omega ? ParameterItem("alpha", a.o.alpha, "") : ParameterItem("omega", a.o.omega, ""),
+                  ParameterItem("eta", a.o.params.eta, "")};
     if (a.eq9) {
       d.extra_label = "one harmonic, zero mean (corrected Eq. 9)";
       for (int k = 0; k <= 600; ++k) {
@@ -333,7 +335,7 @@ BranchPlot HbmBranchPlot(const HbmResult& r, ModelKind model, ContinuationParam 
   d.title = title;
   d.x_name = omega ? "omega" : "alpha";
   d.x_unit = omega ? "omega0/omega_n" : "A0/delta_s";
-  d.y_label = "max |y_m| over a period [{/Symbol d}_s]";
+  d.y_label = "max |y_m| over a period [\u03b4_s]";
   auto name_of = [&](const HbmPoint& p) {
     const std::string well = IsBistable(model) ? std::string(OrbitWellName(WellOf(p))) : std::string("periodic orbit");
     return p.period > 1 ? "period " + std::to_string(p.period) + ", " + well : well;
@@ -386,13 +388,35 @@ BranchPlot HbmBranchPlot(const HbmResult& r, ModelKind model, ContinuationParam 
   auto rank = [&](const BranchPlot::Branch& b) { return ends(b.name, "+well") ? 0 : ends(b.name, "-well") ? 2 : 1; };
   std::stable_sort(d.branches.begin(), d.branches.end(),
                    [&](const auto& x, const auto& y) { return rank(x) < rank(y); });
-  bool plus = false, minus = false;
-  for (auto& b : d.branches) {
-    if (ends(b.name, "+well")) b.width = 5, plus = true;
-    minus |= ends(b.name, "-well");
+  // A -well run that coincides with a +well run (its mirror image) is drawn once, named "±well", so no
+  // two colours stripe one curve; a -well run without its mirror keeps its own colour, the +well ones wider.
+  auto same = [](const BranchPlot::Branch& p, const BranchPlot::Branch& m) {
+    if (p.x.size() != m.x.size() || p.stable != m.stable) return false;
+    for (size_t i = 0; i < p.x.size(); ++i)
+      if (std::fabs(p.x[i] - m.x[i]) > 1e-6 * std::max(1.0, std::fabs(p.x[i])) ||
+          std::fabs(p.y[i] - m.y[i]) > 1e-6 * std::max(1.0, std::fabs(p.y[i])))
+        return false;
+    return true;
+  };
+  std::vector<bool> drop(d.branches.size(), false);
+  for (size_t i = 0; i < d.branches.size(); ++i) {
+    if (!ends(d.branches[i].name, "+well")) continue;
+    const std::string mirror = d.branches[i].name.substr(0, d.branches[i].name.size() - 5) + "-well";
+    for (size_t j = 0; j < d.branches.size(); ++j)
+      if (!drop[j] && d.branches[j].name == mirror && same(d.branches[i], d.branches[j])) {
+        drop[j] = true;
+        d.branches[i].name = mirror.substr(0, mirror.size() - 5) + "\u00b1well (mirror images)";
+        break;
+      }
   }
-  if (plus && minus)
-    d.title += "\n(+well, -well: mirror images with equal max |y_m|; the wider +well curves lie beneath)";
+  std::vector<BranchPlot::Branch> kept;
+  for (size_t i = 0; i < d.branches.size(); ++i)
+    if (!drop[i]) kept.push_back(std::move(d.branches[i]));
+  d.branches = std::move(kept);
+  bool minus = false;
+  for (const auto& b : d.branches) minus |= ends(b.name, "-well");
+  for (auto& b : d.branches)
+    if (minus && ends(b.name, "+well")) b.width = 5;  // an unpaired -well curve on top stays visible
   return d;
 }
 

@@ -149,10 +149,10 @@ Status PlotOut(const std::string& out, const std::string& format,
     std::cout << out << "\n";
     return Status::Ok();
   }
-  if (format == "png" && ::isatty(STDOUT_FILENO))
-    return Status::InvalidArgument("out",
-                                   "--out - would write PNG bytes to a terminal; redirect standard output (> map.png) "
-                                   "or give a file name");
+  if ((format == "png" || format == "pdf") && ::isatty(STDOUT_FILENO))
+    return Status::InvalidArgument("out", "--out - would write " + std::string(format == "png" ? "PNG" : "PDF") +
+                                              " bytes to a terminal; redirect standard output (> map." + format +
+                                              ") or give a file name");
   const char* tmpdir = std::getenv("TMPDIR");
   const std::string parent = tmpdir && *tmpdir ? tmpdir : "/tmp";
   std::string dir = parent + "/bistable-plot-XXXXXX";
@@ -242,9 +242,9 @@ int HdScatter(const MapArgs& a) {
 }
 
 int ShowMap(const MapArgs& a) {
-  if (a.format != "json" && a.format != "csv" && a.format != "png" && a.format != "svg")
+  if (a.format != "json" && a.format != "csv" && a.format != "png" && a.format != "svg" && a.format != "pdf")
     return Fail(
-        Status::InvalidArgument("format", "format = '" + a.format + "' violates format in {csv, json, png, svg}"));
+        Status::InvalidArgument("format", "format = '" + a.format + "' violates format in {csv, json, png, svg, pdf}"));
   if (a.metric == "hd_scatter") return HdScatter(a);
   SweepRefLite ref;
   auto m = LoadMetric(a.src, a.id, a.metric, &ref, {"hd_scatter"});
@@ -283,7 +283,13 @@ int ShowMap(const MapArgs& a) {
     const Status st = WriteOut(a.out, os.str());
     return st.ok() ? 0 : Fail(st);
   }
-  auto d = MapFigure(*m, *at, ref.name.empty() ? ref.id : ref.name);
+  // The figure's subtitle (fixed parameters) and threshold come from the spec stored in a local map
+  // file; a coordinator's map gives the name and id alone.
+  MapContext context{ref.name, ref.id, {}, NAN};
+  if (a.src.coordinator.empty())
+    if (auto local = FindSweep(a.src.data_dir, ref.id); local.ok() && !local->map_path.empty())
+      context = MapContextOfFile(local->map_path);
+  auto d = MapFigure(*m, *at, context);
   if (!d.ok()) return Fail(d.status());
   const std::string out = a.out.empty() ? ref.id + "_" + s->metric + "." + a.format : a.out;
   Status st = PlotOut(out, a.format, [&](const std::string& path) { return RenderPlot(*d, path, a.format); });
@@ -416,7 +422,7 @@ void AddMapCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("id", a->id, "sweep id (or a unique prefix)")->required();
   cmd->add_option("--metric", a->metric, "metric (frf_db, lle, motion, edr_t, ...; hd_scatter for Fig. 6)")->required();
   cmd->add_option("--at", a->at, "fix axes: eta=0.1,lambda=0.8 (ic=K for a multi-IC sweep; default ic=0)");
-  cmd->add_option("--format", a->format, "csv | json | png | svg")->capture_default_str();
+  cmd->add_option("--format", a->format, "csv | json | png | svg | pdf")->capture_default_str();
   cmd->add_option(
       "--out", a->out,
       "output file; - is stdout, for plots too (default: stdout for csv/json, <id>_<metric>.<fmt> for plots)");

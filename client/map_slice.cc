@@ -3,7 +3,9 @@
 #include "client/cli_common.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <set>
 #include <sstream>
 
@@ -104,23 +106,163 @@ StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>&
   return s;
 }
 
+namespace {
+
+struct MetricText {
+  const char* metric;
+  const char* title;   // enhanced text
+  const char* symbol;  // enhanced text; the unit is appended from the map
+};
+// One table of what figures call each metric (docs/figures.md).
+const MetricText kMetricTexts[] = {
+    {"frf_db", "Frequency response of the main mass, FRF", "FRF  max|x_m'|/(\u03b1\u03a9)"},
+    {"lle", "Largest Lyapunov exponent, LLE", "LLE"},
+    {"lle_rosenstein", "Largest Lyapunov exponent, LLE (Rosenstein, from sampled y_m)", "LLE"},
+    {"motion", "Type of steady-state motion", ""},
+    {"period", "Stroboscopic period n", "period (forcing periods)"},
+    {"hd_index", "Harmonic diffusion index, HD", "HD  (power fraction of y_m off the harmonics n\u03a9)"},
+    {"edr_b", "Energy dissipation ratio of the main damper, EDR_B", "EDR_B = W_m/W_{in}"},
+    {"edr_r", "Energy dissipation ratio of the resonator damper, EDR_R", "EDR_R = W_r/W_{in}"},
+    {"edr_t", "Total energy dissipation ratio, EDR_T", "EDR_T = (W_m + W_r)/W_{in}"},
+    {"energy_balance_residual", "Energy balance residual",
+     "|\u222bP d\u03c4 - W_m - W_r - \u0394E| / W_{in}  (fraction)"},
+    {"y_min", "Minimum displacement of the main mass", "min y_m"},
+    {"y_max", "Maximum displacement of the main mass", "max y_m"},
+    {"termination", "How the integration ended", ""},
+    {"strobe_y", "Displacement of the main mass at a stroboscopic sample", "y_m(\u03c4_k)"},
+    {"strobe_v", "Velocity of the main mass at a stroboscopic sample", "y_m'(\u03c4_k)"},
+    {"settle_time", "Time at which the motion label settled", "\u03c4_{settle}"},
+    {"lle_sigma", "Standard error of the largest Lyapunov exponent", "\u03c3_{LLE}"},
+    {"label_confidence", "Confidence of the motion label", "confidence  (0 to 1)"},
+    {"chaos_01", "0-1 test for chaos", "K  (near 1 chaotic, near 0 regular)"},
+    {"attractor", "Basins of attraction", "attractor  (basin fraction)"},
+    {"refine_level", "Refinement level of the adaptive map", "level  (0 = coarse grid)"},
+    {"refine_fill", "How each point of the adaptive map was obtained", ""},
+    {"frac_intrawell", "Fraction of the starts in intrawell motion", "fraction intrawell"},
+    {"frac_interwell", "Fraction of the starts in interwell motion", "fraction interwell"},
+    {"frac_chaotic", "Fraction of the starts in chaotic motion", "fraction chaotic"},
+};
+
+const MetricText* FindText(const std::string& metric) {
+  for (const MetricText& t : kMetricTexts)
+    if (metric == t.metric) return &t;
+  return nullptr;
+}
+
+}  // namespace
+
+std::string MetricTitle(const std::string& metric) {
+  if (const MetricText* t = FindText(metric)) return t->title;
+  if (metric.size() > 7 && metric.compare(metric.size() - 7, 7, "_stderr") == 0)
+    return "Standard error of " + MetricTitle(metric.substr(0, metric.size() - 7));
+  std::string words;
+  if (const MetricInfo* info = FindMetric(metric)) words = info->long_name;
+  if (words.empty()) return EnhancedText(metric);
+  words[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(words[0])));
+  return EnhancedText(words);
+}
+
+std::string MetricValueLabel(const std::string& metric, const std::string& unit) {
+  const MetricText* t = FindText(metric);
+  if (t && *t->symbol == '\0') return "";
+  const std::string symbol = t ? t->symbol : EnhancedText(metric);
+  // Units that are words (fractions, counts) are said in the symbol's text, not in brackets.
+  const bool worded = unit == "fraction" || unit == "forcing periods" || unit == "code";
+  const std::string u = worded ? "" : UnitMarkup(unit);
+  return u.empty() ? symbol : symbol + " [" + u + "]";
+}
+
+std::string AttractorName(const std::string& label) {
+  std::vector<std::string> parts;
+  std::stringstream in(label);
+  for (std::string part; std::getline(in, part, '_');) parts.push_back(part);
+  if (parts.size() >= 3 && parts[0].size() > 1 && parts[0][0] == 'A') {
+    if (parts[1].size() > 1 && parts[1][0] == 'P' && std::isdigit(static_cast<unsigned char>(parts[1][1])))
+      return "period-" + parts[1].substr(1) + ", " + parts[2];
+    if (parts[1] == "chaotic" || parts[1] == "aperiodic") return parts[1] + ", " + parts[2];
+    if (parts[1] == "other") {
+      std::string rest = label.substr(label.find("other"));
+      std::replace(rest.begin(), rest.end(), '_', ' ');
+      return rest;
+    }
+  }
+  std::string words = label;
+  std::replace(words.begin(), words.end(), '_', ' ');
+  return words;
+}
+
+std::vector<BasinShare> BasinShares(const MapArray& attractor) {
+  std::map<int, long> cells;
+  long total = 0;
+  for (double v : attractor.values)
+    if (std::isfinite(v)) ++cells[static_cast<int>(v)], ++total;
+  std::vector<BasinShare> out;
+  if (total == 0) return out;
+  for (const auto& [id, label] : attractor.categories)
+    out.push_back({id, AttractorName(label), static_cast<double>(cells[id]) / static_cast<double>(total)});
+  if (cells.count(-1)) out.push_back({-1, "diverged", static_cast<double>(cells[-1]) / static_cast<double>(total)});
+  std::stable_sort(out.begin(), out.end(),
+                   [](const BasinShare& a, const BasinShare& b) { return a.fraction > b.fraction; });
+  return out;
+}
+
+MapContext MapContextOf(const SweepSpec& spec) {
+  MapContext c;
+  c.name = spec.name;
+  c.id = spec.Id();
+  c.fixed = spec.FixedParameters();
+  c.chaos_threshold = spec.base.metrics.chaos_threshold;
+  return c;
+}
+
+MapContext MapContextOfFile(const std::string& map_path) {
+  MapContext c;
+  if (auto id = ReadMapAttribute(map_path, "sweep_id"); id.ok()) c.id = *id;
+  if (auto name = ReadMapAttribute(map_path, "name"); name.ok()) c.name = *name;
+  auto text = ReadMapAttribute(map_path, "spec");
+  if (!text.ok() || text->empty()) return c;
+  auto spec = ParseSweepSpec(*text, map_path);
+  if (!spec.ok()) return c;
+  MapContext full = MapContextOf(*spec);
+  if (!c.id.empty()) full.id = c.id;
+  if (!c.name.empty()) full.name = c.name;
+  return full;
+}
+
 std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::vector<double>& values,
                                         const std::vector<std::pair<int, std::string>>& file_categories) {
   const MetricInfo* info = FindMetric(metric);
+  std::set<double> present;
+  for (double v : values)
+    if (std::isfinite(v)) present.insert(v);
   if ((!info || !info->integer) && !file_categories.empty()) {  // codes named by the file (a basin map's attractors)
     std::vector<PlotData::Code> codes;
+    if (present.count(-1) &&
+        std::none_of(file_categories.begin(), file_categories.end(), [](const auto& c) { return c.first == -1; }))
+      codes.push_back({-1, "diverged", "#bdbdbd"});
     for (const auto& [value, name] : file_categories) {
-      std::string label = name;  // flag_meanings are one word each; the legend reads better with spaces
+      // flag_meanings are one word each: a basin map's attractor labels in words, others with spaces.
+      std::string label = metric == "attractor" ? AttractorName(name) : name;
       std::replace(label.begin(), label.end(), '_', ' ');
-      codes.push_back({static_cast<double>(value), label, ""});
+      const char* colour = CategoryColour(label);
+      codes.push_back({static_cast<double>(value), label, colour ? colour : ""});
     }
     if (codes.size() > 16) return {};
     return codes;
   }
+  if (metric == "refine_level") {  // levels are ordered: light to dark blue, spread over the levels present
+    const char* blues[] = {"#c6dbef", "#9ecae1", "#6baed6", "#4292c6", "#2171b5", "#08519c", "#08306b"};
+    std::vector<double> levels;
+    for (double v : present)
+      if (v >= 0 && v == std::floor(v)) levels.push_back(v);
+    if (levels.size() > 16) return {};
+    std::vector<PlotData::Code> codes;
+    for (size_t k = 0; k < levels.size(); ++k)
+      codes.push_back({levels[k], FormatNumber(levels[k]),
+                       blues[levels.size() == 1 ? 0 : (k * 6 + (levels.size() - 1) / 2) / (levels.size() - 1)]});
+    return codes;
+  }
   if (!info || !info->integer) return {};
-  std::set<double> present;
-  for (double v : values)
-    if (std::isfinite(v)) present.insert(v);
   std::vector<PlotData::Code> codes;
   std::vector<std::pair<int, std::string>> named;
   for (const Category& c : MetricCategories(metric)) named.emplace_back(c.code, c.name);
@@ -135,13 +277,21 @@ std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::ve
   for (double v : present)
     if (std::none_of(codes.begin(), codes.end(), [&](const PlotData::Code& c) { return c.value == v; }))
       codes.push_back({v, FormatNumber(v), ""});
-  if (codes.size() > 16) return {};
   std::sort(codes.begin(), codes.end(),
             [](const PlotData::Code& a, const PlotData::Code& b) { return a.value < b.value; });
+  // Many values (periods up to 16 and more): the 11 smallest each, the rest as one class "≥ n".
+  constexpr size_t kMaxCodes = 12;
+  if (codes.size() > kMaxCodes) {
+    codes.resize(kMaxCodes);
+    PlotData::Code& tail = codes.back();
+    tail.name = "\u2265 " + FormatNumber(tail.value);
+    tail.at_least = true;
+    tail.colour = "#444444";
+  }
   return codes;
 }
 
-StatusOr<PlotData> MapFigure(const MapArray& m, std::map<std::string, double> at, const std::string& title_prefix) {
+StatusOr<PlotData> MapFigure(const MapArray& m, std::map<std::string, double> at, const MapContext& ctx) {
   const auto dir_dim = std::find(m.dim_names.begin(), m.dim_names.end(), "direction");
   const bool both_directions =
       dir_dim != m.dim_names.end() && m.dims[dir_dim - m.dim_names.begin()] == 2 && !at.count("direction");
@@ -164,14 +314,53 @@ StatusOr<PlotData> MapFigure(const MapArray& m, std::map<std::string, double> at
     fixed.erase("direction");
   }
   d.codes = MetricCodes(d.metric, d.values, m.categories);
-  d.title = title_prefix + ": " + s->metric;
+  d.title = MetricTitle(s->metric);
+  d.title_markup = true;
+  d.value_label = MetricValueLabel(s->metric, s->unit);
+  // Subtitle: the sweep's fixed parameters, then the slice's fixed axes (the figure's own values).
+  for (const FixedParameter& p : ctx.fixed) d.subtitle.push_back(ParameterItem(p.name, p.value, p.unit));
   for (const auto& [name, value] : fixed) {
     const size_t k = std::find(m.dim_names.begin(), m.dim_names.end(), name) - m.dim_names.begin();
-    if (k >= m.dims.size() || m.dims[k] < 2) continue;  // no choice: nothing to say
-    if (name == "direction")
-      d.title += value == 0 ? ", sweep up" : ", sweep down";
-    else
-      d.title += ", " + name + " = " + PlotNumber(value);
+    if (k >= m.dims.size()) continue;
+    if (k < m.axes.size())
+      d.subtitle.push_back(ParameterItem(name, value, AxisUnit(name)));
+    else if (name == "direction" && m.dims[k] >= 2)
+      d.subtitle.push_back(value == 0 ? "sweep up" : "sweep down");
+    else if (m.dims[k] >= 2)
+      d.subtitle.push_back(EnhancedText(name) + " " + FormatNumber(value + 1) + " of " + std::to_string(m.dims[k]));
+  }
+  d.footer = ctx.name.empty() ? (ctx.id.empty() ? "" : "sweep " + ctx.id)
+                              : ctx.name + (ctx.id.empty() ? "" : "  \xc2\xb7  sweep " + ctx.id);
+  // Marked levels: where the FRF changes sign (amplification vs attenuation), the chaos threshold.
+  if (d.metric == "frf_db") d.contours.push_back({0.0, "FRF = 0 dB", "#000000", false});
+  if ((d.metric == "lle" || d.metric == "lle_rosenstein") && std::isfinite(ctx.chaos_threshold))
+    d.contours.push_back({ctx.chaos_threshold,
+                          "chaos threshold LLE = " + PlotNumber(ctx.chaos_threshold) + " (chaotic above)", "#000000",
+                          true});
+  if (d.metric.rfind("edr_", 0) == 0)
+    d.clip_reason =
+        "an EDR passes 100 % where the stored energy fell over the window (EDR_T \u2264 100 (1 - \u0394E/W_{in}))";
+  // A basin map: each attractor's share of the starts in the slice, in its legend entry.
+  if (d.metric == "attractor" && !d.codes.empty()) {
+    std::map<double, long> cells;
+    long total = 0;
+    for (double v : d.values)
+      if (std::isfinite(v)) ++cells[v], ++total;
+    std::map<std::string, int> uses;
+    for (const auto& c : d.codes) ++uses[c.name];
+    for (size_t i = 0; i < d.codes.size(); ++i) {
+      PlotData::Code& c = d.codes[i];
+      if (uses[c.name] > 1) {  // two attractors of one kind: tell them apart by their Poincaré point
+        for (const auto& [value, label] : m.categories)
+          if (value == c.value) {
+            const size_t y = label.find("_y");
+            if (y != std::string::npos) c.name += ", y_m = " + label.substr(y + 2, label.find("_v", y) - y - 2);
+          }
+      }
+      char pct[32];
+      std::snprintf(pct, sizeof pct, " (%.1f %%)", total ? 100.0 * cells[c.value] / total : 0.0);
+      c.name += pct;
+    }
   }
   return d;
 }

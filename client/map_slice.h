@@ -2,6 +2,7 @@
 #ifndef BISTABLE_CLIENT_MAP_SLICE_H_
 #define BISTABLE_CLIENT_MAP_SLICE_H_
 
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -33,11 +34,45 @@ StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>&
 std::vector<PlotData::Code> MetricCodes(const std::string& metric, const std::vector<double>& values,
                                         const std::vector<std::pair<int, std::string>>& file_categories = {});
 
+// What a map figure says beyond the map's values (docs/figures.md): the sweep's fixed parameters
+// (subtitle), its chaos threshold (the LLE map's threshold contour), and its name and id (footer).
+struct MapContext {
+  std::string name, id;
+  std::vector<FixedParameter> fixed;
+  double chaos_threshold = NAN;
+};
+MapContext MapContextOf(const SweepSpec& spec);
+// The context of a map file: its stored spec (the root attribute "spec"); the name and id alone when
+// the file has none or it does not parse.
+MapContext MapContextOfFile(const std::string& map_path);
+
+// The title of a metric's figure: its long name in words with its symbol ("Largest Lyapunov exponent"),
+// enhanced text; and its colour-bar / value-axis label with the symbol and the unit in symbols
+// ("FRF [dB]", "EDR_T = (W_m + W_r)/W_{in} [%]"), "" for codes that need none.
+std::string MetricTitle(const std::string& metric);
+std::string MetricValueLabel(const std::string& metric, const std::string& unit);
+
+// A basin map's attractor label (flag_meanings, "A1_P1_+well_y0.418_v-0.163") in words: "period-1, +well";
+// "chaotic, interwell". Labels of another form come back with spaces for underscores.
+std::string AttractorName(const std::string& label);
+
+// A basin map's attractors (the "attractor" dataset, all starts) with their names in words
+// (AttractorName) and their share of the starts, largest first; -1 (diverged) when present.
+struct BasinShare {
+  int id;
+  std::string name;
+  double fraction;
+};
+std::vector<BasinShare> BasinShares(const MapArray& attractor);
+
 // A figure of a slice of `m` (SliceMap with `at`): axes with units, codes for integer metrics, and,
 // for a curve of a continuation map whose `direction` dimension `at` leaves free, the up and down
-// sweeps as two series. Title: "<prefix>: <metric>" and the fixed dimensions that have a choice
-// (numbers to 4 significant digits, directions by name).
-StatusOr<PlotData> MapFigure(const MapArray& m, std::map<std::string, double> at, const std::string& title_prefix);
+// sweeps as two series. Title: the metric's long name (MetricTitle); subtitle: the context's fixed
+// parameters and the slice's fixed dimensions that have a choice (numbers to 4 significant digits,
+// directions by name); footer: the sweep's name and id. FRF maps get the 0 dB contour, LLE maps the
+// chaos threshold's, EDR maps a colour range clipped at 100 %, basin maps their attractors in words
+// with basin fractions.
+StatusOr<PlotData> MapFigure(const MapArray& m, std::map<std::string, double> at, const MapContext& ctx = {});
 
 }  // namespace bistable
 

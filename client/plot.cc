@@ -17,6 +17,7 @@
 #include <fstream>
 #include <functional>
 #include <sstream>
+#include <unordered_map>
 
 #include "engine/metric_catalog.h"
 
@@ -54,28 +55,81 @@ std::string GnuplotString(std::string_view text) {
   return out + "\"";
 }
 
-namespace {
-
-// Enhanced-text markup characters (^ _ @ & ~ { } \) in text shown literally in an enhanced label.
-std::string EnhancedLiteral(const std::string& s) {
+std::string EnhancedText(const std::string& text) {
   std::string out;
-  for (char c : s) {
+  for (char c : text) {
     if (c != '\0' && std::strchr("^_@&~{}\\", c) != nullptr) out += '\\';
     out += c;
   }
   return out;
 }
 
-std::string Greek(const std::string& name) {
-  if (name == "alpha") return "{/Symbol a}";
-  if (name == "omega") return "{/Symbol W}";
-  if (name == "eta") return "{/Symbol h}";
-  if (name == "eta_r") return "{/Symbol h}_r";
-  if (name == "lambda") return "{/Symbol l}";
-  if (name == "phi") return "{/Symbol f}";
-  if (name == "eps") return "{/Symbol e}";
-  return EnhancedLiteral(name);  // a name from a file: literal text, not markup
+std::string SymbolOf(const std::string& name) {
+  // UTF-8 letters (pngcairo, svg and pdfcairo draw them; svg text keeps them searchable).
+  static const std::pair<const char*, const char*> kSymbols[] = {{"alpha", "α"},
+                                                                 {"omega", "Ω"},
+                                                                 {"eta", "η"},
+                                                                 {"eta_r", "η_r"},
+                                                                 {"lambda", "λ"},
+                                                                 {"phi", "φ"},
+                                                                 {"eps", "ε"},
+                                                                 {"ym0", "y_m(0)"},
+                                                                 {"vm0", "y_m'(0)"},
+                                                                 {"yr0", "y_r(0)"},
+                                                                 {"vr0", "y_r'(0)"},
+                                                                 {"a0_mm", "A_0"},
+                                                                 {"f0_hz", "f_0"},
+                                                                 {"m_m", "m_m"},
+                                                                 {"k_lin", "k_{lin}"},
+                                                                 {"k3", "k_3"},
+                                                                 {"c0_m", "c_{0,m}"},
+                                                                 {"c2_m", "c_{2,m}"},
+                                                                 {"fric_m_fs", "F_{s,m}"},
+                                                                 {"fric_m_fc", "F_{c,m}"},
+                                                                 {"fric_m_vsp", "v_{sp,m}"},
+                                                                 {"fric_m_vt", "v_{t,m}"},
+                                                                 {"m_r", "m_r"},
+                                                                 {"k_r", "k_r"},
+                                                                 {"c0_r", "c_{0,r}"},
+                                                                 {"c2_r", "c_{2,r}"},
+                                                                 {"fric_r_fs", "F_{s,r}"},
+                                                                 {"fric_r_fc", "F_{c,r}"},
+                                                                 {"fric_r_vsp", "v_{sp,r}"},
+                                                                 {"fric_r_vt", "v_{t,r}"}};
+  for (const auto& [from, to] : kSymbols)
+    if (name == from) return to;
+  return EnhancedText(name);  // a name from a file: literal text, not markup
 }
+
+std::string UnitMarkup(const std::string& unit) {
+  if (unit.empty() || unit == "1" || unit == "code") return "";
+  // Units as stored (plain text) → enhanced text with symbols; the rest literal but for ^ (powers).
+  std::string u;
+  for (char c : unit) {
+    if (c != '^' && c != '\0' && std::strchr("_@&~{}\\", c) != nullptr) u += '\\';
+    u += c;
+  }
+  const std::pair<const char*, const char*> kSubs[] = {
+      {"delta\\_s", "δ_s"}, {"omega\\_n", "ω_n"}, {"omega0", "ω_0"}, {"omega\\_r", "ω_r"}, {"A0", "A_0"},
+      {"m\\_m", "m_m"},     {"m\\_r", "m_r"},     {"c\\_r", "c_r"},  {"tau", "τ"},         {"k3", "k_3"}};
+  for (auto [from, to] : kSubs)
+    for (size_t p = u.find(from); p != std::string::npos; p = u.find(from, p + std::strlen(to)))
+      u.replace(p, std::strlen(from), to);
+  return u;
+}
+
+std::string ParameterItem(const std::string& name, double value, const std::string& unit) {
+  // Non-dimensional parameters are defined by ratios (AxisUnit's "c/(m_m omega_n)"): no unit shown.
+  const bool ratio = unit.find('/') != std::string::npos && unit.find("delta_s") == std::string::npos &&
+                     unit.find("tau") == std::string::npos && unit.find(' ') != std::string::npos;
+  const bool nondim = name == "alpha" || name == "omega" || name == "eta" || name == "eta_r" || name == "lambda" ||
+                      name == "phi" || name == "eps" || ratio;
+  std::string item = SymbolOf(name) + " = " + PlotNumber(value);
+  const std::string u = nondim ? "" : UnitMarkup(unit);
+  return u.empty() ? item : item + " " + u;
+}
+
+namespace {
 
 // The process's file-creation mask, read without changing it (umask(2) would, for every thread).
 mode_t CurrentUmask() {
@@ -259,9 +313,109 @@ constexpr const char* kViridis =
     "set palette defined (0 '#440154', 0.125 '#46327e', 0.25 '#365c8d', 0.375 '#277f8e', 0.5 '#1fa187', "
     "0.625 '#4ac16d', 0.75 '#a0da39', 0.875 '#d0e11c', 1 '#fde725')\n";
 
-std::string Terminal(const std::string& format) {
-  return format == "svg" ? "set terminal svg size 900,700 dynamic enhanced font 'Helvetica,14' background 'white'\n"
-                         : "set terminal pngcairo size 900,700 enhanced font 'Helvetica,12'\n";
+// The terminal of a w x h pixel figure: PNG (pngcairo), SVG, or PDF (pdfcairo, 72 pixels to the inch,
+// so a PDF looks like its PNG); UTF-8 text either way.
+std::string Terminal(const std::string& format, int w = 900, int h = 700) {
+  char size[64];
+  std::ostringstream t;
+  if (format == "svg") {
+    t << "set terminal svg size " << w << "," << h << " dynamic enhanced font 'Helvetica,14' background 'white'\n";
+  } else if (format == "pdf") {
+    std::snprintf(size, sizeof size, "%.3fin,%.3fin", w / 72.0, h / 72.0);
+    t << "set terminal pdfcairo size " << size << " enhanced font 'Helvetica,12'\n";
+  } else {
+    t << "set terminal pngcairo size " << w << "," << h << " enhanced font 'Helvetica,12'\n";
+  }
+  t << "set encoding utf8\n";
+  return t.str();
+}
+
+// The visible length of enhanced text, roughly (markup characters and UTF-8 continuation bytes not counted).
+size_t VisibleLength(const std::string& text) {
+  size_t n = 0;
+  for (unsigned char c : text) n += (c & 0xC0) != 0x80 && std::strchr("_^{}\\", c) == nullptr;
+  return n;
+}
+
+// Subtitle items joined with ", " into lines of at most `width` visible characters.
+std::vector<std::string> WrapItems(const std::vector<std::string>& items, size_t width) {
+  std::vector<std::string> lines;
+  std::string line;
+  for (const std::string& item : items) {
+    if (!line.empty() && VisibleLength(line) + 2 + VisibleLength(item) > width) {
+      lines.push_back(line + ",");
+      line.clear();
+    }
+    line += (line.empty() ? "" : ", ") + item;
+  }
+  if (!line.empty()) lines.push_back(line);
+  return lines;
+}
+
+// Title, subtitle, notes and footer as labels at fixed places of the canvas (never outside it):
+// the title centred at the top, the subtitle under it, notes and the footer at the bottom. Sets
+// the pixels they take at the top and the bottom.
+struct Decor {
+  std::string title;
+  bool title_markup = false;
+  std::vector<std::string> subtitle, notes;  // enhanced text
+  std::string footer;                        // plain text
+};
+void WriteDecor(std::ostream& s, const Decor& d, int w, int h, int* top_px, int* bottom_px, double centre = 0.5) {
+  int tag = 900;
+  auto at = [&](double x, int y_px) {
+    char b[64];
+    std::snprintf(b, sizeof b, " at screen %.4f, %.4f", x, 1.0 - static_cast<double>(y_px) / h);
+    return std::string(b);
+  };
+  int top = 10;
+  if (!d.title.empty()) {
+    top += 18;
+    s << "set label " << tag++ << " " << GnuplotString(d.title) << at(centre, top) << " center font ',15' "
+      << (d.title_markup ? "enhanced" : "noenhanced") << "\n";
+    top += 8;
+  }
+  for (const std::string& line : WrapItems(d.subtitle, static_cast<size_t>(w / 8))) {
+    top += 18;
+    s << "set label " << tag++ << " " << GnuplotString(line) << at(centre, top) << " center font ',12' enhanced\n";
+  }
+  *top_px = top + 20;
+  int bottom = 8;
+  if (!d.footer.empty()) {
+    s << "set label " << tag++ << " " << GnuplotString(d.footer) << at(0.01, h - bottom - 4)
+      << " left font ',9' noenhanced textcolor rgb '#666666'\n";
+    bottom += 14;
+  }
+  std::vector<std::string> notes;  // each note wrapped at spaces to the canvas width
+  for (const std::string& note : d.notes) {
+    std::vector<std::string> words;
+    std::stringstream in(note);
+    for (std::string word; std::getline(in, word, ' ');) words.push_back(word);
+    std::string line;
+    for (const std::string& word : words) {
+      if (!line.empty() && VisibleLength(line) + 1 + VisibleLength(word) > static_cast<size_t>(w / 8.5))
+        notes.push_back(line), line.clear();
+      line += (line.empty() ? "" : " ") + word;
+    }
+    if (!line.empty()) notes.push_back(line);
+  }
+  for (auto it = notes.rbegin(); it != notes.rend(); ++it) {
+    s << "set label " << tag++ << " " << GnuplotString(*it) << at(0.01, h - bottom - 5)
+      << " left font ',11' enhanced\n";
+    bottom += 17;
+  }
+  *bottom_px = bottom;
+}
+
+// Margins of the plot area at screen fractions from pixels (left, right, bottom, top).
+std::string Margins(int w, int h, int l, int r, int b, int t) {
+  char buf[200];
+  std::snprintf(buf, sizeof buf,
+                "set lmargin at screen %.4f\nset rmargin at screen %.4f\nset bmargin at screen %.4f\nset tmargin at "
+                "screen %.4f\n",
+                static_cast<double>(l) / w, 1.0 - static_cast<double>(r) / w, static_cast<double>(b) / h,
+                1.0 - static_cast<double>(t) / h);
+  return buf;
 }
 
 std::string Num(double v) {
@@ -282,7 +436,7 @@ constexpr const char* kColourBoxMargins = "set lmargin 12\nset rmargin 18\n";
 // Index of the code whose value is v, or -1.
 int CodeIndex(const std::vector<PlotData::Code>& codes, double v) {
   for (size_t i = 0; i < codes.size(); ++i)
-    if (codes[i].value == v) return static_cast<int>(i);
+    if (codes[i].value == v || (codes[i].at_least && v >= codes[i].value)) return static_cast<int>(i);
   return -1;
 }
 
@@ -315,6 +469,9 @@ std::pair<double, double> ColourRange(const std::string& metric, const std::vect
     const double m = std::max({std::fabs(lo), std::fabs(hi), 1e-12});
     return {-m, m};
   }
+  // Energy dissipation ratios are percentages of the injected energy: the scale stops at 100 % (values
+  // above, where the stored energy fell over the window, take the top colour and the figure says so).
+  if (metric.rfind("edr_", 0) == 0 && hi > 100) hi = std::max(100.0, lo + 1e-9);
   if (lo == hi) return {lo - 0.5, hi + 0.5};
   return {lo, hi};
 }
@@ -344,20 +501,13 @@ Status CheckGnuplot() {
 std::string AxisLabel(const std::string& name, const std::string& unit) {
   if (name == "a0_mm") return "base amplitude A_0 [mm]";
   if (name == "f0_hz") return "base frequency f_0 [Hz]";
-  // Units as stored (plain text) → gnuplot enhanced text with symbols.
-  std::string u = unit;
-  const std::pair<const char*, const char*> kSubs[] = {{"delta_s", "{/Symbol d}_s"},
-                                                       {"omega_n", "{/Symbol w}_n"},
-                                                       {"omega0", "{/Symbol w}_0"},
-                                                       {"omega_r", "{/Symbol w}_r"},
-                                                       {"A0", "A_0"},
-                                                       {"m_m", "m_m"},
-                                                       {"m_r", "m_r"},
-                                                       {"c_r", "c_r"}};
-  for (auto [from, to] : kSubs)
-    for (size_t p = u.find(from); p != std::string::npos; p = u.find(from, p + std::strlen(to)))
-      u.replace(p, std::strlen(from), to);
-  return Greek(name) + (u.empty() ? "" : " = " + u);
+  const std::string u = UnitMarkup(unit);
+  if (u.empty()) return SymbolOf(name);
+  // The non-dimensional parameters say what they are scaled by (α = A_0/δ_s); quantities with a
+  // unit carry it in brackets (y_m(0) [δ_s]).
+  static const char* kScaled[] = {"alpha", "omega", "eta", "eta_r", "lambda", "phi", "eps"};
+  const bool scaled = std::find(std::begin(kScaled), std::end(kScaled), name) != std::end(kScaled);
+  return SymbolOf(name) + (scaled ? " = " + u : " [" + u + "]");
 }
 
 // A pm3d map in which every value owns a whole cell centred on its grid point (heatmaps, spectrograms):
@@ -391,48 +541,188 @@ static void WriteCells(std::ostream& s, const std::vector<double>& xs, const std
   s << "EOD\nsplot $data using 1:2:3 with pm3d notitle" << more_plots << "\n";
 }
 
+std::string PlotFormatOf(const std::string& out_path) {
+  const std::string ext = std::filesystem::path(out_path).extension().string();
+  return ext == ".svg" ? "svg" : ext == ".pdf" ? "pdf" : "png";
+}
+
+namespace {
+
+// Every k-th index of n (k the smallest step leaving at most max_cells), the last always kept so
+// the drawn map spans the axis; every index when max_cells <= 0.
+std::vector<size_t> Decimate(size_t n, int max_cells) {
+  std::vector<size_t> keep;
+  const size_t step = max_cells <= 0 || n <= static_cast<size_t>(max_cells)
+                          ? 1
+                          : (n + static_cast<size_t>(max_cells) - 1) / static_cast<size_t>(max_cells);
+  for (size_t i = 0; i < n; i += step) keep.push_back(i);
+  if (keep.back() != n - 1) keep.push_back(n - 1);
+  return keep;
+}
+
+// Marching squares: the level set value == level over the grid (x index i, y index j) as polylines,
+// each followed by two blank lines (splot joins scans of equal length into a mesh when one blank line
+// separates them); cells with a NaN corner are skipped. The cells' segments are chained through the
+// grid edges they share, so a dashed line keeps its pattern along the curve.
+std::string ContourLines(const std::vector<double>& xs, const std::vector<double>& ys,
+                         const std::function<double(size_t, size_t)>& value, double level, size_t* count) {
+  *count = 0;
+  if (xs.size() < 2 || ys.size() < 2) return "";
+  const size_t nx = xs.size();
+  struct Seg {
+    size_t e[2];  // grid edge ids: 2 (j nx + i) for (i, j)-(i+1, j), 2 (j nx + i) + 1 for (i, j)-(i, j+1)
+    double x[2], y[2];
+  };
+  std::vector<Seg> segs;
+  for (size_t j = 0; j + 1 < ys.size(); ++j)
+    for (size_t i = 0; i + 1 < nx; ++i) {
+      const double v[4] = {value(i, j), value(i + 1, j), value(i + 1, j + 1), value(i, j + 1)};
+      if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || !std::isfinite(v[2]) || !std::isfinite(v[3])) continue;
+      const double px[4] = {xs[i], xs[i + 1], xs[i + 1], xs[i]}, py[4] = {ys[j], ys[j], ys[j + 1], ys[j + 1]};
+      const size_t edge[4] = {2 * (j * nx + i), 2 * (j * nx + i + 1) + 1, 2 * ((j + 1) * nx + i), 2 * (j * nx + i) + 1};
+      struct Cut {
+        size_t edge;
+        double x, y;
+      };
+      std::vector<Cut> cut;  // crossings on the cell's edges, in edge order
+      for (int e = 0; e < 4; ++e) {
+        const int f = (e + 1) % 4;
+        if ((v[e] >= level) == (v[f] >= level)) continue;
+        const double t = (level - v[e]) / (v[f] - v[e]);
+        cut.push_back({edge[e], px[e] + t * (px[f] - px[e]), py[e] + t * (py[f] - py[e])});
+      }
+      // Two crossings: one segment; four (a saddle): pair them by the cell's mean.
+      if (cut.size() == 4 && (0.25 * (v[0] + v[1] + v[2] + v[3]) >= level) != (v[0] >= level))
+        std::rotate(cut.begin(), cut.begin() + 1, cut.end());
+      for (size_t k = 0; k + 1 < cut.size(); k += 2)
+        segs.push_back({{cut[k].edge, cut[k + 1].edge}, {cut[k].x, cut[k + 1].x}, {cut[k].y, cut[k + 1].y}});
+    }
+  std::unordered_map<size_t, std::vector<size_t>> at_edge;
+  for (size_t k = 0; k < segs.size(); ++k) at_edge[segs[k].e[0]].push_back(k), at_edge[segs[k].e[1]].push_back(k);
+  std::vector<bool> used(segs.size(), false);
+  std::ostringstream out;
+  // From segment k's end `end`, follow unused segments through shared edges.
+  auto walk = [&](size_t k, int end) {
+    std::vector<std::pair<double, double>> pts;
+    size_t edge = segs[k].e[end];
+    for (;;) {
+      size_t next = segs.size();
+      for (size_t m : at_edge[edge])
+        if (!used[m]) next = m;
+      if (next == segs.size()) break;
+      used[next] = true;
+      const int from = segs[next].e[0] == edge ? 0 : 1;
+      pts.emplace_back(segs[next].x[1 - from], segs[next].y[1 - from]);
+      edge = segs[next].e[1 - from];
+    }
+    return pts;
+  };
+  for (size_t k = 0; k < segs.size(); ++k) {
+    if (used[k]) continue;
+    used[k] = true;
+    std::vector<std::pair<double, double>> back = walk(k, 0), fwd = walk(k, 1);
+    std::reverse(back.begin(), back.end());
+    back.emplace_back(segs[k].x[0], segs[k].y[0]);
+    back.emplace_back(segs[k].x[1], segs[k].y[1]);
+    back.insert(back.end(), fwd.begin(), fwd.end());
+    for (const auto& [x, y] : back) out << Num(x) << " " << Num(y) << "\n";
+    out << "\n\n";
+    ++*count;
+  }
+  return out.str();
+}
+
+}  // namespace
+
 Status RenderPlot(const PlotData& d, const std::string& out_path, std::string format) {
-  if (format.empty()) format = std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png";
-  if (format != "png" && format != "svg")
-    return Status::InvalidArgument("format", "format = '" + format + "' violates format in {png, svg}");
+  if (format.empty()) format = PlotFormatOf(out_path);
+  if (format != "png" && format != "svg" && format != "pdf")
+    return Status::InvalidArgument("format", "format = '" + format + "' violates format in {png, svg, pdf}");
   if (d.axis_names.empty() || d.axis_names.size() > 2 || d.axis_values.size() != d.axis_names.size() ||
       d.axis_units.size() != d.axis_names.size())
     return Status::InvalidArgument("plot", "a plot needs 1 or 2 axes with names, units and values");
-  const std::string label = d.metric + (d.unit.empty() || d.unit == "code" ? "" : " [" + d.unit + "]");
+  const std::string unit = UnitMarkup(d.unit);
+  const std::string label =
+      !d.value_label.empty() ? d.value_label : EnhancedText(d.metric) + (unit.empty() ? "" : " [" + unit + "]");
   const auto& codes = d.codes;
   // Codes are drawn by their index (0..K-1): one unit-wide colour band / y row each.
   auto coded = [&](double v) {
     const int i = std::isfinite(v) ? CodeIndex(codes, v) : -1;
     return i < 0 ? std::nan("") : static_cast<double>(i);
   };
+  const int w = 900, h = 700;
+  Decor decor{d.title, d.title_markup, d.subtitle, {}, d.footer};
   std::ostringstream s;
-  s << Terminal(format) << "set title " << GnuplotString(d.title) << " noenhanced\n";
+  s << Terminal(format, w, h);
   s << "set xlabel " << GnuplotString(AxisLabel(d.axis_names.back(), d.axis_units.back())) << "\n";
   s << "set datafile missing 'NaN'\n";
   if (d.axis_names.size() == 2) {
-    const auto& ys = d.axis_values[0];
-    const auto& xs = d.axis_values[1];
-    if (ys.empty() || xs.empty() || d.values.size() != xs.size() * ys.size())
+    const auto& all_ys = d.axis_values[0];
+    const auto& all_xs = d.axis_values[1];
+    if (all_ys.empty() || all_xs.empty() || d.values.size() != all_xs.size() * all_ys.size())
       return Status::InvalidArgument("plot", "a heatmap needs one value per pair of axis values");
+    // Big maps are drawn from every k-th value (the footer says so): gnuplot's time grows with the cells.
+    const std::vector<size_t> kx = Decimate(all_xs.size(), d.max_cells), ky = Decimate(all_ys.size(), d.max_cells);
+    std::vector<double> xs, ys;
+    for (size_t i : kx) xs.push_back(all_xs[i]);
+    for (size_t j : ky) ys.push_back(all_ys[j]);
+    auto raw = [&](size_t i, size_t j) { return d.values[ky[j] * all_xs.size() + kx[i]]; };
+    if (kx.size() < all_xs.size() || ky.size() < all_ys.size())
+      decor.footer += (decor.footer.empty() ? "" : "  \xc2\xb7  ") + std::string("drawn from ") +
+                      std::to_string(kx.size()) + " x " + std::to_string(ky.size()) + " of the " +
+                      std::to_string(all_xs.size()) + " x " + std::to_string(all_ys.size()) + " grid values";
     s << "set ylabel " << GnuplotString(AxisLabel(d.axis_names[0], d.axis_units[0])) << "\n";
-    s << "set cblabel " << GnuplotString(label) << " noenhanced\n" << kColourBoxMargins;
     s << "set tics out\nset key off\n";
+    int right_px = 170;
+    std::pair<double, double> range{0, 1};
     if (!codes.empty()) {
-      // Discrete: code i owns the colour band [i, i+1] and is drawn at i + 0.5; ticks name it.
-      s << CodePalette(codes) << "set cbtics (";
-      for (size_t i = 0; i < codes.size(); ++i) s << (i ? ", " : "") << GnuplotString(codes[i].name) << " " << i + 0.5;
-      s << ") scale 0\n";
+      // Discrete: code i owns the colour band [i, i+1] and is drawn at i + 0.5; the legend beside the
+      // map is one flat box per code with its name (no colour bar: no scale between codes).
+      size_t longest = VisibleLength(label);
+      for (const auto& c : codes) longest = std::max(longest, c.name.size());
+      right_px = std::clamp(static_cast<int>(60 + 7.5 * static_cast<double>(longest)), 150, 360);
+      s << CodePalette(codes) << "unset colorbox\n";
     } else {
-      std::pair<double, double> range = ColourRange(d.metric, d.values);
+      range = ColourRange(d.metric, d.values);
       if (std::isfinite(d.cb_lo) && std::isfinite(d.cb_hi) && d.cb_lo < d.cb_hi) range = {d.cb_lo, d.cb_hi};
       if (DivergesAboutZero(d.metric))  // blue below 0, red above
         s << "set palette defined (-1 '#2166ac', 0 'white', 1 '#b2182b')\n";
       else
         s << kViridis;
       s << "set cbrange [" << Num(range.first) << ":" << Num(range.second) << "]\n";
+      s << "set cblabel " << GnuplotString(label) << " enhanced\n";
+      // Values beyond the range take its end colours: say so, and how far they go.
+      double above = -INFINITY, below = INFINITY;
+      for (double v : d.values)
+        if (std::isfinite(v)) above = std::max(above, v), below = std::min(below, v);
+      std::string clip;
+      const std::string in_unit = unit.empty() ? "" : " " + unit;
+      if (above > range.second * (1 + 1e-9) + 1e-12)
+        clip = "values above " + PlotNumber(range.second) + in_unit + " (up to " + PlotNumber(above) + in_unit +
+               ") are drawn in the top colour";
+      if (below < range.first - std::fabs(range.first) * 1e-9 - 1e-12)
+        clip += std::string(clip.empty() ? "values" : "; values") + " below " + PlotNumber(range.first) + in_unit +
+                " (down to " + PlotNumber(below) + in_unit + ") in the bottom colour";
+      if (!clip.empty()) decor.notes.push_back(clip + (d.clip_reason.empty() ? "" : ": " + d.clip_reason));
     }
-    // Overlays: drawn on the map's plane after the cells, legend below.
+    if (!d.cb_note.empty()) decor.notes.push_back(d.cb_note);
+    // Contours and overlays: drawn on the map's plane after the cells, legend below the plot.
     std::string more;
+    int keyed = 0;
+    auto cell = [&](size_t i, size_t j) {
+      const double v = raw(i, j);
+      return codes.empty() ? v : coded(v) + 0.5;
+    };
+    for (size_t k = 0; k < d.contours.size() && codes.empty(); ++k) {
+      const PlotData::Contour& c = d.contours[k];
+      size_t n = 0;
+      const std::string seg = ContourLines(xs, ys, raw, c.level, &n);
+      if (n == 0) continue;  // nothing crosses the level: no line, no legend entry
+      s << "$c" << k << " << EOD\n" << seg << "EOD\n";
+      more += ", $c" + std::to_string(k) + " using 1:2:(0) with lines lw 1.6 dt " + (c.dashed ? "2" : "1") +
+              " lc rgb " + GnuplotString(c.colour.empty() ? "#000000" : c.colour) + " title " + GnuplotString(c.label);
+      keyed += !c.label.empty();
+    }
     for (size_t k = 0; k < d.overlays.size(); ++k) {
       const PlotData::Overlay& ov = d.overlays[k];
       s << "$o" << k << " << EOD\n";
@@ -441,22 +731,58 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
       more += ", $o" + std::to_string(k) + " using 1:2:(0) with " +
               (ov.points ? "points pt 6 ps 2 lw 2" : "lines lw 2.5") + " lc rgb " +
               GnuplotString(ov.colour.empty() ? "#000000" : ov.colour) + " " +
-              (ov.label.empty() ? std::string("notitle") : "title " + GnuplotString(ov.label));
+              (ov.label.empty() ? std::string("notitle") : "title " + GnuplotString(EnhancedText(ov.label)));
+      keyed += !ov.label.empty();
     }
-    if (!d.overlays.empty()) s << "set bmargin 5\nset key at screen 0.5, 0.07 center bottom horizontal noenhanced\n";
+    int top_px = 0, bottom_px = 0;
+    WriteDecor(s, decor, w, h, &top_px, &bottom_px, (100.0 + w - right_px) / (2.0 * w));
+    const int key_px = keyed ? 26 : 0;
+    const int plot_bottom = bottom_px + key_px + 78;
+    if (keyed)
+      s << "set key at screen " << Num(0.5) << ", " << Num(static_cast<double>(bottom_px + key_px) / h)
+        << " center top horizontal enhanced samplen 3 spacing 1.1\n";
+    s << Margins(w, h, 100, right_px, plot_bottom, top_px);
+    if (codes.empty()) {
+      char box[160];
+      std::snprintf(box, sizeof box, "set colorbox user origin screen %.4f, %.4f size screen %.4f, %.4f\n",
+                    1.0 - (right_px - 22.0) / w, static_cast<double>(plot_bottom) / h, 22.0 / w,
+                    1.0 - static_cast<double>(top_px + plot_bottom) / h);
+      s << box;
+    } else {
+      // The legend of codes: flat boxes and names, top down beside the map (a heading when labelled).
+      const double x0 = 1.0 - (right_px - 22.0) / w, bw = 18.0 / w;
+      double y = 1.0 - static_cast<double>(top_px) / h;
+      const double step = std::min(24.0, (h - top_px - plot_bottom) / (codes.size() + 1.0)) / h;
+      if (!d.value_label.empty()) {
+        s << "set label 880 " << GnuplotString(label) << " at screen " << Num(x0) << ", " << Num(y - 0.4 * step)
+          << " left enhanced\n";
+        y -= step;
+      }
+      for (size_t i = 0; i < codes.size(); ++i) {
+        const double yc = y - (i + 0.5) * step;
+        s << "set object " << 800 + i << " rect from screen " << Num(x0) << ", " << Num(yc - 7.0 / h) << " to screen "
+          << Num(x0 + bw) << ", " << Num(yc + 7.0 / h) << " fc rgb " << GnuplotString(CodeColour(codes, i))
+          << " fs solid 1.0 border lc rgb '#555555' front\n";
+        s << "set label " << 800 + i << " " << GnuplotString(codes[i].name) << " at screen " << Num(x0 + bw + 8.0 / w)
+          << ", " << Num(yc) << " left noenhanced\n";
+      }
+    }
     WriteCells(
-        s, xs, ys,
-        [&](size_t j, size_t i) {
-          const double v = d.values[i * xs.size() + j];
-          return codes.empty() ? v : coded(v) + 0.5;
-        },
-        more);
+        s, xs, ys, [&](size_t i, size_t j) { return cell(i, j); }, more);
   } else {
     const auto& xs = d.axis_values[0];
     const size_t n_series = std::max<size_t>(1, d.series.size());
     if (xs.empty() || d.values.size() != xs.size() * n_series)
       return Status::InvalidArgument("plot", "a curve needs one value per axis value and series");
-    s << "set grid\n" << (d.series.empty() ? "set key off\n" : "set key outside right top\n");
+    int top_px = 0, bottom_px = 0;
+    // The series' legend goes below the plot, in one row: the plot keeps the canvas' width.
+    const int left_px = codes.empty() ? 100 : 150, right_px = 40, key_px = d.series.empty() ? 0 : 26;
+    WriteDecor(s, decor, w, h, &top_px, &bottom_px, (left_px + w - right_px) / (2.0 * w));
+    s << Margins(w, h, left_px, right_px, bottom_px + key_px + 78, top_px);
+    s << "set grid\n"
+      << (d.series.empty() ? "set key off\n"
+                           : "set key at screen 0.5, " + Num(static_cast<double>(bottom_px + key_px) / h) +
+                                 " center top horizontal Left reverse samplen 3 noenhanced\n");
     for (size_t k = 0; k < n_series; ++k) {
       // Codes: series side by side within the code's row, so up and down stay visible where they agree.
       const double offset =
@@ -472,10 +798,11 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
     const char* series_colours[] = {"#2166ac", "#b2182b", "#1b9e77", "#7570b3"};
     std::string plot = "plot ";
     if (!codes.empty()) {
-      s << "set ylabel " << GnuplotString(label) << " noenhanced\nset yrange [-0.6:" << codes.size() - 0.4
+      s << "set ylabel " << GnuplotString(label) << " enhanced\nset yrange [-0.6:" << codes.size() - 0.4
         << "]\nset ytics (";
-      for (size_t i = 0; i < codes.size(); ++i) s << (i ? ", " : "") << GnuplotString(codes[i].name) << " " << i;
-      s << ")\nset grid noytics\nset lmargin 16\n";
+      for (size_t i = 0; i < codes.size(); ++i)
+        s << (i ? ", " : "") << GnuplotString(EnhancedText(codes[i].name)) << " " << i;
+      s << ")\nset grid noytics\n";
       // Each point coloured by its code; a series' marker tells the sweep direction.
       s << CodePalette(codes) << "unset colorbox\n";
       const char* markers[] = {"7", "5", "9", "13"};
@@ -484,10 +811,10 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
             "$s" + std::to_string(k) + " using 1:2:3 with points pt " + markers[k % 4] + " ps 0.8 lc palette notitle, ";
       // The legend tells series apart by marker (the colour is the code's): black samples.
       for (size_t k = 0; k < d.series.size(); ++k)
-        plot += "NaN with points pt " + std::string(markers[k % 4]) + " ps 0.8 lc rgb 'black' title " +
+        plot += "NaN with points pt " + std::string(markers[k % 4]) + " ps 1.2 lc rgb 'black' title " +
                 GnuplotString(d.series[k]) + ", ";
     } else {
-      s << "set ylabel " << GnuplotString(label) << " noenhanced\n";
+      s << "set ylabel " << GnuplotString(label) << " enhanced\n";
       for (size_t k = 0; k < n_series; ++k)
         plot += "$s" + std::to_string(k) + " using 1:2 with linespoints pt 7 ps 0.5 lw 1.5 lc rgb '" +
                 series_colours[k % 4] + "' title " + GnuplotString(d.series.empty() ? "" : d.series[k]) + ", ";
@@ -500,17 +827,22 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
 
 Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
   std::ostringstream s;
-  s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");
-  s << "set title " << GnuplotString(d.title) << " noenhanced\n";
+  s << Terminal(PlotFormatOf(out_path));
+  int top_px = 0, bottom_px = 0;
+  WriteDecor(s, Decor{d.title, d.title_markup, d.subtitle, {}, ""}, 900, 700, &top_px, &bottom_px);
+  s << "set tmargin at screen " << Num(1.0 - top_px / 700.0) << "\n";
   s << "set xlabel " << GnuplotString(AxisLabel(d.x_name, d.x_unit)) << "\n";
-  s << "set ylabel " << GnuplotString(d.y_label) << "\nset grid\nset key below left maxrows 4 noenhanced\n";
+  s << "set ylabel " << GnuplotString(d.y_label)
+    << "\nset grid\nset key below center horizontal maxrows 3 noenhanced\n";
   // One colour per branch name (in order of first appearance); each stable/unstable run of a branch
-  // is its own segment (blank line between). A legend entry goes with the first block of each
-  // (name, stability) that has a segment, so every entry names something drawn.
+  // is its own segment (blank line between). The legend is compact: one entry per name (its colour,
+  // solid), one "unstable (dashed)" entry when an unstable run is drawn, so every entry names
+  // something drawn and a cascade of branches does not fill the canvas with legend.
   std::vector<std::string> names;
   for (const auto& br : d.branches)
     if (std::find(names.begin(), names.end(), br.name) == names.end()) names.push_back(br.name);
   std::vector<std::pair<std::string, int>> titled;
+  bool any_unstable = false;
   std::string plot = "plot ";
   for (size_t b = 0; b < d.branches.size(); ++b) {
     const auto& br = d.branches[b];
@@ -530,15 +862,18 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path) {
       if (!any) continue;
       const std::string name = "$b" + std::to_string(b) + "s" + std::to_string(stable);
       s << name << " << EOD\n" << block.str() << "EOD\n";
-      const bool first = std::find(titled.begin(), titled.end(), std::make_pair(br.name, stable)) == titled.end();
-      if (first) titled.emplace_back(br.name, stable);
-      const std::string title = !d.stability      ? br.name
-                                : br.name.empty() ? (stable ? "stable" : "unstable")
-                                                  : br.name + (stable ? ", stable" : ", unstable");
+      const bool first = std::find(titled.begin(), titled.end(), std::make_pair(br.name, 1)) == titled.end();
+      if (first) titled.emplace_back(br.name, 1);
+      any_unstable |= d.stability && !stable;
       plot += name + " using 1:2 with lines lw " + Num(br.width) + " dt " + (stable ? "1" : "2") + " lc rgb " +
-              GnuplotString(kQualitative[colour % 12]) + " title " + GnuplotString(first ? title : "") + ", ";
+              GnuplotString(kQualitative[colour % 12]) + " notitle, ";
+      // The name's legend entry: a solid sample in its colour (whatever the first run's stability).
+      if (first)
+        plot += "NaN with lines lw 2 dt 1 lc rgb " + GnuplotString(kQualitative[colour % 12]) + " title " +
+                GnuplotString(br.name.empty() ? "branch" : br.name) + ", ";
     }
   }
+  if (any_unstable) plot += "NaN with lines lw 2 dt 2 lc rgb '#555555' title 'unstable (dashed)', ";
   // Folds of every branch: one block, one legend entry.
   std::ostringstream folds;
   for (const auto& br : d.branches)
@@ -610,22 +945,31 @@ Status RenderPanels(const PanelPlot& d, const std::string& out_path) {
 
 Status RenderBifurcation(const BifurcationData& d, const std::string& out_path) {
   std::ostringstream s;
-  s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");
-  s << "set title " << GnuplotString(d.title) << " noenhanced\n";
+  s << Terminal(PlotFormatOf(out_path));
+  int top_px = 0, bottom_px = 0;
+  WriteDecor(s, Decor{d.title, d.title_markup, d.subtitle, {}, d.footer}, 900, 700, &top_px, &bottom_px);
+  s << "set tmargin at screen " << Num(1.0 - top_px / 700.0) << "\nset bmargin at screen "
+    << Num((bottom_px + 100) / 700.0) << "\n";
   s << "set xlabel " << GnuplotString(AxisLabel(d.x_name, d.x_unit)) << "\n";
-  s << "set ylabel " << GnuplotString("y_m at y_m' = 0 [{/Symbol d}_s]") << "\nset grid\nset key top left\n";
+  s << "set ylabel " << GnuplotString("y_m at y_m' = 0 [\u03b4_s]") << "\nset grid\n";
+  // The legend below the plot, with samples big enough to see (the data's dots are tiny).
+  s << "set key at screen 0.5, " << Num((bottom_px + 26) / 700.0) << " center top horizontal samplen 1\n";
   std::string plot = "plot ";
   if (!d.x_up.empty()) {
     s << "$up << EOD\n";
     for (size_t i = 0; i < d.x_up.size(); ++i) s << Num(d.x_up[i]) << " " << Num(d.y_up[i]) << "\n";
     s << "EOD\n";
-    plot += "$up using 1:2 with points pt 7 ps 0.15 lc rgb '#2166ac' title 'increasing', ";
+    plot +=
+        "$up using 1:2 with points pt 7 ps 0.15 lc rgb '#2166ac' notitle, NaN with points pt 7 ps 1.5 lc rgb "
+        "'#2166ac' title 'increasing', ";
   }
   if (!d.x_down.empty()) {
     s << "$down << EOD\n";
     for (size_t i = 0; i < d.x_down.size(); ++i) s << Num(d.x_down[i]) << " " << Num(d.y_down[i]) << "\n";
     s << "EOD\n";
-    plot += "$down using 1:2 with points pt 7 ps 0.15 lc rgb '#b2182b' title 'decreasing', ";
+    plot +=
+        "$down using 1:2 with points pt 7 ps 0.15 lc rgb '#b2182b' notitle, NaN with points pt 7 ps 1.5 lc rgb "
+        "'#b2182b' title 'decreasing', ";
   }
   if (plot.size() == 5) return Status::InvalidArgument("plot", "no turning points to plot");
   plot.resize(plot.size() - 2);
@@ -655,31 +999,41 @@ Status RenderChirpFrf(const ChirpFrfPlot& d, const std::string& out_path) {
     s << "EOD\n";
   }
   s << "set multiplot layout 3,1 title " << GnuplotString(d.title)
-    << " noenhanced\nset grid\nset key outside right top noenhanced\n";
-  s << "set lmargin 12\nset rmargin 40\n";  // the same plot width in every row, the legends beside
-  // 1. Averaged Fourier amplitudes of input and output.
+    << " noenhanced\nset grid\nset key outside right top noenhanced samplen 2\n";
+  // The same plot width in every row; the legends beside it only as wide as their longest entry (the
+  // curves' names in row 1; rows 2 and 3 say what their line styles are).
+  size_t longest = std::string("input (dashed)").size();
+  for (const auto& c : d.curves) longest = std::max(longest, c.label.size());
+  s << "set lmargin 12\nset rmargin " << std::clamp<size_t>(longest + 8, 22, 40) << "\n";
+  // 1. Averaged Fourier amplitudes of input (dashed) and output (solid), a colour per curve.
   s << "set ylabel " << GnuplotString(d.mag_label) << "\nset logscale y\nset format y '10^{%L}'\nunset xlabel\nplot ";
   for (size_t c = 0; c < d.curves.size(); ++c)
     s << (c ? ", " : "") << "$c" << c << " using 1:2 with lines lw 1 dt 2 lc rgb " << GnuplotString(colours[c % 4])
-      << " title " << GnuplotString("input, " + d.curves[c].label) << ", $c" << c
-      << " using 1:3 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4]) << " title "
-      << GnuplotString("output, " + d.curves[c].label);
-  // 2. FRF: H1 (Welch) over the raw ratio.
+      << " notitle, $c" << c << " using 1:3 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4]) << " title "
+      << GnuplotString(d.curves[c].label);
+  s << ", NaN with lines lw 1 dt 2 lc rgb '#555555' title 'input (dashed)'";
+  // 2. FRF: H1 (Welch) where the coherence says the ratio means something, over the raw ratio.
+  char threshold[16];
+  std::snprintf(threshold, sizeof threshold, "%g", kChirpCoherenceMin);
   s << "\nunset logscale y\nset format y '% g'\nset ylabel 'FRF |H_1| [dB re 1]'\n";
   s << "plot 0 with lines dt 3 lc rgb 'black' notitle";
+  bool raw = false;
   for (size_t c = 0; c < d.curves.size(); ++c)
-    if (!d.curves[c].raw_freq.empty())
-      s << ", $r" << c << " using 1:2 with lines lw 0.6 lc rgb " << GnuplotString(tints[c % 4]) << " title "
-        << GnuplotString("raw FFT ratio, " + d.curves[c].label);
+    if (!d.curves[c].raw_freq.empty()) {
+      raw = true;
+      s << ", $r" << c << " using 1:2 with lines lw 0.6 lc rgb " << GnuplotString(tints[c % 4]) << " notitle";
+    }
   for (size_t c = 0; c < d.curves.size(); ++c)
-    s << ", $c" << c << " using 1:4 with lines lw 2 lc rgb " << GnuplotString(colours[c % 4]) << " title "
-      << GnuplotString("Welch H1, " + d.curves[c].label);
-  // 3. Coherence.
+    s << ", $c" << c << " using 1:($5 >= " << threshold << " ? $4 : NaN) with lines lw 2 lc rgb "
+      << GnuplotString(colours[c % 4]) << " notitle";
+  s << ", NaN with lines lw 2 lc rgb '#555555' title " << GnuplotString(std::string("H1 where coh. >= ") + threshold);
+  if (raw) s << ", NaN with lines lw 2 lc rgb '#c8c8c8' title 'raw FFT ratio'";
+  // 3. Coherence, the threshold marked.
   s << "\nset xlabel " << GnuplotString(d.freq_label)
-    << "\nset ylabel 'coherence {/Symbol g}^2'\nset yrange [0:1.05]\nplot ";
+    << "\nset ylabel 'coherence {/Symbol g}^2'\nset yrange [0:1.05]\nplot " << threshold
+    << " with lines dt 3 lc rgb '#555555' title " << GnuplotString(std::string("threshold ") + threshold);
   for (size_t c = 0; c < d.curves.size(); ++c)
-    s << (c ? ", " : "") << "$c" << c << " using 1:5 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4])
-      << " title " << GnuplotString(d.curves[c].label);
+    s << ", $c" << c << " using 1:5 with lines lw 1.5 lc rgb " << GnuplotString(colours[c % 4]) << " notitle";
   s << "\nunset multiplot\n";
   return RunGnuplot(s.str(), out_path);
 }
@@ -688,7 +1042,7 @@ Status RenderSpectrogram(const SpectrogramPlot& d, const std::string& out_path) 
   if (d.time.empty() || d.freq.empty())
     return Status::InvalidArgument("spectrogram", "the record is shorter than one window");
   std::ostringstream s;
-  s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");
+  s << Terminal(PlotFormatOf(out_path));
   s << "set title " << GnuplotString(d.title) << " noenhanced\nset xlabel " << GnuplotString(d.time_label)
     << "\nset ylabel " << GnuplotString(d.freq_label) << "\nset cblabel 'magnitude [dB re max]'\nset cbrange [-80:0]\n"
     << kViridis << kColourBoxMargins;
@@ -699,7 +1053,7 @@ Status RenderSpectrogram(const SpectrogramPlot& d, const std::string& out_path) 
 
 Status RenderHdScatter(const ScatterData& d, const std::string& out_path) {
   std::ostringstream s;
-  s << Terminal(std::filesystem::path(out_path).extension() == ".svg" ? "svg" : "png");
+  s << Terminal(PlotFormatOf(out_path));
   s << "set title " << GnuplotString(d.title) << " noenhanced\n";
   s << "set xlabel " << GnuplotString(AxisLabel("omega", "omega0/omega_n")) << "\n";
   s << "set ylabel " << GnuplotString("spectral peaks of y_m, {/Symbol W}_{peaks} [rad/{/Symbol t}]") << "\n";

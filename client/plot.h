@@ -9,8 +9,8 @@
 // (gnuplot writes a file created here in the destination directory, renamed onto the path). A
 // destination directory that does not exist is InvalidArgument naming "out"; a missing or failing
 // gnuplot is an IoError with gnuplot's message (CheckGnuplot tells beforehand whether there is one).
-// Figure conventions (units on every axis, discrete codes, shared ranges, number formats): the
-// "Figures" section of docs/numerics.md. Callers should ignore SIGPIPE (client/main.cc does);
+// Figure conventions (titles, labels with symbols and units, fixed parameters in a subtitle,
+// categorical legends, contours, sizes, formats): docs/figures.md. Callers should ignore SIGPIPE (client/main.cc does);
 // the write to gnuplot blocks it in the calling thread regardless.
 #ifndef BISTABLE_CLIENT_PLOT_H_
 #define BISTABLE_CLIENT_PLOT_H_
@@ -26,22 +26,46 @@
 namespace bistable {
 
 struct PlotData {
+  // The title: plain text shown literally, or gnuplot enhanced text when title_markup (MapFigure
+  // builds it from the metric catalogue; any text from a file in it is escaped with EnhancedText).
   std::string title;
+  bool title_markup = false;
+  // Subtitle items (enhanced text, e.g. "η = 0.1"), joined with ", " and wrapped on a line or two
+  // under the title: the fixed parameters and the slice's fixed axis values.
+  std::vector<std::string> subtitle;
+  std::string footer;  // plain text, small and grey in the bottom-left corner (provenance)
   std::string metric, unit;
+  // The colour-bar (heatmap) or value-axis (curve) label, enhanced text ("FRF [dB]"); empty: the
+  // metric name with its unit ("[unit]" only for a unit that is not "", "1" or "code").
+  std::string value_label;
   std::vector<std::string> axis_names, axis_units;  // 1 (curve) or 2 (heatmap: x = axis 1, y = axis 0)
   std::vector<std::vector<double>> axis_values;
   std::vector<double> values;       // row-major over the axes; curves: one block per series
   std::vector<std::string> series;  // curves: a legend label per block (e.g. "up", "down")
-  // Integer codes (motion, period, termination): one colour and one labelled colour-bar tick per
-  // code (heatmaps), points on the code's row with the names on the y axis (curves). Values not
-  // among the codes are drawn as missing. Empty: a continuous metric.
+  // Integer codes (motion, period, termination): one colour and one legend entry per code
+  // (heatmaps: a legend of flat boxes beside the map), points on the code's row with the names on
+  // the y axis (curves). Values not among the codes are drawn as missing. Empty: a continuous metric.
   struct Code {
     double value;
     std::string name, colour;  // colour "#rrggbb"; empty: the next of a qualitative palette
+    bool at_least = false;     // the class of every value >= value (the tail of many periods)
   };
   std::vector<Code> codes;
   // Colour range (heatmaps of continuous metrics) shared with other maps; NaN: ColourRange of values.
+  // Values beyond the range take its end colours and the figure says so under the plot, with
+  // clip_reason when given (enhanced text).
   double cb_lo = NAN, cb_hi = NAN;
+  std::string clip_reason;
+  std::string cb_note;  // enhanced text under the plot about the colour scale ("shared by ...")
+  // Heatmaps of continuous metrics: contour lines at these levels (e.g. 0 dB, the chaos threshold),
+  // each with a legend entry below the plot.
+  struct Contour {
+    double level;
+    std::string label;  // enhanced text
+    std::string colour = "#000000";
+    bool dashed = false;
+  };
+  std::vector<Contour> contours;
   // Heatmaps: curves (or points) in the axes' coordinates drawn over the map (e.g. fold curves of
   // harmonic balance), each with a legend entry (below the plot) unless its label is empty.
   struct Overlay {
@@ -51,10 +75,30 @@ struct PlotData {
     std::string colour = "#000000";
   };
   std::vector<Overlay> overlays;
+  // Heatmaps: at most this many cells drawn along each axis (every k-th grid value; the footer says
+  // so), so a 1601 x 1601 map draws in a second; 0: every value.
+  int max_cells = 600;
 };
 
-// format: "png" or "svg" (from the output's extension when empty).
+// format: "png", "svg" or "pdf" (from the output's extension when empty).
 Status RenderPlot(const PlotData& d, const std::string& out_path, std::string format = "");
+
+// The figure format of an output path by its extension: "svg", "pdf", else "png".
+std::string PlotFormatOf(const std::string& out_path);
+
+// `text` shown literally inside gnuplot enhanced text (its markup characters ^ _ @ & ~ { } \ escaped).
+std::string EnhancedText(const std::string& text);
+
+// A parameter or axis name as a symbol in enhanced text ("eta_r" → "η_r", "k_lin" → "k_{lin}"); a
+// name not in the table is shown literally.
+std::string SymbolOf(const std::string& name);
+
+// A unit as stored (AxisUnit's or a map file's unit_label: "delta_s/tau", "1/tau", "N s/m^3") as
+// enhanced text with symbols ("δ_s/τ"); "" for "", "1" and "code".
+std::string UnitMarkup(const std::string& unit);
+
+// "η = 0.1" (PlotNumber) with the unit when it is dimensional ("m_m = 0.0123 kg").
+std::string ParameterItem(const std::string& name, double value, const std::string& unit);
 
 // The colour range of a continuous metric's heatmap: symmetric about 0 for the diverging metrics
 // (frf_db: attenuation blue, amplification red; lle: stable blue, chaotic red), [min, max] otherwise.
@@ -75,13 +119,15 @@ struct ScatterData {
 Status RenderHdScatter(const ScatterData& d, const std::string& out_path);
 
 // Continuation branches (amplitude vs parameter): each branch piece named (e.g. "+well", "-well",
-// "interwell"; one colour per name), stable runs solid, unstable dashed, folds marked; the legend has
-// one entry per (name, stability) actually drawn, plus "fold" when a fold is, below the plot.
+// "interwell"; one colour per name), stable runs solid, unstable dashed, folds marked; the legend (below
+// the plot) has one entry per name drawn, "unstable (dashed)" when an unstable run is, "fold" when a fold is.
 // Further markers (period doublings, Neimark–Sacker points, cusps) with their own legend entries.
 // Optional extra points (e.g. the one-harmonic closed form) in grey. With stability = false every
 // curve is solid and its legend entry is its name alone (curves that are not orbits: fold curves).
 struct BranchPlot {
-  std::string title, x_name, x_unit, y_label;
+  std::string title, x_name, x_unit, y_label;  // y_label: enhanced text
+  bool title_markup = false;                   // the title is enhanced text (else shown literally)
+  std::vector<std::string> subtitle;           // enhanced text items (the fixed parameters)
   struct Branch {
     std::string name;
     double width = 2;  // line width (a wider curve drawn first stays visible under one it coincides with)
@@ -107,13 +153,19 @@ Status RenderBranches(const BranchPlot& d, const std::string& out_path);
 // upward sweep and the downward sweep overlaid so hysteresis shows.
 struct BifurcationData {
   std::string title, x_name, x_unit;
+  bool title_markup = false;
+  std::vector<std::string> subtitle;  // enhanced text items (the fixed parameters)
+  std::string footer;                 // plain text (the sweep's name and id)
   std::vector<double> x_up, y_up, x_down, y_down;
 };
 Status RenderBifurcation(const BifurcationData& d, const std::string& out_path);
 
 // Frequency-sweep FRF (paper Figs. 23–24), three rows over frequency: the averaged Fourier amplitudes
-// of input and output (mag_label names the quantity and its unit), the FRF in dB (Welch H1 in colour
-// over the raw single-FFT ratio in a light tint), and the coherence γ² in [0, 1]; one colour per curve.
+// of input and output (mag_label names the quantity and its unit), the FRF in dB (Welch H1 in colour,
+// only where the coherence is at least kChirpCoherenceMin: elsewhere the input has too little energy
+// for a ratio, over the raw single-FFT ratio in a light tint), and the coherence γ² in [0, 1] with the
+// threshold; one colour per curve, named once (row 1).
+inline constexpr double kChirpCoherenceMin = 0.5;
 struct ChirpFrfPlot {
   std::string title, freq_label, mag_label;
   struct Curve {

@@ -107,11 +107,12 @@ Status Fig3(Ctx& c) {
       o.harmonics = c.quick ? 3 : 7;
       auto r = ContinueBranches(o);
       if (!r.ok()) return r.status();
-      BranchPlot d =
-          HbmBranchPlot(*r, m, ContinuationParam::kOmega,
-                        std::string("Fig. 3") + (m == ModelKind::kStandalone ? "a" : "b") +
-                            ": harmonic balance, alpha = " + PlotNumber(a) +
-                            (m == ModelKind::kStandalone ? ", no resonator" : ", with resonator (eta_r = 1.5)"));
+      BranchPlot d = HbmBranchPlot(*r, m, ContinuationParam::kOmega,
+                                   std::string("Fig. 3") + (m == ModelKind::kStandalone ? "a" : "b") +
+                                       ": periodic orbits by harmonic balance" +
+                                       (m == ModelKind::kStandalone ? ", no resonator" : ", with resonator"));
+      d.subtitle = {ParameterItem("alpha", a, "")};
+      if (m != ModelKind::kStandalone) d.subtitle.push_back(ParameterItem("eta_r", 1.5, ""));
       d.extra_label = "one harmonic, zero mean (corrected Eq. 9)";
       for (int k = 0; k <= 300; ++k) {
         const double w = 0.05 + 2.95 * k / 300.0;

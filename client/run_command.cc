@@ -43,7 +43,8 @@ struct RunArgs {
   bool json = false, no_plots = false, quiet = false;
   std::string serve;  // dashboard address (loopback)
   long job_items = 0;
-  std::string shard;  // "I/N": one slice into its shard store
+  std::string shard;                // "I/N": one slice into its shard store
+  std::string plot_format = "png";  // the default figures: png, svg or pdf (docs/figures.md)
 };
 
 // `bistable run SPEC --shard I/N`: the shard's items into <data>/shards/<id>-<I>-of-<N>/ (client/shard_run.h).
@@ -155,8 +156,14 @@ int RunSweep(const RunArgs& a) {
       std::cerr << "warning: " << warnings.back() << "\n";
     } else {
       const auto plot_dir = std::filesystem::path(*path).replace_extension("").string();
-      for (auto& f : RenderDefaultPlots(*spec, *path, plot_dir)) files.push_back(f);
+      for (auto& f : RenderDefaultPlots(*spec, *path, plot_dir, a.plot_format)) files.push_back(f);
     }
+  }
+  // A basin map: each attractor's share of the starts (the map's group attractors holds them too).
+  std::vector<BasinShare> basins;
+  if (spec->IsBasinSweep()) {
+    auto att = ReadMapMetric(*path, "attractor");
+    if (att.ok()) basins = BasinShares(*att);
   }
   if (a.json) {
     nlohmann::json j = {{"id", plan->id},
@@ -174,6 +181,11 @@ int RunSweep(const RunArgs& a) {
                           {"compute", secs(t_planned, t_computed)},
                           {"publish", secs(t_computed, t_published)}}}};
     if (!warnings.empty()) j["warnings"] = warnings;
+    if (!basins.empty()) {
+      j["attractors"] = nlohmann::json::array();
+      for (const BasinShare& b : basins)
+        j["attractors"].push_back({{"id", b.id}, {"name", b.name}, {"basin_fraction", b.fraction}});
+    }
     std::cout << DumpJson(j, 2) << "\n";
   } else {
     std::printf(
@@ -183,6 +195,12 @@ int RunSweep(const RunArgs& a) {
     if (KindOf(*spec).InRounds())
       std::printf("refined map: %ld of %ld grid points integrated (%.1f %% of the uniform grid), the rest filled\n",
                   items, spec->points(), 100.0 * static_cast<double>(items) / static_cast<double>(spec->points()));
+    if (!basins.empty()) {
+      std::printf("basins:");
+      for (size_t i = 0; i < basins.size(); ++i)
+        std::printf("%s %s %.1f %%", i ? ";" : "", basins[i].name.c_str(), 100 * basins[i].fraction);
+      std::printf("\n");
+    }
     std::printf("map: %s\n", path->c_str());
     for (size_t i = 1; i < files.size(); ++i) std::printf("plot: %s\n", files[i].c_str());
   }
@@ -257,6 +275,10 @@ void AddRunCommand(CLI::App& app, int* exit_code) {
   cmd->add_flag("--no-plots", a->no_plots,
                 "do not render the default plots (without gnuplot they are skipped with a warning)");
   cmd->add_flag("--quiet", a->quiet, "no progress output");
+  cmd->add_option("--plot-format", a->plot_format,
+                  "format of the default figures: png, svg (vector, editable text) or pdf (vector; docs/figures.md)")
+      ->check(CLI::IsMember({"png", "svg", "pdf"}))
+      ->capture_default_str();
   cmd->add_option("--shard", a->shard,
                   "I/N: compute only shard I of N of the sweep (0 <= I < N; a job array's task) into its own store, "
                   "<data>/shards/<id>-<I>-of-<N>/; then bistable merge assembles the map")

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <limits>
 #include <memory>
@@ -461,28 +462,33 @@ HttpResponse QueryRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* ma
                {"mask", mask}});
 }
 
-std::string Num(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  return b;
-}
-
 // The `bistable point` command line that computes this point (every setting it takes); *note says
 // what it cannot set when the sweep changed a setting the command has no flag for.
 std::string PointCommand(const PointSpec& s, std::string* note) {
   const PointSpec d;
-  std::string cmd = "bistable point --json --model " + std::string(ModelName(s.model)) + " --alpha " + Num(s.alpha) +
-                    " --omega " + Num(s.omega) + " --eps " + Num(s.params.eps) + " --eta " + Num(s.params.eta);
+  // Each number in its shortest form that reads back as the same double (6 digits when they do, at
+  // most 17): the command stays readable and on one line, and still computes exactly this point.
+  auto Short = [](double v) {
+    char b[40];
+    for (int digits = 6; digits <= 17; ++digits) {
+      std::snprintf(b, sizeof b, "%.*g", digits, v);
+      if (std::strtod(b, nullptr) == v) break;
+    }
+    return std::string(b);
+  };
+  std::string cmd = "bistable point --json --model " + std::string(ModelName(s.model)) + " --alpha " + Short(s.alpha) +
+                    " --omega " + Short(s.omega) + " --eps " + Short(s.params.eps) + " --eta " + Short(s.params.eta);
   if (HasResonator(s.model))
-    cmd += " --eta-r " + Num(s.params.eta_r) + " --phi " + Num(s.params.phi) + " --lambda " + Num(s.params.lambda);
-  cmd += " --integrator " + std::string(IntegratorName(s.integration.integrator)) + " --dt " + Num(s.integration.dt) +
-         " --t-end " + Num(s.integration.t_end) + " --t-keep " + Num(s.integration.t_keep);
+    cmd +=
+        " --eta-r " + Short(s.params.eta_r) + " --phi " + Short(s.params.phi) + " --lambda " + Short(s.params.lambda);
+  cmd += " --integrator " + std::string(IntegratorName(s.integration.integrator)) + " --dt " + Short(s.integration.dt) +
+         " --t-end " + Short(s.integration.t_end) + " --t-keep " + Short(s.integration.t_keep);
   if (s.integration.integrator != IntegratorKind::kRk4)
-    cmd += " --rtol " + Num(s.integration.rtol) + " --atol " + Num(s.integration.atol);
-  if (s.ic_given) cmd += " --ic " + Num(s.ic[0]) + "," + Num(s.ic[1]) + "," + Num(s.ic[2]) + "," + Num(s.ic[3]);
-  cmd += " --chaos-threshold " + Num(s.metrics.chaos_threshold) + " --renorm-every " +
+    cmd += " --rtol " + Short(s.integration.rtol) + " --atol " + Short(s.integration.atol);
+  if (s.ic_given) cmd += " --ic " + Short(s.ic[0]) + "," + Short(s.ic[1]) + "," + Short(s.ic[2]) + "," + Short(s.ic[3]);
+  cmd += " --chaos-threshold " + Short(s.metrics.chaos_threshold) + " --renorm-every " +
          std::to_string(s.metrics.renorm_every) + " --sample-every " + std::to_string(s.metrics.sample_every) +
-         " --poincare-phase " + Num(s.metrics.poincare_phase);
+         " --poincare-phase " + Short(s.metrics.poincare_phase);
   if (!s.metrics.rosenstein) cmd += " --no-rosenstein";
   if (s.metrics.period_tol != d.metrics.period_tol || s.metrics.max_period != d.metrics.max_period ||
       s.metrics.hd_level != d.metrics.hd_level || s.metrics.hd_top_k != d.metrics.hd_top_k)

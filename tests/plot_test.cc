@@ -4,10 +4,13 @@
 // Also: discrete codes keep "none found" apart, legends name only what is drawn (SVG text), and
 // `bistable run` without gnuplot keeps the map, says what is missing and succeeds.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -29,11 +32,21 @@ struct PngStats {
   std::map<std::string, long> colours;  // pixels near each asked colour
   std::map<std::string, std::pair<int, int>>
       rows;  // with rows: the 5th and 95th percentile rows of each colour's pixels
+  std::map<std::string, std::vector<int>> extent;  // with rows: each colour's bounding box {row0, row1, col0, col1}
+  std::map<std::string, long> box;                 // with a box: the colours' pixels inside it
+  long border_ink = -1;                            // non-background pixels within 2 px of the canvas edge
 };
 
-PngStats Stats(const std::string& png, const std::vector<std::string>& colours = {}, bool rows = false) {
-  std::vector<std::string> argv = {"/usr/bin/python3", BISTABLE_TESTS_DIR "/png_stats.py"};
+// Options: "--rows", "--box x0 y0 x1 y1" (one string), "--border" (2 px) are passed on to png_stats.py.
+PngStats Stats(const std::string& png, const std::vector<std::string>& colours = {}, bool rows = false,
+               const std::string& box = "") {
+  std::vector<std::string> argv = {"/usr/bin/python3", BISTABLE_TESTS_DIR "/png_stats.py", "--border", "2"};
   if (rows) argv.push_back("--rows");
+  if (!box.empty()) {
+    argv.push_back("--box");
+    std::istringstream in(box);
+    for (std::string f; in >> f;) argv.push_back(f);
+  }
   argv.push_back(png);
   argv.insert(argv.end(), colours.begin(), colours.end());
   const bistable_test::ExecResult r = RunArgv(argv);
@@ -42,14 +55,21 @@ PngStats Stats(const std::string& png, const std::vector<std::string>& colours =
   if (r.exit_code != 0) return s;
   const auto j = nlohmann::json::parse(r.out);
   s.width = j["width"], s.height = j["height"], s.distinct = j["distinct"], s.non_background = j["non_background"];
+  s.border_ink = j["border_ink"];
   for (const auto& [k, v] : j["colours"].items()) s.colours[k] = v.get<long>();
   if (j.contains("rows"))
     for (const auto& [k, v] : j["rows"].items())
       if (!v.is_null()) s.rows[k] = {v[0].get<int>(), v[1].get<int>()};
+  if (j.contains("extent"))
+    for (const auto& [k, v] : j["extent"].items())
+      if (!v.is_null()) s.extent[k] = v.get<std::vector<int>>();
+  if (j.contains("box"))
+    for (const auto& [k, v] : j["box"].items()) s.box[k] = v.get<long>();
   return s;
 }
 
-// Rendered, the size asked, not blank, and each of `data_colours` covers at least `min_pixels`.
+// Rendered, the size asked, not blank, each of `data_colours` covers at least `min_pixels`, and nothing
+// touches the canvas' edge (text or a legend cut by it: docs/figures.md, "no text outside the canvas").
 void ExpectDrawn(const bistable::Status& st, const std::string& png, int width, int height,
                  const std::vector<std::string>& data_colours, long min_pixels = 200) {
   ASSERT_TRUE(st.ok()) << st.ToString();
@@ -58,6 +78,7 @@ void ExpectDrawn(const bistable::Status& st, const std::string& png, int width, 
   EXPECT_EQ(s.height, height);
   EXPECT_GT(s.distinct, 20) << "a figure has anti-aliased text and lines";
   EXPECT_GT(s.non_background, 0.01);
+  EXPECT_EQ(s.border_ink, 0) << "something is drawn on the canvas' edge (cut off): " << png;
   for (const std::string& c : data_colours) EXPECT_GE(s.colours[c], min_pixels) << c << " (data colour) in " << png;
 }
 
@@ -203,9 +224,14 @@ TEST_F(Figures, BranchLegendNamesOnlyWhatIsDrawn) {
   const std::string svg = File("branches.svg");
   ASSERT_TRUE(bistable::RenderBranches(d, svg).ok());
   const std::string text = bistable_test::ReadText(svg);
-  for (const char* drawn : {"+well, stable", "interwell, stable", "interwell, unstable", "fold"})
+  // Compact: one entry per name, one for the dashed unstable runs (a cascade of branches must not fill the canvas).
+  for (const char* drawn : {">+well<", ">interwell<", ">unstable (dashed)<", ">fold<"})
     EXPECT_NE(text.find(drawn), std::string::npos) << drawn;
-  EXPECT_EQ(text.find("+well, unstable"), std::string::npos) << "no unstable +well run is drawn";
+  EXPECT_EQ(text.find(", stable"), std::string::npos);
+  // Nothing unstable drawn: no entry for it.
+  d.branches = {plus};
+  ASSERT_TRUE(bistable::RenderBranches(d, svg).ok());
+  EXPECT_EQ(bistable_test::ReadText(svg).find("unstable"), std::string::npos) << "no unstable run is drawn";
 }
 
 // Period-doubling and Neimark–Sacker markers in their colours with legend entries; drawn only when
@@ -273,6 +299,15 @@ TEST_F(Figures, BifurcationDiagram) {
     }
   const std::string out = File("bif.png");
   ExpectDrawn(bistable::RenderBifurcation(d, out), out, 900, 700, {"#2166ac", "#b2182b"}, 100);
+  // The legend's samples are big enough to see: with one data point each (a dot of a few pixels), the legend's
+  // dots cover > 40 px each.
+  bistable::BifurcationData key = d;
+  for (auto* v : {&key.x_up, &key.y_up, &key.x_down, &key.y_down}) v->resize(1);
+  const std::string legend = File("bif_key.png");
+  ASSERT_TRUE(bistable::RenderBifurcation(key, legend).ok());
+  const PngStats ks = Stats(legend, {"#2166ac", "#b2182b"});
+  EXPECT_GT(ks.colours.at("#2166ac"), 40);
+  EXPECT_GT(ks.colours.at("#b2182b"), 40);
 }
 
 TEST_F(Figures, ChirpFrfWithCoherence) {
@@ -292,6 +327,15 @@ TEST_F(Figures, ChirpFrfWithCoherence) {
   d.curves = {c};
   const std::string out = File("frf.png");
   ExpectDrawn(bistable::RenderChirpFrf(d, out), out, 1100, 1100, {"#2166ac", "#c6dbef"}, 200);
+  // H1 is drawn only where the coherence reaches the threshold: with none anywhere, its line is gone (the
+  // curve's colour keeps only rows 1 and 3), and the SVG says the threshold.
+  const long with_h1 = Stats(out, {"#2166ac"}).colours.at("#2166ac");
+  for (double& g : d.curves[0].coherence) g = 0.1;
+  const std::string low = File("frf_low.png"), svg = File("frf.svg");
+  ASSERT_TRUE(bistable::RenderChirpFrf(d, low).ok());
+  EXPECT_LT(Stats(low, {"#2166ac"}).colours.at("#2166ac"), with_h1 * 0.8) << "H1 drawn where the coherence is 0.1";
+  ASSERT_TRUE(bistable::RenderChirpFrf(d, svg).ok());
+  EXPECT_NE(bistable_test::ReadText(svg).find("H1 where coh. >= 0.5"), std::string::npos);
 }
 
 TEST_F(Figures, Spectrogram) {
@@ -346,6 +390,182 @@ TEST_F(Figures, PanelsShareAYRange) {
   EXPECT_LT(shared, 0.35) << "10 mm of 70 against 50 of 70: about 0.2";
   ASSERT_TRUE(bistable::RenderPanels(figure(false), own).ok());
   EXPECT_GT(span_ratio(own), 0.6) << "each panel on its own range: both curves fill their plots";
+}
+
+// ---- map figures as `bistable run` and `map --format` draw them (MapFigure, docs/figures.md) --------------
+
+// A map of `metric` over alpha (rows) x omega (columns) on [0.1, 3]^2 with values f(alpha, omega).
+bistable::MapArray MapOf(const std::string& metric, const std::string& unit, int n,
+                         const std::function<double(double, double)>& f) {
+  bistable::MapArray m;
+  m.metric = metric;
+  m.unit = unit;
+  m.axes = {{"alpha", Range(n, 0.1, 3)}, {"omega", Range(n, 0.1, 3)}};
+  m.dims = {static_cast<size_t>(n), static_cast<size_t>(n)};
+  m.dim_names = {"alpha", "omega"};
+  for (double a : m.axes[0].values)
+    for (double o : m.axes[1].values) m.values.push_back(f(a, o));
+  return m;
+}
+
+// The coupled model's fixed parameters, as a spec gives them.
+bistable::MapContext Coupled() {
+  bistable::MapContext c;
+  c.name = "fig test";
+  c.id = "0123456789ab";
+  c.fixed = {{"eta", 0.1, "c/(m_m omega_n)", ""},
+             {"eta_r", 0.075, "c_r/(m_r omega_n)", ""},
+             {"lambda", 0.8, "omega_r/omega_n", ""},
+             {"phi", 2.0, "m_r/m_m", ""}};
+  c.chaos_threshold = 0.01;
+  return c;
+}
+
+// The plot area of a 900 x 700 map with a colour bar, as fractions (x0 y0 x1 y1, y from the top), a little inside.
+constexpr const char* kPlotBox = "0.125 0.15 0.79 0.8";
+
+// Every map figure: the metric's long name as the title (not its id, not the spec's name), the fixed
+// parameters typeset in a subtitle, the name and id in the footer, the axes and the colour bar with
+// symbols and units; the plot fills the canvas (before: a 440 x 490 square in 900 x 700).
+TEST_F(Figures, FrfMapHasTitleSubtitleZeroDbContourAndFillsTheCanvas) {
+  const auto m = MapOf("frf_db", "dB", 60, [](double, double o) { return 14 * (o - 1.55); });
+  auto d = bistable::MapFigure(m, {}, Coupled());
+  ASSERT_TRUE(d.ok()) << d.status().ToString();
+  ASSERT_EQ(d->contours.size(), 1u);
+  const std::string png = File("frf.png"), svg = File("frf.svg");
+  ExpectDrawn(bistable::RenderPlot(*d, png), png, 900, 700, {"#2166ac", "#b2182b"}, 2000);
+  // The 0 dB contour: black inside the plot area (the cells are blue, white and red; the tics point outward).
+  const PngStats in = Stats(png, {"#000000", "#2166ac", "#b2182b"}, true, kPlotBox);
+  EXPECT_GT(in.box.at("#000000"), 300) << "no 0 dB contour drawn inside the plot";
+  // The map fills the canvas: the data's colours span more than half of it (the old square spanned a third).
+  ASSERT_TRUE(in.extent.count("#2166ac") && in.extent.count("#b2182b"));
+  const auto& blue = in.extent.at("#2166ac");
+  const auto& red = in.extent.at("#b2182b");
+  const double rows = std::max(blue[1], red[1]) - std::min(blue[0], red[0]);
+  const double cols = std::max(blue[3], red[3]) - std::min(blue[2], red[2]);
+  EXPECT_GT(rows * cols / (900.0 * 700.0), 0.45) << rows << " x " << cols << " px of data in 900 x 700";
+  // Without the crossing, no contour and no legend entry.
+  auto flat = bistable::MapFigure(MapOf("frf_db", "dB", 60, [](double, double o) { return 5 + o; }), {}, Coupled());
+  ASSERT_TRUE(flat.ok());
+  const std::string none = File("flat.png");
+  ASSERT_TRUE(bistable::RenderPlot(*flat, none).ok());
+  EXPECT_LT(Stats(none, {"#000000"}, false, kPlotBox).box.at("#000000"), 20);
+  ASSERT_TRUE(bistable::RenderPlot(*d, svg).ok());
+  const std::string text = bistable_test::ReadText(svg);
+  for (const char* want : {"Frequency response of the main mass", "FRF = 0 dB", "\u03b7 = 0.1", "0.075", "\u03bb = 0.8",
+                           "\u03c6 = 2", "fig test", "sweep 0123456789ab", "\u03b1 = A", "\u03a9 = \u03c9", "[dB]"})
+    EXPECT_NE(text.find(want), std::string::npos) << want;
+  for (const char* never : {"frf_db", "fig test: ", "[1]"}) EXPECT_EQ(text.find(never), std::string::npos) << never;
+}
+
+TEST_F(Figures, LleMapMarksTheChaosThreshold) {
+  const auto m = MapOf("lle", "1/tau", 50, [](double a, double) { return 0.1 * (a - 1.55); });
+  auto d = bistable::MapFigure(m, {}, Coupled());
+  ASSERT_TRUE(d.ok());
+  const std::string png = File("lle.png"), svg = File("lle.svg");
+  ExpectDrawn(bistable::RenderPlot(*d, png), png, 900, 700, {"#2166ac", "#b2182b"}, 2000);
+  EXPECT_GT(Stats(png, {"#000000"}, false, kPlotBox).box.at("#000000"), 100) << "no threshold line";
+  ASSERT_TRUE(bistable::RenderPlot(*d, svg).ok());
+  const std::string text = bistable_test::ReadText(svg);
+  for (const char* want : {"Largest Lyapunov exponent", "chaos threshold LLE = 0.01", "LLE [1/\u03c4]"})
+    EXPECT_NE(text.find(want), std::string::npos) << want;
+  EXPECT_EQ(text.find("1/tau"), std::string::npos) << "the unit in ASCII";
+}
+
+// Integer codes: a legend of flat colours with names, no continuous colour bar (no tick at 2.5, no "[1]"),
+// "none found" grey; periods beyond the 11th value share one class.
+TEST_F(Figures, PeriodMapIsDiscreteWithNoneFoundGrey) {
+  const auto m = MapOf("period", "forcing periods", 40, [](double a, double o) {
+    return std::floor(std::fmod(a * 7 + o * 3, 17.0));  // 0 .. 16: more than 12 values
+  });
+  auto d = bistable::MapFigure(m, {}, Coupled());
+  ASSERT_TRUE(d.ok());
+  ASSERT_EQ(d->codes.size(), 12u);
+  EXPECT_EQ(d->codes.front().name, "none found");
+  EXPECT_TRUE(d->codes.back().at_least);
+  const std::string png = File("period.png"), svg = File("period.svg");
+  ExpectDrawn(bistable::RenderPlot(*d, png), png, 900, 700, {"#bdbdbd", "#1b9e77", "#444444"}, 500);
+  ASSERT_TRUE(bistable::RenderPlot(*d, svg).ok());
+  const std::string text = bistable_test::ReadText(svg);
+  for (const char* want : {">none found<", ">1<", ">10<", "\u2265 11", "Stroboscopic period"})
+    EXPECT_NE(text.find(want), std::string::npos) << want;
+  for (const char* never : {">0.5<", ">2.5<", "[1]", ">16<"}) EXPECT_EQ(text.find(never), std::string::npos) << never;
+  // A refinement level is a code too: by number, never "[1]".
+  auto levels = bistable::MapFigure(MapOf("refine_level", "1", 20, [](double a, double) { return a < 1 ? 0 : 2; }), {},
+                                    Coupled());
+  ASSERT_TRUE(levels.ok());
+  ASSERT_EQ(levels->codes.size(), 2u);
+  const std::string lsvg = File("levels.svg");
+  ASSERT_TRUE(bistable::RenderPlot(*levels, lsvg).ok());
+  EXPECT_EQ(bistable_test::ReadText(lsvg).find("[1]"), std::string::npos);
+}
+
+// EDR colour bars stop at 100 % and the figure says which values pass it and why.
+TEST_F(Figures, EdrClippingIsSaid) {
+  const auto m = MapOf("edr_t", "%", 30, [](double a, double o) { return std::min(102.0, 40 * a + 10 * o); });
+  auto d = bistable::MapFigure(m, {}, Coupled());
+  ASSERT_TRUE(d.ok());
+  const std::string png = File("edr.png"), svg = File("edr.svg");
+  ExpectDrawn(bistable::RenderPlot(*d, png), png, 900, 700, {"#fde725"}, 2000);
+  ASSERT_TRUE(bistable::RenderPlot(*d, svg).ok());
+  const std::string text = bistable_test::ReadText(svg);
+  for (const char* want : {"values above 100 %", "up to 102 %", "stored energy", "Total energy dissipation ratio"})
+    EXPECT_NE(text.find(want), std::string::npos) << want;
+}
+
+// Basin maps: attractors named in words with their basin fractions; axes with symbols and units.
+TEST_F(Figures, BasinLegendNamesAttractorsWithFractions) {
+  bistable::MapArray m;
+  m.metric = "attractor";
+  m.unit = "code";
+  m.axes = {{"vm0", Range(40, -2, 2)}, {"ym0", Range(40, -2, 2)}};
+  m.dims = {40, 40};
+  m.dim_names = {"vm0", "ym0"};
+  m.categories = {{0, "A0_P1_-well_y-1.286_v-0.361"}, {1, "A1_P1_+well_y0.418_v-0.163"}};
+  for (int i = 0; i < 40; ++i)
+    for (int j = 0; j < 40; ++j) m.values.push_back(j < 30 ? 0 : 1);  // 75 % and 25 %
+  bistable::MapContext c;
+  c.fixed = {{"alpha", 0.1389, "A0/delta_s", ""}, {"omega", 1.2, "omega0/omega_n", ""}, {"eta", 0.3, "", ""}};
+  auto d = bistable::MapFigure(m, {}, c);
+  ASSERT_TRUE(d.ok());
+  const std::string png = File("basins.png"), svg = File("basins.svg");
+  ExpectDrawn(bistable::RenderPlot(*d, png), png, 900, 700, {"#1b9e77", "#d95f02"}, 2000);
+  ASSERT_TRUE(bistable::RenderPlot(*d, svg).ok());
+  const std::string text = bistable_test::ReadText(svg);
+  for (const char* want : {"period-1, -well (75.0 %)", "period-1, +well (25.0 %)", "Basins of attraction", "(0) [",
+                           "\u03b4", "\u03a9 = 1.2"})
+    EXPECT_NE(text.find(want), std::string::npos) << want;
+  for (const char* never : {"A1 P1", "ym0", "vm0"}) EXPECT_EQ(text.find(never), std::string::npos) << never;
+  const auto shares = bistable::BasinShares(m);
+  ASSERT_EQ(shares.size(), 2u);
+  EXPECT_EQ(shares[0].name, "period-1, -well");
+  EXPECT_DOUBLE_EQ(shares[0].fraction, 0.75);
+}
+
+// A 1601 x 1601 map draws from at most 600 values per axis, fast, and says so.
+TEST_F(Figures, BigMapsAreDecimatedForDrawing) {
+  const auto m =
+      MapOf("lle", "1/tau", 1601, [](double a, double o) { return 0.05 * std::sin(3 * a) * std::cos(2 * o); });
+  auto d = bistable::MapFigure(m, {}, Coupled());
+  ASSERT_TRUE(d.ok());
+  const std::string svg = File("big.svg"), png = File("big.png");
+  const auto t0 = std::chrono::steady_clock::now();
+  ExpectDrawn(bistable::RenderPlot(*d, png), png, 900, 700, {"#b2182b"}, 1000);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 20.0);
+  ASSERT_TRUE(bistable::RenderPlot(*d, svg).ok());
+  EXPECT_NE(bistable_test::ReadText(svg).find("drawn from 535 x 535 of the 1601 x 1601 grid values"),
+            std::string::npos);
+}
+
+// Vector output: `run --plot-format pdf` and `map --format pdf` go through RenderPlot's pdf terminal.
+TEST_F(Figures, MapsRenderAsPdfAndSvg) {
+  auto d =
+      bistable::MapFigure(MapOf("motion", "code", 10, [](double a, double) { return a < 1.5 ? 0 : 1; }), {}, Coupled());
+  ASSERT_TRUE(d.ok());
+  const std::string pdf = File("m.pdf");
+  ASSERT_TRUE(bistable::RenderPlot(*d, pdf).ok());
+  EXPECT_EQ(bistable_test::ReadText(pdf).rfind("%PDF", 0), 0u);
+  EXPECT_FALSE(bistable::RenderPlot(*d, File("m.eps"), "eps").ok());
 }
 
 // ---- without gnuplot: a real `bistable run` whose PATH has no gnuplot ------------------------------

@@ -136,7 +136,8 @@ async function openSweep(id) {
   const metric = $('metric');
   const keep = metric.value;
   metric.replaceChildren(...info.metrics.map((m) => { const o = el('option', m.name + (m.unit ? ' [' + m.unit + ']' : '')); o.value = m.name; return o; }));
-  if (info.metrics.some((m) => m.name === keep)) metric.value = keep;
+  const wanted = new URLSearchParams(location.hash.slice(1)).get('metric') || keep;
+  if (info.metrics.some((m) => m.name === wanted)) metric.value = wanted;
   const names = info.axes.map((a) => a.name);
   fillAxisSelect($('x-axis'), names, names[names.length - 1]);
   fillAxisSelect($('y-axis'), names, names.length > 1 ? names[0] : '');
@@ -183,7 +184,17 @@ function sliceParams() {
   return p;
 }
 
+// The open sweep and map in the URL's fragment (#sweep=ID&metric=NAME): a view can be bookmarked, shared
+// and opened by a script (docs/dashboard.md).
+function saveHash() {
+  if (!state.sweep) return;
+  const h = new URLSearchParams({ sweep: state.sweep });
+  if ($('metric').value) h.set('metric', $('metric').value);
+  history.replaceState(null, '', '#' + h.toString());
+}
+
 async function drawMap() {
+  saveHash();
   if (!state.info || !state.info.metrics.length) return;
   try {
     state.map = await api('map', sliceParams());
@@ -233,21 +244,34 @@ function render() {
   off.getContext('2d').putImageData(img, 0, 0);
   ctx.imageSmoothingEnabled = false;
   ctx.drawImage(off, M.left, M.top, g.w, g.h);
-  if (state.mask) {  // query matches: outlined cells
-    ctx.strokeStyle = '#ff2020';
-    ctx.lineWidth = Math.max(1, Math.min(2, g.cw / 4));
-    for (let iy = 0; iy < g.ny; ++iy)
-      for (let ix = 0; ix < g.nx; ++ix)
-        if (state.mask[iy * g.nx + ix]) ctx.strokeRect(M.left + ix * g.cw + 0.5, M.top + g.h - (iy + 1) * g.ch + 0.5, g.cw - 1, g.ch - 1);
+  if (state.mask) {  // query matches: outlined cells, black with a white core (no map uses that pair:
+    // a red outline read as "chaotic" on the motion map and vanished into FRF reds; docs/figures.md)
+    const lw = Math.max(1, Math.min(2, g.cw / 4));
+    for (const [colour, width] of [['#000000', lw + 1], ['#ffffff', Math.max(0.5, lw - 0.5)]]) {
+      ctx.strokeStyle = colour;
+      ctx.lineWidth = width;
+      for (let iy = 0; iy < g.ny; ++iy)
+        for (let ix = 0; ix < g.nx; ++ix)
+          if (state.mask[iy * g.nx + ix]) ctx.strokeRect(M.left + ix * g.cw + 0.5, M.top + g.h - (iy + 1) * g.ch + 0.5, g.cw - 1, g.ch - 1);
+    }
   }
   ctx.fillStyle = '#222';
   ctx.font = '12px sans-serif';
+  // Ticks at round numbers (1, 2 or 5 times a power of ten, about 6 of them), placed between the grid
+  // values they fall between (the grid's own values, 0.522 or 1.03, are not tick labels).
   const ticks = (axis, n, horizontal) => {
-    const step = Math.max(1, Math.ceil(n / 6));
-    for (let i = 0; i < n; i += step) {
-      const label = fmt(axis.values[i], 3);
-      if (horizontal) ctx.fillText(label, M.left + (i + 0.5) * g.cw - 10, M.top + g.h + 16);
-      else ctx.fillText(label, 22, M.top + g.h - (i + 0.5) * g.ch + 4);
+    const v = axis.values, lo = v[0], hi = v[n - 1];
+    if (!(hi > lo)) return;
+    const raw = (hi - lo) / 6, p = Math.pow(10, Math.floor(Math.log10(raw)));
+    const step = [1, 2, 5, 10].map((k) => k * p).find((x) => x >= raw);
+    const decimals = Math.max(0, -Math.floor(Math.log10(step) + 1e-9));
+    for (let t = Math.ceil(lo / step - 1e-9) * step; t <= hi + 1e-9 * step; t += step) {
+      let i = 0;
+      while (i + 2 < n && v[i + 1] < t) ++i;
+      const pos = n > 1 ? i + Math.min(1, Math.max(0, (t - v[i]) / (v[i + 1] - v[i]))) : 0;
+      const label = (Math.abs(t) < step * 1e-9 ? 0 : t).toFixed(decimals);
+      if (horizontal) ctx.fillText(label, M.left + (pos + 0.5) * g.cw - 10, M.top + g.h + 16);
+      else ctx.fillText(label, 22, M.top + g.h - (pos + 0.5) * g.ch + 4);
     }
   };
   if (m.x) { ticks(m.x, g.nx, true); ctx.fillText(m.x.name + ' [' + m.x.unit + ']', M.left + g.w / 2 - 30, c.height - 8); }
@@ -447,6 +471,8 @@ async function start() {
     $('who').textContent = s.auth ? 'signed in as ' + s.who + ' (' + s.role + ')' : 'open (loopback, no tokens)';
   } catch (e) { return; }
   await tick();
+  const wanted = new URLSearchParams(location.hash.slice(1)).get('sweep');
+  if (wanted && state.sweep !== wanted) await openSweep(wanted).catch(() => {});
   clearInterval(state.timer);
   state.timer = setInterval(tick, 1000);
 }
