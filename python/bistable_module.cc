@@ -37,6 +37,7 @@
 #include "client/map_query.h"
 #include "client/map_source.h"
 #include "client/poincare_section.h"
+#include "client/terms_report.h"
 #include "dynamics/cancel.h"
 #include "dynamics/hbm.h"
 #include "dynamics/point.h"
@@ -432,7 +433,8 @@ py::dict Trajectory(const py::kwargs& kw) {
 
 // spec: TOML text; origin names it in error messages. Returns {"id", "file"}.
 py::dict Run(const std::string& toml, const std::string& origin, const std::string& data, int threads, bool progress) {
-  SweepSpec spec = Unwrap(ParseSweepSpec(toml, origin));
+  // [terms] report = "..." read here, relative to the spec's file (origin) or the working directory, as `bistable run`.
+  SweepSpec spec = Unwrap(ParseSweepSpec(Unwrap(InlineTermsReport(toml, origin)), origin));
   if (threads < 0 || threads > 1024)
     throw py::value_error("threads = " + std::to_string(threads) + " violates threads in [0, 1024]");
   const int n = threads > 0 ? threads : UsableCpus();  // as `bistable run`
