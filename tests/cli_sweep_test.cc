@@ -94,6 +94,38 @@ TEST(CliSweep, RunMapQueryAndSweepsHaveTheirJsonShapes) {
   for (const char* k : {"count", "total", "fraction", "area_fraction", "points"}) EXPECT_TRUE(qj.contains(k)) << k;
   EXPECT_EQ(qj["total"], 30);
   EXPECT_EQ(qj["points"].size(), qj["count"].get<size_t>());
+  EXPECT_EQ(qj["truncated"], false);
+  ASSERT_GE(qj["count"].get<int>(), 3) << q.out;
+
+  // --json --limit N: the first N matches, count still every match, and truncated says the list was cut.
+  const ProcessResult q2 =
+      Bistable("query " + id + " \"frf_db < 0 or motion == chaotic\" --json --limit 2 --data " + dir + "/data");
+  ASSERT_EQ(q2.exit_code, 0) << q2.err;
+  const auto q2j = nlohmann::json::parse(q2.out);
+  EXPECT_EQ(q2j["points"].size(), 2u);
+  EXPECT_EQ(q2j["points"][0], qj["points"][0]);
+  EXPECT_EQ(q2j["count"], qj["count"]);
+  EXPECT_EQ(q2j["truncated"], true);
+  const ProcessResult q_all = Bistable("query " + id + " \"frf_db < 0 or motion == chaotic\" --json --limit " +
+                                       std::to_string(qj["count"].get<int>()) + " --data " + dir + "/data");
+  ASSERT_EQ(q_all.exit_code, 0) << q_all.err;
+  EXPECT_EQ(nlohmann::json::parse(q_all.out)["truncated"], false);
+  // The text output keeps its own default (20) and says how many more there are.
+  const ProcessResult qt =
+      Bistable("query " + id + " \"frf_db < 0 or motion == chaotic\" --limit 1 --data " + dir + "/data");
+  ASSERT_EQ(qt.exit_code, 0) << qt.err;
+  EXPECT_NE(qt.out.find(std::to_string(qj["count"].get<int>() - 1) + " more; --json lists all"), std::string::npos)
+      << qt.out;
+  // Out of bounds: refused, naming --limit and its bounds (0 with --json: nothing to list).
+  for (const char* bad : {"0", "10000001", "-3", "1e3", "99999999999999999999", "abc"}) {
+    const ProcessResult r =
+        Bistable("query " + id + " \"lle < 1e9\" --json --limit " + bad + " --data " + dir + "/data");
+    EXPECT_EQ(r.exit_code, 2) << bad;
+    EXPECT_NE(r.err.find("--limit = " + std::string(bad) + " violates 1 <= --limit <= 10000000 with --json"),
+              std::string::npos)
+        << r.err;
+    EXPECT_TRUE(r.out.empty()) << r.out;
+  }
 
   const ProcessResult ls = Bistable("sweeps --json --data " + dir + "/data");
   ASSERT_EQ(ls.exit_code, 0);
