@@ -190,6 +190,14 @@ nlohmann::json NestedValues(const Slice& s) {
   return rows;
 }
 
+// --at values off the grid take the nearest grid value, said on stderr (SnapAtToGrid).
+Status SnapAt(const MapArray& m, std::map<std::string, double>* at) {
+  auto notes = SnapAtToGrid(m, at);
+  if (!notes.ok()) return notes.status();
+  for (const std::string& note : *notes) std::cerr << "map: " << note << "\n";
+  return Status::Ok();
+}
+
 int HdScatter(const MapArgs& a) {
   SweepRefLite ref;
   auto f = LoadMetric(a.src, a.id, "hd_peak_freq", &ref);
@@ -198,6 +206,7 @@ int HdScatter(const MapArgs& a) {
   if (!amp.ok()) return Fail(amp.status());
   auto at = ParseAt(a.at);
   if (!at.ok()) return Fail(at.status());
+  if (Status st = SnapAt(*f, &at.value()); !st.ok()) return Fail(st);
   // Fix everything but omega and the peak dimension.
   size_t omega_dim = f->axes.size();
   for (size_t k = 0; k < f->axes.size(); ++k)
@@ -252,6 +261,7 @@ int ShowMap(const MapArgs& a) {
   if (!m.ok()) return Fail(m.status());
   auto at = ParseAt(a.at);
   if (!at.ok()) return Fail(at.status());
+  if (Status st = SnapAt(*m, &at.value()); !st.ok()) return Fail(st);
   auto s = SliceMap(*m, *at, 2);
   if (!s.ok()) return Fail(s.status());
   if (a.format == "json") {
@@ -441,7 +451,10 @@ void AddMapCommand(CLI::App& app, int* exit_code) {
   CLI::App* cmd = app.add_subcommand("map", "Print or plot a metric of a sweep over one or two free axes");
   cmd->add_option("id", a->id, "sweep id (or a unique prefix)")->required();
   cmd->add_option("--metric", a->metric, "metric (frf_db, lle, motion, edr_t, ...; hd_scatter for Fig. 6)")->required();
-  cmd->add_option("--at", a->at, "fix axes: eta=0.1,lambda=0.8 (ic=K for a multi-IC sweep; default ic=0)");
+  cmd->add_option("--at", a->at,
+                  "fix axes: eta=0.1,lambda=0.8 (ic=K for a multi-IC sweep; default ic=0); a value off the grid takes "
+                  "the nearest grid value (said on stderr), one beyond the axis's range by more than half a grid step "
+                  "is refused");
   cmd->add_option("--format", a->format, "csv | json | png | svg | pdf")->capture_default_str();
   cmd->add_option(
       "--out", a->out,

@@ -148,6 +148,49 @@ TEST(CliSweep, RunMapQueryAndSweepsHaveTheirJsonShapes) {
   fs::remove_all(dir);
 }
 
+// `map --at` off the grid takes the nearest grid value and says which on stderr (alpha's grid: 0.2, 0.56, 0.92,
+// 1.28, 1.64, 2; half a step 0.18); beyond the axis's range by more than half a step it is refused, naming --at and
+// the range.
+TEST(CliSweep, MapAtTakesTheNearestGridValue) {
+  const std::string dir = Dir("map_at");
+  const std::string spec = WriteSpec(dir, kGrid);
+  const ProcessResult run = Bistable("run " + spec + " --data " + dir + "/data --json --no-plots");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const std::string id = nlohmann::json::parse(run.out)["id"];
+  const auto map_at = [&](const std::string& at, const std::string& format = "json") {
+    return Bistable("map " + id + " --metric lle --at " + at + " --format " + format + " --out " + dir + "/m." +
+                    format + " --data " + dir + "/data");
+  };
+  const auto written = [&] { return nlohmann::json::parse(bistable_test::ReadText(dir + "/m.json")); };
+  const auto fixed_alpha = [&] { return written()["fixed"]["alpha"].get<double>(); };
+  const ProcessResult exact = map_at("alpha=0.92");
+  ASSERT_EQ(exact.exit_code, 0) << exact.err;
+  EXPECT_EQ(exact.err.find("nearest"), std::string::npos) << exact.err;  // on the grid: nothing to say
+  const nlohmann::json exact_curve = written()["values"];
+  const ProcessResult near = map_at("alpha=1.0");
+  ASSERT_EQ(near.exit_code, 0) << near.err;
+  EXPECT_NE(near.err.find("map: --at alpha=1 \u2192 nearest grid value 0.92"), std::string::npos) << near.err;
+  EXPECT_NEAR(fixed_alpha(), 0.92, 1e-12);
+  EXPECT_EQ(written()["values"], exact_curve);
+  for (const char* inside : {"alpha=2.17", "alpha=0.03"}) {
+    const ProcessResult r = map_at(inside);
+    EXPECT_EQ(r.exit_code, 0) << inside << ": " << r.err;
+    EXPECT_NE(r.err.find("nearest grid value"), std::string::npos) << r.err;
+  }
+  EXPECT_NEAR(fixed_alpha(), 0.2, 1e-12);
+  const ProcessResult png = map_at("alpha=1.3", "png");
+  ASSERT_EQ(png.exit_code, 0) << png.err;
+  EXPECT_NE(png.err.find("nearest grid value 1.28"), std::string::npos) << png.err;
+  EXPECT_GT(fs::file_size(dir + "/m.png"), 1000u);
+  for (const char* outside : {"alpha=2.19", "alpha=0.01", "alpha=-1e300", "alpha=1e300"}) {
+    const ProcessResult r = map_at(outside);
+    EXPECT_EQ(r.exit_code, 2) << outside;
+    EXPECT_NE(r.err.find("--at " + std::string(outside).substr(0, 6)), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("is outside the axis: alpha runs from 0.2 to 2 (6 values"), std::string::npos) << r.err;
+  }
+  fs::remove_all(dir);
+}
+
 // A map records where it was written: the CPU (/proc/cpuinfo's model name), the build's vector unit and
 // the engine's lane width, as HDF5 attributes of a real file, and `bistable info` prints them (and,
 // without an id, the same for this build on this CPU).
