@@ -548,8 +548,11 @@ TEST(CliSweep, BadInputIsAClearErrorAndLosesNothing) {
   const std::string id = nlohmann::json::parse(Bistable("sweeps --json --data " + dir + "/data").out)[0]["id"];
   const ProcessResult badq = Bistable("query " + id + " \"frf < 0\" --data " + dir + "/data");
   EXPECT_NE(badq.err.find("did you mean 'frf_db'"), std::string::npos) << badq.err;
-  const ProcessResult bada = Bistable("map " + id + " --metric frf_db --at alpha=0.77 --data " + dir + "/data");
-  EXPECT_NE(bada.err.find("not on the axis"), std::string::npos) << bada.err;
+  // Off the grid, inside the axis: the nearest grid value (CliSweep.MapAtTakesTheNearestGridValue); beyond it: refused.
+  const ProcessResult bada = Bistable("map " + id + " --metric frf_db --at alpha=7.7 --data " + dir + "/data");
+  EXPECT_EQ(bada.exit_code, 2) << bada.err;
+  EXPECT_NE(bada.err.find("--at alpha=7.7 is outside the axis: alpha runs from 0.2 to 2"), std::string::npos)
+      << bada.err;
   const ProcessResult badm = Bistable("map " + id + " --metric frf --data " + dir + "/data");
   EXPECT_NE(badm.err.find("did you mean 'frf_db'"), std::string::npos) << badm.err;
   // Nothing stored was lost or rewritten.
