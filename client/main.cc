@@ -9,6 +9,7 @@
 #include "base/names.h"
 #include "base/version.h"
 #include "client/chirp_command.h"
+#include "client/completion.h"
 #include "client/design_command.h"
 #include "client/hbm_command.h"
 #include "client/identify_command.h"
@@ -45,6 +46,7 @@ int main(int argc, char** argv) {
   bistable::AddMapCommand(app, &exit_code);
   bistable::AddQueryCommand(app, &exit_code);
   bistable::AddInfoCommand(app, &exit_code);
+  bistable::AddCompletionCommand(app, &exit_code);  // last: its script walks every command above
   const auto subs = app.get_subcommands([](CLI::App*) { return true; });
   auto is_known = [&](const std::string& name) {
     for (const CLI::App* sub : subs)

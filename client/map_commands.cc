@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -189,6 +190,14 @@ nlohmann::json NestedValues(const Slice& s) {
   return rows;
 }
 
+// --at values off the grid take the nearest grid value, said on stderr (SnapAtToGrid).
+Status SnapAt(const MapArray& m, std::map<std::string, double>* at) {
+  auto notes = SnapAtToGrid(m, at);
+  if (!notes.ok()) return notes.status();
+  for (const std::string& note : *notes) std::cerr << "map: " << note << "\n";
+  return Status::Ok();
+}
+
 int HdScatter(const MapArgs& a) {
   SweepRefLite ref;
   auto f = LoadMetric(a.src, a.id, "hd_peak_freq", &ref);
@@ -197,6 +206,7 @@ int HdScatter(const MapArgs& a) {
   if (!amp.ok()) return Fail(amp.status());
   auto at = ParseAt(a.at);
   if (!at.ok()) return Fail(at.status());
+  if (Status st = SnapAt(*f, &at.value()); !st.ok()) return Fail(st);
   // Fix everything but omega and the peak dimension.
   size_t omega_dim = f->axes.size();
   for (size_t k = 0; k < f->axes.size(); ++k)
@@ -251,6 +261,7 @@ int ShowMap(const MapArgs& a) {
   if (!m.ok()) return Fail(m.status());
   auto at = ParseAt(a.at);
   if (!at.ok()) return Fail(at.status());
+  if (Status st = SnapAt(*m, &at.value()); !st.ok()) return Fail(st);
   auto s = SliceMap(*m, *at, 2);
   if (!s.ok()) return Fail(s.status());
   if (a.format == "json") {
@@ -301,13 +312,32 @@ struct QueryArgs {
   std::string id, expr, data = kDefaultDataDir;
   MapSource src;
   bool json = false;
-  int limit = 20;
+  std::string limit;  // empty: not given (text: 20 points; --json: every point)
 };
 
+// The most points --limit may ask for (docs/limits.md).
+constexpr long kMaxQueryLimit = 10'000'000;
+
+// --limit N: decimal digits, 0 ≤ N ≤ kMaxQueryLimit in the text output (0: the count alone), 1 ≤ N with --json.
+StatusOr<size_t> QueryLimit(const QueryArgs& a) {
+  if (a.limit.empty()) return a.json ? SIZE_MAX : size_t{20};
+  const long lo = a.json ? 1 : 0;
+  const std::string bound = std::to_string(lo) + " <= --limit <= " + std::to_string(kMaxQueryLimit) +
+                            (a.json ? " with --json (without --limit, --json lists every point)" : "");
+  const std::string& t = a.limit;
+  bool digits = !t.empty() && t.size() <= 18;
+  for (size_t i = 0; i < t.size() && digits; ++i)
+    digits = std::isdigit(static_cast<unsigned char>(t[i])) || (i == 0 && t[i] == '-' && t.size() > 1);
+  const long n = digits ? std::strtol(t.c_str(), nullptr, 10) : -1;
+  if (!digits || n < lo || n > kMaxQueryLimit)
+    return Status::InvalidArgument("limit", "--limit = " + Printable(t, 64) + " violates " + bound);
+  return static_cast<size_t>(n);
+}
+
 int RunQuery(const QueryArgs& a) {
-  if (a.limit < 0)  // it used to print no point at all
-    return Fail(Status::InvalidArgument("limit", "limit = " + std::to_string(a.limit) + " violates limit >= 0"));
-  auto j = QueryJson(a.src, a.id, a.expr, a.json ? SIZE_MAX : static_cast<size_t>(a.limit));
+  auto limit = QueryLimit(a);
+  if (!limit.ok()) return Fail(limit.status());
+  auto j = QueryJson(a.src, a.id, a.expr, *limit);
   if (!j.ok()) return Fail(j.status());
   if (a.json) {
     std::cout << DumpJson(*j, 1) << "\n";
@@ -421,7 +451,10 @@ void AddMapCommand(CLI::App& app, int* exit_code) {
   CLI::App* cmd = app.add_subcommand("map", "Print or plot a metric of a sweep over one or two free axes");
   cmd->add_option("id", a->id, "sweep id (or a unique prefix)")->required();
   cmd->add_option("--metric", a->metric, "metric (frf_db, lle, motion, edr_t, ...; hd_scatter for Fig. 6)")->required();
-  cmd->add_option("--at", a->at, "fix axes: eta=0.1,lambda=0.8 (ic=K for a multi-IC sweep; default ic=0)");
+  cmd->add_option("--at", a->at,
+                  "fix axes: eta=0.1,lambda=0.8 (ic=K for a multi-IC sweep; default ic=0); a value off the grid takes "
+                  "the nearest grid value (said on stderr), one beyond the axis's range by more than half a grid step "
+                  "is refused");
   cmd->add_option("--format", a->format, "csv | json | png | svg | pdf")->capture_default_str();
   cmd->add_option(
       "--out", a->out,
@@ -444,8 +477,11 @@ void AddQueryCommand(CLI::App& app, int* exit_code) {
   cmd->add_option("id", a->id, "sweep id (or a unique prefix)")->required();
   cmd->add_option("expr", a->expr, "e.g. \"frf_db < -3 and lle < 0.01\" or \"motion == chaotic\"")->required();
   cmd->add_option("--data", a->data, "data directory")->capture_default_str();
-  cmd->add_option("--limit", a->limit, "points listed in the text output")->capture_default_str();
-  cmd->add_flag("--json", a->json, "print {count, total, fraction, area_fraction, points} as JSON");
+  cmd->add_option("--limit", a->limit,
+                  "points listed: the text output lists the first N matches (default 20; 0: the count alone) and "
+                  "says how many more; --json lists every match unless --limit N is given (1 <= N <= 10000000), "
+                  "then the first N, with \"count\" every match and \"truncated\": true when the list was cut");
+  cmd->add_flag("--json", a->json, "print {count, total, fraction, area_fraction, truncated, points} as JSON");
   cmd->add_option("--coordinator", a->src.coordinator, "read from a coordinator instead of --data");
   cmd->add_option("--token-file", a->src.token_file, "bearer token file (else $BISTABLE_TOKEN)");
   cmd->add_option("--tls-ca", a->src.tls_ca, "PEM CA of a TLS coordinator");

@@ -63,9 +63,13 @@ StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, 
     }
     points.push_back(pt);
   });
-  return nlohmann::json{{"sweep", sweep_id},         {"query", expr},
-                        {"count", scan.count},       {"total", scan.total},
-                        {"fraction", scan.fraction}, {"area_fraction", scan.area_fraction},
+  return nlohmann::json{{"sweep", sweep_id},
+                        {"query", expr},
+                        {"count", scan.count},
+                        {"total", scan.total},
+                        {"fraction", scan.fraction},
+                        {"area_fraction", scan.area_fraction},
+                        {"truncated", static_cast<long>(points.size()) < static_cast<long>(scan.count)},
                         {"points", points}};
 }
 

@@ -17,7 +17,8 @@ namespace bistable {
 
 // The points of a map where `expr` holds (engine/query.h), over the axes and every metric the map
 // stores (not the spectral peaks): {"sweep", "query", "count", "total", "fraction", "area_fraction",
-// "points": [at most max_points of {axis values..., ["ic"], each metric the query reads}]}. Categories
+// "truncated", "points": [at most max_points of {axis values..., ["ic"], each metric the query reads}]};
+// count is every match, truncated says that points holds fewer (max_points cut the list). Categories
 // print by name (json_out.h). Errors: an unknown sweep, a bad query (position and nearest name).
 StatusOr<nlohmann::json> QueryJson(const MapSource& src, const std::string& id, const std::string& expr,
                                    size_t max_points);

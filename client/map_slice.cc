@@ -27,6 +27,36 @@ StatusOr<std::map<std::string, double>> ParseAt(const std::string& text) {
   return at;
 }
 
+StatusOr<std::vector<std::string>> SnapAtToGrid(const MapArray& m, std::map<std::string, double>* at) {
+  std::vector<std::string> notes;
+  for (auto& [name, value] : *at) {
+    size_t k = 0;
+    while (k < m.axes.size() && m.dim_names[k] != name) ++k;
+    if (k == m.axes.size() || m.axes[k].values.empty()) continue;  // not an axis: SliceMap says what it is
+    const std::vector<double>& vals = m.axes[k].values;
+    size_t best = 0;
+    for (size_t i = 1; i < vals.size(); ++i)
+      if (std::fabs(vals[i] - value) < std::fabs(vals[best] - value)) best = i;
+    if (std::fabs(vals[best] - value) <= 1e-9 * std::max(1.0, std::fabs(value))) continue;  // on the grid
+    std::vector<double> sorted = vals;
+    std::sort(sorted.begin(), sorted.end());
+    const size_t n = sorted.size();
+    const double half_lo = n > 1 ? (sorted[1] - sorted[0]) / 2 : 0;
+    const double half_hi = n > 1 ? (sorted[n - 1] - sorted[n - 2]) / 2 : 0;
+    if (value < sorted.front() - half_lo || value > sorted.back() + half_hi)
+      return Status::InvalidArgument(
+          "at", "--at " + name + "=" + FormatNumber(value) + " is outside the axis: " + name +
+                    (n > 1 ? " runs from " + FormatNumber(sorted.front()) + " to " + FormatNumber(sorted.back()) +
+                                 " (" + std::to_string(n) +
+                                 " values; a value within half a grid step of that range takes the nearest)"
+                           : " holds the single value " + FormatNumber(sorted.front())));
+    notes.push_back("--at " + name + "=" + FormatNumber(value) + " \u2192 nearest grid value " +
+                    FormatNumber(vals[best]));
+    value = vals[best];
+  }
+  return notes;
+}
+
 StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>& at, int max_free) {
   Slice s;
   s.metric = m.metric;

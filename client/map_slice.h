@@ -22,6 +22,12 @@ struct Slice {
 // Parses "alpha=1,eta=0.1".
 StatusOr<std::map<std::string, double>> ParseAt(const std::string& text);
 
+// `bistable map --at`: each value of an axis moved to the axis's nearest grid value, with a note for each value moved
+// ("--at alpha=1 → nearest grid value 1.00005"). Refused (InvalidArgument "at", naming the axis's range) when
+// the value lies outside the axis's range by more than half the grid step at that end. Names that are not
+// axes are left to SliceMap.
+StatusOr<std::vector<std::string>> SnapAtToGrid(const MapArray& m, std::map<std::string, double>* at);
+
 // Fixes the named dimensions (values must be on the axis, to 1e-9 relative), dimensions of length 1
 // and the ic dimension (default ic = 0); what is left are the free axes (at most max_free).
 StatusOr<Slice> SliceMap(const MapArray& m, const std::map<std::string, double>& at, int max_free);

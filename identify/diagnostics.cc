@@ -20,6 +20,28 @@ std::string FormatSignificant(double v, int digits) {
   return b;
 }
 
+std::string WhitenessVerdict(const Whiteness& w) {
+  const std::string alpha = FormatSignificant(w.alpha, 2);
+  if (w.dof == 0)
+    return w.diverged ? "residual not tested for whiteness: the final model diverges before any record's residual "
+                        "could be tested"
+                      : "residual not tested for whiteness: no record's band-limited residual holds 64 finite samples "
+                        "for the Ljung\u2013Box test";
+  const std::string test = "Ljung\u2013Box test of its autocorrelation on " + std::to_string(w.dof) +
+                           " lags, p = " + FormatSignificant(w.p_value, 2);
+  if (w.p_value >= w.alpha)
+    return "residual indistinguishable from white noise: " + test +
+           " (p: the chance that white noise correlates this much; p < " + alpha + " would say it is not white)";
+  // p alone calls it structured; too little of it is predictable to count (diagnostics.h: "Size").
+  const double bound = kPredictableShare + (std::isfinite(w.twin_predictable_share) ? w.twin_predictable_share : 0.0);
+  const std::string share = std::isfinite(w.flatness) ? "only " + FormatSignificant(100 * (1 - w.flatness), 2) +
+                                                            " % of it is predictable from its past"
+                                                      : "its predictable share could not be measured";
+  return "residual counted as white: " + test + " < " + alpha + " finds structure white noise would rarely show, but " +
+         share + " (not white needs p < " + alpha + " and a predictable share >= " + FormatSignificant(100 * bound, 2) +
+         " %)";
+}
+
 namespace {
 
 std::string Num(double v, int digits = 3) { return FormatSignificant(v, digits); }

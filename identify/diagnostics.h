@@ -81,6 +81,12 @@ struct Whiteness {
 Whiteness WhitenessTest(const std::vector<std::vector<double>>& residuals, const std::vector<double>& dt,
                         const std::vector<double>& band_hz, double alpha = kWhitenessAlpha);
 
+// The whiteness verdict of a white residual in words, as `bistable identify` prints it: what was tested and
+// what its p means ("residual indistinguishable from white noise: Ljung–Box test of its autocorrelation on 20
+// lags, p = 0.31 (p: the chance that white noise correlates this much; p < 0.001 would say it is not white)");
+// when p < alpha, why it still counts as white (the predictable share under its bound); dof = 0: not tested.
+std::string WhitenessVerdict(const Whiteness& w);
+
 struct ParamCorrelation {
   std::string a, b;
   double rho = NAN;

@@ -45,8 +45,7 @@ std::string DiagnosticsLines(const LoopDiagnostics& d) {
          "\n";
   if (!d.attractor_loss.empty())
     s += "the final model loses the attractor the declared model had: " + d.attractor_loss + "\n";
-  s += d.unexplained.empty() ? "residual white (Ljung-Box p = " + F(d.whiteness.p_value, 2) + ")\n"
-                             : "unexplained: " + d.unexplained + "\n";
+  s += d.unexplained.empty() ? WhitenessVerdict(d.whiteness) + "\n" : "unexplained: " + d.unexplained + "\n";
   for (const std::string& h : d.separability) s += h + "\n";
   return s;
 }

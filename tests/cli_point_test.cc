@@ -9,7 +9,9 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -20,6 +22,36 @@ namespace {
 
 using bistable_test::Bistable;
 using bistable_test::ProcessResult;
+
+// The README's `bistable point` example: the command it shows, run, prints every line the README shows (but "...",
+// which stands for lines left out; trailing blanks ignored), in that order.
+TEST(CliPoint, ReadmeExampleMatchesTheOutput) {
+  std::ifstream in(BISTABLE_README);
+  ASSERT_TRUE(in) << BISTABLE_README;
+  std::string line, command;
+  std::vector<std::string> shown;
+  while (std::getline(in, line)) {
+    if (command.empty()) {
+      if (line.rfind("$ bistable point ", 0) == 0) command = line.substr(std::string("$ bistable ").size());
+      continue;
+    }
+    if (line.rfind("```", 0) == 0) break;
+    if (line != "  ...") shown.push_back(line);
+  }
+  ASSERT_FALSE(command.empty()) << "no '$ bistable point ...' line in the README";
+  ASSERT_GE(shown.size(), 5u);
+  const ProcessResult r = Bistable(command);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::vector<std::string> printed;
+  std::istringstream out(r.out);
+  while (std::getline(out, line)) printed.push_back(line.substr(0, line.find_last_not_of(' ') + 1));
+  size_t at = 0;
+  for (const std::string& want : shown) {
+    while (at < printed.size() && printed[at] != want) ++at;
+    EXPECT_LT(at, printed.size()) << "README line not printed (in order): '" << want << "'\n" << r.out;
+    if (at == printed.size()) break;
+  }
+}
 
 TEST(CliPoint, JsonHasTheContractKeys) {
   const ProcessResult r = Bistable("point --model coupled --alpha 1 --omega 1.2 --json");

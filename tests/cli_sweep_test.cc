@@ -94,6 +94,38 @@ TEST(CliSweep, RunMapQueryAndSweepsHaveTheirJsonShapes) {
   for (const char* k : {"count", "total", "fraction", "area_fraction", "points"}) EXPECT_TRUE(qj.contains(k)) << k;
   EXPECT_EQ(qj["total"], 30);
   EXPECT_EQ(qj["points"].size(), qj["count"].get<size_t>());
+  EXPECT_EQ(qj["truncated"], false);
+  ASSERT_GE(qj["count"].get<int>(), 3) << q.out;
+
+  // --json --limit N: the first N matches, count still every match, and truncated says the list was cut.
+  const ProcessResult q2 =
+      Bistable("query " + id + " \"frf_db < 0 or motion == chaotic\" --json --limit 2 --data " + dir + "/data");
+  ASSERT_EQ(q2.exit_code, 0) << q2.err;
+  const auto q2j = nlohmann::json::parse(q2.out);
+  EXPECT_EQ(q2j["points"].size(), 2u);
+  EXPECT_EQ(q2j["points"][0], qj["points"][0]);
+  EXPECT_EQ(q2j["count"], qj["count"]);
+  EXPECT_EQ(q2j["truncated"], true);
+  const ProcessResult q_all = Bistable("query " + id + " \"frf_db < 0 or motion == chaotic\" --json --limit " +
+                                       std::to_string(qj["count"].get<int>()) + " --data " + dir + "/data");
+  ASSERT_EQ(q_all.exit_code, 0) << q_all.err;
+  EXPECT_EQ(nlohmann::json::parse(q_all.out)["truncated"], false);
+  // The text output keeps its own default (20) and says how many more there are.
+  const ProcessResult qt =
+      Bistable("query " + id + " \"frf_db < 0 or motion == chaotic\" --limit 1 --data " + dir + "/data");
+  ASSERT_EQ(qt.exit_code, 0) << qt.err;
+  EXPECT_NE(qt.out.find(std::to_string(qj["count"].get<int>() - 1) + " more; --json lists all"), std::string::npos)
+      << qt.out;
+  // Out of bounds: refused, naming --limit and its bounds (0 with --json: nothing to list).
+  for (const char* bad : {"0", "10000001", "-3", "1e3", "99999999999999999999", "abc"}) {
+    const ProcessResult r =
+        Bistable("query " + id + " \"lle < 1e9\" --json --limit " + bad + " --data " + dir + "/data");
+    EXPECT_EQ(r.exit_code, 2) << bad;
+    EXPECT_NE(r.err.find("--limit = " + std::string(bad) + " violates 1 <= --limit <= 10000000 with --json"),
+              std::string::npos)
+        << r.err;
+    EXPECT_TRUE(r.out.empty()) << r.out;
+  }
 
   const ProcessResult ls = Bistable("sweeps --json --data " + dir + "/data");
   ASSERT_EQ(ls.exit_code, 0);
@@ -113,6 +145,49 @@ TEST(CliSweep, RunMapQueryAndSweepsHaveTheirJsonShapes) {
     if (mm["metric"] == "motion" || mm["metric"] == "period" || mm["metric"] == "termination") {
       EXPECT_TRUE(mm["min"].is_number_integer() && mm["max"].is_number_integer()) << mm.dump();
     }
+  fs::remove_all(dir);
+}
+
+// `map --at` off the grid takes the nearest grid value and says which on stderr (alpha's grid: 0.2, 0.56, 0.92,
+// 1.28, 1.64, 2; half a step 0.18); beyond the axis's range by more than half a step it is refused, naming --at and
+// the range.
+TEST(CliSweep, MapAtTakesTheNearestGridValue) {
+  const std::string dir = Dir("map_at");
+  const std::string spec = WriteSpec(dir, kGrid);
+  const ProcessResult run = Bistable("run " + spec + " --data " + dir + "/data --json --no-plots");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const std::string id = nlohmann::json::parse(run.out)["id"];
+  const auto map_at = [&](const std::string& at, const std::string& format = "json") {
+    return Bistable("map " + id + " --metric lle --at " + at + " --format " + format + " --out " + dir + "/m." +
+                    format + " --data " + dir + "/data");
+  };
+  const auto written = [&] { return nlohmann::json::parse(bistable_test::ReadText(dir + "/m.json")); };
+  const auto fixed_alpha = [&] { return written()["fixed"]["alpha"].get<double>(); };
+  const ProcessResult exact = map_at("alpha=0.92");
+  ASSERT_EQ(exact.exit_code, 0) << exact.err;
+  EXPECT_EQ(exact.err.find("nearest"), std::string::npos) << exact.err;  // on the grid: nothing to say
+  const nlohmann::json exact_curve = written()["values"];
+  const ProcessResult near = map_at("alpha=1.0");
+  ASSERT_EQ(near.exit_code, 0) << near.err;
+  EXPECT_NE(near.err.find("map: --at alpha=1 \u2192 nearest grid value 0.92"), std::string::npos) << near.err;
+  EXPECT_NEAR(fixed_alpha(), 0.92, 1e-12);
+  EXPECT_EQ(written()["values"], exact_curve);
+  for (const char* inside : {"alpha=2.17", "alpha=0.03"}) {
+    const ProcessResult r = map_at(inside);
+    EXPECT_EQ(r.exit_code, 0) << inside << ": " << r.err;
+    EXPECT_NE(r.err.find("nearest grid value"), std::string::npos) << r.err;
+  }
+  EXPECT_NEAR(fixed_alpha(), 0.2, 1e-12);
+  const ProcessResult png = map_at("alpha=1.3", "png");
+  ASSERT_EQ(png.exit_code, 0) << png.err;
+  EXPECT_NE(png.err.find("nearest grid value 1.28"), std::string::npos) << png.err;
+  EXPECT_GT(fs::file_size(dir + "/m.png"), 1000u);
+  for (const char* outside : {"alpha=2.19", "alpha=0.01", "alpha=-1e300", "alpha=1e300"}) {
+    const ProcessResult r = map_at(outside);
+    EXPECT_EQ(r.exit_code, 2) << outside;
+    EXPECT_NE(r.err.find("--at " + std::string(outside).substr(0, 6)), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("is outside the axis: alpha runs from 0.2 to 2 (6 values"), std::string::npos) << r.err;
+  }
   fs::remove_all(dir);
 }
 
@@ -473,8 +548,11 @@ TEST(CliSweep, BadInputIsAClearErrorAndLosesNothing) {
   const std::string id = nlohmann::json::parse(Bistable("sweeps --json --data " + dir + "/data").out)[0]["id"];
   const ProcessResult badq = Bistable("query " + id + " \"frf < 0\" --data " + dir + "/data");
   EXPECT_NE(badq.err.find("did you mean 'frf_db'"), std::string::npos) << badq.err;
-  const ProcessResult bada = Bistable("map " + id + " --metric frf_db --at alpha=0.77 --data " + dir + "/data");
-  EXPECT_NE(bada.err.find("not on the axis"), std::string::npos) << bada.err;
+  // Off the grid, inside the axis: the nearest grid value (CliSweep.MapAtTakesTheNearestGridValue); beyond it: refused.
+  const ProcessResult bada = Bistable("map " + id + " --metric frf_db --at alpha=7.7 --data " + dir + "/data");
+  EXPECT_EQ(bada.exit_code, 2) << bada.err;
+  EXPECT_NE(bada.err.find("--at alpha=7.7 is outside the axis: alpha runs from 0.2 to 2"), std::string::npos)
+      << bada.err;
   const ProcessResult badm = Bistable("map " + id + " --metric frf --data " + dir + "/data");
   EXPECT_NE(badm.err.find("did you mean 'frf_db'"), std::string::npos) << badm.err;
   // Nothing stored was lost or rewritten.

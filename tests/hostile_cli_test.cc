@@ -386,7 +386,10 @@ std::vector<Row> Rows() {
                          Outcome::kError, "violates length <= 4096"));
   rows.push_back(OnSweep("query_limit_negative", {"query", "{id}", "lle < 1e9", "--data", "{data}", "--limit", "-1"},
                          Outcome::kError,
-                         "limit = -1 violates limit >= 0"));  // issue 39: it printed no point at all
+                         "--limit = -1 violates 0 <= --limit <= 10000000"));  // issue 39: it printed no point at all
+  rows.push_back(OnSweep("query_limit_huge",
+                         {"query", "{id}", "lle < 1e9", "--data", "{data}", "--json", "--limit", Repeat("9", 4000)},
+                         Outcome::kError, "violates 1 <= --limit <= 10000000 with --json"));
   rows.push_back(
       OnSweep("query_10k_open_parens", Query(Repeat("(", 10000)), Outcome::kError, "violates length <= 4096"));
   rows.push_back(OnSweep("query_65_nested_parens", Query(Repeat("(", 65) + "lle < 0" + Repeat(")", 65)),

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "base/beside.h"
+#include "identify/diagnostics.h"
 #include "identify/loop.h"
 #include "identify/synthetic.h"
 #include "tests/identify_synthetic.h"
@@ -627,6 +628,32 @@ TEST(Identify, CliFitsADaqExportLikeThePlainCsv) {
       EXPECT_NEAR(ja[key].get<double>(), jb[key].get<double>(), 1e-6 * std::fabs(ja[key].get<double>()));
     }
   }
+  std::filesystem::remove_all(dir);
+}
+
+// The text `bistable identify` prints says what the whiteness test tested and what its p means, with the numbers its
+// --json gives (a fit of the synthetic chirp whose residual passes).
+TEST(Identify, CliSaysWhatTheWhitenessTestMeans) {
+  const std::string dir = FreshDir("identify", "whiteness_words");
+  ASSERT_EQ(Bistable("identify --make-synthetic " + dir).exit_code, 0);
+  const std::string args = "identify --data " + dir +
+                           "/chirp_6mm.csv --terms main.linear,main.viscous --known m_main=0.282 --max-seconds 6 "
+                           "--global-evals 0 --max-added 0";
+  const auto text = Bistable(args), json = Bistable(args + " --json");
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  ASSERT_EQ(json.exit_code, 0) << json.err;
+  const auto w = nlohmann::json::parse(json.out)["whiteness"];
+  ASSERT_TRUE(w["white"].get<bool>()) << w.dump();
+  EXPECT_EQ(w["test"], "Ljung-Box");  // the JSON keeps its keys and values
+  ASSERT_GE(w["p_value"].get<double>(), w["alpha"].get<double>()) << w.dump();
+  EXPECT_EQ(text.out.find("residual white (Ljung-Box"), std::string::npos) << text.out;
+  EXPECT_NE(
+      text.out.find("residual indistinguishable from white noise: Ljung\u2013Box test of its autocorrelation on " +
+                    std::to_string(w["dof"].get<int>()) +
+                    " lags, p = " + bistable::FormatSignificant(w["p_value"].get<double>(), 2) +
+                    " (p: the chance that white noise correlates this much; p < 0.001 would say it is not white)"),
+      std::string::npos)
+      << text.out;
   std::filesystem::remove_all(dir);
 }
 

@@ -280,6 +280,29 @@ TEST(IdentifyWhiteness, WhiteNoisePassesAndASinusoidInNoiseFailsWithItsFrequency
   EXPECT_NEAR(w.dominant_hz[0], 17.3, 0.05);
 }
 
+// What `bistable identify` prints of a white residual says what was tested and what p means, in each case the
+// verdict can take: p above alpha, p below alpha with too small a predictable share, and nothing tested.
+TEST(IdentifyWhiteness, VerdictSaysWhatIsTestedAndWhatPMeans) {
+  const double dt = 1.0 / 120;
+  const Whiteness w = WhitenessTest({WhiteNoise(2400, 1)}, {dt}, {0.0});
+  ASSERT_TRUE(w.white);
+  ASSERT_GE(w.p_value, w.alpha);
+  EXPECT_EQ(WhitenessVerdict(w),
+            "residual indistinguishable from white noise: Ljung\u2013Box test of its "
+            "autocorrelation on 20 lags, p = " +
+                FormatSignificant(w.p_value, 2) +
+                " (p: the chance that white noise correlates this much; p < 0.001 would say it "
+                "is not white)");
+  Whiteness small = w;  // the synthetic null case: p = 5.7e-4 on 60 lags, 3.3 % predictable
+  small.dof = 60, small.p_value = 5.7e-4, small.flatness = 0.967;
+  EXPECT_EQ(WhitenessVerdict(small),
+            "residual counted as white: Ljung\u2013Box test of its autocorrelation on 60 lags, p = 0.00057 < 0.001 "
+            "finds structure white noise would rarely show, but only 3.3 % of it is predictable from its past (not "
+            "white needs p < 0.001 and a predictable share >= 10 %)");
+  Whiteness none;
+  EXPECT_NE(WhitenessVerdict(none).find("not tested"), std::string::npos) << WhitenessVerdict(none);
+}
+
 TEST(IdentifyWhiteness, OversampledNoiseIsWhiteInItsBand) {
   // White noise low-passed to 10 Hz and sampled at 120 Hz: correlated sample to sample, white at the
   // band's Nyquist rate — tested in its band [0, 10 Hz] it passes, over the whole band it does not.
