@@ -37,8 +37,9 @@ Status WriteCsv(const std::string& path, const std::string& header, const std::v
   return WriteTextOut(path, f.str(), "out");
 }
 
-int RunChirpCommand(ChirpArgs& a) {
-  const bool dim = a.model == "dimensional" || a.model == "dimensional-linear";
+// The model of --model: the dimensional rig of Table 2 (bistable or linear) at --a0-mm, or a
+// non-dimensional model by name.
+Status SetChirpModel(ChirpArgs& a, bool dim) {
   if (dim) {
     a.o.model = ModelKind::kDimensional;
     a.o.dim = a.model == "dimensional" ? DimensionalParams::BistableTable2() : DimensionalParams::LinearTable2();
@@ -46,10 +47,47 @@ int RunChirpCommand(ChirpArgs& a) {
   } else {
     auto m = ParseModel(a.model);
     if (!m.ok())
-      return Fail(Status::InvalidArgument("model", m.status().message().substr(0, m.status().message().size() - 1) +
-                                                       ", dimensional, dimensional-linear}"));
+      return Status::InvalidArgument("model", m.status().message().substr(0, m.status().message().size() - 1) +
+                                                  ", dimensional, dimensional-linear}");
     a.o.model = *m;
   }
+  return Status::Ok();
+}
+
+// One sweep's entry of the summary: the range of the raw FFT ratio and of H1, H1's mean coherence
+// over the bins that have one, and the record's length.
+nlohmann::json SweepSummary(const std::string& dir, const FrfEstimate& e, const ChirpFrfPlot::Curve& h1,
+                            const ChirpRecord& rec) {
+  double peak = -INFINITY, low = INFINITY;
+  for (double v : e.db)
+    if (std::isfinite(v)) peak = std::max(peak, v), low = std::min(low, v);
+  double h1_peak = -INFINITY, h1_low = INFINITY, coherence = 0;
+  size_t coherent_bins = 0;
+  for (size_t i = 0; i < h1.db.size(); ++i) {
+    if (std::isfinite(h1.db[i])) h1_peak = std::max(h1_peak, h1.db[i]), h1_low = std::min(h1_low, h1.db[i]);
+    if (std::isfinite(h1.coherence[i])) coherence += h1.coherence[i], ++coherent_bins;
+  }
+  coherence = coherent_bins ? coherence / static_cast<double>(coherent_bins) : 0.0;  // over the bins that have one
+  return {{"direction", dir},        {"frf_max_db", peak},  {"frf_min_db", low},
+          {"h1_max_db", h1_peak},    {"h1_min_db", h1_low}, {"coherence_mean", coherence},
+          {"samples", rec.t.size()}, {"dt", rec.dt},        {"diverged", rec.diverged}};
+}
+
+// The summary as text: each sweep's H1 range and mean coherence, then the files written.
+void PrintChirpSummary(const nlohmann::json& summary, double lo, double hi, const std::string& unit) {
+  for (const auto& sw : summary.at("sweeps"))
+    std::printf(
+        "%-4s sweep: H1 FRF from %.1f to %.1f dB over [%g, %g] %s (mean coherence %.2f; raw FFT ratio %.1f to %.1f "
+        "dB)\n",
+        sw["direction"].get<std::string>().c_str(), sw["h1_min_db"].get<double>(), sw["h1_max_db"].get<double>(), lo,
+        hi, unit.c_str(), sw["coherence_mean"].get<double>(), sw["frf_min_db"].get<double>(),
+        sw["frf_max_db"].get<double>());
+  for (const auto& f : summary.at("files")) std::printf("wrote %s\n", f.get<std::string>().c_str());
+}
+
+int RunChirpCommand(ChirpArgs& a) {
+  const bool dim = a.model == "dimensional" || a.model == "dimensional-linear";
+  if (Status st = SetChirpModel(a, dim); !st.ok()) return Fail(st);
   if (a.direction != "up" && a.direction != "down" && a.direction != "both")
     return Fail(Status::InvalidArgument("direction",
                                         "direction = '" + a.direction + "' violates direction in {up, down, both}"));
@@ -115,25 +153,7 @@ int RunChirpCommand(ChirpArgs& a) {
       if (CancelRequested()) return interrupted();  // gnuplot got the terminal's SIGINT too
       if (!st.ok()) return Fail(st);
     }
-    double peak = -INFINITY, low = INFINITY;
-    for (double v : e.db)
-      if (std::isfinite(v)) peak = std::max(peak, v), low = std::min(low, v);
-    double h1_peak = -INFINITY, h1_low = INFINITY, coherence = 0;
-    size_t coherent_bins = 0;
-    for (size_t i = 0; i < h1.db.size(); ++i) {
-      if (std::isfinite(h1.db[i])) h1_peak = std::max(h1_peak, h1.db[i]), h1_low = std::min(h1_low, h1.db[i]);
-      if (std::isfinite(h1.coherence[i])) coherence += h1.coherence[i], ++coherent_bins;
-    }
-    coherence = coherent_bins ? coherence / static_cast<double>(coherent_bins) : 0.0;  // over the bins that have one
-    summary["sweeps"].push_back({{"direction", dir},
-                                 {"frf_max_db", peak},
-                                 {"frf_min_db", low},
-                                 {"h1_max_db", h1_peak},
-                                 {"h1_min_db", h1_low},
-                                 {"coherence_mean", coherence},
-                                 {"samples", rec->t.size()},
-                                 {"dt", rec->dt},
-                                 {"diverged", rec->diverged}});
+    summary["sweeps"].push_back(SweepSummary(dir, e, h1, *rec));
     for (const char* f : {".csv", "_frf.csv", "_h1.csv"}) summary["files"].push_back(base + f);
     if (gnuplot.ok()) summary["files"].push_back(base + "_spectrogram.png");
   }
@@ -148,14 +168,7 @@ int RunChirpCommand(ChirpArgs& a) {
   if (a.json) {
     std::cout << DumpJson(summary, 1) << "\n";
   } else {
-    for (const auto& sw : summary["sweeps"])
-      std::printf(
-          "%-4s sweep: H1 FRF from %.1f to %.1f dB over [%g, %g] %s (mean coherence %.2f; raw FFT ratio %.1f to %.1f "
-          "dB)\n",
-          sw["direction"].get<std::string>().c_str(), sw["h1_min_db"].get<double>(), sw["h1_max_db"].get<double>(), lo,
-          hi, unit.c_str(), sw["coherence_mean"].get<double>(), sw["frf_min_db"].get<double>(),
-          sw["frf_max_db"].get<double>());
-    for (const auto& f : summary["files"]) std::printf("wrote %s\n", f.get<std::string>().c_str());
+    PrintChirpSummary(summary, lo, hi, unit);
   }
   return 0;
 }

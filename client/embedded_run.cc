@@ -58,155 +58,191 @@ long PointIndex(const SweepSpec& spec, const std::vector<size_t>& idx) {
   return point;
 }
 
-}  // namespace
-
-std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir,
-                                            const std::string& format) {
-  const std::string ext = "." + format;
+// The directory, extension and format of the default figures, and what came of them: the files
+// written, and whether gnuplot could not start.
+struct FigureSink {
+  std::string dir, ext, format;
   std::vector<std::string> files;
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) {
-    std::cerr << "warning: no plots: cannot create '" << dir << "': " << ec.message() << "\n";
-    return files;
-  }
-  std::vector<size_t> order(spec.axes.size());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(),
-                   [&](size_t a, size_t b) { return spec.axes[a].values.size() > spec.axes[b].values.size(); });
-  std::vector<size_t> free(order.begin(), order.begin() + std::min<size_t>(2, order.size()));
-  const long combos = std::min<long>(ComboCount(spec, free), 12);
-  // Each failed figure is a warning; a gnuplot that cannot start stops the rest (one warning, not one per figure).
   bool gnuplot_gone = false;
-  auto render = [&](const Status& st, const std::string& out) {
+  // Each failed figure is a warning; a gnuplot that cannot start stops the rest (one warning, not one per figure).
+  void Render(const Status& st, const std::string& out) {
     if (st.ok()) {
       files.push_back(out);
       return;
     }
     gnuplot_gone = st.message().find("cannot start gnuplot") != std::string::npos;
     std::cerr << "warning: " << st.ToString() << "\n";
-  };
-  const MapContext context = MapContextOf(spec);
+  }
+};
+
+// The figures of one metric over the free axes and their files: one per combination of the other
+// axes (at most 12), and with continuation in both directions a heatmap per direction.
+std::vector<std::pair<PlotData, std::string>> MetricFigures(const SweepSpec& spec, const MapArray& m,
+                                                            const std::string& metric, const std::vector<size_t>& free,
+                                                            const MapContext& context, const FigureSink& sink) {
+  const long combos = std::min<long>(ComboCount(spec, free), 12);
   // With continuation in both directions, a heatmap per direction; curves show both (MapFigure).
   const int directions = spec.continuation.enabled() ? spec.continuation.directions() : 1;
+  const bool has_direction_dim = std::find(m.dim_names.begin(), m.dim_names.end(), "direction") != m.dim_names.end();
+  const int per_combo = free.size() == 2 && has_direction_dim ? directions : 1;
+  std::vector<std::pair<PlotData, std::string>> figures;  // the figures of this metric and their files
+  for (long c = 0; c < combos; ++c) {
+    const AxisCombo combo = Combo(spec, free, c);
+    for (int item = 0; item < per_combo; ++item) {
+      std::map<std::string, double> at;
+      for (size_t k = 0; k < spec.axes.size(); ++k)
+        if (std::find(free.begin(), free.end(), k) == free.end())
+          at[spec.axes[k].name] = spec.axes[k].values[combo.fixed[k]];
+      std::string suffix = combo.suffix;
+      if (per_combo == 2) at["direction"] = item, suffix += spec.ChainGoesDown(item) ? "_down" : "_up";
+      auto d = MapFigure(m, at, context);
+      if (!d.ok()) continue;
+      if (std::none_of(d->values.begin(), d->values.end(), [](double v) { return std::isfinite(v); })) continue;
+      figures.emplace_back(std::move(*d), (std::filesystem::path(sink.dir) / (metric + suffix + sink.ext)).string());
+    }
+  }
+  return figures;
+}
+
+// Maps of one metric from one sweep are compared with each other: one colour range for all.
+void ShareColourRange(const std::string& metric, std::vector<std::pair<PlotData, std::string>>* figures) {
+  size_t heatmaps = 0;
+  std::vector<double> all;
+  for (const auto& [d, out] : *figures)
+    if (d.axis_names.size() == 2 && d.codes.empty())
+      ++heatmaps, all.insert(all.end(), d.values.begin(), d.values.end());
+  if (heatmaps > 1) {
+    const auto [lo, hi] = ColourRange(metric, all);
+    for (auto& [d, out] : *figures) {
+      if (d.axis_names.size() != 2 || !d.codes.empty()) continue;
+      d.cb_lo = lo, d.cb_hi = hi;
+      d.cb_note = "one colour scale for the " + std::to_string(heatmaps) + " maps of this quantity in this sweep";
+    }
+  }
+}
+
+// Each plotted metric over the two longest axes, one figure per value of the others (at most 12).
+void RenderMetricFigures(const SweepSpec& spec, const std::string& map_path, const MapContext& context,
+                         FigureSink* sink) {
+  std::vector<size_t> order(spec.axes.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return spec.axes[a].values.size() > spec.axes[b].values.size(); });
+  std::vector<size_t> free(order.begin(), order.begin() + std::min<size_t>(2, order.size()));
   for (const std::string& metric : spec.plots) {
     auto m = ReadMapMetric(map_path, metric);
     if (!m.ok()) {
       std::cerr << "warning: plot " << metric << ": " << m.status().ToString() << "\n";
       continue;
     }
-    const bool has_direction_dim =
-        std::find(m->dim_names.begin(), m->dim_names.end(), "direction") != m->dim_names.end();
-    const int per_combo = free.size() == 2 && has_direction_dim ? directions : 1;
-    std::vector<std::pair<PlotData, std::string>> figures;  // the figures of this metric and their files
-    for (long c = 0; c < combos; ++c) {
-      const AxisCombo combo = Combo(spec, free, c);
-      for (int item = 0; item < per_combo; ++item) {
-        std::map<std::string, double> at;
-        for (size_t k = 0; k < spec.axes.size(); ++k)
-          if (std::find(free.begin(), free.end(), k) == free.end())
-            at[spec.axes[k].name] = spec.axes[k].values[combo.fixed[k]];
-        std::string suffix = combo.suffix;
-        if (per_combo == 2) at["direction"] = item, suffix += spec.ChainGoesDown(item) ? "_down" : "_up";
-        auto d = MapFigure(*m, at, context);
-        if (!d.ok()) continue;
-        if (std::none_of(d->values.begin(), d->values.end(), [](double v) { return std::isfinite(v); })) continue;
-        figures.emplace_back(std::move(*d), (std::filesystem::path(dir) / (metric + suffix + ext)).string());
-      }
-    }
-    // Maps of one metric from one sweep are compared with each other: one colour range for all.
-    size_t heatmaps = 0;
-    std::vector<double> all;
-    for (const auto& [d, out] : figures)
-      if (d.axis_names.size() == 2 && d.codes.empty())
-        ++heatmaps, all.insert(all.end(), d.values.begin(), d.values.end());
-    if (heatmaps > 1) {
-      const auto [lo, hi] = ColourRange(metric, all);
-      for (auto& [d, out] : figures) {
-        if (d.axis_names.size() != 2 || !d.codes.empty()) continue;
-        d.cb_lo = lo, d.cb_hi = hi;
-        d.cb_note = "one colour scale for the " + std::to_string(heatmaps) + " maps of this quantity in this sweep";
-      }
-    }
+    std::vector<std::pair<PlotData, std::string>> figures = MetricFigures(spec, *m, metric, free, context, *sink);
+    ShareColourRange(metric, &figures);
     for (const auto& [d, out] : figures) {
-      if (CancelRequested() || gnuplot_gone) break;  // asked to stop: no more gnuplot runs
-      render(RenderPlot(d, out, format), out);
+      if (CancelRequested() || sink->gnuplot_gone) break;  // asked to stop: no more gnuplot runs
+      sink->Render(RenderPlot(d, out, sink->format), out);
     }
   }
-  // Fig. 6: one harmonic-diffusion scatter per combination of the axes other than omega (at most 3,
-  // like the paper's two amplitudes; `bistable map ID --metric hd_scatter --at ...` draws any other).
+}
+
+// Fig. 6: one harmonic-diffusion scatter per combination of the axes other than omega (at most 3,
+// like the paper's two amplitudes; `bistable map ID --metric hd_scatter --at ...` draws any other).
+void RenderHdScatters(const SweepSpec& spec, const std::string& map_path, FigureSink* sink) {
   const bool has_peaks = std::find(spec.metrics.begin(), spec.metrics.end(), "hd_peaks") != spec.metrics.end();
   size_t omega_axis = spec.axes.size();
   for (size_t k = 0; k < spec.axes.size(); ++k)
     if (spec.axes[k].name == "omega") omega_axis = k;
   const long scatter_combos = omega_axis < spec.axes.size() ? ComboCount(spec, {omega_axis}) : 0;
-  if (has_peaks && omega_axis < spec.axes.size() && scatter_combos <= 3 && spec.ic_count() == 1) {
-    auto f = ReadMapMetric(map_path, "hd_peak_freq");
-    auto a = ReadMapMetric(map_path, "hd_peak_amp");
-    if (f.ok() && a.ok()) {
-      const size_t k_peaks = f->dims.back();
-      for (long c = 0; c < scatter_combos && !CancelRequested(); ++c) {
-        AxisCombo combo = Combo(spec, {omega_axis}, c);
-        ScatterData sd;
-        sd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": harmonic diffusion" + combo.title;
-        const std::string suffix = combo.suffix;
-        for (size_t i = 0; i < spec.axes[omega_axis].values.size(); ++i) {
-          combo.fixed[omega_axis] = i;
-          const long point = PointIndex(spec, combo.fixed);
-          for (size_t j = 0; j < k_peaks; ++j) {
-            const size_t off = static_cast<size_t>(point) * k_peaks + j;
-            if (std::isfinite(f->values[off]))
-              sd.x.push_back(spec.axes[omega_axis].values[i]), sd.y.push_back(f->values[off]),
-                  sd.amp.push_back(a->values[off]);
-          }
-        }
-        const std::string out = (std::filesystem::path(dir) / ("hd_scatter" + suffix + ext)).string();
-        if (!gnuplot_gone) render(RenderHdScatter(sd, out), out);
+  if (!has_peaks || omega_axis >= spec.axes.size() || scatter_combos > 3 || spec.ic_count() != 1) return;
+  auto f = ReadMapMetric(map_path, "hd_peak_freq");
+  auto a = ReadMapMetric(map_path, "hd_peak_amp");
+  if (!f.ok() || !a.ok()) return;
+  const size_t k_peaks = f->dims.back();
+  for (long c = 0; c < scatter_combos && !CancelRequested(); ++c) {
+    AxisCombo combo = Combo(spec, {omega_axis}, c);
+    ScatterData sd;
+    sd.title = (spec.name.empty() ? spec.Id() : spec.name) + ": harmonic diffusion" + combo.title;
+    const std::string suffix = combo.suffix;
+    for (size_t i = 0; i < spec.axes[omega_axis].values.size(); ++i) {
+      combo.fixed[omega_axis] = i;
+      const long point = PointIndex(spec, combo.fixed);
+      for (size_t j = 0; j < k_peaks; ++j) {
+        const size_t off = static_cast<size_t>(point) * k_peaks + j;
+        if (std::isfinite(f->values[off]))
+          sd.x.push_back(spec.axes[omega_axis].values[i]), sd.y.push_back(f->values[off]),
+              sd.amp.push_back(a->values[off]);
+      }
+    }
+    const std::string out = (std::filesystem::path(sink->dir) / ("hd_scatter" + suffix + sink->ext)).string();
+    if (!sink->gnuplot_gone) sink->Render(RenderHdScatter(sd, out), out);
+  }
+}
+
+// The bifurcation diagram of one combination of the axes other than the continued one (axis `cont`):
+// the turning points of y_m over that axis, increasing and decreasing apart.
+BifurcationData BifurcationOf(const SweepSpec& spec, const MapContext& context, const MapArray& tp, size_t cont,
+                              AxisCombo combo) {
+  const int nic = spec.ic_count();
+  BifurcationData bd;
+  bd.x_name = spec.continuation.axis;
+  bd.x_unit = AxisUnit(spec.continuation.axis);
+  bd.title = "Bifurcation diagram: turning points of y_m";
+  bd.title_markup = true;
+  for (const FixedParameter& p : context.fixed) bd.subtitle.push_back(ParameterItem(p.name, p.value, p.unit));
+  for (size_t k = 0; k < spec.axes.size(); ++k)
+    if (k != cont)
+      bd.subtitle.push_back(
+          ParameterItem(spec.axes[k].name, spec.axes[k].values[combo.fixed[k]], AxisUnit(spec.axes[k].name)));
+  bd.footer = context.name.empty() ? "sweep " + context.id : context.name + "  \u00b7  sweep " + context.id;
+  for (size_t i = 0; i < spec.axes[cont].values.size(); ++i) {
+    combo.fixed[cont] = i;
+    const long point = PointIndex(spec, combo.fixed);
+    for (int ic = 0; ic < nic; ++ic) {
+      const bool down = spec.ChainGoesDown(ic);
+      for (int k = 0; k < kTurningPointsStored; ++k) {
+        const double y = tp.values[(static_cast<size_t>(point) * nic + ic) * kTurningPointsStored + k];
+        if (!std::isfinite(y)) continue;
+        (down ? bd.x_down : bd.x_up).push_back(spec.axes[cont].values[i]);
+        (down ? bd.y_down : bd.y_up).push_back(y);
       }
     }
   }
-  // Fig. 4: bifurcation diagrams, one per combination of the axes other than the continued one (≤ 6).
-  if (spec.continuation.enabled() && spec.base.metrics.turning_points) {
-    auto tp = ReadMapMetric(map_path, "turning_points");
-    size_t cont = 0;
-    for (size_t k = 0; k < spec.axes.size(); ++k)
-      if (spec.axes[k].name == spec.continuation.axis) cont = k;
-    const long combos = ComboCount(spec, {cont});
-    if (tp.ok() && combos <= 6) {
-      const int nic = spec.ic_count();
-      for (long c = 0; c < combos && !CancelRequested(); ++c) {
-        AxisCombo combo = Combo(spec, {cont}, c);
-        BifurcationData bd;
-        bd.x_name = spec.continuation.axis;
-        bd.x_unit = AxisUnit(spec.continuation.axis);
-        bd.title = "Bifurcation diagram: turning points of y_m";
-        bd.title_markup = true;
-        for (const FixedParameter& p : context.fixed) bd.subtitle.push_back(ParameterItem(p.name, p.value, p.unit));
-        for (size_t k = 0; k < spec.axes.size(); ++k)
-          if (k != cont)
-            bd.subtitle.push_back(
-                ParameterItem(spec.axes[k].name, spec.axes[k].values[combo.fixed[k]], AxisUnit(spec.axes[k].name)));
-        bd.footer = context.name.empty() ? "sweep " + context.id : context.name + "  \u00b7  sweep " + context.id;
-        const std::string suffix = combo.suffix;
-        for (size_t i = 0; i < spec.axes[cont].values.size(); ++i) {
-          combo.fixed[cont] = i;
-          const long point = PointIndex(spec, combo.fixed);
-          for (int ic = 0; ic < nic; ++ic) {
-            const bool down = spec.ChainGoesDown(ic);
-            for (int k = 0; k < kTurningPointsStored; ++k) {
-              const double y = tp->values[(static_cast<size_t>(point) * nic + ic) * kTurningPointsStored + k];
-              if (!std::isfinite(y)) continue;
-              (down ? bd.x_down : bd.x_up).push_back(spec.axes[cont].values[i]);
-              (down ? bd.y_down : bd.y_up).push_back(y);
-            }
-          }
-        }
-        const std::string out = (std::filesystem::path(dir) / ("bifurcation" + suffix + ext)).string();
-        if (!gnuplot_gone) render(RenderBifurcation(bd, out), out);
-      }
-    }
+  return bd;
+}
+
+// Fig. 4: bifurcation diagrams, one per combination of the axes other than the continued one (≤ 6).
+void RenderBifurcations(const SweepSpec& spec, const std::string& map_path, const MapContext& context,
+                        FigureSink* sink) {
+  if (!spec.continuation.enabled() || !spec.base.metrics.turning_points) return;
+  auto tp = ReadMapMetric(map_path, "turning_points");
+  size_t cont = 0;
+  for (size_t k = 0; k < spec.axes.size(); ++k)
+    if (spec.axes[k].name == spec.continuation.axis) cont = k;
+  const long combos = ComboCount(spec, {cont});
+  if (!tp.ok() || combos > 6) return;
+  for (long c = 0; c < combos && !CancelRequested(); ++c) {
+    const AxisCombo combo = Combo(spec, {cont}, c);
+    const BifurcationData bd = BifurcationOf(spec, context, *tp, cont, combo);
+    const std::string out = (std::filesystem::path(sink->dir) / ("bifurcation" + combo.suffix + sink->ext)).string();
+    if (!sink->gnuplot_gone) sink->Render(RenderBifurcation(bd, out), out);
   }
-  return files;
+}
+
+}  // namespace
+
+std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir,
+                                            const std::string& format) {
+  FigureSink sink{dir, "." + format, format, {}, false};
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) {
+    std::cerr << "warning: no plots: cannot create '" << dir << "': " << ec.message() << "\n";
+    return sink.files;
+  }
+  const MapContext context = MapContextOf(spec);
+  RenderMetricFigures(spec, map_path, context, &sink);
+  RenderHdScatters(spec, map_path, &sink);
+  RenderBifurcations(spec, map_path, context, &sink);
+  return std::move(sink.files);
 }
 
 namespace {

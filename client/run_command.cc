@@ -87,6 +87,56 @@ int RunShardOf(const RunArgs& a, const SweepSpec& spec, int threads) {
   return 0;
 }
 
+// --serve: the dashboard over this process's coordinator on a loopback address (it has no tokens).
+Status StartDashboard(const std::string& serve, SweepCoordinator* c, const TokenStore* tokens,
+                      std::unique_ptr<HttpServer>* dashboard) {
+  if (!IsLoopbackAddress(serve))
+    return Status::InvalidArgument("serve", serve +
+                                                " is not a loopback address (the embedded dashboard has no tokens; "
+                                                "use bistable-coordinator --http with TLS and tokens to serve others)");
+  auto h = HttpServer::Start(serve, DashboardRoutes(c, tokens), DashboardHttpOptions());
+  if (!h.ok()) return h.status();
+  *dashboard = std::move(h).value();
+  std::cerr << "dashboard on http://" << serve.substr(0, serve.rfind(':')) << ":" << (*dashboard)->port() << "/"
+            << std::endl;
+  return Status::Ok();
+}
+
+// The default figures of the map at `path` beside it (appended to files), or without gnuplot one
+// warning saying so.
+void AddDefaultPlots(const RunArgs& a, const SweepSpec& spec, const std::string& path, std::vector<std::string>* files,
+                     std::vector<std::string>* warnings) {
+  // The map is the product; figures are a view of it. Without gnuplot: one warning saying what is
+  // missing and where the map is, and success (exit 0).
+  if (Status g = CheckGnuplot(); !g.ok()) {
+    warnings->push_back("no plots: " + g.message() + ", or pass --no-plots; the map is written to " + path);
+    std::cerr << "warning: " << warnings->back() << "\n";
+  } else {
+    const auto plot_dir = std::filesystem::path(path).replace_extension("").string();
+    for (auto& f : RenderDefaultPlots(spec, path, plot_dir, a.plot_format)) files->push_back(f);
+  }
+}
+
+// A basin map: each attractor's share of the starts (the map's group attractors holds them too);
+// none for other sweeps.
+std::vector<BasinShare> BasinSharesOf(const SweepSpec& spec, const std::string& path) {
+  std::vector<BasinShare> basins;
+  if (spec.IsBasinSweep()) {
+    auto att = ReadMapMetric(path, "attractor");
+    if (att.ok()) basins = BasinShares(*att);
+  }
+  return basins;
+}
+
+// The dashboard after the sweep: serves until Ctrl-C / SIGTERM.
+void ServeUntilCancelled() {
+  std::fflush(stdout);
+  std::cerr << "dashboard: the sweep is done; serving until Ctrl-C" << std::endl;
+  InstallCancelSignalHandlers();
+  while (!CancelRequested()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  RestoreDefaultSignalHandlers();
+}
+
 int RunSweep(const RunArgs& a) {
   auto spec = LoadClientSweepSpec(a.spec_path);
   if (!spec.ok()) return Fail(spec.status());
@@ -100,17 +150,8 @@ int RunSweep(const RunArgs& a) {
   // --serve: the dashboard over this process's coordinator (no tokens: loopback only).
   const TokenStore open_tokens;
   std::unique_ptr<HttpServer> dashboard;
-  if (!a.serve.empty()) {
-    if (!IsLoopbackAddress(a.serve))
-      return Fail(Status::InvalidArgument(
-          "serve", a.serve + " is not a loopback address (the embedded dashboard has no tokens; "
-                             "use bistable-coordinator --http with TLS and tokens to serve others)"));
-    auto h = HttpServer::Start(a.serve, DashboardRoutes(&c, &open_tokens), DashboardHttpOptions());
-    if (!h.ok()) return Fail(h.status());
-    dashboard = std::move(h).value();
-    std::cerr << "dashboard on http://" << a.serve.substr(0, a.serve.rfind(':')) << ":" << dashboard->port() << "/"
-              << std::endl;
-  }
+  if (!a.serve.empty())
+    if (Status st = StartDashboard(a.serve, &c, &open_tokens, &dashboard); !st.ok()) return Fail(st);
   const auto t0 = std::chrono::steady_clock::now();
   auto plan = c.Submit(*spec, a.job_items > 0 ? a.job_items : JobItems(*spec, 0.25));
   if (!plan.ok()) return Fail(plan.status());
@@ -148,23 +189,8 @@ int RunSweep(const RunArgs& a) {
   auto secs = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
   std::vector<std::string> files = {*path};
   std::vector<std::string> warnings;
-  if (!a.no_plots) {
-    // The map is the product; figures are a view of it. Without gnuplot: one warning saying what is
-    // missing and where the map is, and success (exit 0).
-    if (Status g = CheckGnuplot(); !g.ok()) {
-      warnings.push_back("no plots: " + g.message() + ", or pass --no-plots; the map is written to " + *path);
-      std::cerr << "warning: " << warnings.back() << "\n";
-    } else {
-      const auto plot_dir = std::filesystem::path(*path).replace_extension("").string();
-      for (auto& f : RenderDefaultPlots(*spec, *path, plot_dir, a.plot_format)) files.push_back(f);
-    }
-  }
-  // A basin map: each attractor's share of the starts (the map's group attractors holds them too).
-  std::vector<BasinShare> basins;
-  if (spec->IsBasinSweep()) {
-    auto att = ReadMapMetric(*path, "attractor");
-    if (att.ok()) basins = BasinShares(*att);
-  }
+  if (!a.no_plots) AddDefaultPlots(a, *spec, *path, &files, &warnings);
+  const std::vector<BasinShare> basins = BasinSharesOf(*spec, *path);
   if (a.json) {
     nlohmann::json j = {{"id", plan->id},
                         {"data", std::filesystem::absolute(a.data).string()},
@@ -204,13 +230,7 @@ int RunSweep(const RunArgs& a) {
     std::printf("map: %s\n", path->c_str());
     for (size_t i = 1; i < files.size(); ++i) std::printf("plot: %s\n", files[i].c_str());
   }
-  if (dashboard) {  // the sweep is done; its maps stay on view until Ctrl-C / SIGTERM
-    std::fflush(stdout);
-    std::cerr << "dashboard: the sweep is done; serving until Ctrl-C" << std::endl;
-    InstallCancelSignalHandlers();
-    while (!CancelRequested()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    RestoreDefaultSignalHandlers();
-  }
+  if (dashboard) ServeUntilCancelled();  // the sweep is done; its maps stay on view until Ctrl-C / SIGTERM
   return 0;
 }
 

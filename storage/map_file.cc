@@ -324,38 +324,50 @@ Status WriteKindPart(hid_t file, const SweepSpec& spec, const KindMapPart& part,
   return Status::Ok();
 }
 
-Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& spec,
-                 const std::vector<PointRecord>& records, const RefinedGrid* refined, const MapOrigin& origin) {
-  const int nic = spec.ic_count();
+// The shape every variable of a map is laid out over: the axes (their dimensions, names and the
+// "axes" attribute), the fixed parameters as scalar coordinates, and the items' dimensions and names
+// (the axes, then the kind's slot dimension when there is more than one slot).
+struct MapLayout {
   std::vector<hsize_t> axis_dims;
   std::vector<std::string> axis_names;
   std::string axes_attr;
+  std::string coordinates;
+  std::vector<hsize_t> dims;
+  std::vector<std::string> names;
+};
+
+// The axes' scales, the fixed parameters' scalars and the slot dimension's scale, and the layout they give.
+Status WriteAxesAndFixed(hid_t file, const SweepSpec& spec, const SweepKind& kind, MapLayout* layout) {
+  const int nic = spec.ic_count();
   for (const Axis& a : spec.axes) {
-    axis_dims.push_back(a.values.size());
-    axis_names.push_back(a.name);
-    axes_attr += (axes_attr.empty() ? "" : ",") + a.name;
-    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), a.name, a.values, {AxisLongName(a.name), AxisUnit(a.name), ""}));
+    layout->axis_dims.push_back(a.values.size());
+    layout->axis_names.push_back(a.name);
+    layout->axes_attr += (layout->axes_attr.empty() ? "" : ",") + a.name;
+    BISTABLE_RETURN_IF_ERROR(WriteScale(file, a.name, a.values, {AxisLongName(a.name), AxisUnit(a.name), ""}));
   }
   // Fixed parameters: scalar coordinates of every data variable.
-  std::string coordinates;
   for (const FixedParameter& p : spec.FixedParameters()) {
-    BISTABLE_RETURN_IF_ERROR(WriteScalar(file.get(), p.name, p.value, {p.long_name, p.unit, ""}));
-    coordinates += (coordinates.empty() ? "" : " ") + p.name;
+    BISTABLE_RETURN_IF_ERROR(WriteScalar(file, p.name, p.value, {p.long_name, p.unit, ""}));
+    layout->coordinates += (layout->coordinates.empty() ? "" : " ") + p.name;
   }
   // The trailing item dimension: the kind's slots (initial conditions, continuation directions, samples).
-  const SweepKind& kind = KindOf(spec);
   const SlotDimension slot = kind.Dimension(spec);
   const std::string& item_dim = slot.name;
   if (nic > 1) {
     std::vector<Category> slot_names;
     for (const auto& [code, name] : slot.labels) slot_names.push_back({code, name.c_str()});
     const CfQuantity q{slot.long_name, "", "", slot_names.empty() ? nullptr : &slot_names};
-    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), item_dim, Iota(nic), q, /*integer=*/true));
+    BISTABLE_RETURN_IF_ERROR(WriteScale(file, item_dim, Iota(nic), q, /*integer=*/true));
   }
-  std::vector<hsize_t> dims = axis_dims;
-  std::vector<std::string> names = axis_names;
-  if (nic > 1) dims.push_back(nic), names.push_back(item_dim);
+  layout->dims = layout->axis_dims;
+  layout->names = layout->axis_names;
+  if (nic > 1) layout->dims.push_back(nic), layout->names.push_back(item_dim);
+  return Status::Ok();
+}
 
+// One variable per metric of the spec, in the catalog's order, over the items.
+Status WriteMetricVariables(hid_t file, const SweepSpec& spec, const std::vector<PointRecord>& records,
+                            const MapLayout& layout) {
   const auto& catalog = MetricCatalog();
   for (size_t mi = 0; mi < catalog.size(); ++mi) {
     const MetricInfo& m = catalog[mi];
@@ -364,94 +376,108 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
     for (size_t i = 0; i < records.size(); ++i) data[i] = records[i].Get(mi);
     const std::vector<Category>& cats = MetricCategories(m.name);
     const CfQuantity q{m.long_name, UnitFor(spec, m.unit), m.definition, cats.empty() ? nullptr : &cats};
-    BISTABLE_RETURN_IF_ERROR(
-        WriteDataset(file.get(), m.name, dims, data, m.integer ? H5T_NATIVE_INT32 : H5T_NATIVE_DOUBLE, q, coordinates));
-    BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), m.name, names));
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(file, m.name, layout.dims, data,
+                                          m.integer ? H5T_NATIVE_INT32 : H5T_NATIVE_DOUBLE, q, layout.coordinates));
+    BISTABLE_RETURN_IF_ERROR(AttachScales(file, m.name, layout.names));
   }
-  if (std::find(spec.metrics.begin(), spec.metrics.end(), "hd_peaks") != spec.metrics.end()) {
-    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), "peak", Iota(kHdPeaksStored),
-                                        {"rank of the spectral peak (0 = strongest)", "", ""}, /*integer=*/true));
-    std::vector<hsize_t> pd = dims;
-    pd.push_back(kHdPeaksStored);
-    std::vector<std::string> pn = names;
-    pn.push_back("peak");
-    std::vector<double> f(records.size() * kHdPeaksStored), a(f.size());
+  return Status::Ok();
+}
+
+// hd_peaks: the spectral peaks' frequencies and amplitudes over the items and a trailing "peak" rank.
+Status WriteHdPeaks(hid_t file, const SweepSpec& spec, const std::vector<PointRecord>& records,
+                    const MapLayout& layout) {
+  BISTABLE_RETURN_IF_ERROR(WriteScale(file, "peak", Iota(kHdPeaksStored),
+                                      {"rank of the spectral peak (0 = strongest)", "", ""}, /*integer=*/true));
+  std::vector<hsize_t> pd = layout.dims;
+  pd.push_back(kHdPeaksStored);
+  std::vector<std::string> pn = layout.names;
+  pn.push_back("peak");
+  std::vector<double> f(records.size() * kHdPeaksStored), a(f.size());
+  for (size_t i = 0; i < records.size(); ++i)
+    for (int k = 0; k < kHdPeaksStored; ++k)
+      f[i * kHdPeaksStored + k] = records[i].PeakFreq(k), a[i * kHdPeaksStored + k] = records[i].PeakAmp(k);
+  BISTABLE_RETURN_IF_ERROR(WriteDataset(file, "hd_peak_freq", pd, f, H5T_NATIVE_DOUBLE,
+                                        {"angular frequency of a spectral peak of y_m", UnitFor(spec, "rad/tau"),
+                                         "spectral peaks of y_m (strongest first), angular frequency; NaN = none"},
+                                        layout.coordinates));
+  BISTABLE_RETURN_IF_ERROR(AttachScales(file, "hd_peak_freq", pn));
+  BISTABLE_RETURN_IF_ERROR(WriteDataset(file, "hd_peak_amp", pd, a, H5T_NATIVE_DOUBLE,
+                                        {"amplitude of y_m at a spectral peak", UnitFor(spec, "delta_s"),
+                                         "amplitude of y_m at each spectral peak; NaN = none"},
+                                        layout.coordinates));
+  return AttachScales(file, "hd_peak_amp", pn);
+}
+
+// turning_points: y_m at the window's last turning points over the items and a trailing index.
+Status WriteTurningPoints(hid_t file, const SweepSpec& spec, const std::vector<PointRecord>& records,
+                          const MapLayout& layout) {
+  BISTABLE_RETURN_IF_ERROR(
+      WriteScale(file, "turning_point", Iota(kTurningPointsStored),
+                 {"index of the turning point (time order within the last 64 of the window)", "", ""},
+                 /*integer=*/true));
+  std::vector<hsize_t> td = layout.dims;
+  td.push_back(kTurningPointsStored);
+  std::vector<std::string> tn = layout.names;
+  tn.push_back("turning_point");
+  std::vector<double> tp(records.size() * kTurningPointsStored);
+  for (size_t i = 0; i < records.size(); ++i)
+    for (int k = 0; k < kTurningPointsStored; ++k) tp[i * kTurningPointsStored + k] = records[i].TurningPoint(k);
+  BISTABLE_RETURN_IF_ERROR(
+      WriteDataset(file, "turning_points", td, tp, H5T_NATIVE_DOUBLE,
+                   {"displacement y_m at a turning point (y_m' = 0)", UnitFor(spec, "delta_s"),
+                    "y_m where y_m' = 0 in the window (last 64, time order; NaN = none): bifurcation diagrams"},
+                   layout.coordinates));
+  return AttachScales(file, "turning_points", tn);
+}
+
+// The Poincare (stroboscopic) section: y_m and y_m' at the last np_section strobes over the items
+// and a trailing index.
+Status WritePoincareSection(hid_t file, const SweepSpec& spec, const std::vector<PointRecord>& records,
+                            const MapLayout& layout, int np_section) {
+  const bool tp = spec.base.metrics.turning_points;
+  BISTABLE_RETURN_IF_ERROR(WriteScale(file, "poincare_point", Iota(np_section),
+                                      {"index of the Poincare section point (time order within the last " +
+                                           std::to_string(np_section) + " of the window)",
+                                       "", ""},
+                                      /*integer=*/true));
+  std::vector<hsize_t> sd = layout.dims;
+  sd.push_back(np_section);
+  std::vector<std::string> sn = layout.names;
+  sn.push_back("poincare_point");
+  const char* phase_note =
+      spec.model == ModelKind::kDimensional ? "t_k = (phase + 2 pi k)/omega_0" : "tau_k = (phase + 2 pi k)/Omega";
+  const std::string when = std::string(" at the strobes ") + phase_note +
+                           ", phase = poincare_phase = " + FormatNumber(spec.base.metrics.poincare_phase) +
+                           " rad, the last " + std::to_string(np_section) + " in the window (time order; NaN = none)";
+  const struct {
+    const char* name;
+    int component;
+    const char* long_name;
+    const char* unit;
+    const char* what;
+  } kSection[] = {{"poincare_y", 0, "displacement y_m on the Poincare (stroboscopic) section", "delta_s", "y_m"},
+                  {"poincare_v", 1, "velocity y_m' on the Poincare (stroboscopic) section", "delta_s/tau", "y_m'"}};
+  for (const auto& c : kSection) {
+    std::vector<double> values(records.size() * np_section);
     for (size_t i = 0; i < records.size(); ++i)
-      for (int k = 0; k < kHdPeaksStored; ++k)
-        f[i * kHdPeaksStored + k] = records[i].PeakFreq(k), a[i * kHdPeaksStored + k] = records[i].PeakAmp(k);
-    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_freq", pd, f, H5T_NATIVE_DOUBLE,
-                                          {"angular frequency of a spectral peak of y_m", UnitFor(spec, "rad/tau"),
-                                           "spectral peaks of y_m (strongest first), angular frequency; NaN = none"},
-                                          coordinates));
-    BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "hd_peak_freq", pn));
-    BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), "hd_peak_amp", pd, a, H5T_NATIVE_DOUBLE,
-                                          {"amplitude of y_m at a spectral peak", UnitFor(spec, "delta_s"),
-                                           "amplitude of y_m at each spectral peak; NaN = none"},
-                                          coordinates));
-    BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "hd_peak_amp", pn));
+      for (int k = 0; k < np_section; ++k)
+        values[i * np_section + k] = records[i].Poincare(k, c.component, tp, np_section);
+    BISTABLE_RETURN_IF_ERROR(WriteDataset(file, c.name, sd, values, H5T_NATIVE_DOUBLE,
+                                          {c.long_name, UnitFor(spec, c.unit), std::string(c.what) + when},
+                                          layout.coordinates));
+    BISTABLE_RETURN_IF_ERROR(AttachScales(file, c.name, sn));
   }
-  if (spec.base.metrics.turning_points) {
-    BISTABLE_RETURN_IF_ERROR(
-        WriteScale(file.get(), "turning_point", Iota(kTurningPointsStored),
-                   {"index of the turning point (time order within the last 64 of the window)", "", ""},
-                   /*integer=*/true));
-    std::vector<hsize_t> td = dims;
-    td.push_back(kTurningPointsStored);
-    std::vector<std::string> tn = names;
-    tn.push_back("turning_point");
-    std::vector<double> tp(records.size() * kTurningPointsStored);
-    for (size_t i = 0; i < records.size(); ++i)
-      for (int k = 0; k < kTurningPointsStored; ++k) tp[i * kTurningPointsStored + k] = records[i].TurningPoint(k);
-    BISTABLE_RETURN_IF_ERROR(
-        WriteDataset(file.get(), "turning_points", td, tp, H5T_NATIVE_DOUBLE,
-                     {"displacement y_m at a turning point (y_m' = 0)", UnitFor(spec, "delta_s"),
-                      "y_m where y_m' = 0 in the window (last 64, time order; NaN = none): bifurcation diagrams"},
-                     coordinates));
-    BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), "turning_points", tn));
-  }
-  if (const int np_section = spec.base.metrics.poincare_points; np_section > 0) {
-    const bool tp = spec.base.metrics.turning_points;
-    BISTABLE_RETURN_IF_ERROR(WriteScale(file.get(), "poincare_point", Iota(np_section),
-                                        {"index of the Poincare section point (time order within the last " +
-                                             std::to_string(np_section) + " of the window)",
-                                         "", ""},
-                                        /*integer=*/true));
-    std::vector<hsize_t> sd = dims;
-    sd.push_back(np_section);
-    std::vector<std::string> sn = names;
-    sn.push_back("poincare_point");
-    const char* phase_note =
-        spec.model == ModelKind::kDimensional ? "t_k = (phase + 2 pi k)/omega_0" : "tau_k = (phase + 2 pi k)/Omega";
-    const std::string when = std::string(" at the strobes ") + phase_note +
-                             ", phase = poincare_phase = " + FormatNumber(spec.base.metrics.poincare_phase) +
-                             " rad, the last " + std::to_string(np_section) + " in the window (time order; NaN = none)";
-    const struct {
-      const char* name;
-      int component;
-      const char* long_name;
-      const char* unit;
-      const char* what;
-    } kSection[] = {{"poincare_y", 0, "displacement y_m on the Poincare (stroboscopic) section", "delta_s", "y_m"},
-                    {"poincare_v", 1, "velocity y_m' on the Poincare (stroboscopic) section", "delta_s/tau", "y_m'"}};
-    for (const auto& c : kSection) {
-      std::vector<double> values(records.size() * np_section);
-      for (size_t i = 0; i < records.size(); ++i)
-        for (int k = 0; k < np_section; ++k)
-          values[i * np_section + k] = records[i].Poincare(k, c.component, tp, np_section);
-      BISTABLE_RETURN_IF_ERROR(WriteDataset(file.get(), c.name, sd, values, H5T_NATIVE_DOUBLE,
-                                            {c.long_name, UnitFor(spec, c.unit), std::string(c.what) + when},
-                                            coordinates));
-      BISTABLE_RETURN_IF_ERROR(AttachScales(file.get(), c.name, sn));
-    }
-  }
-  BISTABLE_RETURN_IF_ERROR(WriteKindPart(file.get(), spec, kind.MapPart(spec, records, refined), axis_dims, axis_names,
-                                         dims, names, coordinates));
+  return Status::Ok();
+}
+
+// The global attributes: CF-1.10's (provenance), then the project's own, then where it was written.
+Status WriteProvenanceAttributes(hid_t f, const SweepSpec& spec, const MapOrigin& origin,
+                                 const std::string& axes_attr) {
   const IntegrationSettings& in = spec.base.integration;
   const bool dimensional = spec.model == ModelKind::kDimensional;
   char settings[256];
   std::snprintf(settings, sizeof settings, "%s, dt = %.6g, window %.6g to %.6g %s", IntegratorName(in.integrator),
                 in.dt, in.t_keep, in.t_end, dimensional ? "s" : "(tau = omega_n t)");
-  const hid_t f = file.get();
   // CF-1.10 global attributes (provenance), then the project's own.
   BISTABLE_RETURN_IF_ERROR(WriteStringAttr(f, "Conventions", "CF-1.10"));
   BISTABLE_RETURN_IF_ERROR(
@@ -505,6 +531,24 @@ Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& sp
       f, "definitions",
       "See docs/numerics.md. Non-dimensional: tau = omega_n t, lengths in delta_s. Window tau in [t_keep, t_end]. "
       "EDR ratios use the gross injected energy W_in = integral of max(P, 0)."));
+  return Status::Ok();
+}
+
+Status WriteInto(const Handle& file, const std::string& tmp, const SweepSpec& spec,
+                 const std::vector<PointRecord>& records, const RefinedGrid* refined, const MapOrigin& origin) {
+  const SweepKind& kind = KindOf(spec);
+  MapLayout layout;
+  BISTABLE_RETURN_IF_ERROR(WriteAxesAndFixed(file.get(), spec, kind, &layout));
+  BISTABLE_RETURN_IF_ERROR(WriteMetricVariables(file.get(), spec, records, layout));
+  if (std::find(spec.metrics.begin(), spec.metrics.end(), "hd_peaks") != spec.metrics.end())
+    BISTABLE_RETURN_IF_ERROR(WriteHdPeaks(file.get(), spec, records, layout));
+  if (spec.base.metrics.turning_points) BISTABLE_RETURN_IF_ERROR(WriteTurningPoints(file.get(), spec, records, layout));
+  if (const int np_section = spec.base.metrics.poincare_points; np_section > 0)
+    BISTABLE_RETURN_IF_ERROR(WritePoincareSection(file.get(), spec, records, layout, np_section));
+  BISTABLE_RETURN_IF_ERROR(WriteKindPart(file.get(), spec, kind.MapPart(spec, records, refined), layout.axis_dims,
+                                         layout.axis_names, layout.dims, layout.names, layout.coordinates));
+  const hid_t f = file.get();
+  BISTABLE_RETURN_IF_ERROR(WriteProvenanceAttributes(f, spec, origin, layout.axes_attr));
   if (H5Fflush(f, H5F_SCOPE_GLOBAL) < 0) return H5Fail(tmp, "flush");
   return Status::Ok();
 }
