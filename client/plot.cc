@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -64,6 +65,33 @@ std::string EnhancedText(const std::string& text) {
   return out;
 }
 
+namespace {
+
+// A term model's parameter ("main.stiffness_y3.k3", "res.friction.F_s"; model = "terms") as a short symbol: the
+// parameter's own name with its index subscripted (k_3, k_{lin}, F_s), the resonator's marked ",r" (F_{s,r}) —
+// the full names run past the canvas in a subtitle. "" for any other name.
+std::string TermParameterSymbol(const std::string& name) {
+  const size_t dot = name.rfind('.');
+  const bool main = name.rfind("main.", 0) == 0, res = name.rfind("res.", 0) == 0;
+  if (dot == std::string::npos || !(main || res) || dot + 1 >= name.size()) return "";
+  const std::string p = name.substr(dot + 1);
+  for (char c : p)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') return "";
+  std::string base = p, sub;
+  if (const size_t u = p.find('_'); u != std::string::npos) {
+    base = p.substr(0, u), sub = p.substr(u + 1);
+  } else {
+    size_t d = p.size();
+    while (d > 1 && std::isdigit(static_cast<unsigned char>(p[d - 1]))) --d;
+    base = p.substr(0, d), sub = p.substr(d);
+  }
+  if (res) sub += sub.empty() ? "r" : ",r";
+  if (sub.empty()) return base;
+  return base + (sub.size() == 1 ? "_" + sub : "_{" + sub + "}");
+}
+
+}  // namespace
+
 std::string SymbolOf(const std::string& name) {
   // UTF-8 letters (pngcairo, svg and pdfcairo draw them; svg text keeps them searchable).
   static const std::pair<const char*, const char*> kSymbols[] = {{"alpha", "α"},
@@ -95,9 +123,14 @@ std::string SymbolOf(const std::string& name) {
                                                                  {"fric_r_fs", "F_{s,r}"},
                                                                  {"fric_r_fc", "F_{c,r}"},
                                                                  {"fric_r_vsp", "v_{sp,r}"},
-                                                                 {"fric_r_vt", "v_{t,r}"}};
+                                                                 {"fric_r_vt", "v_{t,r}"},
+                                                                 {"m_main", "m_{main}"},
+                                                                 {"m_res", "m_{res}"},
+                                                                 {"v_sp", "v_{sp}"},
+                                                                 {"v_t", "v_t"}};
   for (const auto& [from, to] : kSymbols)
     if (name == from) return to;
+  if (std::string sym = TermParameterSymbol(name); !sym.empty()) return sym;
   return EnhancedText(name);  // a name from a file: literal text, not markup
 }
 
@@ -365,7 +398,7 @@ void WriteDecor(std::ostream& s, const Decor& d, int w, int h, int* top_px, int*
       << (d.title_markup ? "enhanced" : "noenhanced") << "\n";
     top += 8;
   }
-  for (const std::string& line : WrapItems(d.subtitle, static_cast<size_t>(w / 8))) {
+  for (const std::string& line : WrapItems(d.subtitle, static_cast<size_t>(w / 9))) {  // ~9 px per character
     top += 18;
     s << "set label " << tag++ << " " << GnuplotString(line) << at(centre, top) << " center font ',12' enhanced\n";
   }
@@ -491,6 +524,7 @@ Status CheckGnuplot() {
 
 std::string AxisLabel(const std::string& name, const std::string& unit) {
   if (name == "a0_mm") return "base amplitude A_0 [mm]";
+  if (name == "acc0_g") return "base acceleration amplitude [g]";
   if (name == "f0_hz") return "base frequency f_0 [Hz]";
   const std::string u = UnitMarkup(unit);
   if (u.empty()) return SymbolOf(name);

@@ -118,6 +118,37 @@ TEST_F(Figures, HeatmapOfAContinuousMetricUsesItsDivergingPalette) {
   ExpectDrawn(bistable::RenderPlot(d, out), out, 900, 700, {"#2166ac", "#b2182b"}, 2000);
 }
 
+// A term model's parameters (model = "terms", issue 42) as short symbols, so that a subtitle of eleven of them
+// stays on the canvas.
+TEST_F(Figures, TermModelParametersAreShortSymbolsAndTheirSubtitleStaysOnTheCanvas) {
+  EXPECT_EQ(bistable::SymbolOf("main.stiffness_y3.k3"), "k_3");
+  EXPECT_EQ(bistable::SymbolOf("main.linear.k_lin"), "k_{lin}");
+  EXPECT_EQ(bistable::SymbolOf("res.friction.F_s"), "F_{s,r}");
+  EXPECT_EQ(bistable::SymbolOf("res.viscous.c0"), "c_{0,r}");
+  EXPECT_EQ(bistable::SymbolOf("res.linear.x"), "x_r");
+  EXPECT_EQ(bistable::SymbolOf("other.thing_1.k"), "other.thing\\_1.k");  // not a term: literal
+  bistable::PlotData d = Map("frf_db", 12);
+  for (int i = 0; i < 144; ++i) d.values.push_back(i < 72 ? -20.0 : 20.0);
+  const std::pair<const char*, const char*> kRig[] = {{"main.linear.k_lin", "N/m"},
+                                                      {"main.stiffness_y3.k3", "N/m^3"},
+                                                      {"main.viscous.c0", "N s/m"},
+                                                      {"main.damping_y2.c2", "N s/m^3"},
+                                                      {"main.friction.F_s", "N"},
+                                                      {"main.friction.F_c", "N"},
+                                                      {"res.linear.k_lin", "N/m"},
+                                                      {"res.viscous.c0", "N s/m"},
+                                                      {"res.damping_z2.c2", "N s/m^3"},
+                                                      {"res.friction.F_s", "N"},
+                                                      {"res.friction.F_c", "N"},
+                                                      {"m_main", "kg"},
+                                                      {"m_res", "kg"},
+                                                      {"v_sp", "m/s"},
+                                                      {"v_t", "m/s"}};
+  for (const auto& [name, unit] : kRig) d.subtitle.push_back(bistable::ParameterItem(name, -1234.5678, unit));
+  const std::string out = File("terms.png");
+  ExpectDrawn(bistable::RenderPlot(d, out), out, 900, 700, {"#2166ac", "#b2182b"}, 2000);
+}
+
 TEST_F(Figures, SharedColourRangeIsTheGivenOne) {
   // Values only up to +1 dB on a shared range of ±20 dB: nearly white, never the range's deep red.
   bistable::PlotData d = Map("frf_db", 12);
