@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "base/file.h"
+#include "base/json_text.h"
 #include "base/limits.h"
 #include "base/names.h"
 #include "dynamics/terms.h"
@@ -50,6 +51,9 @@ StatusOr<std::string> InlineTermsReport(const std::string& spec_text, const std:
   if (path.is_relative()) path = std::filesystem::path(spec_path).parent_path() / path;
   auto text = ReadTextFile(path.string(), "terms.report", kMaxReportBytes);
   if (!text.ok()) return text.status();
+  if (JsonNestingDepth(*text) > limits::kMaxModelJsonDepth)
+    return Status::InvalidArgument("terms.report", "terms.report: " + Printable(path.string()) + " nests deeper than " +
+                                                       std::to_string(limits::kMaxModelJsonDepth) + " levels");
   nlohmann::json j = nlohmann::json::parse(*text, nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded() || !j.is_object())
     return Status::InvalidArgument("terms.report", "terms.report: " + path.string() +

@@ -185,11 +185,13 @@ TEST_F(TermsReport, RefusesWhatItCannotSweepByName) {
   Write("force.json", Report("force"));
   Write("piezo.json", Report("base_acceleration", ", \"main.piezo\""));
   Write("bad.json", "{not json");
+  Write("deep.json", std::string(100000, '[') + std::string(100000, ']'));
   struct Case {
     std::string terms, field;
   } cases[] = {{"report = \"force.json\"", "terms.report.settings.input_kind"},
                {"report = \"piezo.json\"", "terms.report.final_terms"},
                {"report = \"bad.json\"", "terms.report"},
+               {"report = \"deep.json\"", "terms.report"},
                {"report = \"missing.json\"", "terms.report"},
                {"report = \"force.json\"\nlist = [\"main.linear\"]", "terms.list"}};
   for (const Case& c : cases) {
