@@ -44,6 +44,7 @@
 #include "engine/sweep_spec.h"
 #include "engine/sweep_state.h"
 #include "identify/options.h"
+#include "identify/synthetic.h"
 #include "proto/coordinator_client.h"
 
 namespace py = pybind11;
@@ -615,11 +616,6 @@ py::object QueryMap(const std::string& id, const std::string& expr, const std::s
   return ToPython(Unwrap(Compute([&] { return QueryJson(src, id, expr, max_points); })));
 }
 
-// --predict and --make-synthetic, still by their flags (bistable/__init__.py).
-py::object IdentifyArgs(const std::vector<std::string>& args) {
-  return ToPython(Unwrap(Compute([&] { return IdentifyFromArgs(args); })));
-}
-
 // Term ids: "a,b" as --terms takes them, or a list of ids.
 std::vector<std::string> TermList(const py::handle& v, const std::string& name) {
   if (py::isinstance<py::str>(v)) return identify::SplitTerms(v.cast<std::string>());
@@ -655,9 +651,9 @@ identify::SampleRange Range(const py::handle& v, const std::string& name) {
 }
 
 // The options of a fit by keyword (identify/options.h), the flags of `bistable identify` with '_' for '-':
-// typed values, no command-line text. *report gets `report` (a directory, "" none).
-identify::Options IdentifyOptionsFromKeywords(const py::dict& kw, std::string* report) {
-  identify::Options o;
+// typed values, no command-line text, onto *options (not validated). *report gets `report` (a directory, "" none).
+void IdentifyOptionsFromKeywords(const py::dict& kw, identify::Options* options, std::string* report) {
+  identify::Options& o = *options;
   std::map<std::string, double*> numbers = {
       {"input_scale", &o.input_scale}, {"output_scale", &o.output_scale}, {"output2_scale", &o.output2_scale},
       {"max_seconds", &o.max_seconds}, {"deriv_cutoff", &o.deriv_cutoff}, {"drift_cutoff", &o.drift_cutoff},
@@ -737,14 +733,9 @@ identify::Options IdentifyOptionsFromKeywords(const py::dict& kw, std::string* r
       UnknownKeyword(k, known);
     }
   }
-  const bistable::Status st = identify::Validate(o);
-  if (!st.ok()) Raise(st);
-  return o;
 }
 
-// A fit: the records of the files `data` (bytes or str paths) under the keyword options; (what --json prints,
-// the fit as text: identify::Summary::FullReport).
-py::object IdentifyFit(const py::list& data, const py::dict& kw) {
+std::vector<std::string> Paths(const py::list& data) {
   std::vector<std::string> paths;
   for (const py::handle& p : data) {
     if (py::isinstance<py::bytes>(p))
@@ -752,8 +743,119 @@ py::object IdentifyFit(const py::list& data, const py::dict& kw) {
     else
       paths.push_back(Text(p, "data"));
   }
+  return paths;
+}
+
+void Check(const bistable::Status& st) {
+  if (!st.ok()) Raise(st);
+}
+
+// One value or a list of them (a str is one value).
+std::vector<py::handle> OneOrMany(const py::handle& v) {
+  if (py::isinstance<py::list>(v) || py::isinstance<py::tuple>(v)) {
+    std::vector<py::handle> out;
+    for (const py::handle& x : py::reinterpret_borrow<py::sequence>(v)) out.push_back(x);
+    return out;
+  }
+  return {v};
+}
+
+// --predict by keyword (PredictOptions, client/identify_predict.h): `model` (the fit's JSON or a report
+// directory), `start_well` ("left", "left,right" or a list), `known` (each compared with the model's) and the fit's
+// record keywords; what `identify --predict --json` prints.
+py::object IdentifyPredict(const py::list& data, const py::dict& kw) {
+  PredictOptions p;
+  p.data = Paths(data);
+  py::dict rest;
+  for (const auto& [key, value] : kw) {
+    const std::string k = py::str(key);
+    if (k == "predict") {
+      if (!Flag(value, k)) throw py::value_error("predict = False: not a prediction");
+    } else if (k == "model") {
+      p.model = Text(value, k);
+    } else if (k == "start_well") {
+      for (const py::handle& w : OneOrMany(value)) {
+        const std::string text = Text(w, k);
+        for (const std::string& item : identify::SplitTerms(text))
+          p.start_wells.push_back(Unwrap(ParseStartWell(item)));
+      }
+    } else if (k == "known") {
+      for (const auto& [name, v] : Dict(value, k)) {
+        const std::string n = py::str(name);
+        p.known[n] = Number(v, "known." + n);
+      }
+    } else {
+      rest[key] = value;
+    }
+  }
   std::string report;
-  const identify::Options o = IdentifyOptionsFromKeywords(kw, &report);
+  IdentifyOptionsFromKeywords(rest, &p.records, &report);
+  if (!report.empty())
+    Raise(bistable::Status::InvalidArgument("report", "--predict writes no report directory (use --json)"));
+  Check(Validate(p));
+  return ToPython(Unwrap(Compute([&] { return PredictJson(p); })));
+}
+
+// --synthetic-extra by keyword: "TERM=VALUE[:VALUE]", a list of them, or {term: value or (values...)}.
+void SyntheticExtras(const py::handle& v, const std::string& k, std::vector<TermValues>* out) {
+  if (py::isinstance<py::dict>(v)) {
+    for (const auto& [term, values] : py::reinterpret_borrow<py::dict>(v)) {
+      const std::string t = Text(term, k);
+      std::vector<double> xs;
+      for (const py::handle& x : OneOrMany(values)) xs.push_back(Number(x, k + "." + t));
+      out->push_back(Unwrap(SyntheticExtra(t, xs)));
+    }
+    return;
+  }
+  for (const py::handle& e : OneOrMany(v)) out->push_back(Unwrap(ParseSyntheticExtra(Text(e, k))));
+}
+
+// --make-synthetic by keyword (identify::MakeSyntheticOptions, identify/synthetic.h): `make_synthetic` (the
+// directory), `synthetic` (the kind) and the synthetic_* knobs; what `identify --make-synthetic --json` prints.
+py::object IdentifySynthetic(const py::dict& kw) {
+  identify::MakeSyntheticOptions o;
+  std::map<std::string, double*> numbers = {{"synthetic_f_start", &o.f_start_hz},
+                                            {"synthetic_f_end", &o.f_end_hz},
+                                            {"synthetic_duration", &o.duration_s},
+                                            {"synthetic_noise", &o.noise_mm}};
+  std::vector<std::string> known = {"make_synthetic", "synthetic",       "synthetic_amplitude",
+                                    "synthetic_seed", "synthetic_extra", "synthetic_start"};
+  for (const auto& [k, _] : numbers) known.push_back(k);
+  for (const auto& [key, value] : kw) {
+    const std::string k = py::str(key);
+    if (auto it = numbers.find(k); it != numbers.end()) {
+      *it->second = Number(value, k);
+    } else if (k == "make_synthetic") {
+      o.dir = Text(value, k);
+    } else if (k == "synthetic") {
+      o.kind = Unwrap(identify::ParseSyntheticKind(Text(value, k)));
+    } else if (k == "synthetic_amplitude") {
+      for (const py::handle& a : OneOrMany(value)) o.amplitudes_mm.push_back(Number(a, k));
+    } else if (k == "synthetic_seed") {
+      const std::optional<long long> x = IndexValue(value, k);
+      if (!x || *x < 0 || *x > 4294967295LL)
+        throw py::value_error(k + " = " + IntegerText(value) + " violates 0 <= " + k + " <= 4294967295");
+      o.seed = static_cast<unsigned>(*x);
+    } else if (k == "synthetic_extra") {
+      SyntheticExtras(value, k, &o.extra);
+    } else if (k == "synthetic_start") {
+      o.start = Unwrap(identify::ParseWellSide(Text(value, k)));
+    } else {
+      UnknownKeyword(k, known);
+    }
+  }
+  Check(identify::Validate(o));
+  return ToPython(Unwrap(Compute([&] { return SyntheticJson(o); })));
+}
+
+// A fit: the records of the files `data` (bytes or str paths) under the keyword options; (what --json prints,
+// the fit as text: identify::Summary::FullReport).
+py::object IdentifyFit(const py::list& data, const py::dict& kw) {
+  const std::vector<std::string> paths = Paths(data);
+  std::string report;
+  identify::Options o;
+  IdentifyOptionsFromKeywords(kw, &o, &report);
+  Check(identify::Validate(o));
   std::string full_report;
   const nlohmann::json j = Unwrap(Compute([&] { return IdentifyFitJson(o, paths, report, &full_report); }));
   // A record's name holds what its file name held (any bytes): invalid UTF-8 becomes U+FFFD, as in the JSON.
@@ -826,7 +928,8 @@ PYBIND11_MODULE(_core, m) {
   m.def("sweeps", &Sweeps, py::arg("data"));
   m.def("query", &QueryMap, py::arg("id"), py::arg("expr"), py::arg("data"), py::arg("limit"));
   m.def("identify", &IdentifyFit, py::arg("data"), py::arg("options"));
-  m.def("identify_args", &IdentifyArgs, py::arg("args"));
+  m.def("identify_predict", &IdentifyPredict, py::arg("data"), py::arg("options"));
+  m.def("identify_synthetic", &IdentifySynthetic, py::arg("options"));
   m.def("identify_terms", [] { return ToPython(IdentifyTermsJson()); });
   py::class_<PyClient>(m, "Client")
       .def(py::init<const std::string&, const std::string&, const std::string&, bool>(), py::arg("address"),
