@@ -21,6 +21,7 @@
 #include "base/file.h"
 #include "base/limits.h"
 #include "base/names.h"
+#include "base/validate.h"
 #include "client/cli_common.h"
 #include "client/identify_diagnostics.h"
 #include "client/identify_json.h"
@@ -94,35 +95,11 @@ int ListTerms(bool json) {
   return 0;
 }
 
-// --synthetic bistable|bistable-coupled: its flags within their bounds, and resonator terms of
-// --synthetic-extra only with the resonator.
-Status CheckFamilyFlags(const IdentifyArgs& a, const std::vector<TermValues>& extra) {
-  auto check = [](const char* flag, double v, double lo, double hi) -> Status {
-    if (!(v >= lo && v <= hi))
-      return Status::InvalidArgument(flag, std::string("--") + flag + " = " + Fmt(v, 6) + " violates " + Fmt(lo, 6) +
-                                               " <= value <= " + Fmt(hi, 6));
-    return Status::Ok();
-  };
-  for (const TermValues& e : extra)
-    if (e.term->body == Body::kResonator && a.synth_kind != "bistable-coupled")
-      return Status::InvalidArgument(
-          "synthetic-extra", "--synthetic-extra " + e.term->id + " needs --synthetic bistable-coupled (a resonator)");
-  BISTABLE_RETURN_IF_ERROR(check("synthetic-f-start", a.synth_f_start, 0.01, 50));
-  BISTABLE_RETURN_IF_ERROR(check("synthetic-f-end", a.synth_f_end, 0.01, 50));
-  BISTABLE_RETURN_IF_ERROR(check("synthetic-duration", a.synth_duration, 1, 600));
-  BISTABLE_RETURN_IF_ERROR(check("synthetic-noise", a.synth_noise_mm, 0, 10));
-  if (a.synth_start != "left" && a.synth_start != "right")
-    return Status::InvalidArgument("synthetic-start", "--synthetic-start '" + a.synth_start + "' is not left or right");
-  if (a.synth_amplitudes_mm.size() > 16)
-    return Status::InvalidArgument("synthetic-amplitude", "at most 16 --synthetic-amplitude values");
-  for (double mm : a.synth_amplitudes_mm) BISTABLE_RETURN_IF_ERROR(check("synthetic-amplitude", mm, 0.01, 100));
-  return Status::Ok();
-}
-
 // truth.json of a synthetic family: the truth `p` (with the `extra` force terms) as a `--predict --model` file
 // (final_terms, params, settings) and how its `records` were made.
-nlohmann::json TruthJson(const DimensionalParams& p, const std::vector<TermValues>& extra, const IdentifyArgs& a,
+nlohmann::json TruthJson(const DimensionalParams& p, const identify::MakeSyntheticOptions& a,
                          const nlohmann::json& records) {
+  const std::vector<TermValues>& extra = a.extra;
   nlohmann::json params = nlohmann::json::object(), final_terms = nlohmann::json::array(),
                  extras = nlohmann::json::array();
   for (const TermValues& t : TruthTerms(p, extra)) {
@@ -145,17 +122,19 @@ nlohmann::json TruthJson(const DimensionalParams& p, const std::vector<TermValue
           {"params", params},
           {"settings", settings},
           {"synthetic",
-           {{"kind", a.synth_kind},
-            {"f_start_hz", a.synth_f_start},
-            {"f_end_hz", a.synth_f_end},
-            {"duration_s", a.synth_duration},
+           {{"kind", identify::Name(a.kind)},
+            {"f_start_hz", a.f_start_hz},
+            {"f_end_hz", a.f_end_hz},
+            {"duration_s", a.duration_s},
             {"fs_hz", 120},
-            {"noise_mm", a.synth_noise_mm},
+            {"noise_mm", a.noise_mm},
             {"noise_on", p.has_resonator ? nlohmann::json{"x0", "x", "xr"} : nlohmann::json{"x0", "x"}},
-            {"start_well", a.synth_start},
+            {"start_well", identify::Name(a.start)},
             {"extra", extras},
             {"records", records}}}};
 }
+
+}  // namespace
 
 // --make-synthetic DIR: synthetic records for trying the loop (noise 0.05 mm on every measured
 // position, sampled at 120 Hz like the paper's camera):
@@ -168,22 +147,10 @@ nlohmann::json TruthJson(const DimensionalParams& p, const std::vector<TermValue
 //            (--synthetic-noise), one record per amplitude (seeds --synthetic-seed, +1, ...), optional extra
 //            force terms in the truth (--synthetic-extra main.drag=5), a start well; and truth.json, the true
 //            model as a `--predict --model` file (final_terms, params, settings).
-StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArgs& a) {
-  const std::string& kind = a.synth_kind;
-  const bool family = kind == "bistable" || kind == "bistable-coupled";
-  if (kind != "linear" && kind != "coupled" && !family)
-    return Status::InvalidArgument("synthetic", "'" + kind + "' is not linear, coupled, bistable or bistable-coupled");
-  std::vector<TermValues> extra;
-  for (const std::string& e : a.synth_extra) {
-    auto x = ParseSyntheticExtra(e);
-    if (!x.ok()) return x.status();
-    extra.push_back(*x);
-  }
-  if (!family && (!extra.empty() || !a.synth_amplitudes_mm.empty()))
-    return Status::InvalidArgument(
-        "synthetic",
-        "--synthetic-extra and --synthetic-amplitude are options of --synthetic bistable|bistable-coupled");
-  if (family) BISTABLE_RETURN_IF_ERROR(CheckFamilyFlags(a, extra));  // every flag before anything is written
+StatusOr<nlohmann::json> SyntheticJson(const identify::MakeSyntheticOptions& a) {
+  BISTABLE_RETURN_IF_ERROR(identify::Validate(a));  // every option before anything is written
+  const std::string& dir = a.dir;
+  const bool family = identify::IsFamily(a.kind);
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return Status::IoError("make-synthetic", "cannot create '" + dir + "': " + ec.message());
@@ -198,18 +165,18 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
   };
   if (family) {
     DimensionalParams p = DimensionalParams::BistableTable2();
-    p.has_resonator = kind == "bistable-coupled";
-    std::vector<double> amps = a.synth_amplitudes_mm.empty() ? std::vector<double>{10.0} : a.synth_amplitudes_mm;
+    p.has_resonator = a.kind == identify::SyntheticKind::kBistableCoupled;
+    std::vector<double> amps = a.amplitudes_mm.empty() ? std::vector<double>{10.0} : a.amplitudes_mm;
     const double well = std::sqrt(-p.k_lin / p.k3);
-    unsigned seed = a.synth_seed;
+    unsigned seed = a.seed;
     nlohmann::json records = nlohmann::json::array();
     for (double mm : amps) {
       SyntheticOptions o;
-      o.a0_m = mm * 1e-3, o.f_start_hz = a.synth_f_start, o.f_end_hz = a.synth_f_end, o.duration_s = a.synth_duration;
-      o.noise_m = o.input_noise_m = a.synth_noise_mm * 1e-3;
+      o.a0_m = mm * 1e-3, o.f_start_hz = a.f_start_hz, o.f_end_hz = a.f_end_hz, o.duration_s = a.duration_s;
+      o.noise_m = o.input_noise_m = a.noise_mm * 1e-3;
       o.seed = seed;
-      o.y0_m = SyntheticWell(p, extra, a.synth_start == "left" ? -well : well);  // at rest in the truth's well
-      o.extra = extra;
+      o.y0_m = SyntheticWell(p, a.extra, a.start == identify::WellSide::kLeft ? -well : well);  // the truth's well
+      o.extra = a.extra;
       const std::string file = std::string(p.has_resonator ? "coupled" : "standalone") + "_" + Fmt(mm, 4) + "mm_s" +
                                std::to_string(seed) + ".csv";
       BISTABLE_RETURN_IF_ERROR(write(p, o, file));
@@ -217,7 +184,7 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
       ++seed;
     }
     // The truth as a model file for `identify --predict --model` (and the tests' reference values).
-    const nlohmann::json truth = TruthJson(p, extra, a, records);
+    const nlohmann::json truth = TruthJson(p, a, records);
     const std::string path = (std::filesystem::path(dir) / "truth.json").string();
     auto f = AtomicFile::Create(path, "json");
     if (!f.ok()) return f.status();
@@ -225,7 +192,7 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
     BISTABLE_RETURN_IF_ERROR((*f)->Commit());
     return nlohmann::json{{"files", files}, {"truth", path}};
   }
-  if (kind == "coupled") {
+  if (a.kind == identify::SyntheticKind::kCoupled) {
     const DimensionalParams p = DimensionalParams::BistableTable2();
     SyntheticOptions o;
     o.a0_m = 4e-3, o.f_start_hz = 1, o.f_end_hz = 6, o.duration_s = 70;
@@ -245,8 +212,34 @@ StatusOr<nlohmann::json> SyntheticJson(const std::string& dir, const IdentifyArg
   return nlohmann::json{{"files", files}};
 }
 
-int MakeSynthetic(const std::string& dir, const IdentifyArgs& a) {
-  auto j = SyntheticJson(dir, a);
+namespace {
+
+// --make-synthetic's flags onto identify::MakeSyntheticOptions; what only text can get wrong (the kind's and the
+// well's names, --synthetic-extra's TERM=VALUE) is checked here, the bounds by identify::Validate.
+StatusOr<identify::MakeSyntheticOptions> SyntheticFromFlags(const IdentifyArgs& a) {
+  identify::MakeSyntheticOptions o;
+  o.dir = a.synth;
+  auto kind = identify::ParseSyntheticKind(a.synth_kind);
+  if (!kind.ok()) return kind.status();
+  o.kind = *kind;
+  for (const std::string& e : a.synth_extra) {
+    auto x = ParseSyntheticExtra(e);
+    if (!x.ok()) return x.status();
+    o.extra.push_back(*x);
+  }
+  auto start = identify::ParseWellSide(a.synth_start);
+  if (!start.ok()) return start.status();
+  o.start = *start;
+  o.amplitudes_mm = a.synth_amplitudes_mm;
+  o.f_start_hz = a.synth_f_start, o.f_end_hz = a.synth_f_end, o.duration_s = a.synth_duration;
+  o.noise_mm = a.synth_noise_mm, o.seed = a.synth_seed;
+  return o;
+}
+
+int MakeSynthetic(const IdentifyArgs& a) {
+  auto o = SyntheticFromFlags(a);
+  if (!o.ok()) return Fail(o.status());
+  auto j = SyntheticJson(*o);
   if (!j.ok()) return Fail(j.status());
   if (a.json)
     std::cout << DumpJson(*j, 2) << "\n";
@@ -323,10 +316,11 @@ StatusOr<identify::Options> OptionsFromFlags(const IdentifyArgs& a) {
   return o;
 }
 
-// --predict: --terms and --known are not needed (the model file has them); given, they must agree.
-Status CheckPredictFlagsAgree(const IdentifyArgs& a, const FittedModel& fm) {
-  if (!a.terms.empty()) {
-    auto given = ParseTerms(a.terms);
+// --predict: terms and known constants are not needed (the model file has them); given, they must agree.
+Status CheckPredictAgrees(const PredictOptions& p, const FittedModel& fm) {
+  const std::string terms = identify::JoinTerms(p.records.terms);
+  if (!p.records.terms.empty()) {
+    auto given = ParseTerms(terms);
     if (!given.ok()) return given.status();
     std::set<std::string> g, d;
     for (const TermDef* t : *given) g.insert(t->id);
@@ -340,48 +334,23 @@ Status CheckPredictFlagsAgree(const IdentifyArgs& a, const FittedModel& fm) {
     for (const TermDef* t : fm.model.terms)
       final_terms.insert(t->id), final_list += (final_list.empty() ? "" : ",") + t->id;
     if (g != d && g != final_terms)
-      return Status::InvalidArgument("terms", "--terms " + a.terms + " is neither the model's declared terms (" +
+      return Status::InvalidArgument("terms", "--terms " + terms + " is neither the model's declared terms (" +
                                                   (fm.declared.empty() ? std::string("not recorded") : fm.declared) +
                                                   ") nor its final terms (" + final_list + ") in " + fm.path +
                                                   "; --predict takes the terms from the model file");
   }
-  auto kv = ParseNameValues(a.known, "known");
-  if (!kv.ok()) return kv.status();
-  identify::Options scratch;
-  BISTABLE_RETURN_IF_ERROR(ApplyKnown(a.known, &scratch));
-  for (const auto& [k, v] : *kv) {
-    const double given = k == "m_main"  ? scratch.m_main
-                         : k == "m_res" ? scratch.m_res
-                         : k == "v_sp"  ? scratch.v_sp
-                                        : scratch.v_t;
+  for (const auto& [k, given] : p.known) {
     const double model = k == "m_main"  ? fm.model.m_main
                          : k == "m_res" ? fm.model.m_res
                          : k == "v_sp"  ? fm.model.fc.v_sp
                                         : fm.model.fc.v_t;
     if (given != model)
       return Status::InvalidArgument(
-          "known." + k, "--known " + k + "=" + v + " differs from the model's " + k + " = " + Fmt(model, 17) + " (" +
-                            fm.path + (k == "m_main" && model == 0 ? ": the mass was fitted" : "") + ")");
+          "known." + k, "--known " + k + "=" + FormatNumber(given) + " differs from the model's " + k + " = " +
+                            Fmt(model, 17) + " (" + fm.path +
+                            (k == "m_main" && model == 0 ? ": the mass was fitted" : "") + ")");
   }
   return Status::Ok();
-}
-
-// --start-well: one value for every --data file, or one per file; none | left | right.
-StatusOr<std::vector<std::string>> ParseStartWells(const IdentifyArgs& a) {
-  std::vector<std::string> w;
-  std::stringstream ss(a.start_well.empty() ? "none" : a.start_well);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    if (item != "none" && item != "left" && item != "right")
-      return Status::InvalidArgument("start-well", "'" + item + "' violates start-well in {none, left, right}");
-    w.push_back(item);
-  }
-  if (w.size() == 1) w.assign(a.data.size(), w[0]);
-  if (w.size() != a.data.size())
-    return Status::InvalidArgument("start-well", "give one value for all --data files or one per file (" +
-                                                     std::to_string(a.data.size()) + "), not " +
-                                                     std::to_string(w.size()));
-  return w;
 }
 
 // Per record: the errors over one and four drive periods and at --horizon from the measured state, and the
@@ -414,98 +383,90 @@ void AddRecordPredictability(const IdentModel& m, const std::vector<double>& th,
   }
 }
 
-// --predict's flags that only a fit takes, and what it needs: --model and --data.
-Status CheckPredictFlags(const IdentifyArgs& a) {
-  if (a.model_file.empty())
+// --predict's range as the settings show it: "" for the whole record, else "A:B" (B empty: to the end).
+std::string RangeText(const identify::SampleRange& r) {
+  if (r == identify::kWholeRecord) return "";
+  return std::to_string(r.first) + ":" + (r.second == SIZE_MAX ? std::string() : std::to_string(r.second));
+}
+
+// The model's start per record: the record's integrated (zero-mean) displacement as in a fit, plus the chosen
+// well's centre — the model's offset parameters, one per record. `wells`: one per file; `file_of`: each record's.
+Status ApplyStartWells(const std::vector<StartWell>& wells, const std::vector<size_t>& file_of, const Setup& setup,
+                       const ModelStatics& statics, IdentModel* m, std::vector<double>* th) {
+  if (std::all_of(wells.begin(), wells.end(), [](StartWell w) { return w == StartWell::kNone; })) return Status::Ok();
+  if (setup.output != OutputKind::kVelocity)
     return Status::InvalidArgument(
-        "model",
-        "--predict needs --model FILE: a `bistable identify --json` output or a report directory (its report.json)");
-  if (a.data.empty()) return Status::InvalidArgument("data", "give at least one --data FILE.csv to predict");
-  if (!a.guesses.empty())
-    return Status::InvalidArgument("guess", "--predict fits nothing: the parameter values are the model file's");
-  if (a.fit_offsets)
-    return Status::InvalidArgument("fit-offsets", "--predict fits nothing; --start-well sets where each record starts");
-  if (!a.report.empty()) return Status::InvalidArgument("report", "--predict writes no report directory (use --json)");
-  if (!a.test_ranges.empty())
-    return Status::InvalidArgument(
-        "test-range",
-        "--predict simulates the --data records themselves (--range and --max-seconds select the samples)");
+        "start-well", "--start-well is for velocity outputs (a displacement output gives the start itself)");
+  if (!statics.bistable)
+    return Status::InvalidArgument("start-well",
+                                   "the model has one well (no barrier): start left or right has no meaning");
+  m->offsets = static_cast<int>(file_of.size());
+  for (size_t f : file_of)
+    th->push_back(wells[f] == StartWell::kLeft    ? statics.wells[0].at.y
+                  : wells[f] == StartWell::kRight ? statics.wells[1].at.y
+                                                  : 0.0);
   return Status::Ok();
 }
 
-// --predict: the fitted model of --model simulated on every --data record (its columns, input, output and
-// frame flags as in a fit, --range/--max-seconds/--decimate selecting the samples); nothing is fitted.
-StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
+}  // namespace
+
+// --predict: the fitted model of `p.model` simulated on every record of `p.data` (its columns, input, output and
+// frame as in a fit, range/max_seconds/decimate selecting the samples); nothing is fitted.
+StatusOr<nlohmann::json> PredictJson(const PredictOptions& p) {
   const auto t0 = std::chrono::steady_clock::now();
-  BISTABLE_RETURN_IF_ERROR(CheckPredictFlags(a));
-  auto read = ReadFittedModel(a.model_file);
+  BISTABLE_RETURN_IF_ERROR(Validate(p));
+  auto read = ReadFittedModel(p.model);
   if (!read.ok()) return read.status();
   FittedModel fitted = std::move(read).value();
   FittedModel* fm = &fitted;
-  BISTABLE_RETURN_IF_ERROR(CheckPredictFlagsAgree(a, *fm));
-  const auto options = OptionsFromFlags(a);
-  if (!options.ok()) return options.status();
-  const identify::Options& o = *options;
+  BISTABLE_RETURN_IF_ERROR(CheckPredictAgrees(p, *fm));
+  const identify::Options& o = p.records;
   const ColumnMap columns = identify::Columns(o);
   Setup setup;
   setup.input = o.input_kind;
   setup.output = o.output_kind;
-  if (!fm->input_kind.empty() && fm->input_kind != a.input_kind)
+  const std::string input_kind = identify::Name(o.input_kind);
+  if (!fm->input_kind.empty() && fm->input_kind != input_kind)
     return Status::InvalidArgument("input-kind", "the model was fitted with --input-kind " + fm->input_kind + " (" +
-                                                     fm->path + "); its parameters do not describe a " + a.input_kind +
+                                                     fm->path + "); its parameters do not describe a " + input_kind +
                                                      " input");
-  const std::string frame =
-      a.frame == "auto" || !a.frame_given ? (fm->frame.empty() ? "absolute" : fm->frame) : a.frame;
+  const bool frame_auto = o.output_frame == identify::FrameMode::kAuto;
+  const std::string frame = frame_auto ? (fm->frame.empty() ? "absolute" : fm->frame) : identify::Name(o.output_frame);
   if (frame == "absolute")
     setup.frame = OutputFrame::kAbsolute;
   else if (frame == "relative")
     setup.frame = OutputFrame::kRelative;
   else
     return Status::InvalidArgument("output-frame",
-                                   "'" + a.frame + "' violates output-frame in {absolute, relative, auto}");
-  if (a.frame_given && a.frame != "auto" && !fm->frame.empty() && frame != fm->frame)
+                                   "'" + frame + "' violates output-frame in {absolute, relative, auto}");
+  if (!frame_auto && !fm->frame.empty() && frame != fm->frame)
     fm->notes.push_back("the fit read the velocity as " + fm->frame + "; predicted as " + frame + " (--output-frame)");
   const IdentModel& model = fm->model;
   setup.fc = model.fc;
-  setup.drift_cutoff_hz = a.drift_cutoff;
+  setup.drift_cutoff_hz = o.drift_cutoff;
   BISTABLE_RETURN_IF_ERROR(ValidateSetup(setup));
   BISTABLE_RETURN_IF_ERROR(identify::CheckOutputTerms(model.terms, columns, setup, "model.final_terms"));
   const auto loop = identify::LoopOptions(o, columns, setup);
   if (!loop.ok()) return loop.status();
   auto statics = AnalyseStatics(model, model.theta);
   if (!statics.ok()) return statics.status();
-  auto wells = ParseStartWells(a);
-  if (!wells.ok()) return wells.status();
-  // Every record, with the --data file it came from.
+  std::vector<StartWell> wells = p.start_wells.empty() ? std::vector<StartWell>{StartWell::kNone} : p.start_wells;
+  if (wells.size() == 1) wells.assign(p.data.size(), wells[0]);
+  // Every record, with the file it came from.
   std::vector<Record> loaded;
   std::vector<size_t> file_of;
-  for (size_t f = 0; f < a.data.size(); ++f) {
-    auto recs = LoadRecords(a.data[f], columns);
+  for (size_t f = 0; f < p.data.size(); ++f) {
+    auto recs = LoadRecords(p.data[f], columns);
     if (!recs.ok()) return recs.status();
     for (Record& r : recs.value())
-      loaded.push_back(a.decimate > 1 ? identify::Decimated(r, a.decimate) : std::move(r)), file_of.push_back(f);
+      loaded.push_back(o.decimate > 1 ? identify::Decimated(r, o.decimate) : std::move(r)), file_of.push_back(f);
   }
   auto prepared = identify::PrepareFitted(loaded, o, setup);
   if (!prepared.ok()) return prepared.status();
   std::vector<PreparedRecord> recs = std::move(prepared).value();
-  // The start: the record's integrated (zero-mean) displacement as in a fit, plus the chosen well's
-  // centre — the model's offset parameters, one per record.
   IdentModel m = model;
   std::vector<double> th = m.theta;
-  const bool any_well = std::any_of(wells->begin(), wells->end(), [](const std::string& w) { return w != "none"; });
-  if (any_well) {
-    if (setup.output != OutputKind::kVelocity)
-      return Status::InvalidArgument(
-          "start-well", "--start-well is for velocity outputs (a displacement output gives the start itself)");
-    if (!statics->bistable)
-      return Status::InvalidArgument("start-well",
-                                     "the model has one well (no barrier): start left or right has no meaning");
-    m.offsets = static_cast<int>(recs.size());
-    for (size_t i = 0; i < recs.size(); ++i) {
-      const std::string& w = (*wells)[file_of[i]];
-      th.push_back(w == "left" ? statics->wells[0].at.y : w == "right" ? statics->wells[1].at.y : 0.0);
-    }
-  }
+  BISTABLE_RETURN_IF_ERROR(ApplyStartWells(wells, file_of, setup, *statics, &m, &th));
   for (size_t i = 0; i < recs.size(); ++i) recs[i].index = static_cast<int>(i);
   SetOutputWeights(&recs);  // the fit's weights where the model file has them
   for (PreparedRecord& r : recs)
@@ -519,25 +480,57 @@ StatusOr<nlohmann::json> PredictJson(const IdentifyArgs& a) {
     pr.p = PredictRecord(m, th, recs[i], setup, *statics, loop->fit.objective);
     for (size_t g = 0; g < columns.group.size() && g < loaded[i].group_values.size(); ++g)
       pr.group.emplace_back(columns.group[g], loaded[i].group_values[g]);
-    pr.start_well = (*wells)[file_of[i]];
+    pr.start_well = Name(wells[file_of[i]]);
     out.push_back(std::move(pr));
   }
   const Errors joint = Evaluate(m, th, recs, setup);
-  nlohmann::json settings = {{"data", a.data},
-                             {"decimate", a.decimate},
-                             {"max_seconds", a.max_seconds},
-                             {"range", a.range},
-                             {"deriv_cutoff_hz", a.deriv_cutoff},
-                             {"objective", a.objective},
-                             {"input_kind", a.input_kind},
-                             {"output_kind", a.output_kind},
+  std::vector<std::string> well_names;
+  for (StartWell w : wells) well_names.push_back(Name(w));
+  nlohmann::json settings = {{"data", p.data},
+                             {"decimate", o.decimate},
+                             {"max_seconds", o.max_seconds},
+                             {"range", RangeText(o.range)},
+                             {"deriv_cutoff_hz", o.deriv_cutoff},
+                             {"objective", identify::Name(o.objective)},
+                             {"input_kind", input_kind},
+                             {"output_kind", identify::Name(o.output_kind)},
                              {"output_frame", frame},
-                             {"drift_cutoff_hz", a.drift_cutoff},
-                             {"start_well", *wells}};
+                             {"drift_cutoff_hz", o.drift_cutoff},
+                             {"start_well", well_names}};
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   nlohmann::json pj = PredictionJson(*fm, *statics, out, joint, setup, settings, seconds);
-  AddRecordPredictability(m, th, recs, setup, a.horizon, &pj);
+  AddRecordPredictability(m, th, recs, setup, o.horizon, &pj);
   return pj;
+}
+
+namespace {
+
+// --predict's flags onto PredictOptions (client/identify_predict.h): the records' flags as a fit's
+// (OptionsFromFlags), --known kept as given (each compared with the model's), --output-frame not given: the fit's.
+StatusOr<PredictOptions> PredictFromFlags(const IdentifyArgs& a) {
+  if (!a.report.empty()) return Status::InvalidArgument("report", "--predict writes no report directory (use --json)");
+  PredictOptions p;
+  p.model = a.model_file;
+  p.data = a.data;
+  auto o = OptionsFromFlags(a);
+  if (!o.ok()) return o.status();
+  p.records = std::move(o).value();
+  if (!a.frame_given) p.records.output_frame = identify::FrameMode::kAuto;
+  auto kv = ParseNameValues(a.known, "known");
+  if (!kv.ok()) return kv.status();
+  for (const auto& [k, v] : *kv) {
+    auto x = ParseFiniteNumber(v, "known." + k);
+    if (!x.ok()) return x.status();
+    p.known[k] = *x;
+  }
+  std::stringstream ss(a.start_well);
+  std::string item;
+  while (!a.start_well.empty() && std::getline(ss, item, ',')) {
+    auto w = ParseStartWell(item);
+    if (!w.ok()) return w.status();
+    p.start_wells.push_back(*w);
+  }
+  return p;
 }
 
 // The fit of the records of `data` (identify/identify.h) as --json prints it; the report directory is
@@ -572,8 +565,11 @@ StatusOr<nlohmann::json> FitJson(const identify::Options& o, const std::vector<s
 // (--predict) or the fit.
 StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
   if (a.list_terms) return TermsJson();
-  if (!a.synth.empty()) return SyntheticJson(a.synth, a);
-  if (a.predict) return PredictJson(a);
+  if (a.predict) {
+    const auto p = PredictFromFlags(a);
+    if (!p.ok()) return p.status();
+    return PredictJson(*p);
+  }
   if (!a.model_file.empty())
     return Status::InvalidArgument("model", "--model is read by --predict (add --predict, or drop --model to fit)");
   if (!a.start_well.empty()) return Status::InvalidArgument("start-well", "--start-well is a --predict option");
@@ -585,7 +581,7 @@ StatusOr<nlohmann::json> IdentifyJson(const IdentifyArgs& a) {
 
 int RunIdentify(const IdentifyArgs& a) {
   if (a.list_terms) return ListTerms(a.json);
-  if (!a.synth.empty()) return MakeSynthetic(a.synth, a);
+  if (!a.synth.empty()) return MakeSynthetic(a);
   // Ctrl-C / SIGTERM: every simulation stops at its next sample, the loop ends, nothing is printed or written.
   InstallCancelSignalHandlers();
   auto j = IdentifyJson(a);
@@ -730,20 +726,6 @@ void AddIdentifyCommand(CLI::App& app, int* exit_code) {
       "Fit the model to measured records, trace the residual to missing effects, add them, report before/after");
   AddIdentifyOptions(c, a.get());
   c->callback([a, exit_code] { *exit_code = RunIdentify(*a); });
-}
-
-StatusOr<nlohmann::json> IdentifyFromArgs(const std::vector<std::string>& args) {
-  IdentifyArgs a;
-  CLI::App app("identify");
-  AddIdentifyOptions(&app, &a);
-  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 takes the arguments last first
-  try {
-    app.parse(reversed);
-  } catch (const CLI::ParseError& e) {
-    return Status::InvalidArgument("identify", e.what());
-  }
-  a.json = true;  // nothing printed: the caller gets the object
-  return IdentifyJson(a);
 }
 
 StatusOr<nlohmann::json> IdentifyFitJson(const identify::Options& options, const std::vector<std::string>& data,

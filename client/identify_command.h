@@ -9,15 +9,21 @@
 #include <nlohmann/json.hpp>
 
 #include "base/status.h"
+#include "client/identify_predict.h"
 #include "identify/options.h"
+#include "identify/synthetic.h"
 
 namespace bistable {
 void AddIdentifyCommand(CLI::App& app, int* exit_code);
 
-// The same command for a program (the Python module): `args` are identify's flags as on the command
-// line (without "identify"), parsed by the same options; returns what --json prints (--list-terms: the
-// library; --make-synthetic DIR: {"files"}). A bad flag is InvalidArgument with CLI11's message.
-StatusOr<nlohmann::json> IdentifyFromArgs(const std::vector<std::string>& args);
+// --make-synthetic for a program (the CLI and the Python module): the records (and, for the snap-through family,
+// truth.json) written into options.dir; returns what --json prints ({"files"[, "truth"]}). Invalid options
+// (identify::Validate) are InvalidArgument naming the option, before anything is written.
+StatusOr<nlohmann::json> SyntheticJson(const identify::MakeSyntheticOptions& options);
+
+// --predict for a program (the CLI and the Python module): returns what --json prints ({"prediction": ...}).
+// Invalid options (Validate(PredictOptions)) are InvalidArgument naming the option.
+StatusOr<nlohmann::json> PredictJson(const PredictOptions& options);
 
 // The fit for a program (the Python module), with no command-line text: `options` as the library takes them
 // (identify/options.h), the records of the files `data`, Identify (identify/identify.h); returns what

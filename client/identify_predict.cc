@@ -7,6 +7,7 @@
 
 #include "base/file.h"
 #include "base/limits.h"
+#include "base/validate.h"
 #include "client/identify_diagnostics.h"
 #include "engine/json_shapes.h"
 
@@ -266,6 +267,42 @@ std::vector<std::string> Observability(const Setup& setup, bool piezo) {
 }
 
 }  // namespace
+
+StatusOr<StartWell> ParseStartWell(const std::string& s) {
+  if (s == "none") return StartWell::kNone;
+  if (s == "left") return StartWell::kLeft;
+  if (s == "right") return StartWell::kRight;
+  return Status::InvalidArgument("start-well", "'" + s + "' violates start-well in {none, left, right}");
+}
+
+const char* Name(StartWell w) { return w == StartWell::kNone ? "none" : w == StartWell::kLeft ? "left" : "right"; }
+
+Status Validate(const PredictOptions& p) {
+  if (p.model.empty())
+    return Status::InvalidArgument(
+        "model",
+        "--predict needs --model FILE: a `bistable identify --json` output or a report directory (its report.json)");
+  if (p.data.empty()) return Status::InvalidArgument("data", "give at least one --data FILE.csv to predict");
+  const identify::Options& o = p.records;
+  if (!o.guesses.empty())
+    return Status::InvalidArgument("guess", "--predict fits nothing: the parameter values are the model file's");
+  if (o.fit_offsets)
+    return Status::InvalidArgument("fit-offsets", "--predict fits nothing; --start-well sets where each record starts");
+  if (!o.test_ranges.empty())
+    return Status::InvalidArgument(
+        "test-range",
+        "--predict simulates the --data records themselves (--range and --max-seconds select the samples)");
+  identify::Options scratch;
+  for (const auto& [k, v] : p.known) {
+    BISTABLE_RETURN_IF_ERROR(identify::SetKnown(k, v, &scratch));
+    if (!(v > 0)) return Status::InvalidArgument("known." + k, k + " = " + FormatNumber(v) + " violates " + k + " > 0");
+  }
+  const size_t n = p.start_wells.size();
+  if (n > 1 && n != p.data.size())
+    return Status::InvalidArgument("start-well", "give one value for all --data files or one per file (" +
+                                                     std::to_string(p.data.size()) + "), not " + std::to_string(n));
+  return Status::Ok();
+}
 
 StatusOr<FittedModel> ReadFittedModel(const std::string& path_in) {
   FittedModel fm;

@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "identify/options.h"
 #include "identify/predict.h"
 
 namespace bistable {
@@ -33,6 +34,34 @@ struct FittedModel {
 // those terms, finite, signs as the library's; "offset.k", a fit's per-record displacement offsets,
 // are dropped: they belong to the fit's records); m_main, m_res, v_sp, v_t from "settings".
 StatusOr<FittedModel> ReadFittedModel(const std::string& path);
+
+// Where a predicted record's model starts (--start-well): none (the integrated velocity, zero-mean, as in a
+// fit), or that well's centre added.
+enum class StartWell { kNone, kLeft, kRight };
+// none | left | right (field start-well).
+StatusOr<StartWell> ParseStartWell(const std::string& s);
+const char* Name(StartWell w);
+
+// What `identify --predict` is asked to do (issue 40: typed, as the CLI's flags and the Python module's keywords
+// give it): the fitted model of `model` simulated on every record of `data`, nothing fitted.
+struct PredictOptions {
+  std::string model;              // --model: a `bistable identify --json` output or a report directory; required
+  std::vector<std::string> data;  // the record files (CSV); at least one
+  // How the records are read and prepared, as in a fit (identify/options.h: columns, input and output kinds and
+  // scales, decimate, range, max_seconds, deriv_cutoff, drift_cutoff, objective, horizon). output_frame kAuto
+  // (the default here) is the fit's frame. `terms`, when given, must be the model's declared or final terms; the
+  // fit's own (guesses, fit_offsets, test_ranges) must be left empty; its constants are not read: see `known`.
+  identify::Options records;
+  // --known given: each (m_main, m_res, v_sp, v_t) > 0 and equal to the model's.
+  std::map<std::string, double> known;
+  // One for all files or one per file; empty: none.
+  std::vector<StartWell> start_wells;
+
+  PredictOptions() { records.output_frame = identify::FrameMode::kAuto; }
+};
+
+// OK, or the first option out of its bounds or given where --predict takes none (field: its flag name).
+Status Validate(const PredictOptions& options);
 
 // One predicted record with what the CLI knows about it: its group values (--columns group=...) and
 // the well its simulation started in.

@@ -1,6 +1,7 @@
 #include "identify/synthetic.h"
 
 #include "base/file.h"
+#include "base/validate.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,6 +14,47 @@
 
 namespace bistable {
 
+namespace {
+
+Status CheckForceTerm(const TermDef& d) {
+  if (!d.IsForce() || d.kind == TermKind::kFriction)
+    return Status::InvalidArgument("synthetic-extra",
+                                   "--synthetic-extra " + d.id +
+                                       ": only force terms other than friction (the rig has friction on "
+                                       "both bodies already; leave res.friction out of --terms to test it)");
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status CheckSyntheticExtra(const TermValues& e) {
+  const std::string field = "synthetic-extra";
+  if (e.term == nullptr) return Status::InvalidArgument(field, "--synthetic-extra: no term");
+  const TermDef& d = *e.term;
+  BISTABLE_RETURN_IF_ERROR(CheckForceTerm(d));
+  for (size_t k = 0; k < e.values.size(); ++k) {
+    const double x = e.values[k];
+    if (!std::isfinite(x) || std::abs(x) > 1e15)
+      return Status::InvalidArgument(field, "--synthetic-extra " + d.id + ": '" + FormatNumber(x) +
+                                                "' is not a finite number with |value| <= 1e15");
+    if (k < d.params.size() && d.params[k].sign == Sign::kNonNegative && x < 0)
+      return Status::InvalidArgument(
+          field, "--synthetic-extra " + d.id + "." + d.params[k].name + " = " + FormatNumber(x) + " violates >= 0");
+  }
+  if (e.values.size() != d.params.size())
+    return Status::InvalidArgument(field, "--synthetic-extra " + d.id + " takes " + std::to_string(d.params.size()) +
+                                              " value(s), got " + std::to_string(e.values.size()));
+  return Status::Ok();
+}
+
+StatusOr<TermValues> SyntheticExtra(const std::string& term, const std::vector<double>& values) {
+  auto t = FindTerm(term);
+  if (!t.ok()) return Status::InvalidArgument("synthetic-extra", "--synthetic-extra: " + t.status().message());
+  TermValues e{*t, values};
+  BISTABLE_RETURN_IF_ERROR(CheckSyntheticExtra(e));
+  return e;
+}
+
 StatusOr<TermValues> ParseSyntheticExtra(const std::string& spec) {
   const std::string field = "synthetic-extra";
   if (spec.size() > 200) return Status::InvalidArgument(field, "--synthetic-extra is longer than 200 characters");
@@ -22,12 +64,8 @@ StatusOr<TermValues> ParseSyntheticExtra(const std::string& spec) {
                                    "--synthetic-extra '" + spec + "' is not TERM=VALUE[:VALUE] (e.g. main.drag=5)");
   auto t = FindTerm(spec.substr(0, eq));
   if (!t.ok()) return Status::InvalidArgument(field, "--synthetic-extra: " + t.status().message());
-  const TermDef& d = **t;
-  if (!d.IsForce() || d.kind == TermKind::kFriction)
-    return Status::InvalidArgument(field, "--synthetic-extra " + d.id +
-                                              ": only force terms other than friction (the rig has friction on "
-                                              "both bodies already; leave res.friction out of --terms to test it)");
-  TermValues e{*t, {}};
+  BISTABLE_RETURN_IF_ERROR(CheckForceTerm(**t));
+  std::vector<double> values;
   std::string rest = spec.substr(eq + 1);
   size_t start = 0;
   while (start <= rest.size()) {
@@ -37,18 +75,13 @@ StatusOr<TermValues> ParseSyntheticExtra(const std::string& spec) {
     const double x = std::strtod(v.c_str(), &end);
     if (v.empty() || end != v.c_str() + v.size() || !std::isfinite(x) || std::abs(x) > 1e15)
       return Status::InvalidArgument(
-          field, "--synthetic-extra " + d.id + ": '" + v + "' is not a finite number with |value| <= 1e15");
-    const size_t k = e.values.size();
-    if (k < d.params.size() && d.params[k].sign == Sign::kNonNegative && x < 0)
-      return Status::InvalidArgument(
-          field, "--synthetic-extra " + d.id + "." + d.params[k].name + " = " + v + " violates >= 0");
-    e.values.push_back(x);
+          field, "--synthetic-extra " + (*t)->id + ": '" + v + "' is not a finite number with |value| <= 1e15");
+    values.push_back(x);
     start = colon + 1;
     if (colon == rest.size()) break;
   }
-  if (e.values.size() != d.params.size())
-    return Status::InvalidArgument(field, "--synthetic-extra " + d.id + " takes " + std::to_string(d.params.size()) +
-                                              " value(s), got " + std::to_string(e.values.size()));
+  TermValues e{*t, std::move(values)};
+  BISTABLE_RETURN_IF_ERROR(CheckSyntheticExtra(e));
   return e;
 }
 
@@ -239,4 +272,61 @@ Status WriteRecordCsv(const Record& r, const std::string& path) {
   return (*f)->Commit();
 }
 
+namespace identify {
+
+StatusOr<SyntheticKind> ParseSyntheticKind(const std::string& s) {
+  if (s == "linear") return SyntheticKind::kLinear;
+  if (s == "coupled") return SyntheticKind::kCoupled;
+  if (s == "bistable") return SyntheticKind::kBistable;
+  if (s == "bistable-coupled") return SyntheticKind::kBistableCoupled;
+  return Status::InvalidArgument("synthetic", "'" + s + "' is not linear, coupled, bistable or bistable-coupled");
+}
+
+const char* Name(SyntheticKind k) {
+  return k == SyntheticKind::kLinear     ? "linear"
+         : k == SyntheticKind::kCoupled  ? "coupled"
+         : k == SyntheticKind::kBistable ? "bistable"
+                                         : "bistable-coupled";
+}
+
+bool IsFamily(SyntheticKind k) { return k == SyntheticKind::kBistable || k == SyntheticKind::kBistableCoupled; }
+
+StatusOr<WellSide> ParseWellSide(const std::string& s) {
+  if (s == "left") return WellSide::kLeft;
+  if (s == "right") return WellSide::kRight;
+  return Status::InvalidArgument("synthetic-start", "--synthetic-start '" + s + "' is not left or right");
+}
+
+const char* Name(WellSide w) { return w == WellSide::kLeft ? "left" : "right"; }
+
+Status Validate(const MakeSyntheticOptions& o) {
+  if (o.dir.empty()) return Status::InvalidArgument("make-synthetic", "--make-synthetic needs a directory");
+  if (!IsFamily(o.kind) && (!o.extra.empty() || !o.amplitudes_mm.empty()))
+    return Status::InvalidArgument(
+        "synthetic",
+        "--synthetic-extra and --synthetic-amplitude are options of --synthetic bistable|bistable-coupled");
+  if (!IsFamily(o.kind)) return Status::Ok();
+  for (const TermValues& e : o.extra) {
+    BISTABLE_RETURN_IF_ERROR(CheckSyntheticExtra(e));
+    if (e.term->body == Body::kResonator && o.kind != SyntheticKind::kBistableCoupled)
+      return Status::InvalidArgument(
+          "synthetic-extra", "--synthetic-extra " + e.term->id + " needs --synthetic bistable-coupled (a resonator)");
+  }
+  auto check = [](const char* flag, double v, double lo, double hi) -> Status {
+    if (!(v >= lo && v <= hi))
+      return Status::InvalidArgument(flag, std::string("--") + flag + " = " + FormatNumber(v) + " violates " +
+                                               FormatNumber(lo) + " <= value <= " + FormatNumber(hi));
+    return Status::Ok();
+  };
+  BISTABLE_RETURN_IF_ERROR(check("synthetic-f-start", o.f_start_hz, 0.01, 50));
+  BISTABLE_RETURN_IF_ERROR(check("synthetic-f-end", o.f_end_hz, 0.01, 50));
+  BISTABLE_RETURN_IF_ERROR(check("synthetic-duration", o.duration_s, 1, 600));
+  BISTABLE_RETURN_IF_ERROR(check("synthetic-noise", o.noise_mm, 0, 10));
+  if (o.amplitudes_mm.size() > 16)
+    return Status::InvalidArgument("synthetic-amplitude", "at most 16 --synthetic-amplitude values");
+  for (double mm : o.amplitudes_mm) BISTABLE_RETURN_IF_ERROR(check("synthetic-amplitude", mm, 0.01, 100));
+  return Status::Ok();
+}
+
+}  // namespace identify
 }  // namespace bistable

@@ -38,6 +38,11 @@ struct SyntheticOptions {
 // which the rig has on both bodies already, nor the piezo or an output term) with one value per parameter,
 // ':'-separated; dissipative terms' values >= 0. Errors name the flag and the bound.
 StatusOr<TermValues> ParseSyntheticExtra(const std::string& spec);
+// The same from a term id and its values (the library's order and units), as a program gives them.
+StatusOr<TermValues> SyntheticExtra(const std::string& term, const std::vector<double>& values);
+// An extra term as ParseSyntheticExtra accepts it: a force term other than friction, one finite value
+// (|value| <= 1e15) per parameter, dissipative ones >= 0 (field synthetic-extra).
+Status CheckSyntheticExtra(const TermValues& extra);
 
 // The truth as identify terms: the rig's own (main.linear, [main.stiffness_y3,] main.viscous, main.damping_y2,
 // main.friction; with the resonator res.linear, res.viscous, res.damping_z2, res.friction) and the extras,
@@ -59,6 +64,46 @@ StatusOr<Record> MakeSyntheticRecord(const DimensionalParams& p, const Synthetic
 
 // Writes a record as CSV (t,x0,x[,xr]) with 10 significant digits.
 Status WriteRecordCsv(const Record& r, const std::string& path);
+
+namespace identify {
+
+// What `identify --make-synthetic DIR` writes (issue 40: typed, as the CLI's flags and the Python module's
+// keywords give it; the records and truth.json are written by client/identify_command.cc's SyntheticJson).
+//   kLinear           the paper's Table 2 linear rig (no resonator) under 1 -> 8 Hz chirps of 6, 10, 14 mm, 20 s;
+//   kCoupled          the Table 2 bistable beam with its resonator, one 1 -> 6 Hz chirp of 4 mm over 70 s;
+//   kBistable, kBistableCoupled  the snap-through family (issue 37): the beam alone or with its resonator,
+//                     one record per amplitude, the knobs below, and truth.json.
+enum class SyntheticKind { kLinear, kCoupled, kBistable, kBistableCoupled };
+// linear | coupled | bistable | bistable-coupled (field synthetic).
+StatusOr<SyntheticKind> ParseSyntheticKind(const std::string& s);
+const char* Name(SyntheticKind k);
+bool IsFamily(SyntheticKind k);  // kBistable or kBistableCoupled
+// The well a family's records start in (--synthetic-start).
+enum class WellSide { kLeft, kRight };
+// left | right (field synthetic-start).
+StatusOr<WellSide> ParseWellSide(const std::string& s);
+const char* Name(WellSide w);
+
+struct MakeSyntheticOptions {
+  std::string dir;                              // --make-synthetic: the directory written (created); required
+  SyntheticKind kind = SyntheticKind::kLinear;  // --synthetic
+  // The family's knobs (kBistable, kBistableCoupled). `amplitudes_mm` and `extra` are refused with the other
+  // kinds, the rest ignored there.
+  std::vector<double> amplitudes_mm;  // --synthetic-amplitude: one record each, [0.01, 100] mm, at most 16; none: 10
+  double f_start_hz = 1;              // --synthetic-f-start, [0.01, 50] Hz
+  double f_end_hz = 8;                // --synthetic-f-end, [0.01, 50] Hz
+  double duration_s = 30;             // --synthetic-duration, [1, 600] s
+  double noise_mm = 0.05;             // --synthetic-noise on every column, the input too, [0, 10] mm
+  unsigned seed = 1;                  // --synthetic-seed: the first record's noise seed (the next +1, +2, ...)
+  std::vector<TermValues> extra;      // --synthetic-extra: force terms added to the truth (resonator terms:
+                                      // kBistableCoupled only)
+  WellSide start = WellSide::kRight;  // --synthetic-start
+};
+
+// OK, or the first option out of its bounds (field: its flag name, synthetic-amplitude; message: the bound).
+Status Validate(const MakeSyntheticOptions& options);
+
+}  // namespace identify
 
 }  // namespace bistable
 

@@ -43,13 +43,10 @@
 #include "dynamics/point.h"
 #include "engine/sweep_spec.h"
 #include "engine/sweep_state.h"
-#include "identify/options.h"
 #include "proto/coordinator_client.h"
+#include "python/module_common.h"
 
-namespace py = pybind11;
-
-namespace bistable {
-namespace {
+namespace bistable::py_module {
 
 // Python delivers signals to its main thread only; only there may a call take SIGINT over.
 bool OnPythonMainThread() {
@@ -93,73 +90,8 @@ py::str Utf8(const std::string& s) {
   throw py::error_already_set();
 }
 
-template <typename T>
-T Unwrap(StatusOr<T> v) {
-  if (!v.ok()) Raise(v.status());
-  return std::move(v).value();
-}
-
-// Runs `work` without the GIL and raises KeyboardInterrupt if cancellation was requested meanwhile
-// (its result may be cut short; nothing of it is returned).
-//
-// The cancel flag (dynamics/cancel.h) is process-wide and, for the engine, sticky: work that sees it
-// must not store what it cut short (engine/evaluate.cc checks it after a job). So it is cleared only
-// when no computation of this module is in flight — under the same mutex that admits new ones — and
-// a computation never starts, runs and finishes across a clear.
-//
-// `cancellable` work (it polls the flag: points, sweeps, HBM, queries, watching, fetching) started
-// from Python's main thread takes SIGINT for its duration: the first Ctrl-C requests cancellation,
-// a second one ends the process with the default action, as in the CLI; Python's handler is put back
-// afterwards. A SIGINT that was ignored stays ignored. Other work leaves Python's handler in place
-// (Ctrl-C then arrives as KeyboardInterrupt when the call returns).
 std::mutex g_flight_mutex;
 int g_in_flight = 0;
-
-template <typename F>
-auto Compute(F&& work, bool cancellable = true) -> decltype(work()) {
-  static std::mutex handler_mutex;
-  std::unique_lock<std::mutex> handler(handler_mutex, std::defer_lock);
-  struct sigaction old {};
-  bool installed = false;
-  if (cancellable && OnPythonMainThread() && handler.try_lock() && ::sigaction(SIGINT, nullptr, &old) == 0 &&
-      old.sa_handler != SIG_IGN) {
-    struct sigaction sa {};
-    sa.sa_handler = [](int) {
-      if (CancelRequested()) {  // the second Ctrl-C: stop now (async-signal-safe calls only)
-        ::signal(SIGINT, SIG_DFL);
-        ::raise(SIGINT);
-      }
-      RequestCancel();
-    };
-    sigemptyset(&sa.sa_mask);
-    sa.sa_flags = SA_RESTART;
-    installed = ::sigaction(SIGINT, &sa, nullptr) == 0;
-  }
-  {
-    std::lock_guard<std::mutex> lock(g_flight_mutex);
-    ++g_in_flight;
-  }
-  auto finish = [&] {
-    if (installed) ::sigaction(SIGINT, &old, nullptr);
-    std::lock_guard<std::mutex> lock(g_flight_mutex);
-    const bool cancelled = CancelRequested();
-    if (--g_in_flight == 0 && cancelled) ScopedCancelReset reset;  // nothing running: the next call starts clean
-    return cancelled;
-  };
-  std::optional<decltype(work())> result;
-  try {
-    py::gil_scoped_release release;
-    result.emplace(work());
-  } catch (...) {
-    finish();
-    throw;
-  }
-  if (finish()) {
-    PyErr_SetNone(PyExc_KeyboardInterrupt);
-    throw py::error_already_set();
-  }
-  return std::move(*result);
-}
 
 py::object ToPython(const nlohmann::json& j) {
   switch (j.type()) {
@@ -294,6 +226,13 @@ std::string Text(const py::handle& v, const std::string& name) {
 [[noreturn]] void UnknownKeyword(const std::string& key, const std::vector<std::string>& known) {
   throw py::value_error(UnknownNameMessage("keyword", key, known));
 }
+
+}  // namespace bistable::py_module
+
+namespace bistable {
+namespace {
+
+using namespace py_module;
 
 // `poincare_periods`: an integer, however large (one beyond `long` is outside the bound SetPoincareWindow
 // checks: the same message, with the value as given).
@@ -615,153 +554,6 @@ py::object QueryMap(const std::string& id, const std::string& expr, const std::s
   return ToPython(Unwrap(Compute([&] { return QueryJson(src, id, expr, max_points); })));
 }
 
-// --predict and --make-synthetic, still by their flags (bistable/__init__.py).
-py::object IdentifyArgs(const std::vector<std::string>& args) {
-  return ToPython(Unwrap(Compute([&] { return IdentifyFromArgs(args); })));
-}
-
-// Term ids: "a,b" as --terms takes them, or a list of ids.
-std::vector<std::string> TermList(const py::handle& v, const std::string& name) {
-  if (py::isinstance<py::str>(v)) return identify::SplitTerms(v.cast<std::string>());
-  if (!py::isinstance<py::list>(v) && !py::isinstance<py::tuple>(v))
-    throw py::value_error(name + " = " + Shown(v) + " violates " + name +
-                          " a string of comma-separated term ids or a list of them");
-  std::vector<std::string> out;
-  for (const py::handle& t : py::reinterpret_borrow<py::sequence>(v)) out.push_back(Text(t, name + "[]"));
-  return out;
-}
-
-py::dict Dict(const py::handle& v, const std::string& name) {
-  if (!py::isinstance<py::dict>(v)) throw py::value_error(name + " = " + Shown(v) + " violates " + name + " a dict");
-  return py::reinterpret_borrow<py::dict>(v);
-}
-
-// A sample range: "A:B" as --range takes it, or (A, B) (B None: to the record's end).
-identify::SampleRange Range(const py::handle& v, const std::string& name) {
-  if (py::isinstance<py::str>(v)) return Unwrap(identify::ParseRange(v.cast<std::string>(), name));
-  if (!py::isinstance<py::tuple>(v) && !py::isinstance<py::list>(v))
-    throw py::value_error(name + " = " + Shown(v) + " violates " + name + " \"A:B\" or (A, B)");
-  const auto seq = py::reinterpret_borrow<py::sequence>(v);
-  if (seq.size() != 2) throw py::value_error(name + " = " + Shown(v) + " violates " + name + " \"A:B\" or (A, B)");
-  auto side = [&](const py::handle& x, size_t none) -> size_t {
-    if (x.is_none()) return none;
-    const std::optional<long long> i = IndexValue(x, name);
-    if (!i || *i < 0 || *i > limits::kMaxDataRows)
-      throw py::value_error(name + " = " + Shown(v) + " violates 0 <= " + name +
-                            " <= " + std::to_string(limits::kMaxDataRows));
-    return static_cast<size_t>(*i);
-  };
-  return {side(seq[0], 0), side(seq[1], SIZE_MAX)};
-}
-
-// The options of a fit by keyword (identify/options.h), the flags of `bistable identify` with '_' for '-':
-// typed values, no command-line text. *report gets `report` (a directory, "" none).
-identify::Options IdentifyOptionsFromKeywords(const py::dict& kw, std::string* report) {
-  identify::Options o;
-  std::map<std::string, double*> numbers = {
-      {"input_scale", &o.input_scale}, {"output_scale", &o.output_scale}, {"output2_scale", &o.output2_scale},
-      {"max_seconds", &o.max_seconds}, {"deriv_cutoff", &o.deriv_cutoff}, {"drift_cutoff", &o.drift_cutoff},
-      {"horizon", &o.horizon}};
-  std::map<std::string, int*> integers = {{"decimate", &o.decimate},
-                                          {"global_evals", &o.global_evals},
-                                          {"lm_iterations", &o.lm_iterations},
-                                          {"max_added", &o.max_added},
-                                          {"threads", &o.threads}};
-  std::vector<std::string> known = {"terms",          "candidates",  "known",        "guess",        "columns",
-                                    "input_kind",     "output_kind", "output_frame", "output2_kind", "objective",
-                                    "output_weights", "fit_offsets", "range",        "test_range",   "report"};
-  for (const auto& [k, _] : numbers) known.push_back(k);
-  for (const auto& [k, _] : integers) known.push_back(k);
-  for (const auto& [key, value] : kw) {
-    const std::string k = py::str(key);
-    if (auto it = numbers.find(k); it != numbers.end()) {
-      *it->second = Number(value, k);
-    } else if (auto jt = integers.find(k); jt != integers.end()) {
-      *jt->second = Integer(value, k);
-    } else if (k == "terms") {
-      o.terms = TermList(value, k);
-    } else if (k == "candidates") {
-      o.candidates = TermList(value, k);
-    } else if (k == "known") {
-      for (const auto& [name, v] : Dict(value, k)) {
-        const std::string n = py::str(name);
-        const double x = Number(v, "known." + n);
-        const bistable::Status st = identify::SetKnown(n, x, &o);
-        if (!st.ok()) Raise(st);
-      }
-    } else if (k == "guess") {
-      for (const auto& [name, v] : Dict(value, k))
-        o.guesses[py::str(name)] = Number(v, "guess." + std::string(py::str(name)));
-    } else if (k == "columns") {
-      for (const auto& [role, v] : Dict(value, k)) {
-        const std::string r = py::str(role);
-        if (r == "group" && !py::isinstance<py::str>(v)) {
-          for (const std::string& g : TermList(v, "columns.group")) o.group_columns.push_back(g);
-          continue;
-        }
-        const bistable::Status st = identify::SetColumn(r, Text(v, "columns." + r), &o);
-        if (!st.ok()) Raise(st);
-      }
-    } else if (k == "input_kind") {
-      o.input_kind = Unwrap(identify::ParseInputKind(Text(value, k)));
-    } else if (k == "output_kind") {
-      o.output_kind = Unwrap(identify::ParseOutputKind(Text(value, k)));
-    } else if (k == "output_frame") {
-      o.output_frame = Unwrap(identify::ParseFrameMode(Text(value, k)));
-    } else if (k == "output2_kind") {
-      const bistable::Status st = identify::CheckOutput2Kind(Text(value, k));
-      if (!st.ok()) Raise(st);
-    } else if (k == "objective") {
-      o.objective = Unwrap(identify::ParseObjectiveMode(Text(value, k)));
-    } else if (k == "output_weights") {
-      o.output_weights = Unwrap(identify::ParseOutputWeights(Text(value, k)));
-    } else if (k == "fit_offsets") {
-      o.fit_offsets = Flag(value, k);
-    } else if (k == "range") {
-      o.range = Range(value, k);
-    } else if (k == "test_range") {  // one range, or a list of them
-      const bool one =
-          py::isinstance<py::str>(value) || (py::isinstance<py::tuple>(value) && py::len(value) == 2 &&
-                                             !py::isinstance<py::str>(py::reinterpret_borrow<py::tuple>(value)[0]) &&
-                                             !py::isinstance<py::tuple>(py::reinterpret_borrow<py::tuple>(value)[0]));
-      if (one) {
-        o.test_ranges.push_back(Range(value, k));
-      } else {
-        if (!py::isinstance<py::list>(value) && !py::isinstance<py::tuple>(value))
-          throw py::value_error(k + " = " + Shown(value) + " violates " + k + " a range or a list of ranges");
-        for (const py::handle& r : py::reinterpret_borrow<py::sequence>(value)) o.test_ranges.push_back(Range(r, k));
-      }
-    } else if (k == "report") {
-      *report = Text(value, k);
-    } else {
-      UnknownKeyword(k, known);
-    }
-  }
-  const bistable::Status st = identify::Validate(o);
-  if (!st.ok()) Raise(st);
-  return o;
-}
-
-// A fit: the records of the files `data` (bytes or str paths) under the keyword options; (what --json prints,
-// the fit as text: identify::Summary::FullReport).
-py::object IdentifyFit(const py::list& data, const py::dict& kw) {
-  std::vector<std::string> paths;
-  for (const py::handle& p : data) {
-    if (py::isinstance<py::bytes>(p))
-      paths.push_back(p.cast<std::string>());
-    else
-      paths.push_back(Text(p, "data"));
-  }
-  std::string report;
-  const identify::Options o = IdentifyOptionsFromKeywords(kw, &report);
-  std::string full_report;
-  const nlohmann::json j = Unwrap(Compute([&] { return IdentifyFitJson(o, paths, report, &full_report); }));
-  // A record's name holds what its file name held (any bytes): invalid UTF-8 becomes U+FFFD, as in the JSON.
-  PyObject* text = PyUnicode_DecodeUTF8(full_report.data(), static_cast<Py_ssize_t>(full_report.size()), "replace");
-  if (!text) throw py::error_already_set();
-  return py::make_tuple(ToPython(j), py::reinterpret_steal<py::str>(text));
-}
-
 // A coordinator, through the CLI's CoordinatorClient (one channel; the token on every call).
 class PyClient {
  public:
@@ -825,9 +617,7 @@ PYBIND11_MODULE(_core, m) {
   m.def("hbm", &Hbm, "Harmonic balance with continuation and stability");
   m.def("sweeps", &Sweeps, py::arg("data"));
   m.def("query", &QueryMap, py::arg("id"), py::arg("expr"), py::arg("data"), py::arg("limit"));
-  m.def("identify", &IdentifyFit, py::arg("data"), py::arg("options"));
-  m.def("identify_args", &IdentifyArgs, py::arg("args"));
-  m.def("identify_terms", [] { return ToPython(IdentifyTermsJson()); });
+  py_module::DefineIdentify(m);
   py::class_<PyClient>(m, "Client")
       .def(py::init<const std::string&, const std::string&, const std::string&, bool>(), py::arg("address"),
            py::arg("token"), py::arg("tls_ca"), py::arg("insecure_remote"))

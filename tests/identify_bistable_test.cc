@@ -52,6 +52,78 @@ TEST(SyntheticFamily, ExtraTermsAreParsedWithTheirBounds) {
   EXPECT_NE(ParseSyntheticExtra("main.drag=-1").status().message().find(">= 0"), std::string::npos);
 }
 
+// --make-synthetic's typed options (issue 40): the first option out of its bounds, named as its flag.
+TEST(SyntheticFamily, OptionsAreValidatedByName) {
+  identify::MakeSyntheticOptions o;
+  o.dir = "d";
+  o.kind = identify::SyntheticKind::kBistable;
+  EXPECT_TRUE(identify::Validate(o).ok());
+  auto field = [](identify::MakeSyntheticOptions x) { return identify::Validate(x).field(); };
+  EXPECT_EQ(field([&] {
+              auto x = o;
+              x.dir = "";
+              return x;
+            }()),
+            "make-synthetic");
+  EXPECT_EQ(field([&] {
+              auto x = o;
+              x.amplitudes_mm = {0.001};
+              return x;
+            }()),
+            "synthetic-amplitude");
+  EXPECT_EQ(field([&] {
+              auto x = o;
+              x.amplitudes_mm.assign(17, 1.0);
+              return x;
+            }()),
+            "synthetic-amplitude");
+  EXPECT_EQ(field([&] {
+              auto x = o;
+              x.f_end_hz = NAN;
+              return x;
+            }()),
+            "synthetic-f-end");
+  EXPECT_EQ(field([&] {
+              auto x = o;
+              x.duration_s = 0.5;
+              return x;
+            }()),
+            "synthetic-duration");
+  EXPECT_EQ(field([&] {
+              auto x = o;
+              x.noise_mm = -1;
+              return x;
+            }()),
+            "synthetic-noise");
+  EXPECT_EQ(field([&] {
+              auto x = o;
+              x.extra = {*SyntheticExtra("res.stiffness_z3", {1e6})};
+              return x;
+            }()),
+            "synthetic-extra");
+  EXPECT_EQ(field([&] {
+              auto x = o;
+              x.kind = identify::SyntheticKind::kLinear;
+              x.amplitudes_mm = {3};
+              return x;
+            }()),
+            "synthetic");
+  EXPECT_EQ(identify::Validate(o).message(), "");
+  EXPECT_EQ(identify::Validate([&] {
+              auto x = o;
+              x.amplitudes_mm = {-1};
+              return x;
+            }())
+                .message(),
+            "--synthetic-amplitude = -1 violates 0.01 <= value <= 100");
+  EXPECT_FALSE(SyntheticExtra("main.drag", {-1}).ok());
+  EXPECT_FALSE(SyntheticExtra("main.drag", {1, 2}).ok());
+  EXPECT_FALSE(SyntheticExtra("main.friction", {1, 0.5}).ok());
+  EXPECT_EQ(SyntheticExtra("main.drag", {5})->values, std::vector<double>{5.0});
+  EXPECT_EQ(identify::ParseSyntheticKind("middle").status().field(), "synthetic");
+  EXPECT_EQ(identify::ParseWellSide("middle").status().field(), "synthetic-start");
+}
+
 // The generator (Rosenbrock 2(3) on DimensionalModel plus the extra's force) and the identification's simulator
 // (RK4 over the effect library) agree on a noise-free intrawell record with and without an extra term: the extra
 // has the library's sign and units in the truth.

@@ -217,8 +217,14 @@ def identify(data, **kw):
     role -> column name (group: a list); range, test_range: (A, B) or "A:B"; report: a directory for
     report.md, report.json and the figures. Invalid options raise ValueError naming the option and its bound.
 
-    list_terms=True returns the effect library; make_synthetic=DIR (with the synthetic_* keywords) and
-    predict=True (with model=FILE) still pass their flags as the CLI takes them.
+    list_terms=True returns the effect library. make_synthetic=DIR writes synthetic records (`--make-synthetic`;
+    identify::MakeSyntheticOptions): synthetic="linear" | "coupled" | "bistable" | "bistable-coupled",
+    synthetic_amplitude (mm, a number or a list: one record each), synthetic_f_start, synthetic_f_end (Hz),
+    synthetic_duration (s), synthetic_noise (mm), synthetic_seed, synthetic_extra ("main.drag=5", a list of them,
+    or {"main.drag": 5}), synthetic_start ("left" | "right"); returns {"files"[, "truth"]}. predict=True with
+    model=FILE (`--predict`; PredictOptions) simulates the records with a fitted model, nothing refitted: the
+    record keywords above, start_well ("none" | "left" | "right", one or one per file), known and terms (checked
+    against the model's); returns {"prediction": ...}. Invalid values raise ValueError naming the option.
     """
     paths = [data] if isinstance(data, (str, bytes, _os.PathLike)) else list(data)
     for path in paths:
@@ -227,23 +233,14 @@ def identify(data, **kw):
     paths = [_os.fsencode(p) for p in paths]  # bytes: any file name the system allows, UTF-8 or not
     if kw.get("list_terms"):
         return _core.identify_terms()
-    if "make_synthetic" not in kw and not kw.get("predict"):
-        return IdentifyResult(*_core.identify(paths, kw))
-    args = []
-    for path in paths:
-        args += ["--data", path]
-    for k, v in kw.items():
-        flag = "--" + k.replace("_", "-")
-        if isinstance(v, bool):
-            if v:
-                args.append(flag)
-            continue
-        if isinstance(v, dict):
-            v = ",".join("%s=%s" % (a, b) for a, b in v.items())
-        elif isinstance(v, (list, tuple)):
-            v = ",".join(str(x) for x in v)
-        args += [flag, str(v)]
-    return _core.identify_args(args)
+    for key in ("make_synthetic", "model"):  # paths: os.PathLike too
+        if isinstance(kw.get(key), _os.PathLike):
+            kw[key] = _os.fspath(kw[key])
+    if "make_synthetic" in kw:
+        return _core.identify_synthetic(kw)
+    if kw.get("predict"):
+        return _core.identify_predict(paths, kw)
+    return IdentifyResult(*_core.identify(paths, kw))
 
 
 class Client:

@@ -508,6 +508,52 @@ def test_identify_takes_typed_options_and_names_the_bad_one(tmp_path):
             bistable.identify(record, **{**ok, **bad})
 
 
+def test_identify_synthetic_and_predict_take_typed_options(tmp_path):
+    # make_synthetic and predict=True: keywords onto identify::MakeSyntheticOptions and PredictOptions (issue 40),
+    # no command-line text; the files and the JSON are the CLI's (but for the timing fields).
+    mine = bistable.identify([], make_synthetic=tmp_path / "py", synthetic="bistable", synthetic_amplitude=[8, 12],
+                             synthetic_extra={"main.drag": 5}, synthetic_start="left", synthetic_duration=10,
+                             synthetic_seed=3)
+    theirs = cli_json("identify", "--make-synthetic", str(tmp_path / "cli"), "--synthetic", "bistable",
+                      "--synthetic-amplitude", "8", "--synthetic-amplitude", "12", "--synthetic-extra", "main.drag=5",
+                      "--synthetic-start", "left", "--synthetic-duration", "10", "--synthetic-seed", "3", "--json")
+    assert [os.path.basename(f) for f in mine["files"]] == [os.path.basename(f) for f in theirs["files"]]
+    for a, b in zip(mine["files"] + [mine["truth"]], theirs["files"] + [theirs["truth"]]):
+        assert open(a, "rb").read() == open(b, "rb").read(), a
+    record = mine["files"][0]
+    predicted = bistable.identify(record, predict=True, model=mine["truth"], range=(0, 600), objective="time")
+    cli = cli_json("identify", "--predict", "--model", mine["truth"], "--data", record, "--range", "0:600",
+                   "--objective", "time", "--json")
+    assert without_seconds(predicted) == without_seconds(cli)
+    assert predicted["prediction"]["settings"]["range"] == "0:600"
+    for bad, message in [
+        (dict(synthetic_amplitude=-1), "synthetic-amplitude: --synthetic-amplitude = -1 violates 0.01 <= value <= 100"),
+        (dict(synthetic_f_end=60), "synthetic-f-end: --synthetic-f-end = 60 violates 0.01 <= value <= 50"),
+        (dict(synthetic_start="middle"), "synthetic-start: --synthetic-start 'middle' is not left or right"),
+        (dict(synthetic="nope"), "synthetic: 'nope' is not linear, coupled, bistable or bistable-coupled"),
+        (dict(synthetic_extra={"main.drag": -1}), "synthetic-extra: --synthetic-extra main.drag.cq = -1 violates >= 0"),
+        (dict(synthetic_extra="res.drag=1"), "needs --synthetic bistable-coupled"),
+        (dict(synthetic_seed=-3), "synthetic_seed = -3 violates 0 <= synthetic_seed <= 4294967295"),
+        (dict(synthetic_noise="0.1"), "synthetic_noise = '0.1' violates synthetic_noise a number"),
+    ]:
+        with pytest.raises(ValueError, match=re.escape(message)):
+            bistable.identify([], make_synthetic=str(tmp_path / "bad"), **{"synthetic": "bistable", **bad})
+    assert not (tmp_path / "bad").exists()  # every option checked before anything is written
+    with pytest.raises(ValueError, match=re.escape("synthetic: --synthetic-extra and --synthetic-amplitude")):
+        bistable.identify([], make_synthetic=str(tmp_path / "bad"), synthetic_amplitude=3)
+    for bad, message in [
+        (dict(start_well="middle"), "start-well: 'middle' violates start-well in {none, left, right}"),
+        (dict(start_well=["left", "right"]), "start-well: give one value for all --data files or one per file (1)"),
+        (dict(known={"m_main": -1}), "known.m_main: m_main = -1 violates m_main > 0"),
+        (dict(guess={"main.linear.k_lin": 3.0}), "guess: --predict fits nothing"),
+        (dict(report=str(tmp_path / "r")), "report: --predict writes no report directory"),
+        (dict(model=""), "model: --predict needs --model FILE"),
+        (dict(decimate=0), "decimate"),
+    ]:
+        with pytest.raises(ValueError, match=re.escape(message)):
+            bistable.identify(record, **{"predict": True, "model": mine["truth"], **bad})
+
+
 def start(cmd, log):
     return subprocess.Popen(cmd, stdout=open(log, "w"), stderr=subprocess.STDOUT)
 
