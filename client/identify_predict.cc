@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "base/file.h"
+#include "base/json_text.h"
 #include "base/limits.h"
 #include "base/validate.h"
 #include "client/identify_diagnostics.h"
@@ -15,31 +16,6 @@ namespace bistable {
 namespace {
 
 std::string F(double v, int digits = 4) { return FormatSignificant(v, digits); }
-
-// Deepest nesting of [ and { outside strings: checked before parsing so that a hostile file cannot
-// recurse the parser (or the destructor of what it built) off the stack.
-int JsonDepth(const std::string& text) {
-  int depth = 0, deepest = 0;
-  bool in_string = false, escaped = false;
-  for (char ch : text) {
-    if (in_string) {
-      if (escaped)
-        escaped = false;
-      else if (ch == '\\')
-        escaped = true;
-      else if (ch == '"')
-        in_string = false;
-      continue;
-    }
-    if (ch == '"')
-      in_string = true;
-    else if (ch == '[' || ch == '{')
-      deepest = std::max(deepest, ++depth);
-    else if (ch == ']' || ch == '}')
-      --depth;
-  }
-  return deepest;
-}
 
 StatusOr<std::string> JsonString(const nlohmann::json& v, const std::string& field, size_t max_bytes = 4096) {
   if (!v.is_string()) return Status::InvalidArgument(field, field + " is not a string");
@@ -311,7 +287,7 @@ StatusOr<FittedModel> ReadFittedModel(const std::string& path_in) {
       std::filesystem::is_directory(path_in, ec) ? (std::filesystem::path(path_in) / "report.json").string() : path_in;
   auto text = ReadTextFile(fm.path, "model", limits::kMaxModelJsonBytes);
   if (!text.ok()) return text.status();
-  if (JsonDepth(*text) > limits::kMaxModelJsonDepth)
+  if (JsonNestingDepth(*text) > limits::kMaxModelJsonDepth)
     return Status::InvalidArgument("model", "model file '" + fm.path + "' nests deeper than " +
                                                 std::to_string(limits::kMaxModelJsonDepth) + " levels");
   nlohmann::json j;

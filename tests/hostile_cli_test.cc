@@ -1046,8 +1046,8 @@ TEST(GnuplotString, NoCharacterGnuplotActsOnSurvivesUnescaped) {
 // Axis labels are enhanced text on purpose (symbols); a name that is not a known axis (a file's) is
 // shown literally, its markup characters escaped.
 TEST(AxisLabel, KnownAxesBecomeSymbolsOtherNamesStayLiteral) {
-  EXPECT_EQ(bistable::AxisLabel("alpha", "A0/delta_s"), "{/Symbol a} = A_0/{/Symbol d}_s");
-  EXPECT_EQ(bistable::AxisLabel("omega", "omega0/omega_n"), "{/Symbol W} = {/Symbol w}_0/{/Symbol w}_n");
+  EXPECT_EQ(bistable::AxisLabel("alpha", "A0/delta_s"), "α = A_0/δ_s");  // UTF-8 symbols (docs/figures.md)
+  EXPECT_EQ(bistable::AxisLabel("omega", "omega0/omega_n"), "Ω = ω_0/ω_n");
   EXPECT_EQ(bistable::AxisLabel("a_b^c{/Symbol x}@&~\\", ""), "a\\_b\\^c\\{/Symbol x\\}\\@\\&\\~\\\\");
 }
 
