@@ -13,6 +13,7 @@
 #include "client/plot.h"
 #include "dynamics/cancel.h"
 #include "engine/evaluate.h"
+#include "engine/sweep_kind.h"
 #include "storage/map_file.h"
 #include "worker/pull_loop.h"
 
@@ -82,7 +83,7 @@ std::vector<std::pair<PlotData, std::string>> MetricFigures(const SweepSpec& spe
                                                             const MapContext& context, const FigureSink& sink) {
   const long combos = std::min<long>(ComboCount(spec, free), 12);
   // With continuation in both directions, a heatmap per direction; curves show both (MapFigure).
-  const int directions = spec.continuation.enabled() ? spec.continuation.directions() : 1;
+  const int directions = KindOf(spec).Chained() ? KindOf(spec).Slots(spec) : 1;
   const bool has_direction_dim = std::find(m.dim_names.begin(), m.dim_names.end(), "direction") != m.dim_names.end();
   const int per_combo = free.size() == 2 && has_direction_dim ? directions : 1;
   std::vector<std::pair<PlotData, std::string>> figures;  // the figures of this metric and their files
@@ -342,7 +343,7 @@ StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& sp
     const SweepProgress after = c.progress(id);
     if (stats) stats->computed = after.items_done - first, stats->items = after.items_total;
     // (A refined sweep's next level may be planned already, by the publisher thread: its items are not missing.)
-    if (!worker_error.ok() || CancelRequested() || (!spec.refine.enabled() && after.items_done < after.items_total)) {
+    if (!worker_error.ok() || CancelRequested() || (!KindOf(spec).InRounds() && after.items_done < after.items_total)) {
       c.MarkInterrupted(id);  // stored jobs stay stored; a later run resumes from them
       if (!worker_error.ok()) return worker_error;
       return CancelledStatus();
@@ -350,7 +351,7 @@ StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& sp
     const auto t0 = std::chrono::steady_clock::now();
     auto path = c.Publish(id);
     if (stats) stats->publish_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (path.ok() || !spec.refine.enabled()) return path;
+    if (path.ok() || !KindOf(spec).InRounds()) return path;
     const SweepProgress next = c.progress(id);
     if (next.items_done >= next.items_total) return path;  // no new round was planned: the failure stands
     // (Rounds end: every round splits cells into smaller ones, down to the grid spacing.)

@@ -23,6 +23,7 @@
 #include "engine/json_shapes.h"
 #include "engine/query.h"
 #include "engine/refine.h"
+#include "engine/sweep_kind.h"
 #include "server/embedded_files.h"
 #include "server/single_flight.h"
 #include "storage/map_file.h"
@@ -132,7 +133,7 @@ bool Published(const SweepInfo& info) { return !info.file.empty() && info.state 
 
 // The name of the trailing item dimension, as the map file names it (storage/map_file.cc): the
 // continuation directions (up, down) of a chained sweep, else the initial conditions.
-std::string ItemDim(const SweepSpec& spec) { return spec.continuation.enabled() ? "direction" : "ic"; }
+std::string ItemDim(const SweepSpec& spec) { return KindOf(spec).Dimension(spec).name; }
 
 // The sweep's item shape (axes, then the item dimension when there are several items per point).
 MapArray ShapeOf(const SweepSpec& spec) {
@@ -153,7 +154,7 @@ std::vector<std::string> MapMetrics(const SweepSpec& spec, bool published) {
   std::vector<std::string> out;
   for (const std::string& m : spec.metrics)
     if (FindMetric(m)) out.push_back(m);
-  if (published && spec.refine.enabled()) out.push_back(kRefineLevel), out.push_back(kRefineFill);
+  if (published && KindOf(spec).InRounds()) out.push_back(kRefineLevel), out.push_back(kRefineFill);
   return out;
 }
 
@@ -221,7 +222,7 @@ StatusOr<Loaded> LoadMetric(SweepCoordinator* c, DashboardCache* cache, MapCache
   if (std::find(offered.begin(), offered.end(), metric) == offered.end())
     return Status::InvalidArgument("metric",
                                    "sweep " + s.id + " stores no metric '" + metric.substr(0, 32) + "'" +
-                                       (s.spec.refine.enabled() && (metric == kRefineLevel || metric == kRefineFill)
+                                       (KindOf(s.spec).InRounds() && (metric == kRefineLevel || metric == kRefineFill)
                                             ? " yet (written when the refined map is published)"
                                             : ""));
   if (published) {
@@ -367,7 +368,7 @@ HttpResponse SweepRoute(SweepCoordinator* c, const HttpRequest& req) {
   std::string cell_note;
   if (!IsCellModel(s->spec.model))
     cell_note = "cells of " + s->spec.ModelLabel() + " sweeps cannot be opened (bistable point runs cell models)";
-  else if (s->spec.continuation.enabled())
+  else if (KindOf(s->spec).Chained())
     cell_note = "continuation sweeps start each point from the previous one: a cell alone is not that item";
   const long items = s->spec.points() * s->spec.ic_count();
   return Json({{"status", SweepStatusJson(s->info)},
@@ -376,7 +377,7 @@ HttpResponse SweepRoute(SweepCoordinator* c, const HttpRequest& req) {
                {"ic_count", s->spec.ic_count()},
                {"dims", dims},
                {"item_dim", shape.dims.size() > shape.axes.size() ? json(ItemDim(s->spec)) : json(nullptr)},
-               {"refined", s->spec.refine.enabled()},
+               {"refined", KindOf(s->spec).InRounds()},
                {"live_map", items <= kMaxLiveItems},
                {"metrics", metrics},
                {"cells", cell_note.empty()},
@@ -501,7 +502,7 @@ HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* map
   if (!p.ok()) return Error(p.status());
   auto s = ResolveSweep(c, *p);
   if (!s.ok()) return Error(s.status());
-  if (!IsCellModel(s->spec.model) || s->spec.continuation.enabled())
+  if (!IsCellModel(s->spec.model) || KindOf(s->spec).Chained())
     return Error(
         Status::FailedPrecondition("cells of this sweep cannot be computed alone (see /api/sweep's cell_note)"));
   auto point = Index(*p, "point", s->spec.points());
@@ -531,7 +532,7 @@ HttpResponse CellRoute(SweepCoordinator* c, DashboardCache* cache, MapCache* map
   j["command_note"] = note;
   // A refined map: how the map got this cell. Where it was interpolated (or filled from a chaotic-mixed
   // cell's corner), the map's values are not this computation's: say so.
-  if (s->spec.refine.enabled()) {
+  if (KindOf(s->spec).InRounds()) {
     json fill = nullptr;
     std::string refine_note;
     if (Published(s->info)) {
