@@ -17,9 +17,12 @@ namespace bistable::limits {
 inline constexpr std::size_t kMaxSpecBytes = 1 << 20;  // TOML text of one spec
 inline constexpr std::size_t kMaxNameBytes = 200;      // spec `name`, a submit's `origin`
 inline constexpr long kMaxSweepItems = 4'194'304;      // grid points x initial conditions (2^22)
-inline constexpr long kMaxAxisValues = 1'048'576;      // values of one axis (2^20)
-inline constexpr int kMaxInitialStates = 64;           // initial_conditions.states
-inline constexpr int kMaxSeriesCells = 1000;           // series.cells
+// RK4 steps per output step of the rig or a term model under integrator = "rk4" (the friction's transition sets
+// them: Table 2 needs 5 at dt = 1 ms); beyond, the spec is refused rather than run for days.
+inline constexpr int kMaxRk4Substeps = 1000;
+inline constexpr long kMaxAxisValues = 1'048'576;  // values of one axis (2^20)
+inline constexpr int kMaxInitialStates = 64;       // initial_conditions.states
+inline constexpr int kMaxSeriesCells = 1000;       // series.cells
 
 // --- One point -------------------------------------------------------------------------------------
 inline constexpr double kMaxStepsPerPoint = 1e8;              // t_end / dt

@@ -128,7 +128,8 @@ int Rk4Substeps(const DimensionalParams& p, double dt) {
   m.Jac(0.0, rest, J, dfdt);
   const double rho = Eigen::EigenSolver<DimensionalModel::Jacobian>(J, false).eigenvalues().cwiseAbs().maxCoeff();
   const double h_max = 2.0 / rho;
-  return std::max(1, static_cast<int>(std::ceil(dt / h_max)));
+  // Capped where an int still holds it: the spec refuses a rig past limits::kMaxRk4Substeps before this runs.
+  return std::max(1, static_cast<int>(std::min(std::ceil(dt / h_max), 1e6)));
 }
 
 }  // namespace bistable

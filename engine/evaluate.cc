@@ -91,30 +91,6 @@ TermLaneInput TermInputFor(const SweepSpec& spec, const PointSpec& p) {
   return in;
 }
 
-// RK4 substeps of a term-model sweep: the stiffest of its parameter sets — the nominal one, each swept
-// parameter at its axis's ends, and with covariance samples each parameter at ±4σ — by the rig's rule
-// (TermRk4Substeps). One count for the whole sweep, so a lane's bits do not depend on its neighbours.
-int TermSweepSubsteps(const SweepSpec& spec) {
-  const TermModel& m = spec.terms->model;
-  const double dt = spec.base.integration.dt;
-  int n = TermRk4Substeps(m, m.theta.data(), dt);
-  auto with = [&](int k, double v) {
-    std::vector<double> th = m.theta;
-    th[k] = v;
-    n = std::max(n, TermRk4Substeps(m, th.data(), dt));
-  };
-  for (const Axis& a : spec.axes)
-    if (const int k = m.IndexOf(a.name); k >= 0) with(k, a.values.front()), with(k, a.values.back());
-  if (spec.robustness.covariance && !spec.terms->covariance.empty()) {
-    const int np = m.NumParams();
-    for (int k = 0; k < np; ++k) {
-      const double sd = std::sqrt(std::max(0.0, spec.terms->covariance[k * np + k]));
-      with(k, m.theta[k] - 4 * sd), with(k, m.theta[k] + 4 * sd);
-    }
-  }
-  return n;
-}
-
 // Items of a series or dimensional RK4 sweep through the lane kernel, W side by side. Every item of a
 // sweep has the same window, step and (for the rig) substeps — they depend on the sweep's settings and
 // rig parameters, never on the swept a0_mm, f0_hz — so any W items share a block.
@@ -127,7 +103,7 @@ std::optional<std::vector<PointResult>> ItemsInLanes(const SweepSpec& spec, cons
   KernelSettings ks = KernelSettingsFor(first);
   ks.keep_rows = false;
   const bool rosenbrock = first.integration.integrator == IntegratorKind::kRosenbrock;
-  const int substeps = spec.terms ? TermSweepSubsteps(spec)
+  const int substeps = spec.terms ? spec.TermSubsteps()
                        : spec.model == ModelKind::kDimensional && !rosenbrock
                            ? Rk4Substeps(spec.dimensional.params, first.integration.dt)
                            : 1;

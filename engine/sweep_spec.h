@@ -203,6 +203,10 @@ struct SweepSpec {
   std::string LongNameOf(const std::string& name) const;
   // The drive of a dimensional point in SI.
   RigDrive DriveAt(const PointSpec& p) const;
+  // RK4 substeps per dt of a term-model sweep (1 otherwise): the stiffest parameter set it holds — nominal, each
+  // swept parameter at its axis's ends, ±4σ with covariance samples — by TermRk4Substeps. One count for the sweep,
+  // so a lane's bits do not depend on its neighbours; at most limits::kMaxRk4Substeps (the spec is refused beyond).
+  int TermSubsteps() const;
   // The model's scalar parameters that no axis sweeps, in canonical order: the non-dimensional ones
   // of cell and series models (eps only for bistable cells), the rig's table for the dimensional model.
   std::vector<FixedParameter> FixedParameters() const;

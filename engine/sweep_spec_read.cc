@@ -652,6 +652,17 @@ Status CheckWholeSpec(SweepSpec& spec, const std::set<std::string>& swept) {
       }
     if (!f0_swept) BISTABLE_RETURN_IF_ERROR(check_f0(spec.base.omega, "params.f0_hz"));
   }
+  if (spec.model == ModelKind::kDimensional && !spec.terms &&
+      spec.base.integration.integrator == IntegratorKind::kRk4) {
+    const int n = Rk4Substeps(spec.dimensional.params, spec.base.integration.dt);
+    if (n > limits::kMaxRk4Substeps)
+      return Status::InvalidArgument(
+          "dimensional.v_t",
+          "integrator = \"rk4\" needs " + std::to_string(n) +
+              " RK4 steps per dt = " + FormatNumber(spec.base.integration.dt) + " s for this rig (limit " +
+              std::to_string(limits::kMaxRk4Substeps) +
+              "): its friction transition is too fast for fixed steps; use the rosenbrock integrator");
+  }
   if (spec.base.integration.labels == LabelMode::kSettled && !IsCellModel(spec.model))
     return Status::InvalidArgument("integration.labels",
                                    "labels = 'settled' is for the cell models (standalone, coupled, "

@@ -153,6 +153,12 @@ Status CheckTerms(const SweepSpec& spec) {
     return Status::InvalidArgument("robustness.covariance",
                                    "a term model's robustness map draws its parameters from the fit's covariance: set "
                                    "robustness.covariance = true (and give terms.covariance)");
+  if (const int n = spec.TermSubsteps(); n > limits::kMaxRk4Substeps)
+    return Status::InvalidArgument(
+        "terms.theta", "the model needs " + std::to_string(n) +
+                           " RK4 steps per dt = " + FormatNumber(spec.base.integration.dt) +
+                           " s at its stiffest parameters (limit " + std::to_string(limits::kMaxRk4Substeps) +
+                           "): a friction transition v_t or a stiffness that fast is outside what a sweep integrates");
   if (spec.robustness.covariance && spec.terms->covariance.empty())
     return Status::InvalidArgument("terms.covariance",
                                    "robustness.covariance = true needs terms.covariance (a report's covariance is "
@@ -178,6 +184,30 @@ std::string TermsText(const TermsConfig& c) {
 }  // namespace bistable::spec_keys
 
 namespace bistable {
+
+// The stiffest parameter set the sweep holds — the nominal one, each swept parameter at its axis's ends, and with
+// covariance samples each parameter at ±4σ — by the rig's rule (TermRk4Substeps).
+int SweepSpec::TermSubsteps() const {
+  if (!terms) return 1;
+  const TermModel& m = terms->model;
+  const double dt = base.integration.dt;
+  int n = TermRk4Substeps(m, m.theta.data(), dt);
+  auto with = [&](int k, double v) {
+    std::vector<double> th = m.theta;
+    th[k] = v;
+    n = std::max(n, TermRk4Substeps(m, th.data(), dt));
+  };
+  for (const Axis& a : axes)
+    if (const int k = m.IndexOf(a.name); k >= 0) with(k, a.values.front()), with(k, a.values.back());
+  if (robustness.covariance && !terms->covariance.empty()) {
+    const int np = m.NumParams();
+    for (int k = 0; k < np; ++k) {
+      const double sd = std::sqrt(std::max(0.0, terms->covariance[k * np + k]));
+      with(k, m.theta[k] - 4 * sd), with(k, m.theta[k] + 4 * sd);
+    }
+  }
+  return n;
+}
 
 void ApplyCovarianceSample(const TermsConfig& t, const RobustnessConfig& r, int k, PointSpec* p) {
   const int n = t.model.NumParams();

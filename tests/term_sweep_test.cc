@@ -90,6 +90,11 @@ TEST(TermSweep, SpecErrorsNameTheField) {
        "axes.main.viscous.c0"},
       {"model = \"coupled\"\n[terms]\nlist = [\"main.linear\"]\n", "terms"},
       {"model = \"coupled\"\n[robustness]\nsamples = 4\ncovariance = true\n", "robustness.covariance"},
+      // A friction transition so fast that RK4 would take millions of steps per dt: refused, not run for days.
+      {"model = \"terms\"\n[terms]\nlist = [\"main.linear\", \"main.friction\"]\ntheta = [100, 1, 1]\nm_main = 1\n"
+       "v_t = 1e-12\n",
+       "terms.theta"},
+      {"model = \"dimensional\"\n[dimensional]\nv_t = 1e-12\n[integration]\nintegrator = \"rk4\"\n", "dimensional.v_t"},
   };
   for (const Case& c : cases) {
     auto s = ParseSweepSpec(c.toml, "t.toml");
