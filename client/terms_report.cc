@@ -1,6 +1,7 @@
 #include "client/terms_report.h"
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <sstream>
 #include <vector>
@@ -12,6 +13,7 @@
 #include "base/json_text.h"
 #include "base/limits.h"
 #include "base/names.h"
+#include "base/validate.h"
 #include "dynamics/terms.h"
 #include "engine/spec_toml.h"
 
@@ -30,6 +32,51 @@ StatusOr<double> JsonNumberAt(const nlohmann::json& j, const std::string& key, c
   const double v = j[key].get<double>();
   if (!std::isfinite(v)) return Bad(field, "is not finite");
   return v;
+}
+
+// The submatrix of a fit's covariance ({"names", "matrix"}) over `names`, flattened row by row, or an error naming
+// terms.report.covariance. A covariance, or refused: variances > 0, symmetric but for rounding, correlations within
+// [-1, 1] — a fit whose Gauss–Newton inverse broke down (an ill-conditioned Jacobian) can report |ρ| > 1, and its σ
+// cannot be drawn from.
+StatusOr<toml::array> CovarianceOf(const nlohmann::json& c, const std::vector<std::string>& names) {
+  if (!c.contains("names") || !c["names"].is_array() || !c.contains("matrix") || !c["matrix"].is_array())
+    return Bad("covariance", "must hold names and matrix");
+  const size_t n = c["names"].size();
+  std::vector<size_t> at;
+  for (const std::string& want : names) {
+    size_t k = 0;
+    while (k < n && !(c["names"][k].is_string() && c["names"][k].get<std::string>() == want)) ++k;
+    if (k == n) return Bad("covariance.names", "lacks " + want);
+    at.push_back(k);
+  }
+  if (c["matrix"].size() != n) return Bad("covariance.matrix", "is not " + std::to_string(n) + " rows");
+  for (size_t a = 0; a < n; ++a) {
+    const nlohmann::json& row = c["matrix"][a];
+    if (!row.is_array() || row.size() != n) return Bad("covariance.matrix", "is not square");
+    for (size_t b = 0; b < n; ++b)
+      if (!row[b].is_number()) return Bad("covariance.matrix", "holds a value that is not a number");
+  }
+  auto at_ab = [&](size_t a, size_t b) { return c["matrix"][a][b].get<double>(); };
+  for (size_t a : at) {
+    if (!(at_ab(a, a) > 0) || !std::isfinite(at_ab(a, a)))
+      return Bad("covariance", "has variance " + FormatNumber(at_ab(a, a)) + " for " +
+                                   c["names"][a].get<std::string>() + "; a variance is > 0 and finite");
+    for (size_t b : at) {
+      const double scale = std::sqrt(at_ab(a, a) * at_ab(b, b));
+      if (!std::isfinite(at_ab(a, b)) || std::fabs(at_ab(a, b) - at_ab(b, a)) > 1e-9 * scale ||
+          std::fabs(at_ab(a, b)) > (1 + 1e-9) * scale)
+        return Bad("covariance", "is not a covariance between " + c["names"][a].get<std::string>() + " and " +
+                                     c["names"][b].get<std::string>() + " (correlation " +
+                                     FormatNumber(at_ab(a, b) / scale) + " vs " + FormatNumber(at_ab(b, a) / scale) +
+                                     "): the fit's uncertainty broke down; map without [robustness] covariance, or "
+                                     "refit with records that separate the parameters");
+    }
+  }
+  // Symmetric to the bit (a Gauss–Newton inverse is symmetric only to rounding): the mean of both triangles.
+  toml::array flat;
+  for (size_t a : at)
+    for (size_t b : at) flat.push_back(0.5 * (at_ab(a, b) + at_ab(b, a)));
+  return flat;
 }
 
 }  // namespace
@@ -119,31 +166,17 @@ StatusOr<std::string> InlineTermsReport(const std::string& spec_text, const std:
   out.insert("v_t", *v_t);
   out.insert("drive", input == "base_acceleration" ? "acceleration" : "displacement");
   out.insert("origin", Printable(path.string(), limits::kMaxNameBytes / 2));
-  // The covariance of these parameters: the rows and columns of the fit's matrix that name them.
+  // The covariance of these parameters: the rows and columns of the fit's matrix that name them. A broken one is
+  // refused when the spec draws from it ([robustness] covariance = true), else left out with a warning.
   if (j.contains("covariance") && j["covariance"].is_object()) {
-    const nlohmann::json& c = j["covariance"];
-    if (!c.contains("names") || !c["names"].is_array() || !c.contains("matrix") || !c["matrix"].is_array())
-      return Bad("covariance", "must hold names and matrix");
-    const size_t n = c["names"].size();
-    std::vector<size_t> at;
-    for (const std::string& want : names) {
-      size_t k = 0;
-      while (k < n && !(c["names"][k].is_string() && c["names"][k].get<std::string>() == want)) ++k;
-      if (k == n) return Bad("covariance.names", "lacks " + want);
-      at.push_back(k);
-    }
-    if (c["matrix"].size() != n) return Bad("covariance.matrix", "is not " + std::to_string(n) + " rows");
-    for (size_t a = 0; a < n; ++a) {
-      const nlohmann::json& row = c["matrix"][a];
-      if (!row.is_array() || row.size() != n) return Bad("covariance.matrix", "is not square");
-      for (size_t b = 0; b < n; ++b)
-        if (!row[b].is_number()) return Bad("covariance.matrix", "holds a value that is not a number");
-    }
-    // Symmetric to the bit (a Gauss–Newton inverse is symmetric only to rounding): the mean of both triangles.
-    toml::array flat;
-    for (size_t a : at)
-      for (size_t b : at) flat.push_back(0.5 * (c["matrix"][a][b].get<double>() + c["matrix"][b][a].get<double>()));
-    out.insert("covariance", flat);
+    auto cov = CovarianceOf(j["covariance"], names);
+    const toml::node* want = root["robustness"]["covariance"].node();
+    if (cov.ok())
+      out.insert("covariance", *cov);
+    else if (want && want->value<bool>().value_or(false))
+      return cov.status();
+    else
+      std::fprintf(stderr, "bistable: %s; left out of the map's spec\n", cov.status().message().c_str());
   }
   root.insert_or_assign("terms", out);
   std::ostringstream os;

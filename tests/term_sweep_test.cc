@@ -191,12 +191,17 @@ TEST_F(TermsReport, RefusesWhatItCannotSweepByName) {
   Write("piezo.json", Report("base_acceleration", ", \"main.piezo\""));
   Write("bad.json", "{not json");
   Write("deep.json", std::string(100000, '[') + std::string(100000, ']'));
+  std::string broken = Report();  // a correlation of 1.5: the fit's uncertainty broke down (seen on real fits)
+  broken.replace(broken.find("[25, -100,"), 10, "[25, -75000,");
+  broken.replace(broken.find("[-100.0000000001,"), 17, "[-75000,");
+  Write("broken.json", broken);
   struct Case {
     std::string terms, field;
   } cases[] = {{"report = \"force.json\"", "terms.report.settings.input_kind"},
                {"report = \"piezo.json\"", "terms.report.final_terms"},
                {"report = \"bad.json\"", "terms.report"},
                {"report = \"deep.json\"", "terms.report"},
+               {"report = \"broken.json\"\n[robustness]\nsamples = 4\ncovariance = true", "terms.report.covariance"},
                {"report = \"missing.json\"", "terms.report"},
                {"report = \"force.json\"\nlist = [\"main.linear\"]", "terms.list"}};
   for (const Case& c : cases) {
@@ -205,6 +210,10 @@ TEST_F(TermsReport, RefusesWhatItCannotSweepByName) {
     ASSERT_FALSE(spec.ok()) << c.terms;
     EXPECT_EQ(spec.status().field(), c.field) << spec.status().ToString();
   }
+  // A broken covariance is left out when nothing draws from it: the map of the fitted values still runs.
+  auto nominal = LoadClientSweepSpec(Write("n.toml", "model = \"terms\"\n[terms]\nreport = \"broken.json\"\n"));
+  ASSERT_TRUE(nominal.ok()) << nominal.status().ToString();
+  EXPECT_TRUE(nominal->terms->covariance.empty());
   // A spec without a report is left as it is.
   auto same = InlineTermsReport("model = \"coupled\"\n", (dir_ / "x.toml").string());
   ASSERT_TRUE(same.ok());
