@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <mutex>
@@ -65,10 +66,18 @@ struct FigureSink {
   std::string dir, ext, format;
   std::vector<std::string> files;
   bool gnuplot_gone = false;
+  bool progress = false;  // a line per figure on stderr, with the time since the last one (issue 43)
+  std::chrono::steady_clock::time_point last = std::chrono::steady_clock::now();
   // Each failed figure is a warning; a gnuplot that cannot start stops the rest (one warning, not one per figure).
   void Render(const Status& st, const std::string& out) {
     if (st.ok()) {
       files.push_back(out);
+      if (progress) {
+        const auto now = std::chrono::steady_clock::now();
+        std::fprintf(stderr, "  plotted %s in %.1f s\n", std::filesystem::path(out).filename().c_str(),
+                     std::chrono::duration<double>(now - last).count());
+        last = now;
+      }
       return;
     }
     gnuplot_gone = st.message().find("cannot start gnuplot") != std::string::npos;
@@ -231,8 +240,8 @@ void RenderBifurcations(const SweepSpec& spec, const std::string& map_path, cons
 }  // namespace
 
 std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir,
-                                            const std::string& format) {
-  FigureSink sink{dir, "." + format, format, {}, false};
+                                            const std::string& format, bool progress) {
+  FigureSink sink{dir, "." + format, format, {}, false, progress};
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) {
@@ -349,8 +358,13 @@ StatusOr<std::string> ComputeAndPublish(SweepCoordinator& c, const SweepSpec& sp
       return CancelledStatus();
     }
     const auto t0 = std::chrono::steady_clock::now();
+    // Publishing writes the map file (HDF5, compressed; a refined sweep fills its finest grid first) or plans a
+    // refined sweep's next round: seconds on big maps, said rather than silent (issue 43).
+    if (progress) std::fprintf(stderr, "%s: publishing (%ld items)...\n", label.c_str(), after.items_total);
     auto path = c.Publish(id);
-    if (stats) stats->publish_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double published = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (stats) stats->publish_seconds += published;
+    if (progress && path.ok()) std::fprintf(stderr, "%s: map written in %.1f s\n", label.c_str(), published);
     if (path.ok() || !KindOf(spec).InRounds()) return path;
     const SweepProgress next = c.progress(id);
     if (next.items_done >= next.items_total) return path;  // no new round was planned: the failure stands

@@ -53,9 +53,9 @@ StatusOr<std::string> RunEmbeddedSweep(const SweepSpec& spec, const std::string&
 
 // The default figures of a published sweep (heatmaps, Fig. 6 scatter, bifurcation diagrams) into dir,
 // as PNG, SVG or PDF files (format; docs/figures.md). Stops starting new figures once cancellation is
-// requested.
+// requested. With `progress`, a line on stderr per figure as it is written, with its time.
 std::vector<std::string> RenderDefaultPlots(const SweepSpec& spec, const std::string& map_path, const std::string& dir,
-                                            const std::string& format = "png");
+                                            const std::string& format = "png", bool progress = false);
 
 }  // namespace bistable
 

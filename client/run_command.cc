@@ -113,7 +113,7 @@ void AddDefaultPlots(const RunArgs& a, const SweepSpec& spec, const std::string&
     std::cerr << "warning: " << warnings->back() << "\n";
   } else {
     const auto plot_dir = std::filesystem::path(path).replace_extension("").string();
-    for (auto& f : RenderDefaultPlots(spec, path, plot_dir, a.plot_format)) files->push_back(f);
+    for (auto& f : RenderDefaultPlots(spec, path, plot_dir, a.plot_format, !a.quiet && !a.json)) files->push_back(f);
   }
 }
 
