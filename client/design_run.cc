@@ -169,8 +169,8 @@ Status RenderFront(const DesignSpec& spec, const SearchResult& r, const Candidat
   for (int panel = 0; panel < 2; ++panel) {
     PanelPlot::Panel pa;
     pa.title = panel == 0 ? "band width vs cost" : "band width vs unsafe share in the band";
-    pa.x_label = panel == 0 ? cost_label : "unsafe (chaotic or diverged) share of the band's Omega points";
-    pa.y_label = "band width (measure of Omega with FRF < 0 dB)";
+    pa.x_label = panel == 0 ? cost_label : "unsafe share of the band's \u03a9 points (chaotic or diverged)";
+    pa.y_label = "band width: \u03a9 with FRF < 0 dB";
     auto xof = [&](const Candidate& c) { return panel == 0 ? c.cost : c.score.unsafe_share_band; };
     PanelPlot::Series all{"candidates", {}, {}, true, "#999999", 0.6},
         front{"Pareto front", {}, {}, true, "#1f77b4", 1.0};

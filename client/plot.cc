@@ -630,7 +630,8 @@ Status RenderPanels(const PanelPlot& d, const std::string& out_path) {
             : "set terminal pngcairo size " + std::to_string(w) + "," + std::to_string(h) +
                   " noenhanced font 'Helvetica,11'\n");
   s << "set multiplot layout " << d.rows << "," << d.cols << " title " << GnuplotString(d.title) << "\n";
-  s << "set grid\nset key top left\nset datafile missing 'NaN'\n";
+  // The legend below each panel, where it hides no point (docs/figures.md: a Pareto front's best designs sat under it).
+  s << "set grid\nset key below center horizontal samplen 2\nset datafile missing 'NaN'\n";
   int block = 0;
   for (const PanelPlot::Panel& p : d.panels) {
     s << "set title " << GnuplotString(p.title) << "\nset xlabel " << GnuplotString(p.x_label) << "\nset ylabel "
