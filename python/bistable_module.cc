@@ -37,10 +37,12 @@
 #include "client/map_query.h"
 #include "client/map_source.h"
 #include "client/poincare_section.h"
+#include "client/shard_run.h"
 #include "client/terms_report.h"
 #include "dynamics/cancel.h"
 #include "dynamics/hbm.h"
 #include "dynamics/point.h"
+#include "engine/sweep_plan.h"
 #include "engine/sweep_spec.h"
 #include "engine/sweep_state.h"
 #include "proto/coordinator_client.h"
@@ -545,6 +547,35 @@ py::dict Hbm(const py::kwargs& kw) {
   return out;
 }
 
+// One shard of a sweep into its own store (`bistable run --shard I/N`): {"store", "items", "cached", "computed"}.
+py::dict RunShardPy(const std::string& toml, const std::string& origin, const std::string& shard,
+                    const std::string& data, int threads, bool progress) {
+  SweepSpec spec = Unwrap(ParseSweepSpec(Unwrap(InlineTermsReport(toml, origin)), origin));
+  const Shard sh = Unwrap(ParseShard(shard));
+  if (Status st = CheckShardable(spec); !st.ok()) Raise(st);
+  if (threads < 0 || threads > 1024)
+    throw py::value_error("threads = " + std::to_string(threads) + " violates threads in [0, 1024]");
+  const int n = threads > 0 ? threads : UsableCpus();
+  ShardRunResult r;
+  Unwrap(Compute([&]() -> StatusOr<bool> {
+    BISTABLE_RETURN_IF_ERROR(RunShard(spec, sh, data, n, 0, progress, &r));
+    return true;
+  }));
+  py::dict out;
+  out["store"] = r.store, out["items"] = r.items, out["cached"] = r.cached, out["computed"] = r.computed;
+  return out;
+}
+
+// The shards' stores assembled into the map (`bistable merge`): {"id", "file", "shards", "items"}.
+py::dict MergePy(const std::string& toml, const std::string& origin, const std::vector<std::string>& stores,
+                 const std::string& data) {
+  SweepSpec spec = Unwrap(ParseSweepSpec(Unwrap(InlineTermsReport(toml, origin)), origin));
+  const MergeResult r = Unwrap(Compute([&] { return MergeShards(spec, stores, data); }));
+  py::dict out;
+  out["id"] = r.id, out["file"] = r.map, out["shards"] = r.shards, out["items"] = r.items;
+  return out;
+}
+
 py::object Sweeps(const std::string& data) { return ToPython(Unwrap(LocalSweepsJson(data))); }
 
 py::object QueryMap(const std::string& id, const std::string& expr, const std::string& data, long long limit) {
@@ -613,6 +644,9 @@ PYBIND11_MODULE(_core, m) {
   m.def("point", &Point, "Integrate one point; the dict `bistable point --json` prints");
   m.def("trajectory", &Trajectory, "Integrate one point; the sampled window as numpy arrays");
   m.def("run", &Run, py::arg("toml"), py::arg("origin"), py::arg("data"), py::arg("threads"), py::arg("progress"));
+  m.def("run_shard", &RunShardPy, py::arg("toml"), py::arg("origin"), py::arg("shard"), py::arg("data"),
+        py::arg("threads"), py::arg("progress"));
+  m.def("merge", &MergePy, py::arg("toml"), py::arg("origin"), py::arg("stores"), py::arg("data"));
   m.def("find", &Find, py::arg("id"), py::arg("data"));
   m.def("hbm", &Hbm, "Harmonic balance with continuation and stability");
   m.def("sweeps", &Sweeps, py::arg("data"));

@@ -22,7 +22,7 @@ __version__ = _core.__version__
 numerics_version = _core.numerics_version
 DEFAULT_DATA = "bistable-data"
 
-__all__ = ["point", "trajectory", "run", "open", "open_file", "find", "sweeps", "query", "hbm", "identify",
+__all__ = ["point", "trajectory", "run", "merge", "open", "open_file", "find", "sweeps", "query", "hbm", "identify",
            "IdentifyResult", "plot", "Client"]
 
 
@@ -121,7 +121,7 @@ def open_file(path):
         return ds.load()
 
 
-def run(spec, data=DEFAULT_DATA, threads=0, progress=False, path_only=False):
+def run(spec, data=DEFAULT_DATA, threads=0, progress=False, path_only=False, shard=None):
     """Runs a sweep in this process (the embedded default of `bistable run`) and returns its map.
 
     spec: a path to a TOML spec, TOML text, or a dict of its tables (docs/sweep-spec.md), e.g.
@@ -129,12 +129,29 @@ def run(spec, data=DEFAULT_DATA, threads=0, progress=False, path_only=False):
     data: the data directory (cache, index, maps); threads: 0 = every usable CPU; progress: the CLI's
     progress bar on stderr. Points already in the data directory's cache are not recomputed.
     Returns an xarray.Dataset (path_only=True: the map file's path).
+
+    shard="I/N" computes only shard I of N into its own store (`bistable run --shard I/N`, a job array's task)
+    and returns {"store", "items", "cached", "computed"}; merge() then assembles the map.
     """
     threads = int(threads)
     if not 0 <= threads <= 1024:  # before the C++ int: 2**63 raised TypeError (issue 39)
         raise ValueError(f"threads = {threads} violates threads in [0, 1024]")
     text, origin = _spec_text(spec)
+    if shard is not None:
+        if not isinstance(shard, str):
+            raise ValueError("shard = %.80r violates shard a string I/N (e.g. '3/8')" % (shard,))
+        return _core.run_shard(text, origin, shard, _os.fspath(data), threads, bool(progress))
     r = _core.run(text, origin, _os.fspath(data), threads, bool(progress))
+    return r["file"] if path_only else open_file(r["file"])
+
+
+def merge(spec, stores=None, data=DEFAULT_DATA, path_only=False):
+    """Assembles the shards of a sweep (run(..., shard="I/N") or `bistable run --shard I/N`) into the map
+    `bistable run` writes, bit for bit (`bistable merge`). stores: the shard stores' directories (None: every
+    <data>/shards/<id>-* store). Returns an xarray.Dataset (path_only=True: the map file's path)."""
+    text, origin = _spec_text(spec)
+    paths = [] if stores is None else [_os.fspath(p) for p in ([stores] if isinstance(stores, (str, _os.PathLike)) else stores)]
+    r = _core.merge(text, origin, paths, _os.fspath(data))
     return r["file"] if path_only else open_file(r["file"])
 
 

@@ -718,3 +718,20 @@ def test_plots_are_labelled_with_units_and_category_names(tmp_path):
     q = bistable.plot(ds.edr_t, x="omega")
     assert label(q.colorbar.ax.get_ylabel()) == "total energy dissipation ratio [percent]"
     plt.close("all")
+
+
+def test_shards_run_and_merge_to_the_embedded_map_bit_for_bit(tmp_path):
+    whole = bistable.run(SMALL, data=str(tmp_path / "whole"), threads=1, path_only=True)
+    data = str(tmp_path / "shards")
+    done = [bistable.run(SMALL, data=data, threads=1, shard=f"{i}/3") for i in range(3)]
+    assert sum(d["items"] for d in done) == 20 and all(d["computed"] == d["items"] for d in done)
+    again = bistable.run(SMALL, data=data, threads=1, shard="1/3")  # resumed: nothing left to compute
+    assert again["computed"] == 0 and again["cached"] == again["items"]
+    merged = bistable.merge(SMALL, data=data, path_only=True)
+    with h5py.File(whole) as a, h5py.File(merged) as b:
+        for name in ("frf_db", "lle", "motion"):
+            assert np.array_equal(a[name][()], b[name][()], equal_nan=True), name
+    with pytest.raises(ValueError, match="shard"):
+        bistable.run(SMALL, data=data, shard="3/3")
+    with pytest.raises(ValueError, match="shard"):
+        bistable.run(SMALL, data=data, shard=3)
