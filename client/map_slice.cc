@@ -242,6 +242,7 @@ MapContext MapContextOf(const SweepSpec& spec) {
   c.id = spec.Id();
   c.fixed = spec.FixedParameters();
   c.chaos_threshold = spec.base.metrics.chaos_threshold;
+  if (spec.robustness.enabled()) c.items = spec.robustness.covariance ? "covariance samples" : "tolerance samples";
   return c;
 }
 
@@ -345,6 +346,9 @@ StatusOr<PlotData> MapFigure(const MapArray& m, std::map<std::string, double> at
   }
   d.codes = MetricCodes(d.metric, d.values, m.categories);
   d.title = MetricTitle(s->metric);
+  // A robustness map's fractions are over its samples (parameters and start drawn per point), not starts alone.
+  if (const size_t at = d.title.find("the starts"); at != std::string::npos && ctx.items != "starts")
+    d.title.replace(at, 10, "the " + ctx.items);
   d.title_markup = true;
   d.value_label = MetricValueLabel(s->metric, s->unit);
   // Subtitle: the sweep's fixed parameters, then the slice's fixed axes (the figure's own values).

@@ -46,6 +46,7 @@ struct MapContext {
   std::string name, id;
   std::vector<FixedParameter> fixed;
   double chaos_threshold = NAN;
+  std::string items = "starts";  // what a point's items are, in the fractions' titles ("tolerance samples", ...)
 };
 MapContext MapContextOf(const SweepSpec& spec);
 // The context of a map file: its stored spec (the root attribute "spec"); the name and id alone when

@@ -398,7 +398,8 @@ void WriteDecor(std::ostream& s, const Decor& d, int w, int h, int* top_px, int*
       << (d.title_markup ? "enhanced" : "noenhanced") << "\n";
     top += 8;
   }
-  for (const std::string& line : WrapItems(d.subtitle, static_cast<size_t>(w / 9))) {  // ~9 px per character
+  for (const std::string& line :
+       WrapItems(d.subtitle, static_cast<size_t>(w / 10))) {  // ~9.4 px per character, and a margin
     top += 18;
     s << "set label " << tag++ << " " << GnuplotString(line) << at(centre, top) << " center font ',12' enhanced\n";
   }
