@@ -30,14 +30,7 @@ double Seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-KernelSettings Settings(double dt, double t_end) {
-  KernelSettings ks;
-  ks.h = dt;
-  ks.n_total = std::lround(t_end / dt);
-  ks.n_keep = ks.n_total / 2;
-  ks.keep_samples = false;
-  return ks;
-}
+KernelSettings Settings(double dt, double t_end) { return KernelSettings::Window(dt, t_end); }
 
 // The cell kernel: coupled model + tangent, 8 points at Ω = 0.5, 0.6, ... (bench_kernel's block) in
 // blocks of kW lanes.

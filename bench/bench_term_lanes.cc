@@ -25,14 +25,7 @@ constexpr int kW = kSweepLanes;
 constexpr int kPoints = 16;
 static_assert(kPoints % kW == 0);
 
-KernelSettings Settings() {
-  KernelSettings ks;
-  ks.h = 1e-3;
-  ks.n_total = 2000;
-  ks.n_keep = 1000;
-  ks.keep_samples = false;
-  return ks;
-}
+KernelSettings Settings() { return KernelSettings::Window(1e-3, 2.0); }
 
 double A0(int p) { return (0.5 + 0.7 * p) * 1e-3; }
 double Omega(int p) { return 2 * M_PI * (2.0 + 0.23 * p); }

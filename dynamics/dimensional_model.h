@@ -89,6 +89,14 @@ struct DimensionalLaneInput {
   std::array<double, 4> x0 = {0, 0, 0, 0};
 };
 
+// The Jacobian entries a two-body lane model leaves behind at an evaluated state (its Lanes' `Jac`): j.fy = −∂F/∂y,
+// j.fyd = −∂F/∂y', j.gz = ∂G/∂z, j.gzd = ∂G/∂z' of the main body's force F and the resonator's G.
+template <int W, class Lanes>
+struct TwoBodyJac {
+  explicit TwoBodyJac(const Lanes&) {}
+  Vec<W> fy, fyd, gz, gzd;
+};
+
 // dw = J w of a main body (y, y') under a base with a resonator (z, z') on it, from the force slopes
 // j.fy = −∂F/∂y, j.fyd = −∂F/∂y', j.gz = ∂G/∂z, j.gzd = ∂G/∂z' (the lane models of the rig and of term models).
 template <int W, class Jac>
@@ -118,11 +126,7 @@ struct DimensionalLaneModel {
   class Lanes {
    public:
     using V = Vec<W>;
-    // ∂F_m/∂y, ∂F_m/∂y', ∂G_r/∂z, ∂G_r/∂z' at the evaluated state.
-    struct Jac {
-      explicit Jac(const Lanes&) {}
-      V fy, fyd, gz, gzd;
-    };
+    using Jac = TwoBodyJac<W, Lanes>;
 
     // d²F_f/dv² of both bodies at the evaluated state (EvalCurvature).
     struct Curv {

@@ -52,6 +52,15 @@ struct KernelSettings {
   // where they resume; n_keep ≥ step0).
   long window_steps = 0;
   long step0 = 0;
+  // Steps of h over [0, t_end], the window its second half, no samples kept (the benchmarks' and tests' runs).
+  static KernelSettings Window(double h, double t_end) {
+    KernelSettings ks;
+    ks.h = h;
+    ks.n_total = std::lround(t_end / h);
+    ks.n_keep = ks.n_total / 2;
+    ks.keep_samples = false;
+    return ks;
+  }
 };
 
 template <class Model, int W>

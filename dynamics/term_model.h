@@ -78,11 +78,7 @@ struct TermLaneModel {
   class Lanes {
    public:
     using V = Vec<W>;
-    // −∂F/∂y, −∂F/∂y', ∂G/∂z, ∂G/∂z' at the evaluated state (DimensionalLaneModel's entries).
-    struct Jac {
-      explicit Jac(const Lanes&) {}
-      V fy, fyd, gz, gzd;
-    };
+    using Jac = TwoBodyJac<W, Lanes>;
 
     explicit Lanes(const Input& in)
         : fb_(FrictionBasis(in.model->fc)),

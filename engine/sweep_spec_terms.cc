@@ -93,6 +93,10 @@ Status ReadTerms(const toml::table& root, SweepSpec& spec) {
   if (theta->size() != np)
     return Status::InvalidArgument("terms.theta", "terms.theta has " + std::to_string(theta->size()) +
                                                       " values; the terms have " + std::to_string(np) + " parameters");
+  for (size_t k = 0; k < np; ++k)
+    if (!std::isfinite((*theta)[k]))
+      return Violates("terms.theta[" + std::to_string(k) + "]", (*theta)[k],
+                      "finite (" + c.model.ParamNames()[k] + ")");
   c.model.theta = *theta;
   BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "m_main", "terms.m_main", &c.model.m_main));
   BISTABLE_RETURN_IF_ERROR(ReadNumber(*t, "m_res", "terms.m_res", &c.model.m_res));

@@ -13,14 +13,7 @@
 namespace bistable {
 namespace {
 
-KernelSettings Short() {
-  KernelSettings ks;
-  ks.h = 1e-3;
-  ks.n_total = 1500;
-  ks.n_keep = 750;
-  ks.keep_samples = false;
-  return ks;
-}
+KernelSettings Short() { return KernelSettings::Window(1e-3, 1.5); }
 
 TermLaneInput Lane(const TermModel* m, double a0_mm, double f0_hz, const double* theta = nullptr) {
   TermLaneInput in;

@@ -77,6 +77,8 @@ TEST(TermSweep, SpecErrorsNameTheField) {
       {"model = \"terms\"\n[terms]\nlist = [\"main.linear\", \"main.stifness_y3\"]\ntheta = [1, 2]\nm_main = 1\n",
        "terms.list[1]"},
       {"model = \"terms\"\n[terms]\nlist = [\"main.linear\"]\ntheta = [1]\nm_main = 0\n", "terms.m_main"},
+      {"model = \"terms\"\n[terms]\nlist = [\"main.linear\", \"main.viscous\"]\ntheta = [1, nan]\nm_main = 1\n",
+       "terms.theta[1]"},
       {"model = \"terms\"\n[terms]\nlist = [\"main.linear\", \"main.viscous\"]\ntheta = [1, 1]\nm_main = 1\n"
        "covariance = [1, 0.5, 0.4, 1]\n",
        "terms.covariance"},
