@@ -46,7 +46,7 @@ struct IdentifyArgs {
   std::string range, objective = "auto", report, synth, synth_kind = "linear";
   std::vector<std::string> test_ranges;
   double max_seconds = 0;
-  int decimate = 1, global_evals = 150, lm_iterations = 60, max_added = 3, threads = 0;
+  int decimate = 1, global_evals = 150, lm_iterations = 60, max_added = 3, threads = 0, bootstrap = 0;
   double horizon = 0.5, deriv_cutoff = 0, drift_cutoff = 0;
   bool json = false, list_terms = false, fit_offsets = false;
   std::string output_weights = "residual";
@@ -297,6 +297,7 @@ StatusOr<identify::Options> OptionsFromFlags(const IdentifyArgs& a) {
   if (!objective.ok()) return objective.status();
   o.objective = *objective;
   o.global_evals = a.global_evals, o.lm_iterations = a.lm_iterations, o.max_added = a.max_added, o.threads = a.threads;
+  o.bootstrap = a.bootstrap;
   o.deriv_cutoff = a.deriv_cutoff, o.decimate = a.decimate, o.horizon = a.horizon, o.max_seconds = a.max_seconds;
   o.fit_offsets = a.fit_offsets;
   auto weights = identify::ParseOutputWeights(a.output_weights);
@@ -598,6 +599,36 @@ int RunIdentify(const IdentifyArgs& a) {
   return 0;
 }
 
+// --make-synthetic and the --synthetic-* options (the records identify can make for itself).
+void AddSyntheticOptions(CLI::App* c, IdentifyArgs* a) {
+  c->add_option("--make-synthetic", a->synth, "write synthetic chirp records into DIR and exit (see --synthetic)");
+  c->add_option("--synthetic", a->synth_kind,
+                "linear: Table 2 linear rig, 1-8 Hz chirps of 6/10/14 mm, 20 s each | coupled: Table 2 bistable beam + "
+                "resonator, friction on both, 1-6 Hz chirp of 4 mm, 70 s (120 Hz, 0.05 mm noise) | "
+                "bistable, bistable-coupled: the snap-through family (beam alone or with the resonator; the "
+                "--synthetic-* options; noise on every "
+                "column; truth.json)")
+      ->capture_default_str();
+  c->add_option("--synthetic-amplitude", a->synth_amplitudes_mm,
+                "bistable family: base chirp amplitude [mm], repeatable (one record each; default 10)");
+  c->add_option("--synthetic-f-start", a->synth_f_start, "bistable family: chirp start frequency [Hz]")
+      ->capture_default_str();
+  c->add_option("--synthetic-f-end", a->synth_f_end, "bistable family: chirp end frequency [Hz]")
+      ->capture_default_str();
+  c->add_option("--synthetic-duration", a->synth_duration, "bistable family: record length [s]")->capture_default_str();
+  c->add_option("--synthetic-noise", a->synth_noise_mm,
+                "bistable family: noise standard deviation on every column, the input too [mm]")
+      ->capture_default_str();
+  c->add_option("--synthetic-seed", a->synth_seed,
+                "bistable family: noise seed of the first record (the next records +1, +2, ...)")
+      ->capture_default_str();
+  c->add_option("--synthetic-extra", a->synth_extra,
+                "bistable family: a force term added to the truth, TERM=VALUE[:VALUE] in the library's units "
+                "(e.g. main.drag=5, main.stiffness_y5=2e9, res.stiffness_z3=1e6); repeatable");
+  c->add_option("--synthetic-start", a->synth_start, "bistable family: the well the beam starts in, left | right")
+      ->capture_default_str();
+}
+
 void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
   c->add_option("--data", a->data,
                 "CSV record(s) with a header: , tab or ; separated, # comments, units in names "
@@ -661,6 +692,11 @@ void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
                 "length [s] (a few forcing periods)")
       ->capture_default_str();
   c->add_option("--max-added", a->max_added, "at most this many effects added")->capture_default_str();
+  c->add_option("--bootstrap", a->bootstrap,
+                "sigma and covariance from N refits of the final model's twin records (simulated with the record's "
+                "input and noise levels; 8-256, e.g. 32; 0: Gauss-Newton). Friction's static peak and other "
+                "parameters acting through events get an honest sigma (docs/identification.md)")
+      ->capture_default_str();
   c->add_option("--candidates", a->candidates,
                 "terms the trace may add (default: the force terms of the bodies measured; with an output2 "
                 "voltage also main.piezo and out.<output>.offset/.scale of every output)");
@@ -669,32 +705,7 @@ void AddIdentifyOptions(CLI::App* c, IdentifyArgs* a) {
                 "records simulated in parallel (0: the CPUs this process may use: affinity and cgroup quota)")
       ->capture_default_str();
   c->add_option("--report", a->report, "directory for report.md, report.json and PNG figures");
-  c->add_option("--make-synthetic", a->synth, "write synthetic chirp records into DIR and exit (see --synthetic)");
-  c->add_option("--synthetic", a->synth_kind,
-                "linear: Table 2 linear rig, 1-8 Hz chirps of 6/10/14 mm, 20 s each | coupled: Table 2 bistable beam + "
-                "resonator, friction on both, 1-6 Hz chirp of 4 mm, 70 s (120 Hz, 0.05 mm noise) | "
-                "bistable, bistable-coupled: the snap-through family (beam alone or with the resonator; the "
-                "--synthetic-* options; noise on every "
-                "column; truth.json)")
-      ->capture_default_str();
-  c->add_option("--synthetic-amplitude", a->synth_amplitudes_mm,
-                "bistable family: base chirp amplitude [mm], repeatable (one record each; default 10)");
-  c->add_option("--synthetic-f-start", a->synth_f_start, "bistable family: chirp start frequency [Hz]")
-      ->capture_default_str();
-  c->add_option("--synthetic-f-end", a->synth_f_end, "bistable family: chirp end frequency [Hz]")
-      ->capture_default_str();
-  c->add_option("--synthetic-duration", a->synth_duration, "bistable family: record length [s]")->capture_default_str();
-  c->add_option("--synthetic-noise", a->synth_noise_mm,
-                "bistable family: noise standard deviation on every column, the input too [mm]")
-      ->capture_default_str();
-  c->add_option("--synthetic-seed", a->synth_seed,
-                "bistable family: noise seed of the first record (the next records +1, +2, ...)")
-      ->capture_default_str();
-  c->add_option("--synthetic-extra", a->synth_extra,
-                "bistable family: a force term added to the truth, TERM=VALUE[:VALUE] in the library's units "
-                "(e.g. main.drag=5, main.stiffness_y5=2e9, res.stiffness_z3=1e6); repeatable");
-  c->add_option("--synthetic-start", a->synth_start, "bistable family: the well the beam starts in, left | right")
-      ->capture_default_str();
+  AddSyntheticOptions(c, a);
   c->add_flag("--fit-offsets", a->fit_offsets, "velocity outputs: fit each record's displacement offset (which well)");
   c->add_option(
        "--output-weights", a->output_weights,

@@ -31,6 +31,22 @@
 
 namespace bistable {
 
+// --bootstrap N (null when not asked): twins asked and fitted, the refits' mean, the Gauss–Newton σ the
+// bootstrap replaced, or why there is no bootstrap (note).
+static nlohmann::json BootstrapJson(const BootstrapResult& b, const std::vector<std::string>& names) {
+  if (b.twins == 0) return nullptr;
+  nlohmann::json j = {{"twins", b.twins}, {"fitted", b.fitted}, {"seconds", JsonNumber(b.seconds)}};
+  if (!b.note.empty()) j["note"] = b.note;
+  nlohmann::json mean = nlohmann::json::object(), gn = nlohmann::json::object();
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (i < b.mean.size()) mean[names[i]] = JsonNumber(b.mean[i]);
+    if (i < b.gauss_newton_sigma.size()) gn[names[i]] = JsonNumber(b.gauss_newton_sigma[i]);
+  }
+  j["mean"] = mean;
+  j["gauss_newton_sigma"] = gn;
+  return j;
+}
+
 nlohmann::json ParamsJson(const IdentModel& m, const FitResult& f) {
   nlohmann::json j = nlohmann::json::object();
   const auto names = m.ParamNames();
@@ -203,8 +219,9 @@ nlohmann::json ResultJson(const identify::Options& o, const identify::Summary& s
   j["uncertainty"] = nlohmann::json::object();
   const auto names = r.final_model.ParamNames();
   for (size_t i = 0; i < names.size(); ++i) j["uncertainty"][names[i]] = JsonNumber(r.after.sigma[i]);
-  // The final fit's Gauss–Newton covariance over `params` (row by row, in the order of `names`; null for the
-  // spectral objective, which has none): what a robustness map of the fitted model draws from (issue 42).
+  // The final fit's covariance over `params` (Gauss–Newton, or the bootstrap's with --bootstrap) (row by row, in the
+  // order of `names`; null for the spectral objective, which has none): what a robustness map of the fitted model draws
+  // from (issue 42).
   j["covariance"] = nullptr;
   if (r.after.covariance.rows() == static_cast<Eigen::Index>(names.size()) &&
       r.after.covariance.cols() == static_cast<Eigen::Index>(names.size())) {
@@ -214,8 +231,9 @@ nlohmann::json ResultJson(const identify::Options& o, const identify::Summary& s
       for (Eigen::Index b = 0; b < r.after.covariance.cols(); ++b) row.push_back(JsonNumber(r.after.covariance(a, b)));
       rows.push_back(row);
     }
-    j["covariance"] = {{"names", names}, {"matrix", rows}};
+    j["covariance"] = {{"names", names}, {"matrix", rows}, {"method", r.bootstrap.ok() ? "bootstrap" : "gauss-newton"}};
   }
+  j["bootstrap"] = BootstrapJson(r.bootstrap, names);
   j["params_declared_fit"] = ParamsJson(r.declared, r.before);
   j["errors_by_output"] = ErrorsByOutputJson(r.before.errors, r.after.errors);
   j["records"] = nlohmann::json::array();

@@ -196,9 +196,11 @@ Status WriteReport(const std::string& report, const std::string& declared, const
   for (size_t i = 0; i < names.size(); ++i)
     md << "| " << names[i] << " | " << Fmt(r.after.theta[i], 6) << " | " << Fmt(r.after.sigma[i], 2) << " | "
        << units[i] << " |\n";
-  md << "\nσ: Gauss–Newton covariance scaled by the residual's correlation time. Friction constants v_sp = "
-     << setup.fc.v_sp << " m/s, v_t = " << setup.fc.v_t << " m/s. Wall time " << Fmt(r.seconds, 3) << " s, "
-     << s.simulations << " simulations.\n\n## Figures\n\n";
+  md << (r.bootstrap.ok() ? "\nσ: bootstrap, the spread of " + std::to_string(r.bootstrap.fitted) + " of " +
+                                std::to_string(r.bootstrap.twins) + " twin records refitted (`--bootstrap`)."
+                          : std::string("\nσ: Gauss–Newton covariance scaled by the residual's correlation time."))
+     << " Friction constants v_sp = " << setup.fc.v_sp << " m/s, v_t = " << setup.fc.v_t << " m/s. Wall time "
+     << Fmt(r.seconds, 3) << " s, " << s.simulations << " simulations.\n\n## Figures\n\n";
   for (const std::string& f : figs) md << "![" << f << "](" << f << ")\n\n";
   const std::filesystem::path dir(report);
   BISTABLE_RETURN_IF_ERROR(WriteTextOut((dir / "report.json").string(), DumpJson(j, 2) + "\n", "report"));

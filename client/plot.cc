@@ -526,7 +526,8 @@ Status CheckGnuplot() {
 std::string AxisLabel(const std::string& name, const std::string& unit) {
   if (name == "a0_mm") return "base amplitude A_0 [mm]";
   if (name == "acc0_g") return "base acceleration amplitude [g]";
-  if (name == "f0_hz") return "base frequency f_0 [Hz]";
+  if (name == "force0_n") return "force amplitude F_0 [N]";
+  if (name == "f0_hz") return "drive frequency f_0 [Hz]";  // of the base, or of a force (drive = "force")
   const std::string u = UnitMarkup(unit);
   if (u.empty()) return SymbolOf(name);
   // The non-dimensional parameters say what they are scaled by (α = A_0/δ_s); quantities with a

@@ -112,14 +112,14 @@ StatusOr<std::string> InlineTermsReport(const std::string& spec_text, const std:
                "model's terms; fit again)");
   const nlohmann::json& settings = j.contains("settings") ? j["settings"] : nlohmann::json::object();
   const nlohmann::json& params = j.contains("params") ? j["params"] : nlohmann::json::object();
-  // The input: the swept model is driven through its base.
+  // The input: the swept model is driven through its base, or by a force on its main body.
   const std::string input = settings.contains("input_kind") && settings["input_kind"].is_string()
                                 ? settings["input_kind"].get<std::string>()
                                 : "";
-  if (input != "base_displacement" && input != "base_acceleration")
+  if (input != "base_displacement" && input != "base_acceleration" && input != "force")
     return Bad("settings.input_kind", "is '" + Printable(input) +
-                                          "'; a sweep drives the model through its base (base_displacement or "
-                                          "base_acceleration); a force input is not swept yet");
+                                          "'; a sweep drives the model through its base (base_displacement, "
+                                          "base_acceleration) or by a force (force)");
   // The dynamics: the force terms; the sensors' terms (out.*) and the per-record offsets stay behind.
   toml::array list;
   std::vector<std::string> names;
@@ -146,7 +146,7 @@ StatusOr<std::string> InlineTermsReport(const std::string& spec_text, const std:
   auto m_main = JsonNumberAt(settings, "m_main", "settings.m_main");
   if (!m_main.ok()) return m_main.status();
   double mass = *m_main;
-  if (!(mass > 0)) {  // a fitted mass (force inputs only, refused above; kept for completeness)
+  if (!(mass > 0)) {  // a fitted mass (force inputs): its value; its σ is not swept (the mass is not a term)
     auto fitted = JsonNumberAt(params, "m_main", "params.m_main");
     if (!fitted.ok()) return fitted.status();
     mass = *fitted;
@@ -164,7 +164,7 @@ StatusOr<std::string> InlineTermsReport(const std::string& spec_text, const std:
   if (*m_res > 0) out.insert("m_res", *m_res);
   out.insert("v_sp", *v_sp);
   out.insert("v_t", *v_t);
-  out.insert("drive", input == "base_acceleration" ? "acceleration" : "displacement");
+  out.insert("drive", input == "base_acceleration" ? "acceleration" : input == "force" ? "force" : "displacement");
   out.insert("origin", Printable(path.string(), limits::kMaxNameBytes / 2));
   // The covariance of these parameters: the rows and columns of the fit's matrix that name them. A broken one is
   // refused when the spec draws from it ([robustness] covariance = true), else left out with a warning.

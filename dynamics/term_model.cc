@@ -9,6 +9,52 @@
 
 namespace bistable {
 
+int TermLaneCoefficients(TermKind kind) {
+  switch (kind) {
+    case TermKind::kStiffness2:
+    case TermKind::kStiffness3:
+    case TermKind::kStiffness5:
+    case TermKind::kDamping2:
+    case TermKind::kDampingV3:
+    case TermKind::kDrag:
+      return 2;
+    case TermKind::kFriction:
+      return 4;
+    default:
+      return 1;
+  }
+}
+
+void TermLaneCoefficientValues(TermKind kind, const double* theta, const TermLaneFriction& fric, double* k) {
+  switch (kind) {
+    case TermKind::kStiffness2:
+    case TermKind::kDamping2:
+    case TermKind::kDrag:
+      k[0] = theta[0], k[1] = 2.0 * theta[0];
+      break;
+    case TermKind::kStiffness3:
+    case TermKind::kDampingV3:
+      k[0] = theta[0], k[1] = 3.0 * theta[0];
+      break;
+    case TermKind::kStiffness5:
+      k[0] = theta[0], k[1] = 5.0 * theta[0];
+      break;
+    case TermKind::kFriction: {
+      const double a_vsp = (theta[0] - theta[1] * fric.tanh_sp) / fric.v_sp;
+      k[0] = a_vsp, k[1] = 2.0 * a_vsp, k[2] = theta[1], k[3] = theta[1] / fric.v_t;
+      break;
+    }
+    case TermKind::kLinear:
+    case TermKind::kViscous:
+    case TermKind::kBias:
+      k[0] = theta[0];
+      break;
+    default:
+      k[0] = 0.0;  // piezo and output terms: not forces here (refused by ValidateTermModel)
+      break;
+  }
+}
+
 bool TermModel::HasResonator() const {
   return std::any_of(terms.begin(), terms.end(), [](const TermDef* t) { return t->body == Body::kResonator; });
 }

@@ -5,9 +5,9 @@
 // as the rig's (dimensional_model.h):
 //   m_main y'' = −F(y, y') + G(z, z') − m_main a0,   m_res z'' = −G(z, z') − m_res (y'' + a0),
 //   F = Σ θ_k φ_k(y, y') over the main body's terms, G over the resonator's; a0 = −A0 ω² sin(ω t).
-// Each force is evaluated by TermBasisSlopes — the identification simulator's basis code — term by term
-// in declaration order. Parameters may differ per lane (a robustness sweep draws them per sample); the
-// terms, masses and friction constants are lane 0's.
+// Each force is evaluated term by term in declaration order, in the lane form of the terms (below:
+// coefficients per lane, checked against TermBasisSlopes, the identification simulator's basis). Parameters may differ
+// per lane (a robustness sweep draws them per sample); the terms, masses and friction constants are lane 0's.
 //
 // Not here (yet): the piezo's voltage state and output terms (refused by ValidateTermModel), the
 // Rosenbrock path (the friction basis has no curvature): term models integrate by RK4 with substeps from
@@ -16,6 +16,7 @@
 #define BISTABLE_DYNAMICS_TERM_MODEL_H_
 
 #include <array>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -62,9 +63,31 @@ double TermWell(const TermModel& m, const double* th);
 // zero of F(q, 0) found on a log grid of |q| from 1 µm to 1 m), h ≤ 2/ρ — the rig's rule (Rk4Substeps).
 int TermRk4Substeps(const TermModel& m, const double* th, double dt);
 
-// One lane of a term-model sweep (ensemble_generic.h): a sine base x0 = A0 sin(ω t), output cell y, y'.
+// The lane kernel's form of a term (TermLaneModel): per lane, a few coefficients made from the term's
+// parameters once (at Load), so that a step evaluates the force and its slopes in the hand kernel's operations
+// rather than as θ·φ over TermBasisSlopes' basis (which divides by v_sp and v_t and multiplies every slope,
+// zeros included: 0.64x the hand rig kernel's lane-steps/s). Coefficients k by kind: linear, viscous, bias θ;
+// stiffness_y2, damping_y2, drag θ, 2θ; stiffness_y3, damping_v3 θ, 3θ; stiffness_y5 θ, 5θ; friction
+// (F_s − F_c tanh(v_sp/v_t))/v_sp, twice that, F_c, F_c/v_t (dynamics/friction.h's law, per lane). The two
+// forms agree to rounding (TermModel.TheLaneFormIsTheBasisForm).
+inline constexpr int kMaxTermLaneCoefficients = 4;
+struct TermLaneFriction {
+  explicit TermLaneFriction(const FrictionConstants& fc)
+      : v_sp(fc.v_sp),
+        v_t(fc.v_t),
+        inv_vt(1.0 / fc.v_t),
+        neg_half_inv_vsp2(-0.5 / (fc.v_sp * fc.v_sp)),
+        tanh_sp(std::tanh(fc.v_sp / fc.v_t)) {}
+  double v_sp, v_t, inv_vt, neg_half_inv_vsp2, tanh_sp;
+};
+int TermLaneCoefficients(TermKind kind);
+void TermLaneCoefficientValues(TermKind kind, const double* theta, const TermLaneFriction& fric, double* k);
+
+// One lane of a term-model sweep (ensemble_generic.h): a sine base x0 = A0 sin(ω t), or (force) a force
+// F0 sin(ω t) on the main body with the base at rest; output cell y, y'.
 struct TermLaneInput {
-  double amp = 0, omega = 0, base_amp = 0;  // A0 ω² [m/s²], ω [rad/s], A0 [m]
+  double amp = 0, omega = 0, base_amp = 0;  // A0 ω² [m/s²] (force: F0/m_main), ω [rad/s], A0 [m] (force: 0)
+  bool force = false;                       // amp drives the main body alone (the resonator feels it through y'')
   const TermModel* model = nullptr;         // the structure every lane shares (lane 0's)
   const double* theta = nullptr;            // this lane's parameters (model->NumParams()); null: model->theta
   std::array<double, 4> x0 = {0, 0, 0, 0};
@@ -81,21 +104,28 @@ struct TermLaneModel {
     using Jac = TwoBodyJac<W, Lanes>;
 
     explicit Lanes(const Input& in)
-        : fb_(FrictionBasis(in.model->fc)),
+        : fric_(in.model->fc),
           inv_m_m_(1.0 / in.model->m_main),
           inv_m_r_(in.model->HasResonator() ? 1.0 / in.model->m_res : 0.0),
-          res_(in.model->HasResonator()) {
-      int offset = 0;
+          res_(in.model->HasResonator()),
+          force_(in.force) {
+      int offset = 0, coef = 0;
       for (const TermDef* t : in.model->terms) {
-        (t->body == Body::kMain ? main_ : resonator_).push_back({t, offset});
+        (t->body == Body::kMain ? main_ : resonator_).push_back({t->kind, offset, coef});
         offset += static_cast<int>(t->params.size());
+        coef += TermLaneCoefficients(t->kind);
       }
-      th_.resize(offset);
+      k_.resize(coef);
     }
     int dim() const { return kDim; }
     void Load(int l, const Input& in) {
       const double* th = in.theta ? in.theta : in.model->theta.data();
-      for (size_t k = 0; k < th_.size(); ++k) th_[k][l] = th[k];
+      for (const std::vector<Term>* body : {&main_, &resonator_})
+        for (const Term& t : *body) {
+          double c[kMaxTermLaneCoefficients];
+          TermLaneCoefficientValues(t.kind, th + t.offset, fric_, c);
+          for (int i = 0; i < TermLaneCoefficients(t.kind); ++i) k_[t.coef + i][l] = c[i];
+        }
     }
 
     BISTABLE_INLINE void Eval(const V* x, V f, V* dx, Jac* j) const {
@@ -112,9 +142,9 @@ struct TermLaneModel {
       const V fm = (g - force) * inv_m_m_;
       dx[0] = yd;
       dx[1] = fm + f;  // f = −(base acceleration)
-      if (res_) {
+      if (res_) {      // z'' = −G/m_res − (y'' + base acceleration): −fm under a base, −(fm + f) under a force
         dx[2] = x[3];
-        dx[3] = Fma(-g, Splat<W>(inv_m_r_), -fm);
+        dx[3] = Fma(-g, Splat<W>(inv_m_r_), force_ ? -(fm + f) : -fm);
       } else {
         dx[2] = dx[3] = g;
       }
@@ -128,30 +158,73 @@ struct TermLaneModel {
 
    private:
     struct Term {
-      const TermDef* def;
-      int offset;  // of its first parameter in th_
+      TermKind kind;
+      int offset;  // of its first parameter in the model's θ
+      int coef;    // of its first coefficient in k_
     };
-    // Σ θ φ over a body's terms and its slopes, in declaration order (the basis of TermBasisSlopes).
+    // F = Σ over a body's terms and its slopes ∂F/∂q, ∂F/∂v, in declaration order, each term as a force from
+    // its per-lane coefficients (TermLaneCoefficientValues): the hand kernel's operations, not θ·φ.
     BISTABLE_INLINE void Force(const std::vector<Term>& terms, V q, V v, V* f, V* fq, V* fv) const {
       V sum = Splat<W>(0.0), sq = sum, sv = sum;
       for (const Term& t : terms) {
-        V phi[kMaxTermParams], pq[kMaxTermParams], pv[kMaxTermParams];
-        TermBasisSlopes<V>(*t.def, q, v, fb_, phi, pq, pv);
-        for (size_t k = 0; k < t.def->params.size(); ++k) {
-          const V th = th_[t.offset + k];
-          sum = Fma(th, phi[k], sum);
-          sq = Fma(th, pq[k], sq);
-          sv = Fma(th, pv[k], sv);
+        const V* k = &k_[t.coef];
+        switch (t.kind) {
+          case TermKind::kLinear:
+            sum = Fma(k[0], q, sum), sq = sq + k[0];
+            break;
+          case TermKind::kStiffness2:
+            sum = Fma(k[0] * q, q, sum), sq = Fma(k[1], q, sq);
+            break;
+          case TermKind::kStiffness3: {
+            const V q2 = q * q;
+            sum = Fma(k[0] * q2, q, sum), sq = Fma(k[1], q2, sq);
+            break;
+          }
+          case TermKind::kStiffness5: {
+            const V q2 = q * q, q4 = q2 * q2;
+            sum = Fma(k[0] * q4, q, sum), sq = Fma(k[1], q4, sq);
+            break;
+          }
+          case TermKind::kViscous:
+            sum = Fma(k[0], v, sum), sv = sv + k[0];
+            break;
+          case TermKind::kDamping2: {
+            const V kq2 = k[0] * (q * q);
+            sum = Fma(kq2, v, sum), sq = Fma(k[1] * q, v, sq), sv = sv + kq2;
+            break;
+          }
+          case TermKind::kDampingV3: {
+            const V v2 = v * v;
+            sum = Fma(k[0] * v2, v, sum), sv = Fma(k[1], v2, sv);
+            break;
+          }
+          case TermKind::kDrag: {
+            const V av = AbsOf(v);
+            sum = Fma(k[0] * v, av, sum), sv = Fma(k[1], av, sv);
+            break;
+          }
+          case TermKind::kFriction: {  // Stribeck::Lanes::Law with per-lane hump scale and Coulomb level
+            const V x = Fma(v * fric_.neg_half_inv_vsp2, v, Splat<W>(0.5));
+            const V e = Exp<W>(x), th = Tanh<W>(v * fric_.inv_vt);
+            sum = sum + Fma(k[2], th, (v * k[0]) * e);
+            sv = sv + Fma(e * k[1], x, k[3] * Fma(-th, th, Splat<W>(1.0)));
+            break;
+          }
+          case TermKind::kBias:
+            sum = sum + k[0];
+            break;
+          default:  // piezo and output terms: refused by ValidateTermModel
+            break;
         }
       }
       *f = sum, *fq = sq, *fv = sv;
     }
 
-    StribeckBasis fb_;
+    TermLaneFriction fric_;
     double inv_m_m_, inv_m_r_;
-    bool res_;
+    bool res_, force_;
     std::vector<Term> main_, resonator_;
-    std::vector<V> th_;  // per parameter, the lanes' values
+    std::vector<V> k_;  // per coefficient, the lanes' values
   };
 };
 

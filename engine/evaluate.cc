@@ -87,7 +87,13 @@ TermLaneInput TermInputFor(const SweepSpec& spec, const PointSpec& p) {
   TermLaneInput in;
   in.model = &spec.terms->model;
   in.theta = p.theta.data();
-  if (!SetBaseDrive(spec, p, &in)) in.x0[0] = TermWell(spec.terms->model, p.theta.data());
+  const bool started = SetBaseDrive(spec, p, &in);
+  if (spec.terms->drive == TermsConfig::Drive::kForce) {  // F0 sin(ω t) on the main body; the base stands still
+    in.base_amp = 0;
+    in.amp = spec.DriveAt(p).force_n / spec.terms->model.m_main;
+    in.force = true;
+  }
+  if (!started) in.x0[0] = TermWell(spec.terms->model, p.theta.data());
   return in;
 }
 

@@ -100,6 +100,7 @@ std::string AxisUnit(const std::string& name) {
                                                             {"eps", "k3 delta_s^2/(m_m omega_n^2)"},
                                                             {"a0_mm", "mm"},
                                                             {"acc0_g", "g"},
+                                                            {"force0_n", "N"},
                                                             {"f0_hz", "Hz"},
                                                             {"ym0", "delta_s"},
                                                             {"vm0", "delta_s/tau"},
@@ -142,6 +143,7 @@ std::string AxisLongName(const std::string& name) {
       {"vr0", "initial velocity of the resonator relative to the base y_r'(0)"},
       {"a0_mm", "base displacement amplitude A0"},
       {"acc0_g", "base acceleration amplitude (g = 9.80665 m/s^2)"},
+      {"force0_n", "amplitude of the force on the main body (the base stands still)"},
       {"f0_hz", "excitation frequency f0"},
       {"m_m", "main mass"},
       {"k_lin", "linear stiffness of the main spring (negative: pre-buckled)"},
@@ -330,7 +332,7 @@ double* SweepSpec::Slot(PointSpec& p, const std::string& name) const {
   if (terms) {
     const int k = terms->model.IndexOf(name);
     if (k >= 0) return static_cast<size_t>(k) < p.theta.size() ? &p.theta[k] : nullptr;
-    if (name == "acc0_g") return &p.alpha;
+    if (name == "acc0_g" || name == "force0_n") return &p.alpha;
   }
   return ParamSlot(p, name);
 }
@@ -358,7 +360,10 @@ std::string SweepSpec::LongNameOf(const std::string& name) const {
 
 RigDrive SweepSpec::DriveAt(const PointSpec& p) const {
   const double omega = 2.0 * M_PI * p.omega;
-  if (terms && terms->acceleration_drive) return {p.alpha * kStandardGravity / (omega * omega), p.omega, omega};
+  if (terms && terms->drive == TermsConfig::Drive::kAcceleration)
+    return {p.alpha * kStandardGravity / (omega * omega), p.omega, omega};
+  if (terms && terms->drive == TermsConfig::Drive::kForce)  // the free main mass's displacement under F0: the scale
+    return {p.alpha / (terms->model.m_main * omega * omega), p.omega, omega, p.alpha};
   return {p.alpha * 1e-3, p.omega, omega};
 }
 

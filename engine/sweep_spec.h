@@ -45,9 +45,10 @@ struct DimensionalConfig {
 // f0 in Hz in `omega` (the content keys hash those, so stored points keep their keys) — and code reads a rig
 // point's drive only through DriveAt, never from alpha/omega.
 struct RigDrive {
-  double a0_m = 0;         // base displacement amplitude A0 [m]
+  double a0_m = 0;         // base displacement amplitude A0 [m]; a force's: F0/(m_main ω²), the metrics' scale
   double f0_hz = 0;        // excitation frequency f0 [Hz]
   double omega_rad_s = 0;  // 2 pi f0 [rad/s]
+  double force_n = 0;      // a force input's amplitude F0 [N] on the main body (the base then stands still), else 0
 };
 inline constexpr double kStandardGravity = 9.80665;  // m/s² per g
 
@@ -55,15 +56,18 @@ inline constexpr double kStandardGravity = 9.80665;  // m/s² per g
 // (dynamics/term_model.h). Given inline in [terms] (list, theta, m_main, m_res, v_sp, v_t, covariance) — a
 // client resolves `report = "DIR/report.json"` into that before a spec is parsed (client/terms_report.h), so a
 // spec that travels to a coordinator or a worker carries its model and no path. Its points are dimensional (SI);
-// the drive is the base's displacement amplitude (axis a0_mm) or, for a model fitted to a base-acceleration
-// input, its acceleration amplitude in g (axis acc0_g), at f0_hz; any term parameter can be an axis by its name
-// ("main.viscous.c0").
+// the drive is the base's displacement amplitude (axis a0_mm), for a model fitted to a base-acceleration
+// input its acceleration amplitude in g (axis acc0_g), or for a force input the amplitude of a force on the main
+// body in N (axis force0_n), at f0_hz; any term parameter can be an axis by its name ("main.viscous.c0").
 struct TermsConfig {
-  TermModel model;                  // terms, nominal parameters, masses, friction constants
-  std::vector<double> covariance;   // model.NumParams()² row-major (the fit's), or empty
-  bool acceleration_drive = false;  // drive amplitude in g (acc0_g) instead of mm (a0_mm)
-  std::string origin;               // where the model came from (free text for humans: a report's path)
-  const char* DriveAxis() const { return acceleration_drive ? "acc0_g" : "a0_mm"; }
+  TermModel model;                 // terms, nominal parameters, masses, friction constants
+  std::vector<double> covariance;  // model.NumParams()² row-major (the fit's), or empty
+  enum class Drive { kDisplacement, kAcceleration, kForce };
+  Drive drive = Drive::kDisplacement;  // the base's displacement (a0_mm), its acceleration (acc0_g), a force (force0_n)
+  std::string origin;                  // where the model came from (free text for humans: a report's path)
+  const char* DriveAxis() const {
+    return drive == Drive::kAcceleration ? "acc0_g" : drive == Drive::kForce ? "force0_n" : "a0_mm";
+  }
 };
 
 // Continuation of the initial condition along one axis (bifurcation diagrams): each point starts

@@ -106,9 +106,11 @@ Status ReadTerms(const toml::table& root, SweepSpec& spec) {
   if (const toml::node* d = t->get("drive")) {
     auto s = String(*d, "terms.drive");
     if (!s.ok()) return s.status();
-    if (*s != "displacement" && *s != "acceleration")
-      return UnknownValue("terms.drive", *s, {"displacement", "acceleration"});
-    c.acceleration_drive = *s == "acceleration";
+    if (*s != "displacement" && *s != "acceleration" && *s != "force")
+      return UnknownValue("terms.drive", *s, {"displacement", "acceleration", "force"});
+    c.drive = *s == "acceleration" ? TermsConfig::Drive::kAcceleration
+              : *s == "force"      ? TermsConfig::Drive::kForce
+                                   : TermsConfig::Drive::kDisplacement;
   }
   if (const toml::node* o = t->get("origin")) {
     auto s = String(*o, "terms.origin");
@@ -141,7 +143,7 @@ Status ReadTerms(const toml::table& root, SweepSpec& spec) {
   in.t_end = 20.0;
   in.t_keep = 10.0;
   in.dt = 0.001;
-  spec.base.alpha = c.acceleration_drive ? 0.1 : 1.0;  // 0.1 g or 1 mm
+  spec.base.alpha = c.drive == TermsConfig::Drive::kAcceleration ? 0.1 : 1.0;  // 0.1 g, 1 mm or 1 N
   spec.base.omega = 5.0;
   spec.base.theta = c.model.theta;
   return Status::Ok();

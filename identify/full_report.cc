@@ -32,6 +32,14 @@ std::string ParameterLines(const IdentModel& model, const FitResult& fit) {
   return s;
 }
 
+// Where the final σ came from when --bootstrap was asked (empty otherwise).
+std::string BootstrapLine(const BootstrapResult& b) {
+  if (b.twins == 0) return "";
+  if (!b.ok()) return "  σ: Gauss–Newton; no bootstrap: " + b.note + "\n";
+  return Line("  σ: bootstrap, %d of %d twin records refitted (%.1f s); Gauss–Newton σ in the JSON\n", b.fitted,
+              b.twins, b.seconds);
+}
+
 // The loop's diagnostics in a few lines: the invariants of chaotic records, a lost attractor, the residual's
 // whiteness or what is left unexplained, separability hints.
 std::string DiagnosticsLines(const LoopDiagnostics& d) {
@@ -80,6 +88,7 @@ std::string Summary::FullReport() const {
   for (const LoopStep& step : r.steps) s += "  " + step.verdict + "\n";
   s += "declared model (fitted):\n" + ParameterLines(r.declared, r.before);
   s += "final model:\n" + ParameterLines(r.final_model, r.after);
+  s += BootstrapLine(r.bootstrap);
   for (const TestSplit& t : tests)
     s += Line("test %s [%zu:%zu): RMS %s before, %s after\n", t.record.c_str(), t.begin, t.end,
               F(TestRms(t.before)).c_str(), F(TestRms(t.after)).c_str());

@@ -1,5 +1,6 @@
 #include "identify/loop.h"
 #include "dynamics/cancel.h"
+#include "identify/bootstrap.h"
 #include "identify/loop_parts.h"
 
 #include <algorithm>
@@ -739,6 +740,23 @@ std::string StopReason(const IdentifyResult& out) {
 }  // namespace
 
 // `recs` by value: their output weights may be re-estimated below.
+// --bootstrap N: the final fit's σ and covariance from N refits of its twin records (identify/bootstrap.h), with
+// the final objective (the long simulation of whole records when the horizon continuation ran); the Gauss–Newton
+// σ stays in *b. Without twin records the Gauss–Newton covariance stands and b->note says why.
+static void Bootstrap(const IdentModel& m, const std::vector<PreparedRecord>& recs, const Setup& setup,
+                      const IdentifyOptions& opt, const ObjectiveChoice& choice, FitResult* fit, BootstrapResult* b) {
+  FitOptions fo = opt.fit;
+  std::vector<PreparedRecord> fitted = recs;
+  if (choice.continuation.ran) {
+    fo.objective = Objective::kTime, fo.shooting_horizon_s = 0;
+    for (PreparedRecord& r : fitted) r.horizon_s = 0, r.chaotic = false;
+  }
+  *b = BootstrapFit(m, *fit, fitted, setup, fo, opt.bootstrap);
+  if (!b->ok()) return;
+  fit->covariance = b->covariance;
+  for (size_t i = 0; i < fit->sigma.size(); ++i) fit->sigma[i] = std::sqrt(std::max(0.0, b->covariance(i, i)));
+}
+
 IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, const Setup& setup,
                                const IdentifyOptions& opt_in) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -844,6 +862,8 @@ IdentifyResult IdentifyIndexed(IdentModel m, std::vector<PreparedRecord> recs, c
   }
   if (out.objective_choice.made && opt.fit.objective == Objective::kShooting && !CancelRequested())
     ContinueToLongSimulation(m, &fit, recs, setup, opt, &out.objective_choice.continuation);
+  if (opt.bootstrap > 0 && !CancelRequested())
+    Bootstrap(m, recs, setup, opt, out.objective_choice, &fit, &out.bootstrap);
   out.final_model = m;
   out.after = fit;
   for (AddedEffect& a : out.added) TakeValues(&a, m, fit);  // the final values (later additions refit everything)

@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "identify/bootstrap.h"
 #include "identify/diagnostics.h"
 #include "identify/fit.h"
 #include "identify/predictability.h"
@@ -92,6 +93,9 @@ struct IdentifyOptions {
   // declared fit (ChooseHorizons): its whole simulation where that is meaningful, short horizons from the
   // measured state where it is chaos. False: every record's whole simulation (--objective time).
   bool choose_objective = false;
+  // --bootstrap N: the final σ and covariance from N refits of the final model's twin records
+  // (identify/bootstrap.h); 0: the Gauss–Newton covariance.
+  int bootstrap = 0;
 };
 
 // The objective's choice (IdentifyOptions::choose_objective), per record. The twin experiment
@@ -158,6 +162,7 @@ struct IdentifyResult {
   std::vector<FitSnapshot> fits;     // the declared fit, then every refit with a candidate (kept or not)
   LoopDiagnostics diagnostics;       // whiteness / unexplained, correlations, drift, invariants (diagnostics.h)
   ObjectiveChoice objective_choice;  // --objective auto: which records are fitted on short horizons, and why
+  BootstrapResult bootstrap;         // --bootstrap N (twins = 0 when not asked)
   double seconds = 0;
 };
 

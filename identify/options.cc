@@ -194,6 +194,12 @@ StatusOr<IdentifyOptions> LoopOptions(const Options& o, const ColumnMap& columns
   opt.fit.threads = o.threads;
   opt.fit.shooting_horizon_s = o.horizon;
   opt.max_added = o.max_added;
+  if (o.bootstrap != 0 && (o.bootstrap < kMinBootstrapTwins || o.bootstrap > kMaxBootstrapTwins))
+    return Status::InvalidArgument("bootstrap", "bootstrap = " + std::to_string(o.bootstrap) +
+                                                    " violates bootstrap = 0 or " + std::to_string(kMinBootstrapTwins) +
+                                                    " <= bootstrap <= " + std::to_string(kMaxBootstrapTwins) +
+                                                    " (twin records refitted)");
+  opt.bootstrap = o.bootstrap;
   opt.fit_offsets = o.fit_offsets;
   opt.output_weights = o.output_weights;
   if (!o.candidates.empty()) {

@@ -74,7 +74,8 @@ struct Options {
   std::vector<std::string> candidates;  // terms the trace may add; empty: the default set (loop.h)
   bool fit_offsets = false;             // velocity outputs: fit each record's displacement offset
   OutputWeights output_weights = OutputWeights::kResidual;
-  int threads = 0;  // records simulated in parallel, [0, 1024]; 0: the usable CPUs
+  int threads = 0;    // records simulated in parallel, [0, 1024]; 0: the usable CPUs
+  int bootstrap = 0;  // σ from this many refits of twin records (identify/bootstrap.h), 0 or [8, 256]; 0: Gauss–Newton
 };
 
 // OK, or the first option out of its bounds (field: the option's flag name; message: the bound).

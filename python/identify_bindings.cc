@@ -61,11 +61,9 @@ void IdentifyOptionsFromKeywords(const py::dict& kw, identify::Options* options,
       {"input_scale", &o.input_scale}, {"output_scale", &o.output_scale}, {"output2_scale", &o.output2_scale},
       {"max_seconds", &o.max_seconds}, {"deriv_cutoff", &o.deriv_cutoff}, {"drift_cutoff", &o.drift_cutoff},
       {"horizon", &o.horizon}};
-  std::map<std::string, int*> integers = {{"decimate", &o.decimate},
-                                          {"global_evals", &o.global_evals},
-                                          {"lm_iterations", &o.lm_iterations},
-                                          {"max_added", &o.max_added},
-                                          {"threads", &o.threads}};
+  std::map<std::string, int*> integers = {
+      {"decimate", &o.decimate},   {"global_evals", &o.global_evals}, {"lm_iterations", &o.lm_iterations},
+      {"max_added", &o.max_added}, {"threads", &o.threads},           {"bootstrap", &o.bootstrap}};
   std::vector<std::string> known = {"terms",          "candidates",  "known",        "guess",        "columns",
                                     "input_kind",     "output_kind", "output_frame", "output2_kind", "objective",
                                     "output_weights", "fit_offsets", "range",        "test_range",   "report"};

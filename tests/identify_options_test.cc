@@ -89,6 +89,8 @@ TEST(IdentifyOptions, EachBadFieldIsNamedWithItsBound) {
       {"global evals negative", [](Options* o) { o->global_evals = -1; }, "global-evals", "must be in [0, 100000]"},
       {"lm iterations 0", [](Options* o) { o->lm_iterations = 0; }, "lm-iterations", "must be in [1, 10000]"},
       {"max added 11", [](Options* o) { o->max_added = 11; }, "max-added", "must be in [0, 10]"},
+      {"bootstrap 5", [](Options* o) { o->bootstrap = 5; }, "bootstrap", "violates bootstrap = 0 or 8 <= bootstrap"},
+      {"bootstrap 257", [](Options* o) { o->bootstrap = 257; }, "bootstrap", "<= bootstrap <= 256"},
       {"deriv cutoff negative", [](Options* o) { o->deriv_cutoff = -1; }, "deriv-cutoff",
        "deriv-cutoff = -1 violates deriv-cutoff >= 0 Hz"},
       {"decimate 0", [](Options* o) { o->decimate = 0; }, "decimate", "must be in [1, 1000]"},

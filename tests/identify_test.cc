@@ -203,6 +203,33 @@ TEST(Identify, NothingIsAddedWhenNothingIsMissing) {
   EXPECT_NEAR(r.after.theta[4], p.fric_m.f_c, 0.05 * p.fric_m.f_c);
 }
 
+// --bootstrap: the spread of refits of the final model's twin records. On the linear rig (smooth in every
+// parameter: the Gauss–Newton σ is right there) the two agree within what 8 samples can tell, the bootstrap's
+// covariance is a covariance (symmetric, positive semi-definite), and the truth lies within 4 of its σ.
+TEST(Identify, BootstrapSigmaAgreesWithGaussNewtonWhereTheModelIsSmooth) {
+  const auto recs = Prepare(Chirps(0.05e-3));
+  IdentModel m = Declared("main.linear,main.viscous,main.damping_y2,main.friction");
+  const DimensionalParams p = Rig();
+  m.theta = {p.k_lin, p.c0_m, p.c2_m, p.fric_m.f_s, p.fric_m.f_c};
+  FitOptions o;
+  o.global_evals = 0;
+  o.shooting_horizon_s = 0;
+  const FitResult fit = Fit(m, m.theta, recs, bistable::Setup{}, o);
+  const BootstrapResult b = BootstrapFit(m, fit, recs, bistable::Setup{}, o, kMinBootstrapTwins);
+  ASSERT_TRUE(b.ok()) << b.note;
+  EXPECT_EQ(b.fitted, kMinBootstrapTwins);
+  const Eigen::MatrixXd& c = b.covariance;
+  EXPECT_LT((c - c.transpose()).cwiseAbs().maxCoeff(), 1e-12 * c.cwiseAbs().maxCoeff());
+  EXPECT_GE(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(c).eigenvalues().minCoeff(),
+            -1e-12 * c.cwiseAbs().maxCoeff());
+  for (int i = 0; i < 5; ++i) {
+    const double s = std::sqrt(c(i, i));
+    EXPECT_GT(s, fit.sigma[i] / 3) << i;
+    EXPECT_LT(s, fit.sigma[i] * 3) << i;
+    EXPECT_LT(std::fabs(fit.theta[i] - m.theta[i]), 4 * s) << i;
+  }
+}
+
 // With one record, Fit runs its independent stages side by side on two threads (with friction, as here: the two
 // smoothed short-horizon stages; without: LM from the start beside the short-horizon stage), and one after the
 // other on one: the result must be the same to the bit, simulations counted alike.

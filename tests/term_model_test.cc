@@ -97,5 +97,43 @@ TEST(TermModel, WhatTheLaneModelCannotRunIsRefusedByName) {
   EXPECT_FALSE(TermModel::FromDimensional(two).ok());
 }
 
+// The lane form of every force term (coefficients per lane, the hand kernel's operations) against the basis
+// form identify simulates with (TermForce: θ·φ over TermBasisSlopes), force and both slopes, at states from
+// rest to fast sliding, both signs, on the main body and the resonator.
+TEST(TermModel, TheLaneFormIsTheBasisForm) {
+  int checked = 0;
+  for (const TermDef& def : EffectLibrary()) {
+    if (!def.IsForce()) continue;
+    TermModel m;
+    m.m_main = 0.5, m.m_res = 0.25;
+    m.terms.push_back(&def);
+    for (size_t k = 0; k < def.params.size(); ++k) m.theta.push_back(k == 0 ? 1.7 : -0.6);  // F_s, F_c: 1.7, −0.6
+    ASSERT_TRUE(ValidateTermModel(m).ok()) << def.id << ": " << ValidateTermModel(m).ToString();
+    TermLaneInput in;
+    in.model = &m;
+    TermLaneModel::Lanes<1> lanes(in);
+    lanes.Load(0, in);
+    for (double q : {-0.03, -1e-4, 0.0, 2e-3, 0.02})
+      for (double v : {-0.5, -3e-3, -1e-4, 0.0, 5e-4, 2e-3, 0.08}) {
+        double f, fq, fv;
+        TermForce(m, def.body, m.theta.data(), q, v, &f, &fq, &fv);
+        Vec<1> x[4] = {Splat<1>(0.0), Splat<1>(0.0), Splat<1>(0.0), Splat<1>(0.0)}, dx[4];
+        const bool main = def.body == Body::kMain;
+        x[main ? 0 : 2] = Splat<1>(q), x[main ? 1 : 3] = Splat<1>(v);
+        TermLaneModel::Lanes<1>::Jac j(lanes);
+        lanes.Eval(x, Splat<1>(0.0), dx, &j);
+        // main: dx[1] = −F/m_main; resonator: G enters dx[1] as +G/m_main, its slopes are j.gz, j.gzd
+        const double lane_f = main ? -dx[1][0] * m.m_main : dx[1][0] * m.m_main;
+        const double lane_fq = main ? -j.fy[0] : j.gz[0], lane_fv = main ? -j.fyd[0] : j.gzd[0];
+        const double tol = 1e-13 * (1 + std::fabs(f) + std::fabs(fq) + std::fabs(fv));
+        EXPECT_NEAR(lane_f, f, tol * (1 + std::fabs(f))) << def.id << " q " << q << " v " << v;
+        EXPECT_NEAR(lane_fq, fq, 1e-13 * (1 + std::fabs(fq))) << def.id << " q " << q << " v " << v;
+        EXPECT_NEAR(lane_fv, fv, 1e-12 * (1 + std::fabs(fv))) << def.id << " q " << q << " v " << v;
+        ++checked;
+      }
+  }
+  EXPECT_GE(checked, 35 * 10);  // ten or more force terms of the library, 35 states each
+}
+
 }  // namespace
 }  // namespace bistable

@@ -135,6 +135,53 @@ TEST(TermSweep, AParameterAxisAndCovarianceSamplesReachThePoint) {
   EXPECT_NEAR(std::sqrt(c(2, 2)), 0.1, 0.005);
 }
 
+// drive = "force" (a model fitted to a force input, e.g. Silverbox): F0 sin(ω t) on the main body, the base at
+// rest. A linear oscillator's steady state is known: |v| = F0 ω / sqrt((k − m ω²)² + (c ω)²), and the FRF's scale
+// is the free mass's displacement under F0 (F0/(m ω²)), so frf_db = 20 log10(m ω² / sqrt(...)). With a resonator
+// on it (a tuned absorber at the drive frequency) the main body nearly stands still: the resonator feels the
+// force through y''.
+TEST(TermSweep, AForceDriveMovesTheMainBodyAsTheLinearOscillatorsAnswer) {
+  const SweepSpec spec = ParsedSpec(R"(
+model = "terms"
+[terms]
+list = ["main.linear", "main.viscous"]
+theta = [400.0, 2.0]
+m_main = 0.5
+drive = "force"
+[axes]
+force0_n = [0.5, 2.0]
+f0_hz = [2.0, 4.5, 7.0]
+[integration]
+t_end = 30.0
+t_keep = 5.0
+[metrics]
+store = ["frf_db", "motion"]
+)");
+  ASSERT_EQ(spec.terms->DriveAxis(), std::string("force0_n"));
+  const auto r = Map(spec);
+  ASSERT_EQ(r.size(), 6u);
+  const size_t frf = MetricIndex("frf_db");
+  for (long p = 0; p < spec.points(); ++p) {
+    const PointSpec pt = spec.PointAt(p, 0);
+    const RigDrive d = spec.DriveAt(pt);
+    EXPECT_EQ(d.force_n, pt.alpha);
+    const double w = d.omega_rad_s, k = 400, c = 2, m = 0.5;
+    const double want = 20 * std::log10(m * w * w / std::hypot(k - m * w * w, c * w));
+    EXPECT_NEAR(r[p].Get(frf), want, 0.02) << "F0 " << pt.alpha << " N, f0 " << d.f0_hz << " Hz";
+  }
+  // The tuned absorber: k_r/m_r = k/m at f0 = sqrt(k/m)/2π; the main body's response drops by far.
+  auto at_resonance = [](const std::string& terms) {
+    return ParsedSpec("model = \"terms\"\n[terms]\n" + terms +
+                      "m_main = 0.5\ndrive = \"force\"\n[axes]\nforce0_n = [1.0]\nf0_hz = [4.5016]\n"
+                      "[integration]\nt_end = 60.0\nt_keep = 5.0\n[metrics]\nstore = [\"frf_db\"]\n");
+  };
+  const SweepSpec alone = at_resonance("list = [\"main.linear\", \"main.viscous\"]\ntheta = [400.0, 2.0]\n");
+  const SweepSpec absorber = at_resonance(
+      "list = [\"main.linear\", \"main.viscous\", \"res.linear\", \"res.viscous\"]\ntheta = [400.0, 2.0, 40.0, "
+      "0.02]\nm_res = 0.05\n");
+  EXPECT_LT(Map(absorber)[0].Get(frf), Map(alone)[0].Get(frf) - 20);
+}
+
 class TermsReport : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -177,7 +224,7 @@ TEST_F(TermsReport, InlinesTheFinalModelsForcesWithTheirCovariance) {
   const TermsConfig& t = *spec->terms;
   ASSERT_EQ(t.model.terms.size(), 3u);  // the sensor's gain and the offsets stay behind
   EXPECT_EQ(t.model.theta, (std::vector<double>{-1100, 3.5e6, 0.5}));
-  EXPECT_TRUE(t.acceleration_drive);
+  EXPECT_EQ(t.drive, TermsConfig::Drive::kAcceleration);
   ASSERT_EQ(t.covariance.size(), 9u);
   EXPECT_EQ(t.covariance[1], t.covariance[3]);  // symmetric to the bit
   EXPECT_EQ(t.covariance[8], 1e-4);
@@ -190,6 +237,7 @@ TEST_F(TermsReport, InlinesTheFinalModelsForcesWithTheirCovariance) {
 
 TEST_F(TermsReport, RefusesWhatItCannotSweepByName) {
   Write("force.json", Report("force"));
+  Write("pressure.json", Report("pressure"));
   Write("piezo.json", Report("base_acceleration", ", \"main.piezo\""));
   Write("bad.json", "{not json");
   Write("deep.json", std::string(100000, '[') + std::string(100000, ']'));
@@ -199,7 +247,7 @@ TEST_F(TermsReport, RefusesWhatItCannotSweepByName) {
   Write("broken.json", broken);
   struct Case {
     std::string terms, field;
-  } cases[] = {{"report = \"force.json\"", "terms.report.settings.input_kind"},
+  } cases[] = {{"report = \"pressure.json\"", "terms.report.settings.input_kind"},
                {"report = \"piezo.json\"", "terms.report.final_terms"},
                {"report = \"bad.json\"", "terms.report"},
                {"report = \"deep.json\"", "terms.report"},
