@@ -121,6 +121,14 @@ inline constexpr std::size_t kMaxModelJsonBytes = 16u << 20;
 inline constexpr int kMaxModelJsonDepth = 64;
 inline constexpr double kMaxModelParamMagnitude = 1e100;
 
+// --- Figures --------------------------------------------------------------------------------------
+// `bistable map --mark X,Y,LABEL` / `--marks FILE.csv`: marks on one figure (both flags together), the
+// characters (code points) of one label, and the size of a marks file (200 rows of 80-character labels
+// are ~20 KB; comments included).
+inline constexpr int kMaxMapMarks = 200;
+inline constexpr std::size_t kMaxMarkLabelChars = 80;
+inline constexpr std::size_t kMaxMarksFileBytes = 1 << 20;
+
 }  // namespace bistable::limits
 
 #endif  // BISTABLE_BASE_LIMITS_H_

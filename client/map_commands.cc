@@ -20,6 +20,7 @@
 #include "base/names.h"
 #include "client/cli_common.h"
 #include "client/json_out.h"
+#include "client/map_marks.h"
 #include "client/map_query.h"
 #include "client/map_slice.h"
 #include "client/map_source.h"
@@ -116,6 +117,8 @@ int ListSweeps(const SweepsArgs& a) {
 // ---- map ----
 struct MapArgs {
   std::string id, metric, at, format = "json", out, data = kDefaultDataDir;
+  std::vector<std::string> mark;  // --mark X,Y,LABEL (repeatable)
+  std::string marks;              // --marks FILE.csv
   MapSource src;
 };
 
@@ -255,6 +258,16 @@ int ShowMap(const MapArgs& a) {
   if (a.format != "json" && a.format != "csv" && a.format != "png" && a.format != "svg" && a.format != "pdf")
     return Fail(
         Status::InvalidArgument("format", "format = '" + a.format + "' violates format in {csv, json, png, svg, pdf}"));
+  // Marks are checked before any map is read, and only figures take them.
+  auto marks = ParseMarks(a.mark, a.marks);
+  if (!marks.ok()) return Fail(marks.status());
+  const std::string mark_field = a.mark.empty() ? "marks" : "mark";
+  if (!marks->empty() && a.metric == "hd_scatter")
+    return Fail(Status::InvalidArgument(
+        mark_field, "--mark and --marks draw on a map's heatmap, not on the hd_scatter figure (peaks over omega)"));
+  if (!marks->empty() && (a.format == "json" || a.format == "csv"))
+    return Fail(Status::InvalidArgument(
+        mark_field, "--mark and --marks draw on a figure: give --format png, svg or pdf (not " + a.format + ")"));
   if (a.metric == "hd_scatter") return HdScatter(a);
   SweepRefLite ref;
   auto m = LoadMetric(a.src, a.id, a.metric, &ref, {"hd_scatter"});
@@ -302,6 +315,7 @@ int ShowMap(const MapArgs& a) {
       context = MapContextOfFile(local->map_path);
   auto d = MapFigure(*m, *at, context);
   if (!d.ok()) return Fail(d.status());
+  if (Status st = AddMarks(*marks, &d.value()); !st.ok()) return Fail(st);
   const std::string out = a.out.empty() ? ref.id + "_" + s->metric + "." + a.format : a.out;
   Status st = PlotOut(out, a.format, [&](const std::string& path) { return RenderPlot(*d, path, a.format); });
   return st.ok() ? 0 : Fail(st);
@@ -456,6 +470,19 @@ void AddMapCommand(CLI::App& app, int* exit_code) {
                   "the nearest grid value (said on stderr), one beyond the axis's range by more than half a grid step "
                   "is refused");
   cmd->add_option("--format", a->format, "csv | json | png | svg | pdf")->capture_default_str();
+  cmd->add_option("--mark", a->mark,
+                  "mark a measurement on the figure (png/svg/pdf of a map with two free axes; repeatable): "
+                  "X on the horizontal axis (the map's second free axis, omega on an alpha x omega map), Y on the "
+                  "vertical (the first free axis, alpha), in the axes' units, inside the drawn range (else refused); "
+                  "LABEL plain text beside the point, at most 80 printable characters, shown literally (may hold "
+                  "commas; \"...\" CSV quoting). At most 200 marks with --marks")
+      ->type_name("X,Y,LABEL")
+      ->allow_extra_args(false)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  cmd->add_option("--marks", a->marks,
+                  "marks from a CSV file of rows x,y,label (as --mark; a header row x,y,label, blank lines and lines "
+                  "starting with # skipped; at most 1 MiB)")
+      ->type_name("FILE.csv");
   cmd->add_option(
       "--out", a->out,
       "output file; - is stdout, for plots too (default: stdout for csv/json, <id>_<metric>.<fmt> for plots)");

@@ -448,20 +448,22 @@ std::string Num(double v) {
   return b;
 }
 
+std::vector<double> CellEdges(const std::vector<double>& v) {
+  if (v.empty()) return {};
+  if (v.size() == 1) {
+    const double h = 0.5 * std::max(std::fabs(v[0]) * 0.02, 1e-6);
+    return std::vector<double>{v[0] - h, v[0] + h};
+  }
+  std::vector<double> e(v.size() + 1);
+  e[0] = v[0] - 0.5 * (v[1] - v[0]);
+  for (size_t k = 1; k < v.size(); ++k) e[k] = 0.5 * (v[k - 1] + v[k]);
+  e[v.size()] = v.back() + 0.5 * (v.back() - v[v.size() - 2]);
+  return e;
+}
+
 void WriteCells(std::ostream& s, const std::vector<double>& xs, const std::vector<double>& ys,
                 const std::function<double(size_t, size_t)>& value, const std::string& more_plots) {
-  auto edges = [](const std::vector<double>& v) {
-    if (v.size() == 1) {
-      const double h = 0.5 * std::max(std::fabs(v[0]) * 0.02, 1e-6);
-      return std::vector<double>{v[0] - h, v[0] + h};
-    }
-    std::vector<double> e(v.size() + 1);
-    e[0] = v[0] - 0.5 * (v[1] - v[0]);
-    for (size_t k = 1; k < v.size(); ++k) e[k] = 0.5 * (v[k - 1] + v[k]);
-    e[v.size()] = v.back() + 0.5 * (v.back() - v[v.size() - 2]);
-    return e;
-  };
-  const std::vector<double> xe = edges(xs), ye = edges(ys);
+  const std::vector<double> xe = CellEdges(xs), ye = CellEdges(ys);
   s << "set xrange [" << Num(xe.front()) << ":" << Num(xe.back()) << "]\n";
   s << "set yrange [" << Num(ye.front()) << ":" << Num(ye.back()) << "]\n";
   s << "set view map\nset pm3d map corners2color c1\nset pm3d interpolate 1,1\n$data << EOD\n";
@@ -499,6 +501,12 @@ std::pair<double, double> ColourRange(const std::string& metric, const std::vect
   if (metric.rfind("edr_", 0) == 0 && hi > 100) hi = std::max(100.0, lo + 1e-9);
   if (lo == hi) return {lo - 0.5, hi + 0.5};
   return {lo, hi};
+}
+
+std::pair<double, double> HeatmapAxisRange(const std::vector<double>& values) {
+  const std::vector<double> e = plot_internal::CellEdges(values);
+  if (e.empty()) return {NAN, NAN};
+  return {e.front(), e.back()};
 }
 
 std::string PlotNumber(double v) {

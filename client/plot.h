@@ -75,6 +75,16 @@ struct PlotData {
     std::string colour = "#000000";
   };
   std::vector<Overlay> overlays;
+  // Heatmaps: marked points (where measurements were taken), x on the horizontal axis (axis 1), y on the
+  // vertical (axis 0), each drawn as a black-ringed white disc with a black centre (it reads on every
+  // palette and code colour) and its label beside it: plain text (never markup), in a white box, on the
+  // side of the point with room, wrapped to stay inside the plot area. Callers check them (client/map_marks.h:
+  // finite, in the drawn range, labels bounded and printable); RenderPlot refuses marks on a curve.
+  struct Mark {
+    double x = 0, y = 0;
+    std::string label;
+  };
+  std::vector<Mark> marks;
   // Heatmaps: at most this many cells drawn along each axis (every k-th grid value; the footer says
   // so), so a 1601 x 1601 map draws in a second; 0: every value.
   int max_cells = 600;
@@ -104,6 +114,10 @@ std::string ParameterItem(const std::string& name, double value, const std::stri
 // (frf_db: attenuation blue, amplification red; lle: stable blue, chaotic red), [min, max] otherwise.
 // Give it the values of every map meant to be compared to share one range.
 std::pair<double, double> ColourRange(const std::string& metric, const std::vector<double>& values);
+
+// The range a heatmap draws a (strictly increasing) axis over: from half a grid step before its first value
+// to half a step beyond its last, the edges of its end cells. {NaN, NaN} for no values.
+std::pair<double, double> HeatmapAxisRange(const std::vector<double>& values);
 
 // A number for titles and legends: 4 significant digits (1/3 → "0.3333", 3 → "3").
 std::string PlotNumber(double v);

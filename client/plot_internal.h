@@ -55,6 +55,10 @@ std::string Margins(int w, int h, int l, int r, int b, int t);
 // A number for a data block: "%.9g", or NaN when it is not finite.
 std::string Num(double v);
 
+// The cell edges of grid values v (strictly increasing) as WriteCells draws them: midpoints between
+// values, half a step beyond the ends (a single value: a cell 2 % of its size wide).
+std::vector<double> CellEdges(const std::vector<double>& v);
+
 // A pm3d map in which every value owns a whole cell centred on its grid point (heatmaps, spectrograms):
 // pm3d colours each quadrilateral by its first corner (c1), so the corners are the cell edges —
 // midpoints between grid values, half a step beyond the ends — and edge (i, j) carries value(i, j);

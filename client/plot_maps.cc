@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <functional>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -222,10 +224,15 @@ std::string WriteContoursAndOverlays(std::ostream& s, const PlotData& d, const s
   return more;
 }
 
+// The plot area of a heatmap: its margins in pixels from the canvas' edges.
+struct PlotArea {
+  int left = 0, right = 0, bottom = 0, top = 0;
+};
+
 // A heatmap's frame: the decor centred over the map, the legend of contours and overlays below it,
 // the margins, and on the right the colour box or the legend of codes (a heading when labelled).
-void WriteHeatmapFrame(std::ostream& s, const PlotData& d, const std::string& label, const Decor& decor, int right_px,
-                       int keyed) {
+PlotArea WriteHeatmapFrame(std::ostream& s, const PlotData& d, const std::string& label, const Decor& decor,
+                           int right_px, int keyed) {
   const int w = kWidth, h = kHeight;
   const auto& codes = d.codes;
   int top_px = 0, bottom_px = 0;
@@ -261,6 +268,91 @@ void WriteHeatmapFrame(std::ostream& s, const PlotData& d, const std::string& la
         << ", " << Num(yc) << " left noenhanced\n";
     }
   }
+  return {100, right_px, plot_bottom, top_px};
+}
+
+// The width in pixels of plain text in the marks' font (Helvetica 11 as pngcairo draws it, roughly the same in
+// SVG and PDF), from above: narrow, middle and wide ASCII letters as measured, other scripts generously (East
+// Asian characters are about twice as wide as Latin ones; without a font for them cairo draws wider boxes still,
+// which this does not promise to hold).
+double TextPx(std::string_view text) {
+  double px = 0;
+  for (size_t i = 0; i < text.size();) {
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    const size_t len = c < 0x80 ? 1 : (c >> 5) == 6 ? 2 : (c >> 4) == 14 ? 3 : 4;
+    if (len == 1)
+      px += c == 0                                           ? 0.0
+            : std::strchr(" !\"'(),-./:;[\\]`|*fijlrtIJ", c) ? 6.0
+            : std::strchr("#%&+<=>@^~MOQWmw", c)             ? 15.0
+            : c >= 'A' && c <= 'Z'                           ? 11.0
+                                                             : 9.0;
+    else
+      px += len == 2 ? 11.0 : 18.0;  // Latin, Greek, Cyrillic ...; symbols and East Asian scripts
+    i += len;
+  }
+  return px;
+}
+
+// Plain text in lines of at most `max_px` pixels (TextPx), broken at spaces; a longer word is cut between
+// characters.
+std::vector<std::string> WrapLabel(const std::string& text, double max_px) {
+  std::vector<std::string> lines;
+  std::string line;
+  std::stringstream in(text);
+  for (std::string word; std::getline(in, word, ' ');) {
+    if (word.empty()) continue;
+    while (TextPx(word) > max_px) {  // cut at a character boundary, at least one character a line
+      if (!line.empty()) lines.push_back(line), line.clear();
+      size_t cut = 0;
+      do
+        for (++cut; cut < word.size() && (static_cast<unsigned char>(word[cut]) & 0xC0) == 0x80;) ++cut;
+      while (cut < word.size() && TextPx(std::string_view(word).substr(0, cut + 1)) <= max_px);
+      lines.push_back(word.substr(0, cut));
+      word.erase(0, cut);
+    }
+    if (word.empty()) continue;
+    if (!line.empty() && TextPx(line + " " + word) > max_px) lines.push_back(line), line.clear();
+    line += (line.empty() ? "" : " ") + word;
+  }
+  if (!line.empty()) lines.push_back(line);
+  return lines;
+}
+
+// Marks over a heatmap whose drawn range is [xe.front(), xe.back()] x [ye.front(), ye.back()] in plot area
+// `a`: a point each (a black ring, a white disc, a black centre: it reads on every palette and code colour),
+// and its label as plain text in a white box beside it, on the side with room, wrapped to stay inside the
+// plot area. Returns the splot items drawing the points.
+std::string WriteMarks(std::ostream& s, const PlotData& d, const PlotArea& a, const std::vector<double>& xe,
+                       const std::vector<double>& ye) {
+  if (d.marks.empty()) return "";
+  constexpr double kLinePx = 15.0, kGapPx = 12.0;  // font 11: a line's height, the text's distance from the point
+  const double pw = kWidth - a.left - a.right, ph = kHeight - a.bottom - a.top;
+  s << "set style textbox 1 opaque fillcolor rgb '#ffffff' border lc rgb '#000000' linewidth 1 margins 2,2\n";
+  s << "$marks << EOD\n";
+  for (const PlotData::Mark& m : d.marks) s << Num(m.x) << " " << Num(m.y) << "\n";
+  s << "EOD\n";
+  for (size_t i = 0; i < d.marks.size(); ++i) {
+    const PlotData::Mark& m = d.marks[i];
+    if (m.label.empty()) continue;
+    const double px = a.left + (m.x - xe.front()) / (xe.back() - xe.front()) * pw;  // from the canvas' left
+    const double py = a.top + (ye.back() - m.y) / (ye.back() - ye.front()) * ph;    // from the canvas' top
+    const double room_right = kWidth - a.right - px - kGapPx - 6, room_left = px - a.left - kGapPx - 6;
+    const bool right = TextPx(m.label) <= room_right || room_right >= room_left;
+    std::string text;
+    const std::vector<std::string> lines = WrapLabel(m.label, std::max(60.0, right ? room_right : room_left));
+    for (const std::string& line : lines) text += (text.empty() ? "" : "\n") + line;
+    if (text.empty()) continue;  // spaces alone
+    // The lines centred on the point (gnuplot puts the first line at the position), inside the plot area.
+    const double block = static_cast<double>(lines.size()) * kLinePx;
+    const double first = std::clamp(py - (block - kLinePx) / 2, a.top + kLinePx / 2 + 3,
+                                    std::max(a.top + kLinePx / 2 + 3, kHeight - a.bottom - block + kLinePx / 2 - 3));
+    s << "set label " << 1000 + i << " " << GnuplotString(text) << " at screen "
+      << Num((right ? px + kGapPx : px - kGapPx) / kWidth) << ", " << Num(1.0 - first / kHeight)
+      << (right ? " left" : " right") << " front noenhanced boxed bs 1 font ',11' textcolor rgb '#000000'\n";
+  }
+  return ", $marks using 1:2:(0) with points pt 7 ps 2.1 lc rgb '#000000' notitle"
+         ", $marks using 1:2:(0) with points pt 7 ps 1.4 lc rgb '#ffffff' notitle"
+         ", $marks using 1:2:(0) with points pt 7 ps 0.35 lc rgb '#000000' notitle";
 }
 
 // A heatmap over two axes (y the first, x the second): the cells of every k-th value in big maps (the
@@ -287,8 +379,18 @@ Status WriteHeatmap(std::ostream& s, const PlotData& d, const std::string& unit,
   const int right_px = WriteColourScale(s, d, unit, label, &decor);
   // Contours and overlays: drawn on the map's plane after the cells, legend below the plot.
   int keyed = 0;
-  const std::string more = WriteContoursAndOverlays(s, d, xs, ys, raw, &keyed);
-  WriteHeatmapFrame(s, d, label, decor, right_px, keyed);
+  std::string more = WriteContoursAndOverlays(s, d, xs, ys, raw, &keyed);
+  const PlotArea area = WriteHeatmapFrame(s, d, label, decor, right_px, keyed);
+  // Marks: over everything else, inside the drawn range (the cells' edges).
+  const std::vector<double> xe = plot_internal::CellEdges(xs), ye = plot_internal::CellEdges(ys);
+  const double sx = 1e-9 * (xe.back() - xe.front()), sy = 1e-9 * (ye.back() - ye.front());  // rounding at the edges
+  for (const PlotData::Mark& m : d.marks)
+    if (!(m.x >= xe.front() - sx && m.x <= xe.back() + sx && m.y >= ye.front() - sy && m.y <= ye.back() + sy))
+      return Status::InvalidArgument("mark", "a mark at (" + PlotNumber(m.x) + ", " + PlotNumber(m.y) +
+                                                 ") is outside the drawn range [" + PlotNumber(xe.front()) + ", " +
+                                                 PlotNumber(xe.back()) + "] x [" + PlotNumber(ye.front()) + ", " +
+                                                 PlotNumber(ye.back()) + "]");
+  more += WriteMarks(s, d, area, xe, ye);
   auto cell = [&](size_t i, size_t j) {
     const double v = raw(i, j);
     return codes.empty() ? v : Coded(codes, v) + 0.5;
@@ -365,6 +467,8 @@ Status RenderPlot(const PlotData& d, const std::string& out_path, std::string fo
   if (d.axis_names.empty() || d.axis_names.size() > 2 || d.axis_values.size() != d.axis_names.size() ||
       d.axis_units.size() != d.axis_names.size())
     return Status::InvalidArgument("plot", "a plot needs 1 or 2 axes with names, units and values");
+  if (!d.marks.empty() && d.axis_names.size() != 2)
+    return Status::InvalidArgument("mark", "marks are drawn on heatmaps (two axes), not on curves");
   const std::string unit = UnitMarkup(d.unit);
   const std::string label =
       !d.value_label.empty() ? d.value_label : EnhancedText(d.metric) + (unit.empty() ? "" : " [" + unit + "]");

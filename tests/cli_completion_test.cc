@@ -56,6 +56,7 @@ TEST(CliCompletion, BashScriptCompletesCommandsFlagsAndFiles) {
   EXPECT_EQ(Complete({"bistable", "run", "--no-p"}, dir), std::vector<std::string>{"--no-plots"});
   EXPECT_EQ(Complete({"bistable", "query", "abc", "--li"}, dir), std::vector<std::string>{"--limit"});
   EXPECT_EQ(Complete({"bistable", "map", "abc", "--met"}, dir), std::vector<std::string>{"--metric"});
+  EXPECT_EQ(Complete({"bistable", "map", "abc", "--mar"}, dir), (std::vector<std::string>{"--mark", "--marks"}));
   // Every option of a command, flags and options with a value: those of `sweeps` exactly.
   EXPECT_EQ(Complete({"bistable", "sweeps", "--"}, dir),
             (std::vector<std::string>{"--help", "--insecure-remote", "--json", "--coordinator", "--data", "--tls-ca",
@@ -66,6 +67,7 @@ TEST(CliCompletion, BashScriptCompletesCommandsFlagsAndFiles) {
   fs::create_directories(dir + "/data_dir");
   EXPECT_EQ(Complete({"bistable", "run", "my"}, dir), std::vector<std::string>{"my spec.toml"});
   EXPECT_EQ(Complete({"bistable", "sweeps", "--data", "data_"}, dir), std::vector<std::string>{"data_dir"});
+  EXPECT_EQ(Complete({"bistable", "map", "abc", "--marks", "my"}, dir), std::vector<std::string>{"my spec.toml"});
   EXPECT_EQ(Complete({"bistable", "identify", "--data", "-"}, dir), std::vector<std::string>{});
 
   // Another shell: refused, naming the argument and what is supported.

@@ -222,6 +222,110 @@ std::string Repeat(const std::string& s, int n) {
   return out;
 }
 
+// -- Record marks on map figures (`map --mark X,Y,LABEL`, `--marks FILE.csv`): labels reach gnuplot as text,
+// never as code (shown literally in the SVG), and every bound is refused naming its flag. The tiny sweep's
+// figure: omega (horizontal, X) drawn from 0.6 to 1.4, alpha (vertical, Y) from 0.25 to 1.25.
+void AddMarkRows(std::vector<Row>* rows) {
+  const auto marked = [](std::vector<std::string> extra, const std::string& format = "svg") {
+    std::vector<std::string> v = {"--metric", "motion", "--format", format, "--out", "{dir}/marked." + format};
+    v.insert(v.end(), extra.begin(), extra.end());
+    return Map(v);
+  };
+  // Near the left edge, so each label fits on one line (one SVG text) to the right of its point.
+  const std::vector<std::string> labels = {"q\"; system(\"touch pwned\"); print \"",
+                                           "bq `touch pwned` $(touch pwned)",
+                                           "mac @GPVAL_TERM @m; set output '|touch pwned'",
+                                           "{/Symbol a} x^2 y_1 &{w} ~a <b>&amp;</b>",
+                                           "sq ' \\ \\\" \\\\ end \\",
+                                           "oct \\0601 \\140touch pwned\\140 \\\\0140",
+                                           "\xce\xb1\xce\xb2 caf\xc3\xa9 \xe2\x9c\x93 \xe6\x97\xa5"};
+  for (size_t i = 0; i < labels.size(); ++i) {
+    Row r = OnSweep("mark_label_literal_" + std::to_string(i), marked({"--mark", "0.65,0.75," + labels[i]}),
+                    Outcome::kOk, "", {"{dir}/marked.svg"});
+    r.svg = "{dir}/marked.svg";
+    r.svg_has = {labels[i]};  // XML-escaped by the check, as gnuplot writes it
+    rows->push_back(r);
+  }
+  for (const std::string format : {"png", "pdf"})
+    rows->push_back(OnSweep("mark_label_hostile_" + format, marked({"--mark", "0.65,0.75," + labels[0]}, format),
+                            Outcome::kOk, "", {"{dir}/marked." + format}));
+  const struct {
+    std::string name, mark, says;
+  } refused[] = {
+      {"newline_command", "0.65,0.75,a\nset output '|touch pwned'", "character 2 of the label is U+000A"},
+      {"carriage_return", "0.65,0.75,a\rb", "U+000D"},
+      {"escape_sequence", "0.65,0.75,\x1b[2Jx", "U+001B"},
+      {"bidi_override", "0.65,0.75,a \xe2\x80\xae b", "U+202E"},
+      {"not_utf8", "0.65,0.75,a \xff b", "character 3 of the label is not UTF-8"},
+      {"81_characters", "0.65,0.75," + std::string(81, 'x'), "longer than 80 characters (violates label <= 80"},
+      {"x_nan", "nan,0.75,A", "X = 'nan' violates X a finite number"},
+      {"y_huge", "0.65,1e999,A", "Y = '1e999' violates Y a finite number"},
+      {"two_fields", "0.65,0.75", "violates X,Y,LABEL"},
+      {"x_off_range", "2,0.75,far",
+       "X = 2 is outside the figure's horizontal axis omega, drawn from 0.6 to 1.4 (its grid values 0.8 to 1.2 "
+       "and half a grid step beyond); X is on the horizontal axis (omega), Y on the vertical (alpha)"},
+      {"y_off_range", "0.65,1.3,far", "Y = 1.3 is outside the figure's vertical axis alpha, drawn from 0.25 to 1.25"},
+      {"swapped_axes", "0.5,1.2,alpha first", "X = 0.5 is outside the figure's horizontal axis omega"},
+  };
+  for (const auto& r : refused)
+    rows->push_back(OnSweep("mark_refused_" + r.name, marked({"--mark", r.mark}), Outcome::kError, "(mark: --mark '",
+                            {}, {"{dir}/marked.svg"}));
+  for (const auto& r : refused)  // and the message says why
+    rows->push_back(OnSweep("mark_says_" + r.name, marked({"--mark", r.mark}), Outcome::kError, r.says));
+  rows->push_back(OnSweep("mark_on_the_drawn_corners", marked({"--mark", "0.6,0.25,a", "--mark", "1.4,1.25,b"}),
+                          Outcome::kOk, "", {"{dir}/marked.svg"}));
+  rows->push_back(OnSweep("mark_80_characters", marked({"--mark", "0.65,0.75," + std::string(80, 'x')}), Outcome::kOk,
+                          "", {"{dir}/marked.svg"}));
+  rows->push_back(OnSweep("mark_on_csv", Map({"--metric", "motion", "--format", "csv", "--mark", "0.65,0.75,A"}),
+                          Outcome::kError,
+                          "(mark: --mark and --marks draw on a figure: give --format png, svg or pdf"));
+  rows->push_back(OnSweep("mark_on_a_curve",
+                          Map({"--metric", "motion", "--format", "svg", "--at", "alpha=0.5", "--out", "{dir}/c.svg",
+                               "--mark", "0.9,0.5,A"}),
+                          Outcome::kError, "(mark: --mark draws on a heatmap over two free axes; this figure has 1", {},
+                          {"{dir}/c.svg"}));
+  rows->push_back(OnSweep("mark_on_hd_scatter",
+                          Map({"--metric", "hd_scatter", "--at", "alpha=0.5", "--mark", "0.9,0.5,A"}), Outcome::kError,
+                          "not on the hd_scatter figure"));
+  {
+    std::vector<std::string> many;
+    for (int i = 0; i < 201; ++i) many.insert(many.end(), {"--mark", "1,0.75,m" + std::to_string(i)});
+    rows->push_back(OnSweep("mark_201_times", marked(many), Outcome::kError,
+                            "(mark: more than 200 marks (at --mark '1,0.75,m200'"));
+  }
+  // --marks FILE.csv: a header, comments, blank lines, CRLF, CSV quoting; hostile labels literally.
+  {
+    Row r = OnSweep("marks_file_literal", marked({"--marks", "{dir}/m.csv"}), Outcome::kOk, "", {"{dir}/marked.svg"});
+    r.files = {{"{dir}/m.csv",
+                "# where we measured\r\nx,y,label\r\n\r\n0.65,0.5,A: intrawell\r\n  # skipped\n"
+                "0.65,1.0,\"B, run #2 \"\"q\"\" `touch pwned`\"\n"}};
+    r.svg = "{dir}/marked.svg";
+    r.svg_has = {"A: intrawell", "B, run #2 \"q\" `touch pwned`"};
+    rows->push_back(r);
+  }
+  {
+    std::string text = "x,y,label\n";
+    for (int i = 0; i < 200; ++i) text += "1,0.75,m" + std::to_string(i) + "\n";
+    rows->push_back(
+        OnSweep("marks_file_200_rows", marked({"--marks", "{dir}/many.csv"}), Outcome::kOk, "", {"{dir}/marked.svg"})
+            .Files({{"{dir}/many.csv", text}}));
+    rows->push_back(OnSweep("marks_file_201_rows", marked({"--marks", "{dir}/many.csv"}), Outcome::kError,
+                            "(marks: more than 200 marks (at --marks '")
+                        .Files({{"{dir}/many.csv", text + "1,0.75,m200\n"}}));
+    rows->push_back(OnSweep("marks_file_200_rows_and_a_mark",
+                            marked({"--mark", "1,0.75,one", "--marks", "{dir}/many.csv"}), Outcome::kError,
+                            "violate marks <= 200")
+                        .Files({{"{dir}/many.csv", text}}));
+  }
+  rows->push_back(OnSweep("marks_file_bad_row", marked({"--marks", "{dir}/bad.csv"}), Outcome::kError,
+                          "bad.csv' line 3: character 2 of the label is U+001B")
+                      .Files({{"{dir}/bad.csv", "x,y,label\n1,0.75,ok\n1,0.75,a\x1b]0;title\x07\n"}}));
+  rows->push_back(OnSweep("marks_file_missing", marked({"--marks", "{dir}/none.csv"}), Outcome::kError,
+                          "(marks: cannot read marks file '"));
+  rows->push_back(
+      OnSweep("marks_file_is_a_directory", marked({"--marks", "{dir}"}), Outcome::kError, "is not a regular file"));
+}
+
 std::vector<Row> Rows() {
   std::vector<Row> rows;
   // -- 1. The sweep's name in plot titles (gnuplot double-quoted strings), run plots and map plots.
@@ -623,6 +727,7 @@ std::vector<Row> Rows() {
     r.err_lacks = "SECRET";
     rows.push_back(r);
   }
+  AddMarkRows(&rows);
   return rows;
 }
 

@@ -202,6 +202,77 @@ TEST_F(Figures, MotionCodesKeepTheirColoursEvenWhenOneKindIsAbsent) {
   ExpectDrawn(bistable::RenderPlot(d, out), out, 900, 700, {"#2c7bb6", "#fdae61"}, 5000);
 }
 
+// Marks (`bistable map --mark`): a white disc ringed in black on every colour of a categorical map (the four
+// motion codes side by side, a mark on each), labels beside their points and inside the canvas wherever the
+// point sits (the drawn range's corners and edges, 80-character labels wrapped), labels as literal SVG text.
+TEST_F(Figures, MarksReadOnEveryCodeColourAndTheirLabelsStayOnTheCanvas) {
+  bistable::PlotData d = Map("motion", 12);
+  for (int i = 0; i < 144; ++i) d.values.push_back(static_cast<double>(i % 12 / 3) - 1);  // x bands: -1, 0, 1, 2
+  d.codes = bistable::MetricCodes("motion", d.values);
+  ASSERT_EQ(d.codes.size(), 4u);
+  std::vector<std::string> colours;
+  for (const auto& c : d.codes) colours.push_back(c.colour);
+  const auto [x0, x1] = bistable::HeatmapAxisRange(d.axis_values[1]);
+  const auto [y0, y1] = bistable::HeatmapAxisRange(d.axis_values[0]);
+  const double xc = 0.5 * (x0 + x1), yc = 0.5 * (y0 + y1);
+  const std::string long_label = "run 12: 20 mm at 9.5 Hz, chaotic, wrapped wherever it sits on the plot area, ok!";
+  ASSERT_EQ(long_label.size(), 80u);
+  const std::string markup = "{/Symbol a} x^2 y_1 @m \"q\" `b`";
+  bistable::PlotData plain = d;
+  for (const auto& [x, y] : std::vector<std::pair<double, double>>{{x1, y1}, {x0, y1}, {x1, y0}, {xc, y0}})
+    d.marks.push_back({x, y, long_label});
+  d.marks.push_back({x0, y0, "run 3 at the corner: one line on its open side"});
+  d.marks.push_back({xc, y1, markup});
+  for (int k = 0; k < 4; ++k) d.marks.push_back({x0 + (x1 - x0) * (k + 0.5) / 4, yc, ""});  // one on each colour
+  const std::string png = File("marks.png"), bare = File("bare.png");
+  ExpectDrawn(bistable::RenderPlot(d, png), png, 900, 700, colours, 2000);
+  ASSERT_TRUE(bistable::RenderPlot(plain, bare).ok());
+  // The plot area spans x 100..750 px (the legend of codes right of it): band k's centre at 100 + 650 (k + 0.5) / 4.
+  for (int k = 0; k < 4; ++k) {
+    const double cx = (100 + 650 * (k + 0.5) / 4) / 900;
+    const std::string box = std::to_string(cx - 0.03) + " 0.4 " + std::to_string(cx + 0.03) + " 0.6";
+    PngStats with = Stats(png, {"#ffffff", "#000000", colours[k]}, false, box);
+    PngStats without = Stats(bare, {"#ffffff", "#000000", colours[k]}, false, box);
+    SCOPED_TRACE(d.codes[k].name);
+    EXPECT_EQ(without.box["#ffffff"] + without.box["#000000"], 0) << "the bare map has only its colour there";
+    EXPECT_GE(with.box["#ffffff"], 20) << "the white disc";
+    EXPECT_GE(with.box["#000000"], 20) << "the black ring and centre";
+    EXPECT_GE(with.box[colours[k]], 200) << "the map's colour around it";
+  }
+  const std::string svg = File("marks.svg");
+  ASSERT_TRUE(bistable::RenderPlot(d, svg).ok());
+  const std::string text = bistable_test::ReadText(svg);
+  EXPECT_NE(text.find("<text>run 3 at the corner: one line on its open side</text>"), std::string::npos);
+  for (const char* word : {"run 12:", "chaotic,", "wrapped", "area, ok!"})
+    EXPECT_NE(text.find(word), std::string::npos) << word;
+  EXPECT_NE(text.find("<text>{/Symbol a} x^2 y_1 @m \"q\" `b`</text>"), std::string::npos) << "not markup, literally";
+  // Outside the drawn range: refused, naming the flag's field.
+  d.marks = {{x1 + 0.01 * (x1 - x0), yc, "off"}};
+  const bistable::Status off = bistable::RenderPlot(d, File("off.png"));
+  ASSERT_FALSE(off.ok());
+  EXPECT_EQ(off.field(), "mark");
+}
+
+// The widest labels a user may give (80 characters of W, @ or m: about 1200 px in one line) wrap onto as many
+// lines as they need beside their point, wherever it sits, and stay on the canvas.
+TEST_F(Figures, TheWidestMarkLabelsWrapAndStayOnTheCanvas) {
+  bistable::PlotData d = Map("frf_db", 8);
+  for (int i = 0; i < 64; ++i) d.values.push_back(i < 32 ? -10.0 : 10.0);
+  const auto [x0, x1] = bistable::HeatmapAxisRange(d.axis_values[1]);
+  const auto [y0, y1] = bistable::HeatmapAxisRange(d.axis_values[0]);
+  const double xc = 0.5 * (x0 + x1), yc = 0.5 * (y0 + y1);
+  const std::string w(80, 'W'), at = std::string(40, '@') + std::string(40, 'm'), spaced = "WWWW MMMM @@@@ mmmm ";
+  std::string words;
+  for (int i = 0; i < 4; ++i) words += spaced;
+  d.marks = {{xc, yc, w},  {xc, y1, at}, {xc, y0, words}, {x0, yc, w},
+             {x1, yc, at}, {x0, y0, w},  {x1, y1, words}, {0.5 * (xc + x1), 0.5 * (yc + y1), w}};
+  const std::string png = File("wide.png");
+  ExpectDrawn(bistable::RenderPlot(d, png), png, 900, 700, {"#2166ac", "#b2182b"}, 2000);
+  const std::string pdf = File("wide.pdf");
+  ASSERT_TRUE(bistable::RenderPlot(d, pdf).ok());
+  EXPECT_GT(fs::file_size(pdf), 1000u);
+}
+
 TEST_F(Figures, CurvesShowEverySeries) {
   bistable::PlotData d;
   d.title = "stepped sine";
