@@ -62,6 +62,7 @@ class DimensionalModel {
 
   DimensionalModel(DimensionalParams p, BaseMotion base) : p_(p), base_(std::move(base)) {}
   int dim() const { return 4; }
+  int tangent_dims() const { return p_.has_resonator ? 4 : 2; }
   const DimensionalParams& params() const { return p_; }
 
   void operator()(double t, const State& x, State& dx) const;
@@ -136,6 +137,7 @@ struct DimensionalLaneModel {
     explicit Lanes(const Input& in)
         : p_(in.params), fric_m_(p_.fric_m), fric_r_(p_.fric_r), inv_m_m_(1.0 / p_.m_m), inv_m_r_(1.0 / p_.m_r) {}
     int dim() const { return kDim; }
+    int tangent_dims() const { return p_.has_resonator ? 4 : 2; }
     void Load(int, const Input&) {}
 
     BISTABLE_INLINE void Eval(const V* x, V f, V* dx, Jac* j) const { EvalWith<false>(x, f, dx, j, nullptr); }

@@ -40,6 +40,7 @@
 #include "dynamics/lane_buf.h"
 #include "dynamics/lane_run.h"
 #include "dynamics/lanes.h"
+#include "dynamics/ode.h"
 #include "dynamics/series_model.h"
 #include "dynamics/term_model.h"
 #include "dynamics/window_recorder.h"
@@ -76,10 +77,11 @@ class EnsembleGeneric {
       k.amp[l] = li.amp;
       k.rot_c[l] = std::cos(0.5 * li.omega * k.h);
       k.rot_s[l] = std::sin(0.5 * li.omega * k.h);
+      const int td = TangentDims(m, dim);
       for (int d = 0; d < dim; ++d) {
         st.x[d][l] = li.x0[d];
-        // Fixed, generic initial tangent direction (as the cell kernel's).
-        st.w[d][l] = 1.0 / std::sqrt(static_cast<double>(dim)) * (d % 2 == 0 ? 1.0 : -1.0);
+        // Fixed, generic initial tangent direction (as the cell kernel's), on the model's tangent components.
+        st.w[d][l] = d < td ? 1.0 / std::sqrt(static_cast<double>(td)) * (d % 2 == 0 ? 1.0 : -1.0) : 0.0;
       }
     }
     WindowRecorder<2, W> rec(base_amp, omega, s.h, s.n_keep, s.sample_every, s.keep_samples, s.keep_rows,

@@ -248,9 +248,11 @@ class EnsembleRosenbrock {
     // The largest step: the stage polynomials' phase range, and 4 output steps (the output points'
     // cubic Hermite interpolation keeps the method's own order of error).
     st->h_max[l] = tol.fixed_step > 0 ? tol.fixed_step : std::min(kMaxPhasePerStep / in.omega, 4.0 * s.h);
+    const int td = in.params.has_resonator ? kD : 2;  // TangentDims of the rig (dimensional_model.h)
     for (int d = 0; d < kD; ++d) {
       st->x[d][l] = in.x0[d];
-      st->w[d][l] = 0.5;  // (1, 1, 1, 1)/√4: the adaptive path's start (generic_point.h)
+      // (1, 1, 1, 1)/√4, or (1, 1, 0, 0)/√2 without a resonator: the adaptive path's start (generic_point.h)
+      st->w[d][l] = d < td ? 1.0 / std::sqrt(static_cast<double>(td)) : 0.0;
     }
     st->h[l] = tol.fixed_step > 0 ? tol.fixed_step : 0.1 * s.h;
     st->accepted[l] = st->tried[l] = 0.0;

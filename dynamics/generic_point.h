@@ -43,7 +43,9 @@ RawLane RunGenericWindow(const System& sys, const Eigen::VectorXd& x0, const Gen
   TangentSystem<System> tan(sys);
   Eigen::VectorXd z(2 * n), zi(2 * n);
   z.head(n) = x0;
-  z.tail(n).setConstant(1.0 / std::sqrt(static_cast<double>(n)));
+  const int td = TangentDims(sys, n);  // dimensional_model.h
+  z.tail(n).setZero();
+  z.tail(n).head(td).setConstant(1.0 / std::sqrt(static_cast<double>(td)));
   WindowRecorder<2, 1> rec(&w.amp, &w.omega, w.dt, n_keep, w.sample_every, w.keep_samples, w.keep_rows, w.strobe_phase);
   RawLane raw;
   Vec<1> xp[2], dp[2], x1[2], d1[2];

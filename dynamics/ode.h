@@ -6,6 +6,7 @@
 // and, for stiff solvers and tangent-linear Lyapunov exponents,
 //   using Jacobian = Eigen::Matrix<double, N, N>;
 //   void Jac(double t, const State& x, Jacobian& J, State& dfdt) const;     J = ∂f/∂x, dfdt = ∂f/∂t
+// and optionally int tangent_dims() const (TangentDims below).
 // Integrators never know which model they run.
 #ifndef BISTABLE_DYNAMICS_ODE_H_
 #define BISTABLE_DYNAMICS_ODE_H_
@@ -16,6 +17,18 @@
 #include <Eigen/Dense>
 
 namespace bistable {
+
+// The state components a model's tangent starts on (Benettin's LLE): a model that declares tangent_dims()
+// (the rig or a term model without a resonator: 2 of its 4) starts its tangent on those only, the rest 0 —
+// components whose tangent equations are dw = 0 would otherwise hold a constant floor under |w|, and a regular
+// orbit's LLE read 0 instead of its negative rate. Others: every component.
+template <class M>
+int TangentDims(const M& m, int dim) {
+  if constexpr (requires { m.tangent_dims(); })
+    return m.tangent_dims();
+  else
+    return dim;
+}
 
 // How an adaptive integration ended (non-convergence is a result, not an error).
 enum class OdeTermination { kOk, kStepSizeUnderflow, kMaxSteps, kNonFinite };

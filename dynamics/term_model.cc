@@ -85,6 +85,30 @@ int TermModel::IndexOf(const std::string& name) const {
   return it == names.end() ? -1 : static_cast<int>(it - names.begin());
 }
 
+StatusOr<TermModel> TermModel::FromCell(ModelKind kind, const NondimParams& p) {
+  if (!IsCellModel(kind))
+    return Status::InvalidArgument("model", std::string(ModelName(kind)) +
+                                                " is not a cell: a series chain has N bodies in a row (a term model "
+                                                "has two), the dimensional rig is FromDimensional");
+  TermModel m;
+  m.m_main = 1.0;
+  std::vector<std::pair<const char*, double>> terms = {{"main.linear", IsBistable(kind) ? -1.0 : 1.0}};
+  if (IsBistable(kind)) terms.push_back({"main.stiffness_y3", p.eps});
+  terms.push_back({"main.viscous", p.eta});
+  if (::bistable::HasResonator(kind)) {
+    m.m_res = p.phi;
+    terms.push_back({"res.linear", p.phi * p.lambda * p.lambda});
+    terms.push_back({"res.viscous", p.phi * p.eta_r});
+  }
+  for (const auto& [id, value] : terms) {
+    auto t = FindTerm(id);
+    if (!t.ok()) return t.status();
+    m.terms.push_back(*t);
+    m.theta.push_back(value);
+  }
+  return m;
+}
+
 StatusOr<TermModel> TermModel::FromDimensional(const DimensionalParams& p) {
   if (p.has_resonator && (p.fric_r.v_sp != p.fric_m.v_sp || p.fric_r.v_t != p.fric_m.v_t))
     return Status::InvalidArgument("friction",
@@ -157,7 +181,7 @@ std::vector<double> TermRestStates(const TermModel& m, const double* th) {
   std::vector<double> rest = {0.0};
   for (double sign : {1.0, -1.0}) {
     double q0 = 0, f0 = 0, unused;
-    for (double a = 1e-6; a <= 1.0; a *= 1.2) {
+    for (double a = 1e-6; a <= 1e3; a *= 1.2) {  // 1 µm to 1 km: rigs in m, the cells in δ-units (wells ~1)
       double f;
       TermForce(m, Body::kMain, th, sign * a, 0.0, &f, &unused, &unused);
       if (q0 != 0 && (f > 0) != (f0 > 0)) {

@@ -23,6 +23,7 @@
 #include "base/status.h"
 #include "dynamics/dimensional_model.h"
 #include "dynamics/lanes.h"
+#include "dynamics/point_spec.h"
 #include "dynamics/terms.h"
 
 namespace bistable {
@@ -43,6 +44,13 @@ struct TermModel {
   // damping_y2 and friction on each body (the resonator's without a cubic spring). InvalidArgument when the
   // two bodies' friction laws have different v_sp or v_t (a term model has one pair).
   static StatusOr<TermModel> FromDimensional(const DimensionalParams& p);
+  // A cell of the paper's non-dimensional models (standalone, coupled, linear, linear-coupled; docs/model.md) as
+  // terms, in its own units (time τ, lengths in δ-units, masses per m_m): main.linear −1 (+1 for a linear beam),
+  // main.stiffness_y3 ε (bistable), main.viscous η, and with the resonator (z = y_r − y_m, m_res = φ)
+  // res.linear φλ², res.viscous φη_r. A term sweep at a0_mm = 1000 α, f0_hz = Ω/2π then runs the cell's point.
+  // Series chains are not two-body models (N bodies in a row): InvalidArgument, as for the dimensional rig
+  // (FromDimensional).
+  static StatusOr<TermModel> FromCell(ModelKind kind, const NondimParams& p);
 };
 
 // Refuses what the lane model cannot run: no terms, a term that is not a force of the main body or the
@@ -54,13 +62,13 @@ Status ValidateTermModel(const TermModel& m);
 // F (main body) or G (resonator) of a term model at (q, v) with parameters th, and its slopes.
 void TermForce(const TermModel& m, Body body, const double* th, double q, double v, double* f, double* fq, double* fv);
 // The rest states of the main body: the origin and every zero of F(q, 0) found on a log grid of |q| from
-// 1 µm to 1 m (bisected to 1e-9 relative), ascending.
+// 1 µm to 1 km (bisected to 1e-9 relative), ascending.
 std::vector<double> TermRestStates(const TermModel& m, const double* th);
 // The positive well: the smallest positive rest state where ∂F/∂q > 0 (a stable equilibrium), 0 when there is
 // none (a monostable model; its lanes start at the origin).
 double TermWell(const TermModel& m, const double* th);
 // RK4 steps per output step dt: the Jacobian's spectral radius ρ at the rest states (the origin and every
-// zero of F(q, 0) found on a log grid of |q| from 1 µm to 1 m), h ≤ 2/ρ — the rig's rule (Rk4Substeps).
+// zero of F(q, 0) found on a log grid of |q| from 1 µm to 1 km), h ≤ 2/ρ — the rig's rule (Rk4Substeps).
 int TermRk4Substeps(const TermModel& m, const double* th, double dt);
 
 // The lane kernel's form of a term (TermLaneModel): per lane, a few coefficients made from the term's
@@ -118,6 +126,7 @@ struct TermLaneModel {
       k_.resize(coef);
     }
     int dim() const { return kDim; }
+    int tangent_dims() const { return res_ ? 4 : 2; }
     void Load(int l, const Input& in) {
       const double* th = in.theta ? in.theta : in.model->theta.data();
       for (const std::vector<Term>* body : {&main_, &resonator_})

@@ -18,7 +18,8 @@ BootstrapResult BootstrapFit(const IdentModel& m, const FitResult& fit, const st
   b.twins = twins;
   b.gauss_newton_sigma = fit.sigma;
   const double horizon = fo.objective == Objective::kShooting ? fo.shooting_horizon_s : 0.0;
-  std::vector<std::vector<PreparedRecord>> sets = TwinRecords(m, fit.theta, recs, setup, twins, horizon);
+  std::vector<std::vector<PreparedRecord>> sets =
+      TwinRecords(m, fit.theta, recs, setup, twins, horizon, TwinNoise::kResidualBlocks);
   if (sets.empty()) {
     b.note = setup.input == InputKind::kForce ? "a force input cannot be recorded again (no twin records)"
              : setup.output == OutputKind::kVelocity && setup.frame == OutputFrame::kRelative

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <complex>
 #include <cstdio>
 #include <cstdlib>
@@ -237,9 +238,27 @@ Predictability TestPredictability(const IdentModel& m, const std::vector<double>
   return p;
 }
 
+// A moving-block bootstrap of a residual series: blocks of 2τ samples (τ its correlation time, CorrelationTime;
+// at least 1, at most a quarter of the series) from uniform starts, laid end to end, so that the resampled series
+// keeps the residual's level and its correlation over short lags. Empty for an empty or non-finite series.
+static std::vector<double> BlockResampled(const std::vector<double>& res, std::mt19937_64& rng) {
+  const size_t n = res.size();
+  if (n < 8 || !std::all_of(res.begin(), res.end(), [](double v) { return std::isfinite(v); })) return {};
+  const double tau = CorrelationTime(res.data(), n, std::min<size_t>(2000, n / 2));
+  const size_t len = std::clamp<size_t>(static_cast<size_t>(std::lround(2 * tau)), 1, n / 4);
+  std::uniform_int_distribution<size_t> start(0, n - len);
+  std::vector<double> out;
+  out.reserve(n);
+  while (out.size() < n) {
+    const size_t b = start(rng);
+    for (size_t j = 0; j < len && out.size() < n; ++j) out.push_back(res[b + j]);
+  }
+  return out;
+}
+
 std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const std::vector<double>& th,
                                                      const std::vector<PreparedRecord>& recs, const Setup& setup,
-                                                     int twins, double shooting_horizon_s) {
+                                                     int twins, double shooting_horizon_s, TwinNoise kind) {
   std::vector<std::vector<PreparedRecord>> out;
   if (setup.input == InputKind::kForce ||
       (setup.output == OutputKind::kVelocity && setup.frame == OutputFrame::kRelative))
@@ -261,6 +280,7 @@ std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const 
   }
   // Per record and output slot: the noise put on the twin's output (see the header).
   std::vector<std::array<double, kOutputSlots>> noise(recs.size());
+  std::vector<std::array<std::vector<double>, kOutputSlots>> resid(recs.size());  // kind kResidualBlocks
   for (size_t i = 0; i < recs.size(); ++i) {
     const PreparedRecord& r = recs[i];
     SimOutputs shot;
@@ -278,6 +298,7 @@ std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const 
       const std::vector<double>& meas = r.Measured(slot);
       std::vector<double> res(r.n());
       for (size_t j = 0; j < r.n(); ++j) res[j] = meas[j] - model.out[k][j];
+      if (kind == TwinNoise::kResidualBlocks) resid[i][static_cast<size_t>(k)] = res;
       const double s_res = NoiseLevel(res, r.dt);
       if (std::isfinite(s_res) && s_res > 0 && !(s_res >= noise[i][static_cast<size_t>(k)]))
         noise[i][static_cast<size_t>(k)] = s_res;
@@ -293,14 +314,20 @@ std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const 
       rec.name = r.name + " (twin " + std::to_string(k + 1) + ")";
       rec.dt = r.dt;
       const double s_in = NoiseLevel(r.input, r.dt), s_out = noise[i][0], s_res = noise[i][1], s_v = noise[i][2];
+      // kResidualBlocks: each output's error is the record's own residual, resampled in blocks (below).
+      std::array<std::vector<double>, kOutputSlots> blocks;
+      if (kind == TwinNoise::kResidualBlocks)
+        for (int s = 0; s < kOutputSlots; ++s) blocks[s] = BlockResampled(resid[i][s], rng);
+      auto err = [&](int slot, double sigma, size_t j) {
+        if (!blocks[slot].empty()) return blocks[slot][j];
+        return (std::isfinite(sigma) ? sigma : 0.0) * unit(rng);
+      };
       for (size_t j = 0; j < r.n(); ++j) {
         rec.t.push_back(r.t0 + r.dt * static_cast<double>(j));
         rec.input.push_back(clean[i][j] + (std::isfinite(s_in) ? s_in : 0.0) * unit(rng));
-        rec.output.push_back(sims[i].out[0][j] + (std::isfinite(s_out) ? s_out : 0.0) * unit(rng));
-        if (r.Has(OutputSlot::kResonator))
-          rec.resonator.push_back(sims[i].out[1][j] + (std::isfinite(s_res) ? s_res : 0.0) * unit(rng));
-        if (r.Has(OutputSlot::kVoltage))
-          rec.voltage.push_back(sims[i].out[2][j] + (std::isfinite(s_v) ? s_v : 0.0) * unit(rng));
+        rec.output.push_back(sims[i].out[0][j] + err(0, s_out, j));
+        if (r.Has(OutputSlot::kResonator)) rec.resonator.push_back(sims[i].out[1][j] + err(1, s_res, j));
+        if (r.Has(OutputSlot::kVoltage)) rec.voltage.push_back(sims[i].out[2][j] + err(2, s_v, j));
       }
       auto p = PrepareRecord(rec, setup, 0, rec.t.size(), r.f_cut, rec.name);
       if (!p.ok()) return {};

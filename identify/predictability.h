@@ -96,9 +96,16 @@ double HorizonError(const IdentModel& m, const std::vector<double>& th, const Pr
 // fitted on short horizons (> 0, chaotic or horizon_s > 0), else over its whole simulation. A chaotic output is
 // broadband: its own level read 0.0557 and 0.0625 mm for 0.05 mm of noise, twins that noisy were whiter than the
 // record (predictable share 0.26 and 0.19 against 0.37), and two null records were called `unexplained`.
+//
+// kResidualBlocks (the bootstrap's twins, identify/bootstrap.h): each output's error is instead the record's own
+// residual against the model (the same simulation as above: whole, or over segments from fitted states),
+// resampled in blocks of twice its correlation time — where the model lacks something, the twins carry that
+// misfit as error, at its level and correlation, and not only the sensor's noise.
+enum class TwinNoise { kNoiseLevel, kResidualBlocks };
 std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const std::vector<double>& th,
                                                      const std::vector<PreparedRecord>& recs, const Setup& setup,
-                                                     int twins, double shooting_horizon_s = 0);
+                                                     int twins, double shooting_horizon_s = 0,
+                                                     TwinNoise kind = TwinNoise::kNoiseLevel);
 
 // Changes of well of a relative displacement series y between wells at ±well (hysteresis: a change counts
 // when y passes the other well's half depth, ∓well/2).
