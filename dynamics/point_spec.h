@@ -15,9 +15,11 @@ namespace bistable {
 
 // Bumped whenever a change can alter any stored number; part of every result's provenance and content key.
 inline constexpr const char* kNumericsVersion =
-    "1.5.0";  // 1.3.1: diverged points' extremes and energies NaN, not 0; 1.4.0: settled labels (a mode; metrics
+    "1.6.0";  // 1.3.1: diverged points' extremes and energies NaN, not 0; 1.4.0: settled labels (a mode; metrics
               // settle_time, lle_sigma, label_confidence, chaos_01); 1.5.0: the rig's (model = "dimensional") default
-              // integrator is ROS34PW2 in lanes, rtol 5e-6 (was Dormand–Prince, rtol 1e-6)
+              // integrator is ROS34PW2 in lanes, rtol 5e-6 (was Dormand–Prince, rtol 1e-6); 1.6.0: a rig or term
+              // model without a resonator starts its tangent on (y, y') (its LLE read 0), term forces in the lane
+              // form (rounding), term wells sought to |q| = 1 km
 
 // The models of the project (docs/model.md). The first four are the non-dimensional cells that a point,
 // HBM, a chirp and the SIMD kernel run; series chains and the dimensional rig run in sweeps only, through

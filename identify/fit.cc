@@ -589,15 +589,28 @@ double FitStages::LocalStage(std::vector<double>& u, Objective obj, double horiz
 // J does not determine to working precision (s_i ≤ s_max · max(rows, cols) · ε) keeps the variance of that floor,
 // 1/floor², rather than the pseudo-inverse's 0: a parameter the data leave undetermined reads as very uncertain,
 // never as exact.
+// A J that determines nothing (all zero, or not finite) gives an infinite diagonal: σ = ∞, said as such; so does a
+// floor whose square overflows. Fewer rows than columns: the directions J leaves free (V's last columns) keep the
+// floor's variance too.
 Eigen::MatrixXd GaussNewtonInverse(const Eigen::MatrixXd& j) {
-  const Eigen::BDCSVD<Eigen::MatrixXd> svd(j, Eigen::ComputeThinV);
+  const long p = j.cols();
+  auto undetermined = [p] {
+    Eigen::MatrixXd c = Eigen::MatrixXd::Zero(p, p);
+    c.diagonal().setConstant(std::numeric_limits<double>::infinity());
+    return c;
+  };
+  if (!j.allFinite()) return undetermined();
+  const Eigen::BDCSVD<Eigen::MatrixXd> svd(j, Eigen::ComputeFullV);
   const Eigen::VectorXd& sv = svd.singularValues();
   const double top = sv.size() ? sv.maxCoeff() : 0.0;
-  const double floor =
-      std::max(top * static_cast<double>(std::max(j.rows(), j.cols())) * std::numeric_limits<double>::epsilon(),
-               std::numeric_limits<double>::min());
-  Eigen::VectorXd inv(sv.size());
-  for (long i = 0; i < sv.size(); ++i) inv[i] = 1.0 / (std::max(sv[i], floor) * std::max(sv[i], floor));
+  if (!(top > 0)) return undetermined();
+  const double floor = top * static_cast<double>(std::max(j.rows(), p)) * std::numeric_limits<double>::epsilon();
+  Eigen::VectorXd inv(p);
+  for (long i = 0; i < p; ++i) {
+    const double s = std::max(i < sv.size() ? sv[i] : 0.0, floor);
+    inv[i] = 1.0 / (s * s);
+  }
+  if (!inv.allFinite()) return undetermined();
   return svd.matrixV() * inv.asDiagonal() * svd.matrixV().transpose();
 }
 

@@ -258,7 +258,7 @@ static std::vector<double> BlockResampled(const std::vector<double>& res, std::m
 
 std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const std::vector<double>& th,
                                                      const std::vector<PreparedRecord>& recs, const Setup& setup,
-                                                     int twins, double shooting_horizon_s, TwinNoise kind) {
+                                                     int twins, double shooting_horizon_s, TwinNoise kind, int first) {
   std::vector<std::vector<PreparedRecord>> out;
   if (setup.input == InputKind::kForce ||
       (setup.output == OutputKind::kVelocity && setup.frame == OutputFrame::kRelative))
@@ -304,7 +304,7 @@ std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const 
         noise[i][static_cast<size_t>(k)] = s_res;
     }
   }
-  for (int k = 0; k < twins; ++k) {
+  for (int k = first; k < first + twins; ++k) {
     std::mt19937_64 rng(0x7e57 + 7919 * static_cast<unsigned>(k));
     std::normal_distribution<double> unit(0.0, 1.0);
     std::vector<PreparedRecord> set;

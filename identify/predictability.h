@@ -101,11 +101,13 @@ double HorizonError(const IdentModel& m, const std::vector<double>& th, const Pr
 // residual against the model (the same simulation as above: whole, or over segments from fitted states),
 // resampled in blocks of twice its correlation time — where the model lacks something, the twins carry that
 // misfit as error, at its level and correlation, and not only the sensor's noise.
+// `first`: the index of the first twin made (twin k's noise depends on k alone: twins first … first + twins − 1 are
+// those of a call that made them all).
 enum class TwinNoise { kNoiseLevel, kResidualBlocks };
 std::vector<std::vector<PreparedRecord>> TwinRecords(const IdentModel& m, const std::vector<double>& th,
                                                      const std::vector<PreparedRecord>& recs, const Setup& setup,
                                                      int twins, double shooting_horizon_s = 0,
-                                                     TwinNoise kind = TwinNoise::kNoiseLevel);
+                                                     TwinNoise kind = TwinNoise::kNoiseLevel, int first = 0);
 
 // Changes of well of a relative displacement series y between wells at ±well (hysteresis: a change counts
 // when y passes the other well's half depth, ∓well/2).
