@@ -48,6 +48,10 @@ struct DimensionalParams {
   double c2_r = 38.7e3;  // N s/m³
   Stribeck fric_r{1.4, 0.59};
 
+  // The state components the Benettin tangent starts on (ode.h, TangentDims): (y, y', z, z'), or (y, y') alone
+  // without a resonator — the one rule of the rig's RK4, Rosenbrock and adaptive paths.
+  int TangentDims() const { return has_resonator ? 4 : 2; }
+
   // Paper Table 2 presets, with the paper's v_sp = 0.002 m/s, v_t = 0.001 m/s.
   static DimensionalParams BistableTable2();
   static DimensionalParams LinearTable2();
@@ -62,7 +66,7 @@ class DimensionalModel {
 
   DimensionalModel(DimensionalParams p, BaseMotion base) : p_(p), base_(std::move(base)) {}
   int dim() const { return 4; }
-  int tangent_dims() const { return p_.has_resonator ? 4 : 2; }
+  int tangent_dims() const { return p_.TangentDims(); }
   const DimensionalParams& params() const { return p_; }
 
   void operator()(double t, const State& x, State& dx) const;
@@ -137,7 +141,7 @@ struct DimensionalLaneModel {
     explicit Lanes(const Input& in)
         : p_(in.params), fric_m_(p_.fric_m), fric_r_(p_.fric_r), inv_m_m_(1.0 / p_.m_m), inv_m_r_(1.0 / p_.m_r) {}
     int dim() const { return kDim; }
-    int tangent_dims() const { return p_.has_resonator ? 4 : 2; }
+    int tangent_dims() const { return p_.TangentDims(); }
     void Load(int, const Input&) {}
 
     BISTABLE_INLINE void Eval(const V* x, V f, V* dx, Jac* j) const { EvalWith<false>(x, f, dx, j, nullptr); }

@@ -248,7 +248,7 @@ class EnsembleRosenbrock {
     // The largest step: the stage polynomials' phase range, and 4 output steps (the output points'
     // cubic Hermite interpolation keeps the method's own order of error).
     st->h_max[l] = tol.fixed_step > 0 ? tol.fixed_step : std::min(kMaxPhasePerStep / in.omega, 4.0 * s.h);
-    const int td = in.params.has_resonator ? kD : 2;  // TangentDims of the rig (dimensional_model.h)
+    const int td = in.params.TangentDims();
     for (int d = 0; d < kD; ++d) {
       st->x[d][l] = in.x0[d];
       // (1, 1, 1, 1)/√4, or (1, 1, 0, 0)/√2 without a resonator: the adaptive path's start (generic_point.h)

@@ -32,6 +32,21 @@ inline T EachLane(T x, F f) {
   }
 }
 
+// The law in lanes from its coefficients — a_vsp = (F_s − F_c tanh(v_sp/v_t))/v_sp, two_a_vsp = 2 a_vsp, F_c,
+// F_c/v_t, the same in every lane for the rig (Stribeck::Lanes) and per lane for a term model (term_model.h) — and
+// the constants −1/(2 v_sp²) and 1/v_t: F_f and dF_f/dv. The hump's exponent x = 1/2 − u²/2 (u = v/v_sp) is one
+// fused multiply-add and its slope factor 1 − u² = 2x: 10 multiplications and fused multiply-adds besides Exp and
+// Tanh (the rig's step is bound by the multiply-add units: docs/numerics.md).
+template <int W>
+BISTABLE_INLINE void StribeckLawLanes(Vec<W> v, Vec<W> a_vsp, Vec<W> two_a_vsp, Vec<W> f_c, Vec<W> f_c_vt,
+                                      double neg_half_inv_vsp2, double inv_vt, Vec<W>* force, Vec<W>* slope) {
+  const Vec<W> x = Fma(v * neg_half_inv_vsp2, v, Splat<W>(0.5));
+  const Vec<W> e = Exp<W>(x);
+  const Vec<W> th = Tanh<W>(v * inv_vt);
+  *force = Fma(f_c, th, (v * a_vsp) * e);
+  *slope = Fma(e * two_a_vsp, x, f_c_vt * Fma(-th, th, Splat<W>(1.0)));
+}
+
 // scale · g(v), evaluated as (scale · v/v_sp) · exp(1/2 − v²/(2 v_sp²)) (scale = 1: g itself, exactly).
 inline double StribeckHump(double scale, double v, double v_sp) {
   const double u = v / v_sp;
@@ -98,18 +113,11 @@ struct Stribeck {
       }
       Law<W>(v, force, slope);
     }
-    // The law itself, also for a body without friction (the skip's test compares the two).
-    // The hump's exponent x = 1/2 − u²/2 (u = v/v_sp) as one fused multiply-add, its slope factor
-    // 1 − u² = 2x: 10 multiplications and fused multiply-adds per call besides Exp and Tanh (the rig's
-    // step is bound by the multiply-add units: docs/numerics.md).
+    // The law itself (StribeckLawLanes), also for a body without friction (the skip's test compares the two).
     template <int W>
     BISTABLE_INLINE void Law(Vec<W> v, Vec<W>* force, Vec<W>* slope) const {
-      const Vec<W> one = Splat<W>(1.0);
-      const Vec<W> x = HumpExponent<W>(v);
-      const Vec<W> e = Exp<W>(x);
-      const Vec<W> th = Tanh<W>(v * inv_vt);
-      *force = Fma(Splat<W>(f_c), th, (v * a_vsp) * e);
-      *slope = Fma(e * two_a_vsp, x, f_c_vt * Fma(-th, th, one));
+      StribeckLawLanes<W>(v, Splat<W>(a_vsp), Splat<W>(two_a_vsp), Splat<W>(f_c), Splat<W>(f_c_vt), neg_half_inv_vsp2,
+                          inv_vt, force, slope);
     }
     template <int W>
     BISTABLE_INLINE Vec<W> HumpExponent(Vec<W> v) const {

@@ -212,11 +212,10 @@ struct TermLaneModel {
             sum = Fma(k[0] * v, av, sum), sv = Fma(k[1], av, sv);
             break;
           }
-          case TermKind::kFriction: {  // Stribeck::Lanes::Law with per-lane hump scale and Coulomb level
-            const V x = Fma(v * fric_.neg_half_inv_vsp2, v, Splat<W>(0.5));
-            const V e = Exp<W>(x), th = Tanh<W>(v * fric_.inv_vt);
-            sum = sum + Fma(k[2], th, (v * k[0]) * e);
-            sv = sv + Fma(e * k[1], x, k[3] * Fma(-th, th, Splat<W>(1.0)));
+          case TermKind::kFriction: {  // the rig's law with a per-lane hump scale and Coulomb level
+            V ff, fs;
+            StribeckLawLanes<W>(v, k[0], k[1], k[2], k[3], fric_.neg_half_inv_vsp2, fric_.inv_vt, &ff, &fs);
+            sum = sum + ff, sv = sv + fs;
             break;
           }
           case TermKind::kBias:
